@@ -113,9 +113,8 @@ def _matrix(name, A, shape=None):
     if shape is not None:
         for ax, (want, got) in enumerate(zip(shape, A.shape)):
             if want is not None and want != got:
-                raise ValueError(f"{name} must have shape "
-                                 f"{tuple('*' if s is None else s for s in shape)}, "
-                                 f"got {A.shape}")
+                want_s = ", ".join("*" if s is None else str(s) for s in shape)
+                raise ValueError(f"{name} must have shape ({want_s}), got {A.shape}")
     if not np.all(np.isfinite(A)):
         raise ValueError(f"{name} must be finite, got non-finite entries")
     return A
