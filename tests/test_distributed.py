@@ -1,0 +1,372 @@
+"""Tests of observers.distributed (paper 003, Silm et al. 2020)."""
+import warnings
+
+import networkx as nx
+import numpy as np
+import pytest
+import scipy.linalg as sla
+
+from observers import distributed as dist
+from observers.distributed import (
+    check_network, choose_alpha, design, example_system, graph_matrices, hurwitz_coefficients,
+    lmi11, luenberger_gain, observability_decomposition, observer_canonical_form,
+    proposition1_lyapunov, proposition2_bound, random_system, signed_power,
+    split_vector_outputs)
+
+SEEDS = [0, 1, 2, 3]
+
+
+def _random_design(seed, **kw):
+    N = 3 + seed % 6
+    A, C, G = random_system(N, seed, graph="random" if seed % 2 else "ring")
+    return design(A, C, G, nodelist=range(N), warn=False, **kw)
+
+
+@pytest.fixture(scope="module")
+def example():
+    A, C, G = example_system()
+    return design(A, C, G, nodelist=[1, 2, 3, 4])
+
+
+# --------------------------------------------------------------------------
+# Notation and graph
+# --------------------------------------------------------------------------
+def test_signed_power_keeps_sign():
+    a = np.array([-8.0, 0.0, 4.0])
+    np.testing.assert_allclose(signed_power(a, [1 / 3, 0.5, 0.5]), [-2.0, 0.0, 2.0])
+    np.testing.assert_allclose(signed_power(a, 1.0), a)
+
+
+def test_graph_matrices_edge_direction_and_rows():
+    # edge j -> i: node i receives from j, so a_ij = 1 (row i, column j)
+    G = nx.DiGraph([("b", "a"), ("c", "a"), ("a", "c")])
+    gm = graph_matrices(G, nodelist=["a", "b", "c"])
+    np.testing.assert_array_equal(gm.adjacency, [[0, 1, 1], [0, 0, 0], [1, 0, 0]])
+    np.testing.assert_array_equal(np.diag(gm.degree), [2, 0, 1])  # in-degrees
+    np.testing.assert_array_equal(gm.laplacian.sum(axis=1), 0)
+    # decision: L = D - A (the paper's text writes A - D)
+    np.testing.assert_array_equal(gm.laplacian, gm.degree - gm.adjacency)
+    # the node order is the explicit nodelist
+    gm2 = graph_matrices(G, nodelist=["c", "b", "a"])
+    P = np.eye(3)[[2, 1, 0]]
+    np.testing.assert_array_equal(gm2.laplacian, P @ gm.laplacian @ P.T)
+    # networkx's DiGraph Laplacian uses out-degrees: not ours
+    assert not np.array_equal(
+        nx.laplacian_matrix(G, nodelist=["a", "b", "c"]).toarray(), gm.laplacian)
+
+
+def test_laplacian_spectrum_and_consensus_pulls_together():
+    # Appendix: one zero eigenvalue, the others with positive real part;
+    # xdot = -L x (the consensus term of (3)) contracts the spread of x.
+    for seed in SEEDS:
+        _, _, G = random_system(3 + seed, seed, graph="random")
+        Lap = graph_matrices(G).laplacian
+        ev = np.sort_complex(np.linalg.eigvals(Lap))
+        assert abs(ev[0]) < 1e-12 and np.all(ev[1:].real > 1e-9)
+        x0 = np.random.default_rng(seed).standard_normal(Lap.shape[0])
+        x1 = sla.expm(-Lap * 20.0) @ x0
+        assert np.ptp(x1) < 1e-3 * np.ptp(x0)
+
+
+def test_graph_bad_input():
+    with pytest.raises(TypeError, match="G must be a networkx.DiGraph"):
+        graph_matrices(nx.Graph([(0, 1)]))
+    with pytest.raises(TypeError, match="MultiDiGraph"):
+        graph_matrices(nx.MultiDiGraph([(0, 1)]))
+    with pytest.raises(ValueError, match="self-loops"):
+        graph_matrices(nx.DiGraph([(0, 1), (1, 1)]))
+    with pytest.raises(ValueError, match="nodelist must list every node"):
+        graph_matrices(nx.DiGraph([(0, 1)]), nodelist=[0, 2])
+    with pytest.raises(ValueError, match="at least one node"):
+        graph_matrices(nx.DiGraph())
+
+
+# --------------------------------------------------------------------------
+# Network conditions (Assumption 1, Theorem 1, Remark 1)
+# --------------------------------------------------------------------------
+def test_check_network_example():
+    A, C, G = example_system()
+    chk = check_network(A, C, G, nodelist=[1, 2, 3, 4])
+    assert chk.strongly_connected and chk.jointly_observable
+    assert chk.locally_observable == []
+
+
+def test_check_network_failures_and_warning():
+    A, C, G = example_system()
+    with pytest.raises(ValueError, match="not jointly observable"):
+        check_network(A, {1: C[1], 2: C[2], 3: C[1], 4: C[2]}, G, nodelist=[1, 2, 3, 4])
+    # not strongly connected: source component {1, 2} (2 <-> 1) cannot observe
+    H = nx.DiGraph([(1, 2), (2, 1), (2, 3), (3, 4), (4, 3)])
+    with pytest.raises(ValueError, match=r"source component \[1, 2\]"):
+        check_network(A, C, H, nodelist=[1, 2, 3, 4])
+    # Remark 1: a jointly observable source component is enough
+    H2 = nx.DiGraph([(1, 3), (3, 1), (3, 2), (2, 4)])
+    chk = check_network(A, C, H2, nodelist=[1, 2, 3, 4])
+    assert not chk.strongly_connected and chk.source_components == [[1, 3]]
+    # a locally observable node: warning, not an error
+    Cobs = dict(C)
+    Cobs[3] = np.ones((1, 6))
+    with pytest.warns(UserWarning, match=r"observable for nodes \[3\]"):
+        chk = check_network(A, Cobs, G, nodelist=[1, 2, 3, 4])
+    assert chk.locally_observable == [3]
+    with pytest.raises(ValueError, match="one output matrix per node: expected 4, got 3"):
+        check_network(A, [C[1], C[2], C[3]], G, nodelist=[1, 2, 3, 4])
+    with pytest.raises(ValueError, match=r"C\[1\] must have 6 columns"):
+        check_network(A, {k: np.ones((1, 5)) for k in C}, G)
+    with pytest.raises(ValueError, match="C has no output matrix for nodes"):
+        check_network(A, {1: C[1]}, G)
+    with pytest.raises(ValueError, match="A must be a square"):
+        check_network(np.ones((2, 3)), C, G)
+
+
+# --------------------------------------------------------------------------
+# Observability decomposition (2) and canonical form (Section 3.1)
+# --------------------------------------------------------------------------
+def _structured_pair(seed, no=2, nu_=3):
+    """A = S [[A1, 0], [A21, A2]] S^-1, C = [c1, 0] S^-1: known invariants."""
+    rng = np.random.default_rng(seed)
+    A1 = rng.standard_normal((no, no))
+    A2 = rng.standard_normal((nu_, nu_))
+    A = np.block([[A1, np.zeros((no, nu_))], [rng.standard_normal((nu_, no)), A2]])
+    S = rng.standard_normal((no + nu_, no + nu_)) + 3 * np.eye(no + nu_)
+    C = np.hstack([rng.standard_normal((1, no)), np.zeros((1, nu_))])
+    return S @ A @ np.linalg.inv(S), C @ np.linalg.inv(S), A1, A2
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_decomposition_invariants(seed):
+    A, C, A1, A2 = _structured_pair(seed)
+    d = observability_decomposition(A, C)
+    assert (d.n_o, d.n_u) == (2, 3)
+    np.testing.assert_allclose(d.T.T @ d.T, np.eye(5), atol=1e-12)        # orthogonal
+    np.testing.assert_allclose(C @ d.T_u, 0, atol=1e-10)                   # C T_u = 0
+    np.testing.assert_allclose(d.T_o.T @ A @ d.T_u, 0, atol=1e-9)          # block (1,2) of (2)
+    np.testing.assert_allclose(np.sort_complex(np.linalg.eigvals(d.A_o)),
+                               np.sort_complex(np.linalg.eigvals(A1)), atol=1e-8)
+    np.testing.assert_allclose(np.sort_complex(np.linalg.eigvals(d.A_u)),
+                               np.sort_complex(np.linalg.eigvals(A2)), atol=1e-8)
+    np.testing.assert_allclose(d.C_o @ d.T_o.T, C, atol=1e-12)
+
+
+def test_decomposition_example_spectra(example):
+    # nodes 1, 2 observe (x1, x4) with eigenvalues -1, 1; nodes 3, 4 miss one mode
+    A = example.A
+    assert example.n_o == [2, 2, 5, 5]
+    for d in example.decomp:
+        both = np.concatenate([np.linalg.eigvals(d.A_o), np.linalg.eigvals(d.A_u)])
+        np.testing.assert_allclose(np.sort_complex(both),
+                                   np.sort_complex(np.linalg.eigvals(A)), atol=1e-9)
+    for d in example.decomp[:2]:
+        np.testing.assert_allclose(np.sort(np.linalg.eigvals(d.A_o).real), [-1, 1], atol=1e-12)
+    with pytest.raises(ValueError, match=r"rtol must be in \(0, 1\)"):
+        observability_decomposition(A, example.C[0], rtol=0)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_canonical_form(seed):
+    rng = np.random.default_rng(seed)
+    n = 2 + seed
+    A_o, C_o = rng.standard_normal((n, n)), rng.standard_normal((1, n))
+    Theta, p = observer_canonical_form(A_o, C_o)
+    I_chain = np.eye(n, k=1)
+    e1 = np.eye(n)[:1]
+    np.testing.assert_allclose(np.linalg.solve(Theta, A_o @ Theta), I_chain - np.outer(p, e1),
+                               atol=1e-8)
+    np.testing.assert_allclose(C_o @ Theta, e1, atol=1e-10)
+    np.testing.assert_allclose(np.poly(A_o)[1:], p, atol=1e-10)
+
+
+def test_canonical_form_bad_input():
+    with pytest.raises(ValueError, match=r"exactly one row \(scalar output\)"):
+        observer_canonical_form(np.eye(2), np.eye(2))
+    with pytest.raises(ValueError, match="must be observable"):
+        observer_canonical_form(np.diag([1.0, 2.0]), [[1.0, 0.0]])
+    with pytest.raises(ValueError, match="A_o must be a square"):
+        observer_canonical_form(np.ones((2, 3)), [[1.0, 0.0]])
+
+
+def test_luenberger_gains_place_poles():
+    rng = np.random.default_rng(5)
+    A_o, C1 = rng.standard_normal((3, 3)), rng.standard_normal((1, 3))
+    # repeated pole -3 of multiplicity 3 (scalar output): char. poly (s+3)^3
+    L = luenberger_gain(A_o, C1, [-3, -3, -3])
+    np.testing.assert_allclose(np.poly(A_o - L @ C1), np.poly([-3, -3, -3]), atol=1e-8)
+    C2 = rng.standard_normal((2, 3))
+    L2 = luenberger_gain(A_o, C2, [-1, -2, -3])
+    np.testing.assert_allclose(np.sort(np.linalg.eigvals(A_o - L2 @ C2).real), [-3, -2, -1],
+                               atol=1e-8)
+    with pytest.raises(ValueError, match="poles must have 3 entries; got 2"):
+        luenberger_gain(A_o, C1, [-1, -2])
+    with pytest.raises(ValueError, match="negative real parts"):
+        hurwitz_coefficients([-1, 1])
+
+
+# --------------------------------------------------------------------------
+# Proposition 2
+# --------------------------------------------------------------------------
+def test_proposition2_bound_and_example_verdict(example):
+    L = hurwitz_coefficients([-3, -3])
+    eta, nu_min, Q = proposition2_bound(L)
+    n = 2
+    F = np.eye(n, k=1) - np.outer(L, np.eye(n)[0])
+    P = sla.solve_continuous_lyapunov(F.T, -Q)
+    assert np.linalg.eigvalsh(P)[0] == pytest.approx(1.0)       # P >= I, tight
+    assert eta > 0 and nu_min == pytest.approx(-eta / (n * (np.sqrt(n) + eta)))
+    eta_opt, nu_opt, _ = proposition2_bound(L, optimize=True)
+    assert eta_opt >= eta - 1e-12
+    # The example's nu = -0.1 is NOT inside Proposition 2's sufficient range
+    # (the bound is conservative; the simulations below show convergence anyway)
+    assert not np.any(example.meets_proposition2)
+    assert np.all(example.nu_min > -0.01)
+    with pytest.raises(ValueError, match="Hurwitz polynomial"):
+        proposition2_bound([1.0, -1.0])
+    with pytest.raises(ValueError, match=r"Q must have shape \(2, 2\)"):
+        proposition2_bound(L, Q=np.eye(3))
+    with pytest.raises(ValueError, match="Q must be positive definite"):
+        proposition2_bound(L, Q=-np.eye(2))
+    with pytest.raises(ValueError, match="Q must be diagonal"):
+        proposition2_bound(L, Q=np.ones((2, 2)) + np.eye(2), optimize=True)
+
+
+# --------------------------------------------------------------------------
+# Design and the error system (6)
+# --------------------------------------------------------------------------
+def _direct_network_error_matrix(d):
+    """Stack (3) directly: e^i' = A e^i - T_o L C e^i - a_i T_u T_u^T sum_j a_ij (e^i - e^j)."""
+    n, N = d.n, d.N
+    Adj = d.graph.adjacency
+    F = np.zeros((N * n, N * n))
+    for i, (dec, Ll) in enumerate(zip(d.decomp, d.L_lin)):
+        rows = slice(i * n, (i + 1) * n)
+        F[rows, rows] += d.A - dec.T_o @ Ll @ d.C[i]
+        Pu = d.alpha[i] * dec.T_u @ dec.T_u.T
+        for j in range(N):
+            if Adj[i, j]:
+                F[rows, rows] -= Pu
+                F[rows, j * n:(j + 1) * n] += Pu
+    return F
+
+
+@pytest.mark.parametrize("seed", [None] + SEEDS)
+def test_error_system_6_matches_stacked_observer_3(seed, example):
+    # Validates the sign decision L = D - A and T_u^T (A kron I) T_o in (6).
+    d = example if seed is None else _random_design(seed, kind="linear", alpha=2.0)
+    F = _direct_network_error_matrix(d)
+    W = np.vstack([d.bold_T_o.T, d.bold_T_u.T])
+    np.testing.assert_allclose(W @ W.T, np.eye(W.shape[0]), atol=1e-12)
+    np.testing.assert_allclose(W @ F @ W.T, d.error_matrix(), atol=1e-9)
+
+
+def test_linear_gain_equals_nu0_form_of_7(example):
+    # Decision 4: with nu = 0, (7) is (4) with L_o = Theta (L - p)
+    for d, Th, p, L, Ll in zip(example.decomp, example.Theta, example.p, example.L,
+                               example.L_lin):
+        At = Th @ np.eye(d.n_o, k=1) @ np.linalg.inv(Th)
+        np.testing.assert_allclose(d.A_o, At - np.outer(Th @ p, d.C_o), atol=1e-8)
+        np.testing.assert_allclose(np.poly(d.A_o - Ll @ d.C_o), np.poly(np.full(d.n_o, -3.0)),
+                                   rtol=1e-6, atol=1e-6)
+        assert L == pytest.approx(hurwitz_coefficients(np.full(d.n_o, -3.0)))
+
+
+def test_design_bad_input(example):
+    A, C, G = example_system()
+    nl = [1, 2, 3, 4]
+    with pytest.raises(ValueError, match="kind must be 'finite-time' or 'linear'"):
+        design(A, C, G, nl, kind="fast")
+    with pytest.raises(ValueError, match="alpha must be positive"):
+        design(A, C, G, nl, alpha=[1, 1, 0, 1])
+    with pytest.raises(ValueError, match=r"alpha must be a scalar or have shape \(4,\)"):
+        design(A, C, G, nl, alpha=[1, 1])
+    with pytest.raises(ValueError, match=r"beta must be in \(0, 1\)"):
+        design(A, C, G, nl, beta=1.0)
+    with pytest.raises(ValueError, match=r"nu for node 3 must lie in \(-1/n_i, 0\]"):
+        design(A, C, G, nl, nu=-0.25)
+    with pytest.raises(ValueError, match="poles for node 1 must have 2 entries; got 3"):
+        design(A, C, G, nl, poles={1: [-1, -2, -3], 2: -3, 3: -3, 4: -3})
+    Cv = dict(C)
+    Cv[1] = np.vstack([C[1], C[3]])
+    with pytest.raises(ValueError, match="needs scalar outputs; use split_vector_outputs"):
+        design(A, Cv, G, nl)
+    # the linear observer (3) accepts the vector output
+    dl = design(A, Cv, G, nl, kind="linear", warn=False, poles={1: [-3, -3.5, -4, -4.5, -5, -5.5],
+                                                     2: -3, 3: -3, 4: -3})
+    assert np.max(np.linalg.eigvals(dl.error_matrix()).real) < 0
+
+
+def test_split_vector_outputs():
+    A, C, G = example_system()
+    Cv = {1: np.vstack([C[1], C[3]]), 2: C[2], 4: C[4], 3: C[3]}
+    G2, C2, groups = split_vector_outputs(G, Cv, nodelist=[1, 2, 3, 4])
+    assert groups[1] == [(1, 0), (1, 1)] and groups[2] == [2]
+    assert nx.is_strongly_connected(G2)
+    assert G2.has_edge((1, 0), (1, 1)) and G2.has_edge((1, 1), (1, 0))
+    assert G2.has_edge(4, (1, 0)) and G2.has_edge((1, 1), 2)
+    d = design(A, C2, G2, warn=False)
+    assert all(Ci.shape[0] == 1 for Ci in d.C)
+
+
+# --------------------------------------------------------------------------
+# Proposition 1 and LMI (11)
+# --------------------------------------------------------------------------
+@pytest.mark.parametrize("seed", [None] + SEEDS)
+def test_proposition1_diagonal_lyapunov(seed, example):
+    d = example if seed is None else _random_design(seed)
+    P, margin = proposition1_lyapunov(d)
+    assert np.count_nonzero(P - np.diag(np.diag(P))) == 0 and np.all(np.diag(P) > 0)
+    assert np.linalg.eigvalsh(d.M.T @ P + P @ d.M)[0] > 0 and margin > 0
+    # hence -M is Hurwitz
+    assert np.max(np.linalg.eigvals(-d.M).real) < 0
+    P2, _ = proposition1_lyapunov(d, method="lmi")
+    assert np.linalg.eigvalsh(d.M.T @ P2 + P2 @ d.M)[0] > 0
+
+
+def test_proposition1_remark1_graph():
+    A, C, _ = example_system()
+    H = nx.DiGraph([(1, 3), (3, 1), (3, 2), (2, 4)])
+    d = design(A, C, H, nodelist=[1, 2, 3, 4])
+    with pytest.raises(ValueError, match="needs a strongly connected graph"):
+        proposition1_lyapunov(d)
+    P, _ = proposition1_lyapunov(d, method="lmi")
+    assert np.linalg.eigvalsh(d.M.T @ P + P @ d.M)[0] > 0
+    with pytest.raises(ValueError, match="method must be 'appendix' or 'lmi'"):
+        proposition1_lyapunov(d, method="x")
+
+
+def test_lmi11_example_alpha10_feasible(example):
+    # Section 4: alpha_i = 10 passes (11) (verified by eigenvalues of Phi)
+    res = lmi11(example, 10.0)
+    assert res.feasible and res.max_eig_Phi < 0 and res.min_eig_vars > 0
+    B = res.M1.T @ res.Lambda + res.P @ res.M2 + res.Upsilon
+    Phi = np.block([[res.M1.T @ res.P + res.P @ res.M1, B],
+                    [B.T, res.M2.T @ res.Lambda + res.Lambda @ res.M2]])
+    assert np.linalg.eigvalsh(Phi)[-1] < 0
+    # M1 = S + alpha M2 (proof of Theorem 1)
+    M = example.M
+    S = M @ example.bold_A_u @ np.linalg.inv(M)
+    np.testing.assert_allclose(res.M1, S + 10.0 * res.M2, atol=1e-9)
+    alpha, res2 = choose_alpha(example)
+    assert alpha <= 10.0 and res2.feasible
+    with pytest.raises(ValueError, match="alpha must be positive"):
+        lmi11(example, -1.0)
+    with pytest.raises(ValueError, match="candidates must be positive"):
+        choose_alpha(example, candidates=[0.0, 1.0])
+    with pytest.raises(ValueError, match="LMI \\(11\\) infeasible for every alpha"):
+        choose_alpha(example, candidates=[1e-3])
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_lmi11_random_feasible_for_large_alpha(seed):
+    # Theorem 1's proof: (11) holds for alpha large enough
+    d = _random_design(seed)
+    alpha, res = choose_alpha(d)
+    assert res.feasible and res.max_eig_Phi < 0
+    assert np.max(np.linalg.eigvals(res.M1).real) < 0
+
+
+def test_random_system_bad_input():
+    with pytest.raises(ValueError, match="N must be an integer >= 2"):
+        random_system(1)
+    with pytest.raises(ValueError, match="graph must be 'ring' or 'random'"):
+        random_system(3, graph="star")
+    with pytest.raises(ValueError, match="n_blocks must be >= 2"):
+        random_system(3, n_blocks=1)
