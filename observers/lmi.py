@@ -446,8 +446,10 @@ def check_gain_lmi10(L, mu, gamma1, *, solver="CLARABEL", rtol=1e-7):
     -------
     dict
         ``feasible`` (bool: sigma* >= 1, verified by eigenvalues at sigma = 1 when
-        True), ``sigma`` (largest verified sigma found, to 1e-4), ``P`` (a verified P
-        at that sigma), ``alpha`` (its sqrt condition number).
+        True), ``sigma`` (largest verified sigma found, to 1e-4), ``P`` (when
+        feasible: the P of smallest condition number satisfying (10) with Y = P L;
+        otherwise the one at the largest sigma found), ``alpha`` (its
+        ``sqrt(lambda_max/lambda_min)``, the alpha of Proposition 4).
     """
     L = np.asarray(L, dtype=float).ravel()
     if L.size < 2 or not np.all(np.isfinite(L)):
@@ -494,8 +496,8 @@ def check_gain_lmi10(L, mu, gamma1, *, solver="CLARABEL", rtol=1e-7):
         else:
             lo, best = mid, Pm
     feasible = P1 is not None
-    if feasible and lo < 1.0:
-        lo, best = 1.0, P1
+    if feasible:
+        best = P1           # the least-conditioned P of (10) itself (sigma = 1)
     eig = np.linalg.eigvalsh(best)
     return {"feasible": feasible, "sigma": lo, "P": best,
             "alpha": float(np.sqrt(eig[-1] / eig[0]))}
