@@ -1,0 +1,29 @@
+"""hybridsim: simulation of hybrid dynamical systems H = (C, f, D, g).
+
+The public face: :class:`HybridSystem` (the data), :func:`simulate` (one run),
+:class:`HybridArc` (its solution on a hybrid time domain), interconnections
+(:func:`connect`, :class:`Interconnection`, :func:`network`,
+:class:`LinearPlant`), batches (:func:`simulate_many`, :func:`sweep`) and plots
+in hybrid time (:func:`plot_flows`, :func:`plot_jumps`, :func:`plot_hybrid`,
+:func:`plot_phase`, :func:`plot_time_domain`). Theorem-check helpers live in
+:mod:`hybridsim.testing`.
+"""
+from .arc import HybridArc, Termination
+from .system import HybridSystem
+from .solve import simulate, MapError, SimulationError, METHODS
+from .history import History, HistoryError
+from .compose import Interconnection, LinearPlant, connect, network
+from .batch import simulate_many, sweep
+from .plot import plot_flows, plot_jumps, plot_hybrid, plot_phase, plot_time_domain
+from . import testing
+
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "HybridSystem", "HybridArc", "Termination", "simulate", "MapError",
+    "SimulationError", "METHODS", "History", "HistoryError",
+    "Interconnection", "LinearPlant", "connect", "network",
+    "simulate_many", "sweep",
+    "plot_flows", "plot_jumps", "plot_hybrid", "plot_phase", "plot_time_domain",
+]

@@ -1,0 +1,375 @@
+"""Interconnections: plants feeding observers, feedback loops, networks over graphs."""
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from .history import ComponentHistory
+from .system import HybridSystem, as_map
+
+__all__ = ["Interconnection", "LinearPlant", "connect", "network"]
+
+
+def _matrix(name, M, shape=None):
+    M = np.atleast_2d(np.asarray(M, dtype=float))
+    if M.ndim != 2:
+        raise ValueError(f"{name} must be a 2-D matrix, got {M.ndim} dimensions")
+    if shape is not None:
+        exp = tuple(s if s is not None else M.shape[k] for k, s in enumerate(shape))
+        if M.shape != exp:
+            raise ValueError(f"{name} must have shape {exp}, got {M.shape}")
+    if not np.all(np.isfinite(M)):
+        raise ValueError(f"{name} must be finite")
+    return M
+
+
+class LinearPlant(HybridSystem):
+    r"""A linear plant :math:`\dot x = Ax + Bu + d(t)`, :math:`y = Cx + Du + m(t)`.
+
+    Parameters
+    ----------
+    A : array_like (n, n), or an object with attributes ``A, B, C, D``
+        State matrix, or a state-space object (e.g. python-control's
+        ``StateSpace``; python-control is not imported).
+    B : array_like (n, m), optional
+    C : array_like (p, n), optional
+        Output matrix (default: the identity, y = x).
+    D : array_like (p, m), optional
+        Feedthrough (default 0). Must be 0 when u comes from an
+        interconnection (outputs may not depend on inputs).
+    u : callable, optional
+        Exogenous input ``u(t) -> (m,)``. When B is given and u is None, the
+        plant has ``input_dim = m`` and takes u from an interconnection.
+    noise : callable, optional
+        Measurement noise ``m(t) -> (p,)`` added to the output.
+    disturbance : callable, optional
+        Process disturbance ``d(t) -> (n,)`` added to the flow.
+    """
+
+    def __init__(self, A, B=None, C=None, D=None, *, u=None, noise=None, disturbance=None):
+        if all(hasattr(A, k) for k in ("A", "B", "C", "D")):
+            ss = A
+            A, B, C, D = ss.A, ss.B if B is None else B, ss.C if C is None else C, \
+                ss.D if D is None else D
+        A = _matrix("A", A)
+        n = A.shape[0]
+        if A.shape != (n, n):
+            raise ValueError(f"A must be square, got shape {A.shape}")
+        self.A = A
+        self.B = None if B is None else _matrix("B", np.reshape(B, (n, -1)) if np.ndim(B) == 1 else B, (n, None))
+        m = 0 if self.B is None else self.B.shape[1]
+        self.C = np.eye(n) if C is None else _matrix("C", C, (None, n))
+        p = self.C.shape[0]
+        self.D = np.zeros((p, m)) if D is None else _matrix("D", D, (p, m))
+        for name, fn in (("u", u), ("noise", noise), ("disturbance", disturbance)):
+            if fn is not None and not callable(fn):
+                raise TypeError(f"{name} must be a callable of t, got {type(fn).__name__}")
+        if u is not None and self.B is None:
+            raise ValueError("u is given but B is None: pass B (n, m) with the input")
+        self.u = u
+        self.noise = noise
+        self.disturbance = disturbance
+        self.state_dim = n
+        self.output_dim = p
+        self.input_dim = m if (self.B is not None and u is None) else 0
+        if self.input_dim and np.any(self.D != 0):
+            raise ValueError("D must be zero when the plant's input comes from an "
+                             "interconnection (outputs may not depend on inputs); pass u=callable "
+                             "for an exogenous input")
+        self._check_signal("u", u, m)
+        self._check_signal("noise", noise, p)
+        self._check_signal("disturbance", disturbance, n)
+
+    @staticmethod
+    def _check_signal(name, fn, dim):
+        if fn is None:
+            return
+        v = np.atleast_1d(np.asarray(fn(0.0), dtype=float))
+        if v.shape != (dim,):
+            raise ValueError(f"{name}(t) must return shape ({dim},), got {v.shape}")
+
+    def flow_map(self, x, t, j, u):
+        dx = self.A @ x
+        if self.B is not None:
+            uu = self.u(t) if self.u is not None else u
+            dx = dx + self.B @ np.atleast_1d(uu)
+        if self.disturbance is not None:
+            dx = dx + self.disturbance(t)
+        return dx
+
+    def output(self, x, t, j):
+        y = self.C @ x
+        if self.u is not None and self.B is not None:
+            y = y + self.D @ np.atleast_1d(self.u(t))
+        if self.noise is not None:
+            y = y + self.noise(t)
+        return y
+
+
+class _Outputs(Mapping):
+    """Lazy ``{name: output}`` of an interconnection at one (x, t, j)."""
+
+    __slots__ = ("_ic", "_x", "_t", "_j", "_cache")
+
+    def __init__(self, ic, x, t, j):
+        self._ic, self._x, self._t, self._j = ic, x, t, j
+        self._cache = {}
+
+    def __getitem__(self, name):
+        c = self._cache
+        if name in c:
+            return c[name]
+        try:
+            sl = self._ic._slices[name]
+        except KeyError:
+            raise KeyError(f"no component named {name!r}; have {list(self._ic._slices)}") from None
+        y = self._ic._h[name](self._x[sl], self._t, self._j, None)
+        c[name] = y
+        return y
+
+    def __iter__(self):
+        return iter(self._ic._slices)
+
+    def __len__(self):
+        return len(self._ic._slices)
+
+
+class Interconnection(HybridSystem):
+    """Several hybrid systems with one state vector, wired output to input.
+
+    Parameters
+    ----------
+    systems : dict
+        ``{name: HybridSystem}``, in the order their states are stacked.
+    inputs : dict, optional
+        ``{name: callable(t, y) -> u}`` for each component with an input,
+        where ``y`` maps every component's name to its output at the current
+        (x, t, j). Exogenous signals are plain functions of t inside it.
+    name : str, optional
+
+    Notes
+    -----
+    * The components flow together: the flow map stacks theirs.
+    * x is in C when every component is in its flow set; x is in D when some
+      component is in its jump set.
+    * At a jump of the interconnection, every component in its jump set
+      jumps at once (simultaneously, each from the pre-jump values); the
+      others keep their state. The interconnection's j counts all jumps,
+      and each component's maps receive that j.
+    * ``arc.component(name)`` (or ``arc[name]``) gives a component's part.
+    * There is no cap on the number of components.
+    """
+
+    def __init__(self, systems, inputs=None, *, name=None):
+        if not isinstance(systems, Mapping) or not systems:
+            raise TypeError("systems must be a non-empty dict {name: HybridSystem}")
+        inputs = {} if inputs is None else dict(inputs)
+        self.systems = dict(systems)
+        self._slices = {}
+        k = 0
+        for nm, s in self.systems.items():
+            if not isinstance(s, HybridSystem):
+                raise TypeError(f"systems[{nm!r}] must be a HybridSystem, got {type(s).__name__}")
+            s._compile()
+            self._slices[nm] = slice(k, k + int(s.state_dim))
+            k += int(s.state_dim)
+        for nm in inputs:
+            if nm not in self.systems:
+                raise ValueError(f"inputs: {nm!r} is not a component; have {list(self.systems)}")
+            if not callable(inputs[nm]):
+                raise TypeError(f"inputs[{nm!r}] must be a callable (t, y) -> u")
+        for nm, s in self.systems.items():
+            if int(s.input_dim or 0) > 0 and nm not in inputs:
+                raise ValueError(f"inputs: component {nm!r} has input_dim={s.input_dim} "
+                                 "but no entry in inputs")
+        self.inputs = inputs
+        self.components = dict(self._slices)
+        self.state_dim = k
+        self.input_dim = 0
+        self._name = name
+        c = {nm: s._compile() for nm, s in self.systems.items()}
+        self._f = {nm: c[nm].f for nm in c}
+        self._g = {nm: c[nm].g for nm in c}
+        self._C = {nm: c[nm].C for nm in c if c[nm].has_C}
+        self._D = {nm: c[nm].D for nm in c if c[nm].has_D}
+        self._h = {nm: c[nm].h for nm in c}
+        self._hD = {nm: c[nm].hD for nm in self._D}
+        self._hC = {nm: c[nm].hC for nm in self._C}
+        hints = [s.max_step for s in self.systems.values() if s.max_step is not None]
+        self.max_step = min(hints) if hints else None
+        self.needs_history = any(s.needs_history for s in self.systems.values())
+        # composite guards only where every relevant component has one
+        if self._D and all(h is not None for h in self._hD.values()):
+            self.jump_guard = self._jump_guard
+        if self._C and all(h is not None for h in self._hC.values()):
+            self.flow_guard = self._flow_guard
+        self._items = [(nm, self._slices[nm], self._f[nm], inputs.get(nm)) for nm in self.systems]
+
+    # -- wiring --------------------------------------------------------------
+    def _u(self, name, x, t, j, y=None):
+        fn = self.inputs.get(name)
+        if fn is None:
+            return None
+        return fn(t, _Outputs(self, x, t, j) if y is None else y)
+
+    def _input_of(self, name, x, t, j):
+        return self._u(name, x, t, j)
+
+    def output(self, x, t, j):
+        return x
+
+    def outputs(self, x, t=0.0, j=0):
+        """``{name: output}`` of every component at (x, t, j)."""
+        y = _Outputs(self, np.asarray(x, dtype=float), t, j)
+        return {nm: y[nm] for nm in self.systems}
+
+    # -- data ------------------------------------------------------------------
+    def flow_map(self, x, t, j, u=None):
+        y = _Outputs(self, x, t, j)
+        out = np.empty(self.state_dim)
+        for nm, sl, f, ufn in self._items:
+            out[sl] = f(x[sl], t, j, None if ufn is None else ufn(t, y))
+        return out
+
+    def _in(self, table, x, t, j, y):
+        fn = table
+        for nm, test in fn.items():
+            yield nm, test(x[self._slices[nm]], t, j, self._u(nm, x, t, j, y))
+
+    def flow_set(self, x, t, j, u=None):
+        y = _Outputs(self, x, t, j)
+        return all(v for _, v in self._in(self._C, x, t, j, y))
+
+    def jump_set(self, x, t, j, u=None):
+        y = _Outputs(self, x, t, j)
+        return any(v for _, v in self._in(self._D, x, t, j, y))
+
+    def jump_map(self, x, t, j, u=None):
+        y = _Outputs(self, x, t, j)
+        xn = np.array(x, dtype=float)
+        for nm, inD in list(self._in(self._D, x, t, j, y)):
+            if inD:
+                sl = self._slices[nm]
+                xn[sl] = self._g[nm](x[sl], t, j, self._u(nm, x, t, j, y))
+        return xn
+
+    def _jump_guard(self, x, t, j, u=None):
+        y = _Outputs(self, x, t, j)
+        return max(float(np.min(h(x[self._slices[nm]], t, j, self._u(nm, x, t, j, y))))
+                   for nm, h in self._hD.items())
+
+    def _flow_guard(self, x, t, j, u=None):
+        y = _Outputs(self, x, t, j)
+        return min(float(np.min(h(x[self._slices[nm]], t, j, self._u(nm, x, t, j, y))))
+                   for nm, h in self._hC.items())
+
+    @property
+    def has_jumps(self):
+        return bool(self._D)
+
+    @property
+    def has_flow_boundary(self):
+        return bool(self._C)
+
+    def _bind_history(self, history):
+        self.history = history
+        for nm, s in self.systems.items():
+            s._bind_history(ComponentHistory(history, self._slices[nm], self, nm))
+
+    def split(self, x):
+        """``{name: part}`` of a stacked state x (shape (n,) or (N, n))."""
+        x = np.asarray(x)
+        return {nm: x[..., sl] for nm, sl in self._slices.items()}
+
+    def stack(self, **parts):
+        """The stacked state from ``name=part`` keyword arguments (all components)."""
+        missing = [nm for nm in self.systems if nm not in parts]
+        if missing:
+            raise ValueError(f"stack: missing parts for components {missing}")
+        out = np.empty(self.state_dim)
+        for nm, sl in self._slices.items():
+            v = np.atleast_1d(np.asarray(parts[nm], dtype=float))
+            if v.shape != (sl.stop - sl.start,):
+                raise ValueError(f"stack: part {nm!r} must have shape ({sl.stop - sl.start},), "
+                                 f"got {v.shape}")
+            out[sl] = v
+        return out
+
+
+def connect(plant, observer, names=("plant", "observer")):
+    """The cascade plant -> observer: the observer's input is the plant's output.
+
+    Parameters
+    ----------
+    plant : HybridSystem
+        A system without input (exogenous signals inside it).
+    observer : HybridSystem
+        A system whose ``input_dim`` equals the plant's output dimension.
+    names : (str, str)
+        Component names in the interconnection (and its arcs).
+    """
+    p, o = names
+    if int(plant.input_dim or 0) > 0:
+        raise ValueError(f"plant has input_dim={plant.input_dim}: connect() wires only the "
+                         "plant's output; use Interconnection with inputs for a feedback loop")
+    return Interconnection({p: plant, o: observer}, inputs={o: lambda t, y: y[p]})
+
+
+def network(G, systems, inputs, *, nodelist=None, exogenous=None):
+    """An interconnection of one component per node of a directed graph.
+
+    Parameters
+    ----------
+    G : networkx.DiGraph
+        Edge i -> k: node k receives node i's output.
+    systems : dict or callable
+        ``{node: HybridSystem}``, or ``node -> HybridSystem``.
+    inputs : callable
+        ``inputs(node, t, received, exo) -> u`` where ``received`` maps each
+        in-neighbour of ``node`` to its output and ``exo`` maps each
+        exogenous component's name to its output.
+    nodelist : list, optional
+        Order of the nodes in the stacked state (default: ``list(G)``).
+    exogenous : dict, optional
+        ``{name: HybridSystem}`` simulated alongside the nodes (a plant),
+        stacked first. Their names must differ from the nodes'.
+
+    Returns
+    -------
+    Interconnection
+        Its components are the exogenous systems and the nodes.
+    """
+    try:
+        import networkx as nx
+    except ImportError as e:  # pragma: no cover
+        raise ImportError("network() needs networkx") from e
+    if not isinstance(G, nx.DiGraph):
+        raise TypeError(f"G must be a networkx.DiGraph, got {type(G).__name__}")
+    if not callable(inputs):
+        raise TypeError("inputs must be a callable (node, t, received, exo) -> u")
+    nodes = list(G) if nodelist is None else list(nodelist)
+    if set(nodes) != set(G) or len(nodes) != len(G):
+        raise ValueError("nodelist must list every node of G exactly once")
+    exogenous = {} if exogenous is None else dict(exogenous)
+    clash = set(exogenous) & set(nodes)
+    if clash:
+        raise ValueError(f"exogenous names clash with node names: {sorted(map(str, clash))}")
+    comps = dict(exogenous)
+    for v in nodes:
+        s = systems(v) if callable(systems) and not isinstance(systems, Mapping) else systems[v]
+        comps[v] = s
+    exo_names = list(exogenous)
+    preds = {v: list(G.predecessors(v)) for v in nodes}
+
+    def make(v):
+        pv = preds[v]
+
+        def u(t, y):
+            return inputs(v, t, {i: y[i] for i in pv}, {e: y[e] for e in exo_names})
+        return u
+    wiring = {v: make(v) for v in nodes if int(comps[v].input_dim or 0) > 0}
+    ic = Interconnection(comps, wiring)
+    ic.graph = G
+    ic.nodelist = nodes
+    return ic

@@ -1,0 +1,236 @@
+"""Hybrid systems H = (C, f, D, g): the data the engine simulates."""
+from __future__ import annotations
+
+import inspect
+
+import numpy as np
+
+__all__ = ["HybridSystem", "as_map"]
+
+
+def _arity(fn) -> int:
+    """Number of leading positional arguments ``fn`` accepts (4 for ``*args``)."""
+    try:
+        sig = inspect.signature(fn)
+    except (TypeError, ValueError):  # builtins, numpy ufuncs
+        return 1
+    n = 0
+    for p in sig.parameters.values():
+        if p.kind == p.VAR_POSITIONAL:
+            return 4
+        if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD):
+            n += 1
+    return n
+
+
+def as_map(fn, name: str):
+    """Wrap a user map written as ``fn(x)``, ``fn(x, t)``, ``fn(x, t, j)`` or
+    ``fn(x, t, j, u)`` into a callable of ``(x, t, j, u)``.
+
+    Parameters
+    ----------
+    fn : callable
+        The user's map or set indicator.
+    name : str
+        Its role (``"flow_map"``...), used in error messages.
+    """
+    if fn is None:
+        return None
+    if not callable(fn):
+        raise TypeError(f"{name} must be callable, got {type(fn).__name__}")
+    k = _arity(fn)
+    if k <= 1:
+        return lambda x, t, j, u: fn(x)
+    if k == 2:
+        return lambda x, t, j, u: fn(x, t)
+    if k == 3:
+        return lambda x, t, j, u: fn(x, t, j)
+    if k == 4:
+        return fn
+    raise TypeError(f"{name} must take (x), (x, t), (x, t, j) or (x, t, j, u); "
+                    f"got a callable with {k} positional arguments")
+
+
+class HybridSystem:
+    r"""A hybrid system with data (C, f, D, g), an optional input u and output y.
+
+    .. math::  \dot x = f(x, t, j, u),\ x \in C; \qquad x^+ = g(x, t, j, u),\ x \in D.
+
+    Subclass it and override what you need, or build one from plain functions
+    with :meth:`from_functions`. The contract, as numbered rules:
+
+    1. ``state_dim`` (int) is the length n of the state. ``input_dim`` is the
+       length of the input u (0: no input; the maps then receive ``u=None``).
+    2. ``flow_map(x, t, j, u)`` returns an (n,) array: the flow f. Default: no
+       flow map (a system that must flow raises).
+    3. ``jump_map(x, t, j, u)`` returns an (n,) array: the jump g. It receives
+       the pre-jump j; the sample after the jump has j + 1 at the same t.
+    4. ``flow_set`` and ``jump_set`` return a bool: x in C, x in D. Defaults:
+       C is the whole space, D is empty (a purely continuous system).
+    5. Any map or set may be written with the signature ``(x)``, ``(x, t)``,
+       ``(x, t, j)`` or ``(x, t, j, u)``.
+    6. Optional continuous guards give exact event location by root-finding:
+       ``jump_guard(x, t, j, u)`` (scalar or 1-D) with D = {min_i h_i >= 0}
+       near the events, ``flow_guard`` with C = {min_i c_i >= 0}. Where the set
+       indicator is not overridden it is derived from its guard. Where both
+       are given, the indicator decides membership and the guard locates the
+       crossing.
+    7. ``output(x, t, j)`` is the output y (default: x). It must not depend
+       on u (no direct feedthrough between interconnected components).
+    8. ``vectorized = True`` declares maps written over batches: x of shape
+       (N, n), t and j of shape (N,), returning (N, n) arrays and (N,)
+       booleans; :func:`hybridsim.simulate_many` then integrates a batch
+       together.
+    9. ``max_step`` (float or None) caps the solver step; set it to the
+       smallest delay when the maps read ``self.history``, and set
+       ``needs_history = True`` so the engine records the dense output.
+       During a run ``self.history`` is a :class:`hybridsim.History` view of
+       the run's past.
+
+    State arrays are time-major everywhere: a run's samples are (N, n).
+    """
+
+    state_dim: int = None
+    input_dim: int = 0
+    output_dim: int | None = None
+    vectorized: bool = False
+    max_step: float | None = None
+    needs_history: bool = False
+    jump_guard = None
+    flow_guard = None
+    #: names of the components of an interconnection: ``{name: slice}``
+    components: dict | None = None
+
+    def flow_map(self, x, t, j, u):
+        raise NotImplementedError(f"{type(self).__name__} defines no flow_map, "
+                                  "but the state is in its flow set")
+
+    def jump_map(self, x, t, j, u):
+        raise NotImplementedError(f"{type(self).__name__} defines no jump_map, "
+                                  "but the state is in its jump set")
+
+    def flow_set(self, x, t, j, u):
+        return True
+
+    def jump_set(self, x, t, j, u):
+        return False
+
+    def output(self, x, t, j):
+        return x
+
+    # ------------------------------------------------------------------
+    history = None
+
+    def _bind_history(self, history):
+        """Give this system (and its components) read access to a run's past."""
+        self.history = history
+
+    @property
+    def has_jumps(self) -> bool:
+        """False when D is empty by construction (no jump set, no guard)."""
+        return (self._overrides("jump_set") or self.jump_guard is not None)
+
+    @property
+    def has_flow_boundary(self) -> bool:
+        """False when C is the whole space by construction."""
+        return (self._overrides("flow_set") or self.flow_guard is not None)
+
+    def _overrides(self, name: str) -> bool:
+        if name in vars(self):
+            return True
+        return getattr(type(self), name) is not getattr(HybridSystem, name)
+
+    def _compile(self):
+        """Uniform ``(x, t, j, u)`` callables: f, g, C, D, hD, hC, h (cached)."""
+        c = self.__dict__.get("_compiled_maps")
+        if c is not None:
+            return c
+        n = self.state_dim
+        if n is None or isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+            raise ValueError(f"{type(self).__name__}.state_dim must be a positive int, got {n!r}")
+        hD = as_map(self.jump_guard, "jump_guard") if self.jump_guard is not None else None
+        hC = as_map(self.flow_guard, "flow_guard") if self.flow_guard is not None else None
+        if self._overrides("jump_set") or hD is None:
+            D = as_map(self.jump_set, "jump_set")
+        else:
+            D = lambda x, t, j, u: bool(np.min(hD(x, t, j, u)) >= 0.0)  # noqa: E731
+        if self._overrides("flow_set") or hC is None:
+            C = as_map(self.flow_set, "flow_set")
+        else:
+            C = lambda x, t, j, u: bool(np.min(hC(x, t, j, u)) >= 0.0)  # noqa: E731
+        c = _Compiled(
+            f=as_map(self.flow_map, "flow_map"), g=as_map(self.jump_map, "jump_map"),
+            C=C, D=D, hD=hD, hC=hC, h=as_map(self.output, "output"),
+            has_D=self.has_jumps, has_C=self.has_flow_boundary)
+        self.__dict__["_compiled_maps"] = c
+        return c
+
+    # ------------------------------------------------------------------
+    @classmethod
+    def from_functions(cls, f=None, g=None, C=None, D=None, *, state_dim,
+                       jump_guard=None, flow_guard=None, output=None,
+                       input_dim=0, output_dim=None, vectorized=False,
+                       max_step=None, needs_history=False, name=None):
+        """Build a hybrid system from plain functions.
+
+        Parameters
+        ----------
+        f, g : callable, optional
+            Flow and jump maps, each ``(x)``, ``(x, t)``, ``(x, t, j)`` or
+            ``(x, t, j, u)`` returning an (n,) array.
+        C, D : callable, optional
+            Set indicators returning bool. Defaults: C everything, D empty
+            (or derived from the guards).
+        state_dim : int
+            The state dimension n.
+        jump_guard, flow_guard : callable, optional
+            Continuous guards (see the class docstring, rule 6).
+        output : callable, optional
+            Output map ``(x, t, j)``; default the state.
+
+        Examples
+        --------
+        >>> import numpy as np, hybridsim as hs
+        >>> ball = hs.HybridSystem.from_functions(
+        ...     f=lambda x: np.array([x[1], -9.81]),
+        ...     g=lambda x: np.array([0.0, -0.8 * x[1]]),
+        ...     C=lambda x: x[0] >= 0, D=lambda x: x[0] <= 0 and x[1] <= 0,
+        ...     state_dim=2)
+        >>> arc = hs.simulate(ball, [1.0, 0.0], t_max=3.0, j_max=5)
+        >>> arc.jump_count
+        5
+        """
+        sysobj = cls.__new__(cls)
+        HybridSystem.__init__(sysobj)
+        sysobj.state_dim = state_dim
+        sysobj.input_dim = input_dim
+        sysobj.output_dim = output_dim
+        sysobj.vectorized = vectorized
+        sysobj.max_step = max_step
+        sysobj.needs_history = needs_history
+        sysobj._name = name
+        for arg, attr, fn in (("f", "flow_map", f), ("g", "jump_map", g),
+                              ("C", "flow_set", C), ("D", "jump_set", D),
+                              ("output", "output", output)):
+            if fn is not None:
+                if not callable(fn):
+                    raise TypeError(f"{arg} must be callable, got {type(fn).__name__}")
+                setattr(sysobj, attr, fn)
+        for attr, fn in (("jump_guard", jump_guard), ("flow_guard", flow_guard)):
+            if fn is not None:
+                if not callable(fn):
+                    raise TypeError(f"{attr} must be callable, got {type(fn).__name__}")
+                setattr(sysobj, attr, fn)
+        return sysobj
+
+    def __repr__(self):
+        name = getattr(self, "_name", None) or type(self).__name__
+        return f"<{name}: state_dim={self.state_dim}, input_dim={self.input_dim}>"
+
+
+class _Compiled:
+    __slots__ = ("f", "g", "C", "D", "hD", "hC", "h", "has_D", "has_C")
+
+    def __init__(self, **kw):
+        for k, v in kw.items():
+            setattr(self, k, v)
