@@ -1,0 +1,290 @@
+"""Tests of observers.time_varying (paper 001, Mazenc-Ahmed-Malisoff, CDC 2018).
+
+Tolerances: the pure formulas (15), (23), (49) are evaluated with adaptive
+quadrature at epsrel 1e-11 on smooth integrands, so they match the analytic
+solutions to ~1e-12 relative; we assert 1e-8 (the conditioning of M_tau and
+Lambda, up to ~1e2 here, multiplies the quadrature error). Simulated runs go
+through hybridsim.simulate at rtol 1e-10 / atol 1e-12; the exactness claims
+are then asserted at 1e-6, the integration error amplified by |Lambda^{-1}|
+and by |Phi_H| over one window.
+"""
+import numpy as np
+import pytest
+from scipy import linalg
+
+import observers.time_varying as tv
+
+SEEDS = [0, 1, 2]
+
+
+# ---------------------------------------------------------------------------
+# analytic references
+# ---------------------------------------------------------------------------
+def random_lti(seed, n=4, p=2):
+    rng = np.random.default_rng(seed)
+    A = rng.normal(size=(n, n))
+    C = rng.normal(size=(p, n))
+    return A, C, rng
+
+
+def lti_solution(A, b, omega, x0):
+    """Exact x(t) of xdot = A x + b sin(omega t) (augmented matrix exponential)."""
+    n = A.shape[0]
+    Aa = np.zeros((n + 2, n + 2))
+    Aa[:n, :n] = A
+    Aa[:n, n] = b                                # delta = b * w1, w1 = sin(omega t)
+    Aa[n:, n:] = [[0.0, omega], [-omega, 0.0]]   # w1' = omega w2, w2' = -omega w1
+    xa0 = np.concatenate([x0, [0.0, 1.0]])      # w1(0) = 0, w2(0) = 1 -> w1 = sin
+    return lambda t: (linalg.expm(Aa * t) @ xa0)[:n]
+
+
+def example_open_loop(x20=0.7, x30=-0.3, a=0.5):
+    """Exact solution of (45) with v2 = a cos 3t."""
+    xi2 = lambda t: x20 + a * np.sin(3 * t) / 3
+    xi3 = lambda t: (x30 + 2 * x20 * np.sin(t)
+                     + (2 * a / 3) * ((1 - np.cos(4 * t)) / 8 + (1 - np.cos(2 * t)) / 4))
+    v2 = lambda t: a * np.cos(3 * t)
+    return xi2, xi3, v2
+
+
+def expm_Phi(Om):
+    """Closed form of (1) for a constant Omega: Phi(t, s) = e^{-Omega (t - s)}."""
+    return lambda t, s: linalg.expm(-Om * (t - s))
+
+
+# ---------------------------------------------------------------------------
+# Section II
+# ---------------------------------------------------------------------------
+@pytest.mark.parametrize("seed", SEEDS)
+def test_reduced_coordinates_blocks(seed):
+    A, C, _ = random_lti(seed)
+    rc = tv.reduced_coordinates(A, C)
+    AT = rc.C_T @ A @ rc.C_T_inv
+    p = C.shape[0]
+    np.testing.assert_allclose(AT[:p, p:], rc.A1, atol=1e-12)
+    np.testing.assert_allclose(AT[p:, p:], rc.A2, atol=1e-12)
+    np.testing.assert_allclose(AT[:p, :p], rc.A11, atol=1e-12)
+    np.testing.assert_allclose(AT[p:, :p], rc.A21, atol=1e-12)
+    x = np.arange(1.0, 5.0)
+    np.testing.assert_allclose(rc.x_from(C @ x, rc.x_r(x)), x, atol=1e-12)
+    # (A2, A1) inherits observability ([6, pp. 304-306])
+    assert tv.is_observable(rc.A2, rc.A1)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_choose_L_tau_gives_invertible_M(seed):
+    A, C, _ = random_lti(seed)
+    rc = tv.reduced_coordinates(A, C)
+    L, tau, M = tv.choose_L_tau(rc.A2, rc.A1, tau=0.8)
+    assert tau == 0.8
+    np.testing.assert_allclose(M, tv.M_tau(rc.A2, rc.A1, L, tau))
+    assert 1 / np.linalg.cond(M) >= 1e-8
+    # the placed poles: H = A2 + L A1 Hurwitz
+    assert np.max(np.linalg.eigvals(rc.A2 + L @ rc.A1).real) < 0
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_estimate_15_exact_random_lti(seed):
+    """Theorem (14)-(15): xhat_r(t) = x_r(t) for t >= tau, random observable (A, C), delta(t) != 0."""
+    A, C, rng = random_lti(seed)
+    b, x0 = rng.normal(size=4), rng.normal(size=4)
+    delta = lambda t: b * np.sin(2.0 * t)
+    x = lti_solution(A, b, 2.0, x0)
+    rc = tv.reduced_coordinates(A, C)
+    L, tau, _ = tv.choose_L_tau(rc.A2, rc.A1, tau=1.0)
+    y = lambda s: C @ x(s)
+    for t in (tau, 1.6, 2.5):
+        xr = rc.x_r(x(t))
+        est = tv.estimate_15(t, y, rc.A2, rc.A1, L, tau, rc.delta1(delta), rc.delta2(delta))
+        np.testing.assert_allclose(est, xr, rtol=1e-8, atol=1e-8)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_estimate_23_reduces_to_15(seed):
+    """(23) with constant matrices and Phi(t, s) = e^{-Omega (t - s)} is (15)."""
+    A, C, rng = random_lti(seed)
+    x0 = rng.normal(size=4)
+    rc = tv.reduced_coordinates(A, C)
+    L, tau, _ = tv.choose_L_tau(rc.A2, rc.A1, tau=1.0)
+    y = lambda s: C @ linalg.expm(A * s) @ x0
+    H = rc.A2 + L @ rc.A1
+    t = 1.4
+    e15 = tv.estimate_15(t, y, rc.A2, rc.A1, L, tau, rc.delta1(), rc.delta2())
+    e23 = tv.estimate_23(t, y, tau, rc.A1, rc.A2, L, expm_Phi(rc.A2), expm_Phi(H),
+                         delta1=rc.delta1(), delta2=rc.delta2())
+    np.testing.assert_allclose(e23, e15, rtol=1e-9, atol=1e-9)
+    # and the Lambda of (20) is M_tau of (6)
+    np.testing.assert_allclose(tv.Lambda(expm_Phi(rc.A2), expm_Phi(H), t, tau),
+                               tv.M_tau(rc.A2, rc.A1, L, tau), atol=1e-12)
+
+
+# ---------------------------------------------------------------------------
+# Section III / IV pure formulas
+# ---------------------------------------------------------------------------
+def test_phi_convention_and_Lambda_example():
+    """(1) is the inverse fundamental matrix: dPhi/dt = -Phi H; Lambda = 1 - e^{4 pi} (after (48))."""
+    ex = tv.example_data()
+    h = 1e-5
+    for t, s in [(0.3, -1.0), (2.0, 0.5), (7.0, 1.0)]:
+        dPhi = (ex["Phi_H"](t + h, s) - ex["Phi_H"](t - h, s)) / (2 * h)
+        np.testing.assert_allclose(dPhi, -ex["Phi_H"](t, s) @ ex["H"](t), rtol=1e-8)
+        np.testing.assert_allclose(tv.Lambda(ex["Phi_A2"], ex["Phi_H"], t, ex["tau"]),
+                                   [[1 - np.exp(4 * np.pi)]], rtol=1e-12)
+    # D of (22) from its definition agrees with the closed form used in (49)
+    A1, A2, L, Ld = ex["A1"], ex["A2"], ex["L"], ex["Ldot"]
+    for t in (0.1, 1.3, 4.0):
+        np.testing.assert_allclose(tv.D_of(t, A1, A2, L, Ld), ex["D"](t), atol=1e-12)
+
+
+def test_estimate_49_equals_23_and_exact():
+    """(49) as printed = (23) with the data (47)-(48), = xi2(t) on the exact solution of (45)."""
+    ex = tv.example_data()
+    xi2, xi3, v2 = example_open_loop()
+    for t in (2 * np.pi, 8.0, 11.3):
+        e49 = tv.estimate_49(t, xi3, v2)
+        e23 = tv.estimate_23(t, lambda s: np.array([xi3(s)]), ex["tau"], ex["A1"], ex["A2"], ex["L"],
+                             ex["Phi_A2"], ex["Phi_H"], Ldot=ex["Ldot"],
+                             delta2=lambda s, z: np.array([v2(s)]), p=1, m=1)
+        assert abs(e49 - xi2(t)) < 1e-8
+        assert abs(e23[0] - e49) < 1e-8
+    # Ldot by finite differences (Ldot=None with a callable L) gives the same estimate
+    e_fd = tv.estimate_23(9.0, lambda s: np.array([xi3(s)]), ex["tau"], ex["A1"], ex["A2"], ex["L"],
+                          ex["Phi_A2"], ex["Phi_H"], delta2=lambda s, z: np.array([v2(s)]), p=1, m=1)
+    assert abs(e_fd[0] - xi2(9.0)) < 1e-7
+
+
+def test_remark3_example():
+    """Remark 3 as printed fails on the example (varpi = e^{4 pi}); the swapped form holds."""
+    ex = tv.example_data()
+    grid = np.linspace(0.0, 2 * np.pi, 13)
+    r = tv.remark3(ex["Phi_A2"], ex["Phi_H"], ex["tau"], grid)
+    assert not r.holds and r.varpi == pytest.approx(np.exp(4 * np.pi), rel=1e-12)
+    assert r.Lambda_inv_bound == np.inf
+    rs = tv.remark3(ex["Phi_A2"], ex["Phi_H"], ex["tau"], grid, swapped=True)
+    assert rs.holds and rs.varpi == pytest.approx(np.exp(-4 * np.pi), rel=1e-12)
+    # the bound (26) is a bound: |Lambda^{-1}| <= Lambda_inv_bound
+    assert 1 / abs(ex["Lambda"]) <= rs.Lambda_inv_bound * (1 + 1e-12)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_remark3_bound_random_lti(seed):
+    """When varpi < 1, |Lambda(t)^{-1}| <= |Phi_A2^{-1}| / (1 - varpi) (26)."""
+    A, C, _ = random_lti(seed, n=3, p=1)
+    rc = tv.reduced_coordinates(A, C)
+    # H strongly unstable backwards-in-time makes Phi_H small: poles at +3 (Phi_H = e^{-H tau})
+    L = tv._place_L(rc.A2, rc.A1, np.array([3.0, 3.5]))
+    H = rc.A2 + L @ rc.A1
+    tau = 1.5
+    r = tv.remark3(expm_Phi(rc.A2), expm_Phi(H), tau, [0.0])
+    if r.holds:
+        Li = np.linalg.inv(tv.Lambda(expm_Phi(rc.A2), expm_Phi(H), 0.0, tau))
+        assert np.linalg.norm(Li, 2) <= r.Lambda_inv_bound * (1 + 1e-12)
+    tv.check_assumption1(expm_Phi(rc.A2), expm_Phi(H), tau, [0.0, 1.0])
+
+
+def test_noise_bound_28_example():
+    """(28): |x*_r - x_r| <= l_a |eps|_inf on the example, eps = 0.01 sin(5t) + 0.02 sign(cos 7t)."""
+    ex = tv.example_data()
+    xi2, xi3, v2 = example_open_loop()
+    eps = lambda s: np.array([0.01 * np.sin(5 * s) + 0.02 * np.sign(np.cos(7 * s))])
+    eps_inf = 0.03
+    y = lambda s: np.array([xi3(s)]) + eps(s)
+    d2 = lambda s, z: np.array([v2(s)])
+    grid = np.linspace(2 * np.pi, 4 * np.pi, 33)
+    l_a = float(np.max(tv.noise_gain(grid, ex["tau"], ex["A1"], ex["A2"], ex["L"], ex["Phi_A2"],
+                                     ex["Phi_H"], Ldot=ex["Ldot"], p=1, m=1)))
+    for t in (2 * np.pi + 0.4, 9.1, 10.7):
+        est = tv.estimate_23(t, y, ex["tau"], ex["A1"], ex["A2"], ex["L"], ex["Phi_A2"], ex["Phi_H"],
+                             Ldot=ex["Ldot"], delta2=d2, eps=eps, p=1, m=1)
+        approx = tv.estimate_23(t, y, ex["tau"], ex["A1"], ex["A2"], ex["L"], ex["Phi_A2"], ex["Phi_H"],
+                                Ldot=ex["Ldot"], delta2=d2, p=1, m=1)
+        # quadrature of a discontinuous eps: 1e-7 slack
+        assert abs(est[0] - xi2(t)) < 1e-7                     # (23) with the known eps is exact
+        assert abs(approx[0] - xi2(t)) <= l_a * eps_inf + 1e-7  # (28)
+        assert abs(approx[0] - xi2(t)) > 1e-6                  # the noise does act
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_noise_bound_28_random_lti(seed):
+    """(28) on random LTI cases: l_a with lip1 = |A11|, lip2 = |A21| (delta linear in y)."""
+    A, C, rng = random_lti(seed)
+    x0 = rng.normal(size=4)
+    rc = tv.reduced_coordinates(A, C)
+    L, tau, _ = tv.choose_L_tau(rc.A2, rc.A1, tau=1.0)
+    H = rc.A2 + L @ rc.A1
+    w = rng.uniform(3, 8, size=2)
+    eps = lambda s: 0.01 * np.sin(w * s)
+    y = lambda s: C @ linalg.expm(A * s) @ x0 + eps(s)
+    PA, PH = expm_Phi(rc.A2), expm_Phi(H)
+    l_a = tv.noise_gain(tau, tau, rc.A1, rc.A2, L, PA, PH, lip1=np.linalg.norm(rc.A11, 2),
+                        lip2=np.linalg.norm(rc.A21, 2))      # time-invariant: l(t) constant
+    for t in (1.0, 1.9):
+        xr = rc.x_r(linalg.expm(A * t) @ x0)
+        approx = tv.estimate_23(t, y, tau, rc.A1, rc.A2, L, PA, PH, delta1=rc.delta1(), delta2=rc.delta2())
+        exact = tv.estimate_23(t, y, tau, rc.A1, rc.A2, L, PA, PH, delta1=rc.delta1(), delta2=rc.delta2(),
+                               eps=eps)
+        np.testing.assert_allclose(exact, xr, rtol=1e-8, atol=1e-8)
+        assert np.linalg.norm(approx - xr) <= l_a * 0.01 + 1e-8
+
+
+# ---------------------------------------------------------------------------
+# bad input
+# ---------------------------------------------------------------------------
+def test_bad_inputs_section2():
+    A, C, _ = random_lti(0)
+    with pytest.raises(ValueError, match="A must be square"):
+        tv.reduced_coordinates(np.ones((2, 3)), C)
+    with pytest.raises(ValueError, match=r"C must have shape \(\?, 4\), got \(2, 3\)"):
+        tv.reduced_coordinates(A, np.ones((2, 3)))
+    with pytest.raises(ValueError, match="fewer rows than n=4"):
+        tv.reduced_coordinates(A, np.eye(4))
+    with pytest.raises(ValueError, match="full row rank p=2, got rank 1"):
+        tv.reduced_coordinates(A, np.ones((2, 4)))
+    with pytest.raises(ValueError, match="must be observable"):
+        tv.reduced_coordinates(np.diag([1.0, 2.0, 3.0]), np.array([[1.0, 1.0, 0.0]]))
+    with pytest.raises(ValueError, match=r"N must have shape \(2, 4\)"):
+        tv.reduced_coordinates(A, C, N=np.ones((1, 4)))
+    with pytest.raises(ValueError, match="C_T = \\[C; N\\] must be invertible"):
+        tv.reduced_coordinates(A, C, N=C.copy())
+    with pytest.raises(TypeError, match="A must be an array"):
+        tv.reduced_coordinates(lambda t: A, C)
+    rc = tv.reduced_coordinates(A, C)
+    with pytest.raises(ValueError, match="tau must be a finite number > 0, got -1.0"):
+        tv.M_tau(rc.A2, rc.A1, np.zeros((2, 2)), -1.0)
+    with pytest.raises(TypeError, match="tau must be a real number"):
+        tv.M_tau(rc.A2, rc.A1, np.zeros((2, 2)), "1")
+    with pytest.raises(ValueError, match=r"L must have shape \(2, 2\)"):
+        tv.M_tau(rc.A2, rc.A1, np.zeros((2, 3)), 1.0)
+    with pytest.raises(ValueError, match=r"M_tau \(6\) must be invertible: rcond = 0"):
+        tv.choose_L_tau(rc.A2, rc.A1, L=np.zeros((2, 2)), tau=1.0)   # L = 0: H = A2, M = 0
+    with pytest.raises(ValueError, match="poles must have 2 entries, got 3"):
+        tv.choose_L_tau(rc.A2, rc.A1, poles=[-1, -2, -3])
+    with pytest.raises(ValueError, match=r"\(A2, A1\) must be observable"):
+        tv.choose_L_tau(np.diag([1.0, 2.0]), np.array([[1.0, 0.0]]))
+    with pytest.raises(ValueError, match=r"t must be >= tau = 1.0 .* got 0.5"):
+        tv.estimate_15(0.5, lambda s: C @ np.ones(4), rc.A2, rc.A1, np.zeros((2, 2)), 1.0)
+    with pytest.raises(TypeError, match="y must be a callable"):
+        tv.estimate_15(1.5, np.ones(2), rc.A2, rc.A1, np.zeros((2, 2)), 1.0)
+
+
+def test_bad_inputs_section3():
+    ex = tv.example_data()
+    with pytest.raises(ValueError, match=r"Lambda\(t\) \(20\) is singular at t=0"):
+        tv.check_assumption1(ex["Phi_A2"], ex["Phi_A2"], 1.0, [0.0, 1.0])   # L = 0: H = A2
+    with pytest.raises(ValueError, match="t_grid must be a non-empty 1-D array"):
+        tv.check_assumption1(ex["Phi_A2"], ex["Phi_H"], 1.0, [])
+    with pytest.raises(ValueError, match="t_grid must be a non-empty 1-D array"):
+        tv.remark3(ex["Phi_A2"], ex["Phi_H"], 1.0, np.ones((2, 2)))
+    with pytest.raises(ValueError, match="p and m must be given"):
+        tv.estimate_23(7.0, lambda s: np.ones(1), ex["tau"], ex["A1"], ex["A2"], ex["L"],
+                       ex["Phi_A2"], ex["Phi_H"])
+    with pytest.raises(ValueError, match=r"t must be >= tau"):
+        tv.estimate_23(1.0, lambda s: np.ones(1), ex["tau"], ex["A1"], ex["A2"], ex["L"],
+                       ex["Phi_A2"], ex["Phi_H"], p=1, m=1)
+    with pytest.raises(ValueError, match="lip1 must be a finite number >= 0, got -1"):
+        tv.noise_gain(7.0, ex["tau"], ex["A1"], ex["A2"], ex["L"], ex["Phi_A2"], ex["Phi_H"],
+                      lip1=-1, p=1, m=1)
+    with pytest.raises(ValueError, match=r"t must be >= 2 pi"):
+        tv.estimate_49(1.0, np.sin, np.cos)
+    with pytest.raises(TypeError, match="xi3 and v2 must be callables"):
+        tv.estimate_49(7.0, 1.0, np.cos)
