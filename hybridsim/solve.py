@@ -129,7 +129,7 @@ def _progress_bar(progress, t0, t_max, j_max):
 def simulate(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priority="jumps",
              method="RK45", rtol=1e-6, atol=1e-9, max_step=math.inf, first_step=None,
              inputs=None, prehistory=None, max_norm=math.inf, seed=None,
-             progress=None, throw=False, dense=False, zeno_jumps=50,
+             progress=None, throw=False, dense=False, refine=1, zeno_jumps=50,
              zeno_time=1e-12):
     r"""Simulate a hybrid system from x0 until t_max or j_max.
 
@@ -178,6 +178,10 @@ def simulate(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priority="jumps
         Raise :class:`SimulationError` (with ``.arc``) when the run stops on a
         failure (user-map exception, non-finite state, solver failure)
         instead of returning the arc with that cause.
+    refine : int
+        Samples stored per solver step (as MATLAB's ``Refine``): ``refine - 1``
+        points of the step's dense output are added inside each step. Use
+        4-10 for smooth plots; 1 (default) stores the step ends only.
     dense : bool
         Keep every step's dense output, so ``arc.at(t, j)`` is exact to the
         integrator and the history is available after the run.
@@ -241,6 +245,8 @@ def simulate(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priority="jumps
         raise TypeError(f"inputs must be a callable u(t), got {type(inputs).__name__}")
     if prehistory is not None and not callable(prehistory):
         raise TypeError(f"prehistory must be a callable x(s), got {type(prehistory).__name__}")
+    if isinstance(refine, bool) or not isinstance(refine, numbers.Integral) or refine < 1:
+        raise ValueError(f"refine must be an int >= 1, got {refine!r}")
     zeno_jumps = int(zeno_jumps)
     zeno_time = _check_real("zeno_time", zeno_time, nonneg=True)
     rng = np.random.default_rng(seed)
@@ -250,7 +256,8 @@ def simulate(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priority="jumps
     system._bind_history(history)
 
     run = _Run(system, maps, n, t_max, j_max, prio, Method, rtol, atol, max_step,
-               first_step, inputs, max_norm, rng, keep, history, zeno_jumps, zeno_time)
+               first_step, inputs, max_norm, rng, keep, history, zeno_jumps, zeno_time,
+               int(refine))
     run.pbar = _progress_bar(progress, t0, t_max, j_max)
     try:
         run.run(t0, int(j0), x)
@@ -273,7 +280,7 @@ class _Run:
 
     def __init__(self, system, maps, n, t_max, j_max, prio, Method, rtol, atol,
                  max_step, first_step, ufun, max_norm, rng, keep, history,
-                 zeno_jumps, zeno_time):
+                 zeno_jumps, zeno_time, refine):
         self.__dict__.update(locals())
         del self.__dict__["self"]
         self.buf = _Buffer(n)
@@ -405,6 +412,7 @@ class _Run:
         a, ya = t, x
         inD_prev = inD_start
         max_norm = self.max_norm
+        refine = self.refine
         while True:
             msg = solver.step()
             if solver.status == "failed":
@@ -424,8 +432,12 @@ class _Run:
             if event:
                 sol = solver.dense_output()
                 return self._event(sol, a, b, j, solver)
-            if keep:
-                hist._add(a, b, j, solver.dense_output())
+            if keep or refine > 1:
+                sol = solver.dense_output()
+                if keep:
+                    hist._add(a, b, j, sol)
+                if refine > 1:
+                    self._refine(sol, a, b, j)
             buf.append(b, j, yb)
             if pbar is not None and math.isfinite(self.t_max):
                 pbar.update(b - a)
@@ -437,6 +449,14 @@ class _Run:
                 self.h_hint = None
                 return "tmax", b, yb
             a, ya = b, yb
+
+    def _refine(self, sol, a, b, j):
+        """Store refine - 1 dense-output samples strictly inside (a, b)."""
+        if b > a:
+            ts = np.linspace(a, b, self.refine + 1)[1:-1]
+            X = np.asarray(sol(ts)).T
+            for s, xs in zip(ts, X):
+                self.buf.append(s, j, xs)
 
     def _event(self, sol, a, b, j, solver):
         """Locate the first event in (a, b] and decide what happens there."""
@@ -466,6 +486,8 @@ class _Run:
         self.h_hint = getattr(solver, "h_abs", None)
         if self.keep:
             self.history._add(a, lo if lo > a else hi, j, sol)
+        if self.refine > 1:
+            self._refine(sol, a, lo, j)
         if self.pbar is not None and math.isfinite(self.t_max):
             self.pbar.update(hi - a)
         uhi = u_at(hi)
