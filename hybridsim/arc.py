@@ -230,8 +230,10 @@ class HybridArc:
                            f"have {list(self.components)}")
         sl = self.components[name]
         sub = self.system.systems[name] if self.system is not None and hasattr(self.system, "systems") else None
+        segs = None if not self._segments else [
+            (a, b, j, _Sliced(sol, sl)) for (a, b, j, sol) in self._segments]
         return HybridArc(self.t, self.j, self.x[:, sl], self.termination, self.message,
-                         self.exception, getattr(sub, "components", None), None, sub)
+                         self.exception, getattr(sub, "components", None), segs, sub)
 
     def __getitem__(self, name):
         return self.component(name)
@@ -292,3 +294,15 @@ class HybridArc:
         df.insert(0, "j", self.j)
         df.insert(0, "t", self.t)
         return df
+
+
+class _Sliced:
+    """A dense output restricted to a slice of the state."""
+
+    __slots__ = ("sol", "sl")
+
+    def __init__(self, sol, sl):
+        self.sol, self.sl = sol, sl
+
+    def __call__(self, t):
+        return np.asarray(self.sol(t))[self.sl]

@@ -199,6 +199,8 @@ class Interconnection(HybridSystem):
         hints = [s.max_step for s in self.systems.values() if s.max_step is not None]
         self.max_step = min(hints) if hints else None
         self.needs_history = any(s.needs_history for s in self.systems.values())
+        self.delays = tuple(sorted({float(d) for s in self.systems.values()
+                                    for d in (s.delays or ())}))
         # composite guards only where every relevant component has one
         if self._D and all(h is not None for h in self._hD.values()):
             self.jump_guard = self._jump_guard

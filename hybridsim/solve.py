@@ -251,6 +251,9 @@ def simulate(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priority="jumps
     zeno_time = _check_real("zeno_time", zeno_time, nonneg=True)
     rng = np.random.default_rng(seed)
 
+    delays = tuple(float(d) for d in (system.delays or ()))
+    if any(not (math.isfinite(d) and d > 0) for d in delays):
+        raise ValueError(f"system.delays must be positive finite floats, got {system.delays!r}")
     keep = dense or system.needs_history
     history = History(t0, x, j0, prehistory, inputs, maps.h)
     system._bind_history(history)
@@ -258,6 +261,8 @@ def simulate(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priority="jumps
     run = _Run(system, maps, n, t_max, j_max, prio, Method, rtol, atol, max_step,
                first_step, inputs, max_norm, rng, keep, history, zeno_jumps, zeno_time,
                int(refine))
+    run.delays = delays
+    run.breaks = sorted(t0 + d for d in delays)
     run.pbar = _progress_bar(progress, t0, t_max, j_max)
     try:
         run.run(t0, int(j0), x)
@@ -346,6 +351,8 @@ class _Run:
                     x = xn
                     buf.append(t, j, x)
                     self.history._restart(t, x, j)
+                    if self.delays:
+                        self._add_breaks(t)
                     if self.pbar is not None and not math.isfinite(self.t_max):
                         self.pbar.update(1)
                     if jumps >= self.j_max:
@@ -379,6 +386,19 @@ class _Run:
                 raise
             self._stop(Termination.MAP_ERROR, f"{type(e).__name__}: {e}", e)
 
+    def _add_breaks(self, t):
+        import bisect
+        for d in self.delays:
+            bisect.insort(self.breaks, t + d)
+
+    def _bound(self, t):
+        """End of the flow's integration: t_max, or the next delay breakpoint."""
+        br = self.breaks
+        tol = 4 * np.finfo(float).eps * max(1.0, abs(t))
+        while br and br[0] <= t + tol:
+            br.pop(0)
+        return min(br[0], self.t_max) if br else self.t_max
+
     def _validate(self, x, t, j, u, inC, inD):
         """Check the maps' shapes at x0 (a clear error before anything runs)."""
         if inC:
@@ -402,12 +422,13 @@ class _Run:
         else:
             def fun(s, y):
                 return f(y, s, j, ufun(s))
+        t_bound = self._bound(t) if self.delays else self.t_max
         h = self.h_hint
         if h is not None:
-            h = min(h, self.t_max - t, self.max_step)
+            h = min(h, t_bound - t, self.max_step)
             if not h > 0:
                 h = None
-        solver = self.Method(fun, t, x, self.t_max, rtol=self.rtol, atol=self.atol,
+        solver = self.Method(fun, t, x, t_bound, rtol=self.rtol, atol=self.atol,
                              max_step=self.max_step, first_step=h)
         a, ya = t, x
         inD_prev = inD_start
@@ -446,6 +467,9 @@ class _Run:
                                                f"{max_norm:.3g} at t={b}")
                 return "stop", b, yb
             if solver.status == "finished":
+                if b < self.t_max:          # a delay breakpoint: go on flowing
+                    self.h_hint = getattr(solver, "h_abs", None)
+                    return "break", b, yb
                 self.h_hint = None
                 return "tmax", b, yb
             a, ya = b, yb

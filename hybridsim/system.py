@@ -85,7 +85,10 @@ class HybridSystem:
        smallest delay when the maps read ``self.history``, and set
        ``needs_history = True`` so the engine records the dense output.
        During a run ``self.history`` is a :class:`hybridsim.History` view of
-       the run's past.
+       the run's past. ``delays`` (tuple of floats) lists the delays the
+       maps use: the engine then stops each flow at t0 + tau and at every
+       jump time + tau, where the delayed value is discontinuous, so no
+       solver step straddles a kink of the right-hand side.
 
     State arrays are time-major everywhere: a run's samples are (N, n).
     """
@@ -96,6 +99,7 @@ class HybridSystem:
     vectorized: bool = False
     max_step: float | None = None
     needs_history: bool = False
+    delays: tuple = ()
     jump_guard = None
     flow_guard = None
     #: names of the components of an interconnection: ``{name: slice}``

@@ -1,0 +1,118 @@
+"""History: delayed values and window integrals, exact to the dense output."""
+import numpy as np
+import pytest
+
+import hybridsim as hs
+
+
+class DDE(hs.HybridSystem):
+    """x'(t) = -x(t - 1), x = 1 on [-1, 0]."""
+
+    state_dim = 1
+    max_step = 1.0
+    needs_history = True
+    delays = (1.0,)
+
+    def flow_map(self, x, t):
+        return -self.history(t - 1.0)
+
+
+def dde_exact(t):
+    """Method of steps on [0, 3]: piecewise polynomial."""
+    if t <= 1:
+        return 1 - t
+    if t <= 2:
+        return 1 - t + (t - 1) ** 2 / 2
+    return 1 - t + (t - 1) ** 2 / 2 - (t - 2) ** 3 / 6
+
+
+def test_dde_against_method_of_steps():
+    arc = hs.simulate(DDE(), [1.0], t_max=3.0, rtol=1e-10, atol=1e-12, dense=True)
+    ts = np.linspace(0, 3, 301)
+    err = max(abs(arc.at(t)[0] - dde_exact(t)) for t in ts)
+    # delays = (1.0,) makes the engine stop the flow at the breaking points
+    # t = 1, 2 where the solution's derivatives jump: no step straddles a
+    # kink, so the error is that of the integrator (rtol 1e-10).
+    assert err < 1e-9
+
+
+def test_prehistory_function_is_used():
+    sysm = DDE()
+    # x = 1 + s on [-1, 0): x'(t) = -(t) on [0, 1] -> x(1) = 1 - 1/2
+    arc = hs.simulate(sysm, [1.0], t_max=1.0, prehistory=lambda s: np.array([1.0 + s]),
+                      rtol=1e-10, atol=1e-12)
+    assert abs(arc.xf[0] - 0.5) < 1e-9
+
+
+class DelayedTimer(hs.HybridSystem):
+    """tau: timer of period 1; s' = tau(t - 0.5) (the delayed value crosses jumps)."""
+
+    state_dim = 2
+    max_step = 0.5
+    needs_history = True
+    delays = (0.5,)
+
+    def flow_map(self, x, t):
+        return np.array([1.0, self.history(t - 0.5)[0]])
+
+    def jump_map(self, x):
+        return np.array([0.0, x[1]])
+
+    def jump_guard(self, x):
+        return x[0] - 1.0
+
+    def flow_guard(self, x):
+        return 1.0 - x[0]
+
+
+def test_delay_across_jumps():
+    sysm = DelayedTimer()
+    arc = hs.simulate(sysm, [0.0, 0.0], t_max=3.0, rtol=1e-10, atol=1e-12)
+    # s(3) = 0 + 1/2 + 1/2 + 1/8 (the delayed timer is a sawtooth)
+    assert abs(arc.xf[1] - 1.125) < 1e-9
+    h = sysm.history
+    tj = arc.jump_times[0]
+    assert abs(tj - 1.0) < 1e-12
+    assert h(tj)[0] == 0.0                       # post-jump value at a jump time
+    assert abs(h(0.999)[0] - 0.999) < 1e-12      # before it: the flow
+    assert h(-0.3)[0] == 0.0                     # constant prehistory x0
+    assert h.jump_count(1.5) == 1
+    # integral of tau over [0.5, 2.5] = 1/2 * 2 - ... exactly 1.0
+    assert abs(h.integral(lambda x, s: x[0], 0.5, 2.5) - 1.0) < 1e-12
+
+
+def test_history_beyond_the_current_step_is_an_error():
+    class Bad(hs.HybridSystem):
+        state_dim = 1
+        needs_history = True
+
+        def flow_map(self, x, t):
+            return -self.history(t - 0.01)
+    arc = hs.simulate(Bad(), [1.0], t_max=2.0)
+    assert arc.termination is hs.Termination.MAP_ERROR
+    assert isinstance(arc.exception, hs.HistoryError)
+    assert "max_step" in arc.message
+    # with the step capped it runs
+    arc = hs.simulate(Bad(), [1.0], t_max=2.0, max_step=0.01)
+    assert arc.success
+
+
+def test_history_output_and_input_of_a_component():
+    class Delay(hs.HybridSystem):
+        """z' = u(t - 0.5): integrates the plant's delayed output."""
+
+        state_dim = 1
+        input_dim = 1
+        max_step = 0.5
+        needs_history = True
+
+        def flow_map(self, z, t, j, u):
+            return np.atleast_1d(self.history.input(t - 0.5))
+
+    plant = hs.HybridSystem.from_functions(f=lambda x: np.array([1.0]), state_dim=1)
+    sysm = hs.connect(plant, Delay())
+    arc = hs.simulate(sysm, [0.0, 0.0], t_max=2.0, rtol=1e-10, atol=1e-12, dense=True)
+    # y(s) = s for s >= 0, constant x0 = 0 before: z(2) = (2 - 0.5)^2 / 2
+    assert abs(arc["observer"].xf[0] - 1.125) < 1e-9
+    obs = sysm.systems["observer"]
+    assert abs(obs.history.output(1.0)[0] - arc["observer"].at(1.0)[0]) < 1e-6
