@@ -1,0 +1,179 @@
+"""Interconnections: plant -> observer, feedback, simultaneous jumps, networks."""
+import networkx as nx
+import numpy as np
+import pytest
+from scipy.linalg import expm
+
+import hybridsim as hs
+
+A = np.array([[0.0, 1.0], [-2.0, -0.5]])
+C = np.array([[1.0, 0.0]])
+L = np.array([4.0, 3.0])
+
+
+class Luenberger(hs.HybridSystem):
+    state_dim = 2
+    input_dim = 1
+
+    def flow_map(self, xh, t, j, y):
+        return A @ xh + L * (y[0] - C[0] @ xh)
+
+
+class FakeStateSpace:
+    """Duck-typed like python-control's StateSpace."""
+
+    def __init__(self, A, B, C, D):
+        self.A, self.B, self.C, self.D = A, B, C, D
+
+
+def test_plant_feeds_observer_error_matches_expm():
+    plant = hs.LinearPlant(A, C=C)
+    sysm = hs.connect(plant, Luenberger())
+    x0 = np.array([1.0, -1.0, 0.0, 0.0])
+    arc = hs.simulate(sysm, x0, t_max=4.0, rtol=1e-10, atol=1e-12)
+    e = arc["observer"].xf - arc["plant"].xf
+    expected = expm((A - np.outer(L, C[0])) * 4.0) @ (x0[2:] - x0[:2])
+    np.testing.assert_allclose(e, expected, atol=1e-8)
+    assert arc.components == {"plant": slice(0, 2), "observer": slice(2, 4)}
+    np.testing.assert_allclose(arc.outputs("plant")[:, 0], arc["plant"].x[:, 0])
+
+
+def test_feedback_loop_matches_closed_loop_matrix():
+    B = np.array([[0.0], [1.0]])
+    K = np.array([[-3.0, -2.0]])
+    plant = hs.LinearPlant(A, B, C)
+
+    class Obs(hs.HybridSystem):
+        state_dim, input_dim = 2, 1
+
+        def flow_map(self, xh, t, j, y):
+            return A @ xh + B[:, 0] * (K[0] @ xh) + L * (y[0] - C[0] @ xh)
+
+    sysm = hs.Interconnection({"plant": plant, "obs": Obs()},
+                              inputs={"plant": lambda t, y: K @ y["obs"],
+                                      "obs": lambda t, y: y["plant"]})
+    x0 = np.array([1.0, 0.5, 0.0, 0.0])
+    arc = hs.simulate(sysm, x0, t_max=3.0, rtol=1e-10, atol=1e-12)
+    Acl = np.block([[A, B @ K], [np.outer(L, C[0]), A + B @ K - np.outer(L, C[0])]])
+    np.testing.assert_allclose(arc.xf, expm(Acl * 3.0) @ x0, atol=1e-8)
+
+
+def test_linear_plant_exogenous_input_noise_and_statespace():
+    B = np.array([[0.0], [1.0]])
+    ss = FakeStateSpace(A, B, C, np.zeros((1, 1)))
+    plant = hs.LinearPlant(ss, u=lambda t: np.array([1.0]), noise=lambda t: np.array([0.1]))
+    assert plant.input_dim == 0 and plant.output_dim == 1
+    arc = hs.simulate(plant, [0.0, 0.0], t_max=100.0, rtol=1e-10, atol=1e-12)
+    # steady state of A x + B = 0
+    np.testing.assert_allclose(arc.xf, -np.linalg.solve(A, B[:, 0]), atol=1e-6)
+    np.testing.assert_allclose(arc.outputs()[-1], C @ arc.xf + 0.1)
+
+
+@pytest.mark.parametrize("kw, match", [
+    (dict(A=np.ones((2, 3))), r"A must be square"),
+    (dict(A=A, B=np.ones((3, 1))), r"B must have shape \(2, 1\)"),
+    (dict(A=A, C=np.ones((1, 3))), r"C must have shape \(1, 2\)"),
+    (dict(A=A, B=np.ones((2, 1)), C=C, D=np.ones((2, 1))), r"D must have shape \(1, 1\)"),
+    (dict(A=A, B=np.ones((2, 1)), C=C, D=np.ones((1, 1))), "D must be zero when"),
+    (dict(A=[[np.nan, 0], [0, 0]]), "A must be finite"),
+    (dict(A=A, noise=lambda t: np.zeros(3)), r"noise\(t\) must return shape \(2,\)"),
+    (dict(A=A, u=lambda t: 1.0), "u is given but B is None"),
+])
+def test_linear_plant_bad_input(kw, match):
+    with pytest.raises(ValueError, match=match):
+        hs.LinearPlant(**kw)
+
+
+def timer(period):
+    return hs.HybridSystem.from_functions(
+        f=lambda x: np.array([1.0]), g=lambda x: np.array([0.0]),
+        jump_guard=lambda x: x[0] - period, flow_guard=lambda x: period - x[0], state_dim=1)
+
+
+def test_simultaneous_jumps_are_one_jump_of_the_interconnection():
+    sysm = hs.Interconnection({"fast": timer(1.0), "slow": timer(2.0)})
+    arc = hs.simulate(sysm, [0.0, 0.0], t_max=4.5)
+    # the slow timer's jumps coincide with every other fast jump: one
+    # interconnection jump each, both components reset together
+    np.testing.assert_allclose(arc.jump_times, [1, 2, 3, 4], atol=1e-12)
+    k = arc.jump_index
+    np.testing.assert_allclose(arc.x[k[1]], [0.0, 0.0], atol=1e-12)   # t = 2: both reset
+    np.testing.assert_allclose(arc.x[k[0]], [0.0, 1.0], atol=1e-12)   # t = 1: fast only
+
+
+def test_jump_of_one_component_leaves_the_other_unchanged():
+    plant = hs.LinearPlant(A, C=C)
+    sysm = hs.Interconnection({"plant": plant, "clock": timer(0.5)})
+    arc = hs.simulate(sysm, [1.0, 0.0, 0.0], t_max=2.2, rtol=1e-10, atol=1e-12)
+    k = arc.jump_index
+    np.testing.assert_array_equal(arc.x[k, :2], arc.x[k - 1, :2])
+    np.testing.assert_allclose(arc["plant"].xf, expm(A * 2.2) @ [1.0, 0.0], atol=1e-8)
+
+
+def test_interconnection_bad_wiring():
+    with pytest.raises(ValueError, match="component 'observer' has input_dim=1"):
+        hs.Interconnection({"plant": hs.LinearPlant(A, C=C), "observer": Luenberger()})
+    with pytest.raises(ValueError, match="'nope' is not a component"):
+        hs.Interconnection({"plant": hs.LinearPlant(A)}, inputs={"nope": lambda t, y: 0})
+    with pytest.raises(TypeError, match="must be a HybridSystem"):
+        hs.Interconnection({"plant": object()})
+    with pytest.raises(ValueError, match="connect\\(\\) wires only"):
+        hs.connect(hs.LinearPlant(A, np.ones((2, 1)), C), Luenberger())
+
+
+@pytest.mark.parametrize("N", [3, 12])
+def test_network_consensus_on_directed_ring(N):
+    # N > 9: no cap on the number of components (the MATLAB toolbox has 9)
+    G = nx.DiGraph([(i, (i + 1) % N) for i in range(N)])
+
+    class Node(hs.HybridSystem):
+        state_dim, input_dim = 1, 1
+
+        def flow_map(self, x, t, j, u):
+            return u - x
+
+    net = hs.network(G, {v: Node() for v in G},
+                     inputs=lambda v, t, rec, exo: sum(rec.values()))
+    rng = np.random.default_rng(N)
+    x0 = rng.normal(size=N)
+    arc = hs.simulate(net, x0, t_max=60.0 * N, rtol=1e-9, atol=1e-12)
+    # a directed ring is balanced: consensus on the average
+    np.testing.assert_allclose(arc.xf, np.full(N, x0.mean()), atol=1e-6)
+    assert set(arc.components) == set(range(N))
+    assert arc[N - 1].x.shape == (len(arc), 1)
+
+
+def test_network_with_exogenous_plant_and_bad_input():
+    G = nx.DiGraph([("a", "b"), ("b", "a")])
+    plant = hs.LinearPlant(A, C=C)
+
+    class Node(hs.HybridSystem):
+        state_dim, input_dim = 2, 1
+
+        def flow_map(self, xh, t, j, u):
+            return A @ xh + L * (u[0] - C[0] @ xh)
+
+    net = hs.network(G, lambda v: Node(), lambda v, t, rec, exo: exo["plant"],
+                     exogenous={"plant": plant}, nodelist=["b", "a"])
+    assert list(net.components) == ["plant", "b", "a"]
+    arc = hs.simulate(net, [1, 0, 0, 0, 0, 0], t_max=8.0, rtol=1e-10, atol=1e-12)
+    for v in "ab":
+        np.testing.assert_allclose(arc[v].xf, arc["plant"].xf, atol=1e-5)
+    with pytest.raises(TypeError, match="G must be a networkx.DiGraph"):
+        hs.network(nx.Graph(), {}, lambda *a: 0)
+    with pytest.raises(ValueError, match="nodelist must list every node"):
+        hs.network(G, lambda v: Node(), lambda *a: 0, nodelist=["a"])
+    with pytest.raises(ValueError, match="exogenous names clash"):
+        hs.network(G, lambda v: Node(), lambda *a: 0, exogenous={"a": plant})
+
+
+def test_split_and_stack():
+    sysm = hs.connect(hs.LinearPlant(A, C=C), Luenberger())
+    x = sysm.stack(plant=[1, 2], observer=[3, 4])
+    np.testing.assert_array_equal(x, [1, 2, 3, 4])
+    parts = sysm.split(np.vstack([x, x]))
+    np.testing.assert_array_equal(parts["observer"], [[3, 4], [3, 4]])
+    with pytest.raises(ValueError, match="missing parts"):
+        sysm.stack(plant=[1, 2])
+    with pytest.raises(ValueError, match=r"part 'plant' must have shape \(2,\)"):
+        sysm.stack(plant=[1, 2, 3], observer=[3, 4])
