@@ -33,6 +33,7 @@ _A, _B, _C, _E, _P = RK45.A, RK45.B, RK45.C, RK45.E, RK45.P
 _NS = RK45.n_stages
 _ERR_EXP = -1.0 / (RK45.error_estimator_order + 1)
 _SAFETY, _MIN_FACTOR, _MAX_FACTOR = 0.9, 0.2, 10.0
+_STALL = 4          # bisect when a bracket has not halved in this many probes
 _TOO_SMALL = "Required step size is less than spacing between numbers."
 _JUMPS, _FLOWS, _RANDOM = 0, 1, 2
 # options of simulate() that make no sense for a batch integrated in numpy
@@ -738,84 +739,111 @@ class _BatchRun:
         p = np.stack([xx, xx * xx, xx ** 3, xx ** 4], axis=1)
         return ya + h[:, None] * np.einsum("knp,kp->kn", Q, p)
 
-    def _pred(self, rows, y, s, j):
+    def _pred(self, rows, y, s, j, wd):
+        """The event has happened: x left C, or entered D (rows with ``wd``)."""
         m = self.maps
         ev = np.zeros(len(rows), dtype=bool)
         if m.has_C:
             ev |= ~m.in_C(rows, y, s, j)
-        if self.watch_D:
-            ev |= m.in_D(rows, y, s, j)
+        if self.watch_D and wd.any():
+            ev |= wd & m.in_D(rows, y, s, j)
         return ev
 
-    def _phi(self, rows, y, s, j):
+    def _phi(self, rows, y, s, j, wd):
+        """Continuous version of :meth:`_pred` (>= 0 where the event has happened)."""
         m = self.maps
         v = np.full(len(rows), -np.inf)
-        if self.watch_D and m.hD is not None:
-            v = m.guard_D(rows, y, s, j)
+        if self.watch_D and m.hD is not None and wd.any():
+            v = np.where(wd, m.guard_D(rows, y, s, j), -np.inf)
         if m.has_C and m.hC is not None:
             v = np.maximum(v, -m.guard_C(rows, y, s, j))
         return v
 
-    def _locate(self, rows, a, b, ya, h, Q, j):
-        """Vectorized :func:`hybridsim.events.locate_event` over the rows' dense outputs."""
+    def _locate(self, rows, a, b, ya, h, Q, j, wd):
+        """Bracket the first event in (a, b] of each row on its dense output.
+
+        The batch version of :func:`hybridsim.events.locate_event`: the
+        predicate (set indicators) decides each probe's side, so ``hi`` is
+        always an event point and ``lo`` is not (or ``lo = a``); brackets end
+        4 eps max(1, |t|) wide. Where the guards bracket a sign change, the
+        probe is an Illinois-type regula falsi step (Anderson-Bjorck weights,
+        kept off the ends); a bracket that has not halved in the last
+        ``_STALL`` probes gets a bisection, and so does a step that starts on
+        the guard's zero (a flow just after a jump), so a flow re-entering D
+        within one step is never lost.
+
+        Returns
+        -------
+        lo, hi : ndarray, shape (k,)
+        ylo, yhi : ndarray, shape (k, n)
+        """
+        k = len(rows)
         tol = 4.0 * _EPS * np.maximum(1.0, np.maximum(np.abs(a), np.abs(b)))
         lo, hi = a.copy(), b.copy()
         ylo = self._dense(a, h, ya, Q, lo)
         yhi = self._dense(a, h, ya, Q, hi)
+        out = [lo.copy(), hi.copy(), ylo.copy(), yhi.copy()]
         use_phi = self.use_phi
         if use_phi:
-            flo = self._phi(rows, ylo, lo, j)
-            fhi = self._phi(rows, yhi, hi, j)
-        k = len(rows)
+            flo = self._phi(rows, ylo, lo, j, wd)
+            fhi = self._phi(rows, yhi, hi, j, wd)
+        else:
+            flo = fhi = np.zeros(k)
         side = np.zeros(k, dtype=np.int8)
-        last_width = hi - lo
-        bisect_next = np.zeros(k, dtype=bool)
-        for _ in range(200):
-            act = np.flatnonzero((hi - lo > tol) & ~self.bad[rows])
-            if not act.size:
-                break
-            l, u = lo[act], hi[act]
-            width = u - l
-            mid = 0.5 * (l + u)
+        hist = np.full((k, _STALL), np.inf)  # bracket widths of the last probes
+        pos = np.arange(k)                   # where each working row goes in ``out``
+        for it in range(200):
+            fin = (hi - lo <= tol) | self.bad[rows]
+            if fin.any():
+                p = pos[fin]
+                out[0][p], out[1][p], out[2][p], out[3][p] = lo[fin], hi[fin], ylo[fin], yhi[fin]
+                w = ~fin
+                if not w.any():
+                    break
+                (pos, rows, a, h, ya, Q, j, wd, tol, lo, hi, ylo, yhi, flo, fhi, side,
+                 hist) = (v[w] for v in (pos, rows, a, h, ya, Q, j, wd, tol, lo, hi, ylo,
+                                         yhi, flo, fhi, side, hist))
+            width = hi - lo
+            m = 0.5 * (lo + hi)
             if use_phi:
-                fl, fu = flo[act], fhi[act]
-                ill = ~bisect_next[act] & (fl < 0.0) & (0.0 <= fu) & (fu - fl > 0)
+                ill = (flo < 0.0) & (0.0 <= fhi) & (fhi - flo > 0) & \
+                    ~(width > 0.5 * hist[:, it % _STALL])
                 if ill.any():
-                    with np.errstate(divide="ignore", invalid="ignore"):
-                        r = u - fu * (u - l) / (fu - fl)
-                    ill &= (l < r) & (r < u)
-                    g = np.maximum(tol[act], 1e-3 * width)
-                    mm = np.minimum(np.maximum(r, l + 0.5 * g), u - 0.5 * g)
-                    ill_ok = ill & (l < mm) & (mm < u)
-                    mid = np.where(ill_ok, mm, mid)
-            ar = rows[act]
-            ym = self._dense(a[act], h[act], ya[act], Q[act], mid)
-            hit = self._pred(ar, ym, mid, j[act])
+                    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+                        r = hi - fhi * width / (fhi - flo)
+                    g = np.maximum(tol, 1e-3 * width)
+                    r = np.minimum(np.maximum(r, lo + 0.5 * g), hi - 0.5 * g)
+                    ill &= (lo < r) & (r < hi)
+                    m = np.where(ill, r, m)
+            ym = self._dense(a, h, ya, Q, m)
+            hit = self._pred(rows, ym, m, j, wd)
             if use_phi:
-                fm = self._phi(ar, ym, mid, j[act])
-            ih, il = act[hit], act[~hit]
-            hi[ih], yhi[ih] = mid[hit], ym[hit]
-            lo[il], ylo[il] = mid[~hit], ym[~hit]
-            if use_phi:
-                fhi[ih] = fm[hit]
-                s1 = ih[side[ih] == 1]
-                flo[s1] *= 0.5           # Illinois: the other end has stayed twice
-                side[ih] = 1
-                flo[il] = fm[~hit]
-                s2 = il[side[il] == -1]
-                fhi[s2] *= 0.5
-                side[il] = -1
-            # an interpolation step that removed less than half the bracket
-            # is followed by a bisection
-            new_width = hi[act] - lo[act]
-            bisect_next[act] = new_width > 0.5 * last_width[act]
-            last_width[act] = new_width
-        return lo, hi, ylo, yhi
+                fm = self._phi(rows, ym, m, j, wd)
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    # Anderson-Bjorck: scale the end that stays twice
+                    kl = np.where(hit & (side == 1), 1.0 - fm / fhi, 1.0)
+                    kh = np.where(~hit & (side == -1), 1.0 - fm / flo, 1.0)
+                flo = flo * np.where(kl > 0, kl, 0.5)
+                fhi = fhi * np.where(kh > 0, kh, 0.5)
+                fhi = np.where(hit, fm, fhi)
+                flo = np.where(hit, flo, fm)
+                side = np.where(hit, 1, -1).astype(np.int8)
+            hi = np.where(hit, m, hi)
+            lo = np.where(hit, lo, m)
+            hit2 = hit[:, None]
+            yhi = np.where(hit2, ym, yhi)
+            ylo = np.where(hit2, ylo, ym)
+            hist[:, it % _STALL] = hi - lo
+        else:
+            out[0][pos], out[1][pos], out[2][pos], out[3][pos] = lo, hi, ylo, yhi
+        return out
 
     def _event(self, rows, a, b, ya, h, Q, j):
         """Locate the first event in (a, b] of ``rows`` and decide what happens there."""
         m = self.maps
-        lo, hi, ylo, yhi = self._locate(rows, a, b, ya, h, Q, j)
+        # a flow that started in D (random priority flowing on) watches only C
+        wd = ~self.inD_prev[rows]
+        lo, hi, ylo, yhi = self._locate(rows, a, b, ya, h, Q, j, wd)
         ok = self._reap(rows)
         if ok is not None:
             rows, a, lo, hi, ylo, yhi, j = (rows[ok], a[ok], lo[ok], hi[ok], ylo[ok], yhi[ok],
