@@ -7,6 +7,7 @@ order 1e-10 relative to the state's size, and the jump multiplies them by up
 to |K1| + |K2| (and, for H_c / H_pc, by |T| |(H T - I)^{-1}|). Hence
 ``_tol(design)`` = 1e-8 * (1 + |K1| + |K2|) * (1 + |T| |(HT - I)^{-1}|) * scale.
 """
+import functools
 import math
 
 import numpy as np
@@ -33,19 +34,20 @@ def _examples():
             "VB_rounded": ls.example_VB(rounded=True)}
 
 
+@functools.lru_cache(maxsize=None)
 def _random_cases():
-    return [ls.random_design(s, n, p) for s in SEEDS[:2] for (n, p) in SHAPES]
+    return tuple(ls.random_design(s, n, p) for s in SEEDS[:2] for (n, p) in SHAPES)
 
 
 # ---------------------------------------------------------------------------
 # design computations
 # ---------------------------------------------------------------------------
-@pytest.mark.parametrize("d", list(_examples().values()) + _random_cases())
+@pytest.mark.parametrize("d", list(_examples().values()) + list(_random_cases()))
 def test_K_gains_reset_equal_errors_to_zero(d):
     # (12): K1 + K2 = I (x passes) and K1 e^{F1 delta} + K2 e^{F2 delta} = 0 (equal errors cancel)
     I = np.eye(d.n)
     assert np.allclose(d.K1 + d.K2, I, atol=1e-12)
-    Z = d.K1 @ scipy.linalg.expm(d.F1 * d.delta) + d.K2 @ scipy.linalg.expm(d.F2 * d.delta)
+    Z = d.K1 @ ls.expm(d.F1 * d.delta) + d.K2 @ ls.expm(d.F2 * d.delta)
     assert np.linalg.norm(Z) <= 1e-11 * (1 + np.linalg.norm(d.K2))
     K1, K2 = ls.gains_K(d.A, d.H, d.L1, d.L2, d.delta)
     assert np.allclose(K1, d.K1) and np.allclose(K2, d.K2)
@@ -81,7 +83,7 @@ def test_footnote7_Xi_and_L_tilde(n, p):
     assert np.array_equal(ls.Xi_matrix(Lt, n, p), L)
     # Xi(t) = int_0^t e^{F(t-s)} ds L, checked by quadrature
     t = 0.7
-    ref, _ = scipy.integrate.quad_vec(lambda s: scipy.linalg.expm(F * (t - s)) @ L, 0, t, epsabs=1e-13)
+    ref, _ = scipy.integrate.quad_vec(lambda s: ls.expm(F * (t - s)) @ L, 0, t, epsabs=1e-13)
     X = ls.Xi_of_t(F, L, t)
     assert np.allclose(X, ref, atol=1e-11)
     # and it solves the xi flow of (17) piecewise: d/dt Xi = F Xi + L
@@ -132,7 +134,7 @@ def test_admissible_delta_sign_change_random():
             continue
         found += 1
         # p(t*) = 0 and p keeps one sign on (0, t*)
-        scale = np.linalg.norm(scipy.linalg.expm(F2 * tz) @ scipy.linalg.expm(-F1 * tz), 2) ** 2
+        scale = np.linalg.norm(ls.expm(F2 * tz) @ ls.expm(-F1 * tz), 2) ** 2
         assert abs(ls.p_det(F1, F2, tz)) <= 1e-9 * max(1.0, scale)
         ts = np.linspace(tz / 300, tz * (1 - 1e-6), 300)
         pv = ls.p_det(F1, F2, ts)
@@ -200,7 +202,7 @@ def test_theorem_4_7_needs_sqrt3_for_rotating_errors():
     x = np.zeros(2)
     z0 = ls.dist_to_A(x, e0, e0)
     t = math.pi / 2
-    e1, e2 = scipy.linalg.expm(F1 * t) @ e0, scipy.linalg.expm(F2 * t) @ e0
+    e1, e2 = ls.expm(F1 * t) @ e0, ls.expm(F2 * t) @ e0
     zt = ls.dist_to_A(x, e1, e2)
     P = np.eye(2) / 2
     b = ls.theorem_4_7_bound(d, z0, t, 0, P1=P, P2=P)
@@ -298,3 +300,240 @@ def test_bad_noise_and_misc_input():
         ls.LuenbergerObserver(d.A, d.H, np.ones((2, 1)))
     with pytest.raises(ValueError, match=r"noise must have shape \(2,\)"):
         ls.simulate_with_plant(ls.NominalObserver(d), [0, 0], [0, 0], noise=[0.1])
+
+
+# ---------------------------------------------------------------------------
+# theorem checks on the engine
+# ---------------------------------------------------------------------------
+@functools.lru_cache(maxsize=None)
+def _sim_cases(p_eq_n=False):
+    """The paper's examples and seeded random observable (A, H), n <= 4, p <= 2."""
+    cases = [("III", ls.example_III()), ("VA", ls.example_VA()), ("VB", ls.example_VB()),
+             ("VB_rounded", ls.example_VB(rounded=True))]
+    shapes = [(1, 1), (2, 2)] if p_eq_n else SHAPES
+    for s in SEEDS:
+        for (n, p) in shapes:
+            cases.append((f"rand{s}_{n}x{p}", ls.random_design(s, n, p, normal=p_eq_n)))
+    return tuple(cases)
+
+
+def _x0s(d, seed):
+    rng = np.random.default_rng(100 + seed)
+    return rng.normal(size=d.n), rng.normal(size=d.n)
+
+
+@pytest.mark.parametrize("name,d", _sim_cases()[:4] + _sim_cases()[4::3])
+def test_theorem_4_7_Hn_exact_after_its_jump(name, d):
+    x0, xh0 = _x0s(d, 0)
+    obs = ls.NominalObserver(d)
+    arc = ls.simulate_with_plant(obs, x0, xh0, t_max=2 * d.delta)
+    assert arc.success and arc.jump_count == 1          # q makes it jump once (decision 1: q+ = 1 - q)
+    assert arc.jump_times[0] == pytest.approx(d.delta, abs=1e-12)
+    E = ls.observer_errors(arc, obs)
+    tol = _tol(d, np.max(np.abs(arc.x[:, :d.n])) + np.linalg.norm(x0 - xh0))
+    post = arc.j == 1
+    assert np.max(np.linalg.norm(E["e1"][post], axis=1)) <= tol
+    assert np.max(np.linalg.norm(E["e2"][post], axis=1)) <= tol
+    assert np.linalg.norm(E["ebar"][arc.j == 0][-1]) > 1e3 * tol   # it was not exact before the jump
+    # Theorem 4.7's bound (with the sqrt(3) of decision 9) along the flow j = 0
+    z = ls.dist_to_A(E["x"], E["x"] + E["e1"], E["x"] + E["e2"])
+    b = ls.theorem_4_7_bound(d, z[0], arc.t, arc.j)
+    assert np.all(z <= b * (1 + 1e-6) + tol)
+
+
+@pytest.mark.parametrize("name,d", _sim_cases()[:4] + _sim_cases()[4::3])
+def test_theorem_4_13_Hc_exact_after_one_jump_under_constant_noise(name, d):
+    x0, xh0 = _x0s(d, 1)
+    m = np.random.default_rng(5).uniform(-0.5, 0.5, size=d.p)
+    obs = ls.ConstantNoiseObserver(d)
+    arc = ls.simulate_with_plant(obs, x0, xh0, noise=m, t_max=2 * d.delta)
+    assert arc.success and arc.jump_count == 1
+    E = ls.observer_errors(arc, obs)
+    tol = _tol(d, np.max(np.abs(arc.x[:, :d.n])) + np.linalg.norm(x0 - xh0) + np.linalg.norm(m), True)
+    post = arc.j == 1
+    assert np.max(np.linalg.norm(E["e1"][post], axis=1)) <= tol
+    assert np.max(np.linalg.norm(E["e2"][post], axis=1)) <= tol
+    assert np.max(np.abs(E["mhat"][post] - m)) <= tol       # m̂ equals the noise
+    # H_n under the same noise is not exact: its error is (15) = T m
+    arc_n = ls.simulate_with_plant(ls.NominalObserver(d), x0, xh0, noise=m, t_max=1.5 * d.delta)
+    En = ls.observer_errors(arc_n, ls.NominalObserver(d))
+    assert np.allclose(En["e1"][arc_n.j == 1][0], d.T @ m, atol=tol)
+
+
+def test_section_III_scalar_observer_7_9():
+    # the motivating observer (7)-(9) is H_c for n = p = 1: Fig. 1 parameters, m = 0.2, delta = 2
+    d = ls.example_III()
+    obs = ls.ConstantNoiseObserver(d)
+    assert obs.state_dim == 7        # (x̂1, x̂2, xi1, xi2, m̂, tau, q)
+    arc = ls.simulate_with_plant(obs, [1.0], [0.0], noise=[0.2], t_max=6.0)
+    E = ls.observer_errors(arc, obs)
+    tol = _tol(d, 1.0, True)
+    assert np.max(np.abs(E["e1"][arc.j == 1])) <= tol and np.max(np.abs(E["mhat"][arc.j == 1] - 0.2)) <= tol
+    # and observer (3) (= H_n) leaves the error (6) after its jump
+    arc3 = ls.simulate_with_plant(ls.NominalObserver(d), [1.0], [0.0], noise=[0.2], t_max=3.0)
+    e3 = arc3.x[arc3.j == 1][0, 1] - arc3.x[arc3.j == 1][0, 0]
+    assert e3 == pytest.approx(ls.scalar_error_after_jump(-0.05, 0.01, 0.02, 2.0, 0.2), abs=tol)
+
+
+def _check_pc_run(d, noise, arc, obs, tol):
+    """Theorem 4.14 as stated: exact within 2 delta after each switch, and on a sub-interval of I_j U I_{j+1}."""
+    E = ls.observer_errors(arc, obs)
+    err = np.maximum(np.linalg.norm(E["e1"], axis=1), np.linalg.norm(E["e2"], axis=1))
+    ok = err <= tol
+    jt = arc.jump_times
+    edges = np.concatenate([[0.0], noise.d, [np.inf]])
+    for k in range(len(edges) - 1):
+        # the first jump whose preceding flow [t_J - delta, t_J] lies after the switch d_k ...
+        J = int(np.flatnonzero(jt >= edges[k] + d.delta - 1e-9)[0])
+        tJ = jt[J]
+        assert tJ <= edges[k] + 2 * d.delta + 1e-9          # ... comes within 2 delta of it
+        # and from (t_J, J + 1) until the next switch x̂_i = x and m̂ = c_k
+        m = ((arc.t > tJ) | ((arc.t == tJ) & (arc.j >= J + 1))) & (arc.t < edges[k + 1])
+        assert m.any()
+        assert np.all(ok[m]), f"not exact on [{tJ}, {edges[k + 1]}): max err {err[m].max():.3g}"
+        assert np.max(np.abs(E["mhat"][m] - noise.c[k])) <= tol * max(1.0, d.HT_inv_norm)
+    # for each I_j (with a successor) an interval with nonempty interior in I_j U I_{j+1} where x̂_i = x
+    for jj in range(int(arc.j.max()) - 1):
+        m = ((arc.j == jj) | (arc.j == jj + 1)) & ok
+        ts = np.unique(arc.t[m])
+        assert ts.size >= 2 and ts[-1] - ts[0] > 0, f"no exact interval in I_{jj} U I_{jj + 1}"
+
+
+def test_theorem_4_14_example_VB():
+    # the paper's run: delta = 1, switches at 2.5 and 4.5 (on the boundary delta = min gap / 2, decision 6)
+    d = ls.example_VB()
+    noise = ls.PiecewiseConstantNoise([2.5, 4.5], [[0.3, 0.2], [0.4, 0.4], [0.2, 0.3]])
+    obs = ls.PiecewiseConstantNoiseObserver(d)
+    arc = ls.simulate_with_plant(obs, [0.3, 0.4], [0.0, 0.0], noise=noise, t_max=8.0)
+    assert arc.success and np.allclose(arc.jump_times, np.arange(1, 8), atol=1e-11)
+    _check_pc_run(d, noise, arc, obs, _tol(d, 1.0, True))
+    # not exact after every jump: the jumps at 3 and 5 saw a switch during their flow
+    E = ls.observer_errors(arc, obs)
+    for tj in (3.0, 5.0):
+        k = np.flatnonzero((np.abs(arc.t - tj) < 1e-9))[-1]
+        assert np.linalg.norm(E["e1"][k]) > 1e-4
+
+
+@pytest.mark.parametrize("seed,n,p", [(0, 2, 1), (1, 3, 2), (2, 4, 2)])
+def test_theorem_4_14_random(seed, n, p):
+    d = ls.random_design(seed, n, p)
+    rng = np.random.default_rng(seed)
+    gaps = rng.uniform(2.2, 3.0, size=3) * d.delta        # switches more than 2 delta apart, off the jump grid
+    sw = np.cumsum(gaps)
+    noise = ls.PiecewiseConstantNoise(sw[:2], rng.uniform(-0.5, 0.5, size=(3, p)))
+    obs = ls.PiecewiseConstantNoiseObserver(d)
+    x0, xh0 = _x0s(d, seed)
+    arc = ls.simulate_with_plant(obs, x0, xh0, noise=noise, t_max=float(sw[2]))
+    assert arc.success
+    tol = _tol(d, np.max(np.abs(arc.x[:, :n])) + 1.0, True)
+    _check_pc_run(d, noise, arc, obs, tol)
+
+
+@pytest.mark.parametrize("side", ["right", "left"])
+def test_switch_exactly_at_a_jump(side):
+    # decision 5: y at the jump is H x(t) + m(t); with the paper's right-continuous m the jump at the switch
+    # sees the new value and is off by T (HT - I)^{-1} (c_new - c_old); side="left" makes that jump exact
+    d = ls.example_VB()
+    c = np.array([[0.3, 0.2], [0.4, 0.4]])
+    noise = ls.PiecewiseConstantNoise([2.0], c, side=side)
+    obs = ls.PiecewiseConstantNoiseObserver(d)
+    arc = ls.simulate_with_plant(obs, [0.3, 0.4], [0.0, 0.0], noise=noise, t_max=3.5)
+    E = ls.observer_errors(arc, obs)
+    tol = _tol(d, 1.0, True)
+    k2 = np.flatnonzero(arc.j == 2)[0]          # first sample after the jump at t = 2
+    k1 = k2 - 1                                  # the sample just before it
+    assert arc.t[k2] == pytest.approx(2.0, abs=1e-11)
+    assert np.linalg.norm(E["e1"][k1]) <= tol     # exact before (old noise all along the flow)
+    e_plus, m_plus = ls.switch_jump_error(d, c[0], c[1])
+    if side == "right":
+        assert np.allclose(E["e1"][k2], e_plus, atol=tol) and np.linalg.norm(e_plus) > 1e-3
+        assert np.allclose(E["mhat"][k2], m_plus, atol=tol)
+    else:
+        assert np.linalg.norm(E["e1"][k2]) <= tol and np.allclose(E["mhat"][k2], c[0], atol=tol)
+    # either way the next jump (t = 3) is exact, with m̂ = c_new
+    k3 = np.flatnonzero(arc.j == 3)
+    assert np.max(np.linalg.norm(E["e1"][k3], axis=1)) <= tol
+    assert np.allclose(E["mhat"][k3[0]], c[1], atol=tol)
+
+
+@pytest.mark.parametrize("eps", [-0.25, 0.25])
+def test_switch_just_before_or_after_a_jump(eps):
+    d = ls.example_VB()
+    c = np.array([[0.3, 0.2], [0.4, 0.4]])
+    noise = ls.PiecewiseConstantNoise([2.0 + eps], c)
+    obs = ls.PiecewiseConstantNoiseObserver(d)
+    arc = ls.simulate_with_plant(obs, [0.3, 0.4], [0.0, 0.0], noise=noise, t_max=4.5)
+    E = ls.observer_errors(arc, obs)
+    tol = _tol(d, 1.0, True)
+    first = {jj: np.linalg.norm(E["e1"][np.flatnonzero(arc.j == jj)[0]]) for jj in (2, 3, 4)}
+    if eps < 0:     # the flow into t = 2 saw the switch: jump 2 inexact, jump 3 exact (within 2 delta)
+        assert first[2] > 1e3 * tol and first[3] <= tol
+    else:           # jump 2 exact (old noise), jump 3 inexact, jump 4 exact: 2 delta after the switch
+        assert first[2] <= tol and first[3] > 1e3 * tol and first[4] <= tol
+
+
+@pytest.mark.parametrize("name,d", _sim_cases(p_eq_n=True)[:4] + _sim_cases(p_eq_n=True)[4:8])
+def test_formula_15_and_theorems_4_10_4_11_along_Hn_under_noise(name, d):
+    # H_n under a bounded time-varying noise: e(delta, 1) equals (15), respects Thm 4.10, and the KL bound (16) holds
+    rng = np.random.default_rng(11)
+    w, ph = rng.uniform(0.5, 4.0, size=d.p), rng.uniform(0, 2 * np.pi, size=d.p)
+    amp = 0.3 / math.sqrt(d.p)
+    mfun = lambda t: amp * np.sin(w * t + ph)  # noqa: E731
+    m_inf = 0.3
+    x0, xh0 = _x0s(d, 3)
+    obs = ls.NominalObserver(d)
+    arc = ls.simulate_with_plant(obs, x0, xh0, noise=mfun, t_max=3 * d.delta)
+    E = ls.observer_errors(arc, obs)
+    tol = _tol(d, np.max(np.abs(arc.x[:, :d.n])) + np.linalg.norm(x0 - xh0) + m_inf)
+    k = np.flatnonzero(arc.j == 1)[0]
+    e15 = ls.error_after_jump(d, mfun)
+    assert np.allclose(E["e1"][k], e15, atol=tol) and np.allclose(E["e2"][k], e15, atol=tol)
+    assert np.linalg.norm(E["e1"][k]) <= ls.theorem_4_10_bound(d, m_inf)
+    # (16) along the whole run; the sup of |m| over [0, delta] is taken on a fine grid (an under-estimate by
+    # at most amp * |w| * grid step, added to the tolerance)
+    grid = np.linspace(0, d.delta, 4001)
+    m_delta = max(np.linalg.norm(mfun(s)) for s in grid) + amp * np.max(w) * d.delta / 4000 * math.sqrt(d.p)
+    b = ls.theorem_4_11_bound(d, np.linalg.norm(E["ebar"][0]), m_delta, m_inf, arc.t, arc.j)
+    assert np.all(np.linalg.norm(E["ebar"], axis=1) <= b + tol)
+
+
+def test_theorem_4_11_noise_free_reduces_to_remark_4_12():
+    # Remark 4.12: with m = 0, (16) is the KL bound before the jump and 0 after it
+    d = ls.example_VB()
+    b = ls.theorem_4_11_bound(d, 2.0, 0.0, 0.0, np.array([0.0, 0.5, 1.0, 1.0, 3.0]), np.array([0, 0, 0, 1, 1]))
+    mu1 = ls.mu_max(d.F1)
+    assert np.allclose(b, [2.0, 2.0 * math.exp(mu1 * 0.5), 2.0 * math.exp(mu1), 0.0, 0.0])
+
+
+def test_estimate_weights_and_output():
+    # footnote 2: x̄ = a1 x̂1 + a2 x̂2 is the observer's output; exactness after the jump for any a1 + a2 = 1
+    base = ls.example_VB()
+    d = ls.Design(A=base.A, H=base.H, L1=base.L1, L2=base.L2, delta=1.0, a1=1.5)
+    assert d.a2 == pytest.approx(-0.5)
+    obs = ls.NominalObserver(d)
+    arc = ls.simulate_with_plant(obs, [0.3, 0.4], [0.0, 0.0], t_max=2.0)
+    E = ls.observer_errors(arc, obs)
+    y = arc.outputs("observer")
+    assert np.allclose(y, E["xbar"], atol=1e-14)
+    assert np.allclose(E["xbar"], 1.5 * (E["x"] + E["e1"]) - 0.5 * (E["x"] + E["e2"]), atol=1e-14)
+    assert np.max(np.abs(E["ebar"][arc.j == 1])) <= _tol(d)
+
+
+def test_luenberger_observer_2_steady_state_bias():
+    # (2) under a bias m: e' = (a - L0) e + L0 m, so e -> L0 m / (L0 - a); Fig. 1(b)'s comparison observer
+    a, L0, m = -0.05, 0.02, 0.2
+    obs = ls.LuenbergerObserver([[a]], [[1.0]], [[L0]])
+    arc = ls.simulate_with_plant(obs, [0.0], [1.0], noise=[m], t_max=40.0)
+    E = ls.observer_errors(arc, obs)
+    t = arc.t
+    ref = L0 * m / (L0 - a) + (1.0 - L0 * m / (L0 - a)) * np.exp((a - L0) * t)
+    assert np.allclose(E["e0"][:, 0], ref, atol=1e-8)
+
+
+def test_numpy_expm_matches_scipy():
+    rng = np.random.default_rng(3)
+    for n in (1, 2, 4, 8):
+        for scale in (1e-3, 1.0, 30.0):
+            M = rng.normal(size=(n, n)) * scale
+            E = scipy.linalg.expm(M)
+            assert np.linalg.norm(ls.expm(M) - E) <= 1e-12 * np.linalg.norm(E)
