@@ -351,7 +351,7 @@ def test_refine_adds_interior_samples_on_the_flow():
 
 
 def test_progress_bar_runs(capsys):
-    arc = hs.simulate(timer(), [0.0], t_max=3.0, progress=True)
+    arc = hs.simulate(timer(), [0.0], t_max=3.5, progress=True)
     assert arc.jump_count == 3
     arc = hs.simulate(timer(), [0.0], t_max=np.inf, j_max=4, progress=True)
     assert arc.jump_count == 4
