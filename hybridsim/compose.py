@@ -188,6 +188,18 @@ class Interconnection(HybridSystem):
         self.state_dim = k
         self.input_dim = 0
         self._name = name
+        hints = [s.max_step for s in self.systems.values() if s.max_step is not None]
+        self.max_step = min(hints) if hints else None
+        self.needs_history = any(s.needs_history for s in self.systems.values())
+        self.delays = tuple(sorted({float(d) for s in self.systems.values()
+                                    for d in (s.delays or ())}))
+        self._build()
+
+    _DERIVED = ("_f", "_g", "_C", "_D", "_h", "_hD", "_hC", "_items", "jump_guard",
+                "flow_guard", "_compiled_maps", "history")
+
+    def _build(self):
+        """Tables of the components' compiled maps (rebuilt after unpickling)."""
         c = {nm: s._compile() for nm, s in self.systems.items()}
         self._f = {nm: c[nm].f for nm in c}
         self._g = {nm: c[nm].g for nm in c}
@@ -196,17 +208,23 @@ class Interconnection(HybridSystem):
         self._h = {nm: c[nm].h for nm in c}
         self._hD = {nm: c[nm].hD for nm in self._D}
         self._hC = {nm: c[nm].hC for nm in self._C}
-        hints = [s.max_step for s in self.systems.values() if s.max_step is not None]
-        self.max_step = min(hints) if hints else None
-        self.needs_history = any(s.needs_history for s in self.systems.values())
-        self.delays = tuple(sorted({float(d) for s in self.systems.values()
-                                    for d in (s.delays or ())}))
         # composite guards only where every relevant component has one
         if self._D and all(h is not None for h in self._hD.values()):
             self.jump_guard = self._jump_guard
         if self._C and all(h is not None for h in self._hC.values()):
             self.flow_guard = self._flow_guard
-        self._items = [(nm, self._slices[nm], self._f[nm], inputs.get(nm)) for nm in self.systems]
+        self._items = [(nm, self._slices[nm], self._f[nm], self.inputs.get(nm))
+                       for nm in self.systems]
+
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        for k in self._DERIVED:
+            state.pop(k, None)
+        return state
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self._build()
 
     # -- wiring --------------------------------------------------------------
     def _u(self, name, x, t, j, y=None):
@@ -315,7 +333,28 @@ def connect(plant, observer, names=("plant", "observer")):
     if int(plant.input_dim or 0) > 0:
         raise ValueError(f"plant has input_dim={plant.input_dim}: connect() wires only the "
                          "plant's output; use Interconnection with inputs for a feedback loop")
-    return Interconnection({p: plant, o: observer}, inputs={o: lambda t, y: y[p]})
+    return Interconnection({p: plant, o: observer}, inputs={o: _OutputOf(p)})
+
+
+class _OutputOf:
+    """Input wiring ``u = y[name]`` (a picklable callable)."""
+
+    def __init__(self, name):
+        self.name = name
+
+    def __call__(self, t, y):
+        return y[self.name]
+
+
+class _NodeInput:
+    """Input wiring of one node of a network (a picklable callable)."""
+
+    def __init__(self, inputs, node, preds, exo_names):
+        self.inputs, self.node, self.preds, self.exo_names = inputs, node, preds, exo_names
+
+    def __call__(self, t, y):
+        return self.inputs(self.node, t, {i: y[i] for i in self.preds},
+                           {e: y[e] for e in self.exo_names})
 
 
 def network(G, systems, inputs, *, nodelist=None, exogenous=None):
@@ -362,15 +401,8 @@ def network(G, systems, inputs, *, nodelist=None, exogenous=None):
         s = systems(v) if callable(systems) and not isinstance(systems, Mapping) else systems[v]
         comps[v] = s
     exo_names = list(exogenous)
-    preds = {v: list(G.predecessors(v)) for v in nodes}
-
-    def make(v):
-        pv = preds[v]
-
-        def u(t, y):
-            return inputs(v, t, {i: y[i] for i in pv}, {e: y[e] for e in exo_names})
-        return u
-    wiring = {v: make(v) for v in nodes if int(comps[v].input_dim or 0) > 0}
+    wiring = {v: _NodeInput(inputs, v, list(G.predecessors(v)), exo_names)
+              for v in nodes if int(comps[v].input_dim or 0) > 0}
     ic = Interconnection(comps, wiring)
     ic.graph = G
     ic.nodelist = nodes

@@ -445,14 +445,15 @@ class _Run:
                 self._stop(Termination.NON_FINITE, f"after the step from t={a} to t={b}")
                 return "stop", a, ya
             ub = ufun(b) if ufun is not None else None
+            d_active = watch_D and not inD_prev     # D entries count only from outside D
             event = has_C and not C(yb, b, j, ub)
-            if not event and watch_D:
+            if watch_D:
                 inDb = bool(D(yb, b, j, ub))
-                event = inDb and not inD_prev
+                event = event or (inDb and d_active)
                 inD_prev = inDb
             if event:
                 sol = solver.dense_output()
-                return self._event(sol, a, b, j, solver)
+                return self._event(sol, a, b, j, solver, d_active)
             if keep or refine > 1:
                 sol = solver.dense_output()
                 if keep:
@@ -482,11 +483,14 @@ class _Run:
             for s, xs in zip(ts, X):
                 self.buf.append(s, j, xs)
 
-    def _event(self, sol, a, b, j, solver):
-        """Locate the first event in (a, b] and decide what happens there."""
+    def _event(self, sol, a, b, j, solver, watch_D):
+        """Locate the first event in (a, b] and decide what happens there.
+
+        ``watch_D``: entering D is an event (the step started outside D).
+        """
         maps, ufun = self.maps, self.ufun
         C, D, hC, hD = maps.C, maps.D, maps.hC, maps.hD
-        has_C, has_D, watch_D = maps.has_C, maps.has_D, self.watch_D
+        has_C, has_D = maps.has_C, maps.has_D
 
         def u_at(s):
             return ufun(s) if ufun is not None else None
@@ -496,7 +500,7 @@ class _Run:
             return (has_C and not C(y, s, j, u)) or (watch_D and bool(D(y, s, j, u)))
 
         phi = None
-        if self.use_phi:
+        if self.use_phi and (watch_D or hC is not None):
             def phi(s, y):
                 u = u_at(s)
                 v = -math.inf
@@ -507,7 +511,11 @@ class _Run:
                 return v
 
         lo, hi, ylo, yhi = locate_event(sol, a, b, pred, phi)
-        self.h_hint = getattr(solver, "h_abs", None)
+        # next flow's first step: at most 10x the part of this step used (the
+        # controller's proposal after an overshooting step can be huge where
+        # the flow is integrated exactly, and long steps cancel digits)
+        h = getattr(solver, "h_abs", None)
+        self.h_hint = None if h is None or hi <= a else min(h, 10.0 * (hi - a))
         if self.keep:
             self.history._add(a, lo if lo > a else hi, j, sol)
         if self.refine > 1:

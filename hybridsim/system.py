@@ -125,6 +125,13 @@ class HybridSystem:
     # ------------------------------------------------------------------
     history = None
 
+    def __getstate__(self):
+        # compiled maps and the run's history hold closures: rebuilt on demand
+        state = self.__dict__.copy()
+        state.pop("_compiled_maps", None)
+        state.pop("history", None)
+        return state
+
     def _bind_history(self, history):
         """Give this system (and its components) read access to a run's past."""
         self.history = history

@@ -177,3 +177,14 @@ def test_split_and_stack():
         sysm.stack(plant=[1, 2])
     with pytest.raises(ValueError, match=r"part 'plant' must have shape \(2,\)"):
         sysm.stack(plant=[1, 2, 3], observer=[3, 4])
+
+
+def test_interconnection_pickles_after_a_run():
+    import pickle
+    sysm = hs.connect(hs.LinearPlant(A, C=C), Luenberger())
+    x0 = [1.0, -1.0, 0.0, 0.0]
+    a = hs.simulate(sysm, x0, t_max=1.0)
+    clone = pickle.loads(pickle.dumps(sysm))
+    b = hs.simulate(clone, x0, t_max=1.0)
+    np.testing.assert_array_equal(a.x, b.x)
+    pickle.loads(pickle.dumps(a))            # arcs travel back from worker processes

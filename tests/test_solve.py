@@ -355,3 +355,21 @@ def test_progress_bar_runs(capsys):
     assert arc.jump_count == 3
     arc = hs.simulate(timer(), [0.0], t_max=np.inf, j_max=4, progress=True)
     assert arc.jump_count == 4
+
+
+def test_random_priority_jumps_only_at_entry_or_exit_of_overlap():
+    # after choosing to flow on in C ∩ D, the next event is the exit of C
+    pre = []
+    for seed in range(10):
+        arc = hs.simulate(overlap_system(), [0.0], t_max=10.0, priority="random",
+                          seed=seed, max_step=0.3)
+        pre += arc.x[arc.jump_index - 1, 0].tolist()
+    np.testing.assert_allclose(np.sort(np.unique(np.round(pre, 9))), [1.0, 2.0])
+
+
+def test_jump_times_stay_exact_when_flows_are_integrated_exactly():
+    # RK45 is exact on the parabola, so its step proposals explode; the
+    # engine caps the first step after an event and keeps every digit
+    arc = hs.simulate(GuardBall(), [1.0, 0.0], t_max=np.inf, j_max=10, rtol=1e-10,
+                      atol=1e-12)
+    np.testing.assert_allclose(arc.jump_times, ball_jump_times(1.0, 10), rtol=0, atol=1e-12)
