@@ -1379,43 +1379,65 @@ jump. |(H T - 1)^(-1)| = {dA.HT_inv_norm:.1f} (the m̂ update's amplification)."
     print(f"  Fig. 2(a): H_c max |ē| after the jump = {errc:.2e}, m̂ = {mh:.10f} (m = 0.2), "
           f"|(HT-1)^-1| = {dA.HT_inv_norm:.2f}; H_n |e(delta,1)| = {abs(En['ebar'][arc_n.j == 1][0, 0]):.4f}")
 
-    # ---- Fig. 2(b): error after the jump (15) of H_n against the noise, delta = 1 and 3 -----------
+    # ---- Fig. 2(b): error after the jump (15) of H_n, delta = 1 and 3 -----------------------------
     ms = np.linspace(0.0, 1.0, 101)
-    fig, ax = plt.subplots(figsize=(6, 4))
+    omegas = np.linspace(0.05, 6.0, 150)
+    fig, axs = plt.subplots(1, 2, figsize=(11, 4))
     lines = []
     for dl, col in ((1.0, "b"), (3.0, "r")):
         dd = example_VA(delta=dl)
-        e15 = np.abs(dd.T[0, 0]) * ms
-        ax.plot(ms, e15, col + "-", label=rf"(15), $\delta = {dl:g}$")
-        bound = theorem_4_10_bound(dd, 1.0) * ms
-        ax.plot(ms, bound, col + ":", lw=1, label=rf"Thm 4.10 bound, $\delta = {dl:g}$")
+        obs = NominalObserver(dd)
+        b410 = theorem_4_10_bound(dd, 1.0)
+        # left: constant noise of size m
+        axs[0].plot(ms, np.abs(dd.T[0, 0]) * ms, col + "-", label=rf"(15), $\delta = {dl:g}$")
+        axs[0].plot(ms, b410 * ms, col + ":", lw=1, label=rf"Thm 4.10 bound, $\delta = {dl:g}$")
         msim = np.array([0.25, 0.5, 0.75, 1.0])
         es = []
         for mm in msim:
-            obs = NominalObserver(dd)
             arc = simulate_with_plant(obs, [1.0], [0.0], noise=[mm], t_max=dl * 1.01, **_SIM)
             es.append(abs(observer_errors(arc, obs)["e1"][arc.j == 1][0, 0]))
-        ax.plot(msim, es, col + "o", mfc="none")
-        lines.append((dl, dd.T[0, 0], theorem_4_10_bound(dd, 1.0)))
-    ax.set_xlabel("constant noise m")
-    ax.set_ylabel(r"$|e(\delta, 1)|$ of $H_n$")
-    ax.set_title(r"Fig. 2(b): effect of $\delta$ on $H_n$'s error after the jump")
-    ax.legend(fontsize=8)
-    ax.grid(alpha=0.3)
+        axs[0].plot(msim, es, col + "o", mfc="none")
+        # right: unit sinusoidal noise m(t) = sin(omega t)
+        e_w = [abs(error_after_jump(dd, lambda s, w=w: [math.sin(w * s)])[0]) for w in omegas]
+        axs[1].plot(omegas, e_w, col + "-", label=rf"(15), $\delta = {dl:g}$")
+        axs[1].axhline(b410, color=col, ls=":", lw=1, label=rf"Thm 4.10 bound, $\delta = {dl:g}$")
+        wsim = omegas[::30]
+        es_w = []
+        for w in wsim:
+            arc = simulate_with_plant(obs, [1.0], [0.0], noise=lambda t, w=w: np.array([math.sin(w * t)]),
+                                      t_max=dl * 1.01, **_SIM)
+            es_w.append(abs(observer_errors(arc, obs)["e1"][arc.j == 1][0, 0]))
+        axs[1].plot(wsim, es_w, col + "o", mfc="none")
+        lines.append((dl, dd.T[0, 0], b410, max(e_w), float(omegas[int(np.argmax(e_w))]),
+                      max(abs(a_ - b_) for a_, b_ in zip(es_w, [abs(error_after_jump(dd, lambda s, w=w: [math.sin(w * s)])[0]) for w in wsim]))))
+    axs[0].set_xlabel("constant noise m")
+    axs[0].set_ylabel(r"$|e(\delta, 1)|$ of $H_n$")
+    axs[0].set_title("constant noise")
+    axs[1].set_xlabel(r"frequency $\omega$ of $m(t) = \sin(\omega t)$")
+    axs[1].set_yscale("log")
+    axs[1].set_title("sinusoidal noise, $|m|_\\infty = 1$")
+    for ax in axs:
+        ax.legend(fontsize=8)
+        ax.grid(alpha=0.3)
+    fig.suptitle(r"Fig. 2(b): effect of $\delta$ on $H_n$'s error after the jump, formula (15)")
     p = out / "fig2b_error_after_jump_delta.png"
     fig.tight_layout()
     fig.savefig(p, dpi=120)
     plt.close(fig)
     _caption(p, f"""
-Fig. 2(b) of Li & Sanfelice: error right after the jump of H_n, formula (15), against the size of a constant
-noise m, for delta = 1 (blue) and delta = 3 (red), with the bound of Theorem 4.10 (dotted) and engine runs
-(circles). Paper values: a = -0.05, L1 = 0.1, L2 = 0.2, delta in {{1, 3}}. Chosen: the reading of the figure
-as error against constant noise amplitude m in [0, 1] (the text only says (15) is evaluated for delta = 1
-and 3), x(0) = 1, x̂(0) = 0 for the runs. Slopes: |e(delta,1)|/m = {lines[0][1]:.4f} (delta = 1),
-{lines[1][1]:.4f} (delta = 3); Theorem 4.10 slopes {lines[0][2]:.2f} and {lines[1][2]:.2f}.""")
+Fig. 2(b) of Li & Sanfelice: error right after the jump of H_n, formula (15) (lines), with engine runs (circles)
+and the bound of Theorem 4.10 (dotted), for delta = 1 (blue) and delta = 3 (red). Paper values: a = -0.05,
+L1 = 0.1, L2 = 0.2, delta in {{1, 3}}. The text only says (15) is evaluated for delta = 1 and 3; chosen here:
+left, a constant noise of size m in [0, 1] (|e(delta,1)| = |T| m with |T| = {abs(lines[0][1]):.4f} for delta = 1,
+{abs(lines[1][1]):.4f} for delta = 3: little sensitivity); right, a unit sinusoid m(t) = sin(omega t),
+omega in [0.05, 6], where delta matters: the largest error is {lines[0][3]:.3f} (omega = {lines[0][4]:.2f}) for
+delta = 1 and {lines[1][3]:.3f} (omega = {lines[1][4]:.2f}) for delta = 3. Theorem 4.10 bounds per unit
+|m|_inf: {lines[0][2]:.2f} and {lines[1][2]:.2f}. Runs from x(0) = 1, x̂(0) = 0 (chosen; (15) does not depend on them).""")
     paths.append(p)
-    print(f"  Fig. 2(b): |e(delta,1)|/m = {lines[0][1]:.4f} (delta=1), {lines[1][1]:.4f} (delta=3); "
-          f"Thm 4.10 bound/|m| = {lines[0][2]:.3f}, {lines[1][2]:.3f}")
+    print(f"  Fig. 2(b): constant noise |e(delta,1)|/m = {abs(lines[0][1]):.4f} (delta=1), {abs(lines[1][1]):.4f} "
+          f"(delta=3); sinusoid max |e(delta,1)| = {lines[0][3]:.3f} (delta=1), {lines[1][3]:.3f} (delta=3); "
+          f"Thm 4.10 bound/|m| = {lines[0][2]:.3f}, {lines[1][2]:.3f}; max |(15) - engine| = "
+          f"{max(lines[0][5], lines[1][5]):.1e}")
 
     # ---- Fig. 3: H_pc on the plant of Section V.B with piecewise-constant noise ------------------
     dB = example_VB()
