@@ -399,7 +399,6 @@ class _BatchRun:
         self.fx = np.zeros((N, n))                  # f at (t, x): first stage (FSAL)
         self.h = np.full(N, np.nan if first_step is None else first_step)  # step hint
         self.rejected = np.zeros(N, dtype=bool)     # last attempt was rejected
-        self.capped = np.zeros(N, dtype=bool)       # h is a hint capped at an event
         self.inD_prev = np.zeros(N, dtype=bool)
         self.force = np.zeros(N, dtype=bool)        # an event asks for a jump
         self.short = np.zeros(N, dtype=np.int64)    # consecutive short flows (Zeno)
@@ -572,16 +571,10 @@ class _BatchRun:
             rows, x, t, j, f0, inD = rows[ok], x[ok], t[ok], j[ok], f0[ok], inD[ok]
         span = self.t_max - t
         h = np.minimum(np.minimum(self.h[rows], span), self.max_step)
-        capped = self.capped[rows]
-        need = ~(h > 0) | capped             # no hint (NaN), or a hint left by an event
+        need = ~(h > 0)                      # no hint (NaN) or a degenerate one
         if need.any():
-            h_sel = self._initial_step(rows[need], x[need], t[need], j[need], f0[need],
-                                       span[need])
-            # after an event: the capped hint, but never below the initial-step rule
-            h[need] = np.where(capped[need] & (h[need] > 0),
-                               np.minimum(np.maximum(h[need], h_sel), np.minimum(
-                                   span[need], self.max_step)), h_sel)
-            self.capped[rows] = False
+            h[need] = self._initial_step(rows[need], x[need], t[need], j[need], f0[need],
+                                         span[need])
             ok = self._reap(rows)
             if ok is not None:
                 rows, f0, inD, h = rows[ok], f0[ok], inD[ok], h[ok]
@@ -850,11 +843,10 @@ class _BatchRun:
                                             j[ok])
             if not rows.size:
                 return
-        # step hint for the next flow: at most MAX_FACTOR times the part of the
-        # step actually used (simulate keeps the grown h of the whole step,
-        # which on exact polynomial flows reaches 10^k and ruins the dense output)
+        # next flow's first step (as simulate): at most 10x the part of this
+        # step used; the controller's proposal after an overshooting step can
+        # be huge where the flow is integrated exactly, and long steps cancel digits
         self.h[rows] = np.minimum(self.h[rows], _MAX_FACTOR * (hi - a))
-        self.capped[rows] = True
         k = len(rows)
         kind = np.zeros(k, dtype=np.int8)    # 0 undecided, 1 jump at hi, 2 jump at lo,
         #                                      3 continue at hi, 4 leave C at lo
