@@ -110,6 +110,16 @@ __all__ = [
     "example_VB",
     "example_III",
     "random_design",
+    "NominalObserver",
+    "ConstantNoiseObserver",
+    "PiecewiseConstantNoiseObserver",
+    "LuenbergerObserver",
+    "simulate_with_plant",
+    "observer_errors",
+    "BoundedNoiseGenerator",
+    "noise_batch",
+    "dist_to_A",
+    "reproduce",
 ]
 
 # A matrix whose condition number exceeds this is treated as singular.
@@ -1204,6 +1214,78 @@ def observer_errors(arc, observer):
     if "mhat" in parts:
         out["mhat"] = parts["mhat"]
     return out
+
+
+class BoundedNoiseGenerator(hs.HybridSystem):
+    """A noise source whose (constant) state holds the noise's coefficients, for batches of realisations.
+
+    State w = (a, omega, phi), each (p, K) flattened row-major (state_dim = 3 p K); flow 0, no jumps.
+    Output m(t)_i = sum_k a_ik sin(omega_ik t + phi_ik), so |m|_inf <= sqrt(sum_i (sum_k |a_ik|)^2).
+    Different initial states are different noise realisations, so :func:`hybridsim.simulate_many`
+    runs a whole batch of them through one interconnection (see :func:`noise_batch`).
+    """
+
+    def __init__(self, p, K=3):
+        self.p, self.K = int(p), int(K)
+        self.state_dim = 3 * self.p * self.K
+        self.output_dim = self.p
+
+    def flow_map(self, x, t, j, u):
+        return np.zeros(self.state_dim)
+
+    def _parts(self, x):
+        pk = self.p * self.K
+        return (x[:pk].reshape(self.p, self.K), x[pk:2 * pk].reshape(self.p, self.K),
+                x[2 * pk:].reshape(self.p, self.K))
+
+    def output(self, x, t, j):
+        a, w, ph = self._parts(np.asarray(x, dtype=float))
+        return np.sum(a * np.sin(w * t + ph), axis=1)
+
+    def callable(self, w0):
+        """The realisation of the state w0 as a plain function t -> m(t)."""
+        w0 = np.array(w0, dtype=float)
+        return lambda t: self.output(w0, t, 0)
+
+    def sup_bound(self, w0):
+        """sqrt(sum_i (sum_k |a_ik|)^2) >= |m|_inf for the realisation w0."""
+        a, _, _ = self._parts(np.asarray(w0, dtype=float))
+        return float(np.linalg.norm(np.sum(np.abs(a), axis=1)))
+
+    def random_states(self, N, m_max, *, w_max=5.0, seed=None):
+        """N realisations with |m|_inf <= m_max (amplitudes scaled so the bound is m_max), (N, 3pK)."""
+        rng = np.random.default_rng(seed)
+        out = np.empty((N, self.state_dim))
+        for r in range(N):
+            a = rng.uniform(-1, 1, size=(self.p, self.K))
+            a *= m_max / np.linalg.norm(np.sum(np.abs(a), axis=1))
+            w = rng.uniform(0.0, w_max, size=(self.p, self.K))
+            ph = rng.uniform(0, 2 * np.pi, size=(self.p, self.K))
+            out[r] = np.concatenate([a.ravel(), w.ravel(), ph.ravel()])
+        return out
+
+
+def noise_batch(observer, x0, xhat0, noise_states, generator):
+    """Interconnection noise -> (plant, observer) and the (N, n_total) initial states of a batch.
+
+    The observer's input is y = H x + m with m the generator's output; each row of ``noise_states``
+    is one realisation. Run it with ``hs.simulate_many(system, x0s, t_max=..., ...)``.
+
+    Returns
+    -------
+    system : hybridsim.Interconnection
+        Components "noise", "plant", "observer".
+    x0s : (N, n_total) ndarray
+    """
+    d = observer.design
+    plant = _hs_attr("LinearPlant")(d.A, C=d.H)
+    sys = _hs_attr("Interconnection")({"noise": generator, "plant": plant, "observer": observer},
+                                      inputs={"observer": lambda t, y: y["plant"] + y["noise"]})
+    z0 = np.concatenate([_vector("x0", x0, d.n), observer.initial_state(xhat0)])
+    S = np.atleast_2d(np.asarray(noise_states, dtype=float))
+    if S.shape[1] != generator.state_dim:
+        raise ValueError(f"noise_states must have shape (N, {generator.state_dim}), got {S.shape}")
+    return sys, np.hstack([S, np.tile(z0, (S.shape[0], 1))])
 
 
 # ---------------------------------------------------------------------------
