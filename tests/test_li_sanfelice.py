@@ -307,13 +307,13 @@ def test_bad_noise_and_misc_input():
 # ---------------------------------------------------------------------------
 @functools.lru_cache(maxsize=None)
 def _sim_cases(p_eq_n=False):
-    """The paper's examples and seeded random observable (A, H), n <= 4, p <= 2."""
+    """The paper's examples and seeded random observable (A, H), n <= 4, p <= 2 (each shape once)."""
     cases = [("III", ls.example_III()), ("VA", ls.example_VA()), ("VB", ls.example_VB()),
              ("VB_rounded", ls.example_VB(rounded=True))]
-    shapes = [(1, 1), (2, 2)] if p_eq_n else SHAPES
-    for s in SEEDS:
-        for (n, p) in shapes:
-            cases.append((f"rand{s}_{n}x{p}", ls.random_design(s, n, p, normal=p_eq_n)))
+    if p_eq_n:
+        cases += [(f"rand{s}_{n}x{n}", ls.random_design(s, n, n, normal=True)) for s in SEEDS for n in (1, 2)]
+    else:
+        cases += [(f"rand{s}_{n}x{p}", ls.random_design(s, n, p)) for s, (n, p) in enumerate(SHAPES)]
     return tuple(cases)
 
 
@@ -322,7 +322,7 @@ def _x0s(d, seed):
     return rng.normal(size=d.n), rng.normal(size=d.n)
 
 
-@pytest.mark.parametrize("name,d", _sim_cases()[:4] + _sim_cases()[4::3])
+@pytest.mark.parametrize("name,d", _sim_cases())
 def test_theorem_4_7_Hn_exact_after_its_jump(name, d):
     x0, xh0 = _x0s(d, 0)
     obs = ls.NominalObserver(d)
@@ -334,14 +334,14 @@ def test_theorem_4_7_Hn_exact_after_its_jump(name, d):
     post = arc.j == 1
     assert np.max(np.linalg.norm(E["e1"][post], axis=1)) <= tol
     assert np.max(np.linalg.norm(E["e2"][post], axis=1)) <= tol
-    assert np.linalg.norm(E["ebar"][arc.j == 0][-1]) > 1e3 * tol   # it was not exact before the jump
+    assert np.linalg.norm(E["ebar"][arc.j == 0][-1]) > 10 * tol   # it was not exact before the jump
     # Theorem 4.7's bound (with the sqrt(3) of decision 9) along the flow j = 0
     z = ls.dist_to_A(E["x"], E["x"] + E["e1"], E["x"] + E["e2"])
     b = ls.theorem_4_7_bound(d, z[0], arc.t, arc.j)
     assert np.all(z <= b * (1 + 1e-6) + tol)
 
 
-@pytest.mark.parametrize("name,d", _sim_cases()[:4] + _sim_cases()[4::3])
+@pytest.mark.parametrize("name,d", _sim_cases())
 def test_theorem_4_13_Hc_exact_after_one_jump_under_constant_noise(name, d):
     x0, xh0 = _x0s(d, 1)
     m = np.random.default_rng(5).uniform(-0.5, 0.5, size=d.p)
@@ -472,7 +472,7 @@ def test_switch_just_before_or_after_a_jump(eps):
         assert first[2] <= tol and first[3] > 1e3 * tol and first[4] <= tol
 
 
-@pytest.mark.parametrize("name,d", _sim_cases(p_eq_n=True)[:4] + _sim_cases(p_eq_n=True)[4:8])
+@pytest.mark.parametrize("name,d", _sim_cases(p_eq_n=True))
 def test_formula_15_and_theorems_4_10_4_11_along_Hn_under_noise(name, d):
     # H_n under a bounded time-varying noise: e(delta, 1) equals (15), respects Thm 4.10, and the KL bound (16) holds
     rng = np.random.default_rng(11)
@@ -568,3 +568,47 @@ def test_reproduce_writes_figures_with_captions(tmp_path):
                                        "fig3_Hpc_piecewise_noise.png"]
     for p in paths:
         assert p.stat().st_size > 10_000 and "Paper values" in p.with_suffix(".txt").read_text()
+
+
+def test_maps_follow_17_18_and_q_decision():
+    # the implemented flow/jump maps against (17)-(18) written out with kron (footnote 7) for n = 3, p = 2
+    d = ls.random_design(1, 3, 2)
+    n, p = d.n, d.p
+    obs = ls.ConstantNoiseObserver(d)
+    assert obs.state_dim == 2 * n + (2 * n + 1) * p + 2        # r + 2, r = 2n + (2n+1)p
+    rng = np.random.default_rng(0)
+    z = rng.normal(size=obs.state_dim)
+    z[obs.slices["tau"]], z[obs.slices["q"]] = d.delta, 0.0
+    y = rng.normal(size=p)
+    P = obs.split(z)
+    f = obs.split(obs.flow_map(z, 0.0, 0, y))
+    assert np.allclose(f["xi1"], np.kron(np.eye(p), d.F1) @ P["xi1"] + d.L1.T.ravel())
+    assert np.allclose(f["xh2"], d.A @ P["xh2"] + d.L2 @ (y - d.H @ P["xh2"]) - d.L2 @ P["mhat"])
+    assert f["tau"] == 1.0 and f["q"] == 0.0 and np.all(f["mhat"] == 0)
+    g = obs.split(obs.jump_map(z, 0.0, 0, y))
+    R = d.K1 @ P["xh1"] + d.K2 @ P["xh2"]
+    T = d.K1 @ P["xi1"].reshape(p, n).T + d.K2 @ P["xi2"].reshape(p, n).T
+    w = np.linalg.inv(d.H @ T - np.eye(p)) @ (d.H @ R - (y - P["mhat"]))
+    assert np.allclose(g["xh1"], R - T @ w) and np.allclose(g["xh2"], R - T @ w)
+    assert np.allclose(g["mhat"], P["mhat"] + w) and np.all(g["xi1"] == 0) and g["tau"] == 0
+    assert g["q"] == 1.0                                      # decision 1: q+ = 1 - q (not "1 - a")
+    assert obs.jump_set(z, 0.0, 0, y) and not obs.jump_set(obs.jump_map(z, 0.0, 0, y), 0.0, 1, y)
+    # H_pc has no q and jumps whenever tau >= delta
+    pc = ls.PiecewiseConstantNoiseObserver(d)
+    assert pc.state_dim == obs.state_dim - 1 and "q" not in pc.slices
+    zp = z[:-1]
+    assert pc.jump_set(zp, 0.0, 5, y) and pc.split(pc.flow_map(zp, 0.0, 0, y))["tau"] == 1.0
+
+
+def test_ill_conditioned_HT_warns():
+    import scipy.optimize
+    L1, L2, delta = 3.0, 5.0, 1.0
+
+    def g(a):
+        return ls.Design(A=[[a]], H=[[1.0]], L1=[[L1]], L2=[[L2]], delta=delta).T[0, 0] - 1.0
+
+    a = scipy.optimize.brentq(g, -1.0, 2.0, xtol=1e-15)
+    d = ls.Design(A=[[a + 1e-8]], H=[[1.0]], L1=[[L1]], L2=[[L2]], delta=delta)
+    assert 1e6 < d.HT_inv_norm < 1e11
+    with pytest.warns(RuntimeWarning, match=r"\|\(H T - I\)\^-1\| = .* amplifies"):
+        ls.ConstantNoiseObserver(d)
