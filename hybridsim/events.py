@@ -24,19 +24,14 @@ def fast_dense(sol):
     """
     if type(sol) is not RkDenseOutput:
         return sol
-    t_old, h, Q, y_old = sol.t_old, sol.h, sol.Q, sol.y_old
-    order = Q.shape[1]
+    t_old, h, y_old = sol.t_old, sol.h, sol.y_old
+    hQ = h * sol.Q
+    k = np.arange(1, hQ.shape[1] + 1)
 
     def call(t):
         if np.ndim(t):
             return sol(t)
-        x = (t - t_old) / h
-        p = x
-        acc = Q[:, 0] * p
-        for k in range(1, order):
-            p = p * x
-            acc = acc + Q[:, k] * p
-        return y_old + h * acc
+        return y_old + hQ @ (((t - t_old) / h) ** k)
     return call
 
 

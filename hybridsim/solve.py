@@ -66,6 +66,11 @@ class _Buffer:
         return self.t[:k].copy(), self.j[:k].copy(), self.x[:k].copy()
 
 
+def _vmin(v):
+    """min of a guard's value (a float, or the components of an array)."""
+    return v if type(v) is float else float(np.min(v))
+
+
 def _check_x0(x0, n):
     try:
         x = np.array(x0, dtype=float)
@@ -505,9 +510,9 @@ class _Run:
                 u = u_at(s)
                 v = -math.inf
                 if watch_D and hD is not None:
-                    v = float(np.min(hD(y, s, j, u)))
+                    v = _vmin(hD(y, s, j, u))
                 if has_C and hC is not None:
-                    v = max(v, -float(np.min(hC(y, s, j, u))))
+                    v = max(v, -_vmin(hC(y, s, j, u)))
                 return v
 
         lo, hi, ylo, yhi = locate_event(sol, a, b, pred, phi)

@@ -91,14 +91,27 @@ def timer(period):
 
 
 def test_simultaneous_jumps_are_one_jump_of_the_interconnection():
+    # two identical clocks are in their jump sets at once: one jump of the
+    # interconnection resets both
+    sysm = hs.Interconnection({"a": timer(1.0), "b": timer(1.0)})
+    arc = hs.simulate(sysm, [0.0, 0.0], t_max=3.5)
+    np.testing.assert_allclose(arc.jump_times, [1, 2, 3], atol=1e-12)
+    np.testing.assert_array_equal(arc.x[arc.jump_index], np.zeros((3, 2)))
+
+
+def test_jumps_that_coincide_up_to_rounding():
+    # a 1-clock and a 2-clock reach their thresholds at t = 2 only up to
+    # rounding: either one jump resets both, or two jumps at the same t
+    # (within the 4-ulp event bracket). Either way both are reset at t = 2
+    # and the fast one alone jumps at t = 1 and 3.
     sysm = hs.Interconnection({"fast": timer(1.0), "slow": timer(2.0)})
     arc = hs.simulate(sysm, [0.0, 0.0], t_max=4.5)
-    # the slow timer's jumps coincide with every other fast jump: one
-    # interconnection jump each, both components reset together
-    np.testing.assert_allclose(arc.jump_times, [1, 2, 3, 4], atol=1e-12)
-    k = arc.jump_index
-    np.testing.assert_allclose(arc.x[k[1]], [0.0, 0.0], atol=1e-12)   # t = 2: both reset
-    np.testing.assert_allclose(arc.x[k[0]], [0.0, 1.0], atol=1e-12)   # t = 1: fast only
+    np.testing.assert_allclose(np.unique(np.round(arc.jump_times, 9)), [1, 2, 3, 4])
+    at2 = np.flatnonzero(np.abs(arc.t - 2.0) < 1e-12)
+    assert len(at2) in (2, 3)             # pre-jump sample, then one or two jumps
+    np.testing.assert_allclose(arc.x[at2[-1]], [0.0, 0.0], atol=1e-12)
+    k1 = arc.jump_index[0]
+    np.testing.assert_allclose(arc.x[k1], [0.0, 1.0], atol=1e-12)   # t = 1: fast only
 
 
 def test_jump_of_one_component_leaves_the_other_unchanged():
