@@ -464,7 +464,7 @@ def Xi_matrix(xi, n, p):
     return xi.reshape(p, n).T
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Design:
     """A validated design (A, H, L1, L2, delta, a1, a2) of the Li-Sanfelice observers.
 
@@ -587,7 +587,11 @@ def error_after_jump(design, m):
             ms = _vector("m(s)", m(s), d.p)
             return (d.K1 @ expm(d.F1 * (d.delta - s)) @ d.L1
                     + d.K2 @ expm(d.F2 * (d.delta - s)) @ d.L2) @ ms
-        val, _ = scipy.integrate.quad_vec(integrand, 0.0, d.delta, epsabs=1e-13, epsrel=1e-11)
+        # split the integral at the switches of a piecewise-constant noise inside (0, delta)
+        pts = None
+        if isinstance(m, PiecewiseConstantNoise):
+            pts = [float(s) for s in m.d if 0.0 < s < d.delta] or None
+        val, _ = scipy.integrate.quad_vec(integrand, 0.0, d.delta, epsabs=1e-13, epsrel=1e-11, points=pts)
         return np.asarray(val)
     return d.T @ _vector("m", m, d.p)
 
@@ -733,8 +737,9 @@ def theorem_4_7_bound(design, z0_dist, t, j, P1=None, P2=None):
 
     (1 - j) sqrt(3) sqrt(c2/c1) |z_n(0,0)|_A exp(-lambda_min(P) t / (2 c2)),
     c1 = min eig(P1, P2), c2 = max eig(P1, P2), P = diag(-He(F1,P1), -He(F2,P2)).
-    P_i default to the solutions of F_i^T P_i + P_i F_i = -I. The sqrt(3) is
-    decision 9 of the module docstring (|z|_A vs |(e1, e2)|).
+    P_i default to the solutions of F_i^T P_i + P_i F_i = -I. He(F, P) is read
+    as F^T P + P F (the OCR'd definition in Section II-A is garbled). The
+    sqrt(3) is decision 9 of the module docstring (|z|_A vs |(e1, e2)|).
 
     References
     ----------

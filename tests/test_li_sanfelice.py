@@ -15,6 +15,7 @@ import pytest
 import scipy.integrate
 import scipy.linalg
 
+from hybridsim import testing as hst
 from observers import li_sanfelice as ls
 
 SEEDS = [0, 1, 2]
@@ -331,9 +332,8 @@ def test_theorem_4_7_Hn_exact_after_its_jump(name, d):
     assert arc.jump_times[0] == pytest.approx(d.delta, abs=1e-12)
     E = ls.observer_errors(arc, obs)
     tol = _tol(d, np.max(np.abs(arc.x[:, :d.n])) + np.linalg.norm(x0 - xh0))
-    post = arc.j == 1
-    assert np.max(np.linalg.norm(E["e1"][post], axis=1)) <= tol
-    assert np.max(np.linalg.norm(E["e2"][post], axis=1)) <= tol
+    hst.assert_exact_after(arc, E["e1"], t=d.delta, j=1, atol=tol)
+    hst.assert_exact_after(arc, E["e2"], t=d.delta, j=1, atol=tol)
     assert np.linalg.norm(E["ebar"][arc.j == 0][-1]) > 10 * tol   # it was not exact before the jump
     # Theorem 4.7's bound (with the sqrt(3) of decision 9) along the flow j = 0
     z = ls.dist_to_A(E["x"], E["x"] + E["e1"], E["x"] + E["e2"])
@@ -612,3 +612,31 @@ def test_ill_conditioned_HT_warns():
     assert 1e6 < d.HT_inv_norm < 1e11
     with pytest.warns(RuntimeWarning, match=r"\|\(H T - I\)\^-1\| = .* amplifies"):
         ls.ConstantNoiseObserver(d)
+
+
+def test_formula_15_piecewise_noise_and_bad_P():
+    # (15) with a switch inside (0, delta) equals the sum of the two constant pieces
+    d = ls.example_VB()
+    noise = ls.PiecewiseConstantNoise([0.4], [[0.3, 0.2], [0.4, 0.4]])
+    ref = sum(Ki @ (ls.Xi_of_t(Fi, Li, d.delta) - ls.expm(Fi * (d.delta - 0.4)) @ ls.Xi_of_t(Fi, Li, 0.4)) @ [0.4, 0.4]
+              + Ki @ ls.expm(Fi * (d.delta - 0.4)) @ ls.Xi_of_t(Fi, Li, 0.4) @ [0.3, 0.2]
+              for Ki, Fi, Li in ((d.K1, d.F1, d.L1), (d.K2, d.F2, d.L2)))
+    assert np.allclose(ls.error_after_jump(d, noise), ref, atol=1e-12)
+    with pytest.raises(ValueError, match=r"P1 must be symmetric positive definite"):
+        ls.theorem_4_7_bound(d, 1.0, 0.0, 0, P1=-np.eye(2))
+    with pytest.raises(ValueError, match=r"-He\(F2, P2\) must be positive definite"):
+        ls.theorem_4_7_bound(d, 1.0, 0.0, 0, P2=np.diag([1.0, 1e-6]))   # F2 = A - 8I is not P2-dissipative
+
+
+@pytest.mark.parametrize("a1", [0.8, 1.5])
+def test_theorem_4_11_with_weights(a1):
+    # decision 7: (16) times |a1| + |a2| bounds ē = a1 e1 + a2 e2 for any a1 + a2 = 1
+    base = ls.example_VB()
+    d = ls.Design(A=base.A, H=base.H, L1=base.L1, L2=base.L2, delta=1.0, a1=a1)
+    mfun = lambda t: 0.2 * np.array([np.sin(3 * t), np.cos(2 * t)]) / math.sqrt(2)  # noqa: E731
+    obs = ls.NominalObserver(d)
+    arc = ls.simulate_with_plant(obs, [0.3, 0.4], [-1.0, 1.0], noise=mfun, t_max=3.0)
+    E = ls.observer_errors(arc, obs)
+    m_bound = 0.2   # |m(t)| <= 0.2 for all t
+    hst.assert_bounded(arc, E["ebar"], lambda t, j: ls.theorem_4_11_bound(d, np.linalg.norm(E["ebar"][0]), m_bound,
+                                                                        m_bound, t, j), atol=_tol(d))
