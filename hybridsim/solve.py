@@ -458,7 +458,7 @@ class _Run:
                 inD_prev = inDb
             if event:
                 sol = solver.dense_output()
-                return self._event(sol, a, b, j, solver, d_active)
+                return self._event(sol, a, b, j, solver, d_active, t)
             if keep or refine > 1:
                 sol = solver.dense_output()
                 if keep:
@@ -488,7 +488,7 @@ class _Run:
             for s, xs in zip(ts, X):
                 self.buf.append(s, j, xs)
 
-    def _event(self, sol, a, b, j, solver, watch_D):
+    def _event(self, sol, a, b, j, solver, watch_D, t_start):
         """Locate the first event in (a, b] and decide what happens there.
 
         ``watch_D``: entering D is an event (the step started outside D).
@@ -516,11 +516,11 @@ class _Run:
                 return v
 
         lo, hi, ylo, yhi = locate_event(sol, a, b, pred, phi)
-        # next flow's first step: at most 10x the part of this step used (the
+        # next flow's first step: at most 10x the length of this flow (the
         # controller's proposal after an overshooting step can be huge where
         # the flow is integrated exactly, and long steps cancel digits)
         h = getattr(solver, "h_abs", None)
-        self.h_hint = None if h is None or hi <= a else min(h, 10.0 * (hi - a))
+        self.h_hint = None if h is None or hi <= t_start else min(h, 10.0 * (hi - t_start))
         if self.keep:
             self.history._add(a, lo if lo > a else hi, j, sol)
         if self.refine > 1:
