@@ -521,30 +521,30 @@ class _Run:
         # the flow is integrated exactly, and long steps cancel digits)
         h = getattr(solver, "h_abs", None)
         self.h_hint = None if h is None or hi <= t_start else min(h, 10.0 * (hi - t_start))
-        if self.keep:
-            self.history._add(a, lo if lo > a else hi, j, sol)
-        if self.refine > 1:
-            self._refine(sol, a, lo, j)
         if self.pbar is not None and math.isfinite(self.t_max):
             self.pbar.update(hi - a)
         uhi = u_at(hi)
         if watch_D and D(yhi, hi, j, uhi):
+            kind = "jump"
             if self.prio == _RANDOM and (not has_C or C(yhi, hi, j, uhi)) \
                     and self.rng.random() >= 0.5:
-                self.buf.append(hi, j, yhi)
-                return "continue", hi, yhi
-            self.buf.append(hi, j, yhi)
-            return "jump", hi, yhi
+                kind = "continue"
+            return self._commit(sol, a, j, hi, yhi, kind)
         # the flow leaves C: jump from the last point in C if it is in D
         if has_D and D(ylo, lo, j, u_at(lo)):
-            if lo > a:
-                self.buf.append(lo, j, ylo)
-            return "jump", lo, ylo
+            return self._commit(sol, a, j, lo, ylo, "jump")
         if has_D and D(yhi, hi, j, uhi):
-            self.buf.append(hi, j, yhi)
-            return "jump", hi, yhi
-        if lo > a:
-            self.buf.append(lo, j, ylo)
+            return self._commit(sol, a, j, hi, yhi, "jump")
         self._stop(Termination.LEFT_SETS, f"the flow left C at t={lo} (j={j}), "
                                           f"x={ylo}, outside D")
-        return "stop", lo, ylo
+        return self._commit(sol, a, j, lo, ylo, "stop")
+
+    def _commit(self, sol, a, j, te, xe, kind):
+        """Record the flow of the event step up to the event time te."""
+        if self.keep:
+            self.history._add(a, te, j, sol)
+        if te > a:
+            if self.refine > 1:
+                self._refine(sol, a, te, j)
+            self.buf.append(te, j, xe)
+        return kind, te, xe

@@ -116,3 +116,25 @@ def test_history_output_and_input_of_a_component():
     assert abs(arc["observer"].xf[0] - 1.125) < 1e-9
     obs = sysm.systems["observer"]
     assert abs(obs.history.output(1.0)[0] - arc["observer"].at(1.0)[0]) < 1e-6
+
+
+@pytest.mark.parametrize("method", ["RK45", "DOP853", "Radau", "LSODA"])
+def test_history_covers_the_flow_up_to_the_jump_time(method):
+    # a delayed read landing between the located bracket's ends (a few ulp
+    # before the jump) must find the flow that led to the jump
+    class S(hs.HybridSystem):
+        state_dim = 2
+        max_step = 0.1
+        needs_history = True
+
+        def flow_map(self, x, t):
+            return np.array([1.0, -self.history(t - 0.1)[1] if t >= 0.1 else -x[1]])
+
+        def jump_guard(self, x, t):
+            return x[0] - 0.1
+
+        def jump_map(self, x, t):
+            return np.array([0.0, x[1]])
+
+    arc = hs.simulate(S(), [0.1, 1.0], t_max=1.0, j_max=100, rtol=1e-8, method=method)
+    assert arc.termination is hs.Termination.T_MAX, arc.message
