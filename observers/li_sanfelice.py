@@ -65,6 +65,16 @@ Decisions on the paper's ambiguities (each is tested in
    argument bounds |(e1, e2)|, and |z|_A <= |(e1, e2)| <= sqrt(3) |z|_A, so the
    constant sqrt(c2/c1) must be multiplied by sqrt(3) in general (rotating
    errors reach it). :func:`theorem_4_7_bound` includes that factor.
+10. Numerical thresholds: I - e^{F2 delta} e^{-F1 delta} counts as singular
+    (K2 undefined) when its smallest singular value is below
+    1e-12 max(1, |e^{F2 delta} e^{-F1 delta}|); H T - I likewise relative to
+    max(1, |H T|). H_c / H_pc warn (RuntimeWarning) when |(H T - I)^{-1}|
+    exceeds 1e6, since m̂'s update multiplies every error by it.
+11. The observer (3) of Section I is H_n (no jump after the first one:
+    K1 = I, K2 = 0 for x̂1 and K1 = 0, K2 = I for x̂2 are identities);
+    ``MotivatingObserver`` is an alias of :class:`NominalObserver`, and the
+    scalar observer (7)-(9) of Section III is :class:`ConstantNoiseObserver`
+    with n = p = 1.
 
 References
 ----------
@@ -112,6 +122,7 @@ __all__ = [
     "example_III",
     "random_design",
     "NominalObserver",
+    "MotivatingObserver",
     "ConstantNoiseObserver",
     "PiecewiseConstantNoiseObserver",
     "LuenbergerObserver",
@@ -1031,6 +1042,10 @@ class NominalObserver(_TwoCopyObserver):
         xn[self._tau] = 0.0
         xn[self._q] = 1.0 - x[self._q]
         return xn
+
+
+#: The observer (3) of Raff and Allgöwer is H_n (decision 11).
+MotivatingObserver = NominalObserver
 
 
 class _NoiseCompensating(_TwoCopyObserver):
