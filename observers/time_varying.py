@@ -154,6 +154,12 @@ def _derivative(F):
     return dF
 
 
+def _n2(M):
+    """Spectral norm (fast path for 1 x 1)."""
+    M = np.atleast_2d(M)
+    return abs(float(M[0, 0])) if M.size == 1 else float(np.linalg.norm(M, 2))
+
+
 def _rcond(M):
     s = np.linalg.svd(M, compute_uv=False)
     return 0.0 if s[0] == 0 else s[-1] / s[0]
@@ -478,18 +484,18 @@ class FundamentalMatrix:
     def __init__(self, arc, m, t_start, h):
         self.arc, self.m, self.t_start, self.h = arc, m, float(t_start), float(h)
         self.t_end = float(arc.tf)
-        nseg = len(arc.flow_intervals)
-        self._ends = []
-        for k, (ta, tb, jj) in enumerate(arc.flow_intervals):
-            self._ends.append(self._seg(tb, k))
-        self._nseg = nseg
+        iv = arc.flow_intervals
+        self._starts = np.array([a for a, _, _ in iv])
+        self._js = [jj for _, _, jj in iv]
+        self._ends = [self._seg(b, k) for k, (_, b, _) in enumerate(iv)]
+        self._nseg = len(iv)
 
     def _seg(self, t, k):
-        x = self.arc.at(t, j=k)
+        x = self.arc.at(t, j=self._js[k])
         return np.asarray(x[: self.m * self.m]).reshape(self.m, self.m)
 
     def _k(self, t):
-        k = int(np.floor((t - self.t_start) / self.h))
+        k = int(np.searchsorted(self._starts, t, side="right")) - 1
         return min(max(k, 0), self._nseg - 1)
 
     def __call__(self, t, t0):
@@ -498,6 +504,8 @@ class FundamentalMatrix:
         for name, v in (("t", t), ("t0", t0)):
             if not lo <= v <= hi:
                 raise ValueError(f"{name} must lie in the computed range [{self.t_start}, {self.t_end}], got {v}")
+        # event times are located to ~1e-12: clip such overshoots into the range
+        t, t0 = min(max(t, self.t_start), self.t_end), min(max(t0, self.t_start), self.t_end)
         if t < t0:
             return np.linalg.inv(self(t0, t))
         ks, kt = self._k(t0), self._k(t)
@@ -845,13 +853,13 @@ def noise_gain(t, tau, A1, A2, L, Phi_A2, Phi_H, *, lip1=0.0, lip2=0.0, Ldot=Non
         t0 = tt - tau
 
         def g(s):
-            lip4 = (np.linalg.norm(D_of(s, A1f, A2f, Lf, Ldf), 2) + np.linalg.norm(Lf(s), 2) * lip1 + lip2)
-            return (np.linalg.norm(np.atleast_2d(Phi_A2(s, t0)), 2) * lip2
-                    + np.linalg.norm(np.atleast_2d(Phi_H(s, t0)), 2) * lip4)
+            lip4 = (_n2(D_of(s, A1f, A2f, Lf, Ldf)) + _n2(Lf(s)) * lip1 + lip2)
+            return (_n2(np.atleast_2d(Phi_A2(s, t0))) * lip2
+                    + _n2(np.atleast_2d(Phi_H(s, t0))) * lip4)
         I = integrate.quad(g, t0, tt, epsrel=epsrel, limit=200)[0]
         Li = np.linalg.inv(Lambda(Phi_A2, Phi_H, tt, tau))
-        val = np.linalg.norm(Li, 2) * (I + np.linalg.norm(np.atleast_2d(Phi_H(tt, t0)) @ Lf(tt), 2)
-                                       + np.linalg.norm(Lf(t0), 2))
+        val = _n2(Li) * (I + _n2(np.atleast_2d(Phi_H(tt, t0)) @ Lf(tt))
+                                       + _n2(Lf(t0)))
         out.append(val)
     out = np.array(out)
     return out if np.ndim(t) else float(out[0])
@@ -950,3 +958,451 @@ def v2_feedback(t, xi2, xi3, xi4):
     """
     return sigma(np.cos(2 * t) * xi4 + 2 * (1 - np.cos(2 * t)) * np.sin(t) * xi3
                  - (np.cos(2 * t) ** 2 + 4 * np.sin(t) ** 2 + 1) * xi2)
+
+
+# ---------------------------------------------------------------------------
+# The observer as a hybrid system on the engine
+# ---------------------------------------------------------------------------
+def _hs():
+    import hybridsim as hs
+    return hs
+
+
+def _observer_base():
+    return _hs().HybridSystem
+
+
+class ReducedOrderObserver(_observer_base()):
+    r"""The reduced-order finite-time observer (23)/(27) as a hybrid system.
+
+    State (time-major arcs: one row per sample) ``x = [J_A, J_H, s, q]``:
+
+    * J_A (m): J_A' = A2(t) J_A + delta2(t, z, w);
+    * J_H (m): J_H' = H(t) J_H + delta4(t, z, w), H = A2 + L A1, delta4 of (21);
+    * s: a timer, s' = 1, from s = 0 at the start of the measurements;
+    * q in {0, 1}: 0 while the window [t - tau, t] is not yet measured; a jump
+      at s = tau sets q = 1 (D = {q = 0, s >= tau}, located by root-finding).
+
+    with z = y - eps(t) when the disturbance ``eps`` is known (the exact
+    estimate (23)) and z = y otherwise (the approximate observer (27)). The
+    input is u = [y (p), w (w_dim)], w being known signals the maps delta1,
+    delta2 need (e.g. the control v2 of Section IV).
+
+    Output ``[P (m), G (m*p, row-major)]``, with the estimate
+
+        xhat_r(t) = P(t) + G(t) y(t)     (:meth:`estimate`),
+
+    where, for q = 1 (t >= t0 + tau),
+
+        Lambda P = Phi_A2(t, t-tau) J_A(t) - J_A(t-tau) + Phi_H(t, t-tau) J_H(t)
+                   - J_H(t-tau) - L(t-tau) z(t-tau) [- Phi_H(t, t-tau) L(t) eps(t)],
+        Lambda G = Phi_H(t, t-tau) L(t),
+
+    which is (23) (the window integrals rewritten through the semigroup
+    identity, see the module docstring) and equals x_r(t) exactly
+    (Theorem 1). For q = 0 the estimate is undefined: P = ``xr_init``, G = 0.
+
+    Parameters
+    ----------
+    tau : float > 0
+        The delay of Assumption 1.
+    A1, A2, L : callables t -> (p, m), (m, m), (m, p) matrices, or constant arrays
+    Phi_A2, Phi_H : callable (t, t0) -> (m, m)
+        Phi of (1) for A2 and H (closed forms, or :func:`fundamental_matrix`).
+    delta1, delta2 : callable, optional
+        delta1(t, z) -> (p,), delta2(t, z) -> (m,) when ``w_dim == 0``;
+        delta1(t, z, w), delta2(t, z, w) otherwise. Default 0.
+    Ldot : callable, optional
+        Derivative of L (default: 0 for a constant L, 4th-order central
+        difference for a callable L).
+    eps : callable t -> (p,), optional
+        Known measurement disturbance: gives the exact (23); None gives (27).
+    p, m : int, optional
+        Dimensions of y and x_r (inferred from array arguments).
+    w_dim : int
+        Dimension of the extra known input w.
+    xr_init : (m,) array, optional
+        The output before the window is filled (default 0).
+    rcond_min : float
+        Lambda(t) counts as singular (a ValueError, i.e. a MAP_ERROR
+        termination of the run, naming t) below this reciprocal condition.
+    z_history : callable s -> (p,), optional
+        Where to read y(t - tau). Default: the observer's own input history.
+        An interconnection whose observer input depends on the observer's own
+        output (a feedback loop) should read it from the plant instead, to
+        avoid a chain of evaluations back to t0 (see :func:`tracking_loop`).
+
+    References
+    ----------
+    [1] eqs. (1), (16)-(24), (27); Theorem 1; Remark 4.
+    """
+
+    needs_history = True
+
+    def __init__(self, tau, A1, A2, L, Phi_A2, Phi_H, *, delta1=None, delta2=None, Ldot=None,
+                 eps=None, p=None, m=None, w_dim=0, xr_init=None, rcond_min=1e-12, z_history=None):
+        self.tau = _tau(tau)
+        p, m = _dims(A1, A2, L, p, m)
+        self.p, self.m = p, m
+        if isinstance(w_dim, bool) or not isinstance(w_dim, (int, np.integer)) or w_dim < 0:
+            raise ValueError(f"w_dim must be an int >= 0, got {w_dim!r}")
+        self.w_dim = int(w_dim)
+        for nm, f in (("Phi_A2", Phi_A2), ("Phi_H", Phi_H), ("delta1", delta1), ("delta2", delta2),
+                      ("eps", eps), ("z_history", z_history)):
+            if f is not None and not callable(f):
+                raise TypeError(f"{nm} must be callable, got {type(f).__name__}")
+        if Phi_A2 is None or Phi_H is None:
+            raise TypeError("Phi_A2 and Phi_H must be callables (t, t0) -> (m, m); "
+                            "use fundamental_matrix() for a numerical one")
+        self.A1, self.A2, self.L, self.Ldot = _tv_data(A1, A2, L, Ldot, p, m)
+        self.Phi_A2 = lambda t, s: np.atleast_2d(np.asarray(Phi_A2(t, s), dtype=float))
+        self.Phi_H = lambda t, s: np.atleast_2d(np.asarray(Phi_H(t, s), dtype=float))
+        wrap = (lambda f, k: (lambda t, z, w: np.zeros(k)) if f is None else
+                (f if self.w_dim else (lambda t, z, w: f(t, z))))
+        self.delta1 = wrap(delta1, p)
+        self.delta2 = wrap(delta2, m)
+        self.eps = eps
+        self.xr_init = np.zeros(m) if xr_init is None else np.asarray(xr_init, dtype=float).reshape(m)
+        self.rcond_min = float(rcond_min)
+        self.z_history = z_history
+        self.state_dim = 2 * m + 2
+        self.input_dim = p + self.w_dim
+        self.output_dim = m + m * p
+        self.max_step = self.tau
+
+    # -- helpers --------------------------------------------------------------
+    def initial_state(self, J_A=None, J_H=None):
+        """x0 = [J_A, J_H, s = 0, q = 0]; J_A, J_H default 0 (their value does not matter)."""
+        m = self.m
+        JA = np.zeros(m) if J_A is None else np.asarray(J_A, float).reshape(m)
+        JH = np.zeros(m) if J_H is None else np.asarray(J_H, float).reshape(m)
+        return np.concatenate([JA, JH, [0.0, 0.0]])
+
+    def _z(self, y, t):
+        z = np.asarray(y, dtype=float).reshape(self.p)
+        return z if self.eps is None else z - np.asarray(self.eps(t), dtype=float).reshape(self.p)
+
+    def _split_u(self, u, t):
+        u = np.atleast_1d(np.asarray(u, dtype=float))
+        if u.shape != (self.input_dim,):
+            raise ValueError(f"observer input must have shape ({self.input_dim},) = [y (p={self.p}), "
+                             f"w (w_dim={self.w_dim})], got {u.shape}")
+        return self._z(u[: self.p], t), u[self.p:]
+
+    def H(self, t):
+        """H(t) = A2(t) + L(t) A1(t) (Assumption 1)."""
+        return self.A2(t) + self.L(t) @ self.A1(t)
+
+    def Lambda(self, t):
+        """Lambda(t) of (20)."""
+        return self.Phi_A2(t, t - self.tau) - self.Phi_H(t, t - self.tau)
+
+    # -- data (C, f, D, g) ------------------------------------------------------
+    def flow_map(self, x, t, j, u):
+        m = self.m
+        z, w = self._split_u(u, t)
+        JA, JH = x[:m], x[m:2 * m]
+        A2 = self.A2(t)
+        Lt = self.L(t)
+        H = A2 + Lt @ self.A1(t)
+        d1 = np.asarray(self.delta1(t, z, w), float).reshape(self.p)
+        d2 = np.asarray(self.delta2(t, z, w), float).reshape(m)
+        D = self.Ldot(t) - H @ Lt
+        d4 = -(D @ z + Lt @ d1 + d2)                           # (21)
+        return np.concatenate([A2 @ JA + d2, H @ JH + d4, [1.0, 0.0]])
+
+    def jump_guard(self, x, t, j, u):
+        return np.array([x[-2] - self.tau, 0.5 - x[-1]])
+
+    def jump_set(self, x, t, j, u):
+        return bool(x[-1] < 0.5 and x[-2] >= self.tau * (1 - 1e-12))
+
+    def jump_map(self, x, t, j, u):
+        xn = np.array(x, dtype=float)
+        xn[-1] = 1.0
+        return xn
+
+    def _z_past(self, s):
+        if self.z_history is not None:
+            return self._z(self.z_history(s), s)
+        u = self.history.input(s)
+        return self._z(np.atleast_1d(np.asarray(u, dtype=float))[: self.p], s)
+
+    def output(self, x, t, j):
+        m, p = self.m, self.p
+        if x[-1] < 0.5:
+            return np.concatenate([self.xr_init, np.zeros(m * p)])
+        t0 = t - self.tau
+        past = np.asarray(self.history(t0), dtype=float)
+        PA, PH = self.Phi_A2(t, t0), self.Phi_H(t, t0)
+        Lam = PA - PH
+        rc = _rcond(Lam)
+        if not rc >= self.rcond_min:
+            raise ValueError(f"Assumption 1 fails along the run: Lambda(t) (20) is singular at "
+                             f"t={t:.6g} (rcond {rc:.3g} < {self.rcond_min:g})")
+        Lt = self.L(t)
+        r = (PA @ x[:m] - past[:m] + PH @ x[m:2 * m] - past[m:2 * m] - self.L(t0) @ self._z_past(t0))
+        Gn = PH @ Lt
+        if self.eps is not None:
+            r = r - Gn @ np.asarray(self.eps(t), dtype=float).reshape(p)
+        P = np.linalg.solve(Lam, r)
+        G = np.linalg.solve(Lam, Gn)
+        return np.concatenate([P, G.ravel()])
+
+    # -- reading the estimate ----------------------------------------------------
+    def estimate(self, out, y):
+        r"""xhat_r = P + G y from the observer's output ``out`` and the measurement y.
+
+        Parameters
+        ----------
+        out : (m + m p,) or time-major (N, m + m p) array
+            The observer's output (``arc.outputs(name)``).
+        y : (p,) or (N, p) array
+            The measured output at the same times.
+
+        Returns
+        -------
+        (m,) or (N, m) array
+        """
+        out = np.asarray(out, dtype=float)
+        y = np.asarray(y, dtype=float)
+        m, p = self.m, self.p
+        if out.shape[-1] != m + m * p:
+            raise ValueError(f"out must have last dimension {m + m * p}, got shape {out.shape}")
+        if y.shape[-1:] != (p,) or y.shape[:-1] != out.shape[:-1]:
+            raise ValueError(f"y must have shape {out.shape[:-1] + (p,)}, got {y.shape}")
+        P = out[..., :m]
+        G = out[..., m:].reshape(out.shape[:-1] + (m, p))
+        return P + np.einsum("...ij,...j->...i", G, y)
+
+
+def lti_observer(A, C, *, tau=1.0, L=None, poles=None, delta=None, eps=None, N=None, xr_init=None):
+    r"""The Section II observer (15) for xdot = A x + delta(t), y = C x (+ eps(t)).
+
+    Parameters
+    ----------
+    A, C : arrays (n, n), (p, n)
+    tau : float > 0
+    L, poles : see :func:`choose_L_tau`
+    delta : callable t -> (n,), optional
+        The known input delta of (2).
+    eps : callable t -> (p,), optional
+        Known measurement disturbance (exact estimate); None: (27).
+    N : (n-p, n) array, optional
+        See :func:`reduced_coordinates`.
+    xr_init : (n-p,) array, optional
+
+    Returns
+    -------
+    observer : ReducedOrderObserver
+        Input y (p), output [P, G] (see :meth:`ReducedOrderObserver.estimate`).
+    coords : ReducedCoordinates
+        x_r = coords.x_r(x); the full state is coords.x_from(y, xhat_r).
+
+    References
+    ----------
+    [1] eqs. (2)-(15); Phi_Omega(t, s) = e^{-Omega (t - s)} for constant Omega.
+    """
+    rc = reduced_coordinates(A, C, N)
+    L, tau, _ = choose_L_tau(rc.A2, rc.A1, L=L, tau=tau, poles=poles)
+    H = rc.A2 + L @ rc.A1
+    obs = ReducedOrderObserver(
+        tau, rc.A1, rc.A2, L,
+        Phi_A2=lambda t, s: linalg.expm(-rc.A2 * (t - s)),
+        Phi_H=lambda t, s: linalg.expm(-H * (t - s)),
+        delta1=rc.delta1(delta), delta2=rc.delta2(delta), eps=eps, xr_init=xr_init)
+    return obs, rc
+
+
+# ---------------------------------------------------------------------------
+# Section IV on the engine
+# ---------------------------------------------------------------------------
+class ChainedFormPlant(_observer_base()):
+    r"""The closed-loop chained form (44) with input v2, as a hybrid system.
+
+    State ``[xi4, xi3, xi2, x1, q]`` (x1 = xi1 - 2 sin t, eq. 42), input v2,
+    output ``[xi4, xi3, x1]`` (xi4, xi3, xi1 are measured, xi2 is not).
+
+    The flow is (44) with v1 of (43). x1' = -2 sign(x1) sqrt|x1| reaches 0 at
+    t = sqrt|x1(0)| with zero slope and is not Lipschitz there; an integrator
+    chatters around 0 and spoils the exactness that the observer relies on.
+    We model the arrival as a jump: q = sign(x1) before arrival, D =
+    {q != 0, q x1 <= eta}, g: x1 = 0, q = 0; with q = 0 the flow keeps
+    x1 = 0 exactly, as the exact solution does. The jump comes sqrt(eta)
+    before the true arrival, which changes xi3, xi4 by about eta |xi2|
+    (the integral of 2 sqrt|x1| over that interval). eta must stay above the
+    solver's atol: x1' = -2 sqrt(x1) has Jacobian -1/sqrt(x1), and below
+    atol an explicit solver crawls (eta = 1e-12 with atol = 1e-12 takes
+    6e4 steps to cross t in [0.5, 1]).
+
+    Parameters
+    ----------
+    eta : float
+        Arrival threshold (default 1e-10; use atol <= eta / 100).
+
+    References
+    ----------
+    [1] eqs. (40)-(44).
+    """
+
+    state_dim = 5
+    input_dim = 1
+    output_dim = 3
+
+    def __init__(self, eta=1e-10):
+        if not (isinstance(eta, (int, float)) and 0 < eta < 1e-2):
+            raise ValueError(f"eta must be a number in (0, 1e-2), got {eta!r}")
+        self.eta = float(eta)
+
+    @staticmethod
+    def initial_state(xi4, xi3, xi2, x1):
+        """x0 = [xi4, xi3, xi2, x1, sign(x1)]."""
+        return np.array([xi4, xi3, xi2, x1, float(np.sign(x1))], dtype=float)
+
+    @staticmethod
+    def v1(t, x1):
+        """The feedback (43) in the x1 coordinate: -2 sign(x1) sqrt|x1| + 2 cos t."""
+        return -2 * np.sign(x1) * np.sqrt(abs(x1)) + 2 * np.cos(t)
+
+    def flow_map(self, x, t, j, u):
+        xi4, xi3, xi2, x1, q = x
+        v2 = float(np.asarray(u).ravel()[0])
+        dx1 = -2 * np.sign(x1) * np.sqrt(abs(x1)) if q != 0 else 0.0
+        v1 = dx1 + 2 * np.cos(t)
+        return np.array([xi3 * v1, xi2 * v1, v2, dx1, 0.0])
+
+    def jump_guard(self, x, t, j, u):
+        return self.eta - x[4] * x[3] if x[4] != 0 else -1.0
+
+    def jump_set(self, x, t, j, u):
+        return bool(x[4] != 0 and x[4] * x[3] <= self.eta)
+
+    def jump_map(self, x, t, j, u):
+        xn = np.array(x, dtype=float)
+        xn[3] = 0.0
+        xn[4] = 0.0
+        return xn
+
+    def output(self, x, t, j):
+        return np.array([x[0], x[1], x[3]])
+
+
+def chained_form_observer(xr_init=0.0, z_history=None):
+    r"""The observer of Section IV-B for (45): tau = 2 pi, L = -2 cos t, Lambda = 1 - e^{4 pi}.
+
+    Input [xi3, v2] (w = v2, delta2 = v2, delta1 = 0), closed forms (48) for
+    Phi_H and Phi_A2 = 1.
+
+    References
+    ----------
+    [1] eqs. (45)-(50).
+    """
+    ex = example_data()
+    return ReducedOrderObserver(ex["tau"], ex["A1"], ex["A2"], ex["L"], ex["Phi_A2"], ex["Phi_H"],
+                                Ldot=ex["Ldot"], delta2=lambda t, z, w: w, p=1, m=1, w_dim=1,
+                                xr_init=[xr_init], z_history=z_history)
+
+
+def tracking_loop(xr_init=0.0, feedback="estimate"):
+    r"""The output-feedback tracking loop (44) + (58) as an interconnection.
+
+    Components ``"plant"`` (:class:`ChainedFormPlant`) and ``"observer"``
+    (:func:`chained_form_observer`). The plant's input is
+
+        v2(t) = (57) with xi2 replaced by xhat2(t) = P(t) + G(t) xi3(t),
+
+    which is (58): v2(t) depends on the past of v2 only through the
+    observer's states, so there is no algebraic loop (module docstring).
+    Before 2 pi (window not filled) xhat2 = ``xr_init``. The observer reads
+    xi3(t - 2 pi) from the plant's history.
+
+    Parameters
+    ----------
+    xr_init : float
+        Estimate used before t = 2 pi.
+    feedback : {"estimate", "state"}
+        "state" feeds back the true xi2 (the state feedback (57)), for
+        comparison.
+
+    Returns
+    -------
+    loop : hybridsim.Interconnection
+    v2 : callable (t, y) -> float
+        The control, from the interconnection's outputs dict y.
+
+    References
+    ----------
+    [1] eqs. (51)-(59).
+    """
+    hs = _hs()
+    if feedback not in ("estimate", "state"):
+        raise ValueError(f"feedback must be 'estimate' or 'state', got {feedback!r}")
+    plant = ChainedFormPlant()
+    obs = chained_form_observer(xr_init, z_history=lambda s: np.array([plant.history(s)[1]]))
+    if feedback == "state":
+        plant.output_dim = 4
+        plant.output = lambda x, t, j: np.array([x[0], x[1], x[3], x[2]])
+
+    def v2(t, y):
+        yp = y["plant"]
+        if feedback == "state":
+            xi2h = yp[3]
+        else:
+            xi2h = obs.estimate(y["observer"], yp[1:2])[0]
+        return float(v2_feedback(t, xi2h, yp[1], yp[0]))
+
+    loop = hs.Interconnection({"plant": plant, "observer": obs},
+                              inputs={"plant": lambda t, y: np.array([v2(t, y)]),
+                                      "observer": lambda t, y: np.array([y["plant"][1], v2(t, y)])})
+    return loop, v2
+
+
+def tracking_initial_state(loop, xi4=1.0, xi3=-1.0, xi2=0.5, x1=0.5):
+    """Stacked x0 of :func:`tracking_loop`: plant (xi4, xi3, xi2, x1) and a fresh observer."""
+    obs = loop.systems["observer"]
+    return loop.stack(plant=ChainedFormPlant.initial_state(xi4, xi3, xi2, x1),
+                      observer=obs.initial_state())
+
+
+def loop_signals(arc, loop, v2):
+    r"""Along a run of :func:`tracking_loop`: t, xi (N, 4: xi1..xi4), xhat2, v2, zeta (N, 3).
+
+    xi1 = x1 + 2 sin t (42). Time-major arrays, one row per sample.
+    """
+    obs = loop.systems["observer"]
+    P = arc.component("plant").x
+    out = arc.outputs("observer")
+    xh = obs.estimate(out, P[:, 1:2])[:, 0]
+    vv = np.array([v2(tt, loop.outputs(x, tt, jj)) for x, tt, jj in zip(arc.x, arc.t, arc.j)])
+    xi = np.column_stack([P[:, 3] + 2 * np.sin(arc.t), P[:, 2], P[:, 1], P[:, 0]])
+    zeta = zeta_of(arc.t, P[:, 2], P[:, 1], P[:, 0]).T
+    return dict(t=arc.t, j=arc.j, xi=xi, xhat2=xh, v2=vv, zeta=zeta, x1=P[:, 3])
+
+
+def residual_58(arc, loop, v2, t):
+    r"""v2(t) minus the right-hand side of (58) evaluated literally along a run.
+
+    The right-hand side integrates the recorded v2 and xi3 over
+    [t - 2 pi, t] with adaptive quadrature on the arc's dense output, i.e.
+    independently of the observer's states. The run must use ``dense=True``.
+
+    References
+    ----------
+    [1] eqs. (58)-(59).
+    """
+    if t < TAU_EXAMPLE:
+        raise ValueError(f"t must be >= 2 pi (the window of (58) must lie in the run), got {t}")
+    plant = lambda s: arc.at(s)[loop.components["plant"]]  # noqa: E731
+    vfun = lambda s: v2(s, loop.outputs(arc.at(s), s, 0))  # noqa: E731
+    cL = (np.cos(2 * t) ** 2 + 4 * np.sin(t) ** 2 + 1) / (1 - np.exp(4 * np.pi))
+    a = t - TAU_EXAMPLE
+    # breakpoints: the jumps (v2 is discontinuous where the observer's window fills)
+    pts = [s for s in arc.jump_times if a < s < t] or None
+    I1 = integrate.quad(lambda s: (1 - np.exp(_M(s, t))) * vfun(s), a, t, limit=400,
+                        epsrel=1e-10, epsabs=1e-12, points=pts)[0]
+    I2 = integrate.quad(lambda s: np.exp(_M(s, t)) * (4 * np.cos(s) ** 3 - np.sin(s)) * plant(s)[1],
+                        a, t, limit=400, epsrel=1e-10, epsabs=1e-12, points=pts)[0]
+    xt = plant(t)
+    rhs = sigma(np.cos(2 * t) * xt[0] + 2 * (1 - np.cos(2 * t)) * np.sin(t) * xt[1]
+                - cL * I1 - 2 * cL * I2 - 2 * np.cos(t) * cL * (-np.exp(4 * np.pi) * xt[1] + plant(a)[1]))
+    return float(vfun(t) - rhs)
