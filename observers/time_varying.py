@@ -11,7 +11,7 @@ Section II (LTI)
     :func:`reduced_coordinates` (4)-(5), :func:`M_tau` (6),
     :func:`choose_L_tau`, :func:`estimate_15` (15, literal quadrature).
 Section III (time-varying, nonlinear)
-    :func:`fundamental_matrix` (1), :func:`Lambda` (20),
+    :func:`fundamental_matrix` (1), :func:`phi_scalar` (Remark 2), :func:`Lambda` (20),
     :func:`check_assumption1`, :func:`remark3` (Remark 3), :func:`D_of`
     (22), :func:`delta3`, :func:`delta4` (21), :func:`estimate_23` (23)/(27),
     :func:`noise_gain` (28), :class:`ReducedOrderObserver` (the observer as a
@@ -86,7 +86,6 @@ from __future__ import annotations
 
 import pathlib
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 from scipy import integrate, linalg
@@ -94,12 +93,12 @@ from scipy.signal import place_poles
 
 __all__ = [
     "ReducedCoordinates", "reduced_coordinates", "is_observable", "M_tau",
-    "choose_L_tau", "estimate_15", "fundamental_matrix", "FundamentalMatrix",
+    "choose_L_tau", "estimate_15", "fundamental_matrix", "FundamentalMatrix", "phi_scalar",
     "Lambda", "check_assumption1", "remark3", "Remark3Result", "D_of",
     "delta3", "delta4", "estimate_23", "noise_gain", "ReducedOrderObserver",
     "lti_observer", "example_data", "estimate_49", "v2_feedback", "sigma",
     "zeta_of", "ChainedFormPlant", "chained_form_observer", "tracking_loop",
-    "residual_58", "reproduce", "TAU_EXAMPLE",
+    "residual_58", "reproduce", "TAU_EXAMPLE", "tracking_initial_state", "loop_signals",
 ]
 
 TAU_EXAMPLE = 2.0 * np.pi
@@ -500,10 +499,12 @@ class FundamentalMatrix:
 
     def __call__(self, t, t0):
         t, t0 = float(t), float(t0)
-        lo, hi = self.t_start - 1e-9 * max(1, abs(self.t_start)), self.t_end + 1e-9 * max(1, abs(self.t_end))
+        lo = self.t_start - 1e-9 * max(1, abs(self.t_start))
+        hi = self.t_end + 1e-9 * max(1, abs(self.t_end))
         for name, v in (("t", t), ("t0", t0)):
             if not lo <= v <= hi:
-                raise ValueError(f"{name} must lie in the computed range [{self.t_start}, {self.t_end}], got {v}")
+                raise ValueError(f"{name} must lie in the computed range [{self.t_start}, {self.t_end}], "
+                                 f"got {v}")
         # event times are located to ~1e-12: clip such overshoots into the range
         t, t0 = min(max(t, self.t_start), self.t_end), min(max(t0, self.t_start), self.t_end)
         if t < t0:
@@ -586,6 +587,27 @@ def fundamental_matrix(Omega, m, t_span, *, h=None, rtol=1e-11, atol=1e-13, meth
     if not arc.success and arc.tf < tb:
         raise RuntimeError(f"fundamental_matrix: the run stopped at t={arc.tf}: {arc.termination.message}")
     return FundamentalMatrix(arc, m, ta, h)
+
+
+def phi_scalar(Omega, epsrel=1e-12):
+    r"""Phi_Omega(t, t0) = exp(-int_{t0}^t Omega(m) dm) for n - p = 1 (Remark 2), by quadrature.
+
+    Parameters
+    ----------
+    Omega : callable t -> float or (1, 1) array
+
+    Returns
+    -------
+    callable (t, t0) -> (1, 1) array
+
+    References
+    ----------
+    [1] Remark 2.
+    """
+    if not callable(Omega):
+        raise TypeError(f"Omega must be a callable t -> float, got {type(Omega).__name__}")
+    f = lambda m: float(np.asarray(Omega(m), dtype=float).reshape(-1)[0])  # noqa: E731
+    return lambda t, t0: np.array([[np.exp(-integrate.quad(f, t0, t, epsrel=epsrel, limit=200)[0])]])
 
 
 def Lambda(Phi_A2, Phi_H, t, tau):
@@ -1026,6 +1048,9 @@ class ReducedOrderObserver(_observer_base()):
     rcond_min : float
         Lambda(t) counts as singular (a ValueError, i.e. a MAP_ERROR
         termination of the run, naming t) below this reciprocal condition.
+    check_Lambda : bool
+        Check Assumption 1 at every flow-map call once the window is filled
+        (default True; the output map always checks it).
     z_history : callable s -> (p,), optional
         Where to read y(t - tau). Default: the observer's own input history.
         An interconnection whose observer input depends on the observer's own
@@ -1040,7 +1065,8 @@ class ReducedOrderObserver(_observer_base()):
     needs_history = True
 
     def __init__(self, tau, A1, A2, L, Phi_A2, Phi_H, *, delta1=None, delta2=None, Ldot=None,
-                 eps=None, p=None, m=None, w_dim=0, xr_init=None, rcond_min=1e-12, z_history=None):
+                 eps=None, p=None, m=None, w_dim=0, xr_init=None, rcond_min=1e-12, z_history=None,
+                 check_Lambda=True):
         self.tau = _tau(tau)
         p, m = _dims(A1, A2, L, p, m)
         self.p, self.m = p, m
@@ -1064,6 +1090,7 @@ class ReducedOrderObserver(_observer_base()):
         self.eps = eps
         self.xr_init = np.zeros(m) if xr_init is None else np.asarray(xr_init, dtype=float).reshape(m)
         self.rcond_min = float(rcond_min)
+        self.check_Lambda = bool(check_Lambda)
         self.z_history = z_history
         self.state_dim = 2 * m + 2
         self.input_dim = p + self.w_dim
@@ -1098,8 +1125,20 @@ class ReducedOrderObserver(_observer_base()):
         return self.Phi_A2(t, t - self.tau) - self.Phi_H(t, t - self.tau)
 
     # -- data (C, f, D, g) ------------------------------------------------------
+    def _Lambda_checked(self, t):
+        t0 = t - self.tau
+        PA, PH = self.Phi_A2(t, t0), self.Phi_H(t, t0)
+        Lam = PA - PH
+        rc = _rcond(Lam)
+        if not rc >= self.rcond_min:
+            raise ValueError(f"Assumption 1 fails along the run: Lambda(t) (20) is singular at "
+                             f"t={t:.6g} (rcond {rc:.3g} < {self.rcond_min:g})")
+        return PA, PH, Lam
+
     def flow_map(self, x, t, j, u):
         m = self.m
+        if self.check_Lambda and x[-1] >= 0.5:
+            self._Lambda_checked(t)
         z, w = self._split_u(u, t)
         JA, JH = x[:m], x[m:2 * m]
         A2 = self.A2(t)
@@ -1134,12 +1173,7 @@ class ReducedOrderObserver(_observer_base()):
             return np.concatenate([self.xr_init, np.zeros(m * p)])
         t0 = t - self.tau
         past = np.asarray(self.history(t0), dtype=float)
-        PA, PH = self.Phi_A2(t, t0), self.Phi_H(t, t0)
-        Lam = PA - PH
-        rc = _rcond(Lam)
-        if not rc >= self.rcond_min:
-            raise ValueError(f"Assumption 1 fails along the run: Lambda(t) (20) is singular at "
-                             f"t={t:.6g} (rcond {rc:.3g} < {self.rcond_min:g})")
+        PA, PH, Lam = self._Lambda_checked(t)
         Lt = self.L(t)
         r = (PA @ x[:m] - past[:m] + PH @ x[m:2 * m] - past[m:2 * m] - self.L(t0) @ self._z_past(t0))
         Gn = PH @ Lt

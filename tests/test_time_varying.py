@@ -415,7 +415,7 @@ def _open_loop_example(x1_0, v2, noise=None):
                              inputs={"plant": lambda t, y: np.array([v2(t)]),
                                      "observer": lambda t, y: np.array([y["plant"][1] + e(t), v2(t)])})
     x0 = sys.stack(plant=plant.initial_state(0.8, -0.4, 0.6, x1_0), observer=obs.initial_state())
-    return sys, obs
+    return sys, obs, x0
 
 
 @pytest.mark.parametrize("seed", SEEDS)
@@ -429,8 +429,7 @@ def test_example_50_exact_bounded_v2(seed):
     a, w, ph = rng.uniform(0.1, 0.4, 3), rng.uniform(0.5, 3, 3), rng.uniform(0, 6, 3)
     v2 = lambda t: float(np.sum(a * np.sin(w * t + ph)))           # |v2| <= sum a < 1.2
     x1_0 = 0.5 if seed == 0 else rng.uniform(-1, 1)
-    sys, obs = _open_loop_example(x1_0, v2)
-    x0 = sys.stack(plant=tv.ChainedFormPlant.initial_state(0.8, -0.4, 0.6, x1_0), observer=obs.initial_state())
+    sys, obs, x0 = _open_loop_example(x1_0, v2)
     T0 = 2 * np.pi + np.sqrt(abs(x1_0))
     arc = hs.simulate(sys, x0, t_max=T0 + 2.0, **RUN)
     assert arc.success
@@ -450,8 +449,7 @@ def test_example_noise_bound_28():
     ex = tv.example_data()
     v2 = lambda t: 0.5 * np.cos(1.3 * t)
     eps = lambda t: 0.01 * np.sin(5 * t)
-    sys, obs = _open_loop_example(0.0, v2, noise=eps)
-    x0 = sys.stack(plant=tv.ChainedFormPlant.initial_state(0.8, -0.4, 0.6, 0.0), observer=obs.initial_state())
+    sys, obs, x0 = _open_loop_example(0.0, v2, noise=eps)
     arc = hs.simulate(sys, x0, t_max=2 * np.pi + 2.5, **RUN)
     grid = np.linspace(2 * np.pi, 4 * np.pi, 25)
     l = tv.noise_gain(grid, ex["tau"], ex["A1"], ex["A2"], ex["L"], ex["Phi_A2"], ex["Phi_H"],
@@ -480,6 +478,8 @@ def test_tracking_loop_58():
     after = S["t"] >= T0
     # estimate exact after the window lies in x1 = 0 (xi2 driven by the feedback itself)
     assert np.max(np.abs(S["xhat2"] - S["xi"][:, 1])[after]) < 1e-8
+    # before the window is filled the feedback uses xr_init = 0 (our choice)
+    assert np.all(S["xhat2"][S["j"] < 2] == 0.0)
     # xi1 - 2 sin t = x1 = 0 exactly after sqrt|x1(0)| (41, first component)
     assert np.all(S["x1"][S["t"] >= 1 / np.sqrt(2)] == 0.0)
     # nu = |zeta|^2 / 2 non-increasing (55) once the feedback is (57) with the true xi2
@@ -512,7 +512,8 @@ def test_observer_bad_inputs():
         tv.ReducedOrderObserver(1.0, ex["A1"], ex["A2"], ex["L"], ex["Phi_A2"], ex["Phi_H"],
                                 delta2=1.0, p=1, m=1)
     with pytest.raises(ValueError, match="w_dim must be an int >= 0, got -1"):
-        tv.ReducedOrderObserver(1.0, ex["A1"], ex["A2"], ex["L"], ex["Phi_A2"], ex["Phi_H"], p=1, m=1, w_dim=-1)
+        tv.ReducedOrderObserver(1.0, ex["A1"], ex["A2"], ex["L"], ex["Phi_A2"], ex["Phi_H"],
+                                p=1, m=1, w_dim=-1)
     obs = tv.chained_form_observer()
     with pytest.raises(ValueError, match=r"observer input must have shape \(2,\)"):
         obs.flow_map(obs.initial_state(), 0.0, 0, np.zeros(3))
@@ -529,6 +530,20 @@ def test_observer_bad_inputs():
                                   lambda t, s: np.eye(1))
     arc = hs.simulate(bad, bad.initial_state(), t_max=1.0, inputs=lambda t: np.array([np.sin(t)]),
                       progress=False)
-    bad.output(arc.x[0], 0.2, 0)     # before tau: no Lambda needed
-    with pytest.raises(ValueError, match=r"Lambda\(t\) \(20\) is singular at t=0.8"):
-        bad.output(arc.at(0.8), 0.8, 1)
+    assert arc.termination is hs.Termination.MAP_ERROR
+    assert "Lambda(t) (20) is singular at t=0.5" in arc.message     # right when the window fills
+    np.testing.assert_allclose(bad.output(arc.x[0], 0.2, 0), [0.0, 0.0])   # before tau: xr_init, G = 0
+    with pytest.raises(ValueError, match=r"Lambda\(t\) \(20\) is singular at t=0.5"):
+        bad.output(arc.x[-1], 0.5, 1)
+    with pytest.raises(TypeError, match="Omega must be a callable"):
+        tv.phi_scalar(1.0)
+
+
+def test_phi_scalar_remark2():
+    """Remark 2's scalar formula by quadrature reproduces (48) and Lambda = 1 - e^{4 pi}."""
+    ex = tv.example_data()
+    PH = tv.phi_scalar(ex["H"])
+    for t, s in [(1.0, 0.0), (9.0, 9.0 - 2 * np.pi), (3.0, 5.0)]:
+        np.testing.assert_allclose(PH(t, s), ex["Phi_H"](t, s), rtol=1e-10)
+    np.testing.assert_allclose(tv.Lambda(tv.phi_scalar(ex["A2"]), PH, 4.0, ex["tau"]), [[ex["Lambda"]]],
+                               rtol=1e-10)
