@@ -49,6 +49,17 @@ Conventions and decisions (a careful reading of the paper)
   integrator's tolerance; their initial value does not matter (the
   homogeneous part cancels in Phi(t, t - tau) J(t) - J(t - tau)), which the
   tests check.
+* **Hybrid structure.** The observer is a hybrid system with a timer s and
+  a flag q: the one jump, at s = tau, marks the window as filled (the
+  estimate switches from ``xr_init`` to (23) there, on a step boundary
+  rather than inside a step). Assumption 1 (Lambda(t) invertible) is
+  checked at every flow-map call after it; a singular Lambda ends the run
+  with MAP_ERROR naming t.
+* **Numerical range.** The states J_A, J_H follow the dynamics of A2 and
+  H; with unstable A2 (or H), J grows like e^{a t} and the difference
+  Phi(t, t - tau) J(t) - J(t - tau) loses about rtol e^{a t} in absolute
+  accuracy. For long runs of unstable x_r dynamics, restart the observer
+  (a new initial_state) now and then; the horizons used here are short.
 * **Direct feedthrough.** (23) contains y(t) itself (the term
   Phi_H(t, t - tau) L(t) y(t)); the engine forbids outputs that depend on
   the input. The observer therefore outputs the pair (P(t), G(t)) with
@@ -71,6 +82,12 @@ Conventions and decisions (a careful reading of the paper)
   back through (57). No fixed-point iteration is needed;
   :func:`residual_58` evaluates (58) literally along a run (quadrature over
   the recorded v2) and the tests check that the residual vanishes.
+* **x1's arrival at 0.** x1' = -2 sign(x1) sqrt|x1| is not Lipschitz at
+  0; :class:`ChainedFormPlant` models the arrival as a jump to x1 = 0
+  (see its docstring), so x1 is exactly 0 afterwards, as in the paper.
+* **Remark 3 is not symmetric**: on the example |Phi_A2^{-1} Phi_H| =
+  e^{4 pi} > 1 although Assumption 1 holds; :func:`remark3` also offers
+  the swapped condition |Phi_H^{-1} Phi_A2| < 1, which covers it.
 * **Typos.** "Assumption 2" in the proof of Thm 1 is Assumption 1. Under
   the bounded feedback (57) the origin of (51) is uniformly globally
   *asymptotically* (not exponentially) stable: |zeta3'| = |v2| <= 1 makes
