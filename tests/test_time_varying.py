@@ -1,18 +1,23 @@
 """Tests of observers.time_varying (paper 001, Mazenc-Ahmed-Malisoff, CDC 2018).
 
-Tolerances: the pure formulas (15), (23), (49) are evaluated with adaptive
-quadrature at epsrel 1e-11 on smooth integrands, so they match the analytic
-solutions to ~1e-12 relative; we assert 1e-8 (the conditioning of M_tau and
-Lambda, up to ~1e2 here, multiplies the quadrature error). Simulated runs go
-through hybridsim.simulate at rtol 1e-10 / atol 1e-12; the exactness claims
-are then asserted at 1e-6, the integration error amplified by |Lambda^{-1}|
-and by |Phi_H| over one window.
+Tolerances (set by the numerics, not by the theorems, which claim exact equality):
+* the literal formulas (15), (23), (49) use adaptive quadrature at epsrel 1e-11 on smooth
+  integrands and match the analytic solutions to ~1e-13; we assert 1e-8 (|M_tau^{-1}|,
+  |Lambda^{-1}| up to ~1e2 multiply the quadrature error; 1e-7 where eps is discontinuous);
+* simulated runs use hybridsim.simulate at rtol 1e-10 / atol 1e-12 (measured errors after tau:
+  ~1e-11 LTI, ~3e-10 on the example). Asserted: 1e-7 (LTI: the state error amplified by
+  |Lambda^{-1}| |Phi_H(t, t - tau)|), 1e-6 with a numerical Phi (products and inverses of
+  integrated matrices), 1e-8 on the example (the plant's jump of x1 to 0 comes sqrt(eta) = 1e-5
+  early, an O(eta) = 1e-10 model mismatch);
+* bounds like (28) are asserted without slack beyond the integrator's 1e-7.
 """
 import numpy as np
 import pytest
 from scipy import linalg
 
+import hybridsim as hs
 import observers.time_varying as tv
+from hybridsim import testing as hst
 
 SEEDS = [0, 1, 2]
 
@@ -176,9 +181,9 @@ def test_remark3_bound_random_lti(seed):
     H = rc.A2 + L @ rc.A1
     tau = 1.5
     r = tv.remark3(expm_Phi(rc.A2), expm_Phi(H), tau, [0.0])
-    if r.holds:
-        Li = np.linalg.inv(tv.Lambda(expm_Phi(rc.A2), expm_Phi(H), 0.0, tau))
-        assert np.linalg.norm(Li, 2) <= r.Lambda_inv_bound * (1 + 1e-12)
+    assert r.holds and r.varpi < 1            # (checked for these seeds: varpi in 0.3 .. 0.93)
+    Li = np.linalg.inv(tv.Lambda(expm_Phi(rc.A2), expm_Phi(H), 0.0, tau))
+    assert np.linalg.norm(Li, 2) <= r.Lambda_inv_bound * (1 + 1e-12)
     tv.check_assumption1(expm_Phi(rc.A2), expm_Phi(H), tau, [0.0, 1.0])
 
 
@@ -293,7 +298,6 @@ def test_bad_inputs_section3():
 # ---------------------------------------------------------------------------
 # on the engine
 # ---------------------------------------------------------------------------
-hs = pytest.importorskip("hybridsim")
 RUN = dict(rtol=1e-10, atol=1e-12, progress=False)
 
 
@@ -319,7 +323,6 @@ def test_lti_observer_exact_after_tau(seed):
     np.testing.assert_allclose(arc.jump_times, [1.0], atol=1e-12)   # q: 0 -> 1 when the window fills
     xp = arc["plant"].x
     err = obs.estimate(arc.outputs("observer"), xp @ C.T) - rc.x_r(xp)
-    from hybridsim import testing as hst
     hst.assert_exact_after(arc, err, t=1.0, j=1, atol=1e-7)
     assert np.max(np.linalg.norm(err[arc.t < 1.0], axis=1)) > 1e-3   # xr_init = 0 is not x_r
     # the simulated estimate agrees with the literal formula (15) on the recorded y
@@ -377,7 +380,6 @@ def test_time_varying_nonlinear_numeric_phi(seed):
     assert arc.success
     xp = arc["plant"].x
     err = obs.estimate(arc.outputs("observer"), xp[:, :1]) - xp[:, 1:]
-    from hybridsim import testing as hst
     hst.assert_exact_after(arc, err, t=tau, j=1, atol=1e-6)
     # literal (23) by quadrature on the recorded output agrees with the run
     t = 2.2
@@ -435,7 +437,6 @@ def test_example_50_exact_bounded_v2(seed):
     assert arc.success
     P = arc["plant"].x
     err = obs.estimate(arc.outputs("observer"), P[:, 1:2])[:, 0] - P[:, 2]
-    from hybridsim import testing as hst
     hst.assert_exact_after(arc, err[:, None], t=T0, atol=1e-8)
     # x1 reaches 0 at sqrt|x1(0)| (the jump of the plant, within sqrt(eta) = 1e-5)
     assert abs(arc.jump_times[0] - np.sqrt(abs(x1_0))) < 2e-5
