@@ -1105,7 +1105,10 @@ class ReducedOrderObserver(_observer_base()):
         self.delta1 = wrap(delta1, p)
         self.delta2 = wrap(delta2, m)
         self.eps = eps
-        self.xr_init = np.zeros(m) if xr_init is None else np.asarray(xr_init, dtype=float).reshape(m)
+        xi = np.zeros(m) if xr_init is None else np.atleast_1d(np.asarray(xr_init, dtype=float))
+        if xi.shape != (m,):
+            raise ValueError(f"xr_init must have shape ({m},), got {xi.shape}")
+        self.xr_init = xi
         self.rcond_min = float(rcond_min)
         self.check_Lambda = bool(check_Lambda)
         self.z_history = z_history

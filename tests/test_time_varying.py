@@ -515,6 +515,9 @@ def test_observer_bad_inputs():
     with pytest.raises(ValueError, match="w_dim must be an int >= 0, got -1"):
         tv.ReducedOrderObserver(1.0, ex["A1"], ex["A2"], ex["L"], ex["Phi_A2"], ex["Phi_H"],
                                 p=1, m=1, w_dim=-1)
+    with pytest.raises(ValueError, match=r"xr_init must have shape \(1,\), got \(2,\)"):
+        tv.ReducedOrderObserver(1.0, ex["A1"], ex["A2"], ex["L"], ex["Phi_A2"], ex["Phi_H"],
+                                p=1, m=1, xr_init=[0.0, 1.0])
     obs = tv.chained_form_observer()
     with pytest.raises(ValueError, match=r"observer input must have shape \(2,\)"):
         obs.flow_map(obs.initial_state(), 0.0, 0, np.zeros(3))
