@@ -119,7 +119,7 @@ def test_observer_error_field_is_homogeneous_of_degree_minus_mu(z_mode, g2):
     """(4) with rho = -mu for the closed loop (9) (Section IV), checked on the
     implemented flow map at random points (floating-point tolerance)."""
     mu = 0.2
-    obs = DynamicGainObserver(L_PAPER, mu, 1.0, g2, z_mode=z_mode, v_settle=1e-30)
+    obs = DynamicGainObserver(L_PAPER, mu, 1.0, g2, z_mode=z_mode, z_min=1e-30)
     r = weights(3, mu)
     rng = np.random.default_rng(1)
     for _ in range(5):
@@ -150,5 +150,5 @@ def test_observer_bad_inputs():
     obs = DynamicGainObserver(L_PAPER, 0.2, 1.0)
     with pytest.raises(ValueError, match=r"x_hat0 must have shape \(3,\), got \(2,\)"):
         obs.initial_state(np.zeros(2))
-    with pytest.raises(ValueError, match="v0 must be > v_settle"):
+    with pytest.raises(ValueError, match="v0 must be > z_min"):
         obs.initial_state(v0=0.0)
