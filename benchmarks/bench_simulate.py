@@ -25,6 +25,7 @@ interval with the same tolerances.
 import argparse
 import cProfile
 import io
+import os
 import platform
 import pstats
 import time
@@ -73,9 +74,9 @@ def analytic_jump_times(n):
 
 
 # ---------------------------------------------------------------- the runs
-def run_hybridsim(system):
+def run_hybridsim(system, method="RK45"):
     arc = hs.simulate(system, [H0, 0.0], t_max=T_MAX, j_max=JUMPS, rtol=RTOL, atol=ATOL,
-                      progress=False)
+                      method=method, progress=False)
     assert arc.jump_count == JUMPS, arc
     return arc.jump_times
 
@@ -103,13 +104,75 @@ def run_solve_ivp():
     return np.array(times)
 
 
-def best_of(fn, repeats):
-    best, out = np.inf, None
+def best_of(fns, repeats):
+    """Best wall time of each callable over ``repeats`` rounds, interleaved
+    (one call of each per round) so that a busy machine slows all alike."""
+    best, out = [np.inf] * len(fns), [None] * len(fns)
     for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = fn()
-        best = min(best, time.perf_counter() - t0)
+        for i, fn in enumerate(fns):
+            t0 = time.perf_counter()
+            out[i] = fn()
+            best[i] = min(best[i], time.perf_counter() - t0)
     return best, out
+
+
+def run_linear(method="RK45"):
+    return hs.simulate(LINEAR, X0_LIN, t_max=10.0, rtol=RTOL, atol=ATOL, method=method,
+                       progress=False)
+
+
+# ------------------------------------------- where the time goes, unprofiled
+PARTS = ("solver set-up", "step()", "dense_output()", "locate_event()")
+_clock = dict.fromkeys(PARTS, 0.0)
+_calls = dict.fromkeys(PARTS, 0)
+
+
+def _timed(part, fn):
+    def wrapper(*a, **k):
+        t0 = time.perf_counter()
+        try:
+            return fn(*a, **k)
+        finally:
+            _clock[part] += time.perf_counter() - t0
+            _calls[part] += 1
+    return wrapper
+
+
+class TimedRK45(RK45):
+    """RK45 whose set-up, steps and dense outputs are clocked (a few 0.1 us each)."""
+    __init__ = _timed("solver set-up", RK45.__init__)
+    step = _timed("step()", RK45.step)
+    dense_output = _timed("dense_output()", RK45.dense_output)
+
+
+def split(label, run, repeats):
+    """Wall time of ``run(method)`` split by part, without a profiler: the run
+    with the smallest total of ``repeats``. Everything not clocked is the
+    engine's own work per step and per jump (set/guard tests outside event
+    location, finiteness checks, sample storage, jumps, bookkeeping)."""
+    import hybridsim.solve as solve_mod
+    original = solve_mod.locate_event
+    solve_mod.locate_event = _timed("locate_event()", original)
+    try:
+        best = None
+        for _ in range(repeats):
+            for k in _clock:
+                _clock[k], _calls[k] = 0.0, 0
+            t0 = time.perf_counter()
+            run(TimedRK45)
+            total = time.perf_counter() - t0
+            if best is None or total < best[0]:
+                best = (total, dict(_clock), dict(_calls))
+    finally:
+        solve_mod.locate_event = original
+    total, parts, calls = best
+    rest = total - sum(parts.values())
+    print(f"\n{label}: {total * 1e3:.2f} ms (best of {repeats}, no profiler)")
+    for name in PARTS + ("engine's own work",):
+        v = parts.get(name, rest)
+        per = f"{v / calls[name] * 1e6:8.1f} us per call ({calls[name]} calls)" \
+            if calls.get(name) else ""
+        print(f"  {name:20s}{v * 1e3:8.2f} ms  {v / total:6.1%}   {per}")
 
 
 # -------------------------------------------------------------- profiling
@@ -120,14 +183,19 @@ def _key_is(key, fileend, func):
     return key[0].replace("\\", "/").endswith(fileend) and key[2] == func
 
 
-def profile(label, call, top):
+def _profile_once(call):
     prof = cProfile.Profile()
     prof.enable()
     call()
     prof.disable()
-    st = pstats.Stats(prof)
-    stats = st.stats            # {(file, line, func): (cc, nc, tottime, cumtime, callers)}
+    stats = pstats.Stats(prof).stats   # {(file, line, func): (cc, nc, tottime, cumtime, callers)}
     total = next(v[3] for k, v in stats.items() if k[2] == "simulate" and k[0].endswith("solve.py"))
+    return total, prof, stats
+
+
+def profile(label, call, top, repeats=3):
+    """cProfile of one call (the quickest of ``repeats``: a busy machine adds noise)."""
+    total, prof, stats = min((_profile_once(call) for _ in range(repeats)), key=lambda r: r[0])
     step = sum(v[3] for k, v in stats.items() if _key_is(k, *SCIPY_STEP))
     nsteps = sum(v[1] for k, v in stats.items() if _key_is(k, *SCIPY_STEP))
     rhs = sum(v[3] for k, v in stats.items() if k[2] == "fun" and k[0].endswith("solve.py"))
@@ -141,7 +209,14 @@ def profile(label, call, top):
         "locate_event()": cum("hybridsim/events.py", "locate_event"),
         "_Buffer.append": cum("hybridsim/solve.py", "append"),
     }
+    def ncalls(fileend, func):
+        return sum(v[1] for k, v in stats.items() if _key_is(k, fileend, func))
+    nev = ncalls("hybridsim/events.py", "locate_event")
     print(f"\n--- profile: {label}  ({nsteps} solver steps, {nrhs} RHS calls) ---")
+    if nev:
+        print(f"{nev} events; per event: {ncalls('hybridsim/events.py', 'call') / nev:.1f} dense "
+              f"evaluations, {ncalls('hybridsim/solve.py', 'pred') / nev:.1f} indicator tests "
+              f"(pred), {ncalls('hybridsim/solve.py', 'phi') / nev:.1f} guard evaluations (phi)")
     print(f"simulate: {total * 1e3:8.2f} ms under cProfile")
     print(f"  scipy step():              {step * 1e3:8.2f} ms  {step / total:6.1%}"
           f"   (of which RHS calls {rhs * 1e3:.2f} ms, {rhs / total:.1%})")
@@ -173,34 +248,42 @@ def main():
     args = ap.parse_args()
 
     print(f"python {platform.python_version()}, numpy {np.__version__}, scipy {scipy.__version__}, "
-          f"{platform.machine()} {platform.processor() or ''}".rstrip())
+          f"{platform.machine()} {platform.processor() or ''}".rstrip()
+          + f", {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f} "
+            "(a busy machine makes every figure noisier)")
     print(f"30-bounce ball, h0 = {H0}, g = {G}, e = {E}, RK45 at rtol {RTOL:g}, atol {ATOL:g}; "
           f"best of {args.repeats}\n")
     exact = analytic_jump_times(JUMPS)
     runs = [("hybridsim.simulate, guards", lambda: run_hybridsim(BALL_GUARDS)),
             ("hybridsim.simulate, set indicators", lambda: run_hybridsim(BALL_SETS)),
             ("solve_ivp restart loop (baseline)", run_solve_ivp)]
-    results = [(name, *best_of(fn, args.repeats)) for name, fn in runs]
-    base = results[-1][1]
+    walls, outs = best_of([fn for _, fn in runs], args.repeats)
+    results = [(name, w, o) for (name, _), w, o in zip(runs, walls, outs)]
+    base = walls[-1]
     print(f"{'':36s}{'wall (ms)':>10s}{'/ baseline':>12s}{'max |t_k - exact|':>20s}")
     for name, wall, times in results:
         print(f"{name:36s}{wall * 1e3:10.2f}{wall / base:12.2f}"
               f"{np.max(np.abs(times - exact)):20.2e}")
 
     # the smooth linear system, unprofiled: engine vs bare stepping
-    def lin():
-        return hs.simulate(LINEAR, X0_LIN, t_max=10.0, rtol=RTOL, atol=ATOL, progress=False)
-    w_sim, arc = best_of(lin, args.repeats)
-    w_bare, nsteps = best_of(lambda: bare_rk45(10.0), args.repeats)
+    (w_sim, w_bare), (arc, nsteps) = best_of([run_linear, lambda: bare_rk45(10.0)],
+                                             args.repeats)
     print(f"\nsmooth linear system (n = 4), 10 s, {nsteps} RK45 steps; best of {args.repeats}:")
     print(f"  hybridsim.simulate  {w_sim * 1e3:8.2f} ms   ({w_sim / nsteps * 1e6:.1f} us/step)")
     print(f"  bare RK45.step loop {w_bare * 1e3:8.2f} ms   ({w_bare / nsteps * 1e6:.1f} us/step)")
     print(f"  engine overhead     {(w_sim - w_bare) / nsteps * 1e6:8.1f} us/step "
           f"({(w_sim - w_bare) / w_sim:.1%} of simulate); arc has {len(arc)} samples")
 
+    print("\n=== where simulate's time goes (clocked parts; step() includes the RHS calls)")
+    split("ball, guards", lambda m: run_hybridsim(BALL_GUARDS, m), args.repeats)
+    split("ball, set indicators", lambda m: run_hybridsim(BALL_SETS, m), args.repeats)
+    split("smooth linear system, 10 s", run_linear, args.repeats)
+
+    print("\n=== cProfile of simulate (inflates every Python call; the shares above are "
+          "the unbiased ones)")
     profile("ball, guards", lambda: run_hybridsim(BALL_GUARDS), args.top)
     profile("ball, set indicators", lambda: run_hybridsim(BALL_SETS), args.top)
-    profile("smooth linear system, 10 s", lin, args.top)
+    profile("smooth linear system, 10 s", run_linear, args.top)
 
 
 if __name__ == "__main__":
