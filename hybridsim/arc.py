@@ -1,6 +1,7 @@
 """Hybrid arcs: solutions on hybrid time domains."""
 from __future__ import annotations
 
+import bisect
 import enum
 
 import numpy as np
@@ -197,9 +198,18 @@ class HybridArc:
             raise ValueError(f"at: (t={t}, j={j}) is not in the hybrid time domain "
                              f"(for j={j}, t lies in [{ts[0]}, {ts[-1]}])")
         if self._segments:
-            for (a, b, jj, sol) in self._segments:
+            starts = self.__dict__.get("_seg_starts")
+            if starts is None:
+                starts = self.__dict__["_seg_starts"] = [sg[0] for sg in self._segments]
+            k = bisect.bisect_right(starts, t) - 1
+            # the segment of this j covering t (at a jump time, step back to it)
+            while k >= 0 and self._segments[k][1] >= t:
+                a, b, jj, sol = self._segments[k]
                 if jj == j and a <= t <= b:
                     return np.asarray(sol(t), dtype=float)
+                if jj < j:
+                    break
+                k -= 1
         k = np.searchsorted(ts, t, side="right") - 1
         k = min(k, len(ts) - 2) if len(ts) > 1 else 0
         if len(ts) == 1 or ts[k + 1] == ts[k]:
@@ -243,11 +253,19 @@ class HybridArc:
 
         ``name`` selects a component of an interconnection.
         """
+        if name is not None and hasattr(self.system, "outputs"):
+            # through the interconnection: feedthrough outputs see their inputs
+            out = self.system.outputs
+            return np.array([np.atleast_1d(np.asarray(out(x, t, j)[name], dtype=float))
+                             for x, t, j in zip(self.x, self.t, self.j)])
         arc = self.component(name) if name is not None else self
         if arc.system is None:
             raise ValueError("outputs: the arc does not know its system")
-        h = arc.system._compile().h
-        return np.array([np.atleast_1d(np.asarray(h(x, t, j, None), dtype=float))
+        c = arc.system._compile()
+        if c.h_u:
+            raise ValueError("outputs: this system's output reads its input u, which the "
+                             "arc does not know; evaluate it through its interconnection")
+        return np.array([np.atleast_1d(np.asarray(c.h(x, t, j, None), dtype=float))
                          for x, t, j in zip(arc.x, arc.t, arc.j)])
 
     # ----------------------------------------------------------------- I/O

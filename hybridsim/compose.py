@@ -110,21 +110,35 @@ class LinearPlant(HybridSystem):
 class _Outputs(Mapping):
     """Lazy ``{name: output}`` of an interconnection at one (x, t, j)."""
 
-    __slots__ = ("_ic", "_x", "_t", "_j", "_cache")
+    __slots__ = ("_ic", "_x", "_t", "_j", "_cache", "_busy")
 
     def __init__(self, ic, x, t, j):
         self._ic, self._x, self._t, self._j = ic, x, t, j
         self._cache = {}
+        self._busy = None
 
     def __getitem__(self, name):
         c = self._cache
         if name in c:
             return c[name]
+        ic = self._ic
         try:
-            sl = self._ic._slices[name]
+            sl = ic._slices[name]
         except KeyError:
-            raise KeyError(f"no component named {name!r}; have {list(self._ic._slices)}") from None
-        y = self._ic._h[name](self._x[sl], self._t, self._j, None)
+            raise KeyError(f"no component named {name!r}; have {list(ic._slices)}") from None
+        u = None
+        if ic._h_u[name]:           # direct feedthrough: the input first
+            busy = self._busy if self._busy is not None else set()
+            if name in busy:
+                raise ValueError(f"algebraic loop: the output of {name!r} depends on its own "
+                                 f"input through {sorted(map(str, busy))}")
+            busy.add(name)
+            self._busy = busy
+            try:
+                u = ic._u(name, self._x, self._t, self._j, self)
+            finally:
+                busy.discard(name)
+        y = ic._h[name](self._x[sl], self._t, self._j, u)
         c[name] = y
         return y
 
@@ -195,7 +209,7 @@ class Interconnection(HybridSystem):
                                     for d in (s.delays or ())}))
         self._build()
 
-    _DERIVED = ("_f", "_g", "_C", "_D", "_h", "_hD", "_hC", "_items", "jump_guard",
+    _DERIVED = ("_f", "_g", "_C", "_D", "_h", "_h_u", "_hD", "_hC", "_items", "jump_guard",
                 "flow_guard", "_compiled_maps", "history")
 
     def _build(self):
@@ -206,6 +220,7 @@ class Interconnection(HybridSystem):
         self._C = {nm: c[nm].C for nm in c if c[nm].has_C}
         self._D = {nm: c[nm].D for nm in c if c[nm].has_D}
         self._h = {nm: c[nm].h for nm in c}
+        self._h_u = {nm: c[nm].h_u for nm in c}
         self._hD = {nm: c[nm].hD for nm in self._D}
         self._hC = {nm: c[nm].hC for nm in self._C}
         # composite guards only where every relevant component has one

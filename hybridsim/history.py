@@ -105,7 +105,7 @@ class History:
 
     def output(self, s):
         """The output y(s) of the system."""
-        return self._h(self(s), float(s), self.jump_count(s), None)
+        return self._h(self(s), float(s), self.jump_count(s), self.input(s))
 
     def jump_count(self, s):
         """The j of the sample at time s (the later one at a jump time)."""
@@ -178,8 +178,7 @@ class ComponentHistory:
 
     def output(self, s):
         x = self._parent(s)
-        sub = self._owner.systems[self._name]
-        return sub._compile().h(x[self._sl], float(s), self._parent.jump_count(s), None)
+        return self._owner.outputs(x, float(s), self._parent.jump_count(s))[self._name]
 
     def integral(self, fn, a, b):
         sl = self._sl

@@ -75,8 +75,10 @@ class HybridSystem:
        indicator is not overridden it is derived from its guard. Where both
        are given, the indicator decides membership and the guard locates the
        crossing.
-    7. ``output(x, t, j)`` is the output y (default: x). It must not depend
-       on u (no direct feedthrough between interconnected components).
+    7. ``output(x, t, j)`` is the output y (default: x). Written
+       ``output(x, t, j, u)`` it may read the input (direct feedthrough): an
+       interconnection then evaluates outputs in dependency order and raises
+       on an algebraic loop.
     8. ``vectorized = True`` declares maps written over batches: x of shape
        (N, n), t and j of shape (N,), returning (N, n) arrays and (N,)
        booleans; :func:`hybridsim.simulate_many` then integrates a batch
@@ -172,7 +174,8 @@ class HybridSystem:
         c = _Compiled(
             f=as_map(self.flow_map, "flow_map"), g=as_map(self.jump_map, "jump_map"),
             C=C, D=D, hD=hD, hC=hC, h=as_map(self.output, "output"),
-            has_D=self.has_jumps, has_C=self.has_flow_boundary)
+            has_D=self.has_jumps, has_C=self.has_flow_boundary,
+            h_u=_arity(self.output) >= 4)
         self.__dict__["_compiled_maps"] = c
         return c
 
@@ -240,7 +243,7 @@ class HybridSystem:
 
 
 class _Compiled:
-    __slots__ = ("f", "g", "C", "D", "hD", "hC", "h", "has_D", "has_C")
+    __slots__ = ("f", "g", "C", "D", "hD", "hC", "h", "has_D", "has_C", "h_u")
 
     def __init__(self, **kw):
         for k, v in kw.items():

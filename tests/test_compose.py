@@ -201,3 +201,28 @@ def test_interconnection_pickles_after_a_run():
     b = hs.simulate(clone, x0, t_max=1.0)
     np.testing.assert_array_equal(a.x, b.x)
     pickle.loads(pickle.dumps(a))            # arcs travel back from worker processes
+
+
+def test_direct_feedthrough_outputs_and_algebraic_loops():
+    class Gain(hs.HybridSystem):
+        """y = x + u: an output that reads the input."""
+
+        state_dim, input_dim = 1, 1
+
+        def flow_map(self, x, t, j, u):
+            return -x
+
+        def output(self, x, t, j, u):
+            return x + u
+
+    src = hs.HybridSystem.from_functions(f=lambda x: np.zeros(1), state_dim=1)
+    sysm = hs.Interconnection({"src": src, "g1": Gain(), "g2": Gain()},
+                              inputs={"g1": lambda t, y: y["src"], "g2": lambda t, y: y["g1"]})
+    y = sysm.outputs(np.array([1.0, 2.0, 3.0]))
+    np.testing.assert_allclose(y["g2"], [3.0 + 2.0 + 1.0])       # evaluated in dependency order
+    arc = hs.simulate(sysm, [1.0, 2.0, 3.0], t_max=1.0)
+    np.testing.assert_allclose(arc.outputs("g2")[0], [6.0])
+    loop = hs.Interconnection({"g1": Gain(), "g2": Gain()},
+                              inputs={"g1": lambda t, y: y["g2"], "g2": lambda t, y: y["g1"]})
+    with pytest.raises(ValueError, match="algebraic loop"):
+        loop.outputs(np.zeros(2))
