@@ -129,8 +129,8 @@ def test_agrees_with_simulate_loop():
         np.testing.assert_allclose(arc.jump_times, ref.jump_times, rtol=0, atol=1e-12)
         np.testing.assert_allclose(arc.t, ref.t, rtol=0, atol=1e-12)
         np.testing.assert_allclose(arc.x, ref.x, rtol=0, atol=1e-10)
-    # default tolerances, a t_max inside a flow: the same step sequence
-    kw = dict(t_max=2.0)
+    # default tolerances, a t_max inside a flow, dense samples: the same steps
+    kw = dict(t_max=2.0, refine=4)
     arcs = simulate_vectorized(VBall(), x0s, **kw)
     for x0, arc in zip(x0s, arcs):
         ref = hs.simulate(Ball(), x0, **kw)
@@ -305,6 +305,8 @@ def test_bad_options():
         simulate_vectorized(VBall(), x0s, t_max=1.0, priority="both")
     with pytest.raises(ValueError, match="inputs=.* is not supported in vectorized mode"):
         simulate_vectorized(VBall(), x0s, t_max=1.0, inputs=lambda t: 0.0)
+    with pytest.raises(ValueError, match="refine must be an int >= 1, got 0"):
+        simulate_vectorized(VBall(), x0s, t_max=1.0, refine=0)
     with pytest.raises(ValueError, match="rtol must be > 0"):
         simulate_vectorized(VBall(), x0s, t_max=1.0, rtol=0.0)
     with pytest.raises(ValueError, match="t_max must be >= t0"):
