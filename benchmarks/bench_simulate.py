@@ -24,7 +24,6 @@ interval with the same tolerances.
 """
 import argparse
 import cProfile
-import io
 import os
 import platform
 import pstats
@@ -224,11 +223,11 @@ def profile(label, call, top, repeats=3):
           f"{(total - step) / total:6.1%}")
     for name, v in parts.items():
         print(f"    {name:31s}{v * 1e3:8.2f} ms  {v / total:6.1%}")
-    buf = io.StringIO()
-    pstats.Stats(prof, stream=buf).strip_dirs().sort_stats("tottime").print_stats(top)
-    lines = buf.getvalue().splitlines()
-    start = next(i for i, s in enumerate(lines) if s.lstrip().startswith("ncalls"))
-    print("\n".join(lines[start:start + top + 1]))
+    print(f"  top {top} by own time:\n  {'ncalls':>7s}{'own (ms)':>10s}{'cum (ms)':>10s}  function")
+    rows = sorted(stats.items(), key=lambda kv: kv[1][2], reverse=True)[:top]
+    for (file, line, func), (cc, nc, tt, ct, _) in rows:
+        where = f"{os.path.basename(file)}:{line}({func})" if line else func
+        print(f"  {nc:7d}{tt * 1e3:10.3f}{ct * 1e3:10.3f}  {where}")
 
 
 def bare_rk45(t_end):
