@@ -244,7 +244,10 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--top", type=int, default=15)
+    ap.add_argument("--quick", action="store_true", help="3 repeats (benchmarks/run_all.py --quick)")
     args = ap.parse_args()
+    if args.quick:
+        args.repeats = min(args.repeats, 3)
 
     print(f"python {platform.python_version()}, numpy {np.__version__}, scipy {scipy.__version__}, "
           f"{platform.machine()} {platform.processor() or ''}".rstrip()
@@ -263,6 +266,11 @@ def main():
     for name, wall, times in results:
         print(f"{name:36s}{wall * 1e3:10.2f}{wall / base:12.2f}"
               f"{np.max(np.abs(times - exact)):20.2e}")
+    err_base = np.max(np.abs(results[-1][2] - exact))
+    for name, wall, times in results[:-1]:
+        print(f"RESULT 30-bounce ball, {name.split(', ')[1]}: {wall * 1e3:.1f} ms vs solve_ivp loop "
+              f"{base * 1e3:.1f} ms = {wall / base:.2f}x; max jump-time error "
+              f"{np.max(np.abs(times - exact)):.1e} (solve_ivp {err_base:.1e})")
 
     # the smooth linear system, unprofiled: engine vs bare stepping
     (w_sim, w_bare), (arc, nsteps) = best_of([run_linear, lambda: bare_rk45(10.0)],
@@ -272,6 +280,9 @@ def main():
     print(f"  bare RK45.step loop {w_bare * 1e3:8.2f} ms   ({w_bare / nsteps * 1e6:.1f} us/step)")
     print(f"  engine overhead     {(w_sim - w_bare) / nsteps * 1e6:8.1f} us/step "
           f"({(w_sim - w_bare) / w_sim:.1%} of simulate); arc has {len(arc)} samples")
+    print(f"RESULT smooth linear system, 10 s: simulate {w_sim * 1e3:.1f} ms vs bare RK45 steps "
+          f"{w_bare * 1e3:.1f} ms = {w_sim / w_bare:.2f}x ({(w_sim - w_bare) / nsteps * 1e6:.1f} us/step "
+          "of engine overhead)")
 
     print("\n=== where simulate's time goes (clocked parts; step() includes the RHS calls)")
     split("ball, guards", lambda m: run_hybridsim(BALL_GUARDS, m), args.repeats)
