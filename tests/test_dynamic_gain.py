@@ -152,3 +152,205 @@ def test_observer_bad_inputs():
         obs.initial_state(np.zeros(2))
     with pytest.raises(ValueError, match="v0 must be > z_min"):
         obs.initial_state(v0=0.0)
+
+
+# ---------------------------------------------------------------- theorem checks (hs.simulate)
+hs = pytest.importorskip("hybridsim")
+from observers.dynamic_gain import (consistent_euler, error_components, example_norm,  # noqa: E402
+                                    example_plant, homogeneous_observer,
+                                    luenberger_observer, prescribed_time_observer,
+                                    proposed_observer, settle_time, simulate_example,
+                                    uniform_noise)
+from observers.lmi import solve_lmi10  # noqa: E402
+
+MU, G1, B3 = EXAMPLE["mu"], EXAMPLE["gamma1"], EXAMPLE["b"]
+E0_EX = np.r_[0.0, EXAMPLE["x0"]]
+Z_MIN = 1e-12
+
+
+def _closed_form_settle(e0, v0, L, mu, g1, tol=1e-6):
+    T = settling_time(v0, mu, g1)
+    tt = np.linspace(0.0, T, 40001)
+    big = np.abs(prescribed_error(tt, e0, v0, L, mu, g1)).max(axis=1) > tol
+    return tt[np.nonzero(big)[0][-1] + 1]
+
+
+def _check_prescribed(arc, obs, e0, v0, L, mu, g1):
+    """gamma2 = 0: the error follows the closed form until the settled switch, reaches
+    0 at T (switch at T - z_min^mu/(mu g1) with |e| ~ 1e-11) and not before."""
+    assert arc.termination.name == "T_MAX", arc.message
+    T = settling_time(v0, mu, g1)
+    e, v, q = error_components(arc, obs)
+    # v vanishes exactly at T (18): the switch v = z_min is located by root-finding.
+    # 1e-4 s: v is integrated with atol 1e-10 >> z_min, so near v = 1e-12 it carries an
+    # absolute error ~1e-15..1e-14, i.e. ~1e-6..1e-5 s at |v'| = g1 v^(1-mu)
+    assert arc.jump_times.size == 1
+    assert arc.jump_times[0] == pytest.approx(T - Z_MIN ** mu / (mu * g1), abs=1e-4)
+    pre = q < 0.5
+    ec = prescribed_error(arc.t[pre], e0, v0, L, mu, g1)
+    # 1e-7: rtol 1e-8 on states of size ~10 (e = x - x_hat is a difference)
+    assert np.abs(e[pre] - ec).max() <= 1e-7
+    # at and after T the error is 0 up to the same integrator floor
+    assert np.abs(e[arc.t >= T]).max() <= 1e-7
+    # not before: the closed form is nonzero for t < T (test above) and the run follows
+    # it; the last time max|e| > 1e-6 is the closed form's (0.01 s: arc sampling)
+    ts = settle_time(arc, obs, tol=1e-6)
+    assert ts == pytest.approx(_closed_form_settle(e0, v0, L, mu, g1), abs=0.01)
+
+
+def test_prescribed_time_example_settles_at_T_equal_5():
+    obs = prescribed_time_observer(L_PAPER, MU, G1, b=B3)
+    arc = simulate_example(obs, t_max=5.6)
+    _check_prescribed(arc, obs, E0_EX, 1.0, L_PAPER, MU, G1)
+
+
+def test_prescribed_time_v0_not_1_uses_18_not_section_vi():
+    """v(0) = 2: T = 2^0.2/0.2 = 5.74 by (18); Section VI's v(0)/(mu gamma1) = 10 is wrong."""
+    obs = prescribed_time_observer(L_PAPER, MU, G1, b=B3)
+    arc = simulate_example(obs, t_max=6.2, v0=2.0)
+    _check_prescribed(arc, obs, E0_EX, 2.0, L_PAPER, MU, G1)
+    assert arc.jump_times[0] < 6.0 < 2.0 / (MU * G1)
+
+
+@pytest.mark.parametrize("seed", [3, 4])
+def test_prescribed_time_random_cases(seed):
+    rng = np.random.default_rng(seed)
+    n = int(rng.choice([2, 4]))
+    mu = rng.uniform(0.5, 0.9) / (n + 1)
+    g1 = rng.uniform(1.0, 3.0)
+    v0 = rng.uniform(0.5, 2.0)
+    L = solve_lmi10(n, mu, g1).L
+    obs = prescribed_time_observer(L, mu, g1, b=np.eye(n)[:, -1:])
+    x0 = rng.normal(size=n) * 3
+    xh0 = rng.normal(size=n)
+    T = settling_time(v0, mu, g1)
+    arc = simulate_example(obs, t_max=T + 0.3, v0=v0, x0=x0, x_hat0=xh0)
+    _check_prescribed(arc, obs, np.r_[0.0, x0 - xh0], v0, L, mu, g1)
+
+
+def _check_proposed(arc, obs, e0, v0, L, mu, g1, g2, P):
+    """gamma2 > 0: T18 - z_min^mu/(mu g1) <= switch and settling <= bound (17);
+    v >= gamma2 |w| throughout (Fig. 1b; zeta <= 0 of the proof)."""
+    assert arc.termination.name == "T_MAX", arc.message
+    e, v, q = error_components(arc, obs)
+    T18 = settling_time(v0, mu, g1)
+    # lower bound (ours): v' >= -g1 v^{1-mu} since 0 <= v - g2|w| <= v, so v cannot
+    # reach z_min before the gamma2 = 0 gain does (1e-4: integrator error on v, as above)
+    assert arc.jump_times.size == 1
+    assert arc.jump_times[0] >= T18 - Z_MIN ** mu / (mu * g1) - 1e-4
+    # upper bound (17) with the corrected beta (and the printed one)
+    ts = settle_time(arc, obs, tol=1e-6)
+    assert ts <= settling_time_bound(e0, v0, L, mu, g1, g2, P=P)
+    assert ts <= settling_time_bound(e0, v0, L, mu, g1, g2, P=P, corrected=False)
+    assert np.abs(e[q > 0.5]).max() <= 1e-6        # settled: below the settling tolerance
+    # v >= gamma2 |w| (up to 1e-9: the solver's error where zeta touches 0)
+    pre = q < 0.5
+    assert (v[pre] - g2 * np.abs(e[pre, 0])).min() >= -1e-9
+    return ts
+
+
+def test_proposed_example_settles_within_bounds():
+    obs = proposed_observer(L_PAPER, MU, G1, 1.0, b=B3)
+    arc = simulate_example(obs, t_max=8.2)
+    from observers.lmi import check_gain_lmi10
+    P = check_gain_lmi10(L_PAPER, MU, G1)["P"]
+    ts = _check_proposed(arc, obs, E0_EX, 1.0, L_PAPER, MU, G1, 1.0, P)
+    assert ts < 8.0          # Section VI: "not later than 8 seconds" (Fig. 1a)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_proposed_random_cases(seed):
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(2, 5))
+    mu = rng.uniform(0.5, 0.9) / (n + 1)
+    g1 = rng.uniform(1.0, 3.0)
+    g2 = rng.uniform(0.05, 0.3)
+    v0 = rng.uniform(0.5, 1.5)
+    r = solve_lmi10(n, mu, g1)
+    obs = proposed_observer(r.L, mu, g1, g2, b=np.eye(n)[:, -1:])
+    x0 = np.r_[10.0, np.zeros(n - 2), -5.0]
+    xh0 = x0 - rng.normal(size=n) * 0.3
+    e0 = np.r_[0.0, x0 - xh0]
+    T18 = settling_time(v0, mu, g1)
+    arc = simulate_example(obs, t_max=2.5 * T18, v0=v0, x_hat0=xh0)
+    _check_proposed(arc, obs, e0, v0, r.L, mu, g1, g2, r.P)
+
+
+def test_luenberger_special_case_remark_1():
+    """gamma1 = gamma2 = 0: z = v(0), the error is expm((A + D^{-1}(v0) L C) t) e0."""
+    from scipy.linalg import expm
+    v0 = 0.5
+    obs = luenberger_observer(L_PAPER, MU, b=B3)
+    arc = simulate_example(obs, t_max=3.0, v0=v0)
+    e, v, _ = error_components(arc, obs)
+    A, C, _ = lmi10_matrices(3, MU)
+    F = A + np.outer(v0 ** -dg.rbar(3, MU) * L_PAPER, C[0])
+    ref = np.array([expm(F * t) @ E0_EX for t in arc.t])
+    assert np.allclose(v, v0)
+    assert np.abs(e - ref).max() <= 1e-7      # rtol 1e-8 on states of size ~10
+
+
+def test_homogeneous_observer_converges_in_finite_time():
+    obs = homogeneous_observer(L_PAPER, MU, G1, b=B3)
+    arc = simulate_example(obs, t_max=5.0)
+    assert arc.termination.name == "T_MAX"
+    ts = settle_time(arc, obs, tol=1e-8)
+    assert ts < 4.0                             # Fig. 1a: before 8 s (measured ~2.6 s)
+    e, v, _ = error_components(arc, obs)
+    assert np.abs(e[arc.t >= ts]).max() <= 1e-8
+
+
+@pytest.mark.parametrize("seed", [0, 7])
+def test_prescribed_time_escapes_under_noise(seed):
+    """Section VI: gamma2 = 0 under noise escapes in finite time as v -> 0; the run
+    ends cleanly with BLOWUP before T = 5 instead of crashing."""
+    obs = prescribed_time_observer(L_PAPER, MU, G1, b=B3)
+    arc = simulate_example(obs, noise=True, seed=seed, t_max=6.0)
+    assert arc.termination is hs.Termination.BLOWUP
+    assert 4.5 < arc.tf < 5.0
+    e, v, _ = error_components(arc, obs)
+    assert np.abs(e[-1]).max() > 100 * np.abs(e[arc.t < 4.0]).max() / 18
+
+
+def test_proposed_stays_bounded_under_noise():
+    """Proposition 5 (finite-time ISS): with gamma2 = 1 the error stays bounded and
+    small; v stays above |w| and away from 0, so the gains stay bounded."""
+    obs = proposed_observer(L_PAPER, MU, G1, 1.0, b=B3)
+    arc = simulate_example(obs, noise=True, seed=0, t_max=7.0)
+    assert arc.termination.name == "T_MAX", arc.message
+    e, v, q = error_components(arc, obs)
+    assert np.all(q == 0)
+    late = arc.t >= 5.0
+    assert np.abs(e[late]).max() < 0.5           # measured ~0.1 (noise 0.1)
+    assert v[late].min() > 1e-4
+    assert (v - np.abs(e[:, 0])).min() >= -1e-9
+
+
+def test_consistent_euler_matches_theory():
+    """The explicit Euler with state-dependent step of [8] through hs.simulate: the
+    prescribed-time observer settles near T = 5 (the Euler error in v, O(dt0),
+    moves the switch by a few hundredths) and the error is at rounding level after."""
+    obs = prescribed_time_observer(L_PAPER, MU, G1, b=B3)
+    M = consistent_euler(example_norm(obs), MU)
+    arc = simulate_example(obs, t_max=5.05, method=M)
+    assert arc.termination.name == "T_MAX"
+    T = settling_time(1.0, MU, G1)
+    assert arc.jump_times.size == 1 and abs(arc.jump_times[0] - T) < 0.05
+    e, _, _ = error_components(arc, obs)
+    assert np.abs(e[arc.t >= T]).max() <= 1e-9
+    assert np.abs(e[arc.t <= 4.0]).max(axis=1).min() > 1e-4
+
+
+def test_simulation_helpers_bad_inputs():
+    with pytest.raises(TypeError, match="norm must be callable, got float"):
+        consistent_euler(1.0, 0.2)
+    with pytest.raises(ValueError, match="dt must be > 0, got 0"):
+        uniform_noise(0, 1.0, dt=0.0)
+    with pytest.raises(ValueError, match="n must be >= 2 for the example plant, got 1"):
+        example_plant(n=1)
+    with pytest.raises(ValueError, match=r"K must have shape \(3,\), got \(2,\)"):
+        example_plant(K=[1.0, 2.0])
+    om = uniform_noise(3, 2.0, dim=2)
+    vals = np.array([om(t) for t in np.linspace(0, 2, 401)])
+    assert vals.shape == (401, 2) and np.all(np.abs(vals) < 1)
+    assert np.allclose(om(0.37), uniform_noise(3, 2.0, dim=2)(0.37))   # seeded
