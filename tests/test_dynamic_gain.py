@@ -88,6 +88,10 @@ def test_bound_17_bad_inputs():
         settling_time_bound(E0, 1.0, -np.array([1.0, 1e-3, 1e-3, 1e-3]), 0.2, 1.0, 1.0)
     with pytest.raises(ValueError, match="strictly negative"):
         settling_time_bound(E0, 1.0, -L_PAPER, 0.2, 1.0, 1.0)
+    with pytest.raises(ValueError, match=r"P must be a positive definite \(4, 4\) matrix"):
+        settling_time_bound(E0, 1.0, L_PAPER, 0.2, 1.0, 1.0, P=-np.eye(4))
+    with pytest.raises(ValueError, match=r"e0 must have shape \(4,\), got \(2,\)"):
+        prescribed_error([0.0], E0[:2], 1.0, L_PAPER, 0.2, 1.0)
     with pytest.raises(ValueError, match="gamma1 must be > 0, got 0"):
         settling_time(1.0, 0.2, 0.0)
     with pytest.raises(ValueError, match=r"mu must lie in \(0, 1\)"):

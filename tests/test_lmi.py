@@ -141,3 +141,23 @@ def test_verification_catches_a_violating_point(monkeypatch):
     monkeypatch.setattr(lmi, "solve_sdp", lying)
     with pytest.raises(LMIVerificationError, match=r"LMI \(10\) <= 0 fails"):
         solve_lmi10(3, 0.2, 1.0, objective="feasibility")
+
+
+def test_more_bad_parameters():
+    with pytest.raises(ValueError, match="n must be >= 1, got 0"):
+        solve_lmi10(0, 0.2, 1.0)
+    with pytest.raises(ValueError, match="gain_bound must be > 0, got -1"):
+        solve_lmi10(3, 0.2, 1.0, gain_bound=-1.0)
+    with pytest.raises(ValueError, match="n must be an int >= 1, got 0"):
+        lmi10_matrices(0, 0.2)
+
+
+def test_gain_bound_is_respected():
+    """min ||Y|| over (10) with P >= I is ~424 (objective 'gain'): a bound of 500 is
+    met, a bound of 300 is infeasible and raises."""
+    rmin = solve_lmi10(3, 0.2, 1.0, objective="gain")
+    assert 300 < np.linalg.norm(rmin.Y) < 500
+    r = solve_lmi10(3, 0.2, 1.0, objective="feasibility", gain_bound=500.0)
+    assert np.linalg.norm(r.Y) <= 500.0 * (1 + 1e-6)
+    with pytest.raises(LMISolverError, match="infeasible"):
+        solve_lmi10(3, 0.2, 1.0, gain_bound=300.0)
