@@ -667,14 +667,15 @@ class _BatchRun:
         K = np.empty((_NS + 1, k, self.n))
         K[0] = f
         hc = h[:, None]
-        for s in range(1, _NS):
-            dy = np.tensordot(_A[s, :s], K[:s], axes=(0, 0)) * hc
-            K[s] = m.flow(rows, y + dy, t + _C[s] * h, j)
-        y_new = y + hc * np.tensordot(_B, K[:_NS], axes=(0, 0))
-        K[_NS] = m.flow(rows, y_new, t + h, j)
-        scale = self.atol + np.maximum(np.abs(y), np.abs(y_new)) * self.rtol
-        err = np.tensordot(_E, K, axes=(0, 0)) * hc
+        # overflow/NaN end as a rejected step or NON_FINITE, as in simulate
         with np.errstate(invalid="ignore", over="ignore"):
+            for s in range(1, _NS):
+                dy = np.tensordot(_A[s, :s], K[:s], axes=(0, 0)) * hc
+                K[s] = m.flow(rows, y + dy, t + _C[s] * h, j)
+            y_new = y + hc * np.tensordot(_B, K[:_NS], axes=(0, 0))
+            K[_NS] = m.flow(rows, y_new, t + h, j)
+            scale = self.atol + np.maximum(np.abs(y), np.abs(y_new)) * self.rtol
+            err = np.tensordot(_E, K, axes=(0, 0)) * hc
             err_norm = _rms(err / scale)
         ok = self._reap(rows)
         if ok is not None:

@@ -258,6 +258,48 @@ def test_max_norm_and_t0_j0():
     np.testing.assert_allclose(arcs[0].jump_times, [2.0, 3.0], atol=1e-12)
 
 
+def test_non_finite_solver_failure_and_bad_jump_values():
+    def vec(**kw):
+        return hs.HybridSystem.from_functions(state_dim=1, vectorized=True, **kw)
+    # an overflowing step is accepted (scale inf) and ends NON_FINITE
+    over = vec(f=lambda x: np.full_like(x, 1e308))
+    arcs = simulate_vectorized(over, [[1.7e308], [0.0]], t_max=10.0, first_step=1.0)
+    assert [a.termination for a in arcs] == [Termination.NON_FINITE] * 2
+    assert arcs[1].tf == 1.0 and np.isfinite(arcs[1].x).all()
+    # a NaN flow is rejected down to the smallest step; a finite escape likewise
+    nan = vec(f=lambda x: np.where(x < 1, 1.0, np.nan))
+    escape = vec(f=lambda x: x ** 2)
+    for sysv, tf in ((nan, 1.0), (escape, 1.0)):
+        arc, = simulate_vectorized(sysv, [[0.0 if sysv is nan else 1.0]], t_max=3.0)
+        assert arc.termination is Termination.SOLVER_FAILED
+        assert abs(arc.tf - tf) < 1e-5
+    # a jump map returning inf: MAP_ERROR naming it, the run kept so far
+    bad = vec(f=lambda x: np.ones_like(x), g=lambda x: np.full_like(x, np.inf),
+              D=lambda x: x[:, 0] >= 1.0)
+    arc, = simulate_vectorized(bad, [[0.0]], t_max=3.0)
+    assert arc.termination is Termination.MAP_ERROR
+    assert "jump_map returned non-finite values" in arc.message
+    assert abs(arc.tf - 1.0) < 1e-12
+    # the same causes and samples as simulate
+    refs = {
+        "over": hs.HybridSystem.from_functions(f=lambda x: np.array([1e308]), state_dim=1),
+        "nan": hs.HybridSystem.from_functions(f=lambda x: np.where(x < 1, 1.0, np.nan),
+                                              state_dim=1),
+        "escape": hs.HybridSystem.from_functions(f=lambda x: x ** 2, state_dim=1),
+        "bad": hs.HybridSystem.from_functions(f=lambda x: np.ones(1),
+                                              g=lambda x: np.full(1, np.inf),
+                                              D=lambda x: x[0] >= 1.0, state_dim=1)}
+    for name, sysv, x0, kw in (("over", over, 1.7e308, dict(t_max=10.0, first_step=1.0)),
+                               ("nan", nan, 0.0, dict(t_max=3.0)),
+                               ("escape", escape, 1.0, dict(t_max=3.0)),
+                               ("bad", bad, 0.0, dict(t_max=3.0))):
+        with np.errstate(over="ignore", invalid="ignore"):
+            ref = hs.simulate(refs[name], [x0], **kw)
+        got, = simulate_vectorized(sysv, [[x0]], **kw)
+        assert got.termination is ref.termination, name
+        assert len(got) == len(ref), name
+
+
 def test_map_error_stops_only_the_failing_row():
     def f(x):
         if np.any((x[:, 0] > 0.5) & (x[:, 0] < 0.6)):
