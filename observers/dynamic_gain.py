@@ -591,7 +591,7 @@ def example_norm(observer):
 
 
 def simulate_example(observer, *, noise=False, seed=0, t_max=10.0, x0=None, v0=1.0,
-                     x_hat0=None, method="Radau", rtol=None, atol=1e-10,
+                     x_hat0=None, w0=0.0, method="Radau", rtol=None, atol=1e-10,
                      max_norm=1e3, **kw):
     """Simulate the plant of :func:`example_plant` with ``observer`` through hs.simulate.
 
@@ -608,7 +608,7 @@ def simulate_example(observer, *, noise=False, seed=0, t_max=10.0, x0=None, v0=1
     sys = hs.connect(plant, observer, names=("plant", "observer"))
     if x0 is None:
         x0 = EXAMPLE["x0"] if n == 3 else np.r_[10.0, np.zeros(n - 2), -5.0]
-    z0 = np.concatenate([np.asarray(x0, float), observer.initial_state(x_hat0, 0.0, v0)])
+    z0 = np.concatenate([np.asarray(x0, float), observer.initial_state(x_hat0, w0, v0)])
     # scipy's finite-difference Jacobian overflows harmlessly where the gain is
     # non-Lipschitz (z -> 0); a real overflow of the state ends the run (BLOWUP)
     with np.errstate(over="ignore"):

@@ -280,6 +280,22 @@ def test_proposed_random_cases(seed):
     _check_proposed(arc, obs, e0, v0, r.L, mu, g1, g2, r.P)
 
 
+def test_zeta_reaches_zero_but_z_stays_v():
+    """Proof of Theorem 3: "zeta = gamma2|w| - v < 0 obviously".  From v(0) just above
+    |w(0)| while |w| grows, zeta' = gamma1|zeta|^(1-mu) > 0 drives zeta to 0 in
+    |zeta(0)|^mu/(mu gamma1) = 0.126 s and v then slides on v = |w|: only zeta <= 0
+    holds (enough for z = v).  1e-9: the solver's atol (1e-10) on v and w."""
+    obs = proposed_observer(L_PAPER, MU, G1, 1.0, b=B3)
+    arc = simulate_example(obs, t_max=0.4, w0=0.99, v0=0.99 + 1e-8,
+                           x_hat0=np.array([-90.0, 0.0, 0.0]))
+    e, v, _ = error_components(arc, obs)
+    margin = v - np.abs(e[:, 0])
+    assert margin.min() >= -1e-9
+    sliding = (arc.t > 0.13) & (arc.t < 0.3)
+    assert sliding.sum() > 10 and np.abs(margin[sliding]).max() <= 1e-9
+    assert margin[-1] > 0.1                    # later |w| decreases and v leaves it
+
+
 def test_luenberger_special_case_remark_1():
     """gamma1 = gamma2 = 0: z = v(0), the error is expm((A + D^{-1}(v0) L C) t) e0."""
     from scipy.linalg import expm
