@@ -6,7 +6,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from .history import ComponentHistory
-from .system import HybridSystem, as_map
+from .system import HybridSystem, as_map, guard_min
 
 __all__ = ["Interconnection", "LinearPlant", "connect", "network"]
 
@@ -291,12 +291,12 @@ class Interconnection(HybridSystem):
 
     def _jump_guard(self, x, t, j, u=None):
         y = _Outputs(self, x, t, j)
-        return max(float(np.min(h(x[self._slices[nm]], t, j, self._u(nm, x, t, j, y))))
+        return max(guard_min(h(x[self._slices[nm]], t, j, self._u(nm, x, t, j, y)))
                    for nm, h in self._hD.items())
 
     def _flow_guard(self, x, t, j, u=None):
         y = _Outputs(self, x, t, j)
-        return min(float(np.min(h(x[self._slices[nm]], t, j, self._u(nm, x, t, j, y))))
+        return min(guard_min(h(x[self._slices[nm]], t, j, self._u(nm, x, t, j, y)))
                    for nm, h in self._hC.items())
 
     @property

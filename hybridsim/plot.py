@@ -24,11 +24,27 @@ def _values(arc, idx):
     if idx is None:
         idx = list(range(arc.state_dim))
     idx = [idx] if np.ndim(idx) == 0 else list(idx)
+    if not idx:
+        raise ValueError("idx must select at least one component, got an empty list")
     for i in idx:
-        if not (-arc.state_dim <= i < arc.state_dim):
-            raise ValueError(f"idx: component {i} out of range for a state of dimension "
-                             f"{arc.state_dim}")
+        _check_component("idx", i, arc.state_dim)
     return arc.x[:, idx], [f"x{i}" for i in idx]
+
+
+def _check_component(name, i, n):
+    if isinstance(i, (bool, np.bool_)) or not isinstance(i, (int, np.integer)):
+        raise TypeError(f"{name} must be an int component index (or a list of them, or a "
+                        f"callable), got {i!r}")
+    if not (-n <= i < n):
+        raise ValueError(f"{name}: component {i} out of range for a state of dimension {n}")
+
+
+def _check_labels(labels, k):
+    labels = list(labels)
+    if len(labels) != k:
+        raise ValueError(f"labels must have one entry per plotted component ({k}), "
+                         f"got {len(labels)}")
+    return labels
 
 
 def _segments(arc):
@@ -60,7 +76,7 @@ def plot_flows(arc, idx=None, *, ax=None, labels=None, jumps=True, **line_kw):
     """
     ax = _axes(ax)
     v, default = _values(arc, idx)
-    labels = default if labels is None else list(labels)
+    labels = default if labels is None else _check_labels(labels, v.shape[1])
     for k in range(v.shape[1]):
         color = None
         for s, (a, b) in enumerate(_segments(arc)):
@@ -85,7 +101,7 @@ def plot_jumps(arc, idx=None, *, ax=None, labels=None, **line_kw):
     """
     ax = _axes(ax)
     v, default = _values(arc, idx)
-    labels = default if labels is None else list(labels)
+    labels = default if labels is None else _check_labels(labels, v.shape[1])
     for k in range(v.shape[1]):
         (line,) = ax.plot(arc.j, v[:, k], ".", label=labels[k], **line_kw)
         for i in arc.jump_index:
@@ -124,9 +140,7 @@ def plot_phase(arc, i=0, k=1, *, ax=None, **line_kw):
     """Component k against component i, flows solid and jumps dashed."""
     ax = _axes(ax)
     for c in (i, k):
-        if not (-arc.state_dim <= c < arc.state_dim):
-            raise ValueError(f"plot_phase: component {c} out of range for a state of "
-                             f"dimension {arc.state_dim}")
+        _check_component("plot_phase", c, arc.state_dim)
     color = None
     for a, b in _segments(arc):
         (line,) = ax.plot(arc.x[a:b, i], arc.x[a:b, k], color=color, **line_kw)

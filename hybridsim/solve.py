@@ -11,7 +11,7 @@ from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, OdeSolver, Radau
 from .arc import HybridArc, Termination
 from .events import locate_event
 from .history import History
-from .system import HybridSystem
+from .system import HybridSystem, guard_min
 
 __all__ = ["simulate", "MapError", "SimulationError"]
 
@@ -50,25 +50,23 @@ class _Buffer:
     def append(self, t, j, x):
         k = self.n
         if k == len(self.t):
-            cap = 2 * k
-            self.t = np.resize(self.t, cap)
-            self.j = np.resize(self.j, cap)
-            nx = np.empty((cap, self.x.shape[1]))
-            nx[:k] = self.x
-            self.x = nx
+            for name in ("t", "j", "x"):
+                old = getattr(self, name)
+                new = np.empty((2 * k,) + old.shape[1:], dtype=old.dtype)
+                new[:k] = old
+                setattr(self, name, new)
         self.t[k] = t
         self.j[k] = j
         self.x[k] = x
         self.n = k + 1
 
     def arrays(self):
+        """The samples, shrunk in place (no copy); the buffer is done after this."""
         k = self.n
-        return self.t[:k].copy(), self.j[:k].copy(), self.x[:k].copy()
-
-
-def _vmin(v):
-    """min of a guard's value (a float, or the components of an array)."""
-    return v if type(v) is float else float(np.min(v))
+        self.t.resize(k, refcheck=False)
+        self.j.resize(k, refcheck=False)
+        self.x.resize((k, self.x.shape[1]), refcheck=False)
+        return self.t, self.j, self.x
 
 
 def _check_x0(x0, n):
@@ -510,9 +508,9 @@ class _Run:
                 u = u_at(s)
                 v = -math.inf
                 if watch_D and hD is not None:
-                    v = _vmin(hD(y, s, j, u))
+                    v = guard_min(hD(y, s, j, u))
                 if has_C and hC is not None:
-                    v = max(v, -_vmin(hC(y, s, j, u)))
+                    v = max(v, -guard_min(hC(y, s, j, u)))
                 return v
 
         lo, hi, ylo, yhi = locate_event(sol, a, b, pred, phi)

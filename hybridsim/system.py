@@ -8,6 +8,21 @@ import numpy as np
 __all__ = ["HybridSystem", "as_map"]
 
 
+def guard_min(v) -> float:
+    """The minimum of a guard's value: a scalar, or the components of an array.
+
+    Fast for Python and numpy scalars and small arrays (this runs at every
+    evaluation during event location).
+    """
+    if isinstance(v, float):
+        return v
+    if isinstance(v, np.ndarray):
+        return float(min(v.tolist())) if v.ndim else float(v)
+    if isinstance(v, (list, tuple)):
+        return float(min(v))
+    return float(v)
+
+
 def _arity(fn) -> int:
     """Number of leading positional arguments ``fn`` accepts (4 for ``*args``)."""
     try:
@@ -166,11 +181,11 @@ class HybridSystem:
         if self._overrides("jump_set") or hD is None:
             D = as_map(self.jump_set, "jump_set")
         else:
-            D = lambda x, t, j, u: bool(np.min(hD(x, t, j, u)) >= 0.0)  # noqa: E731
+            D = lambda x, t, j, u: guard_min(hD(x, t, j, u)) >= 0.0  # noqa: E731
         if self._overrides("flow_set") or hC is None:
             C = as_map(self.flow_set, "flow_set")
         else:
-            C = lambda x, t, j, u: bool(np.min(hC(x, t, j, u)) >= 0.0)  # noqa: E731
+            C = lambda x, t, j, u: guard_min(hC(x, t, j, u)) >= 0.0  # noqa: E731
         c = _Compiled(
             f=as_map(self.flow_map, "flow_map"), g=as_map(self.jump_map, "jump_map"),
             C=C, D=D, hD=hD, hC=hC, h=as_map(self.output, "output"),

@@ -227,25 +227,17 @@ def test_plot_phase_bad_component_raises(arc, i, k, bad):
         hs.plot_phase(arc, i, k)
 
 
-# Not yet rejected by hybridsim.plot (filed in the engine requests): an idx
-# that is not an int, an empty idx, labels of the wrong length. strict xfail:
-# these turn into failures the day the engine validates them, to be promoted.
-@pytest.mark.xfail(strict=True, raises=(IndexError, TypeError, AssertionError),
-                   reason="plot._values does not check that idx entries are ints")
 @pytest.mark.parametrize("idx", [1.5, True, "a"])
 def test_non_integer_idx_raises_value_error(idx, arc):
     with pytest.raises((ValueError, TypeError), match="idx"):
         hs.plot_flows(arc, idx)
 
 
-@pytest.mark.xfail(strict=True, reason="plot_flows draws nothing for idx=[] instead of raising")
 def test_empty_idx_raises(arc):
     with pytest.raises(ValueError, match="idx"):
         hs.plot_flows(arc, [])
 
 
-@pytest.mark.xfail(strict=True, raises=IndexError,
-                   reason="plot_flows indexes labels without checking its length")
 def test_labels_of_the_wrong_length_raise(arc):
     with pytest.raises(ValueError, match="labels"):
         hs.plot_flows(arc, [0, 1], labels=["height"])
