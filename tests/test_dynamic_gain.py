@@ -147,6 +147,8 @@ def test_observer_bad_inputs():
         DynamicGainObserver(L_PAPER, 0.2, 1.0, -1.0)
     with pytest.raises(TypeError, match="gamma1 must be a real number, got str"):
         DynamicGainObserver(L_PAPER, 0.2, "a")
+    with pytest.raises(ValueError, match="gamma2 must be > 0, got 0"):
+        dg.proposed_observer(L_PAPER, 0.2, 1.0, 0.0)
     with pytest.raises(ValueError, match="z_mode must be 'max' or 'abs', got 'min'"):
         DynamicGainObserver(L_PAPER, 0.2, 1.0, z_mode="min")
     with pytest.raises(ValueError, match=r"b must be a finite \(3, m\) matrix, got shape \(2, 1\)"):
@@ -289,7 +291,7 @@ def test_zeta_reaches_zero_but_z_stays_v():
     arc = simulate_example(obs, t_max=0.4, w0=0.99, v0=0.99 + 1e-8,
                            x_hat0=np.array([-90.0, 0.0, 0.0]))
     e, v, _ = error_components(arc, obs)
-    margin = v - np.abs(e[:, 0])
+    margin = dg.gain_margin(e[:, 0], v, 1.0)
     assert margin.min() >= -1e-9
     sliding = (arc.t > 0.13) & (arc.t < 0.3)
     assert sliding.sum() > 10 and np.abs(margin[sliding]).max() <= 1e-9
