@@ -52,8 +52,12 @@ Decisions where the paper is silent or ambiguous (each is tested):
    with ``e^{-tau/2}`` doubles beta.  :func:`settling_time_bound` returns the
    corrected bound by default (``corrected=True``) and the printed one on request.
 4. **mu interval.** The observer accepts Section IV's ``0 < mu <= 1/(n+1)``; the
-   statements that need Theorem 3 (:func:`settling_time_bound`, the LMI) require the
-   open interval ``0 < mu < 1/(n+1)``.
+   statements that need Theorem 3 (:func:`settling_time_bound`, the LMI by default)
+   require the open interval ``0 < mu < 1/(n+1)``.  At ``mu = 1/(n+1)`` H is still
+   positive definite, (10) is solvable (``solve_lmi10(..., allow_mu_boundary=True)``)
+   and the prescribed-time observer still settles exactly at (18) (tested); the
+   boundary only makes the last injection ``z^{-1} w`` discontinuous at w = 0 when
+   z = gamma2|w| (and Proposition 5 weakens ISS to iISS).
 5. **"zeta < 0 obviously".** Along (9), ``zeta = gamma2|w| - v`` obeys
    ``zeta' = gamma1 |zeta|^{1-mu} - 2 gamma2 |g0| [w g0 < 0]`` for zeta < 0: the
    first term pushes zeta *up* to 0 (the paper's T0 is the time a positive zeta needs

@@ -346,7 +346,7 @@ class LMI10Result:
 
 
 def solve_lmi10(n, mu, gamma1, *, objective="alpha", gain_bound=None,
-                solver="CLARABEL", rtol=1e-7):
+                solver="CLARABEL", rtol=1e-7, allow_mu_boundary=False):
     """Solve LMIs (10) and return the verified gain ``L = P^{-1} Y``.
 
     (10) is homogeneous in (P, Y), so P is normalised by ``P ⪰ I``.  The LMIs do not
@@ -364,8 +364,11 @@ def solve_lmi10(n, mu, gamma1, *, objective="alpha", gain_bound=None,
     n : int
         Order of the plant (1); the LMI has size n+1.
     mu : float
-        Theorem 3 requires the open interval ``0 < mu < 1/(n+1)``; ``mu = 1/(n+1)``
-        (allowed in Section IV) makes H singular and is rejected here.
+        Theorem 3 requires the open interval ``0 < mu < 1/(n+1)`` and so does this
+        function by default.  ``mu = 1/(n+1)`` (allowed in Section IV, iISS case of
+        Proposition 5) is accepted with ``allow_mu_boundary=True``: H stays positive
+        definite there and (10) is well posed, but the last injection ``z^{-1} w``
+        becomes discontinuous at w = 0 when z = gamma2|w|.
     gamma1 : float
         > 0.
     objective : {"alpha", "gain", "feasibility"}
@@ -374,6 +377,8 @@ def solve_lmi10(n, mu, gamma1, *, objective="alpha", gain_bound=None,
         cvxpy solver name (default Clarabel).
     rtol : float
         Relative tolerance of the eigenvalue verification (:func:`verify_lmi`).
+    allow_mu_boundary : bool, default False
+        Accept ``mu = 1/(n+1)``.
 
     Returns
     -------
@@ -393,7 +398,7 @@ def solve_lmi10(n, mu, gamma1, *, objective="alpha", gain_bound=None,
     Nekhoroshikh, Efimov, Polyakov, Perruquetti, Furtat, "On simple design of a
     robust finite-time observer", CDC 2022, Theorem 3, LMIs (10).
     """
-    n, mu, gamma1 = _check_design_params(n, mu, gamma1, strict_mu=True)
+    n, mu, gamma1 = _check_design_params(n, mu, gamma1, strict_mu=not allow_mu_boundary)
     if objective not in ("alpha", "gain", "feasibility"):
         raise ValueError("objective must be 'alpha', 'gain' or 'feasibility', "
                          f"got {objective!r}")

@@ -234,6 +234,19 @@ def test_prescribed_time_random_cases(seed):
     _check_prescribed(arc, obs, np.r_[0.0, x0 - xh0], v0, L, mu, g1)
 
 
+def test_prescribed_time_at_mu_boundary_section_iv():
+    """mu = 1/(n+1) (Section IV's closed interval, outside Theorem 3): LMI (10) is still
+    solvable (H > 0) and the prescribed-time observer still settles exactly at
+    T = v0^mu/(mu gamma1) = 4, since the closed form never uses mu < 1/(n+1)."""
+    mu = 0.25
+    L = solve_lmi10(3, mu, G1, allow_mu_boundary=True).L
+    obs = prescribed_time_observer(L, mu, G1, b=B3)
+    arc = simulate_example(obs, t_max=4.3)
+    _check_prescribed(arc, obs, E0_EX, 1.0, L, mu, G1)
+    with pytest.raises(ValueError, match=r"mu must lie in \(0, 0.25\) for n = 3"):
+        solve_lmi10(3, mu, G1)
+
+
 def _check_proposed(arc, obs, e0, v0, L, mu, g1, g2, P):
     """gamma2 > 0: T18 - z_min^mu/(mu g1) <= switch and settling <= bound (17);
     v >= gamma2 |w| throughout (Fig. 1b; zeta <= 0 of the proof)."""
