@@ -344,7 +344,9 @@ def test_prescribed_time_escapes_under_noise(seed):
     assert arc.termination is hs.Termination.BLOWUP
     assert 4.5 < arc.tf < 5.0
     e, v, _ = error_components(arc, obs)
-    assert np.abs(e[-1]).max() > 100 * np.abs(e[arc.t < 4.0]).max() / 18
+    mid = (arc.t > 3.0) & (arc.t < 4.0)          # after the transient, before the escape
+    assert np.abs(e[-1]).max() > 100 * np.abs(e[mid]).max()
+    assert v[-1] < 1e-8                           # the escape comes with v -> 0
 
 
 def test_proposed_stays_bounded_under_noise():
