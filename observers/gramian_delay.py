@@ -90,6 +90,11 @@ import numpy as np
 import scipy.integrate
 import scipy.linalg
 
+# numpy Pade-13 expm (tested against scipy's there): scipy's compiled expm is
+# ~100x slower on this shared machine, whose BLAS spawns threads for tiny
+# products, and lambda(r) is evaluated thousands of times
+from observers.li_sanfelice import expm as _expm
+
 __all__ = [
     "ObserverForm", "observer_form", "lam", "GramianDesign", "gramian_design",
     "c_Delta", "theorem1_bound", "Theorem2Constants", "theorem2_constants",
@@ -334,7 +339,7 @@ def lam(r, A1, A2, k):
     rr = np.asarray(r, dtype=float)
     if not np.all(np.isfinite(rr)):
         raise ValueError("r must be finite")
-    out = np.array([G @ (np.eye(m) - scipy.linalg.expm(B * ri)) for ri in rr.reshape(-1)])
+    out = np.array([G @ (np.eye(m) - _expm(B * ri)) for ri in rr.reshape(-1)])
     return out[0] if rr.ndim == 0 else out.reshape(rr.shape + G.shape)
 
 
@@ -410,7 +415,7 @@ class GramianDesign:
         """
         if h == self.tau:
             return self.E1, self.E2
-        return float(np.exp(-self.k * h)), scipy.linalg.expm(-self.A_psi2 * h)
+        return float(np.exp(-self.k * h)), _expm(-self.A_psi2 * h)
 
     def xi_e(self, xi1_hat, xi2_hat, psi1, psi2, psi1_del, psi2_del, y, h=None):
         r"""The estimate (13) from its ingredients.
@@ -800,3 +805,489 @@ def sampling_instants(T_min, T_max, t_end, *, seed=None, t0=0.0):
     ts = t0 + np.concatenate([[0.0], np.cumsum(h)])
     last = int(np.searchsorted(ts, t_end)) + 1
     return ts[:last]
+
+
+# ----------------------------------------------------------------------------
+# Hybrid systems on the engine
+# ----------------------------------------------------------------------------
+import hybridsim as hs  # noqa: E402  (the design part above needs no engine)
+
+__all__ += ["Plant", "GramianObserver", "SampledGramianObserver", "DCMotor", "dc_motor",
+            "estimate_along", "reproduce"]
+
+
+def _signal(name, fn, dim):
+    """A callable t -> (dim,) array (None: zero)."""
+    if fn is None:
+        z = np.zeros(dim)
+        return lambda t: z
+    if not callable(fn):
+        raise TypeError(f"{name} must be callable t -> ({dim},) array or None, "
+                        f"got {type(fn).__name__}")
+    return lambda t: np.asarray(fn(t), dtype=float).reshape(dim)
+
+
+class Plant(hs.HybridSystem):
+    r"""System (1): chi' = M chi + Psi(N chi, t) + delta1(t), Y = N chi + delta2(t).
+
+    A hybrid system with empty jump set and no input (u(t) enters through
+    Psi's time argument). Its output is Y (q,), or ``(Y, N chi)`` (2q,)
+    when ``oracle=True`` (to feed the literal reading of (39), which needs
+    the unmeasured xi_2 = N chi).
+
+    Parameters
+    ----------
+    M : (n, n) array_like
+    N : (q, n) array_like
+    Psi : callable, optional
+        ``Psi(y, t) -> (n,)``.
+    delta1 : callable, optional
+        ``t -> (n,)`` disturbance on the dynamics.
+    delta2 : callable, optional
+        ``t -> (q,)`` measurement disturbance.
+    oracle : bool
+
+    References
+    ----------
+    Mazenc & Malisoff (2022), eq. (1).
+    """
+
+    def __init__(self, M, N, Psi=None, *, delta1=None, delta2=None, oracle=False):
+        self.M = _matrix("M", M)
+        n = self.M.shape[0]
+        if self.M.shape != (n, n):
+            raise ValueError(f"M must be square, got shape {self.M.shape}")
+        self.N = _matrix("N", N, (None, n))
+        q = self.N.shape[0]
+        if Psi is not None and not callable(Psi):
+            raise TypeError(f"Psi must be callable, got {type(Psi).__name__}")
+        self.Psi = Psi
+        self.delta1 = _signal("delta1", delta1, n)
+        self.delta2 = _signal("delta2", delta2, q)
+        self.oracle = bool(oracle)
+        self.state_dim = n
+        self.output_dim = 2 * q if oracle else q
+
+    def flow_map(self, x, t):
+        dx = self.M @ x + self.delta1(t)
+        if self.Psi is not None:
+            dx = dx + np.asarray(self.Psi(self.N @ x, t), dtype=float)
+        return dx
+
+    def output(self, x, t, j):
+        y = self.N @ x
+        Y = y + self.delta2(t)
+        return np.concatenate([Y, y]) if self.oracle else Y
+
+
+class _ObserverBase(hs.HybridSystem):
+    """Shared checks and slicing of (xi1_hat, xi2_hat, psi1, psi2, ...)."""
+
+    def __init__(self, design, F1, F2):
+        if not isinstance(design, GramianDesign):
+            raise TypeError(f"design must be a GramianDesign, got {type(design).__name__}")
+        for name, F in (("F1", F1), ("F2", F2)):
+            if not callable(F):
+                raise TypeError(f"{name} must be callable (y, t) -> array, got {type(F).__name__}")
+        self.design = design
+        self.F1, self.F2 = F1, F2
+        m, q = design.m, design.q
+        self.sl_xi1 = slice(0, m)
+        self.sl_xi2 = slice(m, m + q)
+        self.sl_psi1 = slice(m + q, 2 * m + q)
+        self.sl_psi2 = slice(2 * m + q, 3 * m + q)
+        d = design
+        self._mA2 = -d.A_psi2
+
+    def _extension_flow(self, z, t, y):
+        """Flows of (xi1_hat, xi2_hat, psi1, psi2) of (7) with measurement y."""
+        d = self.design
+        xi1, xi2 = z[self.sl_xi1], z[self.sl_xi2]
+        innov = d.H @ (y - xi2)
+        return np.concatenate([
+            d.A1 @ xi1 + np.asarray(self.F1(y, t), dtype=float).reshape(d.m),
+            d.A2 @ xi1 - d.k * xi2 + np.asarray(self.F2(y, t), dtype=float).reshape(d.q),
+            -d.k * z[self.sl_psi1] + innov,
+            self._mA2 @ z[self.sl_psi2] + innov])
+
+    def _initial(self, xi1_hat0, xi2_hat0, psi10, psi20):
+        d = self.design
+        return np.concatenate([
+            np.zeros(d.m) if xi1_hat0 is None else _vector("xi1_hat0", xi1_hat0, d.m),
+            np.zeros(d.q) if xi2_hat0 is None else _vector("xi2_hat0", xi2_hat0, d.q),
+            np.zeros(d.m) if psi10 is None else _vector("psi1_0", psi10, d.m),
+            np.zeros(d.m) if psi20 is None else _vector("psi2_0", psi20, d.m)])
+
+
+def _delayed(design, t, t0, psi_at):
+    """psi_1, psi_2 at t - h and the window h (decision 3: h = min(tau, t - t0))."""
+    h = min(design.tau, t - t0)
+    if h < design.tau:
+        return psi_at(t0), h
+    s = t - design.tau
+    try:
+        return psi_at(s), h
+    except hs.HistoryError:
+        # engine workaround (see /tmp/engine_requests.md): the history has a
+        # gap of a few ulps between a located event and the jump time; psi is
+        # continuous, so read just before it
+        return psi_at(s - 64 * np.finfo(float).eps * max(1.0, abs(s))), h
+
+
+class GramianObserver(_ObserverBase):
+    r"""The dynamic extension (7) for continuous measurements Y (Theorem 1).
+
+    State ``z = (xi1_hat, xi2_hat, psi1, psi2)`` of length ``3(n-q) + q``
+    (time-major arcs: ``arc.x`` is (N, 3(n-q)+q)); input ``u = Y`` (q,);
+    empty jump set.
+
+    .. math::
+        \dot{\hat\xi}_1 = A_1\hat\xi_1 + F_1(Y, t),\quad
+        \dot{\hat\xi}_2 = A_2\hat\xi_1 - k\hat\xi_2 + F_2(Y, t),\\
+        \dot\psi_1 = -k\psi_1 + H(Y - \hat\xi_2),\quad
+        \dot\psi_2 = -(A_1^\top + 2kI)\psi_2 + H(Y - \hat\xi_2).
+
+    The estimate (13) reads psi at t - tau and Y(t); it is evaluated along
+    a finished run by :meth:`estimate` (the engine's output map may not
+    depend on the input).
+
+    Parameters
+    ----------
+    design : GramianDesign
+    F1, F2 : callable
+        ``F1(y, t) -> (n-q,)``, ``F2(y, t) -> (q,)`` of (2).
+    t0 : float
+        Start of the runs (for the history rule before t0 + tau).
+
+    References
+    ----------
+    Mazenc & Malisoff (2022), eqs. (7), (13), Theorem 1.
+    """
+
+    def __init__(self, design, F1, F2, *, t0=0.0):
+        super().__init__(design, F1, F2)
+        self.t0 = float(t0)
+        self.state_dim = 3 * design.m + design.q
+        self.input_dim = design.q
+
+    def flow_map(self, z, t, j, u):
+        return self._extension_flow(z, t, np.asarray(u, dtype=float))
+
+    def initial_state(self, xi1_hat0=None, xi2_hat0=None, psi1_0=None, psi2_0=None):
+        """The observer's initial state (zeros where not given)."""
+        return self._initial(xi1_hat0, xi2_hat0, psi1_0, psi2_0)
+
+    def estimate(self, arc, y, *, name=None):
+        r"""xi_e (13) at every sample of ``arc``; time-major (N, n-q).
+
+        Parameters
+        ----------
+        arc : HybridArc
+            The run (of this observer alone, or of an interconnection with
+            ``name`` naming this observer). Run it with ``dense=True``: the
+            values at t - tau are then read from the solver's dense output
+            (exact to the integrator), else they are interpolated linearly.
+        y : (N, q) array_like or callable
+            The measured signal at the samples: Y(t) (implementable), or
+            xi_2(t) (the paper's (13)). A callable is ``(t) -> (q,)``.
+        name : str, optional
+            The observer's name in an interconnection.
+        """
+        return estimate_along(self, arc, y, name=name)
+
+
+class SampledGramianObserver(_ObserverBase):
+    r"""The observer (39) for measurements sampled at t_0 < t_1 < ... (Theorem 2).
+
+    State ``z = (xi1_hat, xi2_hat, psi1, psi2, omega, sigma, kappa)``:
+    (7)'s extension driven by omega instead of Y, omega (q,), a timer sigma
+    (time since the last sample) and a sample counter kappa. Input ``u = Y``
+    (q,) (or ``(Y, xi2)`` (2q,) with ``estimate="xi2"``), read at the jumps
+    only. Flow (between samples):
+
+    .. math::
+        \dot{\hat\xi}_1 = A_1\hat\xi_1 + F_1(\omega, t),\quad
+        \dot{\hat\xi}_2 = A_2\hat\xi_1 - k\hat\xi_2 + F_2(\omega, t),\\
+        \dot\psi_i = \dots + H(\omega - \hat\xi_2),\quad
+        \dot\omega = A_2\xi_e(t) - k\omega + F_2(\omega, t),
+
+    with xi_e of (13) reading psi at t - tau through the run's history (a
+    delay equation; ``max_step = tau``). Jump (a sample): omega^+ = Y,
+    sigma^+ = 0, kappa^+ = kappa + 1.
+
+    Decisions (module docstring): the xi2_hat flow uses ``A2 xi1_hat`` (the
+    printed ``A2 xi2_hat`` of (39) is a typo); ``estimate="omega"`` puts
+    omega(t) in place of the unmeasured xi_2(t) in (13).
+
+    Parameters
+    ----------
+    design : GramianDesign
+    F1, F2 : callable
+        As in (2).
+    period : float, optional
+        Periodic sampling by the timer: D = {sigma >= period}.
+    instants : (K,) array_like, optional
+        Increasing sampling instants (e.g. :func:`sampling_instants`):
+        D = {t >= instants[kappa]}. Exactly one of period, instants.
+    estimate : {"omega", "xi2"}
+    t0 : float
+        Start of the runs (history rule before t0 + tau).
+
+    References
+    ----------
+    Mazenc & Malisoff (2022), eqs. (36)-(39), Theorem 2.
+    """
+
+    def __init__(self, design, F1, F2, *, period=None, instants=None, estimate="omega",
+                 t0=0.0):
+        super().__init__(design, F1, F2)
+        if (period is None) == (instants is None):
+            raise ValueError("give exactly one of period and instants")
+        if period is not None:
+            self.period = _positive("period", period)
+            self.instants = None
+        else:
+            ins = np.asarray(instants, dtype=float).reshape(-1)
+            if ins.size == 0 or not np.all(np.isfinite(ins)):
+                raise ValueError("instants must be a non-empty finite 1-D array")
+            if np.any(np.diff(ins) <= 0):
+                raise ValueError("instants must be strictly increasing")
+            self.period, self.instants = None, ins
+        if estimate not in ("omega", "xi2"):
+            raise ValueError(f"estimate must be 'omega' or 'xi2', got {estimate!r}")
+        self.estimate_source = estimate
+        m, q = design.m, design.q
+        self.t0 = float(t0)
+        self.sl_omega = slice(3 * m + q, 3 * m + 2 * q)
+        self.i_sigma = 3 * m + 2 * q
+        self.i_kappa = self.i_sigma + 1
+        self.state_dim = 3 * m + 2 * q + 2
+        self.input_dim = q if estimate == "omega" else 2 * q
+        self.max_step = design.tau
+        self.needs_history = True
+        # psi' jumps with omega at the samples, so psi(t - tau) has kinks at t_k + tau
+        self.delays = (design.tau,)
+
+    def initial_state(self, xi1_hat0=None, xi2_hat0=None, psi1_0=None, psi2_0=None,
+                      omega0=None):
+        """Initial state; the timer/counter are set so that a sample is taken at t0."""
+        q = self.design.q
+        w = np.zeros(q) if omega0 is None else _vector("omega0", omega0, q)
+        sigma0 = self.period if self.period is not None else 0.0
+        return np.concatenate([self._initial(xi1_hat0, xi2_hat0, psi1_0, psi2_0), w,
+                               [sigma0, 0.0]])
+
+    def _xi_e_now(self, z, t, u):
+        d = self.design
+        psi_del, h = _delayed(d, t, self.t0, self.history)
+        y = z[self.sl_omega] if self.estimate_source == "omega" else np.asarray(u)[d.q:]
+        return d.xi_e(z[self.sl_xi1], z[self.sl_xi2], z[self.sl_psi1], z[self.sl_psi2],
+                      psi_del[self.sl_psi1], psi_del[self.sl_psi2], y, h=h)
+
+    def flow_map(self, z, t, j, u):
+        d = self.design
+        w = z[self.sl_omega]
+        ext = self._extension_flow(z, t, w)
+        xe = self._xi_e_now(z, t, u)
+        dw = d.A2 @ xe - d.k * w + np.asarray(self.F2(w, t), dtype=float).reshape(d.q)
+        return np.concatenate([ext, dw, [1.0, 0.0]])
+
+    def jump_guard(self, z, t, j, u):
+        if self.period is not None:
+            return z[self.i_sigma] - self.period
+        kap = int(round(z[self.i_kappa]))
+        if kap >= len(self.instants):
+            return -1.0
+        return t - self.instants[kap]
+
+    def jump_map(self, z, t, j, u):
+        z = np.array(z, dtype=float)
+        z[self.sl_omega] = np.asarray(u, dtype=float)[:self.design.q]
+        z[self.i_sigma] = 0.0
+        z[self.i_kappa] += 1.0
+        return z
+
+    def estimate(self, arc, *, y=None, name=None):
+        r"""xi_e (13) at every sample of ``arc`` as the observer used it.
+
+        With ``estimate="omega"`` the signal in (13) is the arc's omega
+        (default ``y``); pass ``y`` (e.g. the true xi_2) to evaluate (13)
+        with another signal. Run with ``dense=True`` for exact delayed values.
+        """
+        if y is None:
+            if self.estimate_source != "omega":
+                raise ValueError("y must be given (the xi_2 samples) when estimate='xi2'")
+            arc_o = arc.component(name) if name is not None else arc
+            y = arc_o.x[:, self.sl_omega]
+        return estimate_along(self, arc, y, name=name)
+
+
+def estimate_along(observer, arc, y, *, name=None):
+    r"""Evaluate xi_e (13) along a finished run of a Gramian observer.
+
+    Parameters
+    ----------
+    observer : GramianObserver or SampledGramianObserver
+    arc : HybridArc
+        The run; with ``name``, an interconnection's run and the observer's
+        component name.
+    y : (N, q) array_like or callable t -> (q,)
+        The signal that stands for xi_2(t) in (13), at the arc's samples.
+    name : str, optional
+
+    Returns
+    -------
+    (N, n-q) array, time-major.
+
+    Notes
+    -----
+    psi at t - tau is read with ``arc.at`` (the solver's dense output when
+    the run kept it). Before t0 + tau the window is truncated to [t0, t]
+    (module docstring, decision 3).
+
+    References
+    ----------
+    Mazenc & Malisoff (2022), eq. (13).
+    """
+    if not isinstance(observer, _ObserverBase):
+        raise TypeError(f"observer must be a Gramian observer, got {type(observer).__name__}")
+    d = observer.design
+    if name is not None:
+        sl = arc.components[name]
+        Z = arc.x[:, sl]
+        base = sl.start
+
+        def psi_at(s):
+            return arc.at(s)[base:base + sl.stop - sl.start]
+    else:
+        Z = arc.x
+        psi_at = arc.at
+    if Z.shape[1] != observer.state_dim:
+        raise ValueError(f"arc must hold the observer's state of length {observer.state_dim}, "
+                         f"got {Z.shape[1]} (pass name= for an interconnection)")
+    if callable(y):
+        Y = np.array([np.asarray(y(t), dtype=float).reshape(d.q) for t in arc.t])
+    else:
+        Y = np.asarray(y, dtype=float)
+        if Y.shape != (len(arc.t), d.q):
+            raise ValueError(f"y must have shape ({len(arc.t)}, {d.q}), got {Y.shape}")
+    out = np.empty((len(arc.t), d.m))
+    for i, t in enumerate(arc.t):
+        z = Z[i]
+        pd, h = _delayed(d, t, observer.t0, psi_at)
+        out[i] = d.xi_e(z[observer.sl_xi1], z[observer.sl_xi2], z[observer.sl_psi1],
+                        z[observer.sl_psi2], pd[observer.sl_psi1], pd[observer.sl_psi2],
+                        Y[i], h=h)
+    return out
+
+
+# ----------------------------------------------------------------------------
+# Section V: the DC motor (64)-(67)
+# ----------------------------------------------------------------------------
+@dataclasses.dataclass
+class DCMotor:
+    """The DC-motor example (65)-(67) with everything a run needs.
+
+    Attributes
+    ----------
+    params : dict
+        b0, b1, a1..a4 (the paper's values, "as in [6]").
+    form : ObserverForm
+        (65) in the coordinates (66): xi1 = (chi2, chi3), xi2 = chi1.
+    design : GramianDesign
+    plant : Plant
+        (65) in chi coordinates, output Y = chi1 + delta2.
+    K1, K2 : float
+        Lipschitz constants a1 and k of F1, F2 (Section V).
+    u, delta1, delta2 : callable
+        Control and disturbances (our choices: the paper cites them from
+        its ref. [6], which we do not have).
+    chi0 : (3,) array
+        Plant initial state (our choice).
+    """
+
+    params: dict
+    form: ObserverForm
+    design: GramianDesign
+    plant: Plant
+    K1: float
+    K2: float
+    u: Callable
+    delta1: Callable
+    delta2: Callable
+    chi0: np.ndarray
+
+    def xi(self, chi):
+        """(66)'s coordinates of plant states (time-major (N, 3) or (3,))."""
+        return self.form.to_xi(chi)
+
+    def continuous_observer(self, t0=0.0):
+        """The observer (7) of Theorem 1 for this motor."""
+        return GramianObserver(self.design, self.form.F1, self.form.F2, t0=t0)
+
+    def sampled_observer(self, **kw):
+        """The observer (39) of Theorem 2 (keywords of SampledGramianObserver)."""
+        return SampledGramianObserver(self.design, self.form.F1, self.form.F2, **kw)
+
+
+DC_PARAMS = dict(b0=40.0, b1=15.0, a1=35.0, a2=1.0, a3=36.4, a4=200.0)
+
+
+def dc_motor(k=100.0, tau=0.1, *, disturbed=True, u=None, delta1=None, delta2=None,
+             chi0=None, oracle=False) -> DCMotor:
+    r"""The single-link manipulator with DC motor (64)-(67).
+
+    Parameters
+    ----------
+    k, tau : float
+        The paper uses tau = 0.1 and k = 100 (Fig. 1), 75 and 150 (Fig. 2).
+    disturbed : bool
+        False: delta1 = delta2 = 0 (the setting of Theorem 1's exactness).
+        True: our default disturbances (below) unless given.
+    u, delta1, delta2 : callable, optional
+        Control ``t -> float``, ``t -> (3,)`` and ``t -> (1,)``. The paper
+        takes them from its ref. [6]; we choose (and say so in the figures):
+        ``u(t) = 2 sin(2t)``, ``delta1(t) = (0, 0.5 sin(5t), 0.5 cos(3t))``
+        and ``delta2(t) = 1e-3 sin(20t)``.
+    chi0 : (3,) array_like, optional
+        Plant initial state; default (our choice) (0.5, -1, 0.2).
+    oracle : bool
+        Plant output (Y, chi1) instead of Y (for estimate="xi2").
+
+    Returns
+    -------
+    DCMotor
+
+    References
+    ----------
+    Mazenc & Malisoff (2022), Section V, eqs. (64)-(67).
+    """
+    p = DC_PARAMS
+    M = np.array([[0.0, 1.0, 0.0], [0.0, -p["a2"], p["b1"]], [0.0, -p["a3"], -p["a4"]]])
+    Nmat = np.array([[1.0, 0.0, 0.0]])
+    if u is None:
+        u = lambda t: 2.0 * np.sin(2.0 * t)  # noqa: E731
+    elif not callable(u):
+        raise TypeError(f"u must be callable t -> float, got {type(u).__name__}")
+    if disturbed:
+        if delta1 is None:
+            delta1 = lambda t: np.array([0.0, 0.5 * np.sin(5 * t), 0.5 * np.cos(3 * t)])  # noqa: E731
+        if delta2 is None:
+            delta2 = lambda t: np.array([1e-3 * np.sin(20 * t)])  # noqa: E731
+    else:
+        if delta1 is not None or delta2 is not None:
+            raise ValueError("delta1 and delta2 must be None when disturbed=False")
+        delta1 = lambda t: np.zeros(3)  # noqa: E731
+        delta2 = lambda t: np.zeros(1)  # noqa: E731
+    d1 = _signal("delta1", delta1, 3)
+    d2 = _signal("delta2", delta2, 1)
+
+    def Psi(y, t):
+        return np.array([0.0, -p["a1"] * np.sin(y[0]), p["b0"] * float(u(t))])
+
+    form = observer_form(M, Nmat, Psi, P=[[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], k=k)
+    design = gramian_design(form.A1, form.A2, form.k, tau)
+    plant = Plant(M, Nmat, Psi, delta1=d1, delta2=d2, oracle=oracle)
+    chi0 = np.array([0.5, -1.0, 0.2]) if chi0 is None else _vector("chi0", chi0, 3)
+    return DCMotor(params=dict(p), form=form, design=design, plant=plant, K1=p["a1"],
+                   K2=float(k), u=u, delta1=d1, delta2=d2, chi0=chi0)
