@@ -94,7 +94,15 @@ class _SampleLog:
 
     def split(self):
         """Per-trajectory ``(t, j, x)`` arrays, in row order; frees the log."""
-        order = np.argsort(self.rows[:self.size], kind="stable")
+        k = self.size
+        if len(self.count) == 1:             # one trajectory: shrink in place, no copy
+            self.t.resize(k, refcheck=False)
+            self.j.resize(k, refcheck=False)
+            self.x.resize((k, self.x.shape[1]), refcheck=False)
+            out = [(self.t, self.j, self.x)]
+            self.rows = self.t = self.j = self.x = None
+            return out
+        order = np.argsort(self.rows[:k], kind="stable")
         bounds = np.concatenate(([0], np.cumsum(self.count)))
         out = []
         for a, b in zip(bounds[:-1], bounds[1:]):
