@@ -5,8 +5,8 @@ jump_guard and a flow_guard) is run to ``j_max`` jumps. Printed: wall time,
 samples returned, bytes of the returned arrays (t, j, x), the peak memory
 traced by ``tracemalloc`` during the run and the memory still held after it,
 each as a ratio to the returned bytes (no quadratic copying: the ratios stay
-flat as the run grows; the sample buffer doubles, so the peak is at most
-about 2x the samples plus the final copy).
+flat as the run grows; the sample buffer doubles as it grows, so the peak is
+about 2x the returned samples).
 
 A pilot of 10^4 jumps estimates the cost of 10^6; if that exceeds
 ``--budget`` seconds (default 180), the wall-time run is 10^5 jumps and the
@@ -130,9 +130,8 @@ def main(argv=None):
     held = big["held"] / big["bytes"]
     print(f"held after the run: {held:.2f}x the returned bytes "
           f"({'within' if held <= 2 else 'MORE than'} 2x); "
-          f"peak during the run: {ratio:.2f}x (the sample buffer's spare capacity, up to 2x, "
-          f"plus the final copy to the arc); flat ratios across run lengths = no quadratic "
-          f"copying")
+          f"peak during the run: {ratio:.2f}x (the sample buffer's spare capacity: it doubles "
+          f"as it grows); flat ratios across run lengths = no quadratic copying")
 
 
 if __name__ == "__main__":
