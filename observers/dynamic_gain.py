@@ -796,7 +796,7 @@ def reproduce(outdir, *, t_max=10.0, seed=0):
             bp = settling_time_bound(E0_EXAMPLE, ex["v0"], ex["L"], mu, ex["gamma1"], 1.0,
                                      corrected=False)
             print(f"  (18): T = {T18:g} for gamma2 = 0; bound (17) for gamma2 = 1: "
-                  f"printed beta {bp:.3g}, corrected beta e^{logb:.1f}")
+                  f"{bp:.3g} with the printed beta, e^{logb:.1f} with the corrected beta")
         for ax in (axa, axb):
             ax.axvline(T18, color="0.6", lw=0.8, ls=":")
             ax.set_xlabel("t")
