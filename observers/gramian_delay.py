@@ -404,6 +404,19 @@ class GramianDesign:
         """``A1^T + 2kI``, the (negated) matrix of psi_2's flow in (7)."""
         return self.A1.T + 2.0 * self.k * np.eye(self.m)
 
+    @property
+    def psi2_growth(self):
+        r"""Largest real part of the eigenvalues of -(A1^T + 2kI).
+
+        Positive when 2k < -min Re eig(A1): psi_2 of (7) then grows like
+        e^{psi2_growth t}, and (13) subtracts two growing terms whose
+        difference stays bounded. In exact arithmetic nothing changes; in
+        floating point the cancellation loses digits at that rate (on the
+        DC motor, k = 75 gives +47.2: the estimate is lost after ~0.8 s).
+        The paper does not mention it; choose k > -min Re eig(A1) / 2.
+        """
+        return float(np.max(np.linalg.eigvals(-self.A_psi2).real))
+
     def lam(self, r):
         """lambda(r) of (4); see :func:`lam`."""
         return lam(r, self.A1, self.A2, self.k)
