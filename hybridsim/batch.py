@@ -24,6 +24,20 @@ def _run_sweep_chunk(make_system, params, x0, kwargs):
     return [simulate(make_system(p), x0, **kwargs) for p in params]
 
 
+def _spread(executor, chunk_fn, items, args, chunks, bar):
+    """Run ``chunk_fn(*args(chunk))`` on the executor for chunks of ``items``, in order."""
+    workers = getattr(executor, "_max_workers", None) or 2
+    parts = _chunks(len(items), chunks or min(len(items), 4 * workers))
+    futs = [executor.submit(chunk_fn, *args(items[a:b])) for a, b in parts]
+    out = []
+    for fut in futs:
+        res = fut.result()
+        out.extend(res)
+        if bar is not None:
+            bar.update(len(res))
+    return out
+
+
 def _bar(progress, total, desc):
     if progress is None:
         progress = bool(getattr(sys.stderr, "isatty", lambda: False)())
@@ -84,16 +98,8 @@ def simulate_many(system, x0s, t_max, j_max=np.inf, *, executor=None, chunks=Non
                 if bar is not None:
                     bar.update(1)
             return out
-        workers = getattr(executor, "_max_workers", None) or 2
-        parts = _chunks(N, chunks or min(N, 4 * workers))
-        futs = [executor.submit(_run_chunk, system, x0s[a:b], kwargs) for a, b in parts]
-        out = []
-        for fut in futs:
-            res = fut.result()
-            out.extend(res)
-            if bar is not None:
-                bar.update(len(res))
-        return out
+        return _spread(executor, _run_chunk, x0s, lambda part: (system, part, kwargs),
+                       chunks, bar)
     finally:
         if bar is not None:
             bar.close()
@@ -136,17 +142,8 @@ def sweep(make_system, params, x0, t_max, j_max=np.inf, *, executor=None, chunks
             return out
         if callable(x0):
             raise TypeError("x0 must be an array when an executor is used")
-        workers = getattr(executor, "_max_workers", None) or 2
-        parts = _chunks(len(params), chunks or min(len(params), 4 * workers))
-        futs = [executor.submit(_run_sweep_chunk, make_system, params[a:b], x0, kwargs)
-                for a, b in parts]
-        out = []
-        for fut in futs:
-            res = fut.result()
-            out.extend(res)
-            if bar is not None:
-                bar.update(len(res))
-        return out
+        return _spread(executor, _run_sweep_chunk, params,
+                       lambda part: (make_system, part, x0, kwargs), chunks, bar)
     finally:
         if bar is not None:
             bar.close()

@@ -26,7 +26,7 @@ import numpy as np
 from scipy.integrate import RK45
 
 from .arc import HybridArc, Termination
-from .solve import MapError, SimulationError, PRIORITIES, _check_real
+from .solve import MapError, SimulationError, check_options
 from .system import HybridSystem, as_map
 
 __all__ = ["simulate_vectorized"]
@@ -252,42 +252,19 @@ def _check_options(system, x0s, t_max, j_max, priority, method, rtol, atol, max_
     if not np.all(np.isfinite(X)):
         bad = np.flatnonzero(~np.isfinite(X).all(axis=1))
         raise ValueError(f"x0s must be finite; rows {bad[:10].tolist()} are not")
-    t0 = _check_real("t0", t0)
-    t_max = _check_real("t_max", t_max, allow_inf=True)
-    if t_max < t0:
-        raise ValueError(f"t_max must be >= t0 = {t0}, got {t_max}")
-    if isinstance(j_max, bool) or not isinstance(j_max, numbers.Real) or (
-            isinstance(j_max, float) and not (math.isinf(j_max) or j_max.is_integer())):
-        raise TypeError(f"j_max must be a non-negative int (or inf), got {j_max!r}")
-    if j_max < 0:
-        raise ValueError(f"j_max must be >= 0, got {j_max}")
+    (t0, t_max, j_max, prio, rtol, atol, max_step, first_step, max_norm,
+     zeno_time) = check_options(system, n, t0, t_max, j_max, priority, rtol, atol, max_step,
+                                first_step, max_norm, zeno_time)
     if isinstance(j0, bool) or not isinstance(j0, numbers.Integral):
         raise TypeError(f"j0 must be an int, got {j0!r}")
-    if priority not in PRIORITIES:
-        raise ValueError(f"priority must be one of {PRIORITIES}, got {priority!r}")
     if not (method == "RK45" or method is RK45):
         raise ValueError(f"method={method!r} is not supported in vectorized mode: the batch "
                          "integrator is Dormand-Prince 5(4) ('RK45'); use simulate_many with "
                          "an executor for other methods")
-    rtol = _check_real("rtol", rtol, positive=True)
-    if np.ndim(atol) == 0:
-        atol = _check_real("atol", atol, positive=True)
-    else:
-        atol = np.asarray(atol, dtype=float)
-        if atol.shape != (n,) or not np.all(atol > 0):
-            raise ValueError(f"atol must be a positive float or an array of shape ({n},) "
-                             f"of positive floats, got {atol!r}")
-    max_step = _check_real("max_step", max_step, allow_inf=True, positive=True)
-    if system.max_step is not None:
-        max_step = min(max_step, _check_real("system.max_step", system.max_step, positive=True))
-    if first_step is not None:
-        first_step = _check_real("first_step", first_step, positive=True)
-    max_norm = _check_real("max_norm", max_norm, allow_inf=True, positive=True)
     if isinstance(zeno_jumps, bool) or not isinstance(zeno_jumps, numbers.Integral) \
             or zeno_jumps < 1:
         raise ValueError(f"zeno_jumps must be a positive int, got {zeno_jumps!r}")
-    zeno_time = _check_real("zeno_time", zeno_time, nonneg=True)
-    return (n, X, t0, t_max, j_max, PRIORITIES.index(priority), rtol, atol, max_step,
+    return (n, X, t0, t_max, j_max, prio, rtol, atol, max_step,
             first_step, int(zeno_jumps), zeno_time, int(j0), max_norm)
 
 

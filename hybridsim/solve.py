@@ -1,9 +1,10 @@
 """simulate(): the flow/jump loop with exact event location."""
 from __future__ import annotations
 
+import bisect
 import math
-import sys
 import numbers
+import sys
 
 import numpy as np
 from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, OdeSolver, Radau
@@ -129,6 +130,44 @@ def _progress_bar(progress, t0, t_max, j_max):
                 desc="simulate", leave=False)
 
 
+def check_options(system, n, t0, t_max, j_max, priority, rtol, atol, max_step,
+                  first_step, max_norm, zeno_time):
+    """Validate the options shared by :func:`simulate` and the batch integrator.
+
+    Returns them normalised: ``(t0, t_max, j_max, prio, rtol, atol, max_step,
+    first_step, max_norm, zeno_time)`` with ``prio`` an index into PRIORITIES
+    and ``max_step`` capped by ``system.max_step``.
+    """
+    t0 = _check_real("t0", t0)
+    t_max = _check_real("t_max", t_max, allow_inf=True)
+    if t_max < t0:
+        raise ValueError(f"t_max must be >= t0 = {t0}, got {t_max}")
+    if isinstance(j_max, bool) or not isinstance(j_max, numbers.Real) or (
+            isinstance(j_max, float) and not (math.isinf(j_max) or j_max.is_integer())):
+        raise TypeError(f"j_max must be a non-negative int (or inf), got {j_max!r}")
+    if j_max < 0:
+        raise ValueError(f"j_max must be >= 0, got {j_max}")
+    if priority not in PRIORITIES:
+        raise ValueError(f"priority must be one of {PRIORITIES}, got {priority!r}")
+    prio = PRIORITIES.index(priority)
+    rtol = _check_real("rtol", rtol, positive=True)
+    if np.ndim(atol) == 0:
+        atol = _check_real("atol", atol, positive=True)
+    else:
+        atol = np.asarray(atol, dtype=float)
+        if atol.shape != (n,) or not np.all(atol > 0):
+            raise ValueError(f"atol must be a positive float or an array of shape ({n},) "
+                             f"of positive floats, got {atol!r}")
+    max_step = _check_real("max_step", max_step, allow_inf=True, positive=True)
+    if system.max_step is not None:
+        max_step = min(max_step, _check_real("system.max_step", system.max_step, positive=True))
+    if first_step is not None:
+        first_step = _check_real("first_step", first_step, positive=True)
+    max_norm = _check_real("max_norm", max_norm, allow_inf=True, positive=True)
+    zeno_time = _check_real("zeno_time", zeno_time, nonneg=True)
+    return (t0, t_max, j_max, prio, rtol, atol, max_step, first_step, max_norm, zeno_time)
+
+
 def simulate(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priority="jumps",
              method="RK45", rtol=1e-6, atol=1e-9, max_step=math.inf, first_step=None,
              inputs=None, prehistory=None, max_norm=math.inf, seed=None,
@@ -214,33 +253,10 @@ def simulate(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priority="jumps
     maps = system._compile()
     n = int(system.state_dim)
     x = _check_x0(x0, n)
-    t0 = _check_real("t0", t0)
-    t_max = _check_real("t_max", t_max, allow_inf=True)
-    if t_max < t0:
-        raise ValueError(f"t_max must be >= t0 = {t0}, got {t_max}")
-    if isinstance(j_max, bool) or not isinstance(j_max, numbers.Real) or (
-            isinstance(j_max, float) and not (math.isinf(j_max) or j_max.is_integer())):
-        raise TypeError(f"j_max must be a non-negative int (or inf), got {j_max!r}")
-    if j_max < 0:
-        raise ValueError(f"j_max must be >= 0, got {j_max}")
-    if priority not in PRIORITIES:
-        raise ValueError(f"priority must be one of {PRIORITIES}, got {priority!r}")
-    prio = PRIORITIES.index(priority)
+    (t0, t_max, j_max, prio, rtol, atol, max_step, first_step, max_norm,
+     zeno_time) = check_options(system, n, t0, t_max, j_max, priority, rtol, atol, max_step,
+                                first_step, max_norm, zeno_time)
     Method = _resolve_method(method)
-    rtol = _check_real("rtol", rtol, positive=True)
-    if np.ndim(atol) == 0:
-        atol = _check_real("atol", atol, positive=True)
-    else:
-        atol = np.asarray(atol, dtype=float)
-        if atol.shape != (n,) or not np.all(atol > 0):
-            raise ValueError(f"atol must be a positive float or an array of shape ({n},) "
-                             f"of positive floats, got {atol!r}")
-    max_step = _check_real("max_step", max_step, allow_inf=True, positive=True)
-    if system.max_step is not None:
-        max_step = min(max_step, _check_real("system.max_step", system.max_step, positive=True))
-    if first_step is not None:
-        first_step = _check_real("first_step", first_step, positive=True)
-    max_norm = _check_real("max_norm", max_norm, allow_inf=True, positive=True)
     if int(system.input_dim or 0) > 0 and inputs is None:
         raise ValueError(f"inputs: the system has input_dim={system.input_dim}; pass "
                          "inputs=callable(t) -> u, or connect it with hs.connect")
@@ -250,8 +266,9 @@ def simulate(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priority="jumps
         raise TypeError(f"prehistory must be a callable x(s), got {type(prehistory).__name__}")
     if isinstance(refine, bool) or not isinstance(refine, numbers.Integral) or refine < 1:
         raise ValueError(f"refine must be an int >= 1, got {refine!r}")
-    zeno_jumps = int(zeno_jumps)
-    zeno_time = _check_real("zeno_time", zeno_time, nonneg=True)
+    if isinstance(zeno_jumps, bool) or not isinstance(zeno_jumps, numbers.Integral) \
+            or zeno_jumps < 1:
+        raise ValueError(f"zeno_jumps must be a positive int, got {zeno_jumps!r}")
     rng = np.random.default_rng(seed)
 
     delays = tuple(float(d) for d in (system.delays or ()))
@@ -324,55 +341,53 @@ class _Run:
         try:
             while True:
                 if keep_flowing:     # random priority chose to flow on in C ∩ D
-                    keep_flowing = False
-                    kind, t, x = self._flow(t, j, x, True)
-                    if kind == "jump":
-                        force_jump = True
-                    elif kind == "continue":
-                        keep_flowing = True
-                    elif kind == "stop":
+                    inD = True
+                    if t >= self.t_max:
+                        self._stop(Termination.T_MAX)
                         return
-                    continue
-                u = ufun(t) if ufun is not None else None
-                inD = has_D and bool(D(x, t, j, u))
-                inC = (not has_C) or bool(C(x, t, j, u))
-                if first:
-                    self._validate(x, t, j, u, inC, inD)
-                    first = False
-                if inD and (force_jump or not inC or prio == _JUMPS or
-                            (prio == _RANDOM and self.rng.random() < 0.5)):
+                else:
+                    u = ufun(t) if ufun is not None else None
+                    inD = has_D and bool(D(x, t, j, u))
+                    inC = (not has_C) or bool(C(x, t, j, u))
+                    if first:
+                        self._validate(x, t, j, u, inC, inD)
+                        first = False
+                    if inD and (force_jump or not inC or prio == _JUMPS or
+                                (prio == _RANDOM and self.rng.random() < 0.5)):
+                        force_jump = False
+                        if jumps >= self.j_max:
+                            self._stop(Termination.J_MAX)
+                            return
+                        xn = _check_map_value("jump_map", g(x, t, j, u), self.n)
+                        # Zeno: consecutive jumps after flows too short to resolve
+                        tiny = (t - t_last) <= self.zeno_time * max(1.0, abs(t))
+                        short = short + 1 if tiny else 0
+                        t_last = t
+                        j += 1
+                        jumps += 1
+                        x = xn
+                        buf.append(t, j, x)
+                        self.history._restart(t, x, j)
+                        if self.delays:
+                            self._add_breaks(t)
+                        if self.pbar is not None and not math.isfinite(self.t_max):
+                            self.pbar.update(1)
+                        if jumps >= self.j_max:
+                            self._stop(Termination.J_MAX)
+                            return
+                        if short >= self.zeno_jumps:
+                            self._stop(Termination.ZENO, f"{short} consecutive jumps near t={t}")
+                            return
+                        continue
                     force_jump = False
-                    if jumps >= self.j_max:
-                        self._stop(Termination.J_MAX)
+                    if not inC:
+                        cause = Termination.NOT_IN_SETS if buf.n == 1 else Termination.LEFT_SETS
+                        self._stop(cause, f"x={x} at (t={t}, j={j})")
                         return
-                    xn = _check_map_value("jump_map", g(x, t, j, u), self.n)
-                    # Zeno: consecutive jumps after flows too short to resolve
-                    short = short + 1 if (t - t_last) <= self.zeno_time * max(1.0, abs(t)) else 0
-                    t_last = t
-                    j += 1
-                    jumps += 1
-                    x = xn
-                    buf.append(t, j, x)
-                    self.history._restart(t, x, j)
-                    if self.delays:
-                        self._add_breaks(t)
-                    if self.pbar is not None and not math.isfinite(self.t_max):
-                        self.pbar.update(1)
-                    if jumps >= self.j_max:
-                        self._stop(Termination.J_MAX)
+                    if t >= self.t_max:
+                        self._stop(Termination.T_MAX)
                         return
-                    if short >= self.zeno_jumps:
-                        self._stop(Termination.ZENO, f"{short} consecutive jumps near t={t}")
-                        return
-                    continue
-                force_jump = False
-                if not inC:
-                    self._stop(Termination.NOT_IN_SETS if buf.n == 1 else Termination.LEFT_SETS,
-                               f"x={x} at (t={t}, j={j})")
-                    return
-                if t >= self.t_max:
-                    self._stop(Termination.T_MAX)
-                    return
+                keep_flowing = False
                 kind, t, x = self._flow(t, j, x, inD)
                 if kind == "jump":
                     force_jump = True
@@ -390,7 +405,6 @@ class _Run:
             self._stop(Termination.MAP_ERROR, f"{type(e).__name__}: {e}", e)
 
     def _add_breaks(self, t):
-        import bisect
         for d in self.delays:
             bisect.insort(self.breaks, t + d)
 
