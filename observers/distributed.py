@@ -72,6 +72,8 @@ import networkx as nx
 import numpy as np
 import scipy.linalg as sla
 
+import hybridsim as hs
+
 __all__ = [
     "signed_power",
     "GraphMatrices",
@@ -94,6 +96,14 @@ __all__ = [
     "choose_alpha",
     "example_system",
     "random_system",
+    "DistributedObserverNode",
+    "observer_network",
+    "initial_state",
+    "simulate_network",
+    "transformed_errors",
+    "band_limited_noise",
+    "stable_initial_state",
+    "reproduce",
 ]
 
 DEFAULT_RTOL = 1e-9
@@ -1142,3 +1152,374 @@ def random_system(N, seed=None, *, graph="ring", n_blocks=None, p_edge=0.3):
                 if i != j and rng.random() < p_edge:
                     G.add_edge(i, j)
     return A, C, G
+
+
+# --------------------------------------------------------------------------
+# the node dynamics (7)-(8) and (4)-(5)
+# --------------------------------------------------------------------------
+class _NodeData:
+    """Pre-computed matrices of one node (local coordinates ``(x̃_o, x̃_u)``)."""
+
+    def __init__(self, dsg: DistributedDesign, k: int):
+        d = dsg.decomp[k]
+        self.k, self.node = k, dsg.nodelist[k]
+        self.n_o, self.n_u, self.n = d.n_o, d.n_u, dsg.n
+        self.T_o, self.T_u = d.T_o, d.T_u
+        self.T = d.T
+        self.A_o, self.A_r, self.A_u, self.C_o = d.A_o, d.A_r, d.A_u, d.C_o
+        self.m = dsg.C[k].shape[0]
+        self.alpha = float(dsg.alpha[k])
+        self.finite_time = dsg.kind == "finite-time"
+        self.beta = dsg.beta
+        self.L_lin = dsg.L_lin[k]
+        if self.finite_time and self.n_o:
+            Th, p, L = dsg.Theta[k], dsg.p[k], dsg.L[k]
+            self.At_o = Th @ np.eye(self.n_o, k=1) @ np.linalg.inv(Th)   # Θ 𝓘 Θ^{-1}
+            self.pt = Th @ p                                              # Θ p
+            self.Lt_o = Th @ np.diag(L)                                   # Θ diag(L_o)
+            self.gamma = 1.0 + np.arange(1, self.n_o + 1) * dsg.nu[k]    # γ_k = 1 + k ν
+        self.neighbours = dsg.in_neighbours(self.node)
+
+    def rhs(self, z, y, xhat_nb):
+        """Right-hand side of node ``k``: (7)-(8) or (4)-(5).
+
+        Parameters
+        ----------
+        z : (n_o + n_u,) array
+            ``(x̃_o, x̃_u)``.
+        y : (m,) array
+            The node's measurement ``y^i``.
+        xhat_nb : (|𝒩_i|, n) array
+            The in-neighbours' full estimates ``x̃^j``.
+        """
+        xo, xu = z[:self.n_o], z[self.n_o:]
+        dxo = np.zeros(self.n_o)
+        if self.n_o:
+            if self.finite_time:
+                err = (self.C_o @ xo)[0] - y[0]
+                dxo = (self.At_o @ xo - self.pt * y[0]
+                       - self.Lt_o @ signed_power(np.full(self.n_o, err), self.gamma))
+            else:
+                dxo = self.A_o @ xo - self.L_lin @ (self.C_o @ xo - y)
+        dxu = np.zeros(self.n_u)
+        if self.n_u:
+            s = np.zeros(self.n_u)
+            if len(xhat_nb):
+                s = len(xhat_nb) * xu - self.T_u.T @ np.sum(xhat_nb, axis=0)
+            dxu = self.A_r @ xo + self.A_u @ xu - self.alpha * s
+            if self.finite_time:
+                dxu = dxu - signed_power(s, self.beta)
+        return np.concatenate([dxo, dxu])
+
+    def estimate(self, z):
+        """Full estimate ``x̃^i = T_o x̃_o + T_u x̃_u``."""
+        return self.T @ z
+
+
+# --------------------------------------------------------------------------
+# the observer network on the engine
+# --------------------------------------------------------------------------
+class DistributedObserverNode(hs.HybridSystem):
+    """Observer node ``i`` of (7)-(8) (or (4)-(5)) as a hybrid system.
+
+    A purely continuous system (empty jump set).  State: the local
+    coordinates ``(x̃_o^i, x̃_u^i)`` of (2) (length ``n``).  Input:
+    ``u = (y^i, x̃^{j_1}, ..., x̃^{j_k})`` with ``j_1..j_k`` the in-neighbours
+    ``𝒩_i`` in ``nodelist`` order.  Output: the full estimate
+    ``x̃^i = T_o x̃_o + T_u x̃_u`` (what the out-neighbours receive).
+
+    Parameters
+    ----------
+    dsg : DistributedDesign
+    node : hashable
+        A node of ``dsg.G``.
+
+    References
+    ----------
+    Silm et al. (2020), eqs. (3)-(5), (7), (8).
+    """
+
+    def __init__(self, dsg: DistributedDesign, node):
+        if node not in dsg.nodelist:
+            raise ValueError(f"node must be a node of the design's graph; got {node!r}")
+        self.data = _NodeData(dsg, dsg.nodelist.index(node))
+        self.node = node
+        self.state_dim = dsg.n
+        self.output_dim = dsg.n
+        self.input_dim = self.data.m + len(self.data.neighbours) * dsg.n
+
+    def flow_map(self, x, t, j, u):
+        m, n = self.data.m, self.data.n
+        u = np.asarray(u, dtype=float)
+        nb = u[m:].reshape(-1, n)
+        return self.data.rhs(np.asarray(x, dtype=float), u[:m], nb)
+
+    def output(self, x, t, j):
+        return self.data.estimate(np.asarray(x, dtype=float))
+
+
+class _NetworkInputs:
+    """``inputs(node, t, received, exo)`` of :func:`hybridsim.network` (picklable)."""
+
+    def __init__(self, dsg):
+        self.slices, k = {}, 0
+        for v, Ci in zip(dsg.nodelist, dsg.C):
+            self.slices[v] = slice(k, k + Ci.shape[0])
+            k += Ci.shape[0]
+        self.neighbours = {v: dsg.in_neighbours(v) for v in dsg.nodelist}
+
+    def __call__(self, node, t, received, exo):
+        y = np.asarray(exo["plant"], dtype=float)[self.slices[node]]
+        return np.concatenate([y] + [np.asarray(received[w], dtype=float)
+                                     for w in self.neighbours[node]])
+
+
+def observer_network(dsg: DistributedDesign, *, noise=None, disturbance=None):
+    """Plant (1) and the observer nodes as one interconnected hybrid system.
+
+    Built with :func:`hybridsim.network` over ``dsg.G``: the component
+    ``"plant"`` (a :class:`hybridsim.LinearPlant` with ``C = [C^1; ...; C^N]``)
+    is stacked first, then one :class:`DistributedObserverNode` per node in
+    ``dsg.nodelist`` order.
+
+    Parameters
+    ----------
+    dsg : DistributedDesign
+    noise : callable, optional
+        ``t -> (Σ m_i,)`` measurement noise added to the outputs (Remark 2).
+    disturbance : callable, optional
+        ``t -> (n,)`` added to the plant's flow.
+
+    Returns
+    -------
+    hybridsim.Interconnection
+    """
+    if "plant" in dsg.nodelist:
+        raise ValueError("no node of G may be named 'plant'")
+    plant = hs.LinearPlant(dsg.A, C=np.vstack(dsg.C), noise=noise, disturbance=disturbance)
+    nodes = {v: DistributedObserverNode(dsg, v) for v in dsg.nodelist}
+    return hs.network(dsg.G, nodes, _NetworkInputs(dsg), nodelist=dsg.nodelist,
+                      exogenous={"plant": plant})
+
+
+def initial_state(dsg: DistributedDesign, x0, xhat0=None):
+    """Stacked initial state ``(x(0), T^{1ᵀ} x̃^1(0), ..., T^{Nᵀ} x̃^N(0))``.
+
+    Parameters
+    ----------
+    x0 : (n,) array_like
+        Plant state.
+    xhat0 : (n,) or (N, n) array_like, optional
+        Initial estimates ``x̃^i(0)`` (default 0).
+    """
+    n, N = dsg.n, dsg.N
+    x0 = np.asarray(x0, dtype=float)
+    if x0.shape != (n,):
+        raise ValueError(f"x0 must have shape ({n},); got {x0.shape}")
+    xh = np.zeros((N, n)) if xhat0 is None else np.asarray(xhat0, dtype=float)
+    if xh.shape == (n,):
+        xh = np.tile(xh, (N, 1))
+    if xh.shape != (N, n):
+        raise ValueError(f"xhat0 must have shape ({n},) or ({N}, {n}); got {xh.shape}")
+    return np.concatenate([x0] + [d.T.T @ xh[k] for k, d in enumerate(dsg.decomp)])
+
+
+def simulate_network(dsg: DistributedDesign, x0, xhat0=None, *, t_max=10.0, noise=None,
+                     method="LSODA", rtol=1e-10, atol=1e-13, max_step=np.inf, **kw):
+    """Simulate plant and observer network with :func:`hybridsim.simulate`.
+
+    The non-Lipschitz powers of (7)-(8) make the flow stiff near zero error,
+    hence the default ``method="LSODA"``.  Returns the ``HybridArc``; see
+    :func:`transformed_errors`.
+    """
+    sys_ = observer_network(dsg, noise=noise)
+    return hs.simulate(sys_, initial_state(dsg, x0, xhat0), t_max=t_max, j_max=0,
+                       method=method, rtol=rtol, atol=atol, max_step=max_step,
+                       progress=False, **kw)
+
+
+def transformed_errors(arc, dsg: DistributedDesign):
+    """Errors in transformed coordinates ``e_o^i = x̃_o^i − T_o^{iᵀ} x``, ``e_u^i``.
+
+    Returns
+    -------
+    dict
+        ``{"t": (K,), "e_o": [ (K, n_i) per node ], "e_u": [ (K, n − n_i) ],
+        "norm": (K,)}`` where ``norm`` is the largest absolute entry of all
+        errors (``max_i ‖x̃^i − x‖_∞`` in the nodes' orthonormal coordinates).
+    """
+    x = arc["plant"].x
+    e_o, e_u = [], []
+    for v, d in zip(dsg.nodelist, dsg.decomp):
+        z = arc[v].x
+        e = z - x @ d.T
+        e_o.append(e[:, :d.n_o])
+        e_u.append(e[:, d.n_o:])
+    allerr = np.hstack(e_o + e_u)
+    return {"t": np.asarray(arc.t), "e_o": e_o, "e_u": e_u,
+            "norm": np.max(np.abs(allerr), axis=1)}
+
+
+def _settling(t, norm, threshold):
+    """First time after which ``norm`` stays below ``threshold`` (nan if never)."""
+    above = np.nonzero(norm > threshold)[0]
+    if above.size == 0:
+        return float(t[0])
+    if above[-1] == len(t) - 1:
+        return float("nan")
+    return float(t[above[-1] + 1])
+
+
+def stable_initial_state(A, v):
+    """Projection of ``v`` on the stable invariant subspace of ``A``.
+
+    Used for the example: the plant of Section 4 is unstable, and the
+    errors, not the state, are the point; starting the plant in its stable
+    subspace keeps ``|x|`` small, so that the floating-point error of
+    ``x̃ − x`` (relative to ``|x|``) does not hide the convergence.
+    """
+    A = _as_square(A)
+    T, Z, sdim = sla.schur(A, output="real", sort="lhp")
+    Zs = Z[:, :sdim]
+    return Zs @ (Zs.T @ np.asarray(v, dtype=float))
+
+
+def band_limited_noise(power, ts, t_max, dim, seed=None):
+    """Band-limited white noise as in Simulink, interpolated linearly.
+
+    Gaussian samples of variance ``power / ts`` every ``ts`` seconds
+    (Simulink's "Band-Limited White Noise" block), joined by straight lines
+    so that the flow stays continuous for the integrator.
+
+    Returns
+    -------
+    callable
+        ``t -> (dim,)``.
+    """
+    if power < 0 or ts <= 0:
+        raise ValueError(f"power must be >= 0 and ts > 0; got power={power}, ts={ts}")
+    rng = np.random.default_rng(seed)
+    grid = np.arange(0.0, t_max + 2 * ts, ts)
+    samples = rng.standard_normal((grid.size, dim)) * math.sqrt(power / ts)
+
+    def noise(t):
+        return np.array([np.interp(t, grid, samples[:, k]) for k in range(dim)])
+    return noise
+
+
+# --------------------------------------------------------------------------
+# figures
+# --------------------------------------------------------------------------
+EXAMPLE_V0 = np.array([1.0, -1.0, 0.5, 0.0, 1.0, -0.5])
+
+
+def _plot_errors(ax, E, dsg, log, title):
+    colors = [f"C{k}" for k in range(dsg.N)]
+    for k, v in enumerate(dsg.nodelist):
+        eo = np.linalg.norm(E["e_o"][k], axis=1)
+        eu = np.linalg.norm(E["e_u"][k], axis=1)
+        if log:
+            ax[0].semilogy(E["t"], np.maximum(eo, 1e-18), color=colors[k], label=f"node {v}")
+            ax[1].semilogy(E["t"], np.maximum(eu, 1e-18), color=colors[k], label=f"node {v}")
+        else:
+            for c in range(E["e_o"][k].shape[1]):
+                ax[0].plot(E["t"], E["e_o"][k][:, c], color=colors[k], lw=0.8,
+                           label=f"node {v}" if c == 0 else None)
+            for c in range(E["e_u"][k].shape[1]):
+                ax[1].plot(E["t"], E["e_u"][k][:, c], color=colors[k], lw=0.8,
+                           label=f"node {v}" if c == 0 else None)
+    ax[0].set_ylabel(r"$e_o^i$" + (" (norm)" if log else ""))
+    ax[1].set_ylabel(r"$e_u^i$" + (" (norm)" if log else ""))
+    ax[1].set_xlabel("t")
+    ax[0].set_title(title)
+    ax[0].legend(fontsize=7, ncol=2)
+
+
+def reproduce(outdir, *, t_max=20.0, t_max_noise=10.0):
+    """Regenerate Figs. 2 and 3 of the paper into ``outdir``.
+
+    Fig. 2: errors of the observer network (7)-(8) in transformed
+    coordinates, semi-log, without noise (with the linear observer (3)
+    for comparison).  Fig. 3: the same under band-limited white noise of power
+    1e-2 on each output (Remark 2).
+
+    Returns
+    -------
+    list of pathlib.Path
+        The PNG files (each with a ``.txt`` caption beside it).
+
+    References
+    ----------
+    Silm et al. (2020), Section 4, Figs. 2-3.
+    """
+    import pathlib
+
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    outdir = pathlib.Path(outdir)
+    outdir.mkdir(parents=True, exist_ok=True)
+    A, C, G = example_system()
+    nl = [1, 2, 3, 4]
+    ft = design(A, C, G, nl)
+    lin = design(A, C, G, nl, kind="linear")
+    x0 = stable_initial_state(A, EXAMPLE_V0)
+    res = lmi11(ft)
+    P1, margin1 = proposition1_lyapunov(ft)
+    print(f"[distributed] n_i = {ft.n_o}; Prop. 2 bound nu_min = {np.round(ft.nu_min, 6)}; "
+          f"nu = -0.1 meets it: {ft.meets_proposition2.tolist()}")
+    print(f"[distributed] Prop. 1 diagonal P = diag(r_i I), margin {margin1:.3g}; "
+          f"LMI (11) at alpha = 10: feasible={res.feasible}, "
+          f"max eig Phi = {res.max_eig_Phi:.3g}")
+    arc = simulate_network(ft, x0, t_max=t_max)
+    arcl = simulate_network(lin, x0, t_max=t_max)
+    E, El = transformed_errors(arc, ft), transformed_errors(arcl, lin)
+    ts = _settling(E["t"], E["norm"], 1e-10)
+    print(f"[distributed] finite-time: errors < 1e-10 for t >= {ts:.3f} "
+          f"(final {E['norm'][-1]:.2e}); linear (3): final error {El['norm'][-1]:.2e}")
+
+    fig, ax = plt.subplots(2, 1, sharex=True, figsize=(7, 6))
+    _plot_errors(ax, E, ft, True, "Fig. 2: errors in transformed coordinates")
+    for k in range(ft.N):
+        ax[1].semilogy(El["t"], np.maximum(np.linalg.norm(El["e_u"][k], axis=1), 1e-18),
+                       color=f"C{k}", ls=":", lw=0.8)
+    ax[1].text(0.02, 0.05, "dotted: linear observer (3)", transform=ax[1].transAxes,
+               fontsize=7)
+    f2 = outdir / "distributed_fig2.png"
+    fig.tight_layout()
+    fig.savefig(f2, dpi=120)
+    plt.close(fig)
+    f2.with_suffix(".txt").write_text(
+        "Fig. 2 of Silm et al. (2020): norms of the errors e_o^i (top) and e_u^i (bottom) of "
+        "the finite-time distributed observer (7)-(8), semi-log, no noise; dotted: the "
+        "linear observer (3) with the same gains (exponential only).\n"
+        "From the paper: A, C1..C4, observable-part eigenvalues -3 (at nu=0), nu_i = -0.1, "
+        "alpha_i = 10, beta = 0.7.\n"
+        "Our choices: graph 1->2->3->4->1 (Fig. 1 is missing from the text); x(0) = "
+        "projection of (1,-1,0.5,0,1,-0.5) on A's stable subspace (keeps |x| small so "
+        "that rounding of x_hat - x stays below 1e-10); x_hat^i(0) = 0; LSODA, "
+        f"rtol=1e-10, atol=1e-13. Errors < 1e-10 for t >= {ts:.2f}.\n")
+
+    noise = band_limited_noise(1e-2, 0.1, t_max_noise, ft.N, seed=0)
+    arcn = simulate_network(ft, x0, t_max=t_max_noise, noise=noise, max_step=0.05,
+                            rtol=1e-8, atol=1e-10)
+    En = transformed_errors(arcn, ft)
+    half = En["t"] >= t_max_noise / 2
+    print(f"[distributed] noise (power 1e-2): max error over t >= {t_max_noise / 2:g}: "
+          f"{En['norm'][half].max():.3g}")
+    fig, ax = plt.subplots(2, 1, sharex=True, figsize=(7, 6))
+    _plot_errors(ax, En, ft, False, "Fig. 3: errors with measurement noise")
+    f3 = outdir / "distributed_fig3.png"
+    fig.tight_layout()
+    fig.savefig(f3, dpi=120)
+    plt.close(fig)
+    f3.with_suffix(".txt").write_text(
+        "Fig. 3 of Silm et al. (2020): components of e_o^i (top) and e_u^i (bottom), "
+        "linear scale, with band-limited white noise of power 1e-2 added to each output "
+        "(Remark 2: errors stay bounded).\n"
+        "From the paper: as Fig. 2, noise power 1e-2.\n"
+        "Our choices: noise sample time 0.1 s (variance power/ts = 0.1, Simulink's "
+        "convention), samples joined linearly, seed 0; graph, x(0), x_hat(0) as Fig. 2; "
+        "LSODA rtol=1e-8, atol=1e-10, max_step=0.05.\n")
+    return [f2, f3]
