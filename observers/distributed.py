@@ -1471,7 +1471,8 @@ def reproduce(outdir, *, t_max=20.0, t_max_noise=10.0):
     x0 = stable_initial_state(A, EXAMPLE_V0)
     res = lmi11(ft)
     P1, margin1 = proposition1_lyapunov(ft)
-    print(f"[distributed] n_i = {ft.n_o}; Prop. 2 bound nu_min = {np.round(ft.nu_min, 6)}; "
+    print(f"[distributed] n_i = {ft.n_o}; Prop. 2 bound nu_min = "
+          f"{[float(f'{v:.3g}') for v in ft.nu_min]}; "
           f"nu = -0.1 meets it: {ft.meets_proposition2.tolist()}")
     print(f"[distributed] Prop. 1 diagonal P = diag(r_i I), margin {margin1:.3g}; "
           f"LMI (11) at alpha = 10: feasible={res.feasible}, "
