@@ -1,4 +1,10 @@
 """``python -m observers reproduce [name ...] [--out DIR]``."""
-from .reproduce import main
+import os
+
+# the matrices here are tiny: BLAS threads only contend (set before numpy loads)
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+from .reproduce import main  # noqa: E402
 
 raise SystemExit(main())

@@ -94,6 +94,7 @@ import scipy.integrate
 import scipy.linalg
 import scipy.optimize
 import scipy.signal
+from scipy.linalg import expm
 
 __all__ = [
     "Design",
@@ -138,38 +139,6 @@ __all__ = [
 _SINGULAR_COND = 1e12
 # H_c / H_pc warn when |(H T - I)^{-1}| exceeds this.
 _WARN_HT_INV = 1e6
-
-
-_PADE13 = (64764752532480000., 32382376266240000., 7771770303897600., 1187353796428800.,
-           129060195264000., 10559470521600., 670442572800., 33522128640., 1323241920.,
-           40840800., 960960., 16380., 182., 1.)
-
-
-def expm(M):
-    """Matrix exponential (Higham's scaling and squaring, Pade 13) in plain numpy.
-
-    The same algorithm as scipy.linalg.expm, for the small matrices of this
-    module; scipy's compiled version runs ~100x slower on a loaded machine
-    whose BLAS spawns threads for each tiny product.
-    """
-    A = np.asarray(M, dtype=float)
-    n = A.shape[0]
-    nrm = np.linalg.norm(A, 1)
-    s = 0
-    if nrm > 5.371920351148152:
-        s = int(max(0, math.ceil(math.log2(nrm / 5.371920351148152))))
-        A = A / 2.0 ** s
-    b = _PADE13
-    I = np.eye(n)
-    A2 = A @ A
-    A4 = A2 @ A2
-    A6 = A4 @ A2
-    U = A @ (A6 @ (b[13] * A6 + b[11] * A4 + b[9] * A2) + b[7] * A6 + b[5] * A4 + b[3] * A2 + b[1] * I)
-    V = A6 @ (b[12] * A6 + b[10] * A4 + b[8] * A2) + b[6] * A6 + b[4] * A4 + b[2] * A2 + b[0] * I
-    R = np.linalg.solve(V - U, V + U)
-    for _ in range(s):
-        R = R @ R
-    return R
 
 
 # ---------------------------------------------------------------------------

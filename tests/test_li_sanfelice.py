@@ -530,15 +530,6 @@ def test_luenberger_observer_2_steady_state_bias():
     assert np.allclose(E["e0"][:, 0], ref, atol=1e-8)
 
 
-def test_numpy_expm_matches_scipy():
-    rng = np.random.default_rng(3)
-    for n in (1, 2, 4, 8):
-        for scale in (1e-3, 1.0, 30.0):
-            M = rng.normal(size=(n, n)) * scale
-            E = scipy.linalg.expm(M)
-            assert np.linalg.norm(ls.expm(M) - E) <= 1e-12 * np.linalg.norm(E)
-
-
 def test_noise_batch_through_simulate_many_matches_formula_15():
     # a batch of bounded noise realisations (one per initial state of the generator) via hs.simulate_many:
     # each run's e(delta, 1) is (15) for its realisation and within Theorem 4.10's bound
