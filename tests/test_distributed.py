@@ -459,12 +459,13 @@ def test_theorem1_example_finite_time(example_runs):
     assert slope == pytest.approx(rate, rel=0.1)
 
 
-@pytest.mark.parametrize("seed", [0, 3, 5])
-def test_theorem1_random_finite_time(seed):
+@pytest.mark.parametrize("N, seed, graph", [(3, 0, "ring"), (5, 5, "random"),
+                                             (6, 600, "ring")])
+def test_theorem1_random_finite_time(N, seed, graph):
     # seeded random jointly observable plants over directed rings and random
-    # strongly connected digraphs (3-5 nodes); alpha from LMI (11)
-    N = 3 + seed % 3
-    A, C, G = random_system(N, seed, graph="random" if seed % 2 else "ring")
+    # strongly connected digraphs; alpha from LMI (11).  (N = 3..8 in
+    # benchmarks/bench_distributed.py; kept small here for speed.)
+    A, C, G = random_system(N, seed, graph=graph)
     d0 = design(A, C, G, nodelist=range(N), warn=False)
     alpha, res = choose_alpha(d0)
     d = design(A, C, G, nodelist=range(N), warn=False, alpha=alpha)
