@@ -55,6 +55,21 @@ Decisions where the paper is ambiguous (each one is tested)
    maximises ``η`` for a given ``Q``).
 7. **Rank tolerance.** The rank of the observability matrix counts the
    singular values above ``rtol * σ_max`` (default ``rtol = 1e-9``).
+8. **Proposition 2 is only sufficient.** For the example, ``η`` gives
+   ``ν_min ≈ −4.4e-3`` (``n_i = 2``) and ``≈ −3.3e-9`` (``n_i = 5``): the
+   paper's ``ν = −0.1`` is outside it; the simulations converge anyway.
+9. **Fig. 1 is missing:** :func:`example_system` uses the ring
+   ``1 -> 2 -> 3 -> 4 -> 1``.
+
+Simulation (on the engine)
+--------------------------
+:class:`DistributedObserverNode` is one node as a ``hs.HybridSystem`` (empty
+jump set); :func:`observer_network` wires plant and nodes with
+``hs.network`` over ``G``; :func:`simulate_network` calls ``hs.simulate``
+(RK45, ``rtol = 1e-10``, ``atol = 1e-13``).  The example's plant is
+unstable; :func:`stable_initial_state` starts it in its stable subspace so
+that ``|x|`` (and the rounding of ``x̃ − x``) stays small: the error dynamics
+do not depend on ``x``.  :func:`reproduce` draws Figs. 2-3.
 
 References
 ----------
