@@ -27,7 +27,9 @@ def main(argv=None):
     for script in sorted(here.glob("bench_*.py")):
         print(f"\n=== {script.name} ===", flush=True)
         t0 = time.perf_counter()
-        proc = subprocess.run([sys.executable, str(script), *argv], env=env,
+        # --quick only to the scripts that take it
+        args = [a for a in argv if a != "--quick" or "--quick" in script.read_text()]
+        proc = subprocess.run([sys.executable, str(script), *args], env=env,
                               capture_output=True, text=True, timeout=1800)
         dt = time.perf_counter() - t0
         print(proc.stdout, end="")
