@@ -71,6 +71,16 @@ Decisions on the paper's ambiguities (each is tested in
    (cond(S) about 1.4e5 for k = 100, 5.9e6 for k = 75); we compute S and
    N from one augmented matrix exponential (Van Loan) and check them
    against adaptive quadrature; cond(S) is reported.
+7. **k and the stability of psi_2 (not in the paper).** psi_2 of (7) flows
+   with -(A1^T + 2kI), unstable when 2k < -min Re eig(A1) (k = 75 on the
+   DC motor: growth +47.2/s). (13) is still exact in exact arithmetic, but
+   it subtracts two growing terms: in floating point the estimate is lost
+   after ~0.8 s (:attr:`GramianDesign.psi2_growth` reports the rate).
+
+Measured (``reproduce``): Theorem 1's exactness holds to ~1e-10 for
+t >= tau; Theorem 2's constants give T_bar mu ~ 4e19 for the paper's
+T_bar = 0.1 (k = 100), yet the observer converges there with xi_2 in (13),
+and with omega in (13) for periods up to ~0.017.
 
 References
 ----------
@@ -90,10 +100,7 @@ import numpy as np
 import scipy.integrate
 import scipy.linalg
 
-# numpy Pade-13 expm (tested against scipy's there): scipy's compiled expm is
-# ~100x slower on this shared machine, whose BLAS spawns threads for tiny
-# products, and lambda(r) is evaluated thousands of times
-from observers.li_sanfelice import expm as _expm
+from scipy.linalg import expm as _expm
 
 __all__ = [
     "ObserverForm", "observer_form", "lam", "GramianDesign", "gramian_design",
@@ -735,8 +742,10 @@ def theorem2_constants(design: GramianDesign, K1, K2, T_bar, *,
     The varsigma's are one-dimensional integrals of |lambda(s)| (2-norm)
     computed with adaptive quadrature (``scipy.integrate.quad``,
     ``epsrel=1e-10``). On the DC-motor example they are astronomically
-    conservative (mu ~ 1e8 for k = 100, so (40) asks T_bar < 1e-8), see
-    :func:`reproduce`.
+    conservative: mu ~ 4e20 for k = 100 (varsigma_3 ~ 1e19 from the
+    e^{2|A1| tau} = e^{41} factor and |S^{-1}| ~ 1.5e5), so (40) asks
+    T_bar < 2.5e-21, while the observer converges with T = 0.1 (xi_2 in (13))
+    or T < 0.017 (omega in (13)); see :func:`reproduce`.
 
     References
     ----------
@@ -1420,6 +1429,9 @@ line is t = tau = 0.1; before it the estimate uses the window [0, t] (our histor
     plt.close(fig)
 
     # Fig. 2
+    stops = ", ".join(f"{name} stopped at t = {runs[kind, 75.0][2].tf:.2f}"
+                      for kind, name in (("c", "Theorem 1"), ("s", "Theorem 2"))
+                      if runs[kind, 75.0][2].termination is hs.Termination.BLOWUP)
     fig, axs = plt.subplots(1, 2, figsize=(10, 3.8))
     for ax, kind, title in zip(axs, ("c", "s"), ("Theorem 1", "Theorem 2 (T = 0.1)")):
         for k, ls in ((75.0, "-"), (150.0, "--")):
@@ -1435,7 +1447,8 @@ line is t = tau = 0.1; before it the estimate uses the window [0, t] (our histor
 Fig. 2 (Mazenc & Malisoff 2022): as Fig. 1 with k = 75 (solid) and k = 150 (dashed).
 With k = 75, -(A1^T + 2kI) has the eigenvalue +47.2: psi_2 of (7) grows like e^(47 t) and
 (13) subtracts two growing terms; exact in exact arithmetic, the floating-point estimate is
-lost after about 0.8 s (the paper does not mention this; it needs k > 98.6 here).
+lost after about 0.8 s (the paper does not mention this; it needs k > 98.6 here). Runs
+stop when the interconnection's state exceeds 1e6 in norm (k = 75: {stops or "none"}).
 {_CHOICES}
 """))
     plt.close(fig)
