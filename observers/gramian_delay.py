@@ -123,7 +123,7 @@ def _matrix(name, A, shape=None):
     if A.ndim != 2:
         raise ValueError(f"{name} must be 2-dimensional, got shape {A.shape}")
     if shape is not None:
-        for ax, (want, got) in enumerate(zip(shape, A.shape)):
+        for want, got in zip(shape, A.shape):
             if want is not None and want != got:
                 want_s = ", ".join("*" if s is None else str(s) for s in shape)
                 raise ValueError(f"{name} must have shape ({want_s}), got {A.shape}")
@@ -1402,7 +1402,7 @@ def reproduce(outdir) -> list:
             t, e, arc = runs[kind, k]
             print(f"  k = {k:5.0f}, {name}: |error| at t = 0.15, 0.5, 1: "
                   f"{_err_at(t, e, 0.15):.3g}, {_err_at(t, e, 0.5):.3g}, {_err_at(t, e, 1.0):.3g}"
-                  f" ({arc.termination.name})")
+                  f" ({arc.termination.name} at t = {arc.tf:.3g}; later times read the last sample)")
 
     # Fig. 1
     fig, axs = plt.subplots(1, 2, figsize=(10, 3.8), sharey=False)
