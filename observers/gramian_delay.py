@@ -946,14 +946,7 @@ def _delayed(design, t, t0, psi_at):
     h = min(design.tau, t - t0)
     if h < design.tau:
         return psi_at(t0), h
-    s = t - design.tau
-    try:
-        return psi_at(s), h
-    except hs.HistoryError:
-        # engine workaround (see /tmp/engine_requests.md): the history has a
-        # gap of a few ulps between a located event and the jump time; psi is
-        # continuous, so read just before it
-        return psi_at(s - 64 * np.finfo(float).eps * max(1.0, abs(s))), h
+    return psi_at(t - design.tau), h
 
 
 class GramianObserver(_ObserverBase):
