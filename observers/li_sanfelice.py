@@ -183,7 +183,7 @@ def _vector(name, v, dim):
     return arr
 
 
-def _check_plant_gains(A, H, L1, L2):
+def _check_plant(A, H):
     A = _real_matrix("A", A)
     n = A.shape[0]
     if A.shape != (n, n):
@@ -191,7 +191,12 @@ def _check_plant_gains(A, H, L1, L2):
     H = _real_matrix("H", H)
     if H.shape[1] != n:
         raise ValueError(f"H must have shape (p, {n}) (p x n), got {H.shape}")
-    p = H.shape[0]
+    return A, H
+
+
+def _check_plant_gains(A, H, L1, L2):
+    A, H = _check_plant(A, H)
+    n, p = A.shape[0], H.shape[0]
     L1 = _real_matrix("L1", L1, (n, p), " (n x p)")
     L2 = _real_matrix("L2", L2, (n, p), " (n x p)")
     return A, H, L1, L2
@@ -1108,13 +1113,8 @@ class LuenbergerObserver(hs.HybridSystem):
     """
 
     def __init__(self, A, H, L0):
-        A = _real_matrix("A", A)
+        A, H = _check_plant(A, H)
         n = A.shape[0]
-        if A.shape != (n, n):
-            raise ValueError(f"A must be square (n x n), got shape {A.shape}")
-        H = _real_matrix("H", H)
-        if H.shape[1] != n:
-            raise ValueError(f"H must have shape (p, {n}) (p x n), got {H.shape}")
         L0 = _real_matrix("L0", L0, (n, H.shape[0]), " (n x p)")
         self.A, self.H, self.L0 = A, H, L0
         self.state_dim = n
