@@ -427,9 +427,11 @@ class _Run:
     def _flow(self, t, j, x, inD_start):
         """Integrate from (t, x) until an event, t_max or a failure.
 
-        Returns (kind, t, x) with kind in {"tmax", "jump", "left", "continue", "stop"}.
+        Returns (kind, t, x) with kind "tmax" (reached t_max), "break" (a delay
+        breakpoint: flow on), "jump" (jump from x), "continue" (random priority
+        flows on in C ∩ D) or "stop" (the run ends; the cause is recorded).
         """
-        maps, ufun, n = self.maps, self.ufun, self.n
+        maps, ufun = self.maps, self.ufun
         f, C, D = maps.f, maps.C, maps.D
         has_C, watch_D = maps.has_C, self.watch_D
         buf, hist, keep, pbar = self.buf, self.history, self.keep, self.pbar
