@@ -18,65 +18,14 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 import hybridsim as hs
+from hybridsim.library import BouncingBall, BouncingBallBatch, bouncing_ball_jump_times
 
 G, E = 9.81, 0.8
 RTOL, ATOL = 1e-10, 1e-12
 
 
-class VBall(hs.HybridSystem):
-    """Bouncing ball written over a batch: x (N, 2) = (height, velocity)."""
-
-    state_dim = 2
-    vectorized = True
-
-    def flow_map(self, x):
-        return np.stack([x[:, 1], np.full(len(x), -G)], axis=1)
-
-    def jump_map(self, x):
-        return np.stack([np.zeros(len(x)), -E * x[:, 1]], axis=1)
-
-    def flow_set(self, x):
-        return x[:, 0] >= 0
-
-    def jump_set(self, x):
-        return (x[:, 0] <= 0) & (x[:, 1] <= 0)
-
-    def jump_guard(self, x):
-        return -x[:, 0]
-
-    def flow_guard(self, x):
-        return x[:, 0]
-
-
-class Ball(hs.HybridSystem):
-    """The same ball, one state at a time."""
-
-    state_dim = 2
-
-    def flow_map(self, x):
-        return np.array([x[1], -G])
-
-    def jump_map(self, x):
-        return np.array([0.0, -E * x[1]])
-
-    def flow_set(self, x):
-        return x[0] >= 0
-
-    def jump_set(self, x):
-        return x[0] <= 0 and x[1] <= 0
-
-    def jump_guard(self, x):
-        return -x[0]
-
-    def flow_guard(self, x):
-        return x[0]
-
-
 def exact_jump_times(h0, k):
-    """t_k = t1 (1 + 2 e (1 - e^(k-1)) / (1 - e)), t1 = sqrt(2 h0 / g)."""
-    t1 = np.sqrt(2 * np.asarray(h0, dtype=float) / G)
-    i = np.arange(1, k + 1)
-    return t1[:, None] * (1 + 2 * E * (1 - E ** (i - 1)) / (1 - E))
+    return bouncing_ball_jump_times(h0, k, G, E)
 
 
 def solve_ivp_loop(h0s, k):
@@ -137,7 +86,7 @@ def main(argv=None):
     times = []
     for _ in range(6):
         t = time.perf_counter()
-        arcs = hs.simulate_many(VBall(), x0s, t_max=np.inf, j_max=K, rtol=RTOL, atol=ATOL)
+        arcs = hs.simulate_many(BouncingBallBatch(G, E), x0s, t_max=np.inf, j_max=K, rtol=RTOL, atol=ATOL)
         times.append(time.perf_counter() - t)
     first, median, best = times[0], float(np.median(times[1:])), min(times[1:])
     jt_vec = jump_table(arcs, K)
@@ -154,7 +103,7 @@ def main(argv=None):
     if args.sim_sample > 0:
         m = min(args.sim_sample, N)
         t = time.perf_counter()
-        sim = [hs.simulate(Ball(), x0, t_max=np.inf, j_max=K, rtol=RTOL, atol=ATOL)
+        sim = [hs.simulate(BouncingBall(G, E), x0, t_max=np.inf, j_max=K, rtol=RTOL, atol=ATOL)
                for x0 in x0s[:m]]
         t_sim = (time.perf_counter() - t) * N / m
         name = "hs.simulate loop" + ("" if m == N else f" ({m} runs, scaled x{N / m:g})")

@@ -15,7 +15,7 @@ from .history import History, HistoryError
 from .compose import Interconnection, LinearPlant, connect, network
 from .batch import simulate_many, sweep
 from .plot import plot_flows, plot_jumps, plot_hybrid, plot_phase, plot_time_domain
-from . import testing
+from . import library, testing
 
 
 __version__ = "0.1.0"

@@ -32,14 +32,11 @@ def _engine_demo(outdir):
     import numpy as np
 
     import hybridsim as hs
+    from hybridsim.library import BouncingBall, Timer, bouncing_ball_jump_times
 
     outdir = pathlib.Path(outdir)
-    ball = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([x[1], -9.81]), g=lambda x: np.array([0.0, -0.8 * x[1]]),
-        C=lambda x: x[0] >= 0, D=lambda x: x[0] <= 0 and x[1] <= 0,
-        jump_guard=lambda x: np.array([-x[0], -x[1]]), state_dim=2, name="ball")
-    arc = hs.simulate(ball, [1.0, 0.0], t_max=5.0, j_max=30, rtol=1e-10, atol=1e-12,
-                      refine=12)
+    arc = hs.simulate(BouncingBall(9.81, 0.8), [1.0, 0.0], t_max=5.0, j_max=30, rtol=1e-10,
+                      atol=1e-12, refine=12)
     fig, axs = plt.subplots(1, 3, figsize=(14, 4))
     hs.plot_flows(arc, 0, ax=axs[0]).set_title("height against t")
     hs.plot_jumps(arc, 0, ax=axs[1]).set_title("height against j")
@@ -51,18 +48,10 @@ def _engine_demo(outdir):
     paths[-1].with_suffix(".txt").write_text(
         "Bouncing ball (h0 = 1 m, g = 9.81, restitution 0.8), 30 jumps, rtol 1e-10: "
         "height against t (jumps dashed), against j, and the hybrid time domain.\n")
-    v, t, ex = np.sqrt(2 * 9.81), np.sqrt(2 / 9.81), []
-    for _ in range(30):
-        ex.append(t)
-        v *= 0.8
-        t += 2 * v / 9.81
+    ex = bouncing_ball_jump_times(1.0, 30)
     print(f"  bouncing ball: 30 jumps, largest jump-time error "
           f"{np.max(np.abs(arc.jump_times - ex)):.2e}")
-    timer = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0]), g=lambda x: np.array([0.0]),
-        jump_guard=lambda x: x[0] - 1.0, flow_guard=lambda x: 1.0 - x[0], state_dim=1,
-        name="timer")
-    arc = hs.simulate(timer, [0.0], t_max=5.5, refine=4)
+    arc = hs.simulate(Timer(1.0), [0.0], t_max=5.5, refine=4)
     ax = hs.plot_hybrid(arc, 0)
     ax.set_title("timer, period 1, in hybrid time (t, j, x)")
     paths.append(outdir / "timer_hybrid.png")

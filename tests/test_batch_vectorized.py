@@ -8,73 +8,18 @@ import pytest
 import hybridsim as hs
 from hybridsim import Termination
 from hybridsim.batch_vectorized import simulate_vectorized
+from hybridsim.library import BouncingBall, BouncingBallBatch, bouncing_ball_jump_times
 
 G, E = 9.81, 0.8
 
 
 # ---------------------------------------------------------------- systems
-class VBall(hs.HybridSystem):
-    """Bouncing ball over a batch: x = (height, velocity), rows are balls."""
-
-    state_dim = 2
-    vectorized = True
-
-    def __init__(self, e=E):
-        self.e = e
-
-    def flow_map(self, x):
-        return np.stack([x[:, 1], np.full(len(x), -G)], axis=1)
-
-    def jump_map(self, x):
-        return np.stack([np.zeros(len(x)), -self.e * x[:, 1]], axis=1)
-
-    def flow_set(self, x):
-        return x[:, 0] >= 0
-
-    def jump_set(self, x):
-        return (x[:, 0] <= 0) & (x[:, 1] <= 0)
-
-    def jump_guard(self, x):
-        return -x[:, 0]
-
-    def flow_guard(self, x):
-        return x[:, 0]
-
-
-class Ball(hs.HybridSystem):
-    """The same ball, one state at a time (picklable: module level)."""
-
-    state_dim = 2
-
-    def flow_map(self, x):
-        return np.array([x[1], -G])
-
-    def jump_map(self, x):
-        return np.array([0.0, -E * x[1]])
-
-    def flow_set(self, x):
-        return x[0] >= 0
-
-    def jump_set(self, x):
-        return x[0] <= 0 and x[1] <= 0
-
-    def jump_guard(self, x):
-        return -x[0]
-
-    def flow_guard(self, x):
-        return x[0]
+VBall = BouncingBallBatch          # balls over a batch (rows), picklable
+Ball = BouncingBall                # the same ball, one state at a time
 
 
 def ball_jump_times(h0, k, e=E):
-    """Exact impact times of a ball dropped from rest at heights h0.
-
-    First impact t1 = sqrt(2 h0 / g) at speed v1 = g t1; after impact i the
-    ball leaves at e^i v1 and flies 2 e^i v1 / g, so
-    t_k = t1 (1 + 2 sum_{i=1}^{k-1} e^i) = t1 (1 + 2 e (1 - e^(k-1)) / (1 - e)).
-    """
-    t1 = np.sqrt(2 * np.asarray(h0, dtype=float) / G)
-    i = np.arange(1, k + 1)
-    return t1[..., None] * (1 + 2 * e * (1 - e ** (i - 1)) / (1 - e))
+    return bouncing_ball_jump_times(h0, k, G, e)
 
 
 def vtimer(**kw):
@@ -259,7 +204,7 @@ def test_zeno():
         assert "consecutive jumps" in arc.message
     # a Zeno ball (accumulating bounces) stops near its Zeno time, as simulate does
     x0s = np.array([[1.0, 0.0]])
-    arc, = simulate_vectorized(VBall(e=0.5), x0s, t_max=10.0)
+    arc, = simulate_vectorized(VBall(restitution=0.5), x0s, t_max=10.0)
     t_zeno = np.sqrt(2 / G) * (1 + 2 * 0.5 / (1 - 0.5))
     assert arc.termination is Termination.ZENO
     assert abs(arc.tf - t_zeno) < 1e-6
@@ -273,7 +218,7 @@ def test_reentry_into_D_within_one_step_after_a_jump():
         flow_guard = None
     h0 = np.array([1.0, 1.5])
     for e in (0.05, 0.3):
-        arcs = simulate_vectorized(NoC(e), np.column_stack([h0, 0 * h0]), t_max=np.inf,
+        arcs = simulate_vectorized(NoC(G, e), np.column_stack([h0, 0 * h0]), t_max=np.inf,
                                    j_max=6, rtol=1e-10, atol=1e-12)
         jt = np.array([a.jump_times for a in arcs])
         np.testing.assert_allclose(jt, ball_jump_times(h0, 6, e), rtol=0, atol=1e-9)
