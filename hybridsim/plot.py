@@ -16,7 +16,14 @@ def _axes(ax, projection=None):
 
 
 def _values(arc, idx):
-    """(N, k) values to plot and their labels; idx: None, int, list, or callable."""
+    """(N, k) values to plot and their labels; idx: None, int, list, callable,
+    or a float array of values at the samples, shape (N,) or (N, k)."""
+    if isinstance(idx, np.ndarray) and idx.dtype.kind == "f":
+        if idx.shape[:1] != (len(arc.t),) or idx.ndim > 2:
+            raise ValueError(f"idx: an array of values must have shape ({len(arc.t)},) or "
+                             f"({len(arc.t)}, k), one row per sample; got {idx.shape}")
+        v = idx.reshape(len(arc.t), -1)
+        return v, [f"y{k}" for k in range(v.shape[1])]
     if callable(idx):
         v = np.asarray(arc.evaluate(idx), dtype=float)
         v = v.reshape(len(arc.t), -1)
@@ -62,9 +69,10 @@ def plot_flows(arc, idx=None, *, ax=None, labels=None, jumps=True, **line_kw):
     Parameters
     ----------
     arc : HybridArc
-    idx : int, list of int or callable, optional
-        State components to plot (default all), or ``fn(x, t, j)`` giving
-        the values to plot (an error, an output...).
+    idx : int, list of int, callable or float array, optional
+        State components to plot (default all), ``fn(x, t, j)`` giving the
+        values to plot (an error, an output...), or those values already
+        computed at the samples, shape (N,) or (N, k).
     ax : matplotlib Axes, optional
     labels : list of str, optional
     jumps : bool
@@ -77,8 +85,9 @@ def plot_flows(arc, idx=None, *, ax=None, labels=None, jumps=True, **line_kw):
     ax = _axes(ax)
     v, default = _values(arc, idx)
     labels = default if labels is None else _check_labels(labels, v.shape[1])
+    color0 = line_kw.pop("color", None)
     for k in range(v.shape[1]):
-        color = None
+        color = color0
         for s, (a, b) in enumerate(_segments(arc)):
             (line,) = ax.plot(arc.t[a:b], v[a:b, k], color=color,
                               label=labels[k] if s == 0 else None, **line_kw)

@@ -1283,21 +1283,10 @@ def noise_batch(observer, x0, xhat0, noise_states, generator):
 _SIM = dict(method="DOP853", rtol=1e-10, atol=1e-12)
 
 
-def _plot_segments(ax, arc, v, jumps=True, **kw):
-    """Plot v (N,) against t, one line per flow interval, jumps as thin dotted segments."""
-    segs = np.flatnonzero(np.diff(arc.j)) + 1
-    bounds = np.concatenate([[0], segs, [len(arc.t)]])
-    line = None
-    for s in range(len(bounds) - 1):
-        a, b = bounds[s], bounds[s + 1]
-        kw2 = dict(kw)
-        if line is not None:
-            kw2.pop("label", None)
-            kw2["color"] = line.get_color()
-        (line,) = ax.plot(arc.t[a:b], v[a:b], **kw2)
-        if jumps and s > 0:
-            ax.plot([arc.t[a - 1], arc.t[a]], [v[a - 1], v[a]], ":", color=line.get_color(), lw=0.8)
-    return line
+def _plot_segments(ax, arc, v, label=None, **kw):
+    """Plot v (N,) against t with the engine's hybrid-time plot (jumps dashed)."""
+    hs.plot_flows(arc, np.asarray(v, dtype=float), ax=ax,
+                  labels=None if label is None else [label], **kw)
 
 
 def _caption(path, text):

@@ -11,25 +11,10 @@ import pytest
 from matplotlib.axes import Axes
 
 import hybridsim as hs
+from hybridsim.library import BouncingBall
 
 G, E = 9.81, 0.8
 N_JUMPS = 4
-
-
-class BouncingBall(hs.HybridSystem):
-    state_dim = 2
-
-    def flow_map(self, x, t, j):
-        return np.array([x[1], -G])
-
-    def jump_map(self, x, t, j):
-        return np.array([0.0, -E * x[1]])
-
-    def flow_set(self, x, t, j):
-        return x[0] >= 0
-
-    def jump_set(self, x, t, j):
-        return x[0] <= 0 and x[1] <= 0
 
 
 @pytest.fixture(scope="module")
@@ -241,3 +226,14 @@ def test_empty_idx_raises(arc):
 def test_labels_of_the_wrong_length_raise(arc):
     with pytest.raises(ValueError, match="labels"):
         hs.plot_flows(arc, [0, 1], labels=["height"])
+
+
+def test_plot_flows_takes_precomputed_values(arc):
+    # a derived signal (here the energy) given as values at the samples
+    energy = 9.81 * arc.x[:, 0] + 0.5 * arc.x[:, 1] ** 2
+    ax = hs.plot_flows(arc, energy, labels=["energy"], color="r")
+    assert all(ln.get_color() == "r" for ln in ax.get_lines())
+    flows = [ln for ln in ax.get_lines() if ln.get_linestyle() == "-"]
+    np.testing.assert_allclose(np.concatenate([ln.get_ydata() for ln in flows]), energy)
+    with pytest.raises(ValueError, match=r"idx: an array of values must have shape"):
+        hs.plot_flows(arc, energy[:-1])
