@@ -2,38 +2,11 @@
 from __future__ import annotations
 
 import bisect
-import enum
-
 import numpy as np
 
+from .rules import Termination  # one source of the causes
+
 __all__ = ["HybridArc", "Termination"]
-
-
-class Termination(enum.Enum):
-    """Why a run stopped. ``.message`` is a sentence for the user."""
-
-    T_MAX = "the flow reached t_max"
-    J_MAX = "the number of jumps reached j_max"
-    NOT_IN_SETS = ("the initial state is in neither C nor D: check x0 against "
-                   "flow_set and jump_set")
-    LEFT_SETS = ("the state left C and is not in D: the solution cannot be "
-                 "continued (check flow_set/jump_set near the final state)")
-    NON_FINITE = "the state became non-finite (NaN or inf)"
-    BLOWUP = "the state norm exceeded max_norm (finite escape or instability)"
-    SOLVER_FAILED = ("the ODE solver failed (step size too small: a stiff system "
-                     "needs method='Radau', 'BDF' or 'LSODA'; or a finite escape)")
-    MAP_ERROR = ("a user map raised an exception (see arc.exception; "
-                 "pass throw=True to re-raise it)")
-    ZENO = ("Zeno behaviour: jumps without ordinary time advancing (consecutive "
-            "flows shorter than zeno_time)")
-
-    @property
-    def message(self) -> str:
-        return self.value
-
-    @property
-    def success(self) -> bool:
-        return self in (Termination.T_MAX, Termination.J_MAX)
 
 
 class HybridArc:

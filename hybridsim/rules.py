@@ -1,0 +1,182 @@
+"""The engine's rules, written once: priorities, termination causes, the
+jump-or-flow decision, and the thresholds that classify a run's end.
+
+Every integration path (:func:`hybridsim.simulate`, the vectorized batch
+integrator, the compiled path) takes its semantics from here; none encodes
+them again. The decision functions work on plain bools and ints so that a
+compiled path can compile them as they are.
+"""
+from __future__ import annotations
+
+import enum
+import math
+
+import numpy as np
+
+__all__ = ["Termination", "Priority", "Action", "decide", "decide_at_event",
+           "is_short_flow", "event_tolerance", "PRIORITIES", "FAILURES",
+           "SimulationWarning"]
+
+_EPS = float(np.finfo(float).eps)
+
+
+class SimulationWarning(RuntimeWarning):
+    """A run ended early on a numerical failure, or looks stiff (see the message)."""
+
+
+class Termination(enum.Enum):
+    """Why a run stopped. ``.message`` is a sentence for the user.
+
+    ``success`` is True for the limits the user set (``T_MAX``, ``J_MAX``);
+    ``failure`` is True for causes that mean the computation, not the model,
+    went wrong (see README's table of failures).
+    """
+
+    T_MAX = "the flow reached t_max"
+    J_MAX = "the number of jumps reached j_max"
+    NOT_IN_SETS = ("the initial state is in neither C nor D: check x0 against "
+                   "flow_set and jump_set")
+    LEFT_SETS = ("the state left C and is not in D: the solution cannot be "
+                 "continued (check flow_set/jump_set near the final state)")
+    NON_FINITE = "the state became non-finite (NaN or inf)"
+    BLOWUP = "the state norm exceeded max_norm (finite escape or instability)"
+    SOLVER_FAILED = ("the ODE solver failed (step size too small: a stiff system "
+                     "needs method='Radau', 'BDF' or 'LSODA'; or a finite escape)")
+    MAP_ERROR = ("a user map raised an exception or broke its contract (see "
+                 "arc.exception)")
+    ZENO = ("Zeno behaviour: jumps accumulate without ordinary time advancing "
+            "(consecutive flows too short to resolve)")
+    MAX_STEPS = ("the run reached max_steps solver steps (or max_samples stored "
+                 "samples) before t_max/j_max: raise the limit or look for "
+                 "chattering, stiffness or a too small max_step")
+    CANCELED = "the run was interrupted (KeyboardInterrupt); the arc so far is kept"
+
+    @property
+    def message(self) -> str:
+        return self.value
+
+    @property
+    def success(self) -> bool:
+        return self in (Termination.T_MAX, Termination.J_MAX)
+
+    @property
+    def failure(self) -> bool:
+        """The computation failed (as opposed to the model ending or a limit)."""
+        return self in FAILURES
+
+
+#: causes under which ``simulate(throw=True)`` raises or a warning is issued
+FAILURES = frozenset({Termination.MAP_ERROR, Termination.NON_FINITE,
+                      Termination.SOLVER_FAILED, Termination.BLOWUP})
+
+
+class Priority(enum.IntEnum):
+    """What happens in C ∩ D."""
+
+    JUMPS = 0
+    FLOWS = 1
+    RANDOM = 2
+
+
+PRIORITIES = ("jumps", "flows", "random")
+
+
+class Action(enum.IntEnum):
+    """The decision at a point of hybrid time."""
+
+    JUMP = 0
+    FLOW = 1
+    STOP = 2       # in neither C nor D (NOT_IN_SETS at x0, else LEFT_SETS)
+
+
+def decide(in_C: bool, in_D: bool, prio: int, coin: bool, forced: bool = False) -> int:
+    """Jump, flow or stop at a point where the run must choose.
+
+    Parameters
+    ----------
+    in_C, in_D : bool
+        Membership of the current state.
+    prio : int
+        A :class:`Priority`.
+    coin : bool
+        For ``Priority.RANDOM``: True means jump (a fair coin, drawn by the
+        caller only when it matters).
+    forced : bool
+        The flow just reached this point by an event whose location decided
+        that a jump must happen (the flow cannot continue in C).
+
+    Returns
+    -------
+    int
+        An :class:`Action`.
+
+    Examples
+    --------
+    >>> decide(True, True, Priority.JUMPS, False) == Action.JUMP
+    True
+    >>> decide(True, True, Priority.FLOWS, False) == Action.FLOW
+    True
+    >>> decide(False, False, Priority.JUMPS, False) == Action.STOP
+    True
+    """
+    if in_D and (forced or not in_C or prio == Priority.JUMPS
+                 or (prio == Priority.RANDOM and coin)):
+        return Action.JUMP
+    if in_C:
+        return Action.FLOW
+    return Action.STOP
+
+
+def needs_coin(in_C: bool, in_D: bool, prio: int, forced: bool = False) -> bool:
+    """Whether :func:`decide` reads the coin here (so a seeded run draws one only then)."""
+    return prio == Priority.RANDOM and in_C and in_D and not forced
+
+
+def decide_at_event(entered_D: bool, in_C_at_event: bool, prio: int, coin: bool) -> int:
+    """The decision where a located event ends a flow.
+
+    ``entered_D``: the event is an entry into D (watched under ``jumps`` and
+    ``random`` priority). Otherwise the flow is leaving C.
+
+    Returns ``Action.JUMP``, ``Action.FLOW`` (random priority chose to flow on
+    in C ∩ D) or ``Action.STOP`` (left C outside D).
+    """
+    if entered_D:
+        if prio == Priority.RANDOM and in_C_at_event and not coin:
+            return Action.FLOW
+        return Action.JUMP
+    return Action.STOP
+
+
+def event_tolerance(a: float, b: float) -> float:
+    """Width to which an event time is bracketed: 4 ulp of the time scale."""
+    return 4.0 * _EPS * max(1.0, abs(a), abs(b))
+
+
+def t_max_slack(t_max: float) -> float:
+    """How far past ``t_max`` an event still counts as happening at ``t_max``.
+
+    Jump times carry the rounding of every earlier event (each located to
+    4 ulp) and of the flow's integration, so an event that is exactly at
+    t_max in exact arithmetic can land a few tens of ulp beyond it. Events
+    within this slack are taken at t_max.
+    """
+    return 256.0 * _EPS * max(1.0, abs(t_max))
+
+
+def is_short_flow(length: float, t: float, scale: float, zeno_time: float,
+                  zeno_rtol: float) -> bool:
+    """A flow too short to count as time advancing (for Zeno detection).
+
+    Short means at most ``zeno_time * max(1, |t|)`` (an absolute floor) or at
+    most ``zeno_rtol * scale``, where ``scale`` is the run's time scale
+    (``t_max - t0`` when finite, else the time elapsed so far).
+    """
+    return length <= max(zeno_time * max(1.0, abs(t)), zeno_rtol * scale)
+
+
+def time_scale(t0: float, t: float, t_max: float) -> float:
+    """The run's time scale for relative tests: its horizon, else the time elapsed."""
+    if math.isfinite(t_max) and t_max > t0:
+        return t_max - t0
+    return max(t - t0, 0.0)
