@@ -10,20 +10,22 @@ in hybrid time (:func:`plot_flows`, :func:`plot_jumps`, :func:`plot_hybrid`,
 """
 from .arc import HybridArc, Termination
 from .system import HybridSystem
-from .solve import simulate, MapError, SimulationError, METHODS
+from .rules import MapError, SimulationError, SimulationWarning
+from .solve import simulate, METHODS
 from .history import History, HistoryError
 from .compose import Interconnection, LinearPlant, connect, network
 from .batch import simulate_many, sweep
+from .batch_vectorized import simulate_vectorized
 from .plot import plot_flows, plot_jumps, plot_hybrid, plot_phase, plot_time_domain
-from . import library, testing
+from . import library, rules, testing
 
 
 __version__ = "0.1.0"
 
 __all__ = [
     "HybridSystem", "HybridArc", "Termination", "simulate", "MapError",
-    "SimulationError", "METHODS", "History", "HistoryError",
+    "SimulationError", "SimulationWarning", "METHODS", "History", "HistoryError",
     "Interconnection", "LinearPlant", "connect", "network",
-    "simulate_many", "sweep",
+    "simulate_many", "sweep", "simulate_vectorized",
     "plot_flows", "plot_jumps", "plot_hybrid", "plot_phase", "plot_time_domain",
 ]

@@ -1,18 +1,18 @@
 """Locating where a flow enters D or leaves C within one solver step."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy.integrate._ivp.rk import RkDenseOutput
 from scipy.optimize import brentq
 
-__all__ = ["locate_event", "event_tolerance"]
+from .rules import event_tolerance
+
+__all__ = ["locate_event", "event_tolerance", "find_interior_event"]
 
 _EPS = np.finfo(float).eps
-
-
-def event_tolerance(a, b):
-    """Width to which an event time is bracketed: 4 ulp of the time scale."""
-    return 4.0 * _EPS * max(1.0, abs(a), abs(b))
+_INVPHI = (math.sqrt(5.0) - 1.0) / 2.0
 
 
 def fast_dense(sol):
@@ -106,3 +106,123 @@ def locate_event(sol, a, b, pred, phi=None, max_iter=200):
         else:
             lo, ylo = m, ym
     return lo, hi, np.asarray(ylo, dtype=float), np.asarray(yhi, dtype=float)
+
+
+def _near_peak(v, lo_nb):
+    """Could a smooth guard peak near a sample v (neighbours' minimum lo_nb) reach 0?
+
+    For a parabola through equally spaced samples, the vertex exceeds the
+    largest sample by at most a quarter of its drop to the lower neighbour;
+    the factor 2 leaves an 8x margin for guards that are not parabolas.
+    """
+    return v + 2.0 * (v - lo_nb) >= 0.0
+
+
+def _maximize(F, l, r, fl, fr, pred, sol, max_iter=100):
+    """Golden-section search for a point of [l, r] where ``pred`` holds.
+
+    ``F`` is the guard along the step. Stops at the first point found in the
+    event set, or once the bracket's peak can no longer reach 0
+    (:func:`_near_peak` on the shrinking bracket), or at 4 ulp.
+    """
+    x1 = r - _INVPHI * (r - l)
+    x2 = l + _INVPHI * (r - l)
+    y1, y2 = sol(x1), sol(x2)
+    f1, f2 = F(x1, y1), F(x2, y2)
+    for _ in range(max_iter):
+        for s, y, v in ((x1, y1, f1), (x2, y2, f2)):
+            if v >= 0.0 and pred(s, y):
+                return s
+        if r - l <= event_tolerance(l, r) or not _near_peak(max(f1, f2), min(fl, fr)):
+            return None
+        if f1 >= f2:
+            r, fr = x2, f2
+            x2, y2, f2 = x1, y1, f1
+            x1 = r - _INVPHI * (r - l)
+            y1 = sol(x1)
+            f1 = F(x1, y1)
+        else:
+            l, fl = x1, f1
+            x1, y1, f1 = x2, y2, f2
+            x2 = l + _INVPHI * (r - l)
+            y2 = sol(x2)
+            f2 = F(x2, y2)
+    return None
+
+
+def find_interior_event(sol, a, b, pred, phi=None, samples=3):
+    """Search the inside of a step whose ends are outside the event set.
+
+    A flow can enter D (or leave C) and come back within one solver step:
+    RK45 integrates a ball's parabola exactly, so one step may span its
+    whole excursion above a guard. The step's dense output is sampled at
+    ``samples`` interior points; the indicator is tested there, and, where a
+    continuous guard ``phi`` is given, every local maximum of the guard
+    among the samples (the step's start included, when the guard rises
+    there) whose peak could reach 0 is refined by a golden-section search.
+
+    Parameters
+    ----------
+    sol : callable
+        The step's dense output.
+    a, b : float
+        The step; ``pred`` is false at both ends.
+    pred, phi : callable
+        As in :func:`locate_event`.
+    samples : int
+        Interior sample count (3: with the two ends, five values, which
+        determine the quartic that an affine guard is along an RK45 step).
+
+    Returns
+    -------
+    (lo, hi) or None
+        A bracket with ``pred`` false at lo and true at hi, to be passed to
+        :func:`locate_event`; None when no event was found.
+
+    Notes
+    -----
+    What a sample spacing can miss: with a guard, an excursion whose peak
+    lies below ``v + 2 (v - v_nb)`` for every sampled local maximum v (with
+    v_nb its lower neighbour), i.e. a guard that is far from parabolic
+    between samples h/4 apart; without a guard (indicators only), an
+    excursion into the set shorter than h/4 that falls between samples.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> sol = lambda s: np.array([2.0 * s - s * s])    # apex 1 at s = 1
+    >>> find_interior_event(sol, 0.0, 2.0, lambda s, y: y[0] >= 1.0 - 1e-9,
+    ...                     lambda s, y: y[0] - (1.0 - 1e-9)) is not None
+    True
+    """
+    sol = fast_dense(sol)
+    h = b - a
+    if not h > 0:
+        return None
+    ts = [a + h * (k / (samples + 1.0)) for k in range(1, samples + 1)]
+    ys = [sol(s) for s in ts]
+    prev = a
+    for s, y in zip(ts, ys):
+        if pred(s, y):
+            return prev, s
+        prev = s
+    if phi is None:
+        return None
+    pts = [a] + ts + [b]
+    vals = [phi(a, sol(a))] + [phi(s, y) for s, y in zip(ts, ys)] + [phi(b, sol(b))]
+    if not all(math.isfinite(v) for v in vals):
+        return None
+    for k in range(1, samples + 1):
+        v = vals[k]
+        if v >= vals[k - 1] and v >= vals[k + 1] and _near_peak(v, min(vals[k - 1], vals[k + 1])):
+            s = _maximize(phi, pts[k - 1], pts[k + 1], vals[k - 1], vals[k + 1], pred, sol)
+            if s is not None:
+                return pts[k - 1], s
+    # a peak between a and the first sample: only where the guard rises at a
+    if vals[0] >= vals[1] and _near_peak(vals[0], vals[1]):
+        eps = 1e-3 * (ts[0] - a)
+        if phi(a + eps, sol(a + eps)) > vals[0]:
+            s = _maximize(phi, a, ts[0], vals[0], vals[1], pred, sol)
+            if s is not None:
+                return a, s
+    return None

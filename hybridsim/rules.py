@@ -15,9 +15,34 @@ import numpy as np
 
 __all__ = ["Termination", "Priority", "Action", "decide", "decide_at_event",
            "is_short_flow", "event_tolerance", "PRIORITIES", "FAILURES",
-           "SimulationWarning"]
+           "SimulationWarning", "SimulationError", "MapError"]
 
 _EPS = float(np.finfo(float).eps)
+
+
+class SimulationError(RuntimeError):
+    """A run stopped on a failure; ``.arc`` holds the solution computed so far.
+
+    Raised by :func:`hybridsim.simulate` (``throw=True``, the default) when a
+    user map raises or breaks its contract; see :class:`MapError`.
+    """
+
+    def __init__(self, message, arc=None):
+        super().__init__(message)
+        self.arc = arc
+
+
+class MapError(SimulationError, ValueError):
+    """A user map raised, or returned something the engine cannot use.
+
+    Chained from the original exception (``__cause__``) where there is one.
+    ``map_name``, ``t`` and ``j`` say which map failed and where; ``.arc``
+    (set by :func:`hybridsim.simulate`) is the solution up to the failure.
+    """
+
+    def __init__(self, message, map_name=None, t=None, j=None, arc=None):
+        super().__init__(message, arc)
+        self.map_name, self.t, self.j = map_name, t, j
 
 
 class SimulationWarning(RuntimeWarning):
@@ -153,15 +178,22 @@ def event_tolerance(a: float, b: float) -> float:
     return 4.0 * _EPS * max(1.0, abs(a), abs(b))
 
 
-def t_max_slack(t_max: float) -> float:
+def t_max_slack(t_max: float, jumps: int = 0) -> float:
     """How far past ``t_max`` an event still counts as happening at ``t_max``.
 
-    Jump times carry the rounding of every earlier event (each located to
-    4 ulp) and of the flow's integration, so an event that is exactly at
-    t_max in exact arithmetic can land a few tens of ulp beyond it. Events
-    within this slack are taken at t_max.
+    Each located event is bracketed to 4 ulp (:func:`event_tolerance`) and
+    its time is the bracket's upper end, so jump times drift late by up to
+    4 ulp per jump, and the flow's integration adds its own rounding. An
+    event that is exactly at t_max in exact arithmetic can therefore land
+    beyond it by about that much: events within ``(16 + 2 jumps)`` event
+    tolerances of t_max are taken at t_max.
+
+    Examples
+    --------
+    >>> t_max_slack(1.0) / np.finfo(float).eps
+    64.0
     """
-    return 256.0 * _EPS * max(1.0, abs(t_max))
+    return event_tolerance(t_max, t_max) * (16.0 + 2.0 * jumps)
 
 
 def is_short_flow(length: float, t: float, scale: float, zeno_time: float,

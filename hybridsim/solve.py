@@ -1,57 +1,64 @@
-"""simulate(): the flow/jump loop with exact event location."""
+"""simulate(): the flow/jump loop with exact event location.
+
+The rules (priority, causes, the jump-or-flow decision, Zeno and t_max
+tolerances) come from :mod:`hybridsim.rules`; this module runs them with a
+scipy ODE solver.
+"""
 from __future__ import annotations
 
 import bisect
+import enum
 import math
 import numbers
 import sys
+import warnings
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, OdeSolver, Radau
+from scipy.integrate._ivp.rk import RungeKutta
 
-from .arc import HybridArc, Termination
-from .events import locate_event
+from .arc import HybridArc
+from .events import find_interior_event, locate_event
 from .history import History
+from .rules import (FAILURES, PRIORITIES, Action, MapError, Priority, SimulationError,
+                    SimulationWarning, Termination, decide, decide_at_event, is_short_flow,
+                    needs_coin, t_max_slack, time_scale)
 from .system import HybridSystem, guard_min
 
-__all__ = ["simulate", "MapError", "SimulationError"]
+__all__ = ["simulate", "MapError", "SimulationError", "SimulationWarning"]
 
 METHODS = {"RK23": RK23, "RK45": RK45, "DOP853": DOP853, "Radau": Radau,
            "BDF": BDF, "LSODA": LSODA}
-PRIORITIES = ("jumps", "flows", "random")
-_JUMPS, _FLOWS, _RANDOM = 0, 1, 2
+_EXPLICIT = (RK23, RK45, DOP853)
 
 
-class MapError(ValueError):
-    """A user map returned something the engine cannot use (wrong shape...)."""
+class _Outcome(enum.Enum):
+    """How a flow ended (returned by ``_Run._flow``)."""
 
-
-class SimulationError(RuntimeError):
-    """Raised by ``simulate(..., throw=True)`` when a run stops on a failure.
-
-    ``.arc`` holds the solution computed up to the failure.
-    """
-
-    def __init__(self, message, arc):
-        super().__init__(message)
-        self.arc = arc
+    T_MAX = 0       # reached t_max (a jump there is still decided by the loop)
+    BREAK = 1       # a delay breakpoint: flow on
+    JUMP = 2        # an event that must jump
+    FLOW_ON = 3     # random priority chose to flow on in C ∩ D
+    STOP = 4        # the run ends; the cause is recorded
 
 
 class _Buffer:
-    """Growable (t, j, x) sample store: amortised O(1) appends, no quadratic copies."""
+    """Growable (t, j, x, xdot) sample store: amortised O(1) appends."""
 
-    __slots__ = ("t", "j", "x", "n")
+    __slots__ = ("t", "j", "x", "xdot", "n")
 
     def __init__(self, dim, cap=256):
         self.t = np.empty(cap)
         self.j = np.empty(cap, dtype=np.int64)
         self.x = np.empty((cap, dim))
+        self.xdot = np.empty((cap, dim))
         self.n = 0
 
-    def append(self, t, j, x):
+    def append(self, t, j, x, xdot=None):
         k = self.n
         if k == len(self.t):
-            for name in ("t", "j", "x"):
+            for name in ("t", "j", "x", "xdot"):
                 old = getattr(self, name)
                 new = np.empty((2 * k,) + old.shape[1:], dtype=old.dtype)
                 new[:k] = old
@@ -59,6 +66,7 @@ class _Buffer:
         self.t[k] = t
         self.j[k] = j
         self.x[k] = x
+        self.xdot[k] = np.nan if xdot is None else xdot
         self.n = k + 1
 
     def arrays(self):
@@ -67,10 +75,14 @@ class _Buffer:
         self.t.resize(k, refcheck=False)
         self.j.resize(k, refcheck=False)
         self.x.resize((k, self.x.shape[1]), refcheck=False)
-        return self.t, self.j, self.x
+        self.xdot.resize((k, self.xdot.shape[1]), refcheck=False)
+        return self.t, self.j, self.x, self.xdot
 
 
+# ---------------------------------------------------------------- validation
 def _check_x0(x0, n):
+    if np.iscomplexobj(x0):
+        raise TypeError(f"x0 must be real, got complex values {x0!r}")
     try:
         x = np.array(x0, dtype=float)
     except (TypeError, ValueError) as e:
@@ -86,7 +98,7 @@ def _check_x0(x0, n):
 
 def _check_real(name, v, *, allow_inf=False, positive=False, nonneg=False):
     if isinstance(v, bool) or not isinstance(v, numbers.Real):
-        raise TypeError(f"{name} must be a real number, got {type(v).__name__}")
+        raise TypeError(f"{name} must be a real number, got {type(v).__name__} {v!r}")
     v = float(v)
     if math.isnan(v) or (math.isinf(v) and not allow_inf):
         raise ValueError(f"{name} must be finite, got {v}")
@@ -97,13 +109,51 @@ def _check_real(name, v, *, allow_inf=False, positive=False, nonneg=False):
     return v
 
 
-def _check_map_value(name, val, n):
-    arr = np.asarray(val, dtype=float)
+def _check_count(name, v, *, minimum=0, allow_inf=False):
+    """An int >= minimum (or inf where allowed): bools, floats like 2.7 and None refused."""
+    if allow_inf and isinstance(v, float) and math.isinf(v) and v > 0:
+        return math.inf
+    if isinstance(v, bool) or not isinstance(v, numbers.Integral):
+        if isinstance(v, float) and v.is_integer():
+            v = int(v)
+        else:
+            desc = "a non-negative int" if minimum == 0 else f"an int >= {minimum}"
+            raise TypeError(f"{name} must be {desc}{' (or inf)' if allow_inf else ''}, "
+                            f"got {type(v).__name__} {v!r}")
+    if v < minimum:
+        raise ValueError(f"{name} must be >= {minimum}, got {v}")
+    return int(v)
+
+
+def _check_bool(name, v, *, allow_none=False):
+    if v is None and allow_none:
+        return None
+    if isinstance(v, (bool, np.bool_)):
+        return bool(v)
+    raise TypeError(f"{name} must be True or False{' or None' if allow_none else ''}, "
+                    f"got {v!r}")
+
+
+def check_map_value(name, val, n, t=None, j=None):
+    """Check a flow/jump map's value: real, finite, shape (n,). Returns a float array."""
+    where = "" if t is None else f" (at t={t:.10g}, j={j})"
+    if np.iscomplexobj(val):
+        raise MapError(f"{name} returned complex values {val!r}{where}: the state is real",
+                       name, t, j)
+    try:
+        arr = np.asarray(val, dtype=float)
+    except (TypeError, ValueError) as e:
+        raise MapError(f"{name} must return an array of {n} floats, got "
+                       f"{type(val).__name__}{where}", name, t, j) from e
     if arr.shape != (n,):
-        raise MapError(f"{name} must return an array of shape ({n},), got shape {arr.shape}")
+        raise MapError(f"{name} must return an array of shape ({n},), got shape "
+                       f"{arr.shape}{where}", name, t, j)
     if not np.all(np.isfinite(arr)):
-        raise MapError(f"{name} returned non-finite values {arr}")
+        raise MapError(f"{name} returned non-finite values {arr}{where}", name, t, j)
     return arr
+
+
+_check_map_value = check_map_value      # the batch integrator's historical name
 
 
 def _resolve_method(method):
@@ -113,21 +163,32 @@ def _resolve_method(method):
                              f"subclass, got {method!r}")
         return METHODS[method]
     if isinstance(method, type) and issubclass(method, OdeSolver):
+        if method is OdeSolver or method is RungeKutta or \
+                getattr(method, "_step_impl", None) is OdeSolver._step_impl:
+            raise TypeError(f"method must be a concrete OdeSolver subclass (one that "
+                            f"implements _step_impl), got the abstract {method.__name__}")
         return method
     raise TypeError(f"method must be a string or an OdeSolver subclass, got {method!r}")
 
 
 def _progress_bar(progress, t0, t_max, j_max):
-    if progress is None:
-        progress = bool(getattr(sys.stderr, "isatty", lambda: False)())
-    if not progress:
-        return None
-    from tqdm.auto import tqdm
+    """A bar over t (with j shown) or over jumps; None when progress is off."""
+    try:
+        from ._progress import make_bar
+    except ImportError:     # the shared factory is being added
+        def make_bar(progress, *, total, desc, unit, **kw):
+            if progress is None:
+                progress = bool(getattr(sys.stderr, "isatty", lambda: False)())
+            if not progress:
+                return None
+            from tqdm.auto import tqdm
+            return tqdm(total=total, desc=desc, unit=unit, leave=False, **kw)
     if math.isfinite(t_max):
-        return tqdm(total=t_max - t0, unit="t", desc="simulate", leave=False,
-                    bar_format="{l_bar}{bar}| t={n:.4g}/{total:.4g} [{elapsed}<{remaining}]")
-    return tqdm(total=None if not math.isfinite(j_max) else j_max, unit="jump",
-                desc="simulate", leave=False)
+        return make_bar(progress, total=t_max - t0, desc="simulate", unit="t",
+                        bar_format="{l_bar}{bar}| t={n:.4g}/{total:.4g} {postfix} "
+                                   "[{elapsed}<{remaining}]")
+    return make_bar(progress, total=None if not math.isfinite(j_max) else j_max,
+                    desc="simulate", unit="jump")
 
 
 def check_options(system, n, t0, t_max, j_max, priority, rtol, atol, max_step,
@@ -135,29 +196,29 @@ def check_options(system, n, t0, t_max, j_max, priority, rtol, atol, max_step,
     """Validate the options shared by :func:`simulate` and the batch integrator.
 
     Returns them normalised: ``(t0, t_max, j_max, prio, rtol, atol, max_step,
-    first_step, max_norm, zeno_time)`` with ``prio`` an index into PRIORITIES
-    and ``max_step`` capped by ``system.max_step``.
+    first_step, max_norm, zeno_time)`` with ``prio`` a :class:`Priority` and
+    ``max_step`` capped by ``system.max_step``.
     """
     t0 = _check_real("t0", t0)
     t_max = _check_real("t_max", t_max, allow_inf=True)
     if t_max < t0:
         raise ValueError(f"t_max must be >= t0 = {t0}, got {t_max}")
-    if isinstance(j_max, bool) or not isinstance(j_max, numbers.Real) or (
-            isinstance(j_max, float) and not (math.isinf(j_max) or j_max.is_integer())):
-        raise TypeError(f"j_max must be a non-negative int (or inf), got {j_max!r}")
-    if j_max < 0:
-        raise ValueError(f"j_max must be >= 0, got {j_max}")
+    j_max = _check_count("j_max", j_max, allow_inf=True)
     if priority not in PRIORITIES:
         raise ValueError(f"priority must be one of {PRIORITIES}, got {priority!r}")
-    prio = PRIORITIES.index(priority)
+    prio = Priority(PRIORITIES.index(priority))
     rtol = _check_real("rtol", rtol, positive=True)
     if np.ndim(atol) == 0:
         atol = _check_real("atol", atol, positive=True)
     else:
-        atol = np.asarray(atol, dtype=float)
-        if atol.shape != (n,) or not np.all(atol > 0):
-            raise ValueError(f"atol must be a positive float or an array of shape ({n},) "
-                             f"of positive floats, got {atol!r}")
+        try:
+            atol = np.asarray(atol, dtype=float)
+        except (TypeError, ValueError) as e:
+            raise TypeError(f"atol must be a positive float or an array of shape ({n},), "
+                            f"got {atol!r}") from e
+        if atol.shape != (n,) or not np.all(np.isfinite(atol)) or not np.all(atol > 0):
+            raise ValueError(f"atol must be a positive float or an array of shape "
+                             f"({n},) of positive finite floats, got {atol!r}")
     max_step = _check_real("max_step", max_step, allow_inf=True, positive=True)
     if system.max_step is not None:
         max_step = min(max_step, _check_real("system.max_step", system.max_step, positive=True))
@@ -168,18 +229,111 @@ def check_options(system, n, t0, t_max, j_max, priority, rtol, atol, max_step,
     return (t0, t_max, j_max, prio, rtol, atol, max_step, first_step, max_norm, zeno_time)
 
 
+def _check_seed(seed):
+    if seed is None or isinstance(seed, np.random.Generator):
+        return np.random.default_rng(seed)
+    if isinstance(seed, bool) or not isinstance(seed, (numbers.Integral, np.random.SeedSequence)):
+        raise TypeError(f"seed must be None, a non-negative int or a numpy Generator, "
+                        f"got {type(seed).__name__} {seed!r}")
+    if isinstance(seed, numbers.Integral) and seed < 0:
+        raise ValueError(f"seed must be >= 0, got {seed}")
+    return np.random.default_rng(seed)
+
+
+def _check_t_eval(t_eval, t0, t_max):
+    if t_eval is None:
+        return None
+    try:
+        te = np.asarray(t_eval, dtype=float)
+    except (TypeError, ValueError) as e:
+        raise TypeError(f"t_eval must be a 1-D array of times, got {type(t_eval).__name__}") from e
+    if te.ndim != 1:
+        raise ValueError(f"t_eval must be 1-D, got shape {te.shape}")
+    if not np.all(np.isfinite(te)):
+        raise ValueError("t_eval must be finite")
+    if np.any(np.diff(te) < 0):
+        raise ValueError("t_eval must be sorted in increasing order")
+    if te.size and (te[0] < t0 or te[-1] > t_max):
+        raise ValueError(f"t_eval must lie in [t0, t_max] = [{t0}, {t_max}], got "
+                         f"[{te[0]}, {te[-1]}]")
+    return te
+
+
+@dataclass
+class _Options:
+    """Everything that is fixed during a run, validated."""
+
+    n: int
+    t0: float
+    t_max: float
+    j_max: float
+    prio: Priority
+    Method: type
+    rtol: float
+    atol: object
+    max_step: float
+    first_step: float | None
+    max_norm: float
+    zeno_jumps: int
+    zeno_time: float
+    zeno_rtol: float
+    refine: int
+    t_eval: np.ndarray | None
+    max_steps: float
+    max_samples: float
+    keep: bool
+    delays: tuple
+    rng: np.random.Generator
+
+
+@dataclass
+class _Stats:
+    """Run statistics, returned as ``arc.stats`` (a dict)."""
+
+    steps: int = 0          # accepted solver steps
+    rejected: int = 0       # rejected step attempts (explicit Runge-Kutta methods)
+    nfev: int = 0           # flow-map evaluations by the solver
+    njev: int = 0           # Jacobian evaluations (implicit methods)
+    nlu: int = 0            # LU decompositions (implicit methods)
+    events: int = 0         # events located (jumps, exits from C)
+    flows: int = 0          # flows started (solver restarts)
+
+    def as_dict(self):
+        return dict(self.__dict__)
+
+
+@dataclass
+class _State:
+    """The run's mutable state between flows."""
+
+    t: float
+    j: int
+    x: np.ndarray
+    jumps: int = 0
+    short: int = 0              # consecutive jumps after short flows (Zeno)
+    t_last_jump: float = 0.0
+    flow_lengths: list = field(default_factory=list)   # the last few flows
+    h_hint: float | None = None
+    breaks: list = field(default_factory=list)          # delay breakpoints
+    stiff_hits: int = 0
+    warned_stiff: bool = False
+
+
 def simulate(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priority="jumps",
              method="RK45", rtol=1e-6, atol=1e-9, max_step=math.inf, first_step=None,
              inputs=None, prehistory=None, max_norm=math.inf, seed=None,
-             progress=None, throw=False, dense=False, refine=1, zeno_jumps=50,
-             zeno_time=1e-12):
+             progress=None, throw=True, warn=True, dense=False, refine=1, t_eval=None,
+             max_steps=1_000_000, max_samples=10_000_000, zeno_jumps=50,
+             zeno_time=1e-12, zeno_rtol=1e-7):
     r"""Simulate a hybrid system from x0 until t_max or j_max.
 
     Flows by :math:`\dot x = f(x)` with a scipy ODE solver while x is in C,
     jumps by :math:`x^+ = g(x)` when x is in D (as the priority decides).
-    Events are located on each step's dense output to near machine
-    precision: by a safeguarded Illinois root search on the guards where the
-    system has them, else by bisection of the set indicators.
+    Events are located on each step's dense output to 4 ulp of the event
+    time: Brent's method on the guards where the system has them, else
+    bisection of the set indicators. Each step's interior is searched too
+    (the guard sampled and its maxima refined), so a jump set entered and
+    left within one solver step is not missed.
 
     Parameters
     ----------
@@ -189,11 +343,13 @@ def simulate(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priority="jumps
         Initial state.
     t_max : float
         Flows stop at t_max; a run that flows up to t_max ends with a sample
-        there (jumps at t = t_max are still taken). May be ``inf``.
+        there. Jumps at t = t_max are still taken, including events that land
+        on t_max only up to round-off (:func:`hybridsim.rules.t_max_slack`).
+        May be ``inf``.
     j_max : int or inf, optional
         At most this many jumps; the run stops at the sample after the last.
     t0, j0 : float, int, optional
-        Initial hybrid time.
+        Initial hybrid time (j0 a non-negative int).
     priority : {"jumps", "flows", "random"}
         What happens in C ∩ D. ``"jumps"``: jump as soon as x is in D.
         ``"flows"``: jump only when x is in D and flowing is impossible (x not
@@ -201,7 +357,7 @@ def simulate(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priority="jumps
         ``"random"``: a fair coin (seeded by ``seed``) at each such point.
     method : str or OdeSolver subclass
         "RK45" (default), "RK23", "DOP853", "Radau", "BDF", "LSODA" or a
-        subclass of :class:`scipy.integrate.OdeSolver`.
+        concrete subclass of :class:`scipy.integrate.OdeSolver`.
     rtol, atol, max_step, first_step : float
         Passed to the solver. ``max_step`` is also capped by
         ``system.max_step``.
@@ -215,27 +371,52 @@ def simulate(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priority="jumps
     seed : int or numpy Generator, optional
         Seed of ``priority="random"``.
     progress : bool or None
-        Show a progress bar (tqdm). None: only at a terminal.
+        Show a progress bar (tqdm) with t and j. None: at a terminal and in
+        a notebook.
     throw : bool
-        Raise :class:`SimulationError` (with ``.arc``) when the run stops on a
-        failure (user-map exception, non-finite state, solver failure)
-        instead of returning the arc with that cause.
+        True (default): when a user map raises or breaks its contract (wrong
+        shape, complex or non-finite value), raise :class:`MapError` (a
+        :class:`SimulationError`) naming the map, t and j, chained from the
+        original exception, with the arc so far on ``.arc``. False: return the
+        arc with cause ``MAP_ERROR`` (``arc.exception`` holds the error).
+    warn : bool
+        Issue one :class:`SimulationWarning` when the run ends on a numerical
+        failure (``NON_FINITE``, ``BLOWUP``, ``SOLVER_FAILED``) or on
+        ``MAX_STEPS``, and when an explicit method's steps signal stiffness.
+        The arc is returned either way.
     refine : int
         Samples stored per solver step (as MATLAB's ``Refine``): ``refine - 1``
-        points of the step's dense output are added inside each step. Use
-        4-10 for smooth plots; 1 (default) stores the step ends only.
+        points of the step's dense output are added inside each step.
+    t_eval : array_like, optional
+        Store samples at these times (from the dense output) instead of at
+        the solver's steps; the initial and final samples and both samples
+        of every jump are kept. Not with ``refine > 1``.
     dense : bool
         Keep every step's dense output, so ``arc.at(t, j)`` is exact to the
-        integrator and the history is available after the run.
-    zeno_jumps, zeno_time : int, float
+        integrator and the history is available after the run. Without it
+        ``arc.at`` interpolates by cubic Hermite with the flow derivative
+        stored at each sample (``arc.xdot``).
+    max_steps, max_samples : int or inf
+        Safety limits: the run ends with cause ``MAX_STEPS`` after this many
+        accepted solver steps, or this many stored samples.
+    zeno_jumps, zeno_time, zeno_rtol : int, float, float
         The run stops with cause ``ZENO`` after ``zeno_jumps`` consecutive
-        jumps each preceded by a flow shorter than
-        ``zeno_time * max(1, |t|)``.
+        jumps each preceded by a short flow: at most
+        ``zeno_time * max(1, |t|)`` or ``zeno_rtol`` times the run's time
+        scale (``t_max - t0``, or the time elapsed when t_max is inf).
 
     Returns
     -------
     HybridArc
-        The solution; ``arc.termination`` says why it stopped.
+        The solution; ``arc.termination`` says why it stopped and
+        ``arc.stats`` counts steps, evaluations and events.
+
+    Raises
+    ------
+    MapError
+        A user map raised or broke its contract (``throw=True``).
+    TypeError, ValueError
+        Bad arguments, each naming the argument.
 
     Examples
     --------
@@ -244,8 +425,8 @@ def simulate(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priority="jumps
     ...     f=lambda x: np.array([1.0]), g=lambda x: np.array([0.0]),
     ...     jump_guard=lambda x: x[0] - 1.0, flow_guard=lambda x: 1.0 - x[0],
     ...     state_dim=1)
-    >>> arc = hs.simulate(timer, [0.0], t_max=3.5)
-    >>> np.round(arc.jump_times, 12)
+    >>> arc = hs.simulate(timer, [0.0], t_max=3.0)
+    >>> np.round(arc.jump_times, 12)         # the jump at t_max is taken
     array([1., 2., 3.])
     """
     if not isinstance(system, HybridSystem):
@@ -256,6 +437,7 @@ def simulate(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priority="jumps
     (t0, t_max, j_max, prio, rtol, atol, max_step, first_step, max_norm,
      zeno_time) = check_options(system, n, t0, t_max, j_max, priority, rtol, atol, max_step,
                                 first_step, max_norm, zeno_time)
+    j0 = _check_count("j0", j0)
     Method = _resolve_method(method)
     if int(system.input_dim or 0) > 0 and inputs is None:
         raise ValueError(f"inputs: the system has input_dim={system.input_dim}; pass "
@@ -264,301 +446,511 @@ def simulate(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priority="jumps
         raise TypeError(f"inputs must be a callable u(t), got {type(inputs).__name__}")
     if prehistory is not None and not callable(prehistory):
         raise TypeError(f"prehistory must be a callable x(s), got {type(prehistory).__name__}")
-    if isinstance(refine, bool) or not isinstance(refine, numbers.Integral) or refine < 1:
-        raise ValueError(f"refine must be an int >= 1, got {refine!r}")
-    if isinstance(zeno_jumps, bool) or not isinstance(zeno_jumps, numbers.Integral) \
-            or zeno_jumps < 1:
-        raise ValueError(f"zeno_jumps must be a positive int, got {zeno_jumps!r}")
-    rng = np.random.default_rng(seed)
-
+    refine = _check_count("refine", refine, minimum=1)
+    max_steps = _check_count("max_steps", max_steps, minimum=1, allow_inf=True)
+    max_samples = _check_count("max_samples", max_samples, minimum=2, allow_inf=True)
+    if refine > max_samples:
+        raise ValueError(f"refine must be <= max_samples = {max_samples}, got {refine}")
+    zeno_jumps = _check_count("zeno_jumps", zeno_jumps, minimum=1)
+    zeno_rtol = _check_real("zeno_rtol", zeno_rtol, nonneg=True)
+    dense = _check_bool("dense", dense)
+    throw = _check_bool("throw", throw)
+    warn = _check_bool("warn", warn)
+    progress = _check_bool("progress", progress, allow_none=True)
+    t_eval = _check_t_eval(t_eval, t0, t_max)
+    if t_eval is not None and refine > 1:
+        raise ValueError("t_eval and refine > 1 cannot be combined: choose one way of "
+                         "placing samples")
+    rng = _check_seed(seed)
     delays = tuple(float(d) for d in (system.delays or ()))
     if any(not (math.isfinite(d) and d > 0) for d in delays):
         raise ValueError(f"system.delays must be positive finite floats, got {system.delays!r}")
+
     keep = dense or system.needs_history
     history = History(t0, x, j0, prehistory, inputs, maps.h)
     system._bind_history(history)
-
-    run = _Run(system, maps, n, t_max, j_max, prio, Method, rtol, atol, max_step,
-               first_step, inputs, max_norm, rng, keep, history, zeno_jumps, zeno_time,
-               int(refine))
-    run.delays = delays
-    run.breaks = sorted(t0 + d for d in delays)
+    opts = _Options(n, t0, t_max, j_max, prio, Method, rtol, atol, max_step, first_step,
+                    max_norm, zeno_jumps, zeno_time, zeno_rtol, refine, t_eval, max_steps,
+                    max_samples, keep, delays, rng)
+    run = _Run(system, maps, opts, inputs, history)
     run.pbar = _progress_bar(progress, t0, t_max, j_max)
     try:
-        run.run(t0, int(j0), x)
+        run.run(t0, j0, x)
+    except BaseException as e:
+        arc = run.arc()
+        if isinstance(e, MapError):          # at x0: bad input, raised at once
+            e.arc = arc
+            raise
+        raise SimulationError(f"internal error of the engine or solver: "
+                              f"{type(e).__name__}: {e}", arc) from e
     finally:
         if run.pbar is not None:
             run.pbar.close()
-    t, j, X = run.buf.arrays()
-    arc = HybridArc(t, j, X, run.cause, run.message, run.exception,
-                    components=system.components, segments=history.segments if keep else None,
-                    system=system)
-    if throw and run.cause in (Termination.MAP_ERROR, Termination.NON_FINITE,
-                               Termination.SOLVER_FAILED):
-        err = SimulationError(arc.message, arc)
-        raise err from run.exception
+    arc = run.arc()
+    cause = run.cause
+    if cause is Termination.MAP_ERROR and throw:
+        err = run.exception
+        if not isinstance(err, MapError):
+            err = MapError(arc.message)
+        err.arc = arc
+        raise err
+    if warn and (cause in FAILURES or cause is Termination.MAX_STEPS) \
+            and cause is not Termination.MAP_ERROR:
+        warnings.warn(f"{cause.name}: {arc.message} (last sample t={arc.t[-1]:.10g}, "
+                      f"j={arc.j[-1]})", SimulationWarning, stacklevel=2)
     return arc
 
 
 class _Run:
-    """State of one run (kept out of simulate() to keep the hot loop readable)."""
+    """One run: the decision loop between flows, and the flows."""
 
-    def __init__(self, system, maps, n, t_max, j_max, prio, Method, rtol, atol,
-                 max_step, first_step, ufun, max_norm, rng, keep, history,
-                 zeno_jumps, zeno_time, refine):
-        self.__dict__.update(locals())
-        del self.__dict__["self"]
-        self.buf = _Buffer(n)
+    def __init__(self, system, maps, opts, ufun, history):
+        self.system = system
+        self.maps = maps
+        self.o = opts
+        self.ufun = ufun
+        self.history = history
+        self.buf = _Buffer(opts.n)
+        self.stats = _Stats()
         self.cause = None
         self.message = None
         self.exception = None
-        self.h_hint = first_step
         self.pbar = None
+        self.state = None
+        self.t_eval_k = 0
         # events: watch D entries unless flows have priority
-        self.watch_D = maps.has_D and prio != _FLOWS
+        self.watch_D = maps.has_D and opts.prio != Priority.FLOWS
         phi_ok = ((not self.watch_D or maps.hD is not None)
                   and (not maps.has_C or maps.hC is not None))
         self.use_phi = phi_ok and (maps.hD is not None or maps.hC is not None)
+        self.is_rk = issubclass(opts.Method, RungeKutta)
+        self.stiff_check = opts.Method is RK45
+
+    # ------------------------------------------------------------------ helpers
+    def arc(self):
+        t, j, X, Xd = self.buf.arrays()
+        keep = self.o.keep
+        return HybridArc(t, j, X, self.cause, self.message, self.exception,
+                         components=self.system.components,
+                         segments=self.history.segments if keep else None,
+                         system=self.system, **self._arc_extras(Xd))
+
+    def _arc_extras(self, Xd):
+        import inspect
+        params = inspect.signature(HybridArc.__init__).parameters
+        out = {}
+        if "xdot" in params:
+            out["xdot"] = Xd
+        if "stats" in params:
+            out["stats"] = self.stats.as_dict()
+        return out
 
     def _stop(self, cause, message=None, exc=None):
         self.cause = cause
         self.message = cause.message if message is None else f"{cause.message}: {message}"
         self.exception = exc
 
-    # ------------------------------------------------------------------
+    def _u(self, s):
+        return self.ufun(s) if self.ufun is not None else None
+
+    def _append(self, t, j, x, xdot=None):
+        if self.buf.n >= self.o.max_samples:
+            raise _SampleCap()
+        self.buf.append(t, j, x, xdot)
+
+    # ------------------------------------------------------------------ the loop
     def run(self, t, j, x):
-        maps, ufun, prio = self.maps, self.ufun, self.prio
+        o, maps = self.o, self.maps
         C, D, g = maps.C, maps.D, maps.g
         has_C, has_D = maps.has_C, maps.has_D
-        buf = self.buf
-        buf.append(t, j, x)
-        jumps = 0
-        short = 0
-        t_last = t
-        first = True
-        force_jump = False
-        keep_flowing = False
+        st = self.state = _State(t, j, x, t_last_jump=t, h_hint=o.first_step,
+                                 breaks=sorted(t + d for d in o.delays))
+        self._append(t, j, x)
+        scale0 = o.t0
+        forced = False       # the last flow's event requires a jump
+        flow_on = False      # random priority chose to flow on in C ∩ D
+        # at x0: shapes and contracts, raised at once (a programming error)
+        u = self._u(t)
+        in_D = has_D and D(x, t, j, u)
+        in_C = (not has_C) or C(x, t, j, u)
+        if in_C:
+            check_map_value("flow_map", maps.f(x, t, j, u), o.n, t, j)
+        if in_D:
+            check_map_value("jump_map", g(x, t, j, u), o.n, t, j)
         try:
             while True:
-                if keep_flowing:     # random priority chose to flow on in C ∩ D
-                    inD = True
-                    if t >= self.t_max:
-                        self._stop(Termination.T_MAX)
-                        return
+                t, j, x = st.t, st.j, st.x
+                if flow_on:          # random priority chose to flow on in C ∩ D
+                    in_D = True
                 else:
-                    u = ufun(t) if ufun is not None else None
-                    inD = has_D and bool(D(x, t, j, u))
-                    inC = (not has_C) or bool(C(x, t, j, u))
-                    if first:
-                        self._validate(x, t, j, u, inC, inD)
-                        first = False
-                    if inD and (force_jump or not inC or prio == _JUMPS or
-                                (prio == _RANDOM and self.rng.random() < 0.5)):
-                        force_jump = False
-                        if jumps >= self.j_max:
+                    u = self._u(t)
+                    in_D = has_D and D(x, t, j, u)
+                    in_C = (not has_C) or C(x, t, j, u)
+                    coin = (o.rng.random() < 0.5) if needs_coin(in_C, in_D, o.prio, forced) \
+                        else False
+                    action = decide(in_C, in_D, o.prio, coin, forced)
+                    forced = False
+                    if action == Action.JUMP:
+                        if st.jumps >= o.j_max:
                             self._stop(Termination.J_MAX)
                             return
-                        xn = _check_map_value("jump_map", g(x, t, j, u), self.n)
-                        # Zeno: consecutive jumps after flows too short to resolve
-                        tiny = (t - t_last) <= self.zeno_time * max(1.0, abs(t))
-                        short = short + 1 if tiny else 0
-                        t_last = t
-                        j += 1
-                        jumps += 1
-                        x = xn
-                        buf.append(t, j, x)
-                        self.history._restart(t, x, j)
-                        if self.delays:
-                            self._add_breaks(t)
-                        if self.pbar is not None and not math.isfinite(self.t_max):
-                            self.pbar.update(1)
-                        if jumps >= self.j_max:
-                            self._stop(Termination.J_MAX)
-                            return
-                        if short >= self.zeno_jumps:
-                            self._stop(Termination.ZENO, f"{short} consecutive jumps near t={t}")
+                        if self._jump(st, g(x, t, j, u), scale0):
                             return
                         continue
-                    force_jump = False
-                    if not inC:
-                        cause = Termination.NOT_IN_SETS if buf.n == 1 else Termination.LEFT_SETS
-                        self._stop(cause, f"x={x} at (t={t}, j={j})")
+                    if action == Action.STOP:
+                        self._stop_outside(st)
                         return
-                    if t >= self.t_max:
-                        self._stop(Termination.T_MAX)
-                        return
-                keep_flowing = False
-                kind, t, x = self._flow(t, j, x, inD)
-                if kind == "jump":
-                    force_jump = True
-                elif kind == "continue":
-                    keep_flowing = True
-                elif kind == "stop":
-                    if self.cause is Termination.SOLVER_FAILED and short > 0:
-                        self._stop(Termination.ZENO, f"flows too short to resolve near t={t}")
+                if t >= o.t_max:
+                    self._stop(Termination.T_MAX)
                     return
-        except (KeyboardInterrupt, SystemExit):
-            raise
-        except Exception as e:  # noqa: BLE001 - any user-map failure ends the run with a cause
-            if first:       # at x0: a programming error, raised at once
-                raise
-            self._stop(Termination.MAP_ERROR, f"{type(e).__name__}: {e}", e)
+                flow_on = False
+                kind = self._flow(st, in_D)
+                if kind is _Outcome.JUMP:
+                    forced = True
+                elif kind is _Outcome.FLOW_ON:
+                    flow_on = True
+                elif kind is _Outcome.STOP:
+                    return
+        except KeyboardInterrupt:
+            self._stop(Termination.CANCELED, f"at t={st.t:.10g}, j={st.j}")
+        except _SampleCap:
+            self._stop(Termination.MAX_STEPS, f"{self.buf.n} samples stored "
+                                              f"(max_samples={o.max_samples}) at t={st.t:.10g}")
+        except MapError as e:
+            self._stop(Termination.MAP_ERROR, str(e), e)
 
-    def _add_breaks(self, t):
-        for d in self.delays:
-            bisect.insort(self.breaks, t + d)
+    def _jump(self, st, xn, scale0):
+        """Apply x+ = g(x) at the current point; True when the run stops."""
+        o = self.o
+        t, j = st.t, st.j
+        xn = check_map_value("jump_map", xn, o.n, t, j)
+        flow = t - st.t_last_jump
+        st.flow_lengths = (st.flow_lengths + [flow])[-4:]
+        short = is_short_flow(flow, t, time_scale(scale0, t, o.t_max), o.zeno_time,
+                              o.zeno_rtol)
+        st.short = st.short + 1 if short else 0
+        st.t_last_jump = t
+        st.j = j + 1
+        st.jumps += 1
+        st.x = xn
+        self._append(t, st.j, xn)
+        self.history._restart(t, xn, st.j)
+        if o.delays:
+            for d in o.delays:
+                bisect.insort(st.breaks, t + d)
+        if self.pbar is not None:
+            if math.isfinite(o.t_max):
+                self.pbar.set_postfix_str(f"j={st.j}", refresh=False)
+            else:
+                self.pbar.update(1)
+        if st.jumps >= o.j_max:
+            self._stop(Termination.J_MAX)
+            return True
+        if st.short >= o.zeno_jumps:
+            self._stop(Termination.ZENO, f"{st.short} consecutive jumps after flows "
+                                         f"shorter than max(zeno_time*max(1,|t|), "
+                                         f"zeno_rtol*time scale) near t={t:.10g}")
+            return True
+        return False
 
-    def _bound(self, t):
+    def _stop_outside(self, st):
+        """In neither C nor D: x0 outside both, sticking, or leaving C ∪ D."""
+        if self.buf.n == 1:
+            self._stop(Termination.NOT_IN_SETS, f"x={st.x} at (t={st.t}, j={st.j})")
+            return
+        last = st.flow_lengths[-3:]
+        scale = time_scale(self.o.t0, st.t, self.o.t_max)
+        if (st.jumps >= 3 and len(last) == 3 and st.t - st.t_last_jump <= 1e-6 * scale
+                and all(f <= 1e-3 * scale for f in last)):
+            self._stop(Termination.ZENO, (
+                f"the flow left C outside D at t={st.t:.10g} (j={st.j}) after a run of "
+                f"ever shorter flows {['%.3g' % f for f in last]}: the solution sticks to "
+                f"the boundary of C (jumps accumulate; a Zeno-like end), x={st.x}. "
+                f"Model the sticking (e.g. a mode where the contact persists, or a jump "
+                f"map that stops the motion below a threshold)"))
+            return
+        self._stop(Termination.LEFT_SETS, f"x={st.x} at (t={st.t}, j={st.j})")
+
+    def _bound(self, st):
         """End of the flow's integration: t_max, or the next delay breakpoint."""
-        br = self.breaks
-        tol = 4 * np.finfo(float).eps * max(1.0, abs(t))
-        while br and br[0] <= t + tol:
+        br = st.breaks
+        tol = 4 * np.finfo(float).eps * max(1.0, abs(st.t))
+        while br and br[0] <= st.t + tol:
             br.pop(0)
-        return min(br[0], self.t_max) if br else self.t_max
+        return min(br[0], self.o.t_max) if br else self.o.t_max
 
-    def _validate(self, x, t, j, u, inC, inD):
-        """Check the maps' shapes at x0 (a clear error before anything runs)."""
-        if inC:
-            _check_map_value("flow_map", self.maps.f(x, t, j, u), self.n)
-        if inD:
-            _check_map_value("jump_map", self.maps.g(x, t, j, u), self.n)
+    # ------------------------------------------------------------------ a flow
+    def _fun(self, j):
+        """The solver's right-hand side: the flow map with its contract checked."""
+        f, ufun, n, stats = self.maps.f, self.ufun, self.o.n, self.stats
+        shape = (n,)
 
-    # ------------------------------------------------------------------
-    def _flow(self, t, j, x, inD_start):
-        """Integrate from (t, x) until an event, t_max or a failure.
+        def fun(s, y):
+            stats.nfev += 1
+            v = f(y, s, j, ufun(s) if ufun is not None else None)
+            if type(v) is np.ndarray and v.shape == shape and v.dtype.kind == "f":
+                return v
+            return check_map_value("flow_map", v, n, s, j) if not (
+                isinstance(v, np.ndarray) and v.shape == shape and v.dtype.kind in "iub") \
+                else v.astype(float)
+        return fun
 
-        Returns (kind, t, x) with kind "tmax" (reached t_max), "break" (a delay
-        breakpoint: flow on), "jump" (jump from x), "continue" (random priority
-        flows on in C ∩ D) or "stop" (the run ends; the cause is recorded).
-        """
-        maps, ufun = self.maps, self.ufun
-        f, C, D = maps.f, maps.C, maps.D
+    def _flow(self, st, in_D_start):
+        """Integrate from (st.t, st.x) until an event, t_max or a failure."""
+        o, maps, stats = self.o, self.maps, self.stats
+        C, D = maps.C, maps.D
         has_C, watch_D = maps.has_C, self.watch_D
-        buf, hist, keep, pbar = self.buf, self.history, self.keep, self.pbar
-        if ufun is None:
-            def fun(s, y):
-                return f(y, s, j, None)
-        else:
-            def fun(s, y):
-                return f(y, s, j, ufun(s))
-        t_bound = self._bound(t) if self.delays else self.t_max
-        h = self.h_hint
+        buf, hist, keep, pbar = self.buf, self.history, o.keep, self.pbar
+        t, j, x = st.t, st.j, st.x
+        fun = self._fun(j)
+        t_bound = self._bound(st) if o.delays else o.t_max
+        h = st.h_hint
         if h is not None:
-            h = min(h, t_bound - t, self.max_step)
+            h = min(h, t_bound - t, o.max_step)
             if not h > 0:
                 h = None
-        solver = self.Method(fun, t, x, t_bound, rtol=self.rtol, atol=self.atol,
-                             max_step=self.max_step, first_step=h)
+        solver = o.Method(fun, t, x, t_bound, rtol=o.rtol, atol=o.atol,
+                          max_step=o.max_step, first_step=h)
+        stats.flows += 1
+        # the flow's derivative at its first sample (the solver has it: FSAL)
+        k0 = buf.n - 1
+        f0 = getattr(solver, "f", None)
+        buf.xdot[k0] = f0 if f0 is not None else fun(t, x)
         a, ya = t, x
-        inD_prev = inD_start
-        max_norm = self.max_norm
-        refine = self.refine
+        d_active = watch_D and not in_D_start     # D entries count only from outside D
+        interior = (watch_D and maps.hD is not None) or (has_C and maps.hC is not None) \
+            or watch_D or has_C
+        n_stages = getattr(solver, "n_stages", None) if self.is_rk else None
         while True:
+            if stats.steps >= o.max_steps:
+                self._stop(Termination.MAX_STEPS, f"{stats.steps} solver steps "
+                                                  f"(max_steps={o.max_steps}) at t={a:.10g}")
+                return self._end(st, a, ya, _Outcome.STOP)
+            nf = stats.nfev
             msg = solver.step()
+            if n_stages:
+                stats.rejected += max((stats.nfev - nf) // n_stages - 1, 0)
             if solver.status == "failed":
-                self._stop(Termination.SOLVER_FAILED, f"{msg} at t={a}")
-                return "stop", a, ya
+                return self._solver_failed(st, solver, msg, a, ya, j)
             b = solver.t
             yb = solver.y
+            stats.steps += 1
             if not np.isfinite(yb).all():
-                self._stop(Termination.NON_FINITE, f"after the step from t={a} to t={b}")
-                return "stop", a, ya
-            ub = ufun(b) if ufun is not None else None
-            d_active = watch_D and not inD_prev     # D entries count only from outside D
+                self._stop(Termination.NON_FINITE, f"after the step from t={a:.10g} to "
+                                                   f"t={b:.10g} (j={j})")
+                return self._end(st, a, ya, _Outcome.STOP)
+            ub = self._u(b)
             event = has_C and not C(yb, b, j, ub)
-            if watch_D:
-                inDb = bool(D(yb, b, j, ub))
-                event = event or (inDb and d_active)
-                inD_prev = inDb
+            if d_active:
+                event = event or D(yb, b, j, ub)
+            sol = None
             if event:
                 sol = solver.dense_output()
-                return self._event(sol, a, b, j, solver, d_active, t)
-            if keep or refine > 1:
+                return self._event(st, sol, a, a, b, j, solver, d_active)
+            if interior and (has_C or d_active):
                 sol = solver.dense_output()
+                hit = find_interior_event(sol, a, b, self._pred(j, d_active),
+                                          self._phi(j, d_active))
+                if hit is not None:
+                    return self._event(st, sol, a, hit[0], hit[1], j, solver, d_active)
+            if watch_D and not d_active:
+                d_active = not D(yb, b, j, ub)
+            if self.stiff_check and stats.steps % 10 == 0:
+                self._check_stiff(st, solver)
+            if keep or o.refine > 1 or o.t_eval is not None:
+                if sol is None:
+                    sol = solver.dense_output()
                 if keep:
                     hist._add(a, b, j, sol)
-                if refine > 1:
-                    self._refine(sol, a, b, j)
-            buf.append(b, j, yb)
-            if pbar is not None and math.isfinite(self.t_max):
+                self._inner_samples(sol, a, b, j)
+            if o.t_eval is None or solver.status == "finished":
+                fb = getattr(solver, "f", None) if self.is_rk else None
+                self._append(b, j, yb, fb if fb is not None else fun(b, yb))
+            if pbar is not None and math.isfinite(o.t_max):
                 pbar.update(b - a)
-            if max_norm < math.inf and np.linalg.norm(yb) > max_norm:
-                self._stop(Termination.BLOWUP, f"|x| = {np.linalg.norm(yb):.3g} > "
-                                               f"{max_norm:.3g} at t={b}")
-                return "stop", b, yb
+            if o.max_norm < math.inf:
+                nb = float(np.linalg.norm(yb))
+                if nb > o.max_norm:
+                    self._stop(Termination.BLOWUP, f"|x| = {nb:.3g} > {o.max_norm:.3g} at "
+                                                   f"t={b:.10g} (j={j})")
+                    return self._end(st, b, yb, _Outcome.STOP)
             if solver.status == "finished":
-                if b < self.t_max:          # a delay breakpoint: go on flowing
-                    self.h_hint = getattr(solver, "h_abs", None)
-                    return "break", b, yb
-                self.h_hint = None
-                return "tmax", b, yb
+                if b < o.t_max:          # a delay breakpoint: go on flowing
+                    st.h_hint = getattr(solver, "h_abs", None)
+                    return self._end(st, b, yb, _Outcome.BREAK)
+                st.h_hint = None
+                if d_active:
+                    hit = self._event_past_t_max(st, solver, a, b, j)
+                    if hit is not None:
+                        return hit
+                return self._end(st, b, yb, _Outcome.T_MAX)
             a, ya = b, yb
 
-    def _refine(self, sol, a, b, j):
-        """Store refine - 1 dense-output samples strictly inside (a, b)."""
-        if b > a:
-            ts = np.linspace(a, b, self.refine + 1)[1:-1]
-            X = np.asarray(sol(ts)).T
-            for s, xs in zip(ts, X):
-                self.buf.append(s, j, xs)
+    def _end(self, st, t, x, outcome):
+        st.t, st.x = t, x
+        return outcome
 
-    def _event(self, sol, a, b, j, solver, watch_D, t_start):
-        """Locate the first event in (a, b] and decide what happens there.
+    def _solver_failed(self, st, solver, msg, a, ya, j):
+        """A failed step: a non-finite flow map is NON_FINITE; short flows ZENO."""
+        K = getattr(solver, "K", None)
+        bad = K is not None and not np.isfinite(K).all()
+        if not bad:
+            try:
+                bad = not np.isfinite(self.maps.f(ya, a, j, self._u(a))).all()
+            except MapError:
+                bad = True
+        if bad:
+            self._stop(Termination.NON_FINITE, f"flow_map returned non-finite values "
+                                               f"near t={a:.10g} (j={j})")
+        elif st.short > 0:
+            self._stop(Termination.ZENO, f"flows too short to resolve near t={a:.10g}")
+        else:
+            self._stop(Termination.SOLVER_FAILED, f"{msg} at t={a:.10g} (j={j})")
+        return self._end(st, a, ya, _Outcome.STOP)
 
-        ``watch_D``: entering D is an event (the step started outside D).
-        """
-        maps, ufun = self.maps, self.ufun
-        C, D, hC, hD = maps.C, maps.D, maps.hC, maps.hD
-        has_C, has_D = maps.has_C, maps.has_D
+    def _check_stiff(self, st, solver):
+        """Hairer's stiffness test for Dormand-Prince (h·ρ > 3.25 repeatedly)."""
+        if st.warned_stiff:
+            return
+        K, h = solver.K, solver.h_previous
+        y6 = solver.y_old + h * (K[:5].T @ solver.A[5, :5])
+        den = float(np.linalg.norm(solver.y - y6))
+        if den > 0 and h * float(np.linalg.norm(K[6] - K[5])) / den > 3.25:
+            st.stiff_hits += 1
+        else:
+            st.stiff_hits = 0
+        if st.stiff_hits >= 15:
+            st.warned_stiff = True
+            warnings.warn(f"the flow looks stiff near t={solver.t:.6g} (j={st.j}): "
+                          f"{type(solver).__name__}'s step size is limited by stability, "
+                          f"not accuracy. Use method='Radau', 'BDF' or 'LSODA'",
+                          SimulationWarning, stacklevel=4)
 
-        def u_at(s):
-            return ufun(s) if ufun is not None else None
+    def _pred(self, j, d_active):
+        maps, has_C, ufun = self.maps, self.maps.has_C, self.ufun
+        C, D = maps.C, maps.D
 
         def pred(s, y):
-            u = u_at(s)
-            return (has_C and not C(y, s, j, u)) or (watch_D and bool(D(y, s, j, u)))
+            u = ufun(s) if ufun is not None else None
+            return (has_C and not C(y, s, j, u)) or (d_active and D(y, s, j, u))
+        return pred
 
-        phi = None
-        if self.use_phi and (watch_D or hC is not None):
-            def phi(s, y):
-                u = u_at(s)
-                v = -math.inf
-                if watch_D and hD is not None:
-                    v = guard_min(hD(y, s, j, u))
-                if has_C and hC is not None:
-                    v = max(v, -guard_min(hC(y, s, j, u)))
-                return v
+    def _phi(self, j, d_active):
+        """The continuous event function (>= 0 once the event has happened), if any."""
+        maps, ufun = self.maps, self.ufun
+        hC, hD, has_C = maps.hC, maps.hD, maps.has_C
+        if not self.use_phi or not (d_active or hC is not None):
+            return None
+        useD = d_active and hD is not None
+        useC = has_C and hC is not None
 
-        lo, hi, ylo, yhi = locate_event(sol, a, b, pred, phi)
+        def phi(s, y):
+            u = ufun(s) if ufun is not None else None
+            v = -math.inf
+            if useD:
+                v = guard_min(hD(y, s, j, u))
+            if useC:
+                v = max(v, -guard_min(hC(y, s, j, u)))
+            return v
+        return phi
+
+    def _event(self, st, sol, a, lo, hi, j, solver, d_active, clamp=None):
+        """Locate the first event in (lo, hi] of the step starting at a; decide there."""
+        o, maps = self.o, self.maps
+        C, D, has_C, has_D = maps.C, maps.D, maps.has_C, maps.has_D
+        self.stats.events += 1
+        lo, hi, ylo, yhi = locate_event(sol, lo, hi, self._pred(j, d_active),
+                                        self._phi(j, d_active))
         # next flow's first step: at most 10x the length of this flow (the
         # controller's proposal after an overshooting step can be huge where
         # the flow is integrated exactly, and long steps cancel digits)
         h = getattr(solver, "h_abs", None)
-        self.h_hint = None if h is None or hi <= t_start else min(h, 10.0 * (hi - t_start))
-        if self.pbar is not None and math.isfinite(self.t_max):
-            self.pbar.update(hi - a)
-        uhi = u_at(hi)
-        if watch_D and D(yhi, hi, j, uhi):
-            kind = "jump"
-            if self.prio == _RANDOM and (not has_C or C(yhi, hi, j, uhi)) \
-                    and self.rng.random() >= 0.5:
-                kind = "continue"
-            return self._commit(sol, a, j, hi, yhi, kind)
+        st.h_hint = None if h is None or hi <= st.t else min(h, 10.0 * (hi - st.t))
+        te_hi = hi if clamp is None else min(hi, clamp)
+        if self.pbar is not None and math.isfinite(o.t_max):
+            self.pbar.update(te_hi - a)
+        uhi = self._u(hi)
+        if d_active and D(yhi, hi, j, uhi):
+            in_C = (not has_C) or C(yhi, hi, j, uhi)
+            coin = (o.rng.random() < 0.5) if needs_coin(in_C, True, o.prio) else True
+            action = decide_at_event(True, in_C, o.prio, coin)
+            return self._commit(st, sol, a, j, te_hi, yhi,
+                                _Outcome.JUMP if action == Action.JUMP else _Outcome.FLOW_ON)
         # the flow leaves C: jump from the last point in C if it is in D
-        if has_D and D(ylo, lo, j, u_at(lo)):
-            return self._commit(sol, a, j, lo, ylo, "jump")
+        if has_D and D(ylo, lo, j, self._u(lo)):
+            return self._commit(st, sol, a, j, lo, ylo, _Outcome.JUMP)
         if has_D and D(yhi, hi, j, uhi):
-            return self._commit(sol, a, j, hi, yhi, "jump")
-        self._stop(Termination.LEFT_SETS, f"the flow left C at t={lo} (j={j}), "
-                                          f"x={ylo}, outside D")
-        return self._commit(sol, a, j, lo, ylo, "stop")
+            return self._commit(st, sol, a, j, te_hi, yhi, _Outcome.JUMP)
+        out = self._commit(st, sol, a, j, lo, ylo, _Outcome.STOP)
+        self._stop_outside(st)
+        if self.cause is Termination.LEFT_SETS:
+            self.message = (f"{Termination.LEFT_SETS.message}: the flow left C at "
+                            f"t={lo:.10g} (j={j}), x={ylo}, outside D")
+        return out
 
-    def _commit(self, sol, a, j, te, xe, kind):
+    def _event_past_t_max(self, st, solver, a, b, j):
+        """An entry into D within round-off after t_max is taken at t_max."""
+        pred = self._pred(j, True)
+        sol = solver.dense_output()
+        tb = b + t_max_slack(b, st.jumps)
+        if not pred(tb, sol(tb)):
+            return None
+        if self.buf.t[self.buf.n - 1] == b:      # drop the t_max sample: the event replaces it
+            self.buf.n -= 1
+        return self._event(st, sol, a, b, tb, j, solver, True, clamp=b)
+
+    def _commit(self, st, sol, a, j, te, xe, outcome):
         """Record the flow of the event step up to the event time te."""
-        if self.keep:
+        o = self.o
+        if o.keep:
             self.history._add(a, te, j, sol)
         if te > a:
-            if self.refine > 1:
-                self._refine(sol, a, te, j)
-            self.buf.append(te, j, xe)
-        return kind, te, xe
+            self._inner_samples(sol, a, te, j)
+            self._append(te, j, xe, self._fdot(te, xe, j))
+        return self._end(st, te, xe, outcome)
+
+    def _fdot(self, s, y, j):
+        try:
+            return self.maps.f(y, s, j, self._u(s))
+        except Exception:  # noqa: BLE001 - outside C the flow map may be undefined
+            return None
+
+    def _inner_samples(self, sol, a, b, j):
+        """refine - 1 dense-output samples inside (a, b), or the t_eval points in (a, b]."""
+        o = self.o
+        if o.t_eval is not None:
+            te = o.t_eval
+            k0 = self.t_eval_k
+            k1 = int(np.searchsorted(te, b, side="right"))
+            k0 = max(k0, int(np.searchsorted(te, a, side="right")))
+            if self.buf.n == 1 and a == o.t0:
+                k0 = int(np.searchsorted(te, a, side="right"))
+            ts = te[k0:k1]
+            self.t_eval_k = k1
+        elif o.refine > 1 and b > a:
+            ts = np.linspace(a, b, o.refine + 1)[1:-1]
+        else:
+            return
+        if ts.size == 0:
+            return
+        if self.buf.n + ts.size > o.max_samples:
+            raise _SampleCap()
+        X = np.asarray(sol(ts)).T.reshape(ts.size, o.n)
+        Xd = _dense_derivative(sol, ts)
+        for k in range(ts.size):
+            self.buf.append(ts[k], j, X[k], None if Xd is None else Xd[k])
+
+
+class _SampleCap(Exception):
+    """Internal: the sample cap was reached."""
+
+
+def _dense_derivative(sol, ts):
+    """d/dt of a Runge-Kutta dense output at times ts, shape (len(ts), n); None otherwise."""
+    Q = getattr(sol, "Q", None)
+    if Q is None or not hasattr(sol, "h") or not hasattr(sol, "t_old"):
+        return None
+    s = (np.asarray(ts) - sol.t_old) / sol.h
+    k = np.arange(Q.shape[1])
+    P = (k + 1) * s[:, None] ** k        # d/ds of s^(k+1), times 1/h cancels h in y
+    return P @ Q.T

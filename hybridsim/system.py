@@ -5,7 +5,9 @@ import inspect
 
 import numpy as np
 
-__all__ = ["HybridSystem", "as_map"]
+from .rules import MapError
+
+__all__ = ["HybridSystem", "as_map", "MapError"]
 
 
 def guard_min(v) -> float:
@@ -23,19 +25,83 @@ def guard_min(v) -> float:
     return float(v)
 
 
+_LEADING = ("t", "j", "u")
+
+
 def _arity(fn) -> int:
-    """Number of leading positional arguments ``fn`` accepts (4 for ``*args``)."""
+    """How many of ``(x, t, j, u)`` ``fn`` takes (4 for ``*args``).
+
+    Read from the *required* positional parameters, so a defaulted parameter
+    (``lambda x, k=2.0: -k * x``, a common way to capture a loop variable)
+    never receives t. A defaulted parameter still counts when it is named as
+    the engine's argument at its position (``def f(self, x, t, j, u=None)``).
+    Builtins and numpy ufuncs (no signature, or ``out=`` defaulted) take x.
+    """
     try:
         sig = inspect.signature(fn)
     except (TypeError, ValueError):  # builtins, numpy ufuncs
+        return 1
+    if isinstance(fn, np.ufunc):
         return 1
     n = 0
     for p in sig.parameters.values():
         if p.kind == p.VAR_POSITIONAL:
             return 4
-        if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD):
-            n += 1
+        if p.kind not in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD):
+            break
+        if p.default is not p.empty and not (1 <= n <= 3 and p.name == _LEADING[n - 1]):
+            break
+        n += 1
     return n
+
+
+def _where(t, j):
+    try:
+        return f"t={float(t):.10g}, j={int(j)}"
+    except (TypeError, ValueError):     # arrays (vectorized maps)
+        return "the batch"
+
+
+def _named(m, name):
+    """Wrap a uniform map so that what it raises names the map, t and j."""
+    def call(x, t, j, u):
+        try:
+            return m(x, t, j, u)
+        except MapError:
+            raise
+        except Exception as e:  # noqa: BLE001 - re-raised with the map's name
+            raise MapError(f"{name} raised {type(e).__name__}: {e} (at {_where(t, j)})",
+                           name, t, j) from e
+    return call
+
+
+def _as_bool(name, v, t, j):
+    """A set indicator's value as a bool; anything else is a contract breach."""
+    if v is True or v is False:
+        return v
+    if isinstance(v, (np.bool_, np.ndarray)) and getattr(v, "dtype", None) == np.bool_ \
+            and np.size(v) == 1:
+        return bool(v)
+    if isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v in (0, 1):
+        return bool(v)
+    raise MapError(f"{name} must return a bool (x in the set or not), got "
+                   f"{type(v).__name__} {v!r} (at {_where(t, j)})", name, t, j)
+
+
+def _from_guard(h, name):
+    """The set {min_i h_i >= 0} of a guard; a NaN guard is a contract breach."""
+    def call(x, t, j, u):
+        v = guard_min(h(x, t, j, u))
+        if v != v:
+            raise MapError(f"{name} returned NaN (at {_where(t, j)})", name, t, j)
+        return v >= 0.0
+    return call
+
+
+def _indicator(m, name):
+    def call(x, t, j, u):
+        return _as_bool(name, m(x, t, j, u), t, j)
+    return call
 
 
 def as_map(fn, name: str):
@@ -176,19 +242,22 @@ class HybridSystem:
         n = self.state_dim
         if n is None or isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
             raise ValueError(f"{type(self).__name__}.state_dim must be a positive int, got {n!r}")
-        hD = as_map(self.jump_guard, "jump_guard") if self.jump_guard is not None else None
-        hC = as_map(self.flow_guard, "flow_guard") if self.flow_guard is not None else None
+        def named(fn, name):
+            return None if fn is None else _named(as_map(fn, name), name)
+
+        hD = named(self.jump_guard, "jump_guard")
+        hC = named(self.flow_guard, "flow_guard")
         if self._overrides("jump_set") or hD is None:
-            D = as_map(self.jump_set, "jump_set")
+            D = _indicator(named(self.jump_set, "jump_set"), "jump_set")
         else:
-            D = lambda x, t, j, u: guard_min(hD(x, t, j, u)) >= 0.0  # noqa: E731
+            D = _from_guard(hD, "jump_guard")
         if self._overrides("flow_set") or hC is None:
-            C = as_map(self.flow_set, "flow_set")
+            C = _indicator(named(self.flow_set, "flow_set"), "flow_set")
         else:
-            C = lambda x, t, j, u: guard_min(hC(x, t, j, u)) >= 0.0  # noqa: E731
+            C = _from_guard(hC, "flow_guard")
         c = _Compiled(
-            f=as_map(self.flow_map, "flow_map"), g=as_map(self.jump_map, "jump_map"),
-            C=C, D=D, hD=hD, hC=hC, h=as_map(self.output, "output"),
+            f=named(self.flow_map, "flow_map"), g=named(self.jump_map, "jump_map"),
+            C=C, D=D, hD=hD, hC=hC, h=named(self.output, "output"),
             has_D=self.has_jumps, has_C=self.has_flow_boundary,
             h_u=_arity(self.output) >= 4)
         self.__dict__["_compiled_maps"] = c

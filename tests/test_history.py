@@ -88,9 +88,12 @@ def test_history_beyond_the_current_step_is_an_error():
 
         def flow_map(self, x, t):
             return -self.history(t - 0.01)
-    arc = hs.simulate(Bad(), [1.0], t_max=2.0)
+    with pytest.raises(hs.MapError, match="flow_map raised HistoryError.*max_step") as info:
+        hs.simulate(Bad(), [1.0], t_max=2.0)
+    assert isinstance(info.value.__cause__, hs.HistoryError)
+    arc = hs.simulate(Bad(), [1.0], t_max=2.0, throw=False)
     assert arc.termination is hs.Termination.MAP_ERROR
-    assert isinstance(arc.exception, hs.HistoryError)
+    assert isinstance(arc.exception.__cause__, hs.HistoryError)
     assert "max_step" in arc.message
     # with the step capped it runs
     arc = hs.simulate(Bad(), [1.0], t_max=2.0, max_step=0.01)

@@ -187,10 +187,7 @@ def test_j_max_zero_and_limits():
 
 
 def test_zeno_ball_stops_quickly_not_past_zeno_time():
-    import time
-    t0 = time.perf_counter()
     arc = hs.simulate(Ball(), [1.0, 0.0], t_max=100.0, j_max=10_000, rtol=1e-10, atol=1e-12)
-    assert time.perf_counter() - t0 < 30  # generous: guards against a 10,000-jump crawl
     assert arc.termination is Termination.ZENO
     assert arc.jump_count < 10_000
     # the arc ends at the Zeno time, up to the accumulated event tolerance
@@ -209,22 +206,25 @@ def test_instant_jump_loop_is_zeno():
 def test_non_finite_state_stops_with_cause():
     sysm = hs.HybridSystem.from_functions(
         f=lambda x, t: np.array([np.nan if t > 0.5 else 1.0]), state_dim=1)
-    arc = hs.simulate(sysm, [0.0], t_max=2.0, max_step=0.1)
-    assert arc.termination in (Termination.NON_FINITE, Termination.SOLVER_FAILED)
+    with pytest.warns(hs.SimulationWarning, match=r"NON_FINITE.*flow_map returned non-finite"):
+        arc = hs.simulate(sysm, [0.0], t_max=2.0, max_step=0.1)
+    assert arc.termination is Termination.NON_FINITE     # not a solver failure
     assert arc.tf <= 0.6 and np.all(np.isfinite(arc.x))
 
 
 def test_blowup_with_max_norm():
     # x' = x^2 from 1 escapes at t = 1
     sysm = hs.HybridSystem.from_functions(f=lambda x: x ** 2, state_dim=1)
-    arc = hs.simulate(sysm, [1.0], t_max=2.0, max_norm=1e6)
+    with pytest.warns(hs.SimulationWarning, match=r"BLOWUP.*last sample t=0\.99"):
+        arc = hs.simulate(sysm, [1.0], t_max=2.0, max_norm=1e6)
     assert arc.termination is Termination.BLOWUP
     assert arc.tf < 1.0 and "max_norm" in arc.message
 
 
 def test_finite_escape_without_max_norm_ends_cleanly():
     sysm = hs.HybridSystem.from_functions(f=lambda x: x ** 2, state_dim=1)
-    arc = hs.simulate(sysm, [1.0], t_max=2.0)
+    with pytest.warns(hs.SimulationWarning, match="SOLVER_FAILED|NON_FINITE"):
+        arc = hs.simulate(sysm, [1.0], t_max=2.0)
     assert arc.termination in (Termination.SOLVER_FAILED, Termination.NON_FINITE)
     assert arc.tf < 1.0 + 1e-6
 
@@ -235,12 +235,18 @@ def test_exception_in_user_map_keeps_the_arc():
             raise RuntimeError("sensor failed")
         return np.array([1.0])
     sysm = hs.HybridSystem.from_functions(f=f, state_dim=1)
-    arc = hs.simulate(sysm, [0.0], t_max=5.0, max_step=0.1)
+    arc = hs.simulate(sysm, [0.0], t_max=5.0, max_step=0.1, throw=False)
     assert arc.termination is Termination.MAP_ERROR
-    assert isinstance(arc.exception, RuntimeError) and "sensor failed" in arc.message
+    assert isinstance(arc.exception, hs.MapError) and "sensor failed" in arc.message
+    assert isinstance(arc.exception.__cause__, RuntimeError)
     assert 0.9 < arc.tf <= 1.0 + 1e-12
-    with pytest.raises(hs.SimulationError, match="sensor failed") as info:
-        hs.simulate(sysm, [0.0], t_max=5.0, max_step=0.1, throw=True)
+    # by default the error is raised, naming the map, t and j, with the arc so far
+    with pytest.raises(hs.MapError, match=r"flow_map raised RuntimeError: sensor failed "
+                                          r"\(at t=1\.0\d*, j=0\)") as info:
+        hs.simulate(sysm, [0.0], t_max=5.0, max_step=0.1)
+    assert isinstance(info.value, hs.SimulationError)
+    assert info.value.map_name == "flow_map" and info.value.j == 0
+    assert isinstance(info.value.__cause__, RuntimeError)
     assert info.value.arc.tf > 0.9
 
 
@@ -248,7 +254,7 @@ def test_jump_map_wrong_shape_mid_run_is_map_error():
     sysm = hs.HybridSystem.from_functions(
         f=lambda x: np.array([1.0]), g=lambda x: np.zeros(3),
         jump_guard=lambda x: x[0] - 1, flow_guard=lambda x: 1 - x[0], state_dim=1)
-    arc = hs.simulate(sysm, [0.0], t_max=5.0)
+    arc = hs.simulate(sysm, [0.0], t_max=5.0, throw=False)
     assert arc.termination is Termination.MAP_ERROR
     assert isinstance(arc.exception, hs.MapError)
     assert "jump_map must return an array of shape (1,)" in arc.message
@@ -275,7 +281,7 @@ def test_bad_x0():
     (dict(t_max=1.0, rtol=-1e-3), ValueError, "rtol must be > 0"),
     (dict(t_max=1.0, atol=[1e-3]), ValueError, "atol must be a positive float or an array"),
     (dict(t_max=1.0, max_step=0.0), ValueError, "max_step must be > 0"),
-    (dict(t_max=1.0, refine=0), ValueError, "refine must be an int >= 1"),
+    (dict(t_max=1.0, refine=0), ValueError, "refine must be >= 1"),
     (dict(t_max="1"), TypeError, "t_max must be a real number"),
 ])
 def test_bad_arguments(kw, err, match):
