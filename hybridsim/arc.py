@@ -1,16 +1,137 @@
-"""Hybrid arcs: solutions on hybrid time domains."""
+"""Hybrid arcs: solutions on hybrid time domains.
+
+A :class:`HybridArc` holds the samples ``(t, j, x)`` of a solution, time-major,
+with a jump stored as two samples at the same t with j and j + 1. Besides the
+samples it offers interpolation inside the flows (:meth:`HybridArc.at`,
+:meth:`HybridArc.interpolate`), windows of hybrid time
+(:meth:`HybridArc.restrict`, :meth:`HybridArc.select`), maps of the state
+(:meth:`HybridArc.transform`), pickling whatever the system holds, and a
+versioned, validated ``.npz`` format (:meth:`HybridArc.save`,
+:meth:`HybridArc.load`).
+"""
 from __future__ import annotations
 
-import bisect
+import json
+import math
+import numbers
+import os
+import pickle
+import zipfile
+import zlib
+from pathlib import Path
+from typing import NamedTuple
+
 import numpy as np
 
 from .rules import Termination  # one source of the causes
 
-__all__ = ["HybridArc", "Termination"]
+__all__ = ["HybridArc", "Termination", "ArcValues", "FORMAT_VERSION"]
+
+#: Version of the ``.npz`` layout written by :meth:`HybridArc.save`.
+#: 1: t, j, x, termination, message, comp_names, comp_bounds (no version key).
+#: 2: adds format_version, components (JSON, any hashable names), xdot, stats,
+#:    system_description.
+FORMAT_VERSION = 2
+
+_AT_JUMP = ("start", "end", "mean", "nan", "both")
+_KEYS_V1 = ("t", "j", "x", "termination", "message", "comp_names", "comp_bounds")
+_KEYS_V2 = ("format_version", "t", "j", "x", "termination", "message",
+            "components", "stats", "system_description")
+
+
+class ArcValues(NamedTuple):
+    """Values of an arc on a grid of ordinary time, from :meth:`HybridArc.interpolate`.
+
+    Unpack it as ``t, j, x = arc.interpolate(grid)``.
+
+    Attributes
+    ----------
+    t : ndarray, shape (m,)
+        The times (the grid; with ``at_jump="both"`` a jump time appears twice).
+    j : ndarray of int, shape (m,)
+        The jump count of each row.
+    x : ndarray, shape (m, n)
+        The state at (t, j).
+    """
+
+    t: np.ndarray
+    j: np.ndarray
+    x: np.ndarray
+
+
+def _describe(system):
+    """A short description of a system, kept when the object cannot travel."""
+    if system is None:
+        return None
+    cls = type(system)
+    desc = f"{cls.__module__}.{cls.__qualname__}"
+    comps = getattr(system, "components", None)
+    if comps:
+        desc += f" with components {list(comps)}"
+    return desc
+
+
+def _picklable(obj) -> bool:
+    try:
+        pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
+    except Exception:  # any failure means: does not travel
+        return False
+    return True
+
+
+def _json_default(o):
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, (Termination,)):
+        return o.name
+    return str(o)
+
+
+def _encode_name(name):
+    """Component names (str, int, tuples of them...) as JSON values, typed."""
+    if isinstance(name, tuple):
+        return {"tuple": [_encode_name(v) for v in name]}
+    if isinstance(name, (np.integer, np.floating)):
+        return name.item()
+    if isinstance(name, (str, int, float, bool)) or name is None:
+        return name
+    return {"str": str(name)}
+
+
+def _decode_name(v):
+    if isinstance(v, dict):
+        if "tuple" in v:
+            return tuple(_decode_name(u) for u in v["tuple"])
+        return v["str"]
+    return v
 
 
 class HybridArc:
     """A solution of a hybrid system on its hybrid time domain.
+
+    Parameters
+    ----------
+    t, j, x : array_like, shapes (N,), (N,), (N, n)
+        The samples (N may be 0: an empty arc).
+    termination : Termination or None
+        Why the run stopped.
+    message, exception, components :
+        See the attributes.
+    segments : list of (t_a, t_b, j, dense), optional
+        The solver's dense outputs: ``dense(s)`` is the state at s in
+        [t_a, t_b] on the flow of jump count j (scipy's ``DenseOutput``
+        convention: an array of m times gives an (n, m) array).
+    system : HybridSystem, optional
+        The system the arc solves (dropped, keeping its description, when
+        the arc is pickled and the system does not pickle).
+    xdot : array_like, shape (N, n), optional
+        The flow map f at each sample (NaN rows where unknown, e.g. at
+        samples that are not in C). Used for cubic Hermite interpolation.
+    stats : dict, optional
+        Statistics of the run (steps, function evaluations, events...),
+        carried through :meth:`restrict`, :meth:`component` and files.
 
     Attributes
     ----------
@@ -21,6 +142,10 @@ class HybridArc:
         with the same t and j, j + 1.
     x : ndarray, shape (N, n)
         The state at each sample (time-major).
+    xdot : ndarray, shape (N, n), or None
+        The flow derivative at each sample where known.
+    stats : dict or None
+        Statistics of the run.
     termination : Termination
         Why the run stopped; ``termination.message`` explains it.
     message : str
@@ -29,31 +154,125 @@ class HybridArc:
         The exception a user map raised (``termination is MAP_ERROR``).
     components : dict or None
         ``{name: slice}`` of an interconnection's parts (see :meth:`component`).
+    system : HybridSystem or None
+        The system, where the arc still holds it.
+    system_description : str or None
+        The system's class (and components), kept when the object is not.
+
+    Notes
+    -----
+    ``arc[name]`` is :meth:`component`; an arc is not iterable (``list(arc)``
+    raises a ``TypeError`` that says where the samples are:
+    ``zip(arc.t, arc.j, arc.x)`` iterates them). Pickling keeps the system
+    and the dense outputs only when they pickle.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> arc = HybridArc([0.0, 1.0, 1.0, 2.0], [0, 0, 1, 1],
+    ...                 [[0.0], [1.0], [0.0], [1.0]], Termination.T_MAX)
+    >>> arc.jump_times, arc.jump_count
+    (array([1.]), 1)
+    >>> arc.at(0.5), arc.at(1.0, j=0), arc.at(1.0)
+    (array([0.5]), array([1.]), array([0.]))
     """
 
     def __init__(self, t, j, x, termination, message=None, exception=None,
-                 components=None, segments=None, system=None):
+                 components=None, segments=None, system=None, *, xdot=None,
+                 stats=None):
         self.t = np.asarray(t, dtype=float)
-        self.j = np.asarray(j, dtype=np.int64)
+        jj = np.asarray(j)
+        self.j = jj.astype(np.int64)
         self.x = np.asarray(x, dtype=float)
-        if self.x.ndim != 2 or len(self.x) != len(self.t) or len(self.j) != len(self.t):
+        if self.t.ndim != 1 or self.j.ndim != 1 or self.x.ndim != 2 \
+                or len(self.x) != len(self.t) or len(self.j) != len(self.t):
             raise ValueError(f"HybridArc: expected t (N,), j (N,), x (N, n); got shapes "
                              f"{self.t.shape}, {self.j.shape}, {self.x.shape}")
+        if jj.dtype.kind == "f" and not np.array_equal(jj, self.j):
+            raise ValueError("HybridArc: j must hold integers (jump counts), got "
+                             f"non-integer values such as {jj[jj != self.j][0]!r}")
+        if xdot is not None:
+            xdot = np.asarray(xdot, dtype=float)
+            if xdot.shape != self.x.shape:
+                raise ValueError(f"HybridArc: xdot must have the shape of x, (N, n) = "
+                                 f"{self.x.shape}; got {xdot.shape}")
+        if stats is not None and not isinstance(stats, dict):
+            raise TypeError(f"HybridArc: stats must be a dict or None, got "
+                            f"{type(stats).__name__}")
+        self.xdot = xdot
+        self.stats = stats
         self.termination = termination
         self.message = message or (termination.message if termination else "")
         self.exception = exception
         self.components = components
         self.system = system
+        self.system_description = _describe(system)
         self._segments = segments  # list of (t_a, t_b, j, dense) or None
+        self._cache = {}
+
+    def _like(self, t, j, x, *, xdot=None, segments=None, components=None,
+              system=None, keep=True):
+        """A new arc with other samples and this arc's run information."""
+        arc = HybridArc(t, j, x, self.termination, self.message, self.exception,
+                        self.components if keep else components,
+                        self._segments if keep else segments,
+                        self.system if keep else system, xdot=xdot,
+                        stats=None if self.stats is None else dict(self.stats))
+        if keep and self.system is None:
+            arc.system_description = self.system_description
+        return arc
 
     # ------------------------------------------------------------------ basics
     def __len__(self):
         return len(self.t)
 
     def __repr__(self):
+        term = self.termination.name if self.termination else None
+        if len(self.t) == 0:
+            return f"<HybridArc: empty (0 samples), termination={term}>"
         return (f"<HybridArc: {len(self.t)} samples, t in [{self.t[0]:.6g}, "
-                f"{self.t[-1]:.6g}], {self.jump_count} jumps, "
-                f"termination={self.termination.name if self.termination else None}>")
+                f"{self.t[-1]:.6g}], {self.jump_count} jumps, termination={term}>")
+
+    def __iter__(self):
+        raise TypeError(
+            "a HybridArc is not iterable: its samples are arc.t (N,), arc.j (N,) and "
+            "arc.x (N, n) (iterate rows with zip(arc.t, arc.j, arc.x)); arc[name] is "
+            "a component of an interconnection (names: arc.components)")
+
+    def __contains__(self, name):
+        """True when ``name`` is a component of this interconnection's arc."""
+        return bool(self.components) and name in self.components
+
+    def __copy__(self):
+        new = object.__new__(HybridArc)
+        new.__dict__.update(self.__dict__)
+        new._cache = {}
+        return new
+
+    def __getstate__(self):
+        """Pickle state: the system and dense outputs only when they pickle."""
+        state = self.__dict__.copy()
+        state.pop("_cache", None)
+        state.pop("_seg_starts", None)
+        if state.get("system") is not None and not _picklable(state["system"]):
+            state["system"] = None
+        if state.get("_segments") and not _picklable(state["_segments"]):
+            state["_segments"] = None
+        exc = state.get("exception")
+        if exc is not None and not _picklable(exc):
+            state["exception"] = RuntimeError(f"{type(exc).__name__}: {exc}")
+        return state
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self.__dict__.setdefault("xdot", None)
+        self.__dict__.setdefault("stats", None)
+        self.__dict__.setdefault("system_description", None)
+        self._cache = {}
+
+    def _nonempty(self, what):
+        if len(self.t) == 0:
+            raise ValueError(f"{what}: the arc is empty (no samples)")
 
     @property
     def termination_cause(self):
@@ -67,26 +286,37 @@ class HybridArc:
 
     @property
     def state_dim(self) -> int:
+        """The length n of the state."""
         return self.x.shape[1]
 
     @property
     def x0(self):
+        """The first sample of the state."""
+        self._nonempty("x0")
         return self.x[0]
 
     @property
     def xf(self):
+        """The last sample of the state."""
+        self._nonempty("xf")
         return self.x[-1]
 
     @property
     def t0(self) -> float:
+        """The first time."""
+        self._nonempty("t0")
         return float(self.t[0])
 
     @property
     def tf(self) -> float:
+        """The last time."""
+        self._nonempty("tf")
         return float(self.t[-1])
 
     @property
     def jf(self) -> int:
+        """The last jump count."""
+        self._nonempty("jf")
         return int(self.j[-1])
 
     @property
@@ -95,17 +325,41 @@ class HybridArc:
         return np.flatnonzero(np.diff(self.j) > 0) + 1
 
     @property
+    def is_jump_start(self):
+        """Boolean mask (N,): True at each pre-jump sample (the next one has j + 1).
+
+        Examples
+        --------
+        >>> arc = HybridArc([0, 1, 1, 2], [0, 0, 1, 1], [[0], [1], [0], [1]], None)
+        >>> arc.is_jump_start, arc.is_jump_end
+        (array([False,  True, False, False]), array([False, False,  True, False]))
+        """
+        m = np.zeros(len(self.t), dtype=bool)
+        m[self.jump_index - 1] = True
+        return m
+
+    @property
+    def is_jump_end(self):
+        """Boolean mask (N,): True at each post-jump sample (j one more than before)."""
+        m = np.zeros(len(self.t), dtype=bool)
+        m[self.jump_index] = True
+        return m
+
+    @property
     def jump_times(self):
         """Times t at which the jumps happened, shape (jump_count,)."""
         return self.t[self.jump_index]
 
     @property
     def jump_count(self) -> int:
-        return int(self.j[-1] - self.j[0])
+        """The number of jumps, ``j[-1] - j[0]`` (0 for an empty arc)."""
+        return int(self.j[-1] - self.j[0]) if len(self.j) else 0
 
     @property
     def flow_intervals(self):
         """List of ``(t_start, t_end, j)``: the interval [t_j, t_{j+1}] of each j."""
+        if len(self.t) == 0:
+            return []
         out = []
         starts = np.concatenate(([0], self.jump_index))
         ends = np.concatenate((self.jump_index - 1, [len(self.t) - 1]))
@@ -118,15 +372,414 @@ class HybridArc:
         """Length t_{j+1} - t_j of each interval of flow, shape (jump_count + 1,)."""
         return np.array([b - a for a, b, _ in self.flow_intervals])
 
+    # --------------------------------------------------------- interpolation
+    def _dense_index(self):
+        """``{j: (starts, ends, sols)}`` of the dense segments, built once."""
+        idx = self._cache.get("dense")
+        if idx is None:
+            by_j = {}
+            for a, b, jj, sol in self._segments or ():
+                by_j.setdefault(int(jj), ([], [], []))
+                by_j[int(jj)][0].append(a)
+                by_j[int(jj)][1].append(b)
+                by_j[int(jj)][2].append(sol)
+            idx = {k: (np.asarray(s, float), np.asarray(e, float), f)
+                   for k, (s, e, f) in by_j.items()}
+            self._cache["dense"] = idx
+        return idx
+
+    def _call_dense(self, sol, ts):
+        """Values of one dense output at times ``ts`` (m,), as (m, n)."""
+        n = self.state_dim
+        if len(ts) > 1:
+            try:
+                y = np.asarray(sol(ts), dtype=float)
+                if y.shape == (n, len(ts)):
+                    return y.T
+            except Exception:  # a callable of scalars only: one call per time
+                pass
+        return np.array([np.asarray(sol(s), dtype=float).reshape(n) for s in ts])
+
+    def _interp(self, t, j, where, deriv=False):
+        """State (and d/dt where known) at the points (t[i], j[i]), 1-D arrays.
+
+        Best available: the stored sample at its own time; the dense output;
+        cubic Hermite where both neighbours have a finite xdot; else linear.
+        """
+        m, n = len(t), self.state_dim
+        out = np.empty((m, n))
+        dout = np.full((m, n), np.nan) if deriv else None
+        if m == 0:
+            return out, dout
+        self._nonempty(where)
+        uj, inv = np.unique(j, return_inverse=True)
+        order = np.argsort(inv, kind="stable")
+        bounds = np.searchsorted(inv[order], np.arange(len(uj) + 1))
+        los = np.searchsorted(self.j, uj, side="left")
+        his = np.searchsorted(self.j, uj, side="right")
+        dense = self._dense_index() if self._segments else {}
+        for g, jj in enumerate(uj):
+            sel = order[bounds[g]:bounds[g + 1]]
+            a, b = los[g], his[g]
+            if a == b:
+                raise ValueError(f"{where}: the arc has no sample with j={int(jj)} "
+                                 f"(j runs from {self.j[0]} to {self.j[-1]})")
+            ts = self.t[a:b]
+            tq = t[sel]
+            bad = (tq < ts[0]) | (tq > ts[-1])
+            if bad.any():
+                raise ValueError(
+                    f"{where}: (t={tq[bad][0]}, j={int(jj)}) is not in the hybrid time "
+                    f"domain (for j={int(jj)}, t lies in [{ts[0]}, {ts[-1]}])")
+            k = np.searchsorted(ts, tq, side="right") - 1
+            exact = ts[k] == tq
+            out[sel[exact]] = self.x[a + k[exact]]
+            if deriv and self.xdot is not None:
+                dout[sel[exact]] = self.xdot[a + k[exact]]
+            rest = np.flatnonzero(~exact)
+            if rest.size == 0:
+                continue
+            k0 = a + k[rest]          # tq strictly between samples k0 and k0 + 1
+            tr = tq[rest]
+            x0, x1 = self.x[k0], self.x[k0 + 1]
+            h = (self.t[k0 + 1] - self.t[k0])[:, None]
+            s = ((tr - self.t[k0]) / (self.t[k0 + 1] - self.t[k0]))[:, None]
+            val = (1 - s) * x0 + s * x1
+            if self.xdot is not None:
+                m0, m1 = self.xdot[k0], self.xdot[k0 + 1]
+                herm = np.all(np.isfinite(m0), axis=1) & np.all(np.isfinite(m1), axis=1)
+                if herm.any():
+                    s2 = s * s
+                    hv = ((1 + 2 * s) * (1 - s) ** 2 * x0 + s * (1 - s) ** 2 * h * m0
+                          + s2 * (3 - 2 * s) * x1 + s2 * (s - 1) * h * m1)
+                    val[herm] = hv[herm]
+                    if deriv:
+                        hd = ((6 * s2 - 6 * s) * (x0 - x1) / h
+                              + (3 * s2 - 4 * s + 1) * m0 + (3 * s2 - 2 * s) * m1)
+                        dsel = sel[rest[herm]]
+                        dout[dsel] = hd[herm]
+            if jj in dense:
+                starts, ends, sols = dense[int(jj)]
+                q = np.searchsorted(starts, tr, side="right") - 1
+                cov = (q >= 0) & (tr <= ends[np.maximum(q, 0)])
+                for sq in np.unique(q[cov]):
+                    pick = np.flatnonzero(cov & (q == sq))
+                    val[pick] = self._call_dense(sols[sq], tr[pick])
+            out[sel[rest]] = val
+        return out, dout
+
+    def _hybrid_times(self, t, j, where):
+        """Validate (t, j) of :meth:`at` into flat arrays; j=None: after jumps."""
+        try:
+            tt = np.asarray(t, dtype=float)
+        except (TypeError, ValueError):
+            raise TypeError(f"{where}: t must be a float or an array of floats, "
+                            f"got {type(t).__name__}") from None
+        flat = tt.ravel()
+        if not np.all(np.isfinite(flat)):
+            raise ValueError(f"{where}: t must be finite, got {flat[~np.isfinite(flat)][0]}")
+        self._nonempty(where)
+        if j is None:
+            k = np.searchsorted(self.t, flat, side="right") - 1
+            out = (k < 0) | (flat > self.t[-1])
+            if out.any():
+                raise ValueError(f"{where}: t={flat[out][0]} is outside the arc's time "
+                                 f"range [{self.t[0]}, {self.t[-1]}]")
+            jf = self.j[k]
+        else:
+            jarr = np.asarray(j)
+            if jarr.dtype.kind not in "iuf" or (jarr.dtype.kind == "f" and not np.all(
+                    np.mod(jarr, 1) == 0)):
+                raise TypeError(f"{where}: j must be an int or an array of ints, got {j!r}")
+            try:
+                jf = np.broadcast_to(jarr.astype(np.int64), tt.shape).ravel()
+            except ValueError:
+                raise ValueError(f"{where}: j must be a scalar or have the shape of t "
+                                 f"{tt.shape}, got shape {jarr.shape}") from None
+        return tt, flat, jf
+
+    def at(self, t, j=None):
+        """The state at hybrid time (t, j), interpolated.
+
+        Parameters
+        ----------
+        t : float or array_like of floats
+            Ordinary time(s).
+        j : int or array_like of int, optional
+            Jump count(s): a scalar, or one per time (the shape of ``t``).
+            ``None``: the last j at each t, i.e. the value after any jumps at t.
+
+        Returns
+        -------
+        ndarray
+            Shape (n,) for a scalar t, else ``np.shape(t) + (n,)``.
+
+        Notes
+        -----
+        At a stored sample's time the stored sample is returned. Between
+        samples the best available interpolant is used: the solver's dense
+        output where the run kept it (``simulate(..., dense=True)``), else a
+        cubic Hermite polynomial where both neighbouring samples have a finite
+        :attr:`xdot` (exact for polynomial flows of degree <= 3, e.g. a
+        falling ball), else linear interpolation.
+
+        Raises
+        ------
+        ValueError
+            When (t, j) is not in the hybrid time domain.
+
+        Examples
+        --------
+        >>> arc = HybridArc([0, 1, 1, 2], [0, 0, 1, 1], [[0], [1], [0], [1]], None)
+        >>> arc.at([0.25, 1.0, 1.5])[:, 0]
+        array([0.25, 0.  , 0.5 ])
+        >>> arc.at([1.0, 1.0], j=[0, 1])[:, 0]
+        array([1., 0.])
+        """
+        tt, flat, jf = self._hybrid_times(t, j, "at")
+        val, _ = self._interp(flat, jf, "at")
+        return val.reshape(tt.shape + (self.state_dim,))
+
+    __call__ = at
+
+    def interpolate(self, t_grid, at_jump="end"):
+        """The arc on a grid of ordinary time (HyEQ's ``interpolateToArray``).
+
+        Parameters
+        ----------
+        t_grid : array_like, shape (m,)
+            Non-decreasing finite times inside ``[arc.t0, arc.tf]``.
+        at_jump : {"end", "start", "mean", "nan", "both"}
+            The value at a time where the arc jumps: ``"end"`` after the
+            jumps, ``"start"`` before them, ``"mean"`` the average of the two,
+            ``"nan"`` NaN, ``"both"`` two rows (before, then after, with their
+            j). Elsewhere all rules agree.
+
+        Returns
+        -------
+        ArcValues
+            ``(t, j, x)``: t (m,) the grid (with ``"both"`` each jump time
+            twice), j (m,) the jump count used ("start": before the jumps;
+            "end", "mean", "nan": after), x (m, n).
+
+        Raises
+        ------
+        ValueError
+            For a grid outside the arc's time range, unsorted or not finite,
+            or an unknown ``at_jump``.
+
+        Examples
+        --------
+        >>> arc = HybridArc([0, 1, 1, 2], [0, 0, 1, 1], [[0], [1], [0], [1]], None)
+        >>> t, j, x = arc.interpolate([0.5, 1.0, 1.5], at_jump="mean")
+        >>> x[:, 0], j
+        (array([0.5, 0.5, 0.5]), array([0, 1, 1]))
+        >>> arc.interpolate([1.0], at_jump="both").j
+        array([0, 1])
+        """
+        if at_jump not in _AT_JUMP:
+            raise ValueError(f"interpolate: at_jump must be one of {_AT_JUMP}, "
+                             f"got {at_jump!r}")
+        try:
+            tg = np.asarray(t_grid, dtype=float)
+        except (TypeError, ValueError):
+            raise TypeError("interpolate: t_grid must be a 1-D array of floats, got "
+                            f"{type(t_grid).__name__}") from None
+        if tg.ndim == 0:
+            tg = tg.reshape(1)
+        if tg.ndim != 1:
+            raise ValueError(f"interpolate: t_grid must be 1-D, got shape {tg.shape}")
+        if not np.all(np.isfinite(tg)):
+            raise ValueError("interpolate: t_grid must be finite, got "
+                             f"{tg[~np.isfinite(tg)][0]}")
+        if np.any(np.diff(tg) < 0):
+            k = int(np.flatnonzero(np.diff(tg) < 0)[0])
+            raise ValueError(f"interpolate: t_grid must be sorted (non-decreasing); "
+                             f"t_grid[{k + 1}] = {tg[k + 1]} < t_grid[{k}] = {tg[k]}")
+        self._nonempty("interpolate")
+        if tg.size and (tg[0] < self.t[0] or tg[-1] > self.t[-1]):
+            v = tg[0] if tg[0] < self.t[0] else tg[-1]
+            raise ValueError(f"interpolate: t_grid value {v} is outside the arc's time "
+                             f"range [{self.t[0]}, {self.t[-1]}]")
+        j_start = self.j[np.searchsorted(self.t, tg, side="left")]
+        j_end = self.j[np.searchsorted(self.t, tg, side="right") - 1]
+        if at_jump == "both":
+            rep = 1 + (j_start != j_end)
+            t_out = np.repeat(tg, rep)
+            j_out = np.repeat(j_end, rep)
+            first = np.cumsum(rep) - rep
+            j_out[first] = j_start
+            x, _ = self._interp(t_out, j_out, "interpolate")
+            return ArcValues(t_out, j_out, x)
+        if at_jump == "start":
+            x, _ = self._interp(tg, j_start, "interpolate")
+            return ArcValues(tg, j_start, x)
+        x, _ = self._interp(tg, j_end, "interpolate")
+        jumps = j_start != j_end
+        if jumps.any():
+            if at_jump == "nan":
+                x[jumps] = np.nan
+            elif at_jump == "mean":
+                xs, _ = self._interp(tg[jumps], j_start[jumps], "interpolate")
+                x[jumps] = 0.5 * (x[jumps] + xs)
+        return ArcValues(tg, j_end, x)
+
+    def evaluate(self, fn):
+        """Evaluate ``fn(x, t, j)`` (or ``fn(x)``, ``fn(x, t)``) at every sample.
+
+        Returns an array of shape (N, ...) stacking the results.
+
+        Examples
+        --------
+        >>> arc = HybridArc([0, 1], [0, 0], [[1.0], [2.0]], None)
+        >>> arc.evaluate(lambda x, t: x[0] + t)
+        array([1., 3.])
+        """
+        from .system import as_map
+        f = as_map(fn, "fn")
+        return np.array([np.asarray(f(x, t, j, None)) for x, t, j in
+                         zip(self.x, self.t, self.j)])
+
+    def transform(self, fn):
+        """A new arc with the state replaced by ``fn(x, t, j)`` at each sample.
+
+        Parameters
+        ----------
+        fn : callable
+            ``fn(x)``, ``fn(x, t)`` or ``fn(x, t, j)`` returning a scalar or a
+            1-D array of the same length at every sample.
+
+        Returns
+        -------
+        HybridArc
+            Same t, j, termination and stats; x of shape (N, m). Dense
+            outputs are mapped through ``fn`` (so :meth:`at` stays exact);
+            xdot, components and the system are dropped (they describe the
+            original state).
+
+        Examples
+        --------
+        >>> arc = HybridArc([0, 1], [0, 0], [[3.0, 4.0], [0.0, 1.0]], None)
+        >>> arc.transform(lambda x: np.hypot(*x)).x[:, 0]
+        array([5., 1.])
+        """
+        from .system import as_map
+        f = as_map(fn, "transform: fn")
+
+        def row(x, t, j):
+            y = np.asarray(f(x, t, j, None))
+            if np.iscomplexobj(y):
+                raise ValueError(f"transform: fn returned complex values at t={t}, j={j}")
+            if y.ndim > 1:
+                raise ValueError(f"transform: fn must return a scalar or a 1-D array, "
+                                 f"got shape {y.shape} at t={t}, j={j}")
+            return np.atleast_1d(y).astype(float)
+
+        rows = [row(x, t, j) for x, t, j in zip(self.x, self.t, self.j)]
+        if rows and len({r.shape for r in rows}) > 1:
+            raise ValueError("transform: fn must return arrays of one length, got "
+                             f"lengths {sorted({len(r) for r in rows})}")
+        X = np.array(rows, dtype=float) if rows else np.zeros((0, 0))
+        segs = None if not self._segments else [
+            (a, b, jj, _Mapped(sol, row, jj)) for (a, b, jj, sol) in self._segments]
+        arc = self._like(self.t, self.j, X, keep=False, segments=segs)
+        arc.system_description = None
+        return arc
+
     # ------------------------------------------------------------ selection
     def _subset(self, mask):
         mask = np.asarray(mask, dtype=bool)
-        return HybridArc(self.t[mask], self.j[mask], self.x[mask], self.termination,
-                         self.message, self.exception, self.components,
-                         self._segments, self.system)
+        return self._like(self.t[mask], self.j[mask], self.x[mask],
+                          xdot=None if self.xdot is None else self.xdot[mask])
+
+    @staticmethod
+    def _window(w, what, where, integer):
+        """``(lo, hi)`` from a pair (None: unbounded) or, for j, one int."""
+        if w is None:
+            return -math.inf, math.inf
+        if integer and isinstance(w, (numbers.Integral, np.integer)) \
+                and not isinstance(w, bool):
+            return int(w), int(w)
+        if isinstance(w, (str, bytes)) or np.ndim(w) != 1 or len(w) != 2:
+            kind = "int j or a pair (lo, hi) of ints" if integer else \
+                "pair (a, b) of times (a closed interval)"
+            hint = "" if integer else (
+                f"; for the state at one time use arc.at({w!r})"
+                if isinstance(w, numbers.Real) else "")
+            raise TypeError(f"{where}: {what} must be a {kind}, got {w!r}{hint}")
+        lo, hi = w
+        out = []
+        for v, inf in ((lo, -math.inf), (hi, math.inf)):
+            if v is None:
+                out.append(inf)
+                continue
+            if not isinstance(v, (numbers.Real, np.integer, np.floating)) \
+                    or isinstance(v, bool) or math.isnan(v):
+                raise TypeError(f"{where}: {what} bounds must be numbers or None, "
+                                f"got {w!r}")
+            if integer and v != math.floor(v) and math.isfinite(v):
+                raise TypeError(f"{where}: {what} bounds must be ints, got {w!r}")
+            out.append(float(v))
+        if out[0] > out[1]:
+            raise ValueError(f"{where}: {what} = {w!r} is empty (lower bound above "
+                             f"upper bound)")
+        return out[0], out[1]
+
+    def restrict(self, t=None, j=None):
+        """The arc on a window of hybrid time: t in [a, b] and j in [lo, hi].
+
+        Parameters
+        ----------
+        t : (float, float), optional
+            Closed interval [a, b] of ordinary time (``None`` for an open end).
+        j : int or (int, int), optional
+            One jump count, or a closed range of them.
+
+        Returns
+        -------
+        HybridArc
+            The stored samples in the window, plus samples interpolated (as by
+            :meth:`at`) at a and b where they fall inside a flow between
+            stored samples; empty (0 samples) when the window does not meet
+            the hybrid time domain. Termination, components, system, dense
+            outputs and stats are kept. Never raises for a valid window.
+
+        Examples
+        --------
+        >>> arc = HybridArc([0, 1, 1, 2], [0, 0, 1, 1], [[0], [1], [0], [1]], None)
+        >>> r = arc.restrict(t=(0.5, 1.5))
+        >>> r.t, r.j, r.x[:, 0]
+        (array([0.5, 1. , 1. , 1.5]), array([0, 0, 1, 1]), array([0.5, 1. , 0. , 0.5]))
+        >>> len(arc.restrict(t=(0.2, 0.4), j=1))
+        0
+        """
+        a, b = self._window(t, "t", "restrict", integer=False)
+        lo, hi = self._window(j, "j", "restrict", integer=True)
+        mask = (self.t >= a) & (self.t <= b) & (self.j >= lo) & (self.j <= hi)
+        extra_t = []
+        if len(self.t):
+            for s in sorted({a, b}):
+                if not (self.t[0] < s < self.t[-1]):
+                    continue
+                k = int(np.searchsorted(self.t, s, side="right")) - 1
+                if self.t[k] != s and lo <= self.j[k] <= hi:
+                    extra_t.append(s)  # strictly inside the flow of sample k
+        if not extra_t:
+            return self._subset(mask)
+        et = np.array(extra_t)
+        ej = self.j[np.searchsorted(self.t, et, side="right") - 1]
+        ex, ed = self._interp(et, ej, "restrict", deriv=self.xdot is not None)
+        idx = np.flatnonzero(mask)
+        T = np.concatenate((self.t[idx], et))
+        J = np.concatenate((self.j[idx], ej))
+        X = np.concatenate((self.x[idx], ex))
+        order = np.lexsort((J, T))
+        XD = None if self.xdot is None else np.concatenate((self.xdot[idx], ed))[order]
+        return self._like(T[order], J[order], X[order], xdot=XD)
 
     def select(self, t=None, j=None):
-        """The samples with t in ``t`` and j in ``j``.
+        """The arc on a window of hybrid time; like :meth:`restrict` but raises
+        when the window does not meet the hybrid time domain.
 
         Parameters
         ----------
@@ -134,77 +787,40 @@ class HybridArc:
             Closed interval [a, b] of ordinary time.
         j : int or (int, int), optional
             One jump count, or a closed range of them.
+
+        Raises
+        ------
+        TypeError
+            When ``t`` is not an (a, b) pair (``select(t=5)``).
+        ValueError
+            When no (t, j) of the arc's domain lies in the window.
+
+        Examples
+        --------
+        >>> arc = HybridArc([0, 1, 1, 2], [0, 0, 1, 1], [[0], [1], [0], [1]], None)
+        >>> arc.select(j=1).t
+        array([1., 2.])
         """
-        mask = np.ones(len(self.t), dtype=bool)
-        if t is not None:
-            a, b = t
-            mask &= (self.t >= a) & (self.t <= b)
-        if j is not None:
-            if np.ndim(j) == 0:
-                mask &= self.j == j
-            else:
-                lo, hi = j
-                mask &= (self.j >= lo) & (self.j <= hi)
-        if not mask.any():
-            raise ValueError(f"select: no sample with t in {t} and j in {j}")
-        return self._subset(mask)
-
-    def at(self, t, j=None):
-        """The state at hybrid time (t, j), interpolated.
-
-        With ``j=None`` the last sample at t is used (after any jumps at t).
-        Interpolation uses the solver's dense output where the run kept it
-        (``simulate(..., dense=True)``), else it is linear between samples.
-        """
-        t = float(t)
-        if j is None:
-            k = np.searchsorted(self.t, t, side="right") - 1
-            if k < 0 or t > self.t[-1]:
-                raise ValueError(f"at: t={t} is outside the arc's time range "
-                                 f"[{self.t[0]}, {self.t[-1]}]")
-            j = int(self.j[k])
-        idx = np.flatnonzero(self.j == j)
-        if idx.size == 0:
-            raise ValueError(f"at: the arc has no sample with j={j}")
-        ts = self.t[idx]
-        if t < ts[0] or t > ts[-1]:
-            raise ValueError(f"at: (t={t}, j={j}) is not in the hybrid time domain "
-                             f"(for j={j}, t lies in [{ts[0]}, {ts[-1]}])")
-        if self._segments:
-            starts = self.__dict__.get("_seg_starts")
-            if starts is None:
-                starts = self.__dict__["_seg_starts"] = [sg[0] for sg in self._segments]
-            k = bisect.bisect_right(starts, t) - 1
-            # the segment of this j covering t (at a jump time, step back to it)
-            while k >= 0 and self._segments[k][1] >= t:
-                a, b, jj, sol = self._segments[k]
-                if jj == j and a <= t <= b:
-                    return np.asarray(sol(t), dtype=float)
-                if jj < j:
-                    break
-                k -= 1
-        k = np.searchsorted(ts, t, side="right") - 1
-        k = min(k, len(ts) - 2) if len(ts) > 1 else 0
-        if len(ts) == 1 or ts[k + 1] == ts[k]:
-            return self.x[idx[k]].copy()
-        w = (t - ts[k]) / (ts[k + 1] - ts[k])
-        return (1 - w) * self.x[idx[k]] + w * self.x[idx[k + 1]]
-
-    __call__ = at
-
-    def evaluate(self, fn):
-        """Evaluate ``fn(x, t, j)`` (or ``fn(x)``, ``fn(x, t)``) at every sample.
-
-        Returns an array of shape (N, ...) stacking the results.
-        """
-        from .system import as_map
-        f = as_map(fn, "fn")
-        return np.array([np.asarray(f(x, t, j, None)) for x, t, j in
-                         zip(self.x, self.t, self.j)])
+        r = self.restrict(t, j)
+        if len(r) == 0:
+            dom = ("the arc is empty" if len(self.t) == 0 else
+                   f"the arc has t in [{self.t[0]}, {self.t[-1]}], j in "
+                   f"[{self.j[0]}, {self.j[-1]}]")
+            raise ValueError(f"select: no sample with t in {t} and j in {j}: the window "
+                             f"does not meet the hybrid time domain ({dom})")
+        return r
 
     # ---------------------------------------------------------- components
     def component(self, name):
-        """The part of an interconnection's state named ``name``, as an arc."""
+        """The part of an interconnection's state named ``name``, as an arc.
+
+        Examples
+        --------
+        >>> arc = HybridArc([0.0], [0], [[1.0, 2.0]], None,
+        ...                 components={"a": slice(0, 1), "b": slice(1, 2)})
+        >>> arc["b"].x
+        array([[2.]])
+        """
         if not self.components:
             raise KeyError("component: this arc is not the solution of an "
                            "interconnection (it has no named components)")
@@ -212,28 +828,47 @@ class HybridArc:
             raise KeyError(f"component: no component named {name!r}; "
                            f"have {list(self.components)}")
         sl = self.components[name]
-        sub = self.system.systems[name] if self.system is not None and hasattr(self.system, "systems") else None
+        sub = self.system.systems[name] if self.system is not None and hasattr(
+            self.system, "systems") else None
         segs = None if not self._segments else [
             (a, b, j, _Sliced(sol, sl)) for (a, b, j, sol) in self._segments]
-        return HybridArc(self.t, self.j, self.x[:, sl], self.termination, self.message,
-                         self.exception, getattr(sub, "components", None), segs, sub)
+        arc = self._like(self.t, self.j, self.x[:, sl], keep=False, segments=segs,
+                         components=getattr(sub, "components", None), system=sub,
+                         xdot=None if self.xdot is None else self.xdot[:, sl])
+        if sub is None and self.system_description is not None:
+            arc.system_description = f"component {name!r} of {self.system_description}"
+        return arc
 
     def __getitem__(self, name):
         return self.component(name)
 
+    def _dropped(self, what):
+        if self.system_description is not None:
+            return (f"{what}: this arc no longer holds its system ({self.system_description}):"
+                    f" it was dropped when the arc was pickled because it does not pickle"
+                    f" (e.g. it holds a lambda); keep the system and evaluate "
+                    f"arc.evaluate(system.output), or define its maps as module-level "
+                    f"functions or methods")
+        return (f"{what}: the arc does not know its system (built by hand or loaded "
+                f"from a file); evaluate arc.evaluate(system.output) instead")
+
     def outputs(self, name=None):
         """The output map evaluated along the arc, shape (N, q).
 
-        ``name`` selects a component of an interconnection.
+        ``name`` selects a component of an interconnection. Needs the system:
+        an arc loaded from a file, or pickled with a system that does not
+        pickle, raises a ``ValueError`` saying so.
         """
-        if name is not None and hasattr(self.system, "outputs"):
+        if name is not None and self.system is not None and hasattr(self.system, "outputs"):
             # through the interconnection: feedthrough outputs see their inputs
             out = self.system.outputs
             return np.array([np.atleast_1d(np.asarray(out(x, t, j)[name], dtype=float))
                              for x, t, j in zip(self.x, self.t, self.j)])
+        if self.system is None:
+            raise ValueError(self._dropped("outputs"))
         arc = self.component(name) if name is not None else self
         if arc.system is None:
-            raise ValueError("outputs: the arc does not know its system")
+            raise ValueError(arc._dropped("outputs"))
         c = arc.system._compile()
         if c.h_u:
             raise ValueError("outputs: this system's output reads its input u, which the "
@@ -241,26 +876,240 @@ class HybridArc:
         return np.array([np.atleast_1d(np.asarray(c.h(x, t, j, None), dtype=float))
                          for x, t, j in zip(arc.x, arc.t, arc.j)])
 
+    # ----------------------------------------------------------------- checks
+    def validate(self, where="validate"):
+        """Check the invariants of a hybrid arc; return self, or raise ValueError.
+
+        t finite and non-decreasing; j integer, increasing by 0 or 1; a jump
+        (j + 1) at the same t as the sample before it; x finite (except a
+        last sample of a run that ended ``NON_FINITE``); xdot of x's shape.
+
+        Examples
+        --------
+        >>> HybridArc([0, 1], [0, 0], [[0], [1]], None).validate().t
+        array([0., 1.])
+        """
+        t, j, x = self.t, self.j, self.x
+        if not np.all(np.isfinite(t)):
+            k = int(np.flatnonzero(~np.isfinite(t))[0])
+            raise ValueError(f"{where}: t[{k}] = {t[k]} is not finite")
+        dt = np.diff(t)
+        if np.any(dt < 0):
+            k = int(np.flatnonzero(dt < 0)[0])
+            raise ValueError(f"{where}: t goes backwards at sample {k + 1} "
+                             f"(t[{k}] = {t[k]}, t[{k + 1}] = {t[k + 1]})")
+        dj = np.diff(j)
+        if np.any((dj != 0) & (dj != 1)):
+            k = int(np.flatnonzero((dj != 0) & (dj != 1))[0])
+            raise ValueError(f"{where}: j must increase by 0 or 1 between samples; "
+                             f"j[{k}] = {j[k]}, j[{k + 1}] = {j[k + 1]}")
+        if np.any((dj == 1) & (dt != 0)):
+            k = int(np.flatnonzero((dj == 1) & (dt != 0))[0])
+            raise ValueError(f"{where}: the jump at sample {k + 1} (j {j[k]} -> {j[k + 1]}) "
+                             f"changes t ({t[k]} -> {t[k + 1]}); a jump keeps t")
+        finite = np.all(np.isfinite(x), axis=1)
+        if not finite.all():
+            k = int(np.flatnonzero(~finite)[0])
+            if not (k == len(t) - 1 and self.termination is Termination.NON_FINITE):
+                raise ValueError(f"{where}: x[{k}] (t = {t[k]}, j = {j[k]}) is not finite: "
+                                 f"{x[k]}")
+        if self.xdot is not None and self.xdot.shape != x.shape:
+            raise ValueError(f"{where}: xdot has shape {self.xdot.shape}, x {x.shape}")
+        return self
+
     # ----------------------------------------------------------------- I/O
+    @staticmethod
+    def _npz_path(path):
+        if hasattr(path, "write") or hasattr(path, "read"):
+            return path
+        p = Path(os.fspath(path))
+        return p if p.suffix == ".npz" else p.with_name(p.name + ".npz")
+
     def save(self, path):
-        """Save the samples and termination cause to an ``.npz`` file."""
-        comps = {} if not self.components else {
-            k: (s.start, s.stop) for k, s in self.components.items()}
-        np.savez_compressed(path, t=self.t, j=self.j, x=self.x,
-                            termination=np.array(self.termination.name if self.termination else ""),
-                            message=np.array(self.message),
-                            comp_names=np.array(list(comps), dtype=str),
-                            comp_bounds=np.array(list(comps.values()), dtype=np.int64).reshape(-1, 2))
+        """Save the arc to an ``.npz`` file (format :data:`FORMAT_VERSION`).
+
+        Parameters
+        ----------
+        path : str, path-like or binary file
+            ``.npz`` is appended when missing (as :meth:`load` does).
+
+        Returns
+        -------
+        pathlib.Path or the file object
+            Where the arc was written.
+
+        Notes
+        -----
+        Stores t, j, x, the termination and message, the components (any
+        names of str, int, float or tuples of them), xdot and stats (as JSON)
+        when present, and the system's description. Not stored: the system,
+        the dense outputs, the exception (its text is in the message).
+
+        Examples
+        --------
+        >>> import tempfile, os
+        >>> arc = HybridArc([0, 1], [0, 0], [[0.0], [1.0]], Termination.T_MAX)
+        >>> d = tempfile.mkdtemp()
+        >>> arc.save(os.path.join(d, "run")).name
+        'run.npz'
+        >>> HybridArc.load(os.path.join(d, "run")).x[:, 0]
+        array([0., 1.])
+        """
+        target = self._npz_path(path)
+        comps = [] if not self.components else [
+            [_encode_name(k), s.start, s.stop] for k, s in self.components.items()]
+        data = dict(
+            format_version=np.array(FORMAT_VERSION, dtype=np.int64),
+            t=self.t, j=self.j, x=self.x,
+            termination=np.array(self.termination.name if self.termination else ""),
+            message=np.array(self.message or ""),
+            components=np.array(json.dumps(comps)),
+            stats=np.array("" if self.stats is None else
+                           json.dumps(self.stats, default=_json_default)),
+            system_description=np.array(self.system_description or ""))
+        if self.xdot is not None:
+            data["xdot"] = self.xdot
+        np.savez_compressed(target, **data)
+        return target
 
     @classmethod
     def load(cls, path):
-        """Load an arc written by :meth:`save`."""
-        with np.load(path, allow_pickle=False) as d:
-            term = str(d["termination"])
-            comps = {str(k): slice(int(a), int(b)) for k, (a, b) in
-                     zip(d["comp_names"], d["comp_bounds"])} or None
-            return cls(d["t"], d["j"], d["x"], Termination[term] if term else None,
-                       str(d["message"]), components=comps)
+        """Load and validate an arc written by :meth:`save`.
+
+        Parameters
+        ----------
+        path : str, path-like or binary file
+            When ``path`` does not exist and ``path + ".npz"`` does, that file.
+
+        Returns
+        -------
+        HybridArc
+            With ``system`` None (``system_description`` says what it was).
+
+        Raises
+        ------
+        FileNotFoundError
+            When neither ``path`` nor ``path.npz`` exists.
+        ValueError
+            Naming the path: a truncated or corrupt file, not an ``.npz``
+            archive, missing keys (naming them and the format version found),
+            a newer format, wrong shapes, t not finite or going backwards, j
+            not integer or not increasing by 0 or 1, a jump that changes t,
+            non-finite x, an unknown termination name. Pickled objects are
+            never loaded.
+
+        Examples
+        --------
+        See :meth:`save`.
+        """
+        if hasattr(path, "read"):
+            src, name = path, getattr(path, "name", repr(path))
+        else:
+            p = Path(os.fspath(path))
+            if not p.exists() and p.suffix != ".npz" and p.with_name(p.name + ".npz").exists():
+                p = p.with_name(p.name + ".npz")
+            if not p.exists():
+                raise FileNotFoundError(f"load: no such file {str(p)!r}"
+                                        + ("" if p.suffix == ".npz" else " (nor with .npz)"))
+            src, name = p, str(p)
+
+        def bad(msg):
+            return ValueError(f"load: {name!r}: {msg}")
+
+        corrupt = (zipfile.BadZipFile, EOFError, zlib.error, OSError, ValueError,
+                   KeyError, UnicodeDecodeError)
+        try:
+            d = np.load(src, allow_pickle=False)
+        except FileNotFoundError:
+            raise
+        except corrupt as e:
+            raise bad(f"not a readable HybridArc .npz file (truncated or corrupt?): "
+                      f"{type(e).__name__}: {e}") from e
+        if not isinstance(d, np.lib.npyio.NpzFile):
+            raise bad("not an .npz archive (a single .npy array?); expected a file "
+                      "written by HybridArc.save")
+        with d:
+            try:
+                keys = set(d.files)
+                version = int(d["format_version"]) if "format_version" in keys else 1
+                if version > FORMAT_VERSION:
+                    raise bad(f"format version {version} was written by a newer hybridsim; "
+                              f"this one reads versions 1 to {FORMAT_VERSION}")
+                need = _KEYS_V1 if version == 1 else _KEYS_V2
+                missing = [k for k in need if k not in keys]
+                if missing:
+                    found = (f"format version {version}" if "format_version" in keys
+                             else "no format_version key (version 1 layout)")
+                    raise bad(f"missing {missing} for format version {version} ({found}); "
+                              f"present: {sorted(keys)}")
+                arr = {k: d[k] for k in keys}
+            except ValueError as e:
+                if str(e).startswith("load:"):
+                    raise
+                raise bad(f"corrupt content (truncated or not written by "
+                          f"HybridArc.save?): {type(e).__name__}: {e}") from e
+            except corrupt as e:
+                raise bad(f"truncated or corrupt file: {type(e).__name__}: {e}") from e
+        return cls._from_arrays(arr, version, bad)
+
+    @classmethod
+    def _from_arrays(cls, d, version, bad):
+        def scalar_str(key):
+            v = d[key]
+            if v.shape != () or v.dtype.kind not in "US":
+                raise bad(f"{key} must be a string, got dtype {v.dtype}, shape {v.shape}")
+            return str(v)
+
+        t, j, x = d["t"], d["j"], d["x"]
+        if t.dtype.kind not in "iuf" or t.ndim != 1:
+            raise bad(f"t must be a 1-D float array, got dtype {t.dtype}, shape {t.shape}")
+        if j.dtype.kind not in "iuf" or j.shape != t.shape:
+            raise bad(f"j must be an integer array of shape {t.shape}, got dtype "
+                      f"{j.dtype}, shape {j.shape}")
+        if x.dtype.kind not in "iuf" or x.ndim != 2 or len(x) != len(t):
+            raise bad(f"x must be a float array of shape (N, n) with N = {len(t)}, got "
+                      f"dtype {x.dtype}, shape {x.shape}")
+        if len(j) and (not np.all(np.isfinite(j)) or np.any(np.mod(j, 1) != 0)):
+            raise bad("j must hold integers (jump counts)")
+        term = scalar_str("termination")
+        if term and term not in Termination.__members__:
+            raise bad(f"unknown termination {term!r}; known: {list(Termination.__members__)}")
+        message = scalar_str("message")
+        comps = None
+        if version == 1:
+            names, bounds = d["comp_names"], d["comp_bounds"]
+            if bounds.ndim != 2 or bounds.shape[1:] != (2,) or len(bounds) != len(names):
+                raise bad(f"comp_bounds must have shape ({len(names)}, 2), got {bounds.shape}")
+            comps = {str(k): slice(int(a), int(b)) for k, (a, b) in zip(names, bounds)} or None
+            xdot, stats, desc = None, None, None
+        else:
+            try:
+                raw = json.loads(scalar_str("components"))
+                comps = {_decode_name(k): slice(int(a), int(b)) for k, a, b in raw} or None
+                s = scalar_str("stats")
+                stats = json.loads(s) if s else None
+            except (json.JSONDecodeError, TypeError, ValueError, KeyError) as e:
+                raise bad(f"components/stats are not valid JSON of the expected form: {e}")
+            if stats is not None and not isinstance(stats, dict):
+                raise bad(f"stats must be a JSON object, got {type(stats).__name__}")
+            xdot = d.get("xdot")
+            if xdot is not None and xdot.shape != x.shape:
+                raise bad(f"xdot must have the shape of x {x.shape}, got {xdot.shape}")
+            desc = scalar_str("system_description") or None
+        if comps:
+            n = x.shape[1]
+            for k, sl in comps.items():
+                if not (0 <= sl.start <= sl.stop <= n):
+                    raise bad(f"component {k!r} has bounds ({sl.start}, {sl.stop}) outside "
+                              f"the state of length {n}")
+        arc = cls(t, j, x, Termination[term] if term else None, message,
+                  components=comps, xdot=xdot, stats=stats)
+        arc.system_description = desc
+        try:
+            arc.validate("")
+        except ValueError as e:
+            raise bad(str(e).lstrip(": ")) from None
+        return arc
 
     def to_pandas(self, names=None):
         """A pandas DataFrame with columns t, j and one per state component.
@@ -297,3 +1146,19 @@ class _Sliced:
 
     def __call__(self, t):
         return np.asarray(self.sol(t))[self.sl]
+
+
+class _Mapped:
+    """A dense output mapped through ``fn(x, t, j)`` (see :meth:`HybridArc.transform`)."""
+
+    __slots__ = ("sol", "fn", "j")
+
+    def __init__(self, sol, fn, j):
+        self.sol, self.fn, self.j = sol, fn, j
+
+    def __call__(self, t):
+        if np.ndim(t) == 0:
+            return self.fn(np.asarray(self.sol(t), dtype=float), float(t), self.j)
+        t = np.asarray(t, dtype=float)
+        return np.stack([self.fn(np.asarray(self.sol(s), dtype=float), float(s), self.j)
+                         for s in t], axis=1)
