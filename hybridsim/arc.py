@@ -498,6 +498,48 @@ class HybridArc:
                                  f"{tt.shape}, got shape {jarr.shape}") from None
         return tt, flat, jf
 
+    def _at_scalar(self, t, j):
+        """:meth:`at` for one float t and an int j or None (the fast path)."""
+        T = self.t
+        if not math.isfinite(t):
+            raise ValueError(f"at: t must be finite, got {t}")
+        self._nonempty("at")
+        if j is None:
+            k = int(np.searchsorted(T, t, side="right")) - 1
+            if k < 0 or t > T[-1]:
+                raise ValueError(f"at: t={t} is outside the arc's time range "
+                                 f"[{T[0]}, {T[-1]}]")
+            j = int(self.j[k])
+        else:
+            j = int(j)
+        a = int(np.searchsorted(self.j, j, side="left"))
+        b = int(np.searchsorted(self.j, j, side="right"))
+        if a == b:
+            raise ValueError(f"at: the arc has no sample with j={j} "
+                             f"(j runs from {self.j[0]} to {self.j[-1]})")
+        if t < T[a] or t > T[b - 1]:
+            raise ValueError(f"at: (t={t}, j={j}) is not in the hybrid time domain "
+                             f"(for j={j}, t lies in [{T[a]}, {T[b - 1]}])")
+        k = a + int(np.searchsorted(T[a:b], t, side="right")) - 1
+        if T[k] == t:
+            return self.x[k].copy()
+        if self._segments:
+            seg = self._dense_index().get(j)
+            if seg is not None:
+                q = int(np.searchsorted(seg[0], t, side="right")) - 1
+                if q >= 0 and t <= seg[1][q]:
+                    return np.asarray(seg[2][q](t), dtype=float).reshape(self.state_dim)
+        h = T[k + 1] - T[k]
+        w = (t - T[k]) / h
+        x0, x1 = self.x[k], self.x[k + 1]
+        if self.xdot is not None:
+            m0, m1 = self.xdot[k], self.xdot[k + 1]
+            if np.isfinite(m0).all() and np.isfinite(m1).all():
+                w2 = w * w
+                return ((1 + 2 * w) * (1 - w) ** 2 * x0 + w * (1 - w) ** 2 * h * m0
+                        + w2 * (3 - 2 * w) * x1 + w2 * (w - 1) * h * m1)
+        return (1 - w) * x0 + w * x1
+
     def at(self, t, j=None):
         """The state at hybrid time (t, j), interpolated.
 
@@ -536,6 +578,9 @@ class HybridArc:
         >>> arc.at([1.0, 1.0], j=[0, 1])[:, 0]
         array([1., 0.])
         """
+        if isinstance(t, (float, int, np.floating, np.integer)) and not isinstance(t, bool) \
+                and (j is None or isinstance(j, (int, np.integer))):
+            return self._at_scalar(float(t), j)
         tt, flat, jf = self._hybrid_times(t, j, "at")
         val, _ = self._interp(flat, jf, "at")
         return val.reshape(tt.shape + (self.state_dim,))
@@ -845,12 +890,13 @@ class HybridArc:
     def _dropped(self, what):
         if self.system_description is not None:
             return (f"{what}: this arc no longer holds its system ({self.system_description}):"
-                    f" it was dropped when the arc was pickled because it does not pickle"
-                    f" (e.g. it holds a lambda); keep the system and evaluate "
-                    f"arc.evaluate(system.output), or define its maps as module-level "
-                    f"functions or methods")
-        return (f"{what}: the arc does not know its system (built by hand or loaded "
-                f"from a file); evaluate arc.evaluate(system.output) instead")
+                    f" an arc loaded from a file, or pickled with a system that does not "
+                    f"pickle (e.g. one holding a lambda), keeps only its description; "
+                    f"evaluate arc.evaluate(system.output) with the system at hand, or "
+                    f"write the system's maps as module-level functions or methods so "
+                    f"that it pickles")
+        return (f"{what}: the arc does not know its system (built without one); "
+                f"evaluate arc.evaluate(system.output) instead")
 
     def outputs(self, name=None):
         """The output map evaluated along the arc, shape (N, q).
