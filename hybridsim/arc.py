@@ -249,6 +249,15 @@ class HybridArc:
         new._cache = {}
         return new
 
+    def __deepcopy__(self, memo):
+        import copy
+        new = object.__new__(HybridArc)
+        memo[id(self)] = new
+        state = {k: v for k, v in self.__dict__.items() if k != "_cache"}
+        new.__dict__.update(copy.deepcopy(state, memo))
+        new._cache = {}
+        return new
+
     def __getstate__(self):
         """Pickle state: the system and dense outputs only when they pickle."""
         state = self.__dict__.copy()

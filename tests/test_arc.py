@@ -105,3 +105,26 @@ def test_component_errors(arc):
 def test_constructor_checks_shapes():
     with pytest.raises(ValueError, match=r"expected t \(N,\), j \(N,\), x \(N, n\)"):
         hs.HybridArc([0, 1], [0, 0], np.zeros((3, 2)), hs.Termination.T_MAX)
+
+
+def test_issue_reproductions_have_clear_answers(arc):
+    """Issues 12 and 16: array at(), a window without samples, list(arc), select(t=5)."""
+    v = arc.at(np.array([0.1, 0.2]))
+    np.testing.assert_allclose(v[:, 0], 1 - 0.5 * 9.81 * np.array([0.01, 0.04]), atol=1e-10)
+    k = np.flatnonzero(np.diff(arc.t) > 1e-3)[0]          # a gap between two samples
+    a, b = arc.t[k] + 1e-4, arc.t[k + 1] - 1e-4
+    w = arc.select(t=(a, b))
+    np.testing.assert_array_equal(w.t, [a, b])
+    np.testing.assert_allclose(w.x, arc.at([a, b], arc.j[k]), atol=0)
+    with pytest.raises(TypeError, match="not iterable"):
+        list(arc)
+    with pytest.raises(TypeError, match=r"pair \(a, b\)"):
+        arc.select(t=5)
+
+
+def test_copies_keep_the_system(arc):
+    import copy
+    for c in (copy.copy(arc), copy.deepcopy(arc)):
+        assert c.system is not None
+        np.testing.assert_array_equal(c.x, arc.x)
+        np.testing.assert_array_equal(c.at(0.2), arc.at(0.2))

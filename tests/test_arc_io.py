@@ -257,3 +257,24 @@ def test_invalid_content_is_named(ball, tmp_path, change, message):
     p = write(tmp_path / "bad.npz", **f)
     with pytest.raises(ValueError, match=r"load: '.*bad.npz': " + message):
         hs.HybridArc.load(p)
+
+
+def make_lambda_ball(restitution):
+    """Module-level (picklable) factory of a system that holds lambdas."""
+    return hs.HybridSystem.from_functions(
+        f=lambda x: np.array([x[1], -9.81]),
+        g=lambda x: np.array([0.0, -restitution * x[1]]),
+        C=lambda x: x[0] >= 0, D=lambda x: x[0] <= 0 and x[1] <= 0, state_dim=2)
+
+
+def test_sweep_over_a_process_pool_returns_every_arc():
+    from concurrent.futures import ProcessPoolExecutor
+    params = [0.5, 0.8]
+    with ProcessPoolExecutor(max_workers=1) as ex:
+        arcs = hs.sweep(make_lambda_ball, params, [1.0, 0.0], t_max=2.0, j_max=2,
+                        executor=ex)
+    serial = hs.sweep(make_lambda_ball, params, [1.0, 0.0], t_max=2.0, j_max=2)
+    assert len(arcs) == 2
+    for b, a in zip(arcs, serial):
+        assert_same_samples(b, a)
+        assert b.system is None and "HybridSystem" in b.system_description
