@@ -755,12 +755,12 @@ class HybridArc:
                 and not isinstance(w, bool):
             return int(w), int(w)
         if isinstance(w, (str, bytes)) or np.ndim(w) != 1 or len(w) != 2:
-            kind = "int j or a pair (lo, hi) of ints" if integer else \
-                "pair (a, b) of times (a closed interval)"
+            kind = "an int or a pair (lo, hi) of ints" if integer else \
+                "a pair (a, b) of times (a closed interval)"
             hint = "" if integer else (
                 f"; for the state at one time use arc.at({w!r})"
                 if isinstance(w, numbers.Real) else "")
-            raise TypeError(f"{where}: {what} must be a {kind}, got {w!r}{hint}")
+            raise TypeError(f"{where}: {what} must be {kind}, got {w!r}{hint}")
         lo, hi = w
         out = []
         for v, inf in ((lo, -math.inf), (hi, math.inf)):
@@ -807,8 +807,11 @@ class HybridArc:
         >>> len(arc.restrict(t=(0.2, 0.4), j=1))
         0
         """
-        a, b = self._window(t, "t", "restrict", integer=False)
-        lo, hi = self._window(j, "j", "restrict", integer=True)
+        return self._restrict(t, j, "restrict")
+
+    def _restrict(self, t, j, where):
+        a, b = self._window(t, "t", where, integer=False)
+        lo, hi = self._window(j, "j", where, integer=True)
         mask = (self.t >= a) & (self.t <= b) & (self.j >= lo) & (self.j <= hi)
         extra_t = []
         if len(self.t):
@@ -822,7 +825,7 @@ class HybridArc:
             return self._subset(mask)
         et = np.array(extra_t)
         ej = self.j[np.searchsorted(self.t, et, side="right") - 1]
-        ex, ed = self._interp(et, ej, "restrict", deriv=self.xdot is not None)
+        ex, ed = self._interp(et, ej, where, deriv=self.xdot is not None)
         idx = np.flatnonzero(mask)
         T = np.concatenate((self.t[idx], et))
         J = np.concatenate((self.j[idx], ej))
@@ -855,7 +858,7 @@ class HybridArc:
         >>> arc.select(j=1).t
         array([1., 2.])
         """
-        r = self.restrict(t, j)
+        r = self._restrict(t, j, "select")
         if len(r) == 0:
             dom = ("the arc is empty" if len(self.t) == 0 else
                    f"the arc has t in [{self.t[0]}, {self.t[-1]}], j in "

@@ -228,7 +228,7 @@ def test_restrict_empty_and_select_errors(ball):
         ball.select(t=(50.0, 60.0))
     with pytest.raises(ValueError, match="no sample"):
         ball.select(j=99)
-    with pytest.raises(TypeError, match=r"pair \(a, b\).*got 5.*arc.at\(5\)"):
+    with pytest.raises(TypeError, match=r"select: t must be a pair \(a, b\).*got 5.*arc.at\(5\)"):
         ball.select(t=5)
     with pytest.raises(TypeError, match=r"pair \(a, b\)"):
         ball.restrict(t=(1, 2, 3))
