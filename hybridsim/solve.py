@@ -55,19 +55,36 @@ class _Buffer:
         self.xdot = np.empty((cap, dim))
         self.n = 0
 
+    def _grow(self, need):
+        k = self.n
+        cap = max(2 * len(self.t), need)
+        for name in ("t", "j", "x", "xdot"):
+            old = getattr(self, name)
+            new = np.empty((cap,) + old.shape[1:], dtype=old.dtype)
+            new[:k] = old[:k]
+            setattr(self, name, new)
+
     def append(self, t, j, x, xdot=None):
         k = self.n
         if k == len(self.t):
-            for name in ("t", "j", "x", "xdot"):
-                old = getattr(self, name)
-                new = np.empty((2 * k,) + old.shape[1:], dtype=old.dtype)
-                new[:k] = old
-                setattr(self, name, new)
+            self._grow(k + 1)
         self.t[k] = t
         self.j[k] = j
         self.x[k] = x
         self.xdot[k] = np.nan if xdot is None else xdot
         self.n = k + 1
+
+    def extend(self, t, j, X, Xd=None):
+        """Append many samples of one j at once."""
+        m = len(t)
+        k = self.n
+        if k + m > len(self.t):
+            self._grow(k + m)
+        self.t[k:k + m] = t
+        self.j[k:k + m] = j
+        self.x[k:k + m] = X
+        self.xdot[k:k + m] = np.nan if Xd is None else Xd
+        self.n = k + m
 
     def arrays(self):
         """The samples, shrunk in place (no copy); the buffer is done after this."""
@@ -315,7 +332,8 @@ class _State:
     flow_lengths: list = field(default_factory=list)   # the last few flows
     h_hint: float | None = None
     breaks: list = field(default_factory=list)          # delay breakpoints
-    stiff_hits: int = 0
+    stiff_hits: int = 0         # Hairer's stiffness counter (DOPRI5's IASTI)
+    calm: int = 0               # ... and its reset counter (NONSTI)
     warned_stiff: bool = False
 
 
@@ -755,7 +773,7 @@ class _Run:
                     return self._event(st, sol, a, hit[0], hit[1], j, solver, d_active)
             if watch_D and not d_active:
                 d_active = not D(yb, b, j, ub)
-            if self.stiff_check and stats.steps % 10 == 0:
+            if self.stiff_check and (st.stiff_hits or stats.steps % 10 == 0):
                 self._check_stiff(st, solver)
             if keep or o.refine > 1 or o.t_eval is not None:
                 if sol is None:
@@ -809,7 +827,11 @@ class _Run:
         return self._end(st, a, ya, _Outcome.STOP)
 
     def _check_stiff(self, st, solver):
-        """Hairer's stiffness test for Dormand-Prince (h·ρ > 3.25 repeatedly)."""
+        """Hairer's stiffness test for Dormand-Prince: h·ρ > 3.25 on 15 steps.
+
+        ρ = |k7 - k6| / |y7 - y6| estimates the Jacobian's dominant eigenvalue
+        from the two stages at t + h (Hairer & Wanner, Solving ODEs II, IV.2).
+        """
         if st.warned_stiff:
             return
         K, h = solver.K, solver.h_previous
@@ -817,8 +839,11 @@ class _Run:
         den = float(np.linalg.norm(solver.y - y6))
         if den > 0 and h * float(np.linalg.norm(K[6] - K[5])) / den > 3.25:
             st.stiff_hits += 1
+            st.calm = 0
         else:
-            st.stiff_hits = 0
+            st.calm += 1
+            if st.calm >= 6:         # as Hairer's DOPRI5: six calm steps reset the count
+                st.stiff_hits = 0
         if st.stiff_hits >= 15:
             st.warned_stiff = True
             warnings.warn(f"the flow looks stiff near t={solver.t:.6g} (j={st.j}): "
@@ -936,9 +961,7 @@ class _Run:
         if self.buf.n + ts.size > o.max_samples:
             raise _SampleCap()
         X = np.asarray(sol(ts)).T.reshape(ts.size, o.n)
-        Xd = _dense_derivative(sol, ts)
-        for k in range(ts.size):
-            self.buf.append(ts[k], j, X[k], None if Xd is None else Xd[k])
+        self.buf.extend(ts, j, X, _dense_derivative(sol, ts))
 
 
 class _SampleCap(Exception):

@@ -1,0 +1,325 @@
+"""The engine under bad inputs and faults (issue 16): no missed jump, no
+silent failure, no runaway, the right cause.
+
+What this file tries, and what each gets (65 cases in all):
+
+* 105 apex runs (7 heights x 3 tolerances x 5 methods) of a flow entering
+  and leaving D inside one solver step: each makes its jump, at the closed-form
+  time; 6 more with set indicators only, under both priorities.
+* 24 timers whose jumps land on t_max up to round-off: every jump taken.
+* 22 bad arguments (j0, seed, atol, dense, throw, progress, method, refine,
+  max_steps, t_eval...): a TypeError/ValueError naming the argument.
+* 9 broken maps (raising, complex, wrong shape mid-run, NaN from a set or a
+  guard, a string from a set, a defaulted parameter, a ufunc): MapError naming
+  the map, t and j (or the right result where the map is valid Python).
+* 8 failures and runaways (NaN flow, blow-up, finite escape, max_steps,
+  max_samples, chattering, stiffness, a sticking ball, Ctrl-C): the right
+  cause, the arc so far, one warning where the computation failed.
+"""
+import math
+import warnings
+
+import numpy as np
+import pytest
+from scipy.integrate import OdeSolver
+
+import hybridsim as hs
+from hybridsim import Termination
+
+
+# ------------------------------------------------------------- missed jumps
+def apex_system(guard=True, priority_flows=False):
+    """x'' = -1 with D = {x >= 1}; the jump reverses the velocity downwards."""
+    kw = {}
+    if guard:
+        kw["jump_guard"] = lambda x: x[0] - 1.0
+        if priority_flows:
+            kw["flow_guard"] = lambda x: 1.0 - x[0]
+    else:
+        kw["D"] = lambda x: x[0] >= 1.0
+        if priority_flows:
+            kw["C"] = lambda x: x[0] <= 1.0
+    return hs.HybridSystem.from_functions(
+        f=lambda x: np.array([x[1], -1.0]), g=lambda x: np.array([x[0], -abs(x[1])]),
+        state_dim=2, **kw)
+
+
+def first_crossing(v0):
+    return v0 - math.sqrt(v0 * v0 - 2.0)
+
+
+@pytest.mark.parametrize("method", ["RK45", "RK23", "DOP853", "Radau", "LSODA"])
+@pytest.mark.parametrize("rtol", [1e-3, 1e-6, 1e-10])
+def test_jump_set_entered_and_left_within_one_step_is_found(method, rtol):
+    # RK45 integrates the parabola exactly, so one step spans the excursion
+    # above the guard; the apex is 0.3 down to 1e-6 above it
+    for d in (0.3, 0.1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6):
+        v0 = math.sqrt(2.0 * (1.0 + d))
+        arc = hs.simulate(apex_system(), [0.0, v0], t_max=1.5 * v0, j_max=1,
+                          method=method, rtol=rtol, atol=rtol * 1e-3)
+        assert arc.jump_count == 1, (method, rtol, d)
+        # the jump time to the integrator's accuracy (exact for RK45 and DOP853)
+        tol = 1e-6 if rtol < 1e-3 else 1e-4
+        assert abs(arc.jump_times[0] - first_crossing(v0)) < tol * max(1.0, 1e-3 / d), d
+
+
+def test_flows_priority_finds_an_exit_from_C_and_back_within_one_step():
+    v0 = math.sqrt(2.0 * (1.0 + 1e-5))
+    arc = hs.simulate(apex_system(priority_flows=True), [0.0, v0], t_max=1.5 * v0,
+                      j_max=1, priority="flows")
+    assert arc.jump_count == 1
+    assert abs(arc.jump_times[0] - first_crossing(v0)) < 1e-9
+
+
+@pytest.mark.parametrize("priority", ["jumps", "flows"])
+def test_set_indicators_alone_find_an_excursion_longer_than_a_quarter_step(priority):
+    # the issue's case: in D for 30% of the flight (apex 0.1 above the guard)
+    v0 = math.sqrt(2.2)
+    for rtol in (1e-3, 1e-6, 1e-10):
+        arc = hs.simulate(apex_system(guard=False, priority_flows=priority == "flows"),
+                          [0.0, v0], t_max=1.5 * v0, j_max=1, rtol=rtol, priority=priority)
+        assert arc.jump_count == 1
+        assert abs(arc.jump_times[0] - first_crossing(v0)) < 1e-12
+
+
+# --------------------------------------------------------- jumps at t_max
+@pytest.mark.parametrize("period", [0.1, 0.25, 1.0, 1.0 / 3.0])
+@pytest.mark.parametrize("t_max", [1.0, 2.0, 10.0])
+@pytest.mark.parametrize("guard", [True, False])
+def test_jump_at_t_max_is_taken_despite_round_off(period, t_max, guard):
+    if guard:
+        kw = dict(jump_guard=lambda x: x[0] - period, flow_guard=lambda x: period - x[0])
+    else:
+        kw = dict(D=lambda x: x[0] >= period, C=lambda x: x[0] <= period)
+    timer = hs.HybridSystem.from_functions(f=lambda x: np.ones(1), g=lambda x: np.zeros(1),
+                                           state_dim=1, **kw)
+    arc = hs.simulate(timer, [0.0], t_max=t_max)
+    assert arc.jump_count == round(t_max / period)
+    assert arc.tf == t_max and arc.termination is Termination.T_MAX
+    assert arc.x[-1, 0] == 0.0      # the last sample is after the jump at t_max
+
+
+# ----------------------------------------------------------- bad arguments
+def decay():
+    return hs.HybridSystem.from_functions(f=lambda x: -x, state_dim=1)
+
+
+@pytest.mark.parametrize("kw, err, match", [
+    (dict(j0=2.7), TypeError, "j0 must be a non-negative int, got float 2.7"),
+    (dict(j0=-5), ValueError, "j0 must be >= 0"),
+    (dict(j0=None), TypeError, "j0 must be a non-negative int, got NoneType"),
+    (dict(j0=True), TypeError, "j0 must be a non-negative int"),
+    (dict(seed="abc"), TypeError, "seed must be None, a non-negative int or a numpy Generator"),
+    (dict(seed=-1), ValueError, "seed must be >= 0"),
+    (dict(atol=[np.inf]), ValueError, "atol must be a positive float or an array"),
+    (dict(atol=[np.nan]), ValueError, "atol must be a positive float or an array"),
+    (dict(atol=["a"]), TypeError, "atol must be a positive float"),
+    (dict(dense="no"), TypeError, "dense must be True or False"),
+    (dict(throw=1), TypeError, "throw must be True or False"),
+    (dict(warn="yes"), TypeError, "warn must be True or False"),
+    (dict(progress="auto"), TypeError, "progress must be True or False or None"),
+    (dict(method=OdeSolver), TypeError, "concrete OdeSolver subclass"),
+    (dict(refine=2.5), TypeError, "refine must be an int >= 1"),
+    (dict(refine=11, max_samples=10), ValueError, "refine must be <= max_samples"),
+    (dict(max_steps=0), ValueError, "max_steps must be >= 1"),
+    (dict(max_steps="many"), TypeError, "max_steps must be an int >= 1"),
+    (dict(zeno_rtol=-1.0), ValueError, "zeno_rtol must be >= 0"),
+    (dict(t_eval=[0.5, 0.2]), ValueError, "t_eval must be sorted"),
+    (dict(t_eval=[0.5, 2.0]), ValueError, r"t_eval must lie in \[t0, t_max\]"),
+    (dict(t_eval=[0.1], refine=3), ValueError, "t_eval and refine > 1 cannot be combined"),
+])
+def test_bad_arguments_name_the_argument(kw, err, match):
+    with pytest.raises(err, match=match):
+        hs.simulate(decay(), [1.0], t_max=1.0, **kw)
+
+
+def test_complex_x0_is_refused():
+    with pytest.raises(TypeError, match="x0 must be real"):
+        hs.simulate(decay(), [1.0 + 1j], t_max=1.0)
+
+
+# -------------------------------------------------------------- broken maps
+def test_defaulted_parameter_never_receives_t():
+    # capturing a value with a default is common Python: k must stay 2
+    sysm = hs.HybridSystem.from_functions(f=lambda x, k=2.0: -k * x, state_dim=1)
+    arc = hs.simulate(sysm, [1.0], t_max=1.0, rtol=1e-10, atol=1e-12)
+    assert abs(arc.xf[0] - math.exp(-2.0)) < 1e-9
+
+
+def test_ufunc_as_flow_map_takes_x_only():
+    arc = hs.simulate(hs.HybridSystem.from_functions(f=np.negative, state_dim=1), [1.0],
+                      t_max=1.0, rtol=1e-10, atol=1e-12)
+    assert abs(arc.xf[0] - math.exp(-1.0)) < 1e-9
+
+
+def test_defaulted_engine_arguments_still_count():
+    class S(hs.HybridSystem):
+        state_dim = 1
+
+        def flow_map(self, x, t, j=0, u=None):     # t required, j/u defaulted by name
+            return np.array([t])
+    arc = hs.simulate(S(), [0.0], t_max=1.0, rtol=1e-10)
+    assert abs(arc.xf[0] - 0.5) < 1e-9
+
+
+@pytest.mark.parametrize("maps, match", [
+    (dict(f=lambda x: np.array([1j])), r"flow_map returned complex values .* \(at t=0, j=0\)"),
+    (dict(f=lambda x: -x, D=lambda x: "False", g=lambda x: x),
+     "jump_set must return a bool .* got str 'False'"),
+    (dict(f=lambda x: -x, D=lambda x: float("nan"), g=lambda x: x),
+     "jump_set must return a bool .* got float nan"),
+    (dict(f=lambda x: -x, D=lambda x: np.array([True, False]), g=lambda x: x),
+     "jump_set must return a bool"),
+    (dict(f=lambda x: -x, jump_guard=lambda x: np.nan, g=lambda x: x),
+     "jump_guard returned NaN"),
+])
+def test_contract_breaches_at_x0_raise_naming_the_map(maps, match):
+    with pytest.raises(hs.MapError, match=match):
+        hs.simulate(hs.HybridSystem.from_functions(state_dim=1, **maps), [1.0], t_max=1.0)
+
+
+def test_flow_map_of_wrong_shape_mid_run_names_flow_map():
+    sysm = hs.HybridSystem.from_functions(
+        f=lambda x, t: np.zeros(2) if t > 0.5 else -x, state_dim=1)
+    with pytest.raises(hs.MapError, match=r"flow_map must return an array of shape \(1,\), "
+                                          r"got shape \(2,\) \(at t=0\.5"):
+        hs.simulate(sysm, [1.0], t_max=1.0)
+
+
+def test_complex_flow_mid_run_is_a_map_error_not_a_cast():
+    sysm = hs.HybridSystem.from_functions(
+        f=lambda x, t: np.array([1j]) if t > 0.5 else -x, state_dim=1)
+    arc = hs.simulate(sysm, [1.0], t_max=1.0, throw=False)
+    assert arc.termination is Termination.MAP_ERROR and "complex" in arc.message
+    assert arc.tf <= 0.5 + 1e-12
+
+
+def test_jump_map_raising_at_first_jump_raises_with_the_arc():
+    def g(x):
+        raise ZeroDivisionError("bad reset")
+    sysm = hs.HybridSystem.from_functions(f=lambda x: np.ones(1), g=g,
+                                          jump_guard=lambda x: x[0] - 1.0, state_dim=1)
+    with pytest.raises(hs.MapError, match=r"jump_map raised ZeroDivisionError: bad reset "
+                                          r"\(at t=1, j=0\)") as info:
+        hs.simulate(sysm, [0.0], t_max=3.0)
+    err = info.value
+    assert (err.map_name, err.j) == ("jump_map", 0) and abs(err.t - 1.0) < 1e-12
+    assert isinstance(err.__cause__, ZeroDivisionError)
+    assert abs(err.arc.tf - 1.0) < 1e-12 and err.arc.termination is Termination.MAP_ERROR
+
+
+# ------------------------------------------------- failures and runaways
+def test_nan_from_the_flow_map_mid_run_is_non_finite_with_one_warning():
+    sysm = hs.HybridSystem.from_functions(
+        f=lambda x, t: np.array([np.nan]) if t > 0.5 else -x, state_dim=1)
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        arc = hs.simulate(sysm, [1.0], t_max=1.0)
+    assert arc.termination is Termination.NON_FINITE
+    assert "flow_map returned non-finite values" in arc.message
+    assert len([x for x in w if issubclass(x.category, hs.SimulationWarning)]) == 1
+    assert np.isfinite(arc.x).all() and arc.tf <= 0.5
+
+
+def test_warn_false_is_silent_but_keeps_the_cause():
+    sysm = hs.HybridSystem.from_functions(f=lambda x: x ** 2, state_dim=1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        arc = hs.simulate(sysm, [1.0], t_max=2.0, max_norm=1e3, warn=False)
+    assert arc.termination is Termination.BLOWUP
+
+
+def test_max_steps_ends_the_run_with_its_own_cause():
+    with pytest.warns(hs.SimulationWarning, match="MAX_STEPS"):
+        arc = hs.simulate(decay(), [1.0], t_max=1.0, max_step=1e-6, max_steps=500)
+    assert arc.termination is Termination.MAX_STEPS
+    assert len(arc.t) == 501 and abs(arc.tf - 5e-4) < 1e-9
+
+
+def test_t_max_inf_without_jumps_is_bounded_by_max_steps():
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", hs.SimulationWarning)
+        arc = hs.simulate(decay(), [1.0], t_max=math.inf, max_steps=2000)
+    assert arc.termination is Termination.MAX_STEPS and len(arc.t) == 2001
+
+
+def test_max_samples_caps_refine():
+    with pytest.warns(hs.SimulationWarning, match="MAX_STEPS"):
+        arc = hs.simulate(decay(), [1.0], t_max=1.0, refine=1000, max_samples=5000)
+    assert arc.termination is Termination.MAX_STEPS and len(arc.t) <= 5000
+
+
+def test_chattering_with_a_tiny_hysteresis_is_zeno():
+    eps = 1e-9      # a jump every 2e-9 s: hours of run time without the relative test
+    chat = hs.HybridSystem.from_functions(
+        f=lambda x: np.array([1.0 if x[1] > 0 else -1.0, 0.0]),
+        g=lambda x: np.array([x[0], -x[1]]),
+        D=lambda x: (x[1] > 0 and x[0] >= eps) or (x[1] < 0 and x[0] <= -eps), state_dim=2)
+    arc = hs.simulate(chat, [0.0, 1.0], t_max=1.0)
+    assert arc.termination is Termination.ZENO
+    assert arc.jump_count == 50 and arc.tf < 1e-6
+
+
+def test_stiff_flow_under_rk45_warns_naming_implicit_methods():
+    stiff = hs.HybridSystem.from_functions(f=lambda x, t: -1e6 * (x - np.cos(t)), state_dim=1)
+    with pytest.warns(hs.SimulationWarning, match="looks stiff.*Radau"):
+        hs.simulate(stiff, [0.0], t_max=0.01)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        arc = hs.simulate(stiff, [0.0], t_max=0.01, method="Radau")
+    assert arc.success
+
+
+def test_non_stiff_flow_gives_no_stiffness_warning():
+    osc = hs.HybridSystem.from_functions(f=lambda x: np.array([x[1], -x[0]]), state_dim=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert hs.simulate(osc, [1.0, 0.0], t_max=50.0).success
+
+
+def test_ball_sticking_to_a_moving_floor_is_not_left_sets():
+    A, w = 0.1, 2 * np.pi
+
+    def floor(t):
+        return A * np.sin(w * t)
+
+    def dfloor(t):
+        return A * w * np.cos(w * t)
+    ball = hs.HybridSystem.from_functions(
+        f=lambda x: np.array([x[1], -9.81]),
+        g=lambda x, t: np.array([floor(t), dfloor(t) - 0.5 * (x[1] - dfloor(t))]),
+        C=lambda x, t: x[0] >= floor(t),
+        D=lambda x, t: x[0] <= floor(t) and x[1] <= dfloor(t), state_dim=2)
+    arc = hs.simulate(ball, [1.0, 0.0], t_max=10.0, j_max=10_000)
+    assert arc.termination is Termination.ZENO
+    assert "sticks to the boundary of C" in arc.message
+
+
+def test_ctrl_c_ends_the_run_with_canceled_and_keeps_the_arc():
+    def f(x, t):
+        if t > 0.5:
+            raise KeyboardInterrupt
+        return -x
+    arc = hs.simulate(hs.HybridSystem.from_functions(f=f, state_dim=1), [1.0], t_max=1.0,
+                      max_step=0.01)
+    assert arc.termination is Termination.CANCELED
+    assert 0.48 < arc.tf <= 0.5 and np.all(np.diff(arc.t) >= 0)
+
+
+# ----------------------------------------------------------------- t_eval
+def test_t_eval_places_samples_and_keeps_both_samples_of_each_jump():
+    timer = hs.library.Timer(1.0)
+    grid = np.linspace(0.0, 3.5, 15)            # steps of 0.25: holds the jump times
+    arc = hs.simulate(timer, [0.0], t_max=3.5, t_eval=grid)
+    assert arc.jump_count == 3
+    # every grid time is a sample, with the timer's value t - floor(t)
+    for s in grid:
+        k = np.flatnonzero(np.abs(arc.t - s) < 1e-12)
+        assert k.size >= 1
+        assert np.allclose(arc.x[k[-1], 0], s - math.floor(s + 1e-12), atol=1e-9)
+    # and nothing but the grid, the jumps and the ends
+    extra = set(np.round(arc.t, 9)) - set(np.round(grid, 9))
+    assert extra <= {1.0, 2.0, 3.0}
+    # at a jump time both samples are there: j and j + 1
+    at1 = np.flatnonzero(np.abs(arc.t - 1.0) < 1e-12)
+    assert set(arc.j[at1]) == {0, 1}
