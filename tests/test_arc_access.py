@@ -341,3 +341,18 @@ def test_validate_catches_broken_invariants():
 def test_module_examples_run():
     res = doctest.testmod(arc_module, optionflags=doctest.NORMALIZE_WHITESPACE)
     assert res.attempted > 10 and res.failed == 0
+
+
+def test_engine_xdot_gives_exact_interpolation_without_dense_output():
+    a = hs.simulate(BouncingBall(), [1.0, 0.0], t_max=3.0, j_max=4)
+    if a.xdot is None:
+        pytest.skip("this engine does not record xdot")
+    assert a._segments is None and a.xdot.shape == a.x.shape
+    blk = a.t[a.j == 0]
+    mids = 0.5 * (blk[1:] + blk[:-1])
+    np.testing.assert_allclose(a.at(mids, 0)[:, 0], 1 - 0.5 * G * mids ** 2,
+                               rtol=0, atol=1e-12)
+    np.testing.assert_allclose(a.at(mids, 0)[:, 1], -G * mids, rtol=0, atol=1e-12)
+    # and through restrict: the interpolated ends carry exact derivatives
+    r = a.restrict(t=(mids[1], mids[-1]))
+    np.testing.assert_allclose(r.xdot[[0, -1], 0], -G * mids[[1, -1]], atol=1e-12)
