@@ -546,22 +546,16 @@ class _Run:
 
     # ------------------------------------------------------------------ helpers
     def arc(self):
-        t, j, X, Xd = self.buf.arrays()
-        keep = self.o.keep
+        b = self.buf
+        if b.n and np.isnan(b.xdot[b.n - 1]).any() and self.cause is not Termination.MAP_ERROR:
+            fd = self._fdot(b.t[b.n - 1], b.x[b.n - 1], int(b.j[b.n - 1]))
+            if fd is not None and np.shape(fd) == (self.o.n,):
+                b.xdot[b.n - 1] = fd
+        t, j, X, Xd = b.arrays()
         return HybridArc(t, j, X, self.cause, self.message, self.exception,
                          components=self.system.components,
-                         segments=self.history.segments if keep else None,
-                         system=self.system, **self._arc_extras(Xd))
-
-    def _arc_extras(self, Xd):
-        import inspect
-        params = inspect.signature(HybridArc.__init__).parameters
-        out = {}
-        if "xdot" in params:
-            out["xdot"] = Xd
-        if "stats" in params:
-            out["stats"] = self.stats.as_dict()
-        return out
+                         segments=self.history.segments if self.o.keep else None,
+                         system=self.system, xdot=Xd, stats=self.stats.as_dict())
 
     def _stop(self, cause, message=None, exc=None):
         self.cause = cause
