@@ -223,7 +223,7 @@ def test_restrict_empty_and_select_errors(ball):
     assert len(e) == 0 and e.x.shape == (0, 2) and e.jump_count == 0
     assert "empty" in repr(e) and e.flow_intervals == []
     with pytest.raises(ValueError, match="x0: the arc is empty"):
-        e.x0
+        _ = e.x0
     with pytest.raises(ValueError, match="does not meet the hybrid time domain"):
         ball.select(t=(50.0, 60.0))
     with pytest.raises(ValueError, match="no sample"):

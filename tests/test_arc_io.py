@@ -37,7 +37,7 @@ def assert_same_samples(b, a):
 def test_pickle_arc_whose_system_holds_a_lambda():
     a = with_extras(hs.simulate(lambda_system(), [1.0, 0.0], t_max=2.0, j_max=3,
                                 dense=True))
-    with pytest.raises(Exception):
+    with pytest.raises((pickle.PicklingError, AttributeError, TypeError)):
         pickle.dumps(a.system)               # the system itself does not travel
     b = pickle.loads(pickle.dumps(a))
     assert_same_samples(b, a)
