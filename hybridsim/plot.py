@@ -1,41 +1,156 @@
-"""Plots in hybrid time. Every function returns its Axes, accepts ``ax=`` and
-never calls ``plt.show()``."""
+r"""Plots of hybrid arcs in hybrid time (t, j).
+
+Five functions share one set of keywords:
+
+====================  ==========================================================
+:func:`plot_flows`    components (or ``fn`` of the state) against ordinary time t
+:func:`plot_jumps`    the same against the jump counter j
+:func:`plot_hybrid`   one component in 3-D over the hybrid time domain (t, j)
+:func:`plot_phase`    one component against another
+:func:`plot_time_domain`  the hybrid time domain itself: j against t
+====================  ==========================================================
+
+Every function returns its Axes (``subplots=True``: an array of Axes), accepts
+``ax=``, and never calls ``plt.show()``.
+
+**Flows** are drawn smooth whatever the solver's step size: each interval
+between stored samples is filled with points of the arc's own interpolant,
+:meth:`HybridArc.at` (the solver's dense output when the run kept it, else
+cubic Hermite with the flow derivative ``arc.xdot``, exact for polynomial
+flows of degree <= 3). The stored samples, jump instants included, are drawn
+exactly. **Jumps** are thin dotted segments from the pre-jump to the post-jump
+value, in the colour of their flow, with a filled circle at the pre-jump
+point and an open circle at the post-jump point: a dashed reference curve
+drawn by the user stays distinguishable from them.
+
+**Style** comes from matplotlib itself: line widths, marker sizes and the
+colour cycle are read from ``rcParams`` at call time, so
+``with plt.style.context("seaborn-v0_8-paper"):`` or ``plt.rc("lines",
+linewidth=2)`` apply; ``flow_kw``, ``jump_kw``, ``start_kw`` and ``end_kw``
+override the flows, jump segments and pre-/post-jump markers of one call.
+
+**Artists.** For each plotted component one call adds at most four
+``Line2D`` artists, told apart by their ``gid``: ``"flows"`` (all flow
+intervals, separated by NaN), ``"jumps"`` (all jump segments, NaN-separated),
+``"jump_starts"`` and ``"jump_ends"`` (the markers). Only the flows carry a
+legend label.
+
+Examples
+--------
+>>> import hybridsim as hs
+>>> from hybridsim.library import BouncingBall
+>>> arc = hs.simulate(BouncingBall(), [1.0, 0.0], t_max=2.0)
+>>> axs = hs.plot_flows(arc, subplots=True, labels=["height (m)", "velocity (m/s)"])
+>>> [a.get_ylabel() for a in axs], axs[-1].get_xlabel()
+(['height (m)', 'velocity (m/s)'], '$t$')
+"""
 from __future__ import annotations
+
+import numbers
 
 import numpy as np
 
 __all__ = ["plot_flows", "plot_jumps", "plot_hybrid", "plot_phase", "plot_time_domain"]
 
+#: Points inserted inside each interval between stored samples (smooth=True).
+_POINTS_PER_STEP = 20
+#: Cap on the plotted points per call (smooth=True): long arcs get fewer
+#: inserted points per step, arcs of more samples than this none.
+_MAX_POINTS = 50_000
 
-def _axes(ax, projection=None):
+T_LABEL, J_LABEL = "$t$", "$j$"
+
+
+# --------------------------------------------------------------------------
+# argument checks
+# --------------------------------------------------------------------------
+def _check_arc(arc, where):
+    from .arc import HybridArc
+    if not isinstance(arc, HybridArc):
+        raise TypeError(f"{where}: arc must be a HybridArc (the result of hs.simulate), "
+                        f"got {type(arc).__name__}")
+    if len(arc.t) == 0:
+        raise ValueError(f"{where}: arc is empty (no samples): nothing to plot")
+
+
+def _is_axes(ax, projection=None):
+    from matplotlib.axes import Axes
+    if not isinstance(ax, Axes):
+        return False
+    return projection is None or getattr(ax, "name", None) == projection
+
+
+def _axes(ax, where, projection=None):
+    """The Axes to draw on: ``ax`` checked, or a new figure's."""
     if ax is not None:
+        if not _is_axes(ax):
+            raise TypeError(f"{where}: ax must be a matplotlib Axes, got "
+                            f"{type(ax).__name__}")
+        if projection == "3d" and not _is_axes(ax, "3d"):
+            raise ValueError(f"{where}: ax must be a 3-D Axes (fig.add_subplot(projection="
+                             f"'3d')), got a {getattr(ax, 'name', '2-D')!r} Axes")
         return ax
     import matplotlib.pyplot as plt
+    if projection == "3d":
+        import mpl_toolkits.mplot3d  # noqa: F401 - registers the 3d projection
     fig = plt.figure()
     return fig.add_subplot(111, projection=projection)
 
 
-def _values(arc, idx):
-    """(N, k) values to plot and their labels; idx: None, int, list, callable,
-    or a float array of values at the samples, shape (N,) or (N, k)."""
-    if isinstance(idx, np.ndarray) and idx.dtype.kind == "f":
-        if idx.shape[:1] != (len(arc.t),) or idx.ndim > 2:
-            raise ValueError(f"idx: an array of values must have shape ({len(arc.t)},) or "
-                             f"({len(arc.t)}, k), one row per sample; got {idx.shape}")
-        v = idx.reshape(len(arc.t), -1)
-        return v, [f"y{k}" for k in range(v.shape[1])]
-    if callable(idx):
-        v = np.asarray(arc.evaluate(idx), dtype=float)
-        v = v.reshape(len(arc.t), -1)
-        return v, [f"y{k}" for k in range(v.shape[1])]
-    if idx is None:
-        idx = list(range(arc.state_dim))
-    idx = [idx] if np.ndim(idx) == 0 else list(idx)
-    if not idx:
-        raise ValueError("idx must select at least one component, got an empty list")
-    for i in idx:
-        _check_component("idx", i, arc.state_dim)
-    return arc.x[:, idx], [f"x{i}" for i in idx]
+def _axes_array(ax, k, where):
+    """k Axes sharing t, one per component (``subplots=True``)."""
+    if ax is None:
+        import matplotlib.pyplot as plt
+        w, h = plt.rcParams["figure.figsize"]
+        fig, axs = plt.subplots(k, 1, sharex=True, squeeze=False,
+                                figsize=(w, h * max(1.0, 0.45 * k)))
+        return axs[:, 0]
+    axs = [ax] if _is_axes(ax) else ax
+    try:
+        axs = list(np.ravel(np.asarray(axs, dtype=object)))
+    except TypeError:
+        axs = None
+    if axs is None or not all(_is_axes(a) for a in axs):
+        raise TypeError(f"{where}: with subplots=True, ax must be a sequence of {k} "
+                        f"matplotlib Axes (one per component), got {type(ax).__name__}")
+    if len(axs) != k:
+        raise ValueError(f"{where}: with subplots=True, ax must hold one Axes per plotted "
+                         f"component ({k}), got {len(axs)}")
+    return np.array(axs, dtype=object)
+
+
+def _check_kw(name, kw, where):
+    if kw is None:
+        return {}
+    if not isinstance(kw, dict):
+        raise TypeError(f"{where}: {name} must be a dict of matplotlib Line2D properties "
+                        f"or None, got {type(kw).__name__}")
+    return dict(kw)
+
+
+def _check_bool(name, v, where):
+    if not isinstance(v, (bool, np.bool_)):
+        raise TypeError(f"{where}: {name} must be True or False, got {v!r}")
+    return bool(v)
+
+
+def _check_smooth(smooth, where):
+    if isinstance(smooth, (bool, np.bool_)):
+        return bool(smooth)
+    if isinstance(smooth, numbers.Integral) and smooth >= 0:
+        return int(smooth)
+    raise TypeError(f"{where}: smooth must be True, False or a non-negative int (points "
+                    f"inserted in each step), got {smooth!r}")
+
+
+def _check_yscale(yscale, where):
+    if yscale is None:
+        return None
+    from matplotlib.scale import get_scale_names
+    if not isinstance(yscale, str) or yscale not in get_scale_names():
+        raise ValueError(f"{where}: yscale must be one of {get_scale_names()} or None, "
+                         f"got {yscale!r}")
+    return yscale
 
 
 def _check_component(name, i, n):
@@ -44,129 +159,727 @@ def _check_component(name, i, n):
                         f"callable), got {i!r}")
     if not (-n <= i < n):
         raise ValueError(f"{name}: component {i} out of range for a state of dimension {n}")
+    return int(i) % n
 
 
-def _check_labels(labels, k):
-    labels = list(labels)
+def _check_labels(labels, k, where, what="plotted component"):
+    if isinstance(labels, str):
+        labels = [labels]
+    try:
+        labels = list(labels)
+    except TypeError:
+        raise TypeError(f"{where}: labels must be a list of str (one per {what}), got "
+                        f"{type(labels).__name__}") from None
     if len(labels) != k:
-        raise ValueError(f"labels must have one entry per plotted component ({k}), "
-                         f"got {len(labels)}")
+        raise ValueError(f"labels must have one entry per {what} ({k}), got {len(labels)}")
+    for s in labels:
+        if not isinstance(s, str):
+            raise TypeError(f"{where}: labels must be strings, got {s!r}")
     return labels
 
 
-def _segments(arc):
-    """Index ranges [a, b) of each interval of flow."""
-    cut = np.concatenate(([0], arc.jump_index, [len(arc.t)]))
-    return list(zip(cut[:-1], cut[1:]))
+# --------------------------------------------------------------------------
+# names and values
+# --------------------------------------------------------------------------
+def _math_sub(base, k):
+    """``base`` with subscript k: ``$x_1$``, ``$x_{12}$``."""
+    sub = str(k) if k < 10 else "{" + str(k) + "}"
+    return f"${base}_{sub}$"
 
 
-def plot_flows(arc, idx=None, *, ax=None, labels=None, jumps=True, **line_kw):
-    """Each selected component against ordinary time t.
+def _component_names(arc):
+    """Default names of the state components: LaTeX-friendly, 1-based.
 
-    Flows are solid lines; each jump is a dashed segment from the pre-jump to
-    the post-jump value.
+    ``$x_1$, $x_2$, ...``; for an arc of an interconnection (``arc.components``),
+    each part's name, subscripted 1-based when the part has several components.
+
+    Examples
+    --------
+    >>> from hybridsim import HybridArc
+    >>> _component_names(HybridArc([0.0], [0], [[1.0, 2.0]], None))
+    ['$x_1$', '$x_2$']
+    >>> _component_names(HybridArc([0.0], [0], [[1.0, 2.0, 3.0]], None,
+    ...                           components={"plant": slice(0, 2), "obs": slice(2, 3)}))
+    ['plant$_1$', 'plant$_2$', 'obs']
+    """
+    n = arc.state_dim
+    names = [_math_sub("x", i + 1) for i in range(n)]
+    comps = getattr(arc, "components", None)
+    if comps:
+        for name, sl in comps.items():
+            idx = range(*sl.indices(n)) if isinstance(sl, slice) else []
+            idx = list(idx)
+            for m, i in enumerate(idx):
+                names[i] = str(name) if len(idx) == 1 else f"{name}{_math_sub('', m + 1)}"
+    return names
+
+
+def _select(arc, idx, fn, where):
+    """What to plot: ``(kind, payload, names)``.
+
+    kind "state": payload the component indices; "fn": a callable of
+    (x, t, j) and the output columns (or None: all); "values": an (N, k)
+    array given at the samples.
+    """
+    n, N = arc.state_dim, len(arc.t)
+    if fn is not None:
+        if not callable(fn):
+            raise TypeError(f"{where}: fn must be a callable fn(x), fn(x, t) or fn(x, t, j), "
+                            f"got {type(fn).__name__}")
+        if idx is not None and (callable(idx) or isinstance(idx, np.ndarray)
+                                and idx.dtype.kind == "f"):
+            raise TypeError(f"{where}: give either fn= or values in idx, not both")
+        return "fn", (fn, idx), None
+    if isinstance(idx, np.ndarray) and idx.dtype.kind == "f":
+        if idx.shape[:1] != (N,) or idx.ndim > 2:
+            raise ValueError(f"idx: an array of values must have shape ({N},) or "
+                             f"({N}, k), one row per sample; got {idx.shape}")
+        v = idx.reshape(N, -1).astype(float)
+        return "values", v, [_math_sub("y", k + 1) for k in range(v.shape[1])]
+    if callable(idx):
+        return "fn", (idx, None), None
+    if idx is None:
+        idx = list(range(n))
+    idx = [idx] if np.ndim(idx) == 0 else list(np.ravel(idx)) if isinstance(
+        idx, np.ndarray) else list(idx)
+    if not idx:
+        raise ValueError("idx must select at least one component, got an empty list")
+    idx = [_check_component("idx", i, n) for i in idx]
+    names = _component_names(arc)
+    return "state", idx, [names[i] for i in idx]
+
+
+def _fn_names(fn, k):
+    name = getattr(fn, "__name__", "")
+    if k == 1:
+        return [name if name.isidentifier() else "$y$"]
+    return [_math_sub("y", m + 1) for m in range(k)]
+
+
+class _Sampled:
+    """The arc resampled for drawing.
+
+    Attributes
+    ----------
+    t, j : (M,) plotted times and jump counts; NaN in t separates flow
+        intervals.
+    v : (M, k) plotted values, NaN where hidden or at separators.
+    sample_pos : (N,) position of each stored sample in the (M,) arrays.
+    pre, post : (J,) sample indices before and after each jump.
+    shown : (J,) bool, jumps left visible by the filter.
+    names : default labels of the k columns.
+    """
+
+
+def _sample(arc, idx, fn, smooth, filt, where, values=True):
+    """Resample the arc: stored samples exactly, points of the interpolant
+    inside each step, NaN between flow intervals; apply fn and the filter."""
+    from .system import as_map
+    if values:
+        kind, payload, names = _select(arc, idx, fn, where)
+    else:
+        kind, payload, names = "none", None, []
+    t, j, x = arc.t, arc.j, arc.x
+    N = len(t)
+    # points inserted in each interval between samples
+    if isinstance(smooth, bool):
+        m = 0
+        # a linear interpolant needs no inserted points, unless fn or the
+        # filter bends it
+        can_interp = arc.xdot is not None or bool(getattr(arc, "_segments", None)) \
+            or kind == "fn" or callable(filt)
+        if smooth and kind != "values" and can_interp:
+            m = int(np.clip(_MAX_POINTS // max(N, 1) - 1, 0, _POINTS_PER_STEP))
+    else:
+        m = smooth if kind != "values" else 0
+    same_j = np.zeros(N, bool)
+    same_j[:-1] = j[1:] == j[:-1]
+    fp = np.zeros(N, bool)
+    fp[:-1] = same_j[:-1] & (t[1:] > t[:-1])
+    jb = np.zeros(N, bool)
+    jb[:-1] = ~same_j[:-1]
+    cnt = 1 + m * fp + jb
+    start = np.cumsum(cnt) - cnt
+    M = int(cnt.sum())
+    T = np.full(M, np.nan)
+    J = np.zeros(M, np.int64)
+    X = np.full((M, arc.state_dim), np.nan)
+    T[start], J[start], X[start] = t, j, x
+    sep = start[jb] + 1
+    J[sep] = j[jb]
+    inner = np.zeros(0, np.int64)
+    if m and fp.any():
+        ks = np.flatnonzero(fp)
+        frac = np.arange(1, m + 1) / (m + 1)
+        inner = (start[ks][:, None] + 1 + np.arange(m)).ravel()
+        ti = (t[ks][:, None] + (t[ks + 1] - t[ks])[:, None] * frac).ravel()
+        # interior points cannot round onto the next sample: keep them inside
+        ti = np.minimum(ti, np.repeat(t[ks + 1], m))
+        T[inner], J[inner] = ti, np.repeat(j[ks], m)
+        X[inner] = _at(arc, ti, J[inner])
+    live = ~np.isnan(T)                      # every non-separator point
+    # values to plot
+    if kind == "state":
+        V = X[:, payload]
+    elif kind == "values":
+        V = np.full((M, payload.shape[1]), np.nan)
+        V[start] = payload
+    elif kind == "fn":
+        f, cols = payload
+        V, names = _eval_fn(as_map(f, "fn"), X, T, J, live, f, where)
+        if cols is not None:
+            cols = [cols] if np.ndim(cols) == 0 else list(cols)
+            if not cols:
+                raise ValueError("idx must select at least one output of fn, got an "
+                                 "empty list")
+            cols = [_check_component("idx", c, V.shape[1]) for c in cols]
+            V, names = V[:, cols], [names[c] for c in cols]
+    else:
+        V = np.zeros((M, 0))
+    V = np.array(V, dtype=float)
+    # filter
+    keep = np.ones(M, bool)
+    if filt is not None:
+        if callable(filt):
+            p = as_map(filt, "filter")
+            for q in np.flatnonzero(live):
+                r = p(X[q], T[q], int(J[q]), None)
+                try:
+                    keep[q] = bool(np.asarray(r).item())
+                except (ValueError, TypeError):
+                    raise TypeError(f"{where}: filter must return one bool, got "
+                                    f"{r!r} at (t={T[q]}, j={J[q]})") from None
+        else:
+            mask = np.asarray(filt)
+            if mask.dtype != bool or mask.shape != (N,):
+                raise TypeError(f"{where}: filter must be a callable filter(x, t, j) "
+                                f"returning a bool, or a bool array of shape ({N},) (one "
+                                f"per sample); got {type(filt).__name__}"
+                                + (f" of dtype {mask.dtype} and shape {mask.shape}"
+                                   if isinstance(filt, np.ndarray) else ""))
+            keep[start] = mask
+            if inner.size:
+                ks = np.flatnonzero(fp)
+                keep[inner] = np.repeat(mask[ks] & mask[ks + 1], m)
+        V[~keep] = np.nan
+    s = _Sampled()
+    s.t, s.j, s.v, s.keep, s.sample_pos = T, J, V, keep, start
+    s.post = arc.jump_index
+    s.pre = s.post - 1
+    s.shown = keep[start[s.pre]] & keep[start[s.post]]
+    s.names = names
+    s.k = V.shape[1]
+    return s
+
+
+def _at(arc, t, j):
+    """States (m, n) of the arc at times t (m,) with jump counts j (m,)."""
+    return np.asarray(arc.at(t, j), dtype=float).reshape(len(t), arc.state_dim)
+
+
+def _eval_fn(f, X, T, J, live, fn, where):
+    rows = np.flatnonzero(live)
+    out = None
+    for q in rows:
+        try:
+            r = np.asarray(f(X[q], T[q], int(J[q]), None), dtype=float)
+        except (TypeError, ValueError) as e:
+            if "could not convert" in str(e) or "float()" in str(e):
+                raise TypeError(f"{where}: fn must return a float or a 1-D array of floats, "
+                                f"got a non-numeric value at (t={T[q]}, j={J[q]})") from e
+            raise
+        if r.ndim > 1:
+            raise ValueError(f"{where}: fn must return a float or a 1-D array of floats, "
+                             f"got shape {r.shape} at (t={T[q]}, j={J[q]})")
+        r = r.reshape(-1)
+        if out is None:
+            out = np.full((len(T), r.size), np.nan)
+        elif r.size != out.shape[1]:
+            raise ValueError(f"{where}: fn returned {r.size} values at (t={T[q]}, j={J[q]}) "
+                             f"but {out.shape[1]} before")
+        out[q] = r
+    return out, _fn_names(fn, out.shape[1])
+
+
+# --------------------------------------------------------------------------
+# drawing
+# --------------------------------------------------------------------------
+def _styles(flow_kw, jump_kw, start_kw, end_kw, line_kw, where):
+    flow_kw = _check_kw("flow_kw", flow_kw, where)
+    jump_kw = _check_kw("jump_kw", jump_kw, where)
+    start_kw = _check_kw("start_kw", start_kw, where)
+    end_kw = _check_kw("end_kw", end_kw, where)
+    for bad in ("label", "labels"):
+        if bad in line_kw:
+            raise TypeError(f"{where}: use labels=[...] to name the plotted components, "
+                            f"not {bad}=")
+    common = {k: line_kw.pop(k) for k in ("color", "c", "zorder", "alpha") if k in line_kw}
+    if "c" in common:
+        common["color"] = common.pop("c")
+    return ({**common, **line_kw, **flow_kw}, {**common, **jump_kw},
+            {**common, **start_kw}, {**common, **end_kw})
+
+
+def _draw(ax, flow_xyz, jump_pre, jump_post, label, styles, jumps, markers):
+    """Draw one component: flows, jump segments, pre-/post-jump markers.
+
+    flow_xyz: tuple of (M,) coordinate arrays; jump_pre/jump_post: tuples
+    of (J,) coordinates of the visible jumps' ends.
+    """
+    import matplotlib as mpl
+    flow_st, jump_st, start_st, end_st = styles
+    lw = mpl.rcParams["lines.linewidth"]
+    ms = mpl.rcParams["lines.markersize"]
+    (line,) = ax.plot(*flow_xyz, **{"linestyle": "-", **flow_st}, label=label, gid="flows")
+    color = line.get_color()
+    lines = [line]
+    if jumps and len(jump_pre[0]):
+        nan = np.full(len(jump_pre[0]), np.nan)
+        seg = [np.column_stack([a, b, nan]).ravel() for a, b in zip(jump_pre, jump_post)]
+        jst = {"color": color, "linestyle": ":", "linewidth": 0.8 * lw, **jump_st}
+        lines += ax.plot(*seg, **jst, label="_jumps", gid="jumps")
+        if markers:
+            c = start_st.get("color", jst["color"])
+            sst = {"marker": "o", "markersize": 0.5 * ms, "color": c,
+                   "markerfacecolor": c, "markeredgecolor": c, **start_st,
+                   "linestyle": "none"}
+            lines += ax.plot(*jump_pre, **sst, label="_jump_starts", gid="jump_starts")
+            c = end_st.get("color", jst["color"])
+            est = {"marker": "o", "markersize": 0.5 * ms, "color": c,
+                   "markerfacecolor": "none", "markeredgecolor": c,
+                   "markeredgewidth": 0.8 * lw, **end_st, "linestyle": "none"}
+            lines += ax.plot(*jump_post, **est, label="_jump_ends", gid="jump_ends")
+    return lines
+
+
+def _finish(ax, xlabel, ylabel, legend, yscale):
+    ax.set_xlabel(xlabel)
+    if ylabel is not None:
+        ax.set_ylabel(ylabel)
+    if yscale is not None:
+        ax.set_yscale(yscale)
+    if legend:
+        handles, _ = ax.get_legend_handles_labels()
+        if handles:
+            ax.legend()
+
+
+def _line_plot(arc, idx, *, where, axis, ax, labels, subplots, fn, filter, jumps,
+               markers, smooth, flow_kw, jump_kw, start_kw, end_kw, legend, xlabel,
+               ylabel, yscale, line_kw):
+    """plot_flows and plot_jumps: values against t (axis "t") or j (axis "j")."""
+    _check_arc(arc, where)
+    subplots = _check_bool("subplots", subplots, where)
+    jumps = _check_bool("jumps", jumps, where)
+    markers = _check_bool("markers", markers, where)
+    legend = _check_bool("legend", legend, where)
+    smooth = _check_smooth(smooth, where)
+    yscale = _check_yscale(yscale, where)
+    if not subplots and ax is not None:
+        _axes(ax, where)                          # check before the work
+    styles = _styles(flow_kw, jump_kw, start_kw, end_kw, line_kw, where)
+    s = _sample(arc, idx, fn, smooth, filter, where)
+    names = s.names if labels is None else _check_labels(labels, s.k, where)
+    coord = s.t if axis == "t" else np.where(np.isnan(s.t), np.nan, s.j.astype(float))
+    xl = (T_LABEL if axis == "t" else J_LABEL) if xlabel is None else xlabel
+    pre = s.sample_pos[s.pre[s.shown]]
+    post = s.sample_pos[s.post[s.shown]]
+    if axis == "t":
+        jx_pre, jx_post = coord[pre], coord[post]
+    else:
+        jx_pre, jx_post = arc.j[s.pre[s.shown]].astype(float), arc.j[s.post[s.shown]].astype(
+            float)
+    if subplots:
+        axs = _axes_array(ax, s.k, where)
+        if ylabel is not None and not isinstance(ylabel, str):
+            ylabel = _check_labels(ylabel, s.k, where)
+        for c, a in enumerate(axs):
+            v = s.v[:, c]
+            _draw(a, (coord, v), (jx_pre, v[pre]), (jx_post, v[post]), names[c], styles,
+                  jumps, markers)
+            yl = names[c] if ylabel is None else ylabel if isinstance(ylabel, str) \
+                else ylabel[c]
+            _finish(a, xl if c == len(axs) - 1 else "", yl, legend, yscale)
+            if axis == "j":
+                _integer_ticks(a.xaxis)
+        return axs
+    ax = _axes(ax, where)
+    for c in range(s.k):
+        v = s.v[:, c]
+        _draw(ax, (coord, v), (jx_pre, v[pre]), (jx_post, v[post]), names[c], styles, jumps,
+              markers)
+    if ylabel is None:
+        ylabel = ", ".join(names)
+    elif not isinstance(ylabel, str):
+        raise TypeError(f"{where}: ylabel must be a str, got {type(ylabel).__name__}")
+    _finish(ax, xl, ylabel, legend, yscale)
+    if axis == "j":
+        _integer_ticks(ax.xaxis)
+    return ax
+
+
+def _integer_ticks(axis):
+    from matplotlib.ticker import MaxNLocator
+    axis.set_major_locator(MaxNLocator(integer=True))
+
+
+_COMMON_DOC = """
+    ax : matplotlib Axes, optional
+        Where to draw (default: a new figure). With ``subplots=True``, a
+        sequence of one Axes per plotted component.
+    labels : list of str, optional
+        One name per plotted component, used in the legend and the y label
+        (default: ``$x_1$, $x_2$...``, 1-based, or the parts' names of an
+        interconnection; ``$y$`` / ``$y_k$`` or the function's name for ``fn``).
+    subplots : bool, default False
+        One subplot per component, sharing the horizontal axis (x label on
+        the bottom Axes only); an array of Axes is returned.
+    fn : callable, optional
+        Plot ``fn(x)``, ``fn(x, t)`` or ``fn(x, t, j)`` (a float or a 1-D
+        array) instead of the state, evaluated at every plotted point (an
+        error norm, an energy...). ``idx`` then selects among its outputs.
+    filter : callable or bool array, optional
+        ``filter(x, t, j)`` -> bool, or a mask of shape (N,) over the stored
+        samples: points where it is False are hidden (flows are cut there),
+        and a jump is drawn only when both its ends are shown.
+    jumps : bool, default True
+        Draw the jump segments (and their markers).
+    markers : bool, default True
+        Mark each jump's start (filled circle) and end (open circle).
+    smooth : bool or int, default True
+        Points of the arc's interpolant inserted between stored samples:
+        True picks up to 20 per step (fewer on arcs of many samples, none
+        past 50,000), an int that many, False none (a polyline through the
+        samples).
+    flow_kw, jump_kw, start_kw, end_kw : dict, optional
+        ``Line2D`` properties of the flows, the jump segments, the pre-jump
+        and the post-jump markers (default jump style: dotted, 0.8 x the
+        rcParams line width, the flow's colour; markers half the rcParams
+        marker size).
+    legend : bool, default True
+        Add a legend (also for a single component).
+    xlabel, ylabel : str, optional
+        Axis labels (default ``$t$`` / ``$j$`` and the components' names;
+        with ``subplots=True`` ylabel may be a list, one per Axes).
+    yscale : str, optional
+        ``"log"``, ``"symlog"``... for the value axis.
+    **line_kw
+        Further ``Line2D`` properties of the flows; ``color``, ``alpha`` and
+        ``zorder`` apply to the jumps and markers too.
+"""
+
+
+def plot_flows(arc, idx=None, *, ax=None, labels=None, subplots=False, fn=None,
+               filter=None, jumps=True, markers=True, smooth=True, flow_kw=None,
+               jump_kw=None, start_kw=None, end_kw=None, legend=True, xlabel=None,
+               ylabel=None, yscale=None, **line_kw):
+    r"""Selected components (or a function of the state) against ordinary time t.
+
+    Flows are solid and smooth (see the module notes); each jump is a thin
+    dotted vertical segment from the pre-jump value (filled circle) to the
+    post-jump value (open circle), at the exact jump time.
 
     Parameters
     ----------
     arc : HybridArc
     idx : int, list of int, callable or float array, optional
-        State components to plot (default all), ``fn(x, t, j)`` giving the
-        values to plot (an error, an output...), or those values already
-        computed at the samples, shape (N,) or (N, k).
+        State components to plot (default all, negative counts from the end),
+        ``fn(x, t, j)`` (as ``fn=``), or values already computed at the
+        samples, shape (N,) or (N, k) (drawn through the samples only).
+    %s
+    Returns
+    -------
+    matplotlib.axes.Axes, or ndarray of Axes with ``subplots=True``
+
+    Raises
+    ------
+    TypeError, ValueError
+        For an argument of the wrong type or value, naming it.
+
+    Examples
+    --------
+    >>> import hybridsim as hs
+    >>> from hybridsim.library import BouncingBall
+    >>> arc = hs.simulate(BouncingBall(), [1.0, 0.0], t_max=2.0)
+    >>> ax = hs.plot_flows(arc, 1, labels=["velocity (m/s)"])
+    >>> ax.get_xlabel(), ax.get_ylabel(), ax.get_legend().get_texts()[0].get_text()
+    ('$t$', 'velocity (m/s)', 'velocity (m/s)')
+    >>> [ln.get_gid() for ln in ax.lines]
+    ['flows', 'jumps', 'jump_starts', 'jump_ends']
+    >>> ax = hs.plot_flows(arc, fn=lambda x: 9.81 * x[0] + x[1] ** 2 / 2, yscale="log",
+    ...                    labels=["energy (J/kg)"])
+    """
+    return _line_plot(arc, idx, where="plot_flows", axis="t", ax=ax, labels=labels,
+                      subplots=subplots, fn=fn, filter=filter, jumps=jumps, markers=markers,
+                      smooth=smooth, flow_kw=flow_kw, jump_kw=jump_kw, start_kw=start_kw,
+                      end_kw=end_kw, legend=legend, xlabel=xlabel, ylabel=ylabel,
+                      yscale=yscale, line_kw=line_kw)
+
+
+def plot_jumps(arc, idx=None, *, ax=None, labels=None, subplots=False, fn=None,
+               filter=None, jumps=True, markers=True, smooth=True, flow_kw=None,
+               jump_kw=None, start_kw=None, end_kw=None, legend=True, xlabel=None,
+               ylabel=None, yscale=None, **line_kw):
+    r"""Selected components (or a function of the state) against the jump counter j.
+
+    The values taken during the flow of jump count j form a solid vertical
+    line at j (the range the component sweeps, extremes inside a step
+    included); each jump is a dotted segment from (j, pre-jump value) to
+    (j + 1, post-jump value), with the jump markers.
+
+    Parameters
+    ----------
+    arc : HybridArc
+    idx : int, list of int, callable or float array, optional
+        As in :func:`plot_flows`.
+    %s
+    Returns
+    -------
+    matplotlib.axes.Axes, or ndarray of Axes with ``subplots=True``
+
+    Examples
+    --------
+    >>> import hybridsim as hs
+    >>> from hybridsim.library import BouncingBall
+    >>> arc = hs.simulate(BouncingBall(), [1.0, 0.0], t_max=2.0)
+    >>> ax = hs.plot_jumps(arc, 1)
+    >>> ax.get_xlabel(), ax.get_ylabel()
+    ('$j$', '$x_2$')
+    """
+    return _line_plot(arc, idx, where="plot_jumps", axis="j", ax=ax, labels=labels,
+                      subplots=subplots, fn=fn, filter=filter, jumps=jumps, markers=markers,
+                      smooth=smooth, flow_kw=flow_kw, jump_kw=jump_kw, start_kw=start_kw,
+                      end_kw=end_kw, legend=legend, xlabel=xlabel, ylabel=ylabel,
+                      yscale=yscale, line_kw=line_kw)
+
+
+plot_flows.__doc__ = plot_flows.__doc__ % _COMMON_DOC.strip("\n").lstrip()
+plot_jumps.__doc__ = plot_jumps.__doc__ % _COMMON_DOC.strip("\n").lstrip()
+
+
+def _single_label(labels, default, where):
+    if labels is None:
+        return default
+    return _check_labels(labels, 1, where)[0]
+
+
+def plot_hybrid(arc, idx=0, *, ax=None, labels=None, fn=None, filter=None, jumps=True,
+                markers=True, smooth=True, flow_kw=None, jump_kw=None, start_kw=None,
+                end_kw=None, legend=False, xlabel=None, ylabel=None, zlabel=None,
+                **line_kw):
+    r"""One component (or a scalar function of the state) in 3-D over (t, j).
+
+    Flows run along t at constant j; each jump is a dotted segment from
+    (t, j, pre-jump value) to (t, j + 1, post-jump value), with the jump
+    markers.
+
+    Parameters
+    ----------
+    arc : HybridArc
+    idx : int or callable, default 0
+        The state component, or ``fn(x, t, j)`` returning a scalar.
+    ax : 3-D matplotlib Axes, optional
+        ``fig.add_subplot(projection="3d")``; default a new figure's.
+    labels : str or list of one str, optional
+        The component's name (z label and legend entry).
+    fn, filter, jumps, markers, smooth, flow_kw, jump_kw, start_kw, end_kw
+        As in :func:`plot_flows`.
+    legend : bool, default False
+        Add a legend (the z label already names the component).
+    xlabel, ylabel, zlabel : str, optional
+        Default ``$t$``, ``$j$`` and the component's name.
+    **line_kw
+        Further ``Line2D`` properties of the flows.
+
+    Returns
+    -------
+    mpl_toolkits.mplot3d.Axes3D
+
+    Examples
+    --------
+    >>> import hybridsim as hs
+    >>> from hybridsim.library import Timer
+    >>> arc = hs.simulate(Timer(1.0), [0.0], t_max=2.5)
+    >>> ax = hs.plot_hybrid(arc, labels=[r"$\tau$"])
+    >>> ax.get_xlabel(), ax.get_ylabel(), ax.get_zlabel()
+    ('$t$', '$j$', '$\\tau$')
+    """
+    where = "plot_hybrid"
+    _check_arc(arc, where)
+    for name, v in (("jumps", jumps), ("markers", markers), ("legend", legend)):
+        _check_bool(name, v, where)
+    smooth = _check_smooth(smooth, where)
+    ax = _axes(ax, where, projection="3d")
+    styles = _styles(flow_kw, jump_kw, start_kw, end_kw, line_kw, where)
+    s = _sample(arc, idx, fn, smooth, filter, where)
+    if s.k != 1:
+        raise ValueError("plot_hybrid: idx must select one component")
+    name = _single_label(labels, s.names[0], where)
+    jf = np.where(np.isnan(s.t), np.nan, s.j.astype(float))
+    v = s.v[:, 0]
+    pre = s.sample_pos[s.pre[s.shown]]
+    post = s.sample_pos[s.post[s.shown]]
+    _draw(ax, (s.t, jf, v), (s.t[pre], jf[pre], v[pre]), (s.t[post], jf[post], v[post]),
+          name, styles, jumps, markers)
+    ax.set_zlabel(name if zlabel is None else zlabel)
+    _finish(ax, T_LABEL if xlabel is None else xlabel, J_LABEL if ylabel is None else ylabel,
+            legend, None)
+    _integer_ticks(ax.yaxis)
+    return ax
+
+
+def plot_phase(arc, i=0, k=1, *, ax=None, labels=None, fn=None, filter=None, jumps=True,
+               markers=True, smooth=True, flow_kw=None, jump_kw=None, start_kw=None,
+               end_kw=None, legend=None, label=None, xlabel=None, ylabel=None,
+               xscale=None, yscale=None, **line_kw):
+    r"""Component k against component i: the arc in the phase plane.
+
+    Flows are solid and smooth, jumps dotted segments from the pre-jump
+    point (filled circle) to the post-jump point (open circle).
+
+    Parameters
+    ----------
+    arc : HybridArc
+    i, k : int, default 0 and 1
+        The components on the horizontal and vertical axes (of the state, or
+        of ``fn``'s output); they must differ.
     ax : matplotlib Axes, optional
-    labels : list of str, optional
-    jumps : bool
-        Draw the dashed jump segments.
+    labels : list of two str, optional
+        Names of components i and k: the axis labels (default ``$x_{i+1}$``,
+        ``$x_{k+1}$`` or the parts' names of an interconnection).
+    fn : callable, optional
+        ``fn(x, t, j)`` returning a 1-D array whose components i and k are
+        plotted (e.g. an error in two coordinates).
+    filter, jumps, markers, smooth, flow_kw, jump_kw, start_kw, end_kw
+        As in :func:`plot_flows`.
+    label : str, optional
+        The curve's legend entry.
+    legend : bool, optional
+        Add a legend; default: when ``label`` is given.
+    xlabel, ylabel : str, optional
+        Override the axis labels.
+    xscale, yscale : str, optional
+        Axis scales (``"log"``...).
+    **line_kw
+        Further ``Line2D`` properties of the flows.
 
     Returns
     -------
     matplotlib.axes.Axes
+
+    Examples
+    --------
+    >>> import hybridsim as hs
+    >>> from hybridsim.library import BouncingBall
+    >>> arc = hs.simulate(BouncingBall(), [1.0, 0.0], t_max=2.0)
+    >>> ax = hs.plot_phase(arc, 0, 1, labels=["height (m)", "velocity (m/s)"])
+    >>> ax.get_xlabel(), ax.get_ylabel()
+    ('height (m)', 'velocity (m/s)')
     """
-    ax = _axes(ax)
-    v, default = _values(arc, idx)
-    labels = default if labels is None else _check_labels(labels, v.shape[1])
-    color0 = line_kw.pop("color", None)
-    for k in range(v.shape[1]):
-        color = color0
-        for s, (a, b) in enumerate(_segments(arc)):
-            (line,) = ax.plot(arc.t[a:b], v[a:b, k], color=color,
-                              label=labels[k] if s == 0 else None, **line_kw)
-            color = line.get_color()
-        if jumps:
-            for i in arc.jump_index:
-                ax.plot([arc.t[i - 1], arc.t[i]], [v[i - 1, k], v[i, k]], ls="--",
-                        color=color, lw=0.8)
-    ax.set_xlabel("t")
-    if v.shape[1] > 1 or labels != default:
-        ax.legend()
+    where = "plot_phase"
+    _check_arc(arc, where)
+    for name, v in (("jumps", jumps), ("markers", markers)):
+        _check_bool(name, v, where)
+    if legend is None:
+        legend = label is not None
+    _check_bool("legend", legend, where)
+    if label is not None and not isinstance(label, str):
+        raise TypeError(f"{where}: label must be a str, got {type(label).__name__}")
+    smooth = _check_smooth(smooth, where)
+    xscale, yscale = _check_yscale(xscale, where), _check_yscale(yscale, where)
+    if ax is not None:
+        _axes(ax, where)
+    if fn is None:
+        n = arc.state_dim
+        i, k = _check_component(where, i, n), _check_component(where, k, n)
+        if i == k:
+            raise ValueError(f"{where}: i and k must be two different components, got "
+                             f"i = k = {i} (plot_flows draws one component against t)")
+        s = _sample(arc, [i, k], None, smooth, filter, where)
+    else:
+        s = _sample(arc, None, fn, smooth, filter, where)
+        i, k = _check_component(where, i, s.k), _check_component(where, k, s.k)
+        if i == k:
+            raise ValueError(f"{where}: i and k must be two different outputs of fn, got "
+                             f"i = k = {i}")
+        s.v, s.names = s.v[:, [i, k]], [s.names[i], s.names[k]]
+    names = s.names if labels is None else _check_labels(
+        labels, 2, where, "axis (components i and k)")
+    ax = _axes(ax, where)
+    styles = _styles(flow_kw, jump_kw, start_kw, end_kw, line_kw, where)
+    a, b = s.v[:, 0], s.v[:, 1]
+    pre = s.sample_pos[s.pre[s.shown]]
+    post = s.sample_pos[s.post[s.shown]]
+    _draw(ax, (a, b), (a[pre], b[pre]), (a[post], b[post]),
+          "_nolegend_" if label is None else label, styles, jumps, markers)
+    if xscale is not None:
+        ax.set_xscale(xscale)
+    _finish(ax, names[0] if xlabel is None else xlabel, names[1] if ylabel is None else ylabel,
+            legend, yscale)
     return ax
 
 
-def plot_jumps(arc, idx=None, *, ax=None, labels=None, **line_kw):
-    """Each selected component against the jump counter j.
+def plot_time_domain(arc, *, ax=None, labels=None, filter=None, jumps=True, markers=True,
+                     flow_kw=None, jump_kw=None, start_kw=None, end_kw=None, legend=None,
+                     xlabel=None, ylabel=None, **line_kw):
+    r"""The hybrid time domain: each interval [t_j, t_{j+1}] x {j}, j against t.
 
-    Values during a flow interval are drawn at its j (vertical marks); jumps
-    are dashed segments from (j, pre-jump value) to (j + 1, post-jump value).
+    Flow intervals are solid horizontal segments at height j; each jump is a
+    dotted vertical segment from (t, j) to (t, j + 1) with the jump markers.
+    A jump count whose interval has no length shows as its markers only.
+
+    Parameters
+    ----------
+    arc : HybridArc
+    ax : matplotlib Axes, optional
+    labels : str or list of one str, optional
+        Legend entry of the domain (e.g. when several arcs share the Axes).
+    filter : callable or bool array, optional
+        As in :func:`plot_flows`: hides the parts of the domain where it is
+        False.
+    jumps, markers, flow_kw, jump_kw, start_kw, end_kw
+        As in :func:`plot_flows` (default: 1.5 x the rcParams line width).
+    legend : bool, optional
+        Add a legend; default: when ``labels`` is given.
+    xlabel, ylabel : str, optional
+        Default ``$t$`` and ``$j$``.
+    **line_kw
+        Further ``Line2D`` properties of the flow intervals.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+
+    Examples
+    --------
+    >>> import hybridsim as hs
+    >>> from hybridsim.library import Timer
+    >>> arc = hs.simulate(Timer(1.0), [0.0], t_max=2.5)
+    >>> ax = hs.plot_time_domain(arc)
+    >>> ax.get_xlabel(), ax.get_ylabel(), ax.lines[0].get_gid()
+    ('$t$', '$j$', 'flows')
     """
-    ax = _axes(ax)
-    v, default = _values(arc, idx)
-    labels = default if labels is None else _check_labels(labels, v.shape[1])
-    for k in range(v.shape[1]):
-        (line,) = ax.plot(arc.j, v[:, k], ".", label=labels[k], **line_kw)
-        for i in arc.jump_index:
-            ax.plot([arc.j[i - 1], arc.j[i]], [v[i - 1, k], v[i, k]], ls="--",
-                    color=line.get_color(), lw=0.8)
-    ax.set_xlabel("j")
-    if v.shape[1] > 1:
-        ax.legend()
-    return ax
-
-
-def plot_hybrid(arc, idx=0, *, ax=None, **line_kw):
-    """One component in 3-D over the hybrid time domain: (t, j, x).
-
-    ``idx`` is a state index or ``fn(x, t, j)`` returning a scalar.
-    """
-    import mpl_toolkits.mplot3d  # noqa: F401 - registers the 3d projection
-    ax = _axes(ax, projection="3d")
-    v, labels = _values(arc, idx)
-    if v.shape[1] != 1:
-        raise ValueError("plot_hybrid: idx must select one component")
-    color = None
-    for a, b in _segments(arc):
-        (line,) = ax.plot(arc.t[a:b], arc.j[a:b], v[a:b, 0], color=color, **line_kw)
-        color = line.get_color()
-    for i in arc.jump_index:
-        ax.plot([arc.t[i - 1]] * 2, [arc.j[i - 1], arc.j[i]], [v[i - 1, 0], v[i, 0]],
-                ls="--", color=color, lw=0.8)
-    ax.set_xlabel("t")
-    ax.set_ylabel("j")
-    ax.set_zlabel(labels[0])
-    return ax
-
-
-def plot_phase(arc, i=0, k=1, *, ax=None, **line_kw):
-    """Component k against component i, flows solid and jumps dashed."""
-    ax = _axes(ax)
-    for c in (i, k):
-        _check_component("plot_phase", c, arc.state_dim)
-    color = None
-    for a, b in _segments(arc):
-        (line,) = ax.plot(arc.x[a:b, i], arc.x[a:b, k], color=color, **line_kw)
-        color = line.get_color()
-    for m in arc.jump_index:
-        ax.plot(arc.x[m - 1:m + 1, i], arc.x[m - 1:m + 1, k], ls="--", color=color, lw=0.8)
-    ax.set_xlabel(f"x{i}")
-    ax.set_ylabel(f"x{k}")
-    return ax
-
-
-def plot_time_domain(arc, *, ax=None, **line_kw):
-    """The hybrid time domain: each interval [t_j, t_{j+1}] x {j}."""
-    ax = _axes(ax)
-    for a, b, j in arc.flow_intervals:
-        ax.plot([a, b], [j, j], "-", color=line_kw.get("color", "C0"), lw=2)
-        ax.plot([a], [j], "o", color=line_kw.get("color", "C0"), ms=3)
-    ax.set_xlabel("t")
-    ax.set_ylabel("j")
+    import matplotlib as mpl
+    where = "plot_time_domain"
+    _check_arc(arc, where)
+    for name, v in (("jumps", jumps), ("markers", markers)):
+        _check_bool(name, v, where)
+    name = _single_label(labels, "_nolegend_", where)
+    if legend is None:
+        legend = labels is not None
+    _check_bool("legend", legend, where)
+    ax = _axes(ax, where)
+    flow_kw = {"linewidth": 1.5 * mpl.rcParams["lines.linewidth"],
+               **_check_kw("flow_kw", flow_kw, where)}
+    styles = _styles(flow_kw, jump_kw, start_kw, end_kw, line_kw, where)
+    s = _sample(arc, None, None, 0 if not callable(filter) else True, filter, where,
+                values=False)
+    jf = np.where(s.keep & ~np.isnan(s.t), s.j.astype(float), np.nan)
+    pre = s.sample_pos[s.pre[s.shown]]
+    post = s.sample_pos[s.post[s.shown]]
+    _draw(ax, (s.t, jf), (s.t[pre], jf[pre]), (s.t[post], jf[post]), name, styles, jumps,
+          markers)
+    _finish(ax, T_LABEL if xlabel is None else xlabel, J_LABEL if ylabel is None else ylabel,
+            legend, None)
+    _integer_ticks(ax.yaxis)
     return ax
