@@ -344,11 +344,11 @@ def _sample(arc, idx, fn, smooth, filt, where, values=True):
             p = as_map(filt, "filter")
             for q in np.flatnonzero(live):
                 r = p(X[q], T[q], int(J[q]), None)
-                try:
-                    keep[q] = bool(np.asarray(r).item())
-                except (ValueError, TypeError):
+                rv = np.asarray(r)
+                if rv.shape != () or rv.dtype.kind not in "biu":
                     raise TypeError(f"{where}: filter must return one bool, got "
-                                    f"{r!r} at (t={T[q]}, j={J[q]})") from None
+                                    f"{r!r} at (t={T[q]}, j={J[q]})")
+                keep[q] = bool(rv)
         else:
             mask = np.asarray(filt)
             if mask.dtype != bool or mask.shape != (N,):
