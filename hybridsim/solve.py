@@ -44,19 +44,34 @@ class _Outcome(enum.Enum):
 
 
 class _Buffer:
-    """Growable (t, j, x, xdot) sample store: amortised O(1) appends."""
+    """Sample store (t, j, x, xdot).
 
-    __slots__ = ("t", "j", "x", "xdot", "n")
+    Samples are appended to short Python lists (an order of magnitude cheaper
+    than writing numpy rows one at a time) and flushed every ``chunk`` samples
+    into numpy arrays that double when full: amortised O(1) appends, no
+    quadratic copies, and at most ``chunk`` array references held.
+    """
 
-    def __init__(self, dim, cap=256):
+    __slots__ = ("t", "j", "x", "xdot", "m", "pt", "pj", "px", "pd", "dim", "nan", "cap")
+    chunk = 512
+
+    def __init__(self, dim, cap=256, max_samples=math.inf):
+        self.cap = max_samples
+        self.dim = dim
         self.t = np.empty(cap)
         self.j = np.empty(cap, dtype=np.int64)
         self.x = np.empty((cap, dim))
         self.xdot = np.empty((cap, dim))
-        self.n = 0
+        self.m = 0
+        self.pt, self.pj, self.px, self.pd = [], [], [], []
+        self.nan = np.full(dim, np.nan)
+
+    @property
+    def n(self):
+        return self.m + len(self.pt)
 
     def _grow(self, need):
-        k = self.n
+        k = self.m
         cap = max(2 * len(self.t), need)
         for name in ("t", "j", "x", "xdot"):
             old = getattr(self, name)
@@ -65,34 +80,70 @@ class _Buffer:
             setattr(self, name, new)
 
     def append(self, t, j, x, xdot=None):
-        k = self.n
-        if k == len(self.t):
-            self._grow(k + 1)
-        self.t[k] = t
-        self.j[k] = j
-        self.x[k] = x
-        self.xdot[k] = np.nan if xdot is None else xdot
-        self.n = k + 1
+        pt = self.pt
+        if len(pt) >= self.chunk or self.m + len(pt) >= self.cap:
+            self.flush()
+            if self.m >= self.cap:
+                raise _SampleCap()
+            pt = self.pt
+        pt.append(t)
+        self.pj.append(j)
+        self.px.append(x)
+        self.pd.append(self.nan if xdot is None else xdot)
+
+    def flush(self):
+        k = len(self.pt)
+        if not k:
+            return
+        m = self.m
+        if m + k > len(self.t):
+            self._grow(m + k)
+        self.t[m:m + k] = self.pt
+        self.j[m:m + k] = self.pj
+        self.x[m:m + k] = self.px
+        self.xdot[m:m + k] = self.pd
+        self.m = m + k
+        self.pt, self.pj, self.px, self.pd = [], [], [], []
+
+    def last(self):
+        """(t, j, x, xdot) of the last sample."""
+        if self.pt:
+            return self.pt[-1], self.pj[-1], self.px[-1], self.pd[-1]
+        k = self.m - 1
+        return self.t[k], int(self.j[k]), self.x[k], self.xdot[k]
+
+    def set_last_xdot(self, v):
+        if self.pd:
+            self.pd[-1] = v
+        else:
+            self.xdot[self.m - 1] = v
+
+    def pop(self):
+        self.flush()
+        self.m -= 1
 
     def extend(self, t, j, X, Xd=None):
         """Append many samples of one j at once."""
-        m = len(t)
-        k = self.n
-        if k + m > len(self.t):
-            self._grow(k + m)
-        self.t[k:k + m] = t
-        self.j[k:k + m] = j
-        self.x[k:k + m] = X
-        self.xdot[k:k + m] = np.nan if Xd is None else Xd
-        self.n = k + m
+        self.flush()
+        m, k = self.m, len(t)
+        if m + k > self.cap:
+            raise _SampleCap()
+        if m + k > len(self.t):
+            self._grow(m + k)
+        self.t[m:m + k] = t
+        self.j[m:m + k] = j
+        self.x[m:m + k] = X
+        self.xdot[m:m + k] = np.nan if Xd is None else Xd
+        self.m = m + k
 
     def arrays(self):
         """The samples, shrunk in place (no copy); the buffer is done after this."""
-        k = self.n
+        self.flush()
+        k = self.m
         self.t.resize(k, refcheck=False)
         self.j.resize(k, refcheck=False)
-        self.x.resize((k, self.x.shape[1]), refcheck=False)
-        self.xdot.resize((k, self.xdot.shape[1]), refcheck=False)
+        self.x.resize((k, self.dim), refcheck=False)
+        self.xdot.resize((k, self.dim), refcheck=False)
         return self.t, self.j, self.x, self.xdot
 
 
@@ -153,6 +204,9 @@ def _check_bool(name, v, *, allow_none=False):
 
 def check_map_value(name, val, n, t=None, j=None):
     """Check a flow/jump map's value: real, finite, shape (n,). Returns a float array."""
+    if type(val) is np.ndarray and val.shape == (n,) and val.dtype.kind == "f" \
+            and math.isfinite(val.sum()):
+        return val
     where = "" if t is None else f" (at t={t:.10g}, j={j})"
     if np.iscomplexobj(val):
         raise MapError(f"{name} returned complex values {val!r}{where}: the state is real",
@@ -308,7 +362,7 @@ class _Stats:
     """Run statistics, returned as ``arc.stats`` (a dict)."""
 
     steps: int = 0          # accepted solver steps
-    rejected: int = 0       # rejected step attempts (explicit Runge-Kutta methods)
+    attempts: int = 0       # step attempts, accepted or rejected (RK23, RK45)
     nfev: int = 0           # flow-map evaluations by the solver
     njev: int = 0           # Jacobian evaluations (implicit methods)
     nlu: int = 0            # LU decompositions (implicit methods)
@@ -316,7 +370,10 @@ class _Stats:
     flows: int = 0          # flows started (solver restarts)
 
     def as_dict(self):
-        return dict(self.__dict__)
+        d = dict(self.__dict__)
+        a = d.pop("attempts")
+        d["rejected"] = max(a - self.steps, 0) if a else None
+        return d
 
 
 @dataclass
@@ -528,7 +585,7 @@ class _Run:
         self.o = opts
         self.ufun = ufun
         self.history = history
-        self.buf = _Buffer(opts.n)
+        self.buf = _Buffer(opts.n, max_samples=opts.max_samples)
         self.stats = _Stats()
         self.cause = None
         self.message = None
@@ -542,16 +599,27 @@ class _Run:
                   and (not maps.has_C or maps.hC is not None))
         self.use_phi = phi_ok and (maps.hD is not None or maps.hC is not None)
         self.is_rk = issubclass(opts.Method, RungeKutta)
+        # scipy's explicit Runge-Kutta solvers keep no state between steps but
+        # (t, y, f, h): one object serves every flow
+        self.reuse = opts.Method in (RK23, RK45, DOP853)
+        self.restarts = 0       # in-place restarts of the current solver
+        self.solver = None
+        self.jcell = [0]
+        self.fun = self._fun()
         self.stiff_check = opts.Method is RK45
 
     # ------------------------------------------------------------------ helpers
     def arc(self):
         b = self.buf
-        if b.n and np.isnan(b.xdot[b.n - 1]).any() and self.cause is not Termination.MAP_ERROR:
-            fd = self._fdot(b.t[b.n - 1], b.x[b.n - 1], int(b.j[b.n - 1]))
-            if fd is not None and np.shape(fd) == (self.o.n,):
-                b.xdot[b.n - 1] = fd
+        if b.n and self.cause is not Termination.MAP_ERROR:
+            tl, jl, xl, dl = b.last()
+            if np.isnan(dl).any():
+                fd = self._fdot(tl, xl, int(jl))
+                if fd is not None and np.shape(fd) == (self.o.n,) and not np.iscomplexobj(fd):
+                    b.set_last_xdot(np.asarray(fd, dtype=float))
         t, j, X, Xd = b.arrays()
+        self._count(self.solver)
+        self.solver = None
         return HybridArc(t, j, X, self.cause, self.message, self.exception,
                          components=self.system.components,
                          segments=self.history.segments if self.o.keep else None,
@@ -566,8 +634,6 @@ class _Run:
         return self.ufun(s) if self.ufun is not None else None
 
     def _append(self, t, j, x, xdot=None):
-        if self.buf.n >= self.o.max_samples:
-            raise _SampleCap()
         self.buf.append(t, j, x, xdot)
 
     # ------------------------------------------------------------------ the loop
@@ -594,6 +660,14 @@ class _Run:
                 t, j, x = st.t, st.j, st.x
                 if flow_on:          # random priority chose to flow on in C ∩ D
                     in_D = True
+                elif forced:         # the located event is in D: jump
+                    forced = False
+                    if st.jumps >= o.j_max:
+                        self._stop(Termination.J_MAX)
+                        return
+                    if self._jump(st, g(x, t, j, self._u(t)), scale0):
+                        return
+                    continue
                 else:
                     u = self._u(t)
                     in_D = has_D and D(x, t, j, u)
@@ -635,7 +709,7 @@ class _Run:
         """Apply x+ = g(x) at the current point; True when the run stops."""
         o = self.o
         t, j = st.t, st.j
-        xn = check_map_value("jump_map", xn, o.n, t, j)
+        xn = check_map_value("jump_map", xn, o.n, t, j).copy()    # the user may reuse it
         flow = t - st.t_last_jump
         st.flow_lengths = (st.flow_lengths + [flow])[-4:]
         short = is_short_flow(flow, t, time_scale(scale0, t, o.t_max), o.zeno_time,
@@ -692,19 +766,55 @@ class _Run:
         return min(br[0], self.o.t_max) if br else self.o.t_max
 
     # ------------------------------------------------------------------ a flow
-    def _fun(self, j):
-        """The solver's right-hand side: the flow map with its contract checked."""
-        f, ufun, n, stats = self.maps.f, self.ufun, self.o.n, self.stats
-        shape = (n,)
+    def _fun(self):
+        """The solver's right-hand side: the user's flow map called directly
+        (one Python frame), its failures named and its value's contract checked.
 
-        def fun(s, y):
-            stats.nfev += 1
-            v = f(y, s, j, ufun(s) if ufun is not None else None)
-            if type(v) is np.ndarray and v.shape == shape and v.dtype.kind == "f":
-                return v
-            return check_map_value("flow_map", v, n, s, j) if not (
-                isinstance(v, np.ndarray) and v.shape == shape and v.dtype.kind in "iub") \
-                else v.astype(float)
+        It reads the flow's j from ``self.jcell``, so one solver object serves
+        every flow of the run.
+        """
+        maps, ufun, n, jcell = self.maps, self.ufun, self.o.n, self.jcell
+        fn, k = maps.f_raw, maps.f_arity
+        shape = (n,)
+        nd, f64 = np.ndarray, np.dtype(float)
+
+        def fail(e, s):
+            if isinstance(e, MapError):
+                raise e
+            raise MapError(f"flow_map raised {type(e).__name__}: {e} (at t={s:.10g}, "
+                           f"j={jcell[0]})", "flow_map", s, jcell[0]) from e
+
+        def checked(v, s):
+            if isinstance(v, np.ndarray) and v.shape == shape and v.dtype.kind in "iub":
+                return v.astype(float)
+            return check_map_value("flow_map", v, n, s, jcell[0])
+
+        if k <= 1 and ufun is None:
+            def fun(s, y):
+                try:
+                    v = fn(y)
+                except Exception as e:  # noqa: BLE001 - named and re-raised
+                    fail(e, s)
+                if v.__class__ is nd and v.dtype is f64 and v.shape == shape:
+                    return v
+                return checked(v, s)
+        elif k == 2 and ufun is None:
+            def fun(s, y):
+                try:
+                    v = fn(y, s)
+                except Exception as e:  # noqa: BLE001
+                    fail(e, s)
+                if v.__class__ is nd and v.dtype is f64 and v.shape == shape:
+                    return v
+                return checked(v, s)
+        else:
+            f = maps.f
+
+            def fun(s, y):
+                v = f(y, s, jcell[0], ufun(s) if ufun is not None else None)
+                if v.__class__ is nd and v.dtype is f64 and v.shape == shape:
+                    return v
+                return checked(v, s)
         return fun
 
     def _flow(self, st, in_D_start):
@@ -714,89 +824,127 @@ class _Run:
         has_C, watch_D = maps.has_C, self.watch_D
         buf, hist, keep, pbar = self.buf, self.history, o.keep, self.pbar
         t, j, x = st.t, st.j, st.x
-        fun = self._fun(j)
+        self.jcell[0] = j
+        fun = self.fun
         t_bound = self._bound(st) if o.delays else o.t_max
         h = st.h_hint
         if h is not None:
             h = min(h, t_bound - t, o.max_step)
             if not h > 0:
                 h = None
-        solver = o.Method(fun, t, x, t_bound, rtol=o.rtol, atol=o.atol,
-                          max_step=o.max_step, first_step=h)
+        solver = self._start_solver(t, x, t_bound, h)
         stats.flows += 1
         # the flow's derivative at its first sample (the solver has it: FSAL)
-        k0 = buf.n - 1
         f0 = getattr(solver, "f", None)
-        buf.xdot[k0] = f0 if f0 is not None else fun(t, x)
+        buf.set_last_xdot((f0 if f0 is not None else fun(t, x)).copy())
         a, ya = t, x
         d_active = watch_D and not in_D_start     # D entries count only from outside D
-        interior = (watch_D and maps.hD is not None) or (has_C and maps.hC is not None) \
-            or watch_D or has_C
+        sets = has_C or watch_D
+        inner = keep or o.refine > 1 or o.t_eval is not None
+        stiff = self.stiff_check
+        ufun = self.ufun
+        pred = phi = None
         n_stages = getattr(solver, "n_stages", None) if self.is_rk else None
-        while True:
-            if stats.steps >= o.max_steps:
-                self._stop(Termination.MAX_STEPS, f"{stats.steps} solver steps "
-                                                  f"(max_steps={o.max_steps}) at t={a:.10g}")
-                return self._end(st, a, ya, _Outcome.STOP)
-            nf = stats.nfev
-            msg = solver.step()
-            if n_stages:
-                stats.rejected += max((stats.nfev - nf) // n_stages - 1, 0)
-            if solver.status == "failed":
-                return self._solver_failed(st, solver, msg, a, ya, j)
-            b = solver.t
-            yb = solver.y
-            stats.steps += 1
-            if not np.isfinite(yb).all():
-                self._stop(Termination.NON_FINITE, f"after the step from t={a:.10g} to "
-                                                   f"t={b:.10g} (j={j})")
-                return self._end(st, a, ya, _Outcome.STOP)
-            ub = self._u(b)
-            event = has_C and not C(yb, b, j, ub)
-            if d_active:
-                event = event or D(yb, b, j, ub)
-            sol = None
-            if event:
-                sol = solver.dense_output()
-                return self._event(st, sol, a, a, b, j, solver, d_active)
-            if interior and (has_C or d_active):
-                sol = solver.dense_output()
-                hit = find_interior_event(sol, a, b, self._pred(j, d_active),
-                                          self._phi(j, d_active))
-                if hit is not None:
-                    return self._event(st, sol, a, hit[0], hit[1], j, solver, d_active)
-            if watch_D and not d_active:
-                d_active = not D(yb, b, j, ub)
-            if self.stiff_check and (st.stiff_hits or stats.steps % 10 == 0):
-                self._check_stiff(st, solver)
-            if keep or o.refine > 1 or o.t_eval is not None:
-                if sol is None:
-                    sol = solver.dense_output()
-                if keep:
-                    hist._add(a, b, j, sol)
-                self._inner_samples(sol, a, b, j)
-            if o.t_eval is None or solver.status == "finished":
-                fb = getattr(solver, "f", None) if self.is_rk else None
-                self._append(b, j, yb, fb if fb is not None else fun(b, yb))
-            if pbar is not None and math.isfinite(o.t_max):
-                pbar.update(b - a)
-            if o.max_norm < math.inf:
-                nb = float(np.linalg.norm(yb))
-                if nb > o.max_norm:
-                    self._stop(Termination.BLOWUP, f"|x| = {nb:.3g} > {o.max_norm:.3g} at "
-                                                   f"t={b:.10g} (j={j})")
-                    return self._end(st, b, yb, _Outcome.STOP)
-            if solver.status == "finished":
-                if b < o.t_max:          # a delay breakpoint: go on flowing
-                    st.h_hint = getattr(solver, "h_abs", None)
-                    return self._end(st, b, yb, _Outcome.BREAK)
-                st.h_hint = None
-                if d_active:
-                    hit = self._event_past_t_max(st, solver, a, b, j)
-                    if hit is not None:
-                        return hit
-                return self._end(st, b, yb, _Outcome.T_MAX)
-            a, ya = b, yb
+        max_norm, t_eval = o.max_norm, o.t_eval
+        cap = o.max_steps - stats.steps      # steps left in this run
+        k = 0
+        step = solver.step
+        append = buf.append
+        try:
+            while True:
+                if k >= cap:
+                    self._stop(Termination.MAX_STEPS, f"{o.max_steps} solver steps "
+                                                      f"(max_steps) at t={a:.10g}")
+                    return self._end(st, a, ya, _Outcome.STOP)
+                msg = step()
+                if solver.status == "failed":
+                    return self._solver_failed(st, solver, msg, a, ya, j)
+                k += 1
+                b = solver.t
+                yb = solver.y
+                if not math.isfinite(yb.dot(yb)) and not np.isfinite(yb).all():
+                    self._stop(Termination.NON_FINITE, f"after the step from t={a:.10g} to "
+                                                       f"t={b:.10g} (j={j})")
+                    return self._end(st, a, ya, _Outcome.STOP)
+                sol = None
+                if sets:
+                    ub = ufun(b) if ufun is not None else None
+                    if (has_C and not C(yb, b, j, ub)) or (d_active and D(yb, b, j, ub)):
+                        sol = solver.dense_output()
+                        return self._event(st, sol, a, a, b, j, solver, d_active)
+                    if has_C or d_active:
+                        if pred is None:
+                            pred, phi = self._pred(j, d_active), self._phi(j, d_active)
+                        sol = solver.dense_output()
+                        hit = find_interior_event(sol, a, b, pred, phi)
+                        if hit is not None:
+                            return self._event(st, sol, a, hit[0], hit[1], j, solver,
+                                               d_active)
+                    if watch_D and not d_active:
+                        d_active = not D(yb, b, j, ub)
+                        pred = phi = None
+                if stiff and (st.stiff_hits or k % 25 == 0):
+                    self._check_stiff(st, solver)
+                if inner:
+                    if sol is None:
+                        sol = solver.dense_output()
+                    if keep:
+                        hist._add(a, b, j, sol)
+                    self._inner_samples(sol, a, b, j)
+                if t_eval is None or solver.status == "finished":
+                    append(b, j, yb, solver.f.copy() if n_stages else fun(b, yb))
+                if pbar is not None and math.isfinite(o.t_max):
+                    pbar.update(b - a)
+                if max_norm < math.inf:
+                    nb = float(np.linalg.norm(yb))
+                    if nb > max_norm:
+                        self._stop(Termination.BLOWUP, f"|x| = {nb:.3g} > {max_norm:.3g} at "
+                                                       f"t={b:.10g} (j={j})")
+                        return self._end(st, b, yb, _Outcome.STOP)
+                if solver.status == "finished":
+                    if b < o.t_max:          # a delay breakpoint: go on flowing
+                        st.h_hint = getattr(solver, "h_abs", None)
+                        return self._end(st, b, yb, _Outcome.BREAK)
+                    st.h_hint = None
+                    if d_active:
+                        hit = self._event_past_t_max(st, solver, a, b, j)
+                        if hit is not None:
+                            return hit
+                    return self._end(st, b, yb, _Outcome.T_MAX)
+                a, ya = b, yb
+        finally:
+            stats.steps += k
+
+    def _start_solver(self, t, x, t_bound, h):
+        """The solver for a flow from (t, x): the run's Runge-Kutta solver reset
+        in place where it can be (its set-up is a third of a short flow's
+        cost), else a new one."""
+        s = self.solver
+        if s is not None and h is not None and self.reuse:
+            s.t, s.y, s.t_bound = t, np.array(x, dtype=float), t_bound
+            s.status, s.t_old, s.y_old, s.h_previous = "running", None, None, None
+            s.h_abs = h
+            s.f = s.fun(t, s.y)
+            self.restarts += 1
+            return s
+        self._count(self.solver)
+        s = self.o.Method(self.fun, t, x, t_bound, rtol=self.o.rtol, atol=self.o.atol,
+                          max_step=self.o.max_step, first_step=h)
+        self.solver = s
+        return s
+
+    def _count(self, solver):
+        """Add a retired solver's evaluation counters to the run's statistics."""
+        if solver is not None:
+            st = self.stats
+            st.nfev += solver.nfev
+            ns = getattr(solver, "n_stages", None)
+            if type(solver) in (RK23, RK45):
+                # each attempt costs n_stages evaluations, each (re)start one
+                st.attempts += (solver.nfev - 1 - self.restarts) // ns
+                self.restarts = 0
+            st.njev += getattr(solver, "njev", 0)
+            st.nlu += getattr(solver, "nlu", 0)
 
     def _end(self, st, t, x, outcome):
         st.t, st.x = t, x
@@ -829,9 +977,10 @@ class _Run:
         if st.warned_stiff:
             return
         K, h = solver.K, solver.h_previous
-        y6 = solver.y_old + h * (K[:5].T @ solver.A[5, :5])
-        den = float(np.linalg.norm(solver.y - y6))
-        if den > 0 and h * float(np.linalg.norm(K[6] - K[5])) / den > 3.25:
+        dy = solver.y - solver.y_old - h * (solver.A[5, :5] @ K[:5])    # y7 - y6
+        dk = K[6] - K[5]
+        den = float(dy @ dy)
+        if den > 0 and h * h * float(dk @ dk) > 3.25 * 3.25 * den:
             st.stiff_hits += 1
             st.calm = 0
         else:
@@ -890,7 +1039,8 @@ class _Run:
             self.pbar.update(te_hi - a)
         uhi = self._u(hi)
         if d_active and D(yhi, hi, j, uhi):
-            in_C = (not has_C) or C(yhi, hi, j, uhi)
+            # C matters here only for the random priority's coin
+            in_C = o.prio == Priority.RANDOM and ((not has_C) or C(yhi, hi, j, uhi))
             coin = (o.rng.random() < 0.5) if needs_coin(in_C, True, o.prio) else True
             action = decide_at_event(True, in_C, o.prio, coin)
             return self._commit(st, sol, a, j, te_hi, yhi,
@@ -914,8 +1064,8 @@ class _Run:
         tb = b + t_max_slack(b, st.jumps)
         if not pred(tb, sol(tb)):
             return None
-        if self.buf.t[self.buf.n - 1] == b:      # drop the t_max sample: the event replaces it
-            self.buf.n -= 1
+        if self.buf.last()[0] == b:      # drop the t_max sample: the event replaces it
+            self.buf.pop()
         return self._event(st, sol, a, b, tb, j, solver, True, clamp=b)
 
     def _commit(self, st, sol, a, j, te, xe, outcome):
@@ -952,8 +1102,6 @@ class _Run:
             return
         if ts.size == 0:
             return
-        if self.buf.n + ts.size > o.max_samples:
-            raise _SampleCap()
         X = np.asarray(sol(ts)).T.reshape(ts.size, o.n)
         self.buf.extend(ts, j, X, _dense_derivative(sol, ts))
 

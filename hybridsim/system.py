@@ -259,7 +259,8 @@ class HybridSystem:
             f=named(self.flow_map, "flow_map"), g=named(self.jump_map, "jump_map"),
             C=C, D=D, hD=hD, hC=hC, h=named(self.output, "output"),
             has_D=self.has_jumps, has_C=self.has_flow_boundary,
-            h_u=_arity(self.output) >= 4)
+            h_u=_arity(self.output) >= 4,
+            f_raw=self.flow_map, f_arity=_arity(self.flow_map))
         self.__dict__["_compiled_maps"] = c
         return c
 
@@ -327,7 +328,8 @@ class HybridSystem:
 
 
 class _Compiled:
-    __slots__ = ("f", "g", "C", "D", "hD", "hC", "h", "has_D", "has_C", "h_u")
+    __slots__ = ("f", "g", "C", "D", "hD", "hC", "h", "has_D", "has_C", "h_u",
+                 "f_raw", "f_arity")
 
     def __init__(self, **kw):
         for k, v in kw.items():
