@@ -1,54 +1,338 @@
-"""Many runs: initial conditions, noise realisations, parameter sweeps."""
+"""Many runs: initial conditions, noise realisations, parameter sweeps.
+
+A batch keeps going when one of its runs fails. A row whose map raises at its
+initial state, whose initial state is not finite, or whose run ends on a
+failure (``MAP_ERROR``, ``NON_FINITE``, ``BLOWUP``, ``SOLVER_FAILED``,
+``MAX_STEPS``) gets an arc of its own carrying the cause; the other rows'
+results are kept, and one :class:`BatchWarning` names the failed rows. With
+``throw=True`` the first failed row raises :class:`BatchError` instead.
+
+Ctrl-C (KeyboardInterrupt) during a batch stops launching runs: every finished
+run is kept, the run under way ends with ``Termination.CANCELED`` (and the arc
+so far), runs never started get a one-sample ``CANCELED`` arc at their initial
+state, and the list of N arcs is returned with one warning.
+"""
 from __future__ import annotations
 
-import sys
+import numbers
+import warnings
+from collections.abc import Iterable
 
 import numpy as np
 
+from ._progress import make_bar
+from .arc import HybridArc
+from .rules import FAILURES, MapError, SimulationError, SimulationWarning, Termination
 from .solve import simulate
 from .system import HybridSystem
 
-__all__ = ["simulate_many", "sweep"]
+__all__ = ["simulate_many", "sweep", "BatchWarning", "BatchError"]
+
+#: causes that make a row "failed" in a batch (named in the summary warning)
+FAILED = frozenset(FAILURES | {Termination.MAX_STEPS})
+_SHOW = 5               # failed rows named one by one in the summary
 
 
-def _chunks(n, k):
-    bounds = np.linspace(0, n, k + 1).astype(int)
-    return [(a, b) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
+class BatchWarning(SimulationWarning):
+    """Some runs of a batch failed or were canceled; the message names the rows.
+
+    Each failed row's arc carries its cause (``arc.termination``,
+    ``arc.message``, ``arc.exception``).
+    """
 
 
-def _run_chunk(system, x0s, kwargs):
-    return [simulate(system, x0, **kwargs) for x0 in x0s]
+class BatchError(SimulationError):
+    """A run of a batch failed and the batch was called with ``throw=True``.
+
+    Attributes
+    ----------
+    row : int
+        Index of the failed row (its place in ``x0s`` or ``params``).
+    arc : HybridArc
+        That row's arc (its cause in ``arc.termination``/``arc.exception``).
+    arcs : list of HybridArc or None
+        The batch's arcs so far, in row order (None for rows not run).
+    """
+
+    def __init__(self, message, row=None, arc=None, arcs=None):
+        super().__init__(message, arc)
+        self.row, self.arcs = row, arcs
 
 
-def _run_sweep_chunk(make_system, params, x0, kwargs):
-    return [simulate(make_system(p), x0, **kwargs) for p in params]
+# ------------------------------------------------------------------ arguments
+def _check_chunks(chunks):
+    if chunks is None:
+        return None
+    if isinstance(chunks, bool) or not isinstance(chunks, numbers.Integral):
+        raise TypeError(f"chunks must be a positive int or None (default: 4 per worker), "
+                        f"got {type(chunks).__name__} {chunks!r}")
+    if chunks < 1:
+        raise ValueError(f"chunks must be a positive int or None (default: 4 per worker), "
+                         f"got {chunks}")
+    return int(chunks)
 
 
-def _spread(executor, chunk_fn, items, args, chunks, bar):
-    """Run ``chunk_fn(*args(chunk))`` on the executor for chunks of ``items``, in order."""
-    workers = getattr(executor, "_max_workers", None) or 2
-    parts = _chunks(len(items), chunks or min(len(items), 4 * workers))
-    futs = [executor.submit(chunk_fn, *args(items[a:b])) for a, b in parts]
+def _check_executor(executor):
+    if executor is not None and not callable(getattr(executor, "submit", None)):
+        raise TypeError(f"executor must be a concurrent.futures.Executor (an object with a "
+                        f".submit method, e.g. ProcessPoolExecutor()) or None, got "
+                        f"{type(executor).__name__} {executor!r}")
+
+
+def _check_bool(name, v):
+    if isinstance(v, (bool, np.bool_)):
+        return bool(v)
+    raise TypeError(f"{name} must be True or False, got {type(v).__name__} {v!r}")
+
+
+def _as_rows(x0s, n):
+    """x0s as an (N, n) float array, with messages naming x0s."""
+    if np.iscomplexobj(x0s):
+        raise TypeError("x0s must be real, got complex values")
+    try:
+        X = np.array(x0s, dtype=float)
+    except (TypeError, ValueError) as e:
+        detail = ""
+        if isinstance(x0s, (list, tuple)):
+            shapes = []
+            for i, r in enumerate(x0s):
+                try:
+                    s = np.shape(r)
+                except ValueError:
+                    s = "ragged"
+                if s != (n,):
+                    shapes.append(f"row {i} has shape {s}")
+            if shapes:
+                detail = ": " + ", ".join(shapes[:_SHOW]) + \
+                    (f" and {len(shapes) - _SHOW} more" if len(shapes) > _SHOW else "")
+        raise ValueError(f"x0s must be a rectangular array of shape (N, {n}) of floats (one "
+                         f"initial state per row){detail or f'; got {type(x0s).__name__}'}") \
+            from e
+    if X.ndim != 2 or X.shape[1] != n:
+        raise ValueError(f"x0s must have shape (N, {n}), got {X.shape}")
+    return X
+
+
+def _check_params(params):
+    if isinstance(params, (str, bytes)) or not isinstance(params, Iterable):
+        raise TypeError(f"params must be an iterable of parameter values (a list, a range, "
+                        f"an array...), got {type(params).__name__} {params!r}")
+    return list(params)
+
+
+# ------------------------------------------------------------------ one row
+def _one_sample(x0, kwargs, cause, detail, exc=None, system=None):
+    """A one-sample arc at (t0, j0, x0) ending with ``cause`` (x0 None: unknown)."""
+    try:
+        x = np.empty((1, 0)) if x0 is None else np.array(x0, dtype=float).reshape(1, -1)
+    except (TypeError, ValueError):
+        x = np.empty((1, 0))
+    return HybridArc([float(kwargs.get("t0", 0.0))], [int(kwargs.get("j0", 0))], x, cause,
+                     f"{cause.message}: {detail}", exc,
+                     components=getattr(system, "components", None), system=system)
+
+
+def _nonfinite(x0):
+    try:
+        x = np.asarray(x0, dtype=float)
+    except (TypeError, ValueError):
+        return False
+    return not np.all(np.isfinite(x))
+
+
+def _run_row(system, make_system, p, x0, kwargs):
+    """One run of a batch: ``(arc, stop)``; stop is True when it was interrupted.
+
+    Failures of the user's code at x0 (``make_system(p)``, ``x0(p)``, a map
+    raising at x0) and non-finite x0 become one-sample arcs with their cause.
+    Argument errors raised by :func:`simulate` (the same for every row)
+    propagate.
+    """
+    try:
+        if make_system is not None:
+            try:
+                system = make_system(p)
+                if callable(x0):
+                    x0 = x0(p)
+            except (KeyboardInterrupt, SystemExit):
+                raise
+            except Exception as e:  # noqa: BLE001 - the user's code: a failed row
+                return _one_sample(x0 if not callable(x0) else None, kwargs,
+                                   Termination.MAP_ERROR,
+                                   f"building the run for p={p!r} raised "
+                                   f"{type(e).__name__}: {e}", e), False
+        if _nonfinite(x0):
+            return _one_sample(x0, kwargs, Termination.NON_FINITE,
+                               f"the initial state is not finite: {np.asarray(x0)}",
+                               ValueError(f"x0 must be finite, got {np.asarray(x0)}"),
+                               system), False
+        arc = simulate(system, x0, **kwargs)
+    except KeyboardInterrupt:
+        return _one_sample(x0 if not callable(x0) else None, kwargs, Termination.CANCELED,
+                           "interrupted at the initial state", None, system), True
+    except SimulationError as e:          # a map failed at x0 (MapError), or the engine
+        if isinstance(e.__cause__, KeyboardInterrupt):
+            return _one_sample(x0, kwargs, Termination.CANCELED,
+                               "interrupted at the initial state", None, system), True
+        cause = Termination.MAP_ERROR if isinstance(e, MapError) else Termination.SOLVER_FAILED
+        return _one_sample(x0, kwargs, cause, str(e), e, system), False
+    return arc, arc.termination is Termination.CANCELED
+
+
+def _never_started(x0, kwargs, system=None):
+    return _one_sample(None if callable(x0) else x0, kwargs, Termination.CANCELED,
+                       "never started (the batch was interrupted)", None, system)
+
+
+def _run_chunk(system, make_system, items, kwargs):
+    """Rows ``items`` = [(p, x0)] of a batch, in a worker; stops on Ctrl-C."""
     out = []
-    for fut in futs:
-        res = fut.result()
-        out.extend(res)
-        if bar is not None:
-            bar.update(len(res))
+    for k, (p, x0) in enumerate(items):
+        arc, stop = _run_row(system, make_system, p, x0, kwargs)
+        out.append(arc)
+        if stop:
+            out.extend(_never_started(x, kwargs, system) for _, x in items[k + 1:])
+            break
     return out
 
 
-def _bar(progress, total, desc):
-    if progress is None:
-        progress = bool(getattr(sys.stderr, "isatty", lambda: False)())
-    if not progress:
+# ------------------------------------------------------------------ the loop
+class _Batch:
+    """Runs rows serially or over an executor; keeps every finished arc."""
+
+    def __init__(self, system, make_system, items, kwargs, throw, bar):
+        self.system, self.make_system = system, make_system
+        self.items, self.kwargs, self.throw, self.bar = items, kwargs, throw, bar
+        self.out = [None] * len(items)
+        self.interrupted = False
+
+    def _store(self, i, arc):
+        self.out[i] = arc
+        if self.bar is not None:
+            self.bar.update(1)
+        if arc.termination is Termination.CANCELED:
+            self.interrupted = True
+        if self.throw and arc.termination in FAILED:
+            raise BatchError(f"row {i} of the batch failed: {arc.termination.name}: "
+                             f"{arc.message}", i, arc, self.out) from arc.exception
+
+    def fill(self, todo):
+        """Rows of ``todo`` still without an arc: canceled (never started)."""
+        for i in todo:
+            if self.out[i] is None:
+                p, x0 = self.items[i]
+                self.out[i] = _never_started(x0, self.kwargs,
+                                             self.system if self.make_system is None else None)
+
+    def serial(self, todo):
+        try:
+            for i in todo:
+                p, x0 = self.items[i]
+                arc, stop = _run_row(self.system, self.make_system, p, x0, self.kwargs)
+                self._store(i, arc)
+                if stop:
+                    break
+        except KeyboardInterrupt:
+            self.interrupted = True
+        self.fill(todo)
+
+    def spread(self, executor, todo, chunks):
+        workers = getattr(executor, "_max_workers", None) or 2
+        k = min(len(todo), chunks or 4 * workers)
+        bounds = np.linspace(0, len(todo), k + 1).astype(int)
+        parts = [todo[a:b] for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
+        futs = []
+        try:
+            for part in parts:
+                futs.append((part, executor.submit(
+                    _run_chunk, self.system, self.make_system,
+                    [self.items[i] for i in part], self.kwargs)))
+            errors = []
+            for n_done, (part, fut) in enumerate(futs):
+                if self.interrupted:
+                    break
+                try:
+                    res = fut.result()
+                except KeyboardInterrupt:
+                    raise
+                except Exception as e:  # noqa: BLE001 - the executor lost this chunk
+                    errors.append(e)
+                    for i in part:
+                        self._store(i, _one_sample(
+                            self.items[i][1], self.kwargs, Termination.MAP_ERROR,
+                            f"the executor failed on this row's chunk: "
+                            f"{type(e).__name__}: {e}", e,
+                            self.system if self.make_system is None else None))
+                    continue
+                for i, arc in zip(part, res):
+                    self._store(i, arc)
+            if errors and len(errors) == len(futs):
+                raise errors[0]          # nothing ran (e.g. the system does not pickle)
+        except KeyboardInterrupt:
+            self.interrupted = True
+        except BaseException:
+            for _, fut in futs:
+                fut.cancel()
+            raise
+        if self.interrupted:
+            self._drain(futs)
+        self.fill(todo)
+
+    def _drain(self, futs):
+        """After Ctrl-C: cancel chunks not started, keep those that finish."""
+        pending = [(part, fut) for part, fut in futs if not fut.cancel()
+                   and self.out[part[0]] is None]
+        try:
+            for part, fut in pending:
+                try:
+                    res = fut.result()      # workers got the Ctrl-C too: they stop soon
+                except (KeyboardInterrupt, SystemExit):
+                    raise
+                except Exception:  # noqa: BLE001 - a broken pool after Ctrl-C
+                    continue
+                for i, arc in zip(part, res):
+                    if self.out[i] is None:
+                        self.out[i] = arc
+        except KeyboardInterrupt:            # a second Ctrl-C: stop waiting
+            for _, fut in pending:
+                fut.cancel()
+
+
+def _summary(what, arcs, offset=0):
+    """One warning text for the failed and canceled rows, or None."""
+    failed = [(i, a) for i, a in enumerate(arcs) if a.termination in FAILED]
+    canceled = [i for i, a in enumerate(arcs) if a.termination is Termination.CANCELED]
+    parts = []
+    if failed:
+        named = []
+        for i, a in failed[:_SHOW]:
+            msg = a.message or a.termination.message
+            if a.exception is not None:
+                msg = f"{type(a.exception).__name__}: {a.exception}"
+            msg = " ".join(str(msg).split())
+            if len(msg) > 160:
+                msg = msg[:157] + "..."
+            named.append(f"row {i}: {a.termination.name} ({msg})")
+        more = f"; and {len(failed) - _SHOW} more" if len(failed) > _SHOW else ""
+        parts.append(f"{len(failed)} of {len(arcs)} runs failed: " + "; ".join(named) + more
+                     + ". Each failed row's arc carries its cause (arc.termination, "
+                       "arc.message, arc.exception); pass throw=True to raise at the first "
+                       "failure instead")
+    if canceled:
+        rows = canceled if len(canceled) <= 2 * _SHOW else \
+            canceled[:_SHOW] + ["..."] + canceled[-1:]
+        finished = len(arcs) - len(canceled)
+        parts.append(f"interrupted (KeyboardInterrupt): {finished} of {len(arcs)} runs kept, "
+                     f"rows {', '.join(map(str, rows))} end with CANCELED (the arc so far, or "
+                     f"one sample at x0 for rows never started)")
+    if not parts:
         return None
-    from tqdm.auto import tqdm
-    return tqdm(total=total, desc=desc, unit="run")
+    return f"{what}: " + ". ".join(parts) + "."
 
 
+# ------------------------------------------------------------------ public
 def simulate_many(system, x0s, t_max, j_max=np.inf, *, executor=None, chunks=None,
-                  progress=None, **kwargs):
+                  progress=None, throw=False, warn=True, **kwargs):
     """Simulate one system from many initial states.
 
     Parameters
@@ -60,53 +344,155 @@ def simulate_many(system, x0s, t_max, j_max=np.inf, *, executor=None, chunks=Non
         trajectory with its own steps, events and jumps. Otherwise the runs
         are looped over (or spread over ``executor``).
     x0s : array_like, shape (N, n)
-        One initial state per row.
+        One initial state per row (a rectangular array: ragged lists are
+        refused with the rows at fault named).
     t_max, j_max : float, int
         As in :func:`hybridsim.simulate`.
     executor : concurrent.futures.Executor, optional
-        Any executor (``ProcessPoolExecutor``, a ``dask.distributed``
-        client's ``get_executor()``...). The batch is split into ``chunks``
-        (default: 4 per worker, at most N) and the system is pickled to each.
+        Any object with ``.submit`` (``ProcessPoolExecutor``, a
+        ``dask.distributed`` client's ``get_executor()``...). The batch is
+        split into ``chunks`` and the system is pickled to each.
+    chunks : int, optional
+        Number of pieces the batch is split into for the executor (a
+        positive int; default: 4 per worker, at most N).
     progress : bool or None
-        A progress bar over runs (default: only at a terminal). Each run's
-        own bar is switched off.
+        A progress bar over runs (None: at a terminal and in a notebook;
+        see :func:`hybridsim._progress.progress_enabled`). Each run's own
+        bar is switched off.
+    throw : bool
+        False (default): a failed row (a map raising at its x0, a non-finite
+        x0, a run ending with ``MAP_ERROR``, ``NON_FINITE``, ``BLOWUP``,
+        ``SOLVER_FAILED`` or ``MAX_STEPS``) gets its own arc with the cause,
+        the batch goes on and one :class:`BatchWarning` names the failed
+        rows. True: raise :class:`BatchError` at the first failed row,
+        naming it.
+    warn : bool
+        Issue the summary warning (default True). Single runs never warn on
+        their own inside a batch.
     **kwargs
         Passed to :func:`hybridsim.simulate` (``priority``, ``rtol``...).
+        Argument errors (the same for every row) raise at once.
 
     Returns
     -------
     list of HybridArc
-        One arc per row of ``x0s``, in order.
+        One arc per row of ``x0s``, in order. A row that failed before
+        flowing has a one-sample arc at (t0, j0, x0) with cause
+        ``MAP_ERROR`` or ``NON_FINITE`` and the error in ``arc.exception``.
+        After Ctrl-C the list is still complete: finished runs are kept, the
+        run under way and the runs never started end with ``CANCELED``.
+
+    Raises
+    ------
+    BatchError
+        ``throw=True`` and a row failed (``.row``, ``.arc``, ``.arcs``).
+    TypeError, ValueError
+        Bad arguments (``x0s``, ``chunks``, ``executor``...), each named.
+
+    Examples
+    --------
+    >>> import numpy as np, hybridsim as hs
+    >>> decay = hs.HybridSystem.from_functions(f=lambda x: -x, state_dim=1)
+    >>> arcs = hs.simulate_many(decay, [[1.0], [2.0]], t_max=1.0, rtol=1e-10, atol=1e-12)
+    >>> [round(float(a.xf[0]), 6) for a in arcs]
+    [0.367879, 0.735759]
+    >>> import warnings
+    >>> with warnings.catch_warnings(record=True) as w:
+    ...     warnings.simplefilter("always")
+    ...     arcs = hs.simulate_many(decay, [[1.0], [np.nan]], t_max=1.0)
+    >>> [a.termination.name for a in arcs], len(w)
+    (['T_MAX', 'NON_FINITE'], 1)
     """
     if not isinstance(system, HybridSystem):
         raise TypeError(f"system must be a HybridSystem, got {type(system).__name__}")
-    x0s = np.asarray(x0s, dtype=float)
+    _check_executor(executor)
+    chunks = _check_chunks(chunks)
+    throw = _check_bool("throw", throw)
+    warn = _check_bool("warn", warn)
     n = int(system.state_dim)
-    if x0s.ndim != 2 or x0s.shape[1] != n:
-        raise ValueError(f"x0s must have shape (N, {n}), got {x0s.shape}")
+    X = _as_rows(x0s, n)
+    N = len(X)
+    if N == 0:
+        return []
     kwargs = dict(kwargs, t_max=t_max, j_max=j_max, progress=False)
     if system.vectorized and executor is None:
-        from .batch_vectorized import simulate_vectorized
-        return simulate_vectorized(system, x0s, **kwargs)
-    N = len(x0s)
-    bar = _bar(progress, N, "simulate_many")
+        out = _many_vectorized(system, X, kwargs, progress)
+        if throw:
+            for i, arc in enumerate(out):
+                if arc.termination in FAILED:
+                    raise BatchError(f"row {i} of the batch failed: {arc.termination.name}: "
+                                     f"{arc.message}", i, arc, out) from arc.exception
+    else:
+        kwargs.update(throw=False, warn=False)
+        items = [(None, x0) for x0 in X]
+        bar = make_bar(progress, total=N, desc="simulate_many", unit="run", leave=True)
+        batch = _Batch(system, None, items, kwargs, throw, bar)
+        try:
+            if executor is None:
+                batch.serial(list(range(N)))
+            else:
+                batch.spread(executor, list(range(N)), chunks)
+        finally:
+            if bar is not None:
+                bar.close()
+        out = batch.out
+    if warn:
+        msg = _summary("simulate_many", out)
+        if msg:
+            warnings.warn(msg, BatchWarning, stacklevel=2)
+    return out
+
+
+def _many_vectorized(system, X, kwargs, progress):
+    """The vectorized path, row failures at x0 isolated (see simulate_many)."""
+    from .batch_vectorized import simulate_vectorized
+    kwargs = dict(kwargs, progress=progress, throw=False)
+    N = len(X)
+    out = [None] * N
     try:
-        if executor is None:
-            out = []
-            for x0 in x0s:
-                out.append(simulate(system, x0, **kwargs))
-                if bar is not None:
-                    bar.update(1)
-            return out
-        return _spread(executor, _run_chunk, x0s, lambda part: (system, part, kwargs),
-                       chunks, bar)
-    finally:
-        if bar is not None:
-            bar.close()
+        _vectorized_rows(simulate_vectorized, system, X, kwargs, out)
+    except KeyboardInterrupt:       # during a probe: keep what is known
+        pass
+    for i in range(N):
+        if out[i] is None:
+            out[i] = _never_started(X[i], kwargs, system)
+    return out
+
+
+def _vectorized_rows(simulate_vectorized, system, X, kwargs, out):
+    good = []
+    N = len(X)
+    for i in range(N):
+        if _nonfinite(X[i]):
+            out[i] = _one_sample(X[i], kwargs, Termination.NON_FINITE,
+                                 f"the initial state is not finite: {X[i]}",
+                                 ValueError(f"x0s row {i} must be finite, got {X[i]}"), system)
+        else:
+            good.append(i)
+    while good:
+        try:
+            arcs = simulate_vectorized(system, X[good], **kwargs)
+        except MapError as err:
+            # which rows fail at x0? probe each alone (no flow: t_max = t0, j_max = 0)
+            probe = dict(kwargs, t_max=kwargs.get("t0", 0.0), j_max=0, progress=False)
+            bad = []
+            for i in good:
+                try:
+                    simulate_vectorized(system, X[i:i + 1], **probe)
+                except MapError as e:
+                    bad.append(i)
+                    out[i] = _one_sample(X[i], kwargs, Termination.MAP_ERROR, str(e), e, system)
+            if not bad:
+                raise err          # only the whole batch fails: the maps are not vectorized
+            good = [i for i in good if out[i] is None]
+            continue
+        for i, arc in zip(good, arcs):
+            out[i] = arc
+        break
 
 
 def sweep(make_system, params, x0, t_max, j_max=np.inf, *, executor=None, chunks=None,
-          progress=None, **kwargs):
+          progress=None, throw=False, warn=True, **kwargs):
     """Simulate ``make_system(p)`` from x0 for every parameter value p.
 
     Noise realisations go through the same door: let ``p`` be a seed and
@@ -117,33 +503,74 @@ def sweep(make_system, params, x0, t_max, j_max=np.inf, *, executor=None, chunks
     make_system : callable
         ``p -> HybridSystem`` (picklable when an executor is used).
     params : iterable
-        Parameter values.
+        Parameter values (a list, range, array...; not a string).
     x0 : array_like, shape (n,), or callable ``p -> x0``
-    executor : concurrent.futures.Executor, optional
-        As in :func:`simulate_many`.
+        The initial state, or a function of p giving it (with an executor
+        it is called in the worker, so it must pickle: a module-level
+        function, not a lambda).
+    t_max, j_max : float, int
+        As in :func:`hybridsim.simulate`.
+    executor, chunks, progress, throw, warn
+        As in :func:`simulate_many`. A failure of ``make_system(p)`` or
+        ``x0(p)`` is a failed row (cause ``MAP_ERROR``) like a map raising.
+    **kwargs
+        Passed to :func:`hybridsim.simulate`.
 
     Returns
     -------
     list of HybridArc
-        One per parameter value, in order.
+        One per parameter value, in order (see :func:`simulate_many` for
+        failed and canceled rows).
+
+    Raises
+    ------
+    BatchError
+        ``throw=True`` and a row failed.
+    TypeError, ValueError
+        Bad arguments, each named.
+
+    Examples
+    --------
+    >>> import numpy as np, hybridsim as hs
+    >>> make = lambda a: hs.HybridSystem.from_functions(f=lambda x: -a * x, state_dim=1)
+    >>> arcs = hs.sweep(make, [1.0, 2.0], [1.0], t_max=1.0, rtol=1e-10, atol=1e-12)
+    >>> [round(float(a.xf[0]), 6) for a in arcs]
+    [0.367879, 0.135335]
     """
     if not callable(make_system):
-        raise TypeError("make_system must be a callable p -> HybridSystem")
-    params = list(params)
-    kwargs = dict(kwargs, t_max=t_max, j_max=j_max, progress=False)
-    bar = _bar(progress, len(params), "sweep")
+        raise TypeError(f"make_system must be a callable p -> HybridSystem, got "
+                        f"{type(make_system).__name__}")
+    params = _check_params(params)
+    _check_executor(executor)
+    chunks = _check_chunks(chunks)
+    throw = _check_bool("throw", throw)
+    warn = _check_bool("warn", warn)
+    kwargs = dict(kwargs, t_max=t_max, j_max=j_max, progress=False, throw=False, warn=False)
+    N = len(params)
+    if N == 0:
+        return []
+    if executor is not None and callable(x0):
+        import pickle
+        try:
+            pickle.dumps(x0)
+        except Exception as e:  # noqa: BLE001
+            raise TypeError(f"x0: a callable p -> x0 is sent to the executor's workers and "
+                            f"must pickle (a module-level function, not a lambda or a local "
+                            f"function); {type(e).__name__}: {e}. Or pass an array") from e
+    items = [(p, x0) for p in params]
+    bar = make_bar(progress, total=N, desc="sweep", unit="run", leave=True)
+    batch = _Batch(None, make_system, items, kwargs, throw, bar)
     try:
         if executor is None:
-            out = []
-            for p in params:
-                out.append(simulate(make_system(p), x0(p) if callable(x0) else x0, **kwargs))
-                if bar is not None:
-                    bar.update(1)
-            return out
-        if callable(x0):
-            raise TypeError("x0 must be an array when an executor is used")
-        return _spread(executor, _run_sweep_chunk, params,
-                       lambda part: (make_system, part, x0, kwargs), chunks, bar)
+            batch.serial(list(range(N)))
+        else:
+            batch.spread(executor, list(range(N)), chunks)
     finally:
         if bar is not None:
             bar.close()
+    out = batch.out
+    if warn:
+        msg = _summary("sweep", out)
+        if msg:
+            warnings.warn(msg, BatchWarning, stacklevel=2)
+    return out

@@ -20,11 +20,11 @@ from __future__ import annotations
 
 import math
 import numbers
-import sys
 
 import numpy as np
 from scipy.integrate import RK45
 
+from ._progress import make_bar
 from .arc import HybridArc, Termination
 from .solve import MapError, SimulationError, check_options
 from .system import HybridSystem, as_map
@@ -308,7 +308,8 @@ def simulate_vectorized(system, x0s, *, t_max, j_max=math.inf, priority="jumps",
     zeno_jumps, zeno_time : int, float
         Zeno rule of :func:`hybridsim.simulate`, per trajectory.
     progress : bool or None
-        A tqdm bar over finished trajectories (None: only at a terminal).
+        A tqdm bar over finished trajectories (None: at a terminal and in a
+        notebook; see :func:`hybridsim._progress.progress_enabled`).
     method : {"RK45"}
         The only method of the batch integrator (others raise ``ValueError``).
     t0, j0 : float, int
@@ -346,7 +347,11 @@ def simulate_vectorized(system, x0s, *, t_max, j_max=math.inf, priority="jumps",
     -----
     A user map that raises during the run is retried row by row; only the
     rows that still fail stop, with cause ``MAP_ERROR`` (an error at the
-    initial states is raised, as in :func:`hybridsim.simulate`).
+    initial states is raised, as in :func:`hybridsim.simulate`;
+    :func:`hybridsim.simulate_many` isolates such rows instead).
+
+    Ctrl-C (KeyboardInterrupt) ends every trajectory still running with
+    ``CANCELED``, keeping its samples so far and the finished trajectories.
 
     Examples
     --------
@@ -368,13 +373,11 @@ def simulate_vectorized(system, x0s, *, t_max, j_max=math.inf, priority="jumps",
     run = _BatchRun(system, X, n, t0, j0, t_max, j_max, prio, rtol, atol, max_step,
                     first_step, zeno_jumps, zeno_time, max_norm, np.random.default_rng(seed))
     run.refine = int(refine)
-    if progress is None:
-        progress = bool(getattr(sys.stderr, "isatty", lambda: False)())
-    if progress:
-        from tqdm.auto import tqdm
-        run.pbar = tqdm(total=len(X), desc="simulate_vectorized", unit="run", leave=False)
+    run.pbar = make_bar(progress, total=len(X), desc="simulate_vectorized", unit="run")
     try:
         run.run()
+    except KeyboardInterrupt:       # Ctrl-C: every trajectory still running is canceled
+        run.cancel()
     finally:
         if run.pbar is not None:
             run.pbar.close()
@@ -414,6 +417,7 @@ class _BatchRun:
         self.fx = np.zeros((N, n))                  # f at (t, x): first stage (FSAL)
         self.h = np.full(N, np.nan if first_step is None else first_step)  # step hint
         self.rejected = np.zeros(N, dtype=bool)     # last attempt was rejected
+        self.nonfinite = np.zeros(N, dtype=bool)    # its stages were not finite
         self.inD_prev = np.zeros(N, dtype=bool)
         self.force = np.zeros(N, dtype=bool)        # an event asks for a jump
         self.short = np.zeros(N, dtype=np.int64)    # consecutive short flows (Zeno)
@@ -445,6 +449,13 @@ class _BatchRun:
             self.message[r] = cause.message if d is None else f"{cause.message}: {d}"
         if self.pbar is not None and len(rows):
             self.pbar.update(len(rows))
+
+    def cancel(self):
+        """End every trajectory still running with ``CANCELED`` (after Ctrl-C)."""
+        rows = np.flatnonzero(~self.done)
+        t, j = self.t, self.j
+        self._stop(rows, Termination.CANCELED, lambda i: f"at t={t[rows[i]]:.10g}, "
+                                                         f"j={j[rows[i]]}")
 
     def _reap(self, rows):
         """Stop the rows on which a map failed; return the mask of the others."""
@@ -630,15 +641,22 @@ class _BatchRun:
         small = rej & (h_abs < min_step)
         if small.any():
             sr, st, ss = rows[small], t[small], self.short[rows[small]]
-            zeno = ss > 0
+            nf = self.nonfinite[sr]        # a non-finite flow map: NON_FINITE, as in simulate
+            if nf.any():
+                nt, nj = st[nf], j[small][nf]
+                self._stop(sr[nf], Termination.NON_FINITE,
+                           lambda i: f"flow_map returned non-finite values near "
+                                     f"t={nt[i]:.10g} (j={nj[i]})")
+            zeno = (ss > 0) & ~nf
             if zeno.any():
                 zt = st[zeno]
                 self._stop(sr[zeno], Termination.ZENO,
                            lambda i: f"flows too short to resolve near t={zt[i]}")
-            if (~zeno).any():
-                ft = st[~zeno]
-                self._stop(sr[~zeno], Termination.SOLVER_FAILED,
-                           lambda i: f"{_TOO_SMALL} at t={ft[i]}")
+            fail = ~zeno & ~nf
+            if fail.any():
+                ft, fj = st[fail], j[small][fail]
+                self._stop(sr[fail], Termination.SOLVER_FAILED,
+                           lambda i: f"{_TOO_SMALL} at t={ft[i]:.10g} (j={fj[i]})")
             keep = ~small
             rows, t, y, j, f, rej, h_abs = (rows[keep], t[keep], y[keep], j[keep], f[keep],
                                            rej[keep], h_abs[keep])
@@ -671,6 +689,7 @@ class _BatchRun:
             if not rows.size:
                 return
         acc = err_norm < 1
+        self.nonfinite[rows] = ~np.isfinite(K).all(axis=(0, 2))
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             factor = _SAFETY * err_norm ** _ERR_EXP
         grow = np.where(err_norm == 0, _MAX_FACTOR, np.minimum(_MAX_FACTOR, factor))
@@ -693,9 +712,10 @@ class _BatchRun:
         m = self.maps
         fin = np.isfinite(yb).all(axis=1)
         if not fin.all():
-            nr, na, nb = rows[~fin], a[~fin], b[~fin]
+            nr, na, nb, nj = rows[~fin], a[~fin], b[~fin], j[~fin]
             self._stop(nr, Termination.NON_FINITE,
-                       lambda i: f"after the step from t={na[i]} to t={nb[i]}")
+                       lambda i: f"after the step from t={na[i]:.10g} to t={nb[i]:.10g} "
+                                 f"(j={nj[i]})")
             rows, a, ya, j, h, b, yb = (rows[fin], a[fin], ya[fin], j[fin], h[fin], b[fin],
                                         yb[fin])
             K = K[:, fin]
