@@ -1,9 +1,11 @@
-"""Sample-and-hold control loop: a continuous plant under a sampled feedback.
+"""
+Sample-and-hold control loop
+============================
 
-The plant xdot = A x + B u (a double integrator) is driven by a zero-order
-hold: every T seconds the controller samples u = K x and holds it until the
-next sample. As one hybrid system with state (x, u, tau), the timer tau being
-an ordinary state component:
+A continuous plant under a sampled feedback, as one hybrid system. The plant
+xdot = A x + B u (a double integrator) is driven by a zero-order hold: every
+T seconds the controller samples u = K x and holds it until the next sample.
+With state (x, u, tau), the timer tau being an ordinary state component:
 
     flow (tau <= T):  xdot = A x + B u,  udot = 0,  taudot = 1
     jump (tau >= T):  x+ = x,  u+ = K x,  tau+ = 0.
@@ -11,8 +13,13 @@ an ordinary state component:
 Starting with tau = T samples at t = 0 (priority="jumps"). Between samples
 the loop is linear, so the state at the samples follows the exact ZOH
 discretisation x_{k+1} = (e^{AT} + int_0^T e^{As} ds B K) x_k; the script
-prints its spectral radius (< 1: the loop converges), compares the simulated
-samples with it, and plots the decay.
+prints its spectral radius (< 1: the loop converges) and compares the
+simulated samples with it.
+
+Figures: position, velocity and the held input against t, one subplot each
+on a shared t axis (the plant's state does not jump, so its jump markers are
+switched off; the input's jumps are the controller's updates); and the phase
+plane of the plant, where the flows bend at each update.
 
     python examples/sample_and_hold.py [output_folder]
 """
@@ -64,19 +71,25 @@ def main(out):
     out.mkdir(parents=True, exist_ok=True)
     x0 = np.array([1.0, 0.0])
     arc = hs.simulate(SampleAndHold(), np.concatenate((x0, np.zeros(M), [T])),
-                      t_max=15.0, rtol=1e-10, atol=1e-12, max_step=0.02)
+                      t_max=15.0, rtol=1e-10, atol=1e-12)
     phi = zoh_closed_loop()
     samples = arc.x[arc.jump_index, :N]                  # x at each sampling instant
     expected = np.array([np.linalg.matrix_power(phi, k) @ x0 for k in range(len(samples))])
     print(f"{arc}\nspectral radius of the sampled loop: {max(abs(np.linalg.eigvals(phi))):.4f}")
     print(f"samples vs ZOH discretisation: largest error {np.max(abs(samples - expected)):.1e}")
     print(f"|x(0)| = {np.linalg.norm(x0):.3g}, |x({arc.tf:g})| = {np.linalg.norm(arc.xf[:N]):.2e}")
-    fig, (ax1, ax2) = plt.subplots(2, 1, sharex=True, figsize=(7, 5))
-    hs.plot_flows(arc, [0, 1], ax=ax1, labels=["position", "velocity"])
-    hs.plot_flows(arc, N, ax=ax2, labels=["u (held)"])
-    ax1.set_title(f"sample-and-hold loop, T = {T}")
+    fig, axs = plt.subplots(3, 1, sharex=True, figsize=(7, 6))
+    hs.plot_flows(arc, [0, 1], subplots=True, ax=axs[:2], markers=False, legend=False,
+                  labels=["position $x_1$", "velocity $x_2$"])
+    hs.plot_flows(arc, N, ax=axs[2], labels=["input $u$ (held)"], legend=False,
+                  color="C1", xlabel="$t$")
+    axs[0].set_title(f"sample-and-hold loop, T = {T}, u = K x at each sample")
+    fig.tight_layout()
     fig.savefig(out / "sample_and_hold_flows.png", dpi=100)
-    ax = hs.plot_phase(arc, 0, 1)
+    ax = hs.plot_phase(arc, 0, 1, labels=["position $x_1$", "velocity $x_2$"], markers=False)
+    ax.plot(*samples.T, "o", color="C1", mfc="none", ms=6, label="samples (u updated)")
+    ax.plot(*expected.T, "x", color="k", ms=4, label="ZOH discretisation")
+    ax.legend()
     ax.set_title("sample-and-hold loop: phase plane")
     ax.figure.savefig(out / "sample_and_hold_phase.png", dpi=100)
     plt.close("all")

@@ -1,10 +1,16 @@
-"""A timer with period 1 and its hybrid time domain.
+"""
+Timer and its hybrid time domain
+================================
 
-The simplest hybrid system: tau flows at unit rate on C = [0, 1] and resets
-to 0 on D = {tau >= 1}. Given as continuous guards (D = {tau - 1 >= 0},
-C = {1 - tau >= 0}), the jumps are located by root-finding and fall on the
-integers to within a few ulp. plot_time_domain draws the hybrid time domain
-E = [0, 1] x {0} U [1, 2] x {1} U ...; plot_flows draws the sawtooth.
+The simplest hybrid system: a timer with period 1. The state tau flows at
+unit rate on C = [0, 1] and resets to 0 on D = {tau >= 1}. Given as
+continuous guards (D = {tau - 1 >= 0}, C = {1 - tau >= 0}), the jumps are
+located by root-finding and fall on the integers to within a few ulp.
+
+Figure: the sawtooth tau against t (``plot_flows``; each reset is a jump,
+dotted from a filled circle at tau = 1 to an open circle at tau = 0) above
+the hybrid time domain E = [0, 1] x {0} U [1, 2] x {1} U ...
+(``plot_time_domain``), on a shared t axis.
 
     python examples/timer.py [output_folder]
 """
@@ -39,9 +45,10 @@ def main(out):
     print("flow intervals (t_j, t_{j+1}, j):", [(round(a, 12), round(b, 12), j)
                                                 for a, b, j in arc.flow_intervals])
     fig, (ax1, ax2) = plt.subplots(2, 1, sharex=True, figsize=(7, 5))
-    hs.plot_flows(arc, ax=ax1, labels=["tau"])
+    hs.plot_flows(arc, ax=ax1, labels=[r"timer $\tau$"], xlabel="", legend=False)
     hs.plot_time_domain(arc, ax=ax2)
     ax1.set_title("timer: state (top) and hybrid time domain (bottom)")
+    fig.tight_layout()
     fig.savefig(out / "timer_time_domain.png", dpi=100)
     plt.close(fig)
     print(f"figures written to {out}")

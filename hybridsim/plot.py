@@ -430,12 +430,25 @@ def _draw(ax, flow_xyz, jump_pre, jump_post, label, styles, jumps, markers):
     flow_st, jump_st, start_st, end_st = styles
     lw = mpl.rcParams["lines.linewidth"]
     ms = mpl.rcParams["lines.markersize"]
-    (line,) = ax.plot(*flow_xyz, **{"linestyle": "-", **flow_st}, label=label, gid="flows")
+    # round caps: flow intervals meeting at a jump that does not move the
+    # value join without the notch of projecting caps
+    (line,) = ax.plot(*flow_xyz, **{"linestyle": "-", "solid_capstyle": "round", **flow_st},
+                      label=label, gid="flows")
     color = line.get_color()
     lines = [line]
     if jumps and len(jump_pre[0]):
-        nan = np.full(len(jump_pre[0]), np.nan)
-        seg = [np.column_stack([a, b, nan]).ravel() for a, b in zip(jump_pre, jump_post)]
+        # a jump that leaves the drawn coordinates unchanged (to 1e-9 of their
+        # range) has no segment, only markers: a dotted line of length 0
+        # would still leave a dot
+        moves = np.zeros(len(jump_pre[0]), bool)
+        for f, a, b in zip(flow_xyz, jump_pre, jump_post):
+            span = np.concatenate([np.ravel(f), a, b]).astype(float)
+            span = span[np.isfinite(span)]
+            tol = 1e-9 * (span.max() - span.min()) if span.size else 0.0
+            moves |= np.abs(a - b) > tol
+        nan = np.full(int(moves.sum()), np.nan)
+        seg = [np.column_stack([a[moves], b[moves], nan]).ravel()
+               for a, b in zip(jump_pre, jump_post)]
         jst = {"color": color, "linestyle": ":", "linewidth": 0.8 * lw, **jump_st}
         lines += ax.plot(*seg, **jst, label="_jumps", gid="jumps")
         if markers:
@@ -499,7 +512,7 @@ def _line_plot(arc, idx, *, where, axis, ax, labels, subplots, fn, filter, jumps
                   jumps, markers)
             yl = names[c] if ylabel is None else ylabel if isinstance(ylabel, str) \
                 else ylabel[c]
-            _finish(a, xl if c == len(axs) - 1 else "", yl, legend, yscale)
+            _finish(a, xl if c == len(axs) - 1 and _at_bottom(a) else "", yl, legend, yscale)
             if axis == "j":
                 _integer_ticks(a.xaxis)
         return axs
@@ -518,6 +531,12 @@ def _line_plot(arc, idx, *, where, axis, ax, labels, subplots, fn, filter, jumps
     return ax
 
 
+def _at_bottom(ax):
+    """False for an Axes with another subplot of its grid below it."""
+    spec = ax.get_subplotspec() if hasattr(ax, "get_subplotspec") else None
+    return spec is None or spec.is_last_row()
+
+
 def _integer_ticks(axis):
     from matplotlib.ticker import MaxNLocator
     axis.set_major_locator(MaxNLocator(integer=True))
@@ -533,7 +552,8 @@ _COMMON_DOC = """
         interconnection; ``$y$`` / ``$y_k$`` or the function's name for ``fn``).
     subplots : bool, default False
         One subplot per component, sharing the horizontal axis (x label on
-        the bottom Axes only); an array of Axes is returned.
+        the last Axes only, and only when no subplot of its grid lies below
+        it); an array of Axes is returned.
     fn : callable, optional
         Plot ``fn(x)``, ``fn(x, t)`` or ``fn(x, t, j)`` (a float or a 1-D
         array) instead of the state, evaluated at every plotted point (an
@@ -543,7 +563,8 @@ _COMMON_DOC = """
         samples: points where it is False are hidden (flows are cut there),
         and a jump is drawn only when both its ends are shown.
     jumps : bool, default True
-        Draw the jump segments (and their markers).
+        Draw the jump segments (and their markers). A jump that does not
+        change the plotted value gets its markers but no segment.
     markers : bool, default True
         Mark each jump's start (filled circle) and end (open circle).
     smooth : bool or int, default True

@@ -212,7 +212,10 @@ def test_artists_per_component_and_their_styles(arc):
 def test_jump_segments_are_exact_and_vertical(arc):
     ax = hs.plot_flows(arc)
     k = arc.jump_index
-    for c in range(2):
+    # the height does not jump (0 -> 0): markers but no segment, not even a dot
+    assert len(ax.lines[1].get_xdata()) == 0
+    np.testing.assert_array_equal(ax.lines[2].get_xdata(), arc.jump_times)
+    for c in range(1, 2):
         jump = ax.lines[4 * c + 1]
         x = jump.get_xdata().reshape(-1, 3)
         y = jump.get_ydata().reshape(-1, 3)
@@ -338,6 +341,10 @@ def test_subplots_on_given_axes_and_on_j(arc):
     out = hs.plot_jumps(arc, subplots=True, ax=axs, ylabel=["$h$", "$v$"])
     assert list(out) == list(axs)
     assert [a.get_xlabel() for a in out] == ["", "$j$"]
+    # Axes above other subplots of their grid get no x label
+    fig, axs3 = plt.subplots(3, 1, sharex=True)
+    hs.plot_flows(arc, subplots=True, ax=axs3[:2])
+    assert [a.get_xlabel() for a in axs3] == ["", "", ""]
     assert [a.get_ylabel() for a in out] == ["$h$", "$v$"]
     one_ax = hs.plot_flows(arc, 0, subplots=True)
     assert one_ax.shape == (1,) and one_ax[0].get_xlabel() == "$t$"
@@ -403,6 +410,7 @@ def test_fn_values_and_log_scale(arc):
         np.testing.assert_allclose(pv, pv[0], rtol=1e-9)
         np.testing.assert_allclose(pv[0], G * H0 * E ** (2 * j), rtol=1e-6)
     y = jump.get_ydata().reshape(-1, 3)
+    assert len(y) == arc.jump_count
     np.testing.assert_allclose(y[:, 1], E ** 2 * y[:, 0], rtol=1e-6)
     # same values as the function applied to the plotted states
     h = one(hs.plot_flows(arc, 0), "flows").get_ydata()
@@ -446,7 +454,7 @@ def test_plot_flows_takes_precomputed_values(arc):
 # ----------------------------------------------------- the other four plots
 def test_plot_jumps_vertical_flows_and_slanted_jumps(arc):
     ax = hs.plot_jumps(arc, 0)
-    flow, jump = one(ax, "flows"), one(ax, "jumps")
+    flow, jump = one(ax, "flows"), one(ax, "jumps")     # (j, 0) -> (j + 1, 0): not zero length
     for (pj, ph), (a, b, j) in zip(segments(flow), arc.flow_intervals):
         assert set(pj) == {j}                                 # a flow stays at its j
     # the vertical line reaches each apex although it lies inside a step
