@@ -405,7 +405,8 @@ def test_theorem_4_14_example_VB():
     noise = ls.PiecewiseConstantNoise([2.5, 4.5], [[0.3, 0.2], [0.4, 0.4], [0.2, 0.3]])
     obs = ls.PiecewiseConstantNoiseObserver(d)
     arc = ls.simulate_with_plant(obs, [0.3, 0.4], [0.0, 0.0], noise=noise, t_max=8.0)
-    assert arc.success and np.allclose(arc.jump_times, np.arange(1, 8), atol=1e-11)
+    # the jump at t_max = 8 is taken too (round-off does not lose it)
+    assert arc.success and np.allclose(arc.jump_times, np.arange(1, 9), atol=1e-11)
     _check_pc_run(d, noise, arc, obs, _tol(d, 1.0, True))
     # not exact after every jump: the jumps at 3 and 5 saw a switch during their flow
     E = ls.observer_errors(arc, obs)
