@@ -1,0 +1,1093 @@
+"""The compiled path's numba kernels (imported only when numba is installed).
+
+Everything here runs in nopython mode. The user's maps reach the kernels as
+numba *first-class functions* of fixed signatures (:data:`VEC_SIG`,
+:data:`SCAL_SIG`, :data:`BOOL_SIG`), so the kernels are compiled once and
+cached on disk (``cache=True``) for every system; only the small wrappers of
+each system's own maps are compiled per system (see :func:`wrap_map`).
+
+The rules (priorities, the jump-or-flow decision, event tolerances, the
+t_max slack, short flows, the time scale) are :mod:`hybridsim.rules`'s own
+functions, made callable from compiled code by ``register_jitable``; they are
+not written again here. The algorithms ported from the Python path are:
+
+* scipy's RK45 step (Dormand-Prince 5(4), ``select_initial_step``,
+  ``RungeKutta._step_impl``'s step-size controller, ``RkDenseOutput``);
+* :func:`hybridsim.events.locate_event` (indicator bisection until the guard
+  changes sign, Brent's method as scipy's ``brentq`` on the guard, a bracket
+  of 4 ulp confirmed by the indicator) and
+  :func:`hybridsim.events.find_interior_event` (three interior samples and a
+  golden-section search on guard peaks);
+* the decision loop of :func:`hybridsim.simulate` (``_Run.run``, ``_flow``,
+  ``_event``, ``_event_past_t_max``, ``_jump``, ``_stop_outside``).
+"""
+from __future__ import annotations
+
+import hashlib
+import inspect
+import math
+
+import numba
+import numpy as np
+from numba import njit, prange, types
+from numba.core import errors as nb_errors
+from numba.extending import overload, register_jitable
+from scipy.integrate._ivp.rk import RK45
+
+from .. import rules
+
+# ------------------------------------------------------------------ the rules
+_RULES = (rules.event_tolerance, rules.t_max_slack, rules.decide, rules.decide_at_event,
+          rules.needs_coin, rules.is_short_flow, rules.time_scale)
+for _fn in _RULES:
+    register_jitable(_fn)
+
+
+def _is_sticking_py(jumps, last3, n_last, since_jump, scale):
+    """The solution sticks to the boundary of C (the Python path's test in
+    ``_Run._stop_outside``): at least 3 jumps, the last 3 flows each at most
+    1e-3 of the time scale, and the last jump within 1e-6 of it."""
+    if jumps < 3 or n_last < 3 or not since_jump <= 1e-6 * scale:
+        return False
+    for k in range(3):
+        if not last3[k] <= 1e-3 * scale:
+            return False
+    return True
+
+
+is_sticking = register_jitable(_is_sticking_py)
+
+
+def _rules_digest():
+    """A hash of the rules' source: part of the kernels' cache key, so that a
+    change of :mod:`hybridsim.rules` recompiles them (numba's own cache key only
+    sees this file)."""
+    src = "".join(inspect.getsource(f) for f in _RULES + (is_sticking,))
+    return hashlib.sha256(src.encode()).hexdigest()
+
+
+# ------------------------------------------------------------------ constants
+_EPS = float(np.finfo(float).eps)
+_INVPHI = (math.sqrt(5.0) - 1.0) / 2.0
+_A = np.ascontiguousarray(RK45.A, dtype=np.float64)
+_B = np.ascontiguousarray(RK45.B, dtype=np.float64)
+_Cc = np.ascontiguousarray(RK45.C, dtype=np.float64)
+_E = np.ascontiguousarray(RK45.E, dtype=np.float64)
+_P = np.ascontiguousarray(RK45.P, dtype=np.float64)
+_SAFETY, _MIN_FACTOR, _MAX_FACTOR = 0.9, 0.2, 10.0
+_ERR_EXP = -1.0 / (RK45.error_estimator_order + 1)
+_ORDER = float(RK45.error_estimator_order)
+_JUMPS, _FLOWS, _RANDOM = int(rules.Priority.JUMPS), int(rules.Priority.FLOWS), \
+    int(rules.Priority.RANDOM)
+_A_JUMP, _A_FLOW, _A_STOP = int(rules.Action.JUMP), int(rules.Action.FLOW), \
+    int(rules.Action.STOP)
+
+#: cause codes returned by the kernels (names of :class:`hybridsim.rules.Termination`)
+CAUSES = ("T_MAX", "J_MAX", "NOT_IN_SETS", "LEFT_SETS", "NON_FINITE", "BLOWUP",
+          "SOLVER_FAILED", "MAP_ERROR", "ZENO", "MAX_STEPS")
+(T_MAX, J_MAX, NOT_IN_SETS, LEFT_SETS, NON_FINITE, BLOWUP, SOLVER_FAILED, MAP_ERROR,
+ ZENO, MAX_STEPS) = range(10)
+
+# flow outcomes
+_O_TMAX, _O_JUMP, _O_FLOW_ON, _O_STOP = 0, 1, 2, 3
+
+# ------------------------------------------------------------------ map signatures
+_ARGS = (types.float64[::1], types.float64, types.int64, types.float64[::1])
+VEC_SIG = types.float64[::1](*_ARGS)
+SCAL_SIG = types.float64(*_ARGS)
+BOOL_SIG = types.boolean(*_ARGS)
+VEC_T, SCAL_T, BOOL_T = (types.FunctionType(s) for s in (VEC_SIG, SCAL_SIG, BOOL_SIG))
+
+
+def as_vec(v):
+    """A flow/jump map's value as a C-contiguous float64 array (compiled code only)."""
+    raise NotImplementedError
+
+
+def as_scalar(v):
+    """A guard's value as a float: a scalar, or the minimum of a vector guard."""
+    raise NotImplementedError
+
+
+def as_bool(v):
+    """A set indicator's value as a bool."""
+    raise NotImplementedError
+
+
+@overload(as_vec)
+def _ov_as_vec(v):
+    if isinstance(v, types.Array):
+        if v.ndim != 1:
+            raise nb_errors.TypingError(f"must return a 1-D array of shape (n,), got a "
+                                        f"{v.ndim}-D array")
+        if v.dtype == types.float64 and v.layout == "C":
+            return lambda v: v
+        if isinstance(v.dtype, (types.Float, types.Integer, types.Boolean)):
+            return lambda v: np.ascontiguousarray(v).astype(np.float64)
+    if isinstance(v, types.UniTuple) and isinstance(v.dtype, (types.Float, types.Integer)):
+        def impl(v):
+            out = np.empty(len(v))
+            for i in range(len(v)):
+                out[i] = v[i]
+            return out
+        return impl
+    if isinstance(v, types.BaseTuple) and all(isinstance(e, (types.Float, types.Integer))
+                                              for e in v.types):
+        n = len(v.types)
+
+        def impl_t(v):
+            out = np.empty(n)
+            k = 0
+            for e in numba.literal_unroll(v):
+                out[k] = e
+                k += 1
+            return out
+        return impl_t
+    raise nb_errors.TypingError(f"must return a 1-D float array (or a tuple of floats), "
+                                f"got {v}")
+
+
+@overload(as_scalar)
+def _ov_as_scalar(v):
+    if isinstance(v, (types.Float, types.Integer, types.Boolean)):
+        return lambda v: float(v)
+    if isinstance(v, types.Array) and v.ndim == 1:
+        def impl(v):
+            m = np.inf
+            for i in range(v.shape[0]):      # NaN propagates as in Python's min()
+                e = float(v[i])
+                if e < m or e != e:
+                    m = e
+                    if e != e:
+                        break
+            return m
+        return impl
+    if isinstance(v, types.UniTuple) and isinstance(v.dtype, (types.Float, types.Integer)):
+        def impl_t(v):
+            m = np.inf
+            for i in range(len(v)):
+                e = float(v[i])
+                if e < m:
+                    m = e
+            return m
+        return impl_t
+    raise nb_errors.TypingError(f"must return a float (or a 1-D array of floats: the set "
+                                f"is where their minimum is >= 0), got {v}")
+
+
+@overload(as_bool)
+def _ov_as_bool(v):
+    if isinstance(v, types.Boolean):
+        return lambda v: bool(v)
+    if isinstance(v, types.Integer):
+        return lambda v: v != 0
+    if isinstance(v, types.Array) and isinstance(v.dtype, types.Boolean) and v.ndim == 0:
+        return lambda v: bool(v[()])
+    raise nb_errors.TypingError(f"must return a bool (x in the set or not), got {v}")
+
+
+_NJ = dict(error_model="numpy")
+
+
+def wrap_map(fn, kind):
+    """Compile a user map ``fn(x, t, j, p)`` to a first-class function.
+
+    ``kind``: ``"vec"`` (flow/jump map), ``"scalar"`` (guard), ``"bool"`` (set
+    indicator), ``"guard_set"`` (the set {guard >= 0} of a guard). Raises
+    numba's own errors (the caller names the map).
+    """
+    jf = njit(**_NJ)(fn) if not isinstance(fn, numba.core.dispatcher.Dispatcher) else fn
+    if kind == "vec":
+        def w(x, t, j, p):
+            return as_vec(jf(x, t, j, p))
+        return njit(VEC_SIG, **_NJ)(w)
+    if kind == "scalar":
+        def w(x, t, j, p):
+            return as_scalar(jf(x, t, j, p))
+        return njit(SCAL_SIG, **_NJ)(w)
+    if kind == "bool":
+        def w(x, t, j, p):
+            return as_bool(jf(x, t, j, p))
+        return njit(BOOL_SIG, **_NJ)(w)
+    if kind == "guard_set":
+        def w(x, t, j, p):
+            return as_scalar(jf(x, t, j, p)) >= 0.0
+        return njit(BOOL_SIG, **_NJ)(w)
+    raise ValueError(kind)
+
+
+@njit(VEC_SIG, cache=True, **_NJ)
+def absent_vec(x, t, j, p):  # pragma: no cover - never called (flags say absent)
+    return np.full(x.shape[0], np.nan)
+
+
+@njit(SCAL_SIG, cache=True, **_NJ)
+def absent_scalar(x, t, j, p):  # pragma: no cover
+    return np.nan
+
+
+@njit(BOOL_SIG, cache=True, **_NJ)
+def absent_false(x, t, j, p):
+    return False
+
+
+@njit(BOOL_SIG, cache=True, **_NJ)
+def absent_true(x, t, j, p):
+    return True
+
+
+# ------------------------------------------------------------------ helpers
+@njit(cache=True, **_NJ)
+def _dense(yold, hQ, told, h, s):
+    """RK45's dense output at s (as :func:`hybridsim.events.fast_dense`)."""
+    x = (s - told) / h
+    x2 = x * x
+    x3 = x2 * x
+    x4 = x3 * x
+    n = yold.shape[0]
+    out = np.empty(n)
+    for i in range(n):
+        out[i] = yold[i] + (hQ[i, 0] * x + hQ[i, 1] * x2 + hQ[i, 2] * x3 + hQ[i, 3] * x4)
+    return out
+
+
+@njit(cache=True, **_NJ)
+def _dense_deriv(Q, told, h, s):
+    """d/dt of the dense output at s (``solve._dense_derivative``)."""
+    x = (s - told) / h
+    n = Q.shape[0]
+    out = np.empty(n)
+    for i in range(n):
+        out[i] = Q[i, 0] + 2.0 * Q[i, 1] * x + 3.0 * Q[i, 2] * x * x + 4.0 * Q[i, 3] * x * x * x
+    return out
+
+
+@njit(cache=True, **_NJ)
+def _rms(v):
+    s = 0.0
+    for i in range(v.shape[0]):
+        s += v[i] * v[i]
+    return math.sqrt(s) / math.sqrt(v.shape[0])
+
+
+@njit(cache=True, **_NJ)
+def _all_finite(v):
+    for i in range(v.size):
+        if not np.isfinite(v.flat[i]):
+            return False
+    return True
+
+
+@njit(cache=True, **_NJ)
+def _pred(M, s, y, j, p, has_C, d_active):
+    """The event has happened at (s, y): left C, or (watched) entered D."""
+    if has_C and not M[5](y, s, j, p):
+        return True
+    if d_active and M[4](y, s, j, p):
+        return True
+    return False
+
+
+@njit(cache=True, **_NJ)
+def _phi(M, s, y, j, p, useD, useC):
+    """The continuous event function (>= 0 once the event has happened)."""
+    v = -np.inf
+    if useD:
+        v = M[2](y, s, j, p)
+    if useC:
+        w = -M[3](y, s, j, p)
+        if w > v:
+            v = w
+    return v
+
+
+@njit(cache=True, **_NJ)
+def _phi_at(M, yold, hQ, told, h, s, j, p, useD, useC):
+    return _phi(M, s, _dense(yold, hQ, told, h, s), j, p, useD, useC)
+
+
+@njit(cache=True, **_NJ)
+def _brentq(M, yold, hQ, told, h, j, p, useD, useC, xa, xb, xtol, rtol, maxiter):
+    """scipy's ``brentq`` (scipy/optimize/Zeros/brentq.c) on the guard along the step."""
+    xpre, xcur = xa, xb
+    xblk = 0.0
+    fblk = 0.0
+    spre = 0.0
+    scur = 0.0
+    fpre = _phi_at(M, yold, hQ, told, h, xpre, j, p, useD, useC)
+    fcur = _phi_at(M, yold, hQ, told, h, xcur, j, p, useD, useC)
+    if fpre == 0.0:
+        return xpre
+    if fcur == 0.0:
+        return xcur
+    for _ in range(maxiter):
+        if fpre != 0.0 and fcur != 0.0 and (math.copysign(1.0, fpre) != math.copysign(1.0, fcur)):
+            xblk = xpre
+            fblk = fpre
+            spre = scur = xcur - xpre
+        if abs(fblk) < abs(fcur):
+            xpre = xcur
+            xcur = xblk
+            xblk = xpre
+            fpre = fcur
+            fcur = fblk
+            fblk = fpre
+        delta = (xtol + rtol * abs(xcur)) / 2.0
+        sbis = (xblk - xcur) / 2.0
+        if fcur == 0.0 or abs(sbis) < delta:
+            return xcur
+        if abs(spre) > delta and abs(fcur) < abs(fpre):
+            if xpre == xblk:
+                stry = -fcur * (xcur - xpre) / (fcur - fpre)
+            else:
+                dpre = (fpre - fcur) / (xpre - xcur)
+                dblk = (fblk - fcur) / (xblk - xcur)
+                stry = -fcur * (fblk * dblk - fpre * dpre) / (dblk * dpre * (fblk - fpre))
+            if 2.0 * abs(stry) < min(abs(spre), 3.0 * abs(sbis) - delta):
+                spre = scur
+                scur = stry
+            else:
+                spre = sbis
+                scur = sbis
+        else:
+            spre = sbis
+            scur = sbis
+        xpre = xcur
+        fpre = fcur
+        if abs(scur) > delta:
+            xcur += scur
+        else:
+            xcur += delta if sbis > 0 else -delta
+        fcur = _phi_at(M, yold, hQ, told, h, xcur, j, p, useD, useC)
+    return xcur
+
+
+@njit(cache=True, **_NJ)
+def _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, b):
+    """:func:`hybridsim.events.locate_event` on the step's dense output."""
+    lo, hi = a, b
+    ylo = _dense(yold, hQ, told, h, lo)
+    yhi = _dense(yold, hQ, told, h, hi)
+    if phi_on:
+        flo = _phi(M, lo, ylo, j, p, useD, useC)
+        fhi = _phi(M, hi, yhi, j, p, useD, useC)
+        for _ in range(200):
+            if (flo < 0.0 and 0.0 <= fhi) or hi - lo <= rules.event_tolerance(lo, hi):
+                break
+            m = 0.5 * (lo + hi)
+            ym = _dense(yold, hQ, told, h, m)
+            if _pred(M, m, ym, j, p, has_C, d_active):
+                hi = m
+                yhi = ym
+                fhi = _phi(M, m, ym, j, p, useD, useC)
+            else:
+                lo = m
+                ylo = ym
+                flo = _phi(M, m, ym, j, p, useD, useC)
+        if (flo < 0.0 and 0.0 <= fhi) and hi - lo > rules.event_tolerance(lo, hi):
+            r = _brentq(M, yold, hQ, told, h, j, p, useD, useC, lo, hi, _EPS, 4.0 * _EPS, 100)
+            tol = rules.event_tolerance(r, r)
+            l2 = max(lo, r - 1.5 * tol)
+            h2 = min(hi, r + 1.5 * tol)
+            yl2 = _dense(yold, hQ, told, h, l2)
+            yh2 = _dense(yold, hQ, told, h, h2)
+            if _pred(M, h2, yh2, j, p, has_C, d_active):
+                hi = h2
+                yhi = yh2
+                if not _pred(M, l2, yl2, j, p, has_C, d_active):
+                    lo = l2
+                    ylo = yl2
+            elif not _pred(M, l2, yl2, j, p, has_C, d_active):
+                lo = l2
+                ylo = yl2
+    for _ in range(200):
+        if hi - lo <= rules.event_tolerance(lo, hi):
+            break
+        m = 0.5 * (lo + hi)
+        ym = _dense(yold, hQ, told, h, m)
+        if _pred(M, m, ym, j, p, has_C, d_active):
+            hi = m
+            yhi = ym
+        else:
+            lo = m
+            ylo = ym
+    return lo, hi, ylo, yhi
+
+
+@njit(cache=True, **_NJ)
+def _near_peak(v, lo_nb):
+    return v + 2.0 * (v - lo_nb) >= 0.0
+
+
+@njit(cache=True, **_NJ)
+def _maximize(M, yold, hQ, told, h, j, p, has_C, d_active, useD, useC, l, r, fl, fr):
+    """Golden-section search (``events._maximize``); returns NaN when nothing found."""
+    x1 = r - _INVPHI * (r - l)
+    x2 = l + _INVPHI * (r - l)
+    y1 = _dense(yold, hQ, told, h, x1)
+    y2 = _dense(yold, hQ, told, h, x2)
+    f1 = _phi(M, x1, y1, j, p, useD, useC)
+    f2 = _phi(M, x2, y2, j, p, useD, useC)
+    for _ in range(100):
+        if f1 >= 0.0 and _pred(M, x1, y1, j, p, has_C, d_active):
+            return x1
+        if f2 >= 0.0 and _pred(M, x2, y2, j, p, has_C, d_active):
+            return x2
+        if r - l <= rules.event_tolerance(l, r) or not _near_peak(max(f1, f2), min(fl, fr)):
+            return np.nan
+        if f1 >= f2:
+            r = x2
+            fr = f2
+            x2 = x1
+            y2 = y1
+            f2 = f1
+            x1 = r - _INVPHI * (r - l)
+            y1 = _dense(yold, hQ, told, h, x1)
+            f1 = _phi(M, x1, y1, j, p, useD, useC)
+        else:
+            l = x1
+            fl = f1
+            x1 = x2
+            y1 = y2
+            f1 = f2
+            x2 = l + _INVPHI * (r - l)
+            y2 = _dense(yold, hQ, told, h, x2)
+            f2 = _phi(M, x2, y2, j, p, useD, useC)
+    return np.nan
+
+
+@njit(cache=True, **_NJ)
+def _interior(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, b):
+    """:func:`hybridsim.events.find_interior_event` with 3 samples: (found, lo, hi)."""
+    hh = b - a
+    if not hh > 0:
+        return False, a, b
+    pts = np.empty(5)
+    vals = np.empty(5)
+    pts[0] = a
+    pts[4] = b
+    prev = a
+    for k in range(1, 4):
+        s = a + hh * (k / 4.0)
+        pts[k] = s
+    ys = np.empty((3, yold.shape[0]))
+    for k in range(1, 4):
+        s = pts[k]
+        y = _dense(yold, hQ, told, h, s)
+        ys[k - 1] = y
+        if _pred(M, s, y, j, p, has_C, d_active):
+            return True, prev, s
+        prev = s
+    if not phi_on:
+        return False, a, b
+    vals[0] = _phi(M, a, _dense(yold, hQ, told, h, a), j, p, useD, useC)
+    for k in range(1, 4):
+        vals[k] = _phi(M, pts[k], np.ascontiguousarray(ys[k - 1]), j, p, useD, useC)
+    vals[4] = _phi(M, b, _dense(yold, hQ, told, h, b), j, p, useD, useC)
+    for k in range(5):
+        if not np.isfinite(vals[k]):
+            return False, a, b
+    for k in range(1, 4):
+        v = vals[k]
+        if v >= vals[k - 1] and v >= vals[k + 1] and \
+                _near_peak(v, min(vals[k - 1], vals[k + 1])):
+            s = _maximize(M, yold, hQ, told, h, j, p, has_C, d_active, useD, useC,
+                          pts[k - 1], pts[k + 1], vals[k - 1], vals[k + 1])
+            if s == s:
+                return True, pts[k - 1], s
+    if vals[0] >= vals[1] and _near_peak(vals[0], vals[1]):
+        eps = 1e-3 * (pts[1] - a)
+        if _phi(M, a + eps, _dense(yold, hQ, told, h, a + eps), j, p, useD, useC) > vals[0]:
+            s = _maximize(M, yold, hQ, told, h, j, p, has_C, d_active, useD, useC,
+                          a, pts[1], vals[0], vals[1])
+            if s == s:
+                return True, a, s
+    return False, a, b
+
+
+@njit(cache=True, **_NJ)
+def _push(T, J, X, XD, ns, t, j, x):
+    """Append a sample (xdot NaN), growing the buffers by doubling."""
+    cap = T.shape[0]
+    if ns == cap:
+        cap2 = 2 * cap
+        T2 = np.empty(cap2)
+        J2 = np.empty(cap2, np.int64)
+        X2 = np.empty((cap2, X.shape[1]))
+        XD2 = np.empty((cap2, X.shape[1]))
+        T2[:ns] = T[:ns]
+        J2[:ns] = J[:ns]
+        X2[:ns] = X[:ns]
+        XD2[:ns] = XD[:ns]
+        T, J, X, XD = T2, J2, X2, XD2
+    T[ns] = t
+    J[ns] = j
+    X[ns] = x
+    XD[ns] = np.nan
+    return T, J, X, XD
+
+
+@njit(cache=True, **_NJ)
+def _initial_step(f, t0, y0, t_bound, max_step, f0, rtol, atol, j, p):
+    """scipy's ``select_initial_step`` (direction +1, order 4)."""
+    interval = abs(t_bound - t0)
+    if interval == 0.0:
+        return 0.0
+    n = y0.shape[0]
+    scale = np.empty(n)
+    for i in range(n):
+        scale[i] = atol[i] + abs(y0[i]) * rtol
+    d0 = _rms(y0 / scale)
+    d1 = _rms(f0 / scale)
+    if d0 < 1e-5 or d1 < 1e-5:
+        h0 = 1e-6
+    else:
+        h0 = 0.01 * d0 / d1
+    h0 = min(h0, interval)
+    y1 = y0 + h0 * f0
+    f1 = f(y1, t0 + h0, j, p)
+    if f1.shape[0] != n:
+        return -1.0
+    d2 = _rms((f1 - f0) / scale) / h0
+    if d1 <= 1e-15 and d2 <= 1e-15:
+        h1 = max(1e-6, h0 * 1e-3)
+    else:
+        h1 = (0.01 / max(d1, d2)) ** (1.0 / (_ORDER + 1.0))
+    return min(100.0 * h0, h1, interval, max_step)
+
+
+@njit(cache=True, **_NJ)
+def _event(M, yold, hQ, told, h, j, p, has_C, has_D, d_active, phi_on, useD, useC,
+           a, lo, hi, clamp, h_abs, flow_t0, prio, rng):
+    """``_Run._event``: locate, then decide. Returns (kind, te, xe, lo, ylo, h_hint)."""
+    lo, hi, ylo, yhi = _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on,
+                               useD, useC, lo, hi)
+    if hi <= flow_t0:
+        hint = np.nan
+    else:
+        hint = min(h_abs, 10.0 * (hi - flow_t0))
+    te_hi = hi if not clamp == clamp else min(hi, clamp)
+    if d_active and M[4](yhi, hi, j, p):
+        in_C = (not has_C) or M[5](yhi, hi, j, p)
+        coin = True
+        if rules.needs_coin(in_C, True, prio):
+            coin = rng.random() < 0.5
+        action = rules.decide_at_event(True, in_C, prio, coin)
+        kind = _O_JUMP if action == _A_JUMP else _O_FLOW_ON
+        return kind, te_hi, yhi, lo, ylo, hint
+    if has_D and M[4](ylo, lo, j, p):
+        return _O_JUMP, lo, ylo, lo, ylo, hint
+    if has_D and M[4](yhi, hi, j, p):
+        return _O_JUMP, te_hi, yhi, lo, ylo, hint
+    return _O_STOP, lo, ylo, lo, ylo, hint
+
+
+@njit(cache=True, **_NJ)
+def run_one(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rng):
+    """One run, entirely compiled.
+
+    Returns ``(T, J, X, XD, cause, detail, info, stats)``: the samples
+    (trimmed), the cause code (:data:`CAUSES`), a detail code saying which
+    message variant, ``info`` (floats for the message: t, t2, value, j) and
+    ``stats`` (steps, rejected, nfev, events, flows, jumps).
+    """
+    M = (f, g, hD, hC, D, C)
+    t0 = fopt[0]
+    t_max = fopt[1]
+    j_max = fopt[2]
+    rtol = fopt[3]
+    max_step = fopt[4]
+    first_step = fopt[5]
+    max_norm = fopt[6]
+    zeno_time = fopt[7]
+    zeno_rtol = fopt[8]
+    j0 = iopt[0]
+    prio = iopt[1]
+    max_steps = iopt[2]
+    max_samples = iopt[3]
+    zeno_jumps = iopt[4]
+    refine = iopt[5]
+    has_C = iopt[6] != 0
+    has_D = iopt[7] != 0
+    has_hC = iopt[8] != 0
+    has_hD = iopt[9] != 0
+    cap = iopt[10]
+    watch_D = has_D and prio != _FLOWS
+    phi_ok = ((not watch_D) or has_hD) and ((not has_C) or has_hC)
+    use_phi = phi_ok and (has_hD or has_hC)
+    useC = has_C and has_hC
+
+    n = x0.shape[0]
+    T = np.empty(cap)
+    J = np.empty(cap, np.int64)
+    X = np.empty((cap, n))
+    XD = np.empty((cap, n))
+    stats = np.zeros(6, np.int64)
+    info = np.full(4, np.nan)
+    cause = -1
+    detail = 0
+    K = np.zeros((7, n))
+    hQ = np.zeros((n, 4))
+
+    t = t0
+    j = j0
+    x = x0.copy()
+    jumps = 0
+    short = 0
+    t_last_jump = t0
+    flows_last = np.zeros(4)        # the last (up to) 4 flow lengths, oldest first
+    n_flows_last = 0
+    h_hint = first_step              # NaN: none
+    T, J, X, XD = _push(T, J, X, XD, 0, t, j, x)
+    ns = 1
+    forced = False
+    flow_on = False
+    in_D = False
+    in_C = True
+    done = False
+    while not done:
+        if flow_on:
+            in_D = True
+        else:
+            in_D = has_D and D(x, t, j, p)
+            in_C = (not has_C) or C(x, t, j, p)
+            coin = False
+            if rules.needs_coin(in_C, in_D, prio, forced):
+                coin = rng.random() < 0.5
+            action = rules.decide(in_C, in_D, prio, coin, forced)
+            forced = False
+            if action == _A_JUMP:
+                if jumps >= j_max:
+                    cause = J_MAX
+                    break
+                xn = g(x, t, j, p)
+                if xn.shape[0] != n or not _all_finite(xn):
+                    cause = MAP_ERROR
+                    detail = 0 if xn.shape[0] != n else 1
+                    info[0] = t
+                    info[2] = xn.shape[0]
+                    info[3] = j
+                    break
+                # ---- the jump (``_Run._jump``)
+                flow = t - t_last_jump
+                if n_flows_last == 4:
+                    flows_last[:3] = flows_last[1:].copy()
+                    flows_last[3] = flow
+                else:
+                    flows_last[n_flows_last] = flow
+                    n_flows_last += 1
+                if rules.is_short_flow(flow, t, rules.time_scale(t0, t, t_max), zeno_time,
+                                       zeno_rtol):
+                    short += 1
+                else:
+                    short = 0
+                t_last_jump = t
+                j += 1
+                jumps += 1
+                x = xn.copy()
+                if ns >= max_samples:
+                    cause = MAX_STEPS
+                    detail = 1
+                    info[0] = t
+                    break
+                T, J, X, XD = _push(T, J, X, XD, ns, t, j, x)
+                ns += 1
+                if jumps >= j_max:
+                    cause = J_MAX
+                    break
+                if short >= zeno_jumps:
+                    cause = ZENO
+                    detail = 0
+                    info[0] = t
+                    info[2] = short
+                    break
+                continue
+            if action == _A_STOP:
+                cause = -2           # decided below (_stop_outside)
+                break
+        if t >= t_max:
+            cause = T_MAX
+            break
+        flow_on = False
+        # ---------------------------------------------------------- a flow
+        t_bound = t_max
+        flow_t0 = t
+        hh0 = h_hint
+        if hh0 == hh0:
+            hh0 = min(hh0, t_bound - t, max_step)
+            if not hh0 > 0:
+                hh0 = np.nan
+        fa = f(x, t, j, p)
+        stats[2] += 1
+        if fa.shape[0] != n:
+            cause = MAP_ERROR
+            detail = 2
+            info[0] = t
+            info[2] = fa.shape[0]
+            info[3] = j
+            break
+        if hh0 == hh0:
+            h_abs = hh0
+        else:
+            h_abs = _initial_step(f, t, x, t_bound, max_step, fa, rtol, atol, j, p)
+            stats[2] += 1
+            if h_abs < 0.0:
+                cause = MAP_ERROR
+                detail = 2
+                info[0] = t
+                info[3] = j
+                break
+        stats[4] += 1
+        XD[ns - 1] = fa
+        a = t
+        ya = x
+        d_active = watch_D and not in_D
+        tried = False
+        outcome = _O_STOP
+        while True:
+            if stats[0] >= max_steps:
+                cause = MAX_STEPS
+                detail = 0
+                info[0] = a
+                t, x = a, ya
+                outcome = _O_STOP
+                break
+            # ---- scipy's RungeKutta._step_impl
+            min_step = 10.0 * abs(np.nextafter(a, np.inf) - a)
+            if h_abs > max_step:
+                ha = max_step
+            elif h_abs < min_step:
+                ha = min_step
+            else:
+                ha = h_abs
+            accepted = False
+            rejected = False
+            failed = False
+            attempts = 0
+            b = a
+            hs = 0.0
+            yb = ya
+            fb = fa
+            bad_len = False
+            while not accepted:
+                if ha < min_step:
+                    failed = True
+                    break
+                hs = ha
+                b = a + hs
+                if b - t_bound > 0:
+                    b = t_bound
+                hs = b - a
+                ha = abs(hs)
+                attempts += 1
+                tried = True
+                K[0] = fa
+                for s in range(1, 6):
+                    yi = np.empty(n)
+                    for i in range(n):
+                        acc = 0.0
+                        for m in range(s):
+                            acc += K[m, i] * _A[s, m]
+                        yi[i] = ya[i] + acc * hs
+                    ks = f(yi, a + _Cc[s] * hs, j, p)
+                    if ks.shape[0] != n:
+                        bad_len = True
+                        break
+                    K[s] = ks
+                if bad_len:
+                    break
+                ynew = np.empty(n)
+                for i in range(n):
+                    acc = 0.0
+                    for m in range(6):
+                        acc += K[m, i] * _B[m]
+                    ynew[i] = ya[i] + hs * acc
+                fnew = f(ynew, b, j, p)
+                stats[2] += 6
+                if fnew.shape[0] != n:
+                    bad_len = True
+                    break
+                K[6] = fnew
+                es = 0.0
+                for i in range(n):
+                    acc = 0.0
+                    for m in range(7):
+                        acc += K[m, i] * _E[m]
+                    sc = atol[i] + max(abs(ya[i]), abs(ynew[i])) * rtol
+                    e = acc * hs / sc
+                    es += e * e
+                err = math.sqrt(es) / math.sqrt(n)
+                if err < 1:
+                    if err == 0:
+                        factor = _MAX_FACTOR
+                    else:
+                        fc = _SAFETY * err ** _ERR_EXP
+                        factor = fc if fc < _MAX_FACTOR else _MAX_FACTOR
+                    if rejected:
+                        factor = factor if factor < 1.0 else 1.0
+                    ha *= factor
+                    accepted = True
+                    yb = ynew
+                    fb = fnew
+                else:
+                    fc = _SAFETY * err ** _ERR_EXP
+                    ha *= fc if fc > _MIN_FACTOR else _MIN_FACTOR
+                    rejected = True
+            if attempts > 1:
+                stats[1] += attempts - 1
+            if bad_len:
+                cause = MAP_ERROR
+                detail = 2
+                info[0] = a
+                info[3] = j
+                t, x = a, ya
+                break
+            if failed:
+                # ``_Run._solver_failed``
+                bad = tried and not _all_finite(K)
+                if not bad:
+                    fy = f(ya, a, j, p)
+                    bad = fy.shape[0] != n or not _all_finite(fy)
+                if bad:
+                    cause = NON_FINITE
+                    detail = 1
+                elif short > 0:
+                    cause = ZENO
+                    detail = 2
+                else:
+                    cause = SOLVER_FAILED
+                info[0] = a
+                info[3] = j
+                t, x = a, ya
+                break
+            h_abs = ha
+            stats[0] += 1
+            if not _all_finite(yb):
+                cause = NON_FINITE
+                detail = 0
+                info[0] = a
+                info[1] = b
+                info[3] = j
+                t, x = a, ya
+                break
+            # dense output of the step: hQ = h K^T P
+            for i in range(n):
+                for k in range(4):
+                    acc = 0.0
+                    for m in range(7):
+                        acc += K[m, i] * _P[m, k]
+                    hQ[i, k] = hs * acc
+            event = has_C and not C(yb, b, j, p)
+            if d_active:
+                event = event or D(yb, b, j, p)
+            hit = False
+            elo = a
+            ehi = b
+            if event:
+                hit = True
+            elif has_C or d_active:
+                phi_on = use_phi and (d_active or has_hC)
+                hit, elo, ehi = _interior(M, ya, hQ, a, hs, j, p, has_C, d_active, phi_on,
+                                          d_active and has_hD, useC, a, b)
+            clamp = np.nan
+            past = False
+            if not hit:
+                if watch_D and not d_active:
+                    d_active = not D(yb, b, j, p)
+                if refine > 1 and b > a:
+                    if ns + refine - 1 > max_samples:
+                        cause = MAX_STEPS
+                        detail = 1
+                        info[0] = t
+                        break
+                    for r in range(1, refine):
+                        s = a + (b - a) * (r / refine)
+                        T, J, X, XD = _push(T, J, X, XD, ns, s, j,
+                                            _dense(ya, hQ, a, hs, s))
+                        XD[ns] = _dense_deriv(hQ / hs, a, hs, s)
+                        ns += 1
+                if ns >= max_samples:
+                    cause = MAX_STEPS
+                    detail = 1
+                    info[0] = t
+                    break
+                T, J, X, XD = _push(T, J, X, XD, ns, b, j, yb)
+                XD[ns] = fb
+                ns += 1
+                if max_norm < np.inf:
+                    nb = math.sqrt(np.sum(yb * yb))
+                    if nb > max_norm:
+                        cause = BLOWUP
+                        info[0] = b
+                        info[2] = nb
+                        info[3] = j
+                        t, x = b, yb
+                        break
+                if b - t_bound >= 0:          # the solver finished
+                    h_hint = np.nan
+                    if d_active:
+                        # ``_event_past_t_max``: an entry into D within round-off
+                        tb = b + rules.t_max_slack(b, jumps)
+                        if _pred(M, tb, _dense(ya, hQ, a, hs, tb), j, p, has_C, True):
+                            if T[ns - 1] == b:
+                                ns -= 1
+                            past = True
+                            hit = True
+                            elo = b
+                            ehi = tb
+                            clamp = b
+                    if not past:
+                        t, x = b, yb
+                        outcome = _O_TMAX
+                        break
+                if not hit:
+                    a = b
+                    ya = yb
+                    fa = fb
+                    continue
+            # ---- an event in (elo, ehi] of the step from a (``_Run._event``)
+            da = True if past else d_active
+            phi_on = use_phi and (da or has_hC)
+            stats[3] += 1
+            kind, te, xe, lo, ylo, hint = _event(
+                M, ya, hQ, a, hs, j, p, has_C, has_D, da, phi_on, da and has_hD, useC,
+                a, elo, ehi, clamp, h_abs, flow_t0, prio, rng)
+            h_hint = hint
+            # ``_commit``
+            if te > a:
+                if refine > 1:
+                    if ns + refine - 1 > max_samples:
+                        cause = MAX_STEPS
+                        detail = 1
+                        info[0] = t
+                        break
+                    for r in range(1, refine):
+                        s = a + (te - a) * (r / refine)
+                        T, J, X, XD = _push(T, J, X, XD, ns, s, j,
+                                            _dense(ya, hQ, a, hs, s))
+                        XD[ns] = _dense_deriv(hQ / hs, a, hs, s)
+                        ns += 1
+                if ns >= max_samples:
+                    cause = MAX_STEPS
+                    detail = 1
+                    info[0] = t
+                    break
+                T, J, X, XD = _push(T, J, X, XD, ns, te, j, xe)
+                fe = f(xe, te, j, p)
+                if fe.shape[0] == n:
+                    XD[ns] = fe
+                ns += 1
+            t, x = te, xe
+            outcome = kind
+            if kind == _O_STOP:
+                cause = -2
+                detail = 1
+                info[0] = lo
+                info[3] = j
+            break
+        if cause != -1:
+            break
+        if outcome == _O_JUMP:
+            forced = True
+        elif outcome == _O_FLOW_ON:
+            flow_on = True
+    if cause == -2:
+        # ``_Run._stop_outside``: x0 outside both sets, sticking, or leaving C u D
+        if ns == 1:
+            cause = NOT_IN_SETS
+            detail = 0
+        else:
+            last3 = flows_last[max(n_flows_last - 3, 0):n_flows_last]
+            scale = rules.time_scale(t0, t, t_max)
+            if is_sticking(jumps, last3, n_flows_last, t - t_last_jump, scale):
+                cause = ZENO
+                detail = 1
+                info[1] = last3[0]
+                info[2] = last3[-1]
+            else:
+                cause = LEFT_SETS
+        info[0] = t
+        info[3] = j
+    if cause != MAP_ERROR and XD[ns - 1, 0] != XD[ns - 1, 0]:
+        fl = f(np.ascontiguousarray(X[ns - 1]), T[ns - 1], J[ns - 1], p)
+        if fl.shape[0] == n:
+            XD[ns - 1] = fl
+    stats[5] = jumps
+    return (T[:ns].copy(), J[:ns].copy(), X[:ns].copy(), XD[:ns].copy(), cause, detail,
+            info, stats)
+
+
+@njit(cache=True, parallel=True, **_NJ)
+def run_batch(f, g, hD, hC, D, C, X0, p, fopt, iopt, atol, rng, cap):
+    """Many runs in parallel (``prange``), each written into a slot of ``cap``
+    samples of a preallocated pool; a run longer than ``cap`` keeps only its
+    counts (``NS[i] > cap``) and is re-run by the caller with :func:`run_one`."""
+    N = X0.shape[0]
+    n = X0.shape[1]
+    TT = np.empty((N, cap))
+    JJ = np.empty((N, cap), np.int64)
+    XX = np.empty((N, cap, n))
+    XXD = np.empty((N, cap, n))
+    NS = np.zeros(N, np.int64)
+    CA = np.zeros(N, np.int64)
+    DE = np.zeros(N, np.int64)
+    INFO = np.empty((N, 4))
+    ST = np.zeros((N, 6), np.int64)
+    for i in prange(N):
+        T, J, X, XD, cause, detail, info, stats = run_one(
+            f, g, hD, hC, D, C, np.ascontiguousarray(X0[i]), p, fopt, iopt, atol, rng)
+        m = T.shape[0]
+        NS[i] = m
+        CA[i] = cause
+        DE[i] = detail
+        INFO[i] = info
+        ST[i] = stats
+        if m <= cap:
+            TT[i, :m] = T
+            JJ[i, :m] = J
+            XX[i, :m] = X
+            XXD[i, :m] = XD
+    return TT, JJ, XX, XXD, NS, CA, DE, INFO, ST
+
+
+def _signature_one():
+    gen = numba.typeof(np.random.default_rng(0))
+    return (VEC_T, VEC_T, SCAL_T, SCAL_T, BOOL_T, BOOL_T, types.float64[::1],
+            types.float64[::1], types.float64[::1], types.int64[::1], types.float64[::1], gen)
+
+
+def _key_with_rules():
+    """Add the rules' digest to the cache key of every cached dispatcher here."""
+    digest = _rules_digest()
+    for obj in list(globals().values()):
+        cache = getattr(obj, "_cache", None)
+        if isinstance(obj, numba.core.dispatcher.Dispatcher) and \
+                hasattr(cache, "_index_key") and not getattr(cache, "_hs_keyed", False):
+            orig = cache._index_key
+            cache._index_key = (lambda orig: lambda sig, codegen:
+                                orig(sig, codegen) + (digest,))(orig)
+            cache._hs_keyed = True
+
+
+try:                      # numba's private cache API: without it, the key is numba's own
+    _key_with_rules()
+except Exception:  # noqa: BLE001 - a numba version without these internals
+    pass
+
+
+_READY = set()
+
+
+def compile_kernels(batch=True):
+    """Compile (or load from numba's on-disk cache) the kernels for the
+    first-class map signatures: ``run_one``, and ``run_batch`` when ``batch``."""
+    import warnings
+    sig = _signature_one()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", nb_errors.NumbaExperimentalFeatureWarning)
+        if "one" not in _READY:
+            run_one.compile(sig)
+            _READY.add("one")
+        if batch and "batch" not in _READY:
+            run_batch.compile(sig[:6] + (types.float64[:, ::1],) + sig[7:] + (types.int64,))
+            _READY.add("batch")
