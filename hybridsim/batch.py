@@ -87,11 +87,13 @@ def _check_bool(name, v):
 
 def _as_rows(x0s, n):
     """x0s as an (N, n) float array, with messages naming x0s."""
-    if np.iscomplexobj(x0s):
-        raise TypeError("x0s must be real, got complex values")
     try:
+        if np.iscomplexobj(x0s):
+            raise TypeError("x0s must be real, got complex values")
         X = np.array(x0s, dtype=float)
     except (TypeError, ValueError) as e:
+        if "x0s must be real" in str(e):
+            raise
         detail = ""
         if isinstance(x0s, (list, tuple)):
             shapes = []
@@ -102,6 +104,8 @@ def _as_rows(x0s, n):
                     s = "ragged"
                 if s != (n,):
                     shapes.append(f"row {i} has shape {s}")
+            if not shapes:
+                shapes = ["its rows do not form an array of floats"]
             if shapes:
                 detail = ": " + ", ".join(shapes[:_SHOW]) + \
                     (f" and {len(shapes) - _SHOW} more" if len(shapes) > _SHOW else "")
@@ -307,7 +311,9 @@ def _summary(what, arcs, offset=0):
         named = []
         for i, a in failed[:_SHOW]:
             msg = a.message or a.termination.message
-            if a.exception is not None:
+            if isinstance(a.exception, SimulationError):      # names the map already
+                msg = str(a.exception)
+            elif a.exception is not None:
                 msg = f"{type(a.exception).__name__}: {a.exception}"
             msg = " ".join(str(msg).split())
             if len(msg) > 160:
@@ -322,7 +328,7 @@ def _summary(what, arcs, offset=0):
         rows = canceled if len(canceled) <= 2 * _SHOW else \
             canceled[:_SHOW] + ["..."] + canceled[-1:]
         finished = len(arcs) - len(canceled)
-        parts.append(f"interrupted (KeyboardInterrupt): {finished} of {len(arcs)} runs kept, "
+        parts.append(f"interrupted (KeyboardInterrupt): {finished} of {len(arcs)} runs finished, "
                      f"rows {', '.join(map(str, rows))} end with CANCELED (the arc so far, or "
                      f"one sample at x0 for rows never started)")
     if not parts:

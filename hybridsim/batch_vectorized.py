@@ -169,9 +169,13 @@ class _VMaps:
             return self._check(kind, name, fn(x, t, j, None), k)
         except (KeyboardInterrupt, SystemExit):
             raise
-        except Exception:  # noqa: BLE001 - isolate the failing rows
+        except MapError:
             if strict:
                 raise
+        except Exception as e:  # noqa: BLE001 - isolate the failing rows
+            if strict:          # at x0, as simulate: a MapError naming the map
+                raise MapError(f"{name} raised {type(e).__name__}: {e} (at the initial "
+                               f"states, t={t[0]:.10g})", name, float(t[0]), int(j[0])) from e
         if kind == "state":
             out = np.zeros((k, self.n))
         else:
@@ -339,7 +343,8 @@ def simulate_vectorized(system, x0s, *, t_max, j_max=math.inf, priority="jumps",
     Raises
     ------
     MapError
-        A map returns a wrong shape at the initial states.
+        A map raises or returns a wrong shape at the initial states (chained
+        from the map's exception).
     ValueError, TypeError
         Bad arguments (each message names the argument).
 
