@@ -55,3 +55,96 @@ def test_bad_batch_input():
         hs.simulate_many(object(), np.ones((3, 1)), t_max=1.0)
     with pytest.raises(TypeError, match="make_system must be a callable"):
         hs.sweep(3, [1], [1.0], t_max=1.0)
+
+
+# ------------------------------------------------------------------ progress bars
+class _TTY:
+    """A stderr that says it is a terminal."""
+
+    def __init__(self):
+        import io
+        self.buf = io.StringIO()
+
+    def isatty(self):
+        return True
+
+    def write(self, s):
+        return self.buf.write(s)
+
+    def flush(self):
+        pass
+
+
+class _Shell:
+    def __init__(self, config):
+        self.config = config
+
+
+def _fake_ipython(monkeypatch, config):
+    import sys
+    import types
+    mod = types.ModuleType("IPython")
+    mod.get_ipython = lambda: _Shell(config)
+    monkeypatch.setitem(sys.modules, "IPython", mod)
+
+
+def test_progress_automatic_at_a_terminal_and_in_a_notebook(monkeypatch):
+    import io
+    import sys
+
+    from hybridsim._progress import in_notebook, progress_enabled
+    monkeypatch.delenv("CI", raising=False)
+    monkeypatch.setitem(sys.modules, "IPython", None)
+    monkeypatch.setattr(sys, "stderr", io.StringIO())
+    assert progress_enabled(None) is False                  # redirected: off
+    assert progress_enabled(True) is True and progress_enabled(False) is False
+    monkeypatch.setattr(sys, "stderr", _TTY())
+    assert progress_enabled(None) is True                   # a terminal: on
+    monkeypatch.setenv("CI", "true")
+    assert progress_enabled(None) is False                  # CI: off
+    monkeypatch.setenv("CI", "0")
+    assert progress_enabled(None) is True
+    monkeypatch.delenv("CI")
+    monkeypatch.setattr(sys, "stderr", io.StringIO())
+    _fake_ipython(monkeypatch, {"IPKernelApp": {}})        # a Jupyter kernel: on
+    assert in_notebook() and progress_enabled(None) is True
+    _fake_ipython(monkeypatch, {"TerminalIPythonApp": {}})  # terminal IPython, piped: off
+    assert not in_notebook() and progress_enabled(None) is False
+
+
+def test_progress_argument_checked():
+    from hybridsim._progress import make_bar
+    with pytest.raises(TypeError, match=r"progress must be True, False or None.*str 'yes'"):
+        make_bar("yes", total=1, desc="x")
+    with pytest.raises(TypeError, match="desc must be a str"):
+        make_bar(True, total=1, desc=3)
+    assert make_bar(False, total=1, desc="x") is None
+    assert make_bar(np.bool_(False), total=1, desc="x") is None
+
+
+def test_single_run_bar_shows_t_and_j():
+    import io
+
+    from hybridsim._progress import make_bar
+    out = io.StringIO()
+    bar = make_bar(True, total=5.0, desc="simulate", unit="t", postfix="j=0", file=out,
+                   bar_format="{desc}: t={n:.3g}/{total:.3g}{postfix}", mininterval=0)
+    bar.update(1.25)
+    bar.set_postfix_str("j=3")
+    assert str(bar) == "simulate: t=1.25/5, j=3"
+    bar.refresh()
+    assert "t=1.25/5, j=3" in out.getvalue()
+    bar.close()
+    bar = make_bar(True, total=None, desc="simulate", unit="jump", postfix={"j": 2}, file=out)
+    assert "j=2" in str(bar) and "jump" in str(bar)
+    bar.close()
+
+
+def test_batches_draw_one_bar_over_runs(capsys):
+    hs.simulate_many(Decay(), np.ones((3, 1)), t_max=0.1, progress=True)
+    err = capsys.readouterr().err
+    assert "simulate_many" in err and "3/3" in err and "run" in err
+    hs.sweep(make_decay, [1.0, 2.0], [1.0], t_max=0.1, progress=True)
+    assert "2/2" in capsys.readouterr().err
+    hs.simulate_many(Decay(), np.ones((3, 1)), t_max=0.1, progress=False)
+    assert capsys.readouterr().err == ""

@@ -400,3 +400,18 @@ def test_simulate_many_dask_local_cluster():
             distributed.Client(cluster) as client:
         arcs = hs.simulate_many(Ball(), x0s, executor=client.get_executor(), **kw)
     _same(arcs, refs)
+
+
+def test_progress_bar_over_trajectories(capsys):
+    timer = hs.HybridSystem.from_functions(
+        f=lambda x: np.ones_like(x), g=lambda x: np.zeros_like(x),
+        jump_guard=lambda x: x[:, 0] - 1.0, flow_guard=lambda x: 1.0 - x[:, 0],
+        state_dim=1, vectorized=True)
+    quiet = simulate_vectorized(timer, [[0.0], [0.5]], t_max=2.2)
+    assert capsys.readouterr().err == ""
+    arcs = hs.simulate_many(timer, [[0.0], [0.5]], t_max=2.2, progress=True)
+    assert "simulate_vectorized" in capsys.readouterr().err
+    for a, b in zip(arcs, quiet):           # the bar changes nothing
+        np.testing.assert_array_equal(a.t, b.t)
+    with pytest.raises(TypeError, match="progress must be True, False or None"):
+        simulate_vectorized(timer, [[0.0]], t_max=1.0, progress="on")
