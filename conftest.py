@@ -1,0 +1,36 @@
+"""Root test configuration, shared by ``tests/`` and the doctests that
+``--doctest-modules`` collects from ``hybridsim/`` and ``observers/``.
+
+One BLAS thread (the matrices here are tiny; threads only spin on a shared
+2-core machine), a non-interactive matplotlib, and ``np`` / ``hs`` in every
+doctest's namespace, as the docstrings' Examples assume
+(``import numpy as np``, ``import hybridsim as hs``). Doctests print numpy
+scalars as numpy 1.x did (``True``, ``64.0``, not ``np.True_``,
+``np.float64(64.0)``), so Examples read as plain numbers; the tests in
+``tests/`` keep numpy's default printing.
+"""
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("MPLBACKEND", "Agg")
+
+# numpy after the thread settings, which it reads at import
+import numpy as np
+import pytest
+
+
+@pytest.fixture(autouse=True)
+def _doctest_setup(request):
+    from _pytest.doctest import DoctestItem
+
+    if not isinstance(request.node, DoctestItem):
+        yield
+        return
+    import hybridsim as hs
+
+    namespace = request.getfixturevalue("doctest_namespace")
+    namespace["np"] = np
+    namespace["hs"] = hs
+    with np.printoptions(legacy="1.25"):
+        yield
