@@ -5,7 +5,7 @@ Bouncing ball
 Define a hybrid system, simulate it, and plot it in hybrid time. The ball
 has height x[0] and velocity x[1]. It flows by free fall while above the
 floor (C = {x0 >= 0}) and bounces (x1+ = -e x1) when it reaches the floor
-moving down (D = {x0 <= 0, x1 <= 0}). The jump times have a closed form,
+moving down (D = {x0 <= 0, x1 <= 0}). The jump times have a closed form::
 
     t_1 = v0 / g,   t_{k+1} = t_k + 2 e^k v0 / g,   v0 = sqrt(2 g h0),
 
@@ -18,6 +18,8 @@ against the jump counter j (``plot_jumps``); height over the hybrid time
 domain in 3-D (``plot_hybrid``). The flows are drawn through the arc's
 interpolant between samples, so the parabolas are smooth although RK45
 crosses a whole flight in one or two steps.
+
+Run it with::
 
     python examples/bouncing_ball.py [output_folder]
 

@@ -5,7 +5,7 @@ Sample-and-hold control loop
 A continuous plant under a sampled feedback, as one hybrid system. The plant
 xdot = A x + B u (a double integrator) is driven by a zero-order hold: every
 T seconds the controller samples u = K x and holds it until the next sample.
-With state (x, u, tau), the timer tau being an ordinary state component:
+With state (x, u, tau), the timer tau being an ordinary state component::
 
     flow (tau <= T):  xdot = A x + B u,  udot = 0,  taudot = 1
     jump (tau >= T):  x+ = x,  u+ = K x,  tau+ = 0.
@@ -20,6 +20,8 @@ Figures: position, velocity and the held input against t, one subplot each
 on a shared t axis (the plant's state does not jump, so its jump markers are
 switched off; the input's jumps are the controller's updates); and the phase
 plane of the plant, where the flows bend at each update.
+
+Run it with::
 
     python examples/sample_and_hold.py [output_folder]
 """

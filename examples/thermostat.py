@@ -4,11 +4,11 @@ Thermostat with hysteresis
 
 A continuous temperature and a discrete mode in one state. The state is
 x = (z, q): room temperature z and heater mode q in {0, 1} (a logic
-variable carried as an ordinary state component). The room follows
+variable carried as an ordinary state component). The room follows::
 
     zdot = -z + z_out + z_heat * q,
 
-the heater switches on when z falls to z_min and off when z rises to z_max:
+the heater switches on when z falls to z_min and off when z rises to z_max::
 
     D = {q = 0, z <= z_min} U {q = 1, z >= z_max},   q+ = 1 - q,
     C = {q = 0, z >= z_min} U {q = 1, z <= z_max}.
@@ -22,6 +22,8 @@ ln 2 for the numbers below.
 Figures: the temperature coloured by mode (two ``plot_flows`` calls with
 ``filter=`` keeping one mode each) above the mode itself, whose switches are
 jumps, on a shared t axis; and the hybrid time domain.
+
+Run it with::
 
     python examples/thermostat.py [output_folder]
 """

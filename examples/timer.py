@@ -12,6 +12,8 @@ dotted from a filled circle at tau = 1 to an open circle at tau = 0) above
 the hybrid time domain E = [0, 1] x {0} U [1, 2] x {1} U ...
 (``plot_time_domain``), on a shared t axis.
 
+Run it with::
+
     python examples/timer.py [output_folder]
 """
 import sys

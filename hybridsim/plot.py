@@ -2,13 +2,13 @@ r"""Plots of hybrid arcs in hybrid time (t, j).
 
 Five functions share one set of keywords:
 
-====================  ==========================================================
-:func:`plot_flows`    components (or ``fn`` of the state) against ordinary time t
-:func:`plot_jumps`    the same against the jump counter j
-:func:`plot_hybrid`   one component in 3-D over the hybrid time domain (t, j)
-:func:`plot_phase`    one component against another
+========================  ======================================================
+:func:`plot_flows`        components (or ``fn`` of the state) against time t
+:func:`plot_jumps`        the same against the jump counter j
+:func:`plot_hybrid`       one component in 3-D over the hybrid time domain (t, j)
+:func:`plot_phase`        one component against another
 :func:`plot_time_domain`  the hybrid time domain itself: j against t
-====================  ==========================================================
+========================  ======================================================
 
 Every function returns its Axes (``subplots=True``: an array of Axes), accepts
 ``ax=``, and never calls ``plt.show()``.
@@ -603,6 +603,7 @@ def plot_flows(arc, idx=None, *, ax=None, labels=None, subplots=False, fn=None,
     Parameters
     ----------
     arc : HybridArc
+        The solution to draw (from :func:`hybridsim.simulate`).
     idx : int, list of int, callable or float array, optional
         State components to plot (default all, negative counts from the end),
         ``fn(x, t, j)`` (as ``fn=``), or values already computed at the
@@ -611,6 +612,7 @@ def plot_flows(arc, idx=None, *, ax=None, labels=None, subplots=False, fn=None,
     Returns
     -------
     matplotlib.axes.Axes, or ndarray of Axes with ``subplots=True``
+        The Axes drawn on.
 
     Raises
     ------
@@ -651,12 +653,14 @@ def plot_jumps(arc, idx=None, *, ax=None, labels=None, subplots=False, fn=None,
     Parameters
     ----------
     arc : HybridArc
+        The solution to draw.
     idx : int, list of int, callable or float array, optional
         As in :func:`plot_flows`.
     %s
     Returns
     -------
     matplotlib.axes.Axes, or ndarray of Axes with ``subplots=True``
+        The Axes drawn on.
 
     Examples
     --------
@@ -674,8 +678,8 @@ def plot_jumps(arc, idx=None, *, ax=None, labels=None, subplots=False, fn=None,
                       yscale=yscale, line_kw=line_kw)
 
 
-plot_flows.__doc__ = plot_flows.__doc__ % _COMMON_DOC.strip("\n").lstrip()
-plot_jumps.__doc__ = plot_jumps.__doc__ % _COMMON_DOC.strip("\n").lstrip()
+plot_flows.__doc__ = plot_flows.__doc__ % (_COMMON_DOC.strip("\n").lstrip() + "\n")
+plot_jumps.__doc__ = plot_jumps.__doc__ % (_COMMON_DOC.strip("\n").lstrip() + "\n")
 
 
 def _single_label(labels, default, where):
@@ -697,13 +701,14 @@ def plot_hybrid(arc, idx=0, *, ax=None, labels=None, fn=None, filter=None, jumps
     Parameters
     ----------
     arc : HybridArc
+        The solution to draw.
     idx : int or callable, default 0
         The state component, or ``fn(x, t, j)`` returning a scalar.
     ax : 3-D matplotlib Axes, optional
         ``fig.add_subplot(projection="3d")``; default a new figure's.
     labels : str or list of one str, optional
         The component's name (z label and legend entry).
-    fn, filter, jumps, markers, smooth, flow_kw, jump_kw, start_kw, end_kw
+    fn, filter, jumps, markers, smooth, flow_kw, jump_kw, start_kw, end_kw : optional
         As in :func:`plot_flows`.
     legend : bool, default False
         Add a legend (the z label already names the component).
@@ -715,6 +720,7 @@ def plot_hybrid(arc, idx=0, *, ax=None, labels=None, fn=None, filter=None, jumps
     Returns
     -------
     mpl_toolkits.mplot3d.Axes3D
+        The 3-D Axes drawn on.
 
     Examples
     --------
@@ -751,7 +757,7 @@ def plot_hybrid(arc, idx=0, *, ax=None, labels=None, fn=None, filter=None, jumps
 
 def plot_phase(arc, i=0, k=1, *, ax=None, labels=None, fn=None, filter=None, jumps=True,
                markers=True, smooth=True, flow_kw=None, jump_kw=None, start_kw=None,
-               end_kw=None, legend=None, label=None, xlabel=None, ylabel=None,
+               end_kw=None, label=None, legend=None, xlabel=None, ylabel=None,
                xscale=None, yscale=None, **line_kw):
     r"""Component k against component i: the arc in the phase plane.
 
@@ -761,17 +767,19 @@ def plot_phase(arc, i=0, k=1, *, ax=None, labels=None, fn=None, filter=None, jum
     Parameters
     ----------
     arc : HybridArc
+        The solution to draw.
     i, k : int, default 0 and 1
         The components on the horizontal and vertical axes (of the state, or
         of ``fn``'s output); they must differ.
     ax : matplotlib Axes, optional
+        Where to draw (default: a new figure).
     labels : list of two str, optional
         Names of components i and k: the axis labels (default ``$x_{i+1}$``,
         ``$x_{k+1}$`` or the parts' names of an interconnection).
     fn : callable, optional
         ``fn(x, t, j)`` returning a 1-D array whose components i and k are
         plotted (e.g. an error in two coordinates).
-    filter, jumps, markers, smooth, flow_kw, jump_kw, start_kw, end_kw
+    filter, jumps, markers, smooth, flow_kw, jump_kw, start_kw, end_kw : optional
         As in :func:`plot_flows`.
     label : str, optional
         The curve's legend entry.
@@ -787,6 +795,7 @@ def plot_phase(arc, i=0, k=1, *, ax=None, labels=None, fn=None, filter=None, jum
     Returns
     -------
     matplotlib.axes.Axes
+        The Axes drawn on.
 
     Examples
     --------
@@ -852,13 +861,15 @@ def plot_time_domain(arc, *, ax=None, labels=None, filter=None, jumps=True, mark
     Parameters
     ----------
     arc : HybridArc
+        The solution whose domain is drawn.
     ax : matplotlib Axes, optional
+        Where to draw (default: a new figure).
     labels : str or list of one str, optional
         Legend entry of the domain (e.g. when several arcs share the Axes).
     filter : callable or bool array, optional
         As in :func:`plot_flows`: hides the parts of the domain where it is
         False.
-    jumps, markers, flow_kw, jump_kw, start_kw, end_kw
+    jumps, markers, flow_kw, jump_kw, start_kw, end_kw : optional
         As in :func:`plot_flows` (default: 1.5 x the rcParams line width).
     legend : bool, optional
         Add a legend; default: when ``labels`` is given.
@@ -870,6 +881,7 @@ def plot_time_domain(arc, *, ax=None, labels=None, filter=None, jumps=True, mark
     Returns
     -------
     matplotlib.axes.Axes
+        The Axes drawn on.
 
     Examples
     --------
