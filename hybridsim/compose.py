@@ -313,15 +313,87 @@ class Interconnection(HybridSystem):
             s._bind_history(ComponentHistory(history, self._slices[nm], self, nm))
 
     def split(self, x):
-        """``{name: part}`` of a stacked state x (shape (n,) or (N, n))."""
+        """The parts of a stacked state, keyed by component name.
+
+        Parameters
+        ----------
+        x : array_like, shape (n,) or (N, n)
+            A stacked state, or N of them (e.g. ``arc.x``).
+
+        Returns
+        -------
+        dict
+            ``{name: part}`` in stacking order, each part of shape (n_i,) or
+            (N, n_i); the names are the components' own (any hashable: the
+            node names of :func:`network`).
+
+        Raises
+        ------
+        ValueError
+            The last axis of x is not the interconnection's ``state_dim``.
+
+        Examples
+        --------
+        >>> import hybridsim as hs
+        >>> ic = hs.Interconnection({0: hs.LinearPlant([[0.0]]), (1, "b"): hs.LinearPlant([[0.0]])})
+        >>> ic.split([1.0, 2.0])
+        {0: array([1.]), (1, 'b'): array([2.])}
+        """
         x = np.asarray(x)
+        if x.ndim == 0 or x.shape[-1] != self.state_dim:
+            raise ValueError(f"split: x must have shape ({self.state_dim},) or (N, "
+                             f"{self.state_dim}) (the stacked state of {list(self._slices)}), "
+                             f"got {x.shape}")
         return {nm: x[..., sl] for nm, sl in self._slices.items()}
 
-    def stack(self, **parts):
-        """The stacked state from ``name=part`` keyword arguments (all components)."""
+    def stack(self, parts=None, /, **named):
+        """The stacked state from one part per component.
+
+        Parameters
+        ----------
+        parts : mapping, optional
+            ``{name: part}``: any hashable names (ints, tuples: the node
+            names of :func:`network`).
+        **named
+            ``name=part`` for components named by strings (may be combined
+            with ``parts``; a name given twice is an error).
+
+        Returns
+        -------
+        numpy.ndarray, shape (n,)
+            The parts in stacking order (the inverse of :meth:`split`).
+
+        Raises
+        ------
+        ValueError
+            A component is missing, a name is not a component, or a part
+            has the wrong shape.
+        TypeError
+            ``parts`` is not a mapping.
+
+        Examples
+        --------
+        >>> import hybridsim as hs
+        >>> ic = hs.Interconnection({0: hs.LinearPlant([[0.0]]), 1: hs.LinearPlant([[0.0]])})
+        >>> ic.stack({1: 2.0, 0: 1.0})
+        array([1., 2.])
+        """
+        if parts is None:
+            parts = {}
+        elif not isinstance(parts, Mapping):
+            raise TypeError(f"stack: parts must be a mapping {{name: part}} (or use name=part "
+                            f"keywords), got {type(parts).__name__}")
+        both = [nm for nm in named if nm in parts]
+        if both:
+            raise ValueError(f"stack: parts for {both} given twice (in the mapping and as "
+                             "keywords)")
+        parts = {**parts, **named}
         missing = [nm for nm in self.systems if nm not in parts]
         if missing:
             raise ValueError(f"stack: missing parts for components {missing}")
+        extra = [nm for nm in parts if nm not in self.systems]
+        if extra:
+            raise ValueError(f"stack: {extra} are not components; have {list(self.systems)}")
         out = np.empty(self.state_dim)
         for nm, sl in self._slices.items():
             v = np.atleast_1d(np.asarray(parts[nm], dtype=float))
@@ -343,12 +415,61 @@ def connect(plant, observer, names=("plant", "observer")):
         A system whose ``input_dim`` equals the plant's output dimension.
     names : (str, str)
         Component names in the interconnection (and its arcs).
+
+    Returns
+    -------
+    Interconnection
+
+    Raises
+    ------
+    ValueError
+        The plant has an input, or the plant's output dimension (its
+        ``output_dim``, else the length of its output at x = 0) differs from
+        the observer's ``input_dim``.
+    TypeError
+        plant or observer is not a HybridSystem.
+
+    Examples
+    --------
+    >>> import numpy as np, hybridsim as hs
+    >>> class Copy(hs.HybridSystem):
+    ...     state_dim, input_dim = 1, 1
+    ...     def flow_map(self, x, t, j, y):
+    ...         return y - x
+    >>> sysm = hs.connect(hs.LinearPlant([[0.0, 1.0], [0.0, 0.0]], C=[[1.0, 0.0]]), Copy())
+    >>> sysm.components
+    {'plant': slice(0, 2, None), 'observer': slice(2, 3, None)}
     """
     p, o = names
+    for what, s in (("plant", plant), ("observer", observer)):
+        if not isinstance(s, HybridSystem):
+            raise TypeError(f"{what} must be a HybridSystem, got {type(s).__name__}")
     if int(plant.input_dim or 0) > 0:
         raise ValueError(f"plant has input_dim={plant.input_dim}: connect() wires only the "
                          "plant's output; use Interconnection with inputs for a feedback loop")
+    m = int(observer.input_dim or 0)
+    q = _output_dim(plant)
+    if m > 0 and q is not None and q != m:
+        raise ValueError(f"connect: the plant's output has dimension {q} "
+                         f"({type(plant).__name__}) but the observer takes an input of "
+                         f"dimension input_dim={m} ({type(observer).__name__}); they must "
+                         f"agree (check the plant's C matrix / output_dim and the observer's "
+                         f"output matrix)")
     return Interconnection({p: plant, o: observer}, inputs={o: _OutputOf(p)})
+
+
+def _output_dim(system):
+    """A system's output dimension: declared, the state's, or measured at x = 0; else None."""
+    q = getattr(system, "output_dim", None)
+    if q is not None:
+        return int(q)
+    if not system._overrides("output"):
+        return int(system.state_dim)
+    try:
+        y = system._compile().h(np.zeros(int(system.state_dim)), 0.0, 0, None)
+        return int(np.size(y))
+    except Exception:  # noqa: BLE001 - unknown: the run will tell
+        return None
 
 
 class _OutputOf:
@@ -394,7 +515,29 @@ def network(G, systems, inputs, *, nodelist=None, exogenous=None):
     Returns
     -------
     Interconnection
-        Its components are the exogenous systems and the nodes.
+        Its components are the exogenous systems and the nodes, named as
+        in G (any hashable: ints, tuples...); ``net.stack({node: x0})`` and
+        ``net.split(x)`` go between per-node states and the stacked one.
+
+    Raises
+    ------
+    ValueError
+        G has self-loops, ``nodelist`` does not list G's nodes, or an
+        exogenous name clashes with a node.
+
+    Examples
+    --------
+    >>> import networkx as nx, numpy as np, hybridsim as hs
+    >>> class Agent(hs.HybridSystem):
+    ...     state_dim, input_dim = 1, 1
+    ...     def flow_map(self, x, t, j, u):
+    ...         return u
+    >>> G = nx.DiGraph([(0, 1), (1, 0)])
+    >>> net = hs.network(G, lambda v: Agent(),
+    ...                  lambda v, t, received, exo: sum(received.values()))
+    >>> x0 = net.stack({0: 1.0, 1: -1.0})
+    >>> net.split(x0)
+    {0: array([1.]), 1: array([-1.])}
     """
     try:
         import networkx as nx
@@ -404,6 +547,11 @@ def network(G, systems, inputs, *, nodelist=None, exogenous=None):
         raise TypeError(f"G must be a networkx.DiGraph, got {type(G).__name__}")
     if not callable(inputs):
         raise TypeError("inputs must be a callable (node, t, received, exo) -> u")
+    loops = list(nx.selfloop_edges(G))
+    if loops:
+        raise ValueError(f"G has self-loops at nodes {[u for u, _ in loops]}: an edge v -> v "
+                         "would feed a node its own output; remove them (a node's own "
+                         "state is available to its maps already)")
     nodes = list(G) if nodelist is None else list(nodelist)
     if set(nodes) != set(G) or len(nodes) != len(G):
         raise ValueError("nodelist must list every node of G exactly once")

@@ -226,3 +226,77 @@ def test_direct_feedthrough_outputs_and_algebraic_loops():
                               inputs={"g1": lambda t, y: y["g2"], "g2": lambda t, y: y["g1"]})
     with pytest.raises(ValueError, match="algebraic loop"):
         loop.outputs(np.zeros(2))
+
+
+class Agent(hs.HybridSystem):
+    """x' = u - x (a consensus agent)."""
+
+    state_dim, input_dim = 1, 1
+
+    def flow_map(self, x, t, j, u):
+        return u - x
+
+
+@pytest.mark.parametrize("nodes", [[0, 1, 2], [(0, "a"), (1, "b"), (2, "c")]])
+def test_network_with_hashable_node_names_stacks_and_splits(nodes):
+    G = nx.DiGraph([(nodes[i], nodes[(i + 1) % 3]) for i in range(3)])
+    net = hs.network(G, lambda v: Agent(), lambda v, t, rec, exo: sum(rec.values()))
+    x0 = net.stack({nodes[2]: 3.0, nodes[0]: 1.0, nodes[1]: [2.0]})
+    np.testing.assert_array_equal(x0, [1.0, 2.0, 3.0])
+    parts = net.split(x0)
+    assert list(parts) == nodes
+    assert {v: float(p[0]) for v, p in parts.items()} == {nodes[0]: 1.0, nodes[1]: 2.0,
+                                                          nodes[2]: 3.0}
+    arc = hs.simulate(net, x0, t_max=1.0)
+    per_node = net.split(arc.x)                 # (N, n) states: one (N, 1) array per node
+    for v in nodes:
+        np.testing.assert_array_equal(per_node[v], arc[v].x)
+    np.testing.assert_array_equal(net.stack(net.split(arc.xf)), arc.xf)    # round trip
+
+
+def test_stack_mapping_and_keywords_checked():
+    plant = hs.LinearPlant(A, C=C)
+    sysm = hs.connect(plant, Luenberger())
+    np.testing.assert_array_equal(sysm.stack({"plant": [1, 2]}, observer=[3, 4]), [1, 2, 3, 4])
+    with pytest.raises(ValueError, match=r"stack: parts for \['plant'\] given twice"):
+        sysm.stack({"plant": [1, 2]}, plant=[1, 2], observer=[3, 4])
+    with pytest.raises(ValueError, match=r"stack: \['obs'\] are not components; have "
+                                         r"\['plant', 'observer'\]"):
+        sysm.stack(plant=[1, 2], observer=[3, 4], obs=[0, 0])
+    with pytest.raises(TypeError, match="stack: parts must be a mapping"):
+        sysm.stack([[1, 2], [3, 4]])
+    with pytest.raises(ValueError, match=r"split: x must have shape \(4,\) or \(N, 4\).*"
+                                         r"got \(3,\)"):
+        sysm.split([1.0, 2.0, 3.0])
+
+
+def test_network_rejects_self_loops():
+    G = nx.DiGraph([(0, 1), (1, 1), (1, 0), (0, 0)])
+    with pytest.raises(ValueError, match=r"G has self-loops at nodes \[0, 1\]"):
+        hs.network(G, lambda v: Agent(), lambda v, t, rec, exo: 0.0)
+
+
+def test_connect_checks_plant_output_against_observer_input():
+    two_outputs = hs.LinearPlant(A, C=np.eye(2))
+    with pytest.raises(ValueError, match=r"connect: the plant's output has dimension 2 "
+                                         r"\(LinearPlant\) but the observer takes an input of "
+                                         r"dimension input_dim=1 \(Luenberger\)"):
+        hs.connect(two_outputs, Luenberger())
+
+    class Measured(hs.HybridSystem):     # no output_dim: the output is measured at x = 0
+        state_dim = 2
+
+        def flow_map(self, x):
+            return A @ x
+
+        def output(self, x, t, j):
+            return np.array([x[0], x[1], x[0] + x[1]])
+
+    with pytest.raises(ValueError, match="output has dimension 3"):
+        hs.connect(Measured(), Luenberger())
+    bare = hs.HybridSystem.from_functions(f=lambda x: A @ x, state_dim=2)   # y = x: 2
+    with pytest.raises(ValueError, match="output has dimension 2"):
+        hs.connect(bare, Luenberger())
+    with pytest.raises(TypeError, match="observer must be a HybridSystem"):
+        hs.connect(hs.LinearPlant(A, C=C), object())
+    hs.connect(hs.LinearPlant(A, C=C), Luenberger())        # matching: fine
