@@ -171,7 +171,8 @@ def _check_labels(labels, k, where, what="plotted component"):
         raise TypeError(f"{where}: labels must be a list of str (one per {what}), got "
                         f"{type(labels).__name__}") from None
     if len(labels) != k:
-        raise ValueError(f"labels must have one entry per {what} ({k}), got {len(labels)}")
+        raise ValueError(f"{where}: labels must have one entry per {what} ({k}), got "
+                         f"{len(labels)}")
     for s in labels:
         if not isinstance(s, str):
             raise TypeError(f"{where}: labels must be strings, got {s!r}")
