@@ -232,7 +232,11 @@ class _Batch:
         try:
             for i in todo:
                 p, x0 = self.items[i]
-                arc, stop = _run_row(self.system, self.make_system, p, x0, self.kwargs)
+                try:
+                    arc, stop = _run_row(self.system, self.make_system, p, x0, self.kwargs)
+                except (TypeError, ValueError) as e:     # an argument error: raise at once
+                    e.add_note(f"(raised by simulate in row {i} of the batch)")
+                    raise
                 self._store(i, arc)
                 if stop:
                     break

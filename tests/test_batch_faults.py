@@ -339,5 +339,22 @@ def test_ragged_x0s_named():
 
 def test_argument_errors_raise_at_once():
     """A bad simulate option is the same for every row: it raises, not a failed row."""
-    with pytest.raises(ValueError, match="rtol"):
+    with pytest.raises(ValueError, match="rtol") as info:
         hs.simulate_many(Fragile(), np.zeros((3, 2)), t_max=1.0, rtol=-1.0)
+    assert "row 0 of the batch" in info.value.__notes__[0]
+    with pytest.raises(ValueError, match=r"x0 must have shape \(2,\)") as info:
+        hs.sweep(make_fragile, [0, 1], [1.0, 0.0, 0.0], t_max=1.0)
+    assert "row 0 of the batch" in info.value.__notes__[0]
+
+
+def test_ctrl_c_in_a_process_pool_worker_keeps_the_rest():
+    x0s = np.array([[1.0, 0.0], [2.0, 0.0], [3.0, 3.0], [4.0, 0.0], [5.0, 0.0], [6.0, 0.0]])
+    with ProcessPoolExecutor(2) as ex:
+        arcs, w = run_quiet(hs.simulate_many, Fragile(), x0s, t_max=1.0, executor=ex, chunks=3)
+    assert [a.termination.name for a in arcs[:4]] == ["T_MAX", "T_MAX", "CANCELED", "CANCELED"]
+    assert len(arcs[2]) > 1 and len(arcs[3]) == 1          # so far / never started
+    # the last chunk may have run before the interruption was seen: kept if so
+    assert all(a.termination.name in ("T_MAX", "CANCELED") for a in arcs[4:])
+    np.testing.assert_allclose(arcs[1].xf[0], 2 * np.exp(-1.0), rtol=1e-6)
+    (warning,) = w
+    assert "interrupted (KeyboardInterrupt)" in str(warning.message)
