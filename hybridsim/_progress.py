@@ -11,7 +11,7 @@ from __future__ import annotations
 import os
 import sys
 
-__all__ = ["make_bar", "progress_enabled", "in_notebook"]
+__all__ = ["in_notebook", "make_bar", "progress_enabled"]
 
 
 def in_notebook() -> bool:

@@ -14,6 +14,7 @@ state, and the list of N arcs is returned with one warning.
 """
 from __future__ import annotations
 
+import itertools
 import numbers
 import warnings
 from collections.abc import Iterable
@@ -26,7 +27,7 @@ from .rules import FAILURES, MapError, SimulationError, SimulationWarning, Termi
 from .solve import simulate
 from .system import HybridSystem
 
-__all__ = ["simulate_many", "sweep", "BatchWarning", "BatchError"]
+__all__ = ["BatchError", "BatchWarning", "simulate_many", "sweep"]
 
 #: causes that make a row "failed" in a batch (named in the summary warning)
 FAILED = frozenset(FAILURES | {Termination.MAX_STEPS})
@@ -224,7 +225,7 @@ class _Batch:
         """Rows of ``todo`` still without an arc: canceled (never started)."""
         for i in todo:
             if self.out[i] is None:
-                p, x0 = self.items[i]
+                _, x0 = self.items[i]
                 self.out[i] = _never_started(x0, self.kwargs,
                                              self.system if self.make_system is None else None)
 
@@ -248,7 +249,7 @@ class _Batch:
         workers = getattr(executor, "_max_workers", None) or 2
         k = min(len(todo), chunks or 4 * workers)
         bounds = np.linspace(0, len(todo), k + 1).astype(int)
-        parts = [todo[a:b] for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
+        parts = [todo[a:b] for a, b in itertools.pairwise(bounds) if b > a]
         futs = []
         try:
             for part in parts:
@@ -256,7 +257,7 @@ class _Batch:
                     _run_chunk, self.system, self.make_system,
                     [self.items[i] for i in part], self.kwargs)))
             errors = []
-            for n_done, (part, fut) in enumerate(futs):
+            for part, fut in futs:
                 if self.interrupted:
                     break
                 try:
@@ -272,7 +273,7 @@ class _Batch:
                             f"{type(e).__name__}: {e}", e,
                             self.system if self.make_system is None else None))
                     continue
-                for i, arc in zip(part, res):
+                for i, arc in zip(part, res, strict=True):
                     self._store(i, arc)
             if errors and len(errors) == len(futs):
                 raise errors[0]          # nothing ran (e.g. the system does not pickle)
@@ -298,7 +299,7 @@ class _Batch:
                     raise
                 except Exception:  # noqa: BLE001 - a broken pool after Ctrl-C
                     continue
-                for i, arc in zip(part, res):
+                for i, arc in zip(part, res, strict=True):
                     if self.out[i] is None:
                         self.out[i] = arc
         except KeyboardInterrupt:            # a second Ctrl-C: stop waiting
@@ -330,7 +331,7 @@ def _summary(what, arcs, offset=0):
                        "failure instead")
     if canceled:
         rows = canceled if len(canceled) <= 2 * _SHOW else \
-            canceled[:_SHOW] + ["..."] + canceled[-1:]
+            [*canceled[:_SHOW], "...", *canceled[-1:]]
         finished = len(arcs) - len(canceled)
         parts.append(f"interrupted (KeyboardInterrupt): {finished} of {len(arcs)} runs finished, "
                      f"rows {', '.join(map(str, rows))} end with CANCELED (the arc so far, or "
@@ -496,7 +497,7 @@ def _vectorized_rows(simulate_vectorized, system, X, kwargs, out):
                 raise err          # only the whole batch fails: the maps are not vectorized
             good = [i for i in good if out[i] is None]
             continue
-        for i, arc in zip(good, arcs):
+        for i, arc in zip(good, arcs, strict=True):
             out[i] = arc
         break
 
@@ -563,7 +564,7 @@ def sweep(make_system, params, x0, t_max, j_max=np.inf, *, executor=None, chunks
         import pickle
         try:
             pickle.dumps(x0)
-        except Exception as e:  # noqa: BLE001
+        except Exception as e:
             raise TypeError(f"x0: a callable p -> x0 is sent to the executor's workers and "
                             f"must pickle (a module-level function, not a lambda or a local "
                             f"function); {type(e).__name__}: {e}. Or pass an array") from e

@@ -6,7 +6,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from .history import ComponentHistory
-from .system import HybridSystem, as_map, guard_min
+from .system import HybridSystem, guard_min
 
 __all__ = ["Interconnection", "LinearPlant", "connect", "network"]
 
@@ -57,7 +57,8 @@ class LinearPlant(HybridSystem):
         if A.shape != (n, n):
             raise ValueError(f"A must be square, got shape {A.shape}")
         self.A = A
-        self.B = None if B is None else _matrix("B", np.reshape(B, (n, -1)) if np.ndim(B) == 1 else B, (n, None))
+        self.B = None if B is None else _matrix(
+            "B", np.reshape(B, (n, -1)) if np.ndim(B) == 1 else B, (n, None))
         m = 0 if self.B is None else self.B.shape[1]
         self.C = np.eye(n) if C is None else _matrix("C", C, (None, n))
         p = self.C.shape[0]

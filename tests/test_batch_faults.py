@@ -287,7 +287,7 @@ def test_vectorized_path_isolates_failed_rows_at_x0():
     arcs, w = run_quiet(hs.simulate_many, VecBall(), x0s, t_max=2.2)
     assert [a.termination.name for a in arcs] == ["T_MAX", "MAP_ERROR", "NON_FINITE", "T_MAX"]
     ref = simulate_vectorized(VecBall(), x0s[[0, 3]], t_max=2.2)
-    for got, exp in zip((arcs[0], arcs[3]), ref):
+    for got, exp in zip((arcs[0], arcs[3]), ref, strict=True):
         np.testing.assert_array_equal(got.t, exp.t)
         np.testing.assert_array_equal(got.x, exp.x)
     assert len(arcs[1]) == 1 and "row with marker 1" in arcs[1].message

@@ -411,7 +411,7 @@ def test_progress_bar_over_trajectories(capsys):
     assert capsys.readouterr().err == ""
     arcs = hs.simulate_many(timer, [[0.0], [0.5]], t_max=2.2, progress=True)
     assert "simulate_vectorized" in capsys.readouterr().err
-    for a, b in zip(arcs, quiet):           # the bar changes nothing
+    for a, b in zip(arcs, quiet, strict=True):      # the bar changes nothing
         np.testing.assert_array_equal(a.t, b.t)
     with pytest.raises(TypeError, match="progress must be True, False or None"):
         simulate_vectorized(timer, [[0.0]], t_max=1.0, progress="on")
