@@ -1,6 +1,15 @@
-"""Finite-time distributed observer (Silm et al. 2020) on the paper's example.
+"""
+Distributed finite-time observer over a digraph (Silm et al., SCL 2020)
+=======================================================================
 
-Run: python examples/distributed_example.py
+The example of Section 4 on a ring of four nodes (1 -> 2 -> 3 -> 4 -> 1, our
+choice of graph): each node sees part of the output, runs the consensus
+observer (3)-(5) with the finite-time nodes (7)-(8), and the network is one
+``hs.network`` run. Prints the observability split, Proposition 1's diagonal
+Lyapunov matrix, LMI (11), and when every node's error falls below 1e-10.
+
+Run: ``python examples/distributed_example.py`` (about a minute: the signed
+powers make the flow stiff near convergence).
 """
 import numpy as np
 

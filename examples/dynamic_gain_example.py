@@ -1,9 +1,13 @@
-"""Robust finite-time observer with a dynamic gain (Nekhoroshikh et al., CDC 2022).
+"""
+Robust finite-time observer with a dynamic gain (Nekhoroshikh et al., CDC 2022)
+===============================================================================
 
-Tune the observer with LMI (10), run it on the example of Section VI (chain of three
-integrators, u = Kx + cos 10t) through hybridsim, and print the settling times.
+Tune the observer with LMI (10), run it on the example of Section VI (chain of
+three integrators, u = Kx + cos 10t) through hybridsim, and print the settling
+times: exact at T of (18) for the prescribed-time observer (gamma2 = 0), within
+bound (17) for the proposed one, and how each behaves under noise.
 
-Run: python examples/dynamic_gain_example.py
+Run: ``python examples/dynamic_gain_example.py``
 """
 import numpy as np
 

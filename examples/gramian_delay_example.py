@@ -1,9 +1,11 @@
-"""Fixed-time Gramian observer with one delay (Mazenc & Malisoff 2022) on a DC motor.
+"""
+Fixed-time Gramian observer with one delay (Mazenc & Malisoff, LCSYS 2022)
+==========================================================================
 
-Builds the design of Section III for the motor (65)-(67), runs the continuous
-observer (7) and the sampled observer (39) beside the plant on the hybridsim
-engine, and prints the estimation error: exact (to the integrator) from
-t = tau = 0.1 on for Theorem 1, decaying for the sampled observer.
+Builds the design of Section III for the DC motor (65)-(67), runs the
+continuous observer (7) and the sampled observer (39) beside the plant on the
+hybridsim engine, and prints the estimation error: exact (to the integrator)
+from t = tau = 0.1 on for Theorem 1, decaying for the sampled observer.
 
 Run: ``python examples/gramian_delay_example.py``
 """

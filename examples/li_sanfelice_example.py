@@ -1,8 +1,14 @@
-"""Li & Sanfelice's finite-time hybrid observers on the engine, in a few lines.
+"""
+Finite-time hybrid observers of Li & Sanfelice
+==============================================
 
-Plant (1): xdot = A x, y = H x + m (Section V.B: a harmonic oscillator seen through two mixed outputs).
-The observers are hybrid systems whose input is y; ``simulate_with_plant`` wires the engine's
-``LinearPlant`` (with output noise) to the observer with ``hs.connect`` and runs ``hs.simulate``.
+Plant (1): xdot = A x, y = H x + m (Section V.B: a harmonic oscillator seen
+through two mixed outputs). The observers H_n, H_c and H_pc are hybrid systems
+whose input is y; ``simulate_with_plant`` wires the engine's ``LinearPlant``
+(with output noise) to the observer with ``hs.connect`` and runs
+``hs.simulate``.
+
+Run: ``python examples/li_sanfelice_example.py``
 """
 import numpy as np
 

@@ -1,9 +1,15 @@
-"""Mazenc-Ahmed-Malisoff's reduced-order finite-time observer on the engine, in a few lines.
+"""
+Reduced-order finite-time observer for time-varying systems (Mazenc, Ahmed & Malisoff, CDC 2018)
+================================================================================================
 
-Section II: an LTI plant xdot = A x + delta(t), y = C x, observed by (15) (exact from t = tau on).
-Section IV: the chained form (44) under the output feedback (58), whose xi2 comes from (50).
-The observer is a hybrid system (states J_A, J_H, a timer and a window-filled flag) whose output
-[P, G] gives xhat_r = P + G y; plant and observer are wired with ``hs.connect``/``Interconnection``.
+Section II: an LTI plant xdot = A x + delta(t), y = C x, observed by (15)
+(exact from t = tau on). Section IV: the chained form (44) under the output
+feedback (58), whose xi2 comes from (50). The observer is a hybrid system
+(states J_A, J_H, a timer and a window-filled flag) whose output [P, G] gives
+xhat_r = P + G y; plant and observer are wired with ``hs.connect`` and
+``hs.Interconnection``.
+
+Run: ``python examples/time_varying_example.py``
 """
 import numpy as np
 
