@@ -14,6 +14,7 @@ state, and the list of N arcs is returned with one warning.
 """
 from __future__ import annotations
 
+import concurrent.futures
 import itertools
 import numbers
 import warnings
@@ -32,6 +33,8 @@ __all__ = ["BatchError", "BatchWarning", "simulate_many", "sweep"]
 #: causes that make a row "failed" in a batch (named in the summary warning)
 FAILED = frozenset(FAILURES | {Termination.MAX_STEPS})
 _SHOW = 5               # failed rows named one by one in the summary
+#: seconds a batch waits, after Ctrl-C, for executor chunks under way to come back
+GRACE = 2.0
 
 
 class BatchWarning(SimulationWarning):
@@ -288,23 +291,32 @@ class _Batch:
         self.fill(todo)
 
     def _drain(self, futs):
-        """After Ctrl-C: cancel chunks not started, keep those that finish."""
+        """After Ctrl-C: cancel chunks not started, keep those that finish soon.
+
+        Workers at the same terminal get the Ctrl-C too and return their
+        chunk (the run under way CANCELED) at once; chunks that do not come
+        back within ``GRACE`` seconds (queued in a worker, or on a remote
+        cluster) are abandoned: their rows end CANCELED at x0.
+        """
         pending = [(part, fut) for part, fut in futs if not fut.cancel()
                    and self.out[part[0]] is None]
+        if not pending:
+            return
         try:
-            for part, fut in pending:
-                try:
-                    res = fut.result()      # workers got the Ctrl-C too: they stop soon
-                except (KeyboardInterrupt, SystemExit):
-                    raise
-                except Exception:  # noqa: BLE001 - a broken pool after Ctrl-C
-                    continue
-                for i, arc in zip(part, res, strict=True):
-                    if self.out[i] is None:
-                        self.out[i] = arc
+            done, _ = concurrent.futures.wait([f for _, f in pending], timeout=GRACE)
         except KeyboardInterrupt:            # a second Ctrl-C: stop waiting
-            for _, fut in pending:
+            done = {f for _, f in pending if f.done()}
+        for part, fut in pending:
+            if fut not in done:
                 fut.cancel()
+                continue
+            try:
+                res = fut.result()
+            except Exception:  # noqa: BLE001 - a broken pool after Ctrl-C
+                continue
+            for i, arc in zip(part, res, strict=True):
+                if self.out[i] is None:
+                    self.out[i] = arc
 
 
 def _summary(what, arcs, offset=0):
@@ -391,7 +403,11 @@ def simulate_many(system, x0s, t_max, j_max=np.inf, *, executor=None, chunks=Non
         flowing has a one-sample arc at (t0, j0, x0) with cause
         ``MAP_ERROR`` or ``NON_FINITE`` and the error in ``arc.exception``.
         After Ctrl-C the list is still complete: finished runs are kept, the
-        run under way and the runs never started end with ``CANCELED``.
+        run under way and the runs never started end with ``CANCELED``. With
+        an executor, chunks not started are canceled and the batch waits
+        ``hybridsim.batch.GRACE`` (2) seconds for chunks under way (workers
+        at the same terminal get the Ctrl-C too and return at once); rows of
+        chunks that do not come back end ``CANCELED`` at x0.
 
     Raises
     ------
