@@ -459,8 +459,9 @@ class HybridArc:
                 herm = np.all(np.isfinite(m0), axis=1) & np.all(np.isfinite(m1), axis=1)
                 if herm.any():
                     s2 = s * s
-                    hv = ((1 + 2 * s) * (1 - s) ** 2 * x0 + s * (1 - s) ** 2 * h * m0
-                          + s2 * (3 - 2 * s) * x1 + s2 * (s - 1) * h * m1)
+                    # written from x0 so that a constant component stays exact
+                    hv = (x0 + s2 * (3 - 2 * s) * (x1 - x0)
+                          + s * (1 - s) ** 2 * h * m0 + s2 * (s - 1) * h * m1)
                     val[herm] = hv[herm]
                     if deriv:
                         hd = ((6 * s2 - 6 * s) * (x0 - x1) / h
