@@ -5,6 +5,6 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-from .reproduce import main  # noqa: E402
+from .reproduce import main
 
 raise SystemExit(main())
