@@ -14,7 +14,7 @@ from .rules import MapError, SimulationError, SimulationWarning
 from .solve import simulate, METHODS
 from .history import History, HistoryError
 from .compose import Interconnection, LinearPlant, connect, network
-from .batch import simulate_many, sweep
+from .batch import BatchError, BatchWarning, simulate_many, sweep
 from .batch_vectorized import simulate_vectorized
 from .plot import plot_flows, plot_jumps, plot_hybrid, plot_phase, plot_time_domain
 from . import library, rules, testing
@@ -26,6 +26,6 @@ __all__ = [
     "HybridSystem", "HybridArc", "Termination", "simulate", "MapError",
     "SimulationError", "SimulationWarning", "METHODS", "History", "HistoryError",
     "Interconnection", "LinearPlant", "connect", "network",
-    "simulate_many", "sweep", "simulate_vectorized",
+    "simulate_many", "sweep", "simulate_vectorized", "BatchError", "BatchWarning",
     "plot_flows", "plot_jumps", "plot_hybrid", "plot_phase", "plot_time_domain",
 ]

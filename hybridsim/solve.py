@@ -244,19 +244,11 @@ def _resolve_method(method):
 
 def _progress_bar(progress, t0, t_max, j_max):
     """A bar over t (with j shown) or over jumps; None when progress is off."""
-    try:
-        from ._progress import make_bar
-    except ImportError:     # the shared factory is being added
-        def make_bar(progress, *, total, desc, unit, **kw):
-            if progress is None:
-                progress = bool(getattr(sys.stderr, "isatty", lambda: False)())
-            if not progress:
-                return None
-            from tqdm.auto import tqdm
-            return tqdm(total=total, desc=desc, unit=unit, leave=False, **kw)
+    from ._progress import make_bar
     if math.isfinite(t_max):
         return make_bar(progress, total=t_max - t0, desc="simulate", unit="t",
-                        bar_format="{l_bar}{bar}| t={n:.4g}/{total:.4g} {postfix} "
+                        postfix="j=0",
+                        bar_format="{l_bar}{bar}| t={n:.4g}/{total:.4g}{postfix} "
                                    "[{elapsed}<{remaining}]")
     return make_bar(progress, total=None if not math.isfinite(j_max) else j_max,
                     desc="simulate", unit="jump")
@@ -884,7 +876,7 @@ class _Run:
                         d_active = not D(yb, b, j, ub)
                         pred = phi = None
                 if stiff and (st.stiff_hits or k % 25 == 0):
-                    self._check_stiff(st, solver)
+                    self._check_stiff(st, solver, stats.steps + k)
                 if inner:
                     if sol is None:
                         sol = solver.dense_output()
@@ -968,7 +960,7 @@ class _Run:
             self._stop(Termination.SOLVER_FAILED, f"{msg} at t={a:.10g} (j={j})")
         return self._end(st, a, ya, _Outcome.STOP)
 
-    def _check_stiff(self, st, solver):
+    def _check_stiff(self, st, solver, steps):
         """Hairer's stiffness test for Dormand-Prince: h·ρ > 3.25 on 15 steps.
 
         ρ = |k7 - k6| / |y7 - y6| estimates the Jacobian's dominant eigenvalue
@@ -987,7 +979,7 @@ class _Run:
             st.calm += 1
             if st.calm >= 6:         # as Hairer's DOPRI5: six calm steps reset the count
                 st.stiff_hits = 0
-        if st.stiff_hits >= 15:
+        if st.stiff_hits >= 15 and steps >= 500:     # a short run is not worth a warning
             st.warned_stiff = True
             warnings.warn(f"the flow looks stiff near t={solver.t:.6g} (j={st.j}): "
                           f"{type(solver).__name__}'s step size is limited by stability, "
