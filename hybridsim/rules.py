@@ -14,7 +14,8 @@ import math
 import numpy as np
 
 __all__ = ["Termination", "Priority", "Action", "decide", "decide_at_event",
-           "is_short_flow", "event_tolerance", "PRIORITIES", "FAILURES",
+           "jumps_now", "needs_coin", "is_short_flow", "is_sticking", "sticking_message",
+           "time_scale", "t_max_slack", "event_tolerance", "PRIORITIES", "FAILURES",
            "SimulationWarning", "SimulationError", "MapError"]
 
 _EPS = float(np.finfo(float).eps)
@@ -114,6 +115,32 @@ class Action(enum.IntEnum):
     STOP = 2       # in neither C nor D (NOT_IN_SETS at x0, else LEFT_SETS)
 
 
+def jumps_now(in_C, in_D, prio, coin, forced=False):
+    """Whether the run jumps here: the priority rule, for bools or bool arrays.
+
+    x jumps when it is in D and one of: the last flow's event forces the jump,
+    x is not in C, jumps have priority, or (random priority) the coin says so.
+    Written with ``&``, ``|`` and ``==`` so that the same expression serves
+    :func:`hybridsim.simulate` (Python bools), the vectorized batch
+    integrator (numpy arrays, one entry per trajectory) and a compiled path.
+
+    Examples
+    --------
+    >>> bool(jumps_now(True, True, Priority.FLOWS, False))
+    False
+    >>> import numpy as np
+    >>> jumps_now(np.array([True, False]), np.array([True, True]), Priority.FLOWS, False)
+    array([False,  True])
+    """
+    return in_D & (forced | (in_C == False) | (prio == Priority.JUMPS)  # noqa: E712
+                   | ((prio == Priority.RANDOM) & coin))
+
+
+def needs_coin(in_C, in_D, prio, forced=False):
+    """Where :func:`jumps_now` reads the coin (a seeded run draws one only there)."""
+    return (prio == Priority.RANDOM) & in_C & in_D & (forced == False)  # noqa: E712
+
+
 def decide(in_C: bool, in_D: bool, prio: int, coin: bool, forced: bool = False) -> int:
     """Jump, flow or stop at a point where the run must choose.
 
@@ -125,7 +152,7 @@ def decide(in_C: bool, in_D: bool, prio: int, coin: bool, forced: bool = False) 
         A :class:`Priority`.
     coin : bool
         For ``Priority.RANDOM``: True means jump (a fair coin, drawn by the
-        caller only when it matters).
+        caller only where :func:`needs_coin` says it matters).
     forced : bool
         The flow just reached this point by an event whose location decided
         that a jump must happen (the flow cannot continue in C).
@@ -133,7 +160,8 @@ def decide(in_C: bool, in_D: bool, prio: int, coin: bool, forced: bool = False) 
     Returns
     -------
     int
-        An :class:`Action`.
+        An :class:`Action`: ``JUMP`` where :func:`jumps_now`, else ``FLOW``
+        in C, else ``STOP``.
 
     Examples
     --------
@@ -144,17 +172,11 @@ def decide(in_C: bool, in_D: bool, prio: int, coin: bool, forced: bool = False) 
     >>> decide(False, False, Priority.JUMPS, False) == Action.STOP
     True
     """
-    if in_D and (forced or not in_C or prio == Priority.JUMPS
-                 or (prio == Priority.RANDOM and coin)):
+    if jumps_now(in_C, in_D, prio, coin, forced):
         return Action.JUMP
     if in_C:
         return Action.FLOW
     return Action.STOP
-
-
-def needs_coin(in_C: bool, in_D: bool, prio: int, forced: bool = False) -> bool:
-    """Whether :func:`decide` reads the coin here (so a seeded run draws one only then)."""
-    return prio == Priority.RANDOM and in_C and in_D and not forced
 
 
 def decide_at_event(entered_D: bool, in_C_at_event: bool, prio: int, coin: bool) -> int:
@@ -196,15 +218,49 @@ def t_max_slack(t_max: float, jumps: int = 0) -> float:
     return event_tolerance(t_max, t_max) * (16.0 + 2.0 * jumps)
 
 
-def is_short_flow(length: float, t: float, scale: float, zeno_time: float,
-                  zeno_rtol: float) -> bool:
+def _max(a, b):
+    """max(a, b) for floats and numpy arrays alike (to rounding)."""
+    return 0.5 * (a + b + abs(a - b))
+
+
+def is_short_flow(length, t, scale, zeno_time, zeno_rtol):
     """A flow too short to count as time advancing (for Zeno detection).
 
     Short means at most ``zeno_time * max(1, |t|)`` (an absolute floor) or at
     most ``zeno_rtol * scale``, where ``scale`` is the run's time scale
-    (``t_max - t0`` when finite, else the time elapsed so far).
+    (:func:`time_scale`). Works on floats and on numpy arrays.
+
+    Examples
+    --------
+    >>> bool(is_short_flow(2e-9, 0.5, 1.0, 1e-12, 1e-7))     # chattering
+    True
+    >>> bool(is_short_flow(1e-3, 0.5, 1.0, 1e-12, 1e-7))     # a 1 kHz sampler
+    False
     """
-    return length <= max(zeno_time * max(1.0, abs(t)), zeno_rtol * scale)
+    return length <= _max(zeno_time * _max(1.0, abs(t)), zeno_rtol * scale)
+
+
+def is_sticking(last_flows, flow_now, jumps, scale):
+    """The run left C outside D after a run of ever shorter flows: sticking.
+
+    A ball coming to rest on a moving floor: its bounces accumulate and the
+    flow leaves C with a tiny relative velocity on the wrong side of D. That
+    is a Zeno-like end, not a mistake in the sets (``LEFT_SETS``).
+    ``last_flows`` are the lengths of the flows before the last jumps,
+    ``flow_now`` the length of the flow since the last jump.
+    """
+    last = list(last_flows)[-3:]
+    return (jumps >= 3 and len(last) == 3 and flow_now <= 1e-6 * scale
+            and all(f <= 1e-3 * scale for f in last))
+
+
+def sticking_message(t, j, x, last_flows):
+    """What :func:`is_sticking` found, and what to change."""
+    flows = ", ".join(f"{f:.3g}" for f in list(last_flows)[-3:])
+    return (f"the flow left C outside D at t={t:.10g} (j={j}) after a run of ever shorter "
+            f"flows ({flows}): the solution sticks to the boundary of C (jumps "
+            f"accumulate; a Zeno-like end), x={x}. Model the sticking (e.g. a mode where "
+            f"the contact persists, or a jump map that stops the motion below a threshold)")
 
 
 def time_scale(t0: float, t: float, t_max: float) -> float:

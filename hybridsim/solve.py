@@ -23,7 +23,8 @@ from .events import find_interior_event, locate_event
 from .history import History
 from .rules import (FAILURES, PRIORITIES, Action, MapError, Priority, SimulationError,
                     SimulationWarning, Termination, decide, decide_at_event, is_short_flow,
-                    needs_coin, t_max_slack, time_scale)
+                    is_sticking, needs_coin, sticking_message, t_max_slack,
+                    time_scale)
 from .system import HybridSystem, guard_min
 
 __all__ = ["simulate", "MapError", "SimulationError", "SimulationWarning"]
@@ -736,16 +737,10 @@ class _Run:
         if self.buf.n == 1:
             self._stop(Termination.NOT_IN_SETS, f"x={st.x} at (t={st.t}, j={st.j})")
             return
-        last = st.flow_lengths[-3:]
-        scale = time_scale(self.o.t0, st.t, self.o.t_max)
-        if (st.jumps >= 3 and len(last) == 3 and st.t - st.t_last_jump <= 1e-6 * scale
-                and all(f <= 1e-3 * scale for f in last)):
-            self._stop(Termination.ZENO, (
-                f"the flow left C outside D at t={st.t:.10g} (j={st.j}) after a run of "
-                f"ever shorter flows {['%.3g' % f for f in last]}: the solution sticks to "
-                f"the boundary of C (jumps accumulate; a Zeno-like end), x={st.x}. "
-                f"Model the sticking (e.g. a mode where the contact persists, or a jump "
-                f"map that stops the motion below a threshold)"))
+        if is_sticking(st.flow_lengths, st.t - st.t_last_jump, st.jumps,
+                       time_scale(self.o.t0, st.t, self.o.t_max)):
+            self._stop(Termination.ZENO, sticking_message(st.t, st.j, st.x,
+                                                          st.flow_lengths[-3:]))
             return
         self._stop(Termination.LEFT_SETS, f"x={st.x} at (t={st.t}, j={st.j})")
 
