@@ -254,6 +254,8 @@ td.why, td.reason { color: #444; font-size: .92em; }
 .v-reproduced { background: #dff3e1; color: #155d22; }
 .v-differs { background: #fff1cc; color: #6b4a00; }
 .v-error { background: #fbdada; color: #8a1111; }
+.problem { color: #8a1111; font-weight: 600; }
+td.reason, td.why, td.statement { overflow-wrap: anywhere; }
 .ok { color: #155d22; font-weight: 600; white-space: nowrap; }
 .bad { background: #fbdada; color: #8a1111; font-weight: 700; white-space: nowrap; }
 tr.notpassed td:first-child { border-left: 5px solid #c62828; }
@@ -382,10 +384,10 @@ def _claims_table(rows: list[dict]) -> list[str]:
                  else '<span class="bad">✗ NOT as expected</span>')
         note = _e(r.get("reason", ""))
         if r.get("error"):
-            note += (("<br>" if note else "") + f'<span class="bad">{_e(r["error"])}</span>')
+            note += (("<br>" if note else "") + f'<span class="problem">{_e(r["error"])}</span>')
         h.append(f'<tr class="{"passed" if r["passed"] else "notpassed"}">'
                  f'<td><code>{_e(r["id"])}</code></td><td>{_e(r["where"])}</td>'
-                 f'<td>{_e(r["statement"])}</td><td class="num">{paper_v}</td>'
+                 f'<td class="statement">{_e(r["statement"])}</td><td class="num">{paper_v}</td>'
                  f'<td class="num">{_e(_num(r["our_value"]))}</td>'
                  f'<td class="why"><span class="num">± {_e(_num(r["tol"]))}</span><br>'
                  f'{_e(r["tol_why"])}</td>'
@@ -427,11 +429,13 @@ def _section(part: Part, outdir: pathlib.Path) -> list[str]:
             h.append(f'<p class="meta"><a href="{_e(link)}">{_e(link)}</a></p>')
     status = ('<span class="status-ok">ok</span>' if part.status == "ok"
               else '<span class="status-failed">FAILED</span>')
-    claims_t = (f"claims {_secs(part.claims_seconds)}" if part.claims is not None
-                else "claims not evaluated")
+    if part.claims is not None:
+        claims_t = f" · claims {_secs(part.claims_seconds)}"
+    else:
+        claims_t = "" if engine else " · no claims evaluated"
     module = "observers.reproduce" if engine else f"observers.{part.name}"
     h.append(f'<p class="meta">module <code>{_e(module)}</code>'
-             f" · status {status} · figures {_secs(part.seconds)} · {claims_t} · "
+             f" · status {status} · figures {_secs(part.seconds)}{claims_t} · "
              f"run {_e(part.finished)}</p>")
     if part.status != "ok":
         h.append(f'<div class="fail"><strong>This part failed.</strong>'

@@ -133,7 +133,7 @@ def _engine_demo(outdir):
 
 
 class _Tee(io.TextIOBase):
-    """Write to the console and keep a copy (a part's log for the report)."""
+    """Write to a console stream and keep a copy (a part's log for the report)."""
 
     def __init__(self, stream):
         self.stream, self.copy = stream, io.StringIO()
@@ -212,7 +212,9 @@ def run_part(name: str, out, *, claims: bool = True) -> Part:
     d.mkdir(parents=True, exist_ok=True)
     part = Part(name=name)
     tee = _Tee(sys.stdout)
-    with contextlib.redirect_stdout(tee):
+    err = _Tee(sys.stderr)
+    err.copy = tee.copy                    # one log, warnings where they happened
+    with contextlib.redirect_stdout(tee), contextlib.redirect_stderr(err):
         print(f"[{name}] -> {d}")
         mod = None
         t0 = time.perf_counter()
