@@ -352,7 +352,8 @@ def _summary(parts: list[Part]) -> list[str]:
                  f'<td class="num">{c["reproduced"] if p.claims is not None else "—"}</td>'
                  f'<td class="num">{c["differs"] if p.claims is not None else "—"}</td>'
                  f'<td class="num">{failed}</td><td class="num">{errata}</td>'
-                 f'<td class="num">{_secs(p.seconds)} + {_secs(p.claims_seconds)}</td></tr>')
+                 f'<td class="num">{_secs(p.seconds)}'
+                 f'{" + " + _secs(p.claims_seconds) if p.claims is not None else ""}</td></tr>')
         tot["figures"] += len(p.figures)
         for k in ("total", "reproduced", "differs", "failed"):
             tot[k] += c[k]
@@ -527,7 +528,8 @@ def write_report(outdir, parts: list[Part] | None = None, *,
          f"<title>{_e(title)}</title>", f"<style>{_CSS}</style>", "</head>", "<body>",
          f"<h1>{_e(title)}</h1>",
          f'<p class="meta">Written {_e(now)}'
-         + (f" by <code>{_e(command)}</code>" if command else "") + ". "
+         + (f" after <code>{_e(command)}</code>" if command else "") + ", from the "
+         f"{len(parts)} part(s) recorded in this folder (each section says when it ran). "
          f'All claims with their values: <a href="{_href(csv_path.name)}">'
          f"{_e(csv_path.name)}</a> ({len(rows)} rows, columns "
          f"{_e(', '.join(CSV_FIELDS))}).</p>",
