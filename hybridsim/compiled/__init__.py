@@ -165,6 +165,14 @@ class CompiledSystem(HybridSystem):
         ``system.params`` later is seen by the next run; nothing recompiles).
     max_step : float, optional
         A cap on the solver step (as :attr:`HybridSystem.max_step`).
+    specialize : bool
+        False (default): the maps reach the engine as first-class functions;
+        the engine is the one compiled kernel cached on disk, so a new system
+        costs only its maps' compilation (about 1 s, see the module notes).
+        True: the engine is compiled anew for this system with its maps
+        inlined, 2-3x faster per run but about 10-20 s of compilation at the
+        first run in each process (not cached across processes): for long
+        Monte Carlo studies.
     name : str, optional
         For ``repr``.
 
@@ -185,7 +193,7 @@ class CompiledSystem(HybridSystem):
 
     def __init__(self, flow=None, jump=None, *, jump_guard=None, flow_guard=None,
                  jump_set=None, flow_set=None, state_dim, params=(), max_step=None,
-                 name=None):
+                 specialize=False, name=None):
         HybridSystem.__init__(self)
         if isinstance(state_dim, bool) or not isinstance(state_dim, (int, np.integer)) \
                 or state_dim < 1:
@@ -193,6 +201,9 @@ class CompiledSystem(HybridSystem):
         self.state_dim = int(state_dim)
         self.params = params
         self.max_step = max_step
+        if not isinstance(specialize, (bool, np.bool_)):
+            raise TypeError(f"specialize must be True or False, got {specialize!r}")
+        self.specialize = bool(specialize)
         self._name = name
         self.maps = {}
         for role, fn in (("flow", flow), ("jump", jump), ("jump_guard", jump_guard),
@@ -255,10 +266,21 @@ class CompiledSystem(HybridSystem):
         t = time.perf_counter()
         import numba
         from numba.core.errors import NumbaExperimentalFeatureWarning
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", NumbaExperimentalFeatureWarning)
+            out = self._compile_maps(k, numba)
+        self._nb = {
+            "f": out["flow"], "g": out.get("jump", k.absent_vec),
+            "hD": out.get("jump_guard", k.absent_scalar),
+            "hC": out.get("flow_guard", k.absent_scalar),
+            "D": out.get("jump_set", k.absent_false), "C": out.get("flow_set", k.absent_true),
+            "has_C": "flow_set" in out, "has_D": "jump_set" in out,
+            "has_hC": "flow_guard" in out, "has_hD": "jump_guard" in out,
+        }
+        return time.perf_counter() - t
+
+    def _compile_maps(self, k, numba):
         out = {}
-        wctx = warnings.catch_warnings()
-        wctx.__enter__()
-        warnings.simplefilter("ignore", NumbaExperimentalFeatureWarning)
         for role, kind in _ROLES:
             fn = self.maps.get(role)
             if fn is None:
@@ -278,16 +300,7 @@ class CompiledSystem(HybridSystem):
         for role, guard in (("jump_set", "jump_guard"), ("flow_set", "flow_guard")):
             if role not in out and guard in out:
                 out[role] = k.wrap_map(self.maps[guard], "guard_set")
-        wctx.__exit__(None, None, None)
-        self._nb = {
-            "f": out["flow"], "g": out.get("jump", k.absent_vec),
-            "hD": out.get("jump_guard", k.absent_scalar),
-            "hC": out.get("flow_guard", k.absent_scalar),
-            "D": out.get("jump_set", k.absent_false), "C": out.get("flow_set", k.absent_true),
-            "has_C": "flow_set" in out, "has_D": "jump_set" in out,
-            "has_hC": "flow_guard" in out, "has_hD": "jump_guard" in out,
-        }
-        return time.perf_counter() - t
+        return out
 
     def __repr__(self):
         name = self._name or "CompiledSystem"
@@ -340,26 +353,21 @@ def _options(system, x0_shape_n, t_max, j_max, t0, j0, priority, rtol, atol, max
                      _I64_MAX if max_samples == math.inf else max_samples, zeno_jumps, refine,
                      nb["has_C"], nb["has_D"], nb["has_hC"], nb["has_hD"], 64],
                     dtype=np.int64)
-    atol_a = np.ascontiguousarray(np.broadcast_to(np.asarray(atol, dtype=np.float64), (n,)))
+    atol_a = np.array(np.broadcast_to(np.asarray(atol, dtype=np.float64), (n,)), order="C")
     return fopt, iopt, atol_a, prio, max_steps, max_samples
 
 
-def _check_at_x0(system, x, t0, j0):
-    """As the Python path: the maps' values at x0 are checked and raise at once."""
-    from ..solve import check_map_value
-    nb, p = system._nb, system.params
-    in_D = nb["has_D"] and bool(nb["D"](x, t0, j0, p))
-    in_C = (not nb["has_C"]) or bool(nb["C"](x, t0, j0, p))
-    if in_C:
-        check_map_value("flow", nb["f"](x, t0, j0, p), system.state_dim, t0, j0)
-    if in_D:
-        if "jump" not in system.maps:
-            raise MapError(f"the state is in the jump set at t={t0}, j={j0} but the "
-                           f"system has no jump map", "jump", t0, j0)
-        check_map_value("jump", nb["g"](x, t0, j0, p), system.state_dim, t0, j0)
+def _kernels(k, system, batch):
+    """(run_one, run_batch) for the system: the cached generic pair, or the
+    pair specialised on its maps."""
+    if system.specialize:
+        return k.run_one_spec, k.run_batch_spec
+    k.compile_kernels(batch=batch)
+    return k.run_one, k.run_batch
 
 
-def _message(code, detail, info, x_last, stats, max_steps, max_samples, max_norm, zeno_jumps):
+def _message(system, code, detail, info, x_last, stats, max_steps, max_samples, max_norm,
+             zeno_jumps):
     """The Python path's message for a cause code (see ``hybridsim.solve``)."""
     cause = Termination[_load_kernel().CAUSES[code]]
     t, t2, v, j = info
@@ -405,8 +413,15 @@ def _message(code, detail, info, x_last, stats, max_steps, max_samples, max_norm
                            f"({len(x_last)},), got shape ({int(v)},) (at t={t:.10g}, j={j})")
         if detail == 1:
             return cause, f"jump map returned non-finite values (at t={t:.10g}, j={j})"
-        return cause, (f"flow map must return an array of shape ({len(x_last)},) "
-                       f"(at t={t:.10g}, j={j})")
+        if detail == 2:
+            return cause, (f"flow map must return an array of shape ({len(x_last)},) "
+                           f"(at t={t:.10g}, j={j})")
+        role = "flow" if detail == 3 else "jump"
+        if "jump" not in system.maps and role == "jump":
+            return cause, (f"the state is in the jump set at t={t}, j={j} but the system "
+                           f"has no jump map")
+        return cause, (f"{role} map returned {'non-finite values' if int(v) == len(x_last) else f'an array of shape ({int(v)},)'} "
+                       f"at x0 (expected {len(x_last)} finite floats; at t={t}, j={j})")
     return cause, base
 
 
@@ -414,13 +429,19 @@ _STAT_NAMES = ("steps", "rejected", "nfev", "events", "flows")
 
 
 def _arc(system, T, J, X, XD, code, detail, info, stats, lim):
-    cause, msg = _message(code, detail, info, X[-1], stats, *lim)
+    cause, msg = _message(system, code, detail, info, X[-1], stats, *lim)
     st = {name: int(stats[k]) for k, name in enumerate(_STAT_NAMES)}
     st["njev"] = 0
     st["nlu"] = 0
-    exc = MapError(msg, "jump" if detail < 2 else "flow", info[0]) \
-        if cause is Termination.MAP_ERROR else None
-    return HybridArc(T, J, X, cause, msg, exc, system=system, xdot=XD, stats=st)
+    exc = None
+    if cause is Termination.MAP_ERROR:
+        exc = MapError(msg, "flow" if detail in (2, 3) else "jump", float(info[0]),
+                       None if info[3] != info[3] else int(info[3]))
+    arc = HybridArc(T, J, X, cause, msg, exc, system=system, xdot=XD, stats=st)
+    if exc is not None and detail >= 3:     # bad values at x0: raised at once
+        exc.arc = arc
+        raise exc
+    return arc
 
 
 def _rng_for(prio, seed):
@@ -511,15 +532,14 @@ def simulate_compiled(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priori
     throw = _check_bool("throw", throw)
     warn = _check_bool("warn", warn)
     system.compile()
-    k.compile_kernels(batch=False)
+    kern = _kernels(k, system, batch=False)
     fopt, iopt, atol_a, prio, ms, msa = _options(
         system, n, t_max, j_max, t0, j0, priority, rtol, atol, max_step, first_step,
         max_steps, max_samples, zeno_jumps, zeno_time, zeno_rtol, max_norm, refine, method,
         unsupported)
     rng = _rng_for(prio, seed)
-    _check_at_x0(system, x, fopt[0], int(iopt[0]))
     nb = system._nb
-    T, J, X, XD, code, detail, info, stats = k.run_one(
+    T, J, X, XD, code, detail, info, stats = kern[0](
         nb["f"], nb["g"], nb["hD"], nb["hC"], nb["D"], nb["C"], x, system.params, fopt,
         iopt, atol_a, rng)
     arc = _arc(system, T, J, X, XD, code, detail, info, stats,
@@ -592,7 +612,7 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
     warn = _check_bool("warn", warn)
     chunk_bytes = _check_count("chunk_bytes", chunk_bytes, minimum=1)
     system.compile()
-    k.compile_kernels(batch=parallel)
+    kern = _kernels(k, system, batch=parallel)
     fopt, iopt, atol_a, prio, ms, msa = _options(
         system, n, t_max, j_max, t0, j0, priority, rtol, atol, max_step, first_step,
         max_steps, max_samples, zeno_jumps, zeno_time, zeno_rtol, max_norm, refine, method,
@@ -600,15 +620,13 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
     nb = system._nb
     p = system.params
     maps = (nb["f"], nb["g"], nb["hD"], nb["hC"], nb["D"], nb["C"])
-    for x in X0:                       # bad values at any x0 raise at once
-        _check_at_x0(system, x, fopt[0], int(iopt[0]))
     lim = (ms, msa, fopt[6], zeno_jumps)
     N = len(X0)
     arcs = []
     if prio == Priority.RANDOM or not parallel:
         for x in X0:
             rng = _rng_for(prio, seed)
-            out = k.run_one(*maps, x, p, fopt, iopt, atol_a, rng)
+            out = kern[0](*maps, x, p, fopt, iopt, atol_a, rng)
             arcs.append(_arc(system, *out, lim))
     else:
         rng = _rng_for(prio, seed)
@@ -616,7 +634,7 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
         i = min(N, 4)
         longest = 2
         for x in X0[:i]:
-            out = k.run_one(*maps, x, p, fopt, iopt, atol_a, rng)
+            out = kern[0](*maps, x, p, fopt, iopt, atol_a, rng)
             longest = max(longest, len(out[0]))
             arcs.append(_arc(system, *out, lim))
         cap = 1 << int(math.ceil(math.log2(longest * 1.25 + 1)))
@@ -624,7 +642,7 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
         while i < N:
             B = int(max(64, min(N - i, chunk_bytes // (cap * per))))
             B = min(B, N - i)
-            TT, JJ, XX, XXD, NS, CA, DE, INFO, ST = k.run_batch(
+            TT, JJ, XX, XXD, NS, CA, DE, INFO, ST = kern[1](
                 *maps, X0[i:i + B], p, fopt, iopt, atol_a, rng, cap)
             for r in range(B):
                 m = int(NS[r])
@@ -633,7 +651,7 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
                                      XX[r, :m].copy(), XXD[r, :m].copy(), int(CA[r]),
                                      int(DE[r]), INFO[r], ST[r], lim))
                 else:                  # longer than its slot: run it alone
-                    out = k.run_one(*maps, X0[i + r], p, fopt, iopt, atol_a, rng)
+                    out = kern[0](*maps, X0[i + r], p, fopt, iopt, atol_a, rng)
                     arcs.append(_arc(system, *out, lim))
             # the next chunk's slots: room for the longest run seen, with margin
             longest = int(NS.max()) if B else cap

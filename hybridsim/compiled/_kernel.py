@@ -37,32 +37,44 @@ from scipy.integrate._ivp.rk import RK45
 from .. import rules
 
 # ------------------------------------------------------------------ the rules
-_RULES = (rules.event_tolerance, rules.t_max_slack, rules.decide, rules.decide_at_event,
-          rules.needs_coin, rules.is_short_flow, rules.time_scale)
-for _fn in _RULES:
-    register_jitable(_fn)
+# Every function of hybridsim.rules becomes callable from compiled code as it is
+# (register_jitable compiles it where a kernel calls it; nothing is copied).
+for _name, _fn in vars(rules).items():
+    if inspect.isfunction(_fn) and _fn.__module__ == rules.__name__:
+        register_jitable(_fn)
 
 
-def _is_sticking_py(jumps, last3, n_last, since_jump, scale):
-    """The solution sticks to the boundary of C (the Python path's test in
-    ``_Run._stop_outside``): at least 3 jumps, the last 3 flows each at most
-    1e-3 of the time scale, and the last jump within 1e-6 of it."""
-    if jumps < 3 or n_last < 3 or not since_jump <= 1e-6 * scale:
+def _is_sticking_local(last_flows, flow_now, jumps, scale):
+    """``rules.is_sticking`` for a numba that cannot compile it (its generator)."""
+    m = len(last_flows)
+    if jumps < 3 or m < 3 or not flow_now <= 1e-6 * scale:
         return False
-    for k in range(3):
-        if not last3[k] <= 1e-3 * scale:
+    for k in range(m - 3, m):
+        if not last_flows[k] <= 1e-3 * scale:
             return False
     return True
 
 
-is_sticking = register_jitable(_is_sticking_py)
+def _pick_is_sticking():
+    """``rules.is_sticking`` where numba compiles it, else the loop above."""
+    fn = getattr(rules, "is_sticking", None)
+    if fn is not None:
+        try:
+            njit(fn)(np.zeros(4), 0.0, 5, 1.0)
+            return fn
+        except Exception:  # noqa: BLE001 - a typing error: use the loop
+            pass
+    return register_jitable(_is_sticking_local)
+
+
+is_sticking = _pick_is_sticking()
 
 
 def _rules_digest():
     """A hash of the rules' source: part of the kernels' cache key, so that a
     change of :mod:`hybridsim.rules` recompiles them (numba's own cache key only
     sees this file)."""
-    src = "".join(inspect.getsource(f) for f in _RULES + (is_sticking,))
+    src = inspect.getsource(rules) + inspect.getsource(is_sticking)
     return hashlib.sha256(src.encode()).hexdigest()
 
 
@@ -582,8 +594,7 @@ def _event(M, yold, hQ, told, h, j, p, has_C, has_D, d_active, phi_on, useD, use
     return _O_STOP, lo, ylo, lo, ylo, hint
 
 
-@njit(cache=True, **_NJ)
-def run_one(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rng):
+def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rng):
     """One run, entirely compiled.
 
     Returns ``(T, J, X, XD, cause, detail, info, stats)``: the samples
@@ -640,6 +651,24 @@ def run_one(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rng):
     h_hint = first_step              # NaN: none
     T, J, X, XD = _push(T, J, X, XD, 0, t, j, x)
     ns = 1
+    # at x0: the maps' values are checked (the Python path raises at once)
+    in_D0 = has_D and D(x, t, j, p)
+    if (not has_C) or C(x, t, j, p):
+        v0 = f(x, t, j, p)
+        if v0.shape[0] != n or not _all_finite(v0):
+            info[0] = t
+            info[2] = v0.shape[0]
+            info[3] = j
+            return (T[:1].copy(), J[:1].copy(), X[:1].copy(), XD[:1].copy(), MAP_ERROR, 3,
+                    info, stats)
+    if in_D0:
+        v0 = g(x, t, j, p)
+        if v0.shape[0] != n or not _all_finite(v0):
+            info[0] = t
+            info[2] = v0.shape[0]
+            info[3] = j
+            return (T[:1].copy(), J[:1].copy(), X[:1].copy(), XD[:1].copy(), MAP_ERROR, 4,
+                    info, stats)
     forced = False
     flow_on = False
     in_D = False
@@ -997,13 +1026,12 @@ def run_one(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rng):
             cause = NOT_IN_SETS
             detail = 0
         else:
-            last3 = flows_last[max(n_flows_last - 3, 0):n_flows_last]
             scale = rules.time_scale(t0, t, t_max)
-            if is_sticking(jumps, last3, n_flows_last, t - t_last_jump, scale):
+            if is_sticking(flows_last[:n_flows_last], t - t_last_jump, jumps, scale):
                 cause = ZENO
                 detail = 1
-                info[1] = last3[0]
-                info[2] = last3[-1]
+                info[1] = flows_last[max(n_flows_last - 3, 0)]
+                info[2] = flows_last[n_flows_last - 1]
             else:
                 cause = LEFT_SETS
         info[0] = t
@@ -1017,8 +1045,13 @@ def run_one(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rng):
             info, stats)
 
 
-@njit(cache=True, parallel=True, **_NJ)
-def run_batch(f, g, hD, hC, D, C, X0, p, fopt, iopt, atol, rng, cap):
+#: one run on the first-class map signatures: compiled once, cached on disk
+run_one = njit(cache=True, **_NJ)(_run_core)
+#: one run specialised on a system's own map dispatchers (maps inlined; not cached)
+run_one_spec = njit(**_NJ)(_run_core)
+
+
+def _batch_generic(f, g, hD, hC, D, C, X0, p, fopt, iopt, atol, rng, cap):
     """Many runs in parallel (``prange``), each written into a slot of ``cap``
     samples of a preallocated pool; a run longer than ``cap`` keeps only its
     counts (``NS[i] > cap``) and is re-run by the caller with :func:`run_one`."""
@@ -1050,6 +1083,42 @@ def run_batch(f, g, hD, hC, D, C, X0, p, fopt, iopt, atol, rng, cap):
     return TT, JJ, XX, XXD, NS, CA, DE, INFO, ST
 
 
+run_batch = njit(cache=True, parallel=True, **_NJ)(_batch_generic)
+
+
+def _batch_spec(f, g, hD, hC, D, C, X0, p, fopt, iopt, atol, rng, cap):
+    """:func:`run_batch` calling the specialised :data:`run_one_spec`."""
+    N = X0.shape[0]
+    n = X0.shape[1]
+    TT = np.empty((N, cap))
+    JJ = np.empty((N, cap), np.int64)
+    XX = np.empty((N, cap, n))
+    XXD = np.empty((N, cap, n))
+    NS = np.zeros(N, np.int64)
+    CA = np.zeros(N, np.int64)
+    DE = np.zeros(N, np.int64)
+    INFO = np.empty((N, 4))
+    ST = np.zeros((N, 6), np.int64)
+    for i in prange(N):
+        T, J, X, XD, cause, detail, info, stats = run_one_spec(
+            f, g, hD, hC, D, C, np.ascontiguousarray(X0[i]), p, fopt, iopt, atol, rng)
+        m = T.shape[0]
+        NS[i] = m
+        CA[i] = cause
+        DE[i] = detail
+        INFO[i] = info
+        ST[i] = stats
+        if m <= cap:
+            TT[i, :m] = T
+            JJ[i, :m] = J
+            XX[i, :m] = X
+            XXD[i, :m] = XD
+    return TT, JJ, XX, XXD, NS, CA, DE, INFO, ST
+
+
+run_batch_spec = njit(parallel=True, **_NJ)(_batch_spec)
+
+
 def _signature_one():
     gen = numba.typeof(np.random.default_rng(0))
     return (VEC_T, VEC_T, SCAL_T, SCAL_T, BOOL_T, BOOL_T, types.float64[::1],
@@ -1069,8 +1138,35 @@ def _key_with_rules():
             cache._hs_keyed = True
 
 
+def _has_dispatcher(sig):
+    """A signature with a Dispatcher type (a specialised kernel's): never cached,
+    since its index entry would name the user's module."""
+    stack = list(sig.args if hasattr(sig, "args") else sig)
+    while stack:
+        ty = stack.pop()
+        if isinstance(ty, types.Dispatcher):
+            return True
+        if isinstance(ty, types.BaseTuple):
+            stack.extend(ty.types)
+    return False
+
+
+def _skip_specialised():
+    for obj in list(globals().values()):
+        cache = getattr(obj, "_cache", None)
+        if isinstance(obj, numba.core.dispatcher.Dispatcher) and \
+                hasattr(cache, "save_overload") and not getattr(cache, "_hs_skip", False):
+            save, load = cache.save_overload, cache.load_overload
+            cache.save_overload = (lambda save: lambda sig, data:
+                                   None if _has_dispatcher(sig) else save(sig, data))(save)
+            cache.load_overload = (lambda load: lambda sig, ctx:
+                                   None if _has_dispatcher(sig) else load(sig, ctx))(load)
+            cache._hs_skip = True
+
+
 try:                      # numba's private cache API: without it, the key is numba's own
     _key_with_rules()
+    _skip_specialised()
 except Exception:  # noqa: BLE001 - a numba version without these internals
     pass
 
@@ -1085,9 +1181,27 @@ def compile_kernels(batch=True):
     sig = _signature_one()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", nb_errors.NumbaExperimentalFeatureWarning)
+        # compiled for the first-class map signatures only: a call with a
+        # system's map dispatchers converts them instead of specialising
         if "one" not in _READY:
-            run_one.compile(sig)
+            _compile_or_rebuild(run_one, sig)
             _READY.add("one")
         if batch and "batch" not in _READY:
-            run_batch.compile(sig[:6] + (types.float64[:, ::1],) + sig[7:] + (types.int64,))
+            _compile_or_rebuild(run_batch, sig[:6] + (types.float64[:, ::1],) + sig[7:]
+                                + (types.int64,))
             _READY.add("batch")
+
+
+def _compile_or_rebuild(disp, sig):
+    """``disp.compile(sig)``, then no other specialisation. A disk cache that
+    cannot be read (written by another numba, or damaged) is bypassed: the
+    kernels are compiled in memory for this process."""
+    try:
+        disp.compile(sig)
+    except Exception:  # noqa: BLE001 - an unreadable cache index
+        from numba.core.caching import NullCache
+        for obj in list(globals().values()):
+            if isinstance(obj, numba.core.dispatcher.Dispatcher) and obj._cache is not None:
+                obj._cache = NullCache()
+        disp.compile(sig)
+    disp.disable_compile()

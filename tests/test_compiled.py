@@ -1,0 +1,490 @@
+"""The compiled path (hybridsim.compiled) against the Python path and closed forms.
+
+Every system is compiled once per module (fixtures); compilation dominates
+this file's time. Each comparison runs the *same* CompiledSystem on both
+paths (``hs.simulate`` uses the plain Python maps, ``simulate_compiled`` the
+numba-compiled ones) and, where there is one, checks the closed form.
+"""
+import doctest
+import math
+import pickle
+import subprocess
+import sys
+import warnings
+
+import numpy as np
+import pytest
+
+numba = pytest.importorskip("numba", reason="the compiled path needs numba "
+                                            "(pip install 'hybridsim[fast]')")
+
+import hybridsim as hs  # noqa: E402
+import hybridsim.compiled as hc  # noqa: E402
+from hybridsim.compiled import (CompiledSystem, CompileError, simulate_compiled,  # noqa: E402
+                                simulate_many_compiled)
+from hybridsim.library import BouncingBall, Timer, bouncing_ball_jump_times  # noqa: E402
+
+T = hs.Termination
+TIGHT = dict(rtol=1e-8, atol=1e-10)
+
+
+# ------------------------------------------------------------------ the systems' maps
+def ball_f(x, t, j, p):
+    return np.array([x[1], -p[0]])
+
+
+def ball_g(x, t, j, p):
+    return np.array([0.0, -p[1] * x[1]])
+
+
+def ball_hD(x, t, j, p):
+    return -x[0]
+
+
+def ball_hC(x, t, j, p):
+    return x[0]
+
+
+def ball_D(x, t, j, p):
+    return x[0] <= 0.0 and x[1] <= 0.0
+
+
+def ball_C(x, t, j, p):
+    return x[0] >= 0.0
+
+
+def one(x, t, j, p):
+    return np.ones(1)
+
+
+def zero(x, t, j, p):
+    return np.zeros(1)
+
+
+def timer_hD(x, t, j, p):
+    return x[0] - p[0]
+
+
+def timer_hC(x, t, j, p):
+    return p[0] - x[0]
+
+
+# thermostat with hysteresis: x = (z, q); p = (z_out, z_heat, z_min, z_max)
+def thermo_f(x, t, j, p):
+    return np.array([-x[0] + p[0] + p[1] * x[1], 0.0])
+
+
+def thermo_g(x, t, j, p):
+    return np.array([x[0], 1.0 - x[1]])
+
+
+def thermo_hD(x, t, j, p):
+    return x[0] - p[3] if x[1] > 0.5 else p[2] - x[0]
+
+
+def thermo_hC(x, t, j, p):
+    return p[3] - x[0] if x[1] > 0.5 else x[0] - p[2]
+
+
+# sample-and-hold: z = (x1, x2, u, tau), xdot = A x + B u (double integrator),
+# u+ = K x every p[0] seconds, K = (p[1], p[2])
+def sah_f(z, t, j, p):
+    return np.array([z[1], z[2], 0.0, 1.0])
+
+
+def sah_g(z, t, j, p):
+    return np.array([z[0], z[1], p[1] * z[0] + p[2] * z[1], 0.0])
+
+
+def sah_hD(z, t, j, p):
+    return z[3] - p[0]
+
+
+def sah_hC(z, t, j, p):
+    return p[0] - z[3]
+
+
+# apex: x'' = -1, D = {x >= 1}; the jump resets the height to 0
+def apex_f(x, t, j, p):
+    return np.array([x[1], -1.0])
+
+
+def apex_g(x, t, j, p):
+    return np.array([0.0, p[0]])          # back to 0 with the launch speed
+
+
+def apex_hD(x, t, j, p):
+    return x[0] - 1.0
+
+
+def apex_D(x, t, j, p):
+    return x[0] >= 1.0
+
+
+# leaving C u D: x' = 1 on C = {x <= 1}, D = {x <= -1}
+def leave_hC(x, t, j, p):
+    return 1.0 - x[0]
+
+
+def leave_D(x, t, j, p):
+    return x[0] <= -1.0
+
+
+def grow_f(x, t, j, p):
+    return x.copy()
+
+
+def nan_f(x, t, j, p):
+    return np.array([x[0] if t < 0.5 else np.nan])
+
+
+# ------------------------------------------------------------------ fixtures
+def _compiled(system):
+    system.compile()
+    return system
+
+
+@pytest.fixture(scope="module")
+def ball():
+    return _compiled(CompiledSystem(ball_f, ball_g, jump_guard=ball_hD, flow_guard=ball_hC,
+                                    jump_set=ball_D, flow_set=ball_C, state_dim=2,
+                                    params=[9.81, 0.8]))
+
+
+@pytest.fixture(scope="module")
+def ball_sets():
+    """The ball with set indicators only (events by bisection)."""
+    return _compiled(CompiledSystem(ball_f, ball_g, jump_set=ball_D, flow_set=ball_C,
+                                    state_dim=2, params=[9.81, 0.8]))
+
+
+@pytest.fixture(scope="module")
+def timer():
+    return _compiled(CompiledSystem(one, zero, jump_guard=timer_hD, flow_guard=timer_hC,
+                                    state_dim=1, params=[1.0]))
+
+
+@pytest.fixture(scope="module")
+def thermostat():
+    return _compiled(CompiledSystem(thermo_f, thermo_g, jump_guard=thermo_hD,
+                                    flow_guard=thermo_hC, state_dim=2,
+                                    params=[60.0, 30.0, 70.0, 80.0]))
+
+
+@pytest.fixture(scope="module")
+def sample_hold():
+    return _compiled(CompiledSystem(sah_f, sah_g, jump_guard=sah_hD, flow_guard=sah_hC,
+                                    state_dim=4, params=[0.2, -1.0, -1.5]))
+
+
+@pytest.fixture(scope="module")
+def apex():
+    return _compiled(CompiledSystem(apex_f, apex_g, jump_guard=apex_hD, jump_set=apex_D,
+                                    state_dim=2, params=[math.sqrt(2.0 * (1.0 + 1e-6))]))
+
+
+@pytest.fixture(scope="module")
+def leave():
+    return _compiled(CompiledSystem(one, zero, flow_guard=leave_hC, jump_set=leave_D,
+                                    state_dim=1))
+
+
+def both(system, x0, **kw):
+    """The same run on the compiled and the Python path."""
+    return simulate_compiled(system, x0, **kw), hs.simulate(system, x0, **kw)
+
+
+def _jump_states(arc):
+    """(pre-jump, post-jump) states of every jump."""
+    k = np.flatnonzero(arc.j[1:] != arc.j[:-1])
+    return arc.x[k], arc.x[k + 1]
+
+
+def assert_agree(a, b, tol=1e-9, jt_tol=1e-12):
+    """Same cause, same jumps (times within ``jt_tol`` relative to the horizon),
+    same states at every jump and at the end within ``tol``.
+
+    Sample grids may differ: a step's error estimate sums stages that nearly
+    cancel, so the last bits (and with them the step sizes) depend on the
+    summation order (numpy's dot versus a loop). Where the flow is integrated
+    exactly (ball, timer) the grids agree anyway.
+    """
+    assert a.termination is b.termination, (a.message, b.message)
+    assert a.jump_count == b.jump_count, (a.jump_count, b.jump_count)
+    scale = max(1.0, float(np.max(np.abs(b.t))))
+    np.testing.assert_allclose(a.jump_times, b.jump_times, rtol=0, atol=jt_tol * scale)
+    for u, v in zip(_jump_states(a), _jump_states(b)):
+        np.testing.assert_allclose(u, v, rtol=tol, atol=tol)
+    np.testing.assert_allclose(a.t[-1], b.t[-1], rtol=0, atol=max(jt_tol, tol) * scale)
+    np.testing.assert_allclose(a.xf, b.xf, rtol=tol, atol=tol)
+
+
+def assert_same_grid(a, b, tol=1e-12):
+    np.testing.assert_array_equal(a.j, b.j)
+    np.testing.assert_allclose(a.t, b.t, rtol=0, atol=tol * max(1.0, abs(b.t[-1])))
+    np.testing.assert_allclose(a.x, b.x, rtol=tol, atol=tol)
+    np.testing.assert_allclose(a.xdot, b.xdot, rtol=1e-9, atol=1e-9)
+
+
+# ------------------------------------------------------------------ agreement
+def test_ball_agrees_with_python_path_and_closed_form(ball):
+    a, b = both(ball, [1.0, 0.0], t_max=20.0, j_max=30, **TIGHT)
+    ref = hs.simulate(BouncingBall(), [1.0, 0.0], t_max=20.0, j_max=30, **TIGHT)
+    assert_agree(a, b)
+    assert_agree(a, ref)
+    assert_same_grid(a, b)           # RK45 integrates the parabola exactly: same steps
+    exact = bouncing_ball_jump_times(1.0, 30)
+    assert np.max(np.abs(a.jump_times - exact)) < 1e-12
+    assert a.termination is T.J_MAX
+    assert a.stats["events"] == a.stats["flows"] == 30
+    assert a.stats["steps"] > 30 and a.stats["nfev"] >= 6 * a.stats["steps"]
+
+
+def test_specialised_kernel_same_results(ball):
+    spec = CompiledSystem(ball_f, ball_g, jump_guard=ball_hD, flow_guard=ball_hC,
+                          jump_set=ball_D, flow_set=ball_C, state_dim=2, params=[9.81, 0.8],
+                          specialize=True)
+    a = simulate_compiled(spec, [1.0, 0.0], t_max=20.0, j_max=30, **TIGHT)
+    b = simulate_compiled(ball, [1.0, 0.0], t_max=20.0, j_max=30, **TIGHT)
+    np.testing.assert_array_equal(a.t, b.t)
+    np.testing.assert_array_equal(a.x, b.x)
+    assert a.stats == b.stats and a.termination is b.termination
+
+
+def test_ball_set_indicators_only_bisection(ball_sets):
+    a, b = both(ball_sets, [1.0, 0.0], t_max=20.0, j_max=15, **TIGHT)
+    assert_agree(a, b)
+    assert np.max(np.abs(a.jump_times - bouncing_ball_jump_times(1.0, 15))) < 1e-12
+
+
+def test_ball_refine_samples_and_xdot(ball):
+    a, b = both(ball, [2.0, 0.0], t_max=3.0, j_max=5, refine=4, **TIGHT)
+    assert_agree(a, b)
+    assert_same_grid(a, b)
+    flows = a.j[1:] == a.j[:-1]
+    # the parabola: xdot is (v, -g) at every sample
+    np.testing.assert_allclose(a.xdot[:, 0], a.x[:, 1], atol=1e-9)
+    np.testing.assert_allclose(a.xdot[:, 1], -9.81, atol=1e-9)
+    assert flows.sum() > 5 * 3
+
+
+@pytest.mark.parametrize("period", [0.1, 0.25, 1.0, 1.0 / 3.0])
+def test_timer_jump_at_t_max(timer, period):
+    timer.params = [period]
+    try:
+        k = 12
+        a, b = both(timer, [0.0], t_max=k * period)
+        ref = hs.simulate(Timer(period), [0.0], t_max=k * period)
+    finally:
+        timer.params = [1.0]
+    assert_agree(a, b)
+    assert_agree(a, ref)
+    assert_same_grid(a, b)
+    assert a.jump_count == k                     # the jump at t_max is taken
+    np.testing.assert_allclose(a.jump_times, period * np.arange(1, k + 1), rtol=0,
+                               atol=1e-12)
+    assert a.termination is T.T_MAX
+
+
+def test_timer_many_jumps_j_max(timer):
+    a, b = both(timer, [0.0], t_max=math.inf, j_max=500)
+    assert_agree(a, b)
+    assert a.termination is T.J_MAX and a.jump_count == 500
+    np.testing.assert_allclose(a.jump_times, np.arange(1, 501), rtol=0, atol=1e-10)
+
+
+def test_thermostat_hysteresis(thermostat):
+    a, b = both(thermostat, [75.0, 1.0], t_max=6.0, **TIGHT)
+    assert_agree(a, b, tol=1e-7, jt_tol=1e-8)
+    first = np.log((60.0 + 30.0 - 75.0) / (60.0 + 30.0 - 80.0))
+    exact = first + np.log(2.0) * np.arange(a.jump_count)
+    np.testing.assert_allclose(a.jump_times, exact, atol=1e-8)
+    assert np.array_equal(a.x[a.j == 3, 1], np.zeros(np.sum(a.j == 3)))
+
+
+def test_sample_and_hold(sample_hold):
+    a, b = both(sample_hold, [1.0, 0.0, 0.0, 0.2], t_max=4.0, **TIGHT)
+    assert_agree(a, b, tol=1e-8)       # tau integrates exactly: jump times to 1e-12
+    assert a.jump_count == 21                    # t = 0, 0.2, ..., 4.0
+    np.testing.assert_allclose(a.jump_times, 0.2 * np.arange(21), atol=1e-12)
+
+
+def test_zeno_ball(ball):
+    a, b = both(ball, [1.0, 0.0], t_max=10.0)
+    assert a.termination is T.ZENO and b.termination is T.ZENO
+    assert_agree(a, b, jt_tol=1e-10)
+    assert a.jump_times[-1] < 9.0 * math.sqrt(2 / 9.81)      # before the Zeno time
+
+
+def test_left_sets(leave):
+    a, b = both(leave, [0.0], t_max=5.0)
+    assert a.termination is T.LEFT_SETS and b.termination is T.LEFT_SETS
+    assert_agree(a, b)
+    assert abs(a.t[-1] - 1.0) < 1e-14
+    assert "left C" in a.message
+
+
+def test_apex_entered_and_left_within_one_step(apex):
+    """x'' = -1 up to an apex 1e-6 above D = {x >= 1}: RK45 steps over the excursion
+    whole; the interior search finds it, on both paths."""
+    v0 = apex.params[0]
+    a, b = both(apex, [0.0, v0], t_max=3.0 * v0, j_max=2)
+    assert_agree(a, b)
+    assert a.jump_count == 2
+    t1 = v0 - math.sqrt(v0 * v0 - 2.0)
+    np.testing.assert_allclose(a.jump_times, [t1, 2 * t1], atol=1e-9)
+
+
+def test_random_priority_same_coins_as_python_path():
+    """Timer with overlapping C and D: random priority draws the same coins
+    from numpy's Generator on both paths."""
+    sysr = _compiled(CompiledSystem(one, zero, flow_guard=timer_hC, jump_guard=lambda x, t, j, p: x[0] - 0.5,
+                                    state_dim=1, params=[1.0]))
+    # t_max off the event grid: an event exactly at t_max is decided by round-off
+    # (a few ulp either side), and with random priority that decides a coin
+    for seed in (0, 1, 7):
+        a, b = both(sysr, [0.0], t_max=4.8, priority="random", seed=seed)
+        assert_agree(a, b)
+    a, b = both(sysr, [0.0], t_max=5.0, priority="flows")
+    assert_agree(a, b)
+    np.testing.assert_allclose(a.jump_times[:4], [1, 2, 3, 4], atol=1e-12)
+
+
+def test_failure_causes(ball):
+    grow = _compiled(CompiledSystem(grow_f, state_dim=1))
+    with pytest.warns(hs.SimulationWarning):
+        a, b = both(grow, [1.0], t_max=50.0, max_norm=1e6)
+    assert a.termination is T.BLOWUP
+    assert_agree(a, b, tol=1e-5, jt_tol=1e-6)         # exp(t) at rtol 1e-6
+    np.testing.assert_allclose(a.xf, np.exp(a.t[-1]), rtol=1e-4)
+    with pytest.warns(hs.SimulationWarning):
+        a, b = both(grow, [1.0], t_max=50.0, max_steps=7)
+    assert a.termination is T.MAX_STEPS and len(a.t) == len(b.t) == 8
+    assert_agree(a, b, tol=1e-5, jt_tol=1e-6)
+    nan = _compiled(CompiledSystem(nan_f, state_dim=1))
+    with pytest.warns(hs.SimulationWarning):
+        a, b = both(nan, [1.0], t_max=1.0)
+    assert a.termination is T.NON_FINITE and b.termination is T.NON_FINITE
+    a, b = both(ball, [-1.0, 1.0], t_max=1.0)
+    assert a.termination is T.NOT_IN_SETS and len(a.t) == 1
+    assert_agree(a, b)
+
+
+def test_jump_map_non_finite_is_map_error():
+    bad = _compiled(CompiledSystem(one, lambda x, t, j, p: np.array([np.nan]),
+                                   jump_guard=timer_hD, state_dim=1, params=[1.0]))
+    with pytest.raises(hs.MapError) as e:
+        simulate_compiled(bad, [0.0], t_max=3.0)
+    assert e.value.arc is not None and e.value.arc.t[-1] == pytest.approx(1.0)
+    arc = simulate_compiled(bad, [0.0], t_max=3.0, throw=False)
+    assert arc.termination is T.MAP_ERROR and "jump map" in arc.message
+
+
+# ------------------------------------------------------------------ batches
+def test_batch_equals_single_runs_and_python_path(ball):
+    rng = np.random.default_rng(3)
+    h0 = rng.uniform(0.5, 2.0, 300)
+    x0s = np.column_stack([h0, np.zeros_like(h0)])
+    # a tiny chunk budget: many chunks, and runs longer than their slot re-run alone
+    arcs = simulate_many_compiled(ball, x0s, t_max=20.0, j_max=10, chunk_bytes=4096,
+                                  **TIGHT)
+    assert len(arcs) == 300
+    jt = np.array([a.jump_times for a in arcs])
+    np.testing.assert_allclose(jt, bouncing_ball_jump_times(h0, 10), rtol=0, atol=2e-12)
+    for i in (0, 5, 150, 299):
+        single = simulate_compiled(ball, x0s[i], t_max=20.0, j_max=10, **TIGHT)
+        np.testing.assert_array_equal(arcs[i].t, single.t)
+        np.testing.assert_array_equal(arcs[i].x, single.x)
+        assert arcs[i].stats == single.stats
+        assert_agree(arcs[i], hs.simulate(ball, x0s[i], t_max=20.0, j_max=10, **TIGHT))
+    serial = simulate_many_compiled(ball, x0s[:20], t_max=20.0, j_max=10, parallel=False,
+                                    **TIGHT)
+    for a, b in zip(serial, arcs[:20]):
+        np.testing.assert_array_equal(a.t, b.t)
+
+
+def test_batch_bad_arguments(ball):
+    with pytest.raises(ValueError, match="x0s"):
+        simulate_many_compiled(ball, np.zeros((3, 3)), t_max=1.0)
+    with pytest.raises(ValueError, match="t_max"):
+        simulate_many_compiled(ball, np.zeros((3, 2)), t_max=-1.0)
+
+
+# ------------------------------------------------------------------ errors and form
+def test_bad_arguments_name_themselves(ball):
+    with pytest.raises(ValueError, match="x0"):
+        simulate_compiled(ball, [1.0, 2.0, 3.0], t_max=1.0)
+    with pytest.raises(ValueError, match="priority"):
+        simulate_compiled(ball, [1.0, 0.0], t_max=1.0, priority="often")
+    with pytest.raises(ValueError, match="method"):
+        simulate_compiled(ball, [1.0, 0.0], t_max=1.0, method="Radau")
+    with pytest.raises(TypeError, match="inputs"):
+        simulate_compiled(ball, [1.0, 0.0], t_max=1.0, inputs=lambda t: 0.0)
+    with pytest.raises(TypeError, match="CompiledSystem"):
+        simulate_compiled(BouncingBall(), [1.0, 0.0], t_max=1.0)
+    with pytest.raises(TypeError, match="flow"):
+        CompiledSystem(jump=zero, state_dim=1)
+
+
+def test_uncompilable_map_names_itself_and_the_fallback():
+    class Opaque:
+        pass
+    thing = Opaque()
+
+    def flow(x, t, j, p):
+        return np.array([len(thing.__dict__) + 0.0])    # a Python object: not compilable
+
+    sysobj = CompiledSystem(flow, state_dim=1)
+    with pytest.raises(CompileError) as e:
+        simulate_compiled(sysobj, [0.0], t_max=1.0)
+    msg = str(e.value)
+    assert "'flow'" in msg and "hs.simulate" in msg and e.value.map_name == "flow"
+    assert isinstance(e.value.__cause__, numba.core.errors.NumbaError)
+    arc = hs.simulate(sysobj, [0.0], t_max=1.0)      # the Python path runs it
+    assert arc.termination is T.T_MAX
+    with pytest.raises(CompileError, match="'jump_guard'.*a float"):
+        CompiledSystem(one, zero, jump_guard=lambda x, t, j, p: "high",
+                       state_dim=1).compile()
+
+
+def test_maps_may_return_tuples_and_vector_guards():
+    sysobj = _compiled(CompiledSystem(
+        lambda x, t, j, p: (1.0, 2.0), lambda x, t, j, p: (0.0, 0.0),
+        jump_guard=lambda x, t, j, p: np.array([x[0] - 1.0, x[1] - 2.0]),
+        state_dim=2))
+    a, b = both(sysobj, [0.0, 0.0], t_max=2.5)
+    assert_agree(a, b)
+    np.testing.assert_allclose(a.jump_times, [1.0, 2.0], atol=1e-12)
+
+
+def test_pickle_round_trip(ball):
+    again = pickle.loads(pickle.dumps(ball))
+    assert again._nb is None
+    a = simulate_compiled(again, [1.0, 0.0], t_max=2.0, j_max=3)
+    b = simulate_compiled(ball, [1.0, 0.0], t_max=2.0, j_max=3)
+    np.testing.assert_array_equal(a.x, b.x)
+
+
+def test_without_numba_import_error_names_the_extra():
+    code = ("import sys; sys.modules['numba'] = None\n"
+            "import numpy as np, hybridsim as hs\n"
+            "from hybridsim.compiled import CompiledSystem, simulate_compiled, available\n"
+            "s = CompiledSystem(lambda x, t, j, p: np.ones(1), state_dim=1)\n"
+            "assert not available()\n"
+            "assert hs.simulate(s, [0.0], t_max=1.0).termination.name == 'T_MAX'\n"
+            "try:\n"
+            "    simulate_compiled(s, [0.0], t_max=1.0)\n"
+            "except ImportError as e:\n"
+            "    print(e)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert "pip install 'hybridsim[fast]'" in out.stdout
+    assert "hs.simulate" in out.stdout
+
+
+def test_doctests():
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = doctest.testmod(hc, optionflags=doctest.NORMALIZE_WHITESPACE)
+    assert res.failed == 0 and res.attempted > 0
