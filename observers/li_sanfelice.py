@@ -311,6 +311,7 @@ def p_det(F1, F2, t):
 
 
 def _smin(F1, F2, s):
+    """Smallest singular value of I - e^{F2 s} e^{-F1 s}, relative to max(1, |e^{F2 s} e^{-F1 s}|)."""
     n = F1.shape[0]
     M = expm(F2 * s) @ expm(-F1 * s)
     return np.linalg.svd(np.eye(n) - M, compute_uv=False)[-1] / max(1.0, np.linalg.norm(M, 2))
@@ -335,35 +336,170 @@ def _golden_min(fun, a, b, iters=90):
     return (c, fc) if fc <= fd else (d, fd)
 
 
+def _unobservable_mode(A, H, rtol=1e-9):
+    """An eigenvalue of A invisible through H (PBH test), or None when (A, H) is observable.
+
+    lambda is unobservable when the smallest singular value of [A - lambda I; H]
+    is at most ``rtol * max(1, |A|, |H|)`` (2-norms).
+    """
+    n = A.shape[0]
+    scale = max(1.0, np.linalg.norm(A, 2), np.linalg.norm(H, 2) if H.size else 0.0)
+    worst, worst_s = None, math.inf
+    for lam in np.linalg.eigvals(A):
+        s = np.linalg.svd(np.vstack([A - lam * np.eye(n), H.astype(complex)]), compute_uv=False)[-1]
+        if s < worst_s:
+            worst, worst_s = lam, s
+    if worst_s <= rtol * scale:
+        return complex(worst) if abs(worst.imag) > rtol * scale else float(worst.real)
+    return None
+
+
+def _check_observable(A, H, what="the Li-Sanfelice observers"):
+    """Raise ValueError when (A, H) is unobservable, saying why no delta can work."""
+    lam = _unobservable_mode(A, H)
+    if lam is not None:
+        lam_s = f"{lam:.6g}" if isinstance(lam, float) else f"{lam.real:.6g}{lam.imag:+.6g}j"
+        raise ValueError(
+            f"(A, H) is not observable: the eigenvalue {lam_s} of A is invisible in y = H x "
+            f"(PBH test: rank [A - lambda I; H] < n = {A.shape[0]}). Both copies F_i = A - L_i H keep this "
+            "mode, so I - exp(F2 t) exp(-F1 t) is singular for every t > 0: no delta and no reset gain K2 "
+            f"exist for {what} (Assumption 4.1, A2; Remark 4.3 needs (A, H) observable)"
+        )
+
+
+def _X_block(F1, F2):
+    """The 2n x 2n matrix [[F1, F1 - F2], [0, F2]]: expm of it times t has X(t) = e^{F1 t} - e^{F2 t} top right."""
+    n = F1.shape[0]
+    B = np.zeros((2 * n, 2 * n))
+    B[:n, :n], B[:n, n:], B[n:, n:] = F1, F1 - F2, F2
+    return B
+
+
+def _scan_p(F1, F2, ts):
+    """sign(p(t_k)) and the relative smallest singular value s_X(t_k) on a uniform grid.
+
+    p(t) = det(I - e^{F2 t} e^{-F1 t}) = det(X(t)) e^{-tr(F1) t} with
+    X(t) = e^{F1 t} - e^{F2 t}, the upper-right block of
+    G(t) = expm([[F1, F1 - F2], [0, F2]] t) (since X' = F1 X + (F1 - F2) e^{F2 t}).
+    X involves only the decaying exponentials of the Hurwitz F_i: no
+    e^{-F1 t} (which grows like e^{|alpha(F1)| t} and ruins
+    e^{F2 t} e^{-F1 t} in double precision for large t) and no cancellation
+    of I - (I + O(t)) near t = 0. s_X = sigma_min(X) / |G(t)|_F is the size of
+    X's smallest singular value against the rounding level of its entries.
+    The grid values G(t_k) are powers of one expm, formed by repeated doubling
+    in batched products; determinants and singular values in one batched call.
+
+    Returns
+    -------
+    detX : (num,) ndarray
+        det(X(t_k)), of the sign of p(t_k).
+    s : (num,) ndarray
+        s_X(t_k).
+    """
+    n = F1.shape[0]
+    num = ts.size
+    G = np.empty((num, 2 * n, 2 * n))
+    G[0] = expm(_X_block(F1, F2) * ts[0])
+    m = 1
+    while m < num:
+        k = min(m, num - m)
+        G[m:m + k] = G[:k] @ G[m - 1]                 # G_{m+i} = G_i G_m (powers of one matrix commute)
+        m += k
+    X = G[:, :n, n:]
+    detX = np.linalg.det(X)
+    smin = np.linalg.svd(X, compute_uv=False)[:, -1]
+    return detX, smin / np.linalg.norm(G, axis=(1, 2))
+
+
+def _X_at(F1, F2, t):
+    n = F1.shape[0]
+    G = expm(_X_block(F1, F2) * t)
+    return G[:n, n:], G
+
+
+def _det_X(F1, F2, t):
+    """det(e^{F1 t} - e^{F2 t}): the sign of p(t), computed without cancellation or growing exponentials."""
+    return float(np.linalg.det(_X_at(F1, F2, t)[0]))
+
+
+def _s_X(F1, F2, t):
+    """sigma_min(e^{F1 t} - e^{F2 t}) / |expm([[F1, F1 - F2], [0, F2]] t)|_F (see :func:`_scan_p`)."""
+    X, G = _X_at(F1, F2, t)
+    return float(np.linalg.svd(X, compute_uv=False)[-1] / np.linalg.norm(G))
+
+
 def admissible_delta(A, H, L1, L2, *, t_max=20.0, num=2000, tol=1e-8):
     """First positive zero of p(t) = det(I - e^{F2 t} e^{-F1 t}) (Remark 4.4).
 
     Every delta in (0, t*) satisfies A2 of Assumption 4.1 when ``t*`` is
     returned; ``None`` means p has no zero in (0, t_max] (every delta up to
-    t_max is admissible).
+    t_max is admissible). p(0) = 0 always (delta > 0 is required), so t = 0 is
+    excluded.
 
-    Zeros are found on a grid of ``num`` points in (0, t_max]: sign changes of
-    p are refined with brentq; zeros where p touches 0 without changing sign
-    (e.g. a complex pair of eigenvalues of e^{F2 t} e^{-F1 t} passing through
-    1 as a double root) are found as local minima of the smallest singular
-    value of I - e^{F2 t} e^{-F1 t} (relative to max(1, |e^{F2 t} e^{-F1 t}|))
-    that fall below ``tol`` after bounded minimisation. p(0) = 0 always
-    (delta > 0 is required), so t = 0 is excluded.
+    Algorithm. p(t) = det(X(t)) e^{-tr(F1) t} with X(t) = e^{F1 t} - e^{F2 t}
+    (I - e^{F2 t} e^{-F1 t} = X(t) e^{-F1 t}), so p and det X have the same
+    zeros and signs; X is computed as a block of one matrix exponential of
+    decaying modes only (no growing e^{-F1 t}, no cancellation near t = 0; see
+    :func:`_scan_p`). On a grid of ``num`` points in (0, t_max], one batched
+    pass gives det X and s(t) = sigma_min(X) / |expm([[F1, F1 - F2], [0, F2]] t)|,
+    the smallest singular value against the rounding level of X's entries.
+    The sign of p is trusted where s > 1e-12 (rounding perturbs det X by about
+    n eps / s times itself).
+
+    * The first sign change of p between adjacent trusted grid points is
+      refined with brentq on det X (to 1e-14 in t).
+    * Zeros where p touches 0 without changing sign (e.g. a complex pair of
+      eigenvalues of e^{F2 t} e^{-F1 t} passing through 1) are dips of s to 0:
+      a grid point no higher than its neighbours, with a neighbour higher by
+      more than the rounding level (1e-12), whose minimum over the two adjacent
+      grid cells can reach below ``tol`` (s_k - 2 (max neighbour - s_k) < tol)
+      and that is deep enough to hide a zero (s_k <= max neighbour / 2: a zero
+      between grid points leaves at most 1/3 for a V-shaped, 1/9 for a
+      quadratic dip) is refined by golden-section search; it counts when the
+      minimum is below ``tol`` and below 1e-3 times the higher neighbour (a
+      zero of s, not a shallow wiggle of an s that is small throughout, as for
+      single-output designs of large n where s stays near 1e-9 for long).
+      Plateaus of s flat to rounding (hundreds of spurious local minima of
+      rounding noise) are skipped without refinement, so a flat curve costs one
+      grid pass (about 10 ms for n = 2, num = 2000).
+
+    Where s is at rounding level over a stretch of grid points (near t = 0 when
+    p < n: det X(t) ~ c t^N with N up to n^2, so X is singular to working
+    precision for small t, and :class:`Design` rejects such delta as
+    numerically singular) the sign of p cannot be resolved: a zero inside such
+    a stretch is not reported, and a sign change across one (trusted points
+    of opposite signs with untrusted points between them) is reported at the
+    first untrusted point after the last trusted one (every smaller delta is
+    then known to be admissible), as is a stretch of untrusted points at the
+    end of the grid where the sign of det X differs from the last trusted one.
+    A stretch at the start (before the first trusted point) is skipped: p(t)
+    has the sign of its leading term c t^N there. When no grid point is
+    trusted, ValueError says so.
 
     Parameters
     ----------
-    A, H, L1, L2 : array_like
-        Plant and gains; F_i = A - L_i H must be Hurwitz.
+    A : (n, n) array_like
+    H : (p, n) array_like
+        (A, H) must be observable (otherwise p vanishes identically).
+    L1, L2 : (n, p) array_like
+        Gains; F_i = A - L_i H must be Hurwitz.
     t_max : float
         Search horizon.
     num : int
-        Grid points.
+        Grid points (>= 3).
     tol : float
         Threshold on the relative smallest singular value for a touching zero.
 
     Returns
     -------
     float or None
+
+    Raises
+    ------
+    ValueError
+        Bad shapes, F_i not Hurwitz, (A, H) unobservable (naming the
+        invisible eigenvalue: no delta exists then), or
+        I - e^{F2 t} e^{-F1 t} numerically singular on the whole grid.
 
     References
     ----------
@@ -372,37 +508,54 @@ def admissible_delta(A, H, L1, L2, *, t_max=20.0, num=2000, tol=1e-8):
     t_max = _positive_scalar("t_max", t_max)
     if isinstance(num, bool) or not isinstance(num, numbers.Integral) or num < 3:
         raise ValueError(f"num must be an integer >= 3, got {num!r}")
+    tol = _positive_scalar("tol", tol)
+    A, H, L1, L2 = _check_plant_gains(A, H, L1, L2)
+    _check_observable(A, H, "admissible_delta")
     F1, F2 = F_matrices(A, H, L1, L2)
     ts = np.linspace(t_max / num, t_max, num)
-    # M(t_k) = e^{F2 t_k} e^{-F1 t_k} = (e^{F2 h})^k (e^{-F1 h})^k on the uniform grid (cheap)
-    h = ts[0]
-    E2, E1 = expm(F2 * h), expm(-F1 * h)
-    P2, P1 = np.eye(F1.shape[0]), np.eye(F1.shape[0])
-    p = np.empty(num)
-    s = np.empty(num)
-    eye = np.eye(F1.shape[0])
-    for k in range(num):
-        P2, P1 = P2 @ E2, P1 @ E1
-        M = P2 @ P1
-        p[k] = np.linalg.det(eye - M)
-        s[k] = np.linalg.svd(eye - M, compute_uv=False)[-1] / max(1.0, np.linalg.norm(M, 2))
-    cands = []
-    sign = np.sign(p)
-    idx = np.nonzero(sign[:-1] * sign[1:] <= 0)[0]
-    if idx.size:
-        k = idx[0]
-        if p[k] == 0:
-            cands.append(ts[k])
-        else:
-            cands.append(scipy.optimize.brentq(lambda s: p_det(F1, F2, s), ts[k], ts[k + 1],
-                                               xtol=1e-14, rtol=4 * np.finfo(float).eps))
-    for k in range(1, num - 1):
-        if s[k] <= s[k - 1] and s[k] <= s[k + 1]:
-            tk, sk = _golden_min(lambda u: _smin(F1, F2, u), ts[k - 1], ts[k + 1])
-            if sk < tol:
-                cands.append(tk)
-                break
-    return float(min(cands)) if cands else None
+    p, s = _scan_p(F1, F2, ts)
+    floor = 1.0 / _SINGULAR_COND
+    # 1. first sign change of p between trusted grid points
+    first = math.inf
+    good = np.flatnonzero(s > floor)
+    if good.size == 0:
+        raise ValueError(
+            f"I - exp(F2 t) exp(-F1 t) is numerically singular on all of (0, t_max={t_max:g}] (smallest singular "
+            f"value of e^(F1 t) - e^(F2 t) at most {floor:g} relative to its scale at every grid point): the sign "
+            "of p(t) cannot be resolved, so its zeros cannot be located, and no delta up to t_max gives a "
+            "well-conditioned reset gain K2; F1 and F2 are too close (choose L1, L2 further apart) or t_max is "
+            "too small"
+        )
+    if good[-1] < num - 1 and np.any(np.sign(p[good[-1] + 1:]) != np.sign(p[good[-1]])):
+        first = float(ts[good[-1] + 1])     # p may change sign in an unresolved stretch at the end
+    if good.size >= 2:
+        sg = np.sign(p[good])
+        ch = np.flatnonzero(sg[:-1] * sg[1:] < 0)
+        if ch.size:
+            ka, kb = good[ch[0]], good[ch[0] + 1]
+            if kb > ka + 1:         # untrusted points in between: stop at the first of them
+                first = min(first, float(ts[ka + 1]))
+            else:
+                fa, fb = _det_X(F1, F2, ts[ka]), _det_X(F1, F2, ts[kb])
+                if fa * fb < 0:
+                    first = min(first, scipy.optimize.brentq(lambda u: _det_X(F1, F2, u), ts[ka], ts[kb],
+                                                             xtol=1e-14, rtol=4 * np.finfo(float).eps))
+                else:               # the accurate evaluation disagrees with the scan: p is ~0 there
+                    first = min(first, float(ts[ka] if fa == 0 else ts[kb]))
+    # 2. touching zeros: genuine dips of s (rounding-level plateaus skipped)
+    sl, sc, sr = s[:-2], s[1:-1], s[2:]
+    depth = np.maximum(sl, sr) - sc
+    # a zero of s between grid points leaves s_k <= max(neighbours) / 3 (V-shaped) or / 9 (quadratic)
+    dips = np.flatnonzero((sc <= sl) & (sc <= sr) & (depth > floor) & (sc - 2 * depth < tol)
+                          & (sc <= 0.5 * np.maximum(sl, sr))) + 1
+    for k in dips:
+        if ts[k - 1] >= first:
+            break
+        tk, sk = _golden_min(lambda u: _s_X(F1, F2, u), ts[k - 1], ts[k + 1])
+        if sk < tol and sk <= 1e-3 * max(s[k - 1], s[k + 1]):
+            first = min(first, float(tk))
+            break
+    return None if math.isinf(first) else float(first)
 
 
 def lemma_4_2_condition(A, H, L1, L2):
@@ -848,6 +1001,49 @@ def example_VB(rounded=False):
     return Design(A=A, H=H, L1=L1, L2=L2, delta=1.0)
 
 
+def _int_arg(name, v, lo):
+    if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < lo:
+        raise ValueError(f"{name} must be an integer >= {lo}, got {v!r}")
+    return int(v)
+
+
+def _ackermann_norm(A, O, P1, P2):
+    """max |L_i| (Frobenius) of the single-output observer gains placing P1, P2 (Ackermann's formula).
+
+    L = phi(A) O^{-1} e_n with phi the characteristic polynomial of the poles
+    and O the observability matrix [H; H A; ...; H A^{n-1}].
+    """
+    n = A.shape[0]
+    en = np.zeros(n)
+    en[-1] = 1.0
+    w = np.linalg.solve(O, en)
+    out = 0.0
+    for P in (P1, P2):
+        c = np.poly(P)
+        phi = np.zeros((n, n))
+        for ck in c:                       # Horner: phi(A) = (...(A + c1 I) A + c2 I)...
+            phi = phi @ A + ck * np.eye(n)
+        out = max(out, float(np.linalg.norm(phi @ w)))
+    return out
+
+
+def _accept_design(A, H, L1, L2, deltas, tz, why):
+    """First delta in ``deltas`` (below tz / 2) giving a Design with |K2|, |(H T - I)^{-1}| <= 1e3, else None."""
+    for dl in deltas:
+        if tz is not None and dl >= tz / 2:
+            why["delta >= half the first zero of p"] += 1
+            continue
+        try:
+            des = Design(A=A, H=H, L1=L1, L2=L2, delta=dl)
+        except ValueError:
+            why["I - exp(F2 delta) exp(-F1 delta) singular"] += 1
+            continue
+        if des.HT_inv_norm <= 1e3 and np.linalg.norm(des.K2, 2) <= 1e3:
+            return des
+        why["|K2| or |(H T - I)^-1| > 1e3"] += 1
+    return None
+
+
 def random_design(seed, n, p, *, delta=None, normal=False):
     """A seeded random observable (A, H) with gains from pole placement.
 
@@ -857,17 +1053,66 @@ def random_design(seed, n, p, *, delta=None, normal=False):
     1, 1.5, 2, 3 below half the first zero of Remark 4.4's p(t) with
     |K2| <= 1e3 and |(H T - I)^{-1}| <= 1e3 (single-output designs with
     n >= 3 have huge K2 at small delta: the reset is ill-conditioned there).
+
+    Up to 200 draws of A ~ N(0, 1/n), H ~ N(0, 1) are tried (rejecting those
+    with sigma_min / sigma_max of the observability matrix below 0.05 or gains
+    of Frobenius norm above 30). For single-output plants with n >= 4 such
+    draws are rarely well conditioned, so when all 200 fail (and
+    ``normal=False``) a second stage draws A in observer canonical form (first
+    output e_1^T, random characteristic polynomial with real roots of modulus
+    in [0.7, 1.5] and maybe a complex pair of such modulus: roots near 0 make
+    |(H T - I)^{-1}| ~ |det F2| / |det A| large), mixed by a random orthogonal similarity,
+    with the gains placing the same poles through the first output, and
+    tries delta in 1, 1.5, 2, 3, 5, 8, 12 (the reset's |K2| decreases to 1 as
+    delta grows, since |e^{F2 t} e^{-F1 t}| -> 0 under Lemma 4.2). Designs the
+    first stage finds are unchanged by the second.
+
+    Parameters
+    ----------
+    seed : int or None
+        Seed of ``numpy.random.default_rng``.
+    n : int
+        State dimension (>= 1).
+    p : int
+        Output dimension (>= 1; ``normal=True`` needs p == n).
+    delta : float, optional
+        Use this jump period only (checked against the first zero of p(t)).
+    normal : bool
+        Dissipative F_i (Theorems 4.10-4.11's hypotheses).
+
+    Returns
+    -------
+    Design
+
+    Raises
+    ------
+    ValueError
+        Bad n, p, delta, or ``normal=True`` with p != n.
+    RuntimeError
+        No acceptable design: the message counts why the draws were rejected
+        (e.g. every tried delta gave |K2| > 1e3: pass a larger ``delta``).
     """
+    n = _int_arg("n", n, 1)
+    p = _int_arg("p", p, 1)
+    if delta is not None:
+        delta = _positive_scalar("delta", delta)
+    if normal and p != n:
+        raise ValueError(f"normal=True needs p == n (F_i = A - L_i H set through H^-1), got n={n}, p={p}")
     rng = np.random.default_rng(seed)
+    why = {"observability matrix ill-conditioned": 0, "gain norm > 30": 0, "delta >= half the first zero of p": 0,
+           "I - exp(F2 delta) exp(-F1 delta) singular": 0, "|K2| or |(H T - I)^-1| > 1e3": 0,
+           "normal: |det H| < 0.3": 0, "p(t) unresolved (numerically singular)": 0}
     for _ in range(200):
         A = rng.normal(size=(n, n)) / math.sqrt(n)
         H = rng.normal(size=(p, n))
         O = np.vstack([H @ np.linalg.matrix_power(A, k) for k in range(n)])
         sv = np.linalg.svd(O, compute_uv=False)
         if sv[-1] < 0.05 * sv[0]:
+            why["observability matrix ill-conditioned"] += 1
             continue
         if normal:
             if p != n or abs(np.linalg.det(H)) < 0.3:
+                why["normal: |det H| < 0.3"] += 1
                 continue
             S = rng.normal(size=(n, n))
             F1 = -1.0 * np.eye(n) + 0.5 * (S - S.T)
@@ -878,21 +1123,58 @@ def random_design(seed, n, p, *, delta=None, normal=False):
         else:
             P1 = -1.0 - 0.3 * np.linspace(0, 1, n)
             P2 = -2.5 - 0.3 * np.linspace(0, 1, n)
+            if p == 1 and _ackermann_norm(A, O, P1, P2) > 31.0:
+                # the single-output gain is unique: Ackermann's formula (cheap) says place_poles' would fail too
+                why["gain norm > 30"] += 1
+                continue
             L1 = scipy.signal.place_poles(A.T, H.T, P1).gain_matrix.T
             L2 = scipy.signal.place_poles(A.T, H.T, P2).gain_matrix.T
         if max(np.linalg.norm(L1), np.linalg.norm(L2)) > 30:
+            why["gain norm > 30"] += 1
             continue
-        tz = admissible_delta(A, H, L1, L2, t_max=7.0, num=700)
-        for dl in ([delta] if delta is not None else [1.0, 1.5, 2.0, 3.0]):
-            if tz is not None and dl >= tz / 2:
-                continue
+        try:
+            tz = admissible_delta(A, H, L1, L2, t_max=7.0, num=700)
+        except ValueError:
+            why["p(t) unresolved (numerically singular)"] += 1
+            continue
+        des = _accept_design(A, H, L1, L2, [delta] if delta is not None else [1.0, 1.5, 2.0, 3.0], tz, why)
+        if des is not None:
+            return des
+    if not normal:
+        # second stage: observer canonical form mixed by an orthogonal similarity (well conditioned for any n)
+        P1 = -1.0 - 0.3 * np.linspace(0, 1, n)
+        P2 = -2.5 - 0.3 * np.linspace(0, 1, n)
+        c1, c2 = np.poly(P1)[1:], np.poly(P2)[1:]
+        for _ in range(50):
+            # |roots| in [0.7, 1.5]: |H T - I| tends to |det A| / |det F2| as delta grows (single output), so
+            # roots near 0 make (H T - I)^{-1} huge
+            roots = (rng.uniform(0.7, 1.5, size=n) * rng.choice([-1.0, 1.0], size=n)).astype(complex)
+            if n >= 2 and rng.uniform() < 0.5:
+                r, th = rng.uniform(0.7, 1.5), rng.uniform(0.3, 2.5)
+                roots[:2] = r * np.exp(1j * th), r * np.exp(-1j * th)
+            a = np.real(np.poly(roots))[1:]
+            Ac = np.zeros((n, n))
+            Ac[:, 0] = -a
+            Ac[:-1, 1:] = np.eye(n - 1)
+            Hc = np.vstack([np.eye(n)[:1], rng.normal(size=(p - 1, n))])
+            L1c, L2c = np.zeros((n, p)), np.zeros((n, p))
+            L1c[:, 0], L2c[:, 0] = c1 - a, c2 - a
+            Q, R = np.linalg.qr(rng.normal(size=(n, n)))
+            Q = Q * np.sign(np.diag(R))
+            A, H, L1, L2 = Q @ Ac @ Q.T, Hc @ Q.T, Q @ L1c, Q @ L2c
             try:
-                des = Design(A=A, H=H, L1=L1, L2=L2, delta=dl)
+                tz = admissible_delta(A, H, L1, L2, t_max=25.0, num=1250)
             except ValueError:
+                why["p(t) unresolved (numerically singular)"] += 1
                 continue
-            if des.HT_inv_norm <= 1e3 and np.linalg.norm(des.K2, 2) <= 1e3:
+            des = _accept_design(A, H, L1, L2, [delta] if delta is not None
+                                 else [1.0, 1.5, 2.0, 3.0, 5.0, 8.0, 12.0], tz, why)
+            if des is not None:
                 return des
-    raise RuntimeError(f"no random design found for seed={seed}, n={n}, p={p}")
+    reasons = "; ".join(f"{k}: {v}" for k, v in why.items() if v)
+    hint = " (pass a larger delta)" if why["|K2| or |(H T - I)^-1| > 1e3"] else ""
+    raise RuntimeError(f"no random design found for seed={seed}, n={n}, p={p}{', delta=' + repr(delta) if delta else ''}"
+                       f", normal={normal}; rejections: {reasons}{hint}")
 
 
 # ---------------------------------------------------------------------------
