@@ -80,7 +80,17 @@ def available() -> bool:
     return True
 
 
+_K = None
+#: cause codes of the kernels (``_kernel.CAUSES``), as Termination members
+_CAUSES = tuple(Termination[name] for name in (
+    "T_MAX", "J_MAX", "NOT_IN_SETS", "LEFT_SETS", "NON_FINITE", "BLOWUP", "SOLVER_FAILED",
+    "MAP_ERROR", "ZENO", "MAX_STEPS"))
+
+
 def _load_kernel():
+    global _K
+    if _K is not None:
+        return _K
     try:
         from . import _kernel as k
     except ImportError as e:
@@ -89,6 +99,8 @@ def _load_kernel():
         raise ImportError(f"the compiled path needs numba: {_INSTALL} (or pip install "
                           f"numba). Without it, run the same system on the Python path "
                           f"with hs.simulate / hs.simulate_many.") from e
+    assert tuple(c.name for c in _CAUSES) == k.CAUSES
+    _K = k
     return k
 
 
@@ -269,11 +281,21 @@ class CompiledSystem(HybridSystem):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", NumbaExperimentalFeatureWarning)
             out = self._compile_maps(k, numba)
+        if not self.specialize:     # first-class function values for the cached kernels
+            out = {role: k.handle(d, kind) for (role, d), kind in
+                   zip(out.items(), (self._kinds[r] for r in out))}
+            absent = {"vec": k.handle(k.absent_vec, "vec"),
+                      "scalar": k.handle(k.absent_scalar, "scalar"),
+                      "false": k.handle(k.absent_false, "bool"),
+                      "true": k.handle(k.absent_true, "bool")}
+        else:
+            absent = {"vec": k.absent_vec, "scalar": k.absent_scalar,
+                      "false": k.absent_false, "true": k.absent_true}
         self._nb = {
-            "f": out["flow"], "g": out.get("jump", k.absent_vec),
-            "hD": out.get("jump_guard", k.absent_scalar),
-            "hC": out.get("flow_guard", k.absent_scalar),
-            "D": out.get("jump_set", k.absent_false), "C": out.get("flow_set", k.absent_true),
+            "f": out["flow"], "g": out.get("jump", absent["vec"]),
+            "hD": out.get("jump_guard", absent["scalar"]),
+            "hC": out.get("flow_guard", absent["scalar"]),
+            "D": out.get("jump_set", absent["false"]), "C": out.get("flow_set", absent["true"]),
             "has_C": "flow_set" in out, "has_D": "jump_set" in out,
             "has_hC": "flow_guard" in out, "has_hD": "jump_guard" in out,
         }
@@ -281,12 +303,14 @@ class CompiledSystem(HybridSystem):
 
     def _compile_maps(self, k, numba):
         out = {}
+        self._kinds = {}
         for role, kind in _ROLES:
             fn = self.maps.get(role)
             if fn is None:
                 continue
             try:
                 out[role] = k.wrap_map(fn, kind)
+                self._kinds[role] = kind
             except (numba.core.errors.NumbaError, TypeError, ValueError, NotImplementedError,
                     AttributeError, KeyError) as e:
                 raise CompileError(
@@ -300,6 +324,7 @@ class CompiledSystem(HybridSystem):
         for role, guard in (("jump_set", "jump_guard"), ("flow_set", "flow_guard")):
             if role not in out and guard in out:
                 out[role] = k.wrap_map(self.maps[guard], "guard_set")
+                self._kinds[role] = "guard_set"
         return out
 
     def __repr__(self):
@@ -369,7 +394,9 @@ def _kernels(k, system, batch):
 def _message(system, code, detail, info, x_last, stats, max_steps, max_samples, max_norm,
              zeno_jumps):
     """The Python path's message for a cause code (see ``hybridsim.solve``)."""
-    cause = Termination[_load_kernel().CAUSES[code]]
+    cause = _CAUSES[code]
+    if cause is Termination.T_MAX or cause is Termination.J_MAX:
+        return cause, cause.value
     t, t2, v, j = info
     j = None if j != j else int(j)
     base = cause.message

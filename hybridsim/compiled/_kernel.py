@@ -31,7 +31,7 @@ import numba
 import numpy as np
 from numba import njit, prange, types
 from numba.core import errors as nb_errors
-from numba.extending import overload, register_jitable
+from numba.extending import overload, register_jitable, typeof_impl
 from scipy.integrate._ivp.rk import RK45
 
 from .. import rules
@@ -1205,3 +1205,39 @@ def _compile_or_rebuild(disp, sig):
                 obj._cache = NullCache()
         disp.compile(sig)
     disp.disable_compile()
+
+
+
+class MapHandle(types.WrapperAddressProtocol):
+    """A compiled map as a first-class function value (numba's wrapper address
+    protocol): typed as its signature at once, so a kernel call from Python
+    matches the compiled signature exactly (no per-call conversion)."""
+
+    def __init__(self, disp, sig):
+        from numba.experimental.function_type import _get_wrapper_address
+        self.disp, self.sig = disp, sig
+        self.addr = _get_wrapper_address(disp, sig)
+        self.nbtype = types.FunctionType(sig)
+
+    def __wrapper_address__(self):
+        return self.addr
+
+    def signature(self):
+        return self.sig
+
+    def __call__(self, *args):
+        return self.disp(*args)
+
+
+@typeof_impl.register(MapHandle)
+def _typeof_handle(val, c):
+    """The handle's type, built once (numba's generic rule rebuilds it per call)."""
+    return val.nbtype
+
+
+_SIGS = {"vec": VEC_SIG, "scalar": SCAL_SIG, "bool": BOOL_SIG, "guard_set": BOOL_SIG}
+
+
+def handle(disp, kind):
+    """:class:`MapHandle` of a dispatcher compiled for the ``kind``'s signature."""
+    return MapHandle(disp, _SIGS[kind])
