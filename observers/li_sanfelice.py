@@ -336,16 +336,19 @@ def _golden_min(fun, a, b, iters=90):
     return (c, fc) if fc <= fd else (d, fd)
 
 
-def _unobservable_mode(A, H, rtol=1e-9):
+def _unobservable_mode(A, H, rtol=1e-9, *, unstable_only=False):
     """An eigenvalue of A invisible through H (PBH test), or None when (A, H) is observable.
 
     lambda is unobservable when the smallest singular value of [A - lambda I; H]
-    is at most ``rtol * max(1, |A|, |H|)`` (2-norms).
+    is at most ``rtol * max(1, |A|, |H|)`` (2-norms). ``unstable_only``: only
+    eigenvalues with Re >= 0 are tested (None then means (A, H) is detectable).
     """
     n = A.shape[0]
     scale = max(1.0, np.linalg.norm(A, 2), np.linalg.norm(H, 2) if H.size else 0.0)
     worst, worst_s = None, math.inf
     for lam in np.linalg.eigvals(A):
+        if unstable_only and lam.real < 0:
+            continue
         s = np.linalg.svd(np.vstack([A - lam * np.eye(n), H.astype(complex)]), compute_uv=False)[-1]
         if s < worst_s:
             worst, worst_s = lam, s
@@ -629,6 +632,15 @@ class Design:
     a2 : float or None
         Defaults to 1 - a1; a1 + a2 = 1 is required.
 
+    Raises
+    ------
+    ValueError
+        Shapes that do not match (A square n x n, H p x n, L_i n x p, each
+        named); (A, H) unobservable (the invisible eigenvalue is named: both
+        copies keep that mode, so no delta and no K2 exist); F_i not Hurwitz;
+        delta too small (I - e^{F2 t} e^{-F1 t} singular to working precision
+        on all of (0, delta]) or on a zero of p(t).
+
     References
     ----------
     Li & Sanfelice, (10)-(12), (17)-(18), footnotes 2 and 7, Assumption 4.1.
@@ -654,8 +666,21 @@ class Design:
         a2 = float(a2)
         if not math.isclose(a1 + a2, 1.0, rel_tol=0, abs_tol=1e-12):
             raise ValueError(f"a1 + a2 must equal 1 (footnote 2), got a1 + a2 = {a1 + a2:g}")
+        _check_observable(A, H, "Design")
         F1, F2 = F_matrices(A, H, L1, L2)
-        K1, K2 = _K_from_F(F1, F2, delta)
+        try:
+            K1, K2 = _K_from_F(F1, F2, delta)
+        except ValueError as exc:
+            # the true reason: delta inside the stretch near t = 0 where X(t) = e^{F1 t} - e^{F2 t} is
+            # singular to working precision (det X ~ c t^N, N up to n^2 for p < n), or a zero of p(t)
+            sm = [_s_X(F1, F2, u) for u in np.linspace(delta / 16, delta, 16)]
+            if max(sm) <= 1.0 / _SINGULAR_COND:
+                raise ValueError(
+                    f"delta={delta:g} is too small: I - exp(F2 t) exp(-F1 t) is singular to working precision on "
+                    f"all of (0, delta] (p(t) = det(...) vanishes to high order at t = 0 when p < n, here p = "
+                    f"{H.shape[0]}, n = {A.shape[0]}), so K2 is numerically undefined; choose a larger delta "
+                    "(see admissible_delta, Remark 4.4)") from exc
+            raise
         Xi1, Xi2 = Xi_of_t(F1, L1, delta), Xi_of_t(F2, L2, delta)
         T = K1 @ Xi1 + K2 @ Xi2
         HTI = H @ T - np.eye(H.shape[0])
@@ -1398,6 +1423,15 @@ class LuenbergerObserver(hs.HybridSystem):
         A, H = _check_plant(A, H)
         n = A.shape[0]
         L0 = _real_matrix("L0", L0, (n, H.shape[0]), " (n x p)")
+        a = alpha_max(A - L0 @ H)
+        if a >= 0:
+            lam = _unobservable_mode(A, H, unstable_only=True)
+            if lam is not None:
+                raise ValueError(
+                    f"(A, H) is not detectable: the eigenvalue {lam:.6g} of A (Re >= 0) is invisible in y = H x, "
+                    "so A - L0 H keeps it for every L0 and the Luenberger observer (2) cannot converge")
+            raise ValueError(f"A - L0 H is not Hurwitz (max Re eig = {a:.3g} >= 0); choose L0 so that it is "
+                             "(the Luenberger observer (2) needs it)")
         self.A, self.H, self.L0 = A, H, L0
         self.state_dim = n
         self.input_dim = H.shape[0]

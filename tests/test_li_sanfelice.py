@@ -13,6 +13,7 @@ import math
 import numpy as np
 import pytest
 import scipy.integrate
+import scipy.optimize
 import scipy.linalg
 
 from hybridsim import testing as hst
@@ -632,3 +633,146 @@ def test_theorem_4_11_with_weights(a1):
     m_bound = 0.2   # |m(t)| <= 0.2 for all t
     hst.assert_bounded(arc, E["ebar"], lambda t, j: ls.theorem_4_11_bound(d, np.linalg.norm(E["ebar"][0]), m_bound,
                                                                         m_bound, t, j), atol=_tol(d))
+
+
+# ---------------------------------------------------------------------------
+# issue 16: design helpers total on valid input
+# ---------------------------------------------------------------------------
+def _flat_then_zero_case(d=3e-4, c=0.5, k=0.75):
+    """n = 4, p = 3: a slow single-output block (numerically singular near t = 0) and a 2 x 2 block with a simple zero.
+
+    Block a: A = [[0, 1], [0, 0]], H = [1, 0], F_i = companion of (s + lam_i)^2 (lam1 = 1, lam2 = 1 + d).
+    With u = e^{-lam1 t}, v = e^{-lam2 t}: det(e^{F1 t} - e^{F2 t}) = u v (4 sinh^2(d t / 2) - d^2 t^2) > 0 for t > 0
+    (sinh x > x), but ~ d^4 t^4 / 12 u v: singular to working precision for d t up to ~1e-3.
+    Block b: F1 = -I + [[0, k], [0, 0]], F2 = -(1 + c) I + [[0, 0], [-k, 0]], H = I: with r = e^{-c t},
+    det(I - e^{F2 t} e^{-F1 t}) = (1 - r)^2 - r k^2 t^2, whose first positive zero solves 2 sinh(c t / 2) = k t.
+    """
+    lam1, lam2 = 1.0, 1.0 + d
+    A = np.zeros((4, 4))
+    A[0, 1] = 1.0
+    H = np.zeros((3, 4))
+    H[0, 0], H[1, 2], H[2, 3] = 1.0, 1.0, 1.0
+    L1, L2 = np.zeros((4, 3)), np.zeros((4, 3))
+    L1[:2, 0], L2[:2, 0] = [2 * lam1, lam1 ** 2], [2 * lam2, lam2 ** 2]
+    L1[2:, 1:] = np.eye(2) - np.array([[0.0, k], [0.0, 0.0]])
+    L2[2:, 1:] = (1 + c) * np.eye(2) - np.array([[0.0, 0.0], [-k, 0.0]])
+    u_star = scipy.optimize.brentq(lambda u: math.sinh(u) - (k / c) * u, 1e-3, 50.0, xtol=1e-15, rtol=1e-15)
+    return A, H, L1, L2, 2 * u_star / c
+
+
+def test_admissible_delta_simple_zero_after_long_flat_stretch():
+    A, H, L1, L2, t_star = _flat_then_zero_case()
+    assert 6.4 < t_star < 6.6
+    t_max, num = 8.0, 2000
+    ts = np.linspace(t_max / num, t_max, num)
+    F1, F2 = A - L1 @ H, A - L2 @ H
+    # the naive p(t) = det(I - e^{F2 t} e^{-F1 t}) is rounding noise over a long stretch before the zero:
+    # it flips sign there although the exact p (closed forms of the case builder) keeps one sign on (0, t*)
+    d, c, k = 3e-4, 0.5, 0.75
+
+    def sinh_minus_x(x):                       # series: no cancellation for small x
+        return sum(x ** (2 * i + 1) / math.factorial(2 * i + 1) for i in range(1, 12))
+
+    def p_exact(t):
+        x = d * t / 2
+        pa = math.exp(-d * t) * 4 * sinh_minus_x(x) * (math.sinh(x) + x)
+        r = math.exp(-c * t)
+        return pa * ((1 - r) ** 2 - r * k ** 2 * t ** 2)
+
+    early = ts[ts < 2.0]
+    naive = np.array([np.linalg.det(np.eye(4) - ls.expm(F2 * t) @ ls.expm(-F1 * t)) for t in early])
+    exact = np.array([p_exact(t) for t in early])
+    assert early.size >= 400 and np.all(exact < 0)
+    assert np.sum(np.sign(naive) != np.sign(exact)) >= 3
+    assert all(p_exact(t) < 0 for t in np.linspace(1e-3, t_star - 1e-6, 500))
+    assert p_exact(t_star - 1e-6) < 0 < p_exact(t_star + 1e-6)
+    tz = ls.admissible_delta(A, H, L1, L2, t_max=t_max, num=num)
+    assert tz == pytest.approx(t_star, abs=1e-9)
+    # the old scan's brentq sign error is gone for every grid and horizon
+    for t_max2, num2 in ((7.0, 700), (10.0, 3000), (20.0, 2000)):
+        assert ls.admissible_delta(A, H, L1, L2, t_max=t_max2, num=num2) == pytest.approx(t_star, abs=1e-9)
+    # past the zero the (exact) sign of p has flipped: the design is not admissible there
+    assert ls.admissible_delta(A, H, L1, L2, t_max=6.0, num=num) is None
+
+
+def test_admissible_delta_flat_curve_is_not_refined(monkeypatch):
+    # F1 = -I, F2 = -10 I: s(t) is constant to rounding for t > 4 (hundreds of rounding-noise minima);
+    # none of them is refined (the old search ran a golden-section search at each: seconds)
+    A, H = np.zeros((2, 2)), np.eye(2)
+    calls = []
+    real = ls._s_X
+    monkeypatch.setattr(ls, "_s_X", lambda *a: calls.append(a) or real(*a))
+    for f2 in (3.0, 10.0, 40.0):
+        assert ls.admissible_delta(A, H, np.eye(2), f2 * np.eye(2)) is None
+    assert calls == []
+    # a genuine touching zero still is (test_admissible_delta_touching_zero_rotation pins its value)
+    th = 2.0
+    J = np.array([[0.0, 1.0], [-1.0, 0.0]])
+    tz = ls.admissible_delta(A, H, np.eye(2) - th * J, np.eye(2) + th * J, t_max=5.0, num=500)
+    assert tz == pytest.approx(math.pi / th, abs=1e-9) and 0 < len(calls) < 200
+
+
+def test_admissible_delta_all_singular_says_why():
+    # F1 and F2 equal up to 1e-13 in one mode: X(t) is singular to working precision everywhere
+    A, H, L1, L2, _ = _flat_then_zero_case(d=1e-13)
+    with pytest.raises(ValueError, match=r"numerically singular on all of \(0, t_max=8\]"):
+        ls.admissible_delta(A, H, L1, L2, t_max=8.0)
+
+
+@pytest.mark.parametrize("n,p", [(n, p) for n in range(1, 6) for p in range(1, 4)])
+def test_random_design_total_over_seeds(n, p):
+    # issue 16: 50 seeds for each n <= 5, p <= 3 (random_design(seed, 4, 1) used to fail for seeds 0-19)
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)      # place_poles' convergence notes
+        for seed in range(50):
+            d = ls.random_design(seed, n, p)
+            assert (d.n, d.p) == (n, p)
+            assert ls.alpha_max(d.F1) < 0 and ls.alpha_max(d.F2) < 0
+            assert np.linalg.norm(d.K2, 2) <= 1e3 and d.HT_inv_norm <= 1e3
+            assert np.allclose(d.K1 @ ls.expm(d.F1 * d.delta) + d.K2 @ ls.expm(d.F2 * d.delta), 0,
+                               atol=1e-8 * (1 + np.linalg.norm(d.K2, 2)))
+
+
+def test_random_design_bad_arguments():
+    with pytest.raises(ValueError, match=r"n must be an integer >= 1, got 0"):
+        ls.random_design(0, 0, 1)
+    with pytest.raises(ValueError, match=r"p must be an integer >= 1, got 1.5"):
+        ls.random_design(0, 2, 1.5)
+    with pytest.raises(ValueError, match=r"normal=True needs p == n"):
+        ls.random_design(0, 3, 1, normal=True)
+    with pytest.raises(ValueError, match=r"delta must be positive"):
+        ls.random_design(0, 2, 1, delta=-1.0)
+    with pytest.raises(RuntimeError, match=r"no random design found for seed=0, n=2, p=1, delta=1e-06.*rejections"):
+        ls.random_design(0, 2, 1, delta=1e-6)
+
+
+def test_constructors_reject_unobservable_and_mismatched():
+    # unobservable (A, H): the true reason (no delta exists), not "choose a smaller delta"
+    A, H = np.diag([-1.0, -2.0]), np.array([[1.0, 0.0]])
+    L1, L2 = np.array([[1.0], [0.0]]), np.array([[3.0], [0.0]])
+    for call in (lambda: ls.Design(A=A, H=H, L1=L1, L2=L2, delta=1.0),
+                 lambda: ls.NominalObserver(A, H, L1, L2, 1.0),
+                 lambda: ls.admissible_delta(A, H, L1, L2)):
+        with pytest.raises(ValueError, match=r"\(A, H\) is not observable: the eigenvalue -2 of A .* no delta"):
+            call()
+    # the same pair hidden by a rotation is still caught
+    Q = np.array([[0.6, -0.8], [0.8, 0.6]])
+    with pytest.raises(ValueError, match=r"not observable: the eigenvalue -2 "):
+        ls.Design(A=Q @ A @ Q.T, H=H @ Q.T, L1=Q @ L1, L2=Q @ L2, delta=1.0)
+    # a delta inside the numerically singular stretch near 0 says so (a larger delta works)
+    d = ls.random_design(0, 4, 1)
+    with pytest.raises(ValueError, match=r"delta=0.01 is too small: .* choose a larger delta"):
+        ls.Design(A=d.A, H=d.H, L1=d.L1, L2=d.L2, delta=0.01)
+    # Luenberger (2) needs only detectability: a stable hidden mode is fine, an unstable one is named
+    ls.LuenbergerObserver(A, H, [[1.0], [0.0]])
+    with pytest.raises(ValueError, match=r"\(A, H\) is not detectable: the eigenvalue 1"):
+        ls.LuenbergerObserver(np.diag([-1.0, 1.0]), H, [[1.0], [0.0]])
+    with pytest.raises(ValueError, match=r"A - L0 H is not Hurwitz"):
+        ls.LuenbergerObserver(A, H, [[-5.0], [0.0]])
+    # dimensions: gains, plant state and estimates against n = 2, p = 1, at construction or before the run
+    with pytest.raises(ValueError, match=r"L2 must have shape \(2, 1\) \(n x p\), got \(2, 2\)"):
+        ls.Design(A=np.diag([-1.0, -2.0]), H=[[1.0, 1.0]], L1=L1, L2=np.eye(2), delta=1.0)
+    obs = ls.NominalObserver(ls.example_VB())
+    with pytest.raises(ValueError, match=r"x0 must have shape \(2,\), got \(3,\)"):
+        ls.simulate_with_plant(obs, [0.0, 0.0, 0.0], [0.0, 0.0])
