@@ -605,15 +605,42 @@ def simulate_example(observer, *, noise=False, seed=0, t_max=10.0, x0=None, v0=1
     into a clean BLOWUP termination.  ``rtol`` defaults to 1e-8 without noise and
     1e-6 with noise (the interpolated noise has a kink every 0.01 s, so tight
     tolerances only multiply the steps).
+
+    Raises
+    ------
+    TypeError
+        ``observer`` is not a :class:`DynamicGainObserver`.
+    ValueError
+        The observer was built without ``b=`` (or with a b other than the
+        plant's b = e_n): the plant is driven by u = Kx + cos(10 t) through
+        b = e_n, and an observer that does not add b u to its flow never
+        converges (its error has the unknown forcing u); build it with
+        ``b=EXAMPLE["b"]`` (n = 3) or ``b=np.eye(n)[:, -1:]``.
     """
+    if not isinstance(observer, DynamicGainObserver):
+        raise TypeError(f"observer must be a DynamicGainObserver, got {type(observer).__name__}")
     if rtol is None:
         rtol = 1e-6 if noise else 1e-8
     n = observer.n
+    b_plant = np.eye(n)[:, -1:]
+    if observer.m == 0:
+        raise ValueError(
+            f"observer was built without b=: the example plant is driven by the known control u = Kx + cos(10 t) "
+            f"through b = e_{n}, and an observer without b never sees it, so its estimate cannot converge; build "
+            f"the observer with b=np.eye({n})[:, -1:] (EXAMPLE['b'] for n = 3)")
+    if observer.b.shape != (n, 1) or not np.allclose(observer.b, b_plant, rtol=0, atol=1e-12):
+        raise ValueError(
+            f"observer.b must be the example plant's input matrix b = e_{n} (shape ({n}, 1)) for the estimate to "
+            f"converge, got {observer.b.tolist()}")
     plant = example_plant(noise=noise, seed=seed, t_max=t_max, n=n)
     sys = hs.connect(plant, observer, names=("plant", "observer"))
     if x0 is None:
         x0 = EXAMPLE["x0"] if n == 3 else np.r_[10.0, np.zeros(n - 2), -5.0]
-    z0 = np.concatenate([np.asarray(x0, float), observer.initial_state(x_hat0, w0, v0)])
+    x0 = np.asarray(x0, dtype=float)
+    if x0.shape != (n,) or not np.all(np.isfinite(x0)):
+        raise ValueError(f"x0 must be a finite vector of shape ({n},) (the plant's state, n = observer.n), "
+                         f"got shape {x0.shape}")
+    z0 = np.concatenate([x0, observer.initial_state(x_hat0, w0, v0)])
     # scipy's finite-difference Jacobian overflows harmlessly where the gain is
     # non-Lipschitz (z -> 0); a real overflow of the state ends the run (BLOWUP)
     with np.errstate(over="ignore"):

@@ -884,6 +884,8 @@ class Plant(hs.HybridSystem):
         if Psi is not None and not callable(Psi):
             raise TypeError(f"Psi must be callable, got {type(Psi).__name__}")
         self.Psi = Psi
+        if Psi is not None:
+            _probe_shape("Psi", lambda: Psi(np.zeros(q), 0.0), (n,), f"(n = {n} states)")
         self.delta1 = _signal("delta1", delta1, n)
         self.delta2 = _signal("delta2", delta2, q)
         self.oracle = bool(oracle)
@@ -902,6 +904,16 @@ class Plant(hs.HybridSystem):
         return np.concatenate([Y, y]) if self.oracle else Y
 
 
+def _probe_shape(name, call, shape, what):
+    """Call a user map once (at y = 0, t = 0) and check its output size; a map that raises is not judged here."""
+    try:
+        v = np.asarray(call(), dtype=float)
+    except Exception:       # noqa: BLE001 -- the map may be undefined at the probe point; the run will tell
+        return
+    if v.size != int(np.prod(shape)):
+        raise ValueError(f"{name}(y, t) must return shape {shape} {what}, got shape {v.shape}")
+
+
 class _ObserverBase(hs.HybridSystem):
     """Shared checks and slicing of (xi1_hat, xi2_hat, psi1, psi2, ...)."""
 
@@ -914,6 +926,10 @@ class _ObserverBase(hs.HybridSystem):
         self.design = design
         self.F1, self.F2 = F1, F2
         m, q = design.m, design.q
+        # dimensions agree at construction, not as a broadcast error inside a run
+        for name, F, dim in (("F1", F1, m), ("F2", F2, q)):
+            _probe_shape(name, lambda F=F: F(np.zeros(q), 0.0), (dim,),
+                         f"(n - q = {m} unmeasured states)" if name == "F1" else f"(q = {q} outputs)")
         self.sl_xi1 = slice(0, m)
         self.sl_xi2 = slice(m, m + q)
         self.sl_psi1 = slice(m + q, 2 * m + q)

@@ -153,8 +153,13 @@ def _tau(tau):
 def _as_fun(F, name, shape):
     """A callable t -> (shape) array from a constant array or a callable."""
     if callable(F):
+        size = int(np.prod(shape))
+
         def f(t, F=F):
             v = np.asarray(F(t), dtype=float)
+            if v.size != size:
+                raise ValueError(f"{name}(t) must return a {shape[0]} x {shape[1]} matrix, got shape {v.shape} "
+                                 f"at t = {t:g}")
             return v.reshape(shape)
         return f
     A = _matrix(F, name, shape)
@@ -184,6 +189,24 @@ def _rcond(M):
 # ---------------------------------------------------------------------------
 # Section II: LTI systems
 # ---------------------------------------------------------------------------
+def _unobservable_text(A, C, tol=1e-9):
+    """Words naming the rank of the observability matrix and an eigenvalue of A invisible through C (PBH)."""
+    n = A.shape[0]
+    O = [C]
+    for _ in range(n - 1):
+        O.append(O[-1] @ A)
+    s = np.linalg.svd(np.vstack(O), compute_uv=False)
+    r = int(np.sum(s > tol * s[0])) if s[0] > 0 else 0
+    lam, best = None, np.inf
+    for ev in np.linalg.eigvals(A):
+        sv = np.linalg.svd(np.vstack([A - ev * np.eye(n), C.astype(complex)]), compute_uv=False)[-1]
+        if sv < best:
+            lam, best = ev, sv
+    lam_s = f"{lam.real:.6g}" if abs(lam.imag) <= 1e-9 * max(1.0, abs(lam)) else f"{lam:.6g}"
+    return (f"the observability matrix has rank {r} < n = {n}, and the eigenvalue {lam_s} of A is invisible in "
+            f"y = C x (PBH test)")
+
+
 def is_observable(A, C, tol=1e-9):
     """True when the pair (A, C) is observable (rank test on the observability matrix).
 
@@ -300,7 +323,8 @@ def reduced_coordinates(A, C, N=None):
     if np.linalg.matrix_rank(C) != p:
         raise ValueError(f"C must have full row rank p={p}, got rank {np.linalg.matrix_rank(C)}")
     if not is_observable(A, C):
-        raise ValueError("(A, C) must be observable")
+        raise ValueError(f"(A, C) must be observable: {_unobservable_text(A, C)}; then (A2, A1) is unobservable too "
+                         "and M_tau (6) is singular for every L and tau, so no exact reduced estimate (15) exists")
     if N is None:
         N = linalg.null_space(C).T
     N = _matrix(N, "N", (n - p, n))
@@ -401,7 +425,9 @@ def choose_L_tau(A2, A1, *, L=None, tau=None, poles=None, rcond_min=1e-8):
     A1 = _matrix(A1, "A1", (None, m))
     tau = 1.0 if tau is None else _tau(tau)
     if not is_observable(A2, A1):
-        raise ValueError("(A2, A1) must be observable")
+        A2m, A1m = _matrix(A2, "A2"), _matrix(A1, "A1")
+        raise ValueError(f"(A2, A1) must be observable: {_unobservable_text(A2m, A1m).replace('of A ', 'of A2 ').replace('C x', 'A1 x_r')}; "
+                         "then M_tau (6) is singular for every L and tau")
     if L is not None:
         M = M_tau(A2, A1, L, tau)
         rc = _rcond(M)
@@ -1100,6 +1126,14 @@ class ReducedOrderObserver(_observer_base()):
         self.A1, self.A2, self.L, self.Ldot = _tv_data(A1, A2, L, Ldot, p, m)
         self.Phi_A2 = lambda t, s: np.atleast_2d(np.asarray(Phi_A2(t, s), dtype=float))
         self.Phi_H = lambda t, s: np.atleast_2d(np.asarray(Phi_H(t, s), dtype=float))
+        # dimensions agree at construction, not as a matmul error inside a run: probe the data at t = tau
+        for nm, f, shape in (("A1", self.A1, (p, m)), ("A2", self.A2, (m, m)), ("L", self.L, (m, p)),
+                             ("Phi_A2", lambda t: self.Phi_A2(t, 0.0), (m, m)),
+                             ("Phi_H", lambda t: self.Phi_H(t, 0.0), (m, m))):
+            v = f(self.tau)
+            if np.shape(v) != shape:
+                raise ValueError(f"{nm} must be {shape[0]} x {shape[1]} (p = {p} outputs, m = {m} estimated states), "
+                                 f"got shape {np.shape(v)}")
         wrap = (lambda f, k: (lambda t, z, w: np.zeros(k)) if f is None else
                 (f if self.w_dim else (lambda t, z, w: f(t, z))))
         self.delta1 = wrap(delta1, p)

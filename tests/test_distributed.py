@@ -523,3 +523,23 @@ def test_remark1_source_component_finite_time():
     ts = _settle(E)
     assert ts < 7.5, ts                                # measured ~5.6 s (alpha = 5)
     hst.assert_exact_after(arc, E["norm"], t=ts, atol=EXACT_TOL, norm="inf")
+
+
+def test_constructors_reject_mismatch_and_unobservable():
+    """Issue 16: the design refuses wrong dimensions and an unobservable network with the reason."""
+    A, C, G = example_system()
+    with pytest.raises(ValueError, match=r"C\[1\] must have 6 columns"):
+        dist.design(A, {k: np.ones((1, 5)) for k in C}, G)
+    with pytest.raises(ValueError, match="A must be a square 2-D array"):
+        dist.design(np.ones((6, 5)), C, G)
+    with pytest.raises(ValueError, match=r"not jointly observable \(Assumption 1\)"):
+        dist.design(A, {1: C[1], 2: C[2], 3: C[1], 4: C[2]}, G)
+    with pytest.raises(ValueError, match=r"poles for node 1 must have \d+ entries; got 7"):
+        dist.design(A, C, G, poles={v: -3.0 * np.ones(7) for v in C})
+    dsg = dist.design(A, C, G)
+    with pytest.raises(ValueError, match="node must be a node of the design's graph; got 9"):
+        dist.DistributedObserverNode(dsg, 9)
+    with pytest.raises(ValueError, match=r"x0 must have shape \(6,\); got \(5,\)"):
+        dist.initial_state(dsg, np.zeros(5))
+    with pytest.raises(ValueError, match=r"xhat0 must have shape \(6,\) or \(4, 6\); got \(4, 5\)"):
+        dist.initial_state(dsg, np.zeros(6), np.zeros((4, 5)))

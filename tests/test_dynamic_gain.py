@@ -391,3 +391,23 @@ def test_simulation_helpers_bad_inputs():
     vals = np.array([om(t) for t in np.linspace(0, 2, 401)])
     assert vals.shape == (401, 2) and np.all(np.abs(vals) < 1)
     assert np.allclose(om(0.37), uniform_noise(3, 2.0, dim=2)(0.37))   # seeded
+
+
+def test_simulate_example_rejects_observer_without_b():
+    """Issue 14: without b= the observer never sees u = Kx + cos 10t and never converges: refused, saying so."""
+    obs = dg.proposed_observer(L_PAPER, MU, G1, 1.0)
+    with pytest.raises(ValueError, match=r"observer was built without b=: .*b = e_3.*b=np\.eye\(3\)\[:, -1:\]"):
+        dg.simulate_example(obs, t_max=0.1)
+    wrong = dg.proposed_observer(L_PAPER, MU, G1, 1.0, b=np.ones((3, 1)))
+    with pytest.raises(ValueError, match=r"observer\.b must be the example plant's input matrix b = e_3"):
+        dg.simulate_example(wrong, t_max=0.1)
+    with pytest.raises(TypeError, match="observer must be a DynamicGainObserver, got str"):
+        dg.simulate_example("observer")
+    good = dg.proposed_observer(L_PAPER, MU, G1, 1.0, b=B3)
+    with pytest.raises(ValueError, match=r"x0 must be a finite vector of shape \(3,\) .* got shape \(2,\)"):
+        dg.simulate_example(good, x0=[1.0, 2.0], t_max=0.1)
+    with pytest.raises(ValueError, match=r"x_hat0 must have shape \(3,\), got \(4,\)"):
+        dg.simulate_example(good, x_hat0=np.zeros(4), t_max=0.1)
+    # the mismatch of L (n = 3) and b (2 rows) is refused at construction
+    with pytest.raises(ValueError, match=r"b must be a finite \(3, m\) matrix, got shape \(2, 1\)"):
+        dg.proposed_observer(L_PAPER, MU, G1, 1.0, b=np.ones((2, 1)))

@@ -557,3 +557,33 @@ def test_phi_scalar_remark2():
         np.testing.assert_allclose(PH(t, s), ex["Phi_H"](t, s), rtol=1e-10)
     np.testing.assert_allclose(tv.Lambda(tv.phi_scalar(ex["A2"]), PH, 4.0, ex["tau"]), [[ex["Lambda"]]],
                                rtol=1e-10)
+
+
+def test_constructors_reject_mismatch_and_unobservable():
+    """Issue 16: (A, C) unobservable and dimension mismatches are refused when the observer is built."""
+    A = np.diag([-1.0, -2.0, -3.0])
+    C = np.array([[1.0, 0.0, 0.0]])
+    # the true reason: rank, the hidden eigenvalue and what it breaks (M_tau singular for every L, tau)
+    with pytest.raises(ValueError, match=r"\(A, C\) must be observable: the observability matrix has rank 1 < n = 3"
+                                         r", and the eigenvalue -[23] of A is invisible .* M_tau \(6\) is singular"):
+        tv.lti_observer(A, C)
+    with pytest.raises(ValueError, match=r"\(A2, A1\) must be observable: .*rank 1 < n = 2"):
+        tv.choose_L_tau(np.diag([-1.0, -2.0]), np.array([[1.0, 0.0]]), tau=1.0)
+    # mismatched dimensions: arrays and callables are checked at construction, naming the argument
+    ex = tv.example_data()
+    with pytest.raises(ValueError, match=r"A2 must have shape \(1, 1\), got \(2, 2\)"):
+        tv.ReducedOrderObserver(1.0, ex["A1"], np.eye(2), ex["L"], ex["Phi_A2"], ex["Phi_H"], p=1, m=1)
+    with pytest.raises(ValueError, match=r"A1\(t\) must return a 1 x 1 matrix, got shape \(2,\)"):
+        tv.ReducedOrderObserver(1.0, lambda t: np.zeros(2), ex["A2"], ex["L"], ex["Phi_A2"], ex["Phi_H"],
+                                p=1, m=1)
+    with pytest.raises(ValueError, match=r"Phi_H must be 1 x 1 \(p = 1 outputs, m = 1 estimated states\), "
+                                         r"got shape \(2, 2\)"):
+        tv.ReducedOrderObserver(1.0, ex["A1"], ex["A2"], ex["L"], ex["Phi_A2"], lambda t, s: np.eye(2),
+                                p=1, m=1)
+    with pytest.raises(ValueError, match=r"C must have shape \(\?, 3\), got \(1, 2\)"):
+        tv.lti_observer(A, [[1.0, 0.0]])
+    obs, rc = tv.lti_observer(np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [-1.0, -2.0, -3.0]]), C)
+    assert (obs.p, obs.m) == (1, 2)
+    with pytest.raises(ValueError, match=r"xr_init must have shape \(2,\), got \(3,\)"):
+        tv.ReducedOrderObserver(obs.tau, rc.A1, rc.A2, np.zeros((2, 1)), lambda t, s: np.eye(2),
+                                lambda t, s: np.eye(2), xr_init=np.zeros(3))
