@@ -26,6 +26,9 @@ from scipy.integrate import RK45
 
 from ._progress import make_bar
 from .arc import HybridArc, Termination
+from .events import _maximize, _near_peak
+from .rules import (FAILURES, Priority, is_short_flow, is_sticking, jumps_now, needs_coin,
+                    sticking_message, t_max_slack, time_scale)
 from .solve import MapError, SimulationError, check_options
 from .system import HybridSystem, as_map
 
@@ -39,7 +42,6 @@ _ERR_EXP = -1.0 / (RK45.error_estimator_order + 1)
 _SAFETY, _MIN_FACTOR, _MAX_FACTOR = 0.9, 0.2, 10.0
 _STALL = 4          # bisect when a bracket has not halved in this many probes
 _TOO_SMALL = "Required step size is less than spacing between numbers."
-_JUMPS, _FLOWS, _RANDOM = 0, 1, 2
 # options of simulate() that make no sense for a batch integrated in numpy
 _UNSUPPORTED = {"inputs": None, "prehistory": None, "dense": False}
 
@@ -274,9 +276,9 @@ def _check_options(system, x0s, t_max, j_max, priority, method, rtol, atol, max_
 
 def simulate_vectorized(system, x0s, *, t_max, j_max=math.inf, priority="jumps",
                         rtol=1e-6, atol=1e-9, max_step=math.inf, first_step=None,
-                        zeno_jumps=50, zeno_time=1e-12, progress=False, method="RK45",
-                        t0=0.0, j0=0, max_norm=math.inf, seed=None, throw=False,
-                        refine=1, **unsupported):
+                        zeno_jumps=50, zeno_time=1e-12, zeno_rtol=1e-7, progress=False,
+                        method="RK45", t0=0.0, j0=0, max_norm=math.inf, seed=None,
+                        throw=False, refine=1, max_steps=1_000_000, **unsupported):
     r"""Simulate a vectorized hybrid system from many initial states at once.
 
     The whole batch is integrated together in numpy by an embedded
@@ -309,8 +311,10 @@ def simulate_vectorized(system, x0s, *, t_max, j_max=math.inf, priority="jumps",
         Tolerances and step bounds, as in :func:`hybridsim.simulate`
         (``atol`` may be an (n,) array; ``max_step`` is also capped by
         ``system.max_step``).
-    zeno_jumps, zeno_time : int, float
+    zeno_jumps, zeno_time, zeno_rtol : int, float, float
         Zeno rule of :func:`hybridsim.simulate`, per trajectory.
+    max_steps : int or inf
+        Accepted steps per trajectory before it ends with ``MAX_STEPS``.
     progress : bool or None
         A tqdm bar over finished trajectories (None: at a terminal and in a
         notebook; see :func:`hybridsim._progress.progress_enabled`).
@@ -375,8 +379,12 @@ def simulate_vectorized(system, x0s, *, t_max, j_max=math.inf, priority="jumps",
                                     max_norm, unsupported)
     if isinstance(refine, bool) or not isinstance(refine, numbers.Integral) or refine < 1:
         raise ValueError(f"refine must be an int >= 1, got {refine!r}")
+    from .solve import _check_count, _check_real
+    zeno_rtol = _check_real("zeno_rtol", zeno_rtol, nonneg=True)
+    max_steps = _check_count("max_steps", max_steps, minimum=1, allow_inf=True)
     run = _BatchRun(system, X, n, t0, j0, t_max, j_max, prio, rtol, atol, max_step,
-                    first_step, zeno_jumps, zeno_time, max_norm, np.random.default_rng(seed))
+                    first_step, zeno_jumps, zeno_time, max_norm, np.random.default_rng(seed),
+                    zeno_rtol=zeno_rtol, max_steps=max_steps)
     run.refine = int(refine)
     run.pbar = make_bar(progress, total=len(X), desc="simulate_vectorized", unit="run")
     try:
@@ -392,8 +400,7 @@ def simulate_vectorized(system, x0s, *, t_max, j_max=math.inf, priority="jumps",
                               components=system.components, system=system))
     if throw:
         for i, arc in enumerate(arcs):
-            if arc.termination in (Termination.MAP_ERROR, Termination.NON_FINITE,
-                                   Termination.SOLVER_FAILED):
+            if arc.termination in FAILURES:
                 err = SimulationError(f"trajectory {i}: {arc.message}", arc)
                 err.arcs = arcs
                 raise err from arc.exception
@@ -404,7 +411,8 @@ class _BatchRun:
     """State of a batch run: one entry per trajectory in every array."""
 
     def __init__(self, system, X, n, t0, j0, t_max, j_max, prio, rtol, atol, max_step,
-                 first_step, zeno_jumps, zeno_time, max_norm, rng):
+                 first_step, zeno_jumps, zeno_time, max_norm, rng, zeno_rtol=1e-7,
+                 max_steps=math.inf):
         N = len(X)
         self.N, self.n = N, n
         self.maps = _VMaps(system, n)
@@ -412,6 +420,7 @@ class _BatchRun:
         self.t_max, self.j_max, self.prio = t_max, j_max, prio
         self.rtol, self.atol, self.max_step = rtol, atol, max_step
         self.zeno_jumps, self.zeno_time, self.max_norm = zeno_jumps, zeno_time, max_norm
+        self.zeno_rtol, self.max_steps = zeno_rtol, max_steps
         self.rng = rng
         self.refine = 1
         self.pbar = None
@@ -426,6 +435,9 @@ class _BatchRun:
         self.inD_prev = np.zeros(N, dtype=bool)
         self.force = np.zeros(N, dtype=bool)        # an event asks for a jump
         self.short = np.zeros(N, dtype=np.int64)    # consecutive short flows (Zeno)
+        self.flows3 = np.full((N, 3), np.inf)        # the last three flow lengths
+        self.steps = np.zeros(N, dtype=np.int64)     # accepted steps (max_steps)
+        self.t0 = t0
         self.t_last = np.full(N, t0)
         self.t_flow0 = np.full(N, t0)               # start of the current flow
         self.jumps = np.zeros(N, dtype=np.int64)
@@ -438,7 +450,7 @@ class _BatchRun:
         self.exception = [None] * N
         self.log = _SampleLog(N, n)
         m = self.maps
-        self.watch_D = m.has_D and prio != _FLOWS
+        self.watch_D = m.has_D and prio != Priority.FLOWS
         phi_ok = ((not self.watch_D or m.hD is not None) and (not m.has_C or m.hC is not None))
         self.use_phi = phi_ok and (m.hD is not None or m.hC is not None)
 
@@ -524,14 +536,11 @@ class _BatchRun:
                 rows, x, t, j, inD, inC = rows[ok], x[ok], t[ok], j[ok], inD[ok], inC[ok]
             force = self.force[rows]
             self.force[rows] = False
-            jump = inD & (force | ~inC)
-            if self.prio == _JUMPS:
-                jump = inD
-            elif self.prio == _RANDOM:
-                ask = inD & ~jump
-                if ask.any():
-                    coin = self.rng.random(int(ask.sum())) < 0.5
-                    jump[np.flatnonzero(ask)[coin]] = True
+            coin = np.zeros(len(rows), dtype=bool)
+            ask = needs_coin(inC, inD, self.prio, force)
+            if ask.any():
+                coin[ask] = self.rng.random(int(ask.sum())) < 0.5
+            jump = jumps_now(inC, inD, self.prio, coin, force)
             # -- rows that stay: stop outside C, stop at t_max, or start a flow
             stay = ~jump
             if stay.any():
@@ -541,8 +550,16 @@ class _BatchRun:
                     orow = sr[out]
                     first = self.log.count[orow] == 1
                     ox, ot, oj = sx[out], st[out], sj[out]
+                    stick = np.array([not f and is_sticking(
+                        self.flows3[r][np.isfinite(self.flows3[r])], tt - self.t_last[r],
+                        int(self.jumps[r]), time_scale(self.t0, tt, self.t_max))
+                        for r, f, tt in zip(orow, first, ot)], dtype=bool)
+                    for r, tt, jj, xx in zip(orow[stick], ot[stick], oj[stick], ox[stick]):
+                        fl = self.flows3[r]
+                        self._stop([r], Termination.ZENO,
+                                   lambda i: sticking_message(tt, jj, xx, fl[np.isfinite(fl)]))
                     for cause, sel in ((Termination.NOT_IN_SETS, first),
-                                       (Termination.LEFT_SETS, ~first)):
+                                       (Termination.LEFT_SETS, ~first & ~stick)):
                         if sel.any():
                             xs, ts, js = ox[sel], ot[sel], oj[sel]
                             self._stop(orow[sel], cause,
@@ -575,8 +592,11 @@ class _BatchRun:
             if ok is not None:
                 rows, xn, t, j = rows[ok], xn[ok], t[ok], j[ok]
             # Zeno: consecutive jumps after flows too short to resolve
-            tiny = (t - self.t_last[rows]) <= self.zeno_time * np.maximum(1.0, np.abs(t))
+            flow = t - self.t_last[rows]
+            tiny = is_short_flow(flow, t, time_scale(self.t0, t, self.t_max), self.zeno_time,
+                                 self.zeno_rtol)
             self.short[rows] = np.where(tiny, self.short[rows] + 1, 0)
+            self.flows3[rows] = np.column_stack([self.flows3[rows][:, 1:], flow])
             self.t_last[rows] = t
             j = j + 1
             self.j[rows] = j
@@ -590,7 +610,9 @@ class _BatchRun:
             if zeno.any():
                 zr, zt, zs = rows[zeno], t[zeno], self.short[rows[zeno]]
                 self._stop(zr, Termination.ZENO,
-                           lambda i: f"{zs[i]} consecutive jumps near t={zt[i]}")
+                           lambda i: f"{zs[i]} consecutive jumps after flows shorter than "
+                                     f"max(zeno_time*max(1,|t|), zeno_rtol*time scale) "
+                                     f"near t={zt[i]:.10g}")
             rows = rows[~full & ~zeno]
 
     def _start_flow(self, rows, inD):
@@ -747,6 +769,52 @@ class _BatchRun:
         calm = ~event
         if not calm.any():
             return
+        # the inside of the other steps: D entered and left (or C left and
+        # re-entered) within one step; and an entry into D within round-off
+        # after t_max, which is taken at t_max
+        watch = np.zeros(len(rows), dtype=bool)
+        if m.has_C:
+            watch[:] = True
+        if self.watch_D:
+            watch |= ~self.inD_prev[rows]
+        watch &= calm
+        if watch.any():
+            w = np.flatnonzero(watch)
+            Qw = np.einsum("skn,sp->knp", K[:, w], _P)
+            lo_b, hi_b, found = self._interior(rows[w], a[w], b[w], ya[w], h[w], Qw, j[w])
+            late = ~found & (b[w] >= self.t_max)
+            if self.watch_D and late.any():
+                wl = np.flatnonzero(late)
+                rl = rows[w][wl]
+                tb = b[w][wl] + t_max_slack(self.t_max) * (8.0 + self.jumps[rl]) / 8.0
+                ys = self._dense(a[w][wl], h[w][wl], ya[w][wl], Qw[wl], tb)
+                pred = self._pred(rl, ys, tb, j[w][wl], ~self.inD_prev[rl])
+                pred &= ~self.inD_prev[rl]
+                found_late = np.zeros(len(w), dtype=bool)
+                found_late[wl[pred]] = True
+                lo_b[found_late] = b[w][found_late]
+                hi_b[found_late] = tb[pred]
+            else:
+                found_late = np.zeros(len(w), dtype=bool)
+            for sel, clamp in ((found, None), (found_late, self.t_max)):
+                if sel.any():
+                    ww = w[sel]
+                    self._event(rows[ww], a[ww], hi_b[sel], ya[ww], h[ww], Qw[sel], j[ww],
+                                lo0=lo_b[sel], clamp=clamp)
+                    calm[ww] = False
+            if not calm.any():
+                return
+        self.steps[rows] += 1
+        over = calm & (self.steps[rows] >= self.max_steps)
+        if over.any():
+            orow, ot = rows[over], b[over]
+            ms = self.max_steps
+            self.log.append(orow, ot, j[over], yb[over])
+            self._stop(orow, Termination.MAX_STEPS,
+                       lambda i: f"{ms} solver steps (max_steps) at t={ot[i]:.10g}")
+            calm &= ~over
+            if not calm.any():
+                return
         rows, b, yb, j = rows[calm], b[calm], yb[calm], j[calm]
         if self.refine > 1:
             Qc = np.einsum("skn,sp->knp", K[:, calm], _P)
@@ -805,7 +873,7 @@ class _BatchRun:
             v = np.maximum(v, -m.guard_C(rows, y, s, j))
         return v
 
-    def _locate(self, rows, a, b, ya, h, Q, j, wd):
+    def _locate(self, rows, a, b, ya, h, Q, j, wd, lo0=None):
         """Bracket the first event in (a, b] of each row on its dense output.
 
         The batch version of :func:`hybridsim.events.locate_event`: the
@@ -825,7 +893,7 @@ class _BatchRun:
         """
         k = len(rows)
         tol = 4.0 * _EPS * np.maximum(1.0, np.maximum(np.abs(a), np.abs(b)))
-        lo, hi = a.copy(), b.copy()
+        lo, hi = (a if lo0 is None else lo0).copy(), b.copy()
         ylo = self._dense(a, h, ya, Q, lo)
         yhi = self._dense(a, h, ya, Q, hi)
         out = [lo.copy(), hi.copy(), ylo.copy(), yhi.copy()]
@@ -884,12 +952,70 @@ class _BatchRun:
             out[0][pos], out[1][pos], out[2][pos], out[3][pos] = lo, hi, ylo, yhi
         return out
 
-    def _event(self, rows, a, b, ya, h, Q, j):
-        """Locate the first event in (a, b] of ``rows`` and decide what happens there."""
+    def _interior(self, rows, a, b, ya, h, Q, j):
+        """The batch version of :func:`hybridsim.events.find_interior_event`.
+
+        Three interior samples of each step's dense output, the indicators
+        tested there; with guards, every sampled local maximum of the guard
+        whose peak could reach 0 refined by a golden-section search (row by
+        row: such peaks are rare). Returns (lo, hi, found): a bracket with the
+        event set entered at hi, where found.
+        """
+        k = len(rows)
+        wd = ~self.inD_prev[rows]
+        lo_b, hi_b = a.copy(), b.copy()
+        found = np.zeros(k, dtype=bool)
+        prev = a.copy()
+        pts, vals = [a], []
+        if self.use_phi:
+            vals.append(self._phi(rows, self._dense(a, h, ya, Q, a), a, j, wd))
+        for q in (1, 2, 3):
+            s = a + (b - a) * (q / 4.0)
+            ys = self._dense(a, h, ya, Q, s)
+            hit = ~found & self._pred(rows, ys, s, j, wd)
+            lo_b[hit], hi_b[hit] = prev[hit], s[hit]
+            found |= hit
+            prev = s
+            pts.append(s)
+            if self.use_phi:
+                vals.append(self._phi(rows, ys, s, j, wd))
+        self._reap(rows)
+        if not self.use_phi or found.all():
+            return lo_b, hi_b, found
+        pts.append(b)
+        vals.append(self._phi(rows, self._dense(a, h, ya, Q, b), b, j, wd))
+        V, T = np.array(vals), np.array(pts)           # (5, k)
+        for q in (1, 2, 3):
+            lo_nb = np.minimum(V[q - 1], V[q + 1])
+            cand = (~found & np.isfinite(V).all(axis=0) & (V[q] >= V[q - 1])
+                    & (V[q] >= V[q + 1]) & _near_peak(V[q], lo_nb))
+            for i in np.flatnonzero(cand):
+                ri = rows[i:i + 1]
+                wi, ji = wd[i:i + 1], j[i:i + 1]
+
+                def sol(s, i=i):
+                    return self._dense(a[i:i + 1], h[i:i + 1], ya[i:i + 1], Q[i:i + 1],
+                                       np.array([s]))[0]
+
+                def F(s, y, ri=ri, ji=ji, wi=wi):
+                    return float(self._phi(ri, y[None, :], np.array([s]), ji, wi)[0])
+
+                def pred(s, y, ri=ri, ji=ji, wi=wi):
+                    return bool(self._pred(ri, y[None, :], np.array([s]), ji, wi)[0])
+                sq = _maximize(F, T[q - 1, i], T[q + 1, i], V[q - 1, i], V[q + 1, i], pred, sol)
+                if sq is not None:
+                    found[i] = True
+                    lo_b[i], hi_b[i] = T[q - 1, i], sq
+        return lo_b, hi_b, found
+
+    def _event(self, rows, a, b, ya, h, Q, j, lo0=None, clamp=None):
+        """Locate the first event in (lo0, b] (default (a, b]) of the steps from a of
+        ``rows`` and decide what happens there; ``clamp``: record event times no
+        later than it (an event within round-off after t_max is taken at t_max)."""
         m = self.maps
         # a flow that started in D (random priority flowing on) watches only C
         wd = ~self.inD_prev[rows]
-        lo, hi, ylo, yhi = self._locate(rows, a, b, ya, h, Q, j, wd)
+        lo, hi, ylo, yhi = self._locate(rows, a, b, ya, h, Q, j, wd, lo0)
         ok = self._reap(rows)
         if ok is not None:
             rows, a, ya, h, Q, lo, hi, ylo, yhi, j = (rows[ok], a[ok], ya[ok], h[ok], Q[ok],
@@ -906,7 +1032,7 @@ class _BatchRun:
         if self.watch_D:
             dhi = m.in_D(rows, yhi, hi, j)
             kind[dhi] = 1
-            if self.prio == _RANDOM and dhi.any():
+            if self.prio == Priority.RANDOM and dhi.any():
                 idx = np.flatnonzero(dhi)
                 cin = m.in_C(rows[idx], yhi[idx], hi[idx], j[idx])
                 coin = self.rng.random(len(idx)) >= 0.5
@@ -928,6 +1054,8 @@ class _BatchRun:
         at_hi = (kind == 1) | (kind == 3)
         at_lo = (kind == 2) | (kind == 4)
         ts = np.where(at_hi, hi, lo)
+        if clamp is not None:
+            ts = np.minimum(ts, clamp)
         xs = np.where(at_hi[:, None], yhi, ylo)
         sample = ts > a
         if self.refine > 1:
@@ -941,6 +1069,10 @@ class _BatchRun:
             self.force[rows[jump]] = True
             self.decide[rows[jump]] = True
         cont = kind == 3
+        done = cont & (ts >= self.t_max)     # flowing on at t_max: the run ends there
+        if done.any():
+            self._stop(rows[done], Termination.T_MAX)
+            cont &= ~done
         if cont.any():                       # random priority chose to flow on in C ∩ D
             self._start_flow(rows[cont], np.ones(int(cont.sum()), dtype=bool))
         left = at_lo & ~jump

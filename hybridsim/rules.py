@@ -263,8 +263,11 @@ def sticking_message(t, j, x, last_flows):
             f"the contact persists, or a jump map that stops the motion below a threshold)")
 
 
-def time_scale(t0: float, t: float, t_max: float) -> float:
-    """The run's time scale for relative tests: its horizon, else the time elapsed."""
+def time_scale(t0, t, t_max):
+    """The run's time scale for relative tests: its horizon, else the time elapsed.
+
+    ``t`` may be an array (one entry per trajectory of a batch).
+    """
     if math.isfinite(t_max) and t_max > t0:
         return t_max - t0
-    return max(t - t0, 0.0)
+    return _max(t - t0, 0.0)
