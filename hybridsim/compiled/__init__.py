@@ -547,8 +547,8 @@ def simulate_compiled(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priori
     ...                        jump_guard=lambda x, t, j, p: x[0] - p[0],
     ...                        flow_guard=lambda x, t, j, p: p[0] - x[0],
     ...                        state_dim=1, params=[1.0])
-    >>> arc = simulate_compiled(timer, [0.0], t_max=3.0)       # doctest: +SKIP
-    >>> np.round(arc.jump_times, 12)                          # doctest: +SKIP
+    >>> arc = simulate_compiled(timer, [0.0], t_max=3.0)
+    >>> np.round(arc.jump_times, 12)
     array([1., 2., 3.])
     """
     from ..solve import _check_bool, _check_x0
@@ -615,8 +615,8 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
     ...                        jump=lambda x, t, j, p: np.zeros(1),
     ...                        jump_guard=lambda x, t, j, p: x[0] - p[0],
     ...                        state_dim=1, params=[1.0])
-    >>> arcs = simulate_many_compiled(timer, [[0.0], [0.5]], t_max=2.0)   # doctest: +SKIP
-    >>> [a.jump_count for a in arcs]                                       # doctest: +SKIP
+    >>> arcs = simulate_many_compiled(timer, [[0.0], [0.5]], t_max=2.0)
+    >>> [a.jump_count for a in arcs]
     [2, 2]
     """
     from ..rules import Priority
