@@ -382,11 +382,22 @@ def _options(system, x0_shape_n, t_max, j_max, t0, j0, priority, rtol, atol, max
     return fopt, iopt, atol_a, prio, max_steps, max_samples
 
 
+def _quiet(kernel):
+    """Call ``kernel`` without numba's "first-class functions are experimental"
+    warning (a specialised kernel compiles at its first call)."""
+    def call(*args):
+        from numba.core.errors import NumbaExperimentalFeatureWarning
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", NumbaExperimentalFeatureWarning)
+            return kernel(*args)
+    return call
+
+
 def _kernels(k, system, batch):
     """(run_one, run_batch) for the system: the cached generic pair, or the
     pair specialised on its maps."""
     if system.specialize:
-        return k.run_one_spec, k.run_batch_spec
+        return _quiet(k.run_one_spec), _quiet(k.run_batch_spec)
     k.compile_kernels(batch=batch)
     return k.run_one, k.run_batch
 
