@@ -351,6 +351,8 @@ def _options(system, x0_shape_n, t_max, j_max, t0, j0, priority, rtol, atol, max
     """Validate like :func:`hybridsim.simulate` and pack the kernel's option arrays."""
     from ..solve import _check_count, _check_real, check_options
     for name in extra:
+        if name == "progress" and not extra[name]:     # no bar: accepted (simulate_many sends it)
+            continue
         if name in _UNSUPPORTED:
             raise TypeError(f"{name}= is not supported by the compiled path; use "
                             f"hs.simulate (the Python path) for it")
