@@ -17,7 +17,7 @@ from .compose import Interconnection, LinearPlant, connect, network
 from .batch import BatchError, BatchWarning, simulate_many, sweep
 from .batch_vectorized import simulate_vectorized
 from .plot import plot_flows, plot_jumps, plot_hybrid, plot_phase, plot_time_domain
-from . import library, rules, testing
+from . import compiled, library, rules, testing
 
 
 __version__ = "0.1.0"

@@ -210,6 +210,28 @@ class HybridArc:
         self._segments = segments  # list of (t_a, t_b, j, dense) or None
         self._cache = {}
 
+    @classmethod
+    def _trusted(cls, t, j, x, termination, message=None, exception=None,
+                 components=None, segments=None, system=None, xdot=None, stats=None):
+        """An arc from the engine's own output, without re-validating it.
+
+        ``t`` (N,) float, ``j`` (N,) int64 and ``x``/``xdot`` (N, n) float
+        arrays, as every integration path produces them; saves the checks of
+        :meth:`__init__` (a large share of a short run in a batch of
+        thousands).
+        """
+        arc = cls.__new__(cls)
+        arc.t, arc.j, arc.x, arc.xdot, arc.stats = t, j, x, xdot, stats
+        arc.termination = termination
+        arc.message = message or (termination.message if termination else "")
+        arc.exception = exception
+        arc.components = components
+        arc.system = system
+        arc.system_description = None if system is None else _describe(system)
+        arc._segments = segments
+        arc._cache = {}
+        return arc
+
     def _like(self, t, j, x, *, xdot=None, segments=None, components=None,
               system=None, keep=True):
         """A new arc with other samples and this arc's run information."""

@@ -395,6 +395,9 @@ def simulate_many(system, x0s, t_max, j_max=np.inf, *, executor=None, chunks=Non
     **kwargs
         Passed to :func:`hybridsim.simulate` (``priority``, ``rtol``...).
         Argument errors (the same for every row) raise at once.
+        ``backend="compiled"`` (no executor) runs a
+        :class:`hybridsim.compiled.CompiledSystem`'s batch compiled and in
+        parallel over the cores (:func:`hybridsim.compiled.simulate_many_compiled`).
 
     Returns
     -------
@@ -442,7 +445,16 @@ def simulate_many(system, x0s, t_max, j_max=np.inf, *, executor=None, chunks=Non
     if N == 0:
         return []
     kwargs = dict(kwargs, t_max=t_max, j_max=j_max, progress=False)
-    if system.vectorized and executor is None:
+    if kwargs.get("backend", "python") == "compiled" and executor is None:
+        from .compiled import simulate_many_compiled
+        kw = {k: v for k, v in kwargs.items() if k not in ("backend", "progress")}
+        out = simulate_many_compiled(system, X, throw=False, warn=False, **kw)
+        if throw:
+            for i, arc in enumerate(out):
+                if arc.termination in FAILED:
+                    raise BatchError(f"row {i} of the batch failed: {arc.termination.name}: "
+                                     f"{arc.message}", i, arc, out) from arc.exception
+    elif system.vectorized and executor is None:
         out = _many_vectorized(system, X, kwargs, progress)
         if throw:
             for i, arc in enumerate(out):

@@ -246,12 +246,17 @@ def is_sticking(last_flows, flow_now, jumps, scale):
     A ball coming to rest on a moving floor: its bounces accumulate and the
     flow leaves C with a tiny relative velocity on the wrong side of D. That
     is a Zeno-like end, not a mistake in the sets (``LEFT_SETS``).
-    ``last_flows`` are the lengths of the flows before the last jumps,
-    ``flow_now`` the length of the flow since the last jump.
+    ``last_flows`` are the lengths of the flows before the last jumps (the
+    last three are read), ``flow_now`` the length of the flow since the last
+    jump. Written as plain loops so that the compiled path compiles it.
     """
-    last = list(last_flows)[-3:]
-    return (jumps >= 3 and len(last) == 3 and flow_now <= 1e-6 * scale
-            and all(f <= 1e-3 * scale for f in last))
+    m = len(last_flows)
+    if jumps < 3 or m < 3 or not flow_now <= 1e-6 * scale:
+        return False
+    for k in range(m - 3, m):
+        if not last_flows[k] <= 1e-3 * scale:
+            return False
+    return True
 
 
 def sticking_message(t, j, x, last_flows):

@@ -392,7 +392,7 @@ def simulate(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priority="jumps
              inputs=None, prehistory=None, max_norm=math.inf, seed=None,
              progress=None, throw=True, warn=True, dense=False, refine=1, t_eval=None,
              max_steps=1_000_000, max_samples=10_000_000, zeno_jumps=50,
-             zeno_time=1e-12, zeno_rtol=1e-7):
+             zeno_time=1e-12, zeno_rtol=1e-7, backend="python"):
     r"""Simulate a hybrid system from x0 until t_max or j_max.
 
     Flows by :math:`\dot x = f(x)` with a scipy ODE solver while x is in C,
@@ -473,6 +473,13 @@ def simulate(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priority="jumps
         ``zeno_time * max(1, |t|)`` or ``zeno_rtol`` times the run's time
         scale (``t_max - t0``, or the time elapsed when t_max is inf).
 
+    backend : {"python", "compiled"}
+        ``"compiled"`` runs a :class:`hybridsim.compiled.CompiledSystem`
+        entirely in compiled code (numba: ``pip install 'hybridsim[fast]'``)
+        through :func:`hybridsim.compiled.simulate_compiled`: the same
+        Dormand-Prince steps, events, rules and arc. Options it does not
+        support (inputs, prehistory, dense, t_eval, other methods) raise.
+
     Returns
     -------
     HybridArc
@@ -499,6 +506,16 @@ def simulate(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priority="jumps
     """
     if not isinstance(system, HybridSystem):
         raise TypeError(f"system must be a hybridsim.HybridSystem, got {type(system).__name__}")
+    if backend == "compiled":
+        return _compiled_run(system, x0, t_max, j_max, dict(
+            t0=t0, j0=j0, priority=priority, method=method, rtol=rtol, atol=atol,
+            max_step=max_step, first_step=first_step, max_norm=max_norm, seed=seed,
+            throw=throw, warn=warn, refine=refine, max_steps=max_steps,
+            max_samples=max_samples, zeno_jumps=zeno_jumps, zeno_time=zeno_time,
+            zeno_rtol=zeno_rtol), dict(inputs=inputs, prehistory=prehistory, dense=dense,
+                                       t_eval=t_eval, progress=progress))
+    if backend != "python":
+        raise ValueError(f"backend must be 'python' or 'compiled', got {backend!r}")
     maps = system._compile()
     n = int(system.state_dim)
     x = _check_x0(x0, n)
@@ -569,6 +586,20 @@ def simulate(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priority="jumps
     return arc
 
 
+def _compiled_run(system, x0, t_max, j_max, opts, python_only):
+    """``simulate(..., backend="compiled")``: the compiled path, or a clear refusal."""
+    from .compiled import CompiledSystem, simulate_compiled
+    if not isinstance(system, CompiledSystem):
+        raise TypeError(f"backend='compiled' needs a hybridsim.compiled.CompiledSystem (maps "
+                        f"written as numba-compilable functions of (x, t, j, p)); got "
+                        f"{type(system).__name__}: use backend='python' for it")
+    given = {k: v for k, v in python_only.items() if v not in (None, False)}
+    if given:
+        raise TypeError(f"backend='compiled' does not support {sorted(given)}: use "
+                        f"backend='python'")
+    return simulate_compiled(system, x0, t_max, j_max, **opts)
+
+
 class _Run:
     """One run: the decision loop between flows, and the flows."""
 
@@ -613,10 +644,10 @@ class _Run:
         t, j, X, Xd = b.arrays()
         self._count(self.solver)
         self.solver = None
-        return HybridArc(t, j, X, self.cause, self.message, self.exception,
-                         components=self.system.components,
-                         segments=self.history.segments if self.o.keep else None,
-                         system=self.system, xdot=Xd, stats=self.stats.as_dict())
+        return HybridArc._trusted(t, j, X, self.cause, self.message, self.exception,
+                                  components=self.system.components,
+                                  segments=self.history.segments if self.o.keep else None,
+                                  system=self.system, xdot=Xd, stats=self.stats.as_dict())
 
     def _stop(self, cause, message=None, exc=None):
         self.cause = cause
