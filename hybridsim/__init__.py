@@ -8,6 +8,7 @@ in hybrid time (:func:`plot_flows`, :func:`plot_jumps`, :func:`plot_hybrid`,
 :func:`plot_phase`, :func:`plot_time_domain`). Theorem-check helpers live in
 :mod:`hybridsim.testing`.
 """
+from ._version import __version__
 from .arc import HybridArc, Termination
 from .system import HybridSystem
 from .rules import MapError, SimulationError, SimulationWarning
@@ -19,8 +20,6 @@ from .batch_vectorized import simulate_vectorized
 from .plot import plot_flows, plot_jumps, plot_hybrid, plot_phase, plot_time_domain
 from . import compiled, library, rules, testing
 
-
-__version__ = "0.1.0"
 
 __all__ = [
     "HybridSystem", "HybridArc", "Termination", "simulate", "MapError",

@@ -118,7 +118,7 @@ def locate_event(sol, a, b, pred, phi=None, max_iter=200):
     >>> sol = lambda s: np.array([s * s])
     >>> lo, hi, _, _ = locate_event(sol, 0.0, 2.0, lambda s, y: y[0] >= 2.0,
     ...                             lambda s, y: y[0] - 2.0)
-    >>> abs(hi - np.sqrt(2.0)) < 1e-15
+    >>> bool(abs(hi - np.sqrt(2.0)) < 1e-15)
     True
     """
     ev = fast_dense(sol)

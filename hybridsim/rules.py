@@ -212,7 +212,8 @@ def t_max_slack(t_max: float, jumps: int = 0) -> float:
 
     Examples
     --------
-    >>> t_max_slack(1.0) / np.finfo(float).eps
+    >>> import numpy as np
+    >>> float(t_max_slack(1.0) / np.finfo(float).eps)
     64.0
     """
     return event_tolerance(t_max, t_max) * (16.0 + 2.0 * jumps)
