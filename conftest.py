@@ -20,6 +20,14 @@ import numpy as np
 import pytest
 
 
+def pytest_collection_modifyitems(config, items):
+    """The compiled path's doctests compile numba kernels (tens of seconds on a
+    fresh machine): slow, like tests/test_compiled.py."""
+    for item in items:
+        if "hybridsim/compiled" in str(item.fspath).replace("\\", "/"):
+            item.add_marker(pytest.mark.slow)
+
+
 @pytest.fixture(autouse=True)
 def _doctest_setup(request):
     from _pytest.doctest import DoctestItem

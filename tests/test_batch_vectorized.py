@@ -390,6 +390,7 @@ def test_simulate_many_process_pool():
     _same(arcs, refs)
 
 
+@pytest.mark.slow      # starts a dask LocalCluster (~8 s)
 def test_simulate_many_dask_local_cluster():
     distributed = pytest.importorskip("dask.distributed")
     x0s = np.column_stack([np.linspace(0.5, 2.0, 4), np.zeros(4)])

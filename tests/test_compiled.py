@@ -18,6 +18,9 @@ import pytest
 numba = pytest.importorskip("numba", reason="the compiled path needs numba "
                                             "(pip install 'hybridsim[fast]')")
 
+# compiling the engine takes tens of seconds on a fresh machine: CI runs these
+pytestmark = pytest.mark.slow
+
 import hybridsim as hs  # noqa: E402
 import hybridsim.compiled as hc  # noqa: E402
 from hybridsim.compiled import (CompiledSystem, CompileError, simulate_compiled,  # noqa: E402
