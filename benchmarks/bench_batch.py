@@ -86,7 +86,8 @@ def main(argv=None):
     times = []
     for _ in range(6):
         t = time.perf_counter()
-        arcs = hs.simulate_many(BouncingBallBatch(G, E), x0s, t_max=np.inf, j_max=K, rtol=RTOL, atol=ATOL)
+        arcs = hs.simulate_many(BouncingBallBatch(G, E), x0s, t_max=np.inf, j_max=K,
+                                rtol=RTOL, atol=ATOL)
         times.append(time.perf_counter() - t)
     first, median, best = times[0], float(np.median(times[1:])), min(times[1:])
     jt_vec = jump_table(arcs, K)

@@ -41,8 +41,7 @@ from scipy.integrate._ivp.rk import RK45  # noqa: E402
 
 import hybridsim as hs  # noqa: E402
 from hybridsim.compiled import CompiledSystem, simulate_compiled, simulate_many_compiled  # noqa: E402
-from hybridsim.library import (BouncingBall, BouncingBallBatch, Timer,  # noqa: E402
-                               bouncing_ball_jump_times)
+from hybridsim.library import BouncingBall, BouncingBallBatch, Timer, bouncing_ball_jump_times  # noqa: E402
 
 G, E = 9.81, 0.8
 _A, _B, _C, _E, _P = (np.ascontiguousarray(v, dtype=np.float64)

@@ -38,7 +38,7 @@ def main(t_max=10.0):
             E = dist.transformed_errors(arc, d)
             El = dist.transformed_errors(dist.simulate_network(dl, x0, xh, t_max=t_max), dl)
             ts = dist._settling(E["t"], E["norm"], 1e-10)
-            print(f"{N:>2} {graph:>6} {d.n:>2} {str(d.n_o):>18} {alpha:>5g} {ts:>7.3f} "
+            print(f"{N:>2} {graph:>6} {d.n:>2} {d.n_o!s:>18} {alpha:>5g} {ts:>7.3f} "
                   f"{E['norm'][-1]:>9.2e} {El['norm'][-1]:>9.2e} {wall:>6.1f}")
 
 

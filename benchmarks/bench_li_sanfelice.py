@@ -33,7 +33,8 @@ def run(design, kind, N, m_max, seed, K=3, w_max=5.0):
     x0, xh0 = rng.normal(size=design.n), np.zeros(design.n)
     sys, x0s = ls.noise_batch(obs, x0, xh0, S, gen)
     t0 = time.perf_counter()
-    arcs = hs.simulate_many(sys, x0s, t_max=1.01 * design.delta, method="DOP853", rtol=1e-10, atol=1e-12)
+    arcs = hs.simulate_many(sys, x0s, t_max=1.01 * design.delta, method="DOP853",
+                            rtol=1e-10, atol=1e-12)
     wall = time.perf_counter() - t0
     errs, dev15 = [], []
     for arc, w in zip(arcs, S):
@@ -42,7 +43,7 @@ def run(design, kind, N, m_max, seed, K=3, w_max=5.0):
         k = np.flatnonzero(arc.j == 1)[0]
         e = z[k, :design.n] - x[k]
         errs.append(np.linalg.norm(e))
-        if kind == "H_n" and len(dev15) < 20:       # (15) by quadrature on a subset (it is slow-ish)
+        if kind == "H_n" and len(dev15) < 20:       # (15) by quadrature on a subset (slow)
             dev15.append(np.linalg.norm(e - ls.error_after_jump(design, gen.callable(w))))
     return np.array(errs), (max(dev15) if dev15 else None), wall
 
@@ -62,7 +63,8 @@ def main():
         for kind in ("H_n", "H_c"):
             e, dev, wall = run(d, kind, a.N, a.m_max, a.seed)
             devs = f"{dev:10.1e}" if dev is not None else f"{'-':>10}"
-            print(f"{name:<13} {kind:<4} {a.N:>4} {np.median(e):9.4f} {np.quantile(e, 0.95):9.4f} {e.max():9.4f} "
+            print(f"{name:<13} {kind:<4} {a.N:>4} {np.median(e):9.4f} "
+                  f"{np.quantile(e, 0.95):9.4f} {e.max():9.4f} "
                   f"{bound:9.4f} {e.max() / bound:8.3f} {devs} {wall:7.2f}")
     print("Thm4.10 bounds H_n's |e(delta,1)| for |m|_inf <= m_max (it is not a claim about H_c).")
 

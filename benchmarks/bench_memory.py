@@ -81,7 +81,7 @@ def main(argv=None):
 
     print(f"# timer system (jump_guard/flow_guard), hs.simulate, RK45 defaults; "
           f"{platform.machine()}, Python {platform.python_version()}, numpy {np.__version__}")
-    pilot, t_pilot = run(10**4)
+    _pilot, t_pilot = run(10**4)
     est = t_pilot * 100
     jumps = args.jumps
     if jumps is None:

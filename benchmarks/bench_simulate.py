@@ -194,7 +194,7 @@ def _profile_once(call):
 
 def profile(label, call, top, repeats=3):
     """cProfile of one call (the quickest of ``repeats``: a busy machine adds noise)."""
-    total, prof, stats = min((_profile_once(call) for _ in range(repeats)), key=lambda r: r[0])
+    total, _prof, stats = min((_profile_once(call) for _ in range(repeats)), key=lambda r: r[0])
     step = sum(v[3] for k, v in stats.items() if _key_is(k, *SCIPY_STEP))
     nsteps = sum(v[1] for k, v in stats.items() if _key_is(k, *SCIPY_STEP))
     rhs = sum(v[3] for k, v in stats.items() if k[2] == "fun" and k[0].endswith("solve.py"))
@@ -225,7 +225,7 @@ def profile(label, call, top, repeats=3):
         print(f"    {name:31s}{v * 1e3:8.2f} ms  {v / total:6.1%}")
     print(f"  top {top} by own time:\n  {'ncalls':>7s}{'own (ms)':>10s}{'cum (ms)':>10s}  function")
     rows = sorted(stats.items(), key=lambda kv: kv[1][2], reverse=True)[:top]
-    for (file, line, func), (cc, nc, tt, ct, _) in rows:
+    for (file, line, func), (_cc, nc, tt, ct, _) in rows:
         where = f"{os.path.basename(file)}:{line}({func})" if line else func
         print(f"  {nc:7d}{tt * 1e3:10.3f}{ct * 1e3:10.3f}  {where}")
 
@@ -244,7 +244,8 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--top", type=int, default=15)
-    ap.add_argument("--quick", action="store_true", help="3 repeats (benchmarks/run_all.py --quick)")
+    ap.add_argument("--quick", action="store_true",
+                    help="3 repeats (benchmarks/run_all.py --quick)")
     args = ap.parse_args()
     if args.quick:
         args.repeats = min(args.repeats, 3)
@@ -268,7 +269,8 @@ def main():
               f"{np.max(np.abs(times - exact)):20.2e}")
     err_base = np.max(np.abs(results[-1][2] - exact))
     for name, wall, times in results[:-1]:
-        print(f"RESULT 30-bounce ball, {name.split(', ')[1]}: {wall * 1e3:.1f} ms vs solve_ivp loop "
+        print(f"RESULT 30-bounce ball, {name.split(', ')[1]}: {wall * 1e3:.1f} ms "
+              f"vs solve_ivp loop "
               f"{base * 1e3:.1f} ms = {wall / base:.2f}x; max jump-time error "
               f"{np.max(np.abs(times - exact)):.1e} (solve_ivp {err_base:.1e})")
 
@@ -281,7 +283,8 @@ def main():
     print(f"  engine overhead     {(w_sim - w_bare) / nsteps * 1e6:8.1f} us/step "
           f"({(w_sim - w_bare) / w_sim:.1%} of simulate); arc has {len(arc)} samples")
     print(f"RESULT smooth linear system, 10 s: simulate {w_sim * 1e3:.1f} ms vs bare RK45 steps "
-          f"{w_bare * 1e3:.1f} ms = {w_sim / w_bare:.2f}x ({(w_sim - w_bare) / nsteps * 1e6:.1f} us/step "
+          f"{w_bare * 1e3:.1f} ms = {w_sim / w_bare:.2f}x "
+          f"({(w_sim - w_bare) / nsteps * 1e6:.1f} us/step "
           "of engine overhead)")
 
     print("\n=== where simulate's time goes (clocked parts; step() includes the RHS calls)")

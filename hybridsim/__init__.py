@@ -8,18 +8,20 @@ in hybrid time (:func:`plot_flows`, :func:`plot_jumps`, :func:`plot_hybrid`,
 :func:`plot_phase`, :func:`plot_time_domain`). Theorem-check helpers live in
 :mod:`hybridsim.testing`.
 """
-from ._version import __version__
+from . import compiled as compiled
+from . import library as library
+from . import rules as rules
+from . import testing as testing
+from ._version import __version__ as __version__
 from .arc import HybridArc, Termination
-from .system import HybridSystem
-from .rules import MapError, SimulationError, SimulationWarning
-from .solve import simulate, METHODS
-from .history import History, HistoryError
-from .compose import Interconnection, LinearPlant, connect, network
 from .batch import BatchError, BatchWarning, simulate_many, sweep
 from .batch_vectorized import simulate_vectorized
-from .plot import plot_flows, plot_jumps, plot_hybrid, plot_phase, plot_time_domain
-from . import compiled, library, rules, testing
-
+from .compose import Interconnection, LinearPlant, connect, network
+from .history import History, HistoryError
+from .plot import plot_flows, plot_hybrid, plot_jumps, plot_phase, plot_time_domain
+from .rules import MapError, SimulationError, SimulationWarning
+from .solve import METHODS, simulate
+from .system import HybridSystem
 
 __all__ = [
     "HybridSystem", "HybridArc", "Termination", "simulate", "MapError",

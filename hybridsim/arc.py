@@ -74,7 +74,7 @@ def _describe(system):
 def _picklable(obj) -> bool:
     try:
         pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
-    except Exception:  # any failure means: does not travel
+    except Exception:  # noqa: BLE001 - any failure means: does not travel
         return False
     return True
 
@@ -427,7 +427,7 @@ class HybridArc:
                 y = np.asarray(sol(ts), dtype=float)
                 if y.shape == (n, len(ts)):
                     return y.T
-            except Exception:  # a callable of scalars only: one call per time
+            except Exception:  # noqa: BLE001 - a callable of scalars only: one call per time
                 pass
         return np.array([np.asarray(sol(s), dtype=float).reshape(n) for s in ts])
 
@@ -1170,7 +1170,8 @@ class HybridArc:
                 s = scalar_str("stats")
                 stats = json.loads(s) if s else None
             except (json.JSONDecodeError, TypeError, ValueError, KeyError) as e:
-                raise bad(f"components/stats are not valid JSON of the expected form: {e}")
+                raise bad(f"components/stats are not valid JSON of the expected form: "
+                          f"{e}") from e
             if stats is not None and not isinstance(stats, dict):
                 raise bad(f"stats must be a JSON object, got {type(stats).__name__}")
             xdot = d.get("xdot")

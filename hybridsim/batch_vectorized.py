@@ -18,6 +18,7 @@ in the tests). The event search itself is an Illinois-type regula falsi
 """
 from __future__ import annotations
 
+import itertools
 import math
 import numbers
 
@@ -27,8 +28,17 @@ from scipy.integrate import RK45
 from ._progress import make_bar
 from .arc import HybridArc, Termination
 from .events import _maximize, _near_peak
-from .rules import (FAILURES, Priority, is_short_flow, is_sticking, jumps_now, needs_coin,
-                    sticking_message, t_max_slack, time_scale)
+from .rules import (
+    FAILURES,
+    Priority,
+    is_short_flow,
+    is_sticking,
+    jumps_now,
+    needs_coin,
+    sticking_message,
+    t_max_slack,
+    time_scale,
+)
 from .solve import MapError, SimulationError, check_options
 from .system import HybridSystem, as_map
 
@@ -107,7 +117,7 @@ class _SampleLog:
         order = np.argsort(self.rows[:k], kind="stable")
         bounds = np.concatenate(([0], np.cumsum(self.count)))
         out = []
-        for a, b in zip(bounds[:-1], bounds[1:]):
+        for a, b in itertools.pairwise(bounds):
             idx = order[a:b]
             out.append((self.t[idx], self.j[idx], self.x[idx]))
         self.rows = self.t = self.j = self.x = None
@@ -174,7 +184,7 @@ class _VMaps:
         except MapError:
             if strict:
                 raise
-        except Exception as e:  # noqa: BLE001 - isolate the failing rows
+        except Exception as e:
             if strict:          # at x0, as simulate: a MapError naming the map
                 raise MapError(f"{name} raised {type(e).__name__}: {e} (at the initial "
                                f"states, t={t[0]:.10g})", name, float(t[0]), int(j[0])) from e
@@ -482,7 +492,7 @@ class _BatchRun:
         for r in rows[bad]:
             if not self.done[r]:
                 e = self.bad_exc[r]
-                self._stop([r], Termination.MAP_ERROR, lambda i: f"{type(e).__name__}: {e}")
+                self._stop([r], Termination.MAP_ERROR, lambda i, e=e: f"{type(e).__name__}: {e}")
                 self.exception[r] = e
         return ~bad
 
@@ -557,13 +567,15 @@ class _BatchRun:
                     for r, tt, jj, xx in zip(orow[stick], ot[stick], oj[stick], ox[stick]):
                         fl = self.flows3[r]
                         self._stop([r], Termination.ZENO,
-                                   lambda i: sticking_message(tt, jj, xx, fl[np.isfinite(fl)]))
+                                   lambda i, tt=tt, jj=jj, xx=xx, fl=fl:
+                                   sticking_message(tt, jj, xx, fl[np.isfinite(fl)]))
                     for cause, sel in ((Termination.NOT_IN_SETS, first),
                                        (Termination.LEFT_SETS, ~first & ~stick)):
                         if sel.any():
                             xs, ts, js = ox[sel], ot[sel], oj[sel]
                             self._stop(orow[sel], cause,
-                                       lambda i: f"x={xs[i]} at (t={ts[i]}, j={js[i]})")
+                                       lambda i, xs=xs, ts=ts, js=js:
+                                       f"x={xs[i]} at (t={ts[i]}, j={js[i]})")
                 at_end = ~out & (st >= self.t_max)
                 if at_end.any():
                     self._stop(sr[at_end], Termination.T_MAX)
@@ -610,7 +622,8 @@ class _BatchRun:
             if zeno.any():
                 zr, zt, zs = rows[zeno], t[zeno], self.short[rows[zeno]]
                 self._stop(zr, Termination.ZENO,
-                           lambda i: f"{zs[i]} consecutive jumps after flows shorter than "
+                           lambda i, zs=zs, zt=zt:
+                           f"{zs[i]} consecutive jumps after flows shorter than "
                                      f"max(zeno_time*max(1,|t|), zeno_rtol*time scale) "
                                      f"near t={zt[i]:.10g}")
             rows = rows[~full & ~zeno]

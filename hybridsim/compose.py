@@ -264,7 +264,7 @@ class Interconnection(HybridSystem):
     def flow_map(self, x, t, j, u=None):
         y = _Outputs(self, x, t, j)
         out = np.empty(self.state_dim)
-        for nm, sl, f, ufn in self._items:
+        for _nm, sl, f, ufn in self._items:
             out[sl] = f(x[sl], t, j, None if ufn is None else ufn(t, y))
         return out
 

@@ -102,7 +102,7 @@ def _axes_array(ax, k, where):
     if ax is None:
         import matplotlib.pyplot as plt
         w, h = plt.rcParams["figure.figsize"]
-        fig, axs = plt.subplots(k, 1, sharex=True, squeeze=False,
+        _fig, axs = plt.subplots(k, 1, sharex=True, squeeze=False,
                                 figsize=(w, h * max(1.0, 0.45 * k)))
         return axs[:, 0]
     axs = [ax] if _is_axes(ax) else ax
@@ -227,8 +227,8 @@ def _select(arc, idx, fn, where):
         if not callable(fn):
             raise TypeError(f"{where}: fn must be a callable fn(x), fn(x, t) or fn(x, t, j), "
                             f"got {type(fn).__name__}")
-        if idx is not None and (callable(idx) or isinstance(idx, np.ndarray)
-                                and idx.dtype.kind == "f"):
+        if idx is not None and (callable(idx) or (isinstance(idx, np.ndarray)
+                                and idx.dtype.kind == "f")):
             raise TypeError(f"{where}: give either fn= or values in idx, not both")
         return "fn", (fn, idx), None
     if isinstance(idx, np.ndarray) and idx.dtype.kind == "f":

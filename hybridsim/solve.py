@@ -10,7 +10,6 @@ import bisect
 import enum
 import math
 import numbers
-import sys
 import warnings
 from dataclasses import dataclass, field
 
@@ -21,10 +20,24 @@ from scipy.integrate._ivp.rk import RungeKutta
 from .arc import HybridArc
 from .events import find_interior_event, locate_event
 from .history import History
-from .rules import (FAILURES, PRIORITIES, Action, MapError, Priority, SimulationError,
-                    SimulationWarning, Termination, decide, decide_at_event, is_short_flow,
-                    is_sticking, needs_coin, sticking_message, t_max_slack,
-                    time_scale)
+from .rules import (
+    FAILURES,
+    PRIORITIES,
+    Action,
+    MapError,
+    Priority,
+    SimulationError,
+    SimulationWarning,
+    Termination,
+    decide,
+    decide_at_event,
+    is_short_flow,
+    is_sticking,
+    needs_coin,
+    sticking_message,
+    t_max_slack,
+    time_scale,
+)
 from .system import HybridSystem, guard_min
 
 __all__ = ["simulate", "MapError", "SimulationError", "SimulationWarning"]

@@ -69,7 +69,7 @@ def _named(m, name):
             return m(x, t, j, u)
         except MapError:
             raise
-        except Exception as e:  # noqa: BLE001 - re-raised with the map's name
+        except Exception as e:
             raise MapError(f"{name} raised {type(e).__name__}: {e} (at {_where(t, j)})",
                            name, t, j) from e
     return call

@@ -23,8 +23,12 @@ pytestmark = pytest.mark.slow
 
 import hybridsim as hs  # noqa: E402
 import hybridsim.compiled as hc  # noqa: E402
-from hybridsim.compiled import (CompiledSystem, CompileError, simulate_compiled,  # noqa: E402
-                                simulate_many_compiled)
+from hybridsim.compiled import (  # noqa: E402
+    CompiledSystem,
+    CompileError,
+    simulate_compiled,
+    simulate_many_compiled,
+)
 from hybridsim.library import BouncingBall, Timer, bouncing_ball_jump_times  # noqa: E402
 
 T = hs.Termination
@@ -341,7 +345,8 @@ def test_apex_entered_and_left_within_one_step(apex):
 def test_random_priority_same_coins_as_python_path():
     """Timer with overlapping C and D: random priority draws the same coins
     from numpy's Generator on both paths."""
-    sysr = _compiled(CompiledSystem(one, zero, flow_guard=timer_hC, jump_guard=lambda x, t, j, p: x[0] - 0.5,
+    sysr = _compiled(CompiledSystem(one, zero, flow_guard=timer_hC,
+                                    jump_guard=lambda x, t, j, p: x[0] - 0.5,
                                     state_dim=1, params=[1.0]))
     # t_max off the event grid: an event exactly at t_max is decided by round-off
     # (a few ulp either side), and with random priority that decides a coin

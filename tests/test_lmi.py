@@ -4,9 +4,19 @@ import numpy as np
 import pytest
 
 from observers import lmi
-from observers.lmi import (LMISolverError, LMIVerificationError, PAPER_L,
-                           check_gain_lmi10, lmi10_matrices, lmi10_residuals,
-                           lmi_margin, solve_lmi10, solve_sdp, verify_lmi, verify_lmis)
+from observers.lmi import (
+    PAPER_L,
+    LMISolverError,
+    LMIVerificationError,
+    check_gain_lmi10,
+    lmi10_matrices,
+    lmi10_residuals,
+    lmi_margin,
+    solve_lmi10,
+    solve_sdp,
+    verify_lmi,
+    verify_lmis,
+)
 
 cp = pytest.importorskip("cvxpy")
 

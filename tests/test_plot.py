@@ -14,6 +14,7 @@ Agg backend throughout: nothing is displayed.
 import doctest
 
 import matplotlib
+
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np

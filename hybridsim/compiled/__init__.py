@@ -41,11 +41,14 @@ import warnings
 import numpy as np
 
 from ..arc import HybridArc
-from ..rules import (FAILURES, MapError, SimulationWarning, Termination)
+from ..rules import FAILURES, MapError, SimulationWarning, Termination
 from ..system import HybridSystem
 
 __all__ = ["CompiledSystem", "simulate_compiled", "simulate_many_compiled", "CompileError",
            "available", "compile_kernels"]
+
+_KIND_TEXT = {"vec": "an array of state_dim floats", "scalar": "a float"}
+
 
 _INSTALL = "pip install 'hybridsim[fast]'"
 _ROLES = (("flow", "vec"), ("jump", "vec"), ("jump_guard", "scalar"),
@@ -317,7 +320,7 @@ class CompiledSystem(HybridSystem):
                     f"CompiledSystem: numba could not compile the map {role!r} "
                     f"({getattr(fn, '__qualname__', repr(fn))}): {_summarise(e)}. Write it "
                     f"as a numpy function of (x, t, j, p) returning "
-                    f"{'an array of state_dim floats' if kind == 'vec' else 'a float' if kind == 'scalar' else 'a bool'}, "
+                    f"{_KIND_TEXT.get(kind, 'a bool')}, "
                     f"or run this system on the Python path with hs.simulate(system, ...) "
                     f"(the fallback, same maps, no compiling)", role) from e
         # sets derived from their guards where no indicator is given
@@ -460,7 +463,9 @@ def _message(system, code, detail, info, x_last, stats, max_steps, max_samples, 
         if "jump" not in system.maps and role == "jump":
             return cause, (f"the state is in the jump set at t={t}, j={j} but the system "
                            f"has no jump map")
-        return cause, (f"{role} map returned {'non-finite values' if int(v) == len(x_last) else f'an array of shape ({int(v)},)'} "
+        what = ("non-finite values" if int(v) == len(x_last)
+                else f"an array of shape ({int(v)},)")
+        return cause, (f"{role} map returned {what} "
                        f"at x0 (expected {len(x_last)} finite floats; at t={t}, j={j})")
     return cause, base
 
@@ -677,7 +682,7 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
             out = kern[0](*maps, x, p, fopt, iopt, atol_a, rng)
             longest = max(longest, len(out[0]))
             arcs.append(_arc(system, *out, lim))
-        cap = 1 << int(math.ceil(math.log2(longest * 1.25 + 1)))
+        cap = 1 << math.ceil(math.log2(longest * 1.25 + 1))
         per = (2 + 2 * n) * 8
         while i < N:
             B = int(max(64, min(N - i, chunk_bytes // (cap * per))))
@@ -695,7 +700,7 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
                     arcs.append(_arc(system, *out, lim))
             # the next chunk's slots: room for the longest run seen, with margin
             longest = int(NS.max()) if B else cap
-            cap = max(cap, 1 << int(math.ceil(math.log2(max(longest, 2) * 1.25))))
+            cap = max(cap, 1 << math.ceil(math.log2(max(longest, 2) * 1.25)))
             del TT, JJ, XX, XXD
             i += B
     for arc in arcs:

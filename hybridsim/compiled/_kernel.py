@@ -978,7 +978,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rng):
             da = True if past else d_active
             phi_on = use_phi and (da or has_hC)
             stats[3] += 1
-            kind, te, xe, lo, ylo, hint = _event(
+            kind, te, xe, lo, _ylo, hint = _event(
                 M, ya, hQ, a, hs, j, p, has_C, has_D, da, phi_on, da and has_hD, useC,
                 a, elo, ehi, clamp, h_abs, flow_t0, prio, rng)
             h_hint = hint
@@ -1133,9 +1133,18 @@ def _key_with_rules():
         if isinstance(obj, numba.core.dispatcher.Dispatcher) and \
                 hasattr(cache, "_index_key") and not getattr(cache, "_hs_keyed", False):
             orig = cache._index_key
-            cache._index_key = (lambda orig: lambda sig, codegen:
-                                orig(sig, codegen) + (digest,))(orig)
+            cache._index_key = _keyed(orig, digest)
             cache._hs_keyed = True
+
+
+def _keyed(orig, digest):
+    """A cache index key with the rules' digest appended."""
+    return lambda sig, codegen: orig(sig, codegen) + (digest,)
+
+
+def _unless_specialised(fn):
+    """A cache save/load that skips specialised signatures (see below)."""
+    return lambda sig, arg: None if _has_dispatcher(sig) else fn(sig, arg)
 
 
 def _has_dispatcher(sig):
@@ -1157,10 +1166,8 @@ def _skip_specialised():
         if isinstance(obj, numba.core.dispatcher.Dispatcher) and \
                 hasattr(cache, "save_overload") and not getattr(cache, "_hs_skip", False):
             save, load = cache.save_overload, cache.load_overload
-            cache.save_overload = (lambda save: lambda sig, data:
-                                   None if _has_dispatcher(sig) else save(sig, data))(save)
-            cache.load_overload = (lambda load: lambda sig, ctx:
-                                   None if _has_dispatcher(sig) else load(sig, ctx))(load)
+            cache.save_overload = _unless_specialised(save)
+            cache.load_overload = _unless_specialised(load)
             cache._hs_skip = True
 
 
