@@ -1,0 +1,333 @@
+"""The observers of Li & Sanfelice as :class:`hybridsim.HybridSystem` subclasses.
+
+=================================  =============================================
+(2) Luenberger observer            :class:`LuenbergerObserver`
+(3), (10)-(12) H_n                 :class:`NominalObserver` (= :data:`MotivatingObserver`)
+(7)-(9), (17)-(18) H_c             :class:`ConstantNoiseObserver`
+Section IV-E H_pc                  :class:`PiecewiseConstantNoiseObserver`
+bounded noise for batches          :class:`BoundedNoiseGenerator`
+=================================  =============================================
+
+Each observer's input is the measured output y = H x + m (decision 2), its
+output the estimate x̄ = a1 x̂1 + a2 x̂2 (footnote 2). Run one with its plant
+through :func:`observers.li_sanfelice.simulate`.
+
+Examples
+--------
+>>> from observers.li_sanfelice import NominalObserver, example_VB
+>>> obs = NominalObserver(example_VB())
+>>> obs.state_dim, sorted(obs.slices)          # (x̂1, x̂2, tau, q) of (10)
+(6, ['q', 'tau', 'xh1', 'xh2'])
+"""
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+import hybridsim as hs
+from observers._common import matrix, vector
+
+from .design import (
+    _WARN_HT_INV,
+    Design,
+    L_tilde,
+    Xi_matrix,
+    _check_plant,
+    _hidden_unstable_mode,
+    alpha_max,
+)
+
+__all__ = [
+    "NominalObserver",
+    "MotivatingObserver",
+    "ConstantNoiseObserver",
+    "PiecewiseConstantNoiseObserver",
+    "LuenbergerObserver",
+    "BoundedNoiseGenerator",
+]
+
+
+def _design_from_args(A, H, L1, L2, delta, a1, a2):
+    if isinstance(A, Design):
+        if any(v is not None for v in (H, L1, L2, delta)):
+            raise TypeError("pass either a Design or (A, H, L1, L2, delta), not both")
+        return A
+    if delta is None:
+        raise TypeError("delta is required when A is a matrix (or pass a Design)")
+    return Design(A=A, H=H, L1=L1, L2=L2, delta=delta, a1=a1, a2=a2)
+
+
+class _TwoCopyObserver(hs.HybridSystem):
+    """Common part of H_n, H_c, H_pc: two copies x̂1, x̂2, the timer, the estimate x̄.
+
+    State layout (time-major arcs): x̂1 (n), x̂2 (n), then the observer's own
+    auxiliary states (see ``slices``). Input u = y (p,). Output x̄ = a1 x̂1 + a2 x̂2.
+    """
+
+    _has_xi = False
+    _has_q = True
+
+    def __init__(self, A, H=None, L1=None, L2=None, delta=None, *, a1=0.5, a2=None):
+        d = _design_from_args(A, H, L1, L2, delta, a1, a2)
+        self.design = d
+        n, p = d.n, d.p
+        self.input_dim = p
+        self.output_dim = n
+        sl, k = {}, 0
+        for name, size in (("xh1", n), ("xh2", n)) + ((("xi1", n * p), ("xi2", n * p), ("mhat", p))
+                                                       if self._has_xi else ()) + (("tau", 1),) + \
+                ((("q", 1),) if self._has_q else ()):
+            sl[name] = slice(k, k + size)
+            k += size
+        self.slices = sl
+        self.state_dim = k
+        self._tau = sl["tau"].start
+        self._q = sl["q"].start if self._has_q else None
+        # flow matrices, and the one-jump guard: the timer reaches delta with q = 0
+        self._Lt1, self._Lt2 = L_tilde(d.L1), L_tilde(d.L2)
+
+    # -- sets -----------------------------------------------------------
+    def jump_guard(self, x, t, j, u):
+        if self._has_q and x[self._q] > 0.5:
+            return -1.0
+        return x[self._tau] - self.design.delta
+
+    def jump_set(self, x, t, j, u):
+        return bool(x[self._tau] >= self.design.delta and (not self._has_q or x[self._q] < 0.5))
+
+    def output(self, x, t, j):
+        d = self.design
+        return d.a1 * x[self.slices["xh1"]] + d.a2 * x[self.slices["xh2"]]
+
+    # -- helpers --------------------------------------------------------
+    def split(self, X):
+        """Dict of the named parts of a state (n_state,) or time-major (N, n_state) array."""
+        X = np.asarray(X, dtype=float)
+        return {k: X[..., s] for k, s in self.slices.items()}
+
+    def initial_state(self, xhat0, mhat0=None):
+        """zeta(0, 0) in S_n / S_c / S_pc: x̂1 = x̂2 = xhat0, xi = 0, m̂ = mhat0 (default 0), tau = q = 0."""
+        d = self.design
+        z = np.zeros(self.state_dim)
+        xh = vector("xhat0", xhat0, d.n)
+        z[self.slices["xh1"]] = xh
+        z[self.slices["xh2"]] = xh
+        if self._has_xi and mhat0 is not None:
+            z[self.slices["mhat"]] = vector("mhat0", mhat0, d.p)
+        return z
+
+
+class NominalObserver(_TwoCopyObserver):
+    """H_n, the finite-time observer (10)-(12) (without noise compensation).
+
+    State zeta = (x̂1, x̂2, tau, q) in R^{2n} x [0, delta] x {0, 1}; input y.
+    Flow (11), with L_i H x read as L_i y (decision 2)::
+
+        x̂_i' = F_i x̂_i + L_i y,  tau' = 1 - q,  q' = 0.
+
+    Jump on D_n = {tau >= delta, q = 0} (12)::
+
+        x̂_i+ = K1 x̂1 + K2 x̂2,  tau+ = 0,  q+ = 1 - q.
+
+    It coincides with the observer (3) of Raff and Allgöwer (one reset at
+    t = delta, none later). From S_n (x̂1 = x̂2, tau = q = 0) and m = 0 the
+    error is exactly zero for t >= delta, j = 1 (Theorem 4.7).
+
+    Parameters
+    ----------
+    A : Design or (n, n) array_like
+    H, L1, L2, delta : see :class:`Design` (omit them when A is a Design)
+    a1, a2 : float
+        Weights of the estimate x̄ = a1 x̂1 + a2 x̂2 (the output).
+
+    References
+    ----------
+    Li & Sanfelice, eqs. (3), (10)-(12), (14), Theorem 4.7.
+    """
+
+    def flow_map(self, x, t, j, u):
+        d, n = self.design, self.design.n
+        dx = np.zeros(self.state_dim)
+        dx[:n] = d.F1 @ x[:n] + d.L1 @ u
+        dx[n:2 * n] = d.F2 @ x[n:2 * n] + d.L2 @ u
+        dx[self._tau] = 1.0 - x[self._q]
+        return dx
+
+    def jump_map(self, x, t, j, u):
+        d, n = self.design, self.design.n
+        R = d.K1 @ x[:n] + d.K2 @ x[n:2 * n]
+        xn = np.empty(self.state_dim)
+        xn[:n] = R
+        xn[n:2 * n] = R
+        xn[self._tau] = 0.0
+        xn[self._q] = 1.0 - x[self._q]
+        return xn
+
+
+#: The observer (3) of Raff and Allgöwer is H_n (decision 11).
+MotivatingObserver = NominalObserver
+
+
+class _NoiseCompensating(_TwoCopyObserver):
+    _has_xi = True
+
+    def __init__(self, *args, **kw):
+        super().__init__(*args, **kw)
+        self.design.check_HT_invertible()   # Theorem 4.13 / 4.14: checked before any run
+        if self.design.HT_inv_norm > _WARN_HT_INV:
+            warnings.warn(
+                f"|(H T - I)^-1| = {self.design.HT_inv_norm:.3g} (cond {self.design.HT_cond:.3g}): the m̂ update of "
+                "(18) amplifies integration and modelling errors by this factor", RuntimeWarning, stacklevel=2)
+
+    def flow_map(self, x, t, j, u):
+        d, n, p = self.design, self.design.n, self.design.p
+        s = self.slices
+        mh = x[s["mhat"]]
+        dx = np.zeros(self.state_dim)
+        dx[:n] = d.A @ x[:n] + d.L1 @ (u - d.H @ x[:n] - mh)
+        dx[n:2 * n] = d.A @ x[n:2 * n] + d.L2 @ (u - d.H @ x[n:2 * n] - mh)
+        # diag_p(F_i) xi_i + L_tilde_i: each n-piece is driven by a column of L_i
+        dx[s["xi1"]] = (d.F1 @ Xi_matrix(x[s["xi1"]], n, p)).reshape(-1, order="F") + self._Lt1
+        dx[s["xi2"]] = (d.F2 @ Xi_matrix(x[s["xi2"]], n, p)).reshape(-1, order="F") + self._Lt2
+        dx[self._tau] = 1.0 - x[self._q] if self._has_q else 1.0
+        return dx
+
+    def jump_map(self, x, t, j, u):
+        d, n, p = self.design, self.design.n, self.design.p
+        s = self.slices
+        mh = x[s["mhat"]]
+        R = d.K1 @ x[:n] + d.K2 @ x[n:2 * n]
+        T = d.K1 @ Xi_matrix(x[s["xi1"]], n, p) + d.K2 @ Xi_matrix(x[s["xi2"]], n, p)
+        w = np.linalg.solve(d.H @ T - np.eye(p), d.H @ R - (u - mh))   # (H T - I)^{-1}(H R - (y - m̂))
+        xn = np.zeros(self.state_dim)
+        xn[:n] = R - T @ w
+        xn[n:2 * n] = R - T @ w
+        xn[s["mhat"]] = mh + w
+        # xi1 = xi2 = 0, tau = 0
+        if self._has_q:
+            xn[self._q] = 1.0 - x[self._q]
+        return xn
+
+
+class ConstantNoiseObserver(_NoiseCompensating):
+    """H_c, the observer (17)-(18) that is exact after one jump under constant noise.
+
+    State zeta_c = (x̂1, x̂2, xi1, xi2, m̂, tau, q) in R^r x [0, delta] x {0, 1},
+    r = 2n + (2n + 1) p; input y. Flow (17)::
+
+        x̂_i' = A x̂_i + L_i (y - H x̂_i) - L_i m̂
+        xi_i' = diag_p(F_i) xi_i + L_tilde_i,   m̂' = 0,  tau' = 1 - q,  q' = 0.
+
+    Jump on D_c = {tau >= delta, q = 0} (18), R = K1 x̂1 + K2 x̂2,
+    T = K1 Xi(xi1) + K2 Xi(xi2) (footnote 7, decision 3)::
+
+        x̂_i+ = R - T (H T - I)^{-1} (H R - (y - m̂)),   xi_i+ = 0,
+        m̂+ = m̂ + (H T - I)^{-1} (H R - (y - m̂)),     tau+ = 0,  q+ = 1 - q.
+
+    H T(delta) - I must be invertible (Theorem 4.13): checked at construction
+    (ValueError otherwise); ``design.HT_cond`` and ``design.HT_inv_norm`` report
+    how much m̂'s update amplifies errors.
+
+    References
+    ----------
+    Li & Sanfelice, eqs. (7)-(9) (scalar), (17)-(18), footnotes 6-7, Theorem 4.13.
+    """
+
+
+class PiecewiseConstantNoiseObserver(_NoiseCompensating):
+    """H_pc (Section IV-E): H_c without q, jumping every delta.
+
+    State zeta_pc = (x̂1, x̂2, xi1, xi2, m̂, tau) in R^r x [0, delta]; the flow
+    is (17) with tau' = 1, the jump is (18) with tau+ = 0, D_pc = {tau >= delta}.
+    Under piecewise-constant noise with switches more than 2 delta apart it is
+    exact within 2 delta after each switch (Theorem 4.14, decisions 5-6).
+
+    References
+    ----------
+    Li & Sanfelice, Section IV-E, Theorem 4.14.
+    """
+
+    _has_q = False
+
+
+class LuenbergerObserver(hs.HybridSystem):
+    """The Luenberger observer (2): x̂0' = A x̂0 - L0 (H x̂0 - y) (no jumps).
+
+    References
+    ----------
+    Li & Sanfelice, eq. (2).
+    """
+
+    def __init__(self, A, H, L0):
+        A, H = _check_plant(A, H)
+        n = A.shape[0]
+        L0 = matrix("L0", L0, (n, H.shape[0]), what=" (n x p)")
+        a = alpha_max(A - L0 @ H)
+        if a >= 0:
+            lam = _hidden_unstable_mode(A, H)
+            if lam is not None:
+                raise ValueError(
+                    f"(A, H) is not detectable: the eigenvalue {lam:.6g} of A (Re >= 0) is invisible in y = H x, "
+                    "so A - L0 H keeps it for every L0 and the Luenberger observer (2) cannot converge")
+            raise ValueError(f"A - L0 H is not Hurwitz (max Re eig = {a:.3g} >= 0); choose L0 so that it is "
+                             "(the Luenberger observer (2) needs it)")
+        self.A, self.H, self.L0 = A, H, L0
+        self.state_dim = n
+        self.input_dim = H.shape[0]
+
+    def flow_map(self, x, t, j, u):
+        return self.A @ x - self.L0 @ (self.H @ x - u)
+
+
+
+
+class BoundedNoiseGenerator(hs.HybridSystem):
+    """A noise source whose (constant) state holds the noise's coefficients, for batches of realisations.
+
+    State w = (a, omega, phi), each (p, K) flattened row-major (state_dim = 3 p K); flow 0, no jumps.
+    Output m(t)_i = sum_k a_ik sin(omega_ik t + phi_ik), so |m|_inf <= sqrt(sum_i (sum_k |a_ik|)^2).
+    Different initial states are different noise realisations, so :func:`hybridsim.simulate_many`
+    runs a whole batch of them through one interconnection (see :func:`noise_batch`).
+    """
+
+    def __init__(self, p, K=3):
+        self.p, self.K = int(p), int(K)
+        self.state_dim = 3 * self.p * self.K
+        self.output_dim = self.p
+
+    def flow_map(self, x, t, j, u):
+        return np.zeros(self.state_dim)
+
+    def _parts(self, x):
+        pk = self.p * self.K
+        return (x[:pk].reshape(self.p, self.K), x[pk:2 * pk].reshape(self.p, self.K),
+                x[2 * pk:].reshape(self.p, self.K))
+
+    def output(self, x, t, j):
+        a, w, ph = self._parts(np.asarray(x, dtype=float))
+        return np.sum(a * np.sin(w * t + ph), axis=1)
+
+    def callable(self, w0):
+        """The realisation of the state w0 as a plain function t -> m(t)."""
+        w0 = np.array(w0, dtype=float)
+        return lambda t: self.output(w0, t, 0)
+
+    def sup_bound(self, w0):
+        """sqrt(sum_i (sum_k |a_ik|)^2) >= |m|_inf for the realisation w0."""
+        a, _, _ = self._parts(np.asarray(w0, dtype=float))
+        return float(np.linalg.norm(np.sum(np.abs(a), axis=1)))
+
+    def random_states(self, N, m_max, *, w_max=5.0, seed=None):
+        """N realisations with |m|_inf <= m_max (amplitudes scaled so the bound is m_max), (N, 3pK)."""
+        rng = np.random.default_rng(seed)
+        out = np.empty((N, self.state_dim))
+        for r in range(N):
+            a = rng.uniform(-1, 1, size=(self.p, self.K))
+            a *= m_max / np.linalg.norm(np.sum(np.abs(a), axis=1))
+            w = rng.uniform(0.0, w_max, size=(self.p, self.K))
+            ph = rng.uniform(0, 2 * np.pi, size=(self.p, self.K))
+            out[r] = np.concatenate([a.ravel(), w.ravel(), ph.ravel()])
+        return out
+
+
