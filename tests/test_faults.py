@@ -1,20 +1,30 @@
 """The engine under bad inputs and faults (issue 16): no missed jump, no
 silent failure, no runaway, the right cause.
 
-What this file tries, and what each gets (65 cases in all):
+What this file tries, and what each gets (183 runs in 71 tests):
 
-* 105 apex runs (7 heights x 3 tolerances x 5 methods) of a flow entering
-  and leaving D inside one solver step: each makes its jump, at the closed-form
-  time; 6 more with set indicators only, under both priorities.
-* 24 timers whose jumps land on t_max up to round-off: every jump taken.
-* 22 bad arguments (j0, seed, atol, dense, throw, progress, method, refine,
-  max_steps, t_eval...): a TypeError/ValueError naming the argument.
-* 9 broken maps (raising, complex, wrong shape mid-run, NaN from a set or a
-  guard, a string from a set, a defaulted parameter, a ufunc): MapError naming
-  the map, t and j (or the right result where the map is valid Python).
-* 8 failures and runaways (NaN flow, blow-up, finite escape, max_steps,
-  max_samples, chattering, stiffness, a sticking ball, Ctrl-C): the right
-  cause, the arc so far, one warning where the computation failed.
+* 105 apex runs (7 heights from 0.3 down to 1e-6 above the guard x 3
+  tolerances x 5 methods) of a flow entering and leaving D inside one solver
+  step: each makes its jump, at the closed-form time; 1 more under flows
+  priority (leaving C and coming back), and 6 with set indicators only under
+  both priorities.
+* 24 timers whose jumps land on t_max up to round-off (periods 0.1, 0.25, 1,
+  1/3; t_max 1, 2, 10; guards and indicators): every jump taken.
+* 23 bad arguments (j0, seed, atol, dense, throw, warn, progress, method,
+  refine, max_steps, zeno_rtol, t_eval, a complex x0): a TypeError or
+  ValueError naming the argument.
+* 11 maps: a defaulted parameter and a ufunc get the right result; complex,
+  wrong-shape, NaN and string values from maps, sets and guards, at x0 and
+  mid-run, and a jump map raising at its first jump: a MapError naming the
+  map, t and j, chained from the original, with the arc so far.
+* 10 failures and runaways (NaN flow, blow-up with warn=False, max_steps,
+  t_max = inf, max_samples, chattering with a 1e-9 hysteresis, a stiff and a
+  non-stiff flow, a ball sticking to a moving floor, Ctrl-C): the right cause,
+  the arc so far, one warning where the computation failed.
+* t_eval: samples at the given times, both samples of a jump at a jump time.
+
+Batches under faults are in tests/test_batch_faults.py; random systems in
+tests/test_fuzz.py.
 """
 import math
 import warnings
