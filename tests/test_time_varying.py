@@ -177,7 +177,7 @@ def test_remark3_bound_random_lti(seed):
     A, C, _ = random_lti(seed, n=3, p=1)
     rc = tv.reduced_coordinates(A, C)
     # H strongly unstable backwards-in-time makes Phi_H small: poles at +3 (Phi_H = e^{-H tau})
-    L = tv._place_L(rc.A2, rc.A1, np.array([3.0, 3.5]))
+    L = tv.design._place_L(rc.A2, rc.A1, np.array([3.0, 3.5]))
     H = rc.A2 + L @ rc.A1
     tau = 1.5
     r = tv.remark3(expm_Phi(rc.A2), expm_Phi(H), tau, [0.0])
@@ -239,7 +239,7 @@ def test_bad_inputs_section2():
     A, C, _ = random_lti(0)
     with pytest.raises(ValueError, match="A must be square"):
         tv.reduced_coordinates(np.ones((2, 3)), C)
-    with pytest.raises(ValueError, match=r"C must have shape \(\?, 4\), got \(2, 3\)"):
+    with pytest.raises(ValueError, match=r"C must have shape \(\*, 4\), got \(2, 3\)"):
         tv.reduced_coordinates(A, np.ones((2, 3)))
     with pytest.raises(ValueError, match="fewer rows than n=4"):
         tv.reduced_coordinates(A, np.eye(4))
@@ -251,10 +251,10 @@ def test_bad_inputs_section2():
         tv.reduced_coordinates(A, C, N=np.ones((1, 4)))
     with pytest.raises(ValueError, match="C_T = \\[C; N\\] must be invertible"):
         tv.reduced_coordinates(A, C, N=C.copy())
-    with pytest.raises(TypeError, match="A must be an array"):
+    with pytest.raises(TypeError, match="A must be a real array, got function"):
         tv.reduced_coordinates(lambda t: A, C)
     rc = tv.reduced_coordinates(A, C)
-    with pytest.raises(ValueError, match="tau must be a finite number > 0, got -1.0"):
+    with pytest.raises(ValueError, match="tau must be > 0, got -1.0"):
         tv.M_tau(rc.A2, rc.A1, np.zeros((2, 2)), -1.0)
     with pytest.raises(TypeError, match="tau must be a real number"):
         tv.M_tau(rc.A2, rc.A1, np.zeros((2, 2)), "1")
@@ -365,7 +365,7 @@ def test_time_varying_nonlinear_numeric_phi(seed):
     A1 = lambda t: a1 * (1.0 + 0.3 * np.cos(2 * t))
     d1 = lambda t, z: 0.5 * np.sin(z)
     d2 = lambda t, z: np.array([np.cos(t) * z[0], 0.2 * np.tanh(z[0])])
-    L = tv._place_L(A20, a1, np.array([-1.0, -1.5]))        # placed on the mean system
+    L = tv.design._place_L(A20, a1, np.array([-1.0, -1.5]))        # placed on the mean system
     H = lambda t: A2(t) + L @ A1(t)
     tau, T = 1.0, 2.6
     PA = tv.fundamental_matrix(A2, 2, (0.0, T), h=0.5)
@@ -580,10 +580,91 @@ def test_constructors_reject_mismatch_and_unobservable():
                                          r"got shape \(2, 2\)"):
         tv.ReducedOrderObserver(1.0, ex["A1"], ex["A2"], ex["L"], ex["Phi_A2"], lambda t, s: np.eye(2),
                                 p=1, m=1)
-    with pytest.raises(ValueError, match=r"C must have shape \(\?, 3\), got \(1, 2\)"):
+    with pytest.raises(ValueError, match=r"C must have shape \(\*, 3\), got \(1, 2\)"):
         tv.lti_observer(A, [[1.0, 0.0]])
     obs, rc = tv.lti_observer(np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [-1.0, -2.0, -3.0]]), C)
     assert (obs.p, obs.m) == (1, 2)
     with pytest.raises(ValueError, match=r"xr_init must have shape \(2,\), got \(3,\)"):
         tv.ReducedOrderObserver(obs.tau, rc.A1, rc.A2, np.zeros((2, 1)), lambda t, s: np.eye(2),
                                 lambda t, s: np.eye(2), xr_init=np.zeros(3))
+
+
+# ---------------------------------------------------------------------------
+# the calling pattern: simulate(observer, x0, xhat0, ...), errors(arc, observer)
+# ---------------------------------------------------------------------------
+@pytest.mark.parametrize("seed", SEEDS[:2])
+def test_simulate_errors_lti_equal_the_hand_wired_run(seed):
+    """simulate() wires the same plant as hs.connect: errors agree, exact after tau (14)."""
+    sys, obs, rc, A, C, x0 = _lti_loop(seed)
+    arc_hand = hs.simulate(sys, x0, t_max=2.0, **RUN)
+    xp = arc_hand["plant"].x
+    e_hand = obs.estimate(arc_hand.outputs("observer"), xp @ C.T) - rc.x_r(xp)
+    n = A.shape[0]
+    arc = tv.simulate(obs, x0[:n], x0[n:], t_max=2.0)
+    e = tv.errors(arc, obs)
+    assert e.shape == (len(arc.t), 2)
+    # same interconnection, same solver settings: the same samples and errors (to rounding)
+    np.testing.assert_allclose(arc.t, arc_hand.t, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(e, e_hand, rtol=0, atol=1e-9)
+    hst.assert_exact_after(arc, e, t=1.0, j=1, atol=1e-7)
+    np.testing.assert_allclose(tv.estimates(arc, obs) - e, rc.x_r(arc["plant"].x), atol=1e-12)
+
+
+def test_simulate_default_plant_16_and_seeded_noise():
+    """With no plant model given, (16) is built from the observer's data; noise=eps_bar needs a seed."""
+    rng = np.random.default_rng(5)
+    A20, a1 = rng.normal(size=(2, 2)), rng.normal(size=(1, 2))
+    L = tv.design._place_L(A20, a1, np.array([-1.0, -1.5]))
+    H = A20 + L @ a1
+    obs = tv.ReducedOrderObserver(1.0, a1, A20, L, expm_Phi(A20), expm_Phi(H),
+                                  delta1=lambda t, z: 0.5 * np.sin(z),
+                                  delta2=lambda t, z: np.array([np.cos(t) * z[0], 0.0]))
+    assert isinstance(obs.plant_model.make(), tv.TimeVaryingPlant)
+    x0 = rng.normal(size=3)
+    arc = tv.simulate(obs, x0, t_max=2.0)
+    hst.assert_exact_after(arc, tv.errors(arc, obs), t=1.0, j=1, atol=1e-7)
+    # a seeded bounded disturbance: reproducible, |eps| <= eps_bar, and it acts
+    a1_, a2_ = (tv.simulate(obs, x0, t_max=1.5, noise=0.01, seed=7) for _ in range(2))
+    np.testing.assert_array_equal(tv.errors(a1_, obs), tv.errors(a2_, obs))
+    assert np.abs(tv.errors(a1_, obs)[a1_.j >= 1]).max() > 1e-6
+    eps = tv.bounded_noise(0.01, 3, seed=1)
+    assert max(np.linalg.norm(eps(t)) for t in np.linspace(0, 20, 2001)) <= 0.01
+    with pytest.raises(TypeError, match="noise given as an amplitude needs seed="):
+        tv.simulate(obs, x0, t_max=1.0, noise=0.01)
+    with pytest.raises(TypeError, match="seed must be an int or a numpy Generator"):
+        tv.bounded_noise(0.01, 1, seed=None)
+
+
+def test_simulate_chained_form_and_errors_on_the_loop():
+    """The chained-form observer runs with its plant (44) given v2; errors() reads tracking_loop arcs too."""
+    obs = tv.chained_form_observer()
+    v2 = lambda t: 0.5 * np.cos(1.3 * t)
+    arc = tv.simulate(obs, [0.8, -0.4, 0.6, 0.5], t_max=2 * np.pi + 1.5, w=v2)
+    e = tv.errors(arc, obs)[:, 0]
+    hst.assert_exact_after(arc, e[:, None], t=2 * np.pi + np.sqrt(0.5), atol=1e-8)   # (50), corrected range
+    loop, v2l, arc_l = _closed_loop(8.0)
+    S = tv.loop_signals(arc_l, loop, v2l)
+    np.testing.assert_allclose(tv.errors(arc_l, loop.systems["observer"])[:, 0],
+                               S["xhat2"] - S["xi"][:, 1], rtol=0, atol=1e-14)
+
+
+def test_simulate_bad_inputs():
+    obs = tv.chained_form_observer()
+    with pytest.raises(TypeError, match=r"w is required: the observer's maps read w_dim=1"):
+        tv.simulate(obs, [0.0, 0.0, 0.0, 0.0], t_max=1.0)
+    with pytest.raises(ValueError, match=r"w\(t\) must return shape \(1,\), got \(2,\)"):
+        tv.simulate(obs, [0.0, 0.0, 0.0, 0.0], t_max=1.0, w=lambda t: [0.0, 1.0])
+    with pytest.raises(ValueError, match=r"x0 must have shape \(4,\), got \(3,\)"):
+        tv.simulate(obs, [0.0, 0.0, 0.0], t_max=1.0, w=np.cos)
+    with pytest.raises(ValueError, match=r"xhat0 must have shape \(2,\) = \[J_A, J_H\] or \(4,\)"):
+        tv.simulate(obs, [0.0, 0.0, 0.0, 0.0], [1.0, 2.0, 3.0], t_max=1.0, w=np.cos)
+    with pytest.raises(TypeError, match="observer must be a ReducedOrderObserver, got str"):
+        tv.simulate("obs", [0.0], t_max=1.0)
+    lti, _ = tv.lti_observer([[0.0, 1.0], [-2.0, -3.0]], [[1.0, 0.0]], tau=0.5)
+    with pytest.raises(ValueError, match="w must be None: the observer has w_dim = 0"):
+        tv.simulate(lti, [1.0, 0.0], t_max=1.0, w=np.cos)
+    with pytest.raises(TypeError, match=r"noise must be a callable t -> \(1,\) array|noise must be a real"):
+        tv.simulate(lti, [1.0, 0.0], t_max=1.0, noise="loud", seed=0)
+    arc = tv.simulate(lti, [1.0, 0.0], t_max=0.6)
+    with pytest.raises(ValueError, match="arc must be a run of this observer with its plant"):
+        tv.errors(arc, obs)

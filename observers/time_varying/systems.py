@@ -1,0 +1,476 @@
+r"""The hybrid systems of paper 001: the observer (23)/(27) and its plants.
+
+:class:`ReducedOrderObserver`
+    the reduced-order finite-time observer (23) (known disturbance) or
+    (27) (unknown), exact for t >= tau (Theorem 1, (24)); its input is the
+    measured output y (17) and any known signals w its maps need.
+:func:`lti_observer`
+    the Section II observer (15) for xdot = A x + delta(t), y = C x.
+:class:`TimeVaryingPlant`
+    the system (16) built from an observer's own data.
+:class:`ChainedFormPlant`
+    the closed-loop chained form (44) of Section IV.
+
+Each observer carries a :class:`PlantModel` (``observer.plant_model``): the
+plant it observes, what of the plant's output it measures, and where x_r
+is in the plant's state, so that :func:`observers.time_varying.simulate`
+and :func:`observers.time_varying.errors` need nothing else.
+
+Examples
+--------
+>>> import numpy as np
+>>> from observers.time_varying import lti_observer
+>>> obs, rc = lti_observer([[0.0, 1.0], [-2.0, -3.0]], [[1.0, 0.0]], tau=0.5)
+>>> obs.state_dim, obs.input_dim, obs.output_dim   # [J_A, J_H, s, q]; y; [P, G]
+(4, 1, 2)
+>>> obs.plant_model.description
+'LinearPlant: xdot = A x + delta(t), y = C x (2)-(3)'
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import linalg
+
+import hybridsim as hs
+
+from .._common import matrix, scalar, vector
+from .design import _dims, _rcond, _tv_data, choose_L_tau, reduced_coordinates
+
+__all__ = ["PlantModel", "ReducedOrderObserver", "TimeVaryingPlant", "lti_observer",
+           "ChainedFormPlant"]
+
+
+@dataclass(frozen=True)
+class PlantModel:
+    """The plant an observer is run with, and how to read it.
+
+    Attributes
+    ----------
+    make : callable () -> hybridsim.HybridSystem
+        A fresh plant. Its input, if any, is the observer's known signal w
+        (``observer.w_dim`` entries, e.g. v2 of Section IV).
+    measure : callable (plant output) -> (p,) array
+        The noise-free measured signal z of (17) from the plant's output.
+    x_r : callable ((N, n_plant) states) -> (N, m) array
+        The unmeasured part x_r of the plant's state, time-major.
+    initial_state : callable (x0) -> plant state
+        Checks the user's x0 and returns the plant's initial state.
+    description : str
+        One line: which plant, which equation.
+    """
+
+    make: Callable
+    measure: Callable
+    x_r: Callable
+    initial_state: Callable
+    description: str
+
+
+class ReducedOrderObserver(hs.HybridSystem):
+    r"""The reduced-order finite-time observer (23)/(27) as a hybrid system.
+
+    State (time-major arcs: one row per sample) ``x = [J_A, J_H, s, q]``:
+
+    * J_A (m): J_A' = A2(t) J_A + delta2(t, z, w);
+    * J_H (m): J_H' = H(t) J_H + delta4(t, z, w), H = A2 + L A1, delta4 of (21);
+    * s: a timer, s' = 1, from s = 0 at the start of the measurements;
+    * q in {0, 1}: 0 while the window [t - tau, t] is not yet measured; a jump
+      at s = tau sets q = 1 (D = {q = 0, s >= tau}, located by root-finding).
+
+    with z = y - eps(t) when the disturbance ``eps`` is known (the exact
+    estimate (23)) and z = y otherwise (the approximate observer (27)). The
+    input is u = [y (p), w (w_dim)], w being known signals the maps delta1,
+    delta2 need (e.g. the control v2 of Section IV).
+
+    Output ``[P (m), G (m*p, row-major)]``, with the estimate
+
+        xhat_r(t) = P(t) + G(t) y(t)     (:meth:`estimate`),
+
+    where, for q = 1 (t >= t0 + tau),
+
+        Lambda P = Phi_A2(t, t-tau) J_A(t) - J_A(t-tau) + Phi_H(t, t-tau) J_H(t)
+                   - J_H(t-tau) - L(t-tau) z(t-tau) [- Phi_H(t, t-tau) L(t) eps(t)],
+        Lambda G = Phi_H(t, t-tau) L(t),
+
+    which is (23) (the window integrals rewritten through the semigroup
+    identity, see the module docstring) and equals x_r(t) exactly
+    (Theorem 1). For q = 0 the estimate is undefined: P = ``xr_init``, G = 0.
+
+    Parameters
+    ----------
+    tau : float > 0
+        The delay of Assumption 1.
+    A1, A2, L : callables t -> (p, m), (m, m), (m, p) matrices, or constant arrays
+    Phi_A2, Phi_H : callable (t, t0) -> (m, m)
+        Phi of (1) for A2 and H (closed forms, or :func:`fundamental_matrix`).
+    delta1, delta2 : callable, optional
+        delta1(t, z) -> (p,), delta2(t, z) -> (m,) when ``w_dim == 0``;
+        delta1(t, z, w), delta2(t, z, w) otherwise. Default 0.
+    Ldot : callable, optional
+        Derivative of L (default: 0 for a constant L, 4th-order central
+        difference for a callable L).
+    eps : callable t -> (p,), optional
+        Known measurement disturbance: gives the exact (23); None gives (27).
+    p, m : int, optional
+        Dimensions of y and x_r (inferred from array arguments).
+    w_dim : int
+        Dimension of the extra known input w.
+    xr_init : (m,) array, optional
+        The output before the window is filled (default 0).
+    rcond_min : float
+        Lambda(t) counts as singular (a ValueError, i.e. a MAP_ERROR
+        termination of the run, naming t) below this reciprocal condition.
+    check_Lambda : bool
+        Check Assumption 1 at every flow-map call once the window is filled
+        (default True; the output map always checks it).
+    z_history : callable s -> (p,), optional
+        Where to read y(t - tau). Default: the observer's own input history.
+        An interconnection whose observer input depends on the observer's own
+        output (a feedback loop) should read it from the plant instead, to
+        avoid a chain of evaluations back to t0 (see :func:`tracking_loop`).
+
+    References
+    ----------
+    [1] eqs. (1), (16)-(24), (27); Theorem 1; Remark 4.
+    """
+
+    needs_history = True
+
+    def __init__(self, tau, A1, A2, L, Phi_A2, Phi_H, *, delta1=None, delta2=None, Ldot=None,
+                 eps=None, p=None, m=None, w_dim=0, xr_init=None, rcond_min=1e-12, z_history=None,
+                 check_Lambda=True):
+        self.tau = scalar("tau", tau, positive=True)
+        p, m = _dims(A1, A2, L, p, m)
+        self.p, self.m = p, m
+        if isinstance(w_dim, bool) or not isinstance(w_dim, (int, np.integer)) or w_dim < 0:
+            raise ValueError(f"w_dim must be an int >= 0, got {w_dim!r}")
+        self.w_dim = int(w_dim)
+        for nm, f in (("Phi_A2", Phi_A2), ("Phi_H", Phi_H), ("delta1", delta1), ("delta2", delta2),
+                      ("eps", eps), ("z_history", z_history)):
+            if f is not None and not callable(f):
+                raise TypeError(f"{nm} must be callable, got {type(f).__name__}")
+        if Phi_A2 is None or Phi_H is None:
+            raise TypeError("Phi_A2 and Phi_H must be callables (t, t0) -> (m, m); "
+                            "use fundamental_matrix() for a numerical one")
+        self.A1, self.A2, self.L, self.Ldot = _tv_data(A1, A2, L, Ldot, p, m)
+        self.Phi_A2 = lambda t, s: np.atleast_2d(np.asarray(Phi_A2(t, s), dtype=float))
+        self.Phi_H = lambda t, s: np.atleast_2d(np.asarray(Phi_H(t, s), dtype=float))
+        # dimensions agree at construction, not as a matmul error inside a run: probe the data at t = tau
+        for nm, f, shape in (("A1", self.A1, (p, m)), ("A2", self.A2, (m, m)), ("L", self.L, (m, p)),
+                             ("Phi_A2", lambda t: self.Phi_A2(t, 0.0), (m, m)),
+                             ("Phi_H", lambda t: self.Phi_H(t, 0.0), (m, m))):
+            v = f(self.tau)
+            if np.shape(v) != shape:
+                raise ValueError(f"{nm} must be {shape[0]} x {shape[1]} (p = {p} outputs, m = {m} estimated states), "
+                                 f"got shape {np.shape(v)}")
+        wrap = (lambda f, k: (lambda t, z, w: np.zeros(k)) if f is None else
+                (f if self.w_dim else (lambda t, z, w: f(t, z))))
+        self.delta1 = wrap(delta1, p)
+        self.delta2 = wrap(delta2, m)
+        self.eps = eps
+        xi = np.zeros(m) if xr_init is None else np.atleast_1d(np.asarray(xr_init, dtype=float))
+        if xi.shape != (m,):
+            raise ValueError(f"xr_init must have shape ({m},), got {xi.shape}")
+        self.xr_init = xi
+        self.rcond_min = float(rcond_min)
+        self.check_Lambda = bool(check_Lambda)
+        self.z_history = z_history
+        self.state_dim = 2 * m + 2
+        self.input_dim = p + self.w_dim
+        self.output_dim = m + m * p
+        self.max_step = self.tau
+        #: the plant run with this observer by simulate() (default: (16) with its own data)
+        self.plant_model = _plant16(self)
+
+    # -- helpers --------------------------------------------------------------
+    def initial_state(self, J_A=None, J_H=None):
+        """x0 = [J_A, J_H, s = 0, q = 0]; J_A, J_H default 0 (their value does not matter)."""
+        m = self.m
+        JA = np.zeros(m) if J_A is None else np.asarray(J_A, float).reshape(m)
+        JH = np.zeros(m) if J_H is None else np.asarray(J_H, float).reshape(m)
+        return np.concatenate([JA, JH, [0.0, 0.0]])
+
+    def _z(self, y, t):
+        z = np.asarray(y, dtype=float).reshape(self.p)
+        return z if self.eps is None else z - np.asarray(self.eps(t), dtype=float).reshape(self.p)
+
+    def _split_u(self, u, t):
+        u = np.atleast_1d(np.asarray(u, dtype=float))
+        if u.shape != (self.input_dim,):
+            raise ValueError(f"observer input must have shape ({self.input_dim},) = [y (p={self.p}), "
+                             f"w (w_dim={self.w_dim})], got {u.shape}")
+        return self._z(u[: self.p], t), u[self.p:]
+
+    def H(self, t):
+        """H(t) = A2(t) + L(t) A1(t) (Assumption 1)."""
+        return self.A2(t) + self.L(t) @ self.A1(t)
+
+    def Lambda(self, t):
+        """Lambda(t) of (20)."""
+        return self.Phi_A2(t, t - self.tau) - self.Phi_H(t, t - self.tau)
+
+    # -- data (C, f, D, g) ------------------------------------------------------
+    def _Lambda_checked(self, t):
+        t0 = t - self.tau
+        PA, PH = self.Phi_A2(t, t0), self.Phi_H(t, t0)
+        Lam = PA - PH
+        rc = _rcond(Lam)
+        if not rc >= self.rcond_min:
+            raise ValueError(f"Assumption 1 fails along the run: Lambda(t) (20) is singular at "
+                             f"t={t:.6g} (rcond {rc:.3g} < {self.rcond_min:g})")
+        return PA, PH, Lam
+
+    def flow_map(self, x, t, j, u):
+        m = self.m
+        if self.check_Lambda and x[-1] >= 0.5:
+            self._Lambda_checked(t)
+        z, w = self._split_u(u, t)
+        JA, JH = x[:m], x[m:2 * m]
+        A2 = self.A2(t)
+        Lt = self.L(t)
+        H = A2 + Lt @ self.A1(t)
+        d1 = np.asarray(self.delta1(t, z, w), float).reshape(self.p)
+        d2 = np.asarray(self.delta2(t, z, w), float).reshape(m)
+        D = self.Ldot(t) - H @ Lt
+        d4 = -(D @ z + Lt @ d1 + d2)                           # (21)
+        return np.concatenate([A2 @ JA + d2, H @ JH + d4, [1.0, 0.0]])
+
+    def jump_guard(self, x, t, j, u):
+        return np.array([x[-2] - self.tau, 0.5 - x[-1]])
+
+    def jump_set(self, x, t, j, u):
+        return bool(x[-1] < 0.5 and x[-2] >= self.tau * (1 - 1e-12))
+
+    def jump_map(self, x, t, j, u):
+        xn = np.array(x, dtype=float)
+        xn[-1] = 1.0
+        return xn
+
+    def _z_past(self, s):
+        if self.z_history is not None:
+            return self._z(self.z_history(s), s)
+        u = self.history.input(s)
+        return self._z(np.atleast_1d(np.asarray(u, dtype=float))[: self.p], s)
+
+    def output(self, x, t, j):
+        m, p = self.m, self.p
+        if x[-1] < 0.5:
+            return np.concatenate([self.xr_init, np.zeros(m * p)])
+        t0 = t - self.tau
+        past = np.asarray(self.history(t0), dtype=float)
+        PA, PH, Lam = self._Lambda_checked(t)
+        Lt = self.L(t)
+        r = (PA @ x[:m] - past[:m] + PH @ x[m:2 * m] - past[m:2 * m] - self.L(t0) @ self._z_past(t0))
+        Gn = PH @ Lt
+        if self.eps is not None:
+            r = r - Gn @ np.asarray(self.eps(t), dtype=float).reshape(p)
+        P = np.linalg.solve(Lam, r)
+        G = np.linalg.solve(Lam, Gn)
+        return np.concatenate([P, G.ravel()])
+
+    # -- reading the estimate ----------------------------------------------------
+    def estimate(self, out, y):
+        r"""xhat_r = P + G y from the observer's output ``out`` and the measurement y.
+
+        Parameters
+        ----------
+        out : (m + m p,) or time-major (N, m + m p) array
+            The observer's output (``arc.outputs(name)``).
+        y : (p,) or (N, p) array
+            The measured output at the same times.
+
+        Returns
+        -------
+        (m,) or (N, m) array
+        """
+        out = np.asarray(out, dtype=float)
+        y = np.asarray(y, dtype=float)
+        m, p = self.m, self.p
+        if out.shape[-1] != m + m * p:
+            raise ValueError(f"out must have last dimension {m + m * p}, got shape {out.shape}")
+        if y.shape[-1:] != (p,) or y.shape[:-1] != out.shape[:-1]:
+            raise ValueError(f"y must have shape {out.shape[:-1] + (p,)}, got {y.shape}")
+        P = out[..., :m]
+        G = out[..., m:].reshape(out.shape[:-1] + (m, p))
+        return P + np.einsum("...ij,...j->...i", G, y)
+
+
+class TimeVaryingPlant(hs.HybridSystem):
+    r"""The system (16) with the data of a :class:`ReducedOrderObserver`.
+
+    State ``[z (p), x_r (m)]``,
+
+        z'   = A1(t) x_r + delta1(t, z[, w]),
+        x_r' = A2(t) x_r + delta2(t, z[, w]),      (16)
+
+    input w (``observer.w_dim`` known signals, none when 0), output z (the
+    noise-free measurement; :func:`observers.time_varying.simulate` adds
+    eps of (17)).
+
+    Parameters
+    ----------
+    observer : ReducedOrderObserver
+        Whose A1, A2, delta1, delta2 define (16).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from observers.time_varying import ReducedOrderObserver, TimeVaryingPlant
+    >>> obs = ReducedOrderObserver(1.0, [[1.0]], [[-1.0]], [[-2.0]],
+    ...                            lambda t, s: np.exp(t - s) * np.eye(1),
+    ...                            lambda t, s: np.exp(3 * (t - s)) * np.eye(1))
+    >>> TimeVaryingPlant(obs).flow_map(np.array([1.0, 2.0]), 0.0, 0, None)
+    array([ 2., -2.])
+    """
+
+    def __init__(self, observer):
+        if not isinstance(observer, ReducedOrderObserver):
+            raise TypeError(f"observer must be a ReducedOrderObserver, got {type(observer).__name__}")
+        self.obs = observer
+        self.p, self.m, self.w_dim = observer.p, observer.m, observer.w_dim
+        self.state_dim = self.p + self.m
+        self.input_dim = self.w_dim
+        self.output_dim = self.p
+
+    def flow_map(self, x, t, j, u):
+        o, p = self.obs, self.p
+        z, xr = x[:p], x[p:]
+        w = np.zeros(0) if not self.w_dim else np.atleast_1d(np.asarray(u, dtype=float))
+        d1 = np.asarray(o.delta1(t, z, w), dtype=float).reshape(p)
+        d2 = np.asarray(o.delta2(t, z, w), dtype=float).reshape(self.m)
+        return np.concatenate([o.A1(t) @ xr + d1, o.A2(t) @ xr + d2])
+
+    def output(self, x, t, j):
+        return np.array(x[: self.p], dtype=float)
+
+
+def _plant16(observer):
+    """The default :class:`PlantModel` of an observer: (16) with its own data."""
+    p, n = observer.p, observer.p + observer.m
+    return PlantModel(make=lambda: TimeVaryingPlant(observer), measure=lambda y: y,
+                      x_r=lambda X: np.asarray(X)[:, p:],
+                      initial_state=lambda x0: vector("x0", x0, n),
+                      description="TimeVaryingPlant: (16) with the observer's A1, A2, delta1, "
+                                  "delta2; x0 = [z(0), x_r(0)]")
+
+
+def lti_observer(A, C, *, tau=1.0, L=None, poles=None, delta=None, eps=None, N=None, xr_init=None):
+    r"""The Section II observer (15) for xdot = A x + delta(t), y = C x (+ eps(t)).
+
+    Parameters
+    ----------
+    A, C : arrays (n, n), (p, n)
+    tau : float > 0
+    L, poles : see :func:`choose_L_tau`
+    delta : callable t -> (n,), optional
+        The known input delta of (2).
+    eps : callable t -> (p,), optional
+        Known measurement disturbance (exact estimate); None: (27).
+    N : (n-p, n) array, optional
+        See :func:`reduced_coordinates`.
+    xr_init : (n-p,) array, optional
+
+    Returns
+    -------
+    observer : ReducedOrderObserver
+        Input y (p), output [P, G] (see :meth:`ReducedOrderObserver.estimate`).
+    coords : ReducedCoordinates
+        x_r = coords.x_r(x); the full state is coords.x_from(y, xhat_r).
+
+    References
+    ----------
+    [1] eqs. (2)-(15); Phi_Omega(t, s) = e^{-Omega (t - s)} for constant Omega.
+    """
+    rc = reduced_coordinates(A, C, N)
+    A_lti = matrix("A", A, square=True)
+    L, tau, _ = choose_L_tau(rc.A2, rc.A1, L=L, tau=tau, poles=poles)
+    H = rc.A2 + L @ rc.A1
+    obs = ReducedOrderObserver(
+        tau, rc.A1, rc.A2, L,
+        Phi_A2=lambda t, s: linalg.expm(-rc.A2 * (t - s)),
+        Phi_H=lambda t, s: linalg.expm(-H * (t - s)),
+        delta1=rc.delta1(delta), delta2=rc.delta2(delta), eps=eps, xr_init=xr_init)
+    obs.plant_model = PlantModel(
+        make=lambda: hs.LinearPlant(A_lti, C=rc.C, disturbance=delta),
+        measure=lambda y: y, x_r=rc.x_r,
+        initial_state=lambda x0: vector("x0", x0, A_lti.shape[0]),
+        description="LinearPlant: xdot = A x + delta(t), y = C x (2)-(3)")
+    return obs, rc
+
+
+# ---------------------------------------------------------------------------
+# Section IV on the engine
+# ---------------------------------------------------------------------------
+class ChainedFormPlant(hs.HybridSystem):
+    r"""The closed-loop chained form (44) with input v2, as a hybrid system.
+
+    State ``[xi4, xi3, xi2, x1, q]`` (x1 = xi1 - 2 sin t, eq. 42), input v2,
+    output ``[xi4, xi3, x1]`` (xi4, xi3, xi1 are measured, xi2 is not).
+
+    The flow is (44) with v1 of (43). x1' = -2 sign(x1) sqrt|x1| reaches 0 at
+    t = sqrt|x1(0)| with zero slope and is not Lipschitz there; an integrator
+    chatters around 0 and spoils the exactness that the observer relies on.
+    We model the arrival as a jump: q = sign(x1) before arrival, D =
+    {q != 0, q x1 <= eta}, g: x1 = 0, q = 0; with q = 0 the flow keeps
+    x1 = 0 exactly, as the exact solution does. The jump comes sqrt(eta)
+    before the true arrival, which changes xi3, xi4 by about eta |xi2|
+    (the integral of 2 sqrt|x1| over that interval). eta must stay above the
+    solver's atol: x1' = -2 sqrt(x1) has Jacobian -1/sqrt(x1), and below
+    atol an explicit solver crawls (eta = 1e-12 with atol = 1e-12 takes
+    6e4 steps to cross t in [0.5, 1]).
+
+    Parameters
+    ----------
+    eta : float
+        Arrival threshold (default 1e-10; use atol <= eta / 100).
+
+    References
+    ----------
+    [1] eqs. (40)-(44).
+    """
+
+    state_dim = 5
+    input_dim = 1
+    output_dim = 3
+
+    def __init__(self, eta=1e-10):
+        if not (isinstance(eta, (int, float)) and 0 < eta < 1e-2):
+            raise ValueError(f"eta must be a number in (0, 1e-2), got {eta!r}")
+        self.eta = float(eta)
+
+    @staticmethod
+    def initial_state(xi4, xi3, xi2, x1):
+        """x0 = [xi4, xi3, xi2, x1, sign(x1)]."""
+        return np.array([xi4, xi3, xi2, x1, float(np.sign(x1))], dtype=float)
+
+    @staticmethod
+    def v1(t, x1):
+        """The feedback (43) in the x1 coordinate: -2 sign(x1) sqrt|x1| + 2 cos t."""
+        return -2 * np.sign(x1) * np.sqrt(abs(x1)) + 2 * np.cos(t)
+
+    def flow_map(self, x, t, j, u):
+        xi4, xi3, xi2, x1, q = x
+        v2 = float(np.asarray(u).ravel()[0])
+        dx1 = -2 * np.sign(x1) * np.sqrt(abs(x1)) if q != 0 else 0.0
+        v1 = dx1 + 2 * np.cos(t)
+        return np.array([xi3 * v1, xi2 * v1, v2, dx1, 0.0])
+
+    def jump_guard(self, x, t, j, u):
+        return self.eta - x[4] * x[3] if x[4] != 0 else -1.0
+
+    def jump_set(self, x, t, j, u):
+        return bool(x[4] != 0 and x[4] * x[3] <= self.eta)
+
+    def jump_map(self, x, t, j, u):
+        xn = np.array(x, dtype=float)
+        xn[3] = 0.0
+        xn[4] = 0.0
+        return xn
+
+    def output(self, x, t, j):
+        return np.array([x[0], x[1], x[3]])
+
+
