@@ -50,6 +50,7 @@ References
 """
 from __future__ import annotations
 
+from .claims import CLAIMS
 from .design import (
     Design,
     F_matrices,
@@ -98,6 +99,7 @@ __all__ = [
     "PAPER",
     "ERRATA",
     "DECISIONS",
+    "CLAIMS",
     "Design",
     "F_matrices",
     "gains_K",
