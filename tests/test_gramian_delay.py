@@ -95,7 +95,7 @@ def test_observer_form_bad_input():
         gd.observer_form(M, N, P=[[1.0, 0, 0], [0, 1.0, 0]])
     with pytest.raises(ValueError, match=r"P must have shape \(2, 3\)"):
         gd.observer_form(M, N, P=[[0, 1.0, 0]])
-    with pytest.raises(ValueError, match="k must be finite and > 0"):
+    with pytest.raises(ValueError, match="k must be > 0"):
         gd.observer_form(M, N, k=-1.0)
     with pytest.raises(TypeError, match="k must be a real number"):
         gd.observer_form(M, N, k="1")
@@ -180,7 +180,7 @@ def test_random_S_expm_vs_quad(seed, m, q):
 
 
 def test_gramian_design_bad_input():
-    with pytest.raises(ValueError, match="tau must be finite and > 0"):
+    with pytest.raises(ValueError, match="tau must be > 0"):
         gd.gramian_design(A1_DC, A2_DC, 100.0, 0.0)
     with pytest.raises(ValueError, match="method must be 'expm' or 'quad'"):
         gd.gramian_design(A1_DC, A2_DC, 100.0, 0.1, method="simpson")
@@ -230,7 +230,7 @@ def test_theorem1_bound_scaling_and_errors():
         gd.theorem1_bound(d, 0.5, eps1=lambda t: np.zeros(3))
     with pytest.raises(TypeError, match="delta2 must be callable"):
         gd.theorem1_bound(d, 0.5, delta2=0.1)
-    with pytest.raises(ValueError, match="K1 must be finite and >= 0"):
+    with pytest.raises(ValueError, match="K1 must be >= 0"):
         gd.theorem1_bound(d, 0.5, K1=-1.0)
 
 
@@ -260,7 +260,7 @@ def test_theorem2_constants_relations():
     assert gd.theorem2_constants(ds, 0.0, 0.0, 0.01).varsigma[1] == pytest.approx(v2, rel=1e-8)
     with pytest.raises(ValueError, match="estimate must be 'omega' or 'xi2'"):
         gd.theorem2_constants(d, a1, 100.0, 0.1, estimate="Y")
-    with pytest.raises(ValueError, match="T_bar must be finite and > 0"):
+    with pytest.raises(ValueError, match="T_bar must be > 0"):
         gd.theorem2_constants(d, a1, 100.0, 0.0)
 
 
@@ -273,7 +273,7 @@ def test_sampling_instants():
     np.testing.assert_allclose(np.diff(gd.sampling_instants(0.1, 0.1, 0.5)), 0.1)
     with pytest.raises(ValueError, match="T_max must be >= T_min"):
         gd.sampling_instants(0.1, 0.05, 1.0)
-    with pytest.raises(ValueError, match="T_min must be finite and > 0"):
+    with pytest.raises(ValueError, match="T_min must be > 0"):
         gd.sampling_instants(0.0, 0.05, 1.0)
     with pytest.raises(ValueError, match="t_end must be finite and >= t0"):
         gd.sampling_instants(0.1, 0.2, -1.0)
@@ -609,7 +609,7 @@ def test_observer_bad_input():
         gd.SampledGramianObserver(d, F1, F2, instants=[0.0, 0.2, 0.1])
     with pytest.raises(ValueError, match="instants must be a non-empty finite"):
         gd.SampledGramianObserver(d, F1, F2, instants=[0.0, np.nan])
-    with pytest.raises(ValueError, match="period must be finite and > 0"):
+    with pytest.raises(ValueError, match="period must be > 0"):
         gd.SampledGramianObserver(d, F1, F2, period=-0.1)
     with pytest.raises(ValueError, match="estimate must be 'omega' or 'xi2'"):
         gd.SampledGramianObserver(d, F1, F2, period=0.1, estimate="Y")

@@ -1,0 +1,547 @@
+r"""The hybrid systems of Mazenc & Malisoff (2022) on :mod:`hybridsim`.
+
+* :class:`Plant` -- system (1), output Y (or (Y, xi_2) for the oracle).
+* :class:`GramianObserver` -- the dynamic extension (7) (Theorem 1), input Y;
+  :meth:`GramianObserver.estimate` evaluates (13) along a finished run.
+* :class:`SampledGramianObserver` -- the observer (39) (Theorem 2): omega
+  reset to Y(t_j) at each sample; (13) enters omega's flow through the run's
+  history (a delay equation).
+* :func:`estimate_along` -- xi_e of (13) along a run.
+
+Two realisations of psi_2 of (7) (``realisation=``):
+
+``"literal"`` (default)
+    psi_2 is a state flowing by psi_2' = -(A1^T + 2kI) psi_2 + H(Y - xi2_hat),
+    as printed. Unstable when 2k < -min Re eig(A1) (DC motor, k = 75: growth
+    +47.2/s); (13) then subtracts two terms growing like e^{47 t}.
+``"reset"``
+    (13) needs psi_2 only through the window integral
+    I_2(t) = psi_2(t) - e^{-(A1^T+2kI) tau} psi_2(t - tau)
+    = int_{t-tau}^t e^{-(A1^T+2kI)(t-s)} H (Y(s) - xi2_hat(s)) ds (identity (53)).
+    A timer rho resets every tau (at t0 + tau, t0 + 2 tau, ...): p flows as
+    psi_2 and is reset to 0; phi = e^{-(A1^T+2kI) rho} P carries the window
+    integral P = p(t_r^-) of the last reset; then, for t in [t_r, t_r + tau),
+
+        I_2(t) = p(t) + phi(t) - e^{-(A1^T+2kI) tau} p(t - tau),
+
+    with p(t - tau) read in the previous reset interval (from the run's
+    history during a run, from the arc afterwards). Every state is bounded
+    by e^{|growth| tau} times the window's input (about 112 on the DC
+    motor at k = 75), whatever the horizon: no growing mode survives a
+    reset. In exact arithmetic I_2 is the same, so (13) and Theorem 1's
+    exactness are unchanged.
+
+Examples
+--------
+>>> import numpy as np
+>>> from observers import gramian_delay as gd
+>>> ex = gd.dc_motor(75.0, 0.1, disturbed=False)
+>>> obs = ex.continuous_observer(realisation="reset")
+>>> obs.state_dim          # xi1_hat (2), xi2_hat (1), psi1 (2), p, phi, P (2 each), rho
+12
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.linalg import expm as _expm
+
+import hybridsim as hs
+
+from .._common import matrix, scalar, vector
+from .design import GramianDesign
+
+__all__ = ["Plant", "GramianObserver", "SampledGramianObserver", "estimate_along",
+           "REALISATIONS"]
+
+#: The realisations of psi_2 of (7) (module docstring).
+REALISATIONS = ("literal", "reset")
+
+
+def _signal(name, fn, dim):
+    """A callable t -> (dim,) array (None: zero)."""
+    if fn is None:
+        z = np.zeros(dim)
+        return lambda t: z
+    if not callable(fn):
+        raise TypeError(f"{name} must be callable t -> ({dim},) array or None, "
+                        f"got {type(fn).__name__}")
+    return lambda t: np.asarray(fn(t), dtype=float).reshape(dim)
+
+
+class Plant(hs.HybridSystem):
+    r"""System (1): chi' = M chi + Psi(N chi, t) + delta1(t), Y = N chi + delta2(t).
+
+    A hybrid system with empty jump set and no input (u(t) enters through
+    Psi's time argument). Its output is Y (q,), or ``(Y, N chi)`` (2q,)
+    when ``oracle=True`` (to feed the literal reading of (39), which needs
+    the unmeasured xi_2 = N chi).
+
+    Parameters
+    ----------
+    M : (n, n) array_like
+    N : (q, n) array_like
+    Psi : callable, optional
+        ``Psi(y, t) -> (n,)``.
+    delta1 : callable, optional
+        ``t -> (n,)`` disturbance on the dynamics.
+    delta2 : callable, optional
+        ``t -> (q,)`` measurement disturbance.
+    oracle : bool
+
+    References
+    ----------
+    Mazenc & Malisoff (2022), eq. (1).
+    """
+
+    def __init__(self, M, N, Psi=None, *, delta1=None, delta2=None, oracle=False):
+        self.M = matrix("M", M)
+        n = self.M.shape[0]
+        if self.M.shape != (n, n):
+            raise ValueError(f"M must be square, got shape {self.M.shape}")
+        self.N = matrix("N", N, (None, n))
+        q = self.N.shape[0]
+        if Psi is not None and not callable(Psi):
+            raise TypeError(f"Psi must be callable, got {type(Psi).__name__}")
+        self.Psi = Psi
+        if Psi is not None:
+            _probe_shape("Psi", lambda: Psi(np.zeros(q), 0.0), (n,), f"(n = {n} states)")
+        self.delta1 = _signal("delta1", delta1, n)
+        self.delta2 = _signal("delta2", delta2, q)
+        self.oracle = bool(oracle)
+        self.state_dim = n
+        self.output_dim = 2 * q if oracle else q
+
+    def flow_map(self, x, t):
+        dx = self.M @ x + self.delta1(t)
+        if self.Psi is not None:
+            dx = dx + np.asarray(self.Psi(self.N @ x, t), dtype=float)
+        return dx
+
+    def output(self, x, t, j):
+        y = self.N @ x
+        Y = y + self.delta2(t)
+        return np.concatenate([Y, y]) if self.oracle else Y
+
+
+def _probe_shape(name, call, shape, what):
+    """Call a user map once (at y = 0, t = 0) and check its output size; a map that raises is not judged here."""
+    try:
+        v = np.asarray(call(), dtype=float)
+    except Exception:       # noqa: BLE001 -- the map may be undefined at the probe point; the run will tell
+        return
+    if v.size != int(np.prod(shape)):
+        raise ValueError(f"{name}(y, t) must return shape {shape} {what}, got shape {v.shape}")
+
+
+class _ObserverBase(hs.HybridSystem):
+    """Shared checks, slicing and the extension (7) in either realisation of psi_2.
+
+    Layout of the extension: ``(xi1_hat, xi2_hat, psi1, psi2)`` (literal) or
+    ``(xi1_hat, xi2_hat, psi1, p, phi, P, rho)`` (reset; module docstring).
+    """
+
+    def __init__(self, design, F1, F2, realisation="literal"):
+        if not isinstance(design, GramianDesign):
+            raise TypeError(f"design must be a GramianDesign, got {type(design).__name__}")
+        for name, F in (("F1", F1), ("F2", F2)):
+            if not callable(F):
+                raise TypeError(f"{name} must be callable (y, t) -> array, got {type(F).__name__}")
+        if realisation not in REALISATIONS:
+            raise ValueError(f"realisation must be one of {REALISATIONS}, got {realisation!r}")
+        self.design = design
+        self.F1, self.F2 = F1, F2
+        self.realisation = realisation
+        m, q = design.m, design.q
+        # dimensions agree at construction, not as a broadcast error inside a run
+        for name, F, dim in (("F1", F1, m), ("F2", F2, q)):
+            _probe_shape(name, lambda F=F: F(np.zeros(q), 0.0), (dim,),
+                         f"(n - q = {m} unmeasured states)" if name == "F1" else f"(q = {q} outputs)")
+        self.sl_xi1 = slice(0, m)
+        self.sl_xi2 = slice(m, m + q)
+        self.sl_psi1 = slice(m + q, 2 * m + q)
+        self.sl_psi2 = slice(2 * m + q, 3 * m + q)       # literal: psi2; reset: p
+        if realisation == "reset":
+            self.sl_p = self.sl_psi2
+            self.sl_phi = slice(3 * m + q, 4 * m + q)
+            self.sl_P = slice(4 * m + q, 5 * m + q)
+            self.i_rho = 5 * m + q
+            self.n_ext = 5 * m + q + 1
+        else:
+            self.n_ext = 3 * m + q
+        self._mA2 = -design.A_psi2
+        # a reset-interval end within this many seconds of rho = 0 or tau is treated as on
+        # it (rho is the integrated timer: ~1e-15 off the located reset time)
+        self._rho_eps = 1e-12 * max(1.0, design.tau)
+
+    def _extension_flow(self, z, t, y):
+        """Flows of the extension (7) with measurement y (Y, or omega in (39))."""
+        d = self.design
+        xi1, xi2 = z[self.sl_xi1], z[self.sl_xi2]
+        innov = d.H @ (y - xi2)
+        parts = [
+            d.A1 @ xi1 + np.asarray(self.F1(y, t), dtype=float).reshape(d.m),      # (7) xi1_hat
+            d.A2 @ xi1 - d.k * xi2 + np.asarray(self.F2(y, t), dtype=float).reshape(d.q),
+            -d.k * z[self.sl_psi1] + innov,                                         # (7) psi1
+            self._mA2 @ z[self.sl_psi2] + innov]                                    # (7) psi2 / p
+        if self.realisation == "reset":
+            parts += [self._mA2 @ z[self.sl_phi], np.zeros(d.m), [1.0]]             # phi, P, rho
+        return np.concatenate(parts)
+
+    def _reset_guard(self, z):
+        """rho - tau: >= 0 when the reset realisation's timer is due."""
+        return z[self.i_rho] - self.design.tau
+
+    def _reset(self, z):
+        """The reset realisation's jump: P+ = phi+ = p, p+ = 0, rho+ = 0 (in place)."""
+        p = z[self.sl_p].copy()
+        z[self.sl_P] = p
+        z[self.sl_phi] = p
+        z[self.sl_p] = 0.0
+        z[self.i_rho] = 0.0
+        return z
+
+    def _initial(self, xi1_hat0, xi2_hat0, psi10, psi20):
+        d = self.design
+        head = [np.zeros(d.m) if xi1_hat0 is None else vector("xi1_hat0", xi1_hat0, d.m),
+                np.zeros(d.q) if xi2_hat0 is None else vector("xi2_hat0", xi2_hat0, d.q),
+                np.zeros(d.m) if psi10 is None else vector("psi1_0", psi10, d.m)]
+        if self.realisation == "reset":
+            if psi20 is not None:
+                raise ValueError("psi2_0 must be None with realisation='reset': p starts at 0 "
+                                 "(by decision 3 the estimate (13) never depends on psi_2(t0))")
+            return np.concatenate(head + [np.zeros(3 * d.m), [0.0]])
+        return np.concatenate(head + [np.zeros(d.m) if psi20 is None
+                                      else vector("psi2_0", psi20, d.m)])
+
+    def _estimate(self, z, t, y, read):
+        r"""xi_e of (13) at time t from the state z, the signal y and the past.
+
+        ``read(s)`` returns the observer's state at a past time s (the run's
+        history during a run, the arc afterwards). The window is
+        ``h = min(tau, t - t0)`` (decision 3). Literal realisation: (13) as
+        printed, psi at t - h. Reset realisation: psi_2(t) - e^{-(A1^T+2kI)h}
+        psi_2(t-h) is replaced by I_2 = p + phi - e^{-(A1^T+2kI) tau} p(t - tau)
+        (module docstring), with p(t - tau) read in the previous reset
+        interval.
+        """
+        d = self.design
+        psi_del, h = _delayed(d, t, self.t0, read)                          # psi(t - h)
+        if self.realisation == "literal":
+            return d.xi_e(z[self.sl_xi1], z[self.sl_xi2], z[self.sl_psi1], z[self.sl_psi2],
+                          psi_del[self.sl_psi1], psi_del[self.sl_psi2], y, h=h)   # (13)
+        rho = z[self.i_rho]
+        if t - rho - self.t0 < 0.5 * d.tau:
+            p_del = np.zeros(d.m)               # first interval: window [t0, t], p(t0) = 0
+        elif rho >= d.tau - self._rho_eps:
+            p_del = z[self.sl_P]                # t - tau is the last reset: p(t_r^-) = P
+        elif rho <= self._rho_eps:
+            p_del = np.zeros(d.m)               # t - tau is the previous reset: p = 0 there
+        else:
+            p_del = psi_del[self.sl_p]          # inside the previous reset interval
+        I2 = z[self.sl_p] + z[self.sl_phi] - d.E2 @ p_del                   # (53) window
+        return d.xi_e(z[self.sl_xi1], z[self.sl_xi2], z[self.sl_psi1], I2,
+                      psi_del[self.sl_psi1], np.zeros(d.m), y, h=h)        # (13)
+
+
+def _delayed(design, t, t0, psi_at):
+    """psi_1, psi_2 at t - h and the window h (decision 3: h = min(tau, t - t0))."""
+    h = min(design.tau, t - t0)
+    if h < design.tau:
+        return psi_at(t0), h
+    return psi_at(t - design.tau), h
+
+
+class GramianObserver(_ObserverBase):
+    r"""The dynamic extension (7) for continuous measurements Y (Theorem 1).
+
+    State ``z = (xi1_hat, xi2_hat, psi1, psi2)`` of length ``3(n-q) + q``
+    (``realisation="literal"``), or ``(xi1_hat, xi2_hat, psi1, p, phi, P,
+    rho)`` of length ``5(n-q) + q + 1`` (``"reset"``: jumps every tau, see
+    the module docstring); input ``u = Y`` (q,).
+
+    .. math::
+        \dot{\hat\xi}_1 = A_1\hat\xi_1 + F_1(Y, t),\quad
+        \dot{\hat\xi}_2 = A_2\hat\xi_1 - k\hat\xi_2 + F_2(Y, t),\\
+        \dot\psi_1 = -k\psi_1 + H(Y - \hat\xi_2),\quad
+        \dot\psi_2 = -(A_1^\top + 2kI)\psi_2 + H(Y - \hat\xi_2).
+
+    The estimate (13) reads psi at t - tau and Y(t); it is evaluated along
+    a finished run by :meth:`estimate` (the engine's output map may not
+    depend on the input).
+
+    Parameters
+    ----------
+    design : GramianDesign
+    F1, F2 : callable
+        ``F1(y, t) -> (n-q,)``, ``F2(y, t) -> (q,)`` of (2).
+    t0 : float
+        Start of the runs (for the history rule before t0 + tau).
+    realisation : {"literal", "reset"}
+        How psi_2 of (7) is carried (module docstring).
+
+    Examples
+    --------
+    >>> import numpy as np, hybridsim as hs
+    >>> from observers import gramian_delay as gd
+    >>> ex = gd.dc_motor(100.0, 0.1, disturbed=False)
+    >>> obs = ex.continuous_observer()                     # (7)
+    >>> arc = gd.simulate(obs, ex.chi0, None, t_max=0.3)
+    >>> bool(np.abs(gd.errors(arc, obs)[arc.t >= 0.1]).max() < 1e-8)   # Theorem 1
+    True
+
+    References
+    ----------
+    Mazenc & Malisoff (2022), eqs. (7), (13), Theorem 1.
+    """
+
+    def __init__(self, design, F1, F2, *, t0=0.0, realisation="literal"):
+        super().__init__(design, F1, F2, realisation)
+        self.t0 = float(t0)
+        self.state_dim = self.n_ext
+        self.input_dim = design.q
+        if realisation == "reset":
+            self.jump_guard = self._jump_guard_reset       # D = {rho >= tau}; literal: D empty
+
+    def flow_map(self, z, t, j, u):
+        return self._extension_flow(z, t, np.asarray(u, dtype=float))
+
+    def _jump_guard_reset(self, z, t, j, u):
+        return self._reset_guard(z)
+
+    def jump_map(self, z, t, j, u):
+        """The reset realisation's jump (the literal one never jumps: D is empty)."""
+        return self._reset(np.array(z, dtype=float))
+
+    def initial_state(self, xi1_hat0=None, xi2_hat0=None, psi1_0=None, psi2_0=None):
+        """The observer's initial state (zeros where not given)."""
+        return self._initial(xi1_hat0, xi2_hat0, psi1_0, psi2_0)
+
+    def estimate(self, arc, y, *, name=None):
+        r"""xi_e (13) at every sample of ``arc``; time-major (N, n-q).
+
+        Parameters
+        ----------
+        arc : HybridArc
+            The run (of this observer alone, or of an interconnection with
+            ``name`` naming this observer). Run it with ``dense=True``: the
+            values at t - tau are then read from the solver's dense output
+            (exact to the integrator), else they are interpolated.
+        y : (N, q) array_like or callable
+            The measured signal at the samples: Y(t) (implementable), or
+            xi_2(t) (the paper's (13)). A callable is ``(t) -> (q,)``.
+        name : str, optional
+            The observer's name in an interconnection.
+        """
+        return estimate_along(self, arc, y, name=name)
+
+
+class SampledGramianObserver(_ObserverBase):
+    r"""The observer (39) for measurements sampled at t_0 < t_1 < ... (Theorem 2).
+
+    State ``z = (extension, omega, sigma, kappa)``: (7)'s extension (either
+    realisation of psi_2) driven by omega instead of Y, omega (q,), a timer
+    sigma (time since the last sample) and a sample counter kappa. Input
+    ``u = Y`` (q,) (or ``(Y, xi2)`` (2q,) with ``estimate="xi2"``), read at
+    the jumps only. Flow (between samples), (39):
+
+    .. math::
+        \dot{\hat\xi}_1 = A_1\hat\xi_1 + F_1(\omega, t),\quad
+        \dot{\hat\xi}_2 = A_2\hat\xi_1 - k\hat\xi_2 + F_2(\omega, t),\\
+        \dot\psi_i = \dots + H(\omega - \hat\xi_2),\quad
+        \dot\omega = A_2\xi_e(t) - k\omega + F_2(\omega, t),
+
+    with xi_e of (13) reading psi at t - tau through the run's history (a
+    delay equation; ``max_step = tau``). Jump (a sample): omega^+ = Y,
+    sigma^+ = 0, kappa^+ = kappa + 1; with ``realisation="reset"`` also the
+    reset of p every tau (the guard is the larger of the two).
+
+    Decisions (package docstring): the xi2_hat flow uses ``A2 xi1_hat`` (the
+    printed ``A2 xi2_hat`` of (39) is a typo); ``estimate="omega"`` puts
+    omega(t) in place of the unmeasured xi_2(t) in (13).
+
+    Parameters
+    ----------
+    design : GramianDesign
+    F1, F2 : callable
+        As in (2).
+    period : float, optional
+        Periodic sampling by the timer: D = {sigma >= period}.
+    instants : (K,) array_like, optional
+        Increasing sampling instants (e.g. :func:`sampling_instants`):
+        D = {t >= instants[kappa]}. Exactly one of period, instants.
+    estimate : {"omega", "xi2"}
+    t0 : float
+        Start of the runs (history rule before t0 + tau).
+    realisation : {"literal", "reset"}
+        How psi_2 is carried (module docstring).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from observers import gramian_delay as gd
+    >>> ex = gd.dc_motor(100.0, 0.1, disturbed=False)
+    >>> obs = ex.sampled_observer(period=0.005)             # (39), omega in (13)
+    >>> arc = gd.simulate(obs, ex.chi0, None, t_max=0.5)
+    >>> bool(np.abs(gd.errors(arc, obs)[arc.t >= 0.4]).max() < 1e-6)
+    True
+
+    References
+    ----------
+    Mazenc & Malisoff (2022), eqs. (36)-(39), Theorem 2.
+    """
+
+    def __init__(self, design, F1, F2, *, period=None, instants=None, estimate="omega",
+                 t0=0.0, realisation="literal"):
+        super().__init__(design, F1, F2, realisation)
+        if (period is None) == (instants is None):
+            raise ValueError("give exactly one of period and instants")
+        if period is not None:
+            self.period = scalar("period", period, positive=True)
+            self.instants = None
+        else:
+            ins = np.asarray(instants, dtype=float).reshape(-1)
+            if ins.size == 0 or not np.all(np.isfinite(ins)):
+                raise ValueError("instants must be a non-empty finite 1-D array")
+            if np.any(np.diff(ins) <= 0):
+                raise ValueError("instants must be strictly increasing")
+            self.period, self.instants = None, ins
+        if estimate not in ("omega", "xi2"):
+            raise ValueError(f"estimate must be 'omega' or 'xi2', got {estimate!r}")
+        self.estimate_source = estimate
+        q = design.q
+        e = self.n_ext
+        self.t0 = float(t0)
+        self.sl_omega = slice(e, e + q)
+        self.i_sigma = e + q
+        self.i_kappa = self.i_sigma + 1
+        self.state_dim = e + q + 2
+        self.input_dim = q if estimate == "omega" else 2 * q
+        self.max_step = design.tau
+        self.needs_history = True
+        # psi' jumps with omega at the samples, so psi(t - tau) has kinks at t_k + tau
+        self.delays = (design.tau,)
+
+    def initial_state(self, xi1_hat0=None, xi2_hat0=None, psi1_0=None, psi2_0=None,
+                      omega0=None):
+        """Initial state; the timer/counter are set so that a sample is taken at t0."""
+        q = self.design.q
+        w = np.zeros(q) if omega0 is None else vector("omega0", omega0, q)
+        sigma0 = self.period if self.period is not None else 0.0
+        return np.concatenate([self._initial(xi1_hat0, xi2_hat0, psi1_0, psi2_0), w,
+                               [sigma0, 0.0]])
+
+    def _xi_e_now(self, z, t, u):
+        y = z[self.sl_omega] if self.estimate_source == "omega" else np.asarray(u)[self.design.q:]
+        return self._estimate(z, t, y, self.history)
+
+    def flow_map(self, z, t, j, u):
+        d = self.design
+        w = z[self.sl_omega]
+        ext = self._extension_flow(z, t, w)
+        xe = self._xi_e_now(z, t, u)
+        dw = d.A2 @ xe - d.k * w + np.asarray(self.F2(w, t), dtype=float).reshape(d.q)  # (39)
+        return np.concatenate([ext, dw, [1.0, 0.0]])
+
+    def _sample_guard(self, z, t):
+        if self.period is not None:
+            return z[self.i_sigma] - self.period
+        kap = int(round(z[self.i_kappa]))
+        if kap >= len(self.instants):
+            return -1.0
+        return t - self.instants[kap]
+
+    def jump_guard(self, z, t, j, u):
+        g = self._sample_guard(z, t)
+        if self.realisation == "reset":
+            g = max(g, self._reset_guard(z))
+        return g
+
+    def jump_map(self, z, t, j, u):
+        z = np.array(z, dtype=float)
+        if self.realisation == "reset" and self._reset_guard(z) >= 0:
+            self._reset(z)
+            if self._sample_guard(z, t) < 0:
+                return z
+        z[self.sl_omega] = np.asarray(u, dtype=float)[:self.design.q]     # (39): omega(t_j) = Y(t_j)
+        z[self.i_sigma] = 0.0
+        z[self.i_kappa] += 1.0
+        return z
+
+    def estimate(self, arc, *, y=None, name=None):
+        r"""xi_e (13) at every sample of ``arc`` as the observer used it.
+
+        With ``estimate="omega"`` the signal in (13) is the arc's omega
+        (default ``y``); pass ``y`` (e.g. the true xi_2) to evaluate (13)
+        with another signal. Run with ``dense=True`` for exact delayed values.
+        """
+        if y is None:
+            if self.estimate_source != "omega":
+                raise ValueError("y must be given (the xi_2 samples) when estimate='xi2'")
+            arc_o = arc.component(name) if name is not None else arc
+            y = arc_o.x[:, self.sl_omega]
+        return estimate_along(self, arc, y, name=name)
+
+
+def estimate_along(observer, arc, y, *, name=None):
+    r"""Evaluate xi_e (13) along a finished run of a Gramian observer.
+
+    Parameters
+    ----------
+    observer : GramianObserver or SampledGramianObserver
+    arc : HybridArc
+        The run; with ``name``, an interconnection's run and the observer's
+        component name.
+    y : (N, q) array_like or callable t -> (q,)
+        The signal that stands for xi_2(t) in (13), at the arc's samples.
+    name : str, optional
+
+    Returns
+    -------
+    (N, n-q) array, time-major.
+
+    Notes
+    -----
+    psi at t - tau is read with ``arc.at`` (the solver's dense output when
+    the run kept it). Before t0 + tau the window is truncated to [t0, t]
+    (decision 3).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from observers import gramian_delay as gd
+    >>> ex = gd.dc_motor(150.0, 0.1, disturbed=False)
+    >>> obs = ex.continuous_observer()
+    >>> arc = gd.simulate(obs, ex.chi0, None, t_max=0.2)
+    >>> xe = gd.estimate_along(obs, arc, arc.outputs("plant"), name="observer")
+    >>> xe.shape == (len(arc.t), 2)
+    True
+
+    References
+    ----------
+    Mazenc & Malisoff (2022), eq. (13).
+    """
+    if not isinstance(observer, _ObserverBase):
+        raise TypeError(f"observer must be a Gramian observer, got {type(observer).__name__}")
+    d = observer.design
+    if name is not None:
+        sl = arc.components[name]
+        Z = arc.x[:, sl]
+
+        def read(s):
+            return arc.at(s)[sl]
+    else:
+        Z = arc.x
+        read = arc.at
+    if Z.shape[1] != observer.state_dim:
+        raise ValueError(f"arc must hold the observer's state of length {observer.state_dim}, "
+                         f"got {Z.shape[1]} (pass name= for an interconnection)")
+    if callable(y):
+        Y = np.array([np.asarray(y(t), dtype=float).reshape(d.q) for t in arc.t])
+    else:
+        Y = np.asarray(y, dtype=float)
+        if Y.shape != (len(arc.t), d.q):
+            raise ValueError(f"y must have shape ({len(arc.t)}, {d.q}), got {Y.shape}")
+    out = np.empty((len(arc.t), d.m))
+    for i, t in enumerate(arc.t):
+        out[i] = observer._estimate(Z[i], t, Y[i], read)
+    return out
