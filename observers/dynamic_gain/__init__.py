@@ -1,0 +1,162 @@
+r"""Robust finite-time observer with a dynamic gain (paper 000) and its relatives.
+
+Nekhoroshikh, Efimov, Polyakov, Perruquetti, Furtat, "On simple design of a
+robust finite-time observer", CDC 2022 (hal-03778054).
+
+Plant: the perturbed chain of integrators (1),
+``x_i' = x_{i+1} + b_i u + d_{x,i}``, ``x_n' = b_n u + d_{x,n}``, ``y = x_1 + d_y``.
+
+Observer (6)-(8), state ``(w, x_hat_1..x_hat_n, v, q)`` (``q`` is the settled
+flag of decision 1)::
+
+    w'       = y - x_hat_1 + z^{-rbar_0} L_0 w                          (6)
+    x_hat_i' = x_hat_{i+1} + b_i u - z^{-rbar_i} L_i w   (x_hat_{n+1} := 0)
+    v'       = gamma2 |w'| - gamma1 ceil(v - gamma2 |w|)^{1 - mu}        (8)
+    z        = max{v, gamma2 |w|}                                        (7)
+
+with ``rbar_i = (i+1) mu``.  Variants from the same code (``z_mode``):
+
+* ``"max"`` and gamma2 > 0: the proposed observer;
+* ``"max"`` and gamma2 = 0: the prescribed-time observer of Holloway-Krstic, z = v,
+  settling time exactly ``T = v(0)^mu / (mu gamma1)`` (18);
+* ``"abs"``: the homogeneous observer of Perruquetti et al., z = |w|; the filter (8)
+  is kept with gamma2 = 0 as in Section VI (it does not act on the estimate);
+* ``"max"``, gamma1 = gamma2 = 0: z = v(0) constant, the Luenberger (v(0) = 1) or
+  high-gain (small v(0)) observer of Remark 1.
+
+Files (the calling pattern of :mod:`observers`)
+-----------------------------------------------
+``design.py``   (18), (17) with beta, Remark 1's gain, the closed-form error via (13)-(16),
+                the r-homogeneous norm; the LMIs (10) are in :mod:`observers.lmi`
+``systems.py``  :class:`DynamicGainObserver` (6)-(8) and its variants; the plant (1)
+``example.py``  Section VI: :data:`EXAMPLE`, :func:`simulate`, :func:`errors`, the two
+                measured settling times, the Euler scheme of ref. [8]
+``figures.py``  :func:`reproduce`: Figs. 1(a)-(b), 2(a)-(b), Euler vs Radau
+``claims.py``   :data:`CLAIMS`
+
+Settling time and 1e-6 crossing
+-------------------------------
+The *settling time* (Proposition 4, (17)-(18)) is when v, and with it e, reaches
+0: :func:`gain_settling_time` (5.00 s for gamma2 = 0, 7.81 s for gamma2 = 1 in
+Section VI's example). The *1e-6 crossing* is the last time max|e_i| > 1e-6:
+:func:`settle_time` (4.79 s and 7.27 s).
+
+Examples
+--------
+>>> from observers.dynamic_gain import EXAMPLE, prescribed_time_observer, simulate, errors
+>>> obs = prescribed_time_observer(EXAMPLE["L"], EXAMPLE["mu"], EXAMPLE["gamma1"],
+...                                b=EXAMPLE["b"])
+>>> arc = simulate(obs, EXAMPLE["x0"], [0.0, 0.0, 0.0], t_max=5.2)
+>>> round(gain_settling_time(arc, obs), 4)             # T = v(0)^mu/(mu gamma1) of (18)
+5.0
+>>> bool(abs(errors(arc, obs)["e"][arc.t >= 5.0]).max() < 1e-7)
+True
+
+References
+----------
+.. [1] A. N. Nekhoroshikh et al., CDC 2022: observer (6)-(8), error system (9),
+   LMIs (10), Theorem 3, Proposition 4 (17)-(18), Proposition 5, Section VI.
+.. [8] D. Efimov, A. Polyakov, A. Aleksandrov, "Discretization of homogeneous
+   systems using Euler method with a state-dependent step", Automatica 109, 2019.
+"""
+from __future__ import annotations
+
+from .claims import CLAIMS
+from .design import (
+    beta,
+    gain_margin,
+    homogeneous_norm,
+    prescribed_error,
+    prescribed_v,
+    rbar,
+    settling_time,
+    settling_time_bound,
+    weights,
+)
+from .example import (
+    E0_EXAMPLE,
+    EXAMPLE,
+    consistent_euler,
+    error_components,
+    errors,
+    example_norm,
+    gain_settling_time,
+    settle_time,
+    simulate,
+    simulate_example,
+)
+from .figures import reproduce
+from .systems import (
+    DynamicGainObserver,
+    example_plant,
+    homogeneous_observer,
+    luenberger_observer,
+    prescribed_time_observer,
+    proposed_observer,
+    uniform_noise,
+)
+
+__all__ = [
+    "PAPER", "ERRATA", "DECISIONS", "CLAIMS",
+    "rbar", "weights", "settling_time", "settling_time_bound", "beta",
+    "homogeneous_norm", "prescribed_v", "prescribed_error", "gain_margin",
+    "DynamicGainObserver", "proposed_observer", "prescribed_time_observer",
+    "homogeneous_observer", "luenberger_observer",
+    "uniform_noise", "example_plant", "simulate", "simulate_example", "errors",
+    "error_components", "consistent_euler", "example_norm", "settle_time",
+    "gain_settling_time", "reproduce", "EXAMPLE", "E0_EXAMPLE",
+]
+
+PAPER = {
+    "id": "000",
+    "title": "On simple design of a robust finite-time observer",
+    "authors": "A. N. Nekhoroshikh, D. Efimov, A. Polyakov, W. Perruquetti, I. B. Furtat",
+    "venue": "61st IEEE Conference on Decision and Control (CDC), Cancún, 2022 "
+             "(hal-03778054)",
+}
+
+ERRATA = [
+    "Section VI: the settling time of the prescribed-time observer is printed as "
+    "T = v(0)/(mu gamma1); (18) and the gain dynamics v' = -gamma1 v^{1-mu} "
+    "(Remark 1) give T = v(0)^mu/(mu gamma1). They agree only for v(0) = 1 (the "
+    "example, T = 5); for v(0) = 2 the run settles at 2^0.2/0.2 = 5.74, not 10.",
+    "Proof of Theorem 3 / Proposition 4, bound (17): dV/dtau <= -V with "
+    "V = eps' P eps gives ||eps(tau)|| <= alpha ||eps(0)|| e^{-tau/2}, not e^{-tau}; "
+    "integrating e^{-tau/2} doubles beta: beta(s) = 2 alpha gamma2 (1+|L0|) s + "
+    "4 gamma1/(1-mu) (alpha gamma2 s)^{1-mu}. settling_time_bound uses the corrected "
+    "beta by default (corrected=False gives the printed one).",
+    "Proof of Theorem 3: 'zeta = gamma2|w| - v is negative for all t >= T0' holds only "
+    "as 'non-positive': from v(0) just above gamma2|w(0)| with |w| growing, zeta "
+    "reaches 0 and v slides on v = gamma2|w| (tested); (7) still gives z = v, so the "
+    "proof stands.",
+]
+
+DECISIONS = [
+    "1. At and after the settling time z -> 0 and z^{-rbar_i} w is 0 * inf, and the "
+    "right-hand side is not Lipschitz. The gain uses max{z, z_min} (z_min = 1e-12), and "
+    "a logic variable q jumps 0 -> 1 (v -> 0) when v reaches z_min (exact event location "
+    "on the guard z_min - v); with q = 1 the filter (8) is stopped and "
+    "z = max{gamma2|w|, z_min}. For gamma2 = 0 the switch occurs at "
+    "T - z_min^mu/(mu gamma1) (0.02 s before T = 5 in the example), where the error is "
+    "already ~1e-11. The run thus ends normally (T_MAX).",
+    "2. Settling time (18) vs Section VI: (18)'s v(0)^mu/(mu gamma1) is used (erratum).",
+    "3. Bound (17): settling_time_bound returns the corrected bound by default "
+    "(erratum); the example's corrected bound exceeds the float range (log=True gives "
+    "its logarithm, 713.5).",
+    "4. mu interval: the observer accepts Section IV's 0 < mu <= 1/(n+1); the statements "
+    "that need Theorem 3 (settling_time_bound, the LMI by default) require the open "
+    "interval. At mu = 1/(n+1) (10) is still solvable (allow_mu_boundary=True) and the "
+    "prescribed-time observer still settles exactly at (18) (tested).",
+    "5. 'zeta < 0 obviously' is read as zeta <= 0 (erratum); gain_margin measures "
+    "v - gamma2|w|.",
+    "6. Noise: Section VI draws uniform omega in (-1, 1) at each Euler step; here omega "
+    "is drawn every 0.01 s (the paper's base step), seeded, and linearly interpolated "
+    "(uniform_noise), a continuous signal an adaptive solver can integrate.",
+    "7. Integrator: Radau (rtol 1e-8 without noise, 1e-6 with noise, atol 1e-10) "
+    "through hs.simulate instead of the paper's Euler with state-dependent step [8]; "
+    "that scheme is provided (consistent_euler) and compared in euler_vs_radau.png.",
+    "8. Settling time vs 1e-6 crossing: the settling time of Proposition 4 is measured "
+    "as the time v reaches 0 (gain_settling_time: the switch v = z_min plus "
+    "z_min^mu/(mu gamma1)); the last time max|e_i| > 1e-6 (settle_time) is reported "
+    "separately. For gamma2 = 1: 7.81 s and 7.27 s.",
+]
