@@ -35,10 +35,33 @@ __all__ = ["reproduce"]
 _SIM = dict(method="DOP853", rtol=1e-10, atol=1e-12)
 
 
-def _plot_segments(ax, arc, v, label=None, **kw):
-    """Plot v (N,) against t with the engine's hybrid-time plot (jumps dashed)."""
-    hs.plot_flows(arc, np.asarray(v, dtype=float), ax=ax,
-                  labels=None if label is None else [label], **kw)
+def _estimate(obs, i, n):
+    """The i-th component of x̄ = a1 x̂1 + a2 x̂2 (footnote 2) from the interconnection state
+    (x, ζ) of :func:`simulate_with_plant` (plant first, n states)."""
+    if isinstance(obs, LuenbergerObserver):
+        return lambda X: X[n + i]
+    d, sl = obs.design, obs.slices
+    o1, o2 = n + sl["xh1"].start + i, n + sl["xh2"].start + i
+    return lambda X: d.a1 * X[o1] + d.a2 * X[o2]
+
+
+def _error(obs, i, n, sign=1.0):
+    """sign * (x̄_i - x_i) as a function of the interconnection state."""
+    est = _estimate(obs, i, n)
+    return lambda X: sign * (est(X) - X[i])
+
+
+def _mhat(obs, i, n):
+    """m̂_i of H_c / H_pc (18) as a function of the interconnection state."""
+    k = n + obs.slices["mhat"].start + i
+    return lambda X: X[k]
+
+
+def _plot_fn(ax, arc, fn, label, **kw):
+    """A function of the state against t, flows drawn smooth through the arc's interpolant and
+    jumps dotted (the engine's plot); ``kw`` are Line2D properties (solid or dash-dot for data,
+    never ":" which is the jumps' style)."""
+    hs.plot_flows(arc, fn=fn, ax=ax, labels=[label], **kw)
 
 
 def reproduce(outdir):
@@ -112,11 +135,13 @@ the error: at delta = 1 it is {esim[0]:.3f}, at delta = 40 {esim[-1]:.3f}.""")
     arc_l = simulate_with_plant(obs_l, [0.0], [1.0], noise=[m], t_max=tf, refine=8, **_SIM)
     En, El = observer_errors(arc_n, obs_n), observer_errors(arc_l, obs_l)
     fig, ax = plt.subplots(figsize=(7, 4))
-    ax.plot(arc_n.t, En["x"][:, 0], "r--", label="plant x (zero solution)")
-    _plot_segments(ax, arc_l, El["xhat0"][:, 0], color="k", label=r"Luenberger (2), $L_0 = 0.02$")
-    _plot_segments(ax, arc_n, En["xbar"][:, 0], linestyle="-.", color="b", label=r"(3): $\bar x$, $\delta = 2$")
-    ax.set_xlabel("t")
-    ax.set_ylabel("estimate")
+    _plot_fn(ax, arc_n, lambda X: X[0], "plant $x$ (zero solution)", color="r", linestyle="--",
+             jumps=False)
+    _plot_fn(ax, arc_l, _estimate(obs_l, 0, 1), r"Luenberger (2), $L_0 = 0.02$", color="k")
+    _plot_fn(ax, arc_n, _estimate(obs_n, 0, 1), r"(3): $\bar x$, $\delta = 2$", color="b",
+             linestyle="-.")
+    ax.set_xlabel(r"time $t$ (dimensionless, as in the paper)")
+    ax.set_ylabel(r"state $x$ and estimates")
     ax.set_title("Fig. 1(b): finite-time observer (3) vs Luenberger (2), bias m = 0.2")
     ax.legend()
     ax.grid(alpha=0.3)
@@ -148,21 +173,25 @@ the Luenberger estimate is at {e_l2:.3f}; both then settle near the biased value
     arc_n = simulate_with_plant(obs_n, [1.0], [0.0], noise=[m], t_max=tf, refine=8, **_SIM)
     Ec, En = observer_errors(arc_c, obs_c), observer_errors(arc_n, obs_n)
     fig, axs = plt.subplots(3, 1, figsize=(7, 8), sharex=True)
-    axs[0].plot(arc_c.t, Ec["x"][:, 0], "r--", label="plant x")
-    _plot_segments(axs[0], arc_c, Ec["xbar"][:, 0], color="b", label=r"$H_c$: $\bar x$")
-    _plot_segments(axs[0], arc_n, En["xbar"][:, 0], color="g", linestyle=":", label=r"$H_n$: $\bar x$")
-    axs[0].set_ylabel("state and estimates")
+    _plot_fn(axs[0], arc_c, lambda X: X[0], "plant $x$", color="r", linestyle="--", jumps=False)
+    _plot_fn(axs[0], arc_c, _estimate(obs_c, 0, 1), r"$H_c$: $\bar x$", color="b")
+    _plot_fn(axs[0], arc_n, _estimate(obs_n, 0, 1), r"$H_n$: $\bar x$", color="g", linestyle="-.")
+    axs[0].set_ylabel(r"state $x$ and estimates $\bar x$")
     axs[0].legend()
     axs[0].set_title(r"Fig. 2(a): $H_c$ compensates a constant bias after one jump")
-    _plot_segments(axs[1], arc_c, np.abs(Ec["ebar"][:, 0]) + 1e-17, color="b", label=r"$|\bar e|$, $H_c$")
-    _plot_segments(axs[1], arc_n, np.abs(En["ebar"][:, 0]) + 1e-17, color="g", linestyle=":",
-                   label=r"$|\bar e|$, $H_n$")
+    ec, en = _error(obs_c, 0, 1), _error(obs_n, 0, 1)
+    _plot_fn(axs[1], arc_c, lambda X: abs(ec(X)) + 1e-17, r"$|\bar e|$, $H_c$", color="b")
+    _plot_fn(axs[1], arc_n, lambda X: abs(en(X)) + 1e-17, r"$|\bar e|$, $H_n$", color="g",
+             linestyle="-.")
     axs[1].set_yscale("log")
-    axs[1].set_ylabel("estimation error")
+    axs[1].set_ylabel(r"estimation error $|\bar e| = |\bar x - x|$")
     axs[1].legend()
-    axs[2].axhline(m, color="r", ls="--", label="noise m")
-    _plot_segments(axs[2], arc_c, Ec["mhat"][:, 0], color="m", label=r"$\hat m$ ($H_c$)")
-    axs[2].set_xlabel("t")
+    axs[2].axhline(m, color="r", ls="--", label="noise $m$")
+    _plot_fn(axs[2], arc_c, _mhat(obs_c, 0, 1), r"$\hat m$ ($H_c$)", color="m")
+    axs[2].set_ylabel(r"noise $m$ and estimate $\hat m$")
+    axs[2].set_xlabel(r"time $t$ (dimensionless, as in the paper)")
+    for ax in axs[:-1]:
+        ax.set_xlabel("")                       # shared t axis: labelled once, at the bottom
     axs[2].legend()
     for ax in axs:
         ax.grid(alpha=0.3)
@@ -177,7 +206,7 @@ the Luenberger estimate is at {e_l2:.3f}; both then settle near the biased value
 Fig. 2(a) of Li & Sanfelice: the observer H_c (17)-(18) on the scalar plant of Section V.A with a constant
 measurement bias. Paper values: a = -0.05, L1 = 0.1, L2 = 0.2, H = 1. Chosen (not in the text): delta = 2,
 m = 0.2, x(0) = 1, x̂1(0) = x̂2(0) = 0, m̂(0) = 0, horizon 12. Top: plant x (red dashes), H_c's estimate x̄
-(blue) and, for comparison, H_n's (green dotted). Middle (log scale): |ē| of both. Bottom: H_c's noise
+(blue) and, for comparison, H_n's (green dash-dot). Middle (log scale): |ē| of both. Bottom: H_c's noise
 estimate m̂ against m.
 After the jump at t = delta, H_c's error is {errc:.1e} (integrator level; exactly 0 by Theorem 4.13) and
 m̂ = {mh:.12f}; H_n keeps the error of (15), {abs(En['ebar'][arc_n.j == 1][0, 0]):.4f} right after its
@@ -256,20 +285,26 @@ on them).""")
     E = observer_errors(arc, obs)
     fig, axs = plt.subplots(3, 1, figsize=(7, 8), sharex=True)
     for i, col in ((0, "b"), (1, "r")):
-        axs[0].plot(arc.t, E["x"][:, i], col + "--", label=rf"$x_{i + 1}$")
-        _plot_segments(axs[0], arc, E["xbar"][:, i], color=col, label=rf"$\bar x_{i + 1}$")
-        _plot_segments(axs[1], arc, -E["ebar"][:, i], color=col,
-                       label=rf"$\bar e_{i + 1} = x_{i + 1} - \bar x_{i + 1}$")
+        _plot_fn(axs[0], arc, lambda X, i=i: X[i], rf"$x_{i + 1}$", color=col, linestyle="--",
+                 jumps=False)
+        _plot_fn(axs[0], arc, _estimate(obs, i, 2), rf"$\bar x_{i + 1}$", color=col)
+        _plot_fn(axs[1], arc, _error(obs, i, 2, sign=-1.0),
+                 rf"$\bar e_{i + 1} = x_{i + 1} - \bar x_{i + 1}$", color=col)
         tt = np.linspace(0, tf, 801)
         axs[2].plot(tt, [noise(s)[i] for s in tt], col + "--", label=rf"$m_{i + 1}$")
-        _plot_segments(axs[2], arc, E["mhat"][:, i], color=col, label=rf"$\hat m_{i + 1}$")
+        _plot_fn(axs[2], arc, _mhat(obs, i, 2), rf"$\hat m_{i + 1}$", color=col)
     for ax in axs:
         for s in noise.d:
             ax.axvline(s, color="gray", lw=0.6, ls=":")
         ax.legend(fontsize=8, ncol=2)
         ax.grid(alpha=0.3)
     axs[0].set_title(r"Fig. 3: $H_{pc}$ under piecewise-constant noise (recursive jumps, $\delta = 1$)")
-    axs[2].set_xlabel("t")
+    axs[0].set_ylabel(r"states $x_i$, estimates $\bar x_i$")
+    axs[1].set_ylabel(r"errors $\bar e_i = x_i - \bar x_i$")
+    axs[2].set_ylabel(r"noise $m_i$, estimate $\hat m_i$")
+    axs[2].set_xlabel(r"time $t$ (dimensionless, as in the paper)")
+    for ax in axs[:-1]:
+        ax.set_xlabel("")                       # shared t axis: labelled once, at the bottom
     p = out / "fig3_Hpc_piecewise_noise.png"
     fig.tight_layout()
     fig.savefig(p, dpi=120)
