@@ -200,4 +200,15 @@ DECISIONS = [
     "x̂1 and K1 = 0, K2 = I for x̂2 are identities); MotivatingObserver is an alias of "
     "NominalObserver, and the scalar observer (7)-(9) of Section III is ConstantNoiseObserver "
     "with n = p = 1.",
+    "12. Theorem 4.9 gives no constant (only that some sigma* exists). Since H_n is linear in m, "
+    "the distance between the noisy and the noise-free solution (same z_m(0,0), same hybrid time "
+    "domain) is the response to the noise alone; the check uses C = sqrt(2) (gamma1(1) + gamma(1)) "
+    "from Theorem 4.11's coefficients (each copy's difference is at most gamma sigma before the "
+    "jump, (gamma1 + gamma) sigma after it), on example V.B where those hypotheses hold, and "
+    "compares the two solutions on a grid of equal (t, j) through their dense output "
+    "(claims.closeness_sweep).",
+    "13. Theorem 4.11's (16) uses |m|_delta (sup over [0, delta]) and |m|_inf separately; the "
+    "tight check computes |m|_delta as a grid maximum plus its Lipschitz margin (an upper bound "
+    "tight to 4e-5 sigma), not |m|_inf, so the ratio |ē| / (16) is not diluted "
+    "(claims.theorem_4_11_ratios).",
 ]
