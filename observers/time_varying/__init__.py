@@ -84,6 +84,7 @@ from .example import (
     v2_feedback,
     zeta_of,
 )
+from .claims import CLAIMS
 from .figures import reproduce
 from .systems import (
     ChainedFormPlant,
@@ -135,7 +136,7 @@ DECISIONS = [
 ]
 
 __all__ = [
-    "PAPER", "ERRATA", "DECISIONS",
+    "PAPER", "ERRATA", "DECISIONS", "CLAIMS",
     # design (Sections II-III)
     "ReducedCoordinates", "reduced_coordinates", "is_observable", "M_tau", "choose_L_tau",
     "estimate_15", "FundamentalMatrix", "fundamental_matrix", "phi_scalar", "Lambda",
