@@ -7,9 +7,16 @@ import numpy as np
 import pytest
 
 from observers import dynamic_gain as dg
-from observers.dynamic_gain import (EXAMPLE, DynamicGainObserver, homogeneous_norm,
-                                    prescribed_error, prescribed_v, settling_time,
-                                    settling_time_bound, weights)
+from observers.dynamic_gain import (
+    EXAMPLE,
+    DynamicGainObserver,
+    homogeneous_norm,
+    prescribed_error,
+    prescribed_v,
+    settling_time,
+    settling_time_bound,
+    weights,
+)
 from observers.lmi import lmi10_matrices
 
 L_PAPER = EXAMPLE["L"]
@@ -162,11 +169,19 @@ def test_observer_bad_inputs():
 
 # ---------------------------------------------------------------- theorem checks (hs.simulate)
 hs = pytest.importorskip("hybridsim")
-from observers.dynamic_gain import (consistent_euler, error_components, example_norm,  # noqa: E402
-                                    example_plant, homogeneous_observer,
-                                    luenberger_observer, prescribed_time_observer,
-                                    proposed_observer, settle_time, simulate_example,
-                                    uniform_noise)
+from observers.dynamic_gain import (  # noqa: E402
+    consistent_euler,
+    error_components,
+    example_norm,
+    example_plant,
+    homogeneous_observer,
+    luenberger_observer,
+    prescribed_time_observer,
+    proposed_observer,
+    settle_time,
+    simulate_example,
+    uniform_noise,
+)
 from observers.lmi import solve_lmi10  # noqa: E402
 
 MU, G1, B3 = EXAMPLE["mu"], EXAMPLE["gamma1"], EXAMPLE["b"]
@@ -394,20 +409,72 @@ def test_simulation_helpers_bad_inputs():
 
 
 def test_simulate_example_rejects_observer_without_b():
-    """Issue 14: without b= the observer never sees u = Kx + cos 10t and never converges: refused, saying so."""
+    """Issue 14: without b= the observer never sees u = Kx + cos 10t and never converges:
+    refused, saying so."""
     obs = dg.proposed_observer(L_PAPER, MU, G1, 1.0)
-    with pytest.raises(ValueError, match=r"observer was built without b=: .*b = e_3.*b=np\.eye\(3\)\[:, -1:\]"):
+    with pytest.raises(ValueError, match=r"observer was built without b=: .*b = e_3.*"
+                                         r"b=np\.eye\(3\)\[:, -1:\]"):
         dg.simulate_example(obs, t_max=0.1)
     wrong = dg.proposed_observer(L_PAPER, MU, G1, 1.0, b=np.ones((3, 1)))
-    with pytest.raises(ValueError, match=r"observer\.b must be the example plant's input matrix b = e_3"):
+    with pytest.raises(ValueError,
+                       match=r"observer\.b must be the example plant's input matrix b = e_3"):
         dg.simulate_example(wrong, t_max=0.1)
     with pytest.raises(TypeError, match="observer must be a DynamicGainObserver, got str"):
         dg.simulate_example("observer")
     good = dg.proposed_observer(L_PAPER, MU, G1, 1.0, b=B3)
-    with pytest.raises(ValueError, match=r"x0 must be a finite vector of shape \(3,\) .* got shape \(2,\)"):
+    with pytest.raises(ValueError,
+                       match=r"x0 must be a finite vector of shape \(3,\) .* got shape \(2,\)"):
         dg.simulate_example(good, x0=[1.0, 2.0], t_max=0.1)
     with pytest.raises(ValueError, match=r"x_hat0 must have shape \(3,\), got \(4,\)"):
         dg.simulate_example(good, x_hat0=np.zeros(4), t_max=0.1)
     # the mismatch of L (n = 3) and b (2 rows) is refused at construction
     with pytest.raises(ValueError, match=r"b must be a finite \(3, m\) matrix, got shape \(2, 1\)"):
         dg.proposed_observer(L_PAPER, MU, G1, 1.0, b=np.ones((2, 1)))
+
+
+# ---------------------------------------------------------------- the calling pattern
+def test_simulate_and_errors_follow_the_calling_pattern():
+    """simulate(observer, x0, xhat0, *, t_max, noise, seed) is simulate_example under the
+    pattern's names (same run, bit for bit); errors() gives the same arrays by name."""
+    obs = proposed_observer(L_PAPER, MU, G1, 1.0, b=B3)
+    xh0 = np.array([1.0, -1.0, 0.5])
+    a = dg.simulate(obs, EXAMPLE["x0"], xh0, t_max=0.5)
+    b = simulate_example(obs, x_hat0=xh0, t_max=0.5)
+    assert np.array_equal(a.t, b.t) and np.array_equal(a.x, b.x)
+    err = dg.errors(a, obs)
+    e, v, q = error_components(a, obs)
+    assert sorted(err) == ["e", "q", "v", "x"]
+    assert np.array_equal(err["e"], e) and np.array_equal(err["x"], e[:, 1:])
+    assert np.array_equal(err["v"], v) and np.array_equal(err["q"], q)
+    assert np.allclose(err["x"][0], EXAMPLE["x0"] - xh0)
+    # noise: None is d = 0, seed None is seed 0 (nothing random without a seed)
+    n1 = dg.simulate(obs, None, None, t_max=0.3, noise=True)
+    n0 = dg.simulate(obs, None, None, t_max=0.3, noise=True, seed=0)
+    assert np.array_equal(n1.x, n0.x)
+    assert not np.array_equal(n1.x[-1], dg.simulate(obs, None, None, t_max=0.3).x[-1])
+    with pytest.raises(TypeError, match="noise must be None or a bool"):
+        dg.simulate(obs, None, None, t_max=0.1, noise="yes")
+    # issue 14: the pattern's entry point refuses an observer without b= as well
+    with pytest.raises(ValueError, match="observer was built without b="):
+        dg.simulate(proposed_observer(L_PAPER, MU, G1, 1.0), None, None, t_max=0.1)
+
+
+def test_settling_time_is_the_gain_reaching_zero_not_the_1e_6_crossing():
+    """Proposition 4's settling time (v and e reach 0 together) versus the last 1e-6
+    crossing of the error: for gamma2 = 0 the first is T = 5 of (18) (1e-4: the located
+    switch, as in _check_prescribed) while the second is earlier (e ~ v^r_i)."""
+    obs = prescribed_time_observer(L_PAPER, MU, G1, b=B3)
+    arc = dg.simulate(obs, None, None, t_max=5.2)
+    T = dg.gain_settling_time(arc, obs)
+    assert T == pytest.approx(settling_time(1.0, MU, G1), abs=1e-4)
+    assert settle_time(arc, obs) < T - 0.1
+    # not switched yet: no settling time
+    short = dg.simulate(obs, None, None, t_max=1.0)
+    assert np.isnan(dg.gain_settling_time(short, obs))
+
+
+def test_paper_metadata():
+    assert dg.PAPER["id"] == "000"
+    assert any("v(0)^mu/(mu gamma1)" in s for s in dg.ERRATA)
+    assert any("e^{-tau/2}" in s for s in dg.ERRATA)
+    assert {c.paper for c in dg.CLAIMS} == {"000"}
