@@ -71,6 +71,7 @@ from .example import (
     TAU_EXAMPLE,
     bounded_noise,
     chained_form_observer,
+    error_norm,
     errors,
     estimate_49,
     estimates,
@@ -147,7 +148,7 @@ __all__ = [
     # the example and runs
     "TAU_EXAMPLE", "example_data", "estimate_49", "sigma", "zeta_of", "v2_feedback",
     "chained_form_observer", "tracking_loop", "tracking_initial_state", "loop_signals",
-    "residual_58", "simulate", "estimates", "errors", "bounded_noise",
+    "residual_58", "simulate", "estimates", "errors", "error_norm", "bounded_noise",
     # figures
     "reproduce",
 ]

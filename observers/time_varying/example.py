@@ -48,7 +48,7 @@ from .systems import ChainedFormPlant, PlantModel, ReducedOrderObserver
 
 __all__ = ["TAU_EXAMPLE", "example_data", "estimate_49", "sigma", "zeta_of", "v2_feedback",
            "chained_form_observer", "tracking_loop", "tracking_initial_state", "loop_signals",
-           "residual_58", "simulate", "estimates", "errors", "bounded_noise"]
+           "residual_58", "simulate", "estimates", "errors", "error_norm", "bounded_noise"]
 
 #: tau of the example (Section IV-B): the period 2 pi of A1(t) = 2 cos t.
 TAU_EXAMPLE = 2.0 * np.pi
@@ -477,3 +477,34 @@ def errors(arc, observer):
     """
     xh = estimates(arc, observer)
     return xh - np.asarray(observer.plant_model.x_r(arc["plant"].x), dtype=float).reshape(xh.shape)
+
+
+def error_norm(arc, observer, floor=0.0):
+    r"""``fn(x, t, j) -> max(|xhat_r - x_r|, floor)`` on the arc's interconnection, for plots.
+
+    The same quantity as ``np.linalg.norm(errors(arc, observer), axis=1)``,
+    as a function of the stacked state, for :func:`hybridsim.plot_flows`'s
+    ``fn=`` (e.g. with ``yscale="log"``; ``floor`` > 0 keeps exact zeros on
+    a log axis).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from observers.time_varying import lti_observer, simulate, errors, error_norm
+    >>> obs, rc = lti_observer([[0.0, 1.0], [-2.0, -3.0]], [[1.0, 0.0]], tau=0.5)
+    >>> arc = simulate(obs, [1.0, -1.0], t_max=1.0)
+    >>> fn = error_norm(arc, obs)
+    >>> bool(np.isclose(fn(arc.x[-1], arc.t[-1], arc.j[-1]), np.linalg.norm(errors(arc, obs)[-1])))
+    True
+    """
+    sys = _interconnection(arc, observer)
+    u_of, sl, pm = sys.inputs["observer"], sys.components["plant"], observer.plant_model
+    floor = scalar("floor", floor, nonneg=True)
+
+    def fn(x, t, j):
+        outs = sys.outputs(x, t, j)
+        y = np.atleast_1d(np.asarray(u_of(t, outs), dtype=float))[: observer.p]
+        xh = observer.estimate(outs["observer"], y)
+        xr = np.asarray(pm.x_r(np.asarray(x, dtype=float)[sl][None, :]), dtype=float).ravel()
+        return max(float(np.linalg.norm(xh - xr)), floor)
+    return fn
