@@ -47,6 +47,7 @@ References
 .. [1] F. Mazenc, S. Ahmed, M. Malisoff, "Reduced order finite time observers
    for time-varying nonlinear systems", 57th IEEE CDC, 2018, eqs. (1)-(59).
 """
+from .claims import CLAIMS
 from .design import (
     D_of,
     FundamentalMatrix,
@@ -85,7 +86,6 @@ from .example import (
     v2_feedback,
     zeta_of,
 )
-from .claims import CLAIMS
 from .figures import reproduce
 from .systems import (
     ChainedFormPlant,
