@@ -1,95 +1,44 @@
-"""Finite-time distributed observer for LTI systems over a directed graph.
+"""Design computations of paper 003: graph, decompositions, gains, bounds, LMIs.
 
-Implements Silm, Efimov, Michiels, Ushirobira and Richard, "A simple
-finite-time distributed observer design for linear time-invariant systems",
-Systems & Control Letters 141 (2020) 104707 (paper 003).
+Pure numpy/scipy (cvxpy for the LMIs). Every function names its equation
+of Silm, Efimov, Michiels, Ushirobira and Richard (SCL 2020):
 
-The plant is ``xdot = A x``, ``y^i = C^i x`` (1); node ``i`` of a networkx
-``DiGraph`` measures ``y^i`` and receives the full estimates of its
-in-neighbours (edge ``j -> i``: node ``i`` receives from node ``j``).
-
-Design computations (pure numpy/scipy/cvxpy)
---------------------------------------------
-* :func:`graph_matrices` -- adjacency ``𝒜`` (``a_ij = 1`` for an edge
-  ``j -> i``), in-degree ``𝒟`` and Laplacian ``𝓛``.
-* :func:`check_network` -- strong connectivity (or Remark 1's source
-  components), joint observability (Assumption 1), locally observable nodes.
+* :func:`graph_matrices` -- 𝒜, 𝒟 and 𝓛 = 𝒟 − 𝒜 of Section 2 (decision 1 of
+  :mod:`observers.distributed`: the text's 𝓛 = 𝒜 − 𝒟 has the wrong sign).
+* :func:`check_network` -- Assumption 1, Theorem 1, Remark 1.
 * :func:`observability_decomposition` -- the orthogonal decomposition (2).
-* :func:`observer_canonical_form` -- ``Θ`` and ``p`` of Section 3.1.
-* :func:`proposition2_bound` -- ``η`` and the bound on ``ν_i`` (Prop. 2).
-* :func:`design` -- everything above for one network, as a
-  :class:`DistributedDesign`.
-* :func:`proposition1_lyapunov` -- the diagonal Lyapunov matrix (Prop. 1).
-* :func:`lmi11`, :func:`choose_alpha` -- LMI (11) of Lemma 1 / Theorem 1.
+* :func:`observer_canonical_form` -- Θ and p of Section 3.1, before (7).
+* :func:`proposition2_bound` -- η and the bound on ν_i of Prop. 2.
+* :func:`luenberger_gain` -- L_o of (3)-(4).
+* :func:`design` -- all of it for one network: a :class:`DistributedDesign`
+  (bold block-diagonal matrices of (6) and (9), :meth:`~DistributedDesign.error_matrix` of (6)).
+* :func:`proposition1_lyapunov` -- the diagonal Lyapunov matrix of Prop. 1.
+* :func:`lmi11_data`, :func:`lmi11`, :func:`choose_alpha` -- (10)-(11) of
+  Lemma 1 and the proof of Theorem 1.
 
-Decisions where the paper is ambiguous (each one is tested)
-----------------------------------------------------------
-1. **Laplacian sign.** The text writes ``𝓛 = 𝒜 − 𝒟``, but the error system
-   (6) obtained from (5), Proposition 1 and the Appendix ("𝓛 has a unique
-   zero eigenvalue ... all the other eigenvalues are strictly larger") all
-   need ``𝓛 = 𝒟 − 𝒜``: then ``Σ_j a_ij (e^i − e^j) = [(𝓛 ⊗ I) E]_i`` and
-   ``−α T_uᵀ(𝓛⊗I)T_u`` is the (Hurwitz) consensus term.  We use
-   ``𝓛 = 𝒟 − 𝒜`` (rows sum to zero, non-negative spectrum).
-2. **Dimensions in (9) and the proof of Theorem 1.** ``T_uᵀ 𝒜 T_o`` is read
-   as ``T_uᵀ (𝒜 ⊗ I_n) T_o``; ``x̃_j`` in (8) is the estimate ``x̃^j``.
-3. **The power in (7).** ``[1 (C_o x̃_o − y)]^γ`` is the scalar output error
-   copied into an ``n_i``-vector and raised element-wise to
-   ``γ_k = 1 + k ν_i`` (k = 1..n_i) with its sign kept.
-4. **Orientation of the canonical form.** ``𝓘`` is the upper shift
-   (ones on the super-diagonal) and ``Θ^{-1} A_o Θ = 𝓘 − p e_1ᵀ`` with
-   ``C_o Θ = e_1ᵀ`` and ``p`` the coefficients of ``det(sI − A_o) =
-   s^{n_i} + p_1 s^{n_i−1} + ... + p_{n_i}``; the error of (7) in
-   Θ-coordinates is then ``ε̇_k = ε_{k+1} − L_k ⌈ε_1⌋^{γ_k}``, and
-   ``L_o^i`` holds the coefficients of the monic Hurwitz polynomial
-   ``s^{n_i} + L_1 s^{n_i−1} + ... + L_{n_i}`` (Prop. 2).  With ``ν_i = 0``,
-   (7) is the Luenberger observer (4) with gain ``Θ (L − p)``.
-5. **Vector outputs.** Section 3.1 defers to its ref. [15] for ``m_i > 1``.
-   The linear observer (3)-(5) accepts vector outputs (gain by pole
-   placement).  For the finite-time observer we follow the paper's own
-   Conclusion: each entry of a vector output is given to an imaginary node;
-   :func:`split_vector_outputs` builds that graph (the imaginary nodes of one
-   physical node form a complete digraph and inherit its in- and out-edges),
-   and :func:`design` raises for ``m_i > 1`` when ``kind="finite-time"``.
-6. **Proposition 2 norm.** ``‖P diag(L_o^i)‖`` is the spectral norm; ``P``
-   is scaled so that ``λ_min(P) = 1`` (the smallest ``P ⪰ I``, which
-   maximises ``η`` for a given ``Q``).
-7. **Rank tolerance.** The rank of the observability matrix counts the
-   singular values above ``rtol * σ_max`` (default ``rtol = 1e-9``).
-8. **Proposition 2 is only sufficient.** For the example, ``η`` gives
-   ``ν_min ≈ −4.4e-3`` (``n_i = 2``) and ``≈ −3.3e-9`` (``n_i = 5``): the
-   paper's ``ν = −0.1`` is outside it; the simulations converge anyway.
-9. **Fig. 1 is missing:** :func:`example_system` uses the ring
-   ``1 -> 2 -> 3 -> 4 -> 1``.
-
-Simulation (on the engine)
---------------------------
-:class:`DistributedObserverNode` is one node as a ``hs.HybridSystem`` (empty
-jump set); :func:`observer_network` wires plant and nodes with
-``hs.network`` over ``G``; :func:`simulate_network` calls ``hs.simulate``
-(RK45, ``rtol = 1e-10``, ``atol = 1e-13``).  The example's plant is
-unstable; :func:`stable_initial_state` starts it in its stable subspace so
-that ``|x|`` (and the rounding of ``x̃ − x``) stays small: the error dynamics
-do not depend on ``x``.  :func:`reproduce` draws Figs. 2-3.
-
-References
-----------
-.. [1] H. Silm et al., Systems & Control Letters 141 (2020) 104707,
-       eqs. (1)-(11), Propositions 1-2, Lemma 1, Theorem 1, Remarks 1-2.
+Examples
+--------
+>>> from observers.distributed import design, example_system
+>>> A, C, G = example_system()
+>>> dsg = design(A, C, G, nodelist=[1, 2, 3, 4])
+>>> dsg.n_o, dsg.n_u
+([2, 2, 5, 5], [4, 4, 1, 1])
 """
 from __future__ import annotations
 
 import math
 import warnings
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from typing import Any, Mapping
 
 import networkx as nx
 import numpy as np
 import scipy.linalg as sla
 
-import hybridsim as hs
+from .._common import matrix
 
 __all__ = [
+    "DEFAULT_RTOL",
     "signed_power",
     "GraphMatrices",
     "graph_matrices",
@@ -107,18 +56,9 @@ __all__ = [
     "design",
     "proposition1_lyapunov",
     "LMI11Result",
+    "lmi11_data",
     "lmi11",
     "choose_alpha",
-    "example_system",
-    "random_system",
-    "DistributedObserverNode",
-    "observer_network",
-    "initial_state",
-    "simulate_network",
-    "transformed_errors",
-    "band_limited_noise",
-    "stable_initial_state",
-    "reproduce",
 ]
 
 DEFAULT_RTOL = 1e-9
@@ -149,28 +89,9 @@ def signed_power(a, b):
     return np.sign(a) * np.abs(a) ** np.asarray(b, dtype=float)
 
 
-def _as_matrix(M, name, rows=None, cols=None):
-    M = np.asarray(M, dtype=float)
-    if M.ndim == 1:
-        M = M[None, :]
-    if M.ndim != 2:
-        raise ValueError(f"{name} must be a 2-D array; got {M.ndim} dimensions")
-    if rows is not None and M.shape[0] != rows:
-        raise ValueError(f"{name} must have {rows} rows; got shape {M.shape}")
-    if cols is not None and M.shape[1] != cols:
-        raise ValueError(f"{name} must have {cols} columns; got shape {M.shape}")
-    if not np.all(np.isfinite(M)):
-        raise ValueError(f"{name} must be finite")
-    return M
-
-
-def _as_square(A, name="A"):
-    A = np.asarray(A, dtype=float)
-    if A.ndim != 2 or A.shape[0] != A.shape[1]:
-        raise ValueError(f"{name} must be a square 2-D array; got shape {A.shape}")
-    if not np.all(np.isfinite(A)):
-        raise ValueError(f"{name} must be finite")
-    return A
+def _row_matrix(name, M, cols):
+    """``M`` as a matrix of ``cols`` columns; a 1-D array is one row (an output row C^i)."""
+    return matrix(name, M, shape=(1, cols) if np.ndim(M) == 1 else (None, cols))
 
 
 def _check_graph(G):
@@ -211,7 +132,7 @@ def _output_list(C, nodelist, n):
             raise ValueError(
                 f"C must have one output matrix per node: expected {len(nodelist)}, "
                 f"got {len(Cs)}")
-    return [_as_matrix(Ci, f"C[{v!r}]", cols=n) for Ci, v in zip(Cs, nodelist)]
+    return [_row_matrix(f"C[{v!r}]", Ci, n) for Ci, v in zip(Cs, nodelist)]
 
 
 # --------------------------------------------------------------------------
@@ -271,9 +192,9 @@ def graph_matrices(G, nodelist=None) -> GraphMatrices:
 # --------------------------------------------------------------------------
 def observability_matrix(A, C):
     """Observability matrix ``[C; CA; ...; CA^{n-1}]`` of shape ``(n m, n)``."""
-    A = _as_square(A)
+    A = matrix("A", A, square=True)
     n = A.shape[0]
-    C = _as_matrix(C, "C", cols=n)
+    C = _row_matrix("C", C, n)
     blocks = [C]
     for _ in range(n - 1):
         blocks.append(blocks[-1] @ A)
@@ -344,9 +265,9 @@ def observability_decomposition(A, C, rtol=DEFAULT_RTOL) -> ObservabilityDecompo
     ----------
     Silm et al. (2020), Section 2.1, eq. (2).
     """
-    A = _as_square(A)
+    A = matrix("A", A, square=True)
     n = A.shape[0]
-    C = _as_matrix(C, "C", cols=n)
+    C = _row_matrix("C", C, n)
     if not (0 < rtol < 1):
         raise ValueError(f"rtol must be in (0, 1); got {rtol}")
     O = observability_matrix(A, C)
@@ -382,9 +303,9 @@ def observer_canonical_form(A_o, C_o):
     ----------
     Silm et al. (2020), Section 3.1, text before eq. (7).
     """
-    A_o = _as_square(A_o, "A_o")
+    A_o = matrix("A_o", A_o, square=True)
     n = A_o.shape[0]
-    C_o = _as_matrix(C_o, "C_o", cols=n)
+    C_o = _row_matrix("C_o", C_o, n)
     if C_o.shape[0] != 1:
         raise ValueError(
             f"C_o must have exactly one row (scalar output); got shape {C_o.shape}; "
@@ -450,9 +371,7 @@ def proposition2_bound(L, Q=None, optimize=False):
     F = np.eye(n, k=1) - np.outer(L, np.eye(n)[0])
     if np.max(np.linalg.eigvals(F).real) >= 0:
         raise ValueError(f"L must hold the coefficients of a Hurwitz polynomial; got {L}")
-    Q = np.eye(n) if Q is None else _as_square(Q, "Q")
-    if Q.shape != (n, n):
-        raise ValueError(f"Q must have shape {(n, n)}; got {Q.shape}")
+    Q = np.eye(n) if Q is None else matrix("Q", Q, shape=(n, n))
     if np.min(np.linalg.eigvalsh((Q + Q.T) / 2)) <= 0:
         raise ValueError("Q must be positive definite")
 
@@ -492,9 +411,9 @@ def luenberger_gain(A_o, C_o, poles):
     ----------
     Silm et al. (2020), eqs. (3)-(4).
     """
-    A_o = _as_square(A_o, "A_o")
+    A_o = matrix("A_o", A_o, square=True)
     n = A_o.shape[0]
-    C_o = _as_matrix(C_o, "C_o", cols=n)
+    C_o = _row_matrix("C_o", C_o, n)
     poles = np.atleast_1d(np.asarray(poles, dtype=complex))
     if poles.size != n:
         raise ValueError(f"poles must have {n} entries; got {poles.size}")
@@ -548,7 +467,7 @@ def check_network(A, C, G, nodelist=None, rtol=DEFAULT_RTOL, *, warn=True) -> Ne
     ----------
     Silm et al. (2020), Assumption 1, Theorem 1, Remark 1.
     """
-    A = _as_square(A)
+    A = matrix("A", A, square=True)
     n = A.shape[0]
     _check_graph(G)
     nodes = _nodelist(G, nodelist)
@@ -770,7 +689,7 @@ def design(A, C, G, nodelist=None, *, kind="finite-time", poles=-3.0, nu=-0.1,
     """
     if kind not in ("finite-time", "linear"):
         raise ValueError(f"kind must be 'finite-time' or 'linear'; got {kind!r}")
-    A = _as_square(A)
+    A = matrix("A", A, square=True)
     n = A.shape[0]
     _check_graph(G)
     nodes = _nodelist(G, nodelist)
@@ -1048,498 +967,3 @@ def choose_alpha(dsg: DistributedDesign, candidates=(0.5, 1, 2, 5, 10, 20, 50, 1
                      f"(last max eig Phi = {last.max_eig_Phi:.3g})")
 
 
-# --------------------------------------------------------------------------
-# the paper's example (Section 4)
-# --------------------------------------------------------------------------
-def example_system():
-    """The plant and outputs of Section 4 and our choice of graph.
-
-    Fig. 1 (the graph) is missing from the text: we use the directed ring
-    ``1 -> 2 -> 3 -> 4 -> 1`` (the sparsest strongly connected graph on four
-    nodes).
-
-    Returns
-    -------
-    A : (6, 6) ndarray
-    C : dict
-        node -> (1, 6) output matrix, nodes 1..4.
-    G : networkx.DiGraph
-
-    References
-    ----------
-    Silm et al. (2020), Section 4.
-    """
-    A = np.array([[-1, 0, 0, 0, 0, 0],
-                  [-1, 1, 1, 0, 0, 0],
-                  [1, -2, -1, -1, 1, 1],
-                  [0, 0, 0, 1, 0, 0],
-                  [-8, 1, 1, -1, -2, 0],
-                  [4, -0.5, 0.5, 0, 0, -4]], dtype=float)
-    C = {1: np.array([[1.0, 0, 0, 2, 0, 0]]),
-         2: np.array([[2.0, 0, 0, 1, 0, 0]]),
-         3: np.array([[0.0, 0, 1, 0, 0, 0]]),
-         4: np.array([[2.0, 0, 5, 0, 0, 0]])}
-    G = nx.DiGraph([(1, 2), (2, 3), (3, 4), (4, 1)])
-    return A, C, G
-
-
-def random_system(N, seed=None, *, graph="ring", n_blocks=None, p_edge=0.3):
-    """A seeded random jointly observable plant over a strongly connected graph.
-
-    ``A = S blkdiag(A_1, ..., A_K) S^{-1}`` with ``K`` random blocks (real
-    eigenvalues in ``[−1.5, 0.5]`` or complex pairs ``a ± ib``,
-    ``a ∈ [−1, 0.3]``) and a random well-conditioned ``S``; node ``i``'s scalar
-    output ``C^i = c^i S^{-1}`` sees a random proper subset of the blocks, every
-    block is seen by some node, so the plant is jointly observable while no
-    single node observes it (for ``K ≥ 2``).
-
-    Parameters
-    ----------
-    N : int
-        Number of nodes (>= 2).
-    seed : int or numpy.random.Generator, optional
-    graph : {"ring", "random"}
-        A directed ring through a random permutation of the nodes, or that ring
-        plus every other edge with probability ``p_edge``.
-    n_blocks : int, optional
-        ``K`` (default: random in ``[2, 3]``).
-    p_edge : float
-
-    Returns
-    -------
-    A : (n, n) ndarray
-    C : dict
-        node -> (1, n) output row, nodes ``0..N-1``.
-    G : networkx.DiGraph
-    """
-    if not isinstance(N, (int, np.integer)) or N < 2:
-        raise ValueError(f"N must be an integer >= 2; got {N!r}")
-    if graph not in ("ring", "random"):
-        raise ValueError(f"graph must be 'ring' or 'random'; got {graph!r}")
-    rng = np.random.default_rng(seed)
-    K = int(rng.integers(2, 4)) if n_blocks is None else int(n_blocks)
-    if K < 2:
-        raise ValueError(f"n_blocks must be >= 2; got {K}")
-    blocks = []
-    for _ in range(K):
-        if rng.random() < 0.5:
-            blocks.append(np.array([[rng.uniform(-1.5, 0.5)]]))
-        else:
-            a, b = rng.uniform(-1.0, 0.3), rng.uniform(0.5, 2.0)
-            blocks.append(np.array([[a, b], [-b, a]]))
-    sizes = [b.shape[0] for b in blocks]
-    n = sum(sizes)
-    starts = np.cumsum([0] + sizes)
-    Q, _ = np.linalg.qr(rng.standard_normal((n, n)))
-    S = Q @ (np.eye(n) + np.triu(rng.uniform(-0.5, 0.5, (n, n)), 1))
-    Sinv = np.linalg.inv(S)
-    A = S @ sla.block_diag(*blocks) @ Sinv
-    # which blocks each node sees: a proper non-empty subset, all blocks covered
-    seen = [set() for _ in range(N)]
-    for k in range(K):
-        seen[int(rng.integers(N))].add(k)
-    for i in range(N):
-        if not seen[i]:
-            seen[i].add(int(rng.integers(K)))
-        while len(seen[i]) == K:
-            seen[i].discard(int(rng.integers(K)))
-    # re-cover blocks possibly dropped above
-    for k in range(K):
-        if not any(k in s for s in seen):
-            for i in range(N):
-                if len(seen[i]) < K - 1:
-                    seen[i].add(k)
-                    break
-    C = {}
-    for i in range(N):
-        c = np.zeros(n)
-        for k in seen[i]:
-            sl = slice(starts[k], starts[k + 1])
-            c[sl] = rng.choice([-1, 1], sizes[k]) * rng.uniform(0.5, 1.5, sizes[k])
-        C[i] = (c @ Sinv)[None, :]
-    perm = [int(v) for v in rng.permutation(N)]
-    G = nx.DiGraph()
-    G.add_nodes_from(range(N))
-    G.add_edges_from((perm[k], perm[(k + 1) % N]) for k in range(N))
-    if graph == "random":
-        for i in range(N):
-            for j in range(N):
-                if i != j and rng.random() < p_edge:
-                    G.add_edge(i, j)
-    return A, C, G
-
-
-# --------------------------------------------------------------------------
-# the node dynamics (7)-(8) and (4)-(5)
-# --------------------------------------------------------------------------
-class _NodeData:
-    """Pre-computed matrices of one node (local coordinates ``(x̃_o, x̃_u)``)."""
-
-    def __init__(self, dsg: DistributedDesign, k: int):
-        d = dsg.decomp[k]
-        self.k, self.node = k, dsg.nodelist[k]
-        self.n_o, self.n_u, self.n = d.n_o, d.n_u, dsg.n
-        self.T_o, self.T_u = d.T_o, d.T_u
-        self.T = d.T
-        self.A_o, self.A_r, self.A_u, self.C_o = d.A_o, d.A_r, d.A_u, d.C_o
-        self.m = dsg.C[k].shape[0]
-        self.alpha = float(dsg.alpha[k])
-        self.finite_time = dsg.kind == "finite-time"
-        self.beta = dsg.beta
-        self.L_lin = dsg.L_lin[k]
-        if self.finite_time and self.n_o:
-            Th, p, L = dsg.Theta[k], dsg.p[k], dsg.L[k]
-            self.pt = Th @ p                                              # Θ p
-            # Θ 𝓘 Θ^{-1} = A_o + Θ p C_o (same matrix; avoids inverting a
-            # possibly ill-conditioned Θ)
-            self.At_o = self.A_o + np.outer(self.pt, self.C_o[0])
-            self.Lt_o = Th @ np.diag(L)                                   # Θ diag(L_o)
-            self.gamma = 1.0 + np.arange(1, self.n_o + 1) * dsg.nu[k]    # γ_k = 1 + k ν
-        self.neighbours = dsg.in_neighbours(self.node)
-
-    def rhs(self, z, y, xhat_nb):
-        """Right-hand side of node ``k``: (7)-(8) or (4)-(5).
-
-        Parameters
-        ----------
-        z : (n_o + n_u,) array
-            ``(x̃_o, x̃_u)``.
-        y : (m,) array
-            The node's measurement ``y^i``.
-        xhat_nb : (|𝒩_i|, n) array
-            The in-neighbours' full estimates ``x̃^j``.
-        """
-        xo, xu = z[:self.n_o], z[self.n_o:]
-        dxo = np.zeros(self.n_o)
-        if self.n_o:
-            if self.finite_time:
-                err = (self.C_o @ xo)[0] - y[0]
-                dxo = (self.At_o @ xo - self.pt * y[0]
-                       - self.Lt_o @ signed_power(np.full(self.n_o, err), self.gamma))
-            else:
-                dxo = self.A_o @ xo - self.L_lin @ (self.C_o @ xo - y)
-        dxu = np.zeros(self.n_u)
-        if self.n_u:
-            s = np.zeros(self.n_u)
-            if len(xhat_nb):
-                s = len(xhat_nb) * xu - self.T_u.T @ np.sum(xhat_nb, axis=0)
-            dxu = self.A_r @ xo + self.A_u @ xu - self.alpha * s
-            if self.finite_time:
-                dxu = dxu - signed_power(s, self.beta)
-        return np.concatenate([dxo, dxu])
-
-    def estimate(self, z):
-        """Full estimate ``x̃^i = T_o x̃_o + T_u x̃_u``."""
-        return self.T @ z
-
-
-# --------------------------------------------------------------------------
-# the observer network on the engine
-# --------------------------------------------------------------------------
-class DistributedObserverNode(hs.HybridSystem):
-    """Observer node ``i`` of (7)-(8) (or (4)-(5)) as a hybrid system.
-
-    A purely continuous system (empty jump set).  State: the local
-    coordinates ``(x̃_o^i, x̃_u^i)`` of (2) (length ``n``).  Input:
-    ``u = (y^i, x̃^{j_1}, ..., x̃^{j_k})`` with ``j_1..j_k`` the in-neighbours
-    ``𝒩_i`` in ``nodelist`` order.  Output: the full estimate
-    ``x̃^i = T_o x̃_o + T_u x̃_u`` (what the out-neighbours receive).
-
-    Parameters
-    ----------
-    dsg : DistributedDesign
-    node : hashable
-        A node of ``dsg.G``.
-
-    References
-    ----------
-    Silm et al. (2020), eqs. (3)-(5), (7), (8).
-    """
-
-    def __init__(self, dsg: DistributedDesign, node):
-        if node not in dsg.nodelist:
-            raise ValueError(f"node must be a node of the design's graph; got {node!r}")
-        self.data = _NodeData(dsg, dsg.nodelist.index(node))
-        self.node = node
-        self.state_dim = dsg.n
-        self.output_dim = dsg.n
-        self.input_dim = self.data.m + len(self.data.neighbours) * dsg.n
-
-    def flow_map(self, x, t, j, u):
-        m, n = self.data.m, self.data.n
-        u = np.asarray(u, dtype=float)
-        nb = u[m:].reshape(-1, n)
-        return self.data.rhs(np.asarray(x, dtype=float), u[:m], nb)
-
-    def output(self, x, t, j):
-        return self.data.estimate(np.asarray(x, dtype=float))
-
-
-class _NetworkInputs:
-    """``inputs(node, t, received, exo)`` of :func:`hybridsim.network` (picklable)."""
-
-    def __init__(self, dsg):
-        self.slices, k = {}, 0
-        for v, Ci in zip(dsg.nodelist, dsg.C):
-            self.slices[v] = slice(k, k + Ci.shape[0])
-            k += Ci.shape[0]
-        self.neighbours = {v: dsg.in_neighbours(v) for v in dsg.nodelist}
-
-    def __call__(self, node, t, received, exo):
-        y = np.asarray(exo["plant"], dtype=float)[self.slices[node]]
-        return np.concatenate([y] + [np.asarray(received[w], dtype=float)
-                                     for w in self.neighbours[node]])
-
-
-def observer_network(dsg: DistributedDesign, *, noise=None, disturbance=None):
-    """Plant (1) and the observer nodes as one interconnected hybrid system.
-
-    Built with :func:`hybridsim.network` over ``dsg.G``: the component
-    ``"plant"`` (a :class:`hybridsim.LinearPlant` with ``C = [C^1; ...; C^N]``)
-    is stacked first, then one :class:`DistributedObserverNode` per node in
-    ``dsg.nodelist`` order.
-
-    Parameters
-    ----------
-    dsg : DistributedDesign
-    noise : callable, optional
-        ``t -> (Σ m_i,)`` measurement noise added to the outputs (Remark 2).
-    disturbance : callable, optional
-        ``t -> (n,)`` added to the plant's flow.
-
-    Returns
-    -------
-    hybridsim.Interconnection
-    """
-    if "plant" in dsg.nodelist:
-        raise ValueError("no node of G may be named 'plant'")
-    plant = hs.LinearPlant(dsg.A, C=np.vstack(dsg.C), noise=noise, disturbance=disturbance)
-    nodes = {v: DistributedObserverNode(dsg, v) for v in dsg.nodelist}
-    return hs.network(dsg.G, nodes, _NetworkInputs(dsg), nodelist=dsg.nodelist,
-                      exogenous={"plant": plant})
-
-
-def initial_state(dsg: DistributedDesign, x0, xhat0=None):
-    """Stacked initial state ``(x(0), T^{1ᵀ} x̃^1(0), ..., T^{Nᵀ} x̃^N(0))``.
-
-    Parameters
-    ----------
-    x0 : (n,) array_like
-        Plant state.
-    xhat0 : (n,) or (N, n) array_like, optional
-        Initial estimates ``x̃^i(0)`` (default 0).
-    """
-    n, N = dsg.n, dsg.N
-    x0 = np.asarray(x0, dtype=float)
-    if x0.shape != (n,):
-        raise ValueError(f"x0 must have shape ({n},); got {x0.shape}")
-    xh = np.zeros((N, n)) if xhat0 is None else np.asarray(xhat0, dtype=float)
-    if xh.shape == (n,):
-        xh = np.tile(xh, (N, 1))
-    if xh.shape != (N, n):
-        raise ValueError(f"xhat0 must have shape ({n},) or ({N}, {n}); got {xh.shape}")
-    return np.concatenate([x0] + [d.T.T @ xh[k] for k, d in enumerate(dsg.decomp)])
-
-
-def simulate_network(dsg: DistributedDesign, x0, xhat0=None, *, t_max=10.0, noise=None,
-                     method="RK45", rtol=1e-10, atol=1e-13, max_step=np.inf, **kw):
-    """Simulate plant and observer network with :func:`hybridsim.simulate`.
-
-    The non-Lipschitz powers of (7)-(8) make the flow stiff near zero error;
-    the explicit RK45 at ``rtol = 1e-10`` copes (the error chatters at the
-    1e-13 level after convergence) and was faster than Radau/LSODA here.
-    Returns the ``HybridArc``; see
-    :func:`transformed_errors`.
-    """
-    sys_ = observer_network(dsg, noise=noise)
-    return hs.simulate(sys_, initial_state(dsg, x0, xhat0), t_max=t_max, j_max=0,
-                       method=method, rtol=rtol, atol=atol, max_step=max_step,
-                       progress=False, **kw)
-
-
-def transformed_errors(arc, dsg: DistributedDesign):
-    """Errors in transformed coordinates ``e_o^i = x̃_o^i − T_o^{iᵀ} x``, ``e_u^i``.
-
-    Returns
-    -------
-    dict
-        ``{"t": (K,), "e_o": [ (K, n_i) per node ], "e_u": [ (K, n − n_i) ],
-        "norm": (K,)}`` where ``norm`` is the largest absolute entry of all
-        errors (``max_i ‖x̃^i − x‖_∞`` in the nodes' orthonormal coordinates).
-    """
-    x = arc["plant"].x
-    e_o, e_u = [], []
-    for v, d in zip(dsg.nodelist, dsg.decomp):
-        z = arc[v].x
-        e = z - x @ d.T
-        e_o.append(e[:, :d.n_o])
-        e_u.append(e[:, d.n_o:])
-    allerr = np.hstack(e_o + e_u)
-    return {"t": np.asarray(arc.t), "e_o": e_o, "e_u": e_u,
-            "norm": np.max(np.abs(allerr), axis=1)}
-
-
-def _settling(t, norm, threshold):
-    """First time after which ``norm`` stays below ``threshold`` (nan if never)."""
-    above = np.nonzero(norm > threshold)[0]
-    if above.size == 0:
-        return float(t[0])
-    if above[-1] == len(t) - 1:
-        return float("nan")
-    return float(t[above[-1] + 1])
-
-
-def stable_initial_state(A, v):
-    """Projection of ``v`` on the stable invariant subspace of ``A``.
-
-    Used for the example: the plant of Section 4 is unstable, and the
-    errors, not the state, are the point; starting the plant in its stable
-    subspace keeps ``|x|`` small, so that the floating-point error of
-    ``x̃ − x`` (relative to ``|x|``) does not hide the convergence.
-    """
-    A = _as_square(A)
-    T, Z, sdim = sla.schur(A, output="real", sort="lhp")
-    Zs = Z[:, :sdim]
-    return Zs @ (Zs.T @ np.asarray(v, dtype=float))
-
-
-def band_limited_noise(power, ts, t_max, dim, seed=None):
-    """Band-limited white noise as in Simulink, interpolated linearly.
-
-    Gaussian samples of variance ``power / ts`` every ``ts`` seconds
-    (Simulink's "Band-Limited White Noise" block), joined by straight lines
-    so that the flow stays continuous for the integrator.
-
-    Returns
-    -------
-    callable
-        ``t -> (dim,)``.
-    """
-    if power < 0 or ts <= 0:
-        raise ValueError(f"power must be >= 0 and ts > 0; got power={power}, ts={ts}")
-    rng = np.random.default_rng(seed)
-    grid = np.arange(0.0, t_max + 2 * ts, ts)
-    samples = rng.standard_normal((grid.size, dim)) * math.sqrt(power / ts)
-
-    def noise(t):
-        return np.array([np.interp(t, grid, samples[:, k]) for k in range(dim)])
-    return noise
-
-
-# --------------------------------------------------------------------------
-# figures
-# --------------------------------------------------------------------------
-EXAMPLE_V0 = np.array([1.0, -1.0, 0.5, 0.0, 1.0, -0.5])
-
-
-def _plot_errors(ax, E, dsg, log, title):
-    colors = [f"C{k}" for k in range(dsg.N)]
-    for k, v in enumerate(dsg.nodelist):
-        eo = np.linalg.norm(E["e_o"][k], axis=1)
-        eu = np.linalg.norm(E["e_u"][k], axis=1)
-        if log:
-            ax[0].semilogy(E["t"], np.maximum(eo, 1e-18), color=colors[k], label=f"node {v}")
-            ax[1].semilogy(E["t"], np.maximum(eu, 1e-18), color=colors[k], label=f"node {v}")
-        else:
-            for c in range(E["e_o"][k].shape[1]):
-                ax[0].plot(E["t"], E["e_o"][k][:, c], color=colors[k], lw=0.8,
-                           label=f"node {v}" if c == 0 else None)
-            for c in range(E["e_u"][k].shape[1]):
-                ax[1].plot(E["t"], E["e_u"][k][:, c], color=colors[k], lw=0.8,
-                           label=f"node {v}" if c == 0 else None)
-    ax[0].set_ylabel(r"$e_o^i$" + (" (norm)" if log else ""))
-    ax[1].set_ylabel(r"$e_u^i$" + (" (norm)" if log else ""))
-    ax[1].set_xlabel("t")
-    ax[0].set_title(title)
-    ax[0].legend(fontsize=7, ncol=2)
-
-
-def reproduce(outdir, *, t_max=20.0, t_max_noise=10.0):
-    """Regenerate Figs. 2 and 3 of the paper into ``outdir``.
-
-    Fig. 2: errors of the observer network (7)-(8) in transformed
-    coordinates, semi-log, without noise (with the linear observer (3)
-    for comparison).  Fig. 3: the same under band-limited white noise of power
-    1e-2 on each output (Remark 2).
-
-    Returns
-    -------
-    list of pathlib.Path
-        The PNG files (each with a ``.txt`` caption beside it).
-
-    References
-    ----------
-    Silm et al. (2020), Section 4, Figs. 2-3.
-    """
-    import pathlib
-
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    outdir = pathlib.Path(outdir)
-    outdir.mkdir(parents=True, exist_ok=True)
-    A, C, G = example_system()
-    nl = [1, 2, 3, 4]
-    ft = design(A, C, G, nl)
-    lin = design(A, C, G, nl, kind="linear")
-    x0 = stable_initial_state(A, EXAMPLE_V0)
-    res = lmi11(ft)
-    P1, margin1 = proposition1_lyapunov(ft)
-    print(f"[distributed] n_i = {ft.n_o}; Prop. 2 bound nu_min = "
-          f"{[float(f'{v:.3g}') for v in ft.nu_min]}; "
-          f"nu = -0.1 meets it: {ft.meets_proposition2.tolist()}")
-    print(f"[distributed] Prop. 1 diagonal P = diag(r_i I), margin {margin1:.3g}; "
-          f"LMI (11) at alpha = 10: feasible={res.feasible}, "
-          f"max eig Phi = {res.max_eig_Phi:.3g}")
-    arc = simulate_network(ft, x0, t_max=t_max)
-    arcl = simulate_network(lin, x0, t_max=t_max)
-    E, El = transformed_errors(arc, ft), transformed_errors(arcl, lin)
-    ts = _settling(E["t"], E["norm"], 1e-10)
-    print(f"[distributed] finite-time: errors < 1e-10 for t >= {ts:.3f} "
-          f"(final {E['norm'][-1]:.2e}); linear (3): final error {El['norm'][-1]:.2e}")
-
-    fig, ax = plt.subplots(2, 1, sharex=True, figsize=(7, 6))
-    _plot_errors(ax, E, ft, True, "Fig. 2: errors in transformed coordinates")
-    for k in range(ft.N):
-        ax[1].semilogy(El["t"], np.maximum(np.linalg.norm(El["e_u"][k], axis=1), 1e-18),
-                       color=f"C{k}", ls=":", lw=0.8)
-    ax[1].text(0.02, 0.05, "dotted: linear observer (3)", transform=ax[1].transAxes,
-               fontsize=7)
-    f2 = outdir / "distributed_fig2.png"
-    fig.tight_layout()
-    fig.savefig(f2, dpi=120)
-    plt.close(fig)
-    f2.with_suffix(".txt").write_text(
-        "Fig. 2 of Silm et al. (2020): norms of the errors e_o^i (top) and e_u^i (bottom) of "
-        "the finite-time distributed observer (7)-(8), semi-log, no noise; dotted: the "
-        "linear observer (3) with the same gains (exponential only).\n"
-        "From the paper: A, C1..C4, observable-part eigenvalues -3 (at nu=0), nu_i = -0.1, "
-        "alpha_i = 10, beta = 0.7.\n"
-        "Our choices: graph 1->2->3->4->1 (Fig. 1 is missing from the text); x(0) = "
-        "projection of (1,-1,0.5,0,1,-0.5) on A's stable subspace (keeps |x| small so "
-        "that rounding of x_hat - x stays below 1e-10); x_hat^i(0) = 0; RK45, "
-        f"rtol=1e-10, atol=1e-13. Errors < 1e-10 for t >= {ts:.2f}.\n")
-
-    noise = band_limited_noise(1e-2, 0.1, t_max_noise, ft.N, seed=0)
-    arcn = simulate_network(ft, x0, t_max=t_max_noise, noise=noise, max_step=0.05,
-                            rtol=1e-8, atol=1e-10)
-    En = transformed_errors(arcn, ft)
-    half = En["t"] >= t_max_noise / 2
-    print(f"[distributed] noise (power 1e-2): max error over t >= {t_max_noise / 2:g}: "
-          f"{En['norm'][half].max():.3g}")
-    fig, ax = plt.subplots(2, 1, sharex=True, figsize=(7, 6))
-    _plot_errors(ax, En, ft, False, "Fig. 3: errors with measurement noise")
-    f3 = outdir / "distributed_fig3.png"
-    fig.tight_layout()
-    fig.savefig(f3, dpi=120)
-    plt.close(fig)
-    f3.with_suffix(".txt").write_text(
-        "Fig. 3 of Silm et al. (2020): components of e_o^i (top) and e_u^i (bottom), "
-        "linear scale, with band-limited white noise of power 1e-2 added to each output "
-        "(Remark 2: errors stay bounded).\n"
-        "From the paper: as Fig. 2, noise power 1e-2.\n"
-        "Our choices: noise sample time 0.1 s (variance power/ts = 0.1, Simulink's "
-        "convention), samples joined linearly, seed 0; graph, x(0), x_hat(0) as Fig. 2; "
-        "RK45 rtol=1e-8, atol=1e-10, max_step=0.05.\n")
-    return [f2, f3]

@@ -1,0 +1,381 @@
+"""The hybrid systems of paper 003: observer nodes (7)-(8) / (4)-(5), the
+network with its plant (1), and the error system (6)-(9) itself.
+
+* :class:`DistributedObserverNode` -- node i of (7)-(8) (or (4)-(5)) as a
+  ``hs.HybridSystem`` (empty jump set); :func:`observer_network` wires plant
+  (1) and nodes with ``hs.network`` over the graph; :func:`initial_state`
+  stacks their initial states.
+* :class:`ErrorSystem` / :func:`error_system` -- the paper's analysis object:
+  the estimation errors E = (E_o, E_u) of every node in the local
+  coordinates of (2), ordered as in (6), flowing by the error of (7) (each
+  node's observable part) and by (9) (the unobservable part of the network;
+  (6) for the linear observer). It does not contain the plant, so an
+  unstable plant leaves no rounding floor on the error: it can be followed
+  down to 1e-12 and below. :func:`error_initial_state` gives E(0) from x(0)
+  and the estimates x̃^i(0).
+
+Examples
+--------
+>>> import numpy as np
+>>> from observers.distributed import design, example_system, error_system
+>>> A, C, G = example_system()
+>>> dsg = design(A, C, G, nodelist=[1, 2, 3, 4])
+>>> es = error_system(dsg)
+>>> es.state_dim, es.n_obs                      # (E_o, E_u): sum n_i = 14, sum (n - n_i) = 10
+(24, 14)
+>>> bool(np.allclose(es.flow_map(np.zeros(24)), 0))   # E = 0 is an equilibrium
+True
+"""
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg as sla
+
+import hybridsim as hs
+
+from .._common import vector
+from .design import DistributedDesign, signed_power
+
+__all__ = [
+    "DistributedObserverNode",
+    "observer_network",
+    "initial_state",
+    "ErrorSystem",
+    "error_system",
+    "error_initial_state",
+    "split_errors",
+]
+
+
+# --------------------------------------------------------------------------
+# the node dynamics (7)-(8) and (4)-(5)
+# --------------------------------------------------------------------------
+class _NodeData:
+    """Pre-computed matrices of one node (local coordinates ``(x̃_o, x̃_u)``)."""
+
+    def __init__(self, dsg: DistributedDesign, k: int):
+        d = dsg.decomp[k]
+        self.k, self.node = k, dsg.nodelist[k]
+        self.n_o, self.n_u, self.n = d.n_o, d.n_u, dsg.n
+        self.T_o, self.T_u = d.T_o, d.T_u
+        self.T = d.T
+        self.A_o, self.A_r, self.A_u, self.C_o = d.A_o, d.A_r, d.A_u, d.C_o
+        self.m = dsg.C[k].shape[0]
+        self.alpha = float(dsg.alpha[k])
+        self.finite_time = dsg.kind == "finite-time"
+        self.beta = dsg.beta
+        self.L_lin = dsg.L_lin[k]
+        if self.finite_time and self.n_o:
+            Th, p, L = dsg.Theta[k], dsg.p[k], dsg.L[k]
+            self.pt = Th @ p                                              # Θ p
+            # Θ 𝓘 Θ^{-1} = A_o + Θ p C_o (same matrix; avoids inverting a
+            # possibly ill-conditioned Θ)
+            self.At_o = self.A_o + np.outer(self.pt, self.C_o[0])
+            self.Lt_o = Th @ np.diag(L)                                   # Θ diag(L_o)
+            self.gamma = 1.0 + np.arange(1, self.n_o + 1) * dsg.nu[k]    # γ_k = 1 + k ν
+        self.neighbours = dsg.in_neighbours(self.node)
+
+    def rhs(self, z, y, xhat_nb):
+        """Right-hand side of node ``k``: (7)-(8) or (4)-(5).
+
+        Parameters
+        ----------
+        z : (n_o + n_u,) array
+            ``(x̃_o, x̃_u)``.
+        y : (m,) array
+            The node's measurement ``y^i``.
+        xhat_nb : (|𝒩_i|, n) array
+            The in-neighbours' full estimates ``x̃^j``.
+        """
+        xo, xu = z[:self.n_o], z[self.n_o:]
+        dxo = np.zeros(self.n_o)
+        if self.n_o:
+            if self.finite_time:
+                err = (self.C_o @ xo)[0] - y[0]
+                dxo = (self.At_o @ xo - self.pt * y[0]
+                       - self.Lt_o @ signed_power(np.full(self.n_o, err), self.gamma))
+            else:
+                dxo = self.A_o @ xo - self.L_lin @ (self.C_o @ xo - y)
+        dxu = np.zeros(self.n_u)
+        if self.n_u:
+            s = np.zeros(self.n_u)
+            if len(xhat_nb):
+                s = len(xhat_nb) * xu - self.T_u.T @ np.sum(xhat_nb, axis=0)
+            dxu = self.A_r @ xo + self.A_u @ xu - self.alpha * s
+            if self.finite_time:
+                dxu = dxu - signed_power(s, self.beta)
+        return np.concatenate([dxo, dxu])
+
+    def estimate(self, z):
+        """Full estimate ``x̃^i = T_o x̃_o + T_u x̃_u``."""
+        return self.T @ z
+
+
+# --------------------------------------------------------------------------
+# the observer network on the engine
+# --------------------------------------------------------------------------
+class DistributedObserverNode(hs.HybridSystem):
+    """Observer node ``i`` of (7)-(8) (or (4)-(5)) as a hybrid system.
+
+    A purely continuous system (empty jump set).  State: the local
+    coordinates ``(x̃_o^i, x̃_u^i)`` of (2) (length ``n``).  Input:
+    ``u = (y^i, x̃^{j_1}, ..., x̃^{j_k})`` with ``j_1..j_k`` the in-neighbours
+    ``𝒩_i`` in ``nodelist`` order.  Output: the full estimate
+    ``x̃^i = T_o x̃_o + T_u x̃_u`` (what the out-neighbours receive).
+
+    Parameters
+    ----------
+    dsg : DistributedDesign
+    node : hashable
+        A node of ``dsg.G``.
+
+    References
+    ----------
+    Silm et al. (2020), eqs. (3)-(5), (7), (8).
+    """
+
+    def __init__(self, dsg: DistributedDesign, node):
+        if node not in dsg.nodelist:
+            raise ValueError(f"node must be a node of the design's graph; got {node!r}")
+        self.data = _NodeData(dsg, dsg.nodelist.index(node))
+        self.node = node
+        self.state_dim = dsg.n
+        self.output_dim = dsg.n
+        self.input_dim = self.data.m + len(self.data.neighbours) * dsg.n
+
+    def flow_map(self, x, t, j, u):
+        m, n = self.data.m, self.data.n
+        u = np.asarray(u, dtype=float)
+        nb = u[m:].reshape(-1, n)
+        return self.data.rhs(np.asarray(x, dtype=float), u[:m], nb)
+
+    def output(self, x, t, j):
+        return self.data.estimate(np.asarray(x, dtype=float))
+
+
+class _NetworkInputs:
+    """``inputs(node, t, received, exo)`` of :func:`hybridsim.network` (picklable)."""
+
+    def __init__(self, dsg):
+        self.slices, k = {}, 0
+        for v, Ci in zip(dsg.nodelist, dsg.C):
+            self.slices[v] = slice(k, k + Ci.shape[0])
+            k += Ci.shape[0]
+        self.neighbours = {v: dsg.in_neighbours(v) for v in dsg.nodelist}
+
+    def __call__(self, node, t, received, exo):
+        y = np.asarray(exo["plant"], dtype=float)[self.slices[node]]
+        return np.concatenate([y] + [np.asarray(received[w], dtype=float)
+                                     for w in self.neighbours[node]])
+
+
+def observer_network(dsg: DistributedDesign, *, noise=None, disturbance=None):
+    """Plant (1) and the observer nodes as one interconnected hybrid system.
+
+    Built with :func:`hybridsim.network` over ``dsg.G``: the component
+    ``"plant"`` (a :class:`hybridsim.LinearPlant` with ``C = [C^1; ...; C^N]``)
+    is stacked first, then one :class:`DistributedObserverNode` per node in
+    ``dsg.nodelist`` order.
+
+    Parameters
+    ----------
+    dsg : DistributedDesign
+    noise : callable, optional
+        ``t -> (Σ m_i,)`` measurement noise added to the outputs (Remark 2).
+    disturbance : callable, optional
+        ``t -> (n,)`` added to the plant's flow.
+
+    Returns
+    -------
+    hybridsim.Interconnection
+    """
+    if "plant" in dsg.nodelist:
+        raise ValueError("no node of G may be named 'plant'")
+    plant = hs.LinearPlant(dsg.A, C=np.vstack(dsg.C), noise=noise, disturbance=disturbance)
+    nodes = {v: DistributedObserverNode(dsg, v) for v in dsg.nodelist}
+    return hs.network(dsg.G, nodes, _NetworkInputs(dsg), nodelist=dsg.nodelist,
+                      exogenous={"plant": plant})
+
+
+def initial_state(dsg: DistributedDesign, x0, xhat0=None):
+    """Stacked initial state ``(x(0), T^{1ᵀ} x̃^1(0), ..., T^{Nᵀ} x̃^N(0))``.
+
+    Parameters
+    ----------
+    x0 : (n,) array_like
+        Plant state.
+    xhat0 : (n,) or (N, n) array_like, optional
+        Initial estimates ``x̃^i(0)`` (default 0).
+    """
+    n, N = dsg.n, dsg.N
+    x0 = vector("x0", x0, n)
+    xh = np.zeros((N, n)) if xhat0 is None else np.asarray(xhat0, dtype=float)
+    if xh.shape == (n,):
+        xh = np.tile(xh, (N, 1))
+    if xh.shape != (N, n):
+        raise ValueError(f"xhat0 must have shape ({n},) or ({N}, {n}); got {xh.shape}")
+    return np.concatenate([x0] + [d.T.T @ xh[k] for k, d in enumerate(dsg.decomp)])
+
+
+# --------------------------------------------------------------------------
+# the error system (6)-(9): the paper's analysis object
+# --------------------------------------------------------------------------
+class ErrorSystem(hs.HybridSystem):
+    """The network's estimation error as a hybrid system (empty jump set).
+
+    State ``E = (E_o, E_u)`` with ``E_o = (e_o^1, ..., e_o^N)`` and
+    ``E_u = (e_u^1, ..., e_u^N)``, ``e_o^i = x̃_o^i − x_o^i`` and
+    ``e_u^i = x̃_u^i − x_u^i`` in node i's coordinates of (2) (Section 2.2:
+    the order of (6)). The flow is, for the finite-time observer,
+
+    * observable part, from (7) with ``y^i = C_o^i x_o^i``::
+
+          ė_o^i = Ã_o^i e_o^i − L̃_o^i ⌈1 (C_o^i e_o^i)⌋^{γ^i}          (7)
+
+      (``Ã_o^i = Θ^i 𝓘 Θ^{i-1} = A_o^i + Θ^i p^i C_o^i``,
+      ``L̃_o^i = Θ^i diag(L_o^i)``, ``γ^i_k = 1 + k ν_i``);
+    * unobservable part, (9)::
+
+          Ė_u = (A_u − α M) E_u + (A_r + α K) E_o − ⌈M E_u − K E_o⌋^β     (9)
+
+      with ``M = T_uᵀ(𝓛⊗I)T_u`` and ``K = T_uᵀ(𝒜⊗I)T_o`` (decision 2);
+
+    and for the linear observer (3)-(5) the linear system (6),
+    ``Ė = F E`` with ``F`` = :meth:`DistributedDesign.error_matrix`.
+    The plant does not enter: the error dynamics do not depend on ``x``.
+
+    Parameters
+    ----------
+    dsg : DistributedDesign
+        From :func:`observers.distributed.design`.
+
+    Attributes
+    ----------
+    n_obs : int
+        ``Σ n_i``, the length of ``E_o``.
+    design : DistributedDesign
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from observers.distributed import design, example_system, ErrorSystem
+    >>> A, C, G = example_system()
+    >>> lin = design(A, C, G, nodelist=[1, 2, 3, 4], kind="linear")
+    >>> E = np.random.default_rng(0).standard_normal(24)
+    >>> bool(np.allclose(ErrorSystem(lin).flow_map(E), lin.error_matrix() @ E))   # (6)
+    True
+    """
+
+    def __init__(self, dsg: DistributedDesign):
+        if not isinstance(dsg, DistributedDesign):
+            raise TypeError("dsg must be a DistributedDesign (from observers.distributed."
+                            f"design), got {type(dsg).__name__}")
+        self.design = dsg
+        self.n_obs = int(sum(dsg.n_o))
+        self.state_dim = self.n_obs + int(sum(dsg.n_u))
+        self.finite_time = dsg.kind == "finite-time"
+        if not self.finite_time:
+            self._F = dsg.error_matrix()                                   # (6)
+            return
+        blocks_A, blocks_L, blocks_C, gammas = [], [], [], []
+        for k, d in enumerate(dsg.decomp):
+            if not d.n_o:
+                continue
+            Th, p, L = dsg.Theta[k], dsg.p[k], dsg.L[k]
+            blocks_A.append(d.A_o + np.outer(Th @ p, d.C_o[0]))            # Θ 𝓘 Θ^{-1}
+            blocks_L.append(Th @ np.diag(L))                               # Θ diag(L_o)
+            blocks_C.append(np.outer(np.ones(d.n_o), d.C_o[0]))            # 1 (C_o e_o)
+            gammas.append(1.0 + np.arange(1, d.n_o + 1) * dsg.nu[k])      # γ_k = 1 + k ν
+        self._Ato = sla.block_diag(*blocks_A)
+        self._Lto = sla.block_diag(*blocks_L)
+        self._Co1 = sla.block_diag(*blocks_C)
+        self._gamma = np.concatenate(gammas)
+        M, K, alpha = dsg.M, dsg.K, dsg.bold_alpha
+        self._M, self._K, self._beta = M, K, dsg.beta
+        self._Fu = dsg.bold_A_u - alpha @ M                                # (9), linear part
+        self._Gu = dsg.bold_A_r + alpha @ K
+
+    def flow_map(self, x):
+        E = np.asarray(x, dtype=float)
+        if not self.finite_time:
+            return self._F @ E
+        Eo, Eu = E[:self.n_obs], E[self.n_obs:]
+        dEo = self._Ato @ Eo - self._Lto @ signed_power(self._Co1 @ Eo, self._gamma)  # (7)
+        s = self._M @ Eu - self._K @ Eo
+        dEu = self._Fu @ Eu + self._Gu @ Eo - signed_power(s, self._beta)            # (9)
+        return np.concatenate([dEo, dEu])
+
+    def split(self, E):
+        """``E`` (..., state_dim) as per-node lists ``(e_o, e_u)`` (:func:`split_errors`)."""
+        return split_errors(self.design, E)
+
+
+def split_errors(dsg: DistributedDesign, E):
+    """Stacked errors ``(E_o, E_u)`` of (6), shape (..., Σ n), as per-node lists.
+
+    Returns
+    -------
+    e_o, e_u : list of ndarray
+        ``e_o[k]`` (..., n_k) and ``e_u[k]`` (..., n − n_k), node ``dsg.nodelist[k]``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from observers.distributed import design, example_system, split_errors
+    >>> A, C, G = example_system()
+    >>> e_o, e_u = split_errors(design(A, C, G, nodelist=[1, 2, 3, 4]), np.arange(24.0))
+    >>> e_o[1].tolist(), e_u[3].tolist()
+    ([2.0, 3.0], [23.0])
+    """
+    E = np.asarray(E, dtype=float)
+    cuts_o = np.cumsum([0] + list(dsg.n_o))
+    cuts_u = cuts_o[-1] + np.cumsum([0] + list(dsg.n_u))
+    if E.shape[-1] != cuts_u[-1]:
+        raise ValueError(f"E must have {cuts_u[-1]} entries in its last axis (sum n_i + "
+                         f"sum (n - n_i)), got shape {E.shape}")
+    e_o = [E[..., a:b] for a, b in zip(cuts_o[:-1], cuts_o[1:])]
+    e_u = [E[..., a:b] for a, b in zip(cuts_u[:-1], cuts_u[1:])]
+    return e_o, e_u
+
+
+def error_system(dsg: DistributedDesign) -> ErrorSystem:
+    """The error system (6)-(9) of a design: an :class:`ErrorSystem`.
+
+    Examples
+    --------
+    >>> from observers.distributed import design, example_system, error_system
+    >>> A, C, G = example_system()
+    >>> error_system(design(A, C, G, nodelist=[1, 2, 3, 4])).state_dim
+    24
+    """
+    return ErrorSystem(dsg)
+
+
+def error_initial_state(dsg: DistributedDesign, x0, xhat0=None):
+    """``E(0) = (E_o(0), E_u(0))`` from the plant's ``x(0)`` and the estimates.
+
+    ``e^i = T^{iᵀ} (x̃^i(0) − x(0))`` split into ``(e_o^i, e_u^i)`` and
+    stacked in the order of (6).
+
+    Parameters
+    ----------
+    dsg : DistributedDesign
+    x0 : (n,) array_like
+    xhat0 : (n,) or (N, n) array_like, optional
+        Initial estimates (default 0), as in :func:`initial_state`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from observers.distributed import design, example_system, error_initial_state
+    >>> A, C, G = example_system()
+    >>> dsg = design(A, C, G, nodelist=[1, 2, 3, 4])
+    >>> error_initial_state(dsg, np.ones(6), np.ones(6)).shape
+    (24,)
+    """
+    z = initial_state(dsg, x0, xhat0)
+    n = dsg.n
+    x = z[:n]
+    e = [z[n * (k + 1):n * (k + 2)] - d.T.T @ x for k, d in enumerate(dsg.decomp)]
+    return np.concatenate([ek[:d.n_o] for ek, d in zip(e, dsg.decomp)]
+                          + [ek[d.n_o:] for ek, d in zip(e, dsg.decomp)])
