@@ -104,6 +104,7 @@ from .example import (EXAMPLE_NODES, EXAMPLE_V0, _settling, band_limited_noise, 
                       example_system, random_system, settling_time, simulate,
                       simulate_errors, simulate_network, stable_initial_state,
                       transformed_errors)
+from .claims import CLAIMS, SETTLE_REFERENCE, SETTLE_THRESHOLD
 from .figures import reproduce
 from .systems import (DistributedObserverNode, ErrorSystem, _NodeData, error_initial_state,
                       error_system, initial_state, observer_network, split_errors)
@@ -148,7 +149,7 @@ DECISIONS = [
 ]
 
 __all__ = [
-    "PAPER", "ERRATA", "DECISIONS",
+    "PAPER", "ERRATA", "DECISIONS", "CLAIMS", "SETTLE_REFERENCE", "SETTLE_THRESHOLD",
     # design.py
     "DEFAULT_RTOL", "signed_power", "GraphMatrices", "graph_matrices", "NetworkCheck",
     "check_network", "observability_matrix", "ObservabilityDecomposition",

@@ -244,7 +244,7 @@ simulate = simulate_network
 
 
 def simulate_errors(dsg: DistributedDesign, x0=None, xhat0=None, *, E0=None, t_max=10.0,
-                    method="RK45", rtol=1e-10, atol=1e-16, max_step=np.inf, **kw):
+                    method="RK45", rtol=1e-10, atol=1e-14, max_step=np.inf, **kw):
     """Simulate the error system (6)-(9) itself with :func:`hybridsim.simulate`.
 
     The paper's analysis object (:class:`ErrorSystem`): the errors of every
@@ -265,9 +265,10 @@ def simulate_errors(dsg: DistributedDesign, x0=None, xhat0=None, *, E0=None, t_m
         The initial error ``(E_o, E_u)`` directly (instead of x0, xhat0).
     t_max : float
     method, rtol, atol, max_step, **kw
-        Passed to :func:`hybridsim.simulate`. The default ``atol = 1e-16``
-        lets the error be followed far below 1e-8 (the relative tolerance
-        governs while it is large).
+        Passed to :func:`hybridsim.simulate`. The default ``atol = 1e-14``
+        lets the error be followed well below 1e-8 (the relative tolerance
+        governs while it is large): on the example the 1e-8 crossing agrees
+        with scipy's DOP853 at rtol 1e-12, atol 1e-16 to 1e-8 s.
 
     Returns
     -------
