@@ -406,17 +406,21 @@ def _eval_fn(f, X, T, J, live, fn, where):
 # drawing
 # --------------------------------------------------------------------------
 def _styles(flow_kw, jump_kw, start_kw, end_kw, line_kw, where):
-    flow_kw = _check_kw("flow_kw", flow_kw, where)
-    jump_kw = _check_kw("jump_kw", jump_kw, where)
-    start_kw = _check_kw("start_kw", start_kw, where)
-    end_kw = _check_kw("end_kw", end_kw, where)
+    from matplotlib.cbook import normalize_kwargs
+    from matplotlib.lines import Line2D
+
+    def norm(kw):      # matplotlib's aliases (ls, lw, c, ms...) to their full names
+        return normalize_kwargs(kw, Line2D)
+    flow_kw = norm(_check_kw("flow_kw", flow_kw, where))
+    jump_kw = norm(_check_kw("jump_kw", jump_kw, where))
+    start_kw = norm(_check_kw("start_kw", start_kw, where))
+    end_kw = norm(_check_kw("end_kw", end_kw, where))
+    line_kw.update(norm({k: line_kw.pop(k) for k in list(line_kw)}))
     for bad in ("label", "labels"):
         if bad in line_kw:
             raise TypeError(f"{where}: use labels=[...] to name the plotted components, "
                             f"not {bad}=")
-    common = {k: line_kw.pop(k) for k in ("color", "c", "zorder", "alpha") if k in line_kw}
-    if "c" in common:
-        common["color"] = common.pop("c")
+    common = {k: line_kw.pop(k) for k in ("color", "zorder", "alpha") if k in line_kw}
     return ({**common, **line_kw, **flow_kw}, {**common, **jump_kw},
             {**common, **start_kw}, {**common, **end_kw})
 

@@ -610,3 +610,13 @@ def test_labels_of_the_wrong_length_raise(arc):
 def test_bad_keywords_raise_naming_them(arc, kw, exc, match):
     with pytest.raises(exc, match=match):
         hs.plot_flows(arc, **kw)
+
+
+def test_matplotlib_aliases_are_accepted():
+    # ls/lw/c are matplotlib's short names: the plot's own defaults must not clash
+    arc = hs.simulate(BouncingBall(), [1.0, 0.0], t_max=1.5, j_max=2)
+    ax = hs.plot_flows(arc, 0, ls="--", lw=3, c="k")
+    (flow,) = [ln for ln in ax.lines if ln.get_gid() == "flows"]
+    assert flow.get_linestyle() == "--" and flow.get_linewidth() == 3
+    assert flow.get_color() == "k"
+    plt.close(ax.figure)
