@@ -53,6 +53,7 @@ References
 """
 from __future__ import annotations
 
+from .claims import CLAIMS
 from .design import (
     GramianDesign,
     ObserverForm,
@@ -79,7 +80,7 @@ from .figures import reproduce
 from .systems import REALISATIONS, GramianObserver, Plant, SampledGramianObserver, estimate_along
 
 __all__ = [
-    "PAPER", "ERRATA", "DECISIONS",
+    "PAPER", "ERRATA", "DECISIONS", "CLAIMS",
     "ObserverForm", "observer_form", "lam", "GramianDesign", "gramian_design",
     "c_Delta", "theorem1_bound", "Theorem2Constants", "theorem2_constants",
     "sampling_instants",
