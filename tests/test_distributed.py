@@ -1,5 +1,4 @@
 """Tests of observers.distributed (paper 003, Silm et al. 2020)."""
-import warnings
 
 import networkx as nx
 import numpy as np
@@ -9,10 +8,22 @@ import scipy.linalg as sla
 from hybridsim import testing as hst
 from observers import distributed as dist
 from observers.distributed import (
-    check_network, choose_alpha, design, example_system, graph_matrices, hurwitz_coefficients,
-    lmi11, luenberger_gain, observability_decomposition, observer_canonical_form,
-    proposition1_lyapunov, proposition2_bound, random_system, signed_power,
-    split_vector_outputs)
+    check_network,
+    choose_alpha,
+    design,
+    example_system,
+    graph_matrices,
+    hurwitz_coefficients,
+    lmi11,
+    luenberger_gain,
+    observability_decomposition,
+    observer_canonical_form,
+    proposition1_lyapunov,
+    proposition2_bound,
+    random_system,
+    signed_power,
+    split_vector_outputs,
+)
 
 SEEDS = [0, 1, 2, 3]
 
@@ -669,6 +680,7 @@ def test_settling_time_independent(example):
     # integrators' 1e-14-level differences move the crossing by ~1e-8 s: 1e-6)
     from scipy.integrate import solve_ivp
     from scipy.optimize import brentq
+
     from observers.distributed import SETTLE_REFERENCE, SETTLE_THRESHOLD
     x0 = dist.stable_initial_state(example.A, dist.EXAMPLE_V0)
     E0 = dist.error_initial_state(example, x0)
@@ -703,6 +715,7 @@ def test_settling_time_network_agrees_with_error_system(example):
 def test_claim_references_independent():
     # the literals of observers.distributed.claims, recomputed without the package
     from fractions import Fraction
+
     from observers.distributed import CLAIMS
     refs = {c.id: c.reference for c in CLAIMS}
     A, C, _ = example_system()

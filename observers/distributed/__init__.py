@@ -94,20 +94,60 @@ References
 .. [1] H. Silm et al., Systems & Control Letters 141 (2020) 104707,
        eqs. (1)-(11), Propositions 1-2, Lemma 1, Theorem 1, Remarks 1-2.
 """
-from .design import (DEFAULT_RTOL, DistributedDesign, GraphMatrices, LMI11Result,
-                     NetworkCheck, ObservabilityDecomposition, check_network, choose_alpha,
-                     design, graph_matrices, hurwitz_coefficients, lmi11, lmi11_data,
-                     luenberger_gain, observability_decomposition, observability_matrix,
-                     observer_canonical_form, proposition1_lyapunov, proposition2_bound,
-                     signed_power, split_vector_outputs)
-from .example import (EXAMPLE_NODES, EXAMPLE_V0, _settling, band_limited_noise, errors,
-                      example_system, random_system, settling_time, simulate,
-                      simulate_errors, simulate_network, stable_initial_state,
-                      transformed_errors)
 from .claims import CLAIMS, SETTLE_REFERENCE, SETTLE_THRESHOLD
+from .design import (
+                     DEFAULT_RTOL,
+                     DistributedDesign,
+                     GraphMatrices,
+                     LMI11Result,
+                     NetworkCheck,
+                     ObservabilityDecomposition,
+                     check_network,
+                     choose_alpha,
+                     design,
+                     graph_matrices,
+                     hurwitz_coefficients,
+                     lmi11,
+                     lmi11_data,
+                     luenberger_gain,
+                     observability_decomposition,
+                     observability_matrix,
+                     observer_canonical_form,
+                     proposition1_lyapunov,
+                     proposition2_bound,
+                     signed_power,
+                     split_vector_outputs,
+)
+from .example import (
+                     EXAMPLE_NODES,
+                     EXAMPLE_V0,
+                     band_limited_noise,
+                     errors,
+                     example_system,
+                     random_system,
+                     settling_time,
+                     simulate,
+                     simulate_errors,
+                     simulate_network,
+                     stable_initial_state,
+                     transformed_errors,
+)
+from .example import (
+                     _settling as _settling,  # used by tests and benchmarks
+)
 from .figures import reproduce
-from .systems import (DistributedObserverNode, ErrorSystem, _NodeData, error_initial_state,
-                      error_system, initial_state, observer_network, split_errors)
+from .systems import (
+                     DistributedObserverNode,
+                     ErrorSystem,
+                     error_initial_state,
+                     error_system,
+                     initial_state,
+                     observer_network,
+                     split_errors,
+)
+from .systems import (
+                     _NodeData as _NodeData,  # used by tests
+)
 
 PAPER = {
     "id": "003",

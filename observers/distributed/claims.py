@@ -23,8 +23,15 @@ import numpy as np
 
 from ..claims import Claim
 from .design import design, lmi11, proposition1_lyapunov
-from .example import (EXAMPLE_NODES, EXAMPLE_V0, example_system, settling_time, simulate,
-                      simulate_errors, stable_initial_state)
+from .example import (
+    EXAMPLE_NODES,
+    EXAMPLE_V0,
+    example_system,
+    settling_time,
+    simulate,
+    simulate_errors,
+    stable_initial_state,
+)
 
 __all__ = ["CLAIMS", "SETTLE_THRESHOLD", "SETTLE_REFERENCE"]
 
@@ -37,7 +44,7 @@ SETTLE_THRESHOLD = 1e-8
 SETTLE_REFERENCE = 6.655500693769588
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _example(kind="finite-time"):
     A, C, G = example_system()
     return design(A, C, G, nodelist=EXAMPLE_NODES, kind=kind)

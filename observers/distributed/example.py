@@ -37,8 +37,7 @@ import hybridsim as hs
 
 from .._common import matrix, scalar, vector
 from .design import DistributedDesign
-from .systems import (ErrorSystem, error_initial_state, initial_state, observer_network,
-                      split_errors)
+from .systems import ErrorSystem, error_initial_state, initial_state, observer_network, split_errors
 
 __all__ = [
     "EXAMPLE_NODES",
@@ -433,7 +432,7 @@ def stable_initial_state(A, v):
     ``x̃ − x`` (relative to ``|x|``) does not hide the convergence.
     """
     A = matrix("A", A, square=True)
-    T, Z, sdim = sla.schur(A, output="real", sort="lhp")
+    _, Z, sdim = sla.schur(A, output="real", sort="lhp")
     Zs = Z[:, :sdim]
     return Zs @ (Zs.T @ np.asarray(v, dtype=float))
 

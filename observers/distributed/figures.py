@@ -8,35 +8,59 @@ from __future__ import annotations
 
 import numpy as np
 
+import hybridsim as hs
+
 from .design import design, lmi11, proposition1_lyapunov
-from .example import (EXAMPLE_V0, _settling, band_limited_noise, example_system,
-                      simulate_network, stable_initial_state, transformed_errors)
+from .example import (
+    EXAMPLE_V0,
+    _settling,
+    band_limited_noise,
+    example_system,
+    settling_time,
+    simulate_errors,
+    simulate_network,
+    stable_initial_state,
+    transformed_errors,
+)
 
 __all__ = ["reproduce"]
 
 
 
 
-def _plot_errors(ax, E, dsg, log, title):
-    colors = [f"C{k}" for k in range(dsg.N)]
+class _NodeError:
+    """``fn=`` of :func:`hybridsim.plot_flows`: node k's error part from the stacked state.
+
+    ``part`` "o" or "u" (e_o^k or e_u^k of (6)); ``norm`` True gives its
+    Euclidean norm (floored at 1e-18 for the log scale), else its components.
+    """
+
+    def __init__(self, dsg, k, part, norm):
+        d = dsg.decomp[k]
+        n = dsg.n
+        self.sl = slice(n * (k + 1), n * (k + 2))
+        self.n = n
+        self.T = d.T
+        self.cut = slice(0, d.n_o) if part == "o" else slice(d.n_o, n)
+        self.norm = norm
+        self.__name__ = f"e_{part}^{dsg.nodelist[k]}"
+
+    def __call__(self, x):
+        e = (x[self.sl] - self.T.T @ x[:self.n])[self.cut]
+        return max(float(np.linalg.norm(e)), 1e-18) if self.norm else e
+
+
+def _plot_errors(axs, arc, dsg, *, log, parts="ou", named=True, **line_kw):
+    """Node errors e_o^i and e_u^i of (6) on ``axs`` (one per letter of ``parts``),
+    one colour per node."""
     for k, v in enumerate(dsg.nodelist):
-        eo = np.linalg.norm(E["e_o"][k], axis=1)
-        eu = np.linalg.norm(E["e_u"][k], axis=1)
-        if log:
-            ax[0].semilogy(E["t"], np.maximum(eo, 1e-18), color=colors[k], label=f"node {v}")
-            ax[1].semilogy(E["t"], np.maximum(eu, 1e-18), color=colors[k], label=f"node {v}")
-        else:
-            for c in range(E["e_o"][k].shape[1]):
-                ax[0].plot(E["t"], E["e_o"][k][:, c], color=colors[k], lw=0.8,
-                           label=f"node {v}" if c == 0 else None)
-            for c in range(E["e_u"][k].shape[1]):
-                ax[1].plot(E["t"], E["e_u"][k][:, c], color=colors[k], lw=0.8,
-                           label=f"node {v}" if c == 0 else None)
-    ax[0].set_ylabel(r"$e_o^i$" + (" (norm)" if log else ""))
-    ax[1].set_ylabel(r"$e_u^i$" + (" (norm)" if log else ""))
-    ax[1].set_xlabel("t")
-    ax[0].set_title(title)
-    ax[0].legend(fontsize=7, ncol=2)
+        for ax, part in zip(axs, parts):
+            fn = _NodeError(dsg, k, part, log)
+            width = 1 if log else len(np.atleast_1d(fn(arc.x[0])))
+            labels = [f"node {v}" if named else "_nolegend_"] + ["_nolegend_"] * (width - 1)
+            hs.plot_flows(arc, fn=fn, ax=ax, labels=labels, color=f"C{k}", legend=False,
+                          yscale="log" if log else None, xlabel="", ylabel="",
+                          **line_kw)
 
 
 def reproduce(outdir, *, t_max=20.0, t_max_noise=10.0):
@@ -70,7 +94,7 @@ def reproduce(outdir, *, t_max=20.0, t_max_noise=10.0):
     lin = design(A, C, G, nl, kind="linear")
     x0 = stable_initial_state(A, EXAMPLE_V0)
     res = lmi11(ft)
-    P1, margin1 = proposition1_lyapunov(ft)
+    _, margin1 = proposition1_lyapunov(ft)
     print(f"[distributed] n_i = {ft.n_o}; Prop. 2 bound nu_min = "
           f"{[float(f'{v:.3g}') for v in ft.nu_min]}; "
           f"nu = -0.1 meets it: {ft.meets_proposition2.tolist()}")
@@ -85,12 +109,19 @@ def reproduce(outdir, *, t_max=20.0, t_max_noise=10.0):
           f"(final {E['norm'][-1]:.2e}); linear (3): final error {El['norm'][-1]:.2e}")
 
     fig, ax = plt.subplots(2, 1, sharex=True, figsize=(7, 6))
-    _plot_errors(ax, E, ft, True, "Fig. 2: errors in transformed coordinates")
-    for k in range(ft.N):
-        ax[1].semilogy(El["t"], np.maximum(np.linalg.norm(El["e_u"][k], axis=1), 1e-18),
-                       color=f"C{k}", ls=":", lw=0.8)
-    ax[1].text(0.02, 0.05, "dotted: linear observer (3)", transform=ax[1].transAxes,
-               fontsize=7)
+    _plot_errors(ax, arc, ft, log=True)
+    _plot_errors(ax[1:], arcl, lin, log=True, parts="u", named=False, linestyle=":", linewidth=0.8)
+    ax[0].set_ylabel(r"$\|e_o^i\|$")
+    ax[1].set_ylabel(r"$\|e_u^i\|$")
+    ax[1].set_xlabel(r"$t$ (s)")
+    ax[0].set_title("Fig. 2: errors in transformed coordinates, finite-time observer (7)-(8)")
+    ax[0].legend(fontsize=7, ncol=2)
+    ax[1].plot([], [], "k:", lw=0.8, label="linear observer (3)")
+    ax[1].plot([], [], "k-", label="finite-time (7)-(8)")
+    ax[1].legend(fontsize=7, loc="lower left")
+    for a in ax:
+        a.set_ylim(1e-16, None)
+    ts_err = settling_time(simulate_errors(ft, x0, t_max=min(t_max, 6.8)), ft, 1e-8)
     f2 = outdir / "distributed_fig2.png"
     fig.tight_layout()
     fig.savefig(f2, dpi=120)
@@ -104,7 +135,10 @@ def reproduce(outdir, *, t_max=20.0, t_max_noise=10.0):
         "Our choices: graph 1->2->3->4->1 (Fig. 1 is missing from the text); x(0) = "
         "projection of (1,-1,0.5,0,1,-0.5) on A's stable subspace (keeps |x| small so "
         "that rounding of x_hat - x stays below 1e-10); x_hat^i(0) = 0; RK45, "
-        f"rtol=1e-10, atol=1e-13. Errors < 1e-10 for t >= {ts:.2f}.\n")
+        f"rtol=1e-10, atol=1e-13. Errors < 1e-10 for t >= {ts:.2f}; what remains "
+        "(~1e-12) is the rounding of x_hat - x, not error. The error system (6)-(9) "
+        "simulated alone (no plant, no floor) has max|e| < 1e-8 from "
+        f"t = {ts_err:.4f} s (claim 003-thm1-settle, checked against scipy's solve_ivp).\n")
 
     noise = band_limited_noise(1e-2, 0.1, t_max_noise, ft.N, seed=0)
     arcn = simulate_network(ft, x0, t_max=t_max_noise, noise=noise, max_step=0.05,
@@ -114,7 +148,12 @@ def reproduce(outdir, *, t_max=20.0, t_max_noise=10.0):
     print(f"[distributed] noise (power 1e-2): max error over t >= {t_max_noise / 2:g}: "
           f"{En['norm'][half].max():.3g}")
     fig, ax = plt.subplots(2, 1, sharex=True, figsize=(7, 6))
-    _plot_errors(ax, En, ft, False, "Fig. 3: errors with measurement noise")
+    _plot_errors(ax, arcn, ft, log=False, linewidth=0.8)
+    ax[0].set_ylabel(r"$e_o^i$ (components)")
+    ax[1].set_ylabel(r"$e_u^i$ (components)")
+    ax[1].set_xlabel(r"$t$ (s)")
+    ax[0].set_title("Fig. 3: errors with measurement noise of power 1e-2")
+    ax[0].legend(fontsize=7, ncol=2)
     f3 = outdir / "distributed_fig3.png"
     fig.tight_layout()
     fig.savefig(f3, dpi=120)

@@ -28,6 +28,8 @@ True
 """
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import scipy.linalg as sla
 
@@ -333,8 +335,8 @@ def split_errors(dsg: DistributedDesign, E):
     if E.shape[-1] != cuts_u[-1]:
         raise ValueError(f"E must have {cuts_u[-1]} entries in its last axis (sum n_i + "
                          f"sum (n - n_i)), got shape {E.shape}")
-    e_o = [E[..., a:b] for a, b in zip(cuts_o[:-1], cuts_o[1:])]
-    e_u = [E[..., a:b] for a, b in zip(cuts_u[:-1], cuts_u[1:])]
+    e_o = [E[..., a:b] for a, b in itertools.pairwise(cuts_o)]
+    e_u = [E[..., a:b] for a, b in itertools.pairwise(cuts_u)]
     return e_o, e_u
 
 
