@@ -49,7 +49,7 @@ def _lam_indep(r, k):
     return _A2_PRINTED @ np.linalg.inv(B) @ (np.eye(2) - scipy.linalg.expm(B * r))
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _SN_indep(k):
     """S (5) and N (6) by scipy.integrate.quad entry by entry."""
     def entry(fn):
@@ -65,7 +65,7 @@ def _R_indep(k):
     return np.linalg.solve(S, N).ravel()
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _mu_indep(k):
     """mu of (41) (xi_2 in (13), as printed) from (38) by plain quadrature."""
     S, _ = _SN_indep(k)
@@ -118,7 +118,7 @@ def _K1():
     return float(np.max(np.linalg.norm(np.diff(F, axis=0), axis=1) / np.diff(s)))
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _exact_error(k, realisation, t_max=1.0):
     """max |xi_1 - xi_e| over [tau, t_max] (Theorem 1, no disturbances), and the run's end."""
     ex = dc_motor(k, _TAU, disturbed=False)

@@ -23,14 +23,14 @@ Examples
 from __future__ import annotations
 
 import dataclasses
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 import scipy.integrate
 import scipy.linalg
 from scipy.linalg import expm as _expm
 
-from .._common import matrix, scalar, vector
+from .._common import matrix, scalar
 
 __all__ = [
     "ObserverForm", "observer_form", "lam", "GramianDesign", "gramian_design",

@@ -21,14 +21,14 @@ from __future__ import annotations
 
 import dataclasses
 import numbers
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
 import hybridsim as hs
 
 from .._common import scalar, vector
-from .design import GramianDesign, ObserverForm, observer_form, gramian_design
+from .design import GramianDesign, ObserverForm, gramian_design, observer_form
 from .systems import GramianObserver, Plant, SampledGramianObserver, _signal
 
 __all__ = ["DCMotor", "DC_PARAMS", "dc_motor", "simulate", "errors", "smooth_noise"]

@@ -43,7 +43,6 @@ Examples
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import expm as _expm
 
 import hybridsim as hs
 
