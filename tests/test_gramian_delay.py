@@ -643,9 +643,13 @@ def test_observer_bad_input():
 
 
 def test_constructors_reject_mismatch_and_unobservable():
-    """Issue 16: dimensions and observability are checked when the objects are built, with the reason."""
+    """Issue 16: dimensions and observability are checked when the objects are built.
+
+    Each error gives the reason.
+    """
     # (A1, A2) unobservable: the Gramian S (5) would be singular; the rank is named
-    with pytest.raises(ValueError, match=r"\(A1, A2\) must be observable; the observability matrix has rank 1 < 2"):
+    with pytest.raises(ValueError, match=r"\(A1, A2\) must be observable; "
+                                         r"the observability matrix has rank 1 < 2"):
         gd.gramian_design(np.diag([-1.0, -2.0]), [[1.0, 0.0]], 5.0, 0.1)
     with pytest.raises(ValueError, match=r"\(M, N\) must be observable"):
         gd.observer_form(np.diag([-1.0, -2.0, -3.0]), [[1.0, 0.0, 0.0]])
@@ -653,21 +657,25 @@ def test_constructors_reject_mismatch_and_unobservable():
     zero1 = lambda y, t: np.zeros(1)                          # noqa: E731
     zero2 = lambda y, t: np.zeros(2)                          # noqa: E731
     # F1 / F2 of the wrong size: at construction, naming the map and the expected shape
-    with pytest.raises(ValueError, match=r"F1\(y, t\) must return shape \(2,\) \(n - q = 2 unmeasured states\), "
+    with pytest.raises(ValueError, match=r"F1\(y, t\) must return shape \(2,\) "
+                                         r"\(n - q = 2 unmeasured states\), "
                                          r"got shape \(1,\)"):
         gd.GramianObserver(d, zero1, zero1)
-    with pytest.raises(ValueError, match=r"F2\(y, t\) must return shape \(1,\) \(q = 1 outputs\), got shape \(2,\)"):
+    with pytest.raises(ValueError, match=r"F2\(y, t\) must return shape \(1,\) "
+                                         r"\(q = 1 outputs\), got shape \(2,\)"):
         gd.SampledGramianObserver(d, zero2, zero2, period=0.01)
     obs = gd.GramianObserver(d, zero2, zero1)
     # initial states of the wrong size
     with pytest.raises(ValueError, match=r"xi1_hat0 must have shape \(2,\), got \(3,\)"):
         obs.initial_state(xi1_hat0=np.zeros(3))
     # plant: Psi of the wrong size, N against M, and a plant whose output does not fit the observer
-    with pytest.raises(ValueError, match=r"Psi\(y, t\) must return shape \(3,\) \(n = 3 states\), got shape \(2,\)"):
+    with pytest.raises(ValueError, match=r"Psi\(y, t\) must return shape \(3,\) "
+                                         r"\(n = 3 states\), got shape \(2,\)"):
         gd.Plant(np.eye(3), [[1.0, 0.0, 0.0]], Psi=lambda y, t: np.zeros(2))
     with pytest.raises(ValueError, match=r"N must have shape \(\*, 3\), got \(1, 2\)"):
         gd.Plant(np.eye(3), [[1.0, 0.0]])
-    with pytest.raises(ValueError, match=r"output has dimension 2 .* input of dimension input_dim=1"):
+    with pytest.raises(ValueError,
+                       match=r"output has dimension 2 .* input of dimension input_dim=1"):
         hs.connect(gd.Plant(np.eye(3), np.eye(3)[:2]), obs)
 
 

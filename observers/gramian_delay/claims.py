@@ -75,12 +75,12 @@ def _mu_indep(k):
     nA1, nA2, nH = (np.linalg.norm(M, 2) for M in (_A1_PRINTED, _A2_PRINTED, H))
     eA = np.exp(nA1 * _TAU)
 
-    def I(g):
+    def integral(g):
         return scipy.integrate.quad(lambda s: np.linalg.norm(_lam_indep(s, k), 2) * g(s),
                                     -_TAU, 0.0, epsrel=1e-10, limit=200)[0]
-    v1 = Sb * nA2 * eA / k**2 * I(lambda s: np.exp(k * s) - s * k - 1)
-    v2 = Sb / k * I(lambda s: 1 - np.exp(k * s))
-    v3 = Sb * _TAU * eA * nH * I(lambda s: eA + np.exp(-k * s))
+    v1 = Sb * nA2 * eA / k**2 * integral(lambda s: np.exp(k * s) - s * k - 1)
+    v2 = Sb / k * integral(lambda s: 1 - np.exp(k * s))
+    v3 = Sb * _TAU * eA * nH * integral(lambda s: eA + np.exp(-k * s))
     Apsi = np.linalg.norm(_A1_PRINTED.T + 2 * k * np.eye(2), 2)
     v4 = Sb * nH * ((1 - np.exp(-k * _TAU)) / k + _TAU * np.exp(Apsi * _TAU))
     K1, K2 = 35.0, k                                          # Section V: K1 = a1, K2 = k

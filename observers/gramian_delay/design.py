@@ -363,7 +363,7 @@ class GramianDesign:
 
 def _SN_expm(A1, A2, k, tau):
     """S (5) and N (6) from augmented matrix exponentials (Van Loan)."""
-    m, q = A1.shape[0], A2.shape[0]
+    m = A1.shape[0]
     B = A1 + k * np.eye(m)
     G = np.linalg.solve(B.T, A2.T).T
     # lambda(-s) = C_a e^{A_a s} E on s in [0, tau], A_a = diag(0, -B), C_a = [G, -G], E = [I; I]

@@ -85,8 +85,10 @@ def reproduce(outdir) -> list:
         for kind, name in (("c", "Theorem 1"), ("s", "Theorem 2")):
             t, e, arc = runs[kind, k]
             print(f"  k = {k:5.0f}, {name}: |error| at t = 0.15, 0.5, 1: "
-                  f"{_err_at(t, e, 0.15):.3g}, {_err_at(t, e, 0.5):.3g}, {_err_at(t, e, 1.0):.3g}"
-                  f" ({arc.termination.name} at t = {arc.tf:.3g}; later times read the last sample)")
+                  f"{_err_at(t, e, 0.15):.3g}, {_err_at(t, e, 0.5):.3g}, "
+                  f"{_err_at(t, e, 1.0):.3g}"
+                  f" ({arc.termination.name} at t = {arc.tf:.3g}; "
+                  f"later times read the last sample)")
 
     # the k = 75 runs again with psi_2 in the reset realisation (decision 8)
     for kind in ("c", "s"):
@@ -168,7 +170,8 @@ the solid k = 75 curves carry psi_2 in the reset realisation (our choice, decisi
 timer resets the psi_2 integrator every tau and the window integral of (53) is rebuilt from
 the last window and the previous interval, so no state grows beyond ~e^(47 tau) = 112 times
 its input (the jump markers at multiples of tau on the k = 75 curves are these resets: the
-error does not jump there). The estimate (13) is the same in exact arithmetic, and Theorem 1's exactness
+error does not jump there). The estimate (13) is the same in exact arithmetic, and Theorem 1's \
+exactness
 holds at k = 75 over the whole horizon (claim 004-thm1-exact-k75: error below 1.4e-10 on
 [0.1, 1] s without disturbances). k = 150 uses the literal (7). {_CHOICES}
 """))
@@ -197,8 +200,9 @@ holds at k = 75 over the whole horizon (claim 004-thm1-exact-k75: error below 1.
           f"{periods}:")
     for est in final:
         print(f"    {est:5s}: " + ", ".join(f"{v:.2g}" for v in final[est]))
+    T_bar_max = theorem2_constants(dc_motor(100.0).design, DC_PARAMS['a1'], 100.0, 0.1).T_bar_max
     print(f"  largest period with convergence (omega in (13)): between {lo:.4f} and {hi:.4f}"
-          f" (Theorem 2 guarantees it only below {theorem2_constants(dc_motor(100.0).design, DC_PARAMS['a1'], 100.0, 0.1).T_bar_max:.2g})")
+          f" (Theorem 2 guarantees it only below {T_bar_max:.2g})")
     fig, ax = plt.subplots(figsize=(6, 4))
     for est, mk in (("omega", "o-"), ("xi2", "s--")):
         v = np.array(final[est])

@@ -123,7 +123,10 @@ class Plant(hs.HybridSystem):
 
 
 def _probe_shape(name, call, shape, what):
-    """Call a user map once (at y = 0, t = 0) and check its output size; a map that raises is not judged here."""
+    """Call a user map once (at y = 0, t = 0) and check its output size.
+
+    A map that raises is not judged here.
+    """
     try:
         v = np.asarray(call(), dtype=float)
     except Exception:       # noqa: BLE001 -- the map may be undefined at the probe point; the run will tell
@@ -154,7 +157,8 @@ class _ObserverBase(hs.HybridSystem):
         # dimensions agree at construction, not as a broadcast error inside a run
         for name, F, dim in (("F1", F1, m), ("F2", F2, q)):
             _probe_shape(name, lambda F=F: F(np.zeros(q), 0.0), (dim,),
-                         f"(n - q = {m} unmeasured states)" if name == "F1" else f"(q = {q} outputs)")
+                         f"(n - q = {m} unmeasured states)" if name == "F1"
+                         else f"(q = {q} outputs)")
         self.sl_xi1 = slice(0, m)
         self.sl_xi2 = slice(m, m + q)
         self.sl_psi1 = slice(m + q, 2 * m + q)
@@ -444,7 +448,7 @@ class SampledGramianObserver(_ObserverBase):
     def _sample_guard(self, z, t):
         if self.period is not None:
             return z[self.i_sigma] - self.period
-        kap = int(round(z[self.i_kappa]))
+        kap = round(float(z[self.i_kappa]))
         if kap >= len(self.instants):
             return -1.0
         return t - self.instants[kap]
@@ -461,7 +465,7 @@ class SampledGramianObserver(_ObserverBase):
             self._reset(z)
             if self._sample_guard(z, t) < 0:
                 return z
-        z[self.sl_omega] = np.asarray(u, dtype=float)[:self.design.q]     # (39): omega(t_j) = Y(t_j)
+        z[self.sl_omega] = np.asarray(u, dtype=float)[:self.design.q]  # (39): omega(t_j) = Y(t_j)
         z[self.i_sigma] = 0.0
         z[self.i_kappa] += 1.0
         return z
