@@ -45,10 +45,13 @@ def lti_solution(A, b, omega, x0):
 
 def example_open_loop(x20=0.7, x30=-0.3, a=0.5):
     """Exact solution of (45) with v2 = a cos 3t."""
-    xi2 = lambda t: x20 + a * np.sin(3 * t) / 3
-    xi3 = lambda t: (x30 + 2 * x20 * np.sin(t)
-                     + (2 * a / 3) * ((1 - np.cos(4 * t)) / 8 + (1 - np.cos(2 * t)) / 4))
-    v2 = lambda t: a * np.cos(3 * t)
+    def xi2(t):
+        return x20 + a * np.sin(3 * t) / 3
+    def xi3(t):
+        return (x30 + 2 * x20 * np.sin(t)
+                + (2 * a / 3) * ((1 - np.cos(4 * t)) / 8 + (1 - np.cos(2 * t)) / 4))
+    def v2(t):
+        return a * np.cos(3 * t)
     return xi2, xi3, v2
 
 
@@ -90,14 +93,17 @@ def test_choose_L_tau_gives_invertible_M(seed):
 
 @pytest.mark.parametrize("seed", SEEDS)
 def test_estimate_15_exact_random_lti(seed):
-    """Theorem (14)-(15): xhat_r(t) = x_r(t) for t >= tau, random observable (A, C), delta(t) != 0."""
+    """Theorem (14)-(15): xhat_r(t) = x_r(t) for t >= tau, random observable (A, C),
+    delta(t) != 0."""
     A, C, rng = random_lti(seed)
     b, x0 = rng.normal(size=4), rng.normal(size=4)
-    delta = lambda t: b * np.sin(2.0 * t)
+    def delta(t):
+        return b * np.sin(2.0 * t)
     x = lti_solution(A, b, 2.0, x0)
     rc = tv.reduced_coordinates(A, C)
     L, tau, _ = tv.choose_L_tau(rc.A2, rc.A1, tau=1.0)
-    y = lambda s: C @ x(s)
+    def y(s):
+        return C @ x(s)
     for t in (tau, 1.6, 2.5):
         xr = rc.x_r(x(t))
         est = tv.estimate_15(t, y, rc.A2, rc.A1, L, tau, rc.delta1(delta), rc.delta2(delta))
@@ -111,7 +117,8 @@ def test_estimate_23_reduces_to_15(seed):
     x0 = rng.normal(size=4)
     rc = tv.reduced_coordinates(A, C)
     L, tau, _ = tv.choose_L_tau(rc.A2, rc.A1, tau=1.0)
-    y = lambda s: C @ linalg.expm(A * s) @ x0
+    def y(s):
+        return C @ linalg.expm(A * s) @ x0
     H = rc.A2 + L @ rc.A1
     t = 1.4
     e15 = tv.estimate_15(t, y, rc.A2, rc.A1, L, tau, rc.delta1(), rc.delta2())
@@ -127,7 +134,8 @@ def test_estimate_23_reduces_to_15(seed):
 # Section III / IV pure formulas
 # ---------------------------------------------------------------------------
 def test_phi_convention_and_Lambda_example():
-    """(1) is the inverse fundamental matrix: dPhi/dt = -Phi H; Lambda = 1 - e^{4 pi} (after (48))."""
+    """(1) is the inverse fundamental matrix: dPhi/dt = -Phi H;
+    Lambda = 1 - e^{4 pi} (after (48))."""
     ex = tv.example_data()
     h = 1e-5
     for t, s in [(0.3, -1.0), (2.0, 0.5), (7.0, 1.0)]:
@@ -147,14 +155,15 @@ def test_estimate_49_equals_23_and_exact():
     xi2, xi3, v2 = example_open_loop()
     for t in (2 * np.pi, 8.0, 11.3):
         e49 = tv.estimate_49(t, xi3, v2)
-        e23 = tv.estimate_23(t, lambda s: np.array([xi3(s)]), ex["tau"], ex["A1"], ex["A2"], ex["L"],
-                             ex["Phi_A2"], ex["Phi_H"], Ldot=ex["Ldot"],
+        e23 = tv.estimate_23(t, lambda s: np.array([xi3(s)]), ex["tau"], ex["A1"], ex["A2"],
+                             ex["L"], ex["Phi_A2"], ex["Phi_H"], Ldot=ex["Ldot"],
                              delta2=lambda s, z: np.array([v2(s)]), p=1, m=1)
         assert abs(e49 - xi2(t)) < 1e-8
         assert abs(e23[0] - e49) < 1e-8
     # Ldot by finite differences (Ldot=None with a callable L) gives the same estimate
-    e_fd = tv.estimate_23(9.0, lambda s: np.array([xi3(s)]), ex["tau"], ex["A1"], ex["A2"], ex["L"],
-                          ex["Phi_A2"], ex["Phi_H"], delta2=lambda s, z: np.array([v2(s)]), p=1, m=1)
+    e_fd = tv.estimate_23(9.0, lambda s: np.array([xi3(s)]), ex["tau"], ex["A1"], ex["A2"],
+                          ex["L"], ex["Phi_A2"], ex["Phi_H"],
+                          delta2=lambda s, z: np.array([v2(s)]), p=1, m=1)
     assert abs(e_fd[0] - xi2(9.0)) < 1e-7
 
 
@@ -188,21 +197,25 @@ def test_remark3_bound_random_lti(seed):
 
 
 def test_noise_bound_28_example():
-    """(28): |x*_r - x_r| <= l_a |eps|_inf on the example, eps = 0.01 sin(5t) + 0.02 sign(cos 7t)."""
+    """(28): |x*_r - x_r| <= l_a |eps|_inf on the example,
+    eps = 0.01 sin(5t) + 0.02 sign(cos 7t)."""
     ex = tv.example_data()
     xi2, xi3, v2 = example_open_loop()
-    eps = lambda s: np.array([0.01 * np.sin(5 * s) + 0.02 * np.sign(np.cos(7 * s))])
+    def eps(s):
+        return np.array([0.01 * np.sin(5 * s) + 0.02 * np.sign(np.cos(7 * s))])
     eps_inf = 0.03
-    y = lambda s: np.array([xi3(s)]) + eps(s)
-    d2 = lambda s, z: np.array([v2(s)])
+    def y(s):
+        return np.array([xi3(s)]) + eps(s)
+    def d2(s, z):
+        return np.array([v2(s)])
     grid = np.linspace(2 * np.pi, 4 * np.pi, 25)
     l_a = float(np.max(tv.noise_gain(grid, ex["tau"], ex["A1"], ex["A2"], ex["L"], ex["Phi_A2"],
                                      ex["Phi_H"], Ldot=ex["Ldot"], p=1, m=1)))
     for t in (2 * np.pi + 0.4, 10.7):
-        est = tv.estimate_23(t, y, ex["tau"], ex["A1"], ex["A2"], ex["L"], ex["Phi_A2"], ex["Phi_H"],
-                             Ldot=ex["Ldot"], delta2=d2, eps=eps, p=1, m=1)
-        approx = tv.estimate_23(t, y, ex["tau"], ex["A1"], ex["A2"], ex["L"], ex["Phi_A2"], ex["Phi_H"],
-                                Ldot=ex["Ldot"], delta2=d2, p=1, m=1)
+        est = tv.estimate_23(t, y, ex["tau"], ex["A1"], ex["A2"], ex["L"], ex["Phi_A2"],
+                             ex["Phi_H"], Ldot=ex["Ldot"], delta2=d2, eps=eps, p=1, m=1)
+        approx = tv.estimate_23(t, y, ex["tau"], ex["A1"], ex["A2"], ex["L"], ex["Phi_A2"],
+                                ex["Phi_H"], Ldot=ex["Ldot"], delta2=d2, p=1, m=1)
         # quadrature of a discontinuous eps: 1e-7 slack
         assert abs(est[0] - xi2(t)) < 1e-7                     # (23) with the known eps is exact
         assert abs(approx[0] - xi2(t)) <= l_a * eps_inf + 1e-7  # (28)
@@ -218,16 +231,19 @@ def test_noise_bound_28_random_lti(seed):
     L, tau, _ = tv.choose_L_tau(rc.A2, rc.A1, tau=1.0)
     H = rc.A2 + L @ rc.A1
     w = rng.uniform(3, 8, size=2)
-    eps = lambda s: 0.01 * np.sin(w * s)
-    y = lambda s: C @ linalg.expm(A * s) @ x0 + eps(s)
+    def eps(s):
+        return 0.01 * np.sin(w * s)
+    def y(s):
+        return C @ linalg.expm(A * s) @ x0 + eps(s)
     PA, PH = expm_Phi(rc.A2), expm_Phi(H)
     l_a = tv.noise_gain(tau, tau, rc.A1, rc.A2, L, PA, PH, lip1=np.linalg.norm(rc.A11, 2),
                         lip2=np.linalg.norm(rc.A21, 2))      # time-invariant: l(t) constant
     for t in (1.0, 1.9):
         xr = rc.x_r(linalg.expm(A * t) @ x0)
-        approx = tv.estimate_23(t, y, tau, rc.A1, rc.A2, L, PA, PH, delta1=rc.delta1(), delta2=rc.delta2())
-        exact = tv.estimate_23(t, y, tau, rc.A1, rc.A2, L, PA, PH, delta1=rc.delta1(), delta2=rc.delta2(),
-                               eps=eps)
+        approx = tv.estimate_23(t, y, tau, rc.A1, rc.A2, L, PA, PH, delta1=rc.delta1(),
+                                delta2=rc.delta2())
+        exact = tv.estimate_23(t, y, tau, rc.A1, rc.A2, L, PA, PH, delta1=rc.delta1(),
+                               delta2=rc.delta2(), eps=eps)
         np.testing.assert_allclose(exact, xr, rtol=1e-8, atol=1e-8)
         assert np.linalg.norm(approx - xr) <= l_a * 0.01 + 1e-8
 
@@ -304,12 +320,14 @@ RUN = dict(rtol=1e-10, atol=1e-12, progress=False)
 def _lti_loop(seed, noise=None, known=False):
     A, C, rng = random_lti(seed)
     b, x0 = rng.normal(size=4), rng.normal(size=4)
-    delta = lambda t: b * np.sin(2.0 * t)
+    def delta(t):
+        return b * np.sin(2.0 * t)
     obs, rc = tv.lti_observer(A, C, tau=1.0, delta=delta, eps=noise if known else None)
     plant = hs.LinearPlant(A, C=C, disturbance=delta, noise=noise)
     sys = hs.connect(plant, obs)
     # arbitrary J_A(0), J_H(0): the estimate must not depend on them
-    x0s = sys.stack(plant=x0, observer=obs.initial_state(J_A=rng.normal(size=2), J_H=rng.normal(size=2)))
+    x0s = sys.stack(plant=x0, observer=obs.initial_state(J_A=rng.normal(size=2),
+                                                         J_H=rng.normal(size=2)))
     sys.delta = delta
     return sys, obs, rc, A, C, x0s
 
@@ -320,23 +338,28 @@ def test_lti_observer_exact_after_tau(seed):
     sys, obs, rc, A, C, x0 = _lti_loop(seed)
     arc = hs.simulate(sys, x0, t_max=3.0, **RUN)
     assert arc.success
-    np.testing.assert_allclose(arc.jump_times, [1.0], atol=1e-12)   # q: 0 -> 1 when the window fills
+    # q: 0 -> 1 when the window fills
+    np.testing.assert_allclose(arc.jump_times, [1.0], atol=1e-12)
     xp = arc["plant"].x
     err = obs.estimate(arc.outputs("observer"), xp @ C.T) - rc.x_r(xp)
     hst.assert_exact_after(arc, err, t=1.0, j=1, atol=1e-7)
     assert np.max(np.linalg.norm(err[arc.t < 1.0], axis=1)) > 1e-3   # xr_init = 0 is not x_r
     # the simulated estimate agrees with the literal formula (15) on the recorded y
-    y = lambda s: C @ arc.at(s)[:4]
-    e15 = tv.estimate_15(2.5, y, rc.A2, rc.A1, obs.L(0.0), 1.0, rc.delta1(sys.delta), rc.delta2(sys.delta))
+    def y(s):
+        return C @ arc.at(s)[:4]
+    e15 = tv.estimate_15(2.5, y, rc.A2, rc.A1, obs.L(0.0), 1.0, rc.delta1(sys.delta),
+                         rc.delta2(sys.delta))
     np.testing.assert_allclose(e15, rc.x_r(arc.at(2.5)[:4]), atol=1e-7)
 
 
 @pytest.mark.parametrize("seed", SEEDS[:2])
 def test_lti_noise_bound_28_engine(seed):
-    """(28) on the engine: |x*_r - x_r| <= l_a |eps|_inf for t >= tau; the eps-aware (23) stays exact."""
+    """(28) on the engine: |x*_r - x_r| <= l_a |eps|_inf for t >= tau;
+    the eps-aware (23) stays exact."""
     rng = np.random.default_rng(100 + seed)
     w = rng.uniform(3, 8, size=2)
-    eps = lambda t: 0.01 * np.sin(w * t)
+    def eps(t):
+        return 0.01 * np.sin(w * t)
     sys_a, obs_a, rc, A, C, x0 = _lti_loop(seed, noise=eps, known=False)
     sys_e, obs_e, _, _, _, _ = _lti_loop(seed, noise=eps, known=True)
     H = rc.A2 + obs_a.L(0.0) @ rc.A1
@@ -348,7 +371,8 @@ def test_lti_noise_bound_28_engine(seed):
         ymeas = arc.outputs("plant")
         # t >= tau after the observer's jump at tau (its pre-jump sample is at t = tau too)
         after = (arc.t >= 1.0) & ~(arc.is_jump_start & (np.abs(arc.t - 1.0) < 1e-9))
-        err = np.linalg.norm(obs.estimate(arc.outputs("observer"), ymeas) - rc.x_r(xp), axis=1)[after]
+        err = np.linalg.norm(obs.estimate(arc.outputs("observer"), ymeas) - rc.x_r(xp),
+                             axis=1)[after]
         if exact:
             assert err.max() < 1e-7
         else:
@@ -358,15 +382,21 @@ def test_lti_noise_bound_28_engine(seed):
 
 @pytest.mark.parametrize("seed", SEEDS[:2])
 def test_time_varying_nonlinear_numeric_phi(seed):
-    """Thm 1 on a random time-varying nonlinear (16) with Phi computed numerically (fundamental_matrix)."""
+    """Thm 1 on a random time-varying nonlinear (16) with Phi computed numerically
+    (fundamental_matrix)."""
     rng = np.random.default_rng(seed)
     A20, B2, a1 = rng.normal(size=(2, 2)), rng.normal(size=(2, 2)), rng.normal(size=(1, 2))
-    A2 = lambda t: A20 + 0.4 * np.sin(t) * B2
-    A1 = lambda t: a1 * (1.0 + 0.3 * np.cos(2 * t))
-    d1 = lambda t, z: 0.5 * np.sin(z)
-    d2 = lambda t, z: np.array([np.cos(t) * z[0], 0.2 * np.tanh(z[0])])
+    def A2(t):
+        return A20 + 0.4 * np.sin(t) * B2
+    def A1(t):
+        return a1 * (1.0 + 0.3 * np.cos(2 * t))
+    def d1(t, z):
+        return 0.5 * np.sin(z)
+    def d2(t, z):
+        return np.array([np.cos(t) * z[0], 0.2 * np.tanh(z[0])])
     L = tv.design._place_L(A20, a1, np.array([-1.0, -1.5]))        # placed on the mean system
-    H = lambda t: A2(t) + L @ A1(t)
+    def H(t):
+        return A2(t) + L @ A1(t)
     tau, T = 1.0, 2.6
     PA = tv.fundamental_matrix(A2, 2, (0.0, T), h=0.5)
     PH = tv.fundamental_matrix(H, 2, (0.0, T), h=0.5)
@@ -391,7 +421,8 @@ def test_time_varying_nonlinear_numeric_phi(seed):
 
 
 def test_fundamental_matrix_convention():
-    """Phi of (1) is the inverse fundamental matrix: e^{-Omega (t - s)}; on (48): Lambda = 1 - e^{4 pi}."""
+    """Phi of (1) is the inverse fundamental matrix: e^{-Omega (t - s)};
+    on (48): Lambda = 1 - e^{4 pi}."""
     Om = np.random.default_rng(1).normal(size=(2, 2))
     F = tv.fundamental_matrix(Om, 2, (0.0, 6.0), h=2.0)
     for t, s in [(3.0, 1.0), (5.5, 0.2), (1.0, 4.7), (2.0, 2.0)]:
@@ -400,7 +431,8 @@ def test_fundamental_matrix_convention():
     ex = tv.example_data()
     F = tv.fundamental_matrix(ex["H"], 1, (0.0, 10.0))
     for t in (2 * np.pi, 8.0, 10.0):
-        np.testing.assert_allclose(tv.Lambda(ex["Phi_A2"], F, t, ex["tau"]), [[ex["Lambda"]]], rtol=1e-8)
+        np.testing.assert_allclose(tv.Lambda(ex["Phi_A2"], F, t, ex["tau"]), [[ex["Lambda"]]],
+                                   rtol=1e-8)
     with pytest.raises(ValueError, match=r"t must lie in the computed range \[0.0, 10.0\], got 11"):
         F(11.0, 1.0)
     with pytest.raises(ValueError, match="t_span must be"):
@@ -417,7 +449,8 @@ def _open_loop_example(x1_0, v2, noise=None):
     e = (lambda t: 0.0) if noise is None else noise
     sys = hs.Interconnection({"plant": plant, "observer": obs},
                              inputs={"plant": lambda t, y: np.array([v2(t)]),
-                                     "observer": lambda t, y: np.array([y["plant"][1] + e(t), v2(t)])})
+                                     "observer": lambda t, y: np.array([y["plant"][1] + e(t),
+                                                                        v2(t)])})
     x0 = sys.stack(plant=plant.initial_state(0.8, -0.4, 0.6, x1_0), observer=obs.initial_state())
     return sys, obs, x0
 
@@ -431,7 +464,8 @@ def test_example_50_exact_bounded_v2(seed):
     """
     rng = np.random.default_rng(seed)
     a, w, ph = rng.uniform(0.1, 0.4, 3), rng.uniform(0.5, 3, 3), rng.uniform(0, 6, 3)
-    v2 = lambda t: float(np.sum(a * np.sin(w * t + ph)))           # |v2| <= sum a < 1.2
+    def v2(t):
+        return float(np.sum(a * np.sin(w * t + ph)))  # |v2| <= sum a < 1.2
     x1_0 = 0.5 if seed == 0 else rng.uniform(-1, 1)
     sys, obs, x0 = _open_loop_example(x1_0, v2)
     T0 = 2 * np.pi + np.sqrt(abs(x1_0))
@@ -450,8 +484,10 @@ def test_example_50_exact_bounded_v2(seed):
 def test_example_noise_bound_28():
     """(28) on the example with noise on xi3: |x*_r - x_r| <= l_a |eps|_inf, l_a by noise_gain."""
     ex = tv.example_data()
-    v2 = lambda t: 0.5 * np.cos(1.3 * t)
-    eps = lambda t: 0.01 * np.sin(5 * t)
+    def v2(t):
+        return 0.5 * np.cos(1.3 * t)
+    def eps(t):
+        return 0.01 * np.sin(5 * t)
     sys, obs, x0 = _open_loop_example(0.0, v2, noise=eps)
     arc = hs.simulate(sys, x0, t_max=2 * np.pi + 2.5, **RUN)
     grid = np.linspace(2 * np.pi, 4 * np.pi, 25)
@@ -474,7 +510,8 @@ def _closed_loop(T, **kw):
 
 
 def test_tracking_loop_58():
-    """Section IV-C: (58) solved by the loop; tracking (41); nu non-increasing once xhat2 is exact."""
+    """Section IV-C: (58) solved by the loop; tracking (41);
+    nu non-increasing once xhat2 is exact."""
     loop, v2, arc = _closed_loop(24.0)
     assert arc.success
     S = tv.loop_signals(arc, loop, v2)
@@ -498,7 +535,8 @@ def test_tracking_loop_58():
 
 
 def test_bounded_feedback_not_exponential():
-    """(57) gives asymptotic, not exponential, stability: |zeta3(t)| >= |zeta3(0)| - t since |v2| <= 1."""
+    """(57) gives asymptotic, not exponential, stability:
+    |zeta3(t)| >= |zeta3(0)| - t since |v2| <= 1."""
     loop, v2 = tv.tracking_loop(feedback="state")
     x0 = loop.stack(plant=tv.ChainedFormPlant.initial_state(0.0, 0.0, 40.0, 0.0),
                     observer=loop.systems["observer"].initial_state())
@@ -542,7 +580,8 @@ def test_observer_bad_inputs():
                       progress=False, throw=False)
     assert arc.termination is hs.Termination.MAP_ERROR
     assert "Lambda(t) (20) is singular at t=0.5" in arc.message     # right when the window fills
-    np.testing.assert_allclose(bad.output(arc.x[0], 0.2, 0), [0.0, 0.0])   # before tau: xr_init, G = 0
+    # before tau: xr_init, G = 0
+    np.testing.assert_allclose(bad.output(arc.x[0], 0.2, 0), [0.0, 0.0])
     with pytest.raises(ValueError, match=r"Lambda\(t\) \(20\) is singular at t=0.5"):
         bad.output(arc.x[-1], 0.5, 1)
     with pytest.raises(TypeError, match="Omega must be a callable"):
@@ -555,31 +594,37 @@ def test_phi_scalar_remark2():
     PH = tv.phi_scalar(ex["H"])
     for t, s in [(1.0, 0.0), (9.0, 9.0 - 2 * np.pi), (3.0, 5.0)]:
         np.testing.assert_allclose(PH(t, s), ex["Phi_H"](t, s), rtol=1e-10)
-    np.testing.assert_allclose(tv.Lambda(tv.phi_scalar(ex["A2"]), PH, 4.0, ex["tau"]), [[ex["Lambda"]]],
-                               rtol=1e-10)
+    np.testing.assert_allclose(tv.Lambda(tv.phi_scalar(ex["A2"]), PH, 4.0, ex["tau"]),
+                               [[ex["Lambda"]]], rtol=1e-10)
 
 
 def test_constructors_reject_mismatch_and_unobservable():
-    """Issue 16: (A, C) unobservable and dimension mismatches are refused when the observer is built."""
+    """Issue 16: (A, C) unobservable and dimension mismatches are refused
+    when the observer is built."""
     A = np.diag([-1.0, -2.0, -3.0])
     C = np.array([[1.0, 0.0, 0.0]])
-    # the true reason: rank, the hidden eigenvalue and what it breaks (M_tau singular for every L, tau)
-    with pytest.raises(ValueError, match=r"\(A, C\) must be observable: the observability matrix has rank 1 < n = 3"
-                                         r", and the eigenvalue -[23] of A is invisible .* M_tau \(6\) is singular"):
+    # the true reason: rank, the hidden eigenvalue and what it breaks (M_tau singular for every
+    # L, tau)
+    with pytest.raises(ValueError, match=r"\(A, C\) must be observable: "
+                                         r"the observability matrix has rank 1 < n = 3"
+                                         r", and the eigenvalue -[23] of A is invisible "
+                                         r".* M_tau \(6\) is singular"):
         tv.lti_observer(A, C)
     with pytest.raises(ValueError, match=r"\(A2, A1\) must be observable: .*rank 1 < n = 2"):
         tv.choose_L_tau(np.diag([-1.0, -2.0]), np.array([[1.0, 0.0]]), tau=1.0)
     # mismatched dimensions: arrays and callables are checked at construction, naming the argument
     ex = tv.example_data()
     with pytest.raises(ValueError, match=r"A2 must have shape \(1, 1\), got \(2, 2\)"):
-        tv.ReducedOrderObserver(1.0, ex["A1"], np.eye(2), ex["L"], ex["Phi_A2"], ex["Phi_H"], p=1, m=1)
+        tv.ReducedOrderObserver(1.0, ex["A1"], np.eye(2), ex["L"], ex["Phi_A2"], ex["Phi_H"],
+                                p=1, m=1)
     with pytest.raises(ValueError, match=r"A1\(t\) must return a 1 x 1 matrix, got shape \(2,\)"):
-        tv.ReducedOrderObserver(1.0, lambda t: np.zeros(2), ex["A2"], ex["L"], ex["Phi_A2"], ex["Phi_H"],
-                                p=1, m=1)
-    with pytest.raises(ValueError, match=r"Phi_H must be 1 x 1 \(p = 1 outputs, m = 1 estimated states\), "
+        tv.ReducedOrderObserver(1.0, lambda t: np.zeros(2), ex["A2"], ex["L"], ex["Phi_A2"],
+                                ex["Phi_H"], p=1, m=1)
+    with pytest.raises(ValueError, match=r"Phi_H must be 1 x 1 "
+                                         r"\(p = 1 outputs, m = 1 estimated states\), "
                                          r"got shape \(2, 2\)"):
-        tv.ReducedOrderObserver(1.0, ex["A1"], ex["A2"], ex["L"], ex["Phi_A2"], lambda t, s: np.eye(2),
-                                p=1, m=1)
+        tv.ReducedOrderObserver(1.0, ex["A1"], ex["A2"], ex["L"], ex["Phi_A2"],
+                                lambda t, s: np.eye(2), p=1, m=1)
     with pytest.raises(ValueError, match=r"C must have shape \(\*, 3\), got \(1, 2\)"):
         tv.lti_observer(A, [[1.0, 0.0]])
     obs, rc = tv.lti_observer(np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [-1.0, -2.0, -3.0]]), C)
@@ -611,7 +656,8 @@ def test_simulate_errors_lti_equal_the_hand_wired_run(seed):
 
 
 def test_simulate_default_plant_16_and_seeded_noise():
-    """With no plant model given, (16) is built from the observer's data; noise=eps_bar needs a seed."""
+    """With no plant model given, (16) is built from the observer's data;
+    noise=eps_bar needs a seed."""
     rng = np.random.default_rng(5)
     A20, a1 = rng.normal(size=(2, 2)), rng.normal(size=(1, 2))
     L = tv.design._place_L(A20, a1, np.array([-1.0, -1.5]))
@@ -636,12 +682,15 @@ def test_simulate_default_plant_16_and_seeded_noise():
 
 
 def test_simulate_chained_form_and_errors_on_the_loop():
-    """The chained-form observer runs with its plant (44) given v2; errors() reads tracking_loop arcs too."""
+    """The chained-form observer runs with its plant (44) given v2;
+    errors() reads tracking_loop arcs too."""
     obs = tv.chained_form_observer()
-    v2 = lambda t: 0.5 * np.cos(1.3 * t)
+    def v2(t):
+        return 0.5 * np.cos(1.3 * t)
     arc = tv.simulate(obs, [0.8, -0.4, 0.6, 0.5], t_max=2 * np.pi + 1.5, w=v2)
     e = tv.errors(arc, obs)[:, 0]
-    hst.assert_exact_after(arc, e[:, None], t=2 * np.pi + np.sqrt(0.5), atol=1e-8)   # (50), corrected range
+    # (50), corrected range
+    hst.assert_exact_after(arc, e[:, None], t=2 * np.pi + np.sqrt(0.5), atol=1e-8)
     loop, v2l, arc_l = _closed_loop(8.0)
     S = tv.loop_signals(arc_l, loop, v2l)
     np.testing.assert_allclose(tv.errors(arc_l, loop.systems["observer"])[:, 0],
@@ -663,7 +712,8 @@ def test_simulate_bad_inputs():
     lti, _ = tv.lti_observer([[0.0, 1.0], [-2.0, -3.0]], [[1.0, 0.0]], tau=0.5)
     with pytest.raises(ValueError, match="w must be None: the observer has w_dim = 0"):
         tv.simulate(lti, [1.0, 0.0], t_max=1.0, w=np.cos)
-    with pytest.raises(TypeError, match=r"noise must be a callable t -> \(1,\) array|noise must be a real"):
+    with pytest.raises(TypeError,
+                       match=r"noise must be a callable t -> \(1,\) array|noise must be a real"):
         tv.simulate(lti, [1.0, 0.0], t_max=1.0, noise="loud", seed=0)
     arc = tv.simulate(lti, [1.0, 0.0], t_max=0.6)
     with pytest.raises(ValueError, match="arc must be a run of this observer with its plant"):

@@ -111,9 +111,9 @@ ERRATA = [
     "exponentially, stable: |v2| <= 1 gives |zeta3(t)| >= |zeta3(0)| - t, which no global "
     "exponential bound allows.",
     "\"Assumption 2\" in the proof of Theorem 1 is Assumption 1.",
-    "Remark 3's condition |Phi_A2^{-1} Phi_H| <= varpi < 1 does not hold on the paper's own example "
-    "(varpi = e^{4 pi}); the swapped condition |Phi_H^{-1} Phi_A2| < 1 (varpi = e^{-4 pi}) does, "
-    "with the same argument.",
+    "Remark 3's condition |Phi_A2^{-1} Phi_H| <= varpi < 1 does not hold on the paper's own "
+    "example (varpi = e^{4 pi}); the swapped condition |Phi_H^{-1} Phi_A2| < 1 "
+    "(varpi = e^{-4 pi}) does, with the same argument.",
 ]
 
 DECISIONS = [
@@ -127,13 +127,14 @@ DECISIONS = [
     "the window as filled. Before tau the estimate is held at xr_init (default 0).",
     "(23) contains y(t) itself, and the engine forbids outputs that read their input: the observer "
     "outputs (P, G) with xhat_r = P + G y.",
-    "(58) is built as the observer fed back through (57): v2(t) enters (58) only under an integral, "
-    "so it is a distributed-delay equation, not an algebraic loop; the residual of (58) evaluated "
-    "literally along a run is below 1e-8.",
-    "x1's arrival at 0 (x1' = -2 sign(x1) sqrt|x1| is not Lipschitz there) is modelled as a jump of "
-    "the plant to x1 = 0 when |x1| <= eta = 1e-10, so x1 is exactly 0 afterwards, as in the paper.",
-    "Not given by the paper and chosen by us: xi4(0) = 1, xi3(0) = -1, xi2(0) = 0.5 (the paper gives "
-    "only x1(0) = 0.5), the horizon 60 of Fig. 1, and xr_init = 0.",
+    "(58) is built as the observer fed back through (57): v2(t) enters (58) only under an "
+    "integral, so it is a distributed-delay equation, not an algebraic loop; the residual of "
+    "(58) evaluated literally along a run is below 1e-8.",
+    "x1's arrival at 0 (x1' = -2 sign(x1) sqrt|x1| is not Lipschitz there) is modelled as a jump "
+    "of the plant to x1 = 0 when |x1| <= eta = 1e-10, so x1 is exactly 0 afterwards, as in the "
+    "paper.",
+    "Not given by the paper and chosen by us: xi4(0) = 1, xi3(0) = -1, xi2(0) = 0.5 (the paper "
+    "gives only x1(0) = 0.5), the horizon 60 of Fig. 1, and xr_init = 0.",
 ]
 
 __all__ = [

@@ -62,8 +62,8 @@ def _as_fun(F, name, shape):
         def f(t, F=F):
             v = np.asarray(F(t), dtype=float)
             if v.size != size:
-                raise ValueError(f"{name}(t) must return a {shape[0]} x {shape[1]} matrix, got shape {v.shape} "
-                                 f"at t = {t:g}")
+                raise ValueError(f"{name}(t) must return a {shape[0]} x {shape[1]} matrix, "
+                                 f"got shape {v.shape} at t = {t:g}")
             return v.reshape(shape)
         return f
     A = matrix(name, F, shape)
@@ -94,7 +94,10 @@ def _rcond(M):
 # Section II: LTI systems
 # ---------------------------------------------------------------------------
 def _unobservable_text(A, C, tol=1e-9):
-    """Words naming the rank of the observability matrix and an eigenvalue of A invisible through C (PBH)."""
+    """Words naming the rank of the observability matrix and an eigenvalue of A.
+
+    The eigenvalue named is the one invisible through C (PBH test).
+    """
     n = A.shape[0]
     O = [C]
     for _ in range(n - 1):
@@ -107,8 +110,8 @@ def _unobservable_text(A, C, tol=1e-9):
         if sv < best:
             lam, best = ev, sv
     lam_s = f"{lam.real:.6g}" if abs(lam.imag) <= 1e-9 * max(1.0, abs(lam)) else f"{lam:.6g}"
-    return (f"the observability matrix has rank {r} < n = {n}, and the eigenvalue {lam_s} of A is invisible in "
-            f"y = C x (PBH test)")
+    return (f"the observability matrix has rank {r} < n = {n}, and the eigenvalue {lam_s} of A "
+            f"is invisible in y = C x (PBH test)")
 
 
 def is_observable(A, C, tol=1e-9):
@@ -223,8 +226,10 @@ def reduced_coordinates(A, C, N=None):
     if np.linalg.matrix_rank(C) != p:
         raise ValueError(f"C must have full row rank p={p}, got rank {np.linalg.matrix_rank(C)}")
     if not is_observable(A, C):
-        raise ValueError(f"(A, C) must be observable: {_unobservable_text(A, C)}; then (A2, A1) is unobservable too "
-                         "and M_tau (6) is singular for every L and tau, so no exact reduced estimate (15) exists")
+        raise ValueError(f"(A, C) must be observable: {_unobservable_text(A, C)}; "
+                         "then (A2, A1) is unobservable too "
+                         "and M_tau (6) is singular for every L and tau, "
+                         "so no exact reduced estimate (15) exists")
     if N is None:
         N = linalg.null_space(C).T
     N = matrix("N", N, (n - p, n))
@@ -322,13 +327,15 @@ def choose_L_tau(A2, A1, *, L=None, tau=None, poles=None, rcond_min=1e-8):
     tau = 1.0 if tau is None else scalar("tau", tau, positive=True)
     if not is_observable(A2, A1):
         A2m, A1m = matrix("A2", A2), matrix("A1", A1)
-        raise ValueError(f"(A2, A1) must be observable: {_unobservable_text(A2m, A1m).replace('of A ', 'of A2 ').replace('C x', 'A1 x_r')}; "
+        why = _unobservable_text(A2m, A1m).replace('of A ', 'of A2 ').replace('C x', 'A1 x_r')
+        raise ValueError(f"(A2, A1) must be observable: {why}; "
                          "then M_tau (6) is singular for every L and tau")
     if L is not None:
         M = M_tau(A2, A1, L, tau)
         rc = _rcond(M)
         if rc < rcond_min:
-            raise ValueError(f"M_tau (6) must be invertible: rcond = {rc:.3g} < rcond_min = {rcond_min:g}")
+            raise ValueError("M_tau (6) must be invertible: "
+                             f"rcond = {rc:.3g} < rcond_min = {rcond_min:g}")
         return matrix("L", L), tau, M
     if poles is None:
         base = -(1.0 + 0.5 * np.arange(m)) / tau
@@ -386,7 +393,8 @@ def estimate_15(t, y, A2, A1, L, tau, delta1=None, delta2=None, epsrel=1e-11):
     if not callable(y):
         raise TypeError(f"y must be a callable s -> (p,) array, got {type(y).__name__}")
     if t < tau:
-        raise ValueError(f"t must be >= tau = {tau} (the estimate (15) needs y on [t - tau, t]), got {t}")
+        raise ValueError(f"t must be >= tau = {tau} "
+                         f"(the estimate (15) needs y on [t - tau, t]), got {t}")
     d1 = delta1 if delta1 is not None else (lambda s, yy: np.zeros(p))
     d2 = delta2 if delta2 is not None else (lambda s, yy: np.zeros(m))
     H = A2 + L @ A1
@@ -398,7 +406,8 @@ def estimate_15(t, y, A2, A1, L, tau, delta1=None, delta2=None, epsrel=1e-11):
         b = linalg.expm(A2 * (t - s - tau)) @ d2(s, ys)
         return -a + b
     I = integrate.quad_vec(integrand, t - tau, t, epsrel=epsrel, epsabs=1e-14)[0]
-    rhs = I + linalg.expm(-H * tau) @ L @ np.asarray(y(t), float) - L @ np.asarray(y(t - tau), float)
+    rhs = (I + linalg.expm(-H * tau) @ L @ np.asarray(y(t), float)
+           - L @ np.asarray(y(t - tau), float))
     return np.linalg.solve(M_tau(A2, A1, L, tau), rhs)
 
 
@@ -442,8 +451,8 @@ class FundamentalMatrix:
         hi = self.t_end + 1e-9 * max(1, abs(self.t_end))
         for name, v in (("t", t), ("t0", t0)):
             if not lo <= v <= hi:
-                raise ValueError(f"{name} must lie in the computed range [{self.t_start}, {self.t_end}], "
-                                 f"got {v}")
+                raise ValueError(f"{name} must lie in the computed range "
+                                 f"[{self.t_start}, {self.t_end}], got {v}")
         # event times are located to ~1e-12: clip such overshoots into the range
         t, t0 = min(max(t, self.t_start), self.t_end), min(max(t0, self.t_start), self.t_end)
         if t < t0:
@@ -522,7 +531,8 @@ def fundamental_matrix(Omega, m, t_span, *, h=None, rtol=1e-11, atol=1e-13, meth
     arc = hs.simulate(_Phi(), np.concatenate([I, [0.0]]), t_max=tb, j_max=nj, t0=ta,
                       rtol=rtol, atol=atol, method=method, dense=True, progress=False)
     if not arc.success and arc.tf < tb:
-        raise RuntimeError(f"fundamental_matrix: the run stopped at t={arc.tf}: {arc.termination.message}")
+        raise RuntimeError(f"fundamental_matrix: the run stopped at t={arc.tf}: "
+                           f"{arc.termination.message}")
     return FundamentalMatrix(arc, m, ta, h)
 
 
@@ -544,7 +554,8 @@ def phi_scalar(Omega, epsrel=1e-12):
     if not callable(Omega):
         raise TypeError(f"Omega must be a callable t -> float, got {type(Omega).__name__}")
     f = lambda m: float(np.asarray(Omega(m), dtype=float).reshape(-1)[0])  # noqa: E731
-    return lambda t, t0: np.array([[np.exp(-integrate.quad(f, t0, t, epsrel=epsrel, limit=200)[0])]])
+    return lambda t, t0: np.array(
+        [[np.exp(-integrate.quad(f, t0, t, epsrel=epsrel, limit=200)[0])]])
 
 
 def Lambda(Phi_A2, Phi_H, t, tau):
@@ -597,8 +608,8 @@ def check_assumption1(Phi_A2, Phi_H, tau, t_grid, rcond_min=1e-12):
     rc = np.array([_rcond(Lambda(Phi_A2, Phi_H, t, tau)) for t in t_grid])
     bad = np.nonzero(rc < rcond_min)[0]
     if bad.size:
-        raise ValueError(f"Assumption 1 fails: Lambda(t) (20) is singular at t={t_grid[bad[0]]:.6g} "
-                         f"(rcond {rc[bad[0]]:.3g} < {rcond_min:g})")
+        raise ValueError("Assumption 1 fails: Lambda(t) (20) is singular "
+                         f"at t={t_grid[bad[0]]:.6g} (rcond {rc[bad[0]]:.3g} < {rcond_min:g})")
     return rc
 
 
@@ -657,7 +668,8 @@ def remark3(Phi_A2, Phi_H, tau, t_grid, swapped=False):
         nb = max(nb, np.linalg.norm(Ai, 2))
     holds = vp < 1
     return Remark3Result(varpi=float(vp), holds=bool(holds),
-                         Lambda_inv_bound=float(nb / (1 - vp)) if holds else np.inf, swapped=swapped)
+                         Lambda_inv_bound=float(nb / (1 - vp)) if holds else np.inf,
+                         swapped=swapped)
 
 
 def D_of(t, A1, A2, L, Ldot):
@@ -707,9 +719,9 @@ def _dims(A1, A2, L, p, m):
 
 def estimate_23(t, y, tau, A1, A2, L, Phi_A2, Phi_H, *, delta1=None, delta2=None, Ldot=None,
                 eps=None, p=None, m=None, epsrel=1e-11):
-    r"""The estimate (23) (``eps`` given) or the approximate observer (27) (``eps=None``), by quadrature.
+    r"""The estimate (23) (``eps`` given) or the approximate observer (27) (``eps=None``).
 
-    A literal evaluation of the paper's formula from a known output signal,
+    A literal evaluation of the paper's formula by quadrature from a known output signal,
     used as an independent reference for :class:`ReducedOrderObserver`.
 
     Parameters
@@ -740,7 +752,8 @@ def estimate_23(t, y, tau, A1, A2, L, Phi_A2, Phi_H, *, delta1=None, delta2=None
     if not callable(y):
         raise TypeError(f"y must be a callable s -> (p,) array, got {type(y).__name__}")
     if t < tau:
-        raise ValueError(f"t must be >= tau = {tau} (the estimate (23) needs y on [t - tau, t]), got {t}")
+        raise ValueError(f"t must be >= tau = {tau} "
+                         f"(the estimate (23) needs y on [t - tau, t]), got {t}")
     p, m = _dims(A1, A2, L, p, m)
     A1f, A2f, Lf, Ldf = _tv_data(A1, A2, L, Ldot, p, m)
     d1 = delta1 if delta1 is not None else (lambda s, z: np.zeros(p))
@@ -811,7 +824,7 @@ def noise_gain(t, tau, A1, A2, L, Phi_A2, Phi_H, *, lip1=0.0, lip2=0.0, Ldot=Non
     for tt in ts:
         t0 = tt - tau
 
-        def g(s):
+        def g(s, t0=t0):
             lip4 = (_n2(D_of(s, A1f, A2f, Lf, Ldf)) + _n2(Lf(s)) * lip1 + lip2)
             return (_n2(np.atleast_2d(Phi_A2(s, t0))) * lip2
                     + _n2(np.atleast_2d(Phi_H(s, t0))) * lip4)

@@ -114,7 +114,8 @@ def estimate_49(t, xi3, v2, epsrel=1e-11):
     a = 2 * np.cos(t) * c * (-np.exp(4 * np.pi) * xi3(t) + xi3(t - TAU_EXAMPLE))
     f = lambda m: (c * (1 - np.exp(_M(m, t))) * v2(m)  # noqa: E731
                    + 2 * c * np.exp(_M(m, t)) * (4 * np.cos(m) ** 3 - np.sin(m)) * xi3(m))
-    return float(a + integrate.quad(f, t - TAU_EXAMPLE, t, epsrel=epsrel, epsabs=1e-13, limit=400)[0])
+    return float(a + integrate.quad(f, t - TAU_EXAMPLE, t, epsrel=epsrel, epsabs=1e-13,
+                                    limit=400)[0])
 
 
 def sigma(s):
@@ -270,7 +271,8 @@ def residual_58(arc, loop, v2, t):
                         a, t, limit=400, epsrel=1e-10, epsabs=1e-12, points=pts)[0]
     xt = plant(t)
     rhs = sigma(np.cos(2 * t) * xt[0] + 2 * (1 - np.cos(2 * t)) * np.sin(t) * xt[1]
-                - cL * I1 - 2 * cL * I2 - 2 * np.cos(t) * cL * (-np.exp(4 * np.pi) * xt[1] + plant(a)[1]))
+                - cL * I1 - 2 * cL * I2
+                - 2 * np.cos(t) * cL * (-np.exp(4 * np.pi) * xt[1] + plant(a)[1]))
     return float(vfun(t) - rhs)
 
 
@@ -404,7 +406,8 @@ def simulate(observer, x0, xhat0=None, *, t_max, noise=None, seed=None, w=None, 
         eps = _signal("noise", noise, p)
     else:
         if seed is None:
-            raise TypeError("noise given as an amplitude needs seed= (nothing is random without it)")
+            raise TypeError("noise given as an amplitude needs seed= "
+                            "(nothing is random without it)")
         eps = bounded_noise(scalar("noise", noise, nonneg=True), p, seed=seed)
     if observer.w_dim:
         if w is None:
@@ -453,7 +456,8 @@ def estimates(arc, observer):
     """
     sys = _interconnection(arc, observer)
     u_of = sys.inputs["observer"]
-    Y = np.array([np.atleast_1d(np.asarray(u_of(t, sys.outputs(x, t, j)), dtype=float))[: observer.p]
+    Y = np.array([np.atleast_1d(np.asarray(u_of(t, sys.outputs(x, t, j)),
+                                           dtype=float))[: observer.p]
                   for x, t, j in zip(arc.x, arc.t, arc.j)])
     return observer.estimate(arc.outputs("observer"), Y.reshape(len(arc.t), observer.p))
 

@@ -101,7 +101,8 @@ def _fig1(outdir, T):
     tt = np.linspace(0.0, T, 2000)
     hs.plot_flows(arc, fn=xi1, ax=ax[0], labels=[r"$\xi_1$"], ylabel=r"$\xi_1,\ x_1$",
                   xlabel="", legend=False)
-    ax[0].plot(tt, 2 * np.sin(tt), "--", color="k", linewidth=0.9, label=r"$\xi_{1r} = 2\sin t$ (41)")
+    ax[0].plot(tt, 2 * np.sin(tt), "--", color="k", linewidth=0.9,
+               label=r"$\xi_{1r} = 2\sin t$ (41)")
     hs.plot_flows(arc, sl.start + 3, ax=ax[0], labels=[r"$x_1 = \xi_1 - 2\sin t$ (42)"],
                   xlabel="", legend=False)
     hs.plot_flows(arc, [sl.start + k for k in (0, 1, 2)], ax=ax[1],
@@ -128,8 +129,10 @@ def _fig1(outdir, T):
     fig.tight_layout()
     caption = f"""
 Fig. 1 of Mazenc-Ahmed-Malisoff (CDC 2018): the chained form (40) under v1 of (43) and the output
-feedback v2 of (58) (the bounded state feedback (57) with xi2 replaced by the reduced-order finite-time
-estimate (50), tau = 2 pi, L(t) = -2 cos t, Lambda = 1 - e^(4 pi)), simulated with hybridsim.simulate
+feedback v2 of (58) (the bounded state feedback (57) with xi2 replaced by the reduced-order \
+finite-time
+estimate (50), tau = 2 pi, L(t) = -2 cos t, Lambda = 1 - e^(4 pi)), simulated with \
+hybridsim.simulate
 (RK45, rtol 1e-10, atol 1e-12) on t in [0, {T:g}] and drawn with hybridsim.plot_flows.
 Panels: (1) xi1 tracks 2 sin t (dashed, the reference (41)): x1 = xi1 - 2 sin t reaches 0 at
 1/sqrt(2) and stays there; (2) xi4, xi3, xi2 and the estimate of xi2 (black, long dashes);
@@ -142,9 +145,11 @@ Grey band: [2 pi, 2 pi + 1/sqrt(2)): the observer's window is filled at 2 pi (it
 the estimate is held at 0, our choice) but reaches back to where x1 != 0, so (50) is exact only from
 the band's right end on (the printed range t >= max(2 pi, sqrt|x1(0)|) is too wide).
 From the paper: x1(0) = 0.5, tau, L, sigma, (57)-(59). Chosen by us (not given in the paper):
-xi4(0) = {init['xi4']}, xi3(0) = {init['xi3']}, xi2(0) = {init['xi2']}, the horizon, and the modelling of
+xi4(0) = {init['xi4']}, xi3(0) = {init['xi3']}, xi2(0) = {init['xi2']}, the horizon, and the \
+modelling of
 x1's arrival at 0 as a jump (eta = 1e-10).
-Measured: estimation error {err[before].max():.1e} on [2pi, 2pi + 1/sqrt2), {err[after].max():.1e} after;
+Measured: estimation error {err[before].max():.1e} on [2pi, 2pi + 1/sqrt2), {err[after].max():.1e} \
+after;
 |zeta| = {zn[0]:.2f} at t = 0, {zn[-1]:.3f} at t = {T:g}.
 """
     return save_figure(fig, outdir, "fig1_closed_loop", caption)
@@ -165,14 +170,16 @@ def _fig_lti(outdir):
         return 0.01 * np.sin(np.array([5.0, 7.0]) * s)
 
     runs = []
-    for label, noise in (("exact (15), no noise", None), (r"(27) with $|\epsilon| \leq 0.01$", eps)):
+    for label, noise in (("exact (15), no noise", None),
+                         (r"(27) with $|\epsilon| \leq 0.01$", eps)):
         obs, rc = lti_observer(A, C, tau=1.0, delta=delta)
         arc = simulate(obs, xp0, t_max=4.0, noise=noise)
         runs.append((label, arc, obs, np.linalg.norm(errors(arc, obs), axis=1)))
     H = rc.A2 + obs.L(0.0) @ rc.A1
     l_a = noise_gain(1.0, 1.0, rc.A1, rc.A2, obs.L(0.0), lambda s, r: linalg.expm(-rc.A2 * (s - r)),
                      lambda s, r: linalg.expm(-H * (s - r)), lip1=_n2(rc.A11), lip2=_n2(rc.A21))
-    # t >= tau after the observer's jump (j >= 1): the pre-jump sample at t = tau still holds xr_init
+    # t >= tau after the observer's jump (j >= 1): the pre-jump sample at t = tau still holds
+    # xr_init
     e_ex = runs[0][3][runs[0][1].j >= 1].max()
     e_no = runs[1][3][runs[1][1].j >= 1].max()
     print(f"[time_varying] LTI (n=4, p=2, seed 0, tau=1): max |xhat_r - x_r| for t >= tau: "
@@ -190,13 +197,16 @@ def _fig_lti(outdir):
     ax.legend(fontsize=8, loc="center right")
     fig.tight_layout()
     caption = f"""
-Section II of Mazenc-Ahmed-Malisoff (not a figure of the paper; ours): a random observable LTI system
-xdot = A x + b sin 2t, y = C x (n = 4, p = 2, numpy seed 0), observer (15) with tau = 1 and L placing
+Section II of Mazenc-Ahmed-Malisoff (not a figure of the paper; ours): a random observable LTI \
+system
+xdot = A x + b sin 2t, y = C x (n = 4, p = 2, numpy seed 0), observer (15) with tau = 1 and L \
+placing
 the eigenvalues of H = A2 + L A1 at -1, -1.5, x(0) drawn from the same seed (our choices), run with
 observers.time_varying.simulate (RK45, rtol 1e-10, atol 1e-12). Error norm of the reduced-order
 estimate at the solver's samples, log scale: before tau the estimate is held at 0 (both runs
 coincide there); at t = tau the observer jumps (dotted segment, filled circle before, open circle
-after) and the error is at the integrator's accuracy ({e_ex:.0e}) from then on. With measurement noise
+after) and the error is at the integrator's accuracy ({e_ex:.0e}) from then on. With measurement \
+noise
 eps = 0.01 (sin 5t, sin 7t), the approximate observer (27) stays below l_a |eps|_inf of (28)
 (dashed, l_a = {l_a:.2f} computed by noise_gain); max error after tau {e_no:.1e}.
 """

@@ -158,16 +158,22 @@ class ReducedOrderObserver(hs.HybridSystem):
         self.A1, self.A2, self.L, self.Ldot = _tv_data(A1, A2, L, Ldot, p, m)
         self.Phi_A2 = lambda t, s: np.atleast_2d(np.asarray(Phi_A2(t, s), dtype=float))
         self.Phi_H = lambda t, s: np.atleast_2d(np.asarray(Phi_H(t, s), dtype=float))
-        # dimensions agree at construction, not as a matmul error inside a run: probe the data at t = tau
-        for nm, f, shape in (("A1", self.A1, (p, m)), ("A2", self.A2, (m, m)), ("L", self.L, (m, p)),
+        # dimensions agree at construction, not as a matmul error inside a run: probe the data at
+        # t = tau
+        for nm, f, shape in (("A1", self.A1, (p, m)), ("A2", self.A2, (m, m)),
+                             ("L", self.L, (m, p)),
                              ("Phi_A2", lambda t: self.Phi_A2(t, 0.0), (m, m)),
                              ("Phi_H", lambda t: self.Phi_H(t, 0.0), (m, m))):
             v = f(self.tau)
             if np.shape(v) != shape:
-                raise ValueError(f"{nm} must be {shape[0]} x {shape[1]} (p = {p} outputs, m = {m} estimated states), "
+                raise ValueError(f"{nm} must be {shape[0]} x {shape[1]} "
+                                 f"(p = {p} outputs, m = {m} estimated states), "
                                  f"got shape {np.shape(v)}")
-        wrap = (lambda f, k: (lambda t, z, w: np.zeros(k)) if f is None else
-                (f if self.w_dim else (lambda t, z, w: f(t, z))))
+
+        def wrap(f, k):
+            if f is None:
+                return lambda t, z, w: np.zeros(k)
+            return f if self.w_dim else (lambda t, z, w: f(t, z))
         self.delta1 = wrap(delta1, p)
         self.delta2 = wrap(delta2, m)
         self.eps = eps
@@ -200,8 +206,8 @@ class ReducedOrderObserver(hs.HybridSystem):
     def _split_u(self, u, t):
         u = np.atleast_1d(np.asarray(u, dtype=float))
         if u.shape != (self.input_dim,):
-            raise ValueError(f"observer input must have shape ({self.input_dim},) = [y (p={self.p}), "
-                             f"w (w_dim={self.w_dim})], got {u.shape}")
+            raise ValueError(f"observer input must have shape ({self.input_dim},) = "
+                             f"[y (p={self.p}), w (w_dim={self.w_dim})], got {u.shape}")
         return self._z(u[: self.p], t), u[self.p:]
 
     def H(self, t):
@@ -263,7 +269,8 @@ class ReducedOrderObserver(hs.HybridSystem):
         past = np.asarray(self.history(t0), dtype=float)
         PA, PH, Lam = self._Lambda_checked(t)
         Lt = self.L(t)
-        r = (PA @ x[:m] - past[:m] + PH @ x[m:2 * m] - past[m:2 * m] - self.L(t0) @ self._z_past(t0))
+        r = (PA @ x[:m] - past[:m] + PH @ x[m:2 * m] - past[m:2 * m]
+             - self.L(t0) @ self._z_past(t0))
         Gn = PH @ Lt
         if self.eps is not None:
             r = r - Gn @ np.asarray(self.eps(t), dtype=float).reshape(p)
@@ -328,7 +335,8 @@ class TimeVaryingPlant(hs.HybridSystem):
 
     def __init__(self, observer):
         if not isinstance(observer, ReducedOrderObserver):
-            raise TypeError(f"observer must be a ReducedOrderObserver, got {type(observer).__name__}")
+            raise TypeError("observer must be a ReducedOrderObserver, "
+                            f"got {type(observer).__name__}")
         self.obs = observer
         self.p, self.m, self.w_dim = observer.p, observer.m, observer.w_dim
         self.state_dim = self.p + self.m
@@ -452,7 +460,7 @@ class ChainedFormPlant(hs.HybridSystem):
         return -2 * np.sign(x1) * np.sqrt(abs(x1)) + 2 * np.cos(t)
 
     def flow_map(self, x, t, j, u):
-        xi4, xi3, xi2, x1, q = x
+        _xi4, xi3, xi2, x1, q = x
         v2 = float(np.asarray(u).ravel()[0])
         dx1 = -2 * np.sign(x1) * np.sqrt(abs(x1)) if q != 0 else 0.0
         v1 = dx1 + 2 * np.cos(t)
