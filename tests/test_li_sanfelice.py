@@ -13,8 +13,8 @@ import math
 import numpy as np
 import pytest
 import scipy.integrate
-import scipy.optimize
 import scipy.linalg
+import scipy.optimize
 from scipy.linalg import expm
 
 from hybridsim import testing as hst
@@ -37,7 +37,7 @@ def _examples():
             "VB_rounded": ls.example_VB(rounded=True)}
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _random_cases():
     return tuple(ls.random_design(s, n, p) for s in SEEDS[:2] for (n, p) in SHAPES)
 
@@ -107,8 +107,8 @@ def test_example_VB_printed_gains_are_rounded_exact_ones():
 
 
 def test_admissible_delta_touching_zero_rotation():
-    # F1 = -I + th J, F2 = -I - th J: e^{F2 t} e^{-F1 t} = rotation by 2 th t; p(t) = 2 - 2 cos(2 th t) >= 0,
-    # a double zero at t = pi / th
+    # F1 = -I + th J, F2 = -I - th J: e^{F2 t} e^{-F1 t} = rotation by 2 th t;
+    # p(t) = 2 - 2 cos(2 th t) >= 0, a double zero at t = pi / th
     th = 2.0
     J = np.array([[0.0, 1.0], [-1.0, 0.0]])
     A, H = np.zeros((2, 2)), np.eye(2)
@@ -254,7 +254,8 @@ def test_not_hurwitz_names_the_gain():
 
 
 def test_HT_singular_is_refused_before_a_run():
-    # scalar plant, L1 = 3, L2 = 5, delta = 1, H = 1 and a found by brentq so that T(a) = 1: H T - I = 0
+    # scalar plant, L1 = 3, L2 = 5, delta = 1, H = 1 and a found by brentq so that T(a) = 1:
+    # H T - I = 0
     import scipy.optimize
     L1, L2, delta, h = 3.0, 5.0, 1.0, 1.0
 
@@ -308,15 +309,18 @@ def test_bad_noise_and_misc_input():
 # ---------------------------------------------------------------------------
 # theorem checks on the engine
 # ---------------------------------------------------------------------------
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _sim_cases(p_eq_n=False):
-    """The paper's examples and seeded random observable (A, H), n <= 4, p <= 2 (each shape once)."""
+    """The paper's examples and seeded random observable (A, H),
+    n <= 4, p <= 2 (each shape once)."""
     cases = [("III", ls.example_III()), ("VA", ls.example_VA()), ("VB", ls.example_VB()),
              ("VB_rounded", ls.example_VB(rounded=True))]
     if p_eq_n:
-        cases += [(f"rand{s}_{n}x{n}", ls.random_design(s, n, n, normal=True)) for s in SEEDS for n in (1, 2)]
+        cases += [(f"rand{s}_{n}x{n}", ls.random_design(s, n, n, normal=True))
+                  for s in SEEDS for n in (1, 2)]
     else:
-        cases += [(f"rand{s}_{n}x{p}", ls.random_design(s, n, p)) for s, (n, p) in enumerate(SHAPES)]
+        cases += [(f"rand{s}_{n}x{p}", ls.random_design(s, n, p))
+                  for s, (n, p) in enumerate(SHAPES)]
     return tuple(cases)
 
 
@@ -330,7 +334,8 @@ def test_theorem_4_7_Hn_exact_after_its_jump(name, d):
     x0, xh0 = _x0s(d, 0)
     obs = ls.NominalObserver(d)
     arc = ls.simulate_with_plant(obs, x0, xh0, t_max=2 * d.delta)
-    assert arc.success and arc.jump_count == 1          # q makes it jump once (decision 1: q+ = 1 - q)
+    # q makes it jump once (decision 1: q+ = 1 - q)
+    assert arc.success and arc.jump_count == 1
     assert arc.jump_times[0] == pytest.approx(d.delta, abs=1e-12)
     E = ls.observer_errors(arc, obs)
     tol = _tol(d, np.max(np.abs(arc.x[:, :d.n])) + np.linalg.norm(x0 - xh0))
@@ -351,7 +356,8 @@ def test_theorem_4_13_Hc_exact_after_one_jump_under_constant_noise(name, d):
     arc = ls.simulate_with_plant(obs, x0, xh0, noise=m, t_max=2 * d.delta)
     assert arc.success and arc.jump_count == 1
     E = ls.observer_errors(arc, obs)
-    tol = _tol(d, np.max(np.abs(arc.x[:, :d.n])) + np.linalg.norm(x0 - xh0) + np.linalg.norm(m), True)
+    tol = _tol(d, np.max(np.abs(arc.x[:, :d.n])) + np.linalg.norm(x0 - xh0) + np.linalg.norm(m),
+               True)
     post = arc.j == 1
     assert np.max(np.linalg.norm(E["e1"][post], axis=1)) <= tol
     assert np.max(np.linalg.norm(E["e2"][post], axis=1)) <= tol
@@ -370,7 +376,8 @@ def test_section_III_scalar_observer_7_9():
     arc = ls.simulate_with_plant(obs, [1.0], [0.0], noise=[0.2], t_max=6.0)
     E = ls.observer_errors(arc, obs)
     tol = _tol(d, 1.0, True)
-    assert np.max(np.abs(E["e1"][arc.j == 1])) <= tol and np.max(np.abs(E["mhat"][arc.j == 1] - 0.2)) <= tol
+    assert (np.max(np.abs(E["e1"][arc.j == 1])) <= tol
+            and np.max(np.abs(E["mhat"][arc.j == 1] - 0.2)) <= tol)
     # and observer (3) (= H_n) leaves the error (6) after its jump
     arc3 = ls.simulate_with_plant(ls.NominalObserver(d), [1.0], [0.0], noise=[0.2], t_max=3.0)
     e3 = arc3.x[arc3.j == 1][0, 1] - arc3.x[arc3.j == 1][0, 0]
@@ -378,7 +385,8 @@ def test_section_III_scalar_observer_7_9():
 
 
 def _check_pc_run(d, noise, arc, obs, tol):
-    """Theorem 4.14 as stated: exact within 2 delta after each switch, and on a sub-interval of I_j U I_{j+1}."""
+    """Theorem 4.14 as stated: exact within 2 delta after each switch,
+    and on a sub-interval of I_j U I_{j+1}."""
     E = ls.observer_errors(arc, obs)
     err = np.maximum(np.linalg.norm(E["e1"], axis=1), np.linalg.norm(E["e2"], axis=1))
     ok = err <= tol
@@ -394,7 +402,8 @@ def _check_pc_run(d, noise, arc, obs, tol):
         assert m.any()
         assert np.all(ok[m]), f"not exact on [{tJ}, {edges[k + 1]}): max err {err[m].max():.3g}"
         assert np.max(np.abs(E["mhat"][m] - noise.c[k])) <= tol * max(1.0, d.HT_inv_norm)
-    # for each I_j (with a successor) an interval with nonempty interior in I_j U I_{j+1} where x̂_i = x
+    # for each I_j (with a successor) an interval with nonempty interior in I_j U I_{j+1}
+    # where x̂_i = x
     for jj in range(int(arc.j.max()) - 1):
         m = ((arc.j == jj) | (arc.j == jj + 1)) & ok
         ts = np.unique(arc.t[m])
@@ -402,7 +411,8 @@ def _check_pc_run(d, noise, arc, obs, tol):
 
 
 def test_theorem_4_14_example_VB():
-    # the paper's run: delta = 1, switches at 2.5 and 4.5 (on the boundary delta = min gap / 2, decision 6)
+    # the paper's run: delta = 1, switches at 2.5 and 4.5 (on the boundary delta = min gap / 2,
+    # decision 6)
     d = ls.example_VB()
     noise = ls.PiecewiseConstantNoise([2.5, 4.5], [[0.3, 0.2], [0.4, 0.4], [0.2, 0.3]])
     obs = ls.PiecewiseConstantNoiseObserver(d)
@@ -413,7 +423,7 @@ def test_theorem_4_14_example_VB():
     # not exact after every jump: the jumps at 3 and 5 saw a switch during their flow
     E = ls.observer_errors(arc, obs)
     for tj in (3.0, 5.0):
-        k = np.flatnonzero((np.abs(arc.t - tj) < 1e-9))[-1]
+        k = np.flatnonzero(np.abs(arc.t - tj) < 1e-9)[-1]
         assert np.linalg.norm(E["e1"][k]) > 1e-4
 
 
@@ -421,7 +431,8 @@ def test_theorem_4_14_example_VB():
 def test_theorem_4_14_random(seed, n, p):
     d = ls.random_design(seed, n, p)
     rng = np.random.default_rng(seed)
-    gaps = rng.uniform(2.2, 3.0, size=3) * d.delta        # switches more than 2 delta apart, off the jump grid
+    # switches more than 2 delta apart, off the jump grid
+    gaps = rng.uniform(2.2, 3.0, size=3) * d.delta
     sw = np.cumsum(gaps)
     noise = ls.PiecewiseConstantNoise(sw[:2], rng.uniform(-0.5, 0.5, size=(3, p)))
     obs = ls.PiecewiseConstantNoiseObserver(d)
@@ -434,8 +445,9 @@ def test_theorem_4_14_random(seed, n, p):
 
 @pytest.mark.parametrize("side", ["right", "left"])
 def test_switch_exactly_at_a_jump(side):
-    # decision 5: y at the jump is H x(t) + m(t); with the paper's right-continuous m the jump at the switch
-    # sees the new value and is off by T (HT - I)^{-1} (c_new - c_old); side="left" makes that jump exact
+    # decision 5: y at the jump is H x(t) + m(t); with the paper's right-continuous m the jump at
+    # the switch sees the new value and is off by T (HT - I)^{-1} (c_new - c_old); side="left" makes
+    # that jump exact
     d = ls.example_VB()
     c = np.array([[0.3, 0.2], [0.4, 0.4]])
     noise = ls.PiecewiseConstantNoise([2.0], c, side=side)
@@ -469,15 +481,18 @@ def test_switch_just_before_or_after_a_jump(eps):
     E = ls.observer_errors(arc, obs)
     tol = _tol(d, 1.0, True)
     first = {jj: np.linalg.norm(E["e1"][np.flatnonzero(arc.j == jj)[0]]) for jj in (2, 3, 4)}
-    if eps < 0:     # the flow into t = 2 saw the switch: jump 2 inexact, jump 3 exact (within 2 delta)
+    if eps < 0:
+        # the flow into t = 2 saw the switch: jump 2 inexact, jump 3 exact (within 2 delta)
         assert first[2] > 1e3 * tol and first[3] <= tol
-    else:           # jump 2 exact (old noise), jump 3 inexact, jump 4 exact: 2 delta after the switch
+    else:
+        # jump 2 exact (old noise), jump 3 inexact, jump 4 exact: 2 delta after the switch
         assert first[2] <= tol and first[3] > 1e3 * tol and first[4] <= tol
 
 
 @pytest.mark.parametrize("name,d", _sim_cases(p_eq_n=True))
 def test_formula_15_and_theorems_4_10_4_11_along_Hn_under_noise(name, d):
-    # H_n under a bounded time-varying noise: e(delta, 1) equals (15), respects Thm 4.10, and the KL bound (16) holds
+    # H_n under a bounded time-varying noise: e(delta, 1) equals (15), respects Thm 4.10, and the KL
+    # bound (16) holds
     rng = np.random.default_rng(11)
     w, ph = rng.uniform(0.5, 4.0, size=d.p), rng.uniform(0, 2 * np.pi, size=d.p)
     amp = 0.3 / math.sqrt(d.p)
@@ -492,10 +507,11 @@ def test_formula_15_and_theorems_4_10_4_11_along_Hn_under_noise(name, d):
     e15 = ls.error_after_jump(d, mfun)
     assert np.allclose(E["e1"][k], e15, atol=tol) and np.allclose(E["e2"][k], e15, atol=tol)
     assert np.linalg.norm(E["e1"][k]) <= ls.theorem_4_10_bound(d, m_inf)
-    # (16) along the whole run; the sup of |m| over [0, delta] is taken on a fine grid (an under-estimate by
-    # at most amp * |w| * grid step, added to the tolerance)
+    # (16) along the whole run; the sup of |m| over [0, delta] is taken on a fine grid (an
+    # under-estimate by at most amp * |w| * grid step, added to the tolerance)
     grid = np.linspace(0, d.delta, 4001)
-    m_delta = max(np.linalg.norm(mfun(s)) for s in grid) + amp * np.max(w) * d.delta / 4000 * math.sqrt(d.p)
+    m_delta = (max(np.linalg.norm(mfun(s)) for s in grid)
+               + amp * np.max(w) * d.delta / 4000 * math.sqrt(d.p))
     b = ls.theorem_4_11_bound(d, np.linalg.norm(E["ebar"][0]), m_delta, m_inf, arc.t, arc.j)
     assert np.all(np.linalg.norm(E["ebar"], axis=1) <= b + tol)
 
@@ -503,13 +519,15 @@ def test_formula_15_and_theorems_4_10_4_11_along_Hn_under_noise(name, d):
 def test_theorem_4_11_noise_free_reduces_to_remark_4_12():
     # Remark 4.12: with m = 0, (16) is the KL bound before the jump and 0 after it
     d = ls.example_VB()
-    b = ls.theorem_4_11_bound(d, 2.0, 0.0, 0.0, np.array([0.0, 0.5, 1.0, 1.0, 3.0]), np.array([0, 0, 0, 1, 1]))
+    b = ls.theorem_4_11_bound(d, 2.0, 0.0, 0.0, np.array([0.0, 0.5, 1.0, 1.0, 3.0]),
+                              np.array([0, 0, 0, 1, 1]))
     mu1 = ls.mu_max(d.F1)
     assert np.allclose(b, [2.0, 2.0 * math.exp(mu1 * 0.5), 2.0 * math.exp(mu1), 0.0, 0.0])
 
 
 def test_estimate_weights_and_output():
-    # footnote 2: x̄ = a1 x̂1 + a2 x̂2 is the observer's output; exactness after the jump for any a1 + a2 = 1
+    # footnote 2: x̄ = a1 x̂1 + a2 x̂2 is the observer's output; exactness after the jump
+    # for any a1 + a2 = 1
     base = ls.example_VB()
     d = ls.Design(A=base.A, H=base.H, L1=base.L1, L2=base.L2, delta=1.0, a1=1.5)
     assert d.a2 == pytest.approx(-0.5)
@@ -523,7 +541,8 @@ def test_estimate_weights_and_output():
 
 
 def test_luenberger_observer_2_steady_state_bias():
-    # (2) under a bias m: e' = (a - L0) e + L0 m, so e -> L0 m / (L0 - a); Fig. 1(b)'s comparison observer
+    # (2) under a bias m: e' = (a - L0) e + L0 m, so e -> L0 m / (L0 - a); Fig. 1(b)'s comparison
+    # observer
     a, L0, m = -0.05, 0.02, 0.2
     obs = ls.LuenbergerObserver([[a]], [[1.0]], [[L0]])
     arc = ls.simulate_with_plant(obs, [0.0], [1.0], noise=[m], t_max=40.0)
@@ -534,8 +553,9 @@ def test_luenberger_observer_2_steady_state_bias():
 
 
 def test_noise_batch_through_simulate_many_matches_formula_15():
-    # a batch of bounded noise realisations (one per initial state of the generator) via hs.simulate_many:
-    # each run's e(delta, 1) is (15) for its realisation and within Theorem 4.10's bound
+    # a batch of bounded noise realisations (one per initial state of the generator) via
+    # hs.simulate_many: each run's e(delta, 1) is (15) for its realisation and within Theorem 4.10's
+    # bound
     import hybridsim as hs
     d = ls.example_VB()
     gen = ls.BoundedNoiseGenerator(d.p, K=2)
@@ -557,15 +577,18 @@ def test_noise_batch_through_simulate_many_matches_formula_15():
 
 def test_reproduce_writes_figures_with_captions(tmp_path):
     paths = ls.reproduce(tmp_path)
-    assert [p.name for p in paths] == ["fig1a_error_vs_delta.png", "fig1b_luenberger_comparison.png",
-                                       "fig2a_Hc_constant_noise.png", "fig2b_error_after_jump_delta.png",
+    assert [p.name for p in paths] == ["fig1a_error_vs_delta.png",
+                                       "fig1b_luenberger_comparison.png",
+                                       "fig2a_Hc_constant_noise.png",
+                                       "fig2b_error_after_jump_delta.png",
                                        "fig3_Hpc_piecewise_noise.png"]
     for p in paths:
         assert p.stat().st_size > 10_000 and "Paper values" in p.with_suffix(".txt").read_text()
 
 
 def test_maps_follow_17_18_and_q_decision():
-    # the implemented flow/jump maps against (17)-(18) written out with kron (footnote 7) for n = 3, p = 2
+    # the implemented flow/jump maps against (17)-(18) written out with kron (footnote 7) for n = 3,
+    # p = 2
     d = ls.random_design(1, 3, 2)
     n, p = d.n, d.p
     obs = ls.ConstantNoiseObserver(d)
@@ -612,14 +635,16 @@ def test_formula_15_piecewise_noise_and_bad_P():
     # (15) with a switch inside (0, delta) equals the sum of the two constant pieces
     d = ls.example_VB()
     noise = ls.PiecewiseConstantNoise([0.4], [[0.3, 0.2], [0.4, 0.4]])
-    ref = sum(Ki @ (ls.Xi_of_t(Fi, Li, d.delta) - expm(Fi * (d.delta - 0.4)) @ ls.Xi_of_t(Fi, Li, 0.4)) @ [0.4, 0.4]
+    ref = sum(Ki @ (ls.Xi_of_t(Fi, Li, d.delta)
+                    - expm(Fi * (d.delta - 0.4)) @ ls.Xi_of_t(Fi, Li, 0.4)) @ [0.4, 0.4]
               + Ki @ expm(Fi * (d.delta - 0.4)) @ ls.Xi_of_t(Fi, Li, 0.4) @ [0.3, 0.2]
               for Ki, Fi, Li in ((d.K1, d.F1, d.L1), (d.K2, d.F2, d.L2)))
     assert np.allclose(ls.error_after_jump(d, noise), ref, atol=1e-12)
     with pytest.raises(ValueError, match=r"P1 must be symmetric positive definite"):
         ls.theorem_4_7_bound(d, 1.0, 0.0, 0, P1=-np.eye(2))
     with pytest.raises(ValueError, match=r"-He\(F2, P2\) must be positive definite"):
-        ls.theorem_4_7_bound(d, 1.0, 0.0, 0, P2=np.diag([1.0, 1e-6]))   # F2 = A - 8I is not P2-dissipative
+        # F2 = A - 8I is not P2-dissipative
+        ls.theorem_4_7_bound(d, 1.0, 0.0, 0, P2=np.diag([1.0, 1e-6]))
 
 
 @pytest.mark.parametrize("a1", [0.8, 1.5])
@@ -632,21 +657,25 @@ def test_theorem_4_11_with_weights(a1):
     arc = ls.simulate_with_plant(obs, [0.3, 0.4], [-1.0, 1.0], noise=mfun, t_max=3.0)
     E = ls.observer_errors(arc, obs)
     m_bound = 0.2   # |m(t)| <= 0.2 for all t
-    hst.assert_bounded(arc, E["ebar"], lambda t, j: ls.theorem_4_11_bound(d, np.linalg.norm(E["ebar"][0]), m_bound,
-                                                                        m_bound, t, j), atol=_tol(d))
+    hst.assert_bounded(arc, E["ebar"],
+                       lambda t, j: ls.theorem_4_11_bound(d, np.linalg.norm(E["ebar"][0]), m_bound,
+                                                          m_bound, t, j), atol=_tol(d))
 
 
 # ---------------------------------------------------------------------------
 # issue 16: design helpers total on valid input
 # ---------------------------------------------------------------------------
 def _flat_then_zero_case(d=3e-4, c=0.5, k=0.75):
-    """n = 4, p = 3: a slow single-output block (numerically singular near t = 0) and a 2 x 2 block with a simple zero.
+    """n = 4, p = 3: a slow single-output block and a 2 x 2 block with a simple zero.
 
-    Block a: A = [[0, 1], [0, 0]], H = [1, 0], F_i = companion of (s + lam_i)^2 (lam1 = 1, lam2 = 1 + d).
-    With u = e^{-lam1 t}, v = e^{-lam2 t}: det(e^{F1 t} - e^{F2 t}) = u v (4 sinh^2(d t / 2) - d^2 t^2) > 0 for t > 0
+    The single-output block is numerically singular near t = 0.
+    Block a: A = [[0, 1], [0, 0]], H = [1, 0], F_i = companion of (s + lam_i)^2
+    (lam1 = 1, lam2 = 1 + d). With u = e^{-lam1 t}, v = e^{-lam2 t}:
+    det(e^{F1 t} - e^{F2 t}) = u v (4 sinh^2(d t / 2) - d^2 t^2) > 0 for t > 0
     (sinh x > x), but ~ d^4 t^4 / 12 u v: singular to working precision for d t up to ~1e-3.
-    Block b: F1 = -I + [[0, k], [0, 0]], F2 = -(1 + c) I + [[0, 0], [-k, 0]], H = I: with r = e^{-c t},
-    det(I - e^{F2 t} e^{-F1 t}) = (1 - r)^2 - r k^2 t^2, whose first positive zero solves 2 sinh(c t / 2) = k t.
+    Block b: F1 = -I + [[0, k], [0, 0]], F2 = -(1 + c) I + [[0, 0], [-k, 0]], H = I:
+    with r = e^{-c t}, det(I - e^{F2 t} e^{-F1 t}) = (1 - r)^2 - r k^2 t^2, whose first
+    positive zero solves 2 sinh(c t / 2) = k t.
     """
     lam1, lam2 = 1.0, 1.0 + d
     A = np.zeros((4, 4))
@@ -657,7 +686,8 @@ def _flat_then_zero_case(d=3e-4, c=0.5, k=0.75):
     L1[:2, 0], L2[:2, 0] = [2 * lam1, lam1 ** 2], [2 * lam2, lam2 ** 2]
     L1[2:, 1:] = np.eye(2) - np.array([[0.0, k], [0.0, 0.0]])
     L2[2:, 1:] = (1 + c) * np.eye(2) - np.array([[0.0, 0.0], [-k, 0.0]])
-    u_star = scipy.optimize.brentq(lambda u: math.sinh(u) - (k / c) * u, 1e-3, 50.0, xtol=1e-15, rtol=1e-15)
+    u_star = scipy.optimize.brentq(lambda u: math.sinh(u) - (k / c) * u, 1e-3, 50.0, xtol=1e-15,
+                                   rtol=1e-15)
     return A, H, L1, L2, 2 * u_star / c
 
 
@@ -667,8 +697,9 @@ def test_admissible_delta_simple_zero_after_long_flat_stretch():
     t_max, num = 8.0, 2000
     ts = np.linspace(t_max / num, t_max, num)
     F1, F2 = A - L1 @ H, A - L2 @ H
-    # the naive p(t) = det(I - e^{F2 t} e^{-F1 t}) is rounding noise over a long stretch before the zero:
-    # it flips sign there although the exact p (closed forms of the case builder) keeps one sign on (0, t*)
+    # the naive p(t) = det(I - e^{F2 t} e^{-F1 t}) is rounding noise over a long stretch before the
+    # zero: it flips sign there although the exact p (closed forms of the case builder) keeps one
+    # sign on (0, t*)
     d, c, k = 3e-4, 0.5, 0.75
 
     def sinh_minus_x(x):                       # series: no cancellation for small x
@@ -691,14 +722,15 @@ def test_admissible_delta_simple_zero_after_long_flat_stretch():
     assert tz == pytest.approx(t_star, abs=1e-9)
     # the old scan's brentq sign error is gone for every grid and horizon
     for t_max2, num2 in ((7.0, 700), (10.0, 3000), (20.0, 2000)):
-        assert ls.admissible_delta(A, H, L1, L2, t_max=t_max2, num=num2) == pytest.approx(t_star, abs=1e-9)
+        assert ls.admissible_delta(A, H, L1, L2, t_max=t_max2,
+                                   num=num2) == pytest.approx(t_star, abs=1e-9)
     # past the zero the (exact) sign of p has flipped: the design is not admissible there
     assert ls.admissible_delta(A, H, L1, L2, t_max=6.0, num=num) is None
 
 
 def test_admissible_delta_flat_curve_is_not_refined(monkeypatch):
-    # F1 = -I, F2 = -10 I: s(t) is constant to rounding for t > 4 (hundreds of rounding-noise minima);
-    # none of them is refined (the old search ran a golden-section search at each: seconds)
+    # F1 = -I, F2 = -10 I: s(t) is constant to rounding for t > 4 (hundreds of rounding-noise
+    # minima); none of them is refined (the old search ran a golden-section search at each: seconds)
     A, H = np.zeros((2, 2)), np.eye(2)
     calls = []
     real = ls.design._s_X
@@ -722,7 +754,8 @@ def test_admissible_delta_all_singular_says_why():
 
 @pytest.mark.parametrize("n,p", [(n, p) for n in range(1, 6) for p in range(1, 4)])
 def test_random_design_total_over_seeds(n, p):
-    # issue 16: 50 seeds for each n <= 5, p <= 3 (random_design(seed, 4, 1) used to fail for seeds 0-19)
+    # issue 16: 50 seeds for each n <= 5, p <= 3 (random_design(seed, 4, 1) used to fail for seeds
+    # 0-19)
     import warnings
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)      # place_poles' convergence notes
@@ -744,7 +777,8 @@ def test_random_design_bad_arguments():
         ls.random_design(0, 3, 1, normal=True)
     with pytest.raises(ValueError, match=r"delta must be > 0, got -1.0"):
         ls.random_design(0, 2, 1, delta=-1.0)
-    with pytest.raises(RuntimeError, match=r"no random design found for seed=0, n=2, p=1, delta=1e-06.*rejections"):
+    with pytest.raises(RuntimeError, match=r"no random design found for seed=0, n=2, p=1, "
+                                           r"delta=1e-06.*rejections"):
         ls.random_design(0, 2, 1, delta=1e-6)
 
 
@@ -755,7 +789,8 @@ def test_constructors_reject_unobservable_and_mismatched():
     for call in (lambda: ls.Design(A=A, H=H, L1=L1, L2=L2, delta=1.0),
                  lambda: ls.NominalObserver(A, H, L1, L2, 1.0),
                  lambda: ls.admissible_delta(A, H, L1, L2)):
-        with pytest.raises(ValueError, match=r"\(A, H\) is not observable: the eigenvalue -2 of A .* no delta"):
+        with pytest.raises(ValueError, match=r"\(A, H\) is not observable: "
+                                             r"the eigenvalue -2 of A .* no delta"):
             call()
     # the same pair hidden by a rotation is still caught
     Q = np.array([[0.6, -0.8], [0.8, 0.6]])
@@ -765,13 +800,15 @@ def test_constructors_reject_unobservable_and_mismatched():
     d = ls.random_design(0, 4, 1)
     with pytest.raises(ValueError, match=r"delta=0.01 is too small: .* choose a larger delta"):
         ls.Design(A=d.A, H=d.H, L1=d.L1, L2=d.L2, delta=0.01)
-    # Luenberger (2) needs only detectability: a stable hidden mode is fine, an unstable one is named
+    # Luenberger (2) needs only detectability: a stable hidden mode is fine, an unstable one is
+    # named
     ls.LuenbergerObserver(A, H, [[1.0], [0.0]])
     with pytest.raises(ValueError, match=r"\(A, H\) is not detectable: the eigenvalue 1"):
         ls.LuenbergerObserver(np.diag([-1.0, 1.0]), H, [[1.0], [0.0]])
     with pytest.raises(ValueError, match=r"A - L0 H is not Hurwitz"):
         ls.LuenbergerObserver(A, H, [[-5.0], [0.0]])
-    # dimensions: gains, plant state and estimates against n = 2, p = 1, at construction or before the run
+    # dimensions: gains, plant state and estimates against n = 2, p = 1, at construction or before
+    # the run
     with pytest.raises(ValueError, match=r"L2 must have shape \(2, 1\) \(n x p\), got \(2, 2\)"):
         ls.Design(A=np.diag([-1.0, -2.0]), H=[[1.0, 1.0]], L1=L1, L2=np.eye(2), delta=1.0)
     obs = ls.NominalObserver(ls.example_VB())
@@ -792,24 +829,29 @@ def test_theorem_4_9_closeness_proportional_to_noise():
     s = closeness_sweep()
     d = ls.example_VB()
     g1 = ls.theorem_4_10_bound(d, 1.0)
-    g = max(np.linalg.norm(d.L1, 2) / abs(ls.mu_max(d.F1)), np.linalg.norm(d.L2, 2) / abs(ls.mu_max(d.F2)))
+    g = max(np.linalg.norm(d.L1, 2) / abs(ls.mu_max(d.F1)),
+            np.linalg.norm(d.L2, 2) / abs(ls.mu_max(d.F2)))
     assert s["C"] == pytest.approx(math.sqrt(2) * (g1 + g), rel=1e-14)
     print("Thm 4.9: sigma", s["sigma"], "distance / (C sigma)", s["ratio"])
-    assert np.all(s["dist"] <= s["C"] * s["sigma"])            # the constant of the paper's expression holds
+    # the constant of the paper's expression holds
+    assert np.all(s["dist"] <= s["C"] * s["sigma"])
     assert np.all(s["ratio"] >= 1e-3)                           # and is not vacuous (ratio 0.088)
-    # eps -> 0 with sigma: distance / sigma is the same for every sigma (linearity), to the integrator's
-    # error (rtol 1e-10 on states of size 1, i.e. ~1e-10 absolute, 2e-5 relative at sigma = 1e-5)
+    # eps -> 0 with sigma: distance / sigma is the same for every sigma (linearity), to the
+    # integrator's error (rtol 1e-10 on states of size 1, i.e. ~1e-10 absolute, 2e-5 relative at
+    # sigma = 1e-5)
     per = s["dist"] / s["sigma"]
     assert np.allclose(per, per[0], rtol=1e-4)
 
 
 def test_theorem_4_11_bound_tight_at_jump_and_between():
-    # (16) on example V.B (p = n: its hypotheses hold, decision 8) under m = 0.2 (sin 3t, cos 2t)/sqrt 2:
-    # |m|_inf = 0.2 (at t = pi/2), |m|_delta = 0.1646 on [0, 1] (a grid maximum plus its Lipschitz margin)
+    # (16) on example V.B (p = n: its hypotheses hold, decision 8)
+    # under m = 0.2 (sin 3t, cos 2t)/sqrt 2: |m|_inf = 0.2 (at t = pi/2), |m|_delta = 0.1646 on
+    # [0, 1] (a grid maximum plus its Lipschitz margin)
     from observers.li_sanfelice.claims import theorem_4_11_ratios
     r = theorem_4_11_ratios()
     before, after = r["at_jump"]
-    print(f"Thm 4.11: |ē| / (16): max {r['ratio'].max():.3f} (t = {r['t'][np.argmax(r['ratio'])]:.2f}), "
+    print(f"Thm 4.11: |ē| / (16): max {r['ratio'].max():.3f} "
+          f"(t = {r['t'][np.argmax(r['ratio'])]:.2f}), "
           f"min {r['ratio'].min():.3f}; at the jump {before:.3f} (j = 0) -> {after:.3f} (j = 1)")
     tol = 1e-9          # integrator rtol 1e-10 on |ē| <= 1.5, relative to a bound >= 0.1
     assert np.all(r["ratio"] <= 1 + tol)
@@ -820,11 +862,13 @@ def test_theorem_4_11_bound_tight_at_jump_and_between():
     for jj in (0, 1):
         on = r["j"] == jj
         assert on.sum() >= 20 and np.all(r["err"][on] <= r["bound"][on] * (1 + tol))
-    # the bound itself at the jump: (1 - j) gamma1 |m|_delta before, gamma1 + gamma after (beta at t = delta)
+    # the bound itself at the jump: (1 - j) gamma1 |m|_delta before, gamma1 + gamma after
+    # (beta at t = delta)
     d = ls.example_VB()
     assert 0.1645676 < r["m_delta"] < 0.1645676 + 5e-6         # an upper bound of the sup, tight
     g1 = ls.theorem_4_10_bound(d, r["m_delta"])
     k = int(np.flatnonzero(r["j"] == 1)[0])
-    assert r["bound"][k] == pytest.approx(g1 + 0.2 * max(np.linalg.norm(d.L1, 2) / abs(ls.mu_max(d.F1)),
-                                                           np.linalg.norm(d.L2, 2) / abs(ls.mu_max(d.F2))),
-                                          rel=1e-12)
+    assert r["bound"][k] == pytest.approx(
+        g1 + 0.2 * max(np.linalg.norm(d.L1, 2) / abs(ls.mu_max(d.F1)),
+                       np.linalg.norm(d.L2, 2) / abs(ls.mu_max(d.F2))),
+        rel=1e-12)

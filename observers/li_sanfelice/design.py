@@ -4,7 +4,8 @@ Everything here is pure linear algebra on the paper's data (A, H, L1, L2,
 delta); nothing simulates. Find an equation by its number:
 
 =====================================  ==========================================
-Section II-A (matrix measures)         :func:`mu_max`, :func:`mu_min`, :func:`alpha_max`, :func:`alpha_min`
+Section II-A (matrix measures)         :func:`mu_max`, :func:`mu_min`,
+                                       :func:`alpha_max`, :func:`alpha_min`
 Assumption 4.1 (A1): F_i = A - L_i H   :func:`F_matrices`
 (3), (12): K1, K2                      :func:`gains_K`, :class:`Design`
 Assumption 4.1 (A2), Remark 4.4        :func:`p_det`, :func:`admissible_delta`
@@ -158,11 +159,13 @@ def _K_from_F(F1, F2, delta):
     n = F1.shape[0]
     E = expm(F2 * delta) @ expm(-F1 * delta)
     M = np.eye(n) - E
-    # singular when sigma_min(I - E) <= 1e-12 max(1, |E|) (a scale-free condition number would miss I - E ~ 0)
+    # singular when sigma_min(I - E) <= 1e-12 max(1, |E|) (a scale-free condition number would miss
+    # I - E ~ 0)
     smin = np.linalg.svd(M, compute_uv=False)[-1]
     if not np.all(np.isfinite(M)) or smin <= max(1.0, np.linalg.norm(E, 2)) / _SINGULAR_COND:
         raise ValueError(
-            f"delta={delta:g}: I - exp(F2 delta) exp(-F1 delta) is singular (smallest singular value {smin:.3g}), "
+            f"delta={delta:g}: I - exp(F2 delta) exp(-F1 delta) is singular "
+            f"(smallest singular value {smin:.3g}), "
             "so K2 is undefined; choose delta below the first positive zero of "
             "det(I - exp(F2 t) exp(-F1 t)) (see admissible_delta, Remark 4.4)"
         )
@@ -203,14 +206,16 @@ def p_det(F1, F2, t):
 
 
 def _smin(F1, F2, s):
-    """Smallest singular value of I - e^{F2 s} e^{-F1 s}, relative to max(1, |e^{F2 s} e^{-F1 s}|)."""
+    """Smallest singular value of I - e^{F2 s} e^{-F1 s},
+    relative to max(1, |e^{F2 s} e^{-F1 s}|)."""
     n = F1.shape[0]
     M = expm(F2 * s) @ expm(-F1 * s)
     return np.linalg.svd(np.eye(n) - M, compute_uv=False)[-1] / max(1.0, np.linalg.norm(M, 2))
 
 
 def _golden_min(fun, a, b, iters=90):
-    """Golden-section minimum of a unimodal (possibly kinked) function on [a, b], to ~machine precision."""
+    """Golden-section minimum of a unimodal (possibly kinked) function on [a, b],
+    to ~machine precision."""
     g = (math.sqrt(5) - 1) / 2
     c, d = b - g * (b - a), a + g * (b - a)
     fc, fd = fun(c), fun(d)
@@ -259,15 +264,17 @@ def _check_observable(A, H, what="the Li-Sanfelice observers"):
         lam = _real_if_close(lam, 1e-9 * max(1.0, np.linalg.norm(A, 2), np.linalg.norm(H, 2)))
         lam_s = f"{lam:.6g}" if isinstance(lam, float) else f"{lam.real:.6g}{lam.imag:+.6g}j"
         raise ValueError(
-            f"(A, H) is not observable: the eigenvalue {lam_s} of A is invisible in y = H x "
-            f"(PBH test: rank [A - lambda I; H] < n = {A.shape[0]}). Both copies F_i = A - L_i H keep this "
-            "mode, so I - exp(F2 t) exp(-F1 t) is singular for every t > 0: no delta and no reset gain K2 "
-            f"exist for {what} (Assumption 4.1, A2; Remark 4.3 needs (A, H) observable)"
+            f"(A, H) is not observable: the eigenvalue {lam_s} of A is invisible in y = H x (PBH "
+            f"test: rank [A - lambda I; H] < n = {A.shape[0]}). Both copies F_i = A - L_i H keep "
+            "this mode, so I - exp(F2 t) exp(-F1 t) is singular for every t > 0: no delta and no "
+            f"reset gain K2 exist for {what} (Assumption 4.1, A2; Remark 4.3 needs (A, H) "
+            "observable)"
         )
 
 
 def _X_block(F1, F2):
-    """The 2n x 2n matrix [[F1, F1 - F2], [0, F2]]: expm of it times t has X(t) = e^{F1 t} - e^{F2 t} top right."""
+    """The 2n x 2n matrix [[F1, F1 - F2], [0, F2]]:
+    expm of it times t has X(t) = e^{F1 t} - e^{F2 t} top right."""
     n = F1.shape[0]
     B = np.zeros((2 * n, 2 * n))
     B[:n, :n], B[:n, n:], B[n:, n:] = F1, F1 - F2, F2
@@ -302,7 +309,8 @@ def _scan_p(F1, F2, ts):
     m = 1
     while m < num:
         k = min(m, num - m)
-        G[m:m + k] = G[:k] @ G[m - 1]                 # G_{m+i} = G_i G_m (powers of one matrix commute)
+        # G_{m+i} = G_i G_m (powers of one matrix commute)
+        G[m:m + k] = G[:k] @ G[m - 1]
         m += k
     X = G[:, :n, n:]
     detX = np.linalg.det(X)
@@ -317,12 +325,14 @@ def _X_at(F1, F2, t):
 
 
 def _det_X(F1, F2, t):
-    """det(e^{F1 t} - e^{F2 t}): the sign of p(t), computed without cancellation or growing exponentials."""
+    """det(e^{F1 t} - e^{F2 t}): the sign of p(t),
+    computed without cancellation or growing exponentials."""
     return float(np.linalg.det(_X_at(F1, F2, t)[0]))
 
 
 def _s_X(F1, F2, t):
-    """sigma_min(e^{F1 t} - e^{F2 t}) / |expm([[F1, F1 - F2], [0, F2]] t)|_F (see :func:`_scan_p`)."""
+    """sigma_min(e^{F1 t} - e^{F2 t}) / |expm([[F1, F1 - F2], [0, F2]] t)|_F
+    (see :func:`_scan_p`)."""
     X, G = _X_at(F1, F2, t)
     return float(np.linalg.svd(X, compute_uv=False)[-1] / np.linalg.norm(G))
 
@@ -419,11 +429,11 @@ def admissible_delta(A, H, L1, L2, *, t_max=20.0, num=2000, tol=1e-8):
     good = np.flatnonzero(s > floor)
     if good.size == 0:
         raise ValueError(
-            f"I - exp(F2 t) exp(-F1 t) is numerically singular on all of (0, t_max={t_max:g}] (smallest singular "
-            f"value of e^(F1 t) - e^(F2 t) at most {floor:g} relative to its scale at every grid point): the sign "
-            "of p(t) cannot be resolved, so its zeros cannot be located, and no delta up to t_max gives a "
-            "well-conditioned reset gain K2; F1 and F2 are too close (choose L1, L2 further apart) or t_max is "
-            "too small"
+            f"I - exp(F2 t) exp(-F1 t) is numerically singular on all of (0, t_max={t_max:g}] "
+            f"(smallest singular value of e^(F1 t) - e^(F2 t) at most {floor:g} relative to its "
+            "scale at every grid point): the sign of p(t) cannot be resolved, so its zeros cannot "
+            "be located, and no delta up to t_max gives a well-conditioned reset gain K2; F1 and "
+            "F2 are too close (choose L1, L2 further apart) or t_max is too small"
         )
     if good[-1] < num - 1 and np.any(np.sign(p[good[-1] + 1:]) != np.sign(p[good[-1]])):
         first = float(ts[good[-1] + 1])     # p may change sign in an unresolved stretch at the end
@@ -437,14 +447,16 @@ def admissible_delta(A, H, L1, L2, *, t_max=20.0, num=2000, tol=1e-8):
             else:
                 fa, fb = _det_X(F1, F2, ts[ka]), _det_X(F1, F2, ts[kb])
                 if fa * fb < 0:
-                    first = min(first, scipy.optimize.brentq(lambda u: _det_X(F1, F2, u), ts[ka], ts[kb],
-                                                             xtol=1e-14, rtol=4 * np.finfo(float).eps))
+                    first = min(first, scipy.optimize.brentq(lambda u: _det_X(F1, F2, u),
+                                                             ts[ka], ts[kb], xtol=1e-14,
+                                                             rtol=4 * np.finfo(float).eps))
                 else:               # the accurate evaluation disagrees with the scan: p is ~0 there
                     first = min(first, float(ts[ka] if fa == 0 else ts[kb]))
     # 2. touching zeros: genuine dips of s (rounding-level plateaus skipped)
     sl, sc, sr = s[:-2], s[1:-1], s[2:]
     depth = np.maximum(sl, sr) - sc
-    # a zero of s between grid points leaves s_k <= max(neighbours) / 3 (V-shaped) or / 9 (quadratic)
+    # a zero of s between grid points leaves s_k <= max(neighbours) / 3 (V-shaped) or / 9
+    # (quadratic)
     dips = np.flatnonzero((sc <= sl) & (sc <= sr) & (depth > floor) & (sc - 2 * depth < tol)
                           & (sc <= 0.5 * np.maximum(sl, sr))) + 1
     for k in dips:
@@ -495,7 +507,8 @@ def L_tilde(L):
 
 
 def Xi_matrix(xi, n, p):
-    """sum_k I_k xi v_k^T: the k-th piece of xi in R^{np} as k-th column of an n x p matrix (footnote 7)."""
+    """sum_k I_k xi v_k^T: the k-th piece of xi in R^{np} as k-th column of an n x p matrix
+    (footnote 7)."""
     xi = np.asarray(xi, dtype=float)
     if xi.shape[-1] != n * p:
         raise ValueError(f"xi must have last dimension n*p = {n * p}, got {xi.shape}")
@@ -562,23 +575,26 @@ class Design:
         try:
             K1, K2 = _K_from_F(F1, F2, delta)
         except ValueError as exc:
-            # the true reason: delta inside the stretch near t = 0 where X(t) = e^{F1 t} - e^{F2 t} is
-            # singular to working precision (det X ~ c t^N, N up to n^2 for p < n), or a zero of p(t)
+            # the true reason: delta inside the stretch near t = 0 where X(t) = e^{F1 t} - e^{F2 t}
+            # is singular to working precision (det X ~ c t^N, N up to n^2 for p < n),
+            # or a zero of p(t)
             sm = [_s_X(F1, F2, u) for u in np.linspace(delta / 16, delta, 16)]
             if max(sm) <= 1.0 / _SINGULAR_COND:
                 raise ValueError(
-                    f"delta={delta:g} is too small: I - exp(F2 t) exp(-F1 t) is singular to working precision on "
-                    f"all of (0, delta] (p(t) = det(...) vanishes to high order at t = 0 when p < n, here p = "
-                    f"{H.shape[0]}, n = {A.shape[0]}), so K2 is numerically undefined; choose a larger delta "
-                    "(see admissible_delta, Remark 4.4)") from exc
+                    f"delta={delta:g} is too small: I - exp(F2 t) exp(-F1 t) is singular to "
+                    "working precision on all of (0, delta] (p(t) = det(...) vanishes to high "
+                    f"order at t = 0 when p < n, here p = {H.shape[0]}, n = {A.shape[0]}), so K2 "
+                    "is numerically undefined; choose a larger delta (see admissible_delta, "
+                    "Remark 4.4)") from exc
             raise
         Xi1, Xi2 = Xi_of_t(F1, L1, delta), Xi_of_t(F2, L2, delta)
         T = K1 @ Xi1 + K2 @ Xi2
         HTI = H @ T - np.eye(H.shape[0])
         sv = np.linalg.svd(HTI, compute_uv=False)
         inv_norm = float(1.0 / sv[-1]) if sv[-1] > 0 else math.inf
-        for k, v in dict(A=A, H=H, L1=L1, L2=L2, delta=delta, a1=a1, a2=a2, F1=F1, F2=F2, K1=K1, K2=K2,
-                         Xi1=Xi1, Xi2=Xi2, T=T, HT_minus_I=HTI, HT_cond=float(np.linalg.cond(HTI)),
+        for k, v in dict(A=A, H=H, L1=L1, L2=L2, delta=delta, a1=a1, a2=a2, F1=F1, F2=F2, K1=K1,
+                         K2=K2, Xi1=Xi1, Xi2=Xi2, T=T, HT_minus_I=HTI,
+                         HT_cond=float(np.linalg.cond(HTI)),
                          HT_inv_norm=inv_norm).items():
             object.__setattr__(self, k, v)
 
@@ -601,8 +617,8 @@ class Design:
         scale = max(1.0, np.linalg.norm(self.H @ self.T, 2))
         if not np.isfinite(self.HT_inv_norm) or 1.0 / self.HT_inv_norm <= scale / _SINGULAR_COND:
             raise ValueError(
-                f"H T - I is singular (smallest singular value {1 / self.HT_inv_norm:.3g}, condition number "
-                f"{self.HT_cond:.3g}) for delta={self.delta:g}: "
+                f"H T - I is singular (smallest singular value {1 / self.HT_inv_norm:.3g}, "
+                f"condition number {self.HT_cond:.3g}) for delta={self.delta:g}: "
                 "the noise estimate m̂ of (18) is undefined (Theorem 4.13); change L1, L2 or delta"
             )
         return self.HT_cond, self.HT_inv_norm
@@ -646,7 +662,8 @@ def error_after_jump(design, m):
         pts = None
         if isinstance(m, PiecewiseConstantNoise):
             pts = [float(s) for s in m.d if 0.0 < s < d.delta] or None
-        val, _ = scipy.integrate.quad_vec(integrand, 0.0, d.delta, epsabs=1e-13, epsrel=1e-11, points=pts)
+        val, _ = scipy.integrate.quad_vec(integrand, 0.0, d.delta, epsabs=1e-13, epsrel=1e-11,
+                                          points=pts)
         return np.asarray(val)
     return d.T @ vector("m", m, d.p)
 
@@ -667,12 +684,14 @@ def scalar_error_after_jump(a, L1, L2, delta, m):
     a, L1, L2 = scalar("a", a), scalar("L1", L1), scalar("L2", L2)
     a1t, a2t = a - L1, a - L2
     if a1t == 0 or a2t == 0 or a1t == a2t:
-        raise ValueError(f"formula (6) needs a - L1, a - L2 nonzero and distinct, got {a1t:g}, {a2t:g}")
+        raise ValueError(f"formula (6) needs a - L1, a - L2 nonzero and distinct, "
+                         f"got {a1t:g}, {a2t:g}")
     delta = np.asarray(delta, dtype=float)
     if np.any(delta <= 0):
         raise ValueError("delta must be positive")
     E1, E2 = np.exp(a1t * delta), np.exp(a2t * delta)
-    return np.asarray(m, dtype=float) / (E2 - E1) * (L1 / a1t * (E1 * E2 - E2) - L2 / a2t * (E1 * E2 - E1))
+    return np.asarray(m, dtype=float) / (E2 - E1) * (L1 / a1t * (E1 * E2 - E2)
+                                                     - L2 / a2t * (E1 * E2 - E1))
 
 
 def switch_jump_error(design, c_old, c_new):
@@ -778,7 +797,8 @@ def theorem_4_11_bound(design, e0, m_delta, m_inf, t, j):
         raise ValueError("j must be 0 or 1 (H_n jumps once)")
     mu1 = mu_max(d.F1)
     g1 = _gamma1_coeff(d) * m_delta
-    g = max(np.linalg.norm(d.L1, 2) / abs(mu_max(d.F1)), np.linalg.norm(d.L2, 2) / abs(mu_max(d.F2))) * m_inf
+    g = max(np.linalg.norm(d.L1, 2) / abs(mu_max(d.F1)),
+            np.linalg.norm(d.L2, 2) / abs(mu_max(d.F2))) * m_inf
     val = ((1 - j) * e0 * np.exp(mu1 * np.minimum(t, d.delta)) + (1 - j) * g1
            + j * g1 * np.exp(mu1 * np.maximum(t - d.delta, 0.0)) + j * g)
     return (abs(d.a1) + abs(d.a2)) * val
@@ -819,7 +839,8 @@ def theorem_4_7_bound(design, z0_dist, t, j, P1=None, P2=None):
 
 
 def dist_to_A(x, xh1, xh2):
-    """|z|_A, the Euclidean distance of (x, x̂1, x̂2) to {x = x̂1 = x̂2} (13); time-major (N, n) or (n,)."""
+    """|z|_A, the Euclidean distance of (x, x̂1, x̂2) to {x = x̂1 = x̂2} (13);
+    time-major (N, n) or (n,)."""
     x, xh1, xh2 = (np.asarray(v, dtype=float) for v in (x, xh1, xh2))
     c = (x + xh1 + xh2) / 3
     return np.sqrt(np.sum((x - c) ** 2 + (xh1 - c) ** 2 + (xh2 - c) ** 2, axis=-1))
@@ -893,7 +914,9 @@ def _int_arg(name, v, lo):
 
 
 def _ackermann_norm(A, O, P1, P2):
-    """max |L_i| (Frobenius) of the single-output observer gains placing P1, P2 (Ackermann's formula).
+    """max |L_i| (Frobenius) of the single-output observer gains placing P1, P2.
+
+    By Ackermann's formula.
 
     L = phi(A) O^{-1} e_n with phi the characteristic polynomial of the poles
     and O the observability matrix [H; H A; ...; H A^{n-1}].
@@ -913,7 +936,8 @@ def _ackermann_norm(A, O, P1, P2):
 
 
 def _accept_design(A, H, L1, L2, deltas, tz, why):
-    """First delta in ``deltas`` (below tz / 2) giving a Design with |K2|, |(H T - I)^{-1}| <= 1e3, else None."""
+    """First delta in ``deltas`` (below tz / 2) giving a Design with |K2|, |(H T - I)^{-1}| <= 1e3,
+    else None."""
     for dl in deltas:
         if tz is not None and dl >= tz / 2:
             why["delta >= half the first zero of p"] += 1
@@ -982,9 +1006,11 @@ def random_design(seed, n, p, *, delta=None, normal=False):
     if delta is not None:
         delta = scalar("delta", delta, positive=True)
     if normal and p != n:
-        raise ValueError(f"normal=True needs p == n (F_i = A - L_i H set through H^-1), got n={n}, p={p}")
+        raise ValueError(f"normal=True needs p == n (F_i = A - L_i H set through H^-1), "
+                         f"got n={n}, p={p}")
     rng = np.random.default_rng(seed)
-    why = {"observability matrix ill-conditioned": 0, "gain norm > 30": 0, "delta >= half the first zero of p": 0,
+    why = {"observability matrix ill-conditioned": 0, "gain norm > 30": 0,
+           "delta >= half the first zero of p": 0,
            "I - exp(F2 delta) exp(-F1 delta) singular": 0, "|K2| or |(H T - I)^-1| > 1e3": 0,
            "normal: |det H| < 0.3": 0, "p(t) unresolved (numerically singular)": 0}
     for _ in range(200):
@@ -1009,7 +1035,8 @@ def random_design(seed, n, p, *, delta=None, normal=False):
             P1 = -1.0 - 0.3 * np.linspace(0, 1, n)
             P2 = -2.5 - 0.3 * np.linspace(0, 1, n)
             if p == 1 and _ackermann_norm(A, O, P1, P2) > 31.0:
-                # the single-output gain is unique: Ackermann's formula (cheap) says place_poles' would fail too
+                # the single-output gain is unique: Ackermann's formula (cheap) says place_poles'
+                # would fail too
                 why["gain norm > 30"] += 1
                 continue
             L1 = scipy.signal.place_poles(A.T, H.T, P1).gain_matrix.T
@@ -1022,18 +1049,21 @@ def random_design(seed, n, p, *, delta=None, normal=False):
         except ValueError:
             why["p(t) unresolved (numerically singular)"] += 1
             continue
-        des = _accept_design(A, H, L1, L2, [delta] if delta is not None else [1.0, 1.5, 2.0, 3.0], tz, why)
+        des = _accept_design(A, H, L1, L2, [delta] if delta is not None else [1.0, 1.5, 2.0, 3.0],
+                             tz, why)
         if des is not None:
             return des
     if not normal:
-        # second stage: observer canonical form mixed by an orthogonal similarity (well conditioned for any n)
+        # second stage: observer canonical form mixed by an orthogonal similarity (well conditioned
+        # for any n)
         P1 = -1.0 - 0.3 * np.linspace(0, 1, n)
         P2 = -2.5 - 0.3 * np.linspace(0, 1, n)
         c1, c2 = np.poly(P1)[1:], np.poly(P2)[1:]
         for _ in range(50):
-            # |roots| in [0.7, 1.5]: |H T - I| tends to |det A| / |det F2| as delta grows (single output), so
-            # roots near 0 make (H T - I)^{-1} huge
-            roots = (rng.uniform(0.7, 1.5, size=n) * rng.choice([-1.0, 1.0], size=n)).astype(complex)
+            # |roots| in [0.7, 1.5]: |H T - I| tends to |det A| / |det F2| as delta grows (single
+            # output), so roots near 0 make (H T - I)^{-1} huge
+            roots = (rng.uniform(0.7, 1.5, size=n)
+                     * rng.choice([-1.0, 1.0], size=n)).astype(complex)
             if n >= 2 and rng.uniform() < 0.5:
                 r, th = rng.uniform(0.7, 1.5), rng.uniform(0.3, 2.5)
                 roots[:2] = r * np.exp(1j * th), r * np.exp(-1j * th)
@@ -1058,7 +1088,8 @@ def random_design(seed, n, p, *, delta=None, normal=False):
                 return des
     reasons = "; ".join(f"{k}: {v}" for k, v in why.items() if v)
     hint = " (pass a larger delta)" if why["|K2| or |(H T - I)^-1| > 1e3"] else ""
-    raise RuntimeError(f"no random design found for seed={seed}, n={n}, p={p}{', delta=' + repr(delta) if delta else ''}"
+    delta_s = ', delta=' + repr(delta) if delta else ''
+    raise RuntimeError(f"no random design found for seed={seed}, n={n}, p={p}{delta_s}"
                        f", normal={normal}; rejections: {reasons}{hint}")
 
 

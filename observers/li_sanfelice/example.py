@@ -43,12 +43,14 @@ __all__ = [
 
 
 def example_III(delta=2.0):
-    """Section III / Fig. 1: a = -0.05, L1 = 0.01, L2 = 0.02 (H = 1), m = 0.2; delta = 2 (Fig. 1(b)), L0 = 0.02."""
+    """Section III / Fig. 1: a = -0.05, L1 = 0.01, L2 = 0.02 (H = 1), m = 0.2;
+    delta = 2 (Fig. 1(b)), L0 = 0.02."""
     return Design(A=[[-0.05]], H=[[1.0]], L1=[[0.01]], L2=[[0.02]], delta=delta)
 
 
 def example_VA(delta=2.0):
-    """Section V.A: a = -0.05, L1 = 0.1, L2 = 0.2, H = 1. delta is not given in the text (default 2, chosen)."""
+    """Section V.A: a = -0.05, L1 = 0.1, L2 = 0.2, H = 1.
+    delta is not given in the text (default 2, chosen)."""
     return Design(A=[[-0.05]], H=[[1.0]], L1=[[0.1]], L2=[[0.2]], delta=delta)
 
 
@@ -89,7 +91,9 @@ def simulate_with_plant(observer, x0, xhat0, *, t_max=None, noise=None, seed=Non
 
     Parameters
     ----------
-    observer : NominalObserver, ConstantNoiseObserver, PiecewiseConstantNoiseObserver or LuenbergerObserver
+    observer : observer of this module
+        A NominalObserver, ConstantNoiseObserver, PiecewiseConstantNoiseObserver or
+        LuenbergerObserver.
     x0 : (n,) array_like
         Plant initial state.
     xhat0 : (n,) array_like
@@ -133,7 +137,8 @@ def simulate_with_plant(observer, x0, xhat0, *, t_max=None, noise=None, seed=Non
         if t_max is None:
             t_max = 3 * observer.design.delta
     else:
-        raise TypeError(f"observer must be one of this module's observers, got {type(observer).__name__}")
+        raise TypeError(f"observer must be one of this module's observers, "
+                        f"got {type(observer).__name__}")
     x0 = vector("x0", x0, A.shape[0])
     plant = hs.LinearPlant(A, C=H, noise=_noise_callable(noise, H.shape[0]))
     sys = hs.connect(plant, observer, names=("plant", "observer"))

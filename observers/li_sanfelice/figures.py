@@ -116,14 +116,20 @@ def reproduce(outdir):
     fig.savefig(p, dpi=120)
     plt.close(fig)
     write_caption(p, f"""
-Fig. 1(a) of Li & Sanfelice: error |e1+(delta)| right after the single reset of the finite-time observer (3)
-against the reset time delta, scalar plant (5) with constant noise. Paper values: a = -0.05, L1 = 0.01,
-L2 = 0.02, m = 0.2. Line: closed form (6); circles: engine runs of H_n (= (3)) from x(0) = 1, x̂(0) = 0
-(chosen; (6) does not depend on them). Chosen: the delta range [0.25, 60]. The smaller delta, the larger
+Fig. 1(a) of Li & Sanfelice: error |e1+(delta)| right after the single reset of the finite-time \
+observer (3)
+against the reset time delta, scalar plant (5) with constant noise. Paper values: a = -0.05, \
+L1 = 0.01,
+L2 = 0.02, m = 0.2. Line: closed form (6); circles: engine runs of H_n (= (3)) from x(0) = 1, \
+x̂(0) = 0
+(chosen; (6) does not depend on them). Chosen: the delta range [0.25, 60]. The smaller delta, the \
+larger
 the error: at delta = 1 it is {esim[0]:.3f}, at delta = 40 {esim[-1]:.3f}.""")
     paths.append(p)
-    dev6 = max(abs(abs(scalar_error_after_jump(a, L1, L2, d_, m)) - e_) for d_, e_ in zip(dsim, esim))
-    print(f"  Fig. 1(a): |e+| = {esim[0]:.4f} (delta=1), {esim[1]:.4f} (delta=2), {esim[-1]:.4f} (delta=40); "
+    dev6 = max(abs(abs(scalar_error_after_jump(a, L1, L2, d_, m)) - e_)
+               for d_, e_ in zip(dsim, esim))
+    print(f"  Fig. 1(a): |e+| = {esim[0]:.4f} (delta=1), {esim[1]:.4f} (delta=2), "
+          f"{esim[-1]:.4f} (delta=40); "
           f"max |(6) - engine| = {dev6:.1e}")
 
     # ---- Fig. 1(b): (3) against the Luenberger observer (2), zero solution of (1) --------------
@@ -151,17 +157,27 @@ the error: at delta = 1 it is {esim[0]:.3f}, at delta = 40 {esim[-1]:.3f}.""")
     plt.close(fig)
     kj = np.flatnonzero(arc_n.j == 1)[0]
     e_l2 = float(np.interp(2.0, arc_l.t, El["e0"][:, 0]))
-    t10 = lambda t, v: float(t[np.flatnonzero(np.abs(v) > 0.1)[-1]]) if np.any(np.abs(v) > 0.1) else 0.0  # noqa: E731
+
+    def t10(t, v):
+        return float(t[np.flatnonzero(np.abs(v) > 0.1)[-1]]) if np.any(np.abs(v) > 0.1) else 0.0
     write_caption(p, f"""
-Fig. 1(b) of Li & Sanfelice: estimate of the zero solution of the scalar plant (5) by the finite-time
-observer (3) (= H_n, estimate x̄ = (x̂1 + x̂2)/2, delta = 2, blue dash-dot) and by the Luenberger observer (2)
-(L0 = 0.02, black); plant x = 0 in red dashes. Paper values: a = -0.05, L1 = 0.01, L2 = 0.02, L0 = 0.02,
-delta = 2. Chosen (not in the text): initial estimates x̂(0) = 1, constant noise m = 0.2 (the value of
-Fig. 1(a)), horizon 60. After its jump at t = 2, (3) is at {En['xbar'][kj, 0]:.3f} (formula (6)), while
-the Luenberger estimate is at {e_l2:.3f}; both then settle near the biased values L_i m / (L_i - a).""")
+Fig. 1(b) of Li & Sanfelice: estimate of the zero solution of the scalar plant (5) by the \
+finite-time
+observer (3) (= H_n, estimate x̄ = (x̂1 + x̂2)/2, delta = 2, blue dash-dot) and by the Luenberger \
+observer (2)
+(L0 = 0.02, black); plant x = 0 in red dashes. Paper values: a = -0.05, L1 = 0.01, L2 = 0.02, \
+L0 = 0.02,
+delta = 2. Chosen (not in the text): initial estimates x̂(0) = 1, constant noise m = 0.2 (the \
+value of
+Fig. 1(a)), horizon 60. After its jump at t = 2, (3) is at {En['xbar'][kj, 0]:.3f} (formula (6)), \
+while
+the Luenberger estimate is at {e_l2:.3f}; both then settle near the biased values \
+L_i m / (L_i - a).""")
     paths.append(p)
-    print(f"  Fig. 1(b): x̄ after the jump at t=2: {En['xbar'][kj, 0]:.4f}; Luenberger at t=2: {e_l2:.4f}; "
-          f"|error| > 0.1 until t = {t10(arc_n.t, En['ebar'][:, 0]):.2f} for (3), {t10(arc_l.t, El['e0'][:, 0]):.2f} "
+    print(f"  Fig. 1(b): x̄ after the jump at t=2: {En['xbar'][kj, 0]:.4f}; "
+          f"Luenberger at t=2: {e_l2:.4f}; "
+          f"|error| > 0.1 until t = {t10(arc_n.t, En['ebar'][:, 0]):.2f} for (3), "
+          f"{t10(arc_l.t, El['e0'][:, 0]):.2f} "
           "for (2)")
 
     # ---- Fig. 2(a): H_c on the scalar plant of Section V.A ---------------------------------------
@@ -203,19 +219,26 @@ the Luenberger estimate is at {e_l2:.3f}; both then settle near the biased value
     errc = float(np.max(np.abs(Ec["ebar"][post])))
     mh = float(Ec["mhat"][post][0, 0])
     write_caption(p, f"""
-Fig. 2(a) of Li & Sanfelice: the observer H_c (17)-(18) on the scalar plant of Section V.A with a constant
-measurement bias. Paper values: a = -0.05, L1 = 0.1, L2 = 0.2, H = 1. Chosen (not in the text): delta = 2,
-m = 0.2, x(0) = 1, x̂1(0) = x̂2(0) = 0, m̂(0) = 0, horizon 12. Top: plant x (red dashes), H_c's estimate x̄
-(blue) and, for comparison, H_n's (green dash-dot). Middle (log scale): |ē| of both. Bottom: H_c's noise
+Fig. 2(a) of Li & Sanfelice: the observer H_c (17)-(18) on the scalar plant of Section V.A with a \
+constant
+measurement bias. Paper values: a = -0.05, L1 = 0.1, L2 = 0.2, H = 1. Chosen (not in the text): \
+delta = 2,
+m = 0.2, x(0) = 1, x̂1(0) = x̂2(0) = 0, m̂(0) = 0, horizon 12. Top: plant x (red dashes), H_c's \
+estimate x̄
+(blue) and, for comparison, H_n's (green dash-dot). Middle (log scale): |ē| of both. Bottom: H_c's \
+noise
 estimate m̂ against m.
-After the jump at t = delta, H_c's error is {errc:.1e} (integrator level; exactly 0 by Theorem 4.13) and
-m̂ = {mh:.12f}; H_n keeps the error of (15), {abs(En['ebar'][arc_n.j == 1][0, 0]):.4f} right after its
+After the jump at t = delta, H_c's error is {errc:.1e} (integrator level; \
+exactly 0 by Theorem 4.13) and
+m̂ = {mh:.12f}; H_n keeps the error of (15), {abs(En['ebar'][arc_n.j == 1][0, 0]):.4f} right after \
+its
 jump. |(H T - 1)^(-1)| = {dA.HT_inv_norm:.1f} (the m̂ update's amplification).""")
     paths.append(p)
     print(f"  Fig. 2(a): H_c max |ē| after the jump = {errc:.2e}, m̂ = {mh:.10f} (m = 0.2), "
-          f"|(HT-1)^-1| = {dA.HT_inv_norm:.2f}; H_n |e(delta,1)| = {abs(En['ebar'][arc_n.j == 1][0, 0]):.4f}")
+          f"|(HT-1)^-1| = {dA.HT_inv_norm:.2f}; "
+          f"H_n |e(delta,1)| = {abs(En['ebar'][arc_n.j == 1][0, 0]):.4f}")
 
-    # ---- Fig. 2(b): error after the jump (15) of H_n, delta = 1 and 3 -----------------------------
+    # ---- Fig. 2(b): error after the jump (15) of H_n, delta = 1 and 3 ------------------------
     ms = np.linspace(0.0, 1.0, 101)
     omegas = np.linspace(0.05, 6.0, 150)
     fig, axs = plt.subplots(1, 2, figsize=(11, 4))
@@ -240,7 +263,8 @@ jump. |(H T - 1)^(-1)| = {dA.HT_inv_norm:.1f} (the m̂ update's amplification)."
         wsim = omegas[::30]
         es_w = []
         for w in wsim:
-            arc = simulate_with_plant(obs, [1.0], [0.0], noise=lambda t, w=w: np.array([math.sin(w * t)]),
+            arc = simulate_with_plant(obs, [1.0], [0.0],
+                                      noise=lambda t, w=w: np.array([math.sin(w * t)]),
                                       t_max=dl * 1.01, **_SIM)
             es_w.append(abs(observer_errors(arc, obs)["e1"][arc.j == 1][0, 0]))
         axs[1].plot(wsim, es_w, col + "o", mfc="none")
@@ -261,18 +285,28 @@ jump. |(H T - 1)^(-1)| = {dA.HT_inv_norm:.1f} (the m̂ update's amplification)."
     fig.savefig(p, dpi=120)
     plt.close(fig)
     write_caption(p, f"""
-Fig. 2(b) of Li & Sanfelice: error right after the jump of H_n, formula (15) (lines), with engine runs (circles)
-and the bound of Theorem 4.10 (dotted), for delta = 1 (blue) and delta = 3 (red). Paper values: a = -0.05,
-L1 = 0.1, L2 = 0.2, delta in {{1, 3}}. The text only says (15) is evaluated for delta = 1 and 3; chosen here:
-left, a constant noise of size m in [0, 1] (|e(delta,1)| = |T| m with |T| = {abs(lines[0][1]):.4f} for delta = 1,
-{abs(lines[1][1]):.4f} for delta = 3: little sensitivity); right, a unit sinusoid m(t) = sin(omega t),
-omega in [0.05, 6], where delta matters: the largest error is {lines[0][3]:.3f} (omega = {lines[0][4]:.2f}) for
-delta = 1 and {lines[1][3]:.3f} (omega = {lines[1][4]:.2f}) for delta = 3. Theorem 4.10 bounds per unit
-|m|_inf: {lines[0][2]:.2f} and {lines[1][2]:.2f}. Runs from x(0) = 1, x̂(0) = 0 (chosen; (15) does not depend
+Fig. 2(b) of Li & Sanfelice: error right after the jump of H_n, formula (15) (lines), with engine \
+runs (circles)
+and the bound of Theorem 4.10 (dotted), for delta = 1 (blue) and delta = 3 (red). Paper values: \
+a = -0.05,
+L1 = 0.1, L2 = 0.2, delta in {{1, 3}}. The text only says (15) is evaluated for delta = 1 and 3; \
+chosen here:
+left, a constant noise of size m in [0, 1] (|e(delta,1)| = |T| m with |T| = {abs(lines[0][1]):.4f} \
+for delta = 1,
+{abs(lines[1][1]):.4f} for delta = 3: little sensitivity); right, a unit sinusoid \
+m(t) = sin(omega t),
+omega in [0.05, 6], where delta matters: the largest error is {lines[0][3]:.3f} \
+(omega = {lines[0][4]:.2f}) for
+delta = 1 and {lines[1][3]:.3f} (omega = {lines[1][4]:.2f}) for delta = 3. Theorem 4.10 bounds per \
+unit
+|m|_inf: {lines[0][2]:.2f} and {lines[1][2]:.2f}. Runs from x(0) = 1, x̂(0) = 0 (chosen; (15) does \
+not depend
 on them).""")
     paths.append(p)
-    print(f"  Fig. 2(b): constant noise |e(delta,1)|/m = {abs(lines[0][1]):.4f} (delta=1), {abs(lines[1][1]):.4f} "
-          f"(delta=3); sinusoid max |e(delta,1)| = {lines[0][3]:.3f} (delta=1), {lines[1][3]:.3f} (delta=3); "
+    print(f"  Fig. 2(b): constant noise |e(delta,1)|/m = {abs(lines[0][1]):.4f} (delta=1), "
+          f"{abs(lines[1][1]):.4f} "
+          f"(delta=3); sinusoid max |e(delta,1)| = {lines[0][3]:.3f} (delta=1), "
+          f"{lines[1][3]:.3f} (delta=3); "
           f"Thm 4.10 bound/|m| = {lines[0][2]:.3f}, {lines[1][2]:.3f}; max |(15) - engine| = "
           f"{max(lines[0][5], lines[1][5]):.1e}")
 
@@ -298,7 +332,8 @@ on them).""")
             ax.axvline(s, color="gray", lw=0.6, ls=":")
         ax.legend(fontsize=8, ncol=2)
         ax.grid(alpha=0.3)
-    axs[0].set_title(r"Fig. 3: $H_{pc}$ under piecewise-constant noise (recursive jumps, $\delta = 1$)")
+    axs[0].set_title(r"Fig. 3: $H_{pc}$ under piecewise-constant noise "
+                     r"(recursive jumps, $\delta = 1$)")
     axs[0].set_ylabel(r"states $x_i$, estimates $\bar x_i$")
     axs[1].set_ylabel(r"errors $\bar e_i = x_i - \bar x_i$")
     axs[2].set_ylabel(r"noise $m_i$, estimate $\hat m_i$")
@@ -318,14 +353,21 @@ on them).""")
         msk = ((arc.t > tJ) | ((arc.t == tJ) & (arc.j >= J + 1))) & (arc.t < nxt)
         msgs.append((d_k, tJ, float(err[msk].max())))
     write_caption(p, f"""
-Fig. 3 of Li & Sanfelice: the observer H_pc (jumps every delta) on the plant of Section V.B. Paper values:
-A = [[0, 1], [-1, 0]], H = [[1, 2], [2, 1]], delta = 1, L1 = 5 H^-1, L2 = 8 H^-1 (the exact values whose
-two-decimal roundings the paper prints), m = c1 on [0, 2.5), c2 on [2.5, 4.5), c3 after, c1 = (0.3, 0.2),
+Fig. 3 of Li & Sanfelice: the observer H_pc (jumps every delta) on the plant of Section V.B. Paper \
+values:
+A = [[0, 1], [-1, 0]], H = [[1, 2], [2, 1]], delta = 1, L1 = 5 H^-1, L2 = 8 H^-1 (the exact values \
+whose
+two-decimal roundings the paper prints), m = c1 on [0, 2.5), c2 on [2.5, 4.5), c3 after, \
+c1 = (0.3, 0.2),
 c2 = (0.4, 0.4), c3 = (0.2, 0.3), x(0) = (0.3, 0.4), x̂1(0) = x̂2(0) = 0. Chosen: m̂(0) = 0, horizon 8.
-Top: plant states (dashed) and estimates x̄ = (x̂1 + x̂2)/2; middle: errors ē_i = x_i - x̄_i; bottom: noise and
-its estimate m̂ (switches dotted). Each time the noise changes, the estimate is exact again from the second
-jump after the switch: exact from t = {msgs[0][1]:g} (max |ē| {msgs[0][2]:.1e}), from t = {msgs[1][1]:g} after
-the switch at 2.5 ({msgs[1][2]:.1e}), from t = {msgs[2][1]:g} after the switch at 4.5 ({msgs[2][2]:.1e}).""")
+Top: plant states (dashed) and estimates x̄ = (x̂1 + x̂2)/2; middle: errors ē_i = x_i - x̄_i; \
+bottom: noise and
+its estimate m̂ (switches dotted). Each time the noise changes, the estimate is exact again from \
+the second
+jump after the switch: exact from t = {msgs[0][1]:g} (max |ē| {msgs[0][2]:.1e}), from \
+t = {msgs[1][1]:g} after
+the switch at 2.5 ({msgs[1][2]:.1e}), from t = {msgs[2][1]:g} after the switch at 4.5 \
+({msgs[2][2]:.1e}).""")
     paths.append(p)
     print("  Fig. 3: exact again (max |ē| until the next switch) " + "; ".join(
         f"after d={d_k:g}: from t={tJ:g} ({e:.1e})" for d_k, tJ, e in msgs)

@@ -107,7 +107,8 @@ class _TwoCopyObserver(hs.HybridSystem):
         return {k: X[..., s] for k, s in self.slices.items()}
 
     def initial_state(self, xhat0, mhat0=None):
-        """zeta(0, 0) in S_n / S_c / S_pc: x̂1 = x̂2 = xhat0, xi = 0, m̂ = mhat0 (default 0), tau = q = 0."""
+        """zeta(0, 0) in S_n / S_c / S_pc:
+        x̂1 = x̂2 = xhat0, xi = 0, m̂ = mhat0 (default 0), tau = q = 0."""
         d = self.design
         z = np.zeros(self.state_dim)
         xh = vector("xhat0", xhat0, d.n)
@@ -177,8 +178,10 @@ class _NoiseCompensating(_TwoCopyObserver):
         self.design.check_HT_invertible()   # Theorem 4.13 / 4.14: checked before any run
         if self.design.HT_inv_norm > _WARN_HT_INV:
             warnings.warn(
-                f"|(H T - I)^-1| = {self.design.HT_inv_norm:.3g} (cond {self.design.HT_cond:.3g}): the m̂ update of "
-                "(18) amplifies integration and modelling errors by this factor", RuntimeWarning, stacklevel=2)
+                f"|(H T - I)^-1| = {self.design.HT_inv_norm:.3g} "
+                f"(cond {self.design.HT_cond:.3g}): the m̂ update of "
+                "(18) amplifies integration and modelling errors by this factor",
+                RuntimeWarning, stacklevel=2)
 
     def flow_map(self, x, t, j, u):
         d, n, p = self.design, self.design.n, self.design.p
@@ -199,7 +202,8 @@ class _NoiseCompensating(_TwoCopyObserver):
         mh = x[s["mhat"]]
         R = d.K1 @ x[:n] + d.K2 @ x[n:2 * n]
         T = d.K1 @ Xi_matrix(x[s["xi1"]], n, p) + d.K2 @ Xi_matrix(x[s["xi2"]], n, p)
-        w = np.linalg.solve(d.H @ T - np.eye(p), d.H @ R - (u - mh))   # (H T - I)^{-1}(H R - (y - m̂))
+        # (H T - I)^{-1}(H R - (y - m̂))
+        w = np.linalg.solve(d.H @ T - np.eye(p), d.H @ R - (u - mh))
         xn = np.zeros(self.state_dim)
         xn[:n] = R - T @ w
         xn[n:2 * n] = R - T @ w
@@ -268,10 +272,11 @@ class LuenbergerObserver(hs.HybridSystem):
             lam = _hidden_unstable_mode(A, H)
             if lam is not None:
                 raise ValueError(
-                    f"(A, H) is not detectable: the eigenvalue {lam:.6g} of A (Re >= 0) is invisible in y = H x, "
-                    "so A - L0 H keeps it for every L0 and the Luenberger observer (2) cannot converge")
-            raise ValueError(f"A - L0 H is not Hurwitz (max Re eig = {a:.3g} >= 0); choose L0 so that it is "
-                             "(the Luenberger observer (2) needs it)")
+                    f"(A, H) is not detectable: the eigenvalue {lam:.6g} of A (Re >= 0) is "
+                    "invisible in y = H x, so A - L0 H keeps it for every L0 and the Luenberger "
+                    "observer (2) cannot converge")
+            raise ValueError(f"A - L0 H is not Hurwitz (max Re eig = {a:.3g} >= 0); choose L0 so "
+                             "that it is (the Luenberger observer (2) needs it)")
         self.A, self.H, self.L0 = A, H, L0
         self.state_dim = n
         self.input_dim = H.shape[0]
@@ -283,9 +288,10 @@ class LuenbergerObserver(hs.HybridSystem):
 
 
 class BoundedNoiseGenerator(hs.HybridSystem):
-    """A noise source whose (constant) state holds the noise's coefficients, for batches of realisations.
+    """A noise source whose (constant) state holds the noise's coefficients.
 
-    State w = (a, omega, phi), each (p, K) flattened row-major (state_dim = 3 p K); flow 0, no jumps.
+    For batches of realisations. State w = (a, omega, phi), each (p, K) flattened row-major
+    (state_dim = 3 p K); flow 0, no jumps.
     Output m(t)_i = sum_k a_ik sin(omega_ik t + phi_ik), so |m|_inf <= sqrt(sum_i (sum_k |a_ik|)^2).
     Different initial states are different noise realisations, so :func:`hybridsim.simulate_many`
     runs a whole batch of them through one interconnection (see :func:`noise_batch`).
@@ -319,7 +325,8 @@ class BoundedNoiseGenerator(hs.HybridSystem):
         return float(np.linalg.norm(np.sum(np.abs(a), axis=1)))
 
     def random_states(self, N, m_max, *, w_max=5.0, seed=None):
-        """N realisations with |m|_inf <= m_max (amplitudes scaled so the bound is m_max), (N, 3pK)."""
+        """N realisations with |m|_inf <= m_max
+        (amplitudes scaled so the bound is m_max), (N, 3pK)."""
         rng = np.random.default_rng(seed)
         out = np.empty((N, self.state_dim))
         for r in range(N):
