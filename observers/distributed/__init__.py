@@ -34,7 +34,7 @@ The package follows the calling pattern of :mod:`observers`:
    with the stacked errors ``(E_o, E_u)`` of (6) under ``"e"``.
 
 Decisions where the paper is ambiguous (each one is tested)
-----------------------------------------------------------
+-----------------------------------------------------------
 1. **Laplacian sign.** The text writes ``𝓛 = 𝒜 − 𝒟``, but the error system
    (6) obtained from (5), Proposition 1 and the Appendix ("𝓛 has a unique
    zero eigenvalue ... all the other eigenvalues are strictly larger") all

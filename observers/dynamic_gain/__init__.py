@@ -26,13 +26,16 @@ with ``rbar_i = (i+1) mu``.  Variants from the same code (``z_mode``):
 
 Files (the calling pattern of :mod:`observers`)
 -----------------------------------------------
-``design.py``   (18), (17) with beta, Remark 1's gain, the closed-form error via (13)-(16),
-                the r-homogeneous norm; the LMIs (10) are in :mod:`observers.lmi`
-``systems.py``  :class:`DynamicGainObserver` (6)-(8) and its variants; the plant (1)
-``example.py``  Section VI: :data:`EXAMPLE`, :func:`simulate`, :func:`errors`, the two
-                measured settling times, the Euler scheme of ref. [8]
-``figures.py``  :func:`reproduce`: Figs. 1(a)-(b), 2(a)-(b), Euler vs Radau
-``claims.py``   :data:`CLAIMS`
+* ``design.py``: (18), (17) with beta, Remark 1's gain, the closed-form error
+  via (13)-(16), the r-homogeneous norm; the LMIs (10) are in
+  :mod:`observers.lmi`.
+* ``systems.py``: :class:`DynamicGainObserver` (6)-(8) and its variants; the
+  plant (1).
+* ``example.py``: Section VI: :data:`EXAMPLE`, :func:`simulate`,
+  :func:`errors`, the two measured settling times, the Euler scheme of
+  ref. [8].
+* ``figures.py``: :func:`reproduce`: Figs. 1(a)-(b), 2(a)-(b), Euler vs Radau.
+* ``claims.py``: :data:`CLAIMS`.
 
 Settling time and 1e-6 crossing
 -------------------------------

@@ -628,10 +628,11 @@ class Design:
 # errors after the jump and bounds
 # ---------------------------------------------------------------------------
 def error_after_jump(design, m):
-    """Error e1(delta, 1) = e2(delta, 1) of H_n under noise m, formula (15).
+    """Error e1(delta, 1) = e2(delta, 1) of H_n under noise m, formula (15)::
 
-    e(delta, 1) = K1 int_0^delta e^{F1 (delta - s)} L1 m(s) ds
-                + K2 int_0^delta e^{F2 (delta - s)} L2 m(s) ds,
+        e(delta, 1) = K1 int_0^delta e^{F1 (delta - s)} L1 m(s) ds
+                    + K2 int_0^delta e^{F2 (delta - s)} L2 m(s) ds,
+
     for any initial condition with x̂1(0,0) = x̂2(0,0) (the initial error
     cancels since K1 e^{F1 delta} + K2 e^{F2 delta} = 0).
 

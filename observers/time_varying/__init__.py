@@ -6,16 +6,16 @@ value of the unmeasured part x_r of the state for every t >= tau, from the
 output on the window [t - tau, t].
 
 Layout (the calling pattern of :mod:`observers`)
------------------------------------------------
-``design.py``   Sections II-III: (4)-(6), (15), Phi of (1), Lambda (20),
-                Assumption 1, Remark 3 (25)-(26), (21)-(23), (27), l(t) of (28)
-``systems.py``  :class:`ReducedOrderObserver` (the observer as a hybrid system),
-                :func:`lti_observer` (15), :class:`TimeVaryingPlant` (16),
-                :class:`ChainedFormPlant` (44)
-``example.py``  Section IV: (47)-(50), (52), (57), the loop (58)-(59);
-                :func:`simulate`, :func:`estimates`, :func:`errors`
-``figures.py``  :func:`reproduce` (Fig. 1 and the LTI figure)
-``claims.py``   ``CLAIMS``
+------------------------------------------------
+* ``design.py``: Sections II-III: (4)-(6), (15), Phi of (1), Lambda (20),
+  Assumption 1, Remark 3 (25)-(26), (21)-(23), (27), l(t) of (28).
+* ``systems.py``: :class:`ReducedOrderObserver` (the observer as a hybrid
+  system), :func:`lti_observer` (15), :class:`TimeVaryingPlant` (16),
+  :class:`ChainedFormPlant` (44).
+* ``example.py``: Section IV: (47)-(50), (52), (57), the loop (58)-(59);
+  :func:`simulate`, :func:`estimates`, :func:`errors`.
+* ``figures.py``: :func:`reproduce` (Fig. 1 and the LTI figure).
+* ``claims.py``: ``CLAIMS``.
 
 1. Design: :func:`reduced_coordinates`, :func:`choose_L_tau` (LTI) or the
    data A1, A2, L, Phi_A2, Phi_H of (16) and Assumption 1

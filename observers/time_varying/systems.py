@@ -89,7 +89,7 @@ class ReducedOrderObserver(hs.HybridSystem):
 
         xhat_r(t) = P(t) + G(t) y(t)     (:meth:`estimate`),
 
-    where, for q = 1 (t >= t0 + tau),
+    where, for q = 1 (t >= t0 + tau)::
 
         Lambda P = Phi_A2(t, t-tau) J_A(t) - J_A(t-tau) + Phi_H(t, t-tau) J_H(t)
                    - J_H(t-tau) - L(t-tau) z(t-tau) [- Phi_H(t, t-tau) L(t) eps(t)],
