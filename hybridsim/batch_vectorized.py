@@ -284,7 +284,7 @@ def _check_options(system, x0s, t_max, j_max, priority, method, rtol, atol, max_
             first_step, int(zeno_jumps), zeno_time, int(j0), max_norm)
 
 
-def simulate_vectorized(system, x0s, *, t_max, j_max=math.inf, priority="jumps",
+def simulate_vectorized(system, x0s, t_max, j_max=math.inf, *, priority="jumps",
                         rtol=1e-6, atol=1e-9, max_step=math.inf, first_step=None,
                         zeno_jumps=50, zeno_time=1e-12, zeno_rtol=1e-7, progress=False,
                         method="RK45", t0=0.0, j0=0, max_norm=math.inf, seed=None,
