@@ -18,9 +18,11 @@ import concurrent.futures
 import itertools
 import numbers
 import warnings
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ._progress import make_bar
 from .arc import HybridArc
@@ -354,8 +356,10 @@ def _summary(what, arcs, offset=0):
 
 
 # ------------------------------------------------------------------ public
-def simulate_many(system, x0s, t_max, j_max=np.inf, *, executor=None, chunks=None,
-                  progress=None, throw=False, warn=True, **kwargs):
+def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
+                  j_max: float = np.inf, *, executor: concurrent.futures.Executor | None = None,
+                  chunks: int | None = None, progress: bool | None = None,
+                  throw: bool = False, warn: bool = True, **kwargs) -> list[HybridArc]:
     """Simulate one system from many initial states.
 
     Parameters
@@ -530,8 +534,11 @@ def _vectorized_rows(simulate_vectorized, system, X, kwargs, out):
         break
 
 
-def sweep(make_system, params, x0, t_max, j_max=np.inf, *, executor=None, chunks=None,
-          progress=None, throw=False, warn=True, **kwargs):
+def sweep(make_system: Callable[[Any], HybridSystem], params: Iterable, x0: ArrayLike | Callable,
+          t_max: float, j_max: float = np.inf, *,
+          executor: concurrent.futures.Executor | None = None, chunks: int | None = None,
+          progress: bool | None = None, throw: bool = False, warn: bool = True,
+          **kwargs) -> list[HybridArc]:
     """Simulate ``make_system(p)`` from x0 for every parameter value p.
 
     Noise realisations go through the same door: let ``p`` be a seed and

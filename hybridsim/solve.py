@@ -11,9 +11,11 @@ import enum
 import math
 import numbers
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, OdeSolver, Radau
 from scipy.integrate._ivp.rk import RungeKutta
 
@@ -400,12 +402,18 @@ class _State:
     warned_stiff: bool = False
 
 
-def simulate(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priority="jumps",
-             method="RK45", rtol=1e-6, atol=1e-9, max_step=math.inf, first_step=None,
-             inputs=None, prehistory=None, max_norm=math.inf, seed=None,
-             progress=None, throw=True, warn=True, dense=False, refine=1, t_eval=None,
-             max_steps=1_000_000, max_samples=10_000_000, zeno_jumps=50,
-             zeno_time=1e-12, zeno_rtol=1e-7, backend="python"):
+def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = math.inf, *,
+             t0: float = 0.0, j0: int = 0, priority: str = "jumps",
+             method: str | type[OdeSolver] = "RK45", rtol: float = 1e-6,
+             atol: float | ArrayLike = 1e-9, max_step: float = math.inf,
+             first_step: float | None = None, inputs: Callable | None = None,
+             prehistory: Callable | None = None, max_norm: float = math.inf,
+             seed: int | np.random.Generator | None = None, progress: bool | None = None,
+             throw: bool = True, warn: bool = True, dense: bool = False, refine: int = 1,
+             t_eval: ArrayLike | None = None, max_steps: float = 1_000_000,
+             max_samples: float = 10_000_000, zeno_jumps: int = 50,
+             zeno_time: float = 1e-12, zeno_rtol: float = 1e-7,
+             backend: str = "python") -> HybridArc:
     r"""Simulate a hybrid system from x0 until t_max or j_max.
 
     Flows by :math:`\dot x = f(x)` with a scipy ODE solver while x is in C,
