@@ -524,6 +524,7 @@ def test_remark2_noise_bounded():
         dist.band_limited_noise(1.0, 0.0, 1.0, 1)
 
 
+@pytest.mark.slow
 def test_reproduce_writes_figures(tmp_path, monkeypatch):
     # short horizons: checks the files and captions, not the numbers
     paths = dist.reproduce(tmp_path, t_max=1.0, t_max_noise=1.0)

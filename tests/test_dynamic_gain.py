@@ -350,6 +350,7 @@ def test_homogeneous_observer_converges_in_finite_time():
     assert np.abs(e[arc.t > ts]).max() <= 1e-8
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [0, 7])
 def test_prescribed_time_escapes_under_noise(seed):
     """Section VI: gamma2 = 0 under noise escapes in finite time as v -> 0; the run
@@ -364,6 +365,7 @@ def test_prescribed_time_escapes_under_noise(seed):
     assert v[-1] < 1e-8                           # the escape comes with v -> 0
 
 
+@pytest.mark.slow
 def test_proposed_stays_bounded_under_noise():
     """Proposition 5 (finite-time ISS): with gamma2 = 1 the error stays bounded and
     small; v stays above |w| and away from 0, so the gains stay bounded."""

@@ -503,6 +503,7 @@ def test_sampled_flow_uses_A2_xi1_hat_typo_decision():
     np.testing.assert_allclose(f[obs.sl_xi1], A1 @ z[obs.sl_xi1] + F1(w, t), rtol=1e-14)
 
 
+@pytest.mark.slow
 def test_omega_vs_xi2_estimate_dc_motor():
     """Decision 2 on the paper's example (k = 100, tau = 0.1, no disturbances).
 
@@ -734,6 +735,7 @@ def test_reset_realisation_equals_literal(k):
     np.testing.assert_allclose(out[0], out[1], rtol=0, atol=1e-9)
 
 
+@pytest.mark.slow
 def test_sampled_reset_realisation_k75():
     """(39) at k = 75, T = 0.1, xi_2 in (13): literal blows up at ~0.56 s, reset converges."""
     res = {}

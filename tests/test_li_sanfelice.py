@@ -575,6 +575,7 @@ def test_noise_batch_through_simulate_many_matches_formula_15():
         ls.noise_batch(obs, [0.3, 0.4], [0.0, 0.0], S[:, :5], gen)
 
 
+@pytest.mark.slow
 def test_reproduce_writes_figures_with_captions(tmp_path):
     paths = ls.reproduce(tmp_path)
     assert [p.name for p in paths] == ["fig1a_error_vs_delta.png",
@@ -752,7 +753,8 @@ def test_admissible_delta_all_singular_says_why():
         ls.admissible_delta(A, H, L1, L2, t_max=8.0)
 
 
-@pytest.mark.parametrize("n,p", [(n, p) for n in range(1, 6) for p in range(1, 4)])
+@pytest.mark.parametrize("n,p", [pytest.param(n, p, marks=[pytest.mark.slow] if n >= 4 else [])
+                                 for n in range(1, 6) for p in range(1, 4)])
 def test_random_design_total_over_seeds(n, p):
     # issue 16: 50 seeds for each n <= 5, p <= 3 (random_design(seed, 4, 1) used to fail for seeds
     # 0-19)

@@ -509,6 +509,7 @@ def _closed_loop(T, **kw):
     return loop, v2, arc
 
 
+@pytest.mark.slow
 def test_tracking_loop_58():
     """Section IV-C: (58) solved by the loop; tracking (41);
     nu non-increasing once xhat2 is exact."""

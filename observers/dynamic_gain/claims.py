@@ -210,7 +210,8 @@ CLAIMS = [
                     "BLOWUP), noise seed 0.",
           paper_value=None, reference=_T18, compute=_blowup_time, tol=0.1,
           tol_why="the gains z^(-rbar_i) are infinite at T = 5, and the noise-driven "
-                  "error crosses 1e3 shortly before (4.96-4.97 s over seeds 0 and 7)"),
+                  "error crosses 1e3 shortly before (4.96-4.97 s over seeds 0 and 7)",
+          slow=True),
     Claim(id="000-fig2-bounded-gamma2-1", paper="000", where="Fig. 2, Prop. 5",
           statement="Under the same disturbances the proposed observer (gamma2 = 1) stays "
                     "bounded (finite-time ISS). Ours: max |e_i| over t in [6, 10], "

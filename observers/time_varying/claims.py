@@ -450,7 +450,7 @@ CLAIMS = [
           statement="With x1(0) = 0.5, x1(t) = 0 for all t >= 1/sqrt 2 (closed loop with (58)).",
           paper_value=1 / math.sqrt(2), compute=_loop_x1_arrival, tol=2e-5,
           tol_why="the plant models x1's arrival at 0 as a jump when |x1| <= eta = 1e-10, "
-                  "sqrt(eta) = 1e-5 before the exact time"),
+                  "sqrt(eta) = 1e-5 before the exact time", slow=True),
     Claim(id="001-eq58-residual", paper=_ID, where="(58)-(59)",
           statement="The loop's v2 solves (58) evaluated literally (quadrature over the "
                     "recorded v2 and xi3) at t = 2 pi + 1 and t = 15.",
