@@ -886,6 +886,8 @@ class _Run:
         n_stages = getattr(solver, "n_stages", None) if self.is_rk else None
         max_norm, t_eval = o.max_norm, o.t_eval
         cap = o.max_steps - stats.steps      # steps left in this run
+        hermite = o.Method is DOP853
+        fa = solver.f if hermite else None
         k = 0
         step = solver.step
         append = buf.append
@@ -914,8 +916,18 @@ class _Run:
                     if has_C or d_active:
                         if pred is None:
                             pred, phi = self._pred(j, d_active), self._phi(j, d_active)
-                        sol = solver.dense_output()
-                        hit = find_interior_event(sol, a, b, pred, phi)
+                        if hermite:
+                            # DOP853's dense output costs three more flow evaluations:
+                            # search with the cubic Hermite of the step's ends (exact on
+                            # parabolas), confirm a hit on the dense output
+                            hit = find_interior_event(_Hermite(a, ya, fa, b, yb, solver.f),
+                                                      a, b, pred, phi)
+                            if hit is not None:
+                                sol = solver.dense_output()
+                                hit = find_interior_event(sol, a, b, pred, phi)
+                        else:
+                            sol = solver.dense_output()
+                            hit = find_interior_event(sol, a, b, pred, phi)
                         if hit is not None:
                             return self._event(st, sol, a, hit[0], hit[1], j, solver,
                                                d_active)
@@ -951,6 +963,8 @@ class _Run:
                             return hit
                     return self._end(st, b, yb, _Outcome.T_MAX)
                 a, ya = b, yb
+                if hermite:
+                    fa = solver.f
         finally:
             stats.steps += k
 
@@ -1143,6 +1157,23 @@ class _Run:
             return
         X = np.asarray(sol(ts)).T.reshape(ts.size, o.n)
         self.buf.extend(ts, j, X, _dense_derivative(sol, ts))
+
+
+class _Hermite:
+    """The cubic Hermite interpolant of a step from its ends' states and slopes."""
+
+    __slots__ = ("a", "h", "ya", "yb", "ma", "mb")
+
+    def __init__(self, a, ya, fa, b, yb, fb):
+        self.a, self.h = a, b - a
+        self.ya, self.yb = ya, yb
+        self.ma, self.mb = self.h * fa, self.h * fb
+
+    def __call__(self, t):
+        s = (t - self.a) / self.h
+        s2 = s * s
+        return (self.ya + s2 * (3.0 - 2.0 * s) * (self.yb - self.ya)
+                + s * (1.0 - s) ** 2 * self.ma + s2 * (s - 1.0) * self.mb)
 
 
 class _SampleCap(Exception):
