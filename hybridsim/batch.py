@@ -454,35 +454,47 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
         kw = {k: v for k, v in kwargs.items() if k not in ("backend", "progress")}
         out = simulate_many_compiled(system, X, throw=False, warn=False, **kw)
         if throw:
-            for i, arc in enumerate(out):
-                if arc.termination in FAILED:
-                    raise BatchError(f"row {i} of the batch failed: {arc.termination.name}: "
-                                     f"{arc.message}", i, arc, out) from arc.exception
+            _raise_first_failure(out)
     elif system.vectorized and executor is None:
         out = _many_vectorized(system, X, kwargs, progress)
         if throw:
-            for i, arc in enumerate(out):
-                if arc.termination in FAILED:
-                    raise BatchError(f"row {i} of the batch failed: {arc.termination.name}: "
-                                     f"{arc.message}", i, arc, out) from arc.exception
+            _raise_first_failure(out)
     else:
         kwargs.update(throw=False, warn=False)
         items = [(None, x0) for x0 in X]
         bar = make_bar(progress, total=N, desc="simulate_many", unit="run", leave=True)
-        batch = _Batch(system, None, items, kwargs, throw, bar)
-        try:
-            if executor is None:
-                batch.serial(list(range(N)))
-            else:
-                batch.spread(executor, list(range(N)), chunks)
-        finally:
-            if bar is not None:
-                bar.close()
-        out = batch.out
+        out = _execute(_Batch(system, None, items, kwargs, throw, bar), executor, chunks, bar)
+    return _warned("simulate_many", out, warn)
+
+
+def _raise_first_failure(out):
+    """``throw=True`` on a batch that ran in one piece: the first failed row raises."""
+    for i, arc in enumerate(out):
+        if arc.termination in FAILED:
+            raise BatchError(f"row {i} of the batch failed: {arc.termination.name}: "
+                             f"{arc.message}", i, arc, out) from arc.exception
+
+
+def _execute(batch, executor, chunks, bar):
+    """Run every row of ``batch`` here or on ``executor``; the arcs, in order."""
+    rows = list(range(len(batch.out)))
+    try:
+        if executor is None:
+            batch.serial(rows)
+        else:
+            batch.spread(executor, rows, chunks)
+    finally:
+        if bar is not None:
+            bar.close()
+    return batch.out
+
+
+def _warned(name, out, warn):
+    """One BatchWarning summarising the failed rows (if any and if asked)."""
     if warn:
-        msg = _summary("simulate_many", out)
+        msg = _summary(name, out)
         if msg:
-            warnings.warn(msg, BatchWarning, stacklevel=2)
+            warnings.warn(msg, BatchWarning, stacklevel=3)
     return out
 
 
@@ -605,18 +617,5 @@ def sweep(make_system: Callable[[Any], HybridSystem], params: Iterable, x0: Arra
                             f"function); {type(e).__name__}: {e}. Or pass an array") from e
     items = [(p, x0) for p in params]
     bar = make_bar(progress, total=N, desc="sweep", unit="run", leave=True)
-    batch = _Batch(None, make_system, items, kwargs, throw, bar)
-    try:
-        if executor is None:
-            batch.serial(list(range(N)))
-        else:
-            batch.spread(executor, list(range(N)), chunks)
-    finally:
-        if bar is not None:
-            bar.close()
-    out = batch.out
-    if warn:
-        msg = _summary("sweep", out)
-        if msg:
-            warnings.warn(msg, BatchWarning, stacklevel=2)
-    return out
+    out = _execute(_Batch(None, make_system, items, kwargs, throw, bar), executor, chunks, bar)
+    return _warned("sweep", out, warn)
