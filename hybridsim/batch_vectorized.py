@@ -38,6 +38,7 @@ from .rules import (
     sticking_message,
     t_max_slack,
     time_scale,
+    zeno_message,
 )
 from .solve import MapError, SimulationError, check_options
 from .system import HybridSystem, as_map
@@ -622,10 +623,7 @@ class _BatchRun:
             if zeno.any():
                 zr, zt, zs = rows[zeno], t[zeno], self.short[rows[zeno]]
                 self._stop(zr, Termination.ZENO,
-                           lambda i, zs=zs, zt=zt:
-                           f"{zs[i]} consecutive jumps after flows shorter than "
-                                     f"max(zeno_time*max(1,|t|), zeno_rtol*time scale) "
-                                     f"near t={zt[i]:.10g}")
+                           lambda i, zs=zs, zt=zt: zeno_message(zs[i], zt[i]))
             rows = rows[~full & ~zeno]
 
     def _start_flow(self, rows, inD):

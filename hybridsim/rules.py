@@ -15,7 +15,7 @@ import numpy as np
 
 __all__ = ["Termination", "Priority", "Action", "decide", "decide_at_event",
            "jumps_now", "needs_coin", "is_short_flow", "is_sticking", "sticking_message",
-           "time_scale", "t_max_slack", "event_tolerance", "PRIORITIES", "FAILURES",
+           "zeno_message", "time_scale", "t_max_slack", "event_tolerance", "PRIORITIES", "FAILURES",
            "SimulationWarning", "SimulationError", "MapError"]
 
 _EPS = float(np.finfo(float).eps)
@@ -267,6 +267,12 @@ def sticking_message(t, j, x, last_flows):
             f"flows ({flows}): the solution sticks to the boundary of C (jumps "
             f"accumulate; a Zeno-like end), x={x}. Model the sticking (e.g. a mode where "
             f"the contact persists, or a jump map that stops the motion below a threshold)")
+
+
+def zeno_message(count, t):
+    """What the Zeno test found (the same words on every integration path)."""
+    return (f"{count} consecutive jumps after flows shorter than "
+            f"max(zeno_time*max(1,|t|), zeno_rtol*time scale) near t={t:.10g}")
 
 
 def time_scale(t0, t, t_max):

@@ -39,6 +39,7 @@ from .rules import (
     sticking_message,
     t_max_slack,
     time_scale,
+    zeno_message,
 )
 from .system import HybridSystem, guard_min
 
@@ -778,9 +779,7 @@ class _Run:
             self._stop(Termination.J_MAX)
             return True
         if st.short >= o.zeno_jumps:
-            self._stop(Termination.ZENO, f"{st.short} consecutive jumps after flows "
-                                         f"shorter than max(zeno_time*max(1,|t|), "
-                                         f"zeno_rtol*time scale) near t={t:.10g}")
+            self._stop(Termination.ZENO, zeno_message(st.short, t))
             return True
         return False
 

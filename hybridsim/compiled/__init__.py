@@ -41,7 +41,14 @@ import warnings
 import numpy as np
 
 from ..arc import HybridArc
-from ..rules import FAILURES, MapError, SimulationWarning, Termination
+from ..rules import (
+    FAILURES,
+    MapError,
+    SimulationWarning,
+    Termination,
+    sticking_message,
+    zeno_message,
+)
 from ..system import HybridSystem
 
 __all__ = ["CompiledSystem", "simulate_compiled", "simulate_many_compiled", "CompileError",
@@ -427,14 +434,9 @@ def _message(system, code, detail, info, x_last, stats, max_steps, max_samples, 
         return cause, f"{base}: x={x_last} at (t={t}, j={j})"
     if cause is Termination.ZENO:
         if detail == 0:
-            return cause, (f"{base}: {int(v)} consecutive jumps after flows shorter than "
-                           f"max(zeno_time*max(1,|t|), zeno_rtol*time scale) near t={t:.10g}")
+            return cause, f"{base}: {zeno_message(int(v), t)}"
         if detail == 1:
-            return cause, (f"{base}: the flow left C outside D at t={t:.10g} (j={j}) after a "
-                           f"run of ever shorter flows (from {t2:.3g} to {v:.3g}): the solution "
-                           f"sticks to the boundary of C (jumps accumulate; a Zeno-like end), "
-                           f"x={x_last}. Model the sticking (e.g. a mode where the contact "
-                           f"persists, or a jump map that stops the motion below a threshold)")
+            return cause, f"{base}: {sticking_message(t, j, x_last, [t2, v])}"
         return cause, f"{base}: flows too short to resolve near t={t:.10g}"
     if cause is Termination.NON_FINITE:
         if detail == 0:
