@@ -365,11 +365,15 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
     Parameters
     ----------
     system : HybridSystem
-        With ``vectorized = True`` (maps written over (N, n) batches) and no
-        executor, the whole batch is integrated together in numpy
+        With ``vectorized = True`` (maps written over (N, n) batches), no
+        executor and options the batch integrator implements (``method=
+        "RK45"``, the default; no ``dense``, ``inputs``, ``prehistory`` or
+        ``t_eval``), the whole batch is integrated together in numpy
         (:func:`hybridsim.batch_vectorized.simulate_vectorized`), each
         trajectory with its own steps, events and jumps. Otherwise the runs
-        are looped over (or spread over ``executor``).
+        are looped over (or spread over ``executor``) with
+        :func:`hybridsim.simulate`, which passes the maps single states (so
+        write a vectorized system's maps with ``x[..., k]`` to allow both).
     x0s : array_like, shape (N, n)
         One initial state per row (a rectangular array: ragged lists are
         refused with the rows at fault named).
@@ -455,7 +459,7 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
         out = simulate_many_compiled(system, X, throw=False, warn=False, **kw)
         if throw:
             _raise_first_failure(out)
-    elif system.vectorized and executor is None:
+    elif system.vectorized and executor is None and _batch_integrator_takes(kwargs):
         out = _many_vectorized(system, X, kwargs, progress)
         if throw:
             _raise_first_failure(out)
@@ -496,6 +500,34 @@ def _warned(name, out, warn):
         if msg:
             warnings.warn(msg, BatchWarning, stacklevel=3)
     return out
+
+
+def _batch_integrator_takes(kwargs):
+    """Whether :func:`simulate_vectorized` implements these options of ``simulate``.
+
+    It is Dormand-Prince 5(4) (``method="RK45"``, the default) without dense
+    output, inputs, a prehistory or ``t_eval``; with anything else a
+    vectorized system's batch runs row by row through ``simulate`` (its maps
+    then receive single states).
+    """
+    import inspect
+
+    from scipy.integrate import RK45
+
+    from .batch_vectorized import _UNSUPPORTED, simulate_vectorized
+
+    method = kwargs.get("method", "RK45")
+    if not (isinstance(method, str) and method == "RK45") and method is not RK45:
+        return False
+    known = inspect.signature(simulate_vectorized).parameters
+    for name, val in kwargs.items():
+        if name in _UNSUPPORTED:
+            default = _UNSUPPORTED[name]
+            if (val is not None) if default is None else bool(val):
+                return False
+        elif name not in known:
+            return False
+    return True
 
 
 def _many_vectorized(system, X, kwargs, progress):

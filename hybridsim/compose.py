@@ -6,7 +6,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from .history import ComponentHistory
-from .system import HybridSystem, guard_min
+from .system import HybridSystem, as_map, guard_min
 
 __all__ = ["Interconnection", "LinearPlant", "connect", "network"]
 
@@ -45,6 +45,15 @@ class LinearPlant(HybridSystem):
         Measurement noise ``m(t) -> (p,)`` added to the output.
     disturbance : callable, optional
         Process disturbance ``d(t) -> (n,)`` added to the flow.
+
+    Notes
+    -----
+    Without ``u``, ``noise`` and ``disturbance`` callables the plant is
+    ``vectorized``: its maps also take batches x of shape (N, n) (and u of
+    shape (N, m)), so an interconnection of vectorized components runs
+    through the batch integrator of :func:`hybridsim.simulate_many`. Put a
+    batch's noise in a component's state (e.g. a noise generator) rather
+    than in a callable of t.
     """
 
     def __init__(self, A, B=None, C=None, D=None, *, u=None, noise=None, disturbance=None):
@@ -90,7 +99,15 @@ class LinearPlant(HybridSystem):
         if v.shape != (dim,):
             raise ValueError(f"{name}(t) must return shape ({dim},), got {v.shape}")
 
+    @property
+    def vectorized(self):
+        """True when the plant has no callables of t (see Notes)."""
+        return self.u is None and self.noise is None and self.disturbance is None
+
     def flow_map(self, x, t, j, u):
+        if np.ndim(x) == 2:                      # a batch (N, n): no callables (vectorized)
+            dx = x @ self.A.T
+            return dx if self.B is None else dx + np.asarray(u, dtype=float) @ self.B.T
         dx = self.A @ x
         if self.B is not None:
             uu = self.u(t) if self.u is not None else u
@@ -100,6 +117,8 @@ class LinearPlant(HybridSystem):
         return dx
 
     def output(self, x, t, j):
+        if np.ndim(x) == 2:
+            return x @ self.C.T
         y = self.C @ x
         if self.u is not None and self.B is not None:
             y = y + self.D @ np.atleast_1d(self.u(t))
@@ -139,7 +158,7 @@ class _Outputs(Mapping):
                 u = ic._u(name, self._x, self._t, self._j, self)
             finally:
                 busy.discard(name)
-        y = ic._h[name](self._x[sl], self._t, self._j, u)
+        y = ic._h[name](self._x[..., sl], self._t, self._j, u)
         c[name] = y
         return y
 
@@ -148,6 +167,21 @@ class _Outputs(Mapping):
 
     def __len__(self):
         return len(self._ic._slices)
+
+
+def _guard_rows(v):
+    """A batch guard's value per row: (N,), or the minimum over the columns of (N, m)."""
+    v = np.asarray(v, dtype=float)
+    return v.min(axis=1) if v.ndim == 2 else v
+
+
+def _rows_set(system, kind):
+    """A vectorized component's flow or jump set over a batch, as an (N,) bool array."""
+    guard = system.flow_guard if kind == "flow" else system.jump_guard
+    if system._overrides(f"{kind}_set") or guard is None:
+        return as_map(getattr(system, f"{kind}_set"), f"{kind}_set")
+    h = as_map(guard, f"{kind}_guard")
+    return lambda x, t, j, u: _guard_rows(h(x, t, j, u)) >= 0.0
 
 
 class Interconnection(HybridSystem):
@@ -174,6 +208,13 @@ class Interconnection(HybridSystem):
       and each component's maps receive that j.
     * ``arc.component(name)`` (or ``arc[name]``) gives a component's part.
     * There is no cap on the number of components.
+    * When every component is ``vectorized`` (and none reads the history),
+      so is the interconnection: :func:`hybridsim.simulate_many` then
+      integrates a batch of it together, each component's maps receiving
+      batches (its slice of the rows' states, the rows' t and j, and its
+      input computed over the rows), and at a jump each component jumps on
+      the rows where it is in its jump set. The input callables then
+      receive batched outputs ``y[name]`` of shape (N, p).
     """
 
     def __init__(self, systems, inputs=None, *, name=None):
@@ -206,11 +247,15 @@ class Interconnection(HybridSystem):
         hints = [s.max_step for s in self.systems.values() if s.max_step is not None]
         self.max_step = min(hints) if hints else None
         self.needs_history = any(s.needs_history for s in self.systems.values())
+        # a batch of the whole interconnection when every component takes batches
+        self.vectorized = (all(bool(s.vectorized) for s in self.systems.values())
+                           and not self.needs_history)
         self.delays = tuple(sorted({float(d) for s in self.systems.values()
                                     for d in (s.delays or ())}))
         self._build()
 
-    _DERIVED = ("_f", "_g", "_C", "_D", "_h", "_h_u", "_hD", "_hC", "_items", "jump_guard",
+    _DERIVED = ("_f", "_g", "_C", "_D", "_Cv", "_Dv", "_h", "_h_u", "_hD", "_hC", "_items",
+                "jump_guard",
                 "flow_guard", "_compiled_maps", "history")
 
     def _build(self):
@@ -231,6 +276,10 @@ class Interconnection(HybridSystem):
             self.flow_guard = self._flow_guard
         self._items = [(nm, self._slices[nm], self._f[nm], self.inputs.get(nm))
                        for nm in self.systems]
+        # the batch path's sets: the components' own indicators (arrays), or
+        # {min_i h_i >= 0} of their guards
+        self._Cv = {nm: _rows_set(s, "flow") for nm, s in self.systems.items() if nm in self._C}
+        self._Dv = {nm: _rows_set(s, "jump") for nm, s in self.systems.items() if nm in self._D}
 
     def __getstate__(self):
         state = self.__dict__.copy()
@@ -261,44 +310,74 @@ class Interconnection(HybridSystem):
         return {nm: y[nm] for nm in self.systems}
 
     # -- data ------------------------------------------------------------------
+    # A single state x (n,) takes the scalar path; a batch x (N, n), t and j
+    # (N,) (a vectorized interconnection inside simulate_many) the array path:
+    # each component's maps see their slice x[:, sl] and the rows' own t, j, u.
     def flow_map(self, x, t, j, u=None):
         y = _Outputs(self, x, t, j)
-        out = np.empty(self.state_dim)
+        out = np.empty(np.shape(x))
         for _nm, sl, f, ufn in self._items:
-            out[sl] = f(x[sl], t, j, None if ufn is None else ufn(t, y))
+            out[..., sl] = f(x[..., sl], t, j, None if ufn is None else ufn(t, y))
         return out
 
     def _in(self, table, x, t, j, y):
-        fn = table
-        for nm, test in fn.items():
-            yield nm, test(x[self._slices[nm]], t, j, self._u(nm, x, t, j, y))
+        for nm, test in table.items():
+            yield nm, test(x[..., self._slices[nm]], t, j, self._u(nm, x, t, j, y))
 
     def flow_set(self, x, t, j, u=None):
         y = _Outputs(self, x, t, j)
+        if np.ndim(x) == 2:
+            ok = np.ones(len(x), dtype=bool)
+            for _, v in self._in(self._Cv, x, t, j, y):
+                ok &= np.asarray(v, dtype=bool)
+            return ok
         return all(v for _, v in self._in(self._C, x, t, j, y))
 
     def jump_set(self, x, t, j, u=None):
         y = _Outputs(self, x, t, j)
+        if np.ndim(x) == 2:
+            inD = np.zeros(len(x), dtype=bool)
+            for _, v in self._in(self._Dv, x, t, j, y):
+                inD |= np.asarray(v, dtype=bool)
+            return inD
         return any(v for _, v in self._in(self._D, x, t, j, y))
 
     def jump_map(self, x, t, j, u=None):
         y = _Outputs(self, x, t, j)
         xn = np.array(x, dtype=float)
+        if np.ndim(x) == 2:
+            return self._jump_rows(x, t, j, y, xn)
         for nm, inD in list(self._in(self._D, x, t, j, y)):
             if inD:
                 sl = self._slices[nm]
                 xn[sl] = self._g[nm](x[sl], t, j, self._u(nm, x, t, j, y))
         return xn
 
+    def _jump_rows(self, x, t, j, y, xn):
+        """Batch jump: each component jumps on the rows where it is in its D."""
+        t, j = np.asarray(t), np.asarray(j)
+        for nm, inD in list(self._in(self._Dv, x, t, j, y)):
+            rows = np.asarray(inD, dtype=bool)
+            if not rows.any():
+                continue
+            sl = self._slices[nm]
+            u = self._u(nm, x, t, j, y)
+            if u is not None:
+                u = np.asarray(u, dtype=float)[rows]
+            xn[rows, sl] = self._g[nm](x[rows][:, sl], t[rows], j[rows], u)
+        return xn
+
     def _jump_guard(self, x, t, j, u=None):
         y = _Outputs(self, x, t, j)
-        return max(guard_min(h(x[self._slices[nm]], t, j, self._u(nm, x, t, j, y)))
-                   for nm, h in self._hD.items())
+        if np.ndim(x) == 2:
+            return np.max([_guard_rows(h) for _, h in self._in(self._hD, x, t, j, y)], axis=0)
+        return max(guard_min(h) for _, h in self._in(self._hD, x, t, j, y))
 
     def _flow_guard(self, x, t, j, u=None):
         y = _Outputs(self, x, t, j)
-        return min(guard_min(h(x[self._slices[nm]], t, j, self._u(nm, x, t, j, y)))
-                   for nm, h in self._hC.items())
+        if np.ndim(x) == 2:
+            return np.min([_guard_rows(h) for _, h in self._in(self._hC, x, t, j, y)], axis=0)
+        return min(guard_min(h) for _, h in self._in(self._hC, x, t, j, y))
 
     @property
     def has_jumps(self):

@@ -508,11 +508,11 @@ def L_tilde(L):
 
 def Xi_matrix(xi, n, p):
     """sum_k I_k xi v_k^T: the k-th piece of xi in R^{np} as k-th column of an n x p matrix
-    (footnote 7)."""
+    (footnote 7); xi of shape (..., np) gives (..., n, p)."""
     xi = np.asarray(xi, dtype=float)
     if xi.shape[-1] != n * p:
         raise ValueError(f"xi must have last dimension n*p = {n * p}, got {xi.shape}")
-    return xi.reshape(p, n).T
+    return xi.reshape(xi.shape[:-1] + (p, n)).swapaxes(-1, -2)
 
 
 @dataclass(frozen=True, eq=False)

@@ -12,6 +12,11 @@ Each observer's input is the measured output y = H x + m (decision 2), its
 output the estimate x̄ = a1 x̂1 + a2 x̂2 (footnote 2). Run one with its plant
 through :func:`observers.li_sanfelice.simulate`.
 
+H_n, H_c, H_pc and :class:`BoundedNoiseGenerator` are ``vectorized``: their
+maps also take batches (x of shape (N, r), t, j of shape (N,), y of shape
+(N, p)), so a Monte Carlo of noise realisations (:func:`noise_batch`) runs
+through :func:`hybridsim.simulate_many`'s batch integrator, all rows at once.
+
 Examples
 --------
 >>> from observers.li_sanfelice import NominalObserver, example_VB
@@ -67,6 +72,7 @@ class _TwoCopyObserver(hs.HybridSystem):
 
     _has_xi = False
     _has_q = True
+    vectorized = True       # the maps take batches too (the *_rows methods)
 
     def __init__(self, A, H=None, L1=None, L2=None, delta=None, *, a1=0.5, a2=None):
         d = _design_from_args(A, H, L1, L2, delta, a1, a2)
@@ -89,16 +95,22 @@ class _TwoCopyObserver(hs.HybridSystem):
 
     # -- sets -----------------------------------------------------------
     def jump_guard(self, x, t, j, u):
+        if np.ndim(x) == 2:
+            h = x[:, self._tau] - self.design.delta
+            return np.where(x[:, self._q] > 0.5, -1.0, h) if self._has_q else h
         if self._has_q and x[self._q] > 0.5:
             return -1.0
         return x[self._tau] - self.design.delta
 
     def jump_set(self, x, t, j, u):
+        if np.ndim(x) == 2:
+            inD = x[:, self._tau] >= self.design.delta
+            return inD & (x[:, self._q] < 0.5) if self._has_q else inD
         return bool(x[self._tau] >= self.design.delta and (not self._has_q or x[self._q] < 0.5))
 
     def output(self, x, t, j):
         d = self.design
-        return d.a1 * x[self.slices["xh1"]] + d.a2 * x[self.slices["xh2"]]
+        return d.a1 * x[..., self.slices["xh1"]] + d.a2 * x[..., self.slices["xh2"]]
 
     # -- helpers --------------------------------------------------------
     def split(self, X):
@@ -149,20 +161,27 @@ class NominalObserver(_TwoCopyObserver):
 
     def flow_map(self, x, t, j, u):
         d, n = self.design, self.design.n
+        if np.ndim(x) == 2:                                   # a batch (N, r)
+            dx = np.zeros_like(x)
+            dx[:, :n] = x[:, :n] @ d.F1.T + u @ d.L1.T
+            dx[:, n:2 * n] = x[:, n:2 * n] @ d.F2.T + u @ d.L2.T
+            dx[:, self._tau] = 1.0 - x[:, self._q]
+            return dx
         dx = np.zeros(self.state_dim)
-        dx[:n] = d.F1 @ x[:n] + d.L1 @ u
+        dx[:n] = d.F1 @ x[:n] + d.L1 @ u                      # (11)
         dx[n:2 * n] = d.F2 @ x[n:2 * n] + d.L2 @ u
         dx[self._tau] = 1.0 - x[self._q]
         return dx
 
     def jump_map(self, x, t, j, u):
         d, n = self.design, self.design.n
-        R = d.K1 @ x[:n] + d.K2 @ x[n:2 * n]
-        xn = np.empty(self.state_dim)
-        xn[:n] = R
-        xn[n:2 * n] = R
-        xn[self._tau] = 0.0
-        xn[self._q] = 1.0 - x[self._q]
+        R = x[..., :n] @ d.K1.T + x[..., n:2 * n] @ d.K2.T if np.ndim(x) == 2 else \
+            d.K1 @ x[:n] + d.K2 @ x[n:2 * n]                  # (12)
+        xn = np.empty(np.shape(x))
+        xn[..., :n] = R
+        xn[..., n:2 * n] = R
+        xn[..., self._tau] = 0.0
+        xn[..., self._q] = 1.0 - x[..., self._q]
         return xn
 
 
@@ -186,6 +205,8 @@ class _NoiseCompensating(_TwoCopyObserver):
     def flow_map(self, x, t, j, u):
         d, n, p = self.design, self.design.n, self.design.p
         s = self.slices
+        if np.ndim(x) == 2:
+            return self._flow_rows(x, u)
         mh = x[s["mhat"]]
         dx = np.zeros(self.state_dim)
         dx[:n] = d.A @ x[:n] + d.L1 @ (u - d.H @ x[:n] - mh)
@@ -199,6 +220,8 @@ class _NoiseCompensating(_TwoCopyObserver):
     def jump_map(self, x, t, j, u):
         d, n, p = self.design, self.design.n, self.design.p
         s = self.slices
+        if np.ndim(x) == 2:
+            return self._jump_rows(x, u)
         mh = x[s["mhat"]]
         R = d.K1 @ x[:n] + d.K2 @ x[n:2 * n]
         T = d.K1 @ Xi_matrix(x[s["xi1"]], n, p) + d.K2 @ Xi_matrix(x[s["xi2"]], n, p)
@@ -211,6 +234,35 @@ class _NoiseCompensating(_TwoCopyObserver):
         # xi1 = xi2 = 0, tau = 0
         if self._has_q:
             xn[self._q] = 1.0 - x[self._q]
+        return xn
+
+    # the same maps over a batch: x (N, r), u (N, p)
+    def _flow_rows(self, x, u):
+        d, n, p = self.design, self.design.n, self.design.p
+        s = self.slices
+        e = u - x[:, s["mhat"]]                                       # y - m̂
+        dx = np.zeros_like(x)
+        for xh, L in ((slice(0, n), d.L1), (slice(n, 2 * n), d.L2)):   # (17)
+            dx[:, xh] = x[:, xh] @ d.A.T + (e - x[:, xh] @ d.H.T) @ L.T
+        for xi, F, Lt in ((s["xi1"], d.F1, self._Lt1), (s["xi2"], d.F2, self._Lt2)):
+            FX = F @ Xi_matrix(x[:, xi], n, p)                         # (N, n, p)
+            dx[:, xi] = FX.swapaxes(1, 2).reshape(len(x), n * p) + Lt
+        dx[:, self._tau] = 1.0 - x[:, self._q] if self._has_q else 1.0
+        return dx
+
+    def _jump_rows(self, x, u):
+        d, n, p = self.design, self.design.n, self.design.p
+        s = self.slices
+        mh = x[:, s["mhat"]]
+        R = x[:, :n] @ d.K1.T + x[:, n:2 * n] @ d.K2.T                # (18)
+        T = d.K1 @ Xi_matrix(x[:, s["xi1"]], n, p) + d.K2 @ Xi_matrix(x[:, s["xi2"]], n, p)
+        rhs = R @ d.H.T - (u - mh)
+        w = np.linalg.solve(d.H @ T - np.eye(p), rhs[..., None])[..., 0]
+        xn = np.zeros_like(x)
+        xn[:, :n] = xn[:, n:2 * n] = R - (T @ w[..., None])[..., 0]
+        xn[:, s["mhat"]] = mh + w
+        if self._has_q:
+            xn[:, self._q] = 1.0 - x[:, self._q]
         return xn
 
 
@@ -297,22 +349,25 @@ class BoundedNoiseGenerator(hs.HybridSystem):
     runs a whole batch of them through one interconnection (see :func:`noise_batch`).
     """
 
+    vectorized = True
+
     def __init__(self, p, K=3):
         self.p, self.K = int(p), int(K)
         self.state_dim = 3 * self.p * self.K
         self.output_dim = self.p
 
     def flow_map(self, x, t, j, u):
-        return np.zeros(self.state_dim)
+        return np.zeros(np.shape(x))
 
     def _parts(self, x):
-        pk = self.p * self.K
-        return (x[:pk].reshape(self.p, self.K), x[pk:2 * pk].reshape(self.p, self.K),
-                x[2 * pk:].reshape(self.p, self.K))
+        pk, shape = self.p * self.K, x.shape[:-1] + (self.p, self.K)
+        return (x[..., :pk].reshape(shape), x[..., pk:2 * pk].reshape(shape),
+                x[..., 2 * pk:].reshape(shape))
 
     def output(self, x, t, j):
         a, w, ph = self._parts(np.asarray(x, dtype=float))
-        return np.sum(a * np.sin(w * t + ph), axis=1)
+        t = np.asarray(t, dtype=float)[..., None, None]       # a batch: each row's own t
+        return np.sum(a * np.sin(w * t + ph), axis=-1)
 
     def callable(self, w0):
         """The realisation of the state w0 as a plain function t -> m(t)."""
