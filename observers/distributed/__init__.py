@@ -124,6 +124,7 @@ from .example import (
                      band_limited_noise,
                      errors,
                      example_system,
+                     noise_batch,
                      random_system,
                      settling_time,
                      simulate,
@@ -137,6 +138,7 @@ from .example import (
 )
 from .figures import reproduce
 from .systems import (
+                     BandLimitedNoise,
                      DistributedObserverNode,
                      ErrorSystem,
                      error_initial_state,
@@ -202,7 +204,7 @@ __all__ = [
     # example.py
     "EXAMPLE_NODES", "EXAMPLE_V0", "example_system", "random_system", "simulate_network",
     "simulate", "transformed_errors", "errors", "simulate_errors", "settling_time",
-    "stable_initial_state", "band_limited_noise",
+    "stable_initial_state", "band_limited_noise", "noise_batch", "BandLimitedNoise",
     # figures.py
     "reproduce",
 ]

@@ -26,8 +26,6 @@ Examples
 """
 from __future__ import annotations
 
-import math
-
 import networkx as nx
 import numpy as np
 import scipy.linalg as sla
@@ -37,7 +35,14 @@ import hybridsim as hs
 
 from .._common import matrix, scalar, vector
 from .design import DistributedDesign
-from .systems import ErrorSystem, error_initial_state, initial_state, observer_network, split_errors
+from .systems import (
+    BandLimitedNoise,
+    ErrorSystem,
+    error_initial_state,
+    initial_state,
+    observer_network,
+    split_errors,
+)
 
 __all__ = [
     "EXAMPLE_NODES",
@@ -52,6 +57,7 @@ __all__ = [
     "settling_time",
     "stable_initial_state",
     "band_limited_noise",
+    "noise_batch",
 ]
 
 #: Node order of the example (Section 4).
@@ -342,12 +348,15 @@ def transformed_errors(arc, dsg: DistributedDesign):
     (['e', 'e_o', 'e_u', 'norm', 't'], [2, 2, 5, 5])
     """
     from_network = "plant" in arc
+    X = np.asarray(arc.x)
+    if from_network and "noise" in arc:              # a generator component: not an error
+        X = np.delete(X, np.arange(X.shape[1])[arc.components["noise"]], axis=1)
     width = dsg.n * (dsg.N + 1) if from_network else int(sum(dsg.n_o) + sum(dsg.n_u))
-    if arc.x.shape[1] != width:
-        raise ValueError(f"arc has {arc.x.shape[1]} state components, but a "
+    if X.shape[1] != width:
+        raise ValueError(f"arc has {X.shape[1]} state components, but a "
                          f"{'plant-observer' if from_network else 'error-system'} arc of "
                          f"this design has {width}: was it run with this design?")
-    e_o, e_u = _error_rows(np.asarray(arc.x), dsg, from_network)
+    e_o, e_u = _error_rows(X, dsg, from_network)
     allerr = np.hstack(e_o + e_u)
     return {"t": np.asarray(arc.t), "e": allerr, "e_o": e_o, "e_u": e_u,
             "norm": np.max(np.abs(allerr), axis=1)}
@@ -442,7 +451,8 @@ def band_limited_noise(power, ts, t_max, dim, seed=None):
 
     Gaussian samples of variance ``power / ts`` every ``ts`` seconds
     (Simulink's "Band-Limited White Noise" block), joined by straight lines
-    so that the flow stays continuous for the integrator.
+    so that the flow stays continuous for the integrator. The samples are
+    those of :meth:`BandLimitedNoise.realisation` for the same seed.
 
     Returns
     -------
@@ -451,10 +461,71 @@ def band_limited_noise(power, ts, t_max, dim, seed=None):
     """
     if power < 0 or ts <= 0:
         raise ValueError(f"power must be >= 0 and ts > 0; got power={power}, ts={ts}")
-    rng = np.random.default_rng(seed)
-    grid = np.arange(0.0, t_max + 2 * ts, ts)
-    samples = rng.standard_normal((grid.size, dim)) * math.sqrt(power / ts)
+    gen = BandLimitedNoise(ts, t_max, dim)
+    grid = gen.grid
+    samples = gen.realisation(power, seed).reshape(grid.size, dim)
 
     def noise(t):
         return np.array([np.interp(t, grid, samples[:, k]) for k in range(dim)])
     return noise
+
+
+def noise_batch(dsg: DistributedDesign, x0, xhat0=None, *, power, seeds, t_max, noise_ts=0.1):
+    """A Monte Carlo of measurement noise: the network and one initial state per realisation.
+
+    The noise is a :class:`BandLimitedNoise` component of
+    :func:`observer_network` (its state is the realisation), so each seed
+    is a row of ``x0s`` and the whole study is one call of
+    :func:`hybridsim.simulate_many`, integrated all rows at once (every
+    component is vectorized). Row r draws the samples of
+    ``band_limited_noise(power, noise_ts, t_max, Σ m_i, seed=seeds[r])``, so
+    it is the run ``simulate(dsg, x0, xhat0, noise=power, seed=seeds[r])``
+    to the integrator's tolerance.
+
+    Parameters
+    ----------
+    dsg : DistributedDesign
+    x0, xhat0 : array_like
+        As in :func:`simulate`.
+    power : float
+        Power of the band-limited white noise (>= 0).
+    seeds : sequence of int
+        One seed per realisation.
+    t_max : float
+        The horizon the noise covers (pass the same to ``simulate_many``).
+    noise_ts : float
+        Sample time of the noise.
+
+    Returns
+    -------
+    system : hybridsim.Interconnection
+        Components ``"plant"``, ``"noise"`` and the nodes.
+    x0s : (len(seeds), state_dim) ndarray
+
+    Examples
+    --------
+    >>> import hybridsim as hs
+    >>> from observers.distributed import design, errors, example_system, noise_batch
+    >>> A, C, G = example_system()
+    >>> dsg = design(A, C, G)
+    >>> sysm, x0s = noise_batch(dsg, [1.0] * 6, power=1e-4, seeds=[0, 1, 2], t_max=0.2)
+    >>> arcs = hs.simulate_many(sysm, x0s, t_max=0.2, rtol=1e-8, atol=1e-10)
+    >>> sysm.vectorized, [a.termination.name for a in arcs], errors(arcs[0], dsg)["e"].shape[1]
+    (True, ['T_MAX', 'T_MAX', 'T_MAX'], 24)
+    """
+    power = scalar("power", power, nonneg=True)
+    p = sum(Ci.shape[0] for Ci in dsg.C)
+    gen = BandLimitedNoise(noise_ts, t_max, p)
+    net = observer_network(dsg, noise=gen)
+    z0 = initial_state(dsg, x0, xhat0)
+    seeds = list(seeds)
+    if not seeds:
+        raise ValueError("seeds must name at least one realisation")
+    W = np.array([gen.realisation(power, s) for s in seeds])
+    X = np.zeros((len(seeds), net.state_dim))
+    n = dsg.n
+    X[:, net.components["plant"]] = z0[:n]
+    X[:, net.components["noise"]] = W
+    for k, v in enumerate(dsg.nodelist):
+        X[:, net.components[v]] = z0[n * (k + 1):n * (k + 2)]
+    return net, X

@@ -5,6 +5,11 @@ network with its plant (1), and the error system (6)-(9) itself.
   ``hs.HybridSystem`` (empty jump set); :func:`observer_network` wires plant
   (1) and nodes with ``hs.network`` over the graph; :func:`initial_state`
   stacks their initial states.
+* :class:`BandLimitedNoise` -- measurement noise as a component whose
+  state holds one realisation (Remark 2), so that a batch of realisations
+  runs through :func:`hybridsim.simulate_many` as a batch of initial states
+  (:func:`observers.distributed.noise_batch`). The plant, the nodes and the
+  generator are ``vectorized``: such a batch is integrated all rows at once.
 * :class:`ErrorSystem` / :func:`error_system` -- the paper's analysis object:
   the estimation errors E = (E_o, E_u) of every node in the local
   coordinates of (2), ordered as in (6), flowing by the error of (7) (each
@@ -40,6 +45,7 @@ from .design import DistributedDesign, signed_power
 
 __all__ = [
     "DistributedObserverNode",
+    "BandLimitedNoise",
     "observer_network",
     "initial_state",
     "ErrorSystem",
@@ -108,9 +114,28 @@ class _NodeData:
                 dxu = dxu - signed_power(s, self.beta)
         return np.concatenate([dxo, dxu])
 
+    def rhs_rows(self, z, y, xhat_nb):
+        """:meth:`rhs` over a batch: z (N, n), y (N, m), xhat_nb (N, |𝒩_i|, n)."""
+        xo, xu = z[:, :self.n_o], z[:, self.n_o:]
+        out = np.empty_like(z)
+        if self.n_o:
+            if self.finite_time:                                              # (7)
+                err = xo @ self.C_o[0] - y[:, 0]
+                out[:, :self.n_o] = (xo @ self.At_o.T - np.outer(y[:, 0], self.pt)
+                                     - signed_power(err[:, None], self.gamma) @ self.Lt_o.T)
+            else:                                                             # (4)
+                out[:, :self.n_o] = xo @ self.A_o.T - (xo @ self.C_o.T - y) @ self.L_lin.T
+        if self.n_u:
+            s = np.zeros_like(xu)
+            if xhat_nb.shape[1]:
+                s = xhat_nb.shape[1] * xu - xhat_nb.sum(axis=1) @ self.T_u
+            dxu = xo @ self.A_r.T + xu @ self.A_u.T - self.alpha * s               # (5)
+            out[:, self.n_o:] = dxu - signed_power(s, self.beta) if self.finite_time else dxu
+        return out
+
     def estimate(self, z):
-        """Full estimate ``x̃^i = T_o x̃_o + T_u x̃_u``."""
-        return self.T @ z
+        """Full estimate ``x̃^i = T_o x̃_o + T_u x̃_u`` (z of shape (n,) or (N, n))."""
+        return self.T @ z if np.ndim(z) == 1 else z @ self.T.T
 
 
 # --------------------------------------------------------------------------
@@ -136,6 +161,8 @@ class DistributedObserverNode(hs.HybridSystem):
     Silm et al. (2020), eqs. (3)-(5), (7), (8).
     """
 
+    vectorized = True       # the maps also take batches (N, n)
+
     def __init__(self, dsg: DistributedDesign, node):
         if node not in dsg.nodelist:
             raise ValueError(f"node must be a node of the design's graph; got {node!r}")
@@ -148,6 +175,8 @@ class DistributedObserverNode(hs.HybridSystem):
     def flow_map(self, x, t, j, u):
         m, n = self.data.m, self.data.n
         u = np.asarray(u, dtype=float)
+        if u.ndim == 2:                                  # a batch
+            return self.data.rhs_rows(x, u[:, :m], u[:, m:].reshape(len(u), -1, n))
         nb = u[m:].reshape(-1, n)
         return self.data.rhs(np.asarray(x, dtype=float), u[:m], nb)
 
@@ -166,9 +195,12 @@ class _NetworkInputs:
         self.neighbours = {v: dsg.in_neighbours(v) for v in dsg.nodelist}
 
     def __call__(self, node, t, received, exo):
-        y = np.asarray(exo["plant"], dtype=float)[self.slices[node]]
-        return np.concatenate([y] + [np.asarray(received[w], dtype=float)
-                                     for w in self.neighbours[node]])
+        y = np.asarray(exo["plant"], dtype=float)
+        if "noise" in exo:                       # a generator component (Remark 2)
+            y = y + exo["noise"]
+        return np.concatenate([y[..., self.slices[node]]]
+                              + [np.asarray(received[w], dtype=float)
+                                 for w in self.neighbours[node]], axis=-1)
 
 
 def observer_network(dsg: DistributedDesign, *, noise=None, disturbance=None):
@@ -182,21 +214,109 @@ def observer_network(dsg: DistributedDesign, *, noise=None, disturbance=None):
     Parameters
     ----------
     dsg : DistributedDesign
-    noise : callable, optional
-        ``t -> (Σ m_i,)`` measurement noise added to the outputs (Remark 2).
+    noise : callable or hybridsim.HybridSystem, optional
+        Measurement noise added to the outputs (Remark 2): ``t -> (Σ m_i,)``,
+        or a generator system whose output is the noise (e.g.
+        :class:`BandLimitedNoise`), stacked after the plant as component
+        ``"noise"``: its state is the realisation, so a batch of
+        realisations is a batch of initial states.
     disturbance : callable, optional
         ``t -> (n,)`` added to the plant's flow.
 
     Returns
     -------
     hybridsim.Interconnection
+        ``vectorized`` (a batch is integrated all rows at once) when no
+        callable of t is given.
     """
-    if "plant" in dsg.nodelist:
-        raise ValueError("no node of G may be named 'plant'")
+    for name in ("plant", "noise"):
+        if name in dsg.nodelist:
+            raise ValueError(f"no node of G may be named {name!r}")
+    generator = noise if isinstance(noise, hs.HybridSystem) else None
+    if generator is not None:
+        p = sum(Ci.shape[0] for Ci in dsg.C)
+        if generator.output_dim != p:
+            raise ValueError(f"noise: the generator's output_dim must be the number of "
+                             f"outputs Σ m_i = {p}, got {generator.output_dim}")
+        noise = None
     plant = hs.LinearPlant(dsg.A, C=np.vstack(dsg.C), noise=noise, disturbance=disturbance)
+    exo = {"plant": plant} if generator is None else {"plant": plant, "noise": generator}
     nodes = {v: DistributedObserverNode(dsg, v) for v in dsg.nodelist}
     return hs.network(dsg.G, nodes, _NetworkInputs(dsg), nodelist=dsg.nodelist,
-                      exogenous={"plant": plant})
+                      exogenous=exo)
+
+
+class BandLimitedNoise(hs.HybridSystem):
+    """Band-limited white noise (Simulink's block) as a generator component.
+
+    Gaussian samples of variance ``power / ts`` on the grid ``0, ts, 2 ts,
+    ...`` up to ``t_max + ts``, joined by straight lines (``numpy.interp``'s
+    formula). The state is the samples, (grid size, dim) row-major, constant
+    in time (flow 0, no jumps); the output is the noise at t. One initial
+    state is one realisation (:meth:`realisation`), so a batch of them is a
+    Monte Carlo of noise (:func:`observers.distributed.noise_batch`); the
+    callable :func:`observers.distributed.band_limited_noise` draws the same
+    samples for a seed.
+
+    Parameters
+    ----------
+    ts : float
+        Sample time (> 0).
+    t_max : float
+        Horizon covered (the last sample holds beyond it).
+    dim : int
+        Number of noise channels (the outputs Σ m_i).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from observers.distributed import BandLimitedNoise, band_limited_noise
+    >>> gen = BandLimitedNoise(0.1, 1.0, 2)
+    >>> w = gen.realisation(1e-2, seed=3)
+    >>> m = band_limited_noise(1e-2, 0.1, 1.0, 2, seed=3)
+    >>> bool(np.allclose(gen.output(w, 0.37, 0), m(0.37), rtol=1e-14, atol=0))
+    True
+    """
+
+    vectorized = True
+
+    def __init__(self, ts, t_max, dim):
+        self.ts = float(ts)
+        if not (self.ts > 0 and np.isfinite(self.ts)):
+            raise ValueError(f"ts must be a positive finite float, got {ts!r}")
+        if not (np.isfinite(t_max) and t_max >= 0):
+            raise ValueError(f"t_max must be a finite float >= 0, got {t_max!r}")
+        if isinstance(dim, bool) or int(dim) != dim or dim < 1:
+            raise ValueError(f"dim must be a positive int, got {dim!r}")
+        self.dim = int(dim)
+        self.grid = np.arange(0.0, float(t_max) + 2 * self.ts, self.ts)
+        self.state_dim = self.grid.size * self.dim
+        self.output_dim = self.dim
+
+    def realisation(self, power, seed=None):
+        """The samples of one realisation (the initial state), drawn with ``seed``."""
+        if not (power >= 0):
+            raise ValueError(f"power must be >= 0, got {power!r}")
+        rng = np.random.default_rng(seed)
+        return (rng.standard_normal((self.grid.size, self.dim))
+                * np.sqrt(power / self.ts)).ravel()
+
+    def flow_map(self, x, t, j, u):
+        return np.zeros(np.shape(x))
+
+    def output(self, x, t, j):
+        G, grid = self.grid.size, self.grid
+        S = np.asarray(x, dtype=float).reshape(np.shape(x)[:-1] + (G, self.dim))
+        t = np.asarray(t, dtype=float)
+        k = np.clip(np.searchsorted(grid, t, side="right") - 1, 0, G - 2)
+        lo = np.take_along_axis(S, k[..., None, None], axis=-2)[..., 0, :] if S.ndim == 3 \
+            else S[k]
+        hi = np.take_along_axis(S, k[..., None, None] + 1, axis=-2)[..., 0, :] if S.ndim == 3 \
+            else S[k + 1]
+        slope = (hi - lo) / (grid[k + 1] - grid[k])[..., None]
+        y = slope * (t - grid[k])[..., None] + lo
+        last = S[..., -1, :]
+        return np.where((t >= grid[-1])[..., None], last, y)
 
 
 def initial_state(dsg: DistributedDesign, x0, xhat0=None):
