@@ -300,3 +300,142 @@ def test_connect_checks_plant_output_against_observer_input():
     with pytest.raises(TypeError, match="observer must be a HybridSystem"):
         hs.connect(hs.LinearPlant(A, C=C), object())
     hs.connect(hs.LinearPlant(A, C=C), Luenberger())        # matching: fine
+
+
+# ---------------------------------------------------------------- vectorized interconnections
+class Sampler(hs.HybridSystem):
+    """Zero-order hold of its input every ``period``: state (held value, timer).
+
+    Its maps take a single state (n,) or a batch (N, n) (written with x[..., k])."""
+
+    state_dim, input_dim, vectorized = 2, 1, True
+
+    def __init__(self, period):
+        self.period = period
+
+    def flow_map(self, x, t, j, u):
+        dx = np.zeros_like(x)
+        dx[..., 1] = 1.0
+        return dx
+
+    def jump_map(self, x, t, j, u):
+        xn = np.array(x)
+        xn[..., 0] = u[..., 0]
+        xn[..., 1] = 0.0
+        return xn
+
+    def jump_guard(self, x, t, j, u):
+        return x[..., 1] - self.period
+
+    def flow_guard(self, x, t, j, u):
+        return self.period - x[..., 1]
+
+
+class SamplerBySets(Sampler):
+    """The same sampler with set indicators only (no guards): bisection."""
+
+    jump_guard = None
+    flow_guard = None
+
+    def jump_set(self, x, t, j, u):
+        return x[..., 1] >= self.period
+
+    def flow_set(self, x, t, j, u):
+        return x[..., 1] <= self.period
+
+
+def _two_samplers(cls=Sampler):
+    """Plant -> two samplers of different periods: they jump at different rows' times."""
+    plant = hs.LinearPlant([[0.0, 1.0], [-1.0, -0.1]], C=[[1.0, 0.0]])
+    return hs.Interconnection({"plant": plant, "fast": cls(0.3), "slow": cls(0.7)},
+                              inputs={"fast": lambda t, y: y["plant"],
+                                      "slow": lambda t, y: y["plant"]})
+
+
+@pytest.mark.parametrize("cls", [Sampler, SamplerBySets])
+def test_vectorized_interconnection_batch_equals_single_runs(cls):
+    """A batch of the interconnection (simulate_many: one numpy integration) makes the
+    jumps a loop of simulate makes: the same jump times (the timers are linear, both
+    bracket events to 4 ulp), the same number of samples, states within 1e-8 (both are
+    RK45 at rtol 1e-9, but their step sequences differ by ~1e-11 in time, so the states
+    agree to the integrator's tolerance over the 2 s, not to rounding)."""
+    ic = _two_samplers(cls)
+    assert ic.vectorized
+    rng = np.random.default_rng(3)
+    X = np.zeros((6, ic.state_dim))
+    X[:, :2] = rng.normal(size=(6, 2))
+    X[:, 3] = rng.uniform(0, 0.3, 6)           # timers at different phases
+    X[:, 5] = rng.uniform(0, 0.7, 6)
+    kw = dict(t_max=2.0, rtol=1e-9, atol=1e-12)
+    arcs = hs.simulate_many(ic, X, **kw)
+    for x0, a in zip(X, arcs):
+        ref = hs.simulate(ic, x0, **kw)
+        assert len(a) == len(ref) and a.jump_count == ref.jump_count > 4
+        np.testing.assert_allclose(a.jump_times, ref.jump_times, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(a.x, ref.x, rtol=0, atol=1e-8)
+        # the held values are the plant's output at the jump times
+        k = np.flatnonzero(a.is_jump_end & (a["fast"].x[:, 1] == 0.0))
+        np.testing.assert_allclose(a["fast"].x[k, 0], a["plant"].x[k, 0], atol=1e-14)
+
+
+def test_vectorized_interconnection_maps_over_rows():
+    """Batch maps equal the single-state maps row by row; at a jump only the components in
+    their own jump set jump, on the rows where they are (the others keep their state)."""
+    ic = _two_samplers()
+    rng = np.random.default_rng(0)
+    X = rng.normal(size=(5, ic.state_dim))
+    X[:, 3] = [0.3, 0.1, 0.3, 0.0, 0.2]          # fast sampler in D on rows 0 and 2
+    X[:, 5] = [0.1, 0.7, 0.7, 0.0, 0.9]          # slow one on rows 1, 2 and 4
+    t, j = np.linspace(0, 1, 5), np.arange(5)
+    D = ic.jump_set(X, t, j)
+    np.testing.assert_array_equal(D, [True, True, True, False, True])
+    np.testing.assert_array_equal(ic.flow_set(X, t, j), [True, True, True, True, False])
+    G = ic.jump_map(X, t, j)
+    for i in range(5):
+        assert D[i] == ic.jump_set(X[i], t[i], j[i])
+        np.testing.assert_allclose(ic.flow_map(X, t, j)[i], ic.flow_map(X[i], t[i], j[i]),
+                                   rtol=1e-15, atol=1e-15)
+        assert ic.jump_guard(X, t, j)[i] == pytest.approx(ic.jump_guard(X[i], t[i], j[i]))
+        assert ic.flow_guard(X, t, j)[i] == pytest.approx(ic.flow_guard(X[i], t[i], j[i]))
+        if D[i]:
+            np.testing.assert_array_equal(G[i], ic.jump_map(X[i], t[i], j[i]))
+    np.testing.assert_array_equal(G[3], X[3])                   # not in D: untouched
+    np.testing.assert_array_equal(G[0, 4:], X[0, 4:])           # only "fast" jumped on row 0
+    assert G[0, 2] == X[0, 0] and G[0, 3] == 0.0
+
+
+def test_vectorized_only_when_every_component_is():
+    plain = hs.HybridSystem.from_functions(f=lambda x, t, j, u: u - x, state_dim=1,
+                                           input_dim=1)
+    plant = hs.LinearPlant([[0.0]], C=[[1.0]])
+    assert plant.vectorized and not hs.LinearPlant([[0.0]], noise=lambda t: [0.0]).vectorized
+    assert not hs.connect(plant, plain).vectorized
+    assert hs.connect(plant, Sampler(0.5)).vectorized
+    noisy = hs.LinearPlant([[0.0]], C=[[1.0]], noise=lambda t: np.array([0.0]))
+    assert not hs.connect(noisy, Sampler(0.5)).vectorized
+
+
+def test_simulate_many_loops_a_vectorized_system_for_options_the_batch_lacks():
+    """DOP853 (or dense=True) is not in the batch integrator: the rows run through
+    simulate one by one, with the results simulate gives."""
+    ic = _two_samplers()
+    X = np.zeros((2, ic.state_dim))
+    X[:, 0] = [1.0, -0.5]
+    for kw in (dict(method="DOP853"), dict(dense=True)):
+        arcs = hs.simulate_many(ic, X, t_max=1.0, rtol=1e-9, atol=1e-12, **kw)
+        for x0, a in zip(X, arcs):
+            ref = hs.simulate(ic, x0, t_max=1.0, rtol=1e-9, atol=1e-12, **kw)
+            np.testing.assert_array_equal(a.x, ref.x)
+    with pytest.raises(TypeError, match="no_such_option"):
+        hs.simulate_many(ic, X, t_max=1.0, no_such_option=1)
+
+
+def test_vectorized_plant_with_input_over_a_batch():
+    """LinearPlant's batch flow x A^T + u B^T and output x C^T equal the single ones."""
+    plant = hs.LinearPlant(A, B=[[0.0], [1.0]], C=C)
+    X, U = np.random.default_rng(1).normal(size=(4, 2)), np.random.default_rng(2).normal(
+        size=(4, 1))
+    F = plant.flow_map(X, np.zeros(4), np.zeros(4, int), U)
+    for i in range(4):
+        np.testing.assert_allclose(F[i], plant.flow_map(X[i], 0.0, 0, U[i]), rtol=1e-15)
+        np.testing.assert_allclose(plant.output(X, 0, 0)[i], plant.output(X[i], 0, 0))
