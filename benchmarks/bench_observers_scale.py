@@ -31,20 +31,20 @@ from observers import distributed as dist
 from observers import li_sanfelice as ls
 
 
-def _traced(fn):
-    """(result, peak MB) of fn() under tracemalloc (timed separately: tracing slows Python)."""
+def _traced(fn, *args, **kw):
+    """(result, peak MB) of fn(...) under tracemalloc (timed apart: tracing slows Python)."""
     tracemalloc.start()
     try:
-        out = fn()
+        out = fn(*args, **kw)
         peak = tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
     return out, peak / 2**20
 
 
-def _timed(fn):
+def _timed(fn, *args, **kw):
     t0 = time.perf_counter()
-    out = fn()
+    out = fn(*args, **kw)
     return out, time.perf_counter() - t0
 
 
@@ -69,10 +69,9 @@ def hc_monte_carlo(N, seed=0, n_slow=50):
                 out.append(np.linalg.norm(arc["observer"].x[k, :4] - arc["plant"].x[k]))
             return np.array(out)
 
-        fast, wall = _timed(lambda: hs.simulate_many(sysm, x0s, **kw))
-        _, peak = _traced(lambda: hs.simulate_many(sysm, x0s[:min(N, 100)], **kw))
-        slow, wall_slow = _timed(lambda: hs.simulate_many(sysm, x0s[:n_slow], method="DOP853",
-                                                          **kw))
+        fast, wall = _timed(hs.simulate_many, sysm, x0s, **kw)
+        _, peak = _traced(hs.simulate_many, sysm, x0s[:min(N, 100)], **kw)
+        slow, wall_slow = _timed(hs.simulate_many, sysm, x0s[:n_slow], method="DOP853", **kw)
         e_fast, e_slow = err(fast), err(slow)
         dev = np.max(np.abs(e_fast[:n_slow] - e_slow) / e_slow)
         rows.append((name, wall, 1e3 * wall_slow / n_slow, peak, np.median(e_fast),
@@ -81,7 +80,7 @@ def hc_monte_carlo(N, seed=0, n_slow=50):
           "(|m| <= 0.1, sums of 3 sinusoids); vectorized batch (RK45, rtol 1e-10) vs the "
           f"per-run path (DOP853, rtol 1e-10) on the first {n_slow} rows, same seeds")
     print(f"{'observer':8s} {'batch s':>8s} {'ms/run':>7s} {'per-run ms':>10s} {'speed-up':>8s} "
-          f"{'peak MB':>8s} {'median|e+|':>11s} {'max|e+|':>9s} {f"med of {n_slow}":>11s} "
+          f"{'peak MB':>8s} {'median|e+|':>11s} {'max|e+|':>9s} {'med of ' + str(n_slow):>11s} "
           f"{'max rel dev':>11s}")
     for name, wall, ms_slow, peak, med, mx, med_slow, dev in rows:
         ms = 1e3 * wall / N
@@ -107,9 +106,9 @@ def distributed_monte_carlo(R, N=8, t_sim=1.0):
     def make(seed):
         return dist.observer_network(dsg, noise=dist.band_limited_noise(1e-4, 0.1, t_sim, p, seed))
 
-    fast, wall = _timed(lambda: hs.simulate_many(sysm, X, **kw))
-    _, peak = _traced(lambda: hs.simulate_many(sysm, X, **kw))
-    slow, wall_slow = _timed(lambda: hs.sweep(make, range(R), dist.initial_state(dsg, x0), **kw))
+    fast, wall = _timed(hs.simulate_many, sysm, X, **kw)
+    _, peak = _traced(hs.simulate_many, sysm, X, **kw)
+    slow, wall_slow = _timed(hs.sweep, make, range(R), dist.initial_state(dsg, x0), **kw)
     f_fast = np.array([dist.transformed_errors(a, dsg)["norm"][-1] for a in fast])
     f_slow = np.array([dist.transformed_errors(a, dsg)["norm"][-1] for a in slow])
     dev = np.max(np.abs(f_fast - f_slow) / f_slow)
