@@ -306,17 +306,18 @@ class BandLimitedNoise(hs.HybridSystem):
 
     def output(self, x, t, j):
         G, grid = self.grid.size, self.grid
-        S = np.asarray(x, dtype=float).reshape(np.shape(x)[:-1] + (G, self.dim))
-        t = np.asarray(t, dtype=float)
+        S = np.asarray(x, dtype=float)
+        S = S.reshape(S.shape[:-1] + (G, self.dim))          # (..., G, dim)
+        t = np.broadcast_to(np.asarray(t, dtype=float), S.shape[:-2])
+        # numpy.interp's formula: the segment [grid[k], grid[k+1]] holding t,
+        # the first (last) sample held before (after) the grid
         k = np.clip(np.searchsorted(grid, t, side="right") - 1, 0, G - 2)
-        lo = np.take_along_axis(S, k[..., None, None], axis=-2)[..., 0, :] if S.ndim == 3 \
-            else S[k]
-        hi = np.take_along_axis(S, k[..., None, None] + 1, axis=-2)[..., 0, :] if S.ndim == 3 \
-            else S[k + 1]
+        lo = np.take_along_axis(S, k[..., None, None], axis=-2)[..., 0, :]
+        hi = np.take_along_axis(S, k[..., None, None] + 1, axis=-2)[..., 0, :]
         slope = (hi - lo) / (grid[k + 1] - grid[k])[..., None]
         y = slope * (t - grid[k])[..., None] + lo
-        last = S[..., -1, :]
-        return np.where((t >= grid[-1])[..., None], last, y)
+        y = np.where((t >= grid[-1])[..., None], S[..., -1, :], y)
+        return np.where((t < grid[0])[..., None], S[..., 0, :], y)
 
 
 def initial_state(dsg: DistributedDesign, x0, xhat0=None):
