@@ -163,7 +163,10 @@ class HybridSystem:
     8. ``vectorized = True`` declares maps written over batches: x of shape
        (N, n), t and j of shape (N,), returning (N, n) arrays and (N,)
        booleans; :func:`hybridsim.simulate_many` then integrates a batch
-       together.
+       together (RK45; with other options it runs the rows through
+       :func:`hybridsim.simulate`, which passes single states, so maps
+       written with ``x[..., k]`` serve both). An interconnection whose
+       components are all vectorized is vectorized.
     9. ``max_step`` (float or None) caps the solver step; set it to the
        smallest delay when the maps read ``self.history``, and set
        ``needs_history = True`` so the engine records the dense output.
