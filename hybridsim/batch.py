@@ -459,7 +459,7 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
         out = simulate_many_compiled(system, X, throw=False, warn=False, **kw)
         if throw:
             _raise_first_failure(out)
-    elif system.vectorized and executor is None and _batch_integrator_takes(kwargs):
+    elif system.vectorized and executor is None and _batch_takes(kwargs):
         out = _many_vectorized(system, X, kwargs, progress)
         if throw:
             _raise_first_failure(out)
@@ -502,32 +502,9 @@ def _warned(name, out, warn):
     return out
 
 
-def _batch_integrator_takes(kwargs):
-    """Whether :func:`simulate_vectorized` implements these options of ``simulate``.
-
-    It is Dormand-Prince 5(4) (``method="RK45"``, the default) without dense
-    output, inputs, a prehistory or ``t_eval``; with anything else a
-    vectorized system's batch runs row by row through ``simulate`` (its maps
-    then receive single states).
-    """
-    import inspect
-
-    from scipy.integrate import RK45
-
-    from .batch_vectorized import _UNSUPPORTED, simulate_vectorized
-
-    method = kwargs.get("method", "RK45")
-    if not (isinstance(method, str) and method == "RK45") and method is not RK45:
-        return False
-    known = inspect.signature(simulate_vectorized).parameters
-    for name, val in kwargs.items():
-        if name in _UNSUPPORTED:
-            default = _UNSUPPORTED[name]
-            if (val is not None) if default is None else bool(val):
-                return False
-        elif name not in known:
-            return False
-    return True
+def _batch_takes(kwargs):
+    from .batch_vectorized import takes_options
+    return takes_options(kwargs)
 
 
 def _many_vectorized(system, X, kwargs, progress):

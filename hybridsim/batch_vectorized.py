@@ -22,6 +22,7 @@ guards.
 """
 from __future__ import annotations
 
+import inspect
 import itertools
 import math
 import numbers
@@ -45,7 +46,7 @@ from .rules import (
     zeno_message,
 )
 from .solve import MapError, SimulationError, check_options
-from .system import HybridSystem, as_map
+from .system import HybridSystem, as_map, guard_rows
 
 __all__ = ["simulate_vectorized"]
 
@@ -170,7 +171,7 @@ class _VMaps:
             return arr.astype(bool)
         arr = np.asarray(val, dtype=float)   # guard: (k,) or (k, m)
         if arr.ndim == 2 and arr.shape[0] == k and arr.shape[1] >= 1:
-            return arr.min(axis=1)
+            return guard_rows(arr)
         if arr.shape != (k,):
             raise MapError(f"{name} must return an array of shape ({k},) or ({k}, m) "
                            f"(vectorized system: one row per trajectory), got shape "
@@ -239,6 +240,30 @@ class _VMaps:
         return self._call("set", "flow_set", self.C, rows, x, t, j, strict)
 
 
+def _is_rk45(method):
+    return (isinstance(method, str) and method == "RK45") or method is RK45
+
+
+def takes_options(kwargs):
+    """Whether :func:`simulate_vectorized` implements these options of ``simulate``.
+
+    It is Dormand-Prince 5(4) (``method="RK45"``, the default) without dense
+    output, inputs, a prehistory or ``t_eval``; :func:`hybridsim.simulate_many`
+    runs a vectorized system's rows through ``simulate`` otherwise.
+    """
+    if not _is_rk45(kwargs.get("method", "RK45")):
+        return False
+    known = inspect.signature(simulate_vectorized).parameters
+    for name, val in kwargs.items():
+        if name in _UNSUPPORTED:
+            default = _UNSUPPORTED[name]
+            if (val is not None) if default is None else bool(val):
+                return False
+        elif name not in known:
+            return False
+    return True
+
+
 def _check_options(system, x0s, t_max, j_max, priority, method, rtol, atol, max_step,
                    first_step, zeno_jumps, zeno_time, t0, j0, max_norm, extra):
     if not isinstance(system, HybridSystem):
@@ -278,7 +303,7 @@ def _check_options(system, x0s, t_max, j_max, priority, method, rtol, atol, max_
                                 first_step, max_norm, zeno_time)
     if isinstance(j0, bool) or not isinstance(j0, numbers.Integral):
         raise TypeError(f"j0 must be an int, got {j0!r}")
-    if not (method == "RK45" or method is RK45):
+    if not _is_rk45(method):
         raise ValueError(f"method={method!r} is not supported in vectorized mode: the batch "
                          "integrator is Dormand-Prince 5(4) ('RK45'); use simulate_many with "
                          "an executor for other methods")

@@ -6,7 +6,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from .history import ComponentHistory
-from .system import HybridSystem, as_map, guard_min
+from .system import HybridSystem, as_map, guard_min, guard_rows
 
 __all__ = ["Interconnection", "LinearPlant", "connect", "network"]
 
@@ -169,19 +169,13 @@ class _Outputs(Mapping):
         return len(self._ic._slices)
 
 
-def _guard_rows(v):
-    """A batch guard's value per row: (N,), or the minimum over the columns of (N, m)."""
-    v = np.asarray(v, dtype=float)
-    return v.min(axis=1) if v.ndim == 2 else v
-
-
 def _rows_set(system, kind):
     """A vectorized component's flow or jump set over a batch, as an (N,) bool array."""
     guard = system.flow_guard if kind == "flow" else system.jump_guard
     if system._overrides(f"{kind}_set") or guard is None:
         return as_map(getattr(system, f"{kind}_set"), f"{kind}_set")
     h = as_map(guard, f"{kind}_guard")
-    return lambda x, t, j, u: _guard_rows(h(x, t, j, u)) >= 0.0
+    return lambda x, t, j, u: guard_rows(h(x, t, j, u)) >= 0.0
 
 
 class Interconnection(HybridSystem):
@@ -370,13 +364,13 @@ class Interconnection(HybridSystem):
     def _jump_guard(self, x, t, j, u=None):
         y = _Outputs(self, x, t, j)
         if np.ndim(x) == 2:
-            return np.max([_guard_rows(h) for _, h in self._in(self._hD, x, t, j, y)], axis=0)
+            return np.max([guard_rows(h) for _, h in self._in(self._hD, x, t, j, y)], axis=0)
         return max(guard_min(h) for _, h in self._in(self._hD, x, t, j, y))
 
     def _flow_guard(self, x, t, j, u=None):
         y = _Outputs(self, x, t, j)
         if np.ndim(x) == 2:
-            return np.min([_guard_rows(h) for _, h in self._in(self._hC, x, t, j, y)], axis=0)
+            return np.min([guard_rows(h) for _, h in self._in(self._hC, x, t, j, y)], axis=0)
         return min(guard_min(h) for _, h in self._in(self._hC, x, t, j, y))
 
     @property

@@ -25,6 +25,12 @@ def guard_min(v) -> float:
     return float(v)
 
 
+def guard_rows(v) -> np.ndarray:
+    """A batch guard's value per row: (N,) as it is, (N, m) its minimum over the columns."""
+    v = np.asarray(v, dtype=float)
+    return v.min(axis=1) if v.ndim == 2 else v
+
+
 _LEADING = ("t", "j", "u")
 
 

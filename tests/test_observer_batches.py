@@ -500,8 +500,8 @@ def test_band_limited_noise_and_noise_batch_bad_input():
     with pytest.raises(ValueError, match="t_max must be a finite float >= 0"):
         dist.BandLimitedNoise(0.1, -1.0, 2)
     gen = dist.BandLimitedNoise(0.1, 1.0, 2)
-    for power in (-1e-3, np.nan):
-        with pytest.raises(ValueError, match="power must be >= 0"):
+    for power in (-1e-3, np.nan, np.inf):
+        with pytest.raises(ValueError, match="power must be a finite float >= 0"):
             gen.realisation(power, 0)
     dsg = _dist_design("example")
     with pytest.raises(ValueError, match="seeds must name at least one realisation"):

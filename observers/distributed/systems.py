@@ -295,8 +295,8 @@ class BandLimitedNoise(hs.HybridSystem):
 
     def realisation(self, power, seed=None):
         """The samples of one realisation (the initial state), drawn with ``seed``."""
-        if not (power >= 0):
-            raise ValueError(f"power must be >= 0, got {power!r}")
+        if not (np.isfinite(power) and power >= 0):
+            raise ValueError(f"power must be a finite float >= 0, got {power!r}")
         rng = np.random.default_rng(seed)
         return (rng.standard_normal((self.grid.size, self.dim))
                 * np.sqrt(power / self.ts)).ravel()
