@@ -38,28 +38,38 @@ def fast_dense(sol):
     return call
 
 
-def _illinois(F, lo, hi, flo, fhi, ylo, yhi, ev, max_iter=100):
-    """Shrink a sign-change bracket of ``F(s, y(s))`` to 4 ulp (Illinois method).
+def _illinois(F, lo, hi, flo, fhi, ylo, yhi, ev, seed=None, max_iter=100):
+    """Shrink a sign-change bracket of ``F(s, y(s))`` to 4 ulp.
 
-    ``flo < 0 <= fhi``. Regula falsi with the Illinois halving converges
-    superlinearly near a simple root; a bisection step is taken whenever two
-    steps failed to halve the bracket (a flow starting near the guard's other
-    zero makes the secant crawl). Trial points are kept a quarter tolerance
+    ``flo < 0 <= fhi``. Each trial is the secant step through the last two
+    evaluations where it falls inside the bracket, else a regula falsi step
+    on the bracket with the Illinois halving (both converge superlinearly
+    near a simple root, and the secant is not held back by a far end of the
+    bracket); a bisection is taken whenever two steps failed to halve the
+    bracket. ``seed = (s0, slope)``, where given, is a model's estimate of
+    the root and of the guard's slope there: the first trial, and the slope
+    for the secant step after it. Trial points are kept a quarter tolerance
     inside the bracket so that it closes from both sides.
     """
     side = 0
-    widths = [hi - lo, hi - lo]
+    w1 = w2 = math.inf          # the bracket's widths one and two steps ago
+    xl, fl = (lo, flo) if -flo < fhi else (hi, fhi)     # the last evaluation
+    slope = math.nan            # the guard's slope at xl
     for _ in range(max_iter):
         tol = event_tolerance(lo, hi)
         w = hi - lo
         if w <= tol:
             break
-        if w > 0.5 * widths[-2]:
+        if seed is not None:
+            s = seed[0]
+        elif w > 0.5 * w2:
             s = 0.5 * (lo + hi)
             side = 0
         else:
-            s = hi - fhi * w / (fhi - flo) if fhi != flo else 0.5 * (lo + hi)
-        widths.append(w)
+            s = xl - fl / slope if slope != 0.0 else math.nan
+            if not lo < s < hi:
+                s = hi - fhi * w / (fhi - flo) if fhi != flo else 0.5 * (lo + hi)
+        w2, w1 = w1, w
         q = 0.25 * tol
         if not s > lo + q:
             s = lo + q
@@ -67,6 +77,11 @@ def _illinois(F, lo, hi, flo, fhi, ylo, yhi, ev, max_iter=100):
             s = hi - q
         ys = ev(s)
         fs = F(s, ys)
+        if seed is not None:
+            slope, seed = seed[1], None
+        else:
+            slope = (fs - fl) / (s - xl) if s != xl else math.nan
+        xl, fl = s, fs
         if fs >= 0.0:
             hi, yhi, fhi = s, ys, fs
             if side == 1:
@@ -78,6 +93,27 @@ def _illinois(F, lo, hi, flo, fhi, ylo, yhi, ev, max_iter=100):
                 fhi *= 0.5
             side = -1
     return lo, hi, ylo, yhi
+
+
+def _root_off_zero(f0, fd, fw, d, w):
+    """Where a guard that starts on its zero comes back to it, from a quadratic model.
+
+    The guard is ``f0`` (about 0) at the step's start, ``fd < 0`` a probe
+    ``d`` into it and ``fw >= 0`` at its end ``w``: the quadratic with that
+    value, the probe's slope and that end value has its second root at the
+    returned offset (exact where the guard is quadratic along the step, as
+    an affine guard is on a ball's parabola, up to the probe's rounding).
+    Returns ``(offset, slope there)``, or None where the model has no root
+    in (d, w).
+    """
+    m = (fd - f0) / d
+    c = (fw - f0 - m * w) / (w * w)
+    disc = m * m - 4.0 * c * f0
+    if not (c > 0.0 and disc >= 0.0):
+        return None
+    r = math.sqrt(disc)
+    tau = (r - m) / (2.0 * c)
+    return (tau, r) if d < tau < w else None
 
 
 def locate_event(sol, a, b, pred, phi=None, max_iter=200):
@@ -108,7 +144,9 @@ def locate_event(sol, a, b, pred, phi=None, max_iter=200):
     -----
     A step that starts on the guard's zero (just after a jump) outside the
     event set takes its direction from one probe a short way into the step;
-    where the probe cannot step off the zero, the bracket is bisected by the
+    the probe's slope and the guard at the step's end give a quadratic model
+    whose second root is the root finder's first trial (exact for a ball's
+    parabola). Where the probe cannot step off the zero, the bracket is bisected by the
     indicator until the guard changes sign inside it, so a flow that
     re-enters D within one step is never lost.
 
@@ -126,13 +164,18 @@ def locate_event(sol, a, b, pred, phi=None, max_iter=200):
     ylo, yhi = ev(lo), ev(hi)
     if phi is not None:
         flo, fhi = phi(lo, ylo), phi(hi, yhi)
+        seed = None
         if not flo < 0.0 and fhi >= 0.0:
-            # on the guard's zero at the start: one probe gives the direction
+            # on the guard's zero at the start: one probe gives the direction,
+            # and with the end value a first estimate of the root
             d = max(64.0 * event_tolerance(lo, hi), 1e-9 * (hi - lo))
             if lo + d < hi:
                 yd = ev(lo + d)
                 fd = phi(lo + d, yd)
                 if fd < 0.0 and not pred(lo + d, yd):
+                    seed = _root_off_zero(flo, fd, fhi, d, hi - lo)
+                    if seed is not None:
+                        seed = (lo + seed[0], seed[1])
                     lo, ylo, flo = lo + d, yd, fd
         # bisect by the indicator until the guard changes sign in the bracket
         for _ in range(max_iter):
@@ -145,7 +188,7 @@ def locate_event(sol, a, b, pred, phi=None, max_iter=200):
             else:
                 lo, ylo, flo = m, ym, phi(m, ym)
         if flo < 0.0 <= fhi and hi - lo > event_tolerance(lo, hi):
-            l2, h2, yl2, yh2 = _illinois(phi, lo, hi, flo, fhi, ylo, yhi, ev)
+            l2, h2, yl2, yh2 = _illinois(phi, lo, hi, flo, fhi, ylo, yhi, ev, seed)
             # the indicator decides membership: keep the guard's bracket where it
             # agrees (below the root the guard is negative, so the indicator is
             # asked at lo only when it disagrees at hi)

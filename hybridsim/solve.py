@@ -651,6 +651,8 @@ class _Run:
         self.restarts = 0       # in-place restarts of the current solver
         self.solver = None
         self.jcell = [0]
+        self.calls = [0]        # evaluations of self.fun
+        self.calls0 = None      # self.calls when the current solver took self.fun as its own
         self.fun = self._fun()
         self.stiff_check = opts.Method is RK45
 
@@ -809,9 +811,10 @@ class _Run:
         (one Python frame), its failures named and its value's contract checked.
 
         It reads the flow's j from ``self.jcell``, so one solver object serves
-        every flow of the run.
+        every flow of the run, and counts its calls in ``self.calls`` (the
+        explicit Runge-Kutta solvers call it without scipy's two wrappers).
         """
-        maps, ufun, n, jcell = self.maps, self.ufun, self.o.n, self.jcell
+        maps, ufun, n, jcell, calls = self.maps, self.ufun, self.o.n, self.jcell, self.calls
         fn, k = maps.f_raw, maps.f_arity
         shape = (n,)
         nd, f64 = np.ndarray, np.dtype(float)
@@ -829,6 +832,7 @@ class _Run:
 
         if k <= 1 and ufun is None:
             def fun(s, y):
+                calls[0] += 1
                 try:
                     v = fn(y)
                 except Exception as e:  # noqa: BLE001 - named and re-raised
@@ -838,6 +842,7 @@ class _Run:
                 return checked(v, s)
         elif k == 2 and ufun is None:
             def fun(s, y):
+                calls[0] += 1
                 try:
                     v = fn(y, s)
                 except Exception as e:  # noqa: BLE001
@@ -849,6 +854,7 @@ class _Run:
             f = maps.f
 
             def fun(s, y):
+                calls[0] += 1
                 v = f(y, s, jcell[0], ufun(s) if ufun is not None else None)
                 if v.__class__ is nd and v.dtype is f64 and v.shape == shape:
                     return v
@@ -982,6 +988,11 @@ class _Run:
         self._count(self.solver)
         s = self.o.Method(self.fun, t, x, t_bound, rtol=self.o.rtol, atol=self.o.atol,
                           max_step=self.o.max_step, first_step=h)
+        if self.reuse:
+            # self.fun already returns float arrays of shape (n,): scipy's two
+            # wrappers (asarray, call count) are bypassed; self.calls counts
+            s.fun = self.fun
+            self.calls0 = self.calls[0]
         self.solver = s
         return s
 
@@ -989,11 +1000,14 @@ class _Run:
         """Add a retired solver's evaluation counters to the run's statistics."""
         if solver is not None:
             st = self.stats
-            st.nfev += solver.nfev
+            nfev = solver.nfev
+            if solver.fun is self.fun:
+                nfev += self.calls[0] - self.calls0
+            st.nfev += nfev
             ns = getattr(solver, "n_stages", None)
             if type(solver) in (RK23, RK45):
                 # each attempt costs n_stages evaluations, each (re)start one
-                st.attempts += (solver.nfev - 1 - self.restarts) // ns
+                st.attempts += (nfev - 1 - self.restarts) // ns
                 self.restarts = 0
             st.njev += getattr(solver, "njev", 0)
             st.nlu += getattr(solver, "nlu", 0)

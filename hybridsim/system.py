@@ -68,16 +68,46 @@ def _where(t, j):
         return "the batch"
 
 
-def _named(m, name):
-    """Wrap a uniform map so that what it raises names the map, t and j."""
-    def call(x, t, j, u):
-        try:
-            return m(x, t, j, u)
-        except MapError:
-            raise
-        except Exception as e:
-            raise MapError(f"{name} raised {type(e).__name__}: {e} (at {_where(t, j)})",
-                           name, t, j) from e
+def _map_error(name, e, t, j):
+    return MapError(f"{name} raised {type(e).__name__}: {e} (at {_where(t, j)})", name, t, j)
+
+
+def _named(fn, name):
+    """A user map of any signature as a callable of ``(x, t, j, u)``, one frame
+    above the user's function, whose failures name the map, t and j."""
+    k = _check_map(fn, name)
+    if k <= 1:
+        def call(x, t, j, u):
+            try:
+                return fn(x)
+            except MapError:
+                raise
+            except Exception as e:
+                raise _map_error(name, e, t, j) from e
+    elif k == 2:
+        def call(x, t, j, u):
+            try:
+                return fn(x, t)
+            except MapError:
+                raise
+            except Exception as e:
+                raise _map_error(name, e, t, j) from e
+    elif k == 3:
+        def call(x, t, j, u):
+            try:
+                return fn(x, t, j)
+            except MapError:
+                raise
+            except Exception as e:
+                raise _map_error(name, e, t, j) from e
+    else:
+        def call(x, t, j, u):
+            try:
+                return fn(x, t, j, u)
+            except MapError:
+                raise
+            except Exception as e:
+                raise _map_error(name, e, t, j) from e
     return call
 
 
@@ -104,10 +134,30 @@ def _from_guard(h, name):
     return call
 
 
+_NP_BOOL = np.bool_
+
+
 def _indicator(m, name):
     def call(x, t, j, u):
-        return _as_bool(name, m(x, t, j, u), t, j)
+        v = m(x, t, j, u)
+        if v is True or v is False:
+            return v
+        if v.__class__ is _NP_BOOL:          # x[0] >= 0 on an array
+            return bool(v)
+        return _as_bool(name, v, t, j)
     return call
+
+
+def _check_map(fn, name):
+    """The number of ``(x, t, j, u)`` a user map takes; TypeError where it is
+    not a callable of one of the four signatures."""
+    if not callable(fn):
+        raise TypeError(f"{name} must be callable, got {type(fn).__name__}")
+    k = _arity(fn)
+    if k > 4:
+        raise TypeError(f"{name} must take (x), (x, t), (x, t, j) or (x, t, j, u); "
+                        f"got a callable with {k} positional arguments")
+    return k
 
 
 def as_map(fn, name: str):
@@ -123,19 +173,14 @@ def as_map(fn, name: str):
     """
     if fn is None:
         return None
-    if not callable(fn):
-        raise TypeError(f"{name} must be callable, got {type(fn).__name__}")
-    k = _arity(fn)
+    k = _check_map(fn, name)
     if k <= 1:
         return lambda x, t, j, u: fn(x)
     if k == 2:
         return lambda x, t, j, u: fn(x, t)
     if k == 3:
         return lambda x, t, j, u: fn(x, t, j)
-    if k == 4:
-        return fn
-    raise TypeError(f"{name} must take (x), (x, t), (x, t, j) or (x, t, j, u); "
-                    f"got a callable with {k} positional arguments")
+    return fn
 
 
 class HybridSystem:
@@ -252,7 +297,7 @@ class HybridSystem:
         if n is None or isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
             raise ValueError(f"{type(self).__name__}.state_dim must be a positive int, got {n!r}")
         def named(fn, name):
-            return None if fn is None else _named(as_map(fn, name), name)
+            return None if fn is None else _named(fn, name)
 
         hD = named(self.jump_guard, "jump_guard")
         hC = named(self.flow_guard, "flow_guard")
