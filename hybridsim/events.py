@@ -23,7 +23,7 @@ def fast_dense(sol):
     """
     if type(sol) is not RkDenseOutput:
         return sol
-    t_old, h, y_old = sol.t_old, sol.h, sol.y_old
+    t_old, h, y_old = float(sol.t_old), float(sol.h), sol.y_old    # Python floats: quicker
     hQ = h * sol.Q
     if hQ.shape[1] == 4:            # RK45: a quartic
         def call(t):
@@ -116,7 +116,7 @@ def _root_off_zero(f0, fd, fw, d, w):
     return (tau, r) if d < tau < w else None
 
 
-def locate_event(sol, a, b, pred, phi=None, max_iter=200):
+def locate_event(sol, a, b, pred, phi=None, max_iter=200, ya=None, yb=None):
     """Bracket the first time in (a, b] at which ``pred`` becomes true.
 
     Parameters
@@ -133,6 +133,9 @@ def locate_event(sol, a, b, pred, phi=None, max_iter=200):
         Where it brackets a sign change, the Illinois method finds its root
         (about six evaluations of the interpolant) and the indicator
         confirms the bracket.
+    ya, yb : ndarray, optional
+        The states at a and b where the caller has them (the solver's state
+        at a step's ends): they are not evaluated again.
 
     Returns
     -------
@@ -161,7 +164,8 @@ def locate_event(sol, a, b, pred, phi=None, max_iter=200):
     """
     ev = fast_dense(sol)
     lo, hi = float(a), float(b)
-    ylo, yhi = ev(lo), ev(hi)
+    ylo = ev(lo) if ya is None else ya
+    yhi = ev(hi) if yb is None else yb
     if phi is not None:
         flo, fhi = phi(lo, ylo), phi(hi, yhi)
         seed = None
@@ -298,6 +302,7 @@ def find_interior_event(sol, a, b, pred, phi=None, samples=3):
     True
     """
     sol = fast_dense(sol)
+    a, b = float(a), float(b)
     h = b - a
     if not h > 0:
         return None

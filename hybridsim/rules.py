@@ -105,6 +105,7 @@ class Priority(enum.IntEnum):
 
 
 PRIORITIES = ("jumps", "flows", "random")
+_JUMPS, _RANDOM = Priority.JUMPS, Priority.RANDOM     # module constants: quicker to read
 
 
 class Action(enum.IntEnum):
@@ -113,6 +114,9 @@ class Action(enum.IntEnum):
     JUMP = 0
     FLOW = 1
     STOP = 2       # in neither C nor D (NOT_IN_SETS at x0, else LEFT_SETS)
+
+
+_JUMP, _FLOW, _STOP = Action.JUMP, Action.FLOW, Action.STOP
 
 
 def jumps_now(in_C, in_D, prio, coin, forced=False):
@@ -132,13 +136,13 @@ def jumps_now(in_C, in_D, prio, coin, forced=False):
     >>> jumps_now(np.array([True, False]), np.array([True, True]), Priority.FLOWS, False)
     array([False,  True])
     """
-    return in_D & (forced | (in_C == False) | (prio == Priority.JUMPS)  # noqa: E712
-                   | ((prio == Priority.RANDOM) & coin))
+    return in_D & (forced | (in_C == False) | (prio == _JUMPS)  # noqa: E712
+                   | ((prio == _RANDOM) & coin))
 
 
 def needs_coin(in_C, in_D, prio, forced=False):
     """Where :func:`jumps_now` reads the coin (a seeded run draws one only there)."""
-    return (prio == Priority.RANDOM) & in_C & in_D & (forced == False)  # noqa: E712
+    return (prio == _RANDOM) & in_C & in_D & (forced == False)  # noqa: E712
 
 
 def decide(in_C: bool, in_D: bool, prio: int, coin: bool, forced: bool = False) -> int:
@@ -173,10 +177,10 @@ def decide(in_C: bool, in_D: bool, prio: int, coin: bool, forced: bool = False) 
     True
     """
     if jumps_now(in_C, in_D, prio, coin, forced):
-        return Action.JUMP
+        return _JUMP
     if in_C:
-        return Action.FLOW
-    return Action.STOP
+        return _FLOW
+    return _STOP
 
 
 def decide_at_event(entered_D: bool, in_C_at_event: bool, prio: int, coin: bool) -> int:
@@ -189,10 +193,10 @@ def decide_at_event(entered_D: bool, in_C_at_event: bool, prio: int, coin: bool)
     in C ∩ D) or ``Action.STOP`` (left C outside D).
     """
     if entered_D:
-        if prio == Priority.RANDOM and in_C_at_event and not coin:
-            return Action.FLOW
-        return Action.JUMP
-    return Action.STOP
+        if prio == _RANDOM and in_C_at_event and not coin:
+            return _FLOW
+        return _JUMP
+    return _STOP
 
 
 def event_tolerance(a: float, b: float) -> float:

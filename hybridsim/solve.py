@@ -309,15 +309,17 @@ def check_options(system, n, t0, t_max, j_max, priority, rtol, atol, max_step,
     return (t0, t_max, j_max, prio, rtol, atol, max_step, first_step, max_norm, zeno_time)
 
 
-def _check_seed(seed):
+def _check_seed(seed, build=True):
+    """The run's random generator from ``seed`` (checked); None where not ``build``
+    (only the random priority draws, and a generator costs ~20 us to make)."""
     if seed is None or isinstance(seed, np.random.Generator):
-        return np.random.default_rng(seed)
+        return np.random.default_rng(seed) if build else None
     if isinstance(seed, bool) or not isinstance(seed, (numbers.Integral, np.random.SeedSequence)):
         raise TypeError(f"seed must be None, a non-negative int or a numpy Generator, "
                         f"got {type(seed).__name__} {seed!r}")
     if isinstance(seed, numbers.Integral) and seed < 0:
         raise ValueError(f"seed must be >= 0, got {seed}")
-    return np.random.default_rng(seed)
+    return np.random.default_rng(seed) if build else None
 
 
 def _check_t_eval(t_eval, t0, t_max):
@@ -363,7 +365,7 @@ class _Options:
     max_samples: float
     keep: bool
     delays: tuple
-    rng: np.random.Generator
+    rng: np.random.Generator | None     # None unless the priority is random
 
 
 @dataclass
@@ -568,7 +570,7 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
     if t_eval is not None and refine > 1:
         raise ValueError("t_eval and refine > 1 cannot be combined: choose one way of "
                          "placing samples")
-    rng = _check_seed(seed)
+    rng = _check_seed(seed, build=prio == Priority.RANDOM)
     delays = tuple(float(d) for d in (system.delays or ()))
     if any(not (math.isfinite(d) and d > 0) for d in delays):
         raise ValueError(f"system.delays must be positive finite floats, got {system.delays!r}")
@@ -687,7 +689,7 @@ class _Run:
     # ------------------------------------------------------------------ the loop
     def run(self, t, j, x):
         o, maps = self.o, self.maps
-        C, D, g = maps.C, maps.D, maps.g
+        C, D, g, ufun = maps.C, maps.D, maps.g, self.ufun
         has_C, has_D = maps.has_C, maps.has_D
         st = self.state = _State(t, j, x, t_last_jump=t, h_hint=o.first_step,
                                  breaks=sorted(t + d for d in o.delays))
@@ -717,7 +719,7 @@ class _Run:
                         return
                     continue
                 else:
-                    u = self._u(t)
+                    u = ufun(t) if ufun is not None else None
                     in_D = has_D and D(x, t, j, u)
                     in_C = (not has_C) or C(x, t, j, u)
                     coin = (o.rng.random() < 0.5) if needs_coin(in_C, in_D, o.prio, forced) \
@@ -767,7 +769,7 @@ class _Run:
         st.j = j + 1
         st.jumps += 1
         st.x = xn
-        self._append(t, st.j, xn)
+        self.buf.append(t, st.j, xn)
         self.history._restart(t, xn, st.j)
         if o.delays:
             for d in o.delays:
@@ -871,6 +873,8 @@ class _Run:
         self.jcell[0] = j
         fun = self.fun
         t_bound = self._bound(st) if o.delays else o.t_max
+        if t_bound == o.t_max < math.inf and t_bound - t <= t_max_slack(t_bound, st.jumps):
+            return self._sliver(st, t_bound)
         h = st.h_hint
         if h is not None:
             h = min(h, t_bound - t, o.max_step)
@@ -917,7 +921,7 @@ class _Run:
                     ub = ufun(b) if ufun is not None else None
                     if (has_C and not C(yb, b, j, ub)) or (d_active and D(yb, b, j, ub)):
                         sol = solver.dense_output()
-                        return self._event(st, sol, a, a, b, j, solver, d_active)
+                        return self._event(st, sol, a, a, b, j, solver, d_active, ya, yb)
                     if has_C or d_active:
                         if pred is None:
                             pred, phi = self._pred(j, d_active), self._phi(j, d_active)
@@ -973,13 +977,31 @@ class _Run:
         finally:
             stats.steps += k
 
+    def _sliver(self, st, t_end):
+        """A flow to t_max within round-off of zero length (a jump landed a few
+        ulp before t_max): one Euler step, as no solver steps it reliably
+        (LSODA refuses it); the run then ends with a sample at t_max."""
+        o = self.o
+        t, j, x = st.t, st.j, st.x
+        f = check_map_value("flow_map", self.maps.f(x, t, j, self._u(t)), o.n, t, j).copy()
+        self.stats.flows += 1
+        self.buf.set_last_xdot(f)
+        xe = x + (t_end - t) * f
+        self.buf.append(t_end, j, xe, f)
+        if self.pbar is not None and math.isfinite(o.t_max):
+            self.pbar.update(t_end - t)
+        st.h_hint = None
+        return self._end(st, t_end, xe, _Outcome.T_MAX)
+
     def _start_solver(self, t, x, t_bound, h):
         """The solver for a flow from (t, x): the run's Runge-Kutta solver reset
         in place where it can be (its set-up is a third of a short flow's
         cost), else a new one."""
         s = self.solver
         if s is not None and h is not None and self.reuse:
-            s.t, s.y, s.t_bound = t, np.array(x, dtype=float), t_bound
+            # the solver never writes into its y: the run's own float state serves
+            s.t, s.t_bound = t, t_bound
+            s.y = x if type(x) is np.ndarray and x.dtype == np.float64 else np.array(x, float)
             s.status, s.t_old, s.y_old, s.h_previous = "running", None, None, None
             s.h_abs = h
             s.f = s.fun(t, s.y)
@@ -1061,11 +1083,18 @@ class _Run:
                           SimulationWarning, stacklevel=4)
 
     def _pred(self, j, d_active):
+        """The event indicator of a flow: it left C, or (d_active) it entered D."""
         maps, has_C, ufun = self.maps, self.maps.has_C, self.ufun
         C, D = maps.C, maps.D
+        if ufun is None:            # the common case, without the input's call
+            if has_C and d_active:
+                return lambda s, y: (not C(y, s, j, None)) or D(y, s, j, None)
+            if has_C:
+                return lambda s, y: not C(y, s, j, None)
+            return lambda s, y: d_active and D(y, s, j, None)
 
         def pred(s, y):
-            u = ufun(s) if ufun is not None else None
+            u = ufun(s)
             return (has_C and not C(y, s, j, u)) or (d_active and D(y, s, j, u))
         return pred
 
@@ -1077,9 +1106,18 @@ class _Run:
             return None
         useD = d_active and hD is not None
         useC = has_C and hC is not None
+        if ufun is None:
+            if useD and useC:
+                return lambda s, y: max(guard_min(hD(y, s, j, None)),
+                                        -guard_min(hC(y, s, j, None)))
+            if useD:
+                return lambda s, y: guard_min(hD(y, s, j, None))
+            if useC:
+                return lambda s, y: -guard_min(hC(y, s, j, None))
+            return lambda s, y: -math.inf
 
         def phi(s, y):
-            u = ufun(s) if ufun is not None else None
+            u = ufun(s)
             v = -math.inf
             if useD:
                 v = guard_min(hD(y, s, j, u))
@@ -1088,13 +1126,15 @@ class _Run:
             return v
         return phi
 
-    def _event(self, st, sol, a, lo, hi, j, solver, d_active, clamp=None):
-        """Locate the first event in (lo, hi] of the step starting at a; decide there."""
+    def _event(self, st, sol, a, lo, hi, j, solver, d_active, ylo=None, yhi=None, clamp=None):
+        """Locate the first event in (lo, hi] of the step starting at a; decide there.
+
+        ``ylo``, ``yhi``: the states at lo and hi where the caller has them."""
         o, maps = self.o, self.maps
         C, D, has_C, has_D = maps.C, maps.D, maps.has_C, maps.has_D
         self.stats.events += 1
         lo, hi, ylo, yhi = locate_event(sol, lo, hi, self._pred(j, d_active),
-                                        self._phi(j, d_active))
+                                        self._phi(j, d_active), ya=ylo, yb=yhi)
         # next flow's first step: at most 10x the length of this flow (the
         # controller's proposal after an overshooting step can be huge where
         # the flow is integrated exactly, and long steps cancel digits)
@@ -1132,7 +1172,7 @@ class _Run:
             return None
         if self.buf.last()[0] == b:      # drop the t_max sample: the event replaces it
             self.buf.pop()
-        return self._event(st, sol, a, b, tb, j, solver, True, clamp=b)
+        return self._event(st, sol, a, b, tb, j, solver, True, ylo=solver.y, clamp=b)
 
     def _commit(self, st, sol, a, j, te, xe, outcome):
         """Record the flow of the event step up to the event time te."""
@@ -1140,8 +1180,9 @@ class _Run:
         if o.keep:
             self.history._add(a, te, j, sol)
         if te > a:
-            self._inner_samples(sol, a, te, j)
-            self._append(te, j, xe, self._fdot(te, xe, j))
+            if o.refine > 1 or o.t_eval is not None:
+                self._inner_samples(sol, a, te, j)
+            self.buf.append(te, j, xe, self._fdot(te, xe, j))
         return self._end(st, te, xe, outcome)
 
     def _fdot(self, s, y, j):

@@ -110,6 +110,26 @@ def test_jump_at_t_max_is_taken_despite_round_off(period, t_max, guard):
     assert abs(arc.jump_times[-1] - t_max) <= 1e-12 and abs(arc.x[-1, 0]) <= 1e-12
 
 
+@pytest.mark.parametrize("method", ["RK45", "DOP853", "Radau", "BDF", "LSODA"])
+@pytest.mark.parametrize("ulps", [1, 2, 8])
+def test_jump_a_few_ulp_before_t_max_ends_at_t_max(method, ulps):
+    # the jump lands a few ulp before t_max: the flow left is within round-off
+    # of nothing (LSODA refuses such a step); the run still ends at t_max, T_MAX
+    t_max = 1.0
+    tj = t_max - ulps * np.spacing(t_max)
+    # x = (clock, mode): one jump, at t = tj, sets the mode to 1
+    clock = hs.HybridSystem.from_functions(
+        f=lambda x: np.array([1.0, 0.0]), g=lambda x: np.array([x[0], 1.0]),
+        jump_guard=lambda x, t: np.array([t - tj, 0.5 - x[1]]), state_dim=2)
+    arc = hs.simulate(clock, [0.0, 0.0], t_max=t_max, method=method)
+    assert arc.termination is Termination.T_MAX, arc.message
+    assert arc.jump_count == 1 and abs(arc.jump_times[0] - tj) <= 4 * np.spacing(t_max)
+    assert arc.tf == t_max and arc.j[-1] == 1
+    # the flow after the jump (a few 1e-16 long) moves the clock to t_max
+    np.testing.assert_allclose(arc.x[-1], [t_max, 1.0], rtol=0, atol=1e-12)
+    assert np.isfinite(arc.xdot[-1]).all()
+
+
 # ----------------------------------------------------------- bad arguments
 def decay():
     return hs.HybridSystem.from_functions(f=lambda x: -x, state_dim=1)
