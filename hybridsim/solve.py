@@ -69,7 +69,8 @@ class _Buffer:
     quadratic copies, and at most ``chunk`` array references held.
     """
 
-    __slots__ = ("t", "j", "x", "xdot", "m", "pt", "pj", "px", "pd", "dim", "nan", "cap")
+    __slots__ = ("t", "j", "x", "xdot", "m", "pt", "pj", "px", "pd", "dim", "nan", "cap",
+                 "lim")
     chunk = 512
 
     def __init__(self, dim, cap=256, max_samples=math.inf):
@@ -82,6 +83,11 @@ class _Buffer:
         self.m = 0
         self.pt, self.pj, self.px, self.pd = [], [], [], []
         self.nan = np.full(dim, np.nan)
+        self._limit()
+
+    def _limit(self):
+        # pending samples allowed before a flush: the chunk, or what the cap leaves
+        self.lim = min(self.chunk, self.cap - self.m)
 
     @property
     def n(self):
@@ -98,7 +104,7 @@ class _Buffer:
 
     def append(self, t, j, x, xdot=None):
         pt = self.pt
-        if len(pt) >= self.chunk or self.m + len(pt) >= self.cap:
+        if len(pt) >= self.lim:
             self.flush()
             if self.m >= self.cap:
                 raise _SampleCap()
@@ -121,6 +127,7 @@ class _Buffer:
         self.xdot[m:m + k] = self.pd
         self.m = m + k
         self.pt, self.pj, self.px, self.pd = [], [], [], []
+        self._limit()
 
     def last(self):
         """(t, j, x, xdot) of the last sample."""
@@ -138,6 +145,7 @@ class _Buffer:
     def pop(self):
         self.flush()
         self.m -= 1
+        self._limit()
 
     def extend(self, t, j, X, Xd=None):
         """Append many samples of one j at once."""
@@ -152,6 +160,7 @@ class _Buffer:
         self.x[m:m + k] = X
         self.xdot[m:m + k] = np.nan if Xd is None else Xd
         self.m = m + k
+        self._limit()
 
     def arrays(self):
         """The samples, shrunk in place (no copy); the buffer is done after this."""
@@ -182,7 +191,7 @@ def _check_x0(x0, n):
 
 
 def _check_real(name, v, *, allow_inf=False, positive=False, nonneg=False):
-    if isinstance(v, bool) or not isinstance(v, numbers.Real):
+    if type(v) is not float and (isinstance(v, bool) or not isinstance(v, numbers.Real)):
         raise TypeError(f"{name} must be a real number, got {type(v).__name__} {v!r}")
     v = float(v)
     if math.isnan(v) or (math.isinf(v) and not allow_inf):
@@ -198,7 +207,7 @@ def _check_count(name, v, *, minimum=0, allow_inf=False):
     """An int >= minimum (or inf where allowed): bools, floats like 2.7 and None refused."""
     if allow_inf and isinstance(v, float) and math.isinf(v) and v > 0:
         return math.inf
-    if isinstance(v, bool) or not isinstance(v, numbers.Integral):
+    if type(v) is not int and (isinstance(v, bool) or not isinstance(v, numbers.Integral)):
         if isinstance(v, float) and v.is_integer():
             v = int(v)
         else:
@@ -422,8 +431,9 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
     Flows by :math:`\dot x = f(x)` with a scipy ODE solver while x is in C,
     jumps by :math:`x^+ = g(x)` when x is in D (as the priority decides).
     Events are located on each step's dense output to 4 ulp of the event
-    time: Brent's method on the guards where the system has them, else
-    bisection of the set indicators. Each step's interior is searched too
+    time: secant and Illinois steps on the guards where the system has them
+    (a flow that starts on a guard's zero takes its first estimate from a
+    probe's slope), else bisection of the set indicators. Each step's interior is searched too
     (the guard sampled and its maxima refined), so a jump set entered and
     left within one solver step is not missed.
 
@@ -894,6 +904,7 @@ class _Run:
         pred = phi = None
         n_stages = getattr(solver, "n_stages", None) if self.is_rk else None
         max_norm, t_eval = o.max_norm, o.t_eval
+        check_norm = max_norm < math.inf
         cap = o.max_steps - stats.steps      # steps left in this run
         hermite = o.Method is DOP853
         fa = solver.f if hermite else None
@@ -955,7 +966,7 @@ class _Run:
                     append(b, j, yb, solver.f.copy() if n_stages else fun(b, yb))
                 if pbar is not None and math.isfinite(o.t_max):
                     pbar.update(b - a)
-                if max_norm < math.inf:
+                if check_norm:
                     nb = float(np.linalg.norm(yb))
                     if nb > max_norm:
                         self._stop(Termination.BLOWUP, f"|x| = {nb:.3g} > {max_norm:.3g} at "
@@ -1088,10 +1099,15 @@ class _Run:
         C, D = maps.C, maps.D
         if ufun is None:            # the common case, without the input's call
             if has_C and d_active:
-                return lambda s, y: (not C(y, s, j, None)) or D(y, s, j, None)
-            if has_C:
-                return lambda s, y: not C(y, s, j, None)
-            return lambda s, y: d_active and D(y, s, j, None)
+                def pred(s, y):
+                    return (not C(y, s, j, None)) or D(y, s, j, None)
+            elif has_C:
+                def pred(s, y):
+                    return not C(y, s, j, None)
+            else:
+                def pred(s, y):
+                    return d_active and D(y, s, j, None)
+            return pred
 
         def pred(s, y):
             u = ufun(s)
@@ -1108,13 +1124,18 @@ class _Run:
         useC = has_C and hC is not None
         if ufun is None:
             if useD and useC:
-                return lambda s, y: max(guard_min(hD(y, s, j, None)),
-                                        -guard_min(hC(y, s, j, None)))
-            if useD:
-                return lambda s, y: guard_min(hD(y, s, j, None))
-            if useC:
-                return lambda s, y: -guard_min(hC(y, s, j, None))
-            return lambda s, y: -math.inf
+                def phi(s, y):
+                    return max(guard_min(hD(y, s, j, None)), -guard_min(hC(y, s, j, None)))
+            elif useD:
+                def phi(s, y):
+                    return guard_min(hD(y, s, j, None))
+            elif useC:
+                def phi(s, y):
+                    return -guard_min(hC(y, s, j, None))
+            else:
+                def phi(s, y):
+                    return -math.inf
+            return phi
 
         def phi(s, y):
             u = ufun(s)

@@ -477,14 +477,15 @@ _STAT_NAMES = ("steps", "rejected", "nfev", "events", "flows")
 
 def _arc(system, T, J, X, XD, code, detail, info, stats, lim):
     cause, msg = _message(system, code, detail, info, X[-1], stats, *lim)
-    st = {name: int(stats[k]) for k, name in enumerate(_STAT_NAMES)}
+    st = dict(zip(_STAT_NAMES, stats.tolist() if isinstance(stats, np.ndarray) else stats))
     st["njev"] = 0
     st["nlu"] = 0
     exc = None
     if cause is Termination.MAP_ERROR:
         exc = MapError(msg, "flow" if detail in (2, 3) else "jump", float(info[0]),
                        None if info[3] != info[3] else int(info[3]))
-    arc = HybridArc(T, J, X, cause, msg, exc, system=system, xdot=XD, stats=st)
+    # the kernels' own arrays: (N,) float64 t, int64 j, (N, n) float64 x and xdot
+    arc = HybridArc._trusted(T, J, X, cause, msg, exc, system=system, xdot=XD, stats=st)
     if exc is not None and detail >= 3:     # bad values at x0: raised at once
         exc.arc = arc
         raise exc
@@ -527,8 +528,8 @@ def simulate_compiled(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priori
     The same run as ``hs.simulate(system, x0, t_max, j_max, method="RK45",
     ...)``: Dormand-Prince 5(4) steps with scipy RK45's error control and
     step-size controller, events located to 4 ulp on the step's dense output
-    (Brent's method on guards, bisection of the indicators, the interior
-    search for excursions within one step), the same priorities, limits and
+    (the Python path's root finder on guards, bisection of the indicators,
+    the interior search for excursions within one step), the same priorities, limits and
     termination causes, and the same :class:`hybridsim.HybridArc` (``t``,
     ``j``, ``x``, ``xdot``, ``stats``, ``termination``, ``message``).
 
@@ -691,15 +692,24 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
             B = min(B, N - i)
             TT, JJ, XX, XXD, NS, CA, DE, INFO, ST = kern[1](
                 *maps, X0[i:i + B], p, fopt, iopt, atol_a, rng, cap)
+            # every run's samples in one compact array per field (one copy of
+            # the pool), each arc a view of its rows
+            ns_l, ca_l, de_l, st_l = NS.tolist(), CA.tolist(), DE.tolist(), ST.tolist()
+            m_all = np.minimum(NS[:B], cap)
+            keep = np.arange(cap) < m_all[:, None]
+            Tf, Jf, Xf, XDf = TT[keep], JJ[keep], XX[keep], XXD[keep]
+            o = 0
             for r in range(B):
-                m = int(NS[r])
+                m = ns_l[r]
                 if m <= cap:
-                    arcs.append(_arc(system, TT[r, :m].copy(), JJ[r, :m].copy(),
-                                     XX[r, :m].copy(), XXD[r, :m].copy(), int(CA[r]),
-                                     int(DE[r]), INFO[r], ST[r], lim))
+                    e = o + m
+                    arcs.append(_arc(system, Tf[o:e], Jf[o:e], Xf[o:e], XDf[o:e], ca_l[r],
+                                     de_l[r], INFO[r], st_l[r], lim))
+                    o = e
                 else:                  # longer than its slot: run it alone
                     out = kern[0](*maps, X0[i + r], p, fopt, iopt, atol_a, rng)
                     arcs.append(_arc(system, *out, lim))
+                    o += cap
             # the next chunk's slots: room for the longest run seen, with margin
             longest = int(NS.max()) if B else cap
             cap = max(cap, 1 << math.ceil(math.log2(max(longest, 2) * 1.25)))

@@ -13,9 +13,10 @@ not written again here. The algorithms ported from the Python path are:
 
 * scipy's RK45 step (Dormand-Prince 5(4), ``select_initial_step``,
   ``RungeKutta._step_impl``'s step-size controller, ``RkDenseOutput``);
-* :func:`hybridsim.events.locate_event` (indicator bisection until the guard
-  changes sign, Brent's method as scipy's ``brentq`` on the guard, a bracket
-  of 4 ulp confirmed by the indicator) and
+* :func:`hybridsim.events.locate_event` (where a flow starts on the guard's
+  zero, a probe and a quadratic model's first estimate; indicator bisection
+  until the guard changes sign; secant and Illinois steps on the guard to a
+  bracket of 4 ulp confirmed by the indicator) and
   :func:`hybridsim.events.find_interior_event` (three interior samples and a
   golden-section search on guard peaks);
 * the decision loop of :func:`hybridsim.simulate` (``_Run.run``, ``_flow``,
@@ -314,75 +315,113 @@ def _phi(M, s, y, j, p, useD, useC):
 
 
 @njit(cache=True, **_NJ)
-def _phi_at(M, yold, hQ, told, h, s, j, p, useD, useC):
-    return _phi(M, s, _dense(yold, hQ, told, h, s), j, p, useD, useC)
+def _illinois(M, yold, hQ, told, h, j, p, useD, useC, lo, hi, flo, fhi, ylo, yhi,
+              seeded, s0, slope0):
+    """``events._illinois``: secant steps through the last two evaluations inside
+    the bracket, else Illinois regula falsi, a bisection where two steps did not
+    halve the bracket; ``seeded``: ``s0`` is the first trial, ``slope0`` the
+    guard's slope there."""
+    side = 0
+    w1 = np.inf
+    w2 = np.inf
+    if -flo < fhi:
+        xl = lo
+        fl = flo
+    else:
+        xl = hi
+        fl = fhi
+    slope = np.nan
+    for _ in range(100):
+        tol = rules.event_tolerance(lo, hi)
+        w = hi - lo
+        if w <= tol:
+            break
+        if seeded:
+            s = s0
+        elif w > 0.5 * w2:
+            s = 0.5 * (lo + hi)
+            side = 0
+        else:
+            s = xl - fl / slope if slope != 0.0 else np.nan
+            if not (lo < s and s < hi):
+                s = hi - fhi * w / (fhi - flo) if fhi != flo else 0.5 * (lo + hi)
+        w2 = w1
+        w1 = w
+        q = 0.25 * tol
+        if not s > lo + q:
+            s = lo + q
+        elif not s < hi - q:
+            s = hi - q
+        ys = _dense(yold, hQ, told, h, s)
+        fs = _phi(M, s, ys, j, p, useD, useC)
+        if seeded:
+            slope = slope0
+            seeded = False
+        else:
+            slope = (fs - fl) / (s - xl) if s != xl else np.nan
+        xl = s
+        fl = fs
+        if fs >= 0.0:
+            hi = s
+            yhi = ys
+            fhi = fs
+            if side == 1:
+                flo *= 0.5
+            side = 1
+        else:
+            lo = s
+            ylo = ys
+            flo = fs
+            if side == -1:
+                fhi *= 0.5
+            side = -1
+    return lo, hi, ylo, yhi
 
 
 @njit(cache=True, **_NJ)
-def _brentq(M, yold, hQ, told, h, j, p, useD, useC, xa, xb, xtol, rtol, maxiter):
-    """scipy's ``brentq`` (scipy/optimize/Zeros/brentq.c) on the guard along the step."""
-    xpre, xcur = xa, xb
-    xblk = 0.0
-    fblk = 0.0
-    spre = 0.0
-    scur = 0.0
-    fpre = _phi_at(M, yold, hQ, told, h, xpre, j, p, useD, useC)
-    fcur = _phi_at(M, yold, hQ, told, h, xcur, j, p, useD, useC)
-    if fpre == 0.0:
-        return xpre
-    if fcur == 0.0:
-        return xcur
-    for _ in range(maxiter):
-        if fpre != 0.0 and fcur != 0.0 and (math.copysign(1.0, fpre) != math.copysign(1.0, fcur)):
-            xblk = xpre
-            fblk = fpre
-            spre = scur = xcur - xpre
-        if abs(fblk) < abs(fcur):
-            xpre = xcur
-            xcur = xblk
-            xblk = xpre
-            fpre = fcur
-            fcur = fblk
-            fblk = fpre
-        delta = (xtol + rtol * abs(xcur)) / 2.0
-        sbis = (xblk - xcur) / 2.0
-        if fcur == 0.0 or abs(sbis) < delta:
-            return xcur
-        if abs(spre) > delta and abs(fcur) < abs(fpre):
-            if xpre == xblk:
-                stry = -fcur * (xcur - xpre) / (fcur - fpre)
-            else:
-                dpre = (fpre - fcur) / (xpre - xcur)
-                dblk = (fblk - fcur) / (xblk - xcur)
-                stry = -fcur * (fblk * dblk - fpre * dpre) / (dblk * dpre * (fblk - fpre))
-            if 2.0 * abs(stry) < min(abs(spre), 3.0 * abs(sbis) - delta):
-                spre = scur
-                scur = stry
-            else:
-                spre = sbis
-                scur = sbis
-        else:
-            spre = sbis
-            scur = sbis
-        xpre = xcur
-        fpre = fcur
-        if abs(scur) > delta:
-            xcur += scur
-        else:
-            xcur += delta if sbis > 0 else -delta
-        fcur = _phi_at(M, yold, hQ, told, h, xcur, j, p, useD, useC)
-    return xcur
+def _root_off_zero(f0, fd, fw, d, w):
+    """``events._root_off_zero``: (offset, slope), NaNs where the model has no root."""
+    m = (fd - f0) / d
+    c = (fw - f0 - m * w) / (w * w)
+    disc = m * m - 4.0 * c * f0
+    if not (c > 0.0 and disc >= 0.0):
+        return np.nan, np.nan
+    r = math.sqrt(disc)
+    tau = (r - m) / (2.0 * c)
+    if d < tau and tau < w:
+        return tau, r
+    return np.nan, np.nan
 
 
 @njit(cache=True, **_NJ)
-def _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, b):
-    """:func:`hybridsim.events.locate_event` on the step's dense output."""
+def _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, b,
+            yb, yb_known):
+    """:func:`hybridsim.events.locate_event` on the step's dense output (``yb``:
+    the state at b where ``yb_known``; the state at the step's start is exact)."""
     lo, hi = a, b
-    ylo = _dense(yold, hQ, told, h, lo)
-    yhi = _dense(yold, hQ, told, h, hi)
+    ylo = yold.copy() if a == told else _dense(yold, hQ, told, h, lo)
+    yhi = yb if yb_known else _dense(yold, hQ, told, h, hi)
     if phi_on:
         flo = _phi(M, lo, ylo, j, p, useD, useC)
         fhi = _phi(M, hi, yhi, j, p, useD, useC)
+        seeded = False
+        s0 = np.nan
+        slope0 = np.nan
+        if not flo < 0.0 and fhi >= 0.0:
+            # on the guard's zero at the start: one probe gives the direction,
+            # and with the end value a first estimate of the root
+            d = max(64.0 * rules.event_tolerance(lo, hi), 1e-9 * (hi - lo))
+            if lo + d < hi:
+                yd = _dense(yold, hQ, told, h, lo + d)
+                fd = _phi(M, lo + d, yd, j, p, useD, useC)
+                if fd < 0.0 and not _pred(M, lo + d, yd, j, p, has_C, d_active):
+                    tau, slope0 = _root_off_zero(flo, fd, fhi, d, hi - lo)
+                    if tau == tau:
+                        seeded = True
+                        s0 = lo + tau
+                    lo = lo + d
+                    ylo = yd
+                    flo = fd
         for _ in range(200):
             if (flo < 0.0 and 0.0 <= fhi) or hi - lo <= rules.event_tolerance(lo, hi):
                 break
@@ -397,18 +436,14 @@ def _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, 
                 ylo = ym
                 flo = _phi(M, m, ym, j, p, useD, useC)
         if (flo < 0.0 and 0.0 <= fhi) and hi - lo > rules.event_tolerance(lo, hi):
-            r = _brentq(M, yold, hQ, told, h, j, p, useD, useC, lo, hi, _EPS, 4.0 * _EPS, 100)
-            tol = rules.event_tolerance(r, r)
-            l2 = max(lo, r - 1.5 * tol)
-            h2 = min(hi, r + 1.5 * tol)
-            yl2 = _dense(yold, hQ, told, h, l2)
-            yh2 = _dense(yold, hQ, told, h, h2)
+            l2, h2, yl2, yh2 = _illinois(M, yold, hQ, told, h, j, p, useD, useC, lo, hi,
+                                         flo, fhi, ylo, yhi, seeded, s0, slope0)
+            # the indicator decides membership: keep the guard's bracket where it agrees
             if _pred(M, h2, yh2, j, p, has_C, d_active):
                 hi = h2
                 yhi = yh2
-                if not _pred(M, l2, yl2, j, p, has_C, d_active):
-                    lo = l2
-                    ylo = yl2
+                lo = l2
+                ylo = yl2
             elif not _pred(M, l2, yl2, j, p, has_C, d_active):
                 lo = l2
                 ylo = yl2
@@ -570,10 +605,10 @@ def _initial_step(f, t0, y0, t_bound, max_step, f0, rtol, atol, j, p):
 
 @njit(cache=True, **_NJ)
 def _event(M, yold, hQ, told, h, j, p, has_C, has_D, d_active, phi_on, useD, useC,
-           a, lo, hi, clamp, h_abs, flow_t0, prio, rng):
+           a, lo, hi, clamp, h_abs, flow_t0, prio, rng, yb, yb_known):
     """``_Run._event``: locate, then decide. Returns (kind, te, xe, lo, ylo, h_hint)."""
     lo, hi, ylo, yhi = _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on,
-                               useD, useC, lo, hi)
+                               useD, useC, lo, hi, yb, yb_known)
     if hi <= flow_t0:
         hint = np.nan
     else:
@@ -639,6 +674,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rng):
     detail = 0
     K = np.zeros((7, n))
     hQ = np.zeros((n, 4))
+    yi = np.empty(n)                 # a stage's state: read by f, never kept
 
     t = t0
     j = j0
@@ -812,7 +848,6 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rng):
                 tried = True
                 K[0] = fa
                 for s in range(1, 6):
-                    yi = np.empty(n)
                     for i in range(n):
                         acc = 0.0
                         for m in range(s):
@@ -980,7 +1015,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rng):
             stats[3] += 1
             kind, te, xe, lo, _ylo, hint = _event(
                 M, ya, hQ, a, hs, j, p, has_C, has_D, da, phi_on, da and has_hD, useC,
-                a, elo, ehi, clamp, h_abs, flow_t0, prio, rng)
+                a, elo, ehi, clamp, h_abs, flow_t0, prio, rng, yb, ehi == b and not past)
             h_hint = hint
             # ``_commit``
             if te > a:
