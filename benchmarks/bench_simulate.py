@@ -320,7 +320,7 @@ def main():
               f"{np.max(np.abs(times - exact)):.1e} (solve_ivp {err_base:.1e})")
 
     # the timer: cost per jump
-    (w_t, w_tivp), (tt, tt_ivp) = best_of([run_timer, run_timer_solve_ivp], args.repeats)
+    (w_t, w_tivp), (tt, _tt_ivp) = best_of([run_timer, run_timer_solve_ivp], args.repeats)
     terr = np.max(np.abs(tt - np.arange(1, TIMER_JUMPS + 1)))
     print(f"\ntimer of period 1, {TIMER_JUMPS} jumps, rtol 1e-6, atol 1e-9; best of "
           f"{args.repeats}:")

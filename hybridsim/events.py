@@ -38,38 +38,33 @@ def fast_dense(sol):
     return call
 
 
-def _illinois(F, lo, hi, flo, fhi, ylo, yhi, ev, seed=None, max_iter=100):
+def _secant(F, lo, hi, flo, fhi, ylo, yhi, ev, seed=None, max_iter=100):
     """Shrink a sign-change bracket of ``F(s, y(s))`` to 4 ulp.
 
-    ``flo < 0 <= fhi``. Each trial is the secant step through the last two
-    evaluations where it falls inside the bracket, else a regula falsi step
-    on the bracket with the Illinois halving (both converge superlinearly
-    near a simple root, and the secant is not held back by a far end of the
-    bracket); a bisection is taken whenever two steps failed to halve the
-    bracket. ``seed = (s0, slope)``, where given, is a model's estimate of
-    the root and of the guard's slope there: the first trial, and the slope
-    for the secant step after it. Trial points are kept a quarter tolerance
-    inside the bracket so that it closes from both sides.
+    ``flo < 0 <= fhi``. Each trial is the secant step from the last
+    evaluation (the slope through the last two; at first the chord of the
+    bracket, a regula falsi step), accepted where it falls inside the bracket
+    and is shorter than half the step before last (Brent's test: secant
+    steps converge superlinearly, so they shrink at least that fast near a
+    simple root); otherwise the bracket is bisected. ``seed = (s0, slope)``,
+    where given, is a model's estimate of the root and of the guard's slope
+    there: the first trial, and the slope for the step after it. Trial
+    points are kept a quarter tolerance inside the bracket, so that once the
+    steps are shorter than that the bracket closes from the other side.
     """
-    side = 0
-    w1 = w2 = math.inf          # the bracket's widths one and two steps ago
+    d1 = d2 = math.inf          # the last two step lengths
     xl, fl = (lo, flo) if -flo < fhi else (hi, fhi)     # the last evaluation
-    slope = math.nan            # the guard's slope at xl
+    slope = (fhi - flo) / (hi - lo)
     for _ in range(max_iter):
         tol = event_tolerance(lo, hi)
-        w = hi - lo
-        if w <= tol:
+        if hi - lo <= tol:
             break
         if seed is not None:
             s = seed[0]
-        elif w > 0.5 * w2:
-            s = 0.5 * (lo + hi)
-            side = 0
         else:
             s = xl - fl / slope if slope != 0.0 else math.nan
-            if not lo < s < hi:
-                s = hi - fhi * w / (fhi - flo) if fhi != flo else 0.5 * (lo + hi)
-        w2, w1 = w1, w
+            if not (lo <= s <= hi and abs(s - xl) < 0.5 * d2):
+                s = 0.5 * (lo + hi)
         q = 0.25 * tol
         if not s > lo + q:
             s = lo + q
@@ -81,17 +76,12 @@ def _illinois(F, lo, hi, flo, fhi, ylo, yhi, ev, seed=None, max_iter=100):
             slope, seed = seed[1], None
         else:
             slope = (fs - fl) / (s - xl) if s != xl else math.nan
+        d2, d1 = d1, abs(s - xl)
         xl, fl = s, fs
         if fs >= 0.0:
             hi, yhi, fhi = s, ys, fs
-            if side == 1:
-                flo *= 0.5
-            side = 1
         else:
             lo, ylo, flo = s, ys, fs
-            if side == -1:
-                fhi *= 0.5
-            side = -1
     return lo, hi, ylo, yhi
 
 
@@ -100,9 +90,11 @@ def _root_off_zero(f0, fd, fw, d, w):
 
     The guard is ``f0`` (about 0) at the step's start, ``fd < 0`` a probe
     ``d`` into it and ``fw >= 0`` at its end ``w``: the quadratic with that
-    value, the probe's slope and that end value has its second root at the
-    returned offset (exact where the guard is quadratic along the step, as
-    an affine guard is on a ball's parabola, up to the probe's rounding).
+    value, the probe's secant slope and that end value has its second root
+    at the returned offset: within about ``d`` of the true root where the
+    guard is quadratic along the step (as an affine guard is on a ball's
+    parabola), since the secant over ``[0, d]`` stands in for the slope at
+    the start; the secant steps that follow polish it.
     Returns ``(offset, slope there)``, or None where the model has no root
     in (d, w).
     """
@@ -130,9 +122,9 @@ def locate_event(sol, a, b, pred, phi=None, max_iter=200, ya=None, yb=None):
         membership, so the returned ``hi`` always satisfies it.
     phi : callable, optional
         A continuous guard, ``phi(s, x) >= 0`` where the event has happened.
-        Where it brackets a sign change, the Illinois method finds its root
-        (about six evaluations of the interpolant) and the indicator
-        confirms the bracket.
+        Where it brackets a sign change, safeguarded secant steps find its
+        root (a handful of evaluations of the interpolant) and the
+        indicator confirms the bracket.
     ya, yb : ndarray, optional
         The states at a and b where the caller has them (the solver's state
         at a step's ends): they are not evaluated again.
@@ -192,7 +184,7 @@ def locate_event(sol, a, b, pred, phi=None, max_iter=200, ya=None, yb=None):
             else:
                 lo, ylo, flo = m, ym, phi(m, ym)
         if flo < 0.0 <= fhi and hi - lo > event_tolerance(lo, hi):
-            l2, h2, yl2, yh2 = _illinois(phi, lo, hi, flo, fhi, ylo, yhi, ev, seed)
+            l2, h2, yl2, yh2 = _secant(phi, lo, hi, flo, fhi, ylo, yhi, ev, seed)
             # the indicator decides membership: keep the guard's bracket where it
             # agrees (below the root the guard is negative, so the indicator is
             # asked at lo only when it disagrees at hi)

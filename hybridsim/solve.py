@@ -431,7 +431,7 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
     Flows by :math:`\dot x = f(x)` with a scipy ODE solver while x is in C,
     jumps by :math:`x^+ = g(x)` when x is in D (as the priority decides).
     Events are located on each step's dense output to 4 ulp of the event
-    time: secant and Illinois steps on the guards where the system has them
+    time: safeguarded secant steps on the guards where the system has them
     (a flow that starts on a guard's zero takes its first estimate from a
     probe's slope), else bisection of the set indicators. Each step's interior is searched too
     (the guard sampled and its maxima refined), so a jump set entered and

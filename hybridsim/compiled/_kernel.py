@@ -15,7 +15,7 @@ not written again here. The algorithms ported from the Python path are:
   ``RungeKutta._step_impl``'s step-size controller, ``RkDenseOutput``);
 * :func:`hybridsim.events.locate_event` (where a flow starts on the guard's
   zero, a probe and a quadratic model's first estimate; indicator bisection
-  until the guard changes sign; secant and Illinois steps on the guard to a
+  until the guard changes sign; safeguarded secant steps on the guard to a
   bracket of 4 ulp confirmed by the indicator) and
   :func:`hybridsim.events.find_interior_event` (three interior samples and a
   golden-section search on guard peaks);
@@ -315,38 +315,30 @@ def _phi(M, s, y, j, p, useD, useC):
 
 
 @njit(cache=True, **_NJ)
-def _illinois(M, yold, hQ, told, h, j, p, useD, useC, lo, hi, flo, fhi, ylo, yhi,
-              seeded, s0, slope0):
-    """``events._illinois``: secant steps through the last two evaluations inside
-    the bracket, else Illinois regula falsi, a bisection where two steps did not
-    halve the bracket; ``seeded``: ``s0`` is the first trial, ``slope0`` the
-    guard's slope there."""
-    side = 0
-    w1 = np.inf
-    w2 = np.inf
+def _secant(M, yold, hQ, told, h, j, p, useD, useC, lo, hi, flo, fhi, ylo, yhi,
+            seeded, s0, slope0):
+    """``events._secant``: secant steps from the last evaluation, accepted inside
+    the bracket when shorter than half the step before last, else bisection;
+    ``seeded``: ``s0`` is the first trial, ``slope0`` the guard's slope there."""
+    d1 = np.inf
+    d2 = np.inf
     if -flo < fhi:
         xl = lo
         fl = flo
     else:
         xl = hi
         fl = fhi
-    slope = np.nan
+    slope = (fhi - flo) / (hi - lo)
     for _ in range(100):
         tol = rules.event_tolerance(lo, hi)
-        w = hi - lo
-        if w <= tol:
+        if hi - lo <= tol:
             break
         if seeded:
             s = s0
-        elif w > 0.5 * w2:
-            s = 0.5 * (lo + hi)
-            side = 0
         else:
             s = xl - fl / slope if slope != 0.0 else np.nan
-            if not (lo < s and s < hi):
-                s = hi - fhi * w / (fhi - flo) if fhi != flo else 0.5 * (lo + hi)
-        w2 = w1
-        w1 = w
+            if not (lo <= s and s <= hi and abs(s - xl) < 0.5 * d2):
+                s = 0.5 * (lo + hi)
         q = 0.25 * tol
         if not s > lo + q:
             s = lo + q
@@ -359,22 +351,18 @@ def _illinois(M, yold, hQ, told, h, j, p, useD, useC, lo, hi, flo, fhi, ylo, yhi
             seeded = False
         else:
             slope = (fs - fl) / (s - xl) if s != xl else np.nan
+        d2 = d1
+        d1 = abs(s - xl)
         xl = s
         fl = fs
         if fs >= 0.0:
             hi = s
             yhi = ys
             fhi = fs
-            if side == 1:
-                flo *= 0.5
-            side = 1
         else:
             lo = s
             ylo = ys
             flo = fs
-            if side == -1:
-                fhi *= 0.5
-            side = -1
     return lo, hi, ylo, yhi
 
 
@@ -436,7 +424,7 @@ def _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, 
                 ylo = ym
                 flo = _phi(M, m, ym, j, p, useD, useC)
         if (flo < 0.0 and 0.0 <= fhi) and hi - lo > rules.event_tolerance(lo, hi):
-            l2, h2, yl2, yh2 = _illinois(M, yold, hQ, told, h, j, p, useD, useC, lo, hi,
+            l2, h2, yl2, yh2 = _secant(M, yold, hQ, told, h, j, p, useD, useC, lo, hi,
                                          flo, fhi, ylo, yhi, seeded, s0, slope0)
             # the indicator decides membership: keep the guard's bracket where it agrees
             if _pred(M, h2, yh2, j, p, has_C, d_active):
