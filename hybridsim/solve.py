@@ -60,117 +60,89 @@ class _Outcome(enum.Enum):
     STOP = 4        # the run ends; the cause is recorded
 
 
+# Hairer's stiffness test for RK45 (Dormand-Prince): rows giving (y7 - y6) / h
+# and k7 - k6 from the seven stages K
+_STIFF_W = np.zeros((2, RK45.n_stages + 1))
+_STIFF_W[0, :RK45.n_stages] = RK45.B
+_STIFF_W[0, :RK45.n_stages - 1] -= RK45.A[RK45.n_stages - 1]
+_STIFF_W[1, -2:] = (-1.0, 1.0)
+
+
 class _Buffer:
     """Sample store (t, j, x, xdot).
 
-    Samples are appended to short Python lists (an order of magnitude cheaper
-    than writing numpy rows one at a time) and flushed every ``chunk`` samples
-    into numpy arrays that double when full: amortised O(1) appends, no
-    quadratic copies, and at most ``chunk`` array references held.
+    Times and jump counts go to Python lists; states and derivatives are
+    copied straight into rows of numpy arrays that double when full (capped
+    at ``max_samples``): amortised O(1) appends, no quadratic copies, and no
+    reference kept to the solver's arrays, so their memory is reused.
     """
 
-    __slots__ = ("t", "j", "x", "xdot", "m", "pt", "pj", "px", "pd", "dim", "nan", "cap",
-                 "lim")
-    chunk = 512
+    __slots__ = ("t", "j", "x", "xdot", "m", "dim", "cap", "room")
 
     def __init__(self, dim, cap=256, max_samples=math.inf):
         self.cap = max_samples
         self.dim = dim
-        self.t = np.empty(cap)
-        self.j = np.empty(cap, dtype=np.int64)
-        self.x = np.empty((cap, dim))
-        self.xdot = np.empty((cap, dim))
+        self.room = int(min(cap, max_samples))
+        self.t, self.j = [], []
+        self.x = np.empty((self.room, dim))
+        self.xdot = np.empty((self.room, dim))
         self.m = 0
-        self.pt, self.pj, self.px, self.pd = [], [], [], []
-        self.nan = np.full(dim, np.nan)
-        self._limit()
-
-    def _limit(self):
-        # pending samples allowed before a flush: the chunk, or what the cap leaves
-        self.lim = min(self.chunk, self.cap - self.m)
 
     @property
     def n(self):
-        return self.m + len(self.pt)
+        return self.m
 
-    def _grow(self, need):
-        k = self.m
-        cap = max(2 * len(self.t), need)
-        for name in ("t", "j", "x", "xdot"):
-            old = getattr(self, name)
-            new = np.empty((cap,) + old.shape[1:], dtype=old.dtype)
-            new[:k] = old[:k]
+    def _reserve(self, need):
+        if need > self.cap:
+            raise _SampleCap()
+        m = self.m
+        self.room = int(min(max(2 * self.room, need, 16), self.cap))
+        for name in ("x", "xdot"):
+            new = np.empty((self.room, self.dim))
+            new[:m] = getattr(self, name)[:m]
             setattr(self, name, new)
 
     def append(self, t, j, x, xdot=None):
-        pt = self.pt
-        if len(pt) >= self.lim:
-            self.flush()
-            if self.m >= self.cap:
-                raise _SampleCap()
-            pt = self.pt
-        pt.append(t)
-        self.pj.append(j)
-        self.px.append(x)
-        self.pd.append(self.nan if xdot is None else xdot)
-
-    def flush(self):
-        k = len(self.pt)
-        if not k:
-            return
         m = self.m
-        if m + k > len(self.t):
-            self._grow(m + k)
-        self.t[m:m + k] = self.pt
-        self.j[m:m + k] = self.pj
-        self.x[m:m + k] = self.px
-        self.xdot[m:m + k] = self.pd
-        self.m = m + k
-        self.pt, self.pj, self.px, self.pd = [], [], [], []
-        self._limit()
+        if m >= self.room:
+            self._reserve(m + 1)
+        self.t.append(t)
+        self.j.append(j)
+        self.x[m] = x
+        self.xdot[m] = np.nan if xdot is None else xdot
+        self.m = m + 1
 
     def last(self):
         """(t, j, x, xdot) of the last sample."""
-        if self.pt:
-            return self.pt[-1], self.pj[-1], self.px[-1], self.pd[-1]
         k = self.m - 1
-        return self.t[k], int(self.j[k]), self.x[k], self.xdot[k]
+        return self.t[k], self.j[k], self.x[k], self.xdot[k]
 
     def set_last_xdot(self, v):
-        if self.pd:
-            self.pd[-1] = v
-        else:
-            self.xdot[self.m - 1] = v
+        self.xdot[self.m - 1] = v
 
     def pop(self):
-        self.flush()
+        self.t.pop()
+        self.j.pop()
         self.m -= 1
-        self._limit()
 
     def extend(self, t, j, X, Xd=None):
         """Append many samples of one j at once."""
-        self.flush()
         m, k = self.m, len(t)
-        if m + k > self.cap:
-            raise _SampleCap()
-        if m + k > len(self.t):
-            self._grow(m + k)
-        self.t[m:m + k] = t
-        self.j[m:m + k] = j
+        if m + k > self.room:
+            self._reserve(m + k)
+        self.t.extend(np.asarray(t, dtype=float).tolist())
+        self.j.extend([j] * k)
         self.x[m:m + k] = X
         self.xdot[m:m + k] = np.nan if Xd is None else Xd
         self.m = m + k
-        self._limit()
 
     def arrays(self):
         """The samples, shrunk in place (no copy); the buffer is done after this."""
-        self.flush()
         k = self.m
-        self.t.resize(k, refcheck=False)
-        self.j.resize(k, refcheck=False)
         self.x.resize((k, self.dim), refcheck=False)
         self.xdot.resize((k, self.dim), refcheck=False)
-        return self.t, self.j, self.x, self.xdot
+        return (np.array(self.t, dtype=float), np.array(self.j, dtype=np.int64),
+                self.x, self.xdot)
 
 
 # ---------------------------------------------------------------- validation
@@ -666,6 +638,7 @@ class _Run:
         self.calls = [0]        # evaluations of self.fun
         self.calls0 = None      # self.calls when the current solver took self.fun as its own
         self.fun = self._fun()
+        self.out_checked = False    # has the flow map been checked for a shared output array?
         self.stiff_check = opts.Method is RK45
 
     # ------------------------------------------------------------------ helpers
@@ -873,6 +846,21 @@ class _Run:
                 return checked(v, s)
         return fun
 
+    def _check_shared_output(self, t, j, x):
+        """A flow map that returns one array, overwritten on every call (a
+        preallocated ``out``), would leave the solver's stored derivative
+        stale: two calls at the first flow's start tell, and its values are
+        then copied as they come."""
+        self.out_checked = True
+        u = self._u(t)
+        v = self.maps.f(x, t, j, u)
+        if isinstance(v, np.ndarray) and self.maps.f(x, t, j, u) is v:
+            raw = self.fun
+
+            def fun(s, y):
+                return raw(s, y).copy()
+            self.fun = fun
+
     def _flow(self, st, in_D_start):
         """Integrate from (st.t, st.x) until an event, t_max or a failure."""
         o, maps, stats = self.o, self.maps, self.stats
@@ -881,6 +869,8 @@ class _Run:
         buf, hist, keep, pbar = self.buf, self.history, o.keep, self.pbar
         t, j, x = st.t, st.j, st.x
         self.jcell[0] = j
+        if not self.out_checked:
+            self._check_shared_output(t, j, x)
         fun = self.fun
         t_bound = self._bound(st) if o.delays else o.t_max
         if t_bound == o.t_max < math.inf and t_bound - t <= t_max_slack(t_bound, st.jumps):
@@ -894,7 +884,7 @@ class _Run:
         stats.flows += 1
         # the flow's derivative at its first sample (the solver has it: FSAL)
         f0 = getattr(solver, "f", None)
-        buf.set_last_xdot((f0 if f0 is not None else fun(t, x)).copy())
+        buf.set_last_xdot(f0 if f0 is not None else fun(t, x))
         a, ya = t, x
         d_active = watch_D and not in_D_start     # D entries count only from outside D
         sets = has_C or watch_D
@@ -963,7 +953,7 @@ class _Run:
                         hist._add(a, b, j, sol)
                     self._inner_samples(sol, a, b, j)
                 if t_eval is None or solver.status == "finished":
-                    append(b, j, yb, solver.f.copy() if n_stages else fun(b, yb))
+                    append(b, j, yb, solver.f if n_stages else fun(b, yb))
                 if pbar is not None and math.isfinite(o.t_max):
                     pbar.update(b - a)
                 if check_norm:
@@ -1075,11 +1065,10 @@ class _Run:
         """
         if st.warned_stiff:
             return
-        K, h = solver.K, solver.h_previous
-        dy = solver.y - solver.y_old - h * (solver.A[5, :5] @ K[:5])    # y7 - y6
-        dk = K[6] - K[5]
+        # rows of W @ K: (y7 - y6) / h = (b - a6) . K and k7 - k6, in one product
+        dy, dk = _STIFF_W @ solver.K
         den = float(dy @ dy)
-        if den > 0 and h * h * float(dk @ dk) > 3.25 * 3.25 * den:
+        if den > 0 and float(dk @ dk) > 3.25 * 3.25 * den:
             st.stiff_hits += 1
             st.calm = 0
         else:

@@ -354,3 +354,30 @@ def test_t_eval_places_samples_and_keeps_both_samples_of_each_jump():
     # at a jump time both samples are there: j and j + 1
     at1 = np.flatnonzero(np.abs(arc.t - 1.0) < 1e-12)
     assert set(arc.j[at1]) == {0, 1}
+
+
+def test_flow_map_reusing_its_output_array_gives_right_samples_and_derivatives():
+    # a map that returns one array, overwritten on every call: the samples and
+    # xdot must be copies taken when stored, not views of the user's buffer
+    out = np.empty(1)
+
+    def f(x):
+        out[0] = -x[0]
+        return out
+
+    arc = hs.simulate(hs.HybridSystem.from_functions(f=f, state_dim=1), [1.0], t_max=2.0,
+                      rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(arc.x[:, 0], np.exp(-arc.t), rtol=1e-8)
+    np.testing.assert_allclose(arc.xdot[:, 0], -arc.x[:, 0], rtol=1e-12)
+
+
+@pytest.mark.parametrize("cap", [2, 17, 256, 257, 600])
+def test_max_samples_is_an_exact_cap_on_stored_samples(cap):
+    # the sample store grows past its first block (256 rows) and stops exactly at the cap
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", hs.SimulationWarning)
+        arc = hs.simulate(decay(), [1.0], t_max=1e4, max_samples=cap, max_step=0.01)
+    assert arc.termination is Termination.MAX_STEPS and "max_samples" in arc.message
+    assert len(arc.t) == cap and arc.x.shape == (cap, 1) and arc.xdot.shape == (cap, 1)
+    np.testing.assert_allclose(arc.x[:, 0], np.exp(-arc.t), rtol=1e-5)
+    assert np.all(np.diff(arc.t) > 0)
