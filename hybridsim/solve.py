@@ -19,6 +19,7 @@ from numpy.typing import ArrayLike
 from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, OdeSolver, Radau
 from scipy.integrate._ivp.rk import RungeKutta
 
+from ._rk import LEAN
 from .arc import HybridArc
 from .events import find_interior_event, locate_event
 from .history import History
@@ -1009,8 +1010,10 @@ class _Run:
             self.restarts += 1
             return s
         self._count(self.solver)
-        s = self.o.Method(self.fun, t, x, t_bound, rtol=self.o.rtol, atol=self.o.atol,
-                          max_step=self.o.max_step, first_step=h)
+        # RK45 and RK23 step without scipy's per-step overheads (bit for bit the same)
+        Method = LEAN.get(self.o.Method, self.o.Method) if self.reuse else self.o.Method
+        s = Method(self.fun, t, x, t_bound, rtol=self.o.rtol, atol=self.o.atol,
+                   max_step=self.o.max_step, first_step=h)
         if self.reuse:
             # self.fun already returns float arrays of shape (n,): scipy's two
             # wrappers (asarray, call count) are bypassed; self.calls counts
@@ -1028,7 +1031,7 @@ class _Run:
                 nfev += self.calls[0] - self.calls0
             st.nfev += nfev
             ns = getattr(solver, "n_stages", None)
-            if type(solver) in (RK23, RK45):
+            if isinstance(solver, (RK23, RK45)):
                 # each attempt costs n_stages evaluations, each (re)start one
                 st.attempts += (nfev - 1 - self.restarts) // ns
                 self.restarts = 0
@@ -1078,7 +1081,7 @@ class _Run:
         if st.stiff_hits >= 15 and steps >= 500:     # a short run is not worth a warning
             st.warned_stiff = True
             warnings.warn(f"the flow looks stiff near t={solver.t:.6g} (j={st.j}): "
-                          f"{type(solver).__name__}'s step size is limited by stability, "
+                          f"{self.o.Method.__name__}'s step size is limited by stability, "
                           f"not accuracy. Use method='Radau', 'BDF' or 'LSODA'",
                           SimulationWarning, stacklevel=4)
 
