@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 import pytest
-from scipy.integrate import RK23, RK45, solve_ivp
+from scipy.integrate import DOP853, RK23, RK45, solve_ivp
 
 import hybridsim as hs
 from hybridsim._rk import LEAN
@@ -28,7 +28,7 @@ def _same_state(a, b):
             and np.array_equal(a.K, b.K))
 
 
-@pytest.mark.parametrize("Base", [RK45, RK23])
+@pytest.mark.parametrize("Base", [RK45, RK23, DOP853])
 @pytest.mark.parametrize("seed", range(12))
 def test_lean_steps_equal_scipy_bit_for_bit(Base, seed):
     rng = np.random.default_rng(seed)
@@ -56,7 +56,7 @@ def test_lean_steps_equal_scipy_bit_for_bit(Base, seed):
     assert b.status == "finished" and steps >= 2
 
 
-@pytest.mark.parametrize("Base", [RK45, RK23])
+@pytest.mark.parametrize("Base", [RK45, RK23, DOP853])
 def test_lean_step_rejects_and_fails_as_scipy_does(Base):
     # a finite-time escape: rejections, then a step below the minimum
     def escape(t, x):
@@ -76,5 +76,15 @@ def test_simulate_samples_exactly_solve_ivps_steps():
     sysm = hs.HybridSystem.from_functions(f=lambda x: A @ x, state_dim=2)
     arc = hs.simulate(sysm, [1.0, 0.0], t_max=5.0, rtol=1e-9, atol=1e-12)
     ref = solve_ivp(lambda t, x: A @ x, (0.0, 5.0), [1.0, 0.0], rtol=1e-9, atol=1e-12)
+    np.testing.assert_array_equal(arc.t, ref.t)
+    np.testing.assert_array_equal(arc.x, ref.y.T)
+
+
+def test_simulate_with_dop853_samples_exactly_solve_ivps_steps():
+    A = np.array([[0.0, 1.0], [-4.0, -0.3]])
+    sysm = hs.HybridSystem.from_functions(f=lambda x: A @ x, state_dim=2)
+    arc = hs.simulate(sysm, [1.0, 0.0], t_max=5.0, rtol=1e-10, atol=1e-12, method="DOP853")
+    ref = solve_ivp(lambda t, x: A @ x, (0.0, 5.0), [1.0, 0.0], method="DOP853", rtol=1e-10,
+                    atol=1e-12)
     np.testing.assert_array_equal(arc.t, ref.t)
     np.testing.assert_array_equal(arc.x, ref.y.T)
