@@ -432,7 +432,9 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
         ``"random"``: a fair coin (seeded by ``seed``) at each such point.
     method : str or OdeSolver subclass
         "RK45" (default), "RK23", "DOP853", "Radau", "BDF", "LSODA" or a
-        concrete subclass of :class:`scipy.integrate.OdeSolver`.
+        concrete subclass of :class:`scipy.integrate.OdeSolver`. The three
+        explicit Runge-Kutta methods take scipy's steps bit for bit, through
+        ``hybridsim._rk``'s copies without scipy's per-step overheads.
     rtol, atol, max_step, first_step : float
         Passed to the solver. ``max_step`` is also capped by
         ``system.max_step``.
