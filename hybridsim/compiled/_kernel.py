@@ -1207,6 +1207,8 @@ _READY = set()
 def compile_kernels(batch=True):
     """Compile (or load from numba's on-disk cache) the kernels for the
     first-class map signatures: ``run_one``, and ``run_batch`` when ``batch``."""
+    if "one" in _READY and (not batch or "batch" in _READY):
+        return          # every call of simulate_compiled asks: answer cheaply
     import warnings
     sig = _signature_one()
     with warnings.catch_warnings():
