@@ -29,20 +29,18 @@ _dot, _maximum, _abs = np.dot, np.maximum, np.abs
 class _LeanStep:
     """``_step_impl`` of scipy's ``RungeKutta``, the same arithmetic."""
 
-    def _views(self):
-        # K is allocated once per solver and written in place: its views stay valid
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        # K is allocated once per solver and written in place: views made now stay valid
         K = self.K
-        v = self.__dict__.get("_kviews")
-        if v is None or v[0] is not K:
-            stages = [(s, K[:s].T, a[:s], c)
-                      for s, (a, c) in enumerate(zip(self.A[1:], self.C[1:]), start=1)]
-            v = self._kviews = (K, stages, K[:-1].T, K.T)
-        return v
+        stages = [(s, K[:s].T, a[:s], c)
+                  for s, (a, c) in enumerate(zip(self.A[1:], self.C[1:]), start=1)]
+        self._kviews = (K, stages, K[:-1].T, K.T)
 
     def _step_impl(self):
         t, y = self.t, self.y
         rtol, atol, d = self.rtol, self.atol, self.direction
-        K, stages, KbT, KT = self._views()
+        K, stages, KbT, KT = self._kviews
         fun, B, expo = self.fun, self.B, self.error_exponent
         min_step = 10 * abs(math.nextafter(t, d * math.inf) - t)
         h_abs = self.h_abs

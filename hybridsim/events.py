@@ -140,10 +140,11 @@ def locate_event(sol, a, b, pred, phi=None, max_iter=200, ya=None, yb=None):
     A step that starts on the guard's zero (just after a jump) outside the
     event set takes its direction from one probe a short way into the step;
     the probe's slope and the guard at the step's end give a quadratic model
-    whose second root is the root finder's first trial (exact for a ball's
-    parabola). Where the probe cannot step off the zero, the bracket is bisected by the
-    indicator until the guard changes sign inside it, so a flow that
-    re-enters D within one step is never lost.
+    whose second root is the root finder's first trial (within about the
+    probe's length of the root on a ball's parabola). Where the probe cannot
+    step off the zero, the bracket is bisected by the indicator until the
+    guard changes sign inside it, so a flow that re-enters D within one
+    step is never lost.
 
     Examples
     --------

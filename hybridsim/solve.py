@@ -670,9 +670,6 @@ class _Run:
     def _u(self, s):
         return self.ufun(s) if self.ufun is not None else None
 
-    def _append(self, t, j, x, xdot=None):
-        self.buf.append(t, j, x, xdot)
-
     # ------------------------------------------------------------------ the loop
     def run(self, t, j, x):
         o, maps = self.o, self.maps
@@ -680,7 +677,7 @@ class _Run:
         has_C, has_D = maps.has_C, maps.has_D
         st = self.state = _State(t, j, x, t_last_jump=t, h_hint=o.first_step,
                                  breaks=sorted(t + d for d in o.delays))
-        self._append(t, j, x)
+        self.buf.append(t, j, x)
         scale0 = o.t0
         forced = False       # the last flow's event requires a jump
         flow_on = False      # random priority chose to flow on in C ∩ D
@@ -988,7 +985,7 @@ class _Run:
         (LSODA refuses it); the run then ends with a sample at t_max."""
         o = self.o
         t, j, x = st.t, st.j, st.x
-        f = check_map_value("flow_map", self.maps.f(x, t, j, self._u(t)), o.n, t, j).copy()
+        f = check_map_value("flow_map", self.maps.f(x, t, j, self._u(t)), o.n, t, j)
         self.stats.flows += 1
         self.buf.set_last_xdot(f)
         xe = x + (t_end - t) * f
