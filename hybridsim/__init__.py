@@ -18,9 +18,10 @@ from .batch import BatchError, BatchWarning, simulate_many, sweep
 from .batch_vectorized import simulate_vectorized
 from .compose import Interconnection, LinearPlant, connect, network
 from .history import History, HistoryError
+from .options import METHODS
 from .plot import plot_flows, plot_hybrid, plot_jumps, plot_phase, plot_time_domain
 from .rules import MapError, SimulationError, SimulationWarning
-from .solve import METHODS, simulate
+from .solve import simulate
 from .system import HybridSystem
 
 __all__ = [

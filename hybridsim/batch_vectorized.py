@@ -33,9 +33,12 @@ from scipy.integrate import RK45
 from ._progress import make_bar
 from .arc import HybridArc, Termination
 from .events import _maximize, _near_peak
+from .options import check_count, check_options, check_real
 from .rules import (
     FAILURES,
+    MapError,
     Priority,
+    SimulationError,
     is_short_flow,
     is_sticking,
     jumps_now,
@@ -45,7 +48,6 @@ from .rules import (
     time_scale,
     zeno_message,
 )
-from .solve import MapError, SimulationError, check_options
 from .system import HybridSystem, as_map, guard_rows
 
 __all__ = ["simulate_vectorized"]
@@ -419,9 +421,8 @@ def simulate_vectorized(system, x0s, t_max, j_max=math.inf, *, priority="jumps",
                                     max_norm, unsupported)
     if isinstance(refine, bool) or not isinstance(refine, numbers.Integral) or refine < 1:
         raise ValueError(f"refine must be an int >= 1, got {refine!r}")
-    from .solve import _check_count, _check_real
-    zeno_rtol = _check_real("zeno_rtol", zeno_rtol, nonneg=True)
-    max_steps = _check_count("max_steps", max_steps, minimum=1, allow_inf=True)
+    zeno_rtol = check_real("zeno_rtol", zeno_rtol, nonneg=True)
+    max_steps = check_count("max_steps", max_steps, minimum=1, allow_inf=True)
     run = _BatchRun(system, X, n, t0, j0, t_max, j_max, prio, rtol, atol, max_step,
                     first_step, zeno_jumps, zeno_time, max_norm, np.random.default_rng(seed),
                     zeno_rtol=zeno_rtol, max_steps=max_steps)

@@ -9,23 +9,31 @@ from __future__ import annotations
 import bisect
 import enum
 import math
-import numbers
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, OdeSolver, Radau
+from scipy.integrate import DOP853, RK23, RK45, OdeSolver
 from scipy.integrate._ivp.rk import RungeKutta
 
 from ._rk import LEAN
 from .arc import HybridArc
 from .events import find_interior_event, locate_event
 from .history import History
+from .options import (
+    check_bool,
+    check_map_value,
+    check_seed,
+    check_t_eval,
+    check_unsupported,
+    check_x0,
+    parse_run,
+    resolve_method,
+)
 from .rules import (
     FAILURES,
-    PRIORITIES,
     Action,
     MapError,
     Priority,
@@ -46,8 +54,6 @@ from .system import HybridSystem, guard_min
 
 __all__ = ["simulate", "MapError", "SimulationError", "SimulationWarning"]
 
-METHODS = {"RK23": RK23, "RK45": RK45, "DOP853": DOP853, "Radau": Radau,
-           "BDF": BDF, "LSODA": LSODA}
 _EXPLICIT = (RK23, RK45, DOP853)
 
 
@@ -147,101 +153,6 @@ class _Buffer:
         return self.t, self.j, self.x, self.xdot
 
 
-# ---------------------------------------------------------------- validation
-def _check_x0(x0, n):
-    if np.iscomplexobj(x0):
-        raise TypeError(f"x0 must be real, got complex values {x0!r}")
-    try:
-        x = np.array(x0, dtype=float)
-    except (TypeError, ValueError) as e:
-        raise TypeError(f"x0 must be an array of {n} floats, got {type(x0).__name__}") from e
-    if x.ndim == 0 and n == 1:
-        x = x.reshape(1)
-    if x.shape != (n,):
-        raise ValueError(f"x0 must have shape ({n},) (the system's state_dim), got shape {x.shape}")
-    if not np.all(np.isfinite(x)):
-        raise ValueError(f"x0 must be finite, got {x}")
-    return x
-
-
-def _check_real(name, v, *, allow_inf=False, positive=False, nonneg=False):
-    if type(v) is not float and (isinstance(v, bool) or not isinstance(v, numbers.Real)):
-        raise TypeError(f"{name} must be a real number, got {type(v).__name__} {v!r}")
-    v = float(v)
-    if math.isnan(v) or (math.isinf(v) and not allow_inf):
-        raise ValueError(f"{name} must be finite, got {v}")
-    if positive and not v > 0:
-        raise ValueError(f"{name} must be > 0, got {v}")
-    if nonneg and v < 0:
-        raise ValueError(f"{name} must be >= 0, got {v}")
-    return v
-
-
-def _check_count(name, v, *, minimum=0, allow_inf=False):
-    """An int >= minimum (or inf where allowed): bools, floats like 2.7 and None refused."""
-    if allow_inf and isinstance(v, float) and math.isinf(v) and v > 0:
-        return math.inf
-    if type(v) is not int and (isinstance(v, bool) or not isinstance(v, numbers.Integral)):
-        if isinstance(v, float) and v.is_integer():
-            v = int(v)
-        else:
-            desc = "a non-negative int" if minimum == 0 else f"an int >= {minimum}"
-            raise TypeError(f"{name} must be {desc}{' (or inf)' if allow_inf else ''}, "
-                            f"got {type(v).__name__} {v!r}")
-    if v < minimum:
-        raise ValueError(f"{name} must be >= {minimum}, got {v}")
-    return int(v)
-
-
-def _check_bool(name, v, *, allow_none=False):
-    if v is None and allow_none:
-        return None
-    if isinstance(v, (bool, np.bool_)):
-        return bool(v)
-    raise TypeError(f"{name} must be True or False{' or None' if allow_none else ''}, "
-                    f"got {v!r}")
-
-
-def check_map_value(name, val, n, t=None, j=None):
-    """Check a flow/jump map's value: real, finite, shape (n,). Returns a float array."""
-    if type(val) is np.ndarray and val.shape == (n,) and val.dtype.kind == "f" \
-            and math.isfinite(val.sum()):
-        return val
-    where = "" if t is None else f" (at t={t:.10g}, j={j})"
-    if np.iscomplexobj(val):
-        raise MapError(f"{name} returned complex values {val!r}{where}: the state is real",
-                       name, t, j)
-    try:
-        arr = np.asarray(val, dtype=float)
-    except (TypeError, ValueError) as e:
-        raise MapError(f"{name} must return an array of {n} floats, got "
-                       f"{type(val).__name__}{where}", name, t, j) from e
-    if arr.shape != (n,):
-        raise MapError(f"{name} must return an array of shape ({n},), got shape "
-                       f"{arr.shape}{where}", name, t, j)
-    if not np.all(np.isfinite(arr)):
-        raise MapError(f"{name} returned non-finite values {arr}{where}", name, t, j)
-    return arr
-
-
-_check_map_value = check_map_value      # the batch integrator's historical name
-
-
-def _resolve_method(method):
-    if isinstance(method, str):
-        if method not in METHODS:
-            raise ValueError(f"method must be one of {sorted(METHODS)} or an OdeSolver "
-                             f"subclass, got {method!r}")
-        return METHODS[method]
-    if isinstance(method, type) and issubclass(method, OdeSolver):
-        if method is OdeSolver or method is RungeKutta or \
-                getattr(method, "_step_impl", None) is OdeSolver._step_impl:
-            raise TypeError(f"method must be a concrete OdeSolver subclass (one that "
-                            f"implements _step_impl), got the abstract {method.__name__}")
-        return method
-    raise TypeError(f"method must be a string or an OdeSolver subclass, got {method!r}")
-
-
 def _progress_bar(progress, t0, t_max, j_max):
     """A bar over t (with j shown) or over jumps; None when progress is off."""
     from ._progress import make_bar
@@ -252,76 +163,6 @@ def _progress_bar(progress, t0, t_max, j_max):
                                    "[{elapsed}<{remaining}]")
     return make_bar(progress, total=None if not math.isfinite(j_max) else j_max,
                     desc="simulate", unit="jump")
-
-
-def check_options(system, n, t0, t_max, j_max, priority, rtol, atol, max_step,
-                  first_step, max_norm, zeno_time):
-    """Validate the options shared by :func:`simulate` and the batch integrator.
-
-    Returns them normalised: ``(t0, t_max, j_max, prio, rtol, atol, max_step,
-    first_step, max_norm, zeno_time)`` with ``prio`` a :class:`Priority` and
-    ``max_step`` capped by ``system.max_step``.
-    """
-    t0 = _check_real("t0", t0)
-    t_max = _check_real("t_max", t_max, allow_inf=True)
-    if t_max < t0:
-        raise ValueError(f"t_max must be >= t0 = {t0}, got {t_max}")
-    j_max = _check_count("j_max", j_max, allow_inf=True)
-    if priority not in PRIORITIES:
-        raise ValueError(f"priority must be one of {PRIORITIES}, got {priority!r}")
-    prio = Priority(PRIORITIES.index(priority))
-    rtol = _check_real("rtol", rtol, positive=True)
-    if np.ndim(atol) == 0:
-        atol = _check_real("atol", atol, positive=True)
-    else:
-        try:
-            atol = np.asarray(atol, dtype=float)
-        except (TypeError, ValueError) as e:
-            raise TypeError(f"atol must be a positive float or an array of shape ({n},), "
-                            f"got {atol!r}") from e
-        if atol.shape != (n,) or not np.all(np.isfinite(atol)) or not np.all(atol > 0):
-            raise ValueError(f"atol must be a positive float or an array of shape "
-                             f"({n},) of positive finite floats, got {atol!r}")
-    max_step = _check_real("max_step", max_step, allow_inf=True, positive=True)
-    if system.max_step is not None:
-        max_step = min(max_step, _check_real("system.max_step", system.max_step, positive=True))
-    if first_step is not None:
-        first_step = _check_real("first_step", first_step, positive=True)
-    max_norm = _check_real("max_norm", max_norm, allow_inf=True, positive=True)
-    zeno_time = _check_real("zeno_time", zeno_time, nonneg=True)
-    return (t0, t_max, j_max, prio, rtol, atol, max_step, first_step, max_norm, zeno_time)
-
-
-def _check_seed(seed, build=True):
-    """The run's random generator from ``seed`` (checked); None where not ``build``
-    (only the random priority draws, and a generator costs ~20 us to make)."""
-    if seed is None or isinstance(seed, np.random.Generator):
-        return np.random.default_rng(seed) if build else None
-    if isinstance(seed, bool) or not isinstance(seed, (numbers.Integral, np.random.SeedSequence)):
-        raise TypeError(f"seed must be None, a non-negative int or a numpy Generator, "
-                        f"got {type(seed).__name__} {seed!r}")
-    if isinstance(seed, numbers.Integral) and seed < 0:
-        raise ValueError(f"seed must be >= 0, got {seed}")
-    return np.random.default_rng(seed) if build else None
-
-
-def _check_t_eval(t_eval, t0, t_max):
-    if t_eval is None:
-        return None
-    try:
-        te = np.asarray(t_eval, dtype=float)
-    except (TypeError, ValueError) as e:
-        raise TypeError(f"t_eval must be a 1-D array of times, got {type(t_eval).__name__}") from e
-    if te.ndim != 1:
-        raise ValueError(f"t_eval must be 1-D, got shape {te.shape}")
-    if not np.all(np.isfinite(te)):
-        raise ValueError("t_eval must be finite")
-    if np.any(np.diff(te) < 0):
-        raise ValueError("t_eval must be sorted in increasing order")
-    if te.size and (te[0] < t0 or te[-1] > t_max):
-        raise ValueError(f"t_eval must lie in [t0, t_max] = [{t0}, {t_max}], got "
-                         f"[{te[0]}, {te[-1]}]")
-    return te
 
 
 @dataclass
@@ -528,12 +369,19 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
         raise ValueError(f"backend must be 'python' or 'compiled', got {backend!r}")
     maps = system._compile()
     n = int(system.state_dim)
-    x = _check_x0(x0, n)
-    (t0, t_max, j_max, prio, rtol, atol, max_step, first_step, max_norm,
-     zeno_time) = check_options(system, n, t0, t_max, j_max, priority, rtol, atol, max_step,
-                                first_step, max_norm, zeno_time)
-    j0 = _check_count("j0", j0)
-    Method = _resolve_method(method)
+    x = check_x0(x0, n)
+    ro = parse_run(system, n, t0=t0, j0=j0, t_max=t_max, j_max=j_max, priority=priority,
+                   rtol=rtol, atol=atol, max_step=max_step, first_step=first_step,
+                   max_norm=max_norm, zeno_jumps=zeno_jumps, zeno_time=zeno_time,
+                   zeno_rtol=zeno_rtol, refine=refine, max_steps=max_steps,
+                   max_samples=max_samples, throw=throw, warn=warn)
+    t0, t_max, j_max, j0, prio = ro.t0, ro.t_max, ro.j_max, ro.j0, ro.prio
+    rtol, atol, max_step, first_step, max_norm = (ro.rtol, ro.atol, ro.max_step,
+                                                  ro.first_step, ro.max_norm)
+    zeno_jumps, zeno_time, zeno_rtol = ro.zeno_jumps, ro.zeno_time, ro.zeno_rtol
+    refine, max_steps, max_samples, throw, warn = (ro.refine, ro.max_steps, ro.max_samples,
+                                                   ro.throw, ro.warn)
+    Method = resolve_method(method)
     if int(system.input_dim or 0) > 0 and inputs is None:
         raise ValueError(f"inputs: the system has input_dim={system.input_dim}; pass "
                          "inputs=callable(t) -> u, or connect it with hs.connect")
@@ -541,22 +389,13 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
         raise TypeError(f"inputs must be a callable u(t), got {type(inputs).__name__}")
     if prehistory is not None and not callable(prehistory):
         raise TypeError(f"prehistory must be a callable x(s), got {type(prehistory).__name__}")
-    refine = _check_count("refine", refine, minimum=1)
-    max_steps = _check_count("max_steps", max_steps, minimum=1, allow_inf=True)
-    max_samples = _check_count("max_samples", max_samples, minimum=2, allow_inf=True)
-    if refine > max_samples:
-        raise ValueError(f"refine must be <= max_samples = {max_samples}, got {refine}")
-    zeno_jumps = _check_count("zeno_jumps", zeno_jumps, minimum=1)
-    zeno_rtol = _check_real("zeno_rtol", zeno_rtol, nonneg=True)
-    dense = _check_bool("dense", dense)
-    throw = _check_bool("throw", throw)
-    warn = _check_bool("warn", warn)
-    progress = _check_bool("progress", progress, allow_none=True)
-    t_eval = _check_t_eval(t_eval, t0, t_max)
+    dense = check_bool("dense", dense)
+    progress = check_bool("progress", progress, allow_none=True)
+    t_eval = check_t_eval(t_eval, t0, t_max)
     if t_eval is not None and refine > 1:
         raise ValueError("t_eval and refine > 1 cannot be combined: choose one way of "
                          "placing samples")
-    rng = _check_seed(seed, build=prio == Priority.RANDOM)
+    rng = check_seed(seed, build=prio == Priority.RANDOM)
     delays = tuple(float(d) for d in (system.delays or ()))
     if any(not (math.isfinite(d) and d > 0) for d in delays):
         raise ValueError(f"system.delays must be positive finite floats, got {system.delays!r}")
@@ -603,10 +442,7 @@ def _compiled_run(system, x0, t_max, j_max, opts, python_only):
         raise TypeError(f"backend='compiled' needs a hybridsim.compiled.CompiledSystem (maps "
                         f"written as numba-compilable functions of (x, t, j, p)); got "
                         f"{type(system).__name__}: use backend='python' for it")
-    given = {k: v for k, v in python_only.items() if v not in (None, False)}
-    if given:
-        raise TypeError(f"backend='compiled' does not support {sorted(given)}: use "
-                        f"backend='python'")
+    check_unsupported("compiled", python_only)
     return simulate_compiled(system, x0, t_max, j_max, **opts)
 
 

@@ -359,7 +359,9 @@ def _options(system, x0_shape_n, t_max, j_max, t0, j0, priority, rtol, atol, max
              first_step, max_steps, max_samples, zeno_jumps, zeno_time, zeno_rtol, max_norm,
              refine, method, extra):
     """Validate like :func:`hybridsim.simulate` and pack the kernel's option arrays."""
-    from ..solve import _check_count, _check_real, check_options
+    from ..options import check_count as _check_count
+    from ..options import check_options
+    from ..options import check_real as _check_real
     for name in extra:
         if name == "progress" and not extra[name]:     # no bar: accepted (simulate_many sends it)
             continue
@@ -493,8 +495,8 @@ def _arc(system, T, J, X, XD, code, detail, info, stats, lim):
 
 
 def _rng_for(prio, seed):
+    from ..options import check_seed as _check_seed
     from ..rules import Priority
-    from ..solve import _check_seed
     global _DUMMY_RNG
     if prio == Priority.RANDOM:
         return _check_seed(seed)
@@ -572,7 +574,8 @@ def simulate_compiled(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priori
     >>> np.round(arc.jump_times, 12)
     array([1., 2., 3.])
     """
-    from ..solve import _check_bool, _check_x0
+    from ..options import check_bool as _check_bool
+    from ..options import check_x0 as _check_x0
     k = _load_kernel()
     _check_system(system)
     n = system.state_dim
@@ -640,8 +643,9 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
     >>> [a.jump_count for a in arcs]
     [2, 2]
     """
+    from ..options import check_bool as _check_bool
+    from ..options import check_count as _check_count
     from ..rules import Priority
-    from ..solve import _check_bool, _check_count
     k = _load_kernel()
     _check_system(system)
     n = system.state_dim

@@ -1,0 +1,313 @@
+"""The options of a run, parsed once per entry point: one module for every path.
+
+:func:`hybridsim.simulate` (the Python path), the vectorized batch integrator
+(:mod:`hybridsim.batch_vectorized`) and the compiled path
+(:mod:`hybridsim.compiled`) validate their arguments here, so the same bad
+input gets the same exception class and the same message on every path. Each
+path declares what it supports (:data:`SUPPORTS`) and refuses the rest with
+:func:`refuse`, naming the option and the path that has it.
+"""
+from __future__ import annotations
+
+import math
+import numbers
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, OdeSolver, Radau
+from scipy.integrate._ivp.rk import RungeKutta
+
+from .rules import PRIORITIES, MapError, Priority
+
+__all__ = ["RunOptions", "parse_run", "refuse", "SUPPORTS", "METHODS", "check_x0",
+           "check_real", "check_count", "check_bool", "check_map_value", "check_options",
+           "check_seed", "check_t_eval", "resolve_method"]
+
+METHODS = {"RK23": RK23, "RK45": RK45, "DOP853": DOP853, "Radau": Radau,
+           "BDF": BDF, "LSODA": LSODA}
+
+#: what each path implements beyond the options every path shares (the
+#: options of :class:`RunOptions`); anything else given there is refused by
+#: :func:`refuse`
+SUPPORTS = {
+    "python": frozenset({"method", "inputs", "prehistory", "dense", "t_eval", "progress"}),
+    "vectorized": frozenset({"progress"}),
+    "compiled": frozenset(),
+}
+#: where to go for an option a path refuses
+_WHERE = {"method": "hs.simulate (the Python path) for methods other than 'RK45'",
+          "inputs": "hs.simulate, or close the loop with hs.connect first",
+          "prehistory": "hs.simulate (the Python path)",
+          "dense": "hs.simulate (the Python path)",
+          "t_eval": "hs.simulate (the Python path)",
+          "progress": "hs.simulate or hs.simulate_many"}
+
+
+def refuse(path, name, value):
+    """Raise the one error for an option a path does not implement.
+
+    Parameters
+    ----------
+    path : {"python", "vectorized", "compiled"}
+    name : str
+        The option's name.
+    value : object
+        What the caller gave.
+
+    Raises
+    ------
+    ValueError
+        Naming the option, the value, the path and where the option is supported.
+
+    Examples
+    --------
+    >>> refuse("compiled", "dense", True)
+    Traceback (most recent call last):
+    ...
+    ValueError: dense=True is not supported on the compiled path; use hs.simulate (the Python path)
+    """
+    raise ValueError(f"{name}={value!r} is not supported on the {path} path; use "
+                     f"{_WHERE.get(name, 'hs.simulate (the Python path)')}")
+
+
+def check_x0(x0, n):
+    if np.iscomplexobj(x0):
+        raise TypeError(f"x0 must be real, got complex values {x0!r}")
+    try:
+        x = np.array(x0, dtype=float)
+    except (TypeError, ValueError) as e:
+        raise TypeError(f"x0 must be an array of {n} floats, got {type(x0).__name__}") from e
+    if x.ndim == 0 and n == 1:
+        x = x.reshape(1)
+    if x.shape != (n,):
+        raise ValueError(f"x0 must have shape ({n},) (the system's state_dim), got shape {x.shape}")
+    if not np.all(np.isfinite(x)):
+        raise ValueError(f"x0 must be finite, got {x}")
+    return x
+
+
+def check_real(name, v, *, allow_inf=False, positive=False, nonneg=False):
+    if type(v) is not float and (isinstance(v, bool) or not isinstance(v, numbers.Real)):
+        raise TypeError(f"{name} must be a real number, got {type(v).__name__} {v!r}")
+    v = float(v)
+    if math.isnan(v) or (math.isinf(v) and not allow_inf):
+        raise ValueError(f"{name} must be finite, got {v}")
+    if positive and not v > 0:
+        raise ValueError(f"{name} must be > 0, got {v}")
+    if nonneg and v < 0:
+        raise ValueError(f"{name} must be >= 0, got {v}")
+    return v
+
+
+def check_count(name, v, *, minimum=0, allow_inf=False):
+    """An int >= minimum (or inf where allowed): bools, floats like 2.7 and None refused."""
+    if allow_inf and isinstance(v, float) and math.isinf(v) and v > 0:
+        return math.inf
+    if type(v) is not int and (isinstance(v, bool) or not isinstance(v, numbers.Integral)):
+        if isinstance(v, float) and v.is_integer():
+            v = int(v)
+        else:
+            desc = "a non-negative int" if minimum == 0 else f"an int >= {minimum}"
+            raise TypeError(f"{name} must be {desc}{' (or inf)' if allow_inf else ''}, "
+                            f"got {type(v).__name__} {v!r}")
+    if v < minimum:
+        raise ValueError(f"{name} must be >= {minimum}, got {v}")
+    return int(v)
+
+
+def check_bool(name, v, *, allow_none=False):
+    if v is None and allow_none:
+        return None
+    if isinstance(v, (bool, np.bool_)):
+        return bool(v)
+    raise TypeError(f"{name} must be True or False{' or None' if allow_none else ''}, "
+                    f"got {v!r}")
+
+
+def check_map_value(name, val, n, t=None, j=None):
+    """Check a flow/jump map's value: real, finite, shape (n,). Returns a float array."""
+    if type(val) is np.ndarray and val.shape == (n,) and val.dtype.kind == "f" \
+            and math.isfinite(val.sum()):
+        return val
+    where = "" if t is None else f" (at t={t:.10g}, j={j})"
+    if np.iscomplexobj(val):
+        raise MapError(f"{name} returned complex values {val!r}{where}: the state is real",
+                       name, t, j)
+    try:
+        arr = np.asarray(val, dtype=float)
+    except (TypeError, ValueError) as e:
+        raise MapError(f"{name} must return an array of {n} floats, got "
+                       f"{type(val).__name__}{where}", name, t, j) from e
+    if arr.shape != (n,):
+        raise MapError(f"{name} must return an array of shape ({n},), got shape "
+                       f"{arr.shape}{where}", name, t, j)
+    if not np.all(np.isfinite(arr)):
+        raise MapError(f"{name} returned non-finite values {arr}{where}", name, t, j)
+    return arr
+
+
+
+def resolve_method(method):
+    if isinstance(method, str):
+        if method not in METHODS:
+            raise ValueError(f"method must be one of {sorted(METHODS)} or an OdeSolver "
+                             f"subclass, got {method!r}")
+        return METHODS[method]
+    if isinstance(method, type) and issubclass(method, OdeSolver):
+        if method is OdeSolver or method is RungeKutta or \
+                getattr(method, "_step_impl", None) is OdeSolver._step_impl:
+            raise TypeError(f"method must be a concrete OdeSolver subclass (one that "
+                            f"implements _step_impl), got the abstract {method.__name__}")
+        return method
+    raise TypeError(f"method must be a string or an OdeSolver subclass, got {method!r}")
+
+
+def check_options(system, n, t0, t_max, j_max, priority, rtol, atol, max_step,
+                  first_step, max_norm, zeno_time):
+    """Validate the options shared by :func:`simulate` and the batch integrator.
+
+    Returns them normalised: ``(t0, t_max, j_max, prio, rtol, atol, max_step,
+    first_step, max_norm, zeno_time)`` with ``prio`` a :class:`Priority` and
+    ``max_step`` capped by ``system.max_step``.
+    """
+    t0 = check_real("t0", t0)
+    t_max = check_real("t_max", t_max, allow_inf=True)
+    if t_max < t0:
+        raise ValueError(f"t_max must be >= t0 = {t0}, got {t_max}")
+    j_max = check_count("j_max", j_max, allow_inf=True)
+    if priority not in PRIORITIES:
+        raise ValueError(f"priority must be one of {PRIORITIES}, got {priority!r}")
+    prio = Priority(PRIORITIES.index(priority))
+    rtol = check_real("rtol", rtol, positive=True)
+    if np.ndim(atol) == 0:
+        atol = check_real("atol", atol, positive=True)
+    else:
+        try:
+            atol = np.asarray(atol, dtype=float)
+        except (TypeError, ValueError) as e:
+            raise TypeError(f"atol must be a positive float or an array of shape ({n},), "
+                            f"got {atol!r}") from e
+        if atol.shape != (n,) or not np.all(np.isfinite(atol)) or not np.all(atol > 0):
+            raise ValueError(f"atol must be a positive float or an array of shape "
+                             f"({n},) of positive finite floats, got {atol!r}")
+    max_step = check_real("max_step", max_step, allow_inf=True, positive=True)
+    if system.max_step is not None:
+        max_step = min(max_step, check_real("system.max_step", system.max_step, positive=True))
+    if first_step is not None:
+        first_step = check_real("first_step", first_step, positive=True)
+    max_norm = check_real("max_norm", max_norm, allow_inf=True, positive=True)
+    zeno_time = check_real("zeno_time", zeno_time, nonneg=True)
+    return (t0, t_max, j_max, prio, rtol, atol, max_step, first_step, max_norm, zeno_time)
+
+
+def check_seed(seed, build=True):
+    """The run's random generator from ``seed`` (checked); None where not ``build``
+    (only the random priority draws, and a generator costs ~20 us to make)."""
+    if seed is None or isinstance(seed, np.random.Generator):
+        return np.random.default_rng(seed) if build else None
+    if isinstance(seed, bool) or not isinstance(seed, (numbers.Integral, np.random.SeedSequence)):
+        raise TypeError(f"seed must be None, a non-negative int or a numpy Generator, "
+                        f"got {type(seed).__name__} {seed!r}")
+    if isinstance(seed, numbers.Integral) and seed < 0:
+        raise ValueError(f"seed must be >= 0, got {seed}")
+    return np.random.default_rng(seed) if build else None
+
+
+def check_t_eval(t_eval, t0, t_max):
+    if t_eval is None:
+        return None
+    try:
+        te = np.asarray(t_eval, dtype=float)
+    except (TypeError, ValueError) as e:
+        raise TypeError(f"t_eval must be a 1-D array of times, got {type(t_eval).__name__}") from e
+    if te.ndim != 1:
+        raise ValueError(f"t_eval must be 1-D, got shape {te.shape}")
+    if not np.all(np.isfinite(te)):
+        raise ValueError("t_eval must be finite")
+    if np.any(np.diff(te) <= 0):
+        raise ValueError("t_eval must be strictly increasing (sorted, no repeated "
+                         "times: both samples of a jump at a t_eval time are stored anyway)")
+    if te.size and (te[0] < t0 or te[-1] > t_max):
+        raise ValueError(f"t_eval must lie in [t0, t_max] = [{t0}, {t_max}], got "
+                         f"[{te[0]}, {te[-1]}]")
+    return te
+
+
+def _is_default(name, value):
+    """Whether an option has its do-nothing value (accepted by every path)."""
+    if name == "method":
+        return value is None or value == "RK45" or value is RK45
+    if name in ("dense", "progress"):
+        return value is None or value is False
+    return value is None
+
+
+def check_unsupported(path, given):
+    """Refuse the options of ``given`` (a dict) that ``path`` does not implement
+    and that are set to something other than their do-nothing value."""
+    for name, value in given.items():
+        if name not in SUPPORTS[path] and not _is_default(name, value):
+            refuse(path, name, value)
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """The options every path shares, validated and normalised."""
+
+    t0: float
+    t_max: float
+    j_max: float
+    j0: int
+    prio: Priority
+    rtol: float
+    atol: object
+    max_step: float
+    first_step: float | None
+    max_norm: float
+    zeno_jumps: int
+    zeno_time: float
+    zeno_rtol: float
+    refine: int
+    max_steps: float
+    max_samples: float
+    throw: bool
+    warn: bool
+
+
+def parse_run(system, n, *, t0=0.0, j0=0, t_max, j_max=math.inf, priority="jumps",
+              rtol=1e-6, atol=1e-9, max_step=math.inf, first_step=None, max_norm=math.inf,
+              zeno_jumps=50, zeno_time=1e-12, zeno_rtol=1e-7, refine=1,
+              max_steps=1_000_000, max_samples=10_000_000, throw=True, warn=True):
+    """Validate the options every path shares; one message per bad input.
+
+    Returns
+    -------
+    RunOptions
+
+    Examples
+    --------
+    >>> import hybridsim as hs
+    >>> sysm = hs.library.Timer()
+    >>> parse_run(sysm, 1, t_max=2.0).prio.name
+    'JUMPS'
+    >>> parse_run(sysm, 1, t_max=2.0, zeno_jumps=0)
+    Traceback (most recent call last):
+    ...
+    ValueError: zeno_jumps must be >= 1, got 0
+    """
+    (t0, t_max, j_max, prio, rtol, atol, max_step, first_step, max_norm,
+     zeno_time) = check_options(system, n, t0, t_max, j_max, priority, rtol, atol, max_step,
+                                first_step, max_norm, zeno_time)
+    j0 = check_count("j0", j0)
+    refine = check_count("refine", refine, minimum=1)
+    max_steps = check_count("max_steps", max_steps, minimum=1, allow_inf=True)
+    max_samples = check_count("max_samples", max_samples, minimum=2, allow_inf=True)
+    if refine > max_samples:
+        raise ValueError(f"refine must be <= max_samples = {max_samples}, got {refine}")
+    zeno_jumps = check_count("zeno_jumps", zeno_jumps, minimum=1)
+    zeno_rtol = check_real("zeno_rtol", zeno_rtol, nonneg=True)
+    throw = check_bool("throw", throw)
+    warn = check_bool("warn", warn)
+    return RunOptions(t0, t_max, j_max, j0, prio, rtol, atol, max_step, first_step, max_norm,
+                      zeno_jumps, zeno_time, zeno_rtol, refine, max_steps, max_samples,
+                      throw, warn)
