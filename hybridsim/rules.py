@@ -13,7 +13,9 @@ import math
 
 import numpy as np
 
-__all__ = ["Termination", "Priority", "Action", "decide", "decide_at_event",
+__all__ = ["Termination", "Priority", "Action", "decide", "decide_at_event", "event_outcome",
+           "after_jump", "CAUSES", "CODES", "J_MAX_CODE", "ZENO_CODE", "NO_CAUSE",
+           "raises", "warns", "finish", "DETAILS", "message",
            "jumps_now", "needs_coin", "is_short_flow", "is_sticking", "sticking_message",
            "zeno_message", "time_scale", "t_max_slack", "event_tolerance", "PRIORITIES", "FAILURES",
            "SimulationWarning", "SimulationError", "MapError"]
@@ -94,6 +96,55 @@ class Termination(enum.Enum):
 #: causes under which ``simulate(throw=True)`` raises or a warning is issued
 FAILURES = frozenset({Termination.MAP_ERROR, Termination.NON_FINITE,
                       Termination.SOLVER_FAILED, Termination.BLOWUP})
+
+
+#: every cause in one order: a compiled kernel reports ``CODES[cause]``, an int
+CAUSES = tuple(Termination)
+CODES = {cause: i for i, cause in enumerate(CAUSES)}
+J_MAX_CODE = CODES[Termination.J_MAX]
+ZENO_CODE = CODES[Termination.ZENO]
+NO_CAUSE = -1           # the run goes on
+
+
+def raises(cause, throw):
+    """Whether a single run that ended with ``cause`` raises (``throw=True``).
+
+    One policy on every path: a user map that raised or broke its contract
+    (``MAP_ERROR``) raises :class:`MapError` with the arc so far; every other
+    cause, failures included, returns the arc (see :func:`warns`).
+    """
+    return bool(throw) and cause is Termination.MAP_ERROR
+
+
+def warns(cause, warn):
+    """Whether a run that ended with ``cause`` issues a :class:`SimulationWarning`
+    (``warn=True``): the numerical failures and ``MAX_STEPS``."""
+    return bool(warn) and cause is not Termination.MAP_ERROR and (
+        cause in FAILURES or cause is Termination.MAX_STEPS)
+
+
+def finish(arc, throw, warn, stacklevel=3):
+    """Apply the raise/warn policy to a finished single run; returns the arc.
+
+    Raises
+    ------
+    MapError
+        Where :func:`raises`: ``arc.exception`` (a :class:`MapError` naming
+        the map, t and j) with ``.arc`` set to the arc so far.
+    """
+    import warnings
+
+    cause = arc.termination
+    if raises(cause, throw):
+        err = arc.exception
+        if not isinstance(err, MapError):
+            err = MapError(arc.message)
+        err.arc = arc
+        raise err
+    if warns(cause, warn):
+        warnings.warn(f"{cause.name}: {arc.message} (last sample t={arc.t[-1]:.10g}, "
+                      f"j={arc.j[-1]})", SimulationWarning, stacklevel=stacklevel)
+    return arc
 
 
 class Priority(enum.IntEnum):
@@ -199,6 +250,47 @@ def decide_at_event(entered_D: bool, in_C_at_event: bool, prio: int, coin: bool)
     return _STOP
 
 
+def event_outcome(watching_D, in_D_hi, in_C_hi, in_D_lo, prio, coin):
+    """What a located event does: ``(action, side)``, side 0 the bracket's
+    last point before the event (``lo``), 1 its first point after (``hi``).
+
+    The transition every path takes where a flow's event is located in
+    ``(lo, hi]``: an entry into D (watched, ``watching_D``) decides at hi
+    (:func:`decide_at_event`: jump, or flow on where the random priority's
+    ``coin`` says so); else the flow is leaving C: it jumps from lo if lo is
+    in D, else from hi if hi is in D, else it stops at lo (outside C ∪ D).
+    Plain bools and ints, so that a compiled path compiles it.
+
+    Examples
+    --------
+    >>> event_outcome(True, True, False, False, Priority.JUMPS, True) == (Action.JUMP, 1)
+    True
+    >>> event_outcome(False, False, False, False, Priority.JUMPS, True) == (Action.STOP, 0)
+    True
+    """
+    if watching_D and in_D_hi:
+        return decide_at_event(True, in_C_hi, prio, coin), 1
+    if in_D_lo:
+        return _JUMP, 0
+    if in_D_hi:
+        return _JUMP, 1
+    return _STOP, 0
+
+
+def after_jump(jumps, short, j_max, zeno_jumps):
+    """The cause code a jump ends the run with, or :data:`NO_CAUSE`.
+
+    ``jumps``: jumps taken so far (this one included); ``short``:
+    consecutive jumps after short flows (:func:`is_short_flow`). ``J_MAX``
+    comes before ``ZENO``: the user's limit is the reason given.
+    """
+    if jumps >= j_max:
+        return J_MAX_CODE
+    if short >= zeno_jumps:
+        return ZENO_CODE
+    return NO_CAUSE
+
+
 def event_tolerance(a: float, b: float) -> float:
     """Width to which an event time is bracketed: 4 ulp of the time scale."""
     return 4.0 * _EPS * max(1.0, abs(a), abs(b))
@@ -271,6 +363,54 @@ def sticking_message(t, j, x, last_flows):
             f"flows ({flows}): the solution sticks to the boundary of C (jumps "
             f"accumulate; a Zeno-like end), x={x}. Model the sticking (e.g. a mode where "
             f"the contact persists, or a jump map that stops the motion below a threshold)")
+
+
+#: the details of each cause, by kind: one table for every path. A run's
+#: message is ``cause.message`` followed by ``": "`` and the filled detail
+#: (:func:`message`); ``{x}`` is the state as numpy prints it, times with 10
+#: significant digits.
+DETAILS = {
+    (Termination.NOT_IN_SETS, None): "x={x} at (t={t:.10g}, j={j})",
+    (Termination.LEFT_SETS, None): "x={x} at (t={t:.10g}, j={j})",
+    (Termination.LEFT_SETS, "left"): "the flow left C at t={t:.10g} (j={j}), x={x}, outside D",
+    (Termination.ZENO, "short"): "flows too short to resolve near t={t:.10g}",
+    (Termination.NON_FINITE, "step"): ("the state became non-finite in the step from "
+                                       "t={t:.10g} to t={t2:.10g} (j={j})"),
+    (Termination.NON_FINITE, "flow"): "flow_map returned non-finite values near t={t:.10g} (j={j})",
+    (Termination.NON_FINITE, "guard"): "{name} returned NaN near t={t:.10g} (j={j})",
+    (Termination.BLOWUP, None): "|x| = {norm:.3g} > {max_norm:.3g} at t={t:.10g} (j={j})",
+    (Termination.SOLVER_FAILED, None): "{reason} at t={t:.10g} (j={j})",
+    (Termination.MAX_STEPS, "steps"): "{steps} solver steps (max_steps={max_steps}) at t={t:.10g}",
+    (Termination.MAX_STEPS, "samples"): ("{samples} samples stored (max_samples={max_samples}) "
+                                         "at t={t:.10g}"),
+    (Termination.CANCELED, None): "stopped at t={t:.10g}, j={j}",
+}
+
+
+def message(cause, kind=None, **fields):
+    """A run's message: the cause's sentence and its filled detail.
+
+    ``kind`` picks the detail among :data:`DETAILS` (None: the cause's
+    default detail); ``ZENO`` kinds ``"zeno"`` and ``"sticking"`` are filled
+    by :func:`zeno_message` and :func:`sticking_message`; ``MAP_ERROR``
+    takes ``error`` (the map error's own text). A cause without details
+    (``T_MAX``, ``J_MAX``) is its sentence alone.
+
+    Examples
+    --------
+    >>> message(Termination.CANCELED, t=0.25, j=3)
+    'the run was interrupted (KeyboardInterrupt); the arc so far is kept: stopped at t=0.25, j=3'
+    """
+    if cause is Termination.ZENO and kind == "zeno":
+        detail = zeno_message(fields["count"], fields["t"])
+    elif cause is Termination.ZENO and kind == "sticking":
+        detail = sticking_message(fields["t"], fields["j"], fields["x"], fields["flows"])
+    elif cause is Termination.MAP_ERROR:
+        detail = fields.get("error")
+    else:
+        fmt = DETAILS.get((cause, kind))
+        detail = None if fmt is None else fmt.format(**fields)
+    return cause.message if not detail else f"{cause.message}: {detail}"
 
 
 def zeno_message(count, t):
