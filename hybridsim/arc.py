@@ -16,8 +16,8 @@ import math
 import numbers
 import os
 import pickle
+import struct
 import zipfile
-import zlib
 from pathlib import Path
 from typing import NamedTuple
 
@@ -25,7 +25,7 @@ import numpy as np
 
 from .rules import Termination  # one source of the causes
 
-__all__ = ["HybridArc", "Termination", "ArcValues", "FORMAT_VERSION"]
+__all__ = ["HybridArc", "Termination", "ArcValues", "ArcFileError", "FORMAT_VERSION"]
 
 #: Version of the ``.npz`` layout written by :meth:`HybridArc.save`.
 #: 1: t, j, x, termination, message, comp_names, comp_bounds (no version key).
@@ -100,12 +100,151 @@ def _encode_name(name):
     return {"str": str(name)}
 
 
-def _decode_name(v):
-    if isinstance(v, dict):
-        if "tuple" in v:
-            return tuple(_decode_name(u) for u in v["tuple"])
-        return v["str"]
-    return v
+def _decode_name(v, depth=0):
+    """A component name from its JSON form (see :func:`_encode_name`), strictly."""
+    if isinstance(v, (str, int, float, bool)) or v is None:
+        return v
+    if isinstance(v, dict) and len(v) == 1 and depth < 32:
+        if isinstance(v.get("tuple"), list):
+            return tuple(_decode_name(u, depth + 1) for u in v["tuple"])
+        if isinstance(v.get("str"), str):
+            return v["str"]
+    raise ValueError(f"not a component name: {str(v)[:80]}")
+
+
+class ArcFileError(ValueError):
+    """A file :meth:`HybridArc.load` cannot read as an arc: damaged, foreign or crafted.
+
+    A ``ValueError``; the message names the file and what is wrong with it.
+    """
+
+
+#: What each array of the format must be: (ndim, dtype kinds, description).
+_SPECS = {
+    "format_version": (0, "iu", "an integer"),
+    "t": (1, "iuf", "a 1-D float array"),
+    "j": (1, "iuf", "an integer array of shape (N,)"),
+    "x": (2, "iuf", "a float array of shape (N, n)"),
+    "xdot": (2, "iuf", "a float array of shape (N, n)"),
+    "comp_names": (1, "USiu", "a 1-D array of names"),
+    "comp_bounds": (2, "iu", "an integer array of shape (m, 2)"),
+}
+_STRING = (0, "US", "a string")
+_SUPPORTED = (f"this hybridsim reads format versions 1 (files without format_version) "
+              f"to {FORMAT_VERSION}")
+_CHUNK = 1 << 20
+
+
+def _read_member(z, info, key, size, bad):
+    """One array of an npz archive, checked against its spec before its data is read.
+
+    The ``.npy`` header's dtype and shape are checked first, and the data
+    they declare against the bytes the member holds, so that a crafted
+    header never allocates more than the file can fill; object dtypes are
+    refused (nothing is unpickled).
+    """
+    ndim, kinds, what = _SPECS.get(key, _STRING)
+    if info.flag_bits & 0x1:
+        raise bad(f"array {key!r} is encrypted")
+    if info.compress_type not in (zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED):
+        raise bad(f"array {key!r} uses zip compression method {info.compress_type}, "
+                  f"not one numpy writes")
+    # deflate expands at most ~1032x: a larger declared size is a lie
+    if info.compress_size > size or info.file_size > 1100 * info.compress_size + 1024:
+        raise bad(f"array {key!r} declares {info.file_size} bytes ({info.compress_size} "
+                  f"compressed) in a file of {size} bytes")
+    with z.open(info) as f:
+        version = np.lib.format.read_magic(f)
+        if version == (1, 0):
+            shape, fortran, dtype = np.lib.format.read_array_header_1_0(f)
+        elif version == (2, 0):
+            shape, fortran, dtype = np.lib.format.read_array_header_2_0(f)
+        else:
+            raise bad(f"array {key!r} has .npy format version {version}, not 1.0 or 2.0")
+        if dtype.hasobject:
+            raise bad(f"array {key!r} holds Python objects (pickled data), which load "
+                      f"never unpickles")
+        if len(shape) != ndim or dtype.kind not in kinds:
+            if key == "format_version":
+                raise bad(f"format_version must be an integer, got dtype {dtype}, shape "
+                          f"{shape}; {_SUPPORTED}")
+            raise bad(f"{key} must be {what}, got dtype {dtype}, shape {shape}")
+        nbytes = math.prod(shape) * dtype.itemsize
+        held = info.file_size - f.tell()
+        if nbytes != held:
+            raise bad(f"array {key!r} declares shape {shape} of {dtype} ({nbytes} bytes) "
+                      f"but holds {held} bytes")
+        buf = np.empty(nbytes, dtype=np.uint8)
+        pos = 0
+        while pos < nbytes:                 # in chunks: memory only as data arrives
+            chunk = f.read(min(_CHUNK, nbytes - pos))
+            if not chunk:
+                raise bad(f"array {key!r} is truncated ({pos} of {nbytes} bytes)")
+            buf[pos:pos + len(chunk)] = np.frombuffer(chunk, dtype=np.uint8)
+            pos += len(chunk)
+        f.read(1)                           # at the end: zipfile checks the CRC
+    arr = buf.view(dtype) if nbytes else np.zeros(math.prod(shape), dtype=dtype)
+    return arr.reshape(shape, order="F" if fortran else "C")
+
+
+def _read_npz(fh, bad):
+    """The arrays of an arc file open in ``fh`` and its format version.
+
+    Raises ``bad(...)`` for what it recognises; anything else a damaged
+    file raises is named by the caller.
+    """
+    start = fh.tell()
+    head = fh.read(6)
+    size = fh.seek(0, os.SEEK_END) - start
+    fh.seek(start)
+    if head == b"\x93NUMPY":
+        raise bad("not an .npz archive (a single .npy array?); expected a file "
+                  "written by HybridArc.save")
+    # the entry count of the zip's end record: a damaged directory may list fewer
+    fh.seek(max(start, start + size - (1 << 16) - 22))
+    tail = fh.read()
+    fh.seek(start)
+    k = len(tail) - 22 if tail[-22:-18] == b"PK\x05\x06" else tail.rfind(b"PK\x05\x06")
+    count = struct.unpack("<H", tail[k + 10:k + 12])[0] if 0 <= k <= len(tail) - 22 else None
+    with zipfile.ZipFile(fh) as z:
+        infos = z.infolist()
+        if count is not None and count != 0xFFFF and count != len(infos):
+            raise bad(f"the zip directory is damaged: its end record counts {count} "
+                      f"members, it lists {len(infos)}")
+        members = {}
+        for info in infos:
+            name = info.filename
+            key = name[:-4] if name.endswith(".npy") else name
+            if key in members:
+                raise bad(f"the archive holds {name!r} twice")
+            members[key] = info
+        if "format_version" in members:
+            fv = _read_member(z, members["format_version"], "format_version", size, bad)
+            version = int(fv)
+            if version > FORMAT_VERSION:
+                raise bad(f"format version {version} was written by a newer hybridsim; "
+                          f"{_SUPPORTED}")
+            if version < 1:
+                raise bad(f"format version {version} is not a version of the format; "
+                          f"{_SUPPORTED}")
+        else:
+            version = 1
+        need = _KEYS_V1 if version == 1 else _KEYS_V2
+        missing = [k for k in need if k not in members]
+        if missing:
+            found = (f"format version {version}" if "format_version" in members
+                     else "no format_version key (version 1 layout)")
+            raise bad(f"missing {missing} for format version {version} ({found}); "
+                      f"present: {sorted(members)}")
+        want = [k for k in need if k != "format_version"]
+        if version > 1 and "xdot" in members:
+            want.append("xdot")
+        # anything else is damage (a member's name changed) or another format
+        extra = sorted(set(members) - set(want) - {"format_version"})
+        if extra or any(not members[k].filename.endswith(".npy") for k in want):
+            raise bad(f"unexpected members {extra or sorted(members)} for format version "
+                      f"{version}; expected {need} (and xdot) as .npy arrays")
+        return {k: _read_member(z, members[k], k, size, bad) for k in want}, version
 
 
 class HybridArc:
@@ -734,6 +873,16 @@ class HybridArc:
             xdot, components and the system are dropped (they describe the
             original state).
 
+        Raises
+        ------
+        ValueError
+            When fn returns complex, non-numeric or non-finite values (naming
+            the sample and its (t, j)), arrays of more than one dimension, or
+            arrays of different lengths. Non-finite values pass only at the
+            last sample of a ``NON_FINITE`` run where x itself is not finite
+            (as :meth:`validate` allows); the mapped dense outputs refuse
+            them too when evaluated.
+
         Examples
         --------
         >>> arc = HybridArc([0, 1], [0, 0], [[3.0, 4.0], [0.0, 1.0]], None)
@@ -743,16 +892,29 @@ class HybridArc:
         from .system import as_map
         f = as_map(fn, "transform: fn")
 
-        def row(x, t, j):
+        def row(x, t, j, k=None):
             y = np.asarray(f(x, t, j, None))
+            place = (f"(t={float(t)!r}, j={int(j)})" if k is None
+                     else f"sample {k} (t={float(t)!r}, j={int(j)})")
             if np.iscomplexobj(y):
                 raise ValueError(f"transform: fn returned complex values at t={t}, j={j}")
             if y.ndim > 1:
                 raise ValueError(f"transform: fn must return a scalar or a 1-D array, "
                                  f"got shape {y.shape} at t={t}, j={j}")
-            return np.atleast_1d(y).astype(float)
+            try:
+                y = np.atleast_1d(y).astype(float)
+            except (TypeError, ValueError):
+                raise ValueError(f"transform: fn must return numbers, got {y!r} at "
+                                 f"{place}") from None
+            # NaN/inf only where validate allows them: a NON_FINITE run's last sample
+            if not np.isfinite(y).all() and not (k is not None and k == last
+                                                  and not np.isfinite(x).all()):
+                raise ValueError(f"transform: fn returned non-finite values {y} at {place}; "
+                                 f"a transformed arc holds finite states only")
+            return y
 
-        rows = [row(x, t, j) for x, t, j in zip(self.x, self.t, self.j)]
+        last = len(self.t) - 1 if self.termination is Termination.NON_FINITE else None
+        rows = [row(x, t, j, k) for k, (x, t, j) in enumerate(zip(self.x, self.t, self.j))]
         if rows and len({r.shape for r in rows}) > 1:
             raise ValueError("transform: fn must return arrays of one length, got "
                              f"lengths {sorted({len(r) for r in rows})}")
@@ -958,56 +1120,138 @@ class HybridArc:
                          for x, t, j in zip(arc.x, arc.t, arc.j)])
 
     # ----------------------------------------------------------------- checks
-    def validate(self, where="validate"):
+    def validate(self, *, t_max=None, j_max=None, where="validate"):
         """Check the invariants of a hybrid arc; return self, or raise ValueError.
 
-        t finite and non-decreasing; j integer, increasing by 0 or 1; a jump
-        (j + 1) at the same t as the sample before it; x finite (except a
-        last sample of a run that ended ``NON_FINITE``); xdot of x's shape.
+        Vectorized and O(N): cheap enough to run after every simulation.
+
+        Parameters
+        ----------
+        t_max : float, optional
+            The run's ``t_max``: no sample after it, and a run that ended
+            ``T_MAX`` has its last sample at ``t_max``.
+        j_max : int, optional
+            The run's ``j_max``: at most that many jumps, and a run that
+            ended ``J_MAX`` made exactly ``j_max``.
+        where : str, optional
+            Prefix of the error messages.
+
+        Returns
+        -------
+        HybridArc
+            ``self``, so that ``arc.validate()`` chains.
+
+        Raises
+        ------
+        ValueError
+            At the first sample k that breaks one of (message naming k and
+            its (t, j)): shapes t (N,), j (N,) of ints, x (N, n), xdot
+            (N, n); t finite and non-decreasing; j stepping by 0 or 1; a jump
+            (j + 1) at the t of the sample before it; no duplicate sample
+            (same t and j as the one before); x finite (except the last
+            sample of a run that ended ``NON_FINITE``); the limits above.
 
         Examples
         --------
-        >>> HybridArc([0, 1], [0, 0], [[0], [1]], None).validate().t
+        >>> HybridArc([0, 1], [0, 0], [[0], [1]], Termination.T_MAX).validate(t_max=1).t
         array([0., 1.])
+        >>> HybridArc([0, 1, 1], [0, 0, 0], [[0], [1], [1]], None).validate()
+        ... # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        ...
+        ValueError: validate: sample 2 (t=1.0, j=0) repeats the sample before it ...
         """
-        t, j, x = self.t, self.j, self.x
-        if not np.all(np.isfinite(t)):
-            k = int(np.flatnonzero(~np.isfinite(t))[0])
-            raise ValueError(f"{where}: t[{k}] = {t[k]} is not finite")
-        dt = np.diff(t)
-        if np.any(dt < 0):
-            k = int(np.flatnonzero(dt < 0)[0])
-            raise ValueError(f"{where}: t goes backwards at sample {k + 1} "
-                             f"(t[{k}] = {t[k]}, t[{k + 1}] = {t[k + 1]})")
-        dj = np.diff(j)
-        if np.any((dj != 0) & (dj != 1)):
-            k = int(np.flatnonzero((dj != 0) & (dj != 1))[0])
-            raise ValueError(f"{where}: j must increase by 0 or 1 between samples; "
-                             f"j[{k}] = {j[k]}, j[{k + 1}] = {j[k + 1]}")
-        if np.any((dj == 1) & (dt != 0)):
-            k = int(np.flatnonzero((dj == 1) & (dt != 0))[0])
-            raise ValueError(f"{where}: the jump at sample {k + 1} (j {j[k]} -> {j[k + 1]}) "
-                             f"changes t ({t[k]} -> {t[k + 1]}); a jump keeps t")
-        finite = np.all(np.isfinite(x), axis=1)
-        if not finite.all():
-            k = int(np.flatnonzero(~finite)[0])
-            if not (k == len(t) - 1 and self.termination is Termination.NON_FINITE):
-                raise ValueError(f"{where}: x[{k}] (t = {t[k]}, j = {j[k]}) is not finite: "
-                                 f"{x[k]}")
-        if self.xdot is not None and self.xdot.shape != x.shape:
-            raise ValueError(f"{where}: xdot has shape {self.xdot.shape}, x {x.shape}")
+        t, j, x, xdot = self.t, self.j, self.x, self.xdot
+        shapes = (getattr(t, "shape", None), getattr(j, "shape", None),
+                  getattr(x, "shape", None), getattr(xdot, "shape", None))
+        if not (isinstance(t, np.ndarray) and isinstance(j, np.ndarray)
+                and isinstance(x, np.ndarray) and t.ndim == 1 and j.shape == t.shape
+                and x.ndim == 2 and len(x) == len(t)
+                and (xdot is None or (isinstance(xdot, np.ndarray)
+                                      and xdot.shape == x.shape))):
+            raise ValueError(f"{where}: expected t (N,), j (N,), x (N, n) and xdot None or "
+                             f"(N, n) arrays; got shapes t {shapes[0]}, j {shapes[1]}, "
+                             f"x {shapes[2]}, xdot {shapes[3]}")
+        if j.dtype.kind not in "iu" or t.dtype.kind not in "iuf" or x.dtype.kind not in "iuf":
+            raise ValueError(f"{where}: expected t and x of floats and j of ints; got "
+                             f"dtypes t {t.dtype}, j {j.dtype}, x {x.dtype}")
+        n = len(t)
+        if n == 0:
+            return self
+
+        def at(k):
+            return f"sample {k} (t={float(t[k])!r}, j={int(j[k])})"
+
+        # one mask per check over the samples; the first sample any breaks is named
+        dt, dj = np.diff(t), np.diff(j)
+        bad_x = ~np.all(np.isfinite(x), axis=1)
+        if self.termination is Termination.NON_FINITE:
+            bad_x[-1] = False                 # the state that stopped the run
+        first = np.inf, None
+        checks = (
+            (~np.isfinite(t), 0,
+             lambda k: f"t[{k}] = {t[k]} is not finite at {at(k)}"),
+            (dt < 0, 1,
+             lambda k: f"t goes backwards at sample {k} (t[{k - 1}] = {t[k - 1]}, "
+                       f"t[{k}] = {t[k]}; j = {j[k]})"),
+            ((dj != 0) & (dj != 1), 1,
+             lambda k: f"j must increase by 0 or 1 between samples; j[{k - 1}] = "
+                       f"{j[k - 1]}, j[{k}] = {j[k]} at {at(k)}"),
+            ((dj == 1) & (dt != 0), 1,
+             lambda k: f"the jump at sample {k} (j {j[k - 1]} -> {j[k]}) changes t "
+                       f"({t[k - 1]} -> {t[k]}); a jump keeps t"),
+            ((dj == 0) & (dt == 0), 1,
+             lambda k: f"{at(k)} repeats the sample before it (same t and j): a "
+                       f"duplicate sample"),
+            (bad_x, 0,
+             lambda k: f"x[{k}] (t = {t[k]}, j = {j[k]}) is not finite: {x[k]}"),
+        )
+        for mask, shift, msg in checks:
+            hit = np.flatnonzero(mask)
+            if hit.size and hit[0] + shift < first[0]:
+                first = int(hit[0]) + shift, msg
+        if first[1] is not None:
+            raise ValueError(f"{where}: {first[1](first[0])}")
+        # where the run's limits are known: no sample beyond, the cause's sample at them
+        term = self.termination
+        if t_max is not None:
+            over = np.flatnonzero(t > t_max)
+            if over.size:
+                raise ValueError(f"{where}: {at(int(over[0]))} lies after t_max = {t_max}")
+            if term is Termination.T_MAX and t[-1] != t_max:
+                raise ValueError(f"{where}: the run ended T_MAX but its last {at(n - 1)} "
+                                 f"is not at t_max = {t_max}")
+        if j_max is not None:
+            count = j - j[0]
+            over = np.flatnonzero(count > j_max)
+            if over.size:
+                raise ValueError(f"{where}: {at(int(over[0]))} is after jump "
+                                 f"{int(count[over[0]])}, beyond j_max = {j_max}")
+            if term is Termination.J_MAX and count[-1] != j_max:
+                raise ValueError(f"{where}: the run ended J_MAX but its last {at(n - 1)} "
+                                 f"is after {int(count[-1])} jumps, not j_max = {j_max}")
         return self
 
     # ----------------------------------------------------------------- I/O
     @staticmethod
-    def _npz_path(path):
+    def _npz_path(path, where="save"):
+        """The file to write: ``.npz`` appended when missing; never a directory."""
         if hasattr(path, "write") or hasattr(path, "read"):
             return path
-        p = Path(os.fspath(path))
-        return p if p.suffix == ".npz" else p.with_name(p.name + ".npz")
+        raw = os.fsdecode(os.fspath(path))
+        p = Path(raw)
+        seps = tuple(s for s in (os.sep, os.altsep) if s)
+        if raw.endswith(seps) or p.is_dir():
+            raise IsADirectoryError(f"{where}: {raw!r} is a directory; give a file name "
+                                    f"such as {str(p / 'arc.npz')!r}")
+        target = p if p.suffix == ".npz" else p.with_name(p.name + ".npz")
+        if target.is_dir():
+            raise IsADirectoryError(f"{where}: {str(target)!r} is a directory; give "
+                                    f"another file name")
+        return target
 
     def save(self, path):
-        """Save the arc to an ``.npz`` file (format :data:`FORMAT_VERSION`).
+        """Validate the arc and save it to an ``.npz`` file (format :data:`FORMAT_VERSION`).
 
         Parameters
         ----------
@@ -1018,6 +1262,14 @@ class HybridArc:
         -------
         pathlib.Path or the file object
             Where the arc was written.
+
+        Raises
+        ------
+        ValueError
+            When the arc is not valid (:meth:`validate`); nothing is written.
+        IsADirectoryError
+            When ``path`` names a directory (``"results/"``, an existing
+            directory, or one named ``path + ".npz"``).
 
         Notes
         -----
@@ -1037,6 +1289,7 @@ class HybridArc:
         array([0., 1.])
         """
         target = self._npz_path(path)
+        self.validate(where="save")
         comps = [] if not self.components else [
             [_encode_name(k), s.start, s.stop] for k, s in self.components.items()]
         data = dict(
@@ -1071,126 +1324,122 @@ class HybridArc:
         ------
         FileNotFoundError
             When neither ``path`` nor ``path.npz`` exists.
-        ValueError
-            Naming the path: a truncated or corrupt file, not an ``.npz``
-            archive, missing keys (naming them and the format version found),
-            a newer format, wrong shapes, t not finite or going backwards, j
-            not integer or not increasing by 0 or 1, a jump that changes t,
-            non-finite x, an unknown termination name. Pickled objects are
-            never loaded.
+        ArcFileError
+            (a ``ValueError``) naming the file and what is wrong, for every
+            damaged, foreign or crafted file: truncated or corrupt, not an
+            ``.npz`` archive, a damaged zip directory, missing or unexpected
+            arrays (naming them and the format version found), an
+            unsupported ``format_version`` (not an int among the versions
+            this hybridsim reads), arrays of the wrong
+            dtype or shape or declaring more data than they hold, object
+            arrays (pickled data is never loaded), components/stats that are
+            not JSON of the expected form, an unknown termination name, and
+            samples that break :meth:`validate`.
 
         Examples
         --------
         See :meth:`save`.
         """
         if hasattr(path, "read"):
-            src, name = path, getattr(path, "name", repr(path))
-        else:
-            p = Path(os.fspath(path))
-            if not p.exists() and p.suffix != ".npz" and p.with_name(p.name + ".npz").exists():
-                p = p.with_name(p.name + ".npz")
-            if not p.exists():
-                raise FileNotFoundError(f"load: no such file {str(p)!r}"
-                                        + ("" if p.suffix == ".npz" else " (nor with .npz)"))
-            src, name = p, str(p)
+            return cls._load_from(path, getattr(path, "name", repr(path)))
+        p = Path(os.fspath(path))
+        if not p.exists() and p.suffix != ".npz" and p.with_name(p.name + ".npz").exists():
+            p = p.with_name(p.name + ".npz")
+        if not p.exists():
+            raise FileNotFoundError(f"load: no such file {str(p)!r}"
+                                    + ("" if p.suffix == ".npz" else " (nor with .npz)"))
+        with open(p, "rb") as fh:
+            return cls._load_from(fh, str(p))
 
+    @classmethod
+    def _load_from(cls, fh, name):
         def bad(msg):
-            return ValueError(f"load: {name!r}: {msg}")
+            return ArcFileError(f"load: {name!r}: {msg}")
 
-        corrupt = (zipfile.BadZipFile, EOFError, zlib.error, OSError, ValueError,
-                   KeyError, UnicodeDecodeError)
         try:
-            d = np.load(src, allow_pickle=False)
-        except FileNotFoundError:
+            arrays, version = _read_npz(fh, bad)
+            return cls._from_arrays(arrays, version, bad)
+        except ArcFileError:
             raise
-        except corrupt as e:
+        except Exception as e:  # whatever else a damaged file raises: named
             raise bad(f"not a readable HybridArc .npz file (truncated or corrupt?): "
                       f"{type(e).__name__}: {e}") from e
-        if not isinstance(d, np.lib.npyio.NpzFile):
-            raise bad("not an .npz archive (a single .npy array?); expected a file "
-                      "written by HybridArc.save")
-        with d:
-            try:
-                keys = set(d.files)
-                version = int(d["format_version"]) if "format_version" in keys else 1
-                if version > FORMAT_VERSION:
-                    raise bad(f"format version {version} was written by a newer hybridsim; "
-                              f"this one reads versions 1 to {FORMAT_VERSION}")
-                need = _KEYS_V1 if version == 1 else _KEYS_V2
-                missing = [k for k in need if k not in keys]
-                if missing:
-                    found = (f"format version {version}" if "format_version" in keys
-                             else "no format_version key (version 1 layout)")
-                    raise bad(f"missing {missing} for format version {version} ({found}); "
-                              f"present: {sorted(keys)}")
-                arr = {k: d[k] for k in keys}
-            except ValueError as e:
-                if str(e).startswith("load:"):
-                    raise
-                raise bad(f"corrupt content (truncated or not written by "
-                          f"HybridArc.save?): {type(e).__name__}: {e}") from e
-            except corrupt as e:
-                raise bad(f"truncated or corrupt file: {type(e).__name__}: {e}") from e
-        return cls._from_arrays(arr, version, bad)
 
     @classmethod
     def _from_arrays(cls, d, version, bad):
         def scalar_str(key):
-            v = d[key]
-            if v.shape != () or v.dtype.kind not in "US":
-                raise bad(f"{key} must be a string, got dtype {v.dtype}, shape {v.shape}")
-            return str(v)
+            v = d[key].item()
+            return v.decode("utf-8") if isinstance(v, bytes) else str(v)
+
+        def from_json(key):
+            s = scalar_str(key)
+            try:
+                return json.loads(s) if s else None
+            except (ValueError, RecursionError) as e:
+                why = "nested too deeply" if isinstance(e, RecursionError) else str(e)
+                raise bad(f"components/stats are not valid JSON of the expected form "
+                          f"({key}: {why})") from None
 
         t, j, x = d["t"], d["j"], d["x"]
-        if t.dtype.kind not in "iuf" or t.ndim != 1:
-            raise bad(f"t must be a 1-D float array, got dtype {t.dtype}, shape {t.shape}")
-        if j.dtype.kind not in "iuf" or j.shape != t.shape:
+        if j.shape != t.shape:
             raise bad(f"j must be an integer array of shape {t.shape}, got dtype "
                       f"{j.dtype}, shape {j.shape}")
-        if x.dtype.kind not in "iuf" or x.ndim != 2 or len(x) != len(t):
+        if len(x) != len(t):
             raise bad(f"x must be a float array of shape (N, n) with N = {len(t)}, got "
                       f"dtype {x.dtype}, shape {x.shape}")
-        if len(j) and (not np.all(np.isfinite(j)) or np.any(np.mod(j, 1) != 0)):
+        if len(j) and j.dtype.kind == "f" and not (
+                np.all(np.isfinite(j)) and np.all(np.mod(j, 1) == 0)
+                and np.all(np.abs(j) < 2.0 ** 53)):
             raise bad("j must hold integers (jump counts)")
+        if len(j) and j.dtype.kind == "u" and j.max() > np.iinfo(np.int64).max:
+            raise bad(f"j holds a jump count {j.max()} beyond int64")
         term = scalar_str("termination")
         if term and term not in Termination.__members__:
             raise bad(f"unknown termination {term!r}; known: {list(Termination.__members__)}")
         message = scalar_str("message")
-        comps = None
+        n = x.shape[1]
         if version == 1:
             names, bounds = d["comp_names"], d["comp_bounds"]
-            if bounds.ndim != 2 or bounds.shape[1:] != (2,) or len(bounds) != len(names):
+            if bounds.shape != (len(names), 2):
                 raise bad(f"comp_bounds must have shape ({len(names)}, 2), got {bounds.shape}")
-            comps = {str(k): slice(int(a), int(b)) for k, (a, b) in zip(names, bounds)} or None
+            raw = [[k.item(), int(a), int(b)] for k, (a, b) in zip(names, bounds)]
             xdot, stats, desc = None, None, None
         else:
-            try:
-                raw = json.loads(scalar_str("components"))
-                comps = {_decode_name(k): slice(int(a), int(b)) for k, a, b in raw} or None
-                s = scalar_str("stats")
-                stats = json.loads(s) if s else None
-            except (json.JSONDecodeError, TypeError, ValueError, KeyError) as e:
-                raise bad(f"components/stats are not valid JSON of the expected form: "
-                          f"{e}") from e
+            raw = from_json("components")
+            stats = from_json("stats")
             if stats is not None and not isinstance(stats, dict):
                 raise bad(f"stats must be a JSON object, got {type(stats).__name__}")
             xdot = d.get("xdot")
             if xdot is not None and xdot.shape != x.shape:
                 raise bad(f"xdot must have the shape of x {x.shape}, got {xdot.shape}")
             desc = scalar_str("system_description") or None
-        if comps:
-            n = x.shape[1]
-            for k, sl in comps.items():
-                if not (0 <= sl.start <= sl.stop <= n):
-                    raise bad(f"component {k!r} has bounds ({sl.start}, {sl.stop}) outside "
-                              f"the state of length {n}")
+        if not isinstance(raw, list) or not all(
+                isinstance(c, list) and len(c) == 3 for c in raw):
+            raise bad(f"components/stats are not valid JSON of the expected form "
+                      f"(components: a list of [name, start, stop], got {str(raw)[:80]})")
+        comps = {}
+        for k, a, b in raw:
+            try:
+                k = _decode_name(k) if version > 1 else str(k)
+            except (KeyError, TypeError, ValueError, RecursionError):
+                raise bad(f"component name {str(k)[:80]} is not of the expected form "
+                          f"(str, int, float, bool, null, or a tuple/str object)") from None
+            ints = all(isinstance(v, (int, np.integer)) and not isinstance(v, bool)
+                       for v in (a, b))
+            if not ints or not (0 <= a <= b <= n):
+                raise bad(f"component {k!r} has bounds ({a}, {b}) outside the state of "
+                          f"length {n}" if ints else
+                          f"component {k!r} has bounds ({a!r}, {b!r}) that are not ints")
+            if k in comps:
+                raise bad(f"component {k!r} appears twice")
+            comps[k] = slice(int(a), int(b))
         arc = cls(t, j, x, Termination[term] if term else None, message,
-                  components=comps, xdot=xdot, stats=stats)
+                  components=comps or None, xdot=xdot, stats=stats)
         arc.system_description = desc
         try:
-            arc.validate("")
+            arc.validate(where="")
         except ValueError as e:
-            raise bad(str(e).lstrip(": ")) from None
+            raise bad(str(e)[2:]) from None
         return arc
 
     def to_pandas(self, names=None):

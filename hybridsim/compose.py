@@ -1,12 +1,19 @@
 """Interconnections: plants feeding observers, feedback loops, networks over graphs."""
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 
 import numpy as np
 
 from .history import ComponentHistory
+from .rules import MapError
 from .system import HybridSystem, as_map, guard_min, guard_rows
+
+try:
+    from .options import check_map_value
+except ImportError:  # pragma: no cover - the options module predates this fallback
+    from .solve import check_map_value
 
 __all__ = ["Interconnection", "LinearPlant", "connect", "network"]
 
@@ -22,6 +29,149 @@ def _matrix(name, M, shape=None):
     if not np.all(np.isfinite(M)):
         raise ValueError(f"{name} must be finite")
     return M
+
+
+# -- the components' values -----------------------------------------------------
+# Each component's map values are checked before they are placed in its slice of
+# the stacked state (numpy would otherwise stretch a scalar or a (1,) value over
+# the slice, or fail with a broadcast error naming no component). The happy path
+# costs a few attribute tests and one dot product per component and call.
+_ND = np.ndarray
+
+
+def _at(t, j, r=0):
+    """(t, j) of row r of a batch (scalars as they are), as a float and an int."""
+    try:
+        tt = float(t if np.ndim(t) == 0 else np.ravel(t)[r])
+        jj = int(j if np.ndim(j) == 0 else np.ravel(j)[r])
+    except (TypeError, ValueError, IndexError):
+        return None, None
+    return tt, jj
+
+
+def _state_value(nm, kind, v, n, t, j):
+    """The slow path of a component's flow/jump value at one state: a float (n,)
+    array, or a MapError naming the component (the standalone checks, reworded)."""
+    try:
+        return check_map_value(kind, v, n, *_at(t, j))
+    except MapError as e:
+        raise MapError(f"component {nm!r}: {e}", f"{nm}.{kind}", *_at(t, j)) from e
+
+
+def _rows_value(nm, kind, v, k, n, t, j):
+    """A component's flow/jump value over a batch of k rows: a float (k, n) array
+    of finite reals, or a MapError naming the component (at the first bad row)."""
+    name = f"{nm}.{kind}"
+    what = f"component {nm!r}: {kind}"
+    def at(r):
+        tt, jj = _at(t, j, r)
+        row = f": row {r} of the batch" if k > 1 else ""
+        return tt, jj, ("" if tt is None else f" (at t={tt:.10g}, j={jj}{row})")
+
+    tt, jj, where = at(0)
+    if np.iscomplexobj(v):
+        raise MapError(f"{what} returned complex values{where}: the state is real",
+                       name, tt, jj)
+    try:
+        arr = np.asarray(v, dtype=float)
+    except (TypeError, ValueError) as e:
+        raise MapError(f"{what} must return an array of shape ({k}, {n}) (vectorized: one "
+                       f"row per trajectory), got {type(v).__name__}{where}",
+                       name, tt, jj) from e
+    if arr.shape != (k, n):
+        raise MapError(f"{what} must return an array of shape ({k}, {n}) (vectorized: one "
+                       f"row per trajectory), got shape {arr.shape}{where}", name, tt, jj)
+    fin = np.isfinite(arr).all(axis=1)
+    if not fin.all():
+        r = int(np.flatnonzero(~fin)[0])
+        tt, jj, where = at(r)
+        raise MapError(f"{what} returned non-finite values {arr[r]}{where}", name, tt, jj)
+    return arr
+
+
+def _bad_signal(nm, kind, v, accepted, t, j):
+    """Raise the MapError for a component's output, guard or set value that is not
+    real or has none of the ``accepted`` shapes (a description)."""
+    name = f"{nm}.{kind}"
+    tt, jj = _at(t, j)
+    where = "" if tt is None else f" (at t={tt:.10g}, j={jj})"
+    if np.iscomplexobj(v):
+        raise MapError(f"component {nm!r}: {kind} returned complex values{where}: it must "
+                       "be real", name, tt, jj)
+    try:
+        arr = np.asarray(v)
+    except ValueError:              # ragged
+        arr = np.asarray(v, dtype=object)
+    if arr.dtype.kind not in "biuf":
+        raise MapError(f"component {nm!r}: {kind} must return real numbers, got "
+                       f"{type(v).__name__} of dtype {arr.dtype}{where}", name, tt, jj)
+    raise MapError(f"component {nm!r}: {kind} must return {accepted}, got shape "
+                   f"{arr.shape}{where}", name, tt, jj)
+
+
+def _real_shape(v):
+    """The shape of a real value (None where it is complex or not numeric)."""
+    if np.iscomplexobj(v):
+        return None
+    try:
+        arr = np.asarray(v)
+    except ValueError:
+        return None
+    return arr.shape if arr.dtype.kind in "biuf" else None
+
+
+def _output_value(nm, y, p, k, t, j):
+    """A component's output: shape (p,) (or (k, p) over a batch of k rows), the last
+    axis optional when p == 1; any 1-D (batch: (k,) or (k, m)) where ``output_dim``
+    is not declared (p is None). Returns y, or raises a MapError naming it."""
+    if y.__class__ is _ND and y.dtype.kind == "f":
+        sh = y.shape
+        if (sh == (k, p) if p is not None else len(sh) in (1, 2) and sh[0] == k) \
+                if k is not None else (p is None and len(sh) <= 1):
+            return y
+    sh = _real_shape(y)
+    if k is None:
+        if p is None:
+            ok, acc = sh is not None and len(sh) <= 1, "a scalar or a 1-D array"
+        else:
+            ok = sh == (p,) or (p == 1 and sh == ())
+            acc = f"an array of shape ({p},)" + (" or a scalar" if p == 1 else "") + \
+                f" (output_dim={p})"
+    elif p is None:
+        ok = sh is not None and len(sh) in (1, 2) and sh[0] == k
+        acc = f"an array of shape ({k},) or ({k}, p) (vectorized: one row per trajectory)"
+    else:
+        ok = sh == (k, p) or (p == 1 and sh == (k,))
+        acc = f"an array of shape ({k}, {p})" + (f" or ({k},)" if p == 1 else "") + \
+            f" (output_dim={p}; vectorized: one row per trajectory)"
+    if not ok:
+        _bad_signal(nm, "output", y, acc, t, j)
+    return y
+
+
+def _guard_rows(nm, kind, v, k, t, j):
+    """A component's guard over a batch of k rows, (k,) or (k, m): its (k,) minima."""
+    if v.__class__ is _ND and v.dtype.kind == "f":
+        sh = v.shape
+        if sh == (k,):
+            return v
+        if len(sh) == 2 and sh[0] == k and sh[1] >= 1:
+            return v.min(axis=1)
+    sh = _real_shape(v)
+    if sh == (k,) or (sh is not None and len(sh) == 2 and sh[0] == k and sh[1] >= 1):
+        return guard_rows(v)
+    _bad_signal(nm, kind, v, f"an array of shape ({k},) or ({k}, m) (vectorized: one row "
+                             "per trajectory)", t, j)
+
+
+def _set_rows(nm, kind, v, k, t, j):
+    """A component's set indicator over a batch of k rows: a (k,) bool array."""
+    if v.__class__ is _ND and v.shape == (k,):
+        return v if v.dtype.kind == "b" else v.astype(bool)
+    if _real_shape(v) == (k,):
+        return np.asarray(v, dtype=bool)
+    _bad_signal(nm, kind, v, f"a boolean array of shape ({k},) (vectorized: one entry per "
+                             "trajectory)", t, j)
 
 
 class LinearPlant(HybridSystem):
@@ -159,6 +309,12 @@ class _Outputs(Mapping):
             finally:
                 busy.discard(name)
         y = ic._h[name](self._x[..., sl], self._t, self._j, u)
+        spec = ic._hout.get(name)   # an overridden output is checked (else y is the state)
+        if spec is not None and not (y.__class__ is _ND and y.shape == spec
+                                     and y.dtype.kind == "f"):
+            x = self._x
+            y = _output_value(name, y, ic._hp[name], len(x) if x.ndim == 2 else None,
+                              self._t, self._j)
         c[name] = y
         return y
 
@@ -169,13 +325,16 @@ class _Outputs(Mapping):
         return len(self._ic._slices)
 
 
-def _rows_set(system, kind):
-    """A vectorized component's flow or jump set over a batch, as an (N,) bool array."""
+def _rows_set(nm, system, kind):
+    """A vectorized component's flow or jump set over a batch, as an (N,) bool array
+    (its indicator's or guard's value checked, the messages naming the component)."""
     guard = system.flow_guard if kind == "flow" else system.jump_guard
     if system._overrides(f"{kind}_set") or guard is None:
-        return as_map(getattr(system, f"{kind}_set"), f"{kind}_set")
+        test = as_map(getattr(system, f"{kind}_set"), f"{kind}_set")
+        return lambda x, t, j, u: _set_rows(nm, f"{kind}_set", test(x, t, j, u), len(x), t, j)
     h = as_map(guard, f"{kind}_guard")
-    return lambda x, t, j, u: guard_rows(h(x, t, j, u)) >= 0.0
+    return lambda x, t, j, u: _guard_rows(nm, f"{kind}_guard", h(x, t, j, u), len(x),
+                                          t, j) >= 0.0
 
 
 class Interconnection(HybridSystem):
@@ -201,6 +360,11 @@ class Interconnection(HybridSystem):
       others keep their state. The interconnection's j counts all jumps,
       and each component's maps receive that j.
     * ``arc.component(name)`` (or ``arc[name]``) gives a component's part.
+    * Each component's values are checked: its flow and jump maps must return
+      finite reals of shape (n_i,) (over a batch (N, n_i)), an output with a
+      declared ``output_dim`` p shape (p,) ((N, p)), a batch guard (N,) or
+      (N, m), a batch set (N,). Otherwise a :class:`hybridsim.MapError` names
+      the component and the map (``map_name="plant.flow_map"``), t and j.
     * There is no cap on the number of components.
     * When every component is ``vectorized`` (and none reads the history),
       so is the interconnection: :func:`hybridsim.simulate_many` then
@@ -249,7 +413,7 @@ class Interconnection(HybridSystem):
         self._build()
 
     _DERIVED = ("_f", "_g", "_C", "_D", "_Cv", "_Dv", "_h", "_h_u", "_hD", "_hC", "_items",
-                "jump_guard",
+                "_hout", "_hp", "jump_guard",
                 "flow_guard", "_compiled_maps", "history")
 
     def _build(self):
@@ -268,12 +432,21 @@ class Interconnection(HybridSystem):
             self.jump_guard = self._jump_guard
         if self._C and all(h is not None for h in self._hC.values()):
             self.flow_guard = self._flow_guard
-        self._items = [(nm, self._slices[nm], self._f[nm], self.inputs.get(nm))
+        # (name, slice, flow map, input, (n_i,)): the flow's loop
+        self._items = [(nm, self._slices[nm], self._f[nm], self.inputs.get(nm),
+                        (self._slices[nm].stop - self._slices[nm].start,))
                        for nm in self.systems]
+        # overridden outputs are checked: {name: output_dim or None} and the shape
+        # of a single state's output ((p,), or (-1,), matching none, where undeclared)
+        self._hp = {nm: (None if s.output_dim is None else int(s.output_dim))
+                    for nm, s in self.systems.items() if s._overrides("output")}
+        self._hout = {nm: (-1 if p is None else p,) for nm, p in self._hp.items()}
         # the batch path's sets: the components' own indicators (arrays), or
         # {min_i h_i >= 0} of their guards
-        self._Cv = {nm: _rows_set(s, "flow") for nm, s in self.systems.items() if nm in self._C}
-        self._Dv = {nm: _rows_set(s, "jump") for nm, s in self.systems.items() if nm in self._D}
+        self._Cv = {nm: _rows_set(nm, s, "flow") for nm, s in self.systems.items()
+                    if nm in self._C}
+        self._Dv = {nm: _rows_set(nm, s, "jump") for nm, s in self.systems.items()
+                    if nm in self._D}
 
     def __getstate__(self):
         state = self.__dict__.copy()
@@ -307,12 +480,42 @@ class Interconnection(HybridSystem):
     # A single state x (n,) takes the scalar path; a batch x (N, n), t and j
     # (N,) (a vectorized interconnection inside simulate_many) the array path:
     # each component's maps see their slice x[:, sl] and the rows' own t, j, u.
+    #
+    # Every component's value is checked before it goes in its slice: real,
+    # finite, of shape (n_i,) (a batch: (N, n_i)); else a MapError names the
+    # component ("plant.flow_map"), t and j. The fast path is a few attribute
+    # tests and a dot product (a sum over a batch) per component.
     def flow_map(self, x, t, j, u=None):
         y = _Outputs(self, x, t, j)
-        out = np.empty(np.shape(x))
-        for _nm, sl, f, ufn in self._items:
-            out[..., sl] = f(x[..., sl], t, j, None if ufn is None else ufn(t, y))
+        out = np.empty(x.shape)
+        if x.ndim == 2:
+            k = len(x)
+            for nm, sl, f, ufn, (n,) in self._items:
+                v = f(x[:, sl], t, j, None if ufn is None else ufn(t, y))
+                if not (v.__class__ is _ND and v.shape == (k, n) and v.dtype.kind == "f"):
+                    v = _rows_value(nm, "flow_map", v, k, n, t, j)
+                out[:, sl] = v
+            if not math.isfinite(out.sum()):        # (or an overflow of the sum)
+                self._non_finite("flow_map", out, t, j)
+            return out
+        for nm, sl, f, ufn, shape in self._items:
+            v = f(x[sl], t, j, None if ufn is None else ufn(t, y))
+            if not (v.__class__ is _ND and v.shape == shape and v.dtype.kind == "f"):
+                v = _state_value(nm, "flow_map", v, shape[0], t, j)
+            out[sl] = v
+        if not math.isfinite(out.dot(out)):         # (or an overflow of the product)
+            self._non_finite("flow_map", out, t, j)
         return out
+
+    def _non_finite(self, kind, out, t, j):
+        """Raise the MapError naming the first component whose part of ``out`` is not
+        finite (none where the fast test only overflowed)."""
+        for nm, sl in self._slices.items():
+            v = out[..., sl]
+            if not np.isfinite(v).all():
+                if v.ndim == 2:
+                    _rows_value(nm, kind, v, len(v), sl.stop - sl.start, t, j)
+                _state_value(nm, kind, v, sl.stop - sl.start, t, j)
 
     def _in(self, table, x, t, j, y):
         for nm, test in table.items():
@@ -323,7 +526,7 @@ class Interconnection(HybridSystem):
         if np.ndim(x) == 2:
             ok = np.ones(len(x), dtype=bool)
             for _, v in self._in(self._Cv, x, t, j, y):
-                ok &= np.asarray(v, dtype=bool)
+                ok &= v
             return ok
         return all(v for _, v in self._in(self._C, x, t, j, y))
 
@@ -332,7 +535,7 @@ class Interconnection(HybridSystem):
         if np.ndim(x) == 2:
             inD = np.zeros(len(x), dtype=bool)
             for _, v in self._in(self._Dv, x, t, j, y):
-                inD |= np.asarray(v, dtype=bool)
+                inD |= v
             return inD
         return any(v for _, v in self._in(self._D, x, t, j, y))
 
@@ -344,7 +547,12 @@ class Interconnection(HybridSystem):
         for nm, inD in list(self._in(self._D, x, t, j, y)):
             if inD:
                 sl = self._slices[nm]
-                xn[sl] = self._g[nm](x[sl], t, j, self._u(nm, x, t, j, y))
+                v = self._g[nm](x[sl], t, j, self._u(nm, x, t, j, y))
+                n = sl.stop - sl.start
+                if not (v.__class__ is _ND and v.shape == (n,) and v.dtype.kind == "f"
+                        and math.isfinite(v.dot(v))):
+                    v = _state_value(nm, "jump_map", v, n, t, j)
+                xn[sl] = v
         return xn
 
     def _jump_rows(self, x, t, j, y, xn):
@@ -358,19 +566,27 @@ class Interconnection(HybridSystem):
             u = self._u(nm, x, t, j, y)
             if u is not None:
                 u = np.asarray(u, dtype=float)[rows]
-            xn[rows, sl] = self._g[nm](x[rows][:, sl], t[rows], j[rows], u)
+            tr, jr = t[rows], j[rows]
+            v = self._g[nm](x[rows][:, sl], tr, jr, u)
+            k, n = len(tr), sl.stop - sl.start
+            if not (v.__class__ is _ND and v.shape == (k, n) and v.dtype.kind == "f"
+                    and math.isfinite(v.sum())):
+                v = _rows_value(nm, "jump_map", v, k, n, tr, jr)
+            xn[rows, sl] = v
         return xn
 
     def _jump_guard(self, x, t, j, u=None):
         y = _Outputs(self, x, t, j)
         if np.ndim(x) == 2:
-            return np.max([guard_rows(h) for _, h in self._in(self._hD, x, t, j, y)], axis=0)
+            return np.max([_guard_rows(nm, "jump_guard", h, len(x), t, j)
+                           for nm, h in self._in(self._hD, x, t, j, y)], axis=0)
         return max(guard_min(h) for _, h in self._in(self._hD, x, t, j, y))
 
     def _flow_guard(self, x, t, j, u=None):
         y = _Outputs(self, x, t, j)
         if np.ndim(x) == 2:
-            return np.min([guard_rows(h) for _, h in self._in(self._hC, x, t, j, y)], axis=0)
+            return np.min([_guard_rows(nm, "flow_guard", h, len(x), t, j)
+                           for nm, h in self._in(self._hC, x, t, j, y)], axis=0)
         return min(guard_min(h) for _, h in self._in(self._hC, x, t, j, y))
 
     @property

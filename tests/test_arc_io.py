@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import hybridsim as hs
-from hybridsim.arc import FORMAT_VERSION
+from hybridsim.arc import FORMAT_VERSION, ArcFileError
 from hybridsim.library import BouncingBall, Timer
 
 
@@ -164,9 +164,13 @@ def test_non_finite_last_sample_allowed_only_for_non_finite_runs(tmp_path):
     x = [[0.0], [np.nan]]
     hs.HybridArc([0, 1], [0, 0], x, hs.Termination.NON_FINITE).save(tmp_path / "n")
     assert np.isnan(hs.HybridArc.load(tmp_path / "n").x[-1, 0])
-    hs.HybridArc([0, 1], [0, 0], x, hs.Termination.T_MAX).save(tmp_path / "m")
-    with pytest.raises(ValueError, match=r"x\[1\] .* is not finite"):
-        hs.HybridArc.load(tmp_path / "m")
+    bad = hs.HybridArc([0, 1], [0, 0], x, hs.Termination.T_MAX)
+    with pytest.raises(ValueError, match=r"save: x\[1\] .* is not finite"):
+        bad.save(tmp_path / "m")              # save validates: nothing written
+    assert not (tmp_path / "m.npz").exists()
+    f = fields(bad)
+    with pytest.raises(ArcFileError, match=r"x\[1\] .* is not finite"):
+        hs.HybridArc.load(write(tmp_path / "m.npz", **f))
 
 
 # ---------------------------------------------------------- damaged files
@@ -233,7 +237,8 @@ def test_pickled_content_is_refused(ball, tmp_path):
 
 
 @pytest.mark.parametrize("change, message", [
-    (lambda f: f.update(t=f["t"][::-1].copy()), "t goes backwards at sample"),
+    (lambda f: f["t"].__setitem__(5, -1.0), "t goes backwards at sample 5"),
+    (lambda f: f.update(t=f["t"][::-1].copy()), "sample 1 .* repeats the sample before it"),
     (lambda f: f["t"].__setitem__(3, np.nan), r"t\[3\] = nan is not finite"),
     (lambda f: f["x"].__setitem__((2, 1), np.inf), r"x\[2\] .* is not finite"),
     (lambda f: f.update(j=f["j"] + 0.5), "j must hold integers"),
