@@ -257,8 +257,9 @@ def find_interior_event(sol, a, b, pred, phi=None, samples=3):
     whole excursion above a guard. The step's dense output is sampled at
     ``samples`` interior points; the indicator is tested there, and, where a
     continuous guard ``phi`` is given, every local maximum of the guard
-    among the samples (the step's start included, when the guard rises
-    there) whose peak could reach 0 is refined by a golden-section search.
+    among the samples (the step's start included where the guard rises
+    there, and its end where the guard falls there) whose peak could reach 0
+    is refined by a golden-section search.
 
     Parameters
     ----------
@@ -325,4 +326,12 @@ def find_interior_event(sol, a, b, pred, phi=None, samples=3):
             s = _maximize(phi, a, ts[0], vals[0], vals[1], pred, sol)
             if s is not None:
                 return a, s
+    # a peak between the last sample and b: only where the guard falls at b
+    # (the next step starts falling, so its own search never looks back)
+    if vals[-1] >= vals[-2] and _near_peak(vals[-1], vals[-2]):
+        eps = 1e-3 * (b - ts[-1])
+        if phi(b - eps, sol(b - eps)) > vals[-1]:
+            s = _maximize(phi, ts[-1], b, vals[-2], vals[-1], pred, sol)
+            if s is not None:
+                return ts[-1], s
     return None

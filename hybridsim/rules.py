@@ -18,6 +18,7 @@ __all__ = ["Termination", "Priority", "Action", "decide", "decide_at_event", "ev
            "raises", "warns", "finish", "DETAILS", "message",
            "jumps_now", "needs_coin", "is_short_flow", "is_sticking", "sticking_message",
            "zeno_message", "time_scale", "t_max_slack", "event_tolerance", "PRIORITIES", "FAILURES",
+           "post_jump_probe", "LOOP_JUMPS", "is_jump_loop",
            "SimulationWarning", "SimulationError", "MapError"]
 
 _EPS = float(np.finfo(float).eps)
@@ -291,6 +292,63 @@ def after_jump(jumps, short, j_max, zeno_jumps):
     return NO_CAUSE
 
 
+#: consecutive jumps at one instant, each from a state in C, that make a jump loop
+LOOP_JUMPS = 10
+
+
+def is_jump_loop(count, zeno_jumps):
+    """Whether ``count`` consecutive jumps at exactly one instant, each taken
+    from a state that is in C as well as in D, are a jump loop.
+
+    Such jumps happen where the priority prefers jumping in C ∩ D and the
+    state after the jump is in D again: typically a jump set given by a
+    guard alone (D = {guard >= 0} still holds on the guard's zero, where the
+    jump map leaves the state), so the run jumps forever without flowing.
+    A deliberate cascade of resets at one instant is a handful of jumps;
+    ten (or the Zeno test's own count, ``zeno_jumps``, where smaller) is a
+    loop. The run still ends by the usual rules (``J_MAX``, then ``ZENO``,
+    :func:`after_jump`): only the message changes (kind ``"loop"`` in
+    :data:`DETAILS`), saying what is wrong. A purely discrete system (C
+    empty) is never a loop: its jumps are not taken from C.
+    """
+    return count >= min(LOOP_JUMPS, zeno_jumps)
+
+
+def post_jump_probe(x_plus, lo, x_lo, x_hi):
+    """Where C is tested again for a post-jump state that is in neither C nor D.
+
+    The rule: a state ``x_plus`` after a jump from a located event counts
+    as in C (the run flows on from ``x_plus`` itself) when the flow set
+    holds at the returned ``(t, x)``: ``x_plus`` displaced by the pre-jump
+    flow's motion over the event's bracket, ``x_lo - x_hi``, at the
+    bracket's start ``lo``.
+
+    Why: an event is located only to its bracket ``(lo, hi]``, of width at
+    most :func:`event_tolerance`; the run jumps from ``x_hi``, just past
+    the crossing, where ``x_lo`` (not yet at the event) is in C. A jump map
+    that keeps the located position (a ball on a moving floor reflecting
+    its relative velocity) carries that location error into ``x_plus``:
+    up to ``|f| * event_tolerance`` outside C. Had the event been taken
+    at ``lo``, equally valid to the tolerance, the post-jump position
+    would have been the displaced one. The tolerance is therefore exactly
+    the event's own location error, measured along the flow (it needs no
+    guard: indicators and guards are treated alike, and no map is
+    evaluated but the flow set). A state genuinely outside C, farther
+    than the flow moves in ``event_tolerance``, is still outside
+    (``LEFT_SETS``). Plain arrays and floats, so that a compiled path
+    compiles it.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t, x = post_jump_probe(np.array([-6e-16, 1.0]), 0.5, np.array([3e-16, -2.0]),
+    ...                        np.array([-6e-16, -2.0]))
+    >>> t, bool(x[0] >= 0)
+    (0.5, True)
+    """
+    return lo, x_plus + (x_lo - x_hi)
+
+
 def event_tolerance(a: float, b: float) -> float:
     """Width to which an event time is bracketed: 4 ulp of the time scale."""
     return 4.0 * _EPS * max(1.0, abs(a), abs(b))
@@ -374,8 +432,8 @@ DETAILS = {
     (Termination.LEFT_SETS, None): "x={x} at (t={t:.10g}, j={j})",
     (Termination.LEFT_SETS, "left"): "the flow left C at t={t:.10g} (j={j}), x={x}, outside D",
     (Termination.ZENO, "short"): "flows too short to resolve near t={t:.10g}",
-    (Termination.NON_FINITE, "step"): ("the state became non-finite in the step from "
-                                       "t={t:.10g} to t={t2:.10g} (j={j})"),
+    # the words the vectorized path prints today (a test compares the two paths)
+    (Termination.NON_FINITE, "step"): "after the step from t={t:.10g} to t={t2:.10g} (j={j})",
     (Termination.NON_FINITE, "flow"): "flow_map returned non-finite values near t={t:.10g} (j={j})",
     (Termination.NON_FINITE, "guard"): "{name} returned NaN near t={t:.10g} (j={j})",
     (Termination.BLOWUP, None): "|x| = {norm:.3g} > {max_norm:.3g} at t={t:.10g} (j={j})",
@@ -384,6 +442,21 @@ DETAILS = {
     (Termination.MAX_STEPS, "samples"): ("{samples} samples stored (max_samples={max_samples}) "
                                          "at t={t:.10g}"),
     (Termination.CANCELED, None): "stopped at t={t:.10g}, j={j}",
+    (Termination.NON_FINITE, "dense"): ("the step's dense output from t={t:.10g} to "
+                                        "t={t2:.10g} (j={j}) is non-finite (overflow inside "
+                                        "the step)"),
+    (Termination.J_MAX, "loop"): ("a jump loop: the last {count} jumps were all at "
+                                  "t={t:.10g}, each from a state in C and D (flowing was "
+                                  "possible): the state after each jump is still in D. "
+                                  "Check jump_set: a jump_guard alone makes "
+                                  "D = {{guard >= 0}}, which the state after the jump "
+                                  "still satisfies on the guard's zero"),
+    (Termination.ZENO, "loop"): ("a jump loop: the last {count} jumps were all at "
+                                 "t={t:.10g}, each from a state in C and D (flowing was "
+                                 "possible): the state after each jump is still in D. "
+                                 "Check jump_set: a jump_guard alone makes "
+                                 "D = {{guard >= 0}}, which the state after the jump "
+                                 "still satisfies on the guard's zero"),
 }
 
 

@@ -33,22 +33,27 @@ from .options import (
     resolve_method,
 )
 from .rules import (
-    FAILURES,
+    CAUSES,
+    NO_CAUSE,
     Action,
     MapError,
     Priority,
     SimulationError,
     SimulationWarning,
     Termination,
+    after_jump,
     decide,
-    decide_at_event,
+    event_outcome,
+    event_tolerance,
+    finish,
+    is_jump_loop,
     is_short_flow,
     is_sticking,
+    message,
     needs_coin,
-    sticking_message,
+    post_jump_probe,
     t_max_slack,
     time_scale,
-    zeno_message,
 )
 from .system import HybridSystem, guard_min
 
@@ -220,6 +225,7 @@ class _State:
     x: np.ndarray
     jumps: int = 0
     short: int = 0              # consecutive jumps after short flows (Zeno)
+    loop: int = 0               # consecutive jumps at one instant from C ∩ D (a loop)
     t_last_jump: float = 0.0
     flow_lengths: list = field(default_factory=list)   # the last few flows
     h_hint: float | None = None
@@ -410,29 +416,20 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
     run.pbar = _progress_bar(progress, t0, t_max, j_max)
     try:
         run.run(t0, j0, x)
+    except MapError as e:
+        # at x0 (a map's contract checked before the loop): bad input, raised at
+        # once whatever throw says; its arc is x0 alone, ended by MAP_ERROR
+        run._stop(Termination.MAP_ERROR, exc=e, error=str(e))
+        e.arc = run.arc()
+        raise
     except BaseException as e:
-        arc = run.arc()
-        if isinstance(e, MapError):          # at x0: bad input, raised at once
-            e.arc = arc
-            raise
         raise SimulationError(f"internal error of the engine or solver: "
-                              f"{type(e).__name__}: {e}", arc) from e
+                              f"{type(e).__name__}: {e}", run.arc()) from e
     finally:
         if run.pbar is not None:
             run.pbar.close()
-    arc = run.arc()
-    cause = run.cause
-    if cause is Termination.MAP_ERROR and throw:
-        err = run.exception
-        if not isinstance(err, MapError):
-            err = MapError(arc.message)
-        err.arc = arc
-        raise err
-    if warn and (cause in FAILURES or cause is Termination.MAX_STEPS) \
-            and cause is not Termination.MAP_ERROR:
-        warnings.warn(f"{cause.name}: {arc.message} (last sample t={arc.t[-1]:.10g}, "
-                      f"j={arc.j[-1]})", SimulationWarning, stacklevel=2)
-    return arc
+    # finish -> simulate -> the caller
+    return finish(run.arc(), throw, warn, stacklevel=3)
 
 
 def _compiled_run(system, x0, t_max, j_max, opts, python_only):
@@ -465,9 +462,9 @@ class _Run:
         self.t_eval_k = 0
         # events: watch D entries unless flows have priority
         self.watch_D = maps.has_D and opts.prio != Priority.FLOWS
-        phi_ok = ((not self.watch_D or maps.hD is not None)
-                  and (not maps.has_C or maps.hC is not None))
-        self.use_phi = phi_ok and (maps.hD is not None or maps.hC is not None)
+        # (lo, x_lo, x_hi) of a located event the run jumps from at hi, for the
+        # post-jump tolerance (rules.post_jump_probe)
+        self.pending = None
         self.is_rk = issubclass(opts.Method, RungeKutta)
         # scipy's explicit Runge-Kutta solvers keep no state between steps but
         # (t, y, f, h): one object serves every flow
@@ -498,25 +495,49 @@ class _Run:
                                   segments=self.history.segments if self.o.keep else None,
                                   system=self.system, xdot=Xd, stats=self.stats.as_dict())
 
-    def _stop(self, cause, message=None, exc=None):
+    def _stop(self, cause, kind=None, exc=None, **fields):
+        """End the run with ``cause``; its message from :func:`hybridsim.rules.message`."""
         self.cause = cause
-        self.message = cause.message if message is None else f"{cause.message}: {message}"
+        self.message = message(cause, kind, **fields)
         self.exception = exc
+
+    def _last(self):
+        """(t, j) of the last stored sample."""
+        b = self.buf
+        return float(b.t[b.m - 1]), int(b.j[b.m - 1])
 
     def _u(self, s):
         return self.ufun(s) if self.ufun is not None else None
 
     # ------------------------------------------------------------------ the loop
     def run(self, t, j, x):
+        """The run, then its final sample: every run ends with a sample at the
+        state it stopped at (with ``t_eval`` the last step's end is not stored
+        otherwise), each sample stored once."""
+        self._loop(t, j, x)
+        st, b = self.state, self.buf
+        if self.cause is Termination.CANCELED or not b.m:
+            return          # interrupted anywhere: the state may be ahead of the store
+        tl, jl = self._last()
+        if st.t > tl or (st.t == tl and st.j > jl):
+            try:
+                b.append(st.t, st.j, st.x)
+            except _SampleCap:
+                pass
+
+    def _loop(self, t, j, x):
         o, maps = self.o, self.maps
         C, D, g, ufun = maps.C, maps.D, maps.g, self.ufun
         has_C, has_D = maps.has_C, maps.has_D
         st = self.state = _State(t, j, x, t_last_jump=t, h_hint=o.first_step,
                                  breaks=sorted(t + d for d in o.delays))
         self.buf.append(t, j, x)
+        if o.t_eval is not None:
+            self._skip_t_eval(t)
         scale0 = o.t0
         forced = False       # the last flow's event requires a jump
         flow_on = False      # random priority chose to flow on in C ∩ D
+        post = None          # the event bracket the last jump was taken from
         # at x0: shapes and contracts, raised at once (a programming error)
         u = self._u(t)
         in_D = has_D and D(x, t, j, u)
@@ -535,7 +556,8 @@ class _Run:
                     if st.jumps >= o.j_max:
                         self._stop(Termination.J_MAX)
                         return
-                    if self._jump(st, g(x, t, j, self._u(t)), scale0):
+                    post, self.pending = self.pending, None
+                    if self._jump(st, g(x, t, j, self._u(t)), scale0, True):
                         return
                     continue
                 else:
@@ -546,11 +568,14 @@ class _Run:
                         else False
                     action = decide(in_C, in_D, o.prio, coin, forced)
                     forced = False
+                    if action == Action.STOP and post is not None and self._near_C(post):
+                        in_C, action = True, Action.FLOW    # within the event's tolerance of C
+                    post = None
                     if action == Action.JUMP:
                         if st.jumps >= o.j_max:
                             self._stop(Termination.J_MAX)
                             return
-                        if self._jump(st, g(x, t, j, u), scale0):
+                        if self._jump(st, g(x, t, j, u), scale0, in_C):
                             return
                         continue
                     if action == Action.STOP:
@@ -568,15 +593,26 @@ class _Run:
                 elif kind is _Outcome.STOP:
                     return
         except KeyboardInterrupt:
-            self._stop(Termination.CANCELED, f"at t={st.t:.10g}, j={st.j}")
+            tl, jl = self._last()        # where the run stopped: its last stored sample
+            self._stop(Termination.CANCELED, t=tl, j=jl)
         except _SampleCap:
-            self._stop(Termination.MAX_STEPS, f"{self.buf.n} samples stored "
-                                              f"(max_samples={o.max_samples}) at t={st.t:.10g}")
+            self._stop(Termination.MAX_STEPS, "samples", samples=self.buf.n,
+                       max_samples=o.max_samples, t=self._last()[0])
         except MapError as e:
-            self._stop(Termination.MAP_ERROR, str(e), e)
+            self._stop(Termination.MAP_ERROR, exc=e, error=str(e))
 
-    def _jump(self, st, xn, scale0):
-        """Apply x+ = g(x) at the current point; True when the run stops."""
+    def _near_C(self, post):
+        """The post-jump state, in neither C nor D, is within the located
+        event's tolerance of C (:func:`hybridsim.rules.post_jump_probe`)."""
+        st = self.state
+        tp, xp = post_jump_probe(st.x, *post)
+        return self.maps.C(xp, tp, st.j, self._u(tp))
+
+    def _jump(self, st, xn, scale0, from_C):
+        """Apply x+ = g(x) at the current point; True when the run stops.
+
+        ``from_C``: the state jumped from is in C too (flowing was possible):
+        consecutive such jumps at one instant are a jump loop."""
         o = self.o
         t, j = st.t, st.j
         xn = check_map_value("jump_map", xn, o.n, t, j).copy()    # the user may reuse it
@@ -585,6 +621,7 @@ class _Run:
         short = is_short_flow(flow, t, time_scale(scale0, t, o.t_max), o.zeno_time,
                               o.zeno_rtol)
         st.short = st.short + 1 if short else 0
+        st.loop = st.loop + 1 if (from_C and flow == 0.0 and st.jumps > 0) else 0
         st.t_last_jump = t
         st.j = j + 1
         st.jumps += 1
@@ -599,25 +636,30 @@ class _Run:
                 self.pbar.set_postfix_str(f"j={st.j}", refresh=False)
             else:
                 self.pbar.update(1)
-        if st.jumps >= o.j_max:
-            self._stop(Termination.J_MAX)
-            return True
-        if st.short >= o.zeno_jumps:
-            self._stop(Termination.ZENO, zeno_message(st.short, t))
-            return True
-        return False
+        code = after_jump(st.jumps, st.short, o.j_max, o.zeno_jumps)
+        if code == NO_CAUSE:
+            return False
+        cause = CAUSES[code]
+        if is_jump_loop(st.loop, o.zeno_jumps):
+            # the jumps of the loop and the one that started it, all at t
+            self._stop(cause, "loop", count=st.loop + 1, t=t)
+        elif cause is Termination.ZENO:
+            self._stop(cause, "zeno", count=st.short, t=t)
+        else:
+            self._stop(cause)
+        return True
 
     def _stop_outside(self, st):
         """In neither C nor D: x0 outside both, sticking, or leaving C ∪ D."""
         if self.buf.n == 1:
-            self._stop(Termination.NOT_IN_SETS, f"x={st.x} at (t={st.t}, j={st.j})")
+            self._stop(Termination.NOT_IN_SETS, x=st.x, t=st.t, j=st.j)
             return
         if is_sticking(st.flow_lengths, st.t - st.t_last_jump, st.jumps,
                        time_scale(self.o.t0, st.t, self.o.t_max)):
-            self._stop(Termination.ZENO, sticking_message(st.t, st.j, st.x,
-                                                          st.flow_lengths[-3:]))
+            self._stop(Termination.ZENO, "sticking", t=st.t, j=st.j, x=st.x,
+                       flows=st.flow_lengths[-3:])
             return
-        self._stop(Termination.LEFT_SETS, f"x={st.x} at (t={st.t}, j={st.j})")
+        self._stop(Termination.LEFT_SETS, x=st.x, t=st.t, j=st.j)
 
     def _bound(self, st):
         """End of the flow's integration: t_max, or the next delay breakpoint."""
@@ -741,8 +783,8 @@ class _Run:
         try:
             while True:
                 if k >= cap:
-                    self._stop(Termination.MAX_STEPS, f"{o.max_steps} solver steps "
-                                                      f"(max_steps) at t={a:.10g}")
+                    self._stop(Termination.MAX_STEPS, "steps", steps=stats.steps + k,
+                               max_steps=o.max_steps, t=a)
                     return self._end(st, a, ya, _Outcome.STOP)
                 msg = step()
                 if solver.status == "failed":
@@ -751,61 +793,71 @@ class _Run:
                 b = solver.t
                 yb = solver.y
                 if not math.isfinite(yb.dot(yb)) and not np.isfinite(yb).all():
-                    self._stop(Termination.NON_FINITE, f"after the step from t={a:.10g} to "
-                                                       f"t={b:.10g} (j={j})")
+                    self._stop(Termination.NON_FINITE, "step", t=a, t2=b, j=j)
                     return self._end(st, a, ya, _Outcome.STOP)
                 sol = None
                 if sets:
-                    ub = ufun(b) if ufun is not None else None
-                    if (has_C and not C(yb, b, j, ub)) or (d_active and D(yb, b, j, ub)):
-                        sol = solver.dense_output()
-                        return self._event(st, sol, a, a, b, j, solver, d_active, ya, yb)
-                    if has_C or d_active:
-                        if pred is None:
-                            pred, phi = self._pred(j, d_active), self._phi(j, d_active)
-                        if hermite:
-                            # DOP853's dense output costs three more flow evaluations:
-                            # search with the cubic Hermite of the step's ends (exact on
-                            # parabolas), confirm a hit on the dense output
-                            hit = find_interior_event(_Hermite(a, ya, fa, b, yb, solver.f),
-                                                      a, b, pred, phi)
-                            if hit is not None:
+                    try:
+                        ub = ufun(b) if ufun is not None else None
+                        if (has_C and not C(yb, b, j, ub)) or (d_active and D(yb, b, j, ub)):
+                            sol = solver.dense_output()
+                            return self._event(st, sol, a, ya, a, b, j, solver, d_active,
+                                               ya, yb)
+                        if has_C or d_active:
+                            if pred is None:
+                                pred, phi = self._pred(j, d_active), self._phi(j, d_active)
+                            if hermite:
+                                # DOP853's dense output costs three more flow evaluations:
+                                # search with the cubic Hermite of the step's ends (exact
+                                # on parabolas), confirm a hit on the dense output
+                                hit = find_interior_event(
+                                    _Hermite(a, ya, fa, b, yb, solver.f), a, b, pred, phi)
+                                if hit is not None:
+                                    sol = solver.dense_output()
+                                    hit = find_interior_event(sol, a, b, pred, phi)
+                            else:
                                 sol = solver.dense_output()
                                 hit = find_interior_event(sol, a, b, pred, phi)
-                        else:
-                            sol = solver.dense_output()
-                            hit = find_interior_event(sol, a, b, pred, phi)
-                        if hit is not None:
-                            return self._event(st, sol, a, hit[0], hit[1], j, solver,
-                                               d_active)
+                            if hit is not None:
+                                return self._event(st, sol, a, ya, hit[0], hit[1], j, solver,
+                                                   d_active)
+                    except MapError:
+                        # a set or guard given the NaN of an overflowing dense output
+                        # did not fail: the step did
+                        if sol is None or _dense_finite(sol):
+                            raise
+                        return self._non_finite(st, a, ya, b, j)
                     if watch_D and not d_active:
                         d_active = not D(yb, b, j, ub)
                         pred = phi = None
                 if stiff and (st.stiff_hits or k % 25 == 0):
                     self._check_stiff(st, solver, stats.steps + k)
+                fin = solver.status == "finished"
                 if inner:
                     if sol is None:
                         sol = solver.dense_output()
                     if keep:
                         hist._add(a, b, j, sol)
-                    self._inner_samples(sol, a, b, j)
-                if t_eval is None or solver.status == "finished":
+                    # the end's own sample (t_max, a breakpoint) stands for t_eval times at b
+                    self._inner_samples(sol, a, b, j, fin)
+                if t_eval is None or fin:
                     append(b, j, yb, solver.f if n_stages else fun(b, yb))
+                    if t_eval is not None:
+                        self._skip_t_eval(b)
                 if pbar is not None and math.isfinite(o.t_max):
                     pbar.update(b - a)
                 if check_norm:
                     nb = float(np.linalg.norm(yb))
                     if nb > max_norm:
-                        self._stop(Termination.BLOWUP, f"|x| = {nb:.3g} > {max_norm:.3g} at "
-                                                       f"t={b:.10g} (j={j})")
+                        self._stop(Termination.BLOWUP, norm=nb, max_norm=max_norm, t=b, j=j)
                         return self._end(st, b, yb, _Outcome.STOP)
-                if solver.status == "finished":
+                if fin:
                     if b < o.t_max:          # a delay breakpoint: go on flowing
                         st.h_hint = getattr(solver, "h_abs", None)
                         return self._end(st, b, yb, _Outcome.BREAK)
                     st.h_hint = None
                     if d_active:
-                        hit = self._event_past_t_max(st, solver, a, b, j)
+                        hit = self._event_past_t_max(st, solver, a, ya, b, j)
                         if hit is not None:
                             return hit
                     return self._end(st, b, yb, _Outcome.T_MAX)
@@ -888,12 +940,17 @@ class _Run:
             except MapError:
                 bad = True
         if bad:
-            self._stop(Termination.NON_FINITE, f"flow_map returned non-finite values "
-                                               f"near t={a:.10g} (j={j})")
+            self._stop(Termination.NON_FINITE, "flow", t=a, j=j)
         elif st.short > 0:
-            self._stop(Termination.ZENO, f"flows too short to resolve near t={a:.10g}")
+            self._stop(Termination.ZENO, "short", t=a)
         else:
-            self._stop(Termination.SOLVER_FAILED, f"{msg} at t={a:.10g} (j={j})")
+            self._stop(Termination.SOLVER_FAILED, reason=msg, t=a, j=j)
+        return self._end(st, a, ya, _Outcome.STOP)
+
+    def _non_finite(self, st, a, ya, b, j):
+        """The step from a to b overflowed inside (its dense output is not
+        finite although its ends may be): NON_FINITE, the run ends at a."""
+        self._stop(Termination.NON_FINITE, "dense", t=a, t2=b, j=j)
         return self._end(st, a, ya, _Outcome.STOP)
 
     def _check_stiff(self, st, solver, steps):
@@ -919,7 +976,7 @@ class _Run:
             warnings.warn(f"the flow looks stiff near t={solver.t:.6g} (j={st.j}): "
                           f"{self.o.Method.__name__}'s step size is limited by stability, "
                           f"not accuracy. Use method='Radau', 'BDF' or 'LSODA'",
-                          SimulationWarning, stacklevel=4)
+                          SimulationWarning, stacklevel=6)  # _flow, _loop, run, simulate
 
     def _pred(self, j, d_active):
         """The event indicator of a flow: it left C, or (d_active) it entered D."""
@@ -943,26 +1000,40 @@ class _Run:
         return pred
 
     def _phi(self, j, d_active):
-        """The continuous event function (>= 0 once the event has happened), if any."""
+        """The continuous event function (>= 0 once the event has happened), if any.
+
+        Every given guard is used: where one set has a guard and the other only
+        an indicator, the guard's part locates its crossings and the indicator
+        (in ``pred``, which decides membership) the other set's. A guard that
+        returns NaN raises a :class:`MapError` naming it."""
         maps, ufun = self.maps, self.ufun
-        hC, hD, has_C = maps.hC, maps.hD, maps.has_C
-        if not self.use_phi or not (d_active or hC is not None):
-            return None
+        hC, hD = maps.hC, maps.hD
         useD = d_active and hD is not None
-        useC = has_C and hC is not None
+        useC = maps.has_C and hC is not None
+        if not (useD or useC):
+            return None
+
+        def nan(name, s):
+            return MapError(f"{name} returned NaN (at t={s:.10g}, j={j})", name, s, j)
         if ufun is None:
             if useD and useC:
                 def phi(s, y):
-                    return max(guard_min(hD(y, s, j, None)), -guard_min(hC(y, s, j, None)))
+                    vd, vc = guard_min(hD(y, s, j, None)), guard_min(hC(y, s, j, None))
+                    if vd != vd or vc != vc:
+                        raise nan("jump_guard" if vd != vd else "flow_guard", s)
+                    return max(vd, -vc)
             elif useD:
                 def phi(s, y):
-                    return guard_min(hD(y, s, j, None))
-            elif useC:
-                def phi(s, y):
-                    return -guard_min(hC(y, s, j, None))
+                    v = guard_min(hD(y, s, j, None))
+                    if v != v:
+                        raise nan("jump_guard", s)
+                    return v
             else:
                 def phi(s, y):
-                    return -math.inf
+                    v = guard_min(hC(y, s, j, None))
+                    if v != v:
+                        raise nan("flow_guard", s)
+                    return -v
             return phi
 
         def phi(s, y):
@@ -970,20 +1041,33 @@ class _Run:
             v = -math.inf
             if useD:
                 v = guard_min(hD(y, s, j, u))
+                if v != v:
+                    raise nan("jump_guard", s)
             if useC:
-                v = max(v, -guard_min(hC(y, s, j, u)))
+                c = guard_min(hC(y, s, j, u))
+                if c != c:
+                    raise nan("flow_guard", s)
+                v = max(v, -c)
             return v
         return phi
 
-    def _event(self, st, sol, a, lo, hi, j, solver, d_active, ylo=None, yhi=None, clamp=None):
-        """Locate the first event in (lo, hi] of the step starting at a; decide there.
+    def _event(self, st, sol, a, ya, lo, hi, j, solver, d_active, ylo=None, yhi=None,
+               clamp=None, start=None):
+        """Locate the first event in (lo, hi] of the step from (a, ya); decide
+        there (:func:`hybridsim.rules.event_outcome`).
 
-        ``ylo``, ``yhi``: the states at lo and hi where the caller has them."""
+        ``ylo``, ``yhi``: the states at lo and hi where the caller has them;
+        ``clamp``: the latest time the event is recorded at; ``start``: the
+        step is recorded (samples, history) up to here already."""
         o, maps = self.o, self.maps
         C, D, has_C, has_D = maps.C, maps.D, maps.has_C, maps.has_D
         self.stats.events += 1
         lo, hi, ylo, yhi = locate_event(sol, lo, hi, self._pred(j, d_active),
                                         self._phi(j, d_active), ya=ylo, yb=yhi)
+        if not (math.isfinite(ylo.dot(ylo)) and math.isfinite(yhi.dot(yhi))) \
+                and not (np.isfinite(ylo).all() and np.isfinite(yhi).all()):
+            # the NaN of an overflowing dense output read as "left C" or "in D"
+            return self._non_finite(st, a, ya, solver.t, j)
         # next flow's first step: at most 10x the length of this flow (the
         # controller's proposal after an overshooting step can be huge where
         # the flow is integrated exactly, and long steps cancel digits)
@@ -993,45 +1077,57 @@ class _Run:
         if self.pbar is not None and math.isfinite(o.t_max):
             self.pbar.update(te_hi - a)
         uhi = self._u(hi)
-        if d_active and D(yhi, hi, j, uhi):
+        in_D_hi = has_D and D(yhi, hi, j, uhi)
+        in_C_hi, coin = False, True
+        if d_active and in_D_hi and o.prio == Priority.RANDOM:
             # C matters here only for the random priority's coin
-            in_C = o.prio == Priority.RANDOM and ((not has_C) or C(yhi, hi, j, uhi))
-            coin = (o.rng.random() < 0.5) if needs_coin(in_C, True, o.prio) else True
-            action = decide_at_event(True, in_C, o.prio, coin)
-            return self._commit(st, sol, a, j, te_hi, yhi,
-                                _Outcome.JUMP if action == Action.JUMP else _Outcome.FLOW_ON)
-        # the flow leaves C: jump from the last point in C if it is in D
-        if has_D and D(ylo, lo, j, self._u(lo)):
-            return self._commit(st, sol, a, j, lo, ylo, _Outcome.JUMP)
-        if has_D and D(yhi, hi, j, uhi):
-            return self._commit(st, sol, a, j, te_hi, yhi, _Outcome.JUMP)
-        out = self._commit(st, sol, a, j, lo, ylo, _Outcome.STOP)
-        self._stop_outside(st)
-        if self.cause is Termination.LEFT_SETS:
-            self.message = (f"{Termination.LEFT_SETS.message}: the flow left C at "
-                            f"t={lo:.10g} (j={j}), x={ylo}, outside D")
-        return out
+            in_C_hi = (not has_C) or C(yhi, hi, j, uhi)
+            if needs_coin(in_C_hi, True, o.prio):
+                coin = o.rng.random() < 0.5
+        # D at lo matters only where the flow leaves C
+        in_D_lo = has_D and not (d_active and in_D_hi) and D(ylo, lo, j, self._u(lo))
+        action, side = event_outcome(d_active, in_D_hi, in_C_hi, in_D_lo, o.prio, coin)
+        if action == Action.STOP:
+            out = self._commit(st, sol, a, j, lo, ylo, _Outcome.STOP, start)
+            self._stop_outside(st)
+            if self.cause is Termination.LEFT_SETS:
+                self._stop(Termination.LEFT_SETS, "left", t=lo, j=j, x=ylo)
+            return out
+        if action == Action.JUMP:
+            self.pending = (lo, ylo, yhi) if side else None
+            return self._commit(st, sol, a, j, te_hi if side else lo, yhi if side else ylo,
+                                _Outcome.JUMP, start)
+        return self._commit(st, sol, a, j, te_hi, yhi, _Outcome.FLOW_ON, start)
 
-    def _event_past_t_max(self, st, solver, a, b, j):
+    def _event_past_t_max(self, st, solver, a, ya, b, j):
         """An entry into D within round-off after t_max is taken at t_max."""
         pred = self._pred(j, True)
         sol = solver.dense_output()
         tb = b + t_max_slack(b, st.jumps)
         if not pred(tb, sol(tb)):
             return None
-        if self.buf.last()[0] == b:      # drop the t_max sample: the event replaces it
+        # the step up to b is recorded: the event's sample replaces the t_max one
+        if self._last() == (b, j):
             self.buf.pop()
-        return self._event(st, sol, a, b, tb, j, solver, True, ylo=solver.y, clamp=b)
+        return self._event(st, sol, a, ya, b, tb, j, solver, True, ylo=solver.y, clamp=b,
+                           start=b)
 
-    def _commit(self, st, sol, a, j, te, xe, outcome):
-        """Record the flow of the event step up to the event time te."""
+    def _commit(self, st, sol, a, j, te, xe, outcome, start=None):
+        """Record the flow of the event step from ``start`` (default: a, the
+        step's start) up to the event time te, and the event's sample."""
         o = self.o
-        if o.keep:
-            self.history._add(a, te, j, sol)
-        if te > a:
-            if o.refine > 1 or o.t_eval is not None:
-                self._inner_samples(sol, a, te, j)
-            self.buf.append(te, j, xe, self._fdot(te, xe, j))
+        s = a if start is None else start
+        if o.keep and (start is None or te > s):
+            self.history._add(s, te, j, sol)
+        if te > s and (o.refine > 1 or o.t_eval is not None):
+            self._inner_samples(sol, s, te, j, True)
+        b = self.buf
+        # stored once: a flow's start (or an ordinary step's end without t_eval)
+        # at te is the event's sample already
+        if te > b.t[b.m - 1] or j != b.j[b.m - 1]:
+            b.append(te, j, xe, self._fdot(te, xe, j))
+        if o.t_eval is not None:
+            self._skip_t_eval(te)
         return self._end(st, te, xe, outcome)
 
     def _fdot(self, s, y, j):
@@ -1040,26 +1136,35 @@ class _Run:
         except Exception:  # noqa: BLE001 - outside C the flow map may be undefined
             return None
 
-    def _inner_samples(self, sol, a, b, j):
-        """refine - 1 dense-output samples inside (a, b), or the t_eval points in (a, b]."""
+    def _inner_samples(self, sol, a, b, j, end=False):
+        """refine - 1 dense-output samples inside (a, b), or the t_eval points
+        not stored yet up to b; ``end``: b gets a sample of its own (an event,
+        t_max, a breakpoint), which stands for the t_eval times within the
+        event tolerance of b."""
         o = self.o
         if o.t_eval is not None:
             te = o.t_eval
-            k0 = self.t_eval_k
-            k1 = int(np.searchsorted(te, b, side="right"))
-            k0 = max(k0, int(np.searchsorted(te, a, side="right")))
-            if self.buf.n == 1 and a == o.t0:
-                k0 = int(np.searchsorted(te, a, side="right"))
+            k0 = max(self.t_eval_k, int(np.searchsorted(te, a, side="right")))
+            top = b - event_tolerance(b, b) if end else b
+            k1 = int(np.searchsorted(te, top, side="right"))
+            if k1 <= k0:
+                return
             ts = te[k0:k1]
             self.t_eval_k = k1
         elif o.refine > 1 and b > a:
             ts = np.linspace(a, b, o.refine + 1)[1:-1]
         else:
             return
-        if ts.size == 0:
-            return
         X = np.asarray(sol(ts)).T.reshape(ts.size, o.n)
         self.buf.extend(ts, j, X, _dense_derivative(sol, ts))
+
+    def _skip_t_eval(self, t):
+        """A sample at t is stored (the initial one, an event's, a flow's end):
+        it stands for the t_eval times within the event tolerance of t."""
+        te = self.o.t_eval
+        k = int(np.searchsorted(te, t + event_tolerance(t, t), side="right"))
+        if k > self.t_eval_k:
+            self.t_eval_k = k
 
 
 class _Hermite:
@@ -1081,6 +1186,19 @@ class _Hermite:
 
 class _SampleCap(Exception):
     """Internal: the sample cap was reached."""
+
+
+def _dense_finite(sol):
+    """Whether a step's dense output is finite (an overflow inside the step,
+    between finite ends, leaves NaN or inf in its coefficients)."""
+    Q = getattr(sol, "Q", None)
+    if Q is not None:
+        return bool(np.isfinite(Q).all())
+    try:
+        ts = np.linspace(sol.t_min, sol.t_max, 5)
+        return bool(np.isfinite(np.asarray(sol(ts), dtype=float)).all())
+    except Exception:  # noqa: BLE001 - an unknown dense output: take it as finite
+        return True
 
 
 def _dense_derivative(sol, ts):

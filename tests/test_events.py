@@ -134,3 +134,18 @@ def test_a_ball_event_costs_a_handful_of_guard_evaluations():
     per_event = ball.guard_calls / arc.stats["events"]
     assert per_event <= 12, per_event          # was ~26 before the quadratic model
     assert math.isfinite(per_event)
+
+
+def test_interior_search_finds_a_peak_between_the_last_sample_and_the_step_end():
+    # issue 22: the guard rises through the last quarter of the step, peaks
+    # above 0 just before b and falls at b; the next step starts falling, so
+    # only this step's search can find it (DOP853 at rtol 1e-10 missed it)
+    from hybridsim.events import find_interior_event
+    apex = 0.96
+
+    def sol(s):
+        return np.array([1e-4 - (s - apex) ** 2])
+    hit = find_interior_event(sol, 0.0, 1.0, lambda s, y: y[0] >= 0.0, lambda s, y: y[0])
+    assert hit is not None
+    lo, hi = hit
+    assert sol(hi)[0] >= 0.0 and lo < hi <= 1.0

@@ -155,7 +155,7 @@ def decay():
     (dict(max_steps=0), ValueError, "max_steps must be >= 1"),
     (dict(max_steps="many"), TypeError, "max_steps must be an int >= 1"),
     (dict(zeno_rtol=-1.0), ValueError, "zeno_rtol must be >= 0"),
-    (dict(t_eval=[0.5, 0.2]), ValueError, "t_eval must be sorted"),
+    (dict(t_eval=[0.5, 0.2]), ValueError, "t_eval must be strictly increasing"),
     (dict(t_eval=[0.5, 2.0]), ValueError, r"t_eval must lie in \[t0, t_max\]"),
     (dict(t_eval=[0.1], refine=3), ValueError, "t_eval and refine > 1 cannot be combined"),
 ])
@@ -381,3 +381,139 @@ def test_max_samples_is_an_exact_cap_on_stored_samples(cap):
     assert len(arc.t) == cap and arc.x.shape == (cap, 1) and arc.xdot.shape == (cap, 1)
     np.testing.assert_allclose(arc.x[:, 0], np.exp(-arc.t), rtol=1e-5)
     assert np.all(np.diff(arc.t) > 0)
+
+
+# ------------------------------------------------------- issue 22 (faults)
+def _free_ball(**sets):
+    return hs.HybridSystem.from_functions(
+        f=lambda x: np.array([x[1], -9.81]), g=lambda x: np.array([0.0, -0.8 * x[1]]),
+        state_dim=2, **sets)
+
+
+@pytest.mark.parametrize("ball", [
+    hs.library.BouncingBall(),
+    _free_ball(flow_guard=lambda x: x[0], jump_guard=lambda x: np.array([-x[0], -x[1]])),
+    _free_ball(C=lambda x: x[0] >= 0, D=lambda x: x[0] <= 0 and x[1] <= 0),
+    _free_ball(C=lambda x: x[0] >= 0, jump_guard=lambda x: -x[0])])
+def test_overflow_inside_the_first_step_is_non_finite_not_a_set_exit(ball):
+    # the step's ends are finite, its dense output is NaN: not "x0 outside C"
+    with warnings.catch_warnings(record=True) as w, np.errstate(over="ignore",
+                                                                 invalid="ignore"):
+        warnings.simplefilter("always")
+        arc = hs.simulate(ball, [1e308, 1e308], t_max=1.0)
+    assert arc.termination is Termination.NON_FINITE, arc.message
+    assert "non-finite" in arc.message
+    assert len([x for x in w if issubclass(x.category, hs.SimulationWarning)]) == 1
+    assert np.isfinite(arc.x).all() and arc.t.tolist() == [0.0]
+
+
+def test_nan_guard_beside_an_indicator_is_a_map_error_naming_the_guard():
+    sysm = hs.HybridSystem.from_functions(
+        f=lambda x: np.array([1.0]), g=lambda x: np.array([0.0]), D=lambda x: x[0] >= 1.0,
+        jump_guard=lambda x: x[0] - 1.0 if x[0] < 0.5 else math.nan, state_dim=1)
+    arc = hs.simulate(sysm, [0.0], t_max=2.0, throw=False)
+    assert arc.termination is Termination.MAP_ERROR and "jump_guard returned NaN" in arc.message
+
+
+@pytest.mark.parametrize("flow_side", ["C", "flow_guard"])
+def test_a_jump_guard_is_used_beside_an_indicator_for_C(flow_side):
+    # the apex is 1e-6 above the guard's zero: the in-step search needs the guard
+    v0 = math.sqrt(2.0 * 9.81 * (1.0 + 1e-6))
+    kw = {"C": lambda x: x[0] >= -1e-9} if flow_side == "C" else \
+        {"flow_guard": lambda x: x[0] + 1e-9}
+    flight = hs.HybridSystem.from_functions(
+        f=lambda x: np.array([x[1], -9.81]), g=lambda x: np.array([x[0], -abs(x[1])]),
+        jump_guard=lambda x: x[0] - 1.0, state_dim=2, **kw)
+    arc = hs.simulate(flight, [0.0, v0], t_max=2.0 * v0 / 9.81, j_max=1)
+    assert arc.jump_count == 1
+    t_hit = (v0 - math.sqrt(v0 * v0 - 2.0 * 9.81)) / 9.81
+    assert abs(arc.jump_times[0] - t_hit) < 1e-6
+
+
+def _floor_ball(kind, restitution=0.8, jump_map=None):
+    """A ball on a floor y_f(t) = 0.1 sin(2t), written the natural way: the jump
+    map keeps the located position and reflects the relative velocity."""
+    def yf(t):
+        return 0.1 * math.sin(2.0 * t)
+
+    def dyf(t):
+        return 0.2 * math.cos(2.0 * t)
+
+    def g(x, t):
+        return np.array([x[0], dyf(t) - restitution * (x[1] - dyf(t))])
+    kw = dict(D=lambda x, t: x[0] - yf(t) <= 0 and x[1] - dyf(t) <= 0)
+    if kind in ("guard", "both"):
+        kw["flow_guard"] = lambda x, t: x[0] - yf(t)
+    if kind in ("indicator", "both"):
+        kw["C"] = lambda x, t: x[0] - yf(t) >= 0
+    return hs.HybridSystem.from_functions(f=lambda x: np.array([x[1], -9.81]),
+                                          g=jump_map or g, state_dim=2, **kw)
+
+
+@pytest.mark.parametrize("kind", ["guard", "indicator", "both"])
+@pytest.mark.parametrize("restitution", [0.8, 0.3])
+def test_ball_on_a_moving_floor_keeping_the_located_position_bounces_on(kind, restitution):
+    arc = hs.simulate(_floor_ball(kind, restitution), [1.0, 0.0], t_max=3.0, j_max=6)
+    assert arc.termination is Termination.J_MAX, arc.message
+    # the post-jump states are within the event's location error of the floor
+    after = arc.x[1:][np.diff(arc.j) == 1]
+    floor = 0.1 * np.sin(2.0 * arc.jump_times)
+    assert np.all(np.abs(after[:, 0] - floor) < 1e-13)
+
+
+def test_a_post_jump_state_genuinely_outside_C_is_still_left_sets():
+    arc = hs.simulate(_floor_ball("both", jump_map=lambda x, t: np.array([x[0] - 1e-9, 5.0])),
+                      [1.0, 0.0], t_max=3.0)
+    assert arc.termination is Termination.LEFT_SETS and arc.jump_count == 1
+
+
+def test_jump_loop_of_a_guard_alone_says_what_is_wrong():
+    # D = {-h >= 0} by the guard alone: after the impact (h = 0, rising) the
+    # state is still in D, and the jumps priority jumps again, at one instant
+    ball = _free_ball(flow_guard=lambda x: x[0], jump_guard=lambda x: -x[0])
+    arc = hs.simulate(ball, [1.0, 0.0], t_max=2.0, j_max=30)
+    assert arc.termination is Termination.J_MAX
+    t1 = math.sqrt(2.0 / 9.81)
+    assert "jump loop: the last 30 jumps were all at t=0.451523" in arc.message
+    assert "check jump_set" in arc.message.lower() and abs(arc.jump_times[-1] - t1) < 1e-9
+    arc = hs.simulate(ball, [1.0, 0.0], t_max=2.0)
+    assert arc.termination is Termination.ZENO and "jump loop" in arc.message
+    # ordinary runs keep their plain messages
+    arc = hs.simulate(hs.library.BouncingBall(), [1.0, 0.0], t_max=10.0, j_max=5)
+    assert arc.message == Termination.J_MAX.message
+
+
+@pytest.mark.parametrize("j_max, cause", [(30, Termination.J_MAX), (100, Termination.ZENO)])
+def test_purely_discrete_systems_are_not_jump_loops(j_max, cause):
+    count = hs.HybridSystem.from_functions(g=lambda x: x + 1.0, D=lambda x: True,
+                                           C=lambda x: False, state_dim=1)
+    arc = hs.simulate(count, [0.0], t_max=1.0, j_max=j_max)
+    assert arc.termination is cause and "loop" not in arc.message
+    assert arc.jump_count == min(j_max, 50) and arc.xf[0] == arc.jump_count
+
+
+def test_map_error_at_x0_carries_an_arc_ending_with_map_error():
+    sysm = hs.HybridSystem.from_functions(f=lambda x: -x, g=lambda x: 1 / 0,
+                                          D=lambda x: True, state_dim=1)
+    with pytest.raises(hs.MapError) as info:
+        hs.simulate(sysm, [1.0], t_max=1.0)
+    arc = info.value.arc
+    assert arc.termination is Termination.MAP_ERROR and "ZeroDivisionError" in arc.message
+    assert len(arc) == 1
+
+
+def test_stiffness_warning_points_at_the_caller():
+    stiff = hs.HybridSystem.from_functions(f=lambda x, t: -1e6 * (x - np.cos(t)), state_dim=1)
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        hs.simulate(stiff, [0.0], t_max=0.01)
+    hits = [x for x in w if "looks stiff" in str(x.message)]
+    assert len(hits) == 1 and hits[0].filename == __file__
+
+
+def test_end_of_run_warning_points_at_the_caller():
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        hs.simulate(decay(), [1.0], t_max=1.0, max_step=1e-6, max_steps=50)
+    hits = [x for x in w if issubclass(x.category, hs.SimulationWarning)]
+    assert len(hits) == 1 and hits[0].filename == __file__

@@ -166,3 +166,28 @@ def test_batches_take_the_jump_at_t_max(period):
     arcs = hs.simulate_vectorized(vtimer(period), [[0.0], [0.0]], t_max=1.0)
     for arc in arcs:
         assert arc.jump_count == round(1.0 / period) and arc.tf == 1.0
+
+
+def test_post_jump_probe_undoes_the_flow_over_the_event_bracket():
+    import numpy as np
+
+    from hybridsim.rules import post_jump_probe
+    x_lo, x_hi = np.array([3e-16, -2.0]), np.array([-6e-16, -2.0])
+    x_plus = np.array([-6e-16, 1.6])            # position kept, velocity reflected
+    t, x = post_jump_probe(x_plus, 0.25, x_lo, x_hi)
+    assert t == 0.25 and abs(x[0] - 3e-16) < 1e-30 and x[1] == 1.6
+    # far outside C stays outside
+    t, x = post_jump_probe(np.array([-1e-9, 1.6]), 0.25, x_lo, x_hi)
+    assert x[0] < 0
+
+
+def test_jump_loop_threshold_and_messages():
+    from hybridsim.rules import DETAILS, LOOP_JUMPS, Termination, is_jump_loop, message
+    assert not is_jump_loop(LOOP_JUMPS - 1, 50) and is_jump_loop(LOOP_JUMPS, 50)
+    assert is_jump_loop(3, 3) and not is_jump_loop(2, 3)
+    for cause in (Termination.J_MAX, Termination.ZENO):
+        assert (cause, "loop") in DETAILS
+        text = message(cause, "loop", count=30, t=0.4515)
+        assert text.startswith(cause.message) and "last 30 jumps were all at t=0.4515" in text
+        assert "D = {guard >= 0}" in text
+    assert "dense output" in message(Termination.NON_FINITE, "dense", t=0.0, t2=1.0, j=0)
