@@ -27,10 +27,13 @@ from numpy.typing import ArrayLike
 from ._progress import make_bar
 from .arc import HybridArc
 from .rules import FAILURES, MapError, SimulationError, SimulationWarning, Termination
-from .solve import simulate
 from .system import HybridSystem
 
-__all__ = ["BatchError", "BatchWarning", "simulate_many", "sweep"]
+# hybridsim.solve is imported where a row runs (``_run_row``), so that the
+# integration paths (batch_vectorized, compiled) can import finish_batch from
+# here without importing solve.py
+
+__all__ = ["BatchError", "BatchWarning", "simulate_many", "sweep", "finish_batch"]
 
 #: causes that make a row "failed" in a batch (named in the summary warning)
 FAILED = frozenset(FAILURES | {Termination.MAX_STEPS})
@@ -158,6 +161,7 @@ def _run_row(system, make_system, p, x0, kwargs):
     Argument errors raised by :func:`simulate` (the same for every row)
     propagate.
     """
+    from .solve import simulate
     try:
         if make_system is not None:
             try:
@@ -457,12 +461,10 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
         from .compiled import simulate_many_compiled
         kw = {k: v for k, v in kwargs.items() if k not in ("backend", "progress")}
         out = simulate_many_compiled(system, X, throw=False, warn=False, **kw)
-        if throw:
-            _raise_first_failure(out)
-    elif system.vectorized and executor is None and _batch_takes(kwargs):
+        return finish_batch("simulate_many", out, throw, warn)
+    if system.vectorized and executor is None and _batch_takes(kwargs):
         out = _many_vectorized(system, X, kwargs, progress)
-        if throw:
-            _raise_first_failure(out)
+        return finish_batch("simulate_many", out, throw, warn)
     else:
         kwargs.update(throw=False, warn=False)
         items = [(None, x0) for x0 in X]
@@ -479,6 +481,38 @@ def _raise_first_failure(out):
                              f"{arc.message}", i, arc, out) from arc.exception
 
 
+def finish_batch(name, arcs, throw, warn, stacklevel=3):
+    """The batch policy, applied once a batch has run: the same on every path.
+
+    Every row has run and every failed row keeps its arc and cause (one of
+    :data:`FAILED`). ``throw=True`` raises :class:`BatchError` (``.row``,
+    ``.arc``, ``.arcs``) for the first failed row; otherwise ``warn=True``
+    issues one :class:`BatchWarning` naming the failed (and canceled) rows.
+    Used by :func:`simulate_many`, :func:`hybridsim.simulate_vectorized` and
+    the compiled batch; this module imports no integration path at import
+    time, so each can import this function.
+
+    Parameters
+    ----------
+    name : str
+        The entry point named in the warning (``"simulate_many"``...).
+    arcs : list of HybridArc
+        One per row, in order.
+    throw, warn : bool
+    stacklevel : int
+        Of the warning: 3 points at the caller of the function that calls
+        ``finish_batch``.
+
+    Returns
+    -------
+    list of HybridArc
+        ``arcs``.
+    """
+    if throw:
+        _raise_first_failure(arcs)
+    return _warned(name, arcs, warn, stacklevel + 1)
+
+
 def _execute(batch, executor, chunks, bar):
     """Run every row of ``batch`` here or on ``executor``; the arcs, in order."""
     rows = list(range(len(batch.out)))
@@ -493,12 +527,12 @@ def _execute(batch, executor, chunks, bar):
     return batch.out
 
 
-def _warned(name, out, warn):
+def _warned(name, out, warn, stacklevel=3):
     """One BatchWarning summarising the failed rows (if any and if asked)."""
     if warn:
         msg = _summary(name, out)
         if msg:
-            warnings.warn(msg, BatchWarning, stacklevel=3)
+            warnings.warn(msg, BatchWarning, stacklevel=stacklevel)
     return out
 
 
@@ -510,7 +544,7 @@ def _batch_takes(kwargs):
 def _many_vectorized(system, X, kwargs, progress):
     """The vectorized path, row failures at x0 isolated (see simulate_many)."""
     from .batch_vectorized import simulate_vectorized
-    kwargs = dict(kwargs, progress=progress, throw=False)
+    kwargs = dict(kwargs, progress=progress, throw=False, warn=False)
     N = len(X)
     out = [None] * N
     try:

@@ -4,49 +4,66 @@
 whose maps are written over batches (``system.vectorized = True``) together in
 numpy: an embedded Dormand-Prince 5(4) pair (scipy's RK45 coefficients) with a
 per-trajectory step size, error control and dense output, per-trajectory event
-location on the dense output (bisection of the set indicators, safeguarded
-Illinois-type regula falsi on the guards, both to 4 eps), per-trajectory jumps,
-and the same priority, limits and termination causes as
-:func:`hybridsim.simulate`.
+location on the dense output, per-trajectory jumps, and the same priority,
+limits, termination causes and messages as :func:`hybridsim.simulate`.
 
 Each trajectory follows the rules ``simulate(..., method="RK45")`` follows
 (the same initial-step rule, step-size controller and first step after an
-event) and brackets its events to the same 4 eps. The arithmetic is batched,
-so rounding differs: the step sizes can drift apart (sample times by up to
-~1e-7 at rtol 1e-10 in the tests, and a row's steps can depend on the other
-rows of its batch), and the results agree with a loop of
-:func:`hybridsim.simulate` to the integrator's tolerance, not to rounding;
-jumps of timer-like guards land on the same times to rounding. The event
-search is an Illinois-type regula falsi (Anderson-Bjorck weights) on the
-guards.
+event) and locates its events with the same algorithm as
+:func:`hybridsim.events.locate_event` (a start on the guard's zero probed and
+modelled by a quadratic, bisection of the set indicators until the guard
+changes sign, safeguarded secant steps under Brent's test, the indicators
+confirming the bracket; to :func:`hybridsim.rules.event_tolerance`), run
+over the rows in numpy. The arithmetic is batched, so rounding differs: the
+step sizes can drift apart (sample times by up to ~1e-7 at rtol 1e-10 in the
+tests, and a row's steps can depend on the other rows of its batch), and the
+results agree with a loop of :func:`hybridsim.simulate` to the integrator's
+tolerance, not to rounding; where the steps agree, jump times agree to
+rounding.
+
+The decisions are :mod:`hybridsim.rules`' own: :func:`~hybridsim.rules.jumps_now`
+and :func:`~hybridsim.rules.needs_coin` at decision points, tables of
+:func:`~hybridsim.rules.event_outcome` and :func:`~hybridsim.rules.after_jump`
+(built once per run from the rules) at events and after jumps, and each
+row's message from :func:`~hybridsim.rules.message`.
 """
 from __future__ import annotations
 
 import inspect
 import itertools
 import math
-import numbers
 
 import numpy as np
 from scipy.integrate import RK45
 
 from ._progress import make_bar
 from .arc import HybridArc, Termination
+from .batch import _as_rows, finish_batch
 from .events import _maximize, _near_peak
-from .options import check_count, check_options, check_real
+from .options import (
+    check_bool,
+    check_seed,
+    check_unsupported,
+    parse_run,
+    refuse,
+    resolve_method,
+)
 from .rules import (
-    FAILURES,
+    CAUSES,
+    NO_CAUSE,
+    Action,
     MapError,
     Priority,
-    SimulationError,
+    after_jump,
+    event_outcome,
+    event_tolerance,
     is_short_flow,
     is_sticking,
     jumps_now,
+    message,
     needs_coin,
-    sticking_message,
     t_max_slack,
     time_scale,
-    zeno_message,
 )
 from .system import HybridSystem, as_map, guard_rows
 
@@ -58,10 +75,58 @@ _A, _B, _C, _E, _P = RK45.A, RK45.B, RK45.C, RK45.E, RK45.P
 _NS = RK45.n_stages
 _ERR_EXP = -1.0 / (RK45.error_estimator_order + 1)
 _SAFETY, _MIN_FACTOR, _MAX_FACTOR = 0.9, 0.2, 10.0
-_STALL = 4          # bisect when a bracket has not halved in this many probes
 _TOO_SMALL = "Required step size is less than spacing between numbers."
-# options of simulate() that make no sense for a batch integrated in numpy
-_UNSUPPORTED = {"inputs": None, "prehistory": None, "dense": False}
+# options of simulate() the batch integrator does not implement (refused by
+# options.check_unsupported unless at their do-nothing value)
+_UNSUPPORTED = ("inputs", "prehistory", "dense", "t_eval")
+# rules.event_tolerance(a, b) = unit * max(1, |a|, |b|); the unit read from the rule
+_TOL_UNIT = event_tolerance(1.0, 1.0)
+_MAX_ITER = 200     # bisection steps of locate_event
+_SECANT_ITER = 100  # secant steps of events._secant
+# stage weights of the dense output's derivative: d/ds of (s, s^2, s^3, s^4)
+_DP = np.array([1.0, 2.0, 3.0, 4.0])
+
+
+def _tol(lo, hi):
+    """:func:`hybridsim.rules.event_tolerance` over arrays (bit for bit the same).
+
+    Belongs in rules.py: ``event_tolerance`` takes Python floats only.
+    """
+    return _TOL_UNIT * np.maximum(1.0, np.maximum(np.abs(lo), np.abs(hi)))
+
+
+def _root_off_zero(f0, fd, fw, d, w):
+    """:func:`hybridsim.events._root_off_zero` over arrays: ``(offset, slope)``,
+    NaN where the quadratic model has no root in (d, w)."""
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        m = (fd - f0) / d
+        c = (fw - f0 - m * w) / (w * w)
+        disc = m * m - 4.0 * c * f0
+        ok = (c > 0.0) & (disc >= 0.0)
+        r = np.sqrt(np.where(ok, disc, 0.0))
+        tau = (r - m) / (2.0 * c)
+    ok &= (d < tau) & (tau < w)
+    return np.where(ok, tau, np.nan), np.where(ok, r, np.nan)
+
+
+def _outcome_table(prio):
+    """:func:`hybridsim.rules.event_outcome` for every combination of its bool
+    arguments (code = 16 watching_D + 8 in_D_hi + 4 in_C_hi + 2 in_D_lo + coin):
+    the rule itself, evaluated once per run, looked up per event row."""
+    action = np.empty(32, dtype=np.int8)
+    side = np.empty(32, dtype=np.int8)
+    for code in range(32):
+        bits = [bool(code >> k & 1) for k in (4, 3, 2, 1, 0)]
+        act, sd = event_outcome(bits[0], bits[1], bits[2], bits[3], prio, bits[4])
+        action[code], side[code] = int(act), sd
+    return action, side
+
+
+def _after_jump_table():
+    """:func:`hybridsim.rules.after_jump` by (jumps >= j_max, short >= zeno_jumps):
+    the rule's order of causes (J_MAX before ZENO), looked up per jumping row."""
+    return np.array([[after_jump(int(full), int(zeno), 1, 1) for zeno in (0, 1)]
+                     for full in (0, 1)], dtype=np.int64)
 
 
 def _rms(a):
@@ -69,15 +134,21 @@ def _rms(a):
     return np.sqrt(np.einsum("ij,ij->i", a, a) / a.shape[1])
 
 
+class _NonFiniteStep(Exception):
+    """Internal: a row's dense output became non-finite inside an accepted step."""
+
+
 class _SampleLog:
     """Growable sample store shared by the trajectories of a batch.
 
-    One flat buffer of (row, t, j, x) with doubling capacity: each append
-    stores one sample for each of a set of trajectories with one slice
+    One flat buffer of (row, t, j, x, xdot) with doubling capacity: each
+    append stores one sample for each of a set of trajectories with one slice
     assignment (amortised O(1) per sample, no quadratic copying, and no
-    per-sample Python work however many rows append). :meth:`split` gathers
-    each trajectory's samples (in time order: a stable sort by row) into its
-    own arrays, so the arcs do not keep the log alive.
+    per-sample Python work however many rows append). ``last[r]`` is where
+    row r's last sample is (its xdot is set when a flow starts there, as
+    :func:`hybridsim.simulate` does). :meth:`split` gathers each
+    trajectory's samples (in time order: a stable sort by row) into its own
+    arrays, so the arcs do not keep the log alive.
     """
 
     def __init__(self, N, n, cap=1024):
@@ -86,18 +157,21 @@ class _SampleLog:
         self.t = np.empty(cap)
         self.j = np.empty(cap, dtype=np.int64)
         self.x = np.empty((cap, n))
+        self.xd = np.empty((cap, n))
         self.count = np.zeros(N, dtype=np.int64)
+        self.last = np.zeros(N, dtype=np.int64)
 
     def _grow(self, need):
         cap = max(2 * len(self.t), need)
         k = self.size
-        for name in ("rows", "t", "j", "x"):
+        for name in ("rows", "t", "j", "x", "xd"):
             old = getattr(self, name)
             new = np.empty((cap,) + old.shape[1:], dtype=old.dtype)
             new[:k] = old[:k]
             setattr(self, name, new)
 
-    def append(self, rows, t, j, x):
+    def append(self, rows, t, j, x, xd=None):
+        """One sample for each of ``rows`` (distinct); ``xd`` None: NaN."""
         k = len(rows)
         if k == 0:
             return
@@ -109,26 +183,36 @@ class _SampleLog:
         self.t[a:b] = t
         self.j[a:b] = j
         self.x[a:b] = x
+        self.xd[a:b] = np.nan if xd is None else xd
         self.size = b
         self.count[rows] += 1
+        self.last[rows] = np.arange(a, b)
 
-    def split(self):
-        """Per-trajectory ``(t, j, x)`` arrays, in row order; frees the log."""
+    def set_last_xdot(self, rows, v):
+        self.xd[self.last[rows]] = v
+
+    def split(self, keep=None):
+        """Per-trajectory ``(t, j, x, xdot)`` arrays, in row order; frees the log.
+
+        ``keep``: at most this many samples of each row (None: all)."""
         k = self.size
-        if len(self.count) == 1:             # one trajectory: shrink in place, no copy
-            self.t.resize(k, refcheck=False)
-            self.j.resize(k, refcheck=False)
-            self.x.resize((k, self.x.shape[1]), refcheck=False)
-            out = [(self.t, self.j, self.x)]
-            self.rows = self.t = self.j = self.x = None
+        if len(self.count) == 1 and keep is None:    # one trajectory: shrink in place
+            for name in ("t", "j"):
+                getattr(self, name).resize(k, refcheck=False)
+            for name in ("x", "xd"):
+                getattr(self, name).resize((k, self.x.shape[1]), refcheck=False)
+            out = [(self.t, self.j, self.x, self.xd)]
+            self.rows = self.t = self.j = self.x = self.xd = None
             return out
         order = np.argsort(self.rows[:k], kind="stable")
         bounds = np.concatenate(([0], np.cumsum(self.count)))
         out = []
-        for a, b in itertools.pairwise(bounds):
+        for r, (a, b) in enumerate(itertools.pairwise(bounds)):
+            if keep is not None and b - a > keep[r]:
+                b = a + keep[r]
             idx = order[a:b]
-            out.append((self.t[idx], self.j[idx], self.x[idx]))
-        self.rows = self.t = self.j = self.x = None
+            out.append((self.t[idx], self.j[idx], self.x[idx], self.xd[idx]))
+        self.rows = self.t = self.j = self.x = self.xd = None
         return out
 
 
@@ -137,7 +221,10 @@ class _VMaps:
 
     A call that raises (or returns a wrong shape) during the run is retried row
     by row; the rows that still fail are recorded in ``run.bad`` (they end
-    with ``MAP_ERROR``) and get a harmless placeholder value. With
+    with ``MAP_ERROR``, the error a :class:`MapError` naming the map, t and
+    j, chained from the map's exception, as in :func:`hybridsim.simulate`)
+    and get a harmless placeholder value. A guard returning NaN is a
+    contract breach of that row (``MAP_ERROR`` naming the guard). With
     ``strict=True`` (the checks at x0) errors propagate at once.
     """
 
@@ -157,19 +244,21 @@ class _VMaps:
 
     # ---------------------------------------------------------------- checks
     def _check(self, kind, name, val, k):
+        if np.iscomplexobj(val):
+            raise MapError(f"{name} returned complex values: the state is real", name)
         if kind == "state":
             arr = np.asarray(val, dtype=float)
             if arr.shape != (k, self.n):
                 raise MapError(f"{name} must return an array of shape ({k}, {self.n}) "
                                f"(vectorized system: one row per trajectory), got shape "
-                               f"{arr.shape}")
+                               f"{arr.shape}", name)
             return arr
         if kind == "set":
             arr = np.asarray(val)
             if arr.shape != (k,):
                 raise MapError(f"{name} must return a boolean array of shape ({k},) "
                                f"(vectorized system: one entry per trajectory), got shape "
-                               f"{arr.shape}")
+                               f"{arr.shape}", name)
             return arr.astype(bool)
         arr = np.asarray(val, dtype=float)   # guard: (k,) or (k, m)
         if arr.ndim == 2 and arr.shape[0] == k and arr.shape[1] >= 1:
@@ -177,8 +266,27 @@ class _VMaps:
         if arr.shape != (k,):
             raise MapError(f"{name} must return an array of shape ({k},) or ({k}, m) "
                            f"(vectorized system: one row per trajectory), got shape "
-                           f"{arr.shape}")
+                           f"{arr.shape}", name)
         return arr
+
+    def _fail(self, r, err):
+        run = self.run
+        if not run.bad[r]:
+            run.bad[r] = True
+            run.bad_exc[r] = err
+
+    def _nan_guard(self, name, rows, out, t, j, strict):
+        """A guard's NaN rows: MapError naming it (as simulate's sets from guards)."""
+        nan = np.isnan(out)
+        if not nan.any():
+            return out
+        for i in np.flatnonzero(nan):
+            err = MapError(f"{name} returned NaN (at t={float(t[i]):.10g}, j={int(j[i])})",
+                           name, float(t[i]), int(j[i]))
+            if strict:
+                raise err
+            self._fail(rows[i], err)
+        return np.where(nan, -1.0, out)
 
     def _call(self, kind, name, fn, rows, x, t, j, strict=False):
         k = len(rows)
@@ -186,7 +294,7 @@ class _VMaps:
             return (np.empty((0, self.n)) if kind == "state"
                     else np.empty(0, dtype=bool if kind == "set" else float))
         try:
-            return self._check(kind, name, fn(x, t, j, None), k)
+            out = self._check(kind, name, fn(x, t, j, None), k)
         except (KeyboardInterrupt, SystemExit):
             raise
         except MapError:
@@ -196,11 +304,12 @@ class _VMaps:
             if strict:          # at x0, as simulate: a MapError naming the map
                 raise MapError(f"{name} raised {type(e).__name__}: {e} (at the initial "
                                f"states, t={t[0]:.10g})", name, float(t[0]), int(j[0])) from e
+        else:
+            return out if kind != "guard" else self._nan_guard(name, rows, out, t, j, strict)
         if kind == "state":
             out = np.zeros((k, self.n))
         else:
             out = np.zeros(k, dtype=bool if kind == "set" else float)
-        run = self.run
         for i in range(k):
             try:
                 out[i] = self._check(kind, name, fn(x[i:i + 1], t[i:i + 1], j[i:i + 1], None),
@@ -208,15 +317,46 @@ class _VMaps:
             except (KeyboardInterrupt, SystemExit):
                 raise
             except Exception as e:  # noqa: BLE001
-                r = rows[i]
-                if not run.bad[r]:
-                    run.bad[r] = True
-                    run.bad_exc[r] = e
-        return out
+                if not isinstance(e, MapError):
+                    err = MapError(f"{name} raised {type(e).__name__}: {e} (at "
+                                   f"t={float(t[i]):.10g}, j={int(j[i])})", name,
+                                   float(t[i]), int(j[i]))
+                    err.__cause__ = e
+                    e = err
+                self._fail(rows[i], e)
+        return out if kind != "guard" else self._nan_guard(name, rows, out, t, j, strict)
 
     # ------------------------------------------------------------ the maps
     def flow(self, rows, x, t, j, strict=False):
         return self._call("state", "flow_map", self.f, rows, x, t, j, strict)
+
+    def flow_soft(self, x, t, j):
+        """The flow map's value where it is defined, NaN where it raises or is
+        not a row of floats (samples' ``xdot``: outside C the flow map may be
+        undefined); nothing is recorded."""
+        k = len(x)
+        out = np.full((k, self.n), np.nan)
+        if k == 0:
+            return out
+        with np.errstate(all="ignore"):
+            try:
+                v = np.asarray(self.f(x, t, j, None), dtype=float)
+                if v.shape == (k, self.n):
+                    return v
+            except (KeyboardInterrupt, SystemExit):
+                raise
+            except Exception:  # noqa: BLE001 - row by row below
+                pass
+            for i in range(k):
+                try:
+                    v = np.asarray(self.f(x[i:i + 1], t[i:i + 1], j[i:i + 1], None), dtype=float)
+                except (KeyboardInterrupt, SystemExit):
+                    raise
+                except Exception:  # noqa: BLE001 - undefined there: NaN
+                    continue
+                if v.shape == (1, self.n):
+                    out[i] = v[0]
+        return out
 
     def jump(self, rows, x, t, j, strict=False):
         return self._call("state", "jump_map", self.g, rows, x, t, j, strict)
@@ -250,85 +390,82 @@ def takes_options(kwargs):
     """Whether :func:`simulate_vectorized` implements these options of ``simulate``.
 
     It is Dormand-Prince 5(4) (``method="RK45"``, the default) without dense
-    output, inputs, a prehistory or ``t_eval``; :func:`hybridsim.simulate_many`
-    runs a vectorized system's rows through ``simulate`` otherwise.
+    output, inputs, a prehistory or ``t_eval`` (the options
+    :func:`hybridsim.options.check_unsupported` refuses on the vectorized
+    path); :func:`hybridsim.simulate_many` runs a vectorized system's rows
+    through ``simulate`` otherwise.
     """
     if not _is_rk45(kwargs.get("method", "RK45")):
         return False
     known = inspect.signature(simulate_vectorized).parameters
     for name, val in kwargs.items():
         if name in _UNSUPPORTED:
-            default = _UNSUPPORTED[name]
-            if (val is not None) if default is None else bool(val):
+            try:
+                check_unsupported("vectorized", {name: val})
+            except ValueError:
                 return False
         elif name not in known:
             return False
     return True
 
 
-def _check_options(system, x0s, t_max, j_max, priority, method, rtol, atol, max_step,
-                   first_step, zeno_jumps, zeno_time, t0, j0, max_norm, extra):
+def _parse(system, x0s, t_max, j_max, kw, method, progress, seed, extra):
+    """Validate the arguments of :func:`simulate_vectorized`: the shared options
+    through :func:`hybridsim.options.parse_run` (the messages of
+    :func:`hybridsim.simulate`), the others refused by
+    :func:`hybridsim.options.check_unsupported`."""
     if not isinstance(system, HybridSystem):
         raise TypeError(f"system must be a hybridsim.HybridSystem, got {type(system).__name__}")
     if not system.vectorized:
         raise ValueError("system: simulate_vectorized needs a system with vectorized = True "
                          "(maps written over (N, n) batches); use hybridsim.simulate_many")
-    for name, val in extra.items():
+    for name in extra:
         if name not in _UNSUPPORTED:
             raise TypeError(f"simulate_vectorized() got an unexpected keyword argument {name!r}")
-        if (val is not None) if _UNSUPPORTED[name] is None else bool(val):
-            raise ValueError(f"{name}={val!r} is not supported in vectorized mode; use "
-                             "simulate_many with an executor, or a non-vectorized system")
-    if int(system.input_dim or 0) > 0:
-        raise ValueError(f"system: input_dim={system.input_dim}; inputs are not supported in "
-                         "vectorized mode (close the loop with hs.connect first)")
-    if system.needs_history or getattr(system, "delays", ()):
-        raise ValueError("system: maps reading the run's history (needs_history, delays) "
-                         "are not supported in vectorized mode")
     n = system.state_dim
     if n is None or isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
         raise ValueError(f"{type(system).__name__}.state_dim must be a positive int, got {n!r}")
     n = int(n)
-    try:
-        X = np.array(x0s, dtype=float)
-    except (TypeError, ValueError) as e:
-        raise TypeError(f"x0s must be an array of shape (N, {n}) of floats, got "
-                        f"{type(x0s).__name__}") from e
-    if X.ndim != 2 or X.shape[1] != n or X.shape[0] < 1:
+    X = _as_rows(x0s, n)            # the messages of simulate_many
+    if X.shape[0] < 1:
         raise ValueError(f"x0s must have shape (N, {n}) with N >= 1 (one row per "
                          f"trajectory), got shape {X.shape}")
     if not np.all(np.isfinite(X)):
         bad = np.flatnonzero(~np.isfinite(X).all(axis=1))
-        raise ValueError(f"x0s must be finite; rows {bad[:10].tolist()} are not")
-    (t0, t_max, j_max, prio, rtol, atol, max_step, first_step, max_norm,
-     zeno_time) = check_options(system, n, t0, t_max, j_max, priority, rtol, atol, max_step,
-                                first_step, max_norm, zeno_time)
-    if isinstance(j0, bool) or not isinstance(j0, numbers.Integral):
-        raise TypeError(f"j0 must be an int, got {j0!r}")
+        raise ValueError(f"x0s must be finite; rows {bad[:10].tolist()} are not "
+                         f"(row {bad[0]}: {X[bad[0]]})")
+    ro = parse_run(system, n, t_max=t_max, j_max=j_max, **kw)
+    resolve_method(method)          # a bad method: simulate's message
     if not _is_rk45(method):
-        raise ValueError(f"method={method!r} is not supported in vectorized mode: the batch "
-                         "integrator is Dormand-Prince 5(4) ('RK45'); use simulate_many with "
-                         "an executor for other methods")
-    if isinstance(zeno_jumps, bool) or not isinstance(zeno_jumps, numbers.Integral) \
-            or zeno_jumps < 1:
-        raise ValueError(f"zeno_jumps must be a positive int, got {zeno_jumps!r}")
-    return (n, X, t0, t_max, j_max, prio, rtol, atol, max_step,
-            first_step, int(zeno_jumps), zeno_time, int(j0), max_norm)
+        refuse("vectorized", "method", method)
+    check_unsupported("vectorized", extra)
+    if int(system.input_dim or 0) > 0:
+        refuse("vectorized", "inputs", f"<input_dim={system.input_dim}>")
+    if system.needs_history or getattr(system, "delays", ()):
+        raise ValueError("system: maps reading the run's history (needs_history, delays) "
+                         "are not supported on the vectorized path; use hs.simulate (the "
+                         "Python path)")
+    progress = check_bool("progress", progress, allow_none=True)
+    rng = check_seed(seed, build=ro.prio == Priority.RANDOM)
+    return n, X, ro, progress, rng
 
 
 def simulate_vectorized(system, x0s, t_max, j_max=math.inf, *, priority="jumps",
                         rtol=1e-6, atol=1e-9, max_step=math.inf, first_step=None,
                         zeno_jumps=50, zeno_time=1e-12, zeno_rtol=1e-7, progress=False,
                         method="RK45", t0=0.0, j0=0, max_norm=math.inf, seed=None,
-                        throw=False, refine=1, max_steps=1_000_000, **unsupported):
+                        throw=False, warn=True, refine=1, max_steps=1_000_000,
+                        max_samples=10_000_000, **unsupported):
     r"""Simulate a vectorized hybrid system from many initial states at once.
 
     The whole batch is integrated together in numpy by an embedded
     Dormand-Prince 5(4) pair with scipy's RK45 coefficients, each trajectory
     with its own step size (scipy's step-size rule), error control, dense
     output, event location and jumps. Only the trajectories still running are
-    evaluated. Semantics and termination causes are those of
-    :func:`hybridsim.simulate`.
+    evaluated. Semantics, termination causes and messages are those of
+    :func:`hybridsim.simulate`; the arcs carry ``xdot`` and ``stats`` as
+    its arcs do. Failed rows follow the batch policy of
+    :func:`hybridsim.simulate_many` (:func:`hybridsim.batch.finish_batch`).
 
     Parameters
     ----------
@@ -371,35 +508,53 @@ def simulate_vectorized(system, x0s, t_max, j_max=math.inf, *, priority="jumps",
     refine : int
         Samples stored per step, as in :func:`hybridsim.simulate`:
         ``refine - 1`` dense-output points inside each step.
+    max_samples : int or inf
+        Samples stored per trajectory; a trajectory that would store more
+        ends with ``MAX_STEPS`` (as in :func:`hybridsim.simulate`).
     throw : bool
-        Raise :class:`hybridsim.SimulationError` for the first trajectory
-        that stops on a failure (``.arc`` is its arc, ``.arcs`` all of them).
+        False (the default here, unlike :func:`hybridsim.simulate`): every
+        row runs and a failed row (``MAP_ERROR``, ``NON_FINITE``,
+        ``BLOWUP``, ``SOLVER_FAILED``, ``MAX_STEPS``) keeps its arc and
+        cause. True: once the batch has run, raise
+        :class:`hybridsim.BatchError` for the first failed row (``.row``,
+        ``.arc``, ``.arcs``).
+    warn : bool
+        Issue one :class:`hybridsim.BatchWarning` naming the failed rows
+        (default True), as :func:`hybridsim.simulate_many` does.
     **unsupported
-        ``inputs``, ``prehistory`` (must be None) and ``dense`` (must be
-        False) are accepted for compatibility with
-        :func:`hybridsim.simulate_many`; anything else raises ``TypeError``.
+        ``inputs``, ``prehistory``, ``t_eval`` (must be None) and ``dense``
+        (must be False) are accepted for compatibility with
+        :func:`hybridsim.simulate_many` and refused otherwise
+        (:func:`hybridsim.options.refuse`); anything else raises ``TypeError``.
 
     Returns
     -------
     list of HybridArc
         One arc per row of ``x0s``, in order, each with samples at every
         accepted step end and at every event (``t`` (M,), ``j`` (M,),
-        ``x`` (M, n)).
+        ``x`` (M, n)), the flow map's value at each sample (``xdot``; NaN
+        at a jump's sample that jumps again, where the state may be outside
+        C) and the row's ``stats`` (the keys of :func:`hybridsim.simulate`'s).
 
     Raises
     ------
     MapError
         A map raises or returns a wrong shape at the initial states (chained
         from the map's exception).
+    BatchError
+        ``throw=True`` and a row failed.
     ValueError, TypeError
-        Bad arguments (each message names the argument).
+        Bad arguments (each message names the argument; the same class and
+        message as :func:`hybridsim.simulate` for the options they share).
 
     Notes
     -----
     A user map that raises during the run is retried row by row; only the
     rows that still fail stop, with cause ``MAP_ERROR`` (an error at the
     initial states is raised, as in :func:`hybridsim.simulate`;
-    :func:`hybridsim.simulate_many` isolates such rows instead).
+    :func:`hybridsim.simulate_many` isolates such rows instead). A
+    non-finite state (a step's end or its dense output) ends the row with
+    ``NON_FINITE``, a guard returning NaN with ``MAP_ERROR`` naming it.
 
     Ctrl-C (KeyboardInterrupt) ends every trajectory still running with
     ``CANCELED``, keeping its samples so far and the finished trajectories.
@@ -414,62 +569,59 @@ def simulate_vectorized(system, x0s, t_max, j_max=math.inf, *, priority="jumps",
     >>> arcs = simulate_vectorized(timer, [[0.0], [0.5]], t_max=2.2)
     >>> [np.round(a.jump_times, 12).tolist() for a in arcs]
     [[1.0, 2.0], [0.5, 1.5]]
+    >>> sorted(arcs[0].stats)
+    ['events', 'flows', 'nfev', 'njev', 'nlu', 'rejected', 'steps']
     """
-    (n, X, t0, t_max, j_max, prio, rtol, atol, max_step, first_step, zeno_jumps, zeno_time,
-     j0, max_norm) = _check_options(system, x0s, t_max, j_max, priority, method, rtol, atol,
-                                    max_step, first_step, zeno_jumps, zeno_time, t0, j0,
-                                    max_norm, unsupported)
-    if isinstance(refine, bool) or not isinstance(refine, numbers.Integral) or refine < 1:
-        raise ValueError(f"refine must be an int >= 1, got {refine!r}")
-    zeno_rtol = check_real("zeno_rtol", zeno_rtol, nonneg=True)
-    max_steps = check_count("max_steps", max_steps, minimum=1, allow_inf=True)
-    run = _BatchRun(system, X, n, t0, j0, t_max, j_max, prio, rtol, atol, max_step,
-                    first_step, zeno_jumps, zeno_time, max_norm, np.random.default_rng(seed),
-                    zeno_rtol=zeno_rtol, max_steps=max_steps)
-    run.refine = int(refine)
+    n, X, ro, progress, rng = _parse(
+        system, x0s, t_max, j_max, dict(
+            t0=t0, j0=j0, priority=priority, rtol=rtol, atol=atol, max_step=max_step,
+            first_step=first_step, max_norm=max_norm, zeno_jumps=zeno_jumps,
+            zeno_time=zeno_time, zeno_rtol=zeno_rtol, refine=refine, max_steps=max_steps,
+            max_samples=max_samples, throw=throw, warn=warn),
+        method, progress, seed, unsupported)
+    run = _BatchRun(system, X, n, ro, rng)
     run.pbar = make_bar(progress, total=len(X), desc="simulate_vectorized", unit="run")
     try:
         run.run()
     except KeyboardInterrupt:       # Ctrl-C: every trajectory still running is canceled
         run.cancel()
+    except MapError as e:           # at x0: raised, with the failing row's arc (one sample)
+        if e.arc is None:
+            r = getattr(e, "row", None) or 0
+            e.arc = HybridArc._trusted(
+                np.array([ro.t0]), np.array([ro.j0], dtype=np.int64), X[r:r + 1].copy(),
+                Termination.MAP_ERROR, message(Termination.MAP_ERROR, error=str(e)), e,
+                components=system.components, system=system)
+        raise
     finally:
         if run.pbar is not None:
             run.pbar.close()
-    arcs = []
-    for i, (t, j, x) in enumerate(run.log.split()):
-        arcs.append(HybridArc(t, j, x, run.cause[i], run.message[i], run.exception[i],
-                              components=system.components, system=system))
-    if throw:
-        for i, arc in enumerate(arcs):
-            if arc.termination in FAILURES:
-                err = SimulationError(f"trajectory {i}: {arc.message}", arc)
-                err.arcs = arcs
-                raise err from arc.exception
-    return arcs
+    return finish_batch("simulate_vectorized", run.arcs(system), ro.throw, ro.warn)
 
 
 class _BatchRun:
     """State of a batch run: one entry per trajectory in every array."""
 
-    def __init__(self, system, X, n, t0, j0, t_max, j_max, prio, rtol, atol, max_step,
-                 first_step, zeno_jumps, zeno_time, max_norm, rng, zeno_rtol=1e-7,
-                 max_steps=math.inf):
+    def __init__(self, system, X, n, ro, rng):
         N = len(X)
         self.N, self.n = N, n
         self.maps = _VMaps(system, n)
         self.maps.run = self
-        self.t_max, self.j_max, self.prio = t_max, j_max, prio
-        self.rtol, self.atol, self.max_step = rtol, atol, max_step
-        self.zeno_jumps, self.zeno_time, self.max_norm = zeno_jumps, zeno_time, max_norm
-        self.zeno_rtol, self.max_steps = zeno_rtol, max_steps
+        self.t_max, self.j_max, self.prio = ro.t_max, ro.j_max, ro.prio
+        self.rtol, self.atol, self.max_step = ro.rtol, ro.atol, ro.max_step
+        self.zeno_jumps, self.zeno_time, self.max_norm = ro.zeno_jumps, ro.zeno_time, ro.max_norm
+        self.zeno_rtol, self.max_steps = ro.zeno_rtol, ro.max_steps
+        self.max_samples = ro.max_samples
         self.rng = rng
-        self.refine = 1
+        self.refine = ro.refine
         self.pbar = None
+        t0, j0 = ro.t0, ro.j0
         # per-trajectory state
         self.t = np.full(N, t0)
         self.j = np.full(N, j0, dtype=np.int64)
         self.x = X.copy()
         self.fx = np.zeros((N, n))                  # f at (t, x): first stage (FSAL)
+        first_step = ro.first_step
         self.h = np.full(N, np.nan if first_step is None else first_step)  # step hint
         self.rejected = np.zeros(N, dtype=bool)     # last attempt was rejected
         self.nonfinite = np.zeros(N, dtype=bool)    # its stages were not finite
@@ -477,10 +629,10 @@ class _BatchRun:
         self.force = np.zeros(N, dtype=bool)        # an event asks for a jump
         self.short = np.zeros(N, dtype=np.int64)    # consecutive short flows (Zeno)
         self.flows3 = np.full((N, 3), np.inf)        # the last three flow lengths
-        self.steps = np.zeros(N, dtype=np.int64)     # accepted steps (max_steps)
         self.t0 = t0
         self.t_last = np.full(N, t0)
         self.t_flow0 = np.full(N, t0)               # start of the current flow
+        self.t_step = np.full(N, t0)                # end of the step being examined
         self.jumps = np.zeros(N, dtype=np.int64)
         self.decide = np.ones(N, dtype=bool)        # at a decision point (jump/flow/stop)
         self.done = np.zeros(N, dtype=bool)
@@ -489,43 +641,102 @@ class _BatchRun:
         self.cause = [None] * N
         self.message = [None] * N
         self.exception = [None] * N
+        self.keep = None                            # samples kept per row (max_samples)
+        # statistics, the keys of simulate's arc.stats
+        self.steps = np.zeros(N, dtype=np.int64)     # accepted steps
+        self.attempts = np.zeros(N, dtype=np.int64)  # step attempts
+        self.nfev = np.zeros(N, dtype=np.int64)
+        self.events = np.zeros(N, dtype=np.int64)
+        self.flows = np.zeros(N, dtype=np.int64)
         self.log = _SampleLog(N, n)
         m = self.maps
-        self.watch_D = m.has_D and prio != Priority.FLOWS
+        self.watch_D = m.has_D and self.prio != Priority.FLOWS
         phi_ok = ((not self.watch_D or m.hD is not None) and (not m.has_C or m.hC is not None))
         self.use_phi = phi_ok and (m.hD is not None or m.hC is not None)
+        self.ev_action, self.ev_side = _outcome_table(self.prio)
+        self.after = _after_jump_table()
 
     # ------------------------------------------------------------ helpers
-    def _stop(self, rows, cause, details=None):
-        """End trajectories ``rows`` with ``cause``; ``details(i) -> str`` per row."""
+    def _stop(self, rows, cause, kind=None, **fields):
+        """End trajectories ``rows`` with ``cause``; the message is
+        :func:`hybridsim.rules.message` of ``kind`` with ``fields`` (arrays
+        indexed like ``rows``, or one value for all)."""
+        per = {k: v for k, v in fields.items() if isinstance(v, (np.ndarray, list))}
+        same = {k: v for k, v in fields.items() if k not in per}
+        plain = not fields and kind is None
+        count = 0
         for i, r in enumerate(rows):
             if self.done[r]:
                 continue
             self.done[r] = True
+            count += 1
             self.cause[r] = cause
-            d = details(i) if details is not None else None
-            self.message[r] = cause.message if d is None else f"{cause.message}: {d}"
-        if self.pbar is not None and len(rows):
-            self.pbar.update(len(rows))
+            if plain:
+                self.message[r] = cause.message
+            else:
+                f = dict(same)
+                for k, v in per.items():
+                    f[k] = v[i]
+                self.message[r] = message(cause, kind, **f)
+        if self.pbar is not None and count:
+            self.pbar.update(count)
 
     def cancel(self):
         """End every trajectory still running with ``CANCELED`` (after Ctrl-C)."""
         rows = np.flatnonzero(~self.done)
-        t, j = self.t, self.j
-        self._stop(rows, Termination.CANCELED, lambda i: f"at t={t[rows[i]]:.10g}, "
-                                                         f"j={j[rows[i]]}")
+        self._stop(rows, Termination.CANCELED, t=self.t[rows], j=self.j[rows])
 
     def _reap(self, rows):
-        """Stop the rows on which a map failed; return the mask of the others."""
+        """Stop the rows on which a map failed (``MAP_ERROR``) or whose dense
+        output became non-finite (``NON_FINITE``); return the mask of the others."""
         bad = self.bad[rows]
         if not bad.any():
             return None
         for r in rows[bad]:
             if not self.done[r]:
                 e = self.bad_exc[r]
-                self._stop([r], Termination.MAP_ERROR, lambda i, e=e: f"{type(e).__name__}: {e}")
-                self.exception[r] = e
+                if isinstance(e, _NonFiniteStep):
+                    self._stop([r], Termination.NON_FINITE, "dense", t=self.t[r],
+                               t2=self.t_step[r], j=self.j[r])
+                else:
+                    self._stop([r], Termination.MAP_ERROR, error=str(e))
+                    self.exception[r] = e
         return ~bad
+
+    def _finite(self, rows, y):
+        """Mark the rows whose probed state is not finite (see :meth:`_reap`)."""
+        fin = np.isfinite(y).all(axis=1)
+        if not fin.all():
+            for r in rows[~fin]:
+                if not self.bad[r]:
+                    self.bad[r] = True
+                    self.bad_exc[r] = _NonFiniteStep()
+
+    def arcs(self, system):
+        """One :class:`HybridArc` per row, with ``xdot`` and ``stats``."""
+        log = self.log
+        # the last sample's xdot, where no flow started there (as simulate's arc())
+        fill = np.flatnonzero(np.isnan(log.xd[log.last]).any(axis=1))
+        if self.keep is not None:
+            fill = fill[self.keep[fill] >= log.count[fill]]
+        fill = np.array([r for r in fill if self.cause[r] is not Termination.MAP_ERROR],
+                        dtype=np.int64)
+        if fill.size:
+            k = log.last[fill]
+            log.xd[k] = self.maps.flow_soft(log.x[k], log.t[k], log.j[k])
+        rej = (self.attempts - self.steps).tolist()
+        cols = [c.tolist() for c in (self.steps, self.nfev, self.events, self.flows,
+                                     self.attempts)]
+        comps = system.components
+        out = []
+        for i, (t, j, x, xd) in enumerate(log.split(self.keep)):
+            stats = {"steps": cols[0][i], "nfev": cols[1][i], "njev": 0, "nlu": 0,
+                     "events": cols[2][i], "flows": cols[3][i],
+                     "rejected": max(rej[i], 0) if cols[4][i] else None}
+            out.append(HybridArc._trusted(t, j, x, self.cause[i], self.message[i],
+                                          self.exception[i], components=comps,
+                                          system=system, xdot=xd, stats=stats))
+        return out
 
     # ------------------------------------------------------------ main loop
     def run(self):
@@ -533,6 +744,7 @@ class _BatchRun:
         rows = np.arange(N)
         self.log.append(rows, self.t, self.j, self.x)
         self._validate()
+        cap = self.max_samples
         while True:
             rows = np.flatnonzero(self.decide & ~self.done)
             if rows.size:
@@ -542,6 +754,19 @@ class _BatchRun:
                 self._step(rows)
             elif not (self.decide & ~self.done).any():
                 break
+            if cap < math.inf:
+                self._cap_samples(cap)
+
+    def _cap_samples(self, cap):
+        """Rows that stored more than ``max_samples``: MAX_STEPS, the samples cut."""
+        over = np.flatnonzero((self.log.count > cap) & ~self.done)
+        if not over.size:
+            return
+        if self.keep is None:
+            self.keep = np.full(self.N, np.iinfo(np.int64).max, dtype=np.int64)
+        self.keep[over] = cap
+        self._stop(over, Termination.MAX_STEPS, "samples", samples=int(cap),
+                   max_samples=int(cap), t=self.t[over])
 
     def _validate(self):
         """Check every map's shape at the initial states (errors raise at once)."""
@@ -554,14 +779,40 @@ class _BatchRun:
             m.guard_D(rows, x, t, j, strict=True)
         if m.hC is not None:
             m.guard_C(rows, x, t, j, strict=True)
-        if inC.any():
-            r = rows[inC]
-            m.flow(r, x[r], t[r], j[r], strict=True)
-        if inD.any():
-            r = rows[inD]
-            m.jump(r, x[r], t[r], j[r], strict=True)
+        for name, call, inside in (("flow_map", m.flow, inC), ("jump_map", m.jump, inD)):
+            if inside.any():
+                r = rows[inside]
+                v = call(r, x[r], t[r], j[r], strict=True)
+                bad = ~np.isfinite(v).all(axis=1)
+                if bad.any():        # as simulate at x0: a programming error, raised
+                    k = int(np.flatnonzero(bad)[0])
+                    err = MapError(f"{name} returned non-finite values {v[k]} (at "
+                                   f"t={t[r[k]]:.10g}, j={j[r[k]]}; row {r[k]} of x0s)",
+                                   name, float(t[r[k]]), int(j[r[k]]))
+                    err.row = int(r[k])
+                    raise err
 
     # ------------------------------------------------------------ decisions
+    def _stop_outside(self, rows, x, t, j, kind=None):
+        """In neither C nor D: x0 outside both, sticking, or leaving C ∪ D
+        (simulate's ``_stop_outside``); ``kind``: LEFT_SETS' message kind."""
+        first = self.log.count[rows] == 1
+        stick = np.array([not f and is_sticking(
+            self.flows3[r][np.isfinite(self.flows3[r])], tt - self.t_last[r],
+            int(self.jumps[r]), time_scale(self.t0, tt, self.t_max))
+            for r, f, tt in zip(rows, first, t)], dtype=bool)
+        for r, tt, jj, xx in zip(rows[stick], t[stick], j[stick], x[stick]):
+            fl = self.flows3[r]
+            self._stop([r], Termination.ZENO, "sticking", t=[tt], j=[jj], x=[xx],
+                       flows=[fl[np.isfinite(fl)]])
+        if first.any():
+            self._stop(rows[first], Termination.NOT_IN_SETS, x=x[first], t=t[first],
+                       j=j[first])
+        left = ~first & ~stick
+        if left.any():
+            self._stop(rows[left], Termination.LEFT_SETS, kind, x=x[left], t=t[left],
+                       j=j[left])
+
     def _decide(self, rows):
         """Jump, stop or start flowing, at the current (t, j, x) of ``rows``.
 
@@ -588,25 +839,7 @@ class _BatchRun:
                 sr, sx, st, sj, sD = rows[stay], x[stay], t[stay], j[stay], inD[stay]
                 out = ~inC[stay]
                 if out.any():
-                    orow = sr[out]
-                    first = self.log.count[orow] == 1
-                    ox, ot, oj = sx[out], st[out], sj[out]
-                    stick = np.array([not f and is_sticking(
-                        self.flows3[r][np.isfinite(self.flows3[r])], tt - self.t_last[r],
-                        int(self.jumps[r]), time_scale(self.t0, tt, self.t_max))
-                        for r, f, tt in zip(orow, first, ot)], dtype=bool)
-                    for r, tt, jj, xx in zip(orow[stick], ot[stick], oj[stick], ox[stick]):
-                        fl = self.flows3[r]
-                        self._stop([r], Termination.ZENO,
-                                   lambda i, tt=tt, jj=jj, xx=xx, fl=fl:
-                                   sticking_message(tt, jj, xx, fl[np.isfinite(fl)]))
-                    for cause, sel in ((Termination.NOT_IN_SETS, first),
-                                       (Termination.LEFT_SETS, ~first & ~stick)):
-                        if sel.any():
-                            xs, ts, js = ox[sel], ot[sel], oj[sel]
-                            self._stop(orow[sel], cause,
-                                       lambda i, xs=xs, ts=ts, js=js:
-                                       f"x={xs[i]} at (t={ts[i]}, j={js[i]})")
+                    self._stop_outside(sr[out], sx[out], st[out], sj[out])
                 at_end = ~out & (st >= self.t_max)
                 if at_end.any():
                     self._stop(sr[at_end], Termination.T_MAX)
@@ -627,10 +860,10 @@ class _BatchRun:
             xn = m.jump(rows, x, t, j)
             fin = np.isfinite(xn).all(axis=1)
             if not fin.all():
-                for r, v in zip(rows[~fin], xn[~fin]):
-                    if not self.bad[r]:
-                        self.bad[r] = True
-                        self.bad_exc[r] = MapError(f"jump_map returned non-finite values {v}")
+                for r, v, tt, jj in zip(rows[~fin], xn[~fin], t[~fin], j[~fin]):
+                    m._fail(r, MapError(f"jump_map returned non-finite values {v} (at "
+                                        f"t={tt:.10g}, j={jj})", "jump_map", float(tt),
+                                        int(jj)))
             ok = self._reap(rows)
             if ok is not None:
                 rows, xn, t, j = rows[ok], xn[ok], t[ok], j[ok]
@@ -646,21 +879,27 @@ class _BatchRun:
             self.jumps[rows] += 1
             self.x[rows] = xn
             self.log.append(rows, t, j, xn)
-            full = self.jumps[rows] >= self.j_max
-            if full.any():
-                self._stop(rows[full], Termination.J_MAX)
-            zeno = ~full & (self.short[rows] >= self.zeno_jumps)
-            if zeno.any():
-                zr, zt, zs = rows[zeno], t[zeno], self.short[rows[zeno]]
-                self._stop(zr, Termination.ZENO,
-                           lambda i, zs=zs, zt=zt: zeno_message(zs[i], zt[i]))
-            rows = rows[~full & ~zeno]
+            # rules.after_jump: J_MAX before ZENO
+            code = self.after[(self.jumps[rows] >= self.j_max).astype(np.intp),
+                              (self.short[rows] >= self.zeno_jumps).astype(np.intp)]
+            end = code != NO_CAUSE
+            if end.any():
+                for c in np.unique(code[end]):
+                    sel = code == c
+                    cause = CAUSES[c]
+                    if cause is Termination.ZENO:
+                        self._stop(rows[sel], cause, "zeno", count=self.short[rows[sel]],
+                                   t=t[sel])
+                    else:
+                        self._stop(rows[sel], cause)
+            rows = rows[~end]
 
     def _start_flow(self, rows, inD):
         """Begin a flow at the current state of ``rows`` (a new solver in simulate)."""
         m = self.maps
         x, t, j = self.x[rows], self.t[rows], self.j[rows]
         f0 = m.flow(rows, x, t, j)
+        self.nfev[rows] += 1
         ok = self._reap(rows)
         if ok is not None:
             rows, x, t, j, f0, inD = rows[ok], x[ok], t[ok], j[ok], f0[ok], inD[ok]
@@ -670,10 +909,13 @@ class _BatchRun:
         if need.any():
             h[need] = self._initial_step(rows[need], x[need], t[need], j[need], f0[need],
                                          span[need])
+            self.nfev[rows[need]] += 1
             ok = self._reap(rows)
             if ok is not None:
                 rows, f0, inD, h = rows[ok], f0[ok], inD[ok], h[ok]
         self.fx[rows] = f0
+        self.log.set_last_xdot(rows, f0)     # the flow's derivative at its first sample
+        self.flows[rows] += 1
         self.h[rows] = h
         self.rejected[rows] = False
         self.inD_prev[rows] = inD
@@ -706,25 +948,19 @@ class _BatchRun:
         h_abs = self.h[rows]
         min_step = 10 * np.abs(np.nextafter(t, np.inf) - t)
         h_abs = np.where(rej, h_abs, np.clip(h_abs, min_step, self.max_step))
-        small = rej & (h_abs < min_step)
+        small = rej & ~(h_abs >= min_step)     # a NaN step (non-finite flow) too
         if small.any():
-            sr, st, ss = rows[small], t[small], self.short[rows[small]]
+            sr, st, ss, sj = rows[small], t[small], self.short[rows[small]], j[small]
             nf = self.nonfinite[sr]        # a non-finite flow map: NON_FINITE, as in simulate
             if nf.any():
-                nt, nj = st[nf], j[small][nf]
-                self._stop(sr[nf], Termination.NON_FINITE,
-                           lambda i: f"flow_map returned non-finite values near "
-                                     f"t={nt[i]:.10g} (j={nj[i]})")
+                self._stop(sr[nf], Termination.NON_FINITE, "flow", t=st[nf], j=sj[nf])
             zeno = (ss > 0) & ~nf
             if zeno.any():
-                zt = st[zeno]
-                self._stop(sr[zeno], Termination.ZENO,
-                           lambda i: f"flows too short to resolve near t={zt[i]}")
+                self._stop(sr[zeno], Termination.ZENO, "short", t=st[zeno])
             fail = ~zeno & ~nf
             if fail.any():
-                ft, fj = st[fail], j[small][fail]
-                self._stop(sr[fail], Termination.SOLVER_FAILED,
-                           lambda i: f"{_TOO_SMALL} at t={ft[i]:.10g} (j={fj[i]})")
+                self._stop(sr[fail], Termination.SOLVER_FAILED, reason=_TOO_SMALL,
+                           t=st[fail], j=sj[fail])
             keep = ~small
             rows, t, y, j, f, rej, h_abs = (rows[keep], t[keep], y[keep], j[keep], f[keep],
                                            rej[keep], h_abs[keep])
@@ -733,6 +969,8 @@ class _BatchRun:
         t_new = np.minimum(t + h_abs, self.t_max)
         h = t_new - t
         h_abs = np.abs(h)
+        self.attempts[rows] += 1
+        self.nfev[rows] += _NS
         # Dormand-Prince stages (scipy's rk_step, one row per trajectory)
         k = len(rows)
         K = np.empty((_NS + 1, k, self.n))
@@ -778,12 +1016,12 @@ class _BatchRun:
     def _accepted(self, rows, a, ya, j, h, b, yb, K):
         """Samples, events and limits after the accepted steps a -> b of ``rows``."""
         m = self.maps
+        self.steps[rows] += 1
+        self.t_step[rows] = b
         fin = np.isfinite(yb).all(axis=1)
         if not fin.all():
-            nr, na, nb, nj = rows[~fin], a[~fin], b[~fin], j[~fin]
-            self._stop(nr, Termination.NON_FINITE,
-                       lambda i: f"after the step from t={na[i]:.10g} to t={nb[i]:.10g} "
-                                 f"(j={nj[i]})")
+            self._stop(rows[~fin], Termination.NON_FINITE, "step", t=a[~fin], t2=b[~fin],
+                       j=j[~fin])
             rows, a, ya, j, h, b, yb = (rows[fin], a[fin], ya[fin], j[fin], h[fin], b[fin],
                                         yb[fin])
             K = K[:, fin]
@@ -806,7 +1044,7 @@ class _BatchRun:
         if event.any():
             e = event
             Q = np.einsum("skn,sp->knp", K[:, e], _P)
-            self._event(rows[e], a[e], b[e], ya[e], h[e], Q, j[e])
+            self._event(rows[e], a[e], a[e], b[e], ya[e], h[e], Q, j[e], ylo=ya[e], yhi=yb[e])
         calm = ~event
         if not calm.any():
             return
@@ -823,57 +1061,59 @@ class _BatchRun:
             w = np.flatnonzero(watch)
             Qw = np.einsum("skn,sp->knp", K[:, w], _P)
             lo_b, hi_b, found = self._interior(rows[w], a[w], b[w], ya[w], h[w], Qw, j[w])
-            late = ~found & (b[w] >= self.t_max)
+            late = ~found & (b[w] >= self.t_max) & ~self.bad[rows[w]]
+            found_late = np.zeros(len(w), dtype=bool)
             if self.watch_D and late.any():
                 wl = np.flatnonzero(late)
                 rl = rows[w][wl]
-                tb = b[w][wl] + t_max_slack(self.t_max) * (8.0 + self.jumps[rl]) / 8.0
+                tb = b[w][wl] + t_max_slack(self.t_max, self.jumps[rl])
                 ys = self._dense(a[w][wl], h[w][wl], ya[w][wl], Qw[wl], tb)
-                pred = self._pred(rl, ys, tb, j[w][wl], ~self.inD_prev[rl])
-                pred &= ~self.inD_prev[rl]
-                found_late = np.zeros(len(w), dtype=bool)
+                self._finite(rl, ys)
+                wdl = ~self.inD_prev[rl]
+                pred = self._pred(rl, ys, tb, j[w][wl], wdl) & wdl & ~self.bad[rl]
                 found_late[wl[pred]] = True
                 lo_b[found_late] = b[w][found_late]
                 hi_b[found_late] = tb[pred]
-            else:
-                found_late = np.zeros(len(w), dtype=bool)
             for sel, clamp in ((found, None), (found_late, self.t_max)):
                 if sel.any():
                     ww = w[sel]
-                    self._event(rows[ww], a[ww], hi_b[sel], ya[ww], h[ww], Qw[sel], j[ww],
-                                lo0=lo_b[sel], clamp=clamp)
+                    # the step's end is where the solver is (simulate: ylo=solver.y)
+                    ylo = yb[ww] if clamp is not None else None
+                    self._event(rows[ww], a[ww], lo_b[sel], hi_b[sel], ya[ww], h[ww],
+                                Qw[sel], j[ww], ylo=ylo, clamp=clamp)
                     calm[ww] = False
+            bad = self.bad[rows]
+            if bad.any():
+                self._reap(rows)
+                calm &= ~bad
             if not calm.any():
                 return
-        self.steps[rows] += 1
         over = calm & (self.steps[rows] >= self.max_steps)
         if over.any():
             orow, ot = rows[over], b[over]
-            ms = self.max_steps
-            self.log.append(orow, ot, j[over], yb[over])
-            self._stop(orow, Termination.MAX_STEPS,
-                       lambda i: f"{ms} solver steps (max_steps) at t={ot[i]:.10g}")
+            self.log.append(orow, ot, j[over], yb[over], K[_NS][over])
+            self._stop(orow, Termination.MAX_STEPS, "steps", steps=self.max_steps,
+                       max_steps=self.max_steps, t=ot)
             calm &= ~over
             if not calm.any():
                 return
         rows, b, yb, j = rows[calm], b[calm], yb[calm], j[calm]
+        fb = K[_NS][calm]
         if self.refine > 1:
             Qc = np.einsum("skn,sp->knp", K[:, calm], _P)
             self._refine(rows, a[calm], b, ya[calm], h[calm], Qc, j)
         self.t[rows] = b
         self.x[rows] = yb
-        self.fx[rows] = K[_NS][calm]
+        self.fx[rows] = fb
         if inDb is not None:
             self.inD_prev[rows] = inDb[calm]
-        self.log.append(rows, b, j, yb)
+        self.log.append(rows, b, j, yb, fb)
         if self.max_norm < math.inf:
             nrm = np.linalg.norm(yb, axis=1)
             big = nrm > self.max_norm
             if big.any():
-                br, bn, bt = rows[big], nrm[big], b[big]
-                mn = self.max_norm
-                self._stop(br, Termination.BLOWUP,
-                           lambda i: f"|x| = {bn[i]:.3g} > {mn:.3g} at t={bt[i]}")
+                self._stop(rows[big], Termination.BLOWUP, norm=nrm[big],
+                           max_norm=self.max_norm, t=b[big], j=j[big])
         end = b >= self.t_max
         if end.any():
             er = rows[end]
@@ -882,21 +1122,27 @@ class _BatchRun:
 
     # ------------------------------------------------------------ events
     def _refine(self, rows, a, b, ya, h, Q, j):
-        """Store ``refine - 1`` dense-output samples strictly inside each (a, b)."""
+        """Store ``refine - 1`` dense-output samples strictly inside each (a, b),
+        with the dense output's derivative as their ``xdot`` (as simulate)."""
         R = self.refine
         for k in range(1, R):
             s = a + (b - a) * (k / R)
-            self.log.append(rows, s, j, self._dense(a, h, ya, Q, s))
+            xx = (s - a) / h
+            p = np.stack([np.ones_like(xx), xx, xx * xx, xx ** 3], axis=1) * _DP
+            self.log.append(rows, s, j, self._dense(a, h, ya, Q, s),
+                            np.einsum("knp,kp->kn", Q, p))
 
     def _dense(self, a, h, ya, Q, s):
         """RK45 dense output (scipy's RkDenseOutput) of each row at its time s."""
         xx = (s - a) / h
         p = np.stack([xx, xx * xx, xx ** 3, xx ** 4], axis=1)
-        return ya + h[:, None] * np.einsum("knp,kp->kn", Q, p)
+        with np.errstate(invalid="ignore", over="ignore"):
+            return ya + h[:, None] * np.einsum("knp,kp->kn", Q, p)
 
     def _pred(self, rows, y, s, j, wd):
         """The event has happened: x left C, or entered D (rows with ``wd``)."""
         m = self.maps
+        self._finite(rows, y)
         ev = np.zeros(len(rows), dtype=bool)
         if m.has_C:
             ev |= ~m.in_C(rows, y, s, j)
@@ -907,6 +1153,7 @@ class _BatchRun:
     def _phi(self, rows, y, s, j, wd):
         """Continuous version of :meth:`_pred` (>= 0 where the event has happened)."""
         m = self.maps
+        self._finite(rows, y)               # a non-finite probe is NON_FINITE, not a guard's NaN
         v = np.full(len(rows), -np.inf)
         if self.watch_D and m.hD is not None and wd.any():
             v = np.where(wd, m.guard_D(rows, y, s, j), -np.inf)
@@ -914,18 +1161,20 @@ class _BatchRun:
             v = np.maximum(v, -m.guard_C(rows, y, s, j))
         return v
 
-    def _locate(self, rows, a, b, ya, h, Q, j, wd, lo0=None):
-        """Bracket the first event in (a, b] of each row on its dense output.
+    def _locate(self, rows, a, h, ya, Q, j, wd, lo, hi, ylo=None, yhi=None):
+        """Bracket the first event in (lo, hi] of each row on its dense output.
 
-        The batch version of :func:`hybridsim.events.locate_event`: the
-        predicate (set indicators) decides each probe's side, so ``hi`` is
-        always an event point and ``lo`` is not (or ``lo = a``); brackets end
-        4 eps max(1, |t|) wide. Where the guards bracket a sign change, the
-        probe is an Illinois-type regula falsi step (Anderson-Bjorck weights,
-        kept off the ends); a bracket that has not halved in the last
-        ``_STALL`` probes gets a bisection, and so does a step that starts on
-        the guard's zero (a flow just after a jump), so a flow re-entering D
-        within one step is never lost.
+        :func:`hybridsim.events.locate_event` run over the rows: the same
+        phases, tests and tolerance (:func:`hybridsim.rules.event_tolerance`)
+        for each row, so each row's bracket is the one ``locate_event``
+        returns on the same dense output, to rounding of the batched
+        interpolant. With a guard: a start on the guard's zero is probed and
+        seeded by the quadratic model (``events._root_off_zero``); the
+        indicator bisects until the guard changes sign; safeguarded secant
+        steps (``events._secant``: Brent's test, else bisection) shrink the
+        guard's bracket, which the indicator confirms; a final bisection of
+        the indicator closes any bracket left. ``ylo``, ``yhi``: the states
+        at lo and hi where the caller has them (the step's ends).
 
         Returns
         -------
@@ -933,65 +1182,126 @@ class _BatchRun:
         ylo, yhi : ndarray, shape (k, n)
         """
         k = len(rows)
-        tol = 4.0 * _EPS * np.maximum(1.0, np.maximum(np.abs(a), np.abs(b)))
-        lo, hi = (a if lo0 is None else lo0).copy(), b.copy()
-        ylo = self._dense(a, h, ya, Q, lo)
-        yhi = self._dense(a, h, ya, Q, hi)
-        out = [lo.copy(), hi.copy(), ylo.copy(), yhi.copy()]
+        lo, hi = np.array(lo, dtype=float), np.array(hi, dtype=float)
+        ylo = self._dense(a, h, ya, Q, lo) if ylo is None else np.array(ylo)
+        yhi = self._dense(a, h, ya, Q, hi) if yhi is None else np.array(yhi)
+        bad = self.bad
+
+        def ev(i, s):
+            return self._dense(a[i], h[i], ya[i], Q[i], s)
+
+        def pred(i, s, y):
+            return self._pred(rows[i], y, s, j[i], wd[i])
+
+        def phi(i, s, y):
+            return self._phi(rows[i], y, s, j[i], wd[i])
+
+        def bisect(cond):
+            # locate_event's bisection of the indicator while cond(lo, hi) holds
+            for _ in range(_MAX_ITER):
+                i = np.flatnonzero(cond() & (hi - lo > _tol(lo, hi)) & ~bad[rows])
+                if not i.size:
+                    break
+                s = 0.5 * (lo[i] + hi[i])
+                ys = ev(i, s)
+                hit = pred(i, s, ys)
+                if use_phi:
+                    fs = phi(i, s, ys)
+                    fhi[i[hit]], flo[i[~hit]] = fs[hit], fs[~hit]
+                hi[i[hit]], yhi[i[hit]] = s[hit], ys[hit]
+                lo[i[~hit]], ylo[i[~hit]] = s[~hit], ys[~hit]
+
         use_phi = self.use_phi
         if use_phi:
-            flo = self._phi(rows, ylo, lo, j, wd)
-            fhi = self._phi(rows, yhi, hi, j, wd)
-        else:
-            flo = fhi = np.zeros(k)
-        side = np.zeros(k, dtype=np.int8)
-        hist = np.full((k, _STALL), np.inf)  # bracket widths of the last probes
-        pos = np.arange(k)                   # where each working row goes in ``out``
-        for it in range(200):
-            fin = (hi - lo <= tol) | self.bad[rows]
-            if fin.any():
-                p = pos[fin]
-                out[0][p], out[1][p], out[2][p], out[3][p] = lo[fin], hi[fin], ylo[fin], yhi[fin]
-                w = ~fin
-                if not w.any():
-                    break
-                (pos, rows, a, h, ya, Q, j, wd, tol, lo, hi, ylo, yhi, flo, fhi, side,
-                 hist) = (v[w] for v in (pos, rows, a, h, ya, Q, j, wd, tol, lo, hi, ylo,
-                                         yhi, flo, fhi, side, hist))
-            width = hi - lo
-            m = 0.5 * (lo + hi)
-            if use_phi:
-                ill = (flo < 0.0) & (0.0 <= fhi) & (fhi - flo > 0) & \
-                    ~(width > 0.5 * hist[:, it % _STALL])
-                if ill.any():
-                    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-                        r = hi - fhi * width / (fhi - flo)
-                    g = np.maximum(tol, 1e-3 * width)
-                    r = np.minimum(np.maximum(r, lo + 0.5 * g), hi - 0.5 * g)
-                    ill &= (lo < r) & (r < hi)
-                    m = np.where(ill, r, m)
-            ym = self._dense(a, h, ya, Q, m)
-            hit = self._pred(rows, ym, m, j, wd)
-            if use_phi:
-                fm = self._phi(rows, ym, m, j, wd)
-                with np.errstate(divide="ignore", invalid="ignore"):
-                    # Anderson-Bjorck: scale the end that stays twice
-                    kl = np.where(hit & (side == 1), 1.0 - fm / fhi, 1.0)
-                    kh = np.where(~hit & (side == -1), 1.0 - fm / flo, 1.0)
-                flo = flo * np.where(kl > 0, kl, 0.5)
-                fhi = fhi * np.where(kh > 0, kh, 0.5)
-                fhi = np.where(hit, fm, fhi)
-                flo = np.where(hit, flo, fm)
-                side = np.where(hit, 1, -1).astype(np.int8)
-            hi = np.where(hit, m, hi)
-            lo = np.where(hit, lo, m)
-            hit2 = hit[:, None]
-            yhi = np.where(hit2, ym, yhi)
-            ylo = np.where(hit2, ylo, ym)
-            hist[:, it % _STALL] = hi - lo
-        else:
-            out[0][pos], out[1][pos], out[2][pos], out[3][pos] = lo, hi, ylo, yhi
-        return out
+            every = np.arange(k)
+            flo, fhi = phi(every, lo, ylo), phi(every, hi, yhi)
+            seed_s, seed_m = np.full(k, np.nan), np.full(k, np.nan)
+            # on the guard's zero at the start: one probe gives the direction,
+            # and with the end value a first estimate of the root
+            i = np.flatnonzero(~(flo < 0.0) & (fhi >= 0.0) & ~bad[rows])
+            if i.size:
+                d = np.maximum(64.0 * _tol(lo[i], hi[i]), 1e-9 * (hi[i] - lo[i]))
+                ok = lo[i] + d < hi[i]
+                i, d = i[ok], d[ok]
+            if i.size:
+                sd = lo[i] + d
+                yd = ev(i, sd)
+                fd = phi(i, sd, yd)
+                neg = fd < 0.0
+                off = np.zeros(len(i), dtype=bool)
+                if neg.any():
+                    off[neg] = ~pred(i[neg], sd[neg], yd[neg])
+                i, d, sd, yd, fd = i[off], d[off], sd[off], yd[off], fd[off]
+                if i.size:
+                    tau, slope = _root_off_zero(flo[i], fd, fhi[i], d, hi[i] - lo[i])
+                    seed_s[i], seed_m[i] = lo[i] + tau, slope
+                    lo[i], ylo[i], flo[i] = sd, yd, fd
+            # bisect by the indicator until the guard changes sign in the bracket
+            bisect(lambda: ~((flo < 0.0) & (0.0 <= fhi)))
+            i = np.flatnonzero((flo < 0.0) & (0.0 <= fhi) & (hi - lo > _tol(lo, hi))
+                               & ~bad[rows])
+            if i.size:
+                l2, h2, yl2, yh2 = self._secant(rows, i, lo[i], hi[i], flo[i], fhi[i],
+                                                ylo[i], yhi[i], seed_s[i], seed_m[i], ev, phi)
+                # the indicator decides membership: keep the guard's bracket where
+                # it agrees (the indicator is asked at lo only where it disagrees at hi)
+                agree = pred(i, h2, yh2)
+                ia = i[agree]
+                hi[ia], yhi[ia], lo[ia], ylo[ia] = h2[agree], yh2[agree], l2[agree], yl2[agree]
+                rest = ~agree
+                if rest.any():
+                    out = ~pred(i[rest], l2[rest], yl2[rest])
+                    ib = i[rest][out]
+                    lo[ib], ylo[ib] = l2[rest][out], yl2[rest][out]
+        # bisection of the indicator (also finishes any bracket the guard left)
+        bisect(lambda: True)
+        return lo, hi, ylo, yhi
+
+    def _secant(self, rows, idx, lo, hi, flo, fhi, ylo, yhi, seed_s, seed_m, ev, phi):
+        """:func:`hybridsim.events._secant` over the rows ``idx`` of a
+        :meth:`_locate`: each row's trial is its secant step from its last
+        evaluation, accepted inside the bracket and shorter than half its
+        step before last (Brent's test), else the midpoint; a seed (not NaN)
+        is the first trial and gives the slope after it; trials are kept a
+        quarter tolerance inside the bracket."""
+        n = len(idx)
+        d1, d2 = np.full(n, np.inf), np.full(n, np.inf)
+        first = -flo < fhi
+        xl, fl = np.where(first, lo, hi), np.where(first, flo, fhi)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            slope = (fhi - flo) / (hi - lo)
+        has_seed = ~np.isnan(seed_s)
+        bad = self.bad
+        for _ in range(_SECANT_ITER):
+            tol = _tol(lo, hi)
+            act = np.flatnonzero((hi - lo > tol) & ~bad[rows[idx]])
+            if not act.size:
+                break
+            L, H, X, FL, tl = lo[act], hi[act], xl[act], fl[act], tol[act]
+            sd = has_seed[act]
+            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+                sl = slope[act]
+                s = np.where(sl != 0.0, X - FL / sl, np.nan)
+            ok = (L <= s) & (s <= H) & (np.abs(s - X) < 0.5 * d2[act])
+            s = np.where(ok, s, 0.5 * (L + H))
+            s = np.where(sd, seed_s[act], s)
+            q = 0.25 * tl
+            s = np.where(~(s > L + q), L + q, np.where(~(s < H - q), H - q, s))
+            ii = idx[act]
+            ys = ev(ii, s)
+            fs = phi(ii, s, ys)
+            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+                ns = np.where(s != X, (fs - FL) / (s - X), np.nan)
+            slope[act] = np.where(sd, seed_m[act], ns)
+            has_seed[act] = False
+            d2[act] = d1[act]
+            d1[act] = np.abs(s - X)
+            xl[act], fl[act] = s, fs
+            up = fs >= 0.0
+            au, ad = act[up], act[~up]
+            hi[au], yhi[au], fhi[au] = s[up], ys[up], fs[up]
+            lo[ad], ylo[ad], flo[ad] = s[~up], ys[~up], fs[~up]
+        return lo, hi, ylo, yhi
 
     def _interior(self, rows, a, b, ya, h, Q, j):
         """The batch version of :func:`hybridsim.events.find_interior_event`.
@@ -1020,7 +1330,7 @@ class _BatchRun:
             pts.append(s)
             if self.use_phi:
                 vals.append(self._phi(rows, ys, s, j, wd))
-        self._reap(rows)
+        found &= ~self.bad[rows]
         if not self.use_phi or found.all():
             return lo_b, hi_b, found
         pts.append(b)
@@ -1029,7 +1339,7 @@ class _BatchRun:
         for q in (1, 2, 3):
             lo_nb = np.minimum(V[q - 1], V[q + 1])
             cand = (~found & np.isfinite(V).all(axis=0) & (V[q] >= V[q - 1])
-                    & (V[q] >= V[q + 1]) & _near_peak(V[q], lo_nb))
+                    & (V[q] >= V[q + 1]) & _near_peak(V[q], lo_nb) & ~self.bad[rows])
             for i in np.flatnonzero(cand):
                 ri = rows[i:i + 1]
                 wi, ji = wd[i:i + 1], j[i:i + 1]
@@ -1044,23 +1354,26 @@ class _BatchRun:
                 def pred(s, y, ri=ri, ji=ji, wi=wi):
                     return bool(self._pred(ri, y[None, :], np.array([s]), ji, wi)[0])
                 sq = _maximize(F, T[q - 1, i], T[q + 1, i], V[q - 1, i], V[q + 1, i], pred, sol)
-                if sq is not None:
+                if sq is not None and not self.bad[rows[i]]:
                     found[i] = True
                     lo_b[i], hi_b[i] = T[q - 1, i], sq
         return lo_b, hi_b, found
 
-    def _event(self, rows, a, b, ya, h, Q, j, lo0=None, clamp=None):
-        """Locate the first event in (lo0, b] (default (a, b]) of the steps from a of
-        ``rows`` and decide what happens there; ``clamp``: record event times no
-        later than it (an event within round-off after t_max is taken at t_max)."""
+    def _event(self, rows, a, lo, hi, ya, h, Q, j, ylo=None, yhi=None, clamp=None):
+        """Locate the first event in (lo, hi] of the steps from a of ``rows`` and
+        decide there (:func:`hybridsim.rules.event_outcome`); ``clamp``: record
+        event times no later than it (an event within round-off after t_max is
+        taken at t_max)."""
         m = self.maps
+        self.events[rows] += 1
         # a flow that started in D (random priority flowing on) watches only C
         wd = ~self.inD_prev[rows]
-        lo, hi, ylo, yhi = self._locate(rows, a, b, ya, h, Q, j, wd, lo0)
+        lo, hi, ylo, yhi = self._locate(rows, a, h, ya, Q, j, wd, lo, hi, ylo, yhi)
         ok = self._reap(rows)
         if ok is not None:
-            rows, a, ya, h, Q, lo, hi, ylo, yhi, j = (rows[ok], a[ok], ya[ok], h[ok], Q[ok],
-                                                      lo[ok], hi[ok], ylo[ok], yhi[ok], j[ok])
+            rows, a, ya, h, Q, lo, hi, ylo, yhi, j, wd = (
+                rows[ok], a[ok], ya[ok], h[ok], Q[ok], lo[ok], hi[ok], ylo[ok], yhi[ok],
+                j[ok], wd[ok])
             if not rows.size:
                 return
         # next flow's first step (as simulate): at most 10x the length of this
@@ -1068,57 +1381,52 @@ class _BatchRun:
         # huge where the flow is integrated exactly, and long steps cancel digits
         self.h[rows] = np.minimum(self.h[rows], _MAX_FACTOR * (hi - self.t_flow0[rows]))
         k = len(rows)
-        kind = np.zeros(k, dtype=np.int8)    # 0 undecided, 1 jump at hi, 2 jump at lo,
-        #                                      3 continue at hi, 4 leave C at lo
-        if self.watch_D:
-            dhi = m.in_D(rows, yhi, hi, j)
-            kind[dhi] = 1
-            if self.prio == Priority.RANDOM and dhi.any():
-                idx = np.flatnonzero(dhi)
-                cin = m.in_C(rows[idx], yhi[idx], hi[idx], j[idx])
-                coin = self.rng.random(len(idx)) >= 0.5
-                kind[idx[cin & coin]] = 3
-        und = np.flatnonzero(kind == 0)
-        if und.size and m.has_D:
-            dlo = m.in_D(rows[und], ylo[und], lo[und], j[und])
-            kind[und[dlo]] = 2
-            und = und[~dlo]
-            if und.size:
-                dhi2 = m.in_D(rows[und], yhi[und], hi[und], j[und])
-                kind[und[dhi2]] = 1
-        kind[kind == 0] = 4
+        false = np.zeros(k, dtype=bool)
+        watching = wd if self.watch_D else false
+        d_hi = m.in_D(rows, yhi, hi, j) if m.has_D else false
+        entry = watching & d_hi
+        c_hi = false.copy()                  # C at hi matters only for the coin
+        if self.prio == Priority.RANDOM and entry.any():
+            c_hi[entry] = m.in_C(rows[entry], yhi[entry], hi[entry], j[entry])
+        coin = np.ones(k, dtype=bool)
+        ask = needs_coin(c_hi, entry, self.prio)
+        if ask.any():
+            coin[ask] = self.rng.random(int(ask.sum())) < 0.5
+        d_lo = false.copy()
+        if m.has_D and not entry.all():
+            e = ~entry
+            d_lo[e] = m.in_D(rows[e], ylo[e], lo[e], j[e])
         ok = self._reap(rows)
+        code = (watching.astype(np.intp) << 4) | (d_hi << 3) | (c_hi << 2) | (d_lo << 1) | coin
+        action, at_hi = self.ev_action[code], self.ev_side[code] == 1
         if ok is not None:
-            rows, a, ya, h, Q, lo, hi, ylo, yhi, j, kind = (
+            rows, a, ya, h, Q, lo, hi, ylo, yhi, j, action, at_hi = (
                 rows[ok], a[ok], ya[ok], h[ok], Q[ok], lo[ok], hi[ok], ylo[ok], yhi[ok],
-                j[ok], kind[ok])
-        at_hi = (kind == 1) | (kind == 3)
-        at_lo = (kind == 2) | (kind == 4)
+                j[ok], action[ok], at_hi[ok])
         ts = np.where(at_hi, hi, lo)
         if clamp is not None:
             ts = np.minimum(ts, clamp)
         xs = np.where(at_hi[:, None], yhi, ylo)
         sample = ts > a
-        if self.refine > 1:
-            self._refine(rows[sample], a[sample], ts[sample], ya[sample], h[sample],
-                         Q[sample], j[sample])
-        self.log.append(rows[sample], ts[sample], j[sample], xs[sample])
+        if sample.any():
+            if self.refine > 1:
+                self._refine(rows[sample], a[sample], ts[sample], ya[sample], h[sample],
+                             Q[sample], j[sample])
+            self.log.append(rows[sample], ts[sample], j[sample], xs[sample],
+                            m.flow_soft(xs[sample], ts[sample], j[sample]))
         self.t[rows] = ts
         self.x[rows] = xs
-        jump = (kind == 1) | (kind == 2)
+        jump = action == Action.JUMP
         if jump.any():
             self.force[rows[jump]] = True
             self.decide[rows[jump]] = True
-        cont = kind == 3
+        cont = action == Action.FLOW
         done = cont & (ts >= self.t_max)     # flowing on at t_max: the run ends there
         if done.any():
             self._stop(rows[done], Termination.T_MAX)
             cont &= ~done
         if cont.any():                       # random priority chose to flow on in C ∩ D
             self._start_flow(rows[cont], np.ones(int(cont.sum()), dtype=bool))
-        left = at_lo & ~jump
+        left = action == Action.STOP
         if left.any():
-            lr, lt, lj, lx = rows[left], lo[left], j[left], ylo[left]
-            self._stop(lr, Termination.LEFT_SETS,
-                       lambda i: f"the flow left C at t={lt[i]} (j={lj[i]}), x={lx[i]}, "
-                                 "outside D")
+            self._stop_outside(rows[left], xs[left], ts[left], j[left], "left")

@@ -292,8 +292,14 @@ def test_map_error_stops_only_the_failing_row():
     assert arcs[0].termination is Termination.MAP_ERROR
     assert isinstance(arcs[0].exception, RuntimeError) and "boom" in arcs[0].message
     assert [a.termination for a in arcs[1:]] == [Termination.T_MAX] * 2
-    with pytest.raises(hs.SimulationError, match="trajectory 0: .*boom"):
+    assert isinstance(arcs[0].exception, hs.MapError)           # naming the map, t and j
+    assert "flow_map raised RuntimeError: boom (at t=" in arcs[0].message
+    # throw=True: the batch policy (every row runs, then the first failed row raises)
+    with pytest.raises(hs.BatchError, match="row 0 of the batch failed: MAP_ERROR: .*boom") \
+            as info:
         simulate_vectorized(sysv, [[0.0], [0.7]], t_max=0.55, max_step=0.01, throw=True)
+    assert info.value.row == 0 and len(info.value.arcs) == 2
+    assert info.value.arcs[1].termination is Termination.T_MAX
 
 
 def test_simulate_many_dispatches_to_vectorized():
@@ -307,9 +313,9 @@ def test_simulate_many_dispatches_to_vectorized():
 
 # ---------------------------------------------------------------- bad input
 def test_bad_x0s():
-    with pytest.raises(ValueError, match=r"x0s must have shape \(N, 2\).*got shape \(2,\)"):
+    with pytest.raises(ValueError, match=r"x0s must have shape \(N, 2\), got \(2,\)"):
         simulate_vectorized(VBall(), [1.0, 0.0], t_max=1.0)
-    with pytest.raises(ValueError, match=r"x0s must have shape \(N, 2\).*got shape \(1, 3\)"):
+    with pytest.raises(ValueError, match=r"x0s must have shape \(N, 2\), got \(1, 3\)"):
         simulate_vectorized(VBall(), [[1.0, 0.0, 0.0]], t_max=1.0)
     with pytest.raises(ValueError, match="x0s must be finite; rows \\[1\\]"):
         simulate_vectorized(VBall(), [[1.0, 0.0], [np.nan, 0.0]], t_max=1.0)
@@ -321,13 +327,14 @@ def test_bad_options():
     x0s = [[1.0, 0.0]]
     with pytest.raises(TypeError, match="unexpected keyword argument 'rtoll'"):
         simulate_vectorized(VBall(), x0s, t_max=1.0, rtoll=1e-3)
-    with pytest.raises(ValueError, match="method='Radau' is not supported in vectorized"):
+    with pytest.raises(ValueError, match="method='Radau' is not supported on the vectorized "
+                                         "path"):
         simulate_vectorized(VBall(), x0s, t_max=1.0, method="Radau")
     with pytest.raises(ValueError, match="priority must be one of"):
         simulate_vectorized(VBall(), x0s, t_max=1.0, priority="both")
-    with pytest.raises(ValueError, match="inputs=.* is not supported in vectorized mode"):
+    with pytest.raises(ValueError, match="inputs=.* is not supported on the vectorized path"):
         simulate_vectorized(VBall(), x0s, t_max=1.0, inputs=lambda t: 0.0)
-    with pytest.raises(ValueError, match="refine must be an int >= 1, got 0"):
+    with pytest.raises(ValueError, match="refine must be >= 1, got 0"):
         simulate_vectorized(VBall(), x0s, t_max=1.0, refine=0)
     with pytest.raises(ValueError, match="rtol must be > 0"):
         simulate_vectorized(VBall(), x0s, t_max=1.0, rtol=0.0)
@@ -414,5 +421,258 @@ def test_progress_bar_over_trajectories(capsys):
     assert "simulate_vectorized" in capsys.readouterr().err
     for a, b in zip(arcs, quiet, strict=True):      # the bar changes nothing
         np.testing.assert_array_equal(a.t, b.t)
-    with pytest.raises(TypeError, match="progress must be True, False or None"):
+    with pytest.raises(TypeError, match="progress must be True or False or None"):
         simulate_vectorized(timer, [[0.0]], t_max=1.0, progress="on")
+
+
+# ---------------------------------------------------------------- issue 22: one engine
+def test_event_outcome_and_after_jump_come_from_the_rules():
+    from hybridsim import rules
+    from hybridsim.batch_vectorized import _after_jump_table, _outcome_table
+    for prio in rules.Priority:
+        action, side = _outcome_table(prio)
+        for code in range(32):
+            b = [bool(code >> k & 1) for k in (4, 3, 2, 1, 0)]
+            assert (action[code], side[code]) == rules.event_outcome(*b[:4], prio, b[4])
+    table = _after_jump_table()
+    for jumps, short in ((3, 0), (5, 0), (5, 9), (2, 9), (2, 1)):
+        full, zeno = jumps >= 5, short >= 9
+        assert table[int(full), int(zeno)] == rules.after_jump(jumps, short, 5, 9)
+
+
+def test_coin_drawn_only_where_the_rules_need_it():
+    """A timer's events leave C as they enter D: no coin anywhere (the old
+    code drew one per D entry)."""
+    rng = np.random.default_rng(3)
+    open_timer = hs.HybridSystem.from_functions(
+        f=lambda x: np.ones_like(x), g=lambda x: np.zeros_like(x),
+        C=lambda x: x[:, 0] < 1.0, D=lambda x: x[:, 0] >= 1.0, state_dim=1, vectorized=True)
+    arcs = simulate_vectorized(open_timer, np.zeros((5, 1)), t_max=4.5, priority="random",
+                               seed=rng)
+    assert all(a.jump_count == 4 for a in arcs)
+    assert rng.random() == np.random.default_rng(3).random()      # untouched
+
+
+def test_event_tolerance_over_arrays_is_the_rule():
+    from hybridsim.batch_vectorized import _tol
+    from hybridsim.rules import event_tolerance
+    v = np.r_[0.0, 1e-300, 0.5, 1.0, 1.5, -3.0, 1e6, 2.0 ** 52, np.random.default_rng(1)
+              .uniform(-1e4, 1e4, 50)]
+    for a in v[:12]:
+        got = _tol(np.full(v.size, a), v)
+        assert got.tolist() == [event_tolerance(a, b) for b in v]
+
+
+def _count_locator(monkeypatch):
+    """Count state probes of each path's event locator (pred and phi calls, per row)."""
+    import hybridsim.batch_vectorized as bv
+    import hybridsim.solve as solve
+    counts = {"py": 0, "py_events": 0, "vec": 0, "vec_events": 0}
+    orig = solve.locate_event
+
+    def locate(sol, a, b, pred, phi=None, **kw):
+        counts["py_events"] += 1
+
+        def p(s, y):
+            counts["py"] += 1
+            return pred(s, y)
+        return orig(sol, a, b, p, phi, **kw)
+    monkeypatch.setattr(solve, "locate_event", locate)
+    run_cls = bv._BatchRun
+    orig_loc, orig_pred = run_cls._locate, run_cls._pred
+    inside = [False]
+
+    def vloc(self, rows, *args, **kw):
+        counts["vec_events"] += len(rows)
+        inside[0] = True
+        try:
+            return orig_loc(self, rows, *args, **kw)
+        finally:
+            inside[0] = False
+
+    def vpred(self, rows, *args):
+        if inside[0]:
+            counts["vec"] += len(rows)
+        return orig_pred(self, rows, *args)
+    monkeypatch.setattr(run_cls, "_locate", vloc)
+    monkeypatch.setattr(run_cls, "_pred", vpred)
+    return counts
+
+
+def test_one_event_locator_jump_times_and_evaluations(monkeypatch):
+    counts = _count_locator(monkeypatch)
+    x0s = np.array([[0.7, 0.0], [1.3, 0.5], [2.0, -1.0], [1.0, 3.0]])
+    kw = dict(t_max=np.inf, j_max=8, rtol=1e-10, atol=1e-12)
+    arcs = simulate_vectorized(VBall(), x0s, **kw)
+    refs = [hs.simulate(Ball(), x0, **kw) for x0 in x0s]
+    for arc, ref in zip(arcs, refs):
+        assert arc.jump_count == ref.jump_count == 8
+        np.testing.assert_allclose(arc.jump_times, ref.jump_times, rtol=0, atol=1e-12)
+    # the same algorithm: the same number of indicator probes per event (to a
+    # probe or two where rounding of the batched interpolant moves a bisection)
+    assert counts["vec_events"] == counts["py_events"] == 32
+    assert abs(counts["vec"] - counts["py"]) <= 2 * counts["py_events"], counts
+    assert counts["vec"] <= 20 * counts["vec_events"]       # a handful per event
+    # a timer (guards, jumps at exact multiples)
+    for k in counts:
+        counts[k] = 0
+    arcs = simulate_vectorized(vtimer(), [[0.0], [0.3], [0.9]], t_max=6.5)
+    for s, arc in zip([0.0, 0.3, 0.9], arcs):
+        ref = hs.simulate(timer(), [s], t_max=6.5)
+        assert arc.jump_count == ref.jump_count
+        np.testing.assert_allclose(arc.jump_times, ref.jump_times, rtol=0, atol=1e-12)
+    assert counts["vec_events"] == counts["py_events"]
+    assert abs(counts["vec"] - counts["py"]) <= 2 * counts["py_events"], counts
+
+
+BAD_OPTIONS = [dict(zeno_jumps=0), dict(zeno_jumps=2.5), dict(refine=True), dict(refine=0),
+               dict(rtol=-1.0), dict(rtol="1"), dict(t_max=np.nan), dict(j_max=-1),
+               dict(max_steps=0), dict(max_samples=1), dict(seed=-1), dict(seed="a"),
+               dict(priority="both"), dict(method="foo"), dict(throw="yes"), dict(warn=1),
+               dict(atol=[1.0, 2.0, 3.0]), dict(t0=2.0, t_max=1.0), dict(j0=-1),
+               dict(max_norm=0.0), dict(first_step=-1.0), dict(zeno_rtol=-1.0)]
+
+
+@pytest.mark.parametrize("bad", BAD_OPTIONS, ids=lambda d: ",".join(map(str, d.items())))
+def test_bad_options_same_error_as_simulate(bad):
+    kw = dict(t_max=1.0)
+    kw.update(bad)
+    with pytest.raises((TypeError, ValueError)) as ref:
+        hs.simulate(Ball(), [1.0, 0.0], **kw)
+    with pytest.raises((TypeError, ValueError)) as got:
+        simulate_vectorized(VBall(), [[1.0, 0.0]], **kw)
+    assert type(got.value) is type(ref.value)
+    assert str(got.value) == str(ref.value)
+
+
+def test_unsupported_options_refused_by_the_one_rule():
+    for name, val in (("dense", True), ("t_eval", [0.5]), ("prehistory", lambda s: 0)):
+        with pytest.raises(ValueError, match=f"{name}=.* is not supported on the vectorized "
+                                             "path; use hs.simulate"):
+            simulate_vectorized(VBall(), [[1.0, 0.0]], t_max=1.0, **{name: val})
+    from hybridsim.batch_vectorized import takes_options
+    assert takes_options(dict(rtol=1e-8, dense=False, t_eval=None, max_samples=100))
+    assert not takes_options(dict(dense=True))
+    assert not takes_options(dict(t_eval=[0.5]))
+    assert not takes_options(dict(method="Radau"))
+    assert not takes_options(dict(backend="python"))
+
+
+def _fragile():
+    """A timer whose flow map raises on rows that reach x > 1.5 (row-wise)."""
+    def f(x):
+        if np.any(x[:, 0] > 1.5):
+            raise ZeroDivisionError("too far")
+        return np.ones_like(x)
+    return hs.HybridSystem.from_functions(f=f, state_dim=1, vectorized=True)
+
+
+def test_throw_and_warn_are_the_batch_policy():
+    x0s = [[0.0], [1.0], [0.2], [1.2]]
+    import warnings
+    for run in (simulate_vectorized, hs.simulate_many):
+        with warnings.catch_warnings(record=True) as w:
+            warnings.simplefilter("always")
+            arcs = run(_fragile(), x0s, t_max=1.0)
+        assert [a.termination for a in arcs] == [Termination.T_MAX, Termination.MAP_ERROR,
+                                                 Termination.T_MAX, Termination.MAP_ERROR]
+        (warning,) = w
+        assert issubclass(warning.category, hs.BatchWarning)
+        assert warning.filename == __file__            # points at the caller
+        assert "2 of 4 runs failed: row 1: MAP_ERROR" in str(warning.message)
+        assert "row 3: MAP_ERROR" in str(warning.message)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            run(_fragile(), x0s, t_max=1.0, warn=False)
+        with pytest.raises(hs.BatchError, match="row 1 of the batch failed: MAP_ERROR") as info:
+            run(_fragile(), x0s, t_max=1.0, throw=True)
+        assert info.value.row == 1 and info.value.arc is info.value.arcs[1]
+        assert [a.termination for a in info.value.arcs] == [a.termination for a in arcs]
+
+
+def test_arcs_have_xdot_and_stats_as_simulate():
+    x0s = np.array([[1.0, 0.0], [1.7, 0.4]])
+    kw = dict(t_max=3.0, j_max=5, rtol=1e-10, atol=1e-12)
+    arcs = simulate_vectorized(VBall(), x0s, **kw)
+    for x0, arc in zip(x0s, arcs):
+        ref = hs.simulate(Ball(), x0, **kw)
+        assert arc.xdot is not None and arc.xdot.shape == arc.x.shape
+        assert len(arc) == len(ref)
+        np.testing.assert_array_equal(np.isnan(arc.xdot), np.isnan(ref.xdot))
+        np.testing.assert_allclose(arc.xdot, ref.xdot, rtol=0, atol=1e-9)
+        assert set(arc.stats) == set(ref.stats)
+        for key in ("steps", "rejected", "nfev", "njev", "nlu", "events", "flows"):
+            assert arc.stats[key] == ref.stats[key], key
+        # arc.at uses xdot (no fallback): the same values as simulate's arc
+        mid = (np.diff(arc.j) == 0) & (np.diff(arc.t) > 0)
+        ts = 0.5 * (arc.t[:-1] + arc.t[1:])[mid]          # inside flows, off the jumps
+        np.testing.assert_allclose(arc.at(ts), ref.at(ts), rtol=0, atol=1e-8)
+    # a post-jump state that jumps again has NaN xdot only where simulate has it
+    arcs = simulate_vectorized(overlap(), [[1.5]], t_max=2.5)
+    ref = hs.simulate(hs.HybridSystem.from_functions(
+        f=lambda x: np.ones(1), g=lambda x: np.zeros(1), C=lambda x: x[0] <= 2.0,
+        D=lambda x: x[0] >= 1.0, state_dim=1), [1.5], t_max=2.5)
+    np.testing.assert_array_equal(np.isnan(arcs[0].xdot), np.isnan(ref.xdot))
+    assert arcs[0].stats["flows"] == ref.stats["flows"]
+
+
+def test_refine_with_a_jump_at_t_max_stores_each_sample_once():
+    vt = hs.HybridSystem.from_functions(
+        f=lambda x: np.ones_like(x), g=lambda x: np.zeros_like(x),
+        jump_guard=lambda x: x[:, 0] - 0.5, flow_guard=lambda x: 0.5 - x[:, 0],
+        state_dim=1, vectorized=True)
+    st = hs.HybridSystem.from_functions(
+        f=lambda x: np.ones(1), g=lambda x: np.zeros(1), jump_guard=lambda x: x[0] - 0.5,
+        flow_guard=lambda x: 0.5 - x[0], state_dim=1)
+    arcs = simulate_vectorized(vt, [[0.0], [0.25]], t_max=1.0, refine=2)
+    for x0, arc in zip([0.0, 0.25], arcs):
+        check_domain(arc)
+        same = (np.diff(arc.t) == 0) & (np.diff(arc.j) == 0)
+        assert not same.any()
+        ref = hs.simulate(st, [x0], t_max=1.0, refine=2)
+        assert arc.termination is ref.termination
+        # simulate's samples, each once (it may store the last inner sample twice)
+        once = np.r_[True, (np.diff(ref.t) != 0) | (np.diff(ref.j) != 0)]
+        assert len(arc) == once.sum()
+        np.testing.assert_array_equal(arc.j, ref.j[once])
+        np.testing.assert_allclose(arc.t, ref.t[once], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(arc.x, ref.x[once], rtol=0, atol=1e-12)
+    assert arcs[0].j[-1] == 2 and arcs[0].t[-1] == 1.0      # the jump at t_max is taken
+
+
+def test_non_finite_state_or_guard_is_never_a_set_exit():
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        arc, = simulate_vectorized(VBall(), [[1e308, 1e308]], t_max=5.0)
+    assert arc.termination is Termination.NON_FINITE
+    assert np.isfinite(arc.x).all()
+    # a guard returning NaN: MAP_ERROR naming it, as simulate's sets from guards
+
+    class NanGuard(VBall):
+        def jump_guard(self, x):
+            return np.where(x[:, 0] < 0.5, np.nan, -x[:, 0])
+    arcs = simulate_vectorized(NanGuard(), [[1.0, 0.0], [3.0, 5.0]], t_max=0.6, warn=False)
+    assert arcs[0].termination is Termination.MAP_ERROR
+    assert isinstance(arcs[0].exception, hs.MapError)
+    assert arcs[0].exception.map_name == "jump_guard"
+    assert "jump_guard returned NaN (at t=" in arcs[0].message
+    assert arcs[1].termination is Termination.T_MAX
+
+
+def test_messages_come_from_the_rules_table():
+    from hybridsim.rules import message
+    leave = hs.HybridSystem.from_functions(
+        f=lambda x: np.ones_like(x), C=lambda x: x[:, 0] <= 1.0, state_dim=1, vectorized=True)
+    a, b = simulate_vectorized(leave, [[0.0], [2.0]], t_max=7.0)
+    assert a.message == message(Termination.LEFT_SETS, "left", t=a.tf, j=0, x=a.x[-1])
+    assert b.message == message(Termination.NOT_IN_SETS, x=b.x[0], t=0.0, j=0)
+    grow = hs.HybridSystem.from_functions(f=lambda x: x, state_dim=1, vectorized=True)
+    c, = simulate_vectorized(grow, [[1.0]], t_max=30.0, max_norm=1e3, warn=False)
+    assert c.message == message(Termination.BLOWUP, norm=np.linalg.norm(c.x[-1]),
+                                max_norm=1e3, t=c.tf, j=0)
+    d, = simulate_vectorized(grow, [[1.0]], t_max=30.0, max_steps=3, warn=False)
+    assert d.message == message(Termination.MAX_STEPS, "steps", steps=3, max_steps=3, t=d.tf)
+    e, = simulate_vectorized(vtimer(), [[0.0]], t_max=30.0, max_samples=5, warn=False)
+    assert e.termination is Termination.MAX_STEPS and len(e) == 5
+    assert "samples stored (max_samples=5)" in e.message
