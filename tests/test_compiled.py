@@ -385,7 +385,9 @@ def test_jump_map_non_finite_is_map_error():
         simulate_compiled(bad, [0.0], t_max=3.0)
     assert e.value.arc is not None and e.value.arc.t[-1] == pytest.approx(1.0)
     arc = simulate_compiled(bad, [0.0], t_max=3.0, throw=False)
-    assert arc.termination is T.MAP_ERROR and "jump map" in arc.message
+    assert arc.termination is T.MAP_ERROR and "jump_map" in arc.message
+    ref = hs.simulate(bad, [0.0], t_max=3.0, throw=False)
+    assert arc.message == ref.message and arc.exception.map_name == ref.exception.map_name
 
 
 # ------------------------------------------------------------------ batches
@@ -426,8 +428,10 @@ def test_bad_arguments_name_themselves(ball):
         simulate_compiled(ball, [1.0, 0.0], t_max=1.0, priority="often")
     with pytest.raises(ValueError, match="method"):
         simulate_compiled(ball, [1.0, 0.0], t_max=1.0, method="Radau")
-    with pytest.raises(TypeError, match="inputs"):
+    with pytest.raises(ValueError, match="inputs=.*not supported on the compiled path"):
         simulate_compiled(ball, [1.0, 0.0], t_max=1.0, inputs=lambda t: 0.0)
+    with pytest.raises(TypeError, match="unexpected keyword argument 'tmax'"):
+        simulate_compiled(ball, [1.0, 0.0], t_max=1.0, tmax=2.0)
     with pytest.raises(TypeError, match="CompiledSystem"):
         simulate_compiled(BouncingBall(), [1.0, 0.0], t_max=1.0)
     with pytest.raises(TypeError, match="flow"):
@@ -496,3 +500,145 @@ def test_doctests():
         warnings.simplefilter("ignore")
         res = doctest.testmod(hc, optionflags=doctest.NORMALIZE_WHITESPACE)
     assert res.failed == 0 and res.attempted > 0
+
+
+# ------------------------------------------------------------------ one source of rules
+def test_same_bad_input_same_error_as_the_python_path(ball):
+    """Validation is ``hybridsim.options.parse_run``'s on both paths."""
+    bad = [dict(t_max=-1.0), dict(t_max=1.0, rtol=0.0), dict(t_max=1.0, zeno_jumps=0),
+           dict(t_max=1.0, refine=2.5), dict(t_max=1.0, j_max=True),
+           dict(t_max=1.0, priority="often"), dict(t_max=1.0, throw=1),
+           dict(t_max=1.0, max_samples=1)]
+    for kw in bad:
+        errs = []
+        for run in (simulate_compiled, hs.simulate):
+            with pytest.raises(Exception) as e:
+                run(ball, [1.0, 0.0], **kw)
+            errs.append(e.value)
+        assert type(errs[0]) is type(errs[1]) and str(errs[0]) == str(errs[1]), kw
+
+
+def test_cause_codes_and_rules_come_from_rules():
+    from hybridsim import rules
+    from hybridsim.compiled import _kernel as k
+    assert k.CAUSES == tuple(c.name for c in rules.CAUSES)
+    for name in k.CAUSES:
+        assert getattr(k, name) == rules.CODES[T[name]]
+    assert not hasattr(k, "_is_sticking_local") and not hasattr(hc, "_CAUSES")
+    assert not hasattr(hc, "_finish")
+
+
+@pytest.mark.parametrize("kw, cause", [
+    (dict(t_max=50.0, max_norm=1e6), T.BLOWUP),
+    (dict(t_max=50.0, max_steps=7), T.MAX_STEPS),
+    (dict(t_max=50.0, max_samples=5), T.MAX_STEPS),
+])
+def test_messages_are_the_python_paths(kw, cause):
+    grow = _compiled(CompiledSystem(grow_f, state_dim=1))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        a, b = both(grow, [1.0], **kw)
+    assert a.termination is b.termination is cause
+    if "max_norm" not in kw:              # |x| at the step differs in the last digits
+        assert a.message == b.message
+
+
+def test_messages_zeno_left_sets_not_in_sets(ball, leave):
+    a, b = both(ball, [1.0, 0.0], t_max=10.0)
+    assert a.termination is T.ZENO and a.message.split(" near t=")[0] == \
+        b.message.split(" near t=")[0]
+    a, b = both(leave, [0.0], t_max=5.0)
+    assert a.message == b.message
+    a, b = both(ball, [-1.0, 1.0], t_max=1.0)
+    assert a.message == b.message
+
+
+def test_map_error_at_x0_carries_a_map_error_arc():
+    bad = _compiled(CompiledSystem(lambda x, t, j, p: np.array([np.nan]), state_dim=1))
+    with pytest.raises(hs.MapError, match="flow_map returned non-finite") as e:
+        simulate_compiled(bad, [0.0], t_max=1.0, throw=False)
+    assert e.value.arc.termination is T.MAP_ERROR and e.value.map_name == "flow_map"
+    with pytest.raises(hs.MapError) as ref:
+        hs.simulate(bad, [0.0], t_max=1.0)
+    assert str(e.value) == str(ref.value)
+
+
+# ------------------------------------------------------------------ Ctrl-C, fork
+def _sigint_after(seconds):
+    """SIGINT from outside the process (a terminal's Ctrl-C; a threading.Timer
+    cannot send it while a kernel holds the GIL)."""
+    import os
+    return subprocess.Popen(["sh", "-c", f"sleep {seconds}; kill -INT {os.getpid()}"])
+
+
+def test_ctrl_c_during_a_parallel_batch_keeps_the_finished_rows(timer):
+    timer.params = [1e-3]
+    try:
+        simulate_many_compiled(timer, np.zeros((8, 1)), t_max=0.1)     # compiled first
+        X = np.zeros((40, 1))
+        X[:4] = 0.0
+        th = _sigint_after(0.5)
+        with pytest.warns(hs.BatchWarning, match="interrupted"):
+            arcs = simulate_many_compiled(timer, X, t_max=math.inf, j_max=2 * 10**7,
+                                          max_samples=10**9, max_steps=10**9)
+        th.wait()
+    finally:
+        timer.params = [1.0]
+    assert len(arcs) == 40
+    assert all(a.termination is T.CANCELED for a in arcs)
+    assert any(a.jump_count > 0 for a in arcs)
+
+
+def test_ctrl_c_during_a_serial_batch(timer):
+    timer.params = [1e-3]
+    try:
+        th = _sigint_after(0.5)
+        with pytest.warns(hs.BatchWarning, match="interrupted"):
+            arcs = simulate_many_compiled(timer, np.zeros((3, 1)), t_max=math.inf,
+                                          j_max=2 * 10**7, parallel=False,
+                                          max_samples=10**9, max_steps=10**9)
+        th.wait()
+    finally:
+        timer.params = [1.0]
+    assert arcs[0].termination is T.CANCELED and arcs[0].jump_count > 0
+    assert arcs[1].termination is T.CANCELED and len(arcs[1].t) == 1
+    assert "never started" in arcs[2].message
+
+
+def test_fork_after_a_parallel_batch(ball):
+    """A fork-based process pool after a parallel batch (GNU OpenMP aborts the
+    child; the threading layer chosen is fork-safe)."""
+    code = (
+        "import multiprocessing as mp, numpy as np\n"
+        "from hybridsim.compiled import CompiledSystem, simulate_many_compiled\n"
+        "s = CompiledSystem(lambda x, t, j, p: np.ones(1), lambda x, t, j, p: np.zeros(1),\n"
+        "                   jump_guard=lambda x, t, j, p: x[0] - 1.0, state_dim=1)\n"
+        "simulate_many_compiled(s, np.zeros((200, 1)), t_max=3.0)\n"
+        "import numba; print(numba.threading_layer())\n"
+        "def work(i):\n"
+        "    return len(simulate_many_compiled(s, np.zeros((50, 1)), t_max=3.0))\n"
+        "with mp.get_context('fork').Pool(2) as pool:\n"
+        "    print(pool.map(work, range(2)))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert "[50, 50]" in out.stdout
+
+
+# ------------------------------------------------------------------ first compile
+def test_first_compile_says_so_once(tmp_path):
+    """A fresh cache: one notice naming the cache; the next process: none."""
+    import os
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
+    code = ("import numpy as np\n"
+            "from hybridsim.compiled import CompiledSystem, simulate_compiled\n"
+            "s = CompiledSystem(lambda x, t, j, p: np.ones(1), state_dim=1)\n"
+            "simulate_compiled(s, [0.0], t_max=1.0)\n"
+            "simulate_compiled(s, [0.0], t_max=1.0)\n")
+    runs = [subprocess.run([sys.executable, "-W", "ignore", "-c", code], capture_output=True,
+                           text=True, timeout=600, env=env) for _ in range(2)]
+    for r in runs:
+        assert r.returncode == 0, r.stderr
+    assert runs[0].stderr.count("compiling the engine's kernels") == 1
+    assert str(tmp_path) in runs[0].stderr
+    assert "compiling" not in runs[1].stderr

@@ -41,14 +41,8 @@ import warnings
 import numpy as np
 
 from ..arc import HybridArc
-from ..rules import (
-    FAILURES,
-    MapError,
-    SimulationWarning,
-    Termination,
-    sticking_message,
-    zeno_message,
-)
+from ..options import check_unsupported, check_x0, parse_run
+from ..rules import CAUSES, DETAILS, MapError, Priority, Termination, finish, message
 from ..system import HybridSystem
 
 __all__ = ["CompiledSystem", "simulate_compiled", "simulate_many_compiled", "CompileError",
@@ -91,10 +85,6 @@ def available() -> bool:
 
 
 _K = None
-#: cause codes of the kernels (``_kernel.CAUSES``), as Termination members
-_CAUSES = tuple(Termination[name] for name in (
-    "T_MAX", "J_MAX", "NOT_IN_SETS", "LEFT_SETS", "NON_FINITE", "BLOWUP", "SOLVER_FAILED",
-    "MAP_ERROR", "ZENO", "MAX_STEPS"))
 
 
 def _load_kernel():
@@ -109,7 +99,6 @@ def _load_kernel():
         raise ImportError(f"the compiled path needs numba: {_INSTALL} (or pip install "
                           f"numba). Without it, run the same system on the Python path "
                           f"with hs.simulate / hs.simulate_many.") from e
-    assert tuple(c.name for c in _CAUSES) == k.CAUSES
     _K = k
     return k
 
@@ -120,7 +109,7 @@ def compile_kernels():
     Returns the seconds it took. Called by the first compiled run anyway.
     """
     t = time.perf_counter()
-    _load_kernel().compile_kernels(batch=True)
+    _load_kernel().compile_kernels(batch=True, notice=_notice)
     return time.perf_counter() - t
 
 
@@ -291,24 +280,34 @@ class CompiledSystem(HybridSystem):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", NumbaExperimentalFeatureWarning)
             out = self._compile_maps(k, numba)
-        if not self.specialize:     # first-class function values for the cached kernels
-            out = {role: k.handle(d, kind) for (role, d), kind in
-                   zip(out.items(), (self._kinds[r] for r in out))}
-            absent = {"vec": k.handle(k.absent_vec, "vec"),
-                      "scalar": k.handle(k.absent_scalar, "scalar"),
-                      "false": k.handle(k.absent_false, "bool"),
-                      "true": k.handle(k.absent_true, "bool")}
-        else:
+            if not self.specialize:     # the cached kernels take the maps by address
+                out = {role: k.handle(d, kind) for (role, d), kind in
+                       zip(out.items(), (self._kinds[r] for r in out))}
+                absent = {"vec": k.handle(k.absent_vec, "vec"),
+                          "scalar": k.handle(k.absent_scalar, "scalar"),
+                          "false": k.handle(k.absent_false, "bool"),
+                          "true": k.handle(k.absent_true, "bool")}
+        if self.specialize:
             absent = {"vec": k.absent_vec, "scalar": k.absent_scalar,
                       "false": k.absent_false, "true": k.absent_true}
+        # a set without its indicator is {guard >= 0}, read by the kernel from
+        # the guard itself (a NaN guard is then the Python path's MapError)
         self._nb = {
             "f": out["flow"], "g": out.get("jump", absent["vec"]),
             "hD": out.get("jump_guard", absent["scalar"]),
             "hC": out.get("flow_guard", absent["scalar"]),
             "D": out.get("jump_set", absent["false"]), "C": out.get("flow_set", absent["true"]),
-            "has_C": "flow_set" in out, "has_D": "jump_set" in out,
+            "has_C": "flow_set" in out or "flow_guard" in out,
+            "has_D": "jump_set" in out or "jump_guard" in out,
             "has_hC": "flow_guard" in out, "has_hD": "jump_guard" in out,
+            "C_from_guard": "flow_set" not in out and "flow_guard" in out,
+            "D_from_guard": "jump_set" not in out and "jump_guard" in out,
         }
+        # the kernels' map argument: the addresses of the maps for the generic
+        # kernels (the handles above keep them alive), none for the specialised
+        # ones, which hold the maps themselves (see _kernels)
+        six = tuple(self._nb[r] for r in ("f", "g", "hD", "hC", "D", "C"))
+        self._nb["args"] = () if self.specialize else (k.map_addresses(six),)
         return time.perf_counter() - t
 
     def _compile_maps(self, k, numba):
@@ -330,11 +329,6 @@ class CompiledSystem(HybridSystem):
                     f"{_KIND_TEXT.get(kind, 'a bool')}, "
                     f"or run this system on the Python path with hs.simulate(system, ...) "
                     f"(the fallback, same maps, no compiling)", role) from e
-        # sets derived from their guards where no indicator is given
-        for role, guard in (("jump_set", "jump_guard"), ("flow_set", "flow_guard")):
-            if role not in out and guard in out:
-                out[role] = k.wrap_map(self.maps[guard], "guard_set")
-                self._kinds[role] = "guard_set"
         return out
 
     def __repr__(self):
@@ -343,9 +337,12 @@ class CompiledSystem(HybridSystem):
 
 
 # ---------------------------------------------------------------- running
-_UNSUPPORTED = ("inputs", "prehistory", "dense", "t_eval", "progress")
 _I64_MAX = np.iinfo(np.int64).max
+_RANDOM = Priority.RANDOM
+#: the Generator of runs that draw no coins, and its addresses (built once)
 _DUMMY_RNG = None
+#: the stop flag of single runs (never set: they poll the interpreter's signal check)
+_NO_STOP = np.zeros(1, np.int64)
 
 
 def _check_system(system):
@@ -355,51 +352,42 @@ def _check_system(system):
                         f"run other systems with hs.simulate (the Python path)")
 
 
-def _options(system, x0_shape_n, t_max, j_max, t0, j0, priority, rtol, atol, max_step,
-             first_step, max_steps, max_samples, zeno_jumps, zeno_time, zeno_rtol, max_norm,
-             refine, method, extra):
-    """Validate like :func:`hybridsim.simulate` and pack the kernel's option arrays."""
-    from ..options import check_count as _check_count
-    from ..options import check_options
-    from ..options import check_real as _check_real
+#: the options a path may refuse (:data:`hybridsim.options.SUPPORTS`); others are unknown
+_REFUSABLE = ("inputs", "prehistory", "dense", "t_eval", "progress")
+
+
+def _options(system, n, caller, method, extra, **shared):
+    """Validate like :func:`hybridsim.simulate` (:func:`hybridsim.options.parse_run`:
+    the same exception and message for the same bad input) and pack the
+    kernel's option arrays. Returns ``(ro, fopt, iopt, atol)``."""
     for name in extra:
-        if name == "progress" and not extra[name]:     # no bar: accepted (simulate_many sends it)
-            continue
-        if name in _UNSUPPORTED:
-            raise TypeError(f"{name}= is not supported by the compiled path; use "
-                            f"hs.simulate (the Python path) for it")
-        raise TypeError(f"unexpected keyword argument {name!r}")
-    if method not in ("RK45", None):
-        raise ValueError(f"method: the compiled path integrates with RK45 (Dormand-Prince "
-                         f"5(4)) only, got {method!r}; use hs.simulate for other methods")
-    n = x0_shape_n
-    (t0, t_max, j_max, prio, rtol, atol, max_step, first_step, max_norm,
-     zeno_time) = check_options(system, n, t0, t_max, j_max, priority, rtol, atol, max_step,
-                                first_step, max_norm, zeno_time)
-    j0 = _check_count("j0", j0)
-    refine = _check_count("refine", refine, minimum=1)
-    max_steps = _check_count("max_steps", max_steps, minimum=1, allow_inf=True)
-    max_samples = _check_count("max_samples", max_samples, minimum=2, allow_inf=True)
-    if refine > max_samples:
-        raise ValueError(f"refine must be <= max_samples = {max_samples}, got {refine}")
-    zeno_jumps = _check_count("zeno_jumps", zeno_jumps, minimum=1)
-    zeno_rtol = _check_real("zeno_rtol", zeno_rtol, nonneg=True)
-    fopt = np.array([t0, t_max, j_max, rtol, max_step,
-                     np.nan if first_step is None else first_step, max_norm, zeno_time,
-                     zeno_rtol], dtype=np.float64)
+        if name not in _REFUSABLE:
+            raise TypeError(f"{caller}() got an unexpected keyword argument {name!r}")
+    check_unsupported("compiled", dict(extra, method=method))
+    ro = parse_run(system, n, **shared)
+    fopt = np.array([ro.t0, ro.t_max, ro.j_max, ro.rtol, ro.max_step,
+                     np.nan if ro.first_step is None else ro.first_step, ro.max_norm,
+                     ro.zeno_time, ro.zeno_rtol], dtype=np.float64)
     nb = system._nb
-    iopt = np.array([j0, int(prio), _I64_MAX if max_steps == math.inf else max_steps,
-                     _I64_MAX if max_samples == math.inf else max_samples, zeno_jumps, refine,
-                     nb["has_C"], nb["has_D"], nb["has_hC"], nb["has_hD"], 64],
+    iopt = np.array([ro.j0, int(ro.prio), _I64_MAX if ro.max_steps == math.inf else ro.max_steps,
+                     _I64_MAX if ro.max_samples == math.inf else ro.max_samples,
+                     ro.zeno_jumps, ro.refine, nb["has_C"], nb["has_D"], nb["has_hC"],
+                     nb["has_hD"], 64, nb["D_from_guard"], nb["C_from_guard"]],
                     dtype=np.int64)
-    atol_a = np.array(np.broadcast_to(np.asarray(atol, dtype=np.float64), (n,)), order="C")
-    return fopt, iopt, atol_a, prio, max_steps, max_samples
+    if isinstance(ro.atol, float):
+        atol_a = np.full(n, ro.atol)
+    else:
+        atol_a = np.array(np.broadcast_to(np.asarray(ro.atol, dtype=np.float64), (n,)),
+                          order="C")
+    return ro, fopt, iopt, atol_a
 
 
 def _quiet(kernel):
     """Call ``kernel`` without numba's "first-class functions are experimental"
-    warning (a specialised kernel compiles at its first call)."""
+    warning while it compiles (a specialised kernel compiles at its first call)."""
     def call(*args):
+        if kernel.signatures:
+            return kernel(*args)
         from numba.core.errors import NumbaExperimentalFeatureWarning
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", NumbaExperimentalFeatureWarning)
@@ -408,116 +396,174 @@ def _quiet(kernel):
 
 
 def _kernels(k, system, batch):
-    """(run_one, run_batch) for the system: the cached generic pair, or the
-    pair specialised on its maps."""
+    """(run_one, run_batch) for the system: the cached generic pair (the maps
+    passed by address), or the pair specialised on its maps."""
     if system.specialize:
-        return _quiet(k.run_one_spec), _quiet(k.run_batch_spec)
-    k.compile_kernels(batch=batch)
+        return _specialised(k, system)
+    k.compile_kernels(batch=batch, notice=_notice)
     return k.run_one, k.run_batch
 
 
-def _message(system, code, detail, info, x_last, stats, max_steps, max_samples, max_norm,
-             zeno_jumps):
-    """The Python path's message for a cause code (see ``hybridsim.solve``)."""
-    cause = _CAUSES[code]
+def _specialised(k, system):
+    """The specialised pair for the system's maps: small jitted functions that
+    hold the map dispatchers as constants and call ``run_one_spec`` /
+    ``run_batch_spec`` with them. Passing the six dispatchers from Python at
+    each call instead costs ~30 us (numba types each one anew), a third of a
+    short run."""
+    nb = system._nb
+    kern = nb.get("spec")
+    if kern is None:
+        from numba import njit
+        f, g, hD, hC, D, C = (nb[r] for r in ("f", "g", "hD", "hC", "D", "C"))
+        one_spec, batch_spec = k.run_one_spec, k.run_batch_spec
+
+        def one(x0, p, fopt, iopt, atol, rngp, poll, stop):
+            return one_spec(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop)
+
+        def many(X0, p, fopt, iopt, atol, rngp, cap, poll, stop):
+            return batch_spec(f, g, hD, hC, D, C, X0, p, fopt, iopt, atol, rngp, cap, poll,
+                              stop)
+
+        # nogil: the batch runs in a helper thread (see _interruptible)
+        kern = nb["spec"] = (_quiet(njit(error_model="numpy")(one)),
+                             _quiet(njit(nogil=True, error_model="numpy")(many)))
+    return kern
+
+
+def _notice(cache_dir):
+    """Say, once, that the engine's kernels are being compiled (the first
+    compiled call on a machine is otherwise silent for about a minute).
+
+    Written to stderr as one line, as pip or a compiler would: a notice, not a
+    warning (nothing is wrong, and ``-W error`` must not turn it into a
+    failure), and not only ``logging.info``, which nobody sees unless logging
+    is configured. Where the application has configured logging (a handler on
+    the ``hybridsim`` logger or the root), it goes there instead, at INFO.
+    """
+    import logging
+    import sys
+    msg = (f"hybridsim.compiled: compiling the engine's kernels, once per machine (about a "
+           f"minute); numba caches them in {cache_dir}")
+    log = logging.getLogger("hybridsim.compiled")
+    if log.hasHandlers():
+        log.info(msg)
+        return
+    try:
+        sys.stderr.write(msg + " ...\n")
+        sys.stderr.flush()
+    except (AttributeError, OSError, ValueError):   # no stderr (pythonw, closed)
+        pass
+
+
+# ---------------------------------------------------------------- arcs and messages
+#: the Python path's stats keys, in its order
+_STAT_KEYS = ("steps", "nfev", "njev", "nlu", "events", "flows", "rejected")
+_SOLVER_REASON = "Required step size is less than spacing between numbers."   # scipy's words
+
+
+def _map_error(system, k, detail, info, x, t, j):
+    """``(text, map_name)`` of a map's contract breach, in the Python path's words:
+    the map is evaluated again in Python at the point the kernel reports and
+    its value checked by :func:`hybridsim.options.check_map_value`."""
+    from ..options import check_map_value
+    n = system.state_dim
+    if detail == k.MAP_GUARD:
+        name = "jump_guard" if info[2] == 1.0 else "flow_guard"
+        return f"{name} returned NaN (at t={t:.10g}, j={j})", name
+    jumpish = detail in (k.MAP_JUMP_SHAPE, k.MAP_JUMP_VALUE, k.MAP_JUMP_X0)
+    name = "jump_map" if jumpish else "flow_map"
+    role = "jump" if jumpish else "flow"
+    if role not in system.maps:
+        return (f"the state is in the jump set at t={t:.10g}, j={j} but the system has no "
+                f"jump map"), name
+    try:
+        check_map_value(name, system.maps[role](np.array(x), t, j, system.params), n, t, j)
+    except MapError as e:
+        return str(e), name
+    except Exception as e:  # noqa: BLE001 - the map raised in Python: say so
+        return f"{name} raised {type(e).__name__}: {e} (at t={t:.10g}, j={j})", name
+    m = int(info[2]) if info[2] == info[2] else n
+    if m != n:
+        return f"{name} must return an array of shape ({n},), got shape ({m},) " \
+               f"(at t={t:.10g}, j={j})", name
+    return f"{name} returned non-finite values (at t={t:.10g}, j={j})", name
+
+
+def _message(system, k, code, detail, info, T, J, X, stats, ro):
+    """``(cause, message, exception)`` of a kernel's result: the words of
+    :data:`hybridsim.rules.DETAILS` (:func:`hybridsim.rules.message`)."""
+    cause = CAUSES[code]
     if cause is Termination.T_MAX or cause is Termination.J_MAX:
-        return cause, cause.value
-    t, t2, v, j = info
-    j = None if j != j else int(j)
-    base = cause.message
-    if cause in (Termination.T_MAX, Termination.J_MAX):
-        return cause, base
-    if cause is Termination.NOT_IN_SETS:
-        return cause, f"{base}: x={x_last} at (t={t}, j={j})"
-    if cause is Termination.LEFT_SETS:
-        if detail == 1:
-            return cause, (f"{base}: the flow left C at t={t:.10g} (j={j}), x={x_last}, "
-                           f"outside D")
-        return cause, f"{base}: x={x_last} at (t={t}, j={j})"
+        return cause, cause.message, None
+    t = float(info[0]) if info[0] == info[0] else float(T[-1])
+    j = int(info[3]) if info[3] == info[3] else int(J[-1])
+    x = X[-1]
+    if cause is Termination.MAP_ERROR:
+        text, name = _map_error(system, k, detail, info, X[-1], t, j)
+        return cause, message(cause, error=text), MapError(text, name, t, j)
+    if cause is Termination.CANCELED:
+        return cause, message(cause, t=float(T[-1]), j=int(J[-1])), None
     if cause is Termination.ZENO:
         if detail == 0:
-            return cause, f"{base}: {zeno_message(int(v), t)}"
+            return cause, message(cause, "zeno", count=int(info[2]), t=t), None
         if detail == 1:
-            return cause, f"{base}: {sticking_message(t, j, x_last, [t2, v])}"
-        return cause, f"{base}: flows too short to resolve near t={t:.10g}"
-    if cause is Termination.NON_FINITE:
-        if detail == 0:
-            return cause, f"{base}: after the step from t={t:.10g} to t={t2:.10g} (j={j})"
-        return cause, f"{base}: flow map returned non-finite values near t={t:.10g} (j={j})"
-    if cause is Termination.BLOWUP:
-        return cause, f"{base}: |x| = {v:.3g} > {max_norm:.3g} at t={t:.10g} (j={j})"
-    if cause is Termination.SOLVER_FAILED:
-        return cause, (f"{base}: Required step size is less than spacing between numbers. "
-                       f"at t={t:.10g} (j={j})")
-    if cause is Termination.MAX_STEPS:
-        if detail == 0:
-            return cause, (f"{base}: {stats[0]} solver steps (max_steps={max_steps}) at "
-                           f"t={t:.10g}")
-        return cause, f"{base}: samples stored reached max_samples={max_samples} at t={t:.10g}"
-    if cause is Termination.MAP_ERROR:
-        if detail == 0:
-            return cause, (f"jump map must return an array of shape "
-                           f"({len(x_last)},), got shape ({int(v)},) (at t={t:.10g}, j={j})")
-        if detail == 1:
-            return cause, f"jump map returned non-finite values (at t={t:.10g}, j={j})"
-        if detail == 2:
-            return cause, (f"flow map must return an array of shape ({len(x_last)},) "
-                           f"(at t={t:.10g}, j={j})")
-        role = "flow" if detail == 3 else "jump"
-        if "jump" not in system.maps and role == "jump":
-            return cause, (f"the state is in the jump set at t={t}, j={j} but the system "
-                           f"has no jump map")
-        what = ("non-finite values" if int(v) == len(x_last)
-                else f"an array of shape ({int(v)},)")
-        return cause, (f"{role} map returned {what} "
-                       f"at x0 (expected {len(x_last)} finite floats; at t={t}, j={j})")
-    return cause, base
+            return cause, message(cause, "sticking", t=t, j=j, x=x,
+                                  flows=[info[1], info[4], info[5]]), None
+        return cause, message(cause, "short", t=t), None
+    kind, fields = None, {"t": t, "j": j, "x": x}
+    if cause is Termination.LEFT_SETS and detail == 1:
+        kind = "left"
+    elif cause is Termination.NON_FINITE:
+        kind = ("step", "flow", "dense")[detail]
+        if (cause, kind) not in DETAILS:
+            kind = "step"
+        fields["t2"] = float(info[1])
+    elif cause is Termination.BLOWUP:
+        fields.update(norm=float(info[2]), max_norm=ro.max_norm)
+    elif cause is Termination.SOLVER_FAILED:
+        fields["reason"] = _SOLVER_REASON
+    elif cause is Termination.MAX_STEPS:
+        kind = "steps" if detail == 0 else "samples"
+        if detail != 0:             # the sample cap: where the last sample was stored
+            fields["t"] = float(T[-1])
+        fields.update(steps=int(stats[0]), max_steps=ro.max_steps, samples=len(T),
+                      max_samples=ro.max_samples)
+    return cause, message(cause, kind, **fields), None
 
 
-_STAT_NAMES = ("steps", "rejected", "nfev", "events", "flows")
-
-
-def _arc(system, T, J, X, XD, code, detail, info, stats, lim):
-    cause, msg = _message(system, code, detail, info, X[-1], stats, *lim)
-    st = dict(zip(_STAT_NAMES, stats.tolist() if isinstance(stats, np.ndarray) else stats))
-    st["njev"] = 0
-    st["nlu"] = 0
-    exc = None
-    if cause is Termination.MAP_ERROR:
-        exc = MapError(msg, "flow" if detail in (2, 3) else "jump", float(info[0]),
-                       None if info[3] != info[3] else int(info[3]))
+def _arc(system, k, T, J, X, XD, code, detail, info, stats, ro):
+    """The run's :class:`HybridArc`; a map's breach at x0 is raised at once (as
+    on the Python path), with ``.arc`` (cause ``MAP_ERROR``) set."""
+    cause, msg, exc = _message(system, k, code, detail, info, T, J, X, stats, ro)
+    s = stats.tolist() if isinstance(stats, np.ndarray) else stats
+    st = {"steps": s[0], "nfev": s[2], "njev": 0, "nlu": 0, "events": s[3], "flows": s[4],
+          "rejected": s[1]}
     # the kernels' own arrays: (N,) float64 t, int64 j, (N, n) float64 x and xdot
     arc = HybridArc._trusted(T, J, X, cause, msg, exc, system=system, xdot=XD, stats=st)
-    if exc is not None and detail >= 3:     # bad values at x0: raised at once
+    if exc is not None:
         exc.arc = arc
-        raise exc
     return arc
 
 
-def _rng_for(prio, seed):
-    from ..options import check_seed as _check_seed
-    from ..rules import Priority
+def _at_x0(k, arc, detail):
+    """A map's breach at x0: raised at once by a single run (as on the Python path)."""
+    return arc.termination is Termination.MAP_ERROR and (
+        detail in (k.MAP_FLOW_X0, k.MAP_JUMP_X0) or (detail == k.MAP_GUARD and len(arc.t) == 1))
+
+
+def _rng_for(k, prio, seed):
+    """``(rng, rngp)``: the run's numpy Generator and its addresses for the
+    kernel (:func:`_kernel.rng_pointers`; the caller keeps ``rng`` alive)."""
     global _DUMMY_RNG
-    if prio == Priority.RANDOM:
-        return _check_seed(seed)
-    if seed is not None:
-        _check_seed(seed)
+    if prio == _RANDOM or seed is not None:
+        from ..options import check_seed as _check_seed
+        rng = _check_seed(seed)
+        if prio == _RANDOM:
+            return rng, k.rng_pointers(rng)
     if _DUMMY_RNG is None:
-        _DUMMY_RNG = np.random.default_rng(0)
+        rng = np.random.default_rng(0)
+        _DUMMY_RNG = rng, k.rng_pointers(rng)
     return _DUMMY_RNG
-
-
-def _finish(arc, throw, warn, stacklevel=3):
-    cause = arc.termination
-    if cause is Termination.MAP_ERROR and throw:
-        err = arc.exception
-        err.arc = arc
-        raise err
-    if warn and (cause in FAILURES or cause is Termination.MAX_STEPS) \
-            and cause is not Termination.MAP_ERROR:
-        warnings.warn(f"{cause.name}: {arc.message} (last sample t={arc.t[-1]:.10g}, "
-                      f"j={arc.j[-1]})", SimulationWarning, stacklevel=stacklevel)
-    return arc
 
 
 def simulate_compiled(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priority="jumps",
@@ -550,6 +596,7 @@ def simulate_compiled(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priori
     Returns
     -------
     HybridArc
+        Ctrl-C during the run ends it with ``CANCELED`` and the arc so far.
 
     Raises
     ------
@@ -558,8 +605,10 @@ def simulate_compiled(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priori
     CompileError
         A map numba cannot compile (named); ``hs.simulate`` is the fallback.
     MapError
-        A jump map returned a non-finite or mis-shaped value (``throw=True``);
-        bad values at x0 are raised at once, as on the Python path.
+        A jump map returned a non-finite or mis-shaped value, or a guard that
+        defines a set returned NaN (``throw=True``; the policy of
+        :func:`hybridsim.rules.finish`); bad values at x0 are raised at once,
+        as on the Python path. ``.arc`` ends with ``MAP_ERROR``.
 
     Examples
     --------
@@ -574,28 +623,59 @@ def simulate_compiled(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priori
     >>> np.round(arc.jump_times, 12)
     array([1., 2., 3.])
     """
-    from ..options import check_bool as _check_bool
-    from ..options import check_x0 as _check_x0
     k = _load_kernel()
     _check_system(system)
     n = system.state_dim
-    x = np.ascontiguousarray(_check_x0(x0, n))
-    throw = _check_bool("throw", throw)
-    warn = _check_bool("warn", warn)
+    x = np.ascontiguousarray(check_x0(x0, n))
     system.compile()
+    ro, fopt, iopt, atol_a = _options(
+        system, n, "simulate_compiled", method, unsupported, t0=t0, j0=j0, t_max=t_max,
+        j_max=j_max, priority=priority, rtol=rtol, atol=atol, max_step=max_step,
+        first_step=first_step, max_norm=max_norm, zeno_jumps=zeno_jumps,
+        zeno_time=zeno_time, zeno_rtol=zeno_rtol, refine=refine, max_steps=max_steps,
+        max_samples=max_samples, throw=throw, warn=warn)
     kern = _kernels(k, system, batch=False)
-    fopt, iopt, atol_a, prio, ms, msa = _options(
-        system, n, t_max, j_max, t0, j0, priority, rtol, atol, max_step, first_step,
-        max_steps, max_samples, zeno_jumps, zeno_time, zeno_rtol, max_norm, refine, method,
-        unsupported)
-    rng = _rng_for(prio, seed)
-    nb = system._nb
+    rng, rngp = _rng_for(k, ro.prio, seed)
     T, J, X, XD, code, detail, info, stats = kern[0](
-        nb["f"], nb["g"], nb["hD"], nb["hC"], nb["D"], nb["C"], x, system.params, fopt,
-        iopt, atol_a, rng)
-    arc = _arc(system, T, J, X, XD, code, detail, info, stats,
-               (ms, msa, fopt[6], zeno_jumps))
-    return _finish(arc, throw, warn)
+        *system._nb["args"], x, system.params, fopt, iopt, atol_a, rngp, k.POLL_GIL, _NO_STOP)
+    del rng
+    arc = _arc(system, k, T, J, X, XD, code, detail, info, stats, ro)
+    if _at_x0(k, arc, detail):
+        raise arc.exception
+    return finish(arc, ro.throw, ro.warn)
+
+
+def _interruptible(fn, args, stop):
+    """Call a GIL-free batch kernel so that Ctrl-C stops it: in a helper thread,
+    while the main thread waits and, on KeyboardInterrupt, sets ``stop[0]``
+    (every run reads it at each step and ends ``CANCELED``). Returns
+    ``(result, interrupted)``. Off the main thread (no signals arrive there)
+    it calls ``fn`` directly."""
+    import threading
+    if threading.current_thread() is not threading.main_thread():
+        return fn(*args), False
+    box = []
+
+    def target():
+        try:
+            box.append((True, fn(*args)))
+        except BaseException as e:  # noqa: BLE001 - re-raised in the caller's thread
+            box.append((False, e))
+
+    th = threading.Thread(target=target, name="hybridsim-compiled-batch", daemon=True)
+    th.start()
+    interrupted = False
+    while True:
+        try:
+            th.join()
+            break
+        except KeyboardInterrupt:
+            stop[0] = 1
+            interrupted = True
+    ok, val = box[0]
+    if not ok:
+        raise val
+    return val, interrupted
 
 
 def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
@@ -603,7 +683,7 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
                            rtol=1e-6, atol=1e-9, max_step=math.inf, first_step=None,
                            max_steps=1_000_000, max_samples=10_000_000, zeno_jumps=50,
                            zeno_time=1e-12, zeno_rtol=1e-7, max_norm=math.inf, seed=None,
-                           refine=1, throw=True, warn=True, method="RK45", **unsupported):
+                           refine=1, throw=False, warn=True, method="RK45", **unsupported):
     """Simulate a :class:`CompiledSystem` from many initial states, compiled and in parallel.
 
     Each run is exactly :func:`simulate_compiled`'s (same steps, events and
@@ -611,6 +691,14 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
     (``numba.set_num_threads`` limits them). The batch is processed in chunks
     whose sample pool stays under ``chunk_bytes``; a run longer than its
     slot is re-run alone, so memory is the returned arcs plus one chunk.
+
+    A batch keeps going when one of its runs fails, as
+    :func:`hybridsim.simulate_many`: a row whose initial state is not finite
+    (cause ``NON_FINITE``), whose map fails at its x0 (``MAP_ERROR``) or whose
+    run ends on a failure gets its own arc carrying the cause, and one
+    :class:`hybridsim.BatchWarning` names the failed rows. Ctrl-C stops the
+    batch: finished runs are kept, runs under way end ``CANCELED`` with the arc
+    so far, runs never started get a one-sample ``CANCELED`` arc.
 
     Parameters
     ----------
@@ -621,6 +709,10 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
         False runs the batch on one core.
     chunk_bytes : int
         Memory budget of one chunk's sample pool.
+    throw : bool
+        False (default, as :func:`hybridsim.simulate_many`): failed rows keep
+        their arcs. True: after the whole batch ran, the first failed row
+        raises :class:`hybridsim.BatchError` (``.row``, ``.arc``, ``.arcs``).
     t_max, j_max, **options
         As in :func:`simulate_compiled`. With ``priority="random"`` the runs
         go one after another, each with its own ``numpy.random.default_rng(seed)``
@@ -643,9 +735,10 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
     >>> [a.jump_count for a in arcs]
     [2, 2]
     """
+    from .. import batch as _batch
+    from ..batch import _one_sample
     from ..options import check_bool as _check_bool
     from ..options import check_count as _check_count
-    from ..rules import Priority
     k = _load_kernel()
     _check_system(system)
     n = system.state_dim
@@ -656,76 +749,100 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
                         f"{type(x0s).__name__}") from e
     if X0.ndim != 2 or X0.shape[1] != n:
         raise ValueError(f"x0s must have shape (N, {n}), got {X0.shape}")
-    if not np.all(np.isfinite(X0)):
-        raise ValueError("x0s must be finite")
     X0 = np.ascontiguousarray(X0)
     parallel = _check_bool("parallel", parallel)
-    throw = _check_bool("throw", throw)
-    warn = _check_bool("warn", warn)
     chunk_bytes = _check_count("chunk_bytes", chunk_bytes, minimum=1)
     system.compile()
+    ro, fopt, iopt, atol_a = _options(
+        system, n, "simulate_many_compiled", method, unsupported, t0=t0, j0=j0,
+        t_max=t_max, j_max=j_max, priority=priority, rtol=rtol, atol=atol, max_step=max_step,
+        first_step=first_step, max_norm=max_norm, zeno_jumps=zeno_jumps,
+        zeno_time=zeno_time, zeno_rtol=zeno_rtol, refine=refine, max_steps=max_steps,
+        max_samples=max_samples, throw=throw, warn=warn)
     kern = _kernels(k, system, batch=parallel)
-    fopt, iopt, atol_a, prio, ms, msa = _options(
-        system, n, t_max, j_max, t0, j0, priority, rtol, atol, max_step, first_step,
-        max_steps, max_samples, zeno_jumps, zeno_time, zeno_rtol, max_norm, refine, method,
-        unsupported)
-    nb = system._nb
     p = system.params
-    maps = (nb["f"], nb["g"], nb["hD"], nb["hC"], nb["D"], nb["C"])
-    lim = (ms, msa, fopt[6], zeno_jumps)
+    maps = system._nb["args"]
     N = len(X0)
-    arcs = []
-    if prio == Priority.RANDOM or not parallel:
-        for x in X0:
-            rng = _rng_for(prio, seed)
-            out = kern[0](*maps, x, p, fopt, iopt, atol_a, rng)
-            arcs.append(_arc(system, *out, lim))
-    else:
-        rng = _rng_for(prio, seed)
-        # a few runs alone first: their length sizes the pool's slots
-        i = min(N, 4)
-        longest = 2
-        for x in X0[:i]:
-            out = kern[0](*maps, x, p, fopt, iopt, atol_a, rng)
-            longest = max(longest, len(out[0]))
-            arcs.append(_arc(system, *out, lim))
-        cap = 1 << math.ceil(math.log2(longest * 1.25 + 1))
-        per = (2 + 2 * n) * 8
-        while i < N:
-            B = int(max(64, min(N - i, chunk_bytes // (cap * per))))
-            B = min(B, N - i)
-            TT, JJ, XX, XXD, NS, CA, DE, INFO, ST = kern[1](
-                *maps, X0[i:i + B], p, fopt, iopt, atol_a, rng, cap)
-            # every run's samples in one compact array per field (one copy of
-            # the pool), each arc a view of its rows
-            ns_l, ca_l, de_l, st_l = NS.tolist(), CA.tolist(), DE.tolist(), ST.tolist()
-            m_all = np.minimum(NS[:B], cap)
-            keep = np.arange(cap) < m_all[:, None]
-            Tf, Jf, Xf, XDf = TT[keep], JJ[keep], XX[keep], XXD[keep]
-            o = 0
-            for r in range(B):
-                m = ns_l[r]
-                if m <= cap:
-                    e = o + m
-                    arcs.append(_arc(system, Tf[o:e], Jf[o:e], Xf[o:e], XDf[o:e], ca_l[r],
-                                     de_l[r], INFO[r], st_l[r], lim))
-                    o = e
-                else:                  # longer than its slot: run it alone
-                    out = kern[0](*maps, X0[i + r], p, fopt, iopt, atol_a, rng)
-                    arcs.append(_arc(system, *out, lim))
-                    o += cap
-            # the next chunk's slots: room for the longest run seen, with margin
-            longest = int(NS.max()) if B else cap
-            cap = max(cap, 1 << math.ceil(math.log2(max(longest, 2) * 1.25)))
-            del TT, JJ, XX, XXD
-            i += B
-    for arc in arcs:
-        _finish(arc, throw, False)
-    if warn:
-        bad = [a for a in arcs if (a.termination in FAILURES or
-                                   a.termination is Termination.MAX_STEPS)]
-        if bad:
-            warnings.warn(f"{len(bad)} of {N} runs ended on a failure, the first "
-                          f"{bad[0].termination.name}: {bad[0].message}",
-                          SimulationWarning, stacklevel=2)
-    return arcs
+    arcs = [None] * N
+    where = {"t0": ro.t0, "j0": ro.j0}
+    good = np.isfinite(X0).all(axis=1)
+    for i in np.flatnonzero(~good).tolist():        # as hs.simulate_many: the row's own arc
+        arcs[i] = _one_sample(X0[i], where, Termination.NON_FINITE,
+                              f"the initial state is not finite: {X0[i]}",
+                              ValueError(f"x0 must be finite, got {X0[i]}"), system)
+    rows = np.flatnonzero(good)
+    canceled = k.CANCELED
+
+    def one(i, rng):
+        T, J, X, XD, code, detail, info, stats = kern[0](
+            *maps, X0[i], p, fopt, iopt, atol_a, rng[1], k.POLL_GIL, _NO_STOP)
+        arcs[i] = _arc(system, k, T, J, X, XD, code, detail, info, stats, ro)
+        return code == canceled, len(T)
+
+    stopped = False
+    try:
+        if ro.prio == Priority.RANDOM or not parallel:
+            for i in rows.tolist():
+                stopped, _ = one(i, _rng_for(k, ro.prio, seed))
+                if stopped:
+                    break
+        else:
+            rng = _rng_for(k, ro.prio, seed)
+            # a few runs alone first: their length sizes the pool's slots
+            first = rows[:4].tolist()
+            longest = 2
+            for i in first:
+                stopped, m = one(i, rng)
+                longest = max(longest, m)
+                if stopped:
+                    break
+            cap = 1 << math.ceil(math.log2(longest * 1.25 + 1))
+            per = (2 + 2 * n) * 8
+            c = len(first)
+            stop = np.zeros(1, np.int64)
+            while c < len(rows) and not stopped:
+                B = int(max(64, min(len(rows) - c, chunk_bytes // (cap * per))))
+                B = min(B, len(rows) - c)
+                idx = rows[c:c + B]
+                (TT, JJ, XX, XXD, NS, CA, DE, INFO, ST), stopped = _interruptible(
+                    kern[1], (*maps, X0[idx] if B < N else X0, p, fopt, iopt, atol_a, rng[1],
+                              cap, k.POLL_NONE, stop), stop)
+                # every run's samples in one compact array per field (one copy of
+                # the pool), each arc a view of its rows
+                ns_l, ca_l, de_l, st_l = NS.tolist(), CA.tolist(), DE.tolist(), ST.tolist()
+                m_all = np.minimum(NS[:B], cap)
+                keep = np.arange(cap) < m_all[:, None]
+                Tf, Jf, Xf, XDf = TT[keep], JJ[keep], XX[keep], XXD[keep]
+                o = 0
+                for r, i in enumerate(idx.tolist()):
+                    m = ns_l[r]
+                    if m <= cap:
+                        e = o + m
+                        if not (stopped and ca_l[r] == canceled and m == 1 and
+                                not any(st_l[r])):
+                            arcs[i] = _arc(system, k, Tf[o:e], Jf[o:e], Xf[o:e], XDf[o:e],
+                                           ca_l[r], de_l[r], INFO[r], st_l[r], ro)
+                        o = e
+                    elif not stopped:          # longer than its slot: run it alone
+                        stopped, _ = one(i, rng)
+                        o += cap
+                    else:
+                        o += cap
+                # the next chunk's slots: room for the longest run seen, with margin
+                longest = int(NS.max()) if B else cap
+                cap = max(cap, 1 << math.ceil(math.log2(max(longest, 2) * 1.25)))
+                del TT, JJ, XX, XXD
+                c += B
+    except KeyboardInterrupt:           # between two kernels: the runs so far are kept
+        stopped = True
+    if stopped:
+        for i in range(N):
+            if arcs[i] is None:
+                arcs[i] = _one_sample(X0[i], where, Termination.CANCELED,
+                                      "never started (the batch was interrupted)", None,
+                                      system)
+    if hasattr(_batch, "finish_batch"):     # the batch policy of every path
+        return _batch.finish_batch("simulate_many_compiled", arcs, ro.throw, ro.warn)
+    if ro.throw:
+        _batch._raise_first_failure(arcs)
+    return _batch._warned("simulate_many_compiled", arcs, ro.warn)

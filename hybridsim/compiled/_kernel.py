@@ -4,7 +4,10 @@ Everything here runs in nopython mode. The user's maps reach the kernels as
 numba *first-class functions* of fixed signatures (:data:`VEC_SIG`,
 :data:`SCAL_SIG`, :data:`BOOL_SIG`), so the kernels are compiled once and
 cached on disk (``cache=True``) for every system; only the small wrappers of
-each system's own maps are compiled per system (see :func:`wrap_map`).
+each system's own maps are compiled per system (see :func:`wrap_map`). From
+Python they are passed by address (an int64 array, :func:`map_addresses`),
+as are the Ctrl-C poll and the numpy Generator: numba's unboxing of a
+first-class function or Generator argument costs microseconds per call.
 
 The rules (priorities, the jump-or-flow decision, event tolerances, the
 t_max slack, short flows, the time scale) are :mod:`hybridsim.rules`'s own
@@ -27,15 +30,26 @@ from __future__ import annotations
 import hashlib
 import inspect
 import math
+import os
+import warnings
 
 import numba
 import numpy as np
+from llvmlite import ir
 from numba import njit, prange, types
+from numba.core import cgutils
 from numba.core import errors as nb_errors
-from numba.extending import overload, register_jitable, typeof_impl
+from numba.extending import intrinsic, overload, register_jitable, typeof_impl
 from scipy.integrate._ivp.rk import RK45
 
 from .. import rules
+
+# The parallel batch's threading layer: a fork-safe one (a process pool that
+# forks after a parallel batch dies under GNU OpenMP: "fork() called from a
+# process already using GNU OpenMP"). TBB where installed, else numba's own
+# workqueue; the user's choice (NUMBA_THREADING_LAYER) is kept.
+if os.environ.get("NUMBA_THREADING_LAYER") is None and numba.config.THREADING_LAYER == "default":
+    numba.config.THREADING_LAYER_PRIORITY = ["tbb", "workqueue", "omp"]
 
 # ------------------------------------------------------------------ the rules
 # Every function of hybridsim.rules becomes callable from compiled code as it is
@@ -45,37 +59,11 @@ for _name, _fn in vars(rules).items():
         register_jitable(_fn)
 
 
-def _is_sticking_local(last_flows, flow_now, jumps, scale):
-    """``rules.is_sticking`` for a numba that cannot compile it (its generator)."""
-    m = len(last_flows)
-    if jumps < 3 or m < 3 or not flow_now <= 1e-6 * scale:
-        return False
-    for k in range(m - 3, m):
-        if not last_flows[k] <= 1e-3 * scale:
-            return False
-    return True
-
-
-def _pick_is_sticking():
-    """``rules.is_sticking`` where numba compiles it, else the loop above."""
-    fn = getattr(rules, "is_sticking", None)
-    if fn is not None:
-        try:
-            njit(fn)(np.zeros(4), 0.0, 5, 1.0)
-            return fn
-        except Exception:  # noqa: BLE001 - a typing error: use the loop
-            pass
-    return register_jitable(_is_sticking_local)
-
-
-is_sticking = _pick_is_sticking()
-
-
 def _rules_digest():
     """A hash of the rules' source: part of the kernels' cache key, so that a
     change of :mod:`hybridsim.rules` recompiles them (numba's own cache key only
     sees this file)."""
-    src = inspect.getsource(rules) + inspect.getsource(is_sticking)
+    src = inspect.getsource(rules)
     return hashlib.sha256(src.encode()).hexdigest()
 
 
@@ -95,11 +83,18 @@ _JUMPS, _FLOWS, _RANDOM = int(rules.Priority.JUMPS), int(rules.Priority.FLOWS), 
 _A_JUMP, _A_FLOW, _A_STOP = int(rules.Action.JUMP), int(rules.Action.FLOW), \
     int(rules.Action.STOP)
 
-#: cause codes returned by the kernels (names of :class:`hybridsim.rules.Termination`)
-CAUSES = ("T_MAX", "J_MAX", "NOT_IN_SETS", "LEFT_SETS", "NON_FINITE", "BLOWUP",
-          "SOLVER_FAILED", "MAP_ERROR", "ZENO", "MAX_STEPS")
-(T_MAX, J_MAX, NOT_IN_SETS, LEFT_SETS, NON_FINITE, BLOWUP, SOLVER_FAILED, MAP_ERROR,
- ZENO, MAX_STEPS) = range(10)
+#: cause codes returned by the kernels: ``rules.CODES`` (names of
+#: :class:`hybridsim.rules.Termination`, in ``rules.CAUSES``'s order)
+CAUSES = tuple(c.name for c in rules.CAUSES)
+_T = rules.Termination
+T_MAX, J_MAX, NOT_IN_SETS, LEFT_SETS, NON_FINITE, BLOWUP, SOLVER_FAILED, MAP_ERROR, ZENO, \
+    MAX_STEPS, CANCELED = (rules.CODES[c] for c in (
+        _T.T_MAX, _T.J_MAX, _T.NOT_IN_SETS, _T.LEFT_SETS, _T.NON_FINITE, _T.BLOWUP,
+        _T.SOLVER_FAILED, _T.MAP_ERROR, _T.ZENO, _T.MAX_STEPS, _T.CANCELED))
+_GOES_ON = rules.NO_CAUSE
+_OUTSIDE = -2                   # in neither set: decided by ``_Run._stop_outside``'s rules
+#: MAP_ERROR details (which map, and where)
+MAP_JUMP_SHAPE, MAP_JUMP_VALUE, MAP_FLOW_SHAPE, MAP_FLOW_X0, MAP_JUMP_X0, MAP_GUARD = range(6)
 
 # flow outcomes
 _O_TMAX, _O_JUMP, _O_FLOW_ON, _O_STOP = 0, 1, 2, 3
@@ -109,7 +104,9 @@ _ARGS = (types.float64[::1], types.float64, types.int64, types.float64[::1])
 VEC_SIG = types.float64[::1](*_ARGS)
 SCAL_SIG = types.float64(*_ARGS)
 BOOL_SIG = types.boolean(*_ARGS)
-VEC_T, SCAL_T, BOOL_T = (types.FunctionType(s) for s in (VEC_SIG, SCAL_SIG, BOOL_SIG))
+with warnings.catch_warnings():     # "first-class function type feature is experimental"
+    warnings.simplefilter("ignore", nb_errors.NumbaExperimentalFeatureWarning)
+    VEC_T, SCAL_T, BOOL_T = (types.FunctionType(s) for s in (VEC_SIG, SCAL_SIG, BOOL_SIG))
 
 
 def as_vec(v):
@@ -249,6 +246,84 @@ def absent_true(x, t, j, p):
     return True
 
 
+# ------------------------------------------------------------------ Ctrl-C
+_CHECK_SIG = types.int32()
+_OCC_SIG = types.intp()
+_CLEAR_SIG = types.none()
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore", nb_errors.NumbaExperimentalFeatureWarning)
+    CHECK_T, OCC_T, CLEAR_T = (types.FunctionType(s) for s in (_CHECK_SIG, _OCC_SIG,
+                                                               _CLEAR_SIG))
+
+
+# ------------------------------------------------------------------ functions by address
+# The generic kernels take the maps (and the Ctrl-C poll) as C addresses in an
+# int64 array, made first-class function values inside compiled code: a
+# first-class function argument costs ~3 us of Python work per call to unbox
+# (numba asks the object for its address through Python, a pickle included),
+# 30 us for the nine of a run, as much as a short run itself; a numpy
+# Generator argument costs 5 us more (hence :func:`rng_pointers`).
+def _from_address(fnty):
+    """An intrinsic: an int64 C address (of a function of ``fnty``'s signature,
+    C calling convention: a numba cfunc wrapper, or a C API function) as a
+    first-class function value of type ``fnty``."""
+    @intrinsic
+    def fn(typingctx, addr):
+        if not isinstance(addr, types.Integer):
+            return None
+
+        def codegen(context, builder, sig, args):
+            st = cgutils.create_struct_proxy(fnty)(context, builder)
+            vp = context.get_value_type(types.voidptr)
+            st.c_addr = builder.inttoptr(args[0], vp)
+            st.py_addr = ir.Constant(vp, None)
+            st.jit_addr = ir.Constant(vp, None)       # called through c_addr
+            return st._getvalue()
+        return fnty(addr), codegen
+    return fn
+
+
+_vec_at, _scal_at, _bool_at = (_from_address(t) for t in (VEC_T, SCAL_T, BOOL_T))
+_check_at, _occ_at, _clear_at = (_from_address(t) for t in (CHECK_T, OCC_T, CLEAR_T))
+
+
+@intrinsic
+def _next_double(typingctx, fnaddr, state):
+    """numpy's ``bitgen.next_double(state)`` by the addresses of its
+    BitGenerator's ctypes interface: ``Generator.random()``'s draw."""
+    if not (isinstance(fnaddr, types.Integer) and isinstance(state, types.Integer)):
+        return None
+
+    def codegen(context, builder, sig, args):
+        i64 = ir.IntType(64)
+        fty = ir.FunctionType(ir.DoubleType(), (i64,))
+        fptr = builder.inttoptr(args[0], fty.as_pointer())
+        return builder.call(fptr, (args[1],))
+    return types.float64(types.int64, types.int64), codegen
+
+
+@njit(cache=True, **_NJ)
+def _coin(rngp):
+    """A fair coin from the run's numpy Generator (``rngp``: its BitGenerator's
+    ``state_address`` and ``next_double`` address): ``rng.random() < 0.5``."""
+    return _next_double(rngp[1], rngp[0]) < 0.5
+
+
+@njit(_CHECK_SIG, cache=True)
+def _no_signal():  # pragma: no cover - called from compiled code
+    return 0
+
+
+@njit(_OCC_SIG, cache=True)
+def _no_error():  # pragma: no cover
+    return 0
+
+
+@njit(_CLEAR_SIG, cache=True)
+def _no_clear():  # pragma: no cover
+    return None
+
+
 # ------------------------------------------------------------------ helpers
 @njit(cache=True, **_NJ)
 def _dense(yold, hQ, told, h, s):
@@ -291,12 +366,65 @@ def _all_finite(v):
     return True
 
 
+@intrinsic
+def _f64_ptr(typingctx, addr):
+    """An integer address as a float64 pointer (for :func:`numba.carray`)."""
+    if not isinstance(addr, types.Integer):
+        return None
+
+    def codegen(context, builder, sig, args):
+        return builder.inttoptr(args[0], ir.DoubleType().as_pointer())
+    return types.CPointer(types.float64)(addr), codegen
+
+
 @njit(cache=True, **_NJ)
+def _fault(ev_addr, which, s, j):
+    """Record the first NaN guard of the run in the kernel's ``ev`` (at
+    ``ev_addr``; ``ev[0]``: 1 jump_guard, 2 flow_guard, then s and j)."""
+    ev = numba.carray(_f64_ptr(ev_addr), 3)
+    if ev[0] == 0.0:
+        ev[0] = which
+        ev[1] = s
+        ev[2] = j
+
+
+# _inD, _inC, _pred: inlined into the event search (calls there are ~10% of a run)
+@njit(cache=True, inline='always', **_NJ)
+def _inD(M, y, s, j, p):
+    """x in D: the indicator, or {jump_guard >= 0} where D is derived from its guard
+    (a NaN guard is the map's contract breach: recorded at ``M[8]``, as the Python
+    path's ``MapError``).
+
+    ``M`` = (f, g, hD, hC, D, C, D from its guard, C from its guard, the
+    address of the kernel's fault record): scalars only. An array in ``M``
+    (passed to every helper of the event search) cost 10% of a run."""
+    if M[6]:
+        v = M[2](y, s, j, p)
+        if v != v:
+            _fault(M[8], 1.0, s, j)
+            return False
+        return v >= 0.0
+    return M[4](y, s, j, p)
+
+
+@njit(cache=True, inline='always', **_NJ)
+def _inC(M, y, s, j, p):
+    """x in C: the indicator, or {flow_guard >= 0} (see :func:`_inD`)."""
+    if M[7]:
+        v = M[3](y, s, j, p)
+        if v != v:
+            _fault(M[8], 2.0, s, j)
+            return True
+        return v >= 0.0
+    return M[5](y, s, j, p)
+
+
+@njit(cache=True, inline='always', **_NJ)
 def _pred(M, s, y, j, p, has_C, d_active):
     """The event has happened at (s, y): left C, or (watched) entered D."""
-    if has_C and not M[5](y, s, j, p):
+    if has_C and not _inC(M, y, s, j, p):
         return True
-    if d_active and M[4](y, s, j, p):
+    if d_active and _inD(M, y, s, j, p):
         return True
     return False
 
@@ -593,7 +721,7 @@ def _initial_step(f, t0, y0, t_bound, max_step, f0, rtol, atol, j, p):
 
 @njit(cache=True, **_NJ)
 def _event(M, yold, hQ, told, h, j, p, has_C, has_D, d_active, phi_on, useD, useC,
-           a, lo, hi, clamp, h_abs, flow_t0, prio, rng, yb, yb_known):
+           a, lo, hi, clamp, h_abs, flow_t0, prio, rngp, yb, yb_known):
     """``_Run._event``: locate, then decide. Returns (kind, te, xe, lo, ylo, h_hint)."""
     lo, hi, ylo, yhi = _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on,
                                useD, useC, lo, hi, yb, yb_known)
@@ -602,30 +730,47 @@ def _event(M, yold, hQ, told, h, j, p, has_C, has_D, d_active, phi_on, useD, use
     else:
         hint = min(h_abs, 10.0 * (hi - flow_t0))
     te_hi = hi if not clamp == clamp else min(hi, clamp)
-    if d_active and M[4](yhi, hi, j, p):
-        in_C = (not has_C) or M[5](yhi, hi, j, p)
-        coin = True
-        if rules.needs_coin(in_C, True, prio):
-            coin = rng.random() < 0.5
-        action = rules.decide_at_event(True, in_C, prio, coin)
-        kind = _O_JUMP if action == _A_JUMP else _O_FLOW_ON
-        return kind, te_hi, yhi, lo, ylo, hint
-    if has_D and M[4](ylo, lo, j, p):
-        return _O_JUMP, lo, ylo, lo, ylo, hint
-    if has_D and M[4](yhi, hi, j, p):
+    # ``rules.event_outcome``: the maps are read only where the rule needs them
+    in_D_hi = has_D and _inD(M, yhi, hi, j, p)
+    in_C_hi = True
+    in_D_lo = False
+    coin = True
+    if d_active and in_D_hi:
+        in_C_hi = (not has_C) or _inC(M, yhi, hi, j, p)
+        if rules.needs_coin(in_C_hi, True, prio):
+            coin = _coin(rngp)
+    elif has_D:
+        in_D_lo = _inD(M, ylo, lo, j, p)
+    action, side = rules.event_outcome(d_active, in_D_hi, in_C_hi, in_D_lo, prio, coin)
+    if action == _A_FLOW:
+        return _O_FLOW_ON, te_hi, yhi, lo, ylo, hint
+    if action == _A_STOP:
+        return _O_STOP, lo, ylo, lo, ylo, hint
+    if side == 1:
         return _O_JUMP, te_hi, yhi, lo, ylo, hint
-    return _O_STOP, lo, ylo, lo, ylo, hint
+    return _O_JUMP, lo, ylo, lo, ylo, hint
 
 
-def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rng):
+def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
     """One run, entirely compiled.
 
     Returns ``(T, J, X, XD, cause, detail, info, stats)``: the samples
     (trimmed), the cause code (:data:`CAUSES`), a detail code saying which
     message variant, ``info`` (floats for the message: t, t2, value, j) and
     ``stats`` (steps, rejected, nfev, events, flows, jumps).
+
+    ``rngp``: the run's numpy Generator by its addresses (:func:`rng_pointers`).
+    ``poll``: the addresses of (check, occurred, clear): ``PyErr_CheckSignals``,
+    ``PyErr_Occurred`` and ``PyErr_Clear`` for a run in the thread that holds
+    the GIL (Ctrl-C is read at every step and jump: the run ends ``CANCELED``),
+    no-ops inside a parallel batch, whose runs read ``stop[0]`` instead.
     """
-    M = (f, g, hD, hC, D, C)
+    # the first NaN guard (which, s, j): written by ``_fault`` through its address
+    ev = np.zeros(3)
+    M = (f, g, hD, hC, D, C, iopt[11] != 0, iopt[12] != 0, ev.ctypes.data)
+    check = _check_at(poll[0])
+    occurred = _occ_at(poll[1])
+    clear = _clear_at(poll[2])
     t0 = fopt[0]
     t_max = fopt[1]
     j_max = fopt[2]
@@ -657,7 +802,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rng):
     X = np.empty((cap, n))
     XD = np.empty((cap, n))
     stats = np.zeros(6, np.int64)
-    info = np.full(4, np.nan)
+    info = np.full(6, np.nan)
     cause = -1
     detail = 0
     K = np.zeros((7, n))
@@ -676,37 +821,51 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rng):
     T, J, X, XD = _push(T, J, X, XD, 0, t, j, x)
     ns = 1
     # at x0: the maps' values are checked (the Python path raises at once)
-    in_D0 = has_D and D(x, t, j, p)
-    if (not has_C) or C(x, t, j, p):
+    in_D0 = has_D and _inD(M, x, t, j, p)
+    if ev[0] != 0.0:
+        info[0] = ev[1]
+        info[2] = ev[0]
+        info[3] = ev[2]
+        return (T[:1].copy(), J[:1].copy(), X[:1].copy(), XD[:1].copy(), MAP_ERROR,
+                MAP_GUARD, info, stats)
+    if (not has_C) or _inC(M, x, t, j, p):
         v0 = f(x, t, j, p)
         if v0.shape[0] != n or not _all_finite(v0):
             info[0] = t
             info[2] = v0.shape[0]
             info[3] = j
-            return (T[:1].copy(), J[:1].copy(), X[:1].copy(), XD[:1].copy(), MAP_ERROR, 3,
-                    info, stats)
+            return (T[:1].copy(), J[:1].copy(), X[:1].copy(), XD[:1].copy(), MAP_ERROR,
+                    MAP_FLOW_X0, info, stats)
     if in_D0:
         v0 = g(x, t, j, p)
         if v0.shape[0] != n or not _all_finite(v0):
             info[0] = t
             info[2] = v0.shape[0]
             info[3] = j
-            return (T[:1].copy(), J[:1].copy(), X[:1].copy(), XD[:1].copy(), MAP_ERROR, 4,
-                    info, stats)
+            return (T[:1].copy(), J[:1].copy(), X[:1].copy(), XD[:1].copy(), MAP_ERROR,
+                    MAP_JUMP_X0, info, stats)
     forced = False
     flow_on = False
     in_D = False
     in_C = True
     done = False
     while not done:
+        if stop[0] != 0 or check() != 0 or occurred() != 0:
+            clear()                  # the KeyboardInterrupt: the run ends CANCELED
+            cause = CANCELED
+            break
         if flow_on:
             in_D = True
         else:
-            in_D = has_D and D(x, t, j, p)
-            in_C = (not has_C) or C(x, t, j, p)
+            in_D = has_D and _inD(M, x, t, j, p)
+            in_C = (not has_C) or _inC(M, x, t, j, p)
+            if ev[0] != 0.0:
+                cause = MAP_ERROR
+                detail = MAP_GUARD
+                break
             coin = False
             if rules.needs_coin(in_C, in_D, prio, forced):
-                coin = rng.random() < 0.5
+                coin = _coin(rngp)
             action = rules.decide(in_C, in_D, prio, coin, forced)
             forced = False
             if action == _A_JUMP:
@@ -716,7 +875,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rng):
                 xn = g(x, t, j, p)
                 if xn.shape[0] != n or not _all_finite(xn):
                     cause = MAP_ERROR
-                    detail = 0 if xn.shape[0] != n else 1
+                    detail = MAP_JUMP_SHAPE if xn.shape[0] != n else MAP_JUMP_VALUE
                     info[0] = t
                     info[2] = xn.shape[0]
                     info[3] = j
@@ -745,18 +904,15 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rng):
                     break
                 T, J, X, XD = _push(T, J, X, XD, ns, t, j, x)
                 ns += 1
-                if jumps >= j_max:
-                    cause = J_MAX
-                    break
-                if short >= zeno_jumps:
-                    cause = ZENO
-                    detail = 0
+                c = rules.after_jump(jumps, short, j_max, zeno_jumps)
+                if c != _GOES_ON:
+                    cause = c
                     info[0] = t
                     info[2] = short
                     break
                 continue
             if action == _A_STOP:
-                cause = -2           # decided below (_stop_outside)
+                cause = _OUTSIDE     # decided below (_stop_outside)
                 break
         if t >= t_max:
             cause = T_MAX
@@ -804,6 +960,11 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rng):
                 info[0] = a
                 t, x = a, ya
                 outcome = _O_STOP
+                break
+            if stop[0] != 0 or check() != 0 or occurred() != 0:
+                clear()
+                cause = CANCELED
+                t, x = a, ya
                 break
             # ---- scipy's RungeKutta._step_impl
             min_step = 10.0 * abs(np.nextafter(a, np.inf) - a)
@@ -923,15 +1084,27 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rng):
                 t, x = a, ya
                 break
             # dense output of the step: hQ = h K^T P
+            dense_ok = True
             for i in range(n):
                 for k in range(4):
                     acc = 0.0
                     for m in range(7):
                         acc += K[m, i] * _P[m, k]
-                    hQ[i, k] = hs * acc
-            event = has_C and not C(yb, b, j, p)
+                    acc *= hs
+                    hQ[i, k] = acc
+                    dense_ok = dense_ok and math.isfinite(acc)
+            if not dense_ok:
+                # the dense output overflowed (a finite end, a non-finite interior)
+                cause = NON_FINITE
+                detail = 2
+                info[0] = a
+                info[1] = b
+                info[3] = j
+                t, x = a, ya
+                break
+            event = has_C and not _inC(M, yb, b, j, p)
             if d_active:
-                event = event or D(yb, b, j, p)
+                event = event or _inD(M, yb, b, j, p)
             hit = False
             elo = a
             ehi = b
@@ -943,9 +1116,15 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rng):
                                           d_active and has_hD, useC, a, b)
             clamp = np.nan
             past = False
+            if not hit and watch_D and not d_active:
+                d_active = not _inD(M, yb, b, j, p)
+            if ev[0] != 0.0:
+                cause = MAP_ERROR
+                detail = MAP_GUARD
+                t, x = a, ya
+                break
             if not hit:
-                if watch_D and not d_active:
-                    d_active = not D(yb, b, j, p)
+                ns_step = ns             # this step's samples start here
                 if refine > 1 and b > a:
                     if ns + refine - 1 > max_samples:
                         cause = MAX_STEPS
@@ -981,13 +1160,19 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rng):
                         # ``_event_past_t_max``: an entry into D within round-off
                         tb = b + rules.t_max_slack(b, jumps)
                         if _pred(M, tb, _dense(ya, hQ, a, hs, tb), j, p, has_C, True):
-                            if T[ns - 1] == b:
-                                ns -= 1
+                            # the step's samples are stored again by the
+                            # event's commit (up to te = b): drop them here
+                            ns = ns_step
                             past = True
                             hit = True
                             elo = b
                             ehi = tb
                             clamp = b
+                        if ev[0] != 0.0:
+                            cause = MAP_ERROR
+                            detail = MAP_GUARD
+                            t, x = b, yb
+                            break
                     if not past:
                         t, x = b, yb
                         outcome = _O_TMAX
@@ -1003,8 +1188,13 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rng):
             stats[3] += 1
             kind, te, xe, lo, _ylo, hint = _event(
                 M, ya, hQ, a, hs, j, p, has_C, has_D, da, phi_on, da and has_hD, useC,
-                a, elo, ehi, clamp, h_abs, flow_t0, prio, rng, yb, ehi == b and not past)
+                a, elo, ehi, clamp, h_abs, flow_t0, prio, rngp, yb, ehi == b and not past)
             h_hint = hint
+            if ev[0] != 0.0:
+                cause = MAP_ERROR
+                detail = MAP_GUARD
+                t, x = a, ya
+                break
             # ``_commit``
             if te > a:
                 if refine > 1:
@@ -1032,33 +1222,38 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rng):
             t, x = te, xe
             outcome = kind
             if kind == _O_STOP:
-                cause = -2
+                cause = _OUTSIDE
                 detail = 1
                 info[0] = lo
                 info[3] = j
             break
-        if cause != -1:
+        if cause != _GOES_ON:
             break
         if outcome == _O_JUMP:
             forced = True
         elif outcome == _O_FLOW_ON:
             flow_on = True
-    if cause == -2:
+    if cause == _OUTSIDE:
         # ``_Run._stop_outside``: x0 outside both sets, sticking, or leaving C u D
         if ns == 1:
             cause = NOT_IN_SETS
             detail = 0
         else:
             scale = rules.time_scale(t0, t, t_max)
-            if is_sticking(flows_last[:n_flows_last], t - t_last_jump, jumps, scale):
+            if rules.is_sticking(flows_last[:n_flows_last], t - t_last_jump, jumps, scale):
                 cause = ZENO
                 detail = 1
-                info[1] = flows_last[max(n_flows_last - 3, 0)]
-                info[2] = flows_last[n_flows_last - 1]
+                info[1] = flows_last[n_flows_last - 3]
+                info[4] = flows_last[n_flows_last - 2]
+                info[5] = flows_last[n_flows_last - 1]
             else:
                 cause = LEFT_SETS
         info[0] = t
         info[3] = j
+    if cause == MAP_ERROR and detail == MAP_GUARD:
+        info[0] = ev[1]
+        info[2] = ev[0]
+        info[3] = ev[2]
     if cause != MAP_ERROR and XD[ns - 1, 0] != XD[ns - 1, 0]:
         fl = f(np.ascontiguousarray(X[ns - 1]), T[ns - 1], J[ns - 1], p)
         if fl.shape[0] == n:
@@ -1068,13 +1263,23 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rng):
             info, stats)
 
 
-#: one run on the first-class map signatures: compiled once, cached on disk
-run_one = njit(cache=True, **_NJ)(_run_core)
+#: one run on the first-class map signatures (called by :func:`run_one`)
+_run_fc = njit(cache=True, **_NJ)(_run_core)
+
+
+@njit(cache=True, **_NJ)
+def run_one(maps, x0, p, fopt, iopt, atol, rngp, poll, stop):
+    """One run of the maps at the addresses ``maps`` (f, g, hD, hC, D, C: their
+    cfunc wrappers, :func:`map_addresses`): compiled once, cached on disk."""
+    return _run_fc(_vec_at(maps[0]), _vec_at(maps[1]), _scal_at(maps[2]), _scal_at(maps[3]),
+                   _bool_at(maps[4]), _bool_at(maps[5]), x0, p, fopt, iopt, atol, rngp, poll,
+                   stop)
+
 #: one run specialised on a system's own map dispatchers (maps inlined; not cached)
 run_one_spec = njit(**_NJ)(_run_core)
 
 
-def _batch_generic(f, g, hD, hC, D, C, X0, p, fopt, iopt, atol, rng, cap):
+def _batch_generic(maps, X0, p, fopt, iopt, atol, rngp, cap, poll, stop):
     """Many runs in parallel (``prange``), each written into a slot of ``cap``
     samples of a preallocated pool; a run longer than ``cap`` keeps only its
     counts (``NS[i] > cap``) and is re-run by the caller with :func:`run_one`."""
@@ -1087,11 +1292,11 @@ def _batch_generic(f, g, hD, hC, D, C, X0, p, fopt, iopt, atol, rng, cap):
     NS = np.zeros(N, np.int64)
     CA = np.zeros(N, np.int64)
     DE = np.zeros(N, np.int64)
-    INFO = np.empty((N, 4))
+    INFO = np.empty((N, 6))
     ST = np.zeros((N, 6), np.int64)
     for i in prange(N):
         T, J, X, XD, cause, detail, info, stats = run_one(
-            f, g, hD, hC, D, C, np.ascontiguousarray(X0[i]), p, fopt, iopt, atol, rng)
+            maps, np.ascontiguousarray(X0[i]), p, fopt, iopt, atol, rngp, poll, stop)
         m = T.shape[0]
         NS[i] = m
         CA[i] = cause
@@ -1106,10 +1311,12 @@ def _batch_generic(f, g, hD, hC, D, C, X0, p, fopt, iopt, atol, rng, cap):
     return TT, JJ, XX, XXD, NS, CA, DE, INFO, ST
 
 
-run_batch = njit(cache=True, parallel=True, **_NJ)(_batch_generic)
+#: released from the GIL: the caller runs it in a helper thread and, on Ctrl-C in
+#: the main thread, sets ``stop[0]`` (see ``hybridsim.compiled._interruptible``)
+run_batch = njit(cache=True, parallel=True, nogil=True, **_NJ)(_batch_generic)
 
 
-def _batch_spec(f, g, hD, hC, D, C, X0, p, fopt, iopt, atol, rng, cap):
+def _batch_spec(f, g, hD, hC, D, C, X0, p, fopt, iopt, atol, rngp, cap, poll, stop):
     """:func:`run_batch` calling the specialised :data:`run_one_spec`."""
     N = X0.shape[0]
     n = X0.shape[1]
@@ -1120,11 +1327,12 @@ def _batch_spec(f, g, hD, hC, D, C, X0, p, fopt, iopt, atol, rng, cap):
     NS = np.zeros(N, np.int64)
     CA = np.zeros(N, np.int64)
     DE = np.zeros(N, np.int64)
-    INFO = np.empty((N, 4))
+    INFO = np.empty((N, 6))
     ST = np.zeros((N, 6), np.int64)
     for i in prange(N):
         T, J, X, XD, cause, detail, info, stats = run_one_spec(
-            f, g, hD, hC, D, C, np.ascontiguousarray(X0[i]), p, fopt, iopt, atol, rng)
+            f, g, hD, hC, D, C, np.ascontiguousarray(X0[i]), p, fopt, iopt, atol, rngp, poll,
+            stop)
         m = T.shape[0]
         NS[i] = m
         CA[i] = cause
@@ -1139,13 +1347,13 @@ def _batch_spec(f, g, hD, hC, D, C, X0, p, fopt, iopt, atol, rng, cap):
     return TT, JJ, XX, XXD, NS, CA, DE, INFO, ST
 
 
-run_batch_spec = njit(parallel=True, **_NJ)(_batch_spec)
+run_batch_spec = njit(parallel=True, nogil=True, **_NJ)(_batch_spec)
 
 
 def _signature_one():
-    gen = numba.typeof(np.random.default_rng(0))
-    return (VEC_T, VEC_T, SCAL_T, SCAL_T, BOOL_T, BOOL_T, types.float64[::1],
-            types.float64[::1], types.float64[::1], types.int64[::1], types.float64[::1], gen)
+    i64, f64 = types.int64[::1], types.float64[::1]
+    # maps, x0, p, fopt, iopt, atol, rngp, poll, stop
+    return (i64, f64, f64, f64, i64, f64, i64, i64, i64)
 
 
 def _key_with_rules():
@@ -1204,13 +1412,46 @@ except Exception:  # noqa: BLE001 - a numba version without these internals
 _READY = set()
 
 
-def compile_kernels(batch=True):
+def _batch_signature(sig):
+    return sig[:1] + (types.float64[:, ::1],) + sig[2:7] + (types.int64,) + sig[7:]
+
+
+def cache_dir():
+    """Where numba keeps this module's compiled kernels (None: not cached)."""
+    try:
+        return run_one._cache._cache_path
+    except AttributeError:
+        return None
+
+
+def _in_cache(disp, sig):
+    """Whether numba's disk cache holds ``disp`` compiled for ``sig`` (numba's
+    private cache API; where it is missing, the answer is no)."""
+    try:
+        cache = disp._cache
+        key = cache._index_key(sig, disp.targetctx.codegen())
+        return key in cache._cache_file._load_index()
+    except Exception:  # noqa: BLE001 - another numba: say it compiles
+        return False
+
+
+def compile_kernels(batch=True, notice=None):
     """Compile (or load from numba's on-disk cache) the kernels for the
-    first-class map signatures: ``run_one``, and ``run_batch`` when ``batch``."""
+    first-class map signatures: ``run_one``, and ``run_batch`` when ``batch``.
+
+    ``notice(cache_dir)`` is called once per process before kernels that are
+    not in the disk cache are compiled (a minute of silence otherwise)."""
     if "one" in _READY and (not batch or "batch" in _READY):
         return          # every call of simulate_compiled asks: answer cheaply
     import warnings
     sig = _signature_one()
+    if notice is not None and "noticed" not in _READY:
+        todo = [] if "one" in _READY else [(run_one, sig)]
+        if batch and "batch" not in _READY:
+            todo.append((run_batch, _batch_signature(sig)))
+        if any(not _in_cache(d, s) for d, s in todo):
+            _READY.add("noticed")
+            notice(cache_dir())
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", nb_errors.NumbaExperimentalFeatureWarning)
         # compiled for the first-class map signatures only: a call with a
@@ -1219,8 +1460,7 @@ def compile_kernels(batch=True):
             _compile_or_rebuild(run_one, sig)
             _READY.add("one")
         if batch and "batch" not in _READY:
-            _compile_or_rebuild(run_batch, sig[:6] + (types.float64[:, ::1],) + sig[7:]
-                                + (types.int64,))
+            _compile_or_rebuild(run_batch, _batch_signature(sig))
             _READY.add("batch")
 
 
@@ -1268,6 +1508,48 @@ def _typeof_handle(val, c):
 
 
 _SIGS = {"vec": VEC_SIG, "scalar": SCAL_SIG, "bool": BOOL_SIG, "guard_set": BOOL_SIG}
+
+
+def _c_api_address(name):
+    import ctypes
+    return ctypes.cast(getattr(ctypes.pythonapi, name), ctypes.c_void_p).value
+
+
+def _addresses(a):
+    """An int64 array of addresses (writeable: numba types a read-only array
+    apart, and the kernels are compiled for one signature)."""
+    return np.array(a, dtype=np.int64)
+
+
+#: what a run in the GIL's thread polls for Ctrl-C (addresses, see :func:`_run_core`):
+#: the interpreter's own signal check (the SIGINT handler runs, raising
+#: KeyboardInterrupt), whether an exception is set, and the call that clears it
+#: (the run ends CANCELED)
+POLL_GIL = _addresses([_c_api_address(n) for n in
+                       ("PyErr_CheckSignals", "PyErr_Occurred", "PyErr_Clear")])
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore", nb_errors.NumbaExperimentalFeatureWarning)
+    # the same slots for runs on a parallel batch's worker threads (no GIL:
+    # they read the batch's stop flag only)
+    _POLL_NONE_H = (MapHandle(_no_signal, _CHECK_SIG), MapHandle(_no_error, _OCC_SIG),
+                    MapHandle(_no_clear, _CLEAR_SIG))
+POLL_NONE = _addresses([h.addr for h in _POLL_NONE_H])
+
+
+def map_addresses(handles):
+    """The ``maps`` argument of :func:`run_one` / :func:`run_batch`: the
+    addresses of six :class:`MapHandle` (f, g, hD, hC, D, C). The handles
+    (which keep the compiled code alive) must outlive every call."""
+    return _addresses([h.addr for h in handles])
+
+
+def rng_pointers(rng):
+    """The ``rngp`` argument of the kernels: a numpy Generator as the addresses
+    (state, next_double) of its BitGenerator's ctypes interface. ``rng`` must
+    outlive every call that uses them."""
+    import ctypes
+    ct = rng.bit_generator.ctypes
+    return _addresses([ct.state_address, ctypes.cast(ct.next_double, ctypes.c_void_p).value])
 
 
 def handle(disp, kind):

@@ -1,0 +1,216 @@
+"""The compiled path's smoke set: part of the default test command (not slow).
+
+A few systems through ``hybridsim.compiled`` against the Python path and
+closed forms: README's example (the ball, run as README prints it), a timer
+with a jump at t_max, NaN guards and overflow, a batch with bad rows, Ctrl-C,
+and the arcs' stats and xdot. On a fresh numba cache the engine's kernels
+compile first (under a minute on two cores); afterwards the set takes seconds.
+The full comparison is tests/test_compiled.py (marked slow).
+"""
+import math
+import os
+import re
+import threading
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+numba = pytest.importorskip("numba", reason="the compiled path needs numba "
+                                            "(pip install 'hybridsim[fast]')")
+
+import hybridsim as hs  # noqa: E402
+from hybridsim.compiled import CompiledSystem, simulate_compiled, simulate_many_compiled  # noqa: E402
+from hybridsim.library import bouncing_ball_jump_times  # noqa: E402
+
+T = hs.Termination
+README = Path(__file__).resolve().parents[1] / "README.md"
+
+
+def readme_example():
+    """The first python block of README's section on the compiled path."""
+    text = README.read_text(encoding="utf-8")
+    start = text.index("### The compiled path")
+    block = re.search(r"```python\n(.*?)```", text[start:], re.S)
+    return block.group(1)
+
+
+# ------------------------------------------------------------------ maps
+def one(x, t, j, p):
+    return np.ones(1)
+
+
+def zero(x, t, j, p):
+    return np.zeros(1)
+
+
+def half(x, t, j, p):
+    return x[0] - 0.5
+
+
+def nan_near_jump(x, t, j, p):
+    """A jump guard that breaks its contract (NaN) as the timer nears its jump."""
+    return np.nan if x[0] > 0.9 else x[0] - 1.0
+
+
+def ball_f(x, t, j, p):
+    return np.array([x[1], -9.81])
+
+
+def ball_f_bad_high(x, t, j, p):
+    """The ball's flow map, non-finite above 5 m (fails at such an x0)."""
+    if x[0] > 5.0:
+        return np.array([np.nan, np.nan])
+    return np.array([x[1], -9.81])
+
+
+def ball_g(x, t, j, p):
+    return np.array([0.0, -0.8 * x[1]])
+
+
+def ball_hD(x, t, j, p):
+    return -x[0]
+
+
+def ball_hC(x, t, j, p):
+    return x[0]
+
+
+def ball_D(x, t, j, p):
+    return x[0] <= 0.0 and x[1] <= 0.0
+
+
+@pytest.fixture(scope="module")
+def readme():
+    """README's example, run as printed: its namespace after the run."""
+    ns = {}
+    exec(compile(readme_example(), str(README), "exec"), ns)
+    return ns
+
+
+@pytest.fixture(scope="module")
+def timer():
+    return CompiledSystem(one, zero, jump_guard=half, state_dim=1)
+
+
+@pytest.fixture(scope="module")
+def ball_bad():
+    return CompiledSystem(ball_f_bad_high, ball_g, jump_guard=ball_hD, flow_guard=ball_hC,
+                          jump_set=ball_D, state_dim=2)
+
+
+# ------------------------------------------------------------------ README's example
+def test_readme_example_runs_and_bounces_right(readme):
+    arc, arcs, x0s = readme["arc"], readme["arcs"], readme["x0s"]
+    assert arc.termination is T.J_MAX and arc.jump_count == 30
+    np.testing.assert_allclose(arc.jump_times, bouncing_ball_jump_times(1.0, 30), rtol=0,
+                               atol=1e-9)
+    assert len(arcs) == len(x0s)
+    jt = np.array([a.jump_times for a in arcs])
+    np.testing.assert_allclose(jt, bouncing_ball_jump_times(x0s[:, 0], 10), rtol=0, atol=1e-9)
+
+
+def test_arcs_carry_stats_and_xdot_as_the_python_path(readme):
+    ball = readme["ball"]
+    a = simulate_compiled(ball, [1.0, 0.0], t_max=2.0, j_max=3)
+    b = hs.simulate(ball, [1.0, 0.0], t_max=2.0, j_max=3)
+    assert list(a.stats) == list(b.stats)
+    assert a.stats["steps"] > 0 and a.stats["events"] == 3 and a.stats["flows"] == 3
+    assert a.xdot is not None and a.xdot.shape == a.x.shape
+    np.testing.assert_allclose(a.xdot[:, 0], a.x[:, 1], atol=1e-9)
+    np.testing.assert_allclose(a.xdot[:, 1], -9.81, atol=1e-9)
+
+
+# ------------------------------------------------------------------ a timer
+def test_timer_jump_at_t_max_refined_samples_stored_once(timer):
+    a = simulate_compiled(timer, [0.0], t_max=1.0, refine=2)
+    b = hs.simulate(timer, [0.0], t_max=1.0, refine=2)
+    assert a.termination is b.termination is T.T_MAX
+    np.testing.assert_allclose(a.jump_times, [0.5, 1.0], rtol=0, atol=1e-12)
+    assert np.all(np.diff(a.t) >= 0)
+    pairs = list(zip(a.t.tolist(), a.j.tolist()))
+    assert len(pairs) == len(set(pairs)), pairs
+    assert a.t.shape == b.t.shape, (a.t, b.t)
+    np.testing.assert_array_equal(a.j, b.j)
+    np.testing.assert_allclose(a.t, b.t, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(a.x, b.x, rtol=0, atol=1e-12)
+
+
+# ------------------------------------------------------------------ non-finite values
+def test_nan_guard_is_the_python_paths_failure_not_out_of_the_set():
+    bad = CompiledSystem(one, zero, jump_guard=nan_near_jump, state_dim=1)
+    a = simulate_compiled(bad, [0.0], t_max=3.0, throw=False)
+    b = hs.simulate(bad, [0.0], t_max=3.0, throw=False)
+    assert a.termination in (T.NON_FINITE, T.MAP_ERROR)
+    assert a.termination is b.termination, (a.message, b.message)
+    assert "jump_guard" in a.message and a.t[-1] < 1.0 and a.jump_count == 0
+    assert a.t[-1] == pytest.approx(b.t[-1], abs=1e-12)
+    if a.termination is T.MAP_ERROR:
+        assert a.exception.map_name == "jump_guard"
+        with pytest.raises(hs.MapError, match="jump_guard") as e:
+            simulate_compiled(bad, [0.0], t_max=3.0)
+        assert e.value.arc.termination is T.MAP_ERROR
+
+
+def test_overflow_is_non_finite_not_outside_the_sets(readme):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        a = simulate_compiled(readme["ball"], [1e308, 1e308], t_max=3.0, throw=False)
+        b = hs.simulate(readme["ball"], [1e308, 1e308], t_max=3.0, throw=False)
+    assert a.termination in (T.NON_FINITE, T.MAP_ERROR), a.message
+    assert b.termination in (T.NON_FINITE, T.MAP_ERROR), b.message
+    assert a.termination is not T.NOT_IN_SETS
+
+
+def test_map_error_at_x0_raises_with_a_map_error_arc(ball_bad):
+    with pytest.raises(hs.MapError, match="flow_map") as e:
+        simulate_compiled(ball_bad, [6.0, 0.0], t_max=1.0, throw=False)
+    assert e.value.arc is not None and e.value.arc.termination is T.MAP_ERROR
+    assert len(e.value.arc.t) == 1
+
+
+# ------------------------------------------------------------------ a batch with bad rows
+def test_batch_keeps_good_rows_like_the_python_path(ball_bad):
+    X = np.array([[1.0, 0.0], [np.nan, 0.0], [2.0, 0.0], [6.0, 0.0], [1.5, 0.0]])
+    kw = dict(t_max=10.0, j_max=4)
+    with pytest.warns(hs.BatchWarning, match=r"row 1.*row 3") as rec:
+        a = hs.simulate_many(ball_bad, X, backend="compiled", **kw)
+    assert len([w for w in rec if issubclass(w.category, hs.BatchWarning)]) == 1
+    with pytest.warns(hs.BatchWarning):
+        b = hs.simulate_many(ball_bad, X, **kw)
+    assert [x.termination for x in a] == [x.termination for x in b] == [
+        T.J_MAX, T.NON_FINITE, T.J_MAX, T.MAP_ERROR, T.J_MAX]
+    assert a[3].message == b[3].message
+    for i in (0, 2, 4):
+        np.testing.assert_allclose(a[i].jump_times, b[i].jump_times, rtol=0, atol=1e-12)
+    with pytest.raises(hs.BatchError) as e:
+        simulate_many_compiled(ball_bad, X, throw=True, **kw)
+    assert e.value.row == 1 and len(e.value.arcs) == 5
+    assert all(arc is not None for arc in e.value.arcs)
+    assert e.value.arcs[4].termination is T.J_MAX          # the rows after it ran too
+
+
+# ------------------------------------------------------------------ Ctrl-C
+def _sigint_after(seconds):
+    """SIGINT from outside the process after ``seconds``, as a terminal's Ctrl-C.
+    (A ``threading.Timer`` cannot send it: a single run's kernel holds the GIL
+    the timer's thread would need.)"""
+    import subprocess
+    return subprocess.Popen(["sh", "-c", f"sleep {seconds}; kill -INT {os.getpid()}"])
+
+
+@pytest.mark.skipif(os.name != "posix" or
+                    threading.current_thread() is not threading.main_thread(),
+                    reason="POSIX signals, handled in the main thread")
+def test_ctrl_c_ends_a_run_canceled_with_the_arc_so_far(timer):
+    simulate_compiled(timer, [0.0], t_max=10.0)               # compiled before the clock
+    th = _sigint_after(0.3)
+    try:
+        a = simulate_compiled(timer, [0.0], t_max=math.inf, j_max=10**8, max_samples=10**9,
+                              max_steps=10**9)
+    finally:
+        th.wait()
+    assert a.termination is T.CANCELED
+    assert 1.0 < a.t[-1] < 5e7 and a.jump_count > 0
+    assert a.message == hs.rules.message(T.CANCELED, t=a.t[-1], j=a.j[-1])
