@@ -1,0 +1,253 @@
+"""The three integration paths behind one interface, for tests that must hold on all.
+
+A :class:`Linear` case (x' = A x, x+ = G x + c, D = {a.x - b >= 0}, and C =
+{e.x - d >= 0} or everything) is built on each path from the same numbers:
+
+* ``"python"``: :func:`hybridsim.simulate` on a plain ``HybridSystem``;
+* ``"vectorized"``: :func:`hybridsim.simulate_vectorized` on the same maps
+  written over (N, n) batches (one row);
+* ``"compiled"``: :func:`hybridsim.compiled.simulate_compiled` on a
+  ``CompiledSystem`` whose maps read the case's numbers from ``params``
+  (the maps are compiled once per state dimension and kind of sets, and
+  reused by every case: new numbers recompile nothing).
+
+``sets`` says how the sets are given: ``"guards"`` (continuous guards only:
+the sets derived from them), ``"both"`` (indicators decide membership, the
+guards locate crossings) or ``"indicators"`` (indicators only: events found
+by bisection of the indicators).
+
+``run(path, case, x0, **options)`` returns the arc; options a path does not
+implement raise its refusal (see :mod:`hybridsim.options`).
+"""
+from __future__ import annotations
+
+import importlib.util
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+import hybridsim as hs
+
+PATHS = ("python", "vectorized", "compiled")
+HAS_NUMBA = importlib.util.find_spec("numba") is not None
+NO_NUMBA = "the compiled path needs numba (pip install 'hybridsim[fast]')"
+SETS = ("guards", "both", "indicators")
+
+
+def path_params(compiled_slow=False):
+    """``pytest.mark.parametrize`` values for the paths: compiled skipped
+    without numba (and marked slow where ``compiled_slow``)."""
+    marks = [pytest.mark.skipif(not HAS_NUMBA, reason=NO_NUMBA)]
+    if compiled_slow:
+        marks.append(pytest.mark.slow)
+    return [pytest.param("python", id="python"), pytest.param("vectorized", id="vectorized"),
+            pytest.param("compiled", id="compiled", marks=marks)]
+
+
+@dataclass
+class Linear:
+    """x' = A x + k; x+ = G x + c; D = {a.x >= b}; C = {e.x >= d} (or all of R^n)."""
+
+    A: np.ndarray
+    G: np.ndarray
+    c: np.ndarray
+    a: np.ndarray
+    b: float
+    e: np.ndarray | None = None
+    d: float = 0.0
+    sets: str = "guards"
+    k: np.ndarray | None = None
+
+    @property
+    def n(self):
+        return len(self.a)
+
+    @property
+    def with_C(self):
+        return self.e is not None
+
+    def hD(self, x):
+        return float(self.a @ x - self.b)
+
+    def hC(self, x):
+        return np.inf if self.e is None else float(self.e @ x - self.d)
+
+    def build(self, path):
+        return {"python": self.python, "vectorized": self.vectorized,
+                "compiled": self.compiled}[path]()
+
+    # -------------------------------------------------------------- the paths
+    def python(self):
+        A, G, c, a, b, e, d = self.A, self.G, self.c, self.a, self.b, self.e, self.d
+        kw = {}
+        if self.sets in ("guards", "both"):
+            kw["jump_guard"] = lambda x: a @ x - b
+            if e is not None:
+                kw["flow_guard"] = lambda x: e @ x - d
+        if self.sets in ("both", "indicators"):
+            kw["D"] = lambda x: a @ x - b >= 0
+            if e is not None:
+                kw["C"] = lambda x: e @ x - d >= 0
+        k = np.zeros(self.n) if self.k is None else self.k
+        return hs.HybridSystem.from_functions(f=lambda x: A @ x + k, g=lambda x: G @ x + c,
+                                              state_dim=self.n, **kw)
+
+    def vectorized(self):
+        A, G, c, a, b, e, d = self.A, self.G, self.c, self.a, self.b, self.e, self.d
+        kw = {}
+        if self.sets in ("guards", "both"):
+            kw["jump_guard"] = lambda X: X @ a - b
+            if e is not None:
+                kw["flow_guard"] = lambda X: X @ e - d
+        if self.sets in ("both", "indicators"):
+            kw["D"] = lambda X: X @ a - b >= 0
+            if e is not None:
+                kw["C"] = lambda X: X @ e - d >= 0
+        k = np.zeros(self.n) if self.k is None else self.k
+        return hs.HybridSystem.from_functions(f=lambda X: X @ A.T + k, g=lambda X: X @ G.T + c,
+                                              state_dim=self.n, vectorized=True, **kw)
+
+    def params(self):
+        n = self.n
+        e = np.zeros(n) if self.e is None else self.e
+        k = np.zeros(n) if self.k is None else self.k
+        return np.concatenate([[n], self.A.ravel(), self.G.ravel(), self.c, self.a, [self.b],
+                               e, [self.d], k]).astype(float)
+
+    def compiled(self):
+        key = (self.n, self.with_C, self.sets)
+        system = _COMPILED.get(key)
+        if system is None:
+            system = _COMPILED[key] = _compiled_system(*key)
+        system.params = self.params()
+        return system
+
+
+def run(path, case, x0, **options):
+    """One run of ``case`` from ``x0`` on ``path``; the arc."""
+    system = case.build(path)
+    if path == "python":
+        return hs.simulate(system, x0, **options)
+    if path == "vectorized":
+        return hs.simulate_vectorized(system, np.atleast_2d(np.asarray(x0, float)),
+                                      **options)[0]
+    from hybridsim.compiled import simulate_compiled
+    return simulate_compiled(system, x0, **options)
+
+
+# ------------------------------------------------------------------ compiled maps
+# the case's numbers are read from p: [n, A (n*n), G (n*n), c (n), a (n), b, e (n), d, k (n)]
+_COMPILED = {}
+_MAPS = None
+
+
+def _maps():
+    global _MAPS
+    if _MAPS is not None:
+        return _MAPS
+    from numba import njit
+
+    @njit(cache=False)
+    def lin_f(x, t, j, p):
+        n = x.shape[0]
+        o = 3 + 2 * n * n + 3 * n
+        out = np.zeros(n)
+        for r in range(n):
+            out[r] = p[o + r]
+            for k in range(n):
+                out[r] += p[1 + r * n + k] * x[k]
+        return out
+
+    @njit(cache=False)
+    def lin_g(x, t, j, p):
+        n = x.shape[0]
+        o = 1 + n * n
+        out = np.zeros(n)
+        for r in range(n):
+            out[r] = p[o + n * n + r]
+            for k in range(n):
+                out[r] += p[o + r * n + k] * x[k]
+        return out
+
+    @njit(cache=False)
+    def lin_hD(x, t, j, p):
+        n = x.shape[0]
+        o = 1 + 2 * n * n + n
+        s = -p[o + n]
+        for k in range(n):
+            s += p[o + k] * x[k]
+        return s
+
+    @njit(cache=False)
+    def lin_hC(x, t, j, p):
+        n = x.shape[0]
+        o = 1 + 2 * n * n + 2 * n + 1
+        s = -p[o + n]
+        for k in range(n):
+            s += p[o + k] * x[k]
+        return s
+
+    @njit(cache=False)
+    def lin_D(x, t, j, p):
+        return lin_hD(x, t, j, p) >= 0.0
+
+    @njit(cache=False)
+    def lin_C(x, t, j, p):
+        return lin_hC(x, t, j, p) >= 0.0
+
+    _MAPS = dict(flow=lin_f, jump=lin_g, jump_guard=lin_hD, flow_guard=lin_hC,
+                 jump_set=lin_D, flow_set=lin_C)
+    return _MAPS
+
+
+def _compiled_system(n, with_C, sets):
+    from hybridsim.compiled import CompiledSystem
+    m = _maps()
+    kw = dict(flow=m["flow"], jump=m["jump"])
+    if sets in ("guards", "both"):
+        kw["jump_guard"] = m["jump_guard"]
+        if with_C:
+            kw["flow_guard"] = m["flow_guard"]
+    if sets in ("both", "indicators"):
+        kw["jump_set"] = m["jump_set"]
+        if with_C:
+            kw["flow_set"] = m["flow_set"]
+    return CompiledSystem(state_dim=n, params=np.zeros(3 + 2 * n * n + 4 * n), **kw)
+
+
+# ------------------------------------------------------------------ random cases
+def random_linear(seed, n, with_C, sets="guards"):
+    """A random case whose flows come back to the guard (rotations for n >= 2,
+    growth for n = 1) and whose jumps land outside D; x0 in C.
+
+    Returns ``(case, x0)``.
+    """
+    rng = np.random.default_rng(seed)
+    if n == 1:
+        A = np.array([[rng.uniform(0.2, 1.5)]])
+    else:
+        S = rng.normal(size=(n, n))
+        A = rng.uniform(1.0, 4.0) * (S - S.T) / 2 + rng.normal(scale=0.3, size=(n, n))
+    a = rng.normal(size=n)
+    a /= np.linalg.norm(a)
+    b = float(rng.uniform(0.2, 1.5))
+    G = rng.normal(scale=0.3, size=(n, n))
+    c = rng.normal(size=n) * 2.5
+    if a @ c > b - 0.3:
+        c -= a * (a @ c - b + 0.3 + rng.uniform(0.0, 1.0))
+    e, d = None, 0.0
+    x0 = rng.normal(size=n) * 2.0
+    if with_C:
+        e = rng.normal(size=n)
+        e /= np.linalg.norm(e)
+        d = float(rng.uniform(-4.0, -1.0))
+        if e @ x0 - d < 0:
+            x0 = x0 + (d - e @ x0 + 0.1) * e
+    return Linear(A, G, c, a, b, e, d, sets), x0
+
+
+def timer(period=0.5, sets="guards"):
+    """x' = 1, D = {x >= period}, g = 0: jumps at every multiple of period."""
+    return Linear(np.zeros((1, 1)), np.zeros((1, 1)), np.zeros(1), np.ones(1), period,
+                  sets=sets, k=np.ones(1))

@@ -1,0 +1,186 @@
+"""Every integration path under the same tests (issue 22).
+
+The Python loop, the vectorized numpy batch and the compiled kernel keep
+three loops; these tests hold them to one set of rules. Each test takes the
+``path`` parameter (see ``tests/paths.py``): random hybrid systems keep the
+invariants of a hybrid arc on every path, with ``refine``, jumps at t_max,
+both priorities, C ∩ D, guards and set indicators; the paths agree with each
+other sample for sample where they accept the same options; the same bad
+input gets the same exception and message everywhere; options a path does
+not implement are refused by name.
+
+Tolerances: events are bracketed to 4 ulp of t (``rules.event_tolerance``),
+so a state at an event is off its guard by at most |guard rate| * 4 ulp,
+below 1e-9 for these flows (states of order 10, rates of order 100); runs at
+rtol 1e-9 agree between paths to 1e-7 where their steps are the same
+arithmetic in another order.
+"""
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from paths import PATHS, SETS, Linear, path_params, random_linear, run, timer
+
+import hybridsim as hs
+from hybridsim import Termination
+
+T = Termination
+TOL_EVENT = 1e-8
+FUZZ = settings(max_examples=25, deadline=None,
+                suppress_health_check=[HealthCheck.too_slow,
+                                       HealthCheck.function_scoped_fixture])
+OPTS = dict(rtol=1e-9, atol=1e-11, max_norm=1e6, max_steps=20_000, warn=False)
+
+
+def assert_invariants(arc, case, priority, t_max, j_max):
+    """What every arc of a Linear case satisfies, whichever path computed it."""
+    arc.validate()
+    t, j, x = arc.t, arc.j, arc.x
+    assert np.all(np.diff(t) >= 0), "time runs backwards"
+    dj = np.diff(j)
+    assert np.all((dj == 0) | (dj == 1))
+    jumps = np.flatnonzero(dj == 1)
+    assert np.all(t[jumps] == t[jumps + 1])
+    same = (np.diff(t) == 0) & (dj == 0)
+    assert not same.any(), f"sample stored twice at t={t[1:][same][:3]}"
+    assert arc.jump_count == len(jumps) <= j_max
+    for k in jumps:                      # pre-jump samples are in D
+        assert case.hD(x[k]) >= -TOL_EVENT, (k, t[k], case.hD(x[k]))
+    if case.with_C:                      # samples the run flows from are in C
+        for k in np.flatnonzero((dj == 0) & (np.diff(t) > 0)):
+            assert case.hC(x[k]) >= -TOL_EVENT, (k, t[k], case.hC(x[k]))
+    cause = arc.termination
+    assert cause is not None
+    if cause is T.T_MAX:
+        assert t[-1] == t_max
+    elif cause is T.J_MAX:
+        assert arc.jump_count == j_max
+    elif cause in (T.LEFT_SETS, T.NOT_IN_SETS):
+        assert case.with_C and case.hC(x[-1]) <= TOL_EVENT and case.hD(x[-1]) < TOL_EVENT
+    elif cause is T.BLOWUP:
+        assert np.linalg.norm(x[-1]) > 1e6
+    else:
+        assert cause in (T.ZENO, T.MAX_STEPS), cause
+    # one arc contract: every path fills xdot and stats
+    assert arc.xdot is not None and arc.xdot.shape == x.shape
+    assert arc.stats is not None and {"steps", "nfev", "events", "flows"} <= set(arc.stats)
+
+
+@pytest.mark.parametrize("path", path_params())
+@FUZZ
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 3), with_C=st.booleans(),
+       sets=st.sampled_from(SETS), priority=st.sampled_from(["jumps", "flows"]),
+       refine=st.sampled_from([1, 2, 4]), t_max=st.floats(2.0, 6.0),
+       j_max=st.integers(6, 20))
+def test_random_systems_keep_the_invariants_on_every_path(path, seed, n, with_C, sets,
+                                                          priority, refine, t_max, j_max):
+    case, x0 = random_linear(seed, n, with_C, sets)
+    arc = run(path, case, x0, t_max=t_max, j_max=j_max, priority=priority, refine=refine,
+              **OPTS)
+    assert_invariants(arc, case, priority, t_max, j_max)
+
+
+@pytest.mark.parametrize("path", [p for p in path_params()
+                                  if p.values[0] != "python"])
+@FUZZ
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 3), with_C=st.booleans(),
+       sets=st.sampled_from(["guards", "both"]), priority=st.sampled_from(["jumps", "flows"]),
+       refine=st.sampled_from([1, 3]))
+def test_every_path_gives_the_python_paths_samples(path, seed, n, with_C, sets, priority,
+                                                   refine):
+    """The same run, the same samples: jump times and states to 1e-7 (rtol 1e-9)."""
+    case, x0 = random_linear(seed, n, with_C, sets)
+    kw = dict(t_max=3.0, j_max=8, priority=priority, refine=refine, **OPTS)
+    ref = run("python", case, x0, **kw)
+    arc = run(path, case, x0, **kw)
+    assert arc.termination is ref.termination, (arc.message, ref.message)
+    assert arc.jump_count == ref.jump_count
+    np.testing.assert_allclose(arc.jump_times, ref.jump_times, rtol=0, atol=1e-7)
+    np.testing.assert_allclose(arc.xf, ref.xf, rtol=1e-6, atol=1e-7)
+    # sample for sample where the steps are the same
+    if len(arc.t) == len(ref.t):
+        np.testing.assert_allclose(arc.t, ref.t, rtol=0, atol=1e-7)
+        np.testing.assert_array_equal(arc.j, ref.j)
+
+
+@pytest.mark.parametrize("path", path_params())
+@pytest.mark.parametrize("sets", SETS)
+@pytest.mark.parametrize("refine", [1, 2, 4])
+def test_a_jump_at_t_max_stores_every_sample_once(path, sets, refine):
+    """The timer x' = 1, D = {x >= 0.5}, g = 0 to t_max = 1: jumps at 0.5 and 1.0,
+    samples refine - 1 per step, none twice, time never running backwards."""
+    case = timer(0.5, sets)
+    arc = run(path, case, [0.0], t_max=1.0, refine=refine, warn=False)
+    assert_invariants(arc, case, "jumps", 1.0, math.inf)
+    np.testing.assert_allclose(arc.jump_times, [0.5, 1.0], atol=1e-12)
+    assert arc.t[-1] == 1.0 and arc.j[-1] == 2
+    ref = run("python", case, [0.0], t_max=1.0, refine=refine, warn=False)
+    np.testing.assert_allclose(arc.t, ref.t, atol=1e-12)
+    np.testing.assert_array_equal(arc.j, ref.j)
+
+
+@pytest.mark.parametrize("path", path_params())
+@pytest.mark.parametrize("bad, error, match", [
+    (dict(refine=True), TypeError, "refine must be an int >= 1"),
+    (dict(refine=0), ValueError, "refine must be >= 1"),
+    (dict(zeno_jumps=0), ValueError, "zeno_jumps must be >= 1"),
+    (dict(rtol=-1.0), ValueError, "rtol must be > 0"),
+    (dict(priority="sometimes"), ValueError, "priority must be one of"),
+    (dict(t_max=-1.0), ValueError, "t_max must be >= t0"),
+    (dict(max_steps=0), ValueError, "max_steps must be >= 1"),
+    (dict(throw="yes"), TypeError, "throw must be True or False"),
+    (dict(warn=1), TypeError, "warn must be True or False"),
+])
+def test_the_same_bad_input_gets_the_same_error_on_every_path(path, bad, error, match):
+    kw = dict(t_max=1.0)
+    kw.update(bad)
+    with pytest.raises(error, match=match):
+        run(path, timer(), [0.0], **kw)
+
+
+@pytest.mark.parametrize("path", [p for p in path_params() if p.values[0] != "python"])
+@pytest.mark.parametrize("option, value", [
+    ("dense", True), ("t_eval", [0.0, 0.5]), ("prehistory", lambda s: np.zeros(1)),
+    ("method", "Radau"),
+])
+def test_options_a_path_does_not_implement_are_refused_by_name(path, option, value):
+    with pytest.raises(ValueError, match=rf"{option}=.* is not supported on the {path} path"):
+        run(path, timer(), [0.0], t_max=1.0, **{option: value})
+
+
+@pytest.mark.parametrize("path", path_params())
+def test_overflow_is_non_finite_on_every_path(path):
+    """A ball (x' = (v, -9.81), C = {h >= 0}, D = {-h >= 0}) from (1e308, 1e308):
+    the flow at x0 is finite, the state overflows inside the first step. That is
+    NON_FINITE with a warning, never a set exit at x0."""
+    case = Linear(np.array([[0.0, 1.0], [0.0, 0.0]]), np.zeros((2, 2)), np.zeros(2),
+                  np.array([-1.0, 0.0]), 0.0, np.array([1.0, 0.0]), 0.0,
+                  k=np.array([0.0, -9.81]))
+    with pytest.warns(hs.SimulationWarning, match="NON_FINITE"):
+        arc = run(path, case, [1e308, 1e308], t_max=1.0, throw=False)
+    assert arc.termination is T.NON_FINITE, (arc.termination, arc.message)
+    arc.validate()
+
+
+@pytest.mark.parametrize("path", path_params())
+def test_a_map_error_at_x0_carries_an_arc_with_its_cause(path):
+    case = timer()
+    case.k = np.array([np.nan])          # the flow map returns NaN at x0
+    with pytest.raises(hs.MapError) as info:
+        run(path, case, [0.0], t_max=1.0)
+    assert info.value.arc is not None
+    assert info.value.arc.termination is T.MAP_ERROR
+
+
+@pytest.mark.parametrize("path", path_params())
+def test_failures_warn_the_same_way_on_every_path(path):
+    case, x0 = random_linear(5, 2, False)
+    with pytest.warns(hs.SimulationWarning, match="MAX_STEPS"):
+        arc = run(path, case, x0, t_max=5.0, max_steps=3)
+    assert arc.termination is T.MAX_STEPS
+
+
+def test_paths_listed():
+    assert PATHS == ("python", "vectorized", "compiled")
