@@ -58,6 +58,7 @@ class Linear:
     d: float = 0.0
     sets: str = "guards"
     k: np.ndarray | None = None
+    sets_C: str | None = None       # how C is given, where not as D (``sets``)
 
     @property
     def n(self):
@@ -81,14 +82,15 @@ class Linear:
     def python(self):
         A, G, c, a, b, e, d = self.A, self.G, self.c, self.a, self.b, self.e, self.d
         kw = {}
-        if self.sets in ("guards", "both"):
+        sD, sC = self.sets, self.sets_C or self.sets
+        if sD in ("guards", "both"):
             kw["jump_guard"] = lambda x: a @ x - b
-            if e is not None:
-                kw["flow_guard"] = lambda x: e @ x - d
-        if self.sets in ("both", "indicators"):
+        if sD in ("both", "indicators"):
             kw["D"] = lambda x: a @ x - b >= 0
-            if e is not None:
-                kw["C"] = lambda x: e @ x - d >= 0
+        if e is not None and sC in ("guards", "both"):
+            kw["flow_guard"] = lambda x: e @ x - d
+        if e is not None and sC in ("both", "indicators"):
+            kw["C"] = lambda x: e @ x - d >= 0
         k = np.zeros(self.n) if self.k is None else self.k
         return hs.HybridSystem.from_functions(f=lambda x: A @ x + k, g=lambda x: G @ x + c,
                                               state_dim=self.n, **kw)
@@ -96,14 +98,15 @@ class Linear:
     def vectorized(self):
         A, G, c, a, b, e, d = self.A, self.G, self.c, self.a, self.b, self.e, self.d
         kw = {}
-        if self.sets in ("guards", "both"):
+        sD, sC = self.sets, self.sets_C or self.sets
+        if sD in ("guards", "both"):
             kw["jump_guard"] = lambda X: X @ a - b
-            if e is not None:
-                kw["flow_guard"] = lambda X: X @ e - d
-        if self.sets in ("both", "indicators"):
+        if sD in ("both", "indicators"):
             kw["D"] = lambda X: X @ a - b >= 0
-            if e is not None:
-                kw["C"] = lambda X: X @ e - d >= 0
+        if e is not None and sC in ("guards", "both"):
+            kw["flow_guard"] = lambda X: X @ e - d
+        if e is not None and sC in ("both", "indicators"):
+            kw["C"] = lambda X: X @ e - d >= 0
         k = np.zeros(self.n) if self.k is None else self.k
         return hs.HybridSystem.from_functions(f=lambda X: X @ A.T + k, g=lambda X: X @ G.T + c,
                                               state_dim=self.n, vectorized=True, **kw)
@@ -116,7 +119,7 @@ class Linear:
                                e, [self.d], k]).astype(float)
 
     def compiled(self):
-        key = (self.n, self.with_C, self.sets)
+        key = (self.n, self.with_C, self.sets, self.sets_C or self.sets)
         system = _COMPILED.get(key)
         if system is None:
             system = _COMPILED[key] = _compiled_system(*key)
@@ -125,13 +128,20 @@ class Linear:
 
 
 def run(path, case, x0, **options):
-    """One run of ``case`` from ``x0`` on ``path``; the arc."""
+    """One run of ``case`` (a :class:`Linear` or a :class:`Ball`) from ``x0``
+    on ``path``; the arc."""
     system = case.build(path)
     if path == "python":
         return hs.simulate(system, x0, **options)
     if path == "vectorized":
-        return hs.simulate_vectorized(system, np.atleast_2d(np.asarray(x0, float)),
-                                      **options)[0]
+        # one row of a batch, under the single run's raise/warn policy (a batch
+        # has its own: one BatchWarning, BatchError; tested in test_batch*)
+        throw, warn = options.pop("throw", True), options.pop("warn", True)
+        policy = {k: (False if isinstance(v, bool) else v)    # bad values: the path's error
+                  for k, v in (("throw", throw), ("warn", warn))}
+        arc = hs.simulate_vectorized(system, np.atleast_2d(np.asarray(x0, float)),
+                                     **policy, **options)[0]
+        return hs.rules.finish(arc, throw, warn)
     from hybridsim.compiled import simulate_compiled
     return simulate_compiled(system, x0, **options)
 
@@ -201,18 +211,18 @@ def _maps():
     return _MAPS
 
 
-def _compiled_system(n, with_C, sets):
+def _compiled_system(n, with_C, sets, sets_C):
     from hybridsim.compiled import CompiledSystem
     m = _maps()
     kw = dict(flow=m["flow"], jump=m["jump"])
     if sets in ("guards", "both"):
         kw["jump_guard"] = m["jump_guard"]
-        if with_C:
-            kw["flow_guard"] = m["flow_guard"]
     if sets in ("both", "indicators"):
         kw["jump_set"] = m["jump_set"]
-        if with_C:
-            kw["flow_set"] = m["flow_set"]
+    if with_C and sets_C in ("guards", "both"):
+        kw["flow_guard"] = m["flow_guard"]
+    if with_C and sets_C in ("both", "indicators"):
+        kw["flow_set"] = m["flow_set"]
     return CompiledSystem(state_dim=n, params=np.zeros(3 + 2 * n * n + 4 * n), **kw)
 
 
@@ -251,3 +261,111 @@ def timer(period=0.5, sets="guards"):
     """x' = 1, D = {x >= period}, g = 0: jumps at every multiple of period."""
     return Linear(np.zeros((1, 1)), np.zeros((1, 1)), np.zeros(1), np.ones(1), period,
                   sets=sets, k=np.ones(1))
+
+
+# ------------------------------------------------------------------ balls
+@dataclass
+class Ball:
+    """A bouncing ball x = (height, velocity), x' = (v, -gravity), written the
+    ways users write it: ``sets`` ``"guards"`` (guards only: D = {-h >= 0},
+    which the post-jump state at height 0 still satisfies), ``"both"`` (D =
+    {h <= 0, v <= 0} as an indicator beside the guards) or ``"indicators"``.
+    ``keep`` keeps the located height at the jump (x+ = (h, -lam v)), as a
+    natural model of an impact does; else x+ = (0, -lam v). ``nan_below``:
+    the jump guard returns NaN below that height (a broken guard)."""
+
+    lam: float = 0.8
+    gravity: float = 9.81
+    sets: str = "both"
+    keep: bool = False
+    nan_below: float = -np.inf
+
+    def params(self):
+        return np.array([self.gravity, self.lam, float(self.keep), self.nan_below])
+
+    def build(self, path):
+        p = self.params()
+        if path == "compiled":
+            key = ("ball", self.sets)
+            system = _COMPILED.get(key)
+            if system is None:
+                system = _COMPILED[key] = _ball_compiled(self.sets)
+            system.params = p
+            return system
+        m = _ball_maps(vectorized=path == "vectorized")
+        kw = {}
+        if self.sets in ("guards", "both"):
+            kw.update(jump_guard=lambda x: m["hD"](x, p), flow_guard=lambda x: m["hC"](x, p))
+        if self.sets in ("both", "indicators"):
+            kw.update(D=lambda x: m["D"](x, p), C=lambda x: m["C"](x, p))
+        return hs.HybridSystem.from_functions(f=lambda x: m["f"](x, p),
+                                              g=lambda x: m["g"](x, p), state_dim=2,
+                                              vectorized=path == "vectorized", **kw)
+
+
+def _ball_maps(vectorized):
+    if vectorized:
+        def f(X, p):
+            return np.column_stack([X[:, 1], np.full(len(X), -p[0])])
+
+        def g(X, p):
+            return np.column_stack([X[:, 0] * p[2], -p[1] * X[:, 1]])
+
+        def hD(X, p):
+            return np.where(X[:, 0] < p[3], np.nan, -X[:, 0])
+
+        def hC(X, p):
+            return X[:, 0]
+
+        def D(X, p):
+            return (X[:, 0] <= 0.0) & (X[:, 1] <= 0.0)
+
+        def C(X, p):
+            return X[:, 0] >= 0.0
+    else:
+        def f(x, p):
+            return np.array([x[1], -p[0]])
+
+        def g(x, p):
+            return np.array([x[0] * p[2], -p[1] * x[1]])
+
+        def hD(x, p):
+            return np.nan if x[0] < p[3] else -x[0]
+
+        def hC(x, p):
+            return x[0]
+
+        def D(x, p):
+            return x[0] <= 0.0 and x[1] <= 0.0
+
+        def C(x, p):
+            return x[0] >= 0.0
+    return dict(f=f, g=g, hD=hD, hC=hC, D=D, C=C)
+
+
+def _ball_compiled(sets):
+    from hybridsim.compiled import CompiledSystem
+
+    def f(x, t, j, p):
+        return np.array([x[1], -p[0]])
+
+    def g(x, t, j, p):
+        return np.array([x[0] * p[2], -p[1] * x[1]])
+
+    def hD(x, t, j, p):
+        return np.nan if x[0] < p[3] else -x[0]
+
+    def hC(x, t, j, p):
+        return x[0]
+
+    def D(x, t, j, p):
+        return x[0] <= 0.0 and x[1] <= 0.0
+
+    def C(x, t, j, p):
+        return x[0] >= 0.0
+    kw = {}
+    if sets in ("guards", "both"):
+        kw.update(jump_guard=hD, flow_guard=hC)
+    if sets in ("both", "indicators"):
+        kw.update(jump_set=D, flow_set=C)
+    return CompiledSystem(f, g, state_dim=2, params=np.zeros(4), **kw)

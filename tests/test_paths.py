@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from paths import PATHS, SETS, Linear, path_params, random_linear, run, timer
+from paths import PATHS, SETS, Ball, Linear, path_params, random_linear, run, timer
 
 import hybridsim as hs
 from hybridsim import Termination
@@ -180,6 +180,89 @@ def test_failures_warn_the_same_way_on_every_path(path):
     with pytest.warns(hs.SimulationWarning, match="MAX_STEPS"):
         arc = run(path, case, x0, t_max=5.0, max_steps=3)
     assert arc.termination is T.MAX_STEPS
+
+
+@pytest.mark.parametrize("path", path_params())
+@pytest.mark.parametrize("sets", ["both", "indicators"])
+def test_the_ball_bounces_at_its_closed_form_times_on_every_path(path, sets):
+    from hybridsim.library import bouncing_ball_jump_times
+    arc = run(path, Ball(sets=sets), [1.0, 0.0], t_max=10.0, j_max=12, rtol=1e-10,
+              atol=1e-12)
+    assert arc.termination is T.J_MAX
+    np.testing.assert_allclose(arc.jump_times, bouncing_ball_jump_times(1.0, 12, 9.81, 0.8),
+                               rtol=0, atol=1e-9)
+    arc.validate()
+
+
+@pytest.mark.parametrize("path", path_params())
+@pytest.mark.parametrize("sets", ["both", "indicators"])
+def test_a_jump_map_that_keeps_the_located_position_runs_on(path, sets):
+    """x+ = (h, -0.8 v): the located height is a few ulp below the floor, the
+    post-jump state (rising) outside C and D at full precision. Within the
+    event's own location error of C, it counts as in C (rules.post_jump_probe)
+    on every path: the ball bounces on, never LEFT_SETS."""
+    arc = run(path, Ball(sets=sets, keep=True), [1.0, 0.0], t_max=10.0, j_max=12,
+              rtol=1e-10, atol=1e-12)
+    assert arc.termination is T.J_MAX, arc.message
+    assert arc.jump_count == 12
+    assert np.all(np.abs(arc.x[:, 0]) < 2.0) and arc.x[arc.is_jump_end, 0].min() > -1e-12
+
+
+@pytest.mark.parametrize("path", path_params())
+def test_a_jump_loop_is_named_on_every_path(path):
+    """Guards only: D = {-h >= 0} still holds after the impact (height 0,
+    rising), so the ball jumps again and again at one instant. The run ends
+    by the limits as always (J_MAX here), and the message says what is wrong."""
+    arc = run(path, Ball(sets="guards"), [1.0, 0.0], t_max=10.0, j_max=30)
+    assert arc.termination is T.J_MAX
+    assert "jump loop" in arc.message and "jump_set" in arc.message, arc.message
+    assert np.ptp(arc.jump_times) == 0.0
+
+
+@pytest.mark.parametrize("path", path_params())
+def test_a_nan_guard_is_a_map_error_naming_the_guard(path):
+    with pytest.raises(hs.MapError, match="jump_guard") as info:
+        run(path, Ball(sets="both", nan_below=0.5), [1.0, 0.0], t_max=2.0, j_max=3)
+    assert info.value.arc.termination is T.MAP_ERROR
+    info.value.arc.validate()
+    assert info.value.arc.t[-1] < 0.33           # it fell from 1 to 0.5 in 0.319 s
+
+
+@pytest.mark.parametrize("path", path_params())
+def test_a_given_jump_guard_is_used_beside_a_flow_set_indicator(path):
+    """A flight whose apex is 1e-6 above the jump guard h - 1: with C an
+    indicator (h >= -1e-9) and D given by its guard, the jump is found
+    inside the step (the guard's maximum is refined) on every path."""
+    v0 = math.sqrt(2 * 9.81 * (1 + 1e-6))
+    case = Linear(np.array([[0.0, 1.0], [0.0, 0.0]]), np.diag([0.0, 1.0]), np.zeros(2),
+                  np.array([1.0, 0.0]), 1.0, np.array([1.0, 0.0]), -1e-9, sets="guards",
+                  sets_C="indicators", k=np.array([0.0, -9.81]))
+    arc = run(path, case, [0.0, v0], t_max=0.6, j_max=1)
+    assert arc.jump_count == 1, arc.message
+    t1 = (v0 - math.sqrt(v0**2 - 2 * 9.81)) / 9.81     # h(t1) = 1, 0.45 ms before the apex
+    np.testing.assert_allclose(arc.jump_times, [t1], rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("path", path_params())
+def test_ctrl_c_ends_the_run_with_canceled_and_the_arc_so_far(path):
+    """SIGINT from another process half a second into a long run: CANCELED,
+    the arc so far (valid), the message naming its last sample."""
+    import os
+    import signal
+    import subprocess
+    if not hasattr(signal, "SIGINT") or os.name != "posix":
+        pytest.skip("needs POSIX signals")
+    case = timer(1e-3)
+    killer = subprocess.Popen(["sh", "-c", f"sleep 0.5; kill -INT {os.getpid()}"])
+    try:
+        arc = run(path, case, [0.0], t_max=1e6, max_samples=math.inf, max_steps=math.inf,
+                  warn=False)
+    finally:
+        killer.wait()
+    assert arc.termination is T.CANCELED
+    arc.validate()
+    assert f"t={arc.t[-1]:.10g}" in arc.message and f"j={arc.j[-1]}" in arc.message
+    assert arc.jump_count > 10
 
 
 def test_paths_listed():
