@@ -14,6 +14,9 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("MPLBACKEND", "Agg")
+# every arc an integration path returns is validated (HybridArc.validate: the
+# invariants of a hybrid time domain), so no test's run hides a corrupt arc
+os.environ.setdefault("HYBRIDSIM_CHECK_ARCS", "1")
 
 # numpy after the thread settings, which it reads at import
 import numpy as np

@@ -34,6 +34,9 @@ __all__ = ["HybridArc", "Termination", "ArcValues", "ArcFileError", "FORMAT_VERS
 FORMAT_VERSION = 2
 
 _AT_JUMP = ("start", "end", "mean", "nan", "both")
+#: validate every arc an integration path returns (``HYBRIDSIM_CHECK_ARCS=1``;
+#: the test suite sets it): a defect of the engine then fails at its run
+CHECK_ARCS = os.environ.get("HYBRIDSIM_CHECK_ARCS", "") not in ("", "0")
 _KEYS_V1 = ("t", "j", "x", "termination", "message", "comp_names", "comp_bounds")
 _KEYS_V2 = ("format_version", "t", "j", "x", "termination", "message",
             "components", "stats", "system_description")
@@ -369,6 +372,8 @@ class HybridArc:
         arc.system_description = None if system is None else _describe(system)
         arc._segments = segments
         arc._cache = {}
+        if CHECK_ARCS:
+            arc.validate(where="the engine's arc")
         return arc
 
     def _like(self, t, j, x, *, xdot=None, segments=None, components=None,

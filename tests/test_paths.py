@@ -90,7 +90,8 @@ def test_random_systems_keep_the_invariants_on_every_path(path, seed, n, with_C,
        refine=st.sampled_from([1, 3]))
 def test_every_path_gives_the_python_paths_samples(path, seed, n, with_C, sets, priority,
                                                    refine):
-    """The same run, the same samples: jump times and states to 1e-7 (rtol 1e-9)."""
+    """The same run, the same solution: jump times to 1e-7, states along every
+    flow to 1e-6 relative (rtol 1e-9 per step, over a few hundred steps)."""
     case, x0 = random_linear(seed, n, with_C, sets)
     kw = dict(t_max=3.0, j_max=8, priority=priority, refine=refine, **OPTS)
     ref = run("python", case, x0, **kw)
@@ -99,10 +100,14 @@ def test_every_path_gives_the_python_paths_samples(path, seed, n, with_C, sets, 
     assert arc.jump_count == ref.jump_count
     np.testing.assert_allclose(arc.jump_times, ref.jump_times, rtol=0, atol=1e-7)
     np.testing.assert_allclose(arc.xf, ref.xf, rtol=1e-6, atol=1e-7)
-    # sample for sample where the steps are the same
-    if len(arc.t) == len(ref.t):
-        np.testing.assert_allclose(arc.t, ref.t, rtol=0, atol=1e-7)
-        np.testing.assert_array_equal(arc.j, ref.j)
+    # the same solution between the jumps: each path's arc read at the Python
+    # path's samples inside its flows (the step sequences may part by round-off
+    # in the error norm, so samples are compared through arc.at, not one by one)
+    for t, j in zip(ref.t, ref.j):
+        inside = [a.t[a.j == j] for a in (arc, ref)]
+        if all(len(s) for s in inside) and \
+                max(s[0] for s in inside) + 1e-6 < t < min(s[-1] for s in inside) - 1e-6:
+            np.testing.assert_allclose(arc.at(t, j), ref.at(t, j), rtol=1e-6, atol=1e-7)
 
 
 @pytest.mark.parametrize("path", path_params())
