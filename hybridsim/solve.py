@@ -11,7 +11,7 @@ import enum
 import math
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -23,6 +23,7 @@ from .arc import HybridArc
 from .events import find_interior_event, locate_event
 from .history import History
 from .options import (
+    RunOptions,
     check_bool,
     check_map_value,
     check_seed,
@@ -170,28 +171,14 @@ def _progress_bar(progress, t0, t_max, j_max):
                     desc="simulate", unit="jump")
 
 
-@dataclass
-class _Options:
-    """Everything that is fixed during a run, validated."""
+@dataclass(frozen=True)
+class _Options(RunOptions):
+    """Everything that is fixed during a run: the options every path shares
+    (:class:`hybridsim.options.RunOptions`) and the Python path's own."""
 
     n: int
-    t0: float
-    t_max: float
-    j_max: float
-    prio: Priority
     Method: type
-    rtol: float
-    atol: object
-    max_step: float
-    first_step: float | None
-    max_norm: float
-    zeno_jumps: int
-    zeno_time: float
-    zeno_rtol: float
-    refine: int
     t_eval: np.ndarray | None
-    max_steps: float
-    max_samples: float
     keep: bool
     delays: tuple
     rng: np.random.Generator | None     # None unless the priority is random
@@ -409,9 +396,8 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
     keep = dense or system.needs_history
     history = History(t0, x, j0, prehistory, inputs, maps.h)
     system._bind_history(history)
-    opts = _Options(n, t0, t_max, j_max, prio, Method, rtol, atol, max_step, first_step,
-                    max_norm, zeno_jumps, zeno_time, zeno_rtol, refine, t_eval, max_steps,
-                    max_samples, keep, delays, rng)
+    opts = _Options(**{f.name: getattr(ro, f.name) for f in fields(RunOptions)}, n=n,
+                    Method=Method, t_eval=t_eval, keep=keep, delays=delays, rng=rng)
     run = _Run(system, maps, opts, inputs, history)
     run.pbar = _progress_bar(progress, t0, t_max, j_max)
     try:

@@ -27,6 +27,7 @@ import pickle
 import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from paths import random_linear
 
 import hybridsim as hs
 from hybridsim import Termination
@@ -39,46 +40,16 @@ TOL_INSIDE = 1e-7
 
 @st.composite
 def hybrid_systems(draw):
+    """A random case of ``tests/paths.py`` (flows that come back to the
+    guard, jumps that land outside D, x0 in C) on the Python path."""
     n = draw(st.integers(1, 3))
     seed = draw(st.integers(0, 2**32 - 1))
-    rng = np.random.default_rng(seed)
-    # flows that come back to the guard: rotations (n >= 2) or growth (n = 1),
-    # with a random perturbation
-    if n == 1:
-        A = np.array([[rng.uniform(0.2, 1.5)]])
-    else:
-        S = rng.normal(size=(n, n))
-        A = rng.uniform(1.0, 4.0) * (S - S.T) / 2 + rng.normal(scale=0.3, size=(n, n))
-    a = rng.normal(size=n)
-    a /= np.linalg.norm(a)
-    b = float(rng.uniform(0.2, 1.5))
-    # jumps contract and push back out of D (most of the time)
-    G = rng.normal(scale=0.3, size=(n, n))
-    c = rng.normal(size=n) * 2.5
-    if a @ c > b - 0.3:                  # land outside D, far enough to come back
-        c -= a * (a @ c - b + 0.3 + rng.uniform(0.0, 1.0))
     with_C = draw(st.booleans())
-    e = rng.normal(size=n)
-    e /= np.linalg.norm(e)
-    d = float(rng.uniform(-4.0, -1.0))
-    x0 = rng.normal(size=n) * 2.0
-    if with_C and e @ x0 - d < 0:        # start in C
-        x0 = x0 + (d - e @ x0 + 0.1) * e
+    case, x0 = random_linear(seed, n, with_C)
     priority = draw(st.sampled_from(["jumps", "flows"]))
     t_max = draw(st.floats(2.0, 6.0))
     j_max = draw(st.integers(6, 20))
-
-    def hD(x):
-        return a @ x - b
-
-    def hC(x):
-        return e @ x - d
-    kw = dict(jump_guard=hD)
-    if with_C:
-        kw["flow_guard"] = hC
-    sysm = hs.HybridSystem.from_functions(f=lambda x: A @ x, g=lambda x: G @ x + c,
-                                          state_dim=n, **kw)
-    return sysm, x0, priority, t_max, j_max, hD, (hC if with_C else None)
+    return case.python(), x0, priority, t_max, j_max, case.hD, (case.hC if with_C else None)
 
 
 def run(sysm, x0, priority, t_max, j_max):

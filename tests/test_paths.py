@@ -257,11 +257,12 @@ def test_ctrl_c_ends_the_run_with_canceled_and_the_arc_so_far(path):
     import subprocess
     if not hasattr(signal, "SIGINT") or os.name != "posix":
         pytest.skip("needs POSIX signals")
-    case = timer(1e-3)
+    case = timer(1e-2)           # runs until interrupted: no horizon, no limits
+    run(path, case, [0.0], t_max=0.05)     # compiled first: the signal must hit the run
     killer = subprocess.Popen(["sh", "-c", f"sleep 0.5; kill -INT {os.getpid()}"])
     try:
-        arc = run(path, case, [0.0], t_max=1e6, max_samples=math.inf, max_steps=math.inf,
-                  warn=False)
+        arc = run(path, case, [0.0], t_max=math.inf, max_samples=math.inf,
+                  max_steps=math.inf, zeno_jumps=10**9, warn=False)
     finally:
         killer.wait()
     assert arc.termination is T.CANCELED
