@@ -437,3 +437,18 @@ def test_random_corruption_loads_the_same_arc_or_raises_arc_file_error(edits, cu
         return
     same_arc(b, ARC)
     b.validate()
+
+
+def test_the_engine_arcs_are_validated_when_asked(monkeypatch):
+    """HYBRIDSIM_CHECK_ARCS=1 (set by the test suite's conftest) makes every arc
+    an integration path builds run validate(): a corrupt arc fails at its run."""
+    import hybridsim.arc as arc_module
+
+    monkeypatch.setattr(arc_module, "CHECK_ARCS", True)
+    t = np.array([0.0, 0.5, 0.5])
+    j = np.array([0, 0, 0], dtype=np.int64)          # the sample at 0.5 twice
+    x = np.zeros((3, 1))
+    with pytest.raises(ValueError, match="the engine's arc"):
+        hs.HybridArc._trusted(t, j, x, hs.Termination.T_MAX)
+    monkeypatch.setattr(arc_module, "CHECK_ARCS", False)
+    assert len(hs.HybridArc._trusted(t, j, x, hs.Termination.T_MAX)) == 3
