@@ -24,8 +24,12 @@ rounding.
 The decisions are :mod:`hybridsim.rules`' own: :func:`~hybridsim.rules.jumps_now`
 and :func:`~hybridsim.rules.needs_coin` at decision points, tables of
 :func:`~hybridsim.rules.event_outcome` and :func:`~hybridsim.rules.after_jump`
-(built once per run from the rules) at events and after jumps, and each
-row's message from :func:`~hybridsim.rules.message`.
+(built once per run from the rules) at events and after jumps,
+:func:`~hybridsim.rules.post_jump_probe` for a state after an event's jump
+that is in neither set, :func:`~hybridsim.rules.is_jump_loop` on a per-row
+count of jumps at one instant from C, and each row's message from
+:func:`~hybridsim.rules.message`. Every given guard enters the event
+function, beside the other set's indicator (as on the Python path).
 """
 from __future__ import annotations
 
@@ -57,11 +61,13 @@ from .rules import (
     after_jump,
     event_outcome,
     event_tolerance,
+    is_jump_loop,
     is_short_flow,
     is_sticking,
     jumps_now,
     message,
     needs_coin,
+    post_jump_probe,
     t_max_slack,
     time_scale,
 )
@@ -628,6 +634,15 @@ class _BatchRun:
         self.inD_prev = np.zeros(N, dtype=bool)
         self.force = np.zeros(N, dtype=bool)        # an event asks for a jump
         self.short = np.zeros(N, dtype=np.int64)    # consecutive short flows (Zeno)
+        # consecutive jumps at one instant, each from a state in C (rules.is_jump_loop)
+        self.loop = np.zeros(N, dtype=np.int64)
+        # the bracket (lo, x_lo, x_hi) of a located event a row jumps from at hi
+        # (pend), then the decision after that jump (post): rules.post_jump_probe
+        self.pend = np.zeros(N, dtype=bool)
+        self.post = np.zeros(N, dtype=bool)
+        self.pend_lo = np.zeros(N)
+        self.pend_xlo = np.zeros((N, n))
+        self.pend_xhi = np.zeros((N, n))
         self.flows3 = np.full((N, 3), np.inf)        # the last three flow lengths
         self.t0 = t0
         self.t_last = np.full(N, t0)
@@ -651,8 +666,10 @@ class _BatchRun:
         self.log = _SampleLog(N, n)
         m = self.maps
         self.watch_D = m.has_D and self.prio != Priority.FLOWS
-        phi_ok = ((not self.watch_D or m.hD is not None) and (not m.has_C or m.hC is not None))
-        self.use_phi = phi_ok and (m.hD is not None or m.hC is not None)
+        # every given guard goes into the event function, beside the other set's
+        # indicator (which, with the guards' sets, decides membership: _pred)
+        self.use_phi = ((self.watch_D and m.hD is not None)
+                        or (m.has_C and m.hC is not None))
         self.ev_action, self.ev_side = _outcome_table(self.prio)
         self.after = _after_jump_table()
 
@@ -684,7 +701,9 @@ class _BatchRun:
     def cancel(self):
         """End every trajectory still running with ``CANCELED`` (after Ctrl-C)."""
         rows = np.flatnonzero(~self.done)
-        self._stop(rows, Termination.CANCELED, t=self.t[rows], j=self.j[rows])
+        log = self.log
+        last = log.last[rows]       # where each row stopped: its last stored sample
+        self._stop(rows, Termination.CANCELED, t=log.t[last], j=log.j[last])
 
     def _reap(self, rows):
         """Stop the rows on which a map failed (``MAP_ERROR``) or whose dense
@@ -828,11 +847,27 @@ class _BatchRun:
                 rows, x, t, j, inD, inC = rows[ok], x[ok], t[ok], j[ok], inD[ok], inC[ok]
             force = self.force[rows]
             self.force[rows] = False
+            post = self.post[rows]          # the decision right after an event's jump
+            self.post[rows] = False
             coin = np.zeros(len(rows), dtype=bool)
             ask = needs_coin(inC, inD, self.prio, force)
             if ask.any():
                 coin[ask] = self.rng.random(int(ask.sum())) < 0.5
             jump = jumps_now(inC, inD, self.prio, coin, force)
+            probe = post & ~jump & ~inC
+            if probe.any():
+                # in neither C nor D after the jump: within the located event's
+                # own error of C counts as in C (rules.post_jump_probe)
+                i = np.flatnonzero(probe)
+                r = rows[i]
+                tp, xp = post_jump_probe(x[i], self.pend_lo[r], self.pend_xlo[r],
+                                         self.pend_xhi[r])
+                near = m.in_C(r, xp, tp, j[i])
+                inC[i[near]] = True
+                ok = self._reap(rows)
+                if ok is not None:
+                    rows, x, t, j, inD, inC, force, jump = (
+                        rows[ok], x[ok], t[ok], j[ok], inD[ok], inC[ok], force[ok], jump[ok])
             # -- rows that stay: stop outside C, stop at t_max, or start a flow
             stay = ~jump
             if stay.any():
@@ -849,14 +884,21 @@ class _BatchRun:
             # -- rows that jump
             if not jump.any():
                 return
+            # from_C: flowing was possible (a forced jump is from an event in C)
             rows, x, t, j = rows[jump], x[jump], t[jump], j[jump]
+            from_C, force = (force | inC)[jump], force[jump]
             full = self.jumps[rows] >= self.j_max
             if full.any():
                 self._stop(rows[full], Termination.J_MAX)
                 keep = ~full
-                rows, x, t, j = rows[keep], x[keep], t[keep], j[keep]
+                rows, x, t, j, from_C, force = (rows[keep], x[keep], t[keep], j[keep],
+                                                from_C[keep], force[keep])
             if not rows.size:
                 return
+            if force.any():                  # the event's bracket, for the next decision
+                fr = rows[force]
+                self.post[fr] = self.pend[fr]
+                self.pend[fr] = False
             xn = m.jump(rows, x, t, j)
             fin = np.isfinite(xn).all(axis=1)
             if not fin.all():
@@ -866,12 +908,15 @@ class _BatchRun:
                                         int(jj)))
             ok = self._reap(rows)
             if ok is not None:
-                rows, xn, t, j = rows[ok], xn[ok], t[ok], j[ok]
+                rows, xn, t, j, from_C = rows[ok], xn[ok], t[ok], j[ok], from_C[ok]
             # Zeno: consecutive jumps after flows too short to resolve
             flow = t - self.t_last[rows]
             tiny = is_short_flow(flow, t, time_scale(self.t0, t, self.t_max), self.zeno_time,
                                  self.zeno_rtol)
             self.short[rows] = np.where(tiny, self.short[rows] + 1, 0)
+            # a jump loop: consecutive jumps at one instant, each from a state in C
+            self.loop[rows] = np.where(from_C & (flow == 0.0) & (self.jumps[rows] > 0),
+                                       self.loop[rows] + 1, 0)
             self.flows3[rows] = np.column_stack([self.flows3[rows][:, 1:], flow])
             self.t_last[rows] = t
             j = j + 1
@@ -884,9 +929,17 @@ class _BatchRun:
                               (self.short[rows] >= self.zeno_jumps).astype(np.intp)]
             end = code != NO_CAUSE
             if end.any():
+                loop = self.loop[rows]
+                named = is_jump_loop(loop, self.zeno_jumps)
                 for c in np.unique(code[end]):
                     sel = code == c
                     cause = CAUSES[c]
+                    lp = sel & named
+                    if lp.any():             # the loop's jumps and the one that began it
+                        self._stop(rows[lp], cause, "loop", count=loop[lp] + 1, t=t[lp])
+                    sel &= ~named
+                    if not sel.any():
+                        continue
                     if cause is Termination.ZENO:
                         self._stop(rows[sel], cause, "zeno", count=self.short[rows[sel]],
                                    t=t[sel])
@@ -1308,6 +1361,8 @@ class _BatchRun:
 
         Three interior samples of each step's dense output, the indicators
         tested there; with guards, every sampled local maximum of the guard
+        (the step's start included where the guard rises there, and its end
+        where it falls there; the probe deciding that over the rows at once)
         whose peak could reach 0 refined by a golden-section search (row by
         row: such peaks are rare). Returns (lo, hi, found): a bracket with the
         event set entered at hi, where found.
@@ -1336,27 +1391,48 @@ class _BatchRun:
         pts.append(b)
         vals.append(self._phi(rows, self._dense(a, h, ya, Q, b), b, j, wd))
         V, T = np.array(vals), np.array(pts)           # (5, k)
+        fin = np.isfinite(V).all(axis=0)
+
+        def refine(i, l, r, fl, fr):
+            # events._maximize on row i's dense output (row by row: peaks are rare)
+            ri, wi, ji = rows[i:i + 1], wd[i:i + 1], j[i:i + 1]
+
+            def sol(s):
+                return self._dense(a[i:i + 1], h[i:i + 1], ya[i:i + 1], Q[i:i + 1],
+                                   np.array([s]))[0]
+
+            def F(s, y):
+                return float(self._phi(ri, y[None, :], np.array([s]), ji, wi)[0])
+
+            def pred(s, y):
+                return bool(self._pred(ri, y[None, :], np.array([s]), ji, wi)[0])
+            sq = _maximize(F, l, r, fl, fr, pred, sol)
+            if sq is not None and not self.bad[rows[i]]:
+                found[i] = True
+                lo_b[i], hi_b[i] = l, sq
+
         for q in (1, 2, 3):
             lo_nb = np.minimum(V[q - 1], V[q + 1])
-            cand = (~found & np.isfinite(V).all(axis=0) & (V[q] >= V[q - 1])
-                    & (V[q] >= V[q + 1]) & _near_peak(V[q], lo_nb) & ~self.bad[rows])
+            cand = (~found & fin & (V[q] >= V[q - 1]) & (V[q] >= V[q + 1])
+                    & _near_peak(V[q], lo_nb) & ~self.bad[rows])
             for i in np.flatnonzero(cand):
-                ri = rows[i:i + 1]
-                wi, ji = wd[i:i + 1], j[i:i + 1]
-
-                def sol(s, i=i):
-                    return self._dense(a[i:i + 1], h[i:i + 1], ya[i:i + 1], Q[i:i + 1],
-                                       np.array([s]))[0]
-
-                def F(s, y, ri=ri, ji=ji, wi=wi):
-                    return float(self._phi(ri, y[None, :], np.array([s]), ji, wi)[0])
-
-                def pred(s, y, ri=ri, ji=ji, wi=wi):
-                    return bool(self._pred(ri, y[None, :], np.array([s]), ji, wi)[0])
-                sq = _maximize(F, T[q - 1, i], T[q + 1, i], V[q - 1, i], V[q + 1, i], pred, sol)
-                if sq is not None and not self.bad[rows[i]]:
-                    found[i] = True
-                    lo_b[i], hi_b[i] = T[q - 1, i], sq
+                refine(i, T[q - 1, i], T[q + 1, i], V[q - 1, i], V[q + 1, i])
+        # a peak between a and the first sample (only where the guard rises at
+        # a), then between the last sample and b (only where it falls at b: the
+        # next step starts falling, so its own search never looks back)
+        for e, nb, sign in ((0, 1, 1.0), (4, 3, -1.0)):
+            cand = (~found & fin & (V[e] >= V[nb]) & _near_peak(V[e], V[nb])
+                    & ~self.bad[rows])
+            if not cand.any():
+                continue
+            c = np.flatnonzero(cand)
+            # one probe a thousandth of the way in, over the rows at once
+            s = T[e, c] + sign * (1e-3 * np.abs(T[nb, c] - T[e, c]))
+            ys = self._dense(a[c], h[c], ya[c], Q[c], s)
+            rise = (self._phi(rows[c], ys, s, j[c], wd[c]) > V[e, c]) & ~self.bad[rows[c]]
+            l, r = (0, 1) if e == 0 else (3, 4)
+            for i in c[rise]:
+                refine(i, T[l, i], T[r, i], V[l, i], V[r, i])
         return lo_b, hi_b, found
 
     def _event(self, rows, a, lo, hi, ya, h, Q, j, ylo=None, yhi=None, clamp=None):
@@ -1420,6 +1496,12 @@ class _BatchRun:
         if jump.any():
             self.force[rows[jump]] = True
             self.decide[rows[jump]] = True
+            # jumping from hi: the bracket, for rules.post_jump_probe after the jump
+            self.pend[rows[jump]] = at_hi[jump]
+            jh = jump & at_hi
+            if jh.any():
+                rh = rows[jh]
+                self.pend_lo[rh], self.pend_xlo[rh], self.pend_xhi[rh] = lo[jh], ylo[jh], yhi[jh]
         cont = action == Action.FLOW
         done = cont & (ts >= self.t_max)     # flowing on at t_max: the run ends there
         if done.any():

@@ -197,11 +197,17 @@ def test_zeno():
     zeno = hs.HybridSystem.from_functions(
         f=lambda x: -np.ones_like(x), g=lambda x: np.zeros_like(x),
         C=lambda x: x[:, 0] >= 0, D=lambda x: x[:, 0] <= 0, state_dim=1, vectorized=True)
+    ref = hs.HybridSystem.from_functions(
+        f=lambda x: -np.ones_like(x), g=lambda x: np.zeros_like(x),
+        C=lambda x: x[0] >= 0, D=lambda x: x[0] <= 0, state_dim=1)
     arcs = simulate_vectorized(zeno, [[1.0], [0.0]], t_max=5.0, zeno_jumps=20)
     for arc, t in zip(arcs, [1.0, 0.0]):
         assert arc.termination is Termination.ZENO
         assert abs(arc.tf - t) < 1e-12
-        assert "consecutive jumps" in arc.message
+        # jumps at one instant from C ∩ D: a jump loop (rules.is_jump_loop), as simulate says
+        assert "jump loop" in arc.message
+        assert arc.message == hs.simulate(ref, [t], t_max=5.0, zeno_jumps=20,
+                                          warn=False).message
     # a Zeno ball (accumulating bounces) stops near its Zeno time, as simulate does
     x0s = np.array([[1.0, 0.0]])
     arc, = simulate_vectorized(VBall(restitution=0.5), x0s, t_max=10.0)
@@ -676,3 +682,230 @@ def test_messages_come_from_the_rules_table():
     e, = simulate_vectorized(vtimer(), [[0.0]], t_max=30.0, max_samples=5, warn=False)
     assert e.termination is Termination.MAX_STEPS and len(e) == 5
     assert "samples stored (max_samples=5)" in e.message
+
+
+# ------------------------------------------------ the Python path's rules (aed3bcf)
+def _both_paths(make, x0s, **kw):
+    """The vectorized arcs of ``x0s`` and simulate's arcs of the same system
+    (``make(vectorized)`` builds it), each row under its own run."""
+    arcs = simulate_vectorized(make(True), x0s, **kw)
+    refs = [hs.simulate(make(False), x0, **kw) for x0 in np.asarray(x0s, float)]
+    return arcs, refs
+
+
+def _floor_ball(vectorized, kind, restitution=0.8, jump_map=None):
+    """A ball on a floor y_f(t) = 0.1 sin(2t) whose jump map keeps the located
+    position and reflects the relative velocity (tests/test_faults.py's)."""
+    def yf(t):
+        return 0.1 * np.sin(2.0 * t)
+
+    def dyf(t):
+        return 0.2 * np.cos(2.0 * t)
+    if vectorized:
+        def g(x, t):
+            return np.column_stack([x[:, 0], dyf(t) - restitution * (x[:, 1] - dyf(t))])
+        kw = dict(D=lambda x, t: (x[:, 0] - yf(t) <= 0) & (x[:, 1] - dyf(t) <= 0))
+        if kind in ("guard", "both"):
+            kw["flow_guard"] = lambda x, t: x[:, 0] - yf(t)
+        if kind in ("indicator", "both"):
+            kw["C"] = lambda x, t: x[:, 0] - yf(t) >= 0
+
+        def f(x):
+            return np.column_stack([x[:, 1], np.full(len(x), -9.81)])
+    else:
+        def g(x, t):
+            return np.array([x[0], dyf(t) - restitution * (x[1] - dyf(t))])
+        kw = dict(D=lambda x, t: x[0] - yf(t) <= 0 and x[1] - dyf(t) <= 0)
+        if kind in ("guard", "both"):
+            kw["flow_guard"] = lambda x, t: x[0] - yf(t)
+        if kind in ("indicator", "both"):
+            kw["C"] = lambda x, t: x[0] - yf(t) >= 0
+
+        def f(x):
+            return np.array([x[1], -9.81])
+    return hs.HybridSystem.from_functions(f=f, g=jump_map or g, state_dim=2,
+                                          vectorized=vectorized, **kw)
+
+
+@pytest.mark.parametrize("kind", ["guard", "indicator", "both"])
+@pytest.mark.parametrize("restitution", [0.8, 0.3])
+def test_post_jump_state_within_the_events_error_of_C_flows_on(kind, restitution):
+    """rules.post_jump_probe: the post-jump state keeps the located height, a
+    few ulp outside C; within the event's own location error it counts as in
+    C, row by row, as on the Python path."""
+    x0s = [[1.0, 0.0], [0.7, 0.5], [1.3, -1.0]]
+    arcs, refs = _both_paths(lambda v: _floor_ball(v, kind, restitution), x0s,
+                             t_max=3.0, j_max=6)
+    for arc, ref in zip(arcs, refs):
+        assert arc.termination is ref.termination, (arc.message, ref.message)
+        assert arc.termination in (Termination.J_MAX, Termination.T_MAX)    # never LEFT_SETS
+        np.testing.assert_allclose(arc.jump_times, ref.jump_times, rtol=0, atol=1e-9)
+        after = arc.x[1:][np.diff(arc.j) == 1]
+        floor = 0.1 * np.sin(2.0 * arc.jump_times)
+        assert np.all(np.abs(after[:, 0] - floor) < 1e-13)
+        check_domain(arc)
+
+
+def test_post_jump_state_genuinely_outside_C_still_leaves_the_sets():
+    def bad(vectorized):
+        if vectorized:
+            return lambda x, t: np.column_stack([x[:, 0] - 1e-9, np.full(len(x), 5.0)])
+        return lambda x, t: np.array([x[0] - 1e-9, 5.0])
+    arcs, refs = _both_paths(lambda v: _floor_ball(v, "both", jump_map=bad(v)),
+                             [[1.0, 0.0], [0.5, 0.0]], t_max=3.0)
+    for arc, ref in zip(arcs, refs):
+        assert arc.termination is ref.termination is Termination.LEFT_SETS
+        assert arc.jump_count == ref.jump_count == 1
+        assert arc.message == ref.message
+
+
+def _free_ball(vectorized, **guards):
+    """A ball landing at height 0 (tests/test_faults.py's)."""
+    if vectorized:
+        f = lambda x: np.column_stack([x[:, 1], np.full(len(x), -9.81)])  # noqa: E731
+        g = lambda x: np.column_stack([np.zeros(len(x)), -0.8 * x[:, 1]])  # noqa: E731
+    else:
+        f = lambda x: np.array([x[1], -9.81])                              # noqa: E731
+        g = lambda x: np.array([0.0, -0.8 * x[1]])                         # noqa: E731
+    return hs.HybridSystem.from_functions(f=f, g=g, state_dim=2, vectorized=vectorized,
+                                          **guards)
+
+
+@pytest.mark.parametrize("j_max, cause", [(30, Termination.J_MAX),
+                                          (np.inf, Termination.ZENO)])
+def test_a_jump_loop_is_named_as_on_the_python_path(j_max, cause):
+    """D = {-h >= 0} by the guard alone: the state after the impact is in D
+    again, the run jumps at one instant until J_MAX or ZENO, and the message
+    (rules.is_jump_loop, kind "loop") is simulate's, word for word."""
+    def make(v):
+        col = (lambda x: x[:, 0]) if v else (lambda x: x[0])
+        return _free_ball(v, flow_guard=col, jump_guard=lambda x: -col(x))
+    arcs, refs = _both_paths(make, [[1.0, 0.0], [2.0, 0.0]], t_max=2.0, j_max=j_max,
+                             warn=False)
+    for arc, ref in zip(arcs, refs):
+        assert arc.termination is ref.termination is cause
+        assert "jump loop" in arc.message and arc.message == ref.message
+        assert np.ptp(arc.jump_times) == 0.0
+    if j_max == 30:
+        assert "the last 30 jumps were all at t=0.451523" in arcs[0].message
+
+
+def test_loops_only_where_the_jumps_are_from_C():
+    """A purely discrete system (C empty) and an ordinary ball keep their plain
+    messages; a loop row beside an ordinary row is named alone."""
+    count = hs.HybridSystem.from_functions(g=lambda x: x + 1.0, D=lambda x: np.ones(len(x), bool),
+                                           C=lambda x: np.zeros(len(x), bool), state_dim=1,
+                                           vectorized=True)
+    for j_max, cause in ((30, Termination.J_MAX), (100, Termination.ZENO)):
+        arc, = simulate_vectorized(count, [[0.0]], t_max=1.0, j_max=j_max, warn=False)
+        assert arc.termination is cause and "loop" not in arc.message
+        assert arc.jump_count == min(j_max, 50) and arc.xf[0] == arc.jump_count
+    arcs = simulate_vectorized(VBall(), [[1.0, 0.0]], t_max=10.0, j_max=5)
+    assert arcs[0].message == Termination.J_MAX.message
+    # h >= 0 is D on the first row's side only: its jumps loop, the other's do not
+    mixed = hs.HybridSystem.from_functions(
+        f=lambda x: np.column_stack([x[:, 1], np.full(len(x), -9.81), np.zeros(len(x))]),
+        g=lambda x: np.column_stack([np.zeros(len(x)), -0.8 * x[:, 1], x[:, 2]]),
+        flow_guard=lambda x: x[:, 0],
+        D=lambda x: (x[:, 0] <= 0) & ((x[:, 1] <= 0) | (x[:, 2] > 0)),
+        state_dim=3, vectorized=True)
+    a, b = simulate_vectorized(mixed, [[1.0, 0.0, 1.0], [1.0, 0.0, 0.0]], t_max=10.0,
+                               j_max=12, warn=False)
+    assert a.termination is Termination.J_MAX and "the last 12 jumps were all at" in a.message
+    assert b.termination is Termination.J_MAX and b.message == Termination.J_MAX.message
+
+
+@pytest.mark.parametrize("flow_side", ["C", "flow_guard"])
+def test_a_jump_guard_is_used_beside_an_indicator_for_C(flow_side):
+    """The apex is 1e-6 above the jump guard h - 1: only the guard's peak,
+    refined inside the step, finds the jump, with C an indicator or a guard."""
+    import math
+    v0 = math.sqrt(2.0 * 9.81 * (1.0 + 1e-6))
+    t_hit = (v0 - math.sqrt(v0 * v0 - 2.0 * 9.81)) / 9.81
+
+    def make(v):
+        col = (lambda x: x[:, 0]) if v else (lambda x: x[0])
+        kw = ({"C": lambda x: col(x) >= -1e-9} if flow_side == "C"
+              else {"flow_guard": lambda x: col(x) + 1e-9})
+        return _free_ball(v, jump_guard=lambda x: col(x) - 1.0, **kw)
+    arcs, refs = _both_paths(make, [[0.0, v0], [0.0, v0]], t_max=2.0 * v0 / 9.81, j_max=1)
+    for arc, ref in zip(arcs, refs):
+        assert arc.jump_count == ref.jump_count == 1, arc.message
+        np.testing.assert_allclose(arc.jump_times, [t_hit], rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("apex", [0.04, 0.96])
+def test_a_guard_peak_between_a_step_end_and_its_nearest_sample_is_found(apex):
+    """x' = 1 in one step [0, 1] (first_step = max_step = 1); the jump guard
+    1e-4 - (x - apex)^2 peaks above 0 between a step end and the nearest of the
+    three interior samples, rising at the start (apex 0.04) or falling at the
+    end (0.96): events.find_interior_event's end cases, on the vectorized path."""
+    def make(v):
+        col = (lambda x: x[:, 0]) if v else (lambda x: x[0])
+        return hs.HybridSystem.from_functions(
+            f=lambda x: np.ones_like(x), g=lambda x: x + 1.0,
+            jump_guard=lambda x: 1e-4 - (col(x) - apex) ** 2, state_dim=1, vectorized=v)
+    arcs, refs = _both_paths(make, [[0.0]], t_max=1.0, first_step=1.0, max_step=1.0)
+    for arc, ref in zip(arcs, refs):
+        assert arc.jump_count == ref.jump_count == 1, arc.message
+        np.testing.assert_allclose(arc.jump_times, [apex - 0.01], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(arc.t, ref.t, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("period", [0.1, 0.25, 1.0 / 3.0])
+@pytest.mark.parametrize("refine", [1, 3])
+@pytest.mark.parametrize("kind", ["set", "guard"])
+def test_jumps_landing_on_t_max_up_to_round_off_store_each_sample_once(period, refine, kind):
+    """A jump found within t_max's slack replaces the t_max sample; the step's
+    inner samples are stored once; simulate's samples, sample for sample."""
+    def make(v):
+        col = (lambda x: x[:, 0]) if v else (lambda x: x[0])
+        kw = (dict(D=lambda x: col(x) >= period) if kind == "set"
+              else dict(jump_guard=lambda x: col(x) - period))
+        return hs.HybridSystem.from_functions(f=lambda x: np.ones_like(x),
+                                              g=lambda x: np.zeros_like(x), state_dim=1,
+                                              vectorized=v, **kw)
+    arcs, refs = _both_paths(make, [[0.0]], t_max=2.0, refine=refine)
+    for arc, ref in zip(arcs, refs):
+        check_domain(arc)
+        assert np.all((np.diff(arc.t) > 0) | (np.diff(arc.j) == 1))
+        assert arc.jump_count == ref.jump_count == round(2.0 / period)
+        assert arc.j[-1] == arc.jump_count and abs(arc.t[-1] - 2.0) < 1e-12
+        assert len(arc) == len(ref)
+        np.testing.assert_allclose(arc.t, ref.t, rtol=0, atol=1e-12)
+        np.testing.assert_array_equal(arc.j, ref.j)
+
+
+@pytest.mark.parametrize("x0", [[1e308, 1e308], [1e308, -1e308]])
+def test_overflow_inside_a_step_is_non_finite_dense_as_on_the_python_path(x0):
+    import warnings
+    with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore"):
+        warnings.simplefilter("ignore")
+        arc, = simulate_vectorized(VBall(), [x0], t_max=1.0)
+        ref = hs.simulate(Ball(), x0, t_max=1.0, throw=False)
+    assert arc.termination is ref.termination is Termination.NON_FINITE
+    assert arc.message == ref.message
+    assert np.isfinite(arc.x).all() and arc.t.tolist() == ref.t.tolist()
+
+
+def test_ctrl_c_names_each_rows_last_stored_sample():
+    """A KeyboardInterrupt from a map mid-run: every row still running ends
+    CANCELED, its message naming its last stored sample (rules.message)."""
+    calls = {"n": 0}
+
+    def f(x):
+        calls["n"] += 1
+        if calls["n"] == 40:
+            raise KeyboardInterrupt
+        return np.ones_like(x)
+    sysm = hs.HybridSystem.from_functions(
+        f=f, g=lambda x: np.zeros_like(x), jump_guard=lambda x: x[:, 0] - 0.1,
+        state_dim=1, vectorized=True)
+    arcs = simulate_vectorized(sysm, [[0.0], [0.05], [0.09]], t_max=100.0, refine=3,
+                               warn=False)
+    for arc in arcs:
+        assert arc.termination is Termination.CANCELED
+        arc.validate()
+        assert arc.message == hs.rules.message(Termination.CANCELED, t=arc.t[-1],
+                                               j=int(arc.j[-1]))
+        assert arc.jump_count > 0
