@@ -214,3 +214,19 @@ def test_ctrl_c_ends_a_run_canceled_with_the_arc_so_far(timer):
     assert a.termination is T.CANCELED
     assert 1.0 < a.t[-1] < 5e7 and a.jump_count > 0
     assert a.message == hs.rules.message(T.CANCELED, t=a.t[-1], j=a.j[-1])
+
+
+# ------------------------------------------------------------------ jump loops
+@pytest.mark.parametrize("kw", [dict(j_max=30), dict(j_max=math.inf, zeno_jumps=12)])
+def test_a_jump_loop_is_named_in_the_python_paths_words(kw):
+    """Guards only: the ball at the floor stays in D = {-h >= 0} after each jump;
+    J_MAX (or ZENO) ends the run and the message names the loop, word for word
+    the Python path's (rules.is_jump_loop, rules.message kind "loop")."""
+    ball = CompiledSystem(ball_f, ball_g, jump_guard=ball_hD, flow_guard=ball_hC, state_dim=2)
+    a = simulate_compiled(ball, [1.0, 0.0], t_max=10.0, **kw)
+    b = hs.simulate(ball, [1.0, 0.0], t_max=10.0, **kw)
+    assert a.termination is b.termination and a.jump_count == b.jump_count
+    assert "jump loop" in a.message
+    assert a.message.split(" at t=")[0] == b.message.split(" at t=")[0]
+    assert float(re.search(r"at t=([0-9.e+-]+)", a.message).group(1)) == \
+        pytest.approx(float(re.search(r"at t=([0-9.e+-]+)", b.message).group(1)), abs=1e-12)

@@ -493,6 +493,9 @@ def _message(system, k, code, detail, info, T, J, X, stats, ro):
     """``(cause, message, exception)`` of a kernel's result: the words of
     :data:`hybridsim.rules.DETAILS` (:func:`hybridsim.rules.message`)."""
     cause = CAUSES[code]
+    if (cause is Termination.J_MAX or cause is Termination.ZENO) and detail == k.DETAIL_LOOP:
+        # a jump loop (rules.is_jump_loop): its jumps, all at one instant
+        return cause, message(cause, "loop", count=int(info[2]), t=float(info[0])), None
     if cause is Termination.T_MAX or cause is Termination.J_MAX:
         return cause, cause.message, None
     t = float(info[0]) if info[0] == info[0] else float(T[-1])

@@ -95,6 +95,9 @@ _GOES_ON = rules.NO_CAUSE
 _OUTSIDE = -2                   # in neither set: decided by ``_Run._stop_outside``'s rules
 #: MAP_ERROR details (which map, and where)
 MAP_JUMP_SHAPE, MAP_JUMP_VALUE, MAP_FLOW_SHAPE, MAP_FLOW_X0, MAP_JUMP_X0, MAP_GUARD = range(6)
+#: the detail code of a J_MAX or ZENO end after a jump loop (``rules.is_jump_loop``;
+#: ZENO's others: 0 the Zeno test, 1 sticking, 2 flows too short to resolve)
+DETAIL_LOOP = 3
 
 # flow outcomes
 _O_TMAX, _O_JUMP, _O_FLOW_ON, _O_STOP = 0, 1, 2, 3
@@ -431,7 +434,9 @@ def _pred(M, s, y, j, p, has_C, d_active):
 
 @njit(cache=True, **_NJ)
 def _phi(M, s, y, j, p, useD, useC):
-    """The continuous event function (>= 0 once the event has happened)."""
+    """The continuous event function (>= 0 once the event has happened): every
+    given guard of the flow (``_Run._phi``). A NaN guard is recorded as the
+    Python path's ``MapError`` naming it (see :func:`_fault`)."""
     v = -np.inf
     if useD:
         v = M[2](y, s, j, p)
@@ -439,7 +444,23 @@ def _phi(M, s, y, j, p, useD, useC):
         w = -M[3](y, s, j, p)
         if w > v:
             v = w
+        elif w != w:
+            v = w
+    if v != v:                       # either guard NaN (kept by the max above)
+        _phi_nan(M, s, y, j, p, useD)
     return v
+
+
+@njit(cache=True, **_NJ)
+def _phi_nan(M, s, y, j, p, useD):
+    """Record which guard returned NaN in :func:`_phi` (the jump guard first, as
+    ``_Run._phi`` names it): off the event search's fast path."""
+    if useD:
+        v = M[2](y, s, j, p)
+        if v != v:
+            _fault(M[8], 1.0, s, j)
+            return
+    _fault(M[8], 2.0, s, j)
 
 
 @njit(cache=True, **_NJ)
@@ -665,6 +686,15 @@ def _interior(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a
                           a, pts[1], vals[0], vals[1])
             if s == s:
                 return True, a, s
+    # a peak between the last sample and b: only where the guard falls at b (the
+    # next step starts falling, so its own search never looks back)
+    if vals[4] >= vals[3] and _near_peak(vals[4], vals[3]):
+        eps = 1e-3 * (b - pts[3])
+        if _phi(M, b - eps, _dense(yold, hQ, told, h, b - eps), j, p, useD, useC) > vals[4]:
+            s = _maximize(M, yold, hQ, told, h, j, p, has_C, d_active, useD, useC,
+                          pts[3], b, vals[3], vals[4])
+            if s == s:
+                return True, pts[3], s
     return False, a, b
 
 
@@ -722,7 +752,9 @@ def _initial_step(f, t0, y0, t_bound, max_step, f0, rtol, atol, j, p):
 @njit(cache=True, **_NJ)
 def _event(M, yold, hQ, told, h, j, p, has_C, has_D, d_active, phi_on, useD, useC,
            a, lo, hi, clamp, h_abs, flow_t0, prio, rngp, yb, yb_known):
-    """``_Run._event``: locate, then decide. Returns (kind, te, xe, lo, ylo, h_hint)."""
+    """``_Run._event``: locate, then decide. Returns (kind, te, xe, lo, ylo, h_hint,
+    from_hi): ``from_hi``, a jump from the bracket's hi (``xe`` the state there),
+    whose bracket the post-jump tolerance reads (``rules.post_jump_probe``)."""
     lo, hi, ylo, yhi = _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on,
                                useD, useC, lo, hi, yb, yb_known)
     if hi <= flow_t0:
@@ -743,12 +775,20 @@ def _event(M, yold, hQ, told, h, j, p, has_C, has_D, d_active, phi_on, useD, use
         in_D_lo = _inD(M, ylo, lo, j, p)
     action, side = rules.event_outcome(d_active, in_D_hi, in_C_hi, in_D_lo, prio, coin)
     if action == _A_FLOW:
-        return _O_FLOW_ON, te_hi, yhi, lo, ylo, hint
+        return _O_FLOW_ON, te_hi, yhi, lo, ylo, hint, False
     if action == _A_STOP:
-        return _O_STOP, lo, ylo, lo, ylo, hint
+        return _O_STOP, lo, ylo, lo, ylo, hint, False
     if side == 1:
-        return _O_JUMP, te_hi, yhi, lo, ylo, hint
-    return _O_JUMP, lo, ylo, lo, ylo, hint
+        return _O_JUMP, te_hi, yhi, lo, ylo, hint, True
+    return _O_JUMP, lo, ylo, lo, ylo, hint, False
+
+
+@njit(cache=True, **_NJ)
+def _near_C(M, x, j, p, lo, x_lo, x_hi):
+    """``_Run._near_C``: a post-jump state in neither C nor D is within the located
+    event's tolerance of C (``rules.post_jump_probe``; off the run's main loop)."""
+    tp, xp = rules.post_jump_probe(x, lo, x_lo, x_hi)
+    return _inC(M, xp, tp, j, p)
 
 
 def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
@@ -792,8 +832,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
     has_hD = iopt[9] != 0
     cap = iopt[10]
     watch_D = has_D and prio != _FLOWS
-    phi_ok = ((not watch_D) or has_hD) and ((not has_C) or has_hC)
-    use_phi = phi_ok and (has_hD or has_hC)
+    # every given guard goes into the event function (the indicators decide membership)
     useC = has_C and has_hC
 
     n = x0.shape[0]
@@ -848,6 +887,14 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
     flow_on = False
     in_D = False
     in_C = True
+    loop = 0                         # consecutive jumps at one instant from C and D
+    # (lo, x_lo, x_hi) of the located event the last flow ends with, a jump from
+    # its hi (``pend``), and of the jump just taken (``post``): rules.post_jump_probe
+    pend = False
+    post = False
+    post_lo = t0
+    post_xlo = np.empty(n)           # written in place: no array changes hands per jump
+    post_xhi = np.empty(n)
     done = False
     while not done:
         if stop[0] != 0 or check() != 0 or occurred() != 0:
@@ -857,17 +904,35 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
         if flow_on:
             in_D = True
         else:
-            in_D = has_D and _inD(M, x, t, j, p)
-            in_C = (not has_C) or _inC(M, x, t, j, p)
-            if ev[0] != 0.0:
-                cause = MAP_ERROR
-                detail = MAP_GUARD
-                break
-            coin = False
-            if rules.needs_coin(in_C, in_D, prio, forced):
-                coin = _coin(rngp)
-            action = rules.decide(in_C, in_D, prio, coin, forced)
-            forced = False
+            if forced:
+                # the located event is in D: jump (``_Run._loop``, no set read again)
+                forced = False
+                from_C = True
+                action = _A_JUMP
+                post = pend
+                pend = False
+            else:
+                in_D = has_D and _inD(M, x, t, j, p)
+                in_C = (not has_C) or _inC(M, x, t, j, p)
+                if ev[0] != 0.0:
+                    cause = MAP_ERROR
+                    detail = MAP_GUARD
+                    break
+                coin = False
+                if rules.needs_coin(in_C, in_D, prio, False):
+                    coin = _coin(rngp)
+                action = rules.decide(in_C, in_D, prio, coin, False)
+                if action == _A_STOP and post and _near_C(M, x, j, p, post_lo, post_xlo,
+                                                          post_xhi):
+                    # within the located event's own error of C: in C
+                    in_C = True
+                    action = _A_FLOW
+                if ev[0] != 0.0:
+                    cause = MAP_ERROR
+                    detail = MAP_GUARD
+                    break
+                post = False
+                from_C = in_C
             if action == _A_JUMP:
                 if jumps >= j_max:
                     cause = J_MAX
@@ -893,6 +958,10 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
                     short += 1
                 else:
                     short = 0
+                if from_C and flow == 0.0 and jumps > 0:
+                    loop += 1
+                else:
+                    loop = 0
                 t_last_jump = t
                 j += 1
                 jumps += 1
@@ -909,6 +978,10 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
                     cause = c
                     info[0] = t
                     info[2] = short
+                    if rules.is_jump_loop(loop, zeno_jumps):
+                        # the jumps of the loop and the one that started it, all at t
+                        detail = DETAIL_LOOP
+                        info[2] = loop + 1
                     break
                 continue
             if action == _A_STOP:
@@ -1111,7 +1184,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
             if event:
                 hit = True
             elif has_C or d_active:
-                phi_on = use_phi and (d_active or has_hC)
+                phi_on = (d_active and has_hD) or useC
                 hit, elo, ehi = _interior(M, ya, hQ, a, hs, j, p, has_C, d_active, phi_on,
                                           d_active and has_hD, useC, a, b)
             clamp = np.nan
@@ -1184,9 +1257,9 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
                     continue
             # ---- an event in (elo, ehi] of the step from a (``_Run._event``)
             da = True if past else d_active
-            phi_on = use_phi and (da or has_hC)
+            phi_on = (da and has_hD) or useC
             stats[3] += 1
-            kind, te, xe, lo, _ylo, hint = _event(
+            kind, te, xe, lo, ylo, hint, from_hi = _event(
                 M, ya, hQ, a, hs, j, p, has_C, has_D, da, phi_on, da and has_hD, useC,
                 a, elo, ehi, clamp, h_abs, flow_t0, prio, rngp, yb, ehi == b and not past)
             h_hint = hint
@@ -1221,6 +1294,12 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
                 ns += 1
             t, x = te, xe
             outcome = kind
+            if from_hi:
+                pend = True
+                post_lo = lo
+                for i in range(n):
+                    post_xlo[i] = ylo[i]
+                    post_xhi[i] = xe[i]
             if kind == _O_STOP:
                 cause = _OUTSIDE
                 detail = 1
