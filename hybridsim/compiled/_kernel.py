@@ -784,9 +784,15 @@ def _event(M, yold, hQ, told, h, j, p, has_C, has_D, d_active, phi_on, useD, use
 
 
 @njit(cache=True, **_NJ)
-def _near_C(M, x, j, p, lo, x_lo, x_hi):
+def _near_C(M, x, j, p, lo, yold, hQ, told, h, x_hi):
     """``_Run._near_C``: a post-jump state in neither C nor D is within the located
-    event's tolerance of C (``rules.post_jump_probe``; off the run's main loop)."""
+    event's tolerance of C (``rules.post_jump_probe``; off the run's main loop).
+
+    The bracket's x_lo is rebuilt here, not kept per jump: the event step's
+    dense output (``yold``, ``hQ``, ``told``, ``h``: untouched between the
+    event and this test) at ``lo``, as :func:`_locate` made it (``yold``
+    itself where ``lo`` is the step's start)."""
+    x_lo = yold.copy() if lo == told else _dense(yold, hQ, told, h, lo)
     tp, xp = rules.post_jump_probe(x, lo, x_lo, x_hi)
     return _inC(M, xp, tp, j, p)
 
@@ -888,13 +894,17 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
     in_D = False
     in_C = True
     loop = 0                         # consecutive jumps at one instant from C and D
-    # (lo, x_lo, x_hi) of the located event the last flow ends with, a jump from
-    # its hi (``pend``), and of the jump just taken (``post``): rules.post_jump_probe
+    # the bracket's lo of the located event the last flow ends with, a jump from
+    # its hi (``pend``), and of the jump just taken (``post``): rules.post_jump_probe.
+    # Scalars only per jump (copying x_lo, x_hi at every jump cost ~10% of a
+    # timer's run): ``_near_C`` rebuilds x_lo from the event step (a, ya, hQ,
+    # hs), and x_hi is the pre-jump sample X[ns - 2]
     pend = False
     post = False
     post_lo = t0
-    post_xlo = np.empty(n)           # written in place: no array changes hands per jump
-    post_xhi = np.empty(n)
+    a = t0
+    ya = x
+    hs = 1.0
     done = False
     while not done:
         if stop[0] != 0 or check() != 0 or occurred() != 0:
@@ -922,8 +932,8 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
                 if rules.needs_coin(in_C, in_D, prio, False):
                     coin = _coin(rngp)
                 action = rules.decide(in_C, in_D, prio, coin, False)
-                if action == _A_STOP and post and _near_C(M, x, j, p, post_lo, post_xlo,
-                                                          post_xhi):
+                if action == _A_STOP and post and _near_C(M, x, j, p, post_lo, ya, hQ, a,
+                                                          hs, X[ns - 2]):
                     # within the located event's own error of C: in C
                     in_C = True
                     action = _A_FLOW
@@ -1259,7 +1269,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
             da = True if past else d_active
             phi_on = (da and has_hD) or useC
             stats[3] += 1
-            kind, te, xe, lo, ylo, hint, from_hi = _event(
+            kind, te, xe, lo, _ylo, hint, from_hi = _event(
                 M, ya, hQ, a, hs, j, p, has_C, has_D, da, phi_on, da and has_hD, useC,
                 a, elo, ehi, clamp, h_abs, flow_t0, prio, rngp, yb, ehi == b and not past)
             h_hint = hint
@@ -1297,9 +1307,6 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
             if from_hi:
                 pend = True
                 post_lo = lo
-                for i in range(n):
-                    post_xlo[i] = ylo[i]
-                    post_xhi[i] = xe[i]
             if kind == _O_STOP:
                 cause = _OUTSIDE
                 detail = 1
