@@ -1166,6 +1166,11 @@ class HybridArc:
         ...
         ValueError: validate: sample 2 (t=1.0, j=0) repeats the sample before it ...
         """
+        from .options import check_count, check_real
+        if t_max is not None:
+            t_max = check_real("t_max", t_max, allow_inf=True)
+        if j_max is not None:
+            j_max = check_count("j_max", j_max, allow_inf=True)
         t, j, x, xdot = self.t, self.j, self.x, self.xdot
         shapes = (getattr(t, "shape", None), getattr(j, "shape", None),
                   getattr(x, "shape", None), getattr(xdot, "shape", None))

@@ -452,3 +452,15 @@ def test_the_engine_arcs_are_validated_when_asked(monkeypatch):
         hs.HybridArc._trusted(t, j, x, hs.Termination.T_MAX)
     monkeypatch.setattr(arc_module, "CHECK_ARCS", False)
     assert len(hs.HybridArc._trusted(t, j, x, hs.Termination.T_MAX)) == 3
+
+
+@pytest.mark.parametrize("kw, error, match", [
+    (dict(t_max="x"), TypeError, "t_max must be a real number"),
+    (dict(t_max=float("nan")), ValueError, "t_max must be finite"),
+    (dict(j_max=2.5), TypeError, "j_max must be a non-negative int"),
+    (dict(j_max=-1), ValueError, "j_max must be >= 0"),
+])
+def test_validate_names_a_bad_limit(kw, error, match):
+    arc = hs.simulate(Timer(), [0.0], t_max=2.0)
+    with pytest.raises(error, match=match):
+        arc.validate(**kw)
