@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from paths import PATHS, SETS, Ball, Linear, path_params, random_linear, run, timer
+from paths import SETS, Ball, Linear, path_params, random_linear, run, timer
 
 import hybridsim as hs
 from hybridsim import Termination
@@ -270,6 +270,3 @@ def test_ctrl_c_ends_the_run_with_canceled_and_the_arc_so_far(path):
     assert f"t={arc.t[-1]:.10g}" in arc.message and f"j={arc.j[-1]}" in arc.message
     assert arc.jump_count > 10
 
-
-def test_paths_listed():
-    assert PATHS == ("python", "vectorized", "compiled")
