@@ -11,7 +11,10 @@ job writes them all to ``claims.csv`` and ``index.html``.
 Semantics
 ---------
 *Verdict.* A claim with a printed value is ``"reproduced"`` when
-``|ours - paper_value| <= tol``, else ``"differs"``. A claim with no printed
+``|ours - paper_value| <= tol``, else ``"differs"``. A one-sided claim
+("settles not later than 8 s", "the error stays below the bound") says so
+with ``relation="<="`` (reproduced when ``ours <= paper_value + tol``) or
+``">="`` (when ``ours >= paper_value - tol``). A claim with no printed
 value (``paper_value=None``, e.g. "the error is exactly zero after T") is
 judged against its ``reference``, the value derived independently of this
 package (0 for an exactness claim, a closed form, a recomputation): it is
@@ -58,9 +61,12 @@ import time
 import traceback
 from collections.abc import Callable, Iterable, Mapping
 
+import numpy as np
+
 __all__ = [
     "CSV_FIELDS",
     "PAPER_MODULES",
+    "RELATIONS",
     "VERDICTS",
     "Claim",
     "ClaimResult",
@@ -75,13 +81,17 @@ __all__ = [
 #: The verdicts a claim can be expected to reach.
 VERDICTS = ("reproduced", "differs")
 
+#: How a claim's value is compared with its target: equal within ``tol``, or a
+#: one-sided bound.
+RELATIONS = ("==", "<=", ">=")
+
 #: The paper packages of :mod:`observers`, by module name, with their paper ids.
 PAPER_MODULES = {"li_sanfelice": "002", "gramian_delay": "004", "time_varying": "001",
                  "dynamic_gain": "000", "distributed": "003"}
 
 #: Columns of ``claims.csv``, in order.
-CSV_FIELDS = ("id", "paper", "where", "statement", "paper_value", "our_value", "reference",
-              "tol", "tol_why", "verdict", "expected", "passed", "reason", "seconds", "error")
+CSV_FIELDS = ("id", "paper", "where", "statement", "relation", "paper_value", "our_value",
+              "reference", "tol", "tol_why", "verdict", "expected", "passed", "reason", "seconds", "error")
 
 
 def _text(name, value, *, required=True, cid=""):
@@ -149,6 +159,10 @@ class Claim:
     slow : bool
         True when ``compute`` takes more than a few seconds: the default
         test suite then skips it (``pytest -m slow`` runs it).
+    relation : {"==", "<=", ">="}
+        ``"=="`` (default): the paper's value, within ``tol``. ``"<="``: the
+        paper states an upper bound, met when ``ours <= paper_value + tol``;
+        ``">="``: a lower bound. The reference pin stays two-sided.
 
     Raises
     ------
@@ -177,6 +191,7 @@ class Claim:
     reference: float | None = None
     ref_tol: float | None = None
     slow: bool = False
+    relation: str = "=="
 
     def __post_init__(self):
         _text("id", self.id)
@@ -210,6 +225,9 @@ class Claim:
                                  "against its reference, so expected='differs' cannot pass; "
                                  "give the value the paper's statement implies as "
                                  "paper_value")
+        if self.relation not in RELATIONS:
+            raise ValueError(f"Claim {cid!r}: relation must be one of {RELATIONS}, "
+                             f"got {self.relation!r}")
         if not isinstance(self.slow, bool):
             raise TypeError(f"Claim {cid!r}: slow must be a bool, got "
                             f"{type(self.slow).__name__}")
@@ -218,6 +236,14 @@ class Claim:
     def target(self) -> float:
         """The value the verdict compares with: ``paper_value``, else ``reference``."""
         return self.paper_value if self.paper_value is not None else self.reference
+
+    def holds(self, value: float) -> bool:
+        """Whether ``value`` meets the target under :attr:`relation` and ``tol``."""
+        if self.relation == "<=":
+            return value <= self.target + self.tol
+        if self.relation == ">=":
+            return value >= self.target - self.tol
+        return abs(value - self.target) <= self.tol
 
     @property
     def reference_tol(self) -> float:
@@ -241,6 +267,8 @@ class ClaimResult:
         Wall time of ``compute``.
     error : str
         Empty, or why the claim could not be evaluated / did not pass.
+    boolean : bool
+        ``compute`` returned a bool (a yes/no claim: 1.0 is "yes").
     """
 
     claim: Claim
@@ -249,12 +277,40 @@ class ClaimResult:
     passed: bool
     seconds: float
     error: str = ""
+    boolean: bool = False
+
+    def shown(self) -> str:
+        """Our value as the terminal and the report show it ("yes"/"no" for a
+        yes/no claim)."""
+        if self.boolean:
+            return "yes" if self.value == 1.0 else "no"
+        return f"{self.value:.6g}"
+
+    def line(self) -> str:
+        """One readable terminal line: whether it is as expected, the verdict
+        against the paper, and the values."""
+        c = self.claim
+        if c.paper_value is not None:
+            rel = "" if c.relation == "==" else c.relation + " "
+            against = f"paper {rel}{c.paper_value:.6g}"
+        else:
+            against = f"reference {c.reference:.6g}"
+        if self.boolean:
+            against = f"paper: {'yes' if c.target == 1.0 else 'no'}"
+        if not self.passed:
+            status = "NOT AS EXPECTED"
+        elif self.verdict == "differs":
+            status = "differs, as documented"
+        else:
+            status = "reproduced"
+        text = f"  {status:<22} {c.id:<30} ours {self.shown()}, {against}"
+        return text + (f"  {self.error}" if self.error else "")
 
     def row(self) -> dict:
         """The claim and its outcome as a ``claims.csv`` row (keys :data:`CSV_FIELDS`)."""
         c = self.claim
         return {"id": c.id, "paper": c.paper, "where": c.where, "statement": c.statement,
-                "paper_value": c.paper_value, "our_value": self.value,
+                "relation": c.relation, "paper_value": c.paper_value, "our_value": self.value,
                 "reference": c.reference, "tol": c.tol, "tol_why": c.tol_why,
                 "verdict": self.verdict, "expected": c.expected, "passed": self.passed,
                 "reason": c.reason, "seconds": self.seconds, "error": self.error}
@@ -293,6 +349,7 @@ def evaluate(claim: Claim) -> ClaimResult:
         return ClaimResult(claim, math.nan, "error", False, time.perf_counter() - t0,
                            f"compute() raised {tb}")
     seconds = time.perf_counter() - t0
+    boolean = isinstance(raw, (bool, np.bool_))
     try:
         value = float(raw)
     except (TypeError, ValueError):
@@ -301,16 +358,20 @@ def evaluate(claim: Claim) -> ClaimResult:
     if not math.isfinite(value):
         return ClaimResult(claim, value, "error", False, seconds,
                            f"compute() returned a non-finite value {value}")
-    verdict = "reproduced" if abs(value - claim.target) <= claim.tol else "differs"
+    verdict = "reproduced" if claim.holds(value) else "differs"
     problems = []
     if verdict != claim.expected:
+        which = "paper" if claim.paper_value is not None else "reference"
+        how = (f"|ours - {which}| = {abs(value - claim.target):.3g}"
+               if claim.relation == "==" else
+               f"ours {value:.6g} {claim.relation} {which} {claim.target:.6g}")
         problems.append(f"verdict {verdict!r} but expected {claim.expected!r} "
-                        f"(|ours - {'paper' if claim.paper_value is not None else 'reference'}|"
-                        f" = {abs(value - claim.target):.3g}, tol {claim.tol:g})")
+                        f"({how}, tol {claim.tol:g})")
     if claim.reference is not None and abs(value - claim.reference) > claim.reference_tol:
         problems.append(f"|ours - reference| = {abs(value - claim.reference):.3g} > "
                         f"{claim.reference_tol:g} (reference {claim.reference!r})")
-    return ClaimResult(claim, value, verdict, not problems, seconds, "; ".join(problems))
+    return ClaimResult(claim, value, verdict, not problems, seconds, "; ".join(problems),
+                       boolean)
 
 
 def validate_registry(claims: Iterable[Claim], *, paper: str | None = None) -> list[Claim]:
@@ -370,7 +431,7 @@ def run_claims(claims: Iterable[Claim], *, slow: bool = True,
     slow : bool
         Include claims marked ``slow`` (default True).
     echo : callable, optional
-        Called with one line per claim (e.g. ``print``).
+        Called with one line per claim (:meth:`ClaimResult.line`), e.g. ``print``.
 
     Returns
     -------
@@ -390,9 +451,7 @@ def run_claims(claims: Iterable[Claim], *, slow: bool = True,
         r = evaluate(c)
         results.append(r)
         if echo is not None:
-            mark = "ok  " if r.passed else "FAIL"
-            echo(f"  {mark} {c.id:<28} {r.verdict:<10} ours {r.value:.6g}  "
-                 f"({r.seconds:.1f} s){'  ' + r.error if r.error else ''}")
+            echo(r.line())
     return results
 
 

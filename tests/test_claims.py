@@ -192,7 +192,7 @@ def test_run_claims_in_order_skipping_slow_on_request():
     results = run_claims(claims, echo=lines.append)
     assert [r.claim.id for r in results] == ["999-a", "999-b", "999-c"]
     assert [r.passed for r in results] == [True, True, False]
-    assert len(lines) == 3 and lines[2].lstrip().startswith("FAIL 999-c")
+    assert len(lines) == 3 and lines[2].lstrip().startswith("NOT AS EXPECTED")
     assert [r.claim.id for r in run_claims(claims, slow=False)] == ["999-a", "999-c"]
     with pytest.raises(ValueError, match="duplicate claim id"):
         run_claims([claims[0], claims[0]])
