@@ -91,7 +91,8 @@ PAPER_MODULES = {"li_sanfelice": "002", "gramian_delay": "004", "time_varying": 
 
 #: Columns of ``claims.csv``, in order.
 CSV_FIELDS = ("id", "paper", "where", "statement", "relation", "paper_value", "our_value",
-              "reference", "tol", "tol_why", "verdict", "expected", "passed", "reason", "seconds", "error")
+              "reference", "tol", "tol_why", "verdict", "expected", "passed", "reason",
+              "seconds", "error")
 
 
 def _text(name, value, *, required=True, cid=""):
@@ -307,13 +308,15 @@ class ClaimResult:
         return text + (f"  {self.error}" if self.error else "")
 
     def row(self) -> dict:
-        """The claim and its outcome as a ``claims.csv`` row (keys :data:`CSV_FIELDS`)."""
+        """The claim and its outcome as a ``claims.csv`` row (keys :data:`CSV_FIELDS`, and
+        ``boolean``, which the report reads and the CSV leaves out)."""
         c = self.claim
         return {"id": c.id, "paper": c.paper, "where": c.where, "statement": c.statement,
                 "relation": c.relation, "paper_value": c.paper_value, "our_value": self.value,
                 "reference": c.reference, "tol": c.tol, "tol_why": c.tol_why,
                 "verdict": self.verdict, "expected": c.expected, "passed": self.passed,
-                "reason": c.reason, "seconds": self.seconds, "error": self.error}
+                "reason": c.reason, "seconds": self.seconds, "error": self.error,
+                "boolean": self.boolean}
 
 
 def evaluate(claim: Claim) -> ClaimResult:

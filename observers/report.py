@@ -94,6 +94,9 @@ class Part:
     problems : list of str
         Departures from the paper packages' contract (missing names or
         captions), shown on the page.
+    not_reproduced : dict
+        The package's ``NOT_REPRODUCED``: the paper's figures left out, each
+        with the reason.
     log : str
         The part's console output.
     finished : str
@@ -112,6 +115,7 @@ class Part:
     claims_note: str = ""
     claims_seconds: float = 0.0
     problems: list = dataclasses.field(default_factory=list)
+    not_reproduced: dict = dataclasses.field(default_factory=dict)
     log: str = ""
     finished: str = ""
 
@@ -378,8 +382,16 @@ def _claims_table(rows: list[dict]) -> list[str]:
          "<tbody>"]
     for r in rows:
         verdict = r["verdict"]
-        paper_v = _num(r["paper_value"], none="none printed")
-        if r.get("reference") is not None:
+        rel = {"<=": "≤ ", ">=": "≥ "}.get(r.get("relation", "=="), "")
+        paper_v = (rel + _num(r["paper_value"])) if r["paper_value"] is not None \
+            else "none printed"
+        ours = _num(r["our_value"])
+        if r.get("boolean"):
+            ours = "yes" if r["our_value"] == 1.0 else "no"
+            target = r["paper_value"] if r["paper_value"] is not None else r.get("reference")
+            paper_v = ("yes" if target == 1.0 else "no") + (
+                "" if r["paper_value"] is not None else " (reference)")
+        if r.get("reference") is not None and not r.get("boolean"):
             paper_v += f'<br><span class="meta">reference {_e(_num(r["reference"]))}</span>'
         check = ('<span class="ok">✓ as expected</span>' if r["passed"]
                  else '<span class="bad">✗ NOT as expected</span>')
@@ -389,7 +401,7 @@ def _claims_table(rows: list[dict]) -> list[str]:
         h.append(f'<tr class="{"passed" if r["passed"] else "notpassed"}">'
                  f'<td><code>{_e(r["id"])}</code></td><td>{_e(r["where"])}</td>'
                  f'<td class="statement">{_e(r["statement"])}</td><td class="num">{paper_v}</td>'
-                 f'<td class="num">{_e(_num(r["our_value"]))}</td>'
+                 f'<td class="num">{_e(ours)}</td>'
                  f'<td class="why"><span class="num">± {_e(_num(r["tol"]))}</span><br>'
                  f'{_e(r["tol_why"])}</td>'
                  f'<td class="verdict v-{_e(verdict)}">{_e(verdict)}</td>'
@@ -447,6 +459,10 @@ def _section(part: Part, outdir: pathlib.Path) -> list[str]:
     h.append(f"<h3>Figures ({len(part.figures)})</h3>")
     if not part.figures:
         h.append("<p>No figures.</p>")
+    if part.not_reproduced:
+        h.append('<div class="warn notreproduced"><strong>Not reproduced:</strong><ul>'
+                 + "".join(f"<li><strong>{_e(k)}</strong>: {_e(v)}</li>"
+                           for k, v in part.not_reproduced.items()) + "</ul></div>")
     for rel in part.figures:
         png = outdir / rel
         txt = png.with_suffix(".txt")

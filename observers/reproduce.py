@@ -2,23 +2,28 @@
 
 Usage
 -----
-``python -m observers reproduce [NAME ...] [--out DIR] [--no-claims]``
+``python -m observers reproduce [NAME ...] [--out DIR] [--no-claims] [--verbose]``
 
 NAME is one of ``engine`` (bouncing ball and timer demos of the engine),
 ``li_sanfelice``, ``gramian_delay``, ``time_varying``, ``dynamic_gain``,
 ``distributed``; default all. For each part:
 
-1. its ``reproduce(outdir)`` writes the figures into ``DIR/NAME/``. Every
-   paper package's ``reproduce`` takes one positional argument, the existing
-   output folder (a ``str`` or ``pathlib.Path``), and returns the list of
-   ``pathlib.Path`` of the PNGs it wrote, each with a ``.txt`` caption
-   beside it (extra keyword arguments, all with defaults, are the paper's
-   business; the main job never passes them);
+1. its figures are written into ``DIR/NAME/``: each :class:`Figure` of the
+   package's ``FIGURES`` (the contract of :mod:`observers._common`; a
+   package without them is run through its ``reproduce(outdir)``, which
+   returns the PNGs' paths), each PNG with a ``.txt`` caption beside it;
 2. its ``CLAIMS`` are evaluated (:mod:`observers.claims`), unless
-   ``--no-claims``;
+   ``--no-claims``; the claims read the figures' cached runs, so nothing
+   is computed twice;
 3. what it produced is recorded in ``DIR/NAME/part.json``
-   (:class:`observers.report.Part`), with its ``PAPER``, ``ERRATA`` and
-   ``DECISIONS``.
+   (:class:`observers.report.Part`), with its ``PAPER``, ``ERRATA``,
+   ``DECISIONS`` and ``NOT_REPRODUCED``.
+
+The terminal shows one progress bar over every figure and claim (when it
+is a terminal), one line per part, and what needs attention: a warning
+logged, a claim not as expected, a failure. What the parts log
+(:mod:`logging`, logger ``observers``) and one line per claim go to the
+part's record and the report (``--verbose`` prints them too).
 
 Then ``DIR/claims.csv`` (every claim of every part recorded in DIR) and
 ``DIR/index.html`` (the report: open it first) are written.
@@ -37,22 +42,105 @@ import argparse
 import contextlib
 import importlib
 import io
+import logging
 import os
 import pathlib
 import sys
 import time
 import traceback
 
-from .claims import PAPER_MODULES, run_claims, validate_registry
+from ._common import Figure, reproduce_figures
+from .claims import PAPER_MODULES, evaluate, validate_registry
 from .report import Part, paper_metadata, write_report
 
-__all__ = ["PAPERS", "main", "run_part"]
+log = logging.getLogger(__name__)
+
+__all__ = ["ENGINE_FIGURES", "PAPERS", "main", "run_part"]
 
 PAPERS = ["engine", *PAPER_MODULES]
 
 
+def _ball_data():
+    """The bouncing ball's run and its jump-time error against the closed form."""
+    import numpy as np
+
+    import hybridsim as hs
+    from hybridsim.library import BouncingBall, bouncing_ball_jump_times
+    h0, g, e, n_jumps = 1.0, 9.81, 0.8, 30
+    arc = hs.simulate(BouncingBall(g, e), [h0, 0.0], t_max=5.0, j_max=n_jumps, rtol=1e-10,
+                      atol=1e-12)
+    err = float(np.max(np.abs(arc.jump_times - bouncing_ball_jump_times(h0, arc.jump_count,
+                                                                         g, e))))
+    log.info("bouncing ball: %d jumps, largest jump-time error %.2e", arc.jump_count, err)
+    return {"arc": arc, "h0": h0, "g": g, "e": e, "err": err}
+
+
+def _ball_draw(d):
+    from matplotlib.figure import Figure
+
+    import hybridsim as hs
+    arc = d["arc"]
+    fig = Figure(figsize=(12, 5))
+    grid = fig.add_gridspec(2, 2, width_ratios=[3, 2])
+    ax_h = fig.add_subplot(grid[0, 0])
+    ax_v = fig.add_subplot(grid[1, 0], sharex=ax_h)
+    ax_h.tick_params(labelbottom=False)
+    hs.plot_flows(arc, subplots=True, ax=[ax_h, ax_v], labels=["height (m)", "velocity (m/s)"],
+                  xlabel="$t$ (s)", legend=False)
+    ax_h.set_title("height and velocity against $t$")
+    ax_d = fig.add_subplot(grid[:, 1])
+    hs.plot_time_domain(arc, ax=ax_d, xlabel="$t$ (s)")
+    ax_d.set_title("hybrid time domain")
+    fig.suptitle(f"bouncing ball, $h_0$ = {d['h0']:g} m, $g$ = {d['g']} m/s$^2$, restitution "
+                 f"{d['e']}, {arc.jump_count} jumps")
+    fig.tight_layout()
+    return fig
+
+
+def _ball_caption(d):
+    return (f"Bouncing ball (h0 = {d['h0']:g} m, g = {d['g']} m/s^2, restitution {d['e']}; "
+            f"values chosen for the demo), {d['arc'].jump_count} jumps, RK45 at rtol 1e-10. "
+            "Left: height and velocity against t, flows drawn from the arc's interpolant "
+            "between samples; each bounce is a jump of the velocity, dotted from the pre-jump "
+            "value (filled circle) to the post-jump value (open circle). Right: the hybrid "
+            "time domain, [t_j, t_{j+1}] x {j} for each j. Largest jump-time error against the "
+            f"closed form: {d['err']:.1e} s.")
+
+
+def _timer_data():
+    import numpy as np
+
+    import hybridsim as hs
+    from hybridsim.library import Timer
+    arc = hs.simulate(Timer(1.0), [0.0], t_max=5.5)
+    log.info("timer: jump times %s (exact multiples of 1 up to %.1e)", arc.jump_times,
+             np.max(np.abs(arc.jump_times - np.arange(1, 6))))
+    return arc
+
+
+def _timer_draw(arc):
+    from matplotlib.figure import Figure
+
+    import hybridsim as hs
+    fig = Figure()
+    ax = fig.add_subplot(projection="3d")
+    hs.plot_hybrid(arc, 0, labels=[r"timer $\tau$"], ax=ax)
+    ax.set_title("timer, period 1, in hybrid time $(t, j, \\tau)$")
+    return fig
+
+
+#: The engine's demo figures (the ``engine`` part of the main job).
+ENGINE_FIGURES = [
+    Figure("bouncing_ball", "bouncing ball", _ball_data, _ball_draw, _ball_caption),
+    Figure("timer_hybrid", "timer in hybrid time", _timer_data, _timer_draw,
+           lambda arc: "A timer with period 1 (flow 1, reset to 0 at tau = 1) over t in "
+           "[0, 5.5], drawn in hybrid time (t, j, tau): flows along t at constant j, each reset "
+           "a dotted jump from (t, j, 1) (filled circle) to (t, j + 1, 0) (open circle)."),
+]
+
+
 def _engine_demo(outdir):
-    """Bouncing ball and timer: the engine's own demo figures.
+    """Bouncing ball and timer: the engine's own demo figures (:data:`ENGINE_FIGURES`).
 
     ``bouncing_ball.png``: the ball's height and velocity against t (one
     subplot each, shared t; a bounce is the velocity's jump, dotted from a
@@ -72,64 +160,11 @@ def _engine_demo(outdir):
 
     Examples
     --------
-    >>> import contextlib, io, tempfile
-    >>> with contextlib.redirect_stdout(io.StringIO()):      # it prints its numbers
-    ...     paths = _engine_demo(tempfile.mkdtemp())
-    >>> [p.name for p in paths]
+    >>> import tempfile
+    >>> [p.name for p in _engine_demo(tempfile.mkdtemp())]
     ['bouncing_ball.png', 'timer_hybrid.png']
     """
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    import numpy as np
-
-    import hybridsim as hs
-    from hybridsim.library import BouncingBall, Timer, bouncing_ball_jump_times
-
-    outdir = pathlib.Path(outdir)
-    h0, g, e, n_jumps = 1.0, 9.81, 0.8, 30
-    arc = hs.simulate(BouncingBall(g, e), [h0, 0.0], t_max=5.0, j_max=n_jumps, rtol=1e-10,
-                      atol=1e-12)
-    fig = plt.figure(figsize=(12, 5))
-    grid = fig.add_gridspec(2, 2, width_ratios=[3, 2])
-    ax_h = fig.add_subplot(grid[0, 0])
-    ax_v = fig.add_subplot(grid[1, 0], sharex=ax_h)
-    ax_h.tick_params(labelbottom=False)
-    hs.plot_flows(arc, subplots=True, ax=[ax_h, ax_v], labels=["height (m)", "velocity (m/s)"],
-                  xlabel="$t$ (s)", legend=False)
-    ax_h.set_title("height and velocity against $t$")
-    ax_d = fig.add_subplot(grid[:, 1])
-    hs.plot_time_domain(arc, ax=ax_d, xlabel="$t$ (s)")
-    ax_d.set_title("hybrid time domain")
-    fig.suptitle(f"bouncing ball, $h_0$ = {h0:g} m, $g$ = {g} m/s$^2$, restitution {e}, "
-                 f"{arc.jump_count} jumps")
-    fig.tight_layout()
-    paths = [outdir / "bouncing_ball.png"]
-    fig.savefig(paths[-1], dpi=120)
-    plt.close(fig)
-    ex = bouncing_ball_jump_times(h0, arc.jump_count, g, e)
-    err = np.max(np.abs(arc.jump_times - ex))
-    paths[-1].with_suffix(".txt").write_text(
-        f"Bouncing ball (h0 = {h0:g} m, g = {g} m/s^2, restitution {e}; values chosen for the "
-        f"demo), {arc.jump_count} jumps, RK45 at rtol 1e-10. Left: height and velocity against "
-        "t, flows drawn from the arc's interpolant between samples; each bounce is a jump of "
-        "the velocity, dotted from the pre-jump value (filled circle) to the post-jump value "
-        "(open circle). Right: the hybrid time domain, [t_j, t_{j+1}] x {j} for each j. "
-        f"Largest jump-time error against the closed form: {err:.1e} s.\n")
-    print(f"  bouncing ball: {arc.jump_count} jumps, largest jump-time error {err:.2e}")
-    arc = hs.simulate(Timer(1.0), [0.0], t_max=5.5)
-    ax = hs.plot_hybrid(arc, 0, labels=[r"timer $\tau$"])
-    ax.set_title("timer, period 1, in hybrid time $(t, j, \\tau)$")
-    paths.append(outdir / "timer_hybrid.png")
-    ax.figure.savefig(paths[-1], dpi=120)
-    plt.close(ax.figure)
-    paths[-1].with_suffix(".txt").write_text(
-        "A timer with period 1 (flow 1, reset to 0 at tau = 1) over t in [0, 5.5], drawn in "
-        "hybrid time (t, j, tau): flows along t at constant j, each reset a dotted jump from "
-        "(t, j, 1) (filled circle) to (t, j + 1, 0) (open circle).\n")
-    print(f"  timer: jump times {arc.jump_times} (exact multiples of 1 up to "
-          f"{np.max(np.abs(arc.jump_times - np.arange(1, 6))):.1e})")
-    return paths
+    return reproduce_figures(ENGINE_FIGURES, outdir)
 
 
 class _Tee(io.TextIOBase):
@@ -144,6 +179,63 @@ class _Tee(io.TextIOBase):
 
     def flush(self):
         self.stream.flush()
+
+
+class _PartLog(logging.Handler):
+    """Keeps a part's log records (for the report) and shows warnings at once.
+
+    INFO and DEBUG records go to the part's log only (the report shows them);
+    WARNING and above are also written to the terminal, above the progress
+    bar, so nothing unexpected is silent.
+    """
+
+    def __init__(self, copy, echo):
+        super().__init__(logging.DEBUG)
+        self.copy, self.echo = copy, echo
+        self.setFormatter(logging.Formatter("%(message)s"))
+
+    def emit(self, record):
+        try:
+            text = self.format(record)
+            if record.levelno >= logging.WARNING:
+                text = f"{record.levelname}: {text}"
+                self.echo(text)
+            self.copy.write(text + "\n")
+        except Exception:  # noqa: BLE001 - logging must never break the job
+            self.handleError(record)
+
+
+class _Progress:
+    """One progress bar over the figures and claims of every part (tqdm, to stderr;
+    tqdm turns itself off when stderr is not a terminal)."""
+
+    def __init__(self, total, enabled=None):
+        from tqdm.auto import tqdm
+        self.bar = tqdm(total=total, unit="step", disable=None if enabled is None else not enabled,
+                        leave=False, dynamic_ncols=True,
+                        bar_format="{desc:<40.40} {percentage:3.0f}%|{bar}| "
+                                   "{n_fmt}/{total_fmt} [{elapsed}<{remaining}]")
+
+    def step(self, what):
+        self.bar.set_description_str(what, refresh=False)
+        self.bar.update(1)
+
+    def write(self, line):
+        self.bar.write(line, file=sys.stdout)
+
+    def close(self):
+        self.bar.close()
+
+
+def _steps(name):
+    """How many progress steps a part has (figures + claims); 1 when unknown."""
+    if name == "engine":
+        return len(ENGINE_FIGURES)
+    try:
+        mod = importlib.import_module(f"observers.{name}")
+    except Exception:  # noqa: BLE001 - the part itself reports the failure
+        return 1
+    return len(getattr(mod, "FIGURES", ()) or ()) + len(getattr(mod, "CLAIMS", ()) or ())
 
 
 def _figure_paths(paths, outdir: pathlib.Path, root: pathlib.Path, who: str):
@@ -173,7 +265,8 @@ def _figure_paths(paths, outdir: pathlib.Path, root: pathlib.Path, who: str):
     return rel, problems
 
 
-def run_part(name: str, out, *, claims: bool = True) -> Part:
+def run_part(name: str, out, *, claims: bool = True, progress=None,
+             echo=None) -> Part:
     """Run one part of the main job into ``out/<name>/`` and record it.
 
     Parameters
@@ -184,13 +277,20 @@ def run_part(name: str, out, *, claims: bool = True) -> Part:
         The main job's output folder (created if needed).
     claims : bool
         Evaluate the package's ``CLAIMS`` (default True).
+    progress : callable, optional
+        Called with a short description after each figure and each claim
+        (the main job's progress bar).
+    echo : callable, optional
+        Called with each line meant for the terminal: the part's summary,
+        claims not as expected, warnings. Default: print to stdout.
 
     Returns
     -------
     observers.report.Part
-        Also saved as ``out/<name>/part.json``. Nothing is raised for a
-        failing part: ``status`` is ``"failed"`` and ``error`` holds the
-        traceback.
+        Also saved as ``out/<name>/part.json``; its ``log`` holds what the
+        part logged (:mod:`logging`, logger ``observers``) and printed, and
+        one line per claim. Nothing is raised for a failing part: ``status``
+        is ``"failed"`` and ``error`` holds the traceback.
 
     Raises
     ------
@@ -199,14 +299,15 @@ def run_part(name: str, out, *, claims: bool = True) -> Part:
 
     Examples
     --------
-    >>> import contextlib, io, tempfile
-    >>> with contextlib.redirect_stdout(io.StringIO()):
-    ...     part = run_part("engine", tempfile.mkdtemp())
+    >>> import tempfile
+    >>> part = run_part("engine", tempfile.mkdtemp(), echo=lambda line: None)
     >>> part.status, part.figures
     ('ok', ['engine/bouncing_ball.png', 'engine/timer_hybrid.png'])
     """
     if name not in PAPERS:
         raise ValueError(f"name must be one of {PAPERS}, got {name!r}")
+    echo = print if echo is None else echo
+    step = progress or (lambda what: None)
     out = pathlib.Path(out)
     d = out / name
     d.mkdir(parents=True, exist_ok=True)
@@ -214,28 +315,46 @@ def run_part(name: str, out, *, claims: bool = True) -> Part:
     tee = _Tee(sys.stdout)
     err = _Tee(sys.stderr)
     err.copy = tee.copy                    # one log, warnings where they happened
+    handler = _PartLog(tee.copy, echo)
+    logger = logging.getLogger("observers")
+    level, logger_level = logging.getLogger().level, logger.level
+    logger.addHandler(handler)
+    logger.setLevel(logging.INFO)
+    logging.captureWarnings(True)
+    pywarn = logging.getLogger("py.warnings")
+    pywarn.addHandler(handler)
     with contextlib.redirect_stdout(tee), contextlib.redirect_stderr(err):
-        print(f"[{name}] -> {d}")
         mod = None
         t0 = time.perf_counter()
         try:
             if name == "engine":
-                who, paths = "observers.reproduce._engine_demo", _engine_demo(d)
+                who = "observers.reproduce._engine_demo"
+                paths = reproduce_figures(ENGINE_FIGURES, d,
+                                          progress=lambda f: step(f"{name}: {f}"))
             else:
                 mod = importlib.import_module(f"observers.{name}")
-                who, paths = f"observers.{name}.reproduce", mod.reproduce(d)
+                who = f"observers.{name}.reproduce"
+                figures = getattr(mod, "FIGURES", None)
+                if isinstance(figures, (list, tuple)) and figures and all(
+                        isinstance(f, Figure) for f in figures):
+                    paths = reproduce_figures(figures, d,
+                                              progress=lambda f: step(f"{name}: {f}"))
+                else:
+                    paths = mod.reproduce(d)
             part.figures, part.problems = _figure_paths(paths, d, out, who)
-            print(f"[{name}] {len(part.figures)} figure(s) in "
-                  f"{time.perf_counter() - t0:.1f} s")
+            tee.copy.write(f"[{name}] {len(part.figures)} figure(s) in "
+                           f"{time.perf_counter() - t0:.1f} s\n")
         except Exception:  # noqa: BLE001 - report and go on with the other parts
             part.status, part.error = "failed", traceback.format_exc()
-            print(part.error, end="")
-            print(f"[{name}] FAILED")
+            tee.copy.write(part.error)
+            echo(f"[{name}] FAILED while making its figures:\n{part.error.rstrip()}")
         part.seconds = time.perf_counter() - t0
         if mod is not None:
             meta = paper_metadata(mod)
             part.paper, part.errata, part.decisions = (meta["paper"], meta["errata"],
                                                        meta["decisions"])
+            nr = getattr(mod, "NOT_REPRODUCED", None)
+            part.not_reproduced = dict(nr) if isinstance(nr, dict) else {}
             part.problems = meta["problems"] + part.problems
             registry = getattr(mod, "CLAIMS", None)
             if registry is None:
@@ -248,23 +367,47 @@ def run_part(name: str, out, *, claims: bool = True) -> Part:
                 try:
                     paper_id = (part.paper or {}).get("id")
                     registry = validate_registry(registry, paper=paper_id)
-                    print(f"[{name}] {len(registry)} claim(s)")
-                    part.claims = [r.row() for r in run_claims(registry, echo=print)]
-                    bad = [r["id"] for r in part.claims if not r["passed"]]
-                    print(f"[{name}] claims: {len(part.claims) - len(bad)} of "
-                          f"{len(part.claims)} as expected"
-                          + (f"; NOT as expected: {', '.join(bad)}" if bad else ""))
+                    results = []
+                    for c in registry:
+                        r = evaluate(c)
+                        results.append(r)
+                        tee.copy.write(r.line() + "\n")
+                        if not r.passed:
+                            echo(f"[{name}]{r.line()}")
+                        step(f"{name}: {c.id}")
+                    part.claims = [r.row() for r in results]
                 except (TypeError, ValueError) as exc:
                     part.claims_note = f"observers.{name}.CLAIMS is invalid: {exc}"
                     part.status = "failed"
                     part.error += f"observers.{name}.CLAIMS is invalid: {exc}\n"
-                    print(f"[{name}] {part.claims_note}")
+                    echo(f"[{name}] {part.claims_note}")
                 part.claims_seconds = time.perf_counter() - t1
         elif name != "engine":
             part.claims_note = f"observers.{name} could not be imported"
+    logger.removeHandler(handler)
+    pywarn.removeHandler(handler)
+    logger.setLevel(logger_level)
+    logging.getLogger().setLevel(level)
+    logging.captureWarnings(False)
     part.log = tee.copy.getvalue()
     part.save(out)
+    echo(_summary_line(part))
     return part
+
+
+def _summary_line(part: Part) -> str:
+    """The part's one terminal line: figures, claims by outcome, time."""
+    what = [f"{len(part.figures)} figure(s)"]
+    if part.claims is not None:
+        c = part.counts
+        what.append(f"{c['total']} claim(s): {c['reproduced']} reproduced, {c['differs']} "
+                    "differ as documented" if not c["failed"] else
+                    f"{c['total']} claim(s), {c['failed']} NOT as expected")
+    elif part.claims_note and part.name != "engine":
+        what.append(part.claims_note)
+    status = "ok" if part.status == "ok" else "FAILED"
+    return (f"{status:<6} {part.name:<14} " + "; ".join(what)
+            + f"  ({part.seconds + part.claims_seconds:.1f} s)")
 
 
 def main(argv=None):
@@ -278,12 +421,14 @@ def main(argv=None):
     r.add_argument("--out", default="results", help="output folder (default: results)")
     r.add_argument("--no-claims", action="store_true",
                    help="do not evaluate the papers' claims")
+    r.add_argument("--verbose", "-v", action="store_true",
+                   help="also print every part's log and every claim's line")
     rep = sub.add_parser("report", help="rewrite index.html and claims.csv from the parts "
                                         "recorded in the output folder")
     rep.add_argument("--out", default="results", help="output folder (default: results)")
     args = p.parse_args(argv)
     import matplotlib
-    matplotlib.use("Agg")
+    matplotlib.use("Agg")                   # the command line draws into files only
     out = pathlib.Path(args.out)
     command = "python -m observers " + " ".join(sys.argv[1:] if argv is None else argv)
     if args.cmd == "report":
@@ -294,12 +439,20 @@ def main(argv=None):
         print(f"report: {page.resolve()}")
         return 0
     names = list(dict.fromkeys(args.names or PAPERS))
+    t0 = time.perf_counter()
+    bar = _Progress(sum(_steps(n) for n in names))
     failed, off = [], []
-    for name in names:
-        part = run_part(name, out, claims=not args.no_claims)
-        if part.status != "ok":
-            failed.append(name)
-        off += [row["id"] for row in part.claims or [] if not row["passed"]]
+    try:
+        for name in names:
+            part = run_part(name, out, claims=not args.no_claims, progress=bar.step,
+                            echo=bar.write)
+            if args.verbose and part.log.strip():
+                bar.write(part.log.rstrip())
+            if part.status != "ok":
+                failed.append(name)
+            off += [row["id"] for row in part.claims or [] if not row["passed"]]
+    finally:
+        bar.close()
     page = write_report(out, command=command)
     print(f"claims: {(out / 'claims.csv').resolve()}")
     print(f"report: {page.resolve()}  (open it first)")
@@ -309,5 +462,5 @@ def main(argv=None):
         print(f"claims not as expected: {', '.join(off)}", file=sys.stderr)
     if failed or off:
         return 1
-    print(f"all results in {out.resolve()}")
+    print(f"all results in {out.resolve()} ({time.perf_counter() - t0:.0f} s)")
     return 0

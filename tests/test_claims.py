@@ -13,6 +13,7 @@ import sys
 import time
 import types
 
+import numpy as np
 import pytest
 
 from observers.claims import (
@@ -333,4 +334,38 @@ def test_paper_package_contract(name):
 def test_claim_result_row_has_the_csv_columns():
     r = evaluate(make())
     assert isinstance(r, ClaimResult)
-    assert tuple(r.row()) == CSV_FIELDS
+    assert tuple(r.row()) == (*CSV_FIELDS, "boolean")
+
+
+# ------------------------------------------------- one-sided claims, yes/no --
+
+@pytest.mark.parametrize("relation, ours, verdict", [
+    ("<=", 7.0, "reproduced"), ("<=", 8.0 + 0.9e-3, "reproduced"), ("<=", 8.1, "differs"),
+    (">=", 9.0, "reproduced"), (">=", 8.0 - 0.9e-3, "reproduced"), (">=", 7.9, "differs"),
+    ("==", 7.0, "differs")])
+def test_one_sided_claims(relation, ours, verdict):
+    """'Not later than 8 s' holds at 7 s: a bound is checked on its one side."""
+    c = make(paper_value=8.0, compute=lambda: ours, relation=relation,
+             expected=verdict, reason="" if verdict == "reproduced" else "erratum: (1)")
+    r = evaluate(c)
+    assert r.verdict == verdict and r.passed
+    assert c.holds(ours) == (verdict == "reproduced")
+
+
+def test_relation_is_checked():
+    with pytest.raises(ValueError, match="relation must be one of"):
+        make(relation="<")
+
+
+def test_claim_lines_read_in_words():
+    ok = evaluate(make(paper_value=8.0, compute=lambda: 7.0, relation="<="))
+    assert ok.line().split()[:2] == ["reproduced", "999-eq1-x"]
+    assert "ours 7, paper <= 8" in ok.line()
+    yes = evaluate(make(paper_value=None, reference=1.0, tol=0.0,
+                        compute=lambda: np.bool_(True)))
+    assert yes.boolean and yes.shown() == "yes" and "paper: yes" in yes.line()
+    assert yes.row()["boolean"] is True
+    off = evaluate(make(compute=lambda: 2.0))
+    assert off.line().lstrip().startswith("NOT AS EXPECTED") and "tol 0.001" in off.line()
+    erratum = evaluate(make(compute=lambda: 2.0, expected="differs", reason="erratum: (1)"))
+    assert erratum.line().lstrip().startswith("differs, as documented")

@@ -372,3 +372,25 @@ def test_page_renders_in_headless_chromium(outdir, tmp_path):
             assert t["rows"] == expected_rows[t["cls"]], t
             assert t["cols"] >= 10, t
     assert state["width"] <= 1200, "the page overflows the window horizontally"
+
+
+def test_report_lists_figures_not_reproduced_and_reads_yes_no_and_bounds(tmp_path):
+    c = [Claim(id="004-blowup", paper="004", where="Sec. 5", statement="the run blows up",
+               paper_value=None, reference=1.0, compute=lambda: True, tol=0.0,
+               tol_why="a yes/no claim"),
+         Claim(id="004-settle", paper="004", where="Fig. 1", statement="not later than 8 s",
+               paper_value=8.0, compute=lambda: 7.5, tol=0.0, tol_why="a bound",
+               relation="<=")]
+    rows = [r.row() for r in run_claims(c)]
+    Part(name="gramian_delay", claims=rows, not_reproduced={"Fig. 3": f"needs [10] {EVIL}"},
+         paper={"id": "004", "title": "T", "authors": "A", "venue": "V"}).save(tmp_path)
+    text = write_report(tmp_path).read_text()
+    assert "Not reproduced:" in text and "<strong>Fig. 3</strong>: needs [10] &lt;script" in text
+    page = _Page()
+    page.feed(text)
+    table = next(t for t in page.tables if t["section"] == "gramian_delay")
+    head = [c["text"] for c in table["head"][0]]
+    col = {name: head.index(name) for name in head}
+    yes, bound = ([c["text"] for c in row] for row in table["rows"])
+    assert yes[col["our value"]] == "yes" and yes[col["paper's value"]].startswith("yes")
+    assert bound[col["paper's value"]] == "≤ 8" and bound[col["verdict"]] == "reproduced"
