@@ -14,6 +14,7 @@ import warnings
 import numpy as np
 
 import observers.distributed as dist
+from observers.distributed.example import _settling
 
 
 def main(t_max=10.0):
@@ -32,12 +33,13 @@ def main(t_max=10.0):
             rng = np.random.default_rng(seed)
             x0 = dist.stable_initial_state(A, rng.standard_normal(d.n))
             xh = rng.standard_normal((N, d.n))
+            obs, lin = dist.DistributedObserver(d), dist.DistributedObserver(dl)
             t0 = time.perf_counter()
-            arc = dist.simulate_network(d, x0, xh, t_max=t_max)
+            arc = dist.simulate(obs, x0, xh, t_max=t_max)
             wall = time.perf_counter() - t0
-            E = dist.transformed_errors(arc, d)
-            El = dist.transformed_errors(dist.simulate_network(dl, x0, xh, t_max=t_max), dl)
-            ts = dist._settling(E["t"], E["norm"], 1e-10)
+            E = dist.errors(arc, obs)
+            El = dist.errors(dist.simulate(lin, x0, xh, t_max=t_max), lin)
+            ts = _settling(E.t, E["norm"], 1e-10)
             print(f"{N:>2} {graph:>6} {d.n:>2} {d.n_o!s:>18} {alpha:>5g} {ts:>7.3f} "
                   f"{E['norm'][-1]:>9.2e} {El['norm'][-1]:>9.2e} {wall:>6.1f}")
 

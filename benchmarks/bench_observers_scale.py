@@ -109,8 +109,9 @@ def distributed_monte_carlo(R, N=8, t_sim=1.0):
     fast, wall = _timed(hs.simulate_many, sysm, X, **kw)
     _, peak = _traced(hs.simulate_many, sysm, X, **kw)
     slow, wall_slow = _timed(hs.sweep, make, range(R), dist.initial_state(dsg, x0), **kw)
-    f_fast = np.array([dist.transformed_errors(a, dsg)["norm"][-1] for a in fast])
-    f_slow = np.array([dist.transformed_errors(a, dsg)["norm"][-1] for a in slow])
+    obs = dist.DistributedObserver(dsg)
+    f_fast = np.array([dist.errors(a, obs)["norm"][-1] for a in fast])
+    f_slow = np.array([dist.errors(a, obs)["norm"][-1] for a in slow])
     dev = np.max(np.abs(f_fast - f_slow) / f_slow)
     print(f"\nDistributed observer Monte Carlo: ring of N = {N} nodes, {R} band-limited noise "
           f"realisations (power 1e-4), {t_sim} s each, RK45 rtol 1e-8")
@@ -135,7 +136,8 @@ def distributed_scaling(sizes, t_sim=1.0):
             dsg = dist.design(A, C, G, warn=False)
             x0 = np.random.default_rng(0).normal(size=A.shape[0])
             t0 = time.perf_counter()
-            arc = dist.simulate_network(dsg, x0, t_max=t_sim, rtol=1e-8, atol=1e-10)
+            arc = dist.simulate(dist.DistributedObserver(dsg), x0, t_max=t_sim, rtol=1e-8,
+                                atol=1e-10)
             wall = time.perf_counter() - t0
             steps = len(arc) - 1
             E = G.number_of_edges()

@@ -9,17 +9,22 @@ dynamic_gain   000  robust finite-time observer with dynamic gain (Nekhoroshikh 
 distributed    003  finite-time distributed observer over a digraph (Silm et al., SCL 2020)
 lmi                 the LMIs of the dynamic-gain and distributed designs (cvxpy, optional extra)
 
-The calling pattern
--------------------
+The contract
+------------
 Every paper is a package ``observers/<name>/`` of the same shape, so that
-learning one teaches the others::
+learning one teaches the others; the contract is written in code in
+:mod:`observers._common` (:data:`~observers._common.CONTRACT`) and checked
+for all five by ``tests/test_contract.py``::
 
-    __init__.py   PAPER, ERRATA, DECISIONS, CLAIMS and the public names
-    design.py     the paper's design computations and bounds (pure numpy/scipy)
-    systems.py    the hybrid systems: observer(s) and plant(s) as hs.HybridSystem
-    example.py    the paper's example(s) and how a run is made and read
-    figures.py    reproduce(outdir): the paper's figures, each with a caption
+    __init__.py   PAPER, ERRATA, DECISIONS; __all__ gathered from the files' __all__
+    design.py     the paper's formulas, design computations and bounds (numpy/scipy)
+    systems.py    every hybrid system: observer(s) and plant(s) as hs.HybridSystem
+    example.py    the paper's example data, simulate() and errors()
+    figures.py    FIGURES (each figure's numbers, then its drawing), reproduce(),
+                  NOT_REPRODUCED
     claims.py     CLAIMS: every quantitative statement, with its number
+
+Imports run downward (design, systems, example, figures, claims).
 
 1. **Design** from the paper's data: a ``design(...)`` function (or a
    ``Design`` class) validates its input at construction (dimensions,
@@ -27,23 +32,32 @@ learning one teaches the others::
    and the reason) and carries the paper's quantities (gains, T, Λ, S...).
 2. **Observer** as a :class:`hybridsim.HybridSystem` built from a design;
    its input is the measured output.
-3. **Run** with its plant: ``simulate(observer, x0, xhat0, *, t_max, noise=None,
-   seed=None, **simulate_kwargs)`` returns the :class:`hybridsim.HybridArc`
-   of the interconnection, with components ``"plant"`` and ``"observer"``;
+3. **Run** with its plant: ``simulate(observer, x0, xhat0=None, *, t_max,
+   noise=None, seed=None, **simulate_kwargs)`` returns the
+   :class:`hybridsim.HybridArc` of the interconnection;
    ``simulate_kwargs`` go to :func:`hybridsim.simulate`.
-4. **Errors**: ``errors(arc, observer)`` returns the estimation error at
-   the arc's samples, shape (N, n) (or a dict of named error signals with
-   the main one under ``"e"`` where a paper has several).
+4. **Errors**: ``errors(arc, observer)`` returns an
+   :class:`observers._common.Errors`, a read-only mapping of the paper's
+   named error signals at the arc's samples, the main one as ``.e`` (shape
+   (N, k)), with the samples' ``t`` and ``j``.
 5. **Seeds**: every function that draws random numbers takes ``seed=``
    (an int or a numpy Generator); nothing is random without it.
-6. **Figures**: ``reproduce(outdir) -> list[pathlib.Path]`` writes PNGs, each
-   with a ``.txt`` caption beside it, using :mod:`hybridsim`'s plots.
+6. **Figures**: ``FIGURES``, a list of :class:`observers._common.Figure`:
+   ``data()`` computes a figure's numbers (cached, so the claims read the
+   same runs), ``draw(data)`` draws them, ``caption(data)`` says what they
+   show; ``reproduce(outdir) -> list[pathlib.Path]`` writes each PNG with
+   its ``.txt`` caption. ``NOT_REPRODUCED`` maps a figure of the paper
+   left out to the reason.
 7. **Claims**: ``CLAIMS``, a list of :class:`observers.claims.Claim`, one per
    quantitative statement (the paper's value, ours, the tolerance and why,
-   the verdict); the tests pin each one and the main job writes them to
-   ``claims.csv`` and ``index.html``.
+   the verdict; one-sided where the paper states a bound); the tests pin
+   each one and the main job writes them to ``claims.csv`` and
+   ``index.html``.
 
-What a paper needs beyond this is an addition (extra keywords, extra
-functions), not a variation. Input checks use :mod:`observers._common`, and
-the engine is imported one way: ``import hybridsim as hs``.
+Library code neither prints nor chooses a matplotlib backend: what a run
+has to say goes to :mod:`logging` (logger ``observers.<name>...``), which
+the main job records in its report. What a paper needs beyond this is an
+addition (extra keywords, extra functions), not a variation. Input checks
+use :mod:`observers._common`, and the engine is imported one way:
+``import hybridsim as hs``.
 """

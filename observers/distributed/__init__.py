@@ -8,29 +8,26 @@ The plant is ``xdot = A x``, ``y^i = C^i x`` (1); node ``i`` of a networkx
 ``DiGraph`` measures ``y^i`` and receives the full estimates of its
 in-neighbours (edge ``j -> i``: node ``i`` receives from node ``j``).
 
-The package follows the calling pattern of :mod:`observers`:
-
-==============  =============================================================
-``design.py``   𝒜, 𝒟, 𝓛 (Sec. 2), decomposition (2), canonical form (Sec. 3.1),
-                Prop. 2's bound, :func:`design` (-> :class:`DistributedDesign`,
-                with the matrices of (6) and (9)), Prop. 1, LMI (10)-(11)
-``systems.py``  :class:`DistributedObserverNode` ((4)-(5) / (7)-(8)),
-                :func:`observer_network` (plant (1) + nodes over ``hs.network``),
-                :class:`ErrorSystem` (the error dynamics (6)-(9) alone)
-``example.py``  Section 4's example, random networks, :func:`simulate`,
-                :func:`errors`, :func:`simulate_errors`, :func:`settling_time`
-``figures.py``  :func:`reproduce`: Figs. 2-3
-``claims.py``   :data:`CLAIMS`
-==============  =============================================================
+The package's files, each with one role (imports run downward):
+``design.py`` holds the paper's formulas and design computations (the graph
+matrices of Section 2, the decomposition (2), the canonical form of Section
+3.1, Proposition 2's bound, :func:`design` returning a
+:class:`DistributedDesign`, Proposition 1 and LMI (10)-(11)); ``systems.py``
+every hybrid system (the nodes (7)-(8) / (4)-(5), the plant-observer network
+over ``hs.network``, the error system (6)-(9), the noise generator) and
+:class:`DistributedObserver`, the observer the contract's ``simulate`` and
+``errors`` take; ``example.py`` Section 4's example, random networks and how a
+run is made and read (:func:`simulate`, :func:`errors`, :func:`simulate_errors`,
+:func:`settling_time`); ``figures.py`` Figs. 2-3 as data and drawings
+(:data:`FIGURES`, :func:`reproduce`); ``claims.py`` the :data:`CLAIMS`.
 
 1. **Design**: ``design(A, C, G, nodelist, kind=, poles=, nu=, alpha=, beta=)``.
-2. **Observer**: one :class:`DistributedObserverNode` per node, wired by
-   :func:`observer_network` (its input is the node's measurement and its
-   in-neighbours' estimates).
-3. **Run**: ``simulate(dsg, x0, xhat0, *, t_max, noise=None, seed=None, ...)``
-   (= :func:`simulate_network`); components ``"plant"`` and one per node.
-   Addition: :func:`simulate_errors` runs the error system (6)-(9) itself.
-4. **Errors**: ``errors(arc, dsg)`` (= :func:`transformed_errors`): a dict
+2. **Observer**: ``DistributedObserver(dsg)``: one node per node of ``G``,
+   each receiving its measurement and its in-neighbours' estimates.
+3. **Run**: ``simulate(observer, x0, xhat0=None, *, t_max, noise=None,
+   seed=None, ...)``; components ``"plant"`` and one per node. Addition:
+   :func:`simulate_errors` runs the error system (6)-(9) itself.
+4. **Errors**: ``errors(arc, observer)``: an :class:`observers._common.Errors`
    with the stacked errors ``(E_o, E_u)`` of (6) under ``"e"``.
 
 Decisions where the paper is ambiguous (each one is tested)
@@ -83,73 +80,35 @@ all, so Theorem 1's settling time is measured there to 1e-8 and below.
 
 Examples
 --------
->>> from observers.distributed import design, example_system, lmi11
+>>> from observers.distributed import (DistributedObserver, design, errors, example_system,
+...                                    lmi11, simulate)
 >>> A, C, G = example_system()
 >>> dsg = design(A, C, G, nodelist=[1, 2, 3, 4], nu=-0.1, alpha=10.0, beta=0.7)
 >>> dsg.n_o, bool(lmi11(dsg).feasible)
 ([2, 2, 5, 5], True)
+>>> obs = DistributedObserver(dsg)
+>>> arc = simulate(obs, [0.0] * 6, [0.1] * 6, t_max=0.05)
+>>> errors(arc, obs).e.shape == (arc.t.size, 24)
+True
 
 References
 ----------
 .. [1] H. Silm et al., Systems & Control Letters 141 (2020) 104707,
        eqs. (1)-(11), Propositions 1-2, Lemma 1, Theorem 1, Remarks 1-2.
 """
-from .claims import CLAIMS, SETTLE_REFERENCE, SETTLE_THRESHOLD
-from .design import (
-                     DEFAULT_RTOL,
-                     DistributedDesign,
-                     GraphMatrices,
-                     LMI11Result,
-                     NetworkCheck,
-                     ObservabilityDecomposition,
-                     check_network,
-                     choose_alpha,
-                     design,
-                     graph_matrices,
-                     hurwitz_coefficients,
-                     lmi11,
-                     lmi11_data,
-                     luenberger_gain,
-                     observability_decomposition,
-                     observability_matrix,
-                     observer_canonical_form,
-                     proposition1_lyapunov,
-                     proposition2_bound,
-                     signed_power,
-                     split_vector_outputs,
-)
-from .example import (
-                     EXAMPLE_NODES,
-                     EXAMPLE_V0,
-                     band_limited_noise,
-                     errors,
-                     example_system,
-                     noise_batch,
-                     random_system,
-                     settling_time,
-                     simulate,
-                     simulate_errors,
-                     simulate_network,
-                     stable_initial_state,
-                     transformed_errors,
-)
-from .example import (
-                     _settling as _settling,  # used by tests and benchmarks
-)
-from .figures import reproduce
-from .systems import (
-                     BandLimitedNoise,
-                     DistributedObserverNode,
-                     ErrorSystem,
-                     error_initial_state,
-                     error_system,
-                     initial_state,
-                     observer_network,
-                     split_errors,
-)
-from .systems import (
-                     _NodeData as _NodeData,  # used by tests
-)
+# the submodules under private names: ``from .design import *`` rebinds ``design``
+# to the function of that name
+from . import claims as _claims
+from . import design as _design
+from . import example as _example
+from . import figures as _figures
+from . import systems as _systems
+from .claims import *
+from .design import *
+from .example import *
+from .figures import *
+from .systems import *
+from .systems import _NodeData as _NodeData  # used by tests/test_observer_batches.py
 
 PAPER = {
     "id": "003",
@@ -162,8 +121,10 @@ PAPER = {
 ERRATA = [
     "Sec. 2: the Laplacian is written L = A - D; the error system (6) derived from (5), "
     "Proposition 1 and the Appendix (unique zero eigenvalue, all others larger) need "
-    "L = D - A (rows summing to zero, non-negative spectrum); we use D - A and test that "
-    "(6) then equals the stacked observer (3).",
+    "L = D - A (rows summing to zero, non-negative spectrum); on the example's ring the "
+    "text's A - D has nonzero eigenvalues with real parts -1, -2, -1 (claim "
+    "003-sec2-laplacian); we use D - A and test that (6) then equals the stacked "
+    "observer (3).",
     "Prop. 2 / Sec. 4: the example's nu_i = -0.1 lies outside Proposition 2's sufficient "
     "range (nu_min = -4.4e-3 for n_i = 2, -3.3e-9 for n_i = 5); the observer converges in "
     "finite time anyway (the bound is conservative, not wrong).",
@@ -190,21 +151,5 @@ DECISIONS = [
     "same equations integrated by scipy's solve_ivp.",
 ]
 
-__all__ = [
-    "PAPER", "ERRATA", "DECISIONS", "CLAIMS", "SETTLE_REFERENCE", "SETTLE_THRESHOLD",
-    # design.py
-    "DEFAULT_RTOL", "signed_power", "GraphMatrices", "graph_matrices", "NetworkCheck",
-    "check_network", "observability_matrix", "ObservabilityDecomposition",
-    "observability_decomposition", "observer_canonical_form", "hurwitz_coefficients",
-    "proposition2_bound", "luenberger_gain", "split_vector_outputs", "DistributedDesign",
-    "design", "proposition1_lyapunov", "LMI11Result", "lmi11_data", "lmi11", "choose_alpha",
-    # systems.py
-    "DistributedObserverNode", "observer_network", "initial_state", "ErrorSystem",
-    "error_system", "error_initial_state", "split_errors",
-    # example.py
-    "EXAMPLE_NODES", "EXAMPLE_V0", "example_system", "random_system", "simulate_network",
-    "simulate", "transformed_errors", "errors", "simulate_errors", "settling_time",
-    "stable_initial_state", "band_limited_noise", "noise_batch", "BandLimitedNoise",
-    # figures.py
-    "reproduce",
-]
+__all__ = ["PAPER", "ERRATA", "DECISIONS", *_design.__all__, *_systems.__all__,
+           *_example.__all__, *_figures.__all__, *_claims.__all__]

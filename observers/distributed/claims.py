@@ -22,21 +22,12 @@ import functools
 import numpy as np
 
 from ..claims import Claim
-from .design import design, lmi11, proposition1_lyapunov
-from .example import (
-    EXAMPLE_NODES,
-    EXAMPLE_V0,
-    example_system,
-    settling_time,
-    simulate,
-    simulate_errors,
-    stable_initial_state,
-)
+from .design import lmi11, proposition1_lyapunov
+from .example import EXAMPLE_NODES, example_observer
+from .figures import error_system_settling, fig2_data
 
-__all__ = ["CLAIMS", "SETTLE_THRESHOLD", "SETTLE_REFERENCE"]
+__all__ = ["CLAIMS", "SETTLE_REFERENCE"]
 
-#: Threshold of Theorem 1's settling time (max |error| of every node).
-SETTLE_THRESHOLD = 1e-8
 #: The last 1e-8 crossing of max |E| on the example, from the per-node error
 #: equations of Sec. 2.2 with (7) and (8) integrated by scipy's solve_ivp
 #: (DOP853, rtol 1e-12, atol 1e-16), root by brentq on its dense output:
@@ -46,23 +37,18 @@ SETTLE_REFERENCE = 6.655500693769588
 
 @functools.cache
 def _example(kind="finite-time"):
-    A, C, G = example_system()
-    return design(A, C, G, nodelist=EXAMPLE_NODES, kind=kind)
-
-
-def _x0():
-    A, _, _ = example_system()
-    return stable_initial_state(A, EXAMPLE_V0)
+    return example_observer(kind).design
 
 
 def _laplacian_paper_sign():
-    """Smallest real part of the nonzero eigenvalues of the text's L = A - D."""
+    """Smallest real part of the nonzero eigenvalues of the text's 𝓛 = 𝒜 − 𝒟 (Sec. 2)."""
     g = _example().graph
     ev = np.linalg.eigvals(g.adjacency - g.degree)
     return float(np.min(ev[np.abs(ev) > 1e-9].real))
 
 
 def _laplacian_ours():
+    """Smallest real part of the nonzero eigenvalues of our 𝓛 = 𝒟 − 𝒜 (decision 1)."""
     ev = np.linalg.eigvals(_example().graph.laplacian)
     return float(np.min(ev[np.abs(ev) > 1e-9].real))
 
@@ -77,14 +63,9 @@ def _poles_at_nu0():
     return dev
 
 
-def _settle_errors():
-    arc = simulate_errors(_example(), _x0(), t_max=6.8)
-    return settling_time(arc, _example(), SETTLE_THRESHOLD)
-
-
 def _settle_network():
-    arc = simulate(_example(), _x0(), t_max=6.8)
-    return settling_time(arc, _example(), SETTLE_THRESHOLD)
+    """The 1e-8 crossing in Fig. 2's plant-observer run (the same run, not a second)."""
+    return fig2_data().settle_network
 
 
 def _n_o(k):
@@ -99,12 +80,13 @@ CLAIMS = [
                     "L = A - D, has a unique zero eigenvalue and all others strictly larger "
                     "(Appendix; needed by Prop. 1): the smallest real part of its nonzero "
                     "eigenvalues on the example's ring.",
-          paper_value=-1.0, compute=_laplacian_ours, tol=1e-12,
+          paper_value=-2.0, compute=_laplacian_ours, tol=1e-12,
           tol_why="eigenvalues of a 4 x 4 integer matrix, rounding ~1e-15",
           expected="differs",
-          reason="erratum: the text's L = A - D gives -1 (eigenvalues w - 1 of the directed "
-                 "4-ring, w^4 = 1); (6) derived from (5) and the Appendix need L = D - A, "
-                 "whose nonzero eigenvalues 1 - w have real parts 1, 2, 1",
+          reason="erratum: the text's L = A - D gives -2 (eigenvalues w - 1 of the directed "
+                 "4-ring, w^4 = 1, real parts -1, -2, -1: none larger than zero); (6) "
+                 "derived from (5) and the Appendix need L = D - A, whose nonzero "
+                 "eigenvalues 1 - w have real parts 1, 2, 1 (smallest 1)",
           reference=1.0),
     *[Claim(id=f"003-eq2-n{v}", paper="003", where="(2), Sec. 4",
             statement=f"Node {v}'s locally observable dimension n_{v} = rank O(A, C^{v}) "
@@ -142,17 +124,17 @@ CLAIMS = [
     Claim(id="003-thm1-settle", paper="003", where="Thm 1, Fig. 2",
           statement="Every node's estimate reaches the state in finite time: the last time "
                     "max |e| of the error system (6)-(9) exceeds 1e-8 on the example (s).",
-          paper_value=None, compute=_settle_errors, tol=1e-6,
+          paper_value=None, compute=error_system_settling, tol=1e-6,
           tol_why="RK45 rtol 1e-10 vs DOP853 rtol 1e-12 on the same equations agree to "
                   "~1e-8 s; max|e| falls at ~1.5e-6 per s at the crossing (1e-8 -> 1e-10 "
                   "in 0.03 s), so atol 1e-14 moves it by < 1e-8 s; 1e-6 leaves 100x",
           reference=SETTLE_REFERENCE),
     Claim(id="003-thm1-settle-network", paper="003", where="Thm 1, Fig. 2",
           statement="The same crossing measured in the plant-observer run (plant (1) and "
-                    "nodes (7)-(8) through hs.network) (s).",
+                    "nodes (7)-(8) through hs.network; Fig. 2's run) (s).",
           paper_value=None, compute=_settle_network, tol=1e-5,
           tol_why="errors there are differences of states of size |x| ~ 1: rounding "
                   "~1e-13 on an error falling at ~1.5e-6 per s moves the crossing by "
-                  "~1e-7 s (measured 1.2e-7 s); 1e-5 leaves 100x",
+                  "~1e-7 s (measured 2.7e-7 s); 1e-5 leaves 30x",
           reference=SETTLE_REFERENCE, slow=True),
 ]

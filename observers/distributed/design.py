@@ -29,7 +29,7 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import networkx as nx
@@ -541,7 +541,7 @@ def split_vector_outputs(G, C, nodelist=None):
 # --------------------------------------------------------------------------
 # the design of the whole network
 # --------------------------------------------------------------------------
-@dataclass
+@dataclass(frozen=True)
 class DistributedDesign:
     """Every matrix of the distributed observer (3)-(8) for one network.
 
@@ -568,7 +568,6 @@ class DistributedDesign:
     nu_min: np.ndarray
     check: NetworkCheck
     rtol: float = DEFAULT_RTOL
-    _cache: dict = field(default_factory=dict, repr=False)
 
     # -- sizes -----------------------------------------------------------
     @property

@@ -4,9 +4,11 @@
   is missing from the text: the ring 1 → 2 → 3 → 4 → 1);
   :func:`random_system` -- seeded jointly observable plants over rings and
   random strongly connected digraphs.
-* :func:`simulate` (= :func:`simulate_network`) -- plant (1) and observer
-  network (7)-(8) through :func:`hybridsim.simulate`; :func:`errors`
-  (= :func:`transformed_errors`) -- the errors of (6) from the arc.
+* :func:`example_observer` -- the observer of Section 4 with the paper's gains.
+* :func:`simulate` -- plant (1) and observer network (7)-(8) of a
+  :class:`~observers.distributed.systems.DistributedObserver` through
+  :func:`hybridsim.simulate`; :func:`errors` -- the errors of (6) from the arc
+  (an :class:`observers._common.Errors`).
 * :func:`simulate_errors` -- the error system (6)-(9) alone
   (:class:`~observers.distributed.systems.ErrorSystem`), and
   :func:`settling_time` -- the last time the largest error exceeds a
@@ -14,15 +16,13 @@
 
 Examples
 --------
->>> import numpy as np
->>> from observers.distributed import (design, errors, example_system, simulate,
+>>> from observers.distributed import (errors, example_observer, simulate,
 ...                                    stable_initial_state, EXAMPLE_V0)
->>> A, C, G = example_system()
->>> dsg = design(A, C, G, nodelist=[1, 2, 3, 4])
->>> arc = simulate(dsg, stable_initial_state(A, EXAMPLE_V0), t_max=0.5)
->>> E = errors(arc, dsg)
->>> E["e"].shape[1], len(E["e_o"]), arc.termination.name
-(24, 4, 'T_MAX')
+>>> obs = example_observer()
+>>> arc = simulate(obs, stable_initial_state(obs.design.A, EXAMPLE_V0), t_max=0.5)
+>>> E = errors(arc, obs)
+>>> E.e.shape == (arc.t.size, 24), arc.termination.name
+(True, 'T_MAX')
 """
 from __future__ import annotations
 
@@ -33,11 +33,11 @@ from scipy.optimize import brentq
 
 import hybridsim as hs
 
-from .._common import matrix, scalar, vector
-from .design import DistributedDesign
+from .._common import Errors, matrix, scalar, vector
+from .design import DistributedDesign, design
 from .systems import (
     BandLimitedNoise,
-    ErrorSystem,
+    DistributedObserver,
     error_initial_state,
     initial_state,
     observer_network,
@@ -49,9 +49,8 @@ __all__ = [
     "EXAMPLE_V0",
     "example_system",
     "random_system",
-    "simulate_network",
+    "example_observer",
     "simulate",
-    "transformed_errors",
     "errors",
     "simulate_errors",
     "settling_time",
@@ -187,22 +186,55 @@ def random_system(N, seed=None, *, graph="ring", n_blocks=None, p_edge=0.3):
     return A, C, G
 
 
-def simulate_network(dsg: DistributedDesign, x0, xhat0=None, *, t_max=10.0, noise=None,
-                     seed=None, noise_ts=0.1, method="RK45", rtol=1e-10, atol=1e-13,
-                     max_step=np.inf, **kw):
+def _observer(observer, what="observer"):
+    """``observer`` as a :class:`DistributedObserver` (a design is wrapped; TypeError else)."""
+    if isinstance(observer, DistributedObserver):
+        return observer
+    if isinstance(observer, DistributedDesign):
+        return DistributedObserver(observer)
+    raise TypeError(f"{what} must be a DistributedObserver (or its DistributedDesign), got "
+                    f"{type(observer).__name__}")
+
+
+def example_observer(kind="finite-time"):
+    """The observer of Section 4: :func:`example_system` designed with the paper's gains.
+
+    Poles −3 at ``ν = 0``, ``ν_i = −0.1``, ``α_i = 10``, ``β = 0.7`` (the
+    defaults of :func:`~observers.distributed.design`), nodes ``[1, 2, 3, 4]``.
+
+    Parameters
+    ----------
+    kind : {"finite-time", "linear"}
+        (7)-(8) or the linear observer (3)-(5) with the same gains.
+
+    Returns
+    -------
+    DistributedObserver
+
+    Examples
+    --------
+    >>> from observers.distributed import example_observer
+    >>> example_observer().design.n_o
+    [2, 2, 5, 5]
+    """
+    A, C, G = example_system()
+    return DistributedObserver(design(A, C, G, nodelist=EXAMPLE_NODES, kind=kind))
+
+
+def simulate(observer, x0, xhat0=None, *, t_max, noise=None, seed=None, noise_ts=0.1,
+             method="RK45", rtol=1e-10, atol=1e-13, max_step=np.inf, **simulate_kwargs):
     """Simulate plant (1) and the observer network (7)-(8) with :func:`hybridsim.simulate`.
 
-    The calling pattern's ``simulate(observer, x0, xhat0, *, t_max, noise,
-    seed, **simulate_kwargs)``; the observer is the design, whose network
-    :func:`observer_network` builds. The non-Lipschitz powers of (7)-(8)
-    make the flow stiff near zero error; the explicit RK45 at
+    The run is the observer's :meth:`~DistributedObserver.interconnection`
+    (plant and nodes over ``hs.network``). The non-Lipschitz powers of
+    (7)-(8) make the flow stiff near zero error; the explicit RK45 at
     ``rtol = 1e-10`` copes (the error chatters at the 1e-13 level after
     convergence) and was faster than Radau/LSODA here.
 
     Parameters
     ----------
-    dsg : DistributedDesign
-        The observer network's design.
+    observer : DistributedObserver
+        (A :class:`DistributedDesign` is wrapped in one.)
     x0 : (n,) array_like
         Plant state x(0).
     xhat0 : (n,) or (N, n) array_like, optional
@@ -216,7 +248,7 @@ def simulate_network(dsg: DistributedDesign, x0, xhat0=None, *, t_max=10.0, nois
         Seed of the noise when ``noise`` is a power (nothing else is random).
     noise_ts : float
         Sample time of that noise.
-    method, rtol, atol, max_step, **kw
+    method, rtol, atol, max_step, **simulate_kwargs
         Passed to :func:`hybridsim.simulate`.
 
     Returns
@@ -228,27 +260,24 @@ def simulate_network(dsg: DistributedDesign, x0, xhat0=None, *, t_max=10.0, nois
 
     Examples
     --------
-    >>> from observers.distributed import design, example_system, simulate
-    >>> A, C, G = example_system()
-    >>> arc = simulate(design(A, C, G), [0.0] * 6, t_max=0.1, noise=1e-2, seed=0)
+    >>> from observers.distributed import example_observer, simulate
+    >>> arc = simulate(example_observer(), [0.0] * 6, t_max=0.1, noise=1e-2, seed=0)
     >>> list(arc.components)[:2], arc.termination.name
     (['plant', 1], 'T_MAX')
     """
+    observer = _observer(observer)
+    dsg = observer.design
     if noise is not None and not callable(noise):
         power = scalar("noise", noise, nonneg=True)
         noise = band_limited_noise(power, noise_ts, t_max, sum(Ci.shape[0] for Ci in dsg.C),
                                    seed=seed)
-    sys_ = observer_network(dsg, noise=noise)
-    return hs.simulate(sys_, initial_state(dsg, x0, xhat0), t_max=t_max, j_max=0,
+    sys_ = observer.interconnection(noise=noise)
+    return hs.simulate(sys_, observer.initial_state(x0, xhat0), t_max=t_max, j_max=0,
                        method=method, rtol=rtol, atol=atol, max_step=max_step,
-                       progress=False, **kw)
+                       progress=False, **simulate_kwargs)
 
 
-#: The calling pattern's name of :func:`simulate_network`.
-simulate = simulate_network
-
-
-def simulate_errors(dsg: DistributedDesign, x0=None, xhat0=None, *, E0=None, t_max=10.0,
+def simulate_errors(observer, x0=None, xhat0=None, *, E0=None, t_max=10.0,
                     method="RK45", rtol=1e-10, atol=1e-14, max_step=np.inf, **kw):
     """Simulate the error system (6)-(9) itself with :func:`hybridsim.simulate`.
 
@@ -261,11 +290,11 @@ def simulate_errors(dsg: DistributedDesign, x0=None, xhat0=None, *, E0=None, t_m
 
     Parameters
     ----------
-    dsg : DistributedDesign
+    observer : DistributedObserver
     x0, xhat0 : array_like, optional
         Plant state and estimates at t = 0, giving ``E(0)`` through
         :func:`error_initial_state` (the same initial errors as
-        ``simulate(dsg, x0, xhat0)``).
+        ``simulate(observer, x0, xhat0)``).
     E0 : (Σ n, ) array_like, optional
         The initial error ``(E_o, E_u)`` directly (instead of x0, xhat0).
     t_max : float
@@ -283,15 +312,14 @@ def simulate_errors(dsg: DistributedDesign, x0=None, xhat0=None, *, E0=None, t_m
 
     Examples
     --------
-    >>> from observers.distributed import (design, example_system, simulate_errors,
-    ...                                    settling_time, EXAMPLE_V0)
-    >>> A, C, G = example_system()
-    >>> lin = design(A, C, G, nodelist=[1, 2, 3, 4], kind="linear")
-    >>> arc = simulate_errors(lin, EXAMPLE_V0, t_max=1.0)
+    >>> from observers.distributed import example_observer, simulate_errors, EXAMPLE_V0
+    >>> arc = simulate_errors(example_observer("linear"), EXAMPLE_V0, t_max=1.0)
     >>> arc.x.shape[1]
     24
     """
-    es = ErrorSystem(dsg)
+    observer = _observer(observer)
+    dsg = observer.design
+    es = observer.error_system()
     if E0 is not None:
         if x0 is not None or xhat0 is not None:
             raise ValueError("give either E0 or x0 (and xhat0), not both")
@@ -318,7 +346,7 @@ def _error_rows(X, dsg, from_network):
     return e_o, e_u
 
 
-def transformed_errors(arc, dsg: DistributedDesign):
+def errors(arc, observer):
     """Errors in transformed coordinates ``e_o^i = x̃_o^i − T_o^{iᵀ} x``, ``e_u^i`` of (6).
 
     Reads a plant-observer arc (:func:`simulate`) or an error-system arc
@@ -327,26 +355,27 @@ def transformed_errors(arc, dsg: DistributedDesign):
     Parameters
     ----------
     arc : hybridsim.HybridArc
-    dsg : DistributedDesign
-        The design the arc was run with.
+    observer : DistributedObserver
+        The observer the arc was run with.
 
     Returns
     -------
-    dict
-        ``"t"`` (K,); ``"e"`` (K, Σ n): the stacked errors ``(E_o, E_u)`` in
-        the order of (6); ``"e_o"``, ``"e_u"``: per node, (K, n_i) and
-        (K, n − n_i); ``"norm"`` (K,): the largest absolute entry of all
-        errors (``max_i ‖x̃^i − x‖_∞`` in the nodes' orthonormal coordinates).
+    observers._common.Errors
+        ``"e"`` (K, Σ n): the stacked errors ``(E_o, E_u)`` in the order of
+        (6); ``"e_o"`` (K, Σ n_i) and ``"e_u"`` (K, Σ (n − n_i)): ``E_o`` and
+        ``E_u`` (per node: :func:`split_errors` of ``"e"``); ``"norm"`` (K,):
+        the largest absolute entry of all errors (``max_i ‖x̃^i − x‖_∞`` in the
+        nodes' orthonormal coordinates); the samples' times as ``.t``, ``.j``.
 
     Examples
     --------
-    >>> from observers.distributed import design, errors, example_system, simulate_errors
-    >>> A, C, G = example_system()
-    >>> dsg = design(A, C, G, nodelist=[1, 2, 3, 4])
-    >>> E = errors(simulate_errors(dsg, [1.0, 0, 0, 0, 0, 0], t_max=0.1), dsg)
-    >>> sorted(E), [e.shape[1] for e in E["e_o"]]
-    (['e', 'e_o', 'e_u', 'norm', 't'], [2, 2, 5, 5])
+    >>> from observers.distributed import errors, example_observer, simulate_errors
+    >>> obs = example_observer()
+    >>> E = errors(simulate_errors(obs, [1.0, 0, 0, 0, 0, 0], t_max=0.1), obs)
+    >>> list(E), E.e.shape[1], E["e_o"].shape[1]
+    (['e', 'e_o', 'e_u', 'norm'], 24, 14)
     """
+    dsg = _observer(observer).design
     from_network = "plant" in arc
     X = np.asarray(arc.x)
     if from_network and "noise" in arc:              # a generator component: not an error
@@ -355,15 +384,12 @@ def transformed_errors(arc, dsg: DistributedDesign):
     if X.shape[1] != width:
         raise ValueError(f"arc has {X.shape[1]} state components, but a "
                          f"{'plant-observer' if from_network else 'error-system'} arc of "
-                         f"this design has {width}: was it run with this design?")
+                         f"this design has {width}: was it run with this observer?")
     e_o, e_u = _error_rows(X, dsg, from_network)
-    allerr = np.hstack(e_o + e_u)
-    return {"t": np.asarray(arc.t), "e": allerr, "e_o": e_o, "e_u": e_u,
-            "norm": np.max(np.abs(allerr), axis=1)}
-
-
-#: The calling pattern's name of :func:`transformed_errors`.
-errors = transformed_errors
+    Eo, Eu = np.hstack(e_o), np.hstack(e_u)
+    allerr = np.hstack([Eo, Eu])
+    return Errors(arc.t, arc.j, e=allerr, e_o=Eo, e_u=Eu,
+                  norm=np.max(np.abs(allerr), axis=1))
 
 
 def _settling(t, norm, threshold):
@@ -376,7 +402,7 @@ def _settling(t, norm, threshold):
     return float(t[above[-1] + 1])
 
 
-def settling_time(arc, dsg: DistributedDesign, threshold=1e-8, *, xtol=1e-12):
+def settling_time(arc, observer, threshold=1e-8, *, xtol=1e-12):
     """The last time the largest error of any node exceeds ``threshold`` (Theorem 1).
 
     The last sample above the threshold and the next one bracket the last
@@ -388,7 +414,7 @@ def settling_time(arc, dsg: DistributedDesign, threshold=1e-8, *, xtol=1e-12):
     ----------
     arc : hybridsim.HybridArc
         From :func:`simulate` or :func:`simulate_errors`.
-    dsg : DistributedDesign
+    observer : DistributedObserver
     threshold : float
         > 0.
     xtol : float
@@ -403,16 +429,16 @@ def settling_time(arc, dsg: DistributedDesign, threshold=1e-8, *, xtol=1e-12):
     Examples
     --------
     >>> import numpy as np
-    >>> from observers.distributed import design, example_system, simulate_errors
-    >>> A, C, G = example_system()
-    >>> lin = design(A, C, G, nodelist=[1, 2, 3, 4], kind="linear")
+    >>> from observers.distributed import example_observer, simulate_errors
+    >>> lin = example_observer("linear")
     >>> arc = simulate_errors(lin, E0=np.full(24, 1e-3), t_max=5.0)
     >>> 0 < settling_time(arc, lin, 1e-4) < 5
     True
     """
     threshold = scalar("threshold", threshold, positive=True)
-    E = transformed_errors(arc, dsg)
-    t, norm = E["t"], E["norm"]
+    dsg = _observer(observer).design
+    E = errors(arc, dsg)
+    t, norm = E.t, E["norm"]
     above = np.flatnonzero(norm > threshold)
     if above.size == 0:
         return float(t[0])
@@ -470,7 +496,7 @@ def band_limited_noise(power, ts, t_max, dim, seed=None):
     return noise
 
 
-def noise_batch(dsg: DistributedDesign, x0, xhat0=None, *, power, seeds, t_max, noise_ts=0.1):
+def noise_batch(observer, x0, xhat0=None, *, power, seeds, t_max, noise_ts=0.1):
     """A Monte Carlo of measurement noise: the network and one initial state per realisation.
 
     The noise is a :class:`BandLimitedNoise` component of
@@ -479,12 +505,12 @@ def noise_batch(dsg: DistributedDesign, x0, xhat0=None, *, power, seeds, t_max, 
     :func:`hybridsim.simulate_many`, integrated all rows at once (every
     component is vectorized). Row r draws the samples of
     ``band_limited_noise(power, noise_ts, t_max, Σ m_i, seed=seeds[r])``, so
-    it is the run ``simulate(dsg, x0, xhat0, noise=power, seed=seeds[r])``
+    it is the run ``simulate(observer, x0, xhat0, noise=power, seed=seeds[r])``
     to the integrator's tolerance.
 
     Parameters
     ----------
-    dsg : DistributedDesign
+    observer : DistributedObserver
     x0, xhat0 : array_like
         As in :func:`simulate`.
     power : float
@@ -505,14 +531,14 @@ def noise_batch(dsg: DistributedDesign, x0, xhat0=None, *, power, seeds, t_max, 
     Examples
     --------
     >>> import hybridsim as hs
-    >>> from observers.distributed import design, errors, example_system, noise_batch
-    >>> A, C, G = example_system()
-    >>> dsg = design(A, C, G)
-    >>> sysm, x0s = noise_batch(dsg, [1.0] * 6, power=1e-4, seeds=[0, 1, 2], t_max=0.2)
+    >>> from observers.distributed import errors, example_observer, noise_batch
+    >>> obs = example_observer()
+    >>> sysm, x0s = noise_batch(obs, [1.0] * 6, power=1e-4, seeds=[0, 1, 2], t_max=0.2)
     >>> arcs = hs.simulate_many(sysm, x0s, t_max=0.2, rtol=1e-8, atol=1e-10)
-    >>> sysm.vectorized, [a.termination.name for a in arcs], errors(arcs[0], dsg)["e"].shape[1]
+    >>> sysm.vectorized, [a.termination.name for a in arcs], errors(arcs[0], obs).e.shape[1]
     (True, ['T_MAX', 'T_MAX', 'T_MAX'], 24)
     """
+    dsg = _observer(observer).design
     power = scalar("power", power, nonneg=True)
     p = sum(Ci.shape[0] for Ci in dsg.C)
     gen = BandLimitedNoise(noise_ts, t_max, p)

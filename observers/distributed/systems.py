@@ -5,6 +5,9 @@ network with its plant (1), and the error system (6)-(9) itself.
   ``hs.HybridSystem`` (empty jump set); :func:`observer_network` wires plant
   (1) and nodes with ``hs.network`` over the graph; :func:`initial_state`
   stacks their initial states.
+* :class:`DistributedObserver` -- the observer of the contract
+  (``simulate(observer, ...)``, ``errors(arc, observer)``): holds the design,
+  its nodes, and builds the interconnection and the error system.
 * :class:`BandLimitedNoise` -- measurement noise as a component whose
   state holds one realisation (Remark 2), so that a batch of realisations
   runs through :func:`hybridsim.simulate_many` as a batch of initial states
@@ -44,6 +47,7 @@ from .._common import vector
 from .design import DistributedDesign, signed_power
 
 __all__ = [
+    "DistributedObserver",
     "DistributedObserverNode",
     "BandLimitedNoise",
     "observer_network",
@@ -73,15 +77,65 @@ class _NodeData:
         self.finite_time = dsg.kind == "finite-time"
         self.beta = dsg.beta
         self.L_lin = dsg.L_lin[k]
-        if self.finite_time and self.n_o:
+        self.neighbours = dsg.in_neighbours(self.node)
+        n, no, nu_, m, K = self.n, self.n_o, self.n_u, self.m, len(self.neighbours)
+        if self.finite_time and no:
             Th, p, L = dsg.Theta[k], dsg.p[k], dsg.L[k]
             self.pt = Th @ p                                              # Θ p
             # Θ 𝓘 Θ^{-1} = A_o + Θ p C_o (same matrix; avoids inverting a
             # possibly ill-conditioned Θ)
             self.At_o = self.A_o + np.outer(self.pt, self.C_o[0])
             self.Lt_o = Th @ np.diag(L)                                   # Θ diag(L_o)
-            self.gamma = 1.0 + np.arange(1, self.n_o + 1) * dsg.nu[k]    # γ_k = 1 + k ν
-        self.neighbours = dsg.in_neighbours(self.node)
+            self.gamma = 1.0 + np.arange(1, no + 1) * dsg.nu[k]          # γ_k = 1 + k ν
+        # The flow as one matrix product and one signed power (decision 3):
+        #   f = (H w)[:n] − N ⌈(H w)[n:]⌋^κ,   w = (z, u),
+        # z = (x̃_o, x̃_u), u = (y, x̃^{j_1}, ..., x̃^{j_K}). The rows of H give
+        #   0..n-1   the linear terms: [Ã_o x̃_o − Θ p y ; A_r x̃_o + A_u x̃_u − α s]
+        #            ((7), (8)), or [A_o x̃_o − L (C_o x̃_o − y) ; same] ((4), (5));
+        #   then     s = Σ_j (x̃_u − T_uᵀ x̃^j) (n − n_i rows, the argument of (8)'s
+        #            power, exponent β) and the output error C_o x̃_o − y copied into
+        #            n_i rows ("1 (C_o x̃_o − y)" of (7), exponents γ_1..γ_{n_i});
+        # N = [[0, L̃_o], [I, 0]] puts L̃_o ⌈1 err⌋^γ in the observable rows and
+        # ⌈s⌋^β in the others. For the linear observer H has the first n rows only.
+        TuT = self.T_u.T
+        powers = self.finite_time
+        H = np.zeros((n + (nu_ + no if powers else 0), n + m + K * n))
+        if no and powers:
+            H[:no, :no] = self.At_o
+            H[:no, n] = -self.pt
+            H[n + nu_:, :no] = self.C_o[0]
+            H[n + nu_:, n] = -1.0
+        elif no:
+            H[:no, :no] = self.A_o - self.L_lin @ self.C_o
+            H[:no, n:n + m] = self.L_lin
+        if nu_:
+            H[no:n, :no] = self.A_r
+            H[no:n, no:n] = self.A_u - self.alpha * K * np.eye(nu_)
+            if powers:
+                H[n:n + nu_, no:n] = K * np.eye(nu_)
+            for q in range(K):
+                cols = slice(n + m + q * n, n + m + (q + 1) * n)
+                H[no:n, cols] = self.alpha * TuT
+                if powers:
+                    H[n:n + nu_, cols] = -TuT
+        self.H = H
+        self._powers = powers
+        if powers:
+            self.kappa = np.concatenate([np.full(nu_, float(self.beta)),
+                                         self.gamma if no else np.zeros(0)])
+            Nm = np.zeros((n, nu_ + no))
+            Nm[no:, :nu_] = np.eye(nu_)
+            if no:
+                Nm[:no, nu_:] = self.Lt_o
+            self.N_pow = Nm
+
+    def flow(self, z, u):
+        """The node's flow at its state ``z`` (n,) and input ``u = (y, x̃^{j_1}, ...)``."""
+        r = self.H @ np.concatenate((z, u))
+        if not self._powers:
+            return r
+        q = r[self.n:]
+        return r[:self.n] - self.N_pow @ np.copysign(np.abs(q) ** self.kappa, q)
 
     def rhs(self, z, y, xhat_nb):
         """Right-hand side of node ``k``: (7)-(8) or (4)-(5).
@@ -94,48 +148,37 @@ class _NodeData:
             The node's measurement ``y^i``.
         xhat_nb : (|𝒩_i|, n) array
             The in-neighbours' full estimates ``x̃^j``.
+
+        Returns
+        -------
+        (n,) ndarray
+            ``(dx̃_o, dx̃_u)``: ``dx̃_o = Ã_o x̃_o − Θ p y − L̃_o ⌈1 (C_o x̃_o − y)⌋^γ``
+            (7) (or ``A_o x̃_o − L (C_o x̃_o − y)``, (4)) and ``dx̃_u = A_r x̃_o +
+            A_u x̃_u − α s − ⌈s⌋^β`` (8) (without the power, (5)) with
+            ``s = Σ_j (x̃_u − T_uᵀ x̃^j)``.
         """
-        xo, xu = z[:self.n_o], z[self.n_o:]
-        dxo = np.zeros(self.n_o)
-        if self.n_o:
-            if self.finite_time:
-                err = (self.C_o @ xo)[0] - y[0]
-                dxo = (self.At_o @ xo - self.pt * y[0]
-                       - self.Lt_o @ signed_power(np.full(self.n_o, err), self.gamma))
-            else:
-                dxo = self.A_o @ xo - self.L_lin @ (self.C_o @ xo - y)
-        dxu = np.zeros(self.n_u)
-        if self.n_u:
-            s = np.zeros(self.n_u)
-            if len(xhat_nb):
-                s = len(xhat_nb) * xu - self.T_u.T @ np.sum(xhat_nb, axis=0)
-            dxu = self.A_r @ xo + self.A_u @ xu - self.alpha * s
-            if self.finite_time:
-                dxu = dxu - signed_power(s, self.beta)
-        return np.concatenate([dxo, dxu])
+        u = np.concatenate([np.atleast_1d(np.asarray(y, dtype=float)),
+                            np.asarray(xhat_nb, dtype=float).ravel()])
+        return self.flow(np.asarray(z, dtype=float), u)
 
     def rhs_rows(self, z, y, xhat_nb):
         """:meth:`rhs` over a batch: z (N, n), y (N, m), xhat_nb (N, |𝒩_i|, n)."""
-        xo, xu = z[:, :self.n_o], z[:, self.n_o:]
-        out = np.empty_like(z)
-        if self.n_o:
-            if self.finite_time:                                              # (7)
-                err = xo @ self.C_o[0] - y[:, 0]
-                out[:, :self.n_o] = (xo @ self.At_o.T - np.outer(y[:, 0], self.pt)
-                                     - signed_power(err[:, None], self.gamma) @ self.Lt_o.T)
-            else:                                                             # (4)
-                out[:, :self.n_o] = xo @ self.A_o.T - (xo @ self.C_o.T - y) @ self.L_lin.T
-        if self.n_u:
-            s = np.zeros_like(xu)
-            if xhat_nb.shape[1]:
-                s = xhat_nb.shape[1] * xu - xhat_nb.sum(axis=1) @ self.T_u
-            dxu = xo @ self.A_r.T + xu @ self.A_u.T - self.alpha * s               # (5)
-            out[:, self.n_o:] = dxu - signed_power(s, self.beta) if self.finite_time else dxu
-        return out
+        z = np.asarray(z, dtype=float)
+        u = np.hstack([np.asarray(y, dtype=float).reshape(len(z), -1),
+                       np.asarray(xhat_nb, dtype=float).reshape(len(z), -1)])
+        return self.flow_rows(z, u)
+
+    def flow_rows(self, z, u):
+        """:meth:`flow` over a batch: z (N, n), u (N, m + |𝒩_i| n)."""
+        r = np.hstack([z, u]) @ self.H.T
+        if not self._powers:
+            return r
+        q = r[:, self.n:]
+        return r[:, :self.n] - np.copysign(np.abs(q) ** self.kappa, q) @ self.N_pow.T
 
     def estimate(self, z):
         """Full estimate ``x̃^i = T_o x̃_o + T_u x̃_u`` (z of shape (n,) or (N, n))."""
-        return self.T @ z if np.ndim(z) == 1 else z @ self.T.T
+        return self.T @ z if z.ndim == 1 else z @ self.T.T
 
 
 # --------------------------------------------------------------------------
@@ -173,12 +216,10 @@ class DistributedObserverNode(hs.HybridSystem):
         self.input_dim = self.data.m + len(self.data.neighbours) * dsg.n
 
     def flow_map(self, x, t, j, u):
-        m, n = self.data.m, self.data.n
         u = np.asarray(u, dtype=float)
         if u.ndim == 2:                                  # a batch
-            return self.data.rhs_rows(x, u[:, :m], u[:, m:].reshape(len(u), -1, n))
-        nb = u[m:].reshape(-1, n)
-        return self.data.rhs(np.asarray(x, dtype=float), u[:m], nb)
+            return self.data.flow_rows(np.asarray(x, dtype=float), u)
+        return self.data.flow(np.asarray(x, dtype=float), u)
 
     def output(self, x, t, j):
         return self.data.estimate(np.asarray(x, dtype=float))
@@ -195,12 +236,11 @@ class _NetworkInputs:
         self.neighbours = {v: dsg.in_neighbours(v) for v in dsg.nodelist}
 
     def __call__(self, node, t, received, exo):
-        y = np.asarray(exo["plant"], dtype=float)
+        y = exo["plant"]                         # outputs are float arrays (checked by hs)
         if "noise" in exo:                       # a generator component (Remark 2)
             y = y + exo["noise"]
         return np.concatenate([y[..., self.slices[node]]]
-                              + [np.asarray(received[w], dtype=float)
-                                 for w in self.neighbours[node]], axis=-1)
+                              + [received[w] for w in self.neighbours[node]], axis=-1)
 
 
 def observer_network(dsg: DistributedDesign, *, noise=None, disturbance=None):
@@ -244,6 +284,65 @@ def observer_network(dsg: DistributedDesign, *, noise=None, disturbance=None):
     nodes = {v: DistributedObserverNode(dsg, v) for v in dsg.nodelist}
     return hs.network(dsg.G, nodes, _NetworkInputs(dsg), nodelist=dsg.nodelist,
                       exogenous=exo)
+
+
+class DistributedObserver:
+    """The distributed observer of a design: what ``simulate`` and ``errors`` take.
+
+    One :class:`DistributedObserverNode` per node of the design's graph
+    ((7)-(8), or (4)-(5) for ``kind="linear"``); :meth:`interconnection`
+    wires them with the plant (1) through :func:`hybridsim.network`
+    (:func:`observer_network`), :meth:`error_system` gives the error system
+    (6)-(9) of the same design. A plain class holding the design: the hybrid
+    systems it builds are the interconnection and the error system.
+
+    Parameters
+    ----------
+    dsg : DistributedDesign
+        From :func:`observers.distributed.design`.
+
+    Attributes
+    ----------
+    design : DistributedDesign
+    nodes : dict
+        node -> :class:`DistributedObserverNode`, in ``design.nodelist`` order.
+
+    Examples
+    --------
+    >>> from observers.distributed import DistributedObserver, design, example_system
+    >>> A, C, G = example_system()
+    >>> obs = DistributedObserver(design(A, C, G, nodelist=[1, 2, 3, 4]))
+    >>> list(obs.interconnection().systems), obs.error_system().state_dim
+    (['plant', 1, 2, 3, 4], 24)
+
+    References
+    ----------
+    Silm et al. (2020), eqs. (1), (3)-(8).
+    """
+
+    def __init__(self, dsg: DistributedDesign):
+        if not isinstance(dsg, DistributedDesign):
+            raise TypeError("dsg must be a DistributedDesign (from observers.distributed."
+                            f"design), got {type(dsg).__name__}")
+        self.design = dsg
+        self.nodes = {v: DistributedObserverNode(dsg, v) for v in dsg.nodelist}
+
+    def __repr__(self):
+        d = self.design
+        return (f"DistributedObserver({d.kind}, N={d.N} nodes {d.nodelist}, n={d.n}, "
+                f"n_i={d.n_o})")
+
+    def interconnection(self, *, noise=None, disturbance=None):
+        """Plant (1) and the nodes as one hybrid system (:func:`observer_network`)."""
+        return observer_network(self.design, noise=noise, disturbance=disturbance)
+
+    def initial_state(self, x0, xhat0=None):
+        """The interconnection's initial state (:func:`initial_state`)."""
+        return initial_state(self.design, x0, xhat0)
+
+    def error_system(self):
+        """The error system (6)-(9) of the design (:class:`ErrorSystem`)."""
+        return ErrorSystem(self.design)
 
 
 class BandLimitedNoise(hs.HybridSystem):

@@ -13,6 +13,7 @@ robust finite-time observer", CDC 2022.
 :func:`settling_time_bound` bound (17) for gamma2 > 0
 :func:`homogeneous_norm`    the r-homogeneous norm of Section VI
 :func:`gain_margin`         ``v - gamma2 |w|`` (z = v in (7) when >= 0)
+:func:`iss_exponent`        small-disturbance exponent of the ISS gain (Prop. 5)
 ==========================  ==================================================
 
 The gains L of (10) are computed in :mod:`observers.lmi` (``solve_lmi10``,
@@ -35,8 +36,8 @@ from observers._common import scalar, vector
 from observers.lmi import check_gain_lmi10, lmi10_matrices
 
 __all__ = ["rbar", "weights", "settling_time", "prescribed_v", "prescribed_error", "beta",
-           "settling_time_bound", "homogeneous_norm", "gain_margin", "check_gains",
-           "check_mu"]
+           "settling_time_bound", "homogeneous_norm", "gain_margin", "iss_exponent",
+           "check_gains", "check_mu"]
 
 
 # ---------------------------------------------------------------------------
@@ -369,3 +370,30 @@ def gain_margin(w, v, gamma2):
     0.5
     """
     return np.asarray(v, dtype=float) - gamma2 * np.abs(np.asarray(w, dtype=float))
+
+
+def iss_exponent(n, mu):
+    r"""Exponent p of the ultimate bound ``max_i |e_i| <~ C a^p`` for small disturbances.
+
+    By Proposition 5's proof, (19) is (r, r_d)-homogeneous of degree -mu with
+    ``r_i = 1 - (i-1) mu`` and ``r_{d,i} = 1 - i mu``, i = 1..n+1; the
+    asymptotic gain of such a system is linear between the homogeneous norms
+    (the dilation maps solutions to solutions and keeps sup norms), so
+    ``limsup ||xi||_r <= C ||d||_{r_d}`` with ``||d||_{r_d} = max_i
+    |d_i|^{1/r_{d,i}}``. A disturbance whose every component has size a < 1
+    has ``||d||_{r_d} ~ a^{1/r_{d,1}}`` as a -> 0, so
+    ``|e_i| <~ (C a^{1/r_{d,1}})^{r_i}``, largest for the smallest weight
+    ``r_{n+1} = 1 - n mu``: ``p = r_{n+1} / r_{d,1} = (1 - n mu)/(1 - mu)``.
+    An upper bound's exponent: a realised error may fall faster as a -> 0.
+
+    Examples
+    --------
+    >>> round(iss_exponent(3, 0.2), 12)          # Section VI: 0.4 / 0.8
+    0.5
+
+    References
+    ----------
+    Nekhoroshikh et al., CDC 2022, Theorem 2, (19), Proposition 5.
+    """
+    mu = check_mu(mu, int(n), strict=False)
+    return (1.0 - n * mu) / (1.0 - mu)

@@ -8,6 +8,8 @@ r"""The hybrid systems of paper 000: observer (6)-(8) and the plant (1) of Secti
 :func:`luenberger_observer`        gamma1 = gamma2 = 0, z = v(0) (Remark 1)
 :func:`example_plant`              plant (1) of Section VI in closed loop
 :func:`uniform_noise`              Section VI's omega in (-1, 1), seeded
+:class:`NoisyExamplePlant`         plant (1) under scaled disturbances, batched
+:class:`ConsistentEuler`           the Euler scheme of ref. [8] (jump per step)
 =================================  =============================================
 
 Examples
@@ -23,12 +25,14 @@ from __future__ import annotations
 import numpy as np
 
 import hybridsim as hs
+from hybridsim.system import as_map
 from observers._common import matrix, scalar, vector
 
 from .design import check_gains, check_mu, rbar
 
 __all__ = ["DynamicGainObserver", "proposed_observer", "prescribed_time_observer",
-           "homogeneous_observer", "luenberger_observer", "uniform_noise", "example_plant"]
+           "homogeneous_observer", "luenberger_observer", "uniform_noise", "example_plant",
+           "NoisyExamplePlant", "ConsistentEuler"]
 
 
 class DynamicGainObserver(hs.HybridSystem):
@@ -103,6 +107,7 @@ class DynamicGainObserver(hs.HybridSystem):
         self.rbar = rbar(n, self.mu)
         self.state_dim = n + 3
         self.input_dim = 1 + self.m
+        self.vectorized = True          # flow_map, jump_guard, jump_map take batches too
 
     # -- pieces -------------------------------------------------------------
     def z(self, w, v, q=0.0):
@@ -118,7 +123,13 @@ class DynamicGainObserver(hs.HybridSystem):
         return self.z(w, v, q) ** (-self.rbar) * w
 
     def flow_map(self, x, t, j, u):
-        """(6) and (8); v held at its limit 0 in the settled mode (q = 1)."""
+        """(6) and (8); v held at its limit 0 in the settled mode (q = 1).
+
+        ``x`` of shape (N, n+3) (a batch of :func:`hybridsim.simulate_many`)
+        gives the (N, n+3) flows, row by row the same arithmetic.
+        """
+        if np.ndim(x) == 2:
+            return self._flow_rows(x, u)
         n, L = self.n, self.L
         w, xh, v, q = x[0], x[1:n + 1], x[n + 1], x[n + 2]
         y = u[0]
@@ -139,16 +150,44 @@ class DynamicGainObserver(hs.HybridSystem):
         dx[n + 2] = 0.0
         return dx
 
+    def _flow_rows(self, x, u):
+        """:meth:`flow_map` over a batch x (N, n+3), u (N, 1+m)."""
+        n, L = self.n, self.L
+        w, xh, v, q = x[:, 0], x[:, 1:n + 1], x[:, n + 1], x[:, n + 2]
+        u = np.asarray(u, dtype=float)
+        settled = q >= 0.5
+        if self.z_mode == "abs":
+            z = np.abs(w)
+        else:
+            z = np.maximum(np.where(settled, 0.0, v), self.gamma2 * np.abs(w))     # (7)
+        z = np.maximum(z, self.z_min)
+        k = z[:, None] ** (-self.rbar) * w[:, None]
+        dx = np.empty(x.shape)
+        dw = u[:, 0] - xh[:, 0] + L[0] * k[:, 0]                                # (6), w
+        dx[:, 0] = dw
+        dx[:, 1:n] = xh[:, 1:]
+        dx[:, n] = 0.0
+        if self.m:
+            dx[:, 1:n + 1] += u[:, 1:] @ self.b.T
+        dx[:, 1:n + 1] -= L[1:] * k[:, 1:]
+        s = v - self.gamma2 * np.abs(w)                                         # (8)
+        dv = self.gamma2 * np.abs(dw) - self.gamma1 * np.sign(s) * np.abs(s) ** (1 - self.mu)
+        dx[:, n + 1] = np.where(settled, 0.0, dv)
+        dx[:, n + 2] = 0.0
+        return dx
+
     def jump_guard(self, x, t, j, u):
-        """Jump when v reaches z_min with q = 0 (decision 1)."""
+        """Jump when v reaches z_min with q = 0 (decision 1); (N, 2) over a batch."""
         n = self.n
-        return np.array([self.z_min - x[n + 1], 0.5 - x[n + 2]])
+        if np.ndim(x) == 1:
+            return np.array([self.z_min - x[n + 1], 0.5 - x[n + 2]])
+        return np.stack([self.z_min - x[:, n + 1], 0.5 - x[:, n + 2]], axis=1)
 
     def jump_map(self, x, t, j, u):
-        """Settle: v -> 0, q -> 1 (z stays continuous)."""
+        """Settle: v -> 0, q -> 1 (z stays continuous); row by row over a batch."""
         xp = np.array(x, dtype=float)
-        xp[self.n + 1] = 0.0
-        xp[self.n + 2] = 1.0
+        xp[..., self.n + 1] = 0.0
+        xp[..., self.n + 2] = 1.0
         return xp
 
     def initial_state(self, x_hat0=None, w0=0.0, v0=1.0):
@@ -323,3 +362,208 @@ def example_plant(*, noise=False, seed=0, t_max=10.0, n=3, K=None):
         def meas(t):
             return np.array([0.0, np.cos(10 * t)])
     return hs.LinearPlant(A + np.outer(b, K), C=Ccl, disturbance=dist, noise=meas)
+
+
+class NoisyExamplePlant(hs.HybridSystem):
+    r"""Plant (1) of Section VI under its disturbances, scaled, for a batch of runs.
+
+    The closed loop of :func:`example_plant` (``u = Kx + cos 10t``, b = e_n)
+    with Section VI's disturbances multiplied by an amplitude ``a / 0.1``:
+    ``d_x = a [sin 2t, omega_x, 1 + cos t]``, ``d_y = a omega_y`` (a = 0.1 is
+    Section VI). State ``(x_1..x_n, a, s)``: the amplitude a and the index s
+    of the noise realisation (``seeds[s]``, drawn as :func:`uniform_noise`)
+    are constant states, so that one vectorized batch
+    (:func:`hybridsim.simulate_many`) runs every (amplitude, seed) pair at
+    once. Output ``(y, u) = (x_1 + a omega_y, Kx + cos 10t)``, the observer's
+    input. For a = 0.1 and ``seeds[s] = seed`` the run is that of
+    ``example_plant(noise=True, seed=seed)``.
+
+    Parameters
+    ----------
+    seeds : sequence of int
+        One noise realisation per seed.
+    t_max : float
+        Horizon of the noise.
+    n : int
+        Order of the chain (>= 2).
+    K : (n,) array_like, optional
+        As in :func:`example_plant`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> plant = NoisyExamplePlant([0, 1], 1.0)
+    >>> x = np.array([[1.0, 0.0, 0.0, 0.1, 0.0], [1.0, 0.0, 0.0, 0.0, 1.0]])
+    >>> plant.output(x, np.zeros(2), np.zeros(2))[1].tolist()    # a = 0: y = x_1
+    [1.0, -5.0]
+
+    References
+    ----------
+    Nekhoroshikh et al., CDC 2022, (1), (19) and Section VI (Proposition 5).
+    """
+
+    vectorized = True
+
+    def __init__(self, seeds, t_max, n=3, K=None, dt=0.01):
+        ref = example_plant(n=n, K=K)
+        self.n = n
+        self.Acl = ref.A
+        self.K = ref.C[1]
+        self.seeds = [int(s) for s in seeds]
+        if not self.seeds:
+            raise ValueError("seeds must name at least one noise realisation")
+        self.dt = scalar("dt", dt, positive=True)
+        t_max = scalar("t_max", t_max, positive=True)
+        grid = np.arange(0.0, t_max + 2 * self.dt, self.dt)
+        # the draws of uniform_noise(seed, t_max, dt, dim=2), one table per seed
+        self.table = np.stack([np.random.default_rng(s).uniform(-1.0, 1.0, size=(grid.size, 2))
+                               for s in self.seeds])
+        self.last = grid.size - 2
+        self._memo = None
+        self.state_dim = n + 2
+        self.output_dim = 2
+
+    def omega(self, s, t):
+        """omega of realisation(s) ``s`` at time(s) ``t``: (N, 2) (as :func:`uniform_noise`).
+
+        The last call is remembered: a flow evaluation asks for the output
+        and the flow at the same (s, t).
+        """
+        t = np.asarray(t, dtype=float)
+        s = np.asarray(s, dtype=float)
+        memo = self._memo
+        if memo is not None and memo[0].shape == t.shape and np.array_equal(memo[0], t) \
+                and np.array_equal(memo[1], s):
+            return memo[2]
+        c = np.minimum(np.maximum(t, 0.0) / self.dt, float(self.last) + 1.0)
+        k = np.minimum(c.astype(int), self.last)
+        f = (c - k)[..., None]
+        i = s.astype(int)
+        om = (1.0 - f) * self.table[i, k] + f * self.table[i, k + 1]
+        self._memo = (t.copy(), s.copy(), om)
+        return om
+
+    def flow_map(self, x, t, j, u):
+        """``x' = (A + bK) x + b cos 10t + d_x(t)``; a and s constant."""
+        batch = np.ndim(x) == 2
+        x2 = x if batch else x[None, :]
+        t = np.asarray(t, dtype=float).reshape(-1)
+        n = self.n
+        a = x2[:, n]
+        om = self.omega(x2[:, n + 1], t)
+        dx = np.zeros(x2.shape)
+        dx[:, :n] = x2[:, :n] @ self.Acl.T
+        dx[:, 0] += a * np.sin(2 * t)
+        dx[:, 1:n - 1] += (a * om[:, 0])[:, None]
+        dx[:, n - 1] += a * (1.0 + np.cos(t)) + np.cos(10 * t)
+        return dx if batch else dx[0]
+
+    def output(self, x, t, j):
+        """``(y, u) = (x_1 + a omega_y, Kx + cos 10t)``."""
+        batch = np.ndim(x) == 2
+        x2 = x if batch else x[None, :]
+        t = np.asarray(t, dtype=float).reshape(-1)
+        n = self.n
+        om = self.omega(x2[:, n + 1], t)
+        y = np.empty((len(x2), 2))
+        y[:, 0] = x2[:, 0] + x2[:, n] * om[:, 1]
+        y[:, 1] = x2[:, :n] @ self.K + np.cos(10 * t)
+        return y if batch else y[0]
+
+
+class ConsistentEuler(hs.HybridSystem):
+    r"""The explicit Euler scheme with state-dependent step of [8], as a hybrid system.
+
+    Discretises the flow of ``system`` (an interconnection without input):
+    the state is held constant over each step, a timer tau counts the step
+    out, and at tau = h a jump takes the Euler step and draws the next step
+    size::
+
+        flow (tau < h):   x' = 0,  tau' = 1,  h' = 0
+        jump (tau >= h):  x+ = x + h f(x, t - h),  tau+ = 0,
+                          h+ = max{dt0 min{1, ||x+||}^mu, h_min}
+
+    For a system r-homogeneous of degree ``-mu`` (the error system (9)) this
+    step is the uniform step of the time-rescaled, degree-0 system, so the
+    discretisation keeps finite-time convergence. ``h_min`` (default 1e-5)
+    keeps the scheme from stalling once the error is at rounding level (the
+    paper stops at N_max = 1e6 iterations instead). Jumps of ``system``
+    itself (the observer's settled switch) are taken where the Euler step
+    lands in its jump set, at the end of that step. State: ``system``'s,
+    then ``(tau, h)``; components: ``system``'s and ``"scheme"``.
+
+    Parameters
+    ----------
+    system : hybridsim.HybridSystem
+        Without input (``input_dim`` 0), e.g. ``hs.connect(plant, observer)``.
+    norm : callable
+        ``norm(x) -> float`` on ``system``'s state (:func:`example_norm`).
+    mu : float
+    dt0, h_min : float
+        Basic step (Section VI: 1e-2) and floor of the step.
+
+    Examples
+    --------
+    >>> import numpy as np, hybridsim as hs
+    >>> decay = hs.HybridSystem.from_functions(f=lambda x: -x, state_dim=1)
+    >>> euler = ConsistentEuler(decay, lambda x: abs(x[0]), 0.5, dt0=0.1)
+    >>> arc = hs.simulate(euler, euler.initial_state([1.0]), t_max=0.25)
+    >>> arc.jump_times.round(12).tolist(), round(float(arc.xf[0]), 12)    # 1 - 0.1, 0.9 - 0.09...
+    ([0.1, 0.2], 0.81)
+
+    References
+    ----------
+    [8] Efimov, Polyakov, Aleksandrov, Automatica 109, 2019; Section VI of [1].
+    """
+
+    def __init__(self, system, norm, mu, dt0=1e-2, h_min=1e-5):
+        if not isinstance(system, hs.HybridSystem):
+            raise TypeError(f"system must be a hybridsim.HybridSystem, got "
+                            f"{type(system).__name__}")
+        if int(system.input_dim or 0) > 0:
+            raise ValueError("system must have no input (connect its input first)")
+        if not callable(norm):
+            raise TypeError(f"norm must be callable, got {type(norm).__name__}")
+        self.system, self.norm = system, norm
+        self.mu = scalar("mu", mu, positive=True)
+        self.dt0 = scalar("dt0", dt0, positive=True)
+        self.h_min = scalar("h_min", h_min, positive=True)
+        n = self.n = int(system.state_dim)
+        self.state_dim = n + 2
+        self.components = {**(system.components or {}), "scheme": slice(n, n + 2)}
+        # the system's maps as callables of (x, t, j, u), whatever their signature
+        self._f = as_map(system.flow_map, "flow_map")
+        self._g = as_map(system.jump_map, "jump_map")
+        self._inD = as_map(system.jump_set, "jump_set") if system.has_jumps else None
+
+    def step(self, x):
+        """The step ``max{dt0 min{1, ||x||}^mu, h_min}`` of [8] from state x."""
+        return max(self.dt0 * min(1.0, float(self.norm(x))) ** self.mu, self.h_min)
+
+    def initial_state(self, x0):
+        """``(x0, tau = 0, h = step(x0))``."""
+        x0 = vector("x0", x0, self.n)
+        return np.concatenate([x0, [0.0, self.step(x0)]])
+
+    def flow_map(self, x, t, j, u):
+        dx = np.zeros(self.state_dim)
+        dx[self.n] = 1.0
+        return dx
+
+    def jump_guard(self, x, t, j, u):
+        return x[self.n] - x[self.n + 1]
+
+    def jump_set(self, x, t, j, u):
+        n = self.n
+        return bool(x[n] >= x[n + 1] or (self._inD is not None
+                                          and self._inD(x[:n], t, j, None)))
+
+    def jump_map(self, x, t, j, u):
+        n = self.n
+        y = x[:n]
+        if self._inD is not None and self._inD(y, t, j, None):
+            y = np.asarray(self._g(y, t, j, None), dtype=float)
+            return np.concatenate([y, [x[n], self.step(y)]])
+        h = x[n + 1]
+        y = y + h * self._f(y, t - h, j, None)                  # the Euler step
+        return np.concatenate([y, [0.0, self.step(y)]])

@@ -23,6 +23,7 @@ Examples
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Callable
 
 import numpy as np
@@ -98,22 +99,36 @@ class ObserverForm:
     def q(self):
         return self.N.shape[0]
 
+    @functools.cached_property
+    def _linear(self):
+        """``(M12, M22 + k I)``: the linear parts of F1 and F2 (computed once)."""
+        m = self.n - self.q
+        return self.M_xi[:m, m:].copy(), self.M_xi[m:, m:] + self.k * np.eye(self.q)
+
     def F1(self, y, t):
         """F1 of (2) at measured value ``y`` (q,) and time ``t``."""
-        m = self.n - self.q
-        out = self.M_xi[:m, m:] @ np.asarray(y, dtype=float)
+        y = np.asarray(y, dtype=float)
+        out = self._linear[0] @ y
         if self.Psi is not None:
             out = out + self.P @ np.asarray(self.Psi(y, t), dtype=float)
         return out
 
     def F2(self, y, t):
         """F2 of (2) at measured value ``y`` (q,) and time ``t``."""
-        m = self.n - self.q
         y = np.asarray(y, dtype=float)
-        out = self.M_xi[m:, m:] @ y + self.k * y
+        out = self._linear[1] @ y
         if self.Psi is not None:
             out = out + self.N @ np.asarray(self.Psi(y, t), dtype=float)
         return out
+
+    def F12(self, y, t):
+        """``(F1(y, t), F2(y, t))`` with one evaluation of Psi (what the observers call)."""
+        y = np.asarray(y, dtype=float)
+        L1, L2 = self._linear
+        if self.Psi is None:
+            return L1 @ y, L2 @ y
+        ps = np.asarray(self.Psi(y, t), dtype=float)
+        return L1 @ y + self.P @ ps, L2 @ y + self.N @ ps
 
     def to_xi(self, chi):
         """``xi = T chi``; ``chi`` is (n,) or time-major (N, n)."""
@@ -313,18 +328,70 @@ class GramianDesign:
         """
         return float(np.max(np.linalg.eigvals(-self.A_psi2).real))
 
+    @functools.cached_property
+    def _lam_modes(self):
+        """``(G, V, w, V^{-1})``: ``G = A2 (A1 + kI)^{-1}``, ``A1 + kI = V diag(w) V^{-1}``.
+
+        None when the eigenvector matrix is ill conditioned (cond > 1e6):
+        :meth:`lam` then calls :func:`lam` (``expm`` at every r).
+        """
+        B = self.A1 + self.k * np.eye(self.m)
+        w, V = np.linalg.eig(B)
+        if np.linalg.cond(V) > 1e6:
+            return None
+        return np.linalg.solve(B.T, self.A2.T).T, V, w, np.linalg.inv(V)
+
     def lam(self, r):
-        """lambda(r) of (4); see :func:`lam`."""
-        return lam(r, self.A1, self.A2, self.k)
+        """lambda(r) of (4) (see :func:`lam`), from the eigen-decomposition of A1 + kI.
+
+        Computed once per design, so that the quadratures of (15) and (38)
+        (thousands of r each) do not call ``expm`` at every r; it agrees
+        with :func:`lam` to ~cond(V) ulp (tested).
+        """
+        modes = self._lam_modes
+        if modes is None:
+            return lam(r, self.A1, self.A2, self.k)
+        G, V, w, Vi = modes
+        rr = np.asarray(r, dtype=float)
+        if not np.all(np.isfinite(rr)):
+            raise ValueError("r must be finite")
+        flat = rr.reshape(-1)
+        E = (V[None, :, :] * np.exp(np.multiply.outer(flat, w))[:, None, :]) @ Vi
+        if np.iscomplexobj(E):
+            E = E.real
+        out = G @ (np.eye(self.m) - E)
+        return out[0] if rr.ndim == 0 else out.reshape(rr.shape + G.shape)
+
+    @functools.cached_property
+    def _psi2_modes(self):
+        """``(V, w, V^{-1})`` with ``-(A1^T + 2kI) = V diag(w) V^{-1}``, or None.
+
+        None when the eigenvector matrix is ill conditioned (cond > 1e6, a
+        nearly defective A1): :meth:`decay` then calls ``expm``.
+        """
+        w, V = np.linalg.eig(-self.A_psi2)
+        if np.linalg.cond(V) > 1e6:
+            return None
+        return V, w, np.linalg.inv(V)
 
     def decay(self, h):
         r"""``(e^{-k h}, e^{-(A1^T + 2kI) h})``: psi's free response over h.
 
-        Returns ``(E1, E2)`` for ``h == tau`` without recomputing.
+        Returns ``(E1, E2)`` for ``h == tau`` without recomputing. For other
+        windows (``h < tau`` before t0 + tau, decision 3) the matrix
+        exponential comes from the eigen-decomposition of A1^T + 2kI,
+        computed once (a 2 x 2 ``scipy.linalg.expm`` costs ~1 ms, and the
+        sampled observer (39) needs one per flow evaluation before tau);
+        it agrees with ``expm`` to ~cond(V) ulp (tested).
         """
         if h == self.tau:
             return self.E1, self.E2
-        return float(np.exp(-self.k * h)), _expm(-self.A_psi2 * h)
+        modes = self._psi2_modes
+        if modes is None:
+            return float(np.exp(-self.k * h)), _expm(-self.A_psi2 * h)
+        V, w, Vi = modes
+        E = (V * np.exp(w * h)) @ Vi
+        return float(np.exp(-self.k * h)), (E.real if np.iscomplexobj(E) else E)
 
     def xi_e(self, xi1_hat, xi2_hat, psi1, psi2, psi1_del, psi2_del, y, h=None):
         r"""The estimate (13) from its ingredients.
@@ -634,7 +701,8 @@ def theorem2_constants(design: GramianDesign, K1, K2, T_bar, *,
     conservative: mu ~ 4e20 for k = 100 (varsigma_3 ~ 1e19 from the
     e^{2|A1| tau} = e^{41} factor and |S^{-1}| ~ 1.5e5), so (40) asks
     T_bar < 2.5e-21, while the observer converges with T = 0.1 (xi_2 in (13))
-    or T < 0.017 (omega in (13)); see :func:`reproduce`.
+    or T < 0.017 (omega in (13)); see the periods figure
+    (:func:`~observers.gramian_delay.periods_data`).
 
     References
     ----------

@@ -1,10 +1,15 @@
 r"""The paper's example (Section V, DC motor (64)-(67)) and how a run is made and read.
 
-* :func:`dc_motor` -- the single-link manipulator (65) in the coordinates
-  (66), with (67)'s A1, A2, F1, F2, the design and the plant, a :class:`DCMotor`.
+* :data:`DC_PARAMS` and :func:`dc_motor` -- the single-link manipulator (65)
+  with the paper's parameters and our choices of control, disturbances and
+  initial state (decision 7), a :class:`~observers.gramian_delay.DCMotor`.
+* :data:`CONTINUOUS_RUN`, :data:`SAMPLED_RUN` -- the integrator settings of
+  the runs of (7) and (39).
 * :func:`simulate` -- an observer with its plant on :func:`hybridsim.simulate`
   (components ``"plant"`` and ``"observer"``).
-* :func:`errors` -- xi_1 - xi_e at the arc's samples, (N, n - q).
+* :func:`errors` -- xi_1 - xi_e of (13) at the arc's samples, an
+  :class:`~observers._common.Errors` (``"e"``, and ``"w_tilde"`` = xi_2 - omega
+  of (44) for the sampled observer).
 
 Examples
 --------
@@ -13,88 +18,29 @@ Examples
 >>> ex = gd.dc_motor(k=100.0, tau=0.1, disturbed=False)          # (65)-(67)
 >>> obs = ex.continuous_observer()                               # (7)
 >>> arc = gd.simulate(obs, ex.chi0, None, t_max=0.3)
->>> e = gd.errors(arc, obs)                                      # xi_1 - xi_e (13)
+>>> e = gd.errors(arc, obs).e                                    # xi_1 - xi_e (13)
 >>> bool(np.abs(e[arc.t >= 0.1]).max() < 1e-8)                  # Theorem 1: exact after tau
 True
 """
 from __future__ import annotations
 
-import dataclasses
-import numbers
-from collections.abc import Callable
-
 import numpy as np
 
 import hybridsim as hs
 
-from .._common import scalar, vector
-from .design import GramianDesign, ObserverForm, gramian_design, observer_form
-from .systems import GramianObserver, Plant, SampledGramianObserver, _signal
+from .._common import Errors, scalar, vector
+from .design import ObserverForm
+from .systems import DCMotor, Plant, SampledGramianObserver, _ObserverBase, smooth_noise
 
-__all__ = ["DCMotor", "DC_PARAMS", "dc_motor", "simulate", "errors", "smooth_noise"]
+__all__ = ["DC_PARAMS", "dc_motor", "CONTINUOUS_RUN", "SAMPLED_RUN", "simulate", "errors"]
 
-
-@dataclasses.dataclass
-class DCMotor:
-    """The DC-motor example (65)-(67) with everything a run needs.
-
-    Attributes
-    ----------
-    params : dict
-        b0, b1, a1..a4 (the paper's values, "as in [6]").
-    form : ObserverForm
-        (65) in the coordinates (66): xi1 = (chi2, chi3), xi2 = chi1.
-    design : GramianDesign
-    plant : Plant
-        (65) in chi coordinates, output Y = chi1 + delta2.
-    K1, K2 : float
-        Lipschitz constants a1 and k of F1, F2 (Section V).
-    u, delta1, delta2 : callable
-        Control and disturbances (our choices: the paper cites them from
-        its ref. [6], which we do not have).
-    chi0 : (3,) array
-        Plant initial state (our choice).
-    """
-
-    params: dict
-    form: ObserverForm
-    design: GramianDesign
-    plant: Plant
-    K1: float
-    K2: float
-    u: Callable
-    delta1: Callable
-    delta2: Callable
-    chi0: np.ndarray
-
-    def xi(self, chi):
-        """(66)'s coordinates of plant states (time-major (N, 3) or (3,))."""
-        return self.form.to_xi(chi)
-
-    def continuous_observer(self, t0=0.0, *, realisation="literal"):
-        """The observer (7) of Theorem 1 for this motor.
-
-        It carries ``plant`` and ``form`` so that :func:`simulate` and
-        :func:`errors` need nothing else.
-        """
-        obs = GramianObserver(self.design, self.form.F1, self.form.F2, t0=t0,
-                              realisation=realisation)
-        obs.plant, obs.form = self.plant, self.form
-        return obs
-
-    def sampled_observer(self, **kw):
-        """The observer (39) of Theorem 2 (keywords of SampledGramianObserver)."""
-        obs = SampledGramianObserver(self.design, self.form.F1, self.form.F2, **kw)
-        obs.plant, obs.form = self.plant, self.form
-        return obs
-
-
+#: The motor's parameters (65), "as in [6]" (Section V).
 DC_PARAMS = dict(b0=40.0, b1=15.0, a1=35.0, a2=1.0, a3=36.4, a4=200.0)
 
 
 def dc_motor(k=100.0, tau=0.1, *, disturbed=True, u=None, delta1=None, delta2=None,
              chi0=None, oracle=False) -> DCMotor:
-    r"""The single-link manipulator with DC motor (64)-(67).
+    r"""The single-link manipulator with DC motor (64)-(67) of Section V.
 
     Parameters
     ----------
@@ -105,9 +51,10 @@ def dc_motor(k=100.0, tau=0.1, *, disturbed=True, u=None, delta1=None, delta2=No
         True: our default disturbances (below) unless given.
     u, delta1, delta2 : callable, optional
         Control ``t -> float``, ``t -> (3,)`` and ``t -> (1,)``. The paper
-        takes them from its ref. [6]; we choose (and say so in the figures):
-        ``u(t) = 2 sin(2t)``, ``delta1(t) = (0, 0.5 sin(5t), 0.5 cos(3t))``
-        and ``delta2(t) = 1e-3 sin(20t)``.
+        takes them from its ref. [6]; we choose (and say so in the figures,
+        decision 7): ``u(t) = 2 sin(2t)``,
+        ``delta1(t) = (0, 0.5 sin(5t), 0.5 cos(3t))`` and
+        ``delta2(t) = 1e-3 sin(20t)``.
     chi0 : (3,) array_like, optional
         Plant initial state; default (our choice) (0.5, -1, 0.2).
     oracle : bool
@@ -116,91 +63,38 @@ def dc_motor(k=100.0, tau=0.1, *, disturbed=True, u=None, delta1=None, delta2=No
     Returns
     -------
     DCMotor
+        The plant (65), with its coordinates (66)-(67), design (5)-(6) and
+        Lipschitz constants K1 = a1, K2 = k.
+
+    Examples
+    --------
+    >>> from observers.gramian_delay import dc_motor
+    >>> ex = dc_motor(100.0, 0.1)
+    >>> ex.form.A1.tolist(), f"{ex.design.cond_S:.3g}"                 # (67), (5)
+    ([[-1.0, 15.0], [-36.4, -200.0]], '1.41e+05')
 
     References
     ----------
     Mazenc & Malisoff (2022), Section V, eqs. (64)-(67).
     """
-    p = DC_PARAMS
-    M = np.array([[0.0, 1.0, 0.0], [0.0, -p["a2"], p["b1"]], [0.0, -p["a3"], -p["a4"]]])
-    Nmat = np.array([[1.0, 0.0, 0.0]])
     if u is None:
         u = lambda t: 2.0 * np.sin(2.0 * t)  # noqa: E731
-    elif not callable(u):
-        raise TypeError(f"u must be callable t -> float, got {type(u).__name__}")
     if disturbed:
         if delta1 is None:
             delta1 = lambda t: np.array([0.0, 0.5 * np.sin(5 * t), 0.5 * np.cos(3 * t)])  # noqa: E731
         if delta2 is None:
             delta2 = lambda t: np.array([1e-3 * np.sin(20 * t)])  # noqa: E731
-    else:
-        if delta1 is not None or delta2 is not None:
-            raise ValueError("delta1 and delta2 must be None when disturbed=False")
-        delta1 = lambda t: np.zeros(3)  # noqa: E731
-        delta2 = lambda t: np.zeros(1)  # noqa: E731
-    d1 = _signal("delta1", delta1, 3)
-    d2 = _signal("delta2", delta2, 1)
-
-    def Psi(y, t):
-        return np.array([0.0, -p["a1"] * np.sin(y[0]), p["b0"] * float(u(t))])
-
-    form = observer_form(M, Nmat, Psi, P=[[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], k=k)
-    design = gramian_design(form.A1, form.A2, form.k, tau)
-    plant = Plant(M, Nmat, Psi, delta1=d1, delta2=d2, oracle=oracle)
-    chi0 = np.array([0.5, -1.0, 0.2]) if chi0 is None else vector("chi0", chi0, 3)
-    return DCMotor(params=dict(p), form=form, design=design, plant=plant, K1=p["a1"],
-                   K2=float(k), u=u, delta1=d1, delta2=d2, chi0=chi0)
+    elif delta1 is not None or delta2 is not None:
+        raise ValueError("delta1 and delta2 must be None when disturbed=False")
+    chi0 = np.array([0.5, -1.0, 0.2]) if chi0 is None else chi0
+    return DCMotor(DC_PARAMS, k, tau, u=u, delta1=delta1, delta2=delta2, chi0=chi0,
+                   oracle=oracle)
 
 
 #: Integrator settings of a run: tight for (7) (exactness checks amplify the integration
 #: error by |S^{-1}| ~ 1e5), LSODA for (39) (a delay equation with jumps).
 CONTINUOUS_RUN = dict(method="DOP853", rtol=1e-11, atol=1e-12, dense=True, progress=False)
 SAMPLED_RUN = dict(method="LSODA", rtol=1e-9, atol=1e-11, dense=True, progress=False)
-
-
-def smooth_noise(sigma, dim=1, *, seed=None, n_modes=8, f_max=50.0):
-    r"""A seeded smooth random signal t -> (dim,) of RMS about ``sigma``.
-
-    ``sum_i a_i sin(2 pi f_i t + phi_i)`` with ``n_modes`` frequencies drawn
-    uniformly in (0, f_max] Hz, Gaussian amplitudes scaled so that the RMS
-    over a long horizon is ``sigma``, uniform phases. Smooth, so the
-    integrator is not forced to resolve a discontinuous input.
-
-    Parameters
-    ----------
-    sigma : float
-        RMS (>= 0).
-    dim : int
-    seed : int or numpy Generator, optional
-    n_modes : int
-    f_max : float
-
-    Returns
-    -------
-    callable
-        ``t -> (dim,)`` array.
-
-    Examples
-    --------
-    >>> n = smooth_noise(1e-3, seed=0)
-    >>> n(0.5).shape
-    (1,)
-    """
-    sigma = scalar("sigma", sigma, nonneg=True)
-    f_max = scalar("f_max", f_max, positive=True)
-    if isinstance(dim, bool) or not isinstance(dim, numbers.Integral) or dim < 1:
-        raise ValueError(f"dim must be a positive int, got {dim!r}")
-    if isinstance(n_modes, bool) or not isinstance(n_modes, numbers.Integral) or n_modes < 1:
-        raise ValueError(f"n_modes must be a positive int, got {n_modes!r}")
-    rng = np.random.default_rng(seed)
-    f = rng.uniform(0.0, f_max, size=(n_modes, dim)) + f_max / (10 * n_modes)
-    a = rng.normal(size=(n_modes, dim))
-    a *= sigma * np.sqrt(2.0) / np.maximum(np.linalg.norm(a, axis=0), 1e-300)
-    ph = rng.uniform(0.0, 2 * np.pi, size=(n_modes, dim))
-
-    def noise(t):
-        return np.sum(a * np.sin(2 * np.pi * f * t + ph), axis=0)
-    return noise
 
 
 def _plant_of(observer, plant):
@@ -229,12 +123,14 @@ def simulate(observer, x0, xhat0=None, *, t_max, noise=None, seed=None, plant=No
     t_max : float
     noise : callable or float, optional
         Measurement noise delta_2 of (1): ``t -> (q,)``, or an RMS for
-        :func:`smooth_noise` drawn with ``seed``. Replaces the plant's own
+        :func:`~observers.gramian_delay.smooth_noise` drawn with ``seed``. Replaces the plant's own
         delta_2; default: the plant's.
     seed : int or numpy Generator, optional
         For a float ``noise`` (nothing else here is random).
     plant : Plant, optional
-        Default: the plant attached by :class:`DCMotor`'s constructors.
+        Default: the plant the observer carries (a
+        :class:`~observers.gramian_delay.DCMotor` attaches itself to the
+        observers it builds).
     j_max : int
         Jump bound (samples of (39), resets of the reset realisation).
     **simulate_kwargs
@@ -254,7 +150,6 @@ def simulate(observer, x0, xhat0=None, *, t_max, noise=None, seed=None, plant=No
     >>> sorted(arc.components)
     ['observer', 'plant']
     """
-    from .systems import _ObserverBase
     if not isinstance(observer, _ObserverBase):
         raise TypeError(f"observer must be a GramianObserver or SampledGramianObserver, "
                         f"got {type(observer).__name__}")
@@ -276,7 +171,7 @@ def simulate(observer, x0, xhat0=None, *, t_max, noise=None, seed=None, plant=No
 
 
 def errors(arc, observer, *, y=None, form=None, name="observer"):
-    r"""xi_1 - xi_e (13) at the arc's samples, time-major (N, n - q); the pattern's step 4.
+    r"""xi_1 - xi_e (13) at the arc's samples; the calling pattern's step 4.
 
     Parameters
     ----------
@@ -295,9 +190,12 @@ def errors(arc, observer, *, y=None, form=None, name="observer"):
 
     Returns
     -------
-    (N, n - q) array
-        The error of the reduced-order estimate (the observer estimates
-        xi_1 only; xi_2 is measured).
+    Errors
+        ``"e"``: xi_1 - xi_e, shape (N, n - q), the error of the
+        reduced-order estimate (the observer estimates xi_1 only; xi_2 is
+        measured). For the sampled observer (39) also ``"w_tilde"``:
+        xi_2 - omega of (44), shape (N, q), the signal of Theorem 2's
+        bound (62).
 
     Examples
     --------
@@ -306,8 +204,9 @@ def errors(arc, observer, *, y=None, form=None, name="observer"):
     >>> ex = gd.dc_motor(150.0, 0.1, disturbed=False)
     >>> obs = ex.continuous_observer()
     >>> arc = gd.simulate(obs, ex.chi0, None, t_max=0.2)
-    >>> gd.errors(arc, obs).shape == (len(arc.t), 2)
-    True
+    >>> E = gd.errors(arc, obs)
+    >>> E.e.shape == (len(arc.t), 2), list(E)
+    (True, ['e'])
     """
     form = getattr(observer, "form", None) if form is None else form
     if not isinstance(form, ObserverForm):
@@ -319,29 +218,35 @@ def errors(arc, observer, *, y=None, form=None, name="observer"):
         if y is None and observer.estimate_source == "xi2":
             y = xi[:, m:]
         xe = observer.estimate(arc, y=y, name=name)
-    else:
-        if y is None:
-            y = arc.outputs("plant")[:, :observer.design.q]
-        xe = observer.estimate(arc, y, name=name)
-    return xi[:, :m] - xe
+        w_tilde = xi[:, m:] - arc.component(name).x[:, observer.sl_omega]        # (44)
+        return Errors(arc.t, arc.j, e=xi[:, :m] - xe, w_tilde=w_tilde)
+    if y is None:
+        y = arc.outputs("plant")[:, :observer.design.q]
+    xe = observer.estimate(arc, y, name=name)
+    return Errors(arc.t, arc.j, e=xi[:, :m] - xe)
 
 
 def _run_dc(k, *, sampled, T=0.1, estimate="xi2", t_max=1.0, disturbed=True, max_norm=1e6,
-            realisation="literal", **simulate_kwargs):
-    """One run of (66) with an observer as in Figs. 1-2; returns (t, error (N, 2), arc).
+            realisation="literal", read=True, **simulate_kwargs):
+    """One run of (66) with an observer as in Figs. 1-2; returns ``(arc, errors)``.
 
-    Without a warning where the run ends on a failure (``BLOWUP`` at k = 75, or
-    a sampled observer that diverges): the callers report ``arc.termination``.
+    Both observers with :data:`SAMPLED_RUN`'s settings, tau = 0.1, sampling
+    period T. Without a warning where the run ends on a failure (``BLOWUP``
+    at k = 75, or a sampled observer that diverges): these are expected, and
+    the callers report ``arc.termination``. With ``read=False`` the errors
+    are read only when the run reached t_max (else None).
     """
     ex = dc_motor(k, 0.1, disturbed=disturbed, oracle=sampled and estimate == "xi2")
     obs = (ex.sampled_observer(period=T, estimate=estimate, realisation=realisation) if sampled
            else ex.continuous_observer(realisation=realisation))
     arc = simulate(obs, ex.chi0, None, t_max=t_max, max_norm=max_norm,
                    **{**SAMPLED_RUN, "warn": False, **simulate_kwargs})
-    return arc.t, errors(arc, obs), arc
+    if not read and arc.termination is not hs.Termination.T_MAX:
+        return arc, None
+    return arc, errors(arc, obs)
 
 
-def _err_at(t, e, s):
+def _err_at(E, s):
     """|e| at the first sample at or after s (the last sample when the run stopped before s)."""
-    i = min(int(np.searchsorted(t, s)), len(t) - 1)
-    return float(np.linalg.norm(e[i]))
+    i = min(int(np.searchsorted(E.t, s)), len(E.t) - 1)
+    return float(np.linalg.norm(E.e[i]))

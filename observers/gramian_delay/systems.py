@@ -1,6 +1,9 @@
 r"""The hybrid systems of Mazenc & Malisoff (2022) on :mod:`hybridsim`.
 
 * :class:`Plant` -- system (1), output Y (or (Y, xi_2) for the oracle).
+* :class:`DCMotor` -- the DC motor (65) of Section V as a :class:`Plant`,
+  with its coordinates (66)-(67), design and observers.
+* :func:`smooth_noise` -- a seeded smooth measurement disturbance delta_2.
 * :class:`GramianObserver` -- the dynamic extension (7) (Theorem 1), input Y;
   :meth:`GramianObserver.estimate` evaluates (13) along a finished run.
 * :class:`SampledGramianObserver` -- the observer (39) (Theorem 2): omega
@@ -42,29 +45,87 @@ Examples
 """
 from __future__ import annotations
 
+import numbers
+
 import numpy as np
 
 import hybridsim as hs
 
 from .._common import matrix, scalar, vector
-from .design import GramianDesign
+from .design import GramianDesign, gramian_design, observer_form
 
-__all__ = ["Plant", "GramianObserver", "SampledGramianObserver", "estimate_along",
-           "REALISATIONS"]
+__all__ = ["Plant", "DCMotor", "GramianObserver", "SampledGramianObserver", "estimate_along",
+           "REALISATIONS", "smooth_noise"]
 
 #: The realisations of psi_2 of (7) (module docstring).
 REALISATIONS = ("literal", "reset")
 
 
 def _signal(name, fn, dim):
-    """A callable t -> (dim,) array (None: zero)."""
+    """A callable t -> (dim,) array (None: zero); a signal made here is not wrapped again."""
+    if getattr(fn, "_signal_dim", None) == dim:
+        return fn
     if fn is None:
         z = np.zeros(dim)
-        return lambda t: z
-    if not callable(fn):
+
+        def signal(t):
+            return z
+        signal._zero = True
+    elif not callable(fn):
         raise TypeError(f"{name} must be callable t -> ({dim},) array or None, "
                         f"got {type(fn).__name__}")
-    return lambda t: np.asarray(fn(t), dtype=float).reshape(dim)
+    else:
+        def signal(t):
+            return np.asarray(fn(t), dtype=float).reshape(dim)
+    signal._signal_dim = dim
+    return signal
+
+
+def smooth_noise(sigma, dim=1, *, seed=None, n_modes=8, f_max=50.0):
+    r"""A seeded smooth random signal t -> (dim,) of RMS about ``sigma``.
+
+    ``sum_i a_i sin(2 pi f_i t + phi_i)`` with ``n_modes`` frequencies drawn
+    uniformly in (0, f_max] Hz, Gaussian amplitudes scaled so that the RMS
+    over a long horizon is ``sigma``, uniform phases. Smooth, so the
+    integrator is not forced to resolve a discontinuous input. A measurement
+    disturbance delta_2 of (1) for :func:`~observers.gramian_delay.simulate`'s
+    ``noise=``.
+
+    Parameters
+    ----------
+    sigma : float
+        RMS (>= 0).
+    dim : int
+    seed : int or numpy Generator, optional
+    n_modes : int
+    f_max : float
+
+    Returns
+    -------
+    callable
+        ``t -> (dim,)`` array.
+
+    Examples
+    --------
+    >>> n = smooth_noise(1e-3, seed=0)
+    >>> n(0.5).shape
+    (1,)
+    """
+    sigma = scalar("sigma", sigma, nonneg=True)
+    f_max = scalar("f_max", f_max, positive=True)
+    if isinstance(dim, bool) or not isinstance(dim, numbers.Integral) or dim < 1:
+        raise ValueError(f"dim must be a positive int, got {dim!r}")
+    if isinstance(n_modes, bool) or not isinstance(n_modes, numbers.Integral) or n_modes < 1:
+        raise ValueError(f"n_modes must be a positive int, got {n_modes!r}")
+    rng = np.random.default_rng(seed)
+    f = rng.uniform(0.0, f_max, size=(n_modes, dim)) + f_max / (10 * n_modes)
+    a = rng.normal(size=(n_modes, dim))
+    a *= sigma * np.sqrt(2.0) / np.maximum(np.linalg.norm(a, axis=0), 1e-300)
+    ph = rng.uniform(0.0, 2 * np.pi, size=(n_modes, dim))
+
+    def noise(t):
+        return np.sum(a * np.sin(2 * np.pi * f * t + ph), axis=0)
+    return noise
 
 
 class Plant(hs.HybridSystem):
@@ -106,20 +167,119 @@ class Plant(hs.HybridSystem):
             _probe_shape("Psi", lambda: Psi(np.zeros(q), 0.0), (n,), f"(n = {n} states)")
         self.delta1 = _signal("delta1", delta1, n)
         self.delta2 = _signal("delta2", delta2, q)
+        # a zero disturbance is not called during a run
+        self._d1 = None if getattr(self.delta1, "_zero", False) else self.delta1
+        self._d2 = None if getattr(self.delta2, "_zero", False) else self.delta2
         self.oracle = bool(oracle)
         self.state_dim = n
         self.output_dim = 2 * q if oracle else q
 
     def flow_map(self, x, t):
-        dx = self.M @ x + self.delta1(t)
+        dx = self.M @ x
+        if self._d1 is not None:
+            dx = dx + self._d1(t)
         if self.Psi is not None:
             dx = dx + np.asarray(self.Psi(self.N @ x, t), dtype=float)
         return dx
 
     def output(self, x, t, j):
         y = self.N @ x
-        Y = y + self.delta2(t)
+        Y = y if self._d2 is None else y + self._d2(t)
         return np.concatenate([Y, y]) if self.oracle else Y
+
+
+class DCMotor(Plant):
+    r"""The single-link manipulator with DC motor (64)-(65) as a plant (1), with (66)-(67).
+
+    chi = (angle, angular velocity, armature current), output the angle:
+
+    .. math::
+        \dot\chi = M\chi + \Psi(\chi_1, t) + \delta_1(t),\quad
+        M = \begin{bmatrix}0 & 1 & 0\\ 0 & -a_2 & b_1\\ 0 & -a_3 & -a_4\end{bmatrix},\quad
+        \Psi = (0, -a_1\sin\chi_1, b_0 u(t)),\quad Y = \chi_1 + \delta_2(t).
+
+    Besides the plant it carries what a run of the paper's observers needs:
+    the coordinates (66) (``form``: xi1 = (chi2, chi3), xi2 = chi1, with A1,
+    A2, F1, F2 of (67)), the design (5)-(6) for ``k`` and ``tau``, the
+    Lipschitz constants ``K1 = a1``, ``K2 = k`` of F1, F2 (Section V) and an
+    initial state ``chi0``; :meth:`continuous_observer` and
+    :meth:`sampled_observer` build the observers (7) and (39) for it. The
+    paper's values and our choices are given by
+    :func:`~observers.gramian_delay.dc_motor`.
+
+    Parameters
+    ----------
+    params : dict
+        b0, b1, a1, a2, a3, a4 of (65).
+    k, tau : float
+        The constant of (2) and the delay.
+    u : callable
+        The control ``t -> float``.
+    delta1, delta2 : callable, optional
+        ``t -> (3,)``, ``t -> (1,)``; None means zero.
+    chi0 : (3,) array_like
+        The initial state of the runs.
+    oracle : bool
+        Output (Y, chi1) instead of Y (for (39) with estimate="xi2").
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from observers.gramian_delay import DCMotor
+    >>> p = dict(b0=40.0, b1=15.0, a1=35.0, a2=1.0, a3=36.4, a4=200.0)
+    >>> motor = DCMotor(p, 100.0, 0.1, u=np.sin, chi0=[0.5, -1.0, 0.2])
+    >>> motor.form.A1.tolist(), motor.K1                          # (67)
+    ([[-1.0, 15.0], [-36.4, -200.0]], 35.0)
+
+    References
+    ----------
+    Mazenc & Malisoff (2022), Section V, eqs. (64)-(67).
+    """
+
+    def __init__(self, params, k, tau, *, u, delta1=None, delta2=None, chi0=(0.0, 0.0, 0.0),
+                 oracle=False):
+        missing = {"b0", "b1", "a1", "a2", "a3", "a4"} - set(params)
+        if missing:
+            raise ValueError(f"params lacks {sorted(missing)}")
+        p = {key: scalar(key, params[key]) for key in ("b0", "b1", "a1", "a2", "a3", "a4")}
+        if not callable(u):
+            raise TypeError(f"u must be callable t -> float, got {type(u).__name__}")
+        M = np.array([[0.0, 1.0, 0.0], [0.0, -p["a2"], p["b1"]], [0.0, -p["a3"], -p["a4"]]])
+        Nmat = np.array([[1.0, 0.0, 0.0]])
+        a1, b0 = p["a1"], p["b0"]
+
+        def Psi(y, t):
+            return np.array([0.0, -a1 * np.sin(y[0]), b0 * float(u(t))])
+
+        super().__init__(M, Nmat, Psi, delta1=delta1, delta2=delta2, oracle=oracle)
+        self.params = p
+        self.u = u
+        self.form = observer_form(M, Nmat, Psi, P=[[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], k=k)
+        self.design = gramian_design(self.form.A1, self.form.A2, self.form.k, tau)
+        self.K1, self.K2 = p["a1"], float(self.form.k)
+        self.chi0 = vector("chi0", chi0, 3)
+
+    def xi(self, chi):
+        """(66)'s coordinates of plant states (time-major (N, 3) or (3,))."""
+        return self.form.to_xi(chi)
+
+    def continuous_observer(self, t0=0.0, *, realisation="literal"):
+        """The observer (7) of Theorem 1 for this motor.
+
+        It carries this plant and its ``form``, so that
+        :func:`~observers.gramian_delay.simulate` and
+        :func:`~observers.gramian_delay.errors` need nothing else.
+        """
+        obs = GramianObserver(self.design, self.form.F1, self.form.F2, t0=t0,
+                              realisation=realisation)
+        obs.plant, obs.form = self, self.form
+        return obs
+
+    def sampled_observer(self, **kw):
+        """The observer (39) of Theorem 2 (keywords of SampledGramianObserver)."""
+        obs = SampledGramianObserver(self.design, self.form.F1, self.form.F2, **kw)
+        obs.plant, obs.form = self, self.form
+        return obs
 
 
 def _probe_shape(name, call, shape, what):
@@ -152,6 +312,14 @@ class _ObserverBase(hs.HybridSystem):
             raise ValueError(f"realisation must be one of {REALISATIONS}, got {realisation!r}")
         self.design = design
         self.F1, self.F2 = F1, F2
+        form = getattr(F1, "__self__", None)
+        if getattr(F2, "__self__", None) is form and hasattr(form, "F12"):
+            self._F12 = form.F12           # an ObserverForm's F1, F2: one Psi per evaluation
+        else:
+            def F12(y, t):
+                return (np.asarray(F1(y, t), dtype=float).reshape(design.m),
+                        np.asarray(F2(y, t), dtype=float).reshape(design.q))
+            self._F12 = F12
         self.realisation = realisation
         m, q = design.m, design.q
         # dimensions agree at construction, not as a broadcast error inside a run
@@ -176,19 +344,24 @@ class _ObserverBase(hs.HybridSystem):
         # it (rho is the integrated timer: ~1e-15 off the located reset time)
         self._rho_eps = 1e-12 * max(1.0, design.tau)
 
-    def _extension_flow(self, z, t, y):
-        """Flows of the extension (7) with measurement y (Y, or omega in (39))."""
+    def _extension_flow(self, z, t, y, out):
+        """Flows of the extension (7) with measurement y (Y, or omega in (39)), into out.
+
+        Returns F2(y, t) (the flow of omega in (39) needs it too).
+        """
         d = self.design
         xi1, xi2 = z[self.sl_xi1], z[self.sl_xi2]
         innov = d.H @ (y - xi2)
-        parts = [
-            d.A1 @ xi1 + np.asarray(self.F1(y, t), dtype=float).reshape(d.m),      # (7) xi1_hat
-            d.A2 @ xi1 - d.k * xi2 + np.asarray(self.F2(y, t), dtype=float).reshape(d.q),
-            -d.k * z[self.sl_psi1] + innov,                                         # (7) psi1
-            self._mA2 @ z[self.sl_psi2] + innov]                                    # (7) psi2 / p
+        f1, f2 = self._F12(y, t)
+        out[self.sl_xi1] = d.A1 @ xi1 + f1                                          # (7) xi1_hat
+        out[self.sl_xi2] = d.A2 @ xi1 - d.k * xi2 + f2                              # (7) xi2_hat
+        out[self.sl_psi1] = -d.k * z[self.sl_psi1] + innov                          # (7) psi1
+        out[self.sl_psi2] = self._mA2 @ z[self.sl_psi2] + innov                     # (7) psi2 / p
         if self.realisation == "reset":
-            parts += [self._mA2 @ z[self.sl_phi], np.zeros(d.m), [1.0]]             # phi, P, rho
-        return np.concatenate(parts)
+            out[self.sl_phi] = self._mA2 @ z[self.sl_phi]                           # phi
+            out[self.sl_P] = 0.0                                                    # P
+            out[self.i_rho] = 1.0                                                   # rho
+        return f2
 
     def _reset_guard(self, z):
         """rho - tau: >= 0 when the reset realisation's timer is due."""
@@ -289,7 +462,7 @@ class GramianObserver(_ObserverBase):
     >>> ex = gd.dc_motor(100.0, 0.1, disturbed=False)
     >>> obs = ex.continuous_observer()                     # (7)
     >>> arc = gd.simulate(obs, ex.chi0, None, t_max=0.3)
-    >>> bool(np.abs(gd.errors(arc, obs)[arc.t >= 0.1]).max() < 1e-8)   # Theorem 1
+    >>> bool(np.abs(gd.errors(arc, obs).e[arc.t >= 0.1]).max() < 1e-8)   # Theorem 1
     True
 
     References
@@ -306,7 +479,9 @@ class GramianObserver(_ObserverBase):
             self.jump_guard = self._jump_guard_reset       # D = {rho >= tau}; literal: D empty
 
     def flow_map(self, z, t, j, u):
-        return self._extension_flow(z, t, np.asarray(u, dtype=float))
+        out = np.empty(self.n_ext)
+        self._extension_flow(z, t, np.asarray(u, dtype=float), out)
+        return out
 
     def _jump_guard_reset(self, z, t, j, u):
         return self._reset_guard(z)
@@ -385,7 +560,7 @@ class SampledGramianObserver(_ObserverBase):
     >>> ex = gd.dc_motor(100.0, 0.1, disturbed=False)
     >>> obs = ex.sampled_observer(period=0.005)             # (39), omega in (13)
     >>> arc = gd.simulate(obs, ex.chi0, None, t_max=0.5)
-    >>> bool(np.abs(gd.errors(arc, obs)[arc.t >= 0.4]).max() < 1e-6)
+    >>> bool(np.abs(gd.errors(arc, obs).e[arc.t >= 0.4]).max() < 1e-6)
     True
 
     References
@@ -440,10 +615,13 @@ class SampledGramianObserver(_ObserverBase):
     def flow_map(self, z, t, j, u):
         d = self.design
         w = z[self.sl_omega]
-        ext = self._extension_flow(z, t, w)
+        out = np.empty(self.state_dim)
+        f2 = self._extension_flow(z, t, w, out)                                     # F2(omega, t)
         xe = self._xi_e_now(z, t, u)
-        dw = d.A2 @ xe - d.k * w + np.asarray(self.F2(w, t), dtype=float).reshape(d.q)  # (39)
-        return np.concatenate([ext, dw, [1.0, 0.0]])
+        out[self.sl_omega] = d.A2 @ xe - d.k * w + f2                               # (39)
+        out[self.i_sigma] = 1.0
+        out[self.i_kappa] = 0.0
+        return out
 
     def _sample_guard(self, z, t):
         if self.period is not None:

@@ -10,23 +10,22 @@ and the observers run two Luenberger-like copies x̂1, x̂2 with gains L1, L2
 that also estimates a constant output bias m̂ (H_c, eqs. (17)-(18), one jump;
 H_pc, Section IV-E, a jump every delta).
 
-The package follows the calling pattern of :mod:`observers`:
-
-============  ==================================================================
-design.py     :class:`Design` (F_i, K1, K2 (12), T, H T - I), :func:`admissible_delta`
-              (Assumption 4.1 / Remark 4.4), :func:`lemma_4_2_condition`,
-              :func:`error_after_jump` (15), :func:`scalar_error_after_jump` (6),
-              bounds of Theorems 4.7, 4.10, 4.11 (16), :class:`PiecewiseConstantNoise`,
-              :func:`random_design`
-systems.py    :class:`NominalObserver` (H_n), :class:`ConstantNoiseObserver` (H_c),
-              :class:`PiecewiseConstantNoiseObserver` (H_pc), :class:`LuenbergerObserver` (2),
-              :class:`BoundedNoiseGenerator`
-example.py    :func:`example_III`, :func:`example_VA`, :func:`example_VB`;
-              :func:`simulate` (= :func:`simulate_with_plant`), :func:`errors`
-              (= :func:`observer_errors`), :func:`noise_batch`
-figures.py    :func:`reproduce` (Figs. 1(a), 1(b), 2(a), 2(b), 3)
-claims.py     :data:`CLAIMS`
-============  ==================================================================
+The package follows the layout of every paper package of :mod:`observers`
+(and keeps the contract of :mod:`observers._common`). ``design.py`` holds the
+paper's formulas and design computations, pure numpy/scipy: the gains K1, K2
+of (12), the matrix T and H T - I of (18), the admissibility of delta
+(Assumption 4.1 / Remark 4.4), Lemma 4.2, the errors (6) and (15) after the
+jump, the bounds of Theorems 4.7, 4.10 and 4.11, the noise of Theorem 4.14
+and seeded random designs for the tests. ``systems.py`` holds every
+:class:`hybridsim.HybridSystem`: the observers H_n, H_c, H_pc, the
+Luenberger observer (2) and a bounded noise source for batches.
+``example.py`` holds the paper's example data (Sections III, V.A, V.B) and
+how a run is made and read: ``simulate`` wires the engine's linear plant (1)
+to an observer, ``errors`` reads the estimation errors off the arc,
+``noise_batch`` sets up a Monte Carlo of noise realisations. ``figures.py``
+computes the numbers of Figs. 1-3 and draws them (``FIGURES``,
+``reproduce``), and ``claims.py`` lists every checkable statement of the
+paper (``CLAIMS``) with the sweeps behind Theorems 4.9 and 4.11.
 
 :data:`PAPER`, :data:`ERRATA` (what the paper gets wrong) and
 :data:`DECISIONS` (numbered; "decision 5" in a docstring is ``DECISIONS[4]``)
@@ -40,7 +39,7 @@ Examples
 >>> obs = ls.NominalObserver(d)                             # H_n (10)-(12)
 >>> arc = ls.simulate(obs, [0.3, 0.4], [0.0, 0.0], t_max=2.0)   # with plant (1)
 >>> E = ls.errors(arc, obs)
->>> bool(np.abs(E["e"][arc.j == 1]).max() < 1e-8)          # exact after the jump (Thm 4.7)
+>>> bool(np.abs(E.e[arc.j == 1]).max() < 1e-8)             # exact after the jump (Thm 4.7)
 True
 
 References
@@ -50,94 +49,12 @@ References
 """
 from __future__ import annotations
 
-from .claims import CLAIMS
-from .design import (
-    Design,
-    F_matrices,
-    L_tilde,
-    PiecewiseConstantNoise,
-    Xi_matrix,
-    Xi_of_t,
-    admissible_delta,
-    alpha_max,
-    alpha_min,
-    dist_to_A,
-    error_after_jump,
-    gains_K,
-    lemma_4_2_condition,
-    mu_max,
-    mu_min,
-    p_det,
-    random_design,
-    scalar_error_after_jump,
-    switch_jump_error,
-    theorem_4_7_bound,
-    theorem_4_10_bound,
-    theorem_4_11_bound,
-)
-from .example import (
-    errors,
-    example_III,
-    example_VA,
-    example_VB,
-    noise_batch,
-    observer_errors,
-    simulate,
-    simulate_with_plant,
-)
-from .figures import reproduce
-from .systems import (
-    BoundedNoiseGenerator,
-    ConstantNoiseObserver,
-    LuenbergerObserver,
-    MotivatingObserver,
-    NominalObserver,
-    PiecewiseConstantNoiseObserver,
-)
-
-__all__ = [
-    "PAPER",
-    "ERRATA",
-    "DECISIONS",
-    "CLAIMS",
-    "Design",
-    "F_matrices",
-    "gains_K",
-    "p_det",
-    "admissible_delta",
-    "lemma_4_2_condition",
-    "mu_max",
-    "mu_min",
-    "alpha_max",
-    "alpha_min",
-    "Xi_of_t",
-    "L_tilde",
-    "Xi_matrix",
-    "error_after_jump",
-    "scalar_error_after_jump",
-    "switch_jump_error",
-    "theorem_4_7_bound",
-    "theorem_4_10_bound",
-    "theorem_4_11_bound",
-    "PiecewiseConstantNoise",
-    "example_VA",
-    "example_VB",
-    "example_III",
-    "random_design",
-    "NominalObserver",
-    "MotivatingObserver",
-    "ConstantNoiseObserver",
-    "PiecewiseConstantNoiseObserver",
-    "LuenbergerObserver",
-    "simulate",
-    "simulate_with_plant",
-    "errors",
-    "observer_errors",
-    "BoundedNoiseGenerator",
-    "noise_batch",
-    "dist_to_A",
-    "reproduce",
-]
+from . import claims, design, example, figures, systems
+from .claims import *
+from .design import *
+from .example import *
+from .figures import *
+from .systems import *
 
 #: The paper.
 PAPER = {
@@ -197,18 +114,23 @@ DECISIONS = [
     "H T - I likewise relative to max(1, |H T|). H_c / H_pc warn (RuntimeWarning) when "
     "|(H T - I)^-1| exceeds 1e6, since m̂'s update multiplies every error by it.",
     "11. The observer (3) of Section I is H_n (no jump after the first one: K1 = I, K2 = 0 for "
-    "x̂1 and K1 = 0, K2 = I for x̂2 are identities); MotivatingObserver is an alias of "
-    "NominalObserver, and the scalar observer (7)-(9) of Section III is ConstantNoiseObserver "
-    "with n = p = 1.",
+    "x̂1 and K1 = 0, K2 = I for x̂2 are identities), so NominalObserver is also the observer of "
+    "Section III's motivational example (no separate class), and the scalar observer (7)-(9) "
+    "of Section III is ConstantNoiseObserver with n = p = 1.",
     "12. Theorem 4.9 gives no constant (only that some sigma* exists). Since H_n is linear in m, "
     "the distance between the noisy and the noise-free solution (same z_m(0,0), same hybrid time "
     "domain) is the response to the noise alone; the check uses C = sqrt(2) (gamma1(1) + gamma(1)) "
     "from Theorem 4.11's coefficients (each copy's difference is at most gamma sigma before the "
-    "jump, (gamma1 + gamma) sigma after it), on example V.B where those hypotheses hold, and "
-    "compares the two solutions on a grid of equal (t, j) through their dense output "
-    "(claims.closeness_sweep).",
+    "jump, (gamma1 + gamma) sigma after it), on example V.B and on seeded random designs with "
+    "p = n and dissipative F_i, where those hypotheses hold (claims.closeness_random; for "
+    "p < n only the linearity, distance / sigma one constant K, so sigma* = eps / K, is "
+    "tested), and compares the two solutions on a grid of equal (t, j) through their dense "
+    "output (claims.closeness_sweep).",
     "13. Theorem 4.11's (16) uses |m|_delta (sup over [0, delta]) and |m|_inf separately; the "
     "tight check computes |m|_delta as a grid maximum plus its Lipschitz margin (an upper bound "
     "tight to 4e-5 sigma), not |m|_inf, so the ratio |ē| / (16) is not diluted "
     "(claims.theorem_4_11_ratios).",
 ]
+
+__all__ = ["PAPER", "ERRATA", "DECISIONS", *design.__all__, *systems.__all__, *example.__all__,
+           *figures.__all__, *claims.__all__]

@@ -3,10 +3,10 @@
 * Designs of the paper's examples: :func:`example_III` (Section III, Fig. 1),
   :func:`example_VA` (Section V.A, Fig. 2), :func:`example_VB` (Section V.B,
   Fig. 3).
-* A run: :func:`simulate` (= :func:`simulate_with_plant`) wires the engine's
-  ``hs.LinearPlant`` (plant (1) with output noise m, (14)) to an observer
-  with ``hs.connect`` and runs ``hs.simulate``; :func:`errors`
-  (= :func:`observer_errors`) reads the estimation errors off the arc.
+* A run: :func:`simulate` wires the engine's ``hs.LinearPlant`` (plant (1)
+  with output noise m, (14)) to an observer with ``hs.connect`` and runs
+  ``hs.simulate``; :func:`errors` reads the estimation errors off the arc
+  (an :class:`observers._common.Errors`).
 * Batches of noise realisations: :func:`noise_batch` with
   :class:`~observers.li_sanfelice.systems.BoundedNoiseGenerator`, run by
   ``hs.simulate_many``.
@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 import hybridsim as hs
-from observers._common import vector
+from observers._common import Errors, vector
 
 from .design import Design
 from .systems import LuenbergerObserver, _TwoCopyObserver
@@ -35,9 +35,7 @@ __all__ = [
     "example_VA",
     "example_VB",
     "simulate",
-    "simulate_with_plant",
     "errors",
-    "observer_errors",
     "noise_batch",
 ]
 
@@ -71,8 +69,6 @@ def example_VB(rounded=False):
     return Design(A=A, H=H, L1=L1, L2=L2, delta=1.0)
 
 
-
-
 def _noise_callable(noise, p):
     if noise is None:
         return None
@@ -82,12 +78,9 @@ def _noise_callable(noise, p):
     return lambda t: c
 
 
-def simulate_with_plant(observer, x0, xhat0, *, t_max=None, noise=None, seed=None, j_max=None,
-                        mhat0=None, method="DOP853", rtol=1e-10, atol=1e-12, **kw):
+def simulate(observer, x0, xhat0=None, *, t_max=None, noise=None, seed=None, j_max=None,
+             mhat0=None, method="DOP853", rtol=1e-10, atol=1e-12, **simulate_kwargs):
     """Simulate plant (1), y = H x + m (14), with an observer: hs.connect + hs.simulate.
-
-    :func:`simulate` is the same function (the name of the calling pattern of
-    :mod:`observers`).
 
     Parameters
     ----------
@@ -96,8 +89,10 @@ def simulate_with_plant(observer, x0, xhat0, *, t_max=None, noise=None, seed=Non
         LuenbergerObserver.
     x0 : (n,) array_like
         Plant initial state.
-    xhat0 : (n,) array_like
-        Observer initial estimate (x̂1 = x̂2 = xhat0: the sets S_n, S_c, S_pc).
+    xhat0 : (n,) array_like, optional
+        Observer initial estimate (x̂1 = x̂2 = xhat0: the sets S_n, S_c, S_pc;
+        x̂0 of (2) for the Luenberger observer). Default zeros (the paper's
+        examples start from x̂ = 0).
     t_max : float, optional
         Horizon (default 3 delta; required for a LuenbergerObserver).
     noise : None, (p,) array_like or callable t -> (p,)
@@ -108,8 +103,9 @@ def simulate_with_plant(observer, x0, xhat0, *, t_max=None, noise=None, seed=Non
     j_max : int, optional
     mhat0 : (p,) array_like, optional
         Initial noise estimate (H_c, H_pc).
-    method, rtol, atol, **kw
-        Passed to :func:`hybridsim.simulate`.
+    method, rtol, atol, **simulate_kwargs
+        Passed to :func:`hybridsim.simulate` (defaults DOP853, 1e-10, 1e-12:
+        the tolerances every claim's threshold is set from).
 
     Returns
     -------
@@ -123,17 +119,18 @@ def simulate_with_plant(observer, x0, xhat0, *, t_max=None, noise=None, seed=Non
     >>> arc = simulate(obs, [0.3, 0.4], [0.0, 0.0], t_max=2.0)
     >>> arc.jump_times                    # one jump, at t = delta (10)-(12)
     array([1.])
-    >>> bool(abs(errors(arc, obs)["e"][arc.j == 1]).max() < 1e-8)    # Theorem 4.7
+    >>> bool(abs(errors(arc, obs).e[arc.j == 1]).max() < 1e-8)    # Theorem 4.7
     True
     """
     if isinstance(observer, LuenbergerObserver):
         A, H = observer.A, observer.H
-        z0 = vector("xhat0", xhat0, A.shape[0])
+        z0 = vector("xhat0", np.zeros(A.shape[0]) if xhat0 is None else xhat0, A.shape[0])
         if t_max is None:
             raise TypeError("t_max is required for a LuenbergerObserver")
     elif isinstance(observer, _TwoCopyObserver):
         A, H = observer.design.A, observer.design.H
-        z0 = observer.initial_state(xhat0, mhat0)
+        z0 = observer.initial_state(np.zeros(observer.design.n) if xhat0 is None else xhat0,
+                                    mhat0)
         if t_max is None:
             t_max = 3 * observer.design.delta
     else:
@@ -142,7 +139,7 @@ def simulate_with_plant(observer, x0, xhat0, *, t_max=None, noise=None, seed=Non
     x0 = vector("x0", x0, A.shape[0])
     plant = hs.LinearPlant(A, C=H, noise=_noise_callable(noise, H.shape[0]))
     sys = hs.connect(plant, observer, names=("plant", "observer"))
-    kwargs = dict(method=method, rtol=rtol, atol=atol, **kw)
+    kwargs = dict(method=method, rtol=rtol, atol=atol, **simulate_kwargs)
     if j_max is not None:
         kwargs["j_max"] = j_max
     if seed is not None:
@@ -150,48 +147,45 @@ def simulate_with_plant(observer, x0, xhat0, *, t_max=None, noise=None, seed=Non
     return hs.simulate(sys, np.concatenate([x0, z0]), t_max=t_max, **kwargs)
 
 
-def observer_errors(arc, observer):
-    """Errors along an arc of :func:`simulate_with_plant`, time-major.
-
-    :func:`errors` is the same function (the calling pattern's name).
+def errors(arc, observer):
+    """The estimation errors along an arc of :func:`simulate` (or of :func:`noise_batch`).
 
     Parameters
     ----------
     arc : hybridsim.HybridArc
-        From :func:`simulate_with_plant` (components "plant", "observer").
+        With components "plant" and "observer" (as :func:`simulate` and
+        :func:`noise_batch` name them).
     observer : the observer that was run
 
     Returns
     -------
-    dict
-        ``t``, ``j`` (N,); ``x``, ``xbar``, ``e1``, ``e2``, ``ebar`` (N, n) with
-        e_i = x̂_i - x, ē = a1 e1 + a2 e2 (footnote 2); ``mhat`` (N, p) for
-        H_c / H_pc; ``tau`` (N,). The main error is ``e`` (= ``ebar``; for
-        the Luenberger observer (2), ``e`` = ``e0`` = x̂0 - x).
+    observers._common.Errors
+        The main error ``e`` = ē = a1 e1 + a2 e2 (N, n), e_i = x̂_i - x
+        (footnote 2; for the Luenberger observer (2), ``e`` = x̂0 - x), and
+        the signals ``x``, ``xbar``, ``e1``, ``e2``, ``ebar`` (= ``e``) (N, n),
+        ``tau`` (N, 1), ``mhat`` (N, p) for H_c / H_pc; for the Luenberger
+        observer ``x``, ``xhat0``, ``e0`` (= ``e``). The samples' hybrid times
+        are ``.t`` and ``.j``.
 
     Examples
     --------
     >>> from observers.li_sanfelice import LuenbergerObserver, simulate, errors
     >>> obs = LuenbergerObserver([[-0.05]], [[1.0]], [[0.02]])       # (2), Fig. 1(b)
     >>> E = errors(simulate(obs, [0.0], [1.0], t_max=1.0), obs)
-    >>> sorted(E)
-    ['e', 'e0', 'j', 't', 'x', 'xhat0']
+    >>> sorted(E), E.e.shape == (E.t.size, 1)
+    (['e', 'e0', 'x', 'xhat0'], True)
     """
     x = arc.component("plant").x
     Z = arc.component("observer").x
-    out = dict(t=arc.t, j=arc.j, x=x)
     if isinstance(observer, LuenbergerObserver):
-        out.update(xhat0=Z, e0=Z - x, e=Z - x)
-        return out
+        return Errors(arc.t, arc.j, e=Z - x, x=x, xhat0=Z, e0=Z - x)
     parts = observer.split(Z)
     d = observer.design
     e1, e2 = parts["xh1"] - x, parts["xh2"] - x
     ebar = d.a1 * e1 + d.a2 * e2
-    out.update(e1=e1, e2=e2, ebar=ebar, e=ebar, xbar=d.a1 * parts["xh1"] + d.a2 * parts["xh2"],
-               tau=parts["tau"])
-    if "mhat" in parts:
-        out["mhat"] = parts["mhat"]
-    return out
+    more = {"mhat": parts["mhat"]} if "mhat" in parts else {}
+    return Errors(arc.t, arc.j, e=ebar, x=x, e1=e1, e2=e2, ebar=ebar,
+                  xbar=d.a1 * parts["xh1"] + d.a2 * parts["xh2"], tau=parts["tau"], **more)
 
 
 
@@ -218,10 +212,3 @@ def noise_batch(observer, x0, xhat0, noise_states, generator):
         raise ValueError(f"noise_states must have shape (N, {generator.state_dim}), got {S.shape}")
     return sys, np.hstack([S, np.tile(z0, (S.shape[0], 1))])
 
-
-
-
-#: The calling pattern's name for :func:`simulate_with_plant`.
-simulate = simulate_with_plant
-#: The calling pattern's name for :func:`observer_errors`.
-errors = observer_errors

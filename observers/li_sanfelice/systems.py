@@ -2,7 +2,7 @@
 
 =================================  =============================================
 (2) Luenberger observer            :class:`LuenbergerObserver`
-(3), (10)-(12) H_n                 :class:`NominalObserver` (= :data:`MotivatingObserver`)
+(3), (10)-(12) H_n                 :class:`NominalObserver`
 (7)-(9), (17)-(18) H_c             :class:`ConstantNoiseObserver`
 Section IV-E H_pc                  :class:`PiecewiseConstantNoiseObserver`
 bounded noise for batches          :class:`BoundedNoiseGenerator`
@@ -45,7 +45,6 @@ from .design import (
 
 __all__ = [
     "NominalObserver",
-    "MotivatingObserver",
     "ConstantNoiseObserver",
     "PiecewiseConstantNoiseObserver",
     "LuenbergerObserver",
@@ -144,8 +143,10 @@ class NominalObserver(_TwoCopyObserver):
         x̂_i+ = K1 x̂1 + K2 x̂2,  tau+ = 0,  q+ = 1 - q.
 
     It coincides with the observer (3) of Raff and Allgöwer (one reset at
-    t = delta, none later). From S_n (x̂1 = x̂2, tau = q = 0) and m = 0 the
-    error is exactly zero for t >= delta, j = 1 (Theorem 4.7).
+    t = delta, none later), the observer of the paper's Section III
+    ("Motivational example", Fig. 1): there is no separate class for it
+    (decision 11). From S_n (x̂1 = x̂2, tau = q = 0) and m = 0 the error is
+    exactly zero for t >= delta, j = 1 (Theorem 4.7).
 
     Parameters
     ----------
@@ -183,10 +184,6 @@ class NominalObserver(_TwoCopyObserver):
         xn[..., self._tau] = 0.0
         xn[..., self._q] = 1.0 - x[..., self._q]
         return xn
-
-
-#: The observer (3) of Raff and Allgöwer is H_n (decision 11).
-MotivatingObserver = NominalObserver
 
 
 class _NoiseCompensating(_TwoCopyObserver):
@@ -337,8 +334,6 @@ class LuenbergerObserver(hs.HybridSystem):
         return self.A @ x - self.L0 @ (self.H @ x - u)
 
 
-
-
 class BoundedNoiseGenerator(hs.HybridSystem):
     """A noise source whose (constant) state holds the noise's coefficients.
 
@@ -391,5 +386,3 @@ class BoundedNoiseGenerator(hs.HybridSystem):
             ph = rng.uniform(0, 2 * np.pi, size=(self.p, self.K))
             out[r] = np.concatenate([a.ravel(), w.ravel(), ph.ravel()])
         return out
-
-

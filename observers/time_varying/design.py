@@ -16,6 +16,12 @@ Section III (time-varying, nonlinear, (16)-(28))
     (25)-(26)), :func:`D_of` (22), :func:`delta3`, :func:`delta4` (21),
     :func:`estimate_23` (23) / (27) by quadrature, :func:`noise_gain` the
     gain l(t) of (28).
+Section IV (the chained-form example, (40)-(59))
+    :data:`TAU_EXAMPLE`, :func:`example_data` the design data (47)-(48)
+    (Lambda = 1 - e^{4 pi}), :func:`estimate_49` (49)/(50) by quadrature,
+    :func:`sigma` (54), :func:`zeta_of` (52), :func:`v2_argument` and
+    :func:`v2_feedback` (57), :func:`residual_58` (58) evaluated literally,
+    :func:`example_gain_sup` the certified l_a of (28) on the example.
 
 Only :func:`fundamental_matrix` runs the engine (the matrix ODE (1) with
 re-anchoring jumps); everything else is closed-form or quadrature.
@@ -47,7 +53,8 @@ __all__ = [
     "ReducedCoordinates", "reduced_coordinates", "is_observable", "M_tau", "choose_L_tau",
     "estimate_15", "FundamentalMatrix", "fundamental_matrix", "phi_scalar", "Lambda",
     "check_assumption1", "Remark3Result", "remark3", "D_of", "delta3", "delta4", "estimate_23",
-    "noise_gain",
+    "noise_gain", "TAU_EXAMPLE", "example_data", "estimate_49", "sigma", "zeta_of",
+    "v2_argument", "v2_feedback", "residual_58", "GainSup", "example_gain_sup",
 ]
 
 
@@ -86,6 +93,9 @@ def _n2(M):
 
 
 def _rcond(M):
+    """sigma_min / sigma_max of M (0 for M = 0); 1 x 1 without an SVD."""
+    if M.shape == (1, 1):
+        return 1.0 if M[0, 0] != 0 else 0.0
     s = np.linalg.svd(M, compute_uv=False)
     return 0.0 if s[0] == 0 else s[-1] / s[0]
 
@@ -837,3 +847,300 @@ def noise_gain(t, tau, A1, A2, L, Phi_A2, Phi_H, *, lip1=0.0, lip2=0.0, Ldot=Non
     return out if np.ndim(t) else float(out[0])
 
 
+# ---------------------------------------------------------------------------
+# Section IV: the chained-form example
+# ---------------------------------------------------------------------------
+#: tau of the example (Section IV-B): the period 2 pi of A1(t) = 2 cos t.
+TAU_EXAMPLE = 2.0 * np.pi
+
+
+def example_data():
+    r"""The design data (47)-(48) of the example, as a dict of callables and constants.
+
+    Keys: ``A1`` (2 cos t), ``A2`` (0), ``L`` (-2 cos t), ``Ldot``
+    (2 sin t), ``H`` (-4 cos^2 t), ``D`` (2 sin t - 8 cos^3 t, eq. 22),
+    ``Phi_A2`` (1), ``Phi_H`` (e^{4 int_s^t cos^2} =
+    e^{2(t - s) + sin 2t - sin 2s}, eq. 48), ``tau`` (2 pi), ``Lambda``
+    (1 - e^{4 pi}). All matrices are 1 x 1.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> ex = example_data()
+    >>> bool(np.isclose(Lambda(ex["Phi_A2"], ex["Phi_H"], 1.0, ex["tau"])[0, 0], ex["Lambda"]))
+    True
+
+    References
+    ----------
+    [1] eqs. (45)-(48).
+    """
+    one = lambda v: np.array([[v]])  # noqa: E731
+    return dict(
+        A1=lambda t: one(2 * np.cos(t)),
+        A2=lambda t: one(0.0),
+        L=lambda t: one(-2 * np.cos(t)),
+        Ldot=lambda t: one(2 * np.sin(t)),
+        H=lambda t: one(-4 * np.cos(t) ** 2),
+        D=lambda t: one(2 * np.sin(t) - 8 * np.cos(t) ** 3),
+        Phi_A2=lambda t, s: one(1.0),
+        Phi_H=lambda t, s: one(np.exp(2 * (t - s) + np.sin(2 * t) - np.sin(2 * s))),
+        tau=TAU_EXAMPLE,
+        Lambda=1.0 - np.exp(4 * np.pi),
+    )
+
+
+def _M(m, t):
+    """script M(m, t) = 2(m - t + 2 pi) + sin 2m - sin 2t (after (58))."""
+    return 2 * (m - t + 2 * np.pi) + np.sin(2 * m) - np.sin(2 * t)
+
+
+def estimate_49(t, xi3, v2, epsrel=1e-11):
+    r"""The estimate (49) of xi2(t), printed form, by quadrature.
+
+    Parameters
+    ----------
+    t : float, t >= 2 pi
+    xi3, v2 : callable s -> float
+        The measured xi3 and the input v2 on [t - 2 pi, t].
+    epsrel : float
+        Relative tolerance of the quadrature.
+
+    Returns
+    -------
+    float
+        xhat_r(t); equals xi2(t) (50) when (45) holds on the whole window,
+        i.e. for t >= 2 pi + sqrt|x1(0)| on the full system (44).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> xi2 = 0.7                          # v2 = 0: xi2 constant, xi3' = 2 cos t xi2 (45)
+    >>> round(estimate_49(7.0, lambda s: -0.3 + 2 * xi2 * np.sin(s), lambda s: 0.0), 10)
+    0.7
+
+    References
+    ----------
+    [1] eqs. (49)-(50).
+    """
+    if not (callable(xi3) and callable(v2)):
+        raise TypeError("xi3 and v2 must be callables s -> float")
+    if t < TAU_EXAMPLE:
+        raise ValueError(f"t must be >= 2 pi (the window [t - 2 pi, t] must be measured), got {t}")
+    c = 1.0 / (1.0 - np.exp(4 * np.pi))
+    a = 2 * np.cos(t) * c * (-np.exp(4 * np.pi) * xi3(t) + xi3(t - TAU_EXAMPLE))
+    f = lambda m: (c * (1 - np.exp(_M(m, t))) * v2(m)  # noqa: E731
+                   + 2 * c * np.exp(_M(m, t)) * (4 * np.cos(m) ** 3 - np.sin(m)) * xi3(m))
+    return float(a + integrate.quad(f, t - TAU_EXAMPLE, t, epsrel=epsrel, epsabs=1e-13,
+                                    limit=400)[0])
+
+
+def sigma(s):
+    r"""The saturation sigma(s) = s / sqrt(1 + s^2) of (54): odd, |sigma(s)| < 1.
+
+    Examples
+    --------
+    >>> float(sigma(0.75))
+    0.6
+    """
+    s = np.asarray(s, dtype=float)
+    return s / np.sqrt(1.0 + s * s)
+
+
+def zeta_of(t, xi2, xi3, xi4):
+    r"""(zeta1, zeta2, zeta3) of (52); arrays broadcast (time-major use: columns).
+
+    Examples
+    --------
+    >>> zeta_of(0.0, 1.0, 2.0, 3.0).tolist()
+    [2.0, 2.0, 1.0]
+    """
+    return np.array([xi4 - 2 * np.sin(t) * xi3 - np.cos(2 * t) * xi2,
+                     xi3 - 2 * np.sin(t) * xi2,
+                     xi2 * np.ones_like(np.asarray(t, float))])
+
+
+def v2_argument(t, xi2, xi3, xi4):
+    r"""The argument of sigma in (57), grouped form: v2 = sigma(v2_argument(...)).
+
+    cos 2t xi4 + 2 [1 - cos 2t] sin t xi3 - [cos^2 2t + 4 sin^2 t + 1] xi2;
+    arrays broadcast.
+
+    Examples
+    --------
+    >>> float(v2_argument(0.0, 1.0, 0.0, 3.0))        # 3 - 2
+    1.0
+
+    References
+    ----------
+    [1] eq. (57) and the grouped form after it.
+    """
+    return (np.cos(2 * t) * xi4 + 2 * (1 - np.cos(2 * t)) * np.sin(t) * xi3
+            - (np.cos(2 * t) ** 2 + 4 * np.sin(t) ** 2 + 1) * xi2)
+
+
+def v2_feedback(t, xi2, xi3, xi4):
+    r"""The bounded state feedback (57), grouped form.
+
+    v2 = sigma(cos 2t xi4 + 2 [1 - cos 2t] sin t xi3
+               - [cos^2 2t + 4 sin^2 t + 1] xi2).
+
+    With xi2 replaced by the estimate (50) this is (58).
+
+    Examples
+    --------
+    >>> round(float(v2_feedback(0.0, 1.0, 0.0, 3.0)), 6)      # sigma(1) = 1/sqrt 2
+    0.707107
+
+    References
+    ----------
+    [1] eqs. (54), (57), (58).
+    """
+    return sigma(v2_argument(t, xi2, xi3, xi4))
+
+
+def residual_58(t, v2, xi3, xi4, *, points=None):
+    r"""v2(t) minus the right-hand side of (58), evaluated literally by quadrature.
+
+    The right-hand side integrates v2 and xi3 over [t - 2 pi, t] with
+    adaptive quadrature, independently of any observer state.
+
+    Parameters
+    ----------
+    t : float, t >= 2 pi
+    v2, xi3, xi4 : callable s -> float
+        The control and the measured states along a run (e.g. read off a
+        dense arc, :func:`observers.time_varying.loop_functions`).
+    points : sequence of float, optional
+        Breakpoints inside the window (where v2 jumps, e.g. when the
+        observer's window fills).
+
+    Returns
+    -------
+    float
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> v = lambda s: 0.0                    # xi3, xi4 = 0 (and xi2 = 0): (58) gives v2 = 0
+    >>> residual_58(7.0, v, v, v)
+    0.0
+
+    References
+    ----------
+    [1] eqs. (58)-(59).
+    """
+    if t < TAU_EXAMPLE:
+        raise ValueError(f"t must be >= 2 pi (the window of (58) must lie in the run), got {t}")
+    cL = (np.cos(2 * t) ** 2 + 4 * np.sin(t) ** 2 + 1) / (1 - np.exp(4 * np.pi))
+    a = t - TAU_EXAMPLE
+    pts = [s for s in (() if points is None else points) if a < s < t] or None
+    I1 = integrate.quad(lambda s: (1 - np.exp(_M(s, t))) * v2(s), a, t, limit=400,
+                        epsrel=1e-10, epsabs=1e-12, points=pts)[0]
+    I2 = integrate.quad(lambda s: np.exp(_M(s, t)) * (4 * np.cos(s) ** 3 - np.sin(s)) * xi3(s),
+                        a, t, limit=400, epsrel=1e-10, epsabs=1e-12, points=pts)[0]
+    rhs = sigma(np.cos(2 * t) * xi4(t) + 2 * (1 - np.cos(2 * t)) * np.sin(t) * xi3(t)
+                - cL * I1 - 2 * cL * I2
+                - 2 * np.cos(t) * cL * (-np.exp(4 * np.pi) * xi3(t) + xi3(a)))
+    return float(v2(t) - rhs)
+
+
+@dataclass(frozen=True)
+class GainSup:
+    r"""A certified bracket of l_a = sup_t l(t) (:func:`example_gain_sup`).
+
+    Attributes
+    ----------
+    lower : float
+        max of l on the grid: a value l takes (at ``t``), so l_a >= lower.
+    upper : float
+        The Lipschitz certificate: l_a <= upper.
+    t : float
+        Where the grid's maximum is.
+    h : float
+        Grid spacing.
+    """
+
+    lower: float
+    upper: float
+    t: float
+    h: float
+
+
+def example_gain_sup(n=2 ** 18):
+    r"""l_a of (28) on the example, certified: l_a in [lower, upper].
+
+    On the example (delta1 = 0, delta2 = v2 independent of z, so lip1 =
+    lip2 = 0) the gain of :func:`noise_gain` is, with E = e^{4 pi} and
+    Phi_H(m, s) = g(m) / g(s), g(m) = e^{2m + sin 2m} (48),
+
+        l(t) = [I(t) + 2 (E + 1) |cos t|] / (E - 1),
+        I(t) = int_{t-2pi}^t Phi_H(m, t - 2 pi) |D(m)| dm
+             = [G(t) - G(t - 2 pi)] / g(t - 2 pi),   G(x) = int_0^x g |D|,
+
+    with D = 2 sin - 8 cos^3 (22). l has period pi (Phi_H(m + pi, s + pi)
+    = Phi_H(m, s), |D| and |cos| have period pi), so l_a = sup over
+    [2 pi, 3 pi]. G is accumulated over a grid of spacing h = pi / n
+    (3-point Gauss-Legendre per cell), which gives l on the grid t_k =
+    2 pi + k h (to ~1e-12). Differentiating, I' = (E - 1)|D(t)| -
+    (2 + 2 cos 2t) I, so almost everywhere
+
+        |l'(t)| <= |D(t)| + 4 l(t) + 2 (E + 1) / (E - 1),
+
+    and on each cell l <= (l_k + l_{k+1}) / 2 + (h / 2) sup |l'|. With
+    D_max = max_k |D(t_k)| + 13 h (|D'| <= 26) and U = l_a this gives
+    U <= M + (h / 2)(D_max + 4 U + c), i.e.
+
+        upper = (M + h (D_max + c) / 2) / (1 - 2 h),
+
+    M = max_k (l_k + l_{k+1}) / 2, c = 2 (E + 1) / (E - 1); lower =
+    max_k l_k.
+
+    Parameters
+    ----------
+    n : int
+        Grid cells per period pi (default 2^18: h = 1.2e-5, upper - lower
+        about 1.7e-4).
+
+    Returns
+    -------
+    GainSup
+
+    Examples
+    --------
+    >>> b = example_gain_sup(2 ** 12)
+    >>> bool(b.lower <= b.upper < b.lower + 0.02), round(b.lower, 2)
+    (True, 4.09)
+
+    References
+    ----------
+    [1] Remark 4, eq. (28); (22), (48).
+    """
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 16:
+        raise ValueError(f"n must be an int >= 16, got {n!r}")
+    n = int(n)
+    h = np.pi / n
+    E = np.exp(4 * np.pi)
+
+    def absD(m):
+        return np.abs(2 * np.sin(m) - 8 * np.cos(m) ** 3)
+
+    def g(m):
+        return np.exp(2 * m + np.sin(2 * m))
+
+    # G on x_k = k h, k = 0..3n, by 3-point Gauss-Legendre on each cell
+    nodes, weights = np.polynomial.legendre.leggauss(3)
+    a = np.arange(3 * n) * h
+    cells = np.zeros(3 * n)
+    for x, w in zip(nodes, weights):
+        m = a + 0.5 * h * (x + 1)
+        cells += w * g(m) * absD(m)
+    G = np.concatenate([[0.0], np.cumsum(0.5 * h * cells)])
+    t = 2 * np.pi + np.arange(n + 1) * h               # one period [2 pi, 3 pi]
+    I = (G[2 * n:] - G[:n + 1]) / g(t - 2 * np.pi)
+    lk = (I + 2 * (E + 1) * np.abs(np.cos(t))) / (E - 1)
+    k = int(np.argmax(lk))
+    M = float(np.max(0.5 * (lk[1:] + lk[:-1])))
+    c = 2 * (E + 1) / (E - 1)
+    D_max = float(absD(t).max()) + 13 * h
+    upper = (M + h * (D_max + c) / 2) / (1 - 2 * h)
+    return GainSup(lower=float(lk[k]), upper=float(upper), t=float(t[k]), h=float(h))

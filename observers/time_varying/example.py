@@ -1,15 +1,20 @@
-r"""Section IV of paper 001 (the chained-form example), and how a run is made and read.
+r"""Section IV of paper 001 (the chained-form example): its data, how a run is made and read.
 
 The paper's example
-    :func:`example_data` (47)-(48) (Lambda = 1 - e^{4 pi}), :func:`estimate_49`
-    (49)/(50) by quadrature, :func:`sigma`, :func:`zeta_of` (52),
-    :func:`v2_feedback` (57), :func:`chained_form_observer` (Section IV-B),
-    :func:`tracking_loop` the output feedback (58)-(59), :func:`loop_signals`,
-    :func:`residual_58`.
+    :func:`tracking_initial_state` (x1(0) = 0.5 of Section IV-D and our
+    xi4(0), xi3(0), xi2(0)) for the loop (44) + (58) of
+    :func:`~observers.time_varying.tracking_loop`; :func:`loop_signals`
+    reads a run of it (xi, the estimate (50), v2 and the argument of sigma
+    in (58), zeta of (52)); :func:`loop_functions` gives v2, xi3, xi4 as
+    functions of time on a dense run, for
+    :func:`~observers.time_varying.residual_58`. The design data (47)-(48)
+    are :func:`~observers.time_varying.example_data` (``design.py``).
 Runs (the calling pattern of :mod:`observers`)
     :func:`simulate` (observer with its plant through
-    :func:`hybridsim.simulate`), :func:`estimates`, :func:`errors`,
-    :func:`bounded_noise` (a seeded measurement disturbance eps of (17)).
+    :func:`hybridsim.simulate`), :func:`estimates`, :func:`errors` (an
+    :class:`observers._common.Errors`, the error xhat_r - x_r under ``"e"``),
+    :func:`error_norm`, :func:`bounded_noise` (a seeded measurement
+    disturbance eps of (17)).
 
 Decisions (a careful reading of the paper)
 ------------------------------------------
@@ -19,9 +24,11 @@ Decisions (a careful reading of the paper)
   t >= 2 pi + sqrt|x1(0)|, not for t >= max{2 pi, sqrt|x1(0)|} as printed.
 * **(58) is a distributed-delay equation, not an algebraic loop.** v2(t)
   enters (58) only inside int_{t-2 pi}^t (1 - e^{M(m, t)}) v2(m) dm, whose
-  value does not depend on v2 at the single instant t; :func:`tracking_loop`
-  builds it as the observer (whose states integrate v2) fed back through
-  (57), and :func:`residual_58` checks (58) literally along a run.
+  value does not depend on v2 at the single instant t;
+  :func:`~observers.time_varying.tracking_loop` builds it as the observer
+  (whose states integrate v2) fed back through (57), and
+  :func:`~observers.time_varying.residual_58` checks (58) literally along a
+  run.
 * **Before 2 pi** the window is not filled: the feedback uses the estimate
   ``xr_init`` (0 by default), our choice.
 
@@ -32,209 +39,60 @@ Examples
 >>> obs = tv.chained_form_observer()
 >>> arc = tv.simulate(obs, [0.8, -0.4, 0.6, 0.0], t_max=2 * np.pi + 0.5,
 ...                   w=lambda t: [0.5 * np.cos(1.3 * t)])
->>> e = tv.errors(arc, obs)                        # xhat_r - x_r, shape (N, 1)
->>> bool(np.abs(e[arc.j >= 1]).max() < 1e-8)      # exact once the window is filled (50)
+>>> E = tv.errors(arc, obs)                        # xhat_r - x_r under "e", shape (N, 1)
+>>> bool(np.abs(E.e[arc.j >= 1]).max() < 1e-8)    # exact once the window is filled (50)
 True
 """
 from __future__ import annotations
 
 import numpy as np
-from scipy import integrate
 
 import hybridsim as hs
 
-from .._common import scalar, vector
-from .systems import ChainedFormPlant, PlantModel, ReducedOrderObserver
+from .._common import Errors, scalar, vector
+from .design import v2_argument, zeta_of
+from .systems import ChainedFormPlant, ReducedOrderObserver
 
-__all__ = ["TAU_EXAMPLE", "example_data", "estimate_49", "sigma", "zeta_of", "v2_feedback",
-           "chained_form_observer", "tracking_loop", "tracking_initial_state", "loop_signals",
-           "residual_58", "simulate", "estimates", "errors", "error_norm", "bounded_noise"]
-
-#: tau of the example (Section IV-B): the period 2 pi of A1(t) = 2 cos t.
-TAU_EXAMPLE = 2.0 * np.pi
-
-
-def example_data():
-    r"""The data (47)-(48) of the example, as a dict of callables and constants.
-
-    Keys: ``A1`` (2 cos t), ``A2`` (0), ``L`` (-2 cos t), ``Ldot``
-    (2 sin t), ``H`` (-4 cos^2 t), ``D`` (2 sin t - 8 cos^3 t, eq. 22),
-    ``Phi_A2`` (1), ``Phi_H`` (e^{4 int_s^t cos^2} =
-    e^{2(t - s) + sin 2t - sin 2s}, eq. 48), ``tau`` (2 pi), ``Lambda``
-    (1 - e^{4 pi}). All matrices are 1 x 1.
-
-    References
-    ----------
-    [1] eqs. (45)-(48).
-    """
-    one = lambda v: np.array([[v]])  # noqa: E731
-    return dict(
-        A1=lambda t: one(2 * np.cos(t)),
-        A2=lambda t: one(0.0),
-        L=lambda t: one(-2 * np.cos(t)),
-        Ldot=lambda t: one(2 * np.sin(t)),
-        H=lambda t: one(-4 * np.cos(t) ** 2),
-        D=lambda t: one(2 * np.sin(t) - 8 * np.cos(t) ** 3),
-        Phi_A2=lambda t, s: one(1.0),
-        Phi_H=lambda t, s: one(np.exp(2 * (t - s) + np.sin(2 * t) - np.sin(2 * s))),
-        tau=TAU_EXAMPLE,
-        Lambda=1.0 - np.exp(4 * np.pi),
-    )
-
-
-def _M(m, t):
-    """script M(m, t) = 2(m - t + 2 pi) + sin 2m - sin 2t (after (58))."""
-    return 2 * (m - t + 2 * np.pi) + np.sin(2 * m) - np.sin(2 * t)
-
-
-def estimate_49(t, xi3, v2, epsrel=1e-11):
-    r"""The estimate (49) of xi2(t), printed form, by quadrature.
-
-    Parameters
-    ----------
-    t : float, t >= 2 pi
-    xi3, v2 : callable s -> float
-        The measured xi3 and the input v2 on [t - 2 pi, t].
-
-    Returns
-    -------
-    float
-        xhat_r(t); equals xi2(t) (50) when (45) holds on the whole window,
-        i.e. for t >= 2 pi + sqrt|x1(0)| on the full system (44).
-
-    References
-    ----------
-    [1] eqs. (49)-(50).
-    """
-    if not (callable(xi3) and callable(v2)):
-        raise TypeError("xi3 and v2 must be callables s -> float")
-    if t < TAU_EXAMPLE:
-        raise ValueError(f"t must be >= 2 pi (the window [t - 2 pi, t] must be measured), got {t}")
-    c = 1.0 / (1.0 - np.exp(4 * np.pi))
-    a = 2 * np.cos(t) * c * (-np.exp(4 * np.pi) * xi3(t) + xi3(t - TAU_EXAMPLE))
-    f = lambda m: (c * (1 - np.exp(_M(m, t))) * v2(m)  # noqa: E731
-                   + 2 * c * np.exp(_M(m, t)) * (4 * np.cos(m) ** 3 - np.sin(m)) * xi3(m))
-    return float(a + integrate.quad(f, t - TAU_EXAMPLE, t, epsrel=epsrel, epsabs=1e-13,
-                                    limit=400)[0])
-
-
-def sigma(s):
-    r"""sigma(s) = s / sqrt(1 + s^2) (after (54))."""
-    s = np.asarray(s, dtype=float)
-    return s / np.sqrt(1.0 + s * s)
-
-
-def zeta_of(t, xi2, xi3, xi4):
-    r"""(zeta1, zeta2, zeta3) of (52); arrays broadcast (time-major use: columns)."""
-    return np.array([xi4 - 2 * np.sin(t) * xi3 - np.cos(2 * t) * xi2,
-                     xi3 - 2 * np.sin(t) * xi2,
-                     xi2 * np.ones_like(np.asarray(t, float))])
-
-
-def v2_feedback(t, xi2, xi3, xi4):
-    r"""The bounded state feedback (57), grouped form.
-
-    v2 = sigma(cos 2t xi4 + 2 [1 - cos 2t] sin t xi3
-               - [cos^2 2t + 4 sin^2 t + 1] xi2).
-
-    With xi2 replaced by the estimate (50) this is (58).
-
-    References
-    ----------
-    [1] eqs. (54), (57), (58).
-    """
-    return sigma(np.cos(2 * t) * xi4 + 2 * (1 - np.cos(2 * t)) * np.sin(t) * xi3
-                 - (np.cos(2 * t) ** 2 + 4 * np.sin(t) ** 2 + 1) * xi2)
-
-
-
-
-def chained_form_observer(xr_init=0.0, z_history=None):
-    r"""The observer of Section IV-B for (45): tau = 2 pi, L = -2 cos t, Lambda = 1 - e^{4 pi}.
-
-    Input [xi3, v2] (w = v2, delta2 = v2, delta1 = 0), closed forms (48) for
-    Phi_H and Phi_A2 = 1.
-
-    References
-    ----------
-    [1] eqs. (45)-(50).
-    """
-    ex = example_data()
-    obs = ReducedOrderObserver(ex["tau"], ex["A1"], ex["A2"], ex["L"], ex["Phi_A2"], ex["Phi_H"],
-                               Ldot=ex["Ldot"], delta2=lambda t, z, w: w, p=1, m=1, w_dim=1,
-                               xr_init=[xr_init], z_history=z_history)
-    obs.plant_model = PlantModel(
-        make=ChainedFormPlant, measure=lambda y: np.asarray(y)[1:2],
-        x_r=lambda X: np.asarray(X)[:, 2:3],
-        initial_state=lambda x0: ChainedFormPlant.initial_state(*vector("x0", x0, 4)),
-        description="ChainedFormPlant: (44) with input v2; x0 = (xi4, xi3, xi2, x1)")
-    return obs
-
-
-def tracking_loop(xr_init=0.0, feedback="estimate"):
-    r"""The output-feedback tracking loop (44) + (58) as an interconnection.
-
-    Components ``"plant"`` (:class:`ChainedFormPlant`) and ``"observer"``
-    (:func:`chained_form_observer`). The plant's input is
-
-        v2(t) = (57) with xi2 replaced by xhat2(t) = P(t) + G(t) xi3(t),
-
-    which is (58): v2(t) depends on the past of v2 only through the
-    observer's states, so there is no algebraic loop (module docstring).
-    Before 2 pi (window not filled) xhat2 = ``xr_init``. The observer reads
-    xi3(t - 2 pi) from the plant's history.
-
-    Parameters
-    ----------
-    xr_init : float
-        Estimate used before t = 2 pi.
-    feedback : {"estimate", "state"}
-        "state" feeds back the true xi2 (the state feedback (57)), for
-        comparison.
-
-    Returns
-    -------
-    loop : hybridsim.Interconnection
-    v2 : callable (t, y) -> float
-        The control, from the interconnection's outputs dict y.
-
-    References
-    ----------
-    [1] eqs. (51)-(59).
-    """
-    if feedback not in ("estimate", "state"):
-        raise ValueError(f"feedback must be 'estimate' or 'state', got {feedback!r}")
-    plant = ChainedFormPlant()
-    obs = chained_form_observer(xr_init, z_history=lambda s: np.array([plant.history(s)[1]]))
-    if feedback == "state":
-        plant.output_dim = 4
-        plant.output = lambda x, t, j: np.array([x[0], x[1], x[3], x[2]])
-
-    def v2(t, y):
-        yp = y["plant"]
-        if feedback == "state":
-            xi2h = yp[3]
-        else:
-            xi2h = obs.estimate(y["observer"], yp[1:2])[0]
-        return float(v2_feedback(t, xi2h, yp[1], yp[0]))
-
-    loop = hs.Interconnection({"plant": plant, "observer": obs},
-                              inputs={"plant": lambda t, y: np.array([v2(t, y)]),
-                                      "observer": lambda t, y: np.array([y["plant"][1], v2(t, y)])})
-    return loop, v2
+__all__ = ["tracking_initial_state", "loop_signals", "loop_functions", "simulate", "estimates",
+           "errors", "error_norm", "bounded_noise"]
 
 
 def tracking_initial_state(loop, xi4=1.0, xi3=-1.0, xi2=0.5, x1=0.5):
-    """Stacked x0 of :func:`tracking_loop`: plant (xi4, xi3, xi2, x1) and a fresh observer."""
+    """Stacked x0 of :func:`~observers.time_varying.tracking_loop`: plant and a fresh observer.
+
+    x1(0) = 0.5 is the paper's (Section IV-D); xi4(0) = 1, xi3(0) = -1,
+    xi2(0) = 0.5 are ours (the paper does not give them).
+
+    Examples
+    --------
+    >>> from observers.time_varying import tracking_loop
+    >>> loop, v2 = tracking_loop()
+    >>> tracking_initial_state(loop).tolist()      # plant [xi4, xi3, xi2, x1, q], observer
+    [1.0, -1.0, 0.5, 0.5, 1.0, 0.0, 0.0, 0.0, 0.0]
+    """
     obs = loop.systems["observer"]
     return loop.stack(plant=ChainedFormPlant.initial_state(xi4, xi3, xi2, x1),
                       observer=obs.initial_state())
 
 
 def loop_signals(arc, loop, v2):
-    r"""Along a run of :func:`tracking_loop`: t, xi (N, 4: xi1..xi4), xhat2, v2, zeta (N, 3).
+    r"""Along a run of :func:`~observers.time_varying.tracking_loop`, time-major, one row a sample.
 
-    xi1 = x1 + 2 sin t (42). Time-major arrays, one row per sample.
+    Returns a dict: ``t``, ``j``, ``xi`` (N, 4: xi1..xi4, xi1 = x1 + 2 sin t
+    (42)), ``x1``, ``xhat2`` (the estimate (50) the feedback uses),
+    ``v2`` (the control (58) as the loop applied it), ``v2_arg`` (the
+    argument of sigma in (58): v2 = sigma(v2_arg)), ``zeta`` (N, 3, eq. 52)
+    and ``filled`` (the observer's window is filled: q = 1).
+
+    Examples
+    --------
+    >>> import hybridsim as hs
+    >>> from observers.time_varying import tracking_loop
+    >>> loop, v2 = tracking_loop()
+    >>> arc = hs.simulate(loop, tracking_initial_state(loop), t_max=1.0, progress=False)
+    >>> S = loop_signals(arc, loop, v2)
+    >>> S["xi"].shape[1], bool(S["filled"].any())
+    (4, False)
     """
     obs = loop.systems["observer"]
     P = arc.component("plant").x
@@ -243,39 +101,32 @@ def loop_signals(arc, loop, v2):
     vv = np.array([v2(tt, loop.outputs(x, tt, jj)) for x, tt, jj in zip(arc.x, arc.t, arc.j)])
     xi = np.column_stack([P[:, 3] + 2 * np.sin(arc.t), P[:, 2], P[:, 1], P[:, 0]])
     zeta = zeta_of(arc.t, P[:, 2], P[:, 1], P[:, 0]).T
-    return dict(t=arc.t, j=arc.j, xi=xi, xhat2=xh, v2=vv, zeta=zeta, x1=P[:, 3])
+    return dict(t=arc.t, j=arc.j, xi=xi, xhat2=xh, v2=vv,
+                v2_arg=v2_argument(arc.t, xh, P[:, 1], P[:, 0]), zeta=zeta, x1=P[:, 3],
+                filled=arc.component("observer").x[:, -1] >= 0.5)
 
 
-def residual_58(arc, loop, v2, t):
-    r"""v2(t) minus the right-hand side of (58) evaluated literally along a run.
+def loop_functions(arc, loop, v2):
+    r"""v2, xi3, xi4 as functions s -> float on a dense run of the loop (``dense=True``).
 
-    The right-hand side integrates the recorded v2 and xi3 over
-    [t - 2 pi, t] with adaptive quadrature on the arc's dense output, i.e.
-    independently of the observer's states. The run must use ``dense=True``.
+    What :func:`~observers.time_varying.residual_58` integrates: read off
+    the arc's interpolant, independently of the observer's states.
 
-    References
-    ----------
-    [1] eqs. (58)-(59).
+    Examples
+    --------
+    >>> import hybridsim as hs
+    >>> from observers.time_varying import tracking_loop
+    >>> loop, v2 = tracking_loop()
+    >>> arc = hs.simulate(loop, tracking_initial_state(loop), t_max=1.0, dense=True,
+    ...                   progress=False)
+    >>> v, xi3, xi4 = loop_functions(arc, loop, v2)
+    >>> xi3(0.0), xi4(0.0)
+    (-1.0, 1.0)
     """
-    if t < TAU_EXAMPLE:
-        raise ValueError(f"t must be >= 2 pi (the window of (58) must lie in the run), got {t}")
-    plant = lambda s: arc.at(s)[loop.components["plant"]]  # noqa: E731
-    vfun = lambda s: v2(s, loop.outputs(arc.at(s), s, 0))  # noqa: E731
-    cL = (np.cos(2 * t) ** 2 + 4 * np.sin(t) ** 2 + 1) / (1 - np.exp(4 * np.pi))
-    a = t - TAU_EXAMPLE
-    # breakpoints: the jumps (v2 is discontinuous where the observer's window fills)
-    pts = [s for s in arc.jump_times if a < s < t] or None
-    I1 = integrate.quad(lambda s: (1 - np.exp(_M(s, t))) * vfun(s), a, t, limit=400,
-                        epsrel=1e-10, epsabs=1e-12, points=pts)[0]
-    I2 = integrate.quad(lambda s: np.exp(_M(s, t)) * (4 * np.cos(s) ** 3 - np.sin(s)) * plant(s)[1],
-                        a, t, limit=400, epsrel=1e-10, epsabs=1e-12, points=pts)[0]
-    xt = plant(t)
-    rhs = sigma(np.cos(2 * t) * xt[0] + 2 * (1 - np.cos(2 * t)) * np.sin(t) * xt[1]
-                - cL * I1 - 2 * cL * I2
-                - 2 * np.cos(t) * cL * (-np.exp(4 * np.pi) * xt[1] + plant(a)[1]))
-    return float(vfun(t) - rhs)
-
-
+    sl = loop.components["plant"]
+    return (lambda s: v2(s, loop.outputs(arc.at(s), s, 0)),
+            lambda s: float(arc.at(s)[sl][1]),
+            lambda s: float(arc.at(s)[sl][0]))
 
 
 # ---------------------------------------------------------------------------
@@ -382,7 +233,7 @@ def simulate(observer, x0, xhat0=None, *, t_max, noise=None, seed=None, w=None, 
     >>> from observers.time_varying import lti_observer, simulate, errors
     >>> obs, rc = lti_observer([[0.0, 1.0], [-2.0, -3.0]], [[1.0, 0.0]], tau=0.5)
     >>> arc = simulate(obs, [1.0, -1.0], t_max=1.0)
-    >>> bool(np.abs(errors(arc, obs)[arc.j >= 1]).max() < 1e-8)   # (14): exact for t >= tau
+    >>> bool(np.abs(errors(arc, obs).e[arc.j >= 1]).max() < 1e-8)   # (14): exact for t >= tau
     True
     """
     if not isinstance(observer, ReducedOrderObserver):
@@ -463,12 +314,25 @@ def estimates(arc, observer):
 
 
 def errors(arc, observer):
-    r"""The estimation error xhat_r - x_r at the arc's samples, shape (N, m).
+    r"""The estimation error xhat_r - x_r at the arc's samples, as an :class:`Errors`.
 
-    Zero (to the integrator's accuracy) at every sample with t >= tau after
-    the observer's jump (Theorem 1, (24)); bounded by l_a |eps|_inf under
-    unknown noise ((28)). x_r is read from the plant's state by
-    ``observer.plant_model.x_r``.
+    ``errors(arc, observer).e`` (also ``["e"]``) is xhat_r - x_r, shape
+    (N, m): zero (to the integrator's accuracy) at every sample with t >= tau
+    after the observer's jump (Theorem 1, (24)); bounded by l_a |eps|_inf
+    under unknown noise ((28)). x_r is read from the plant's state by
+    ``observer.plant_model.x_r``; the samples' hybrid times are ``.t``,
+    ``.j``.
+
+    Parameters
+    ----------
+    arc : hybridsim.HybridArc
+        A run of :func:`simulate` (or of
+        :func:`~observers.time_varying.tracking_loop`) with this observer.
+    observer : ReducedOrderObserver
+
+    Returns
+    -------
+    observers._common.Errors
 
     Examples
     --------
@@ -476,17 +340,19 @@ def errors(arc, observer):
     >>> from observers.time_varying import lti_observer, simulate, errors
     >>> obs, rc = lti_observer([[0.0, 1.0], [-2.0, -3.0]], [[1.0, 0.0]], tau=0.5)
     >>> arc = simulate(obs, [1.0, -1.0], t_max=1.0)
-    >>> bool(np.abs(errors(arc, obs)[arc.j == 0]).max() > 0.1)   # before tau: xr_init = 0
-    True
+    >>> E = errors(arc, obs)
+    >>> E.e.shape == (arc.t.size, 1), bool(np.abs(E.e[arc.j == 0]).max() > 0.1)   # xr_init = 0
+    (True, True)
     """
     xh = estimates(arc, observer)
-    return xh - np.asarray(observer.plant_model.x_r(arc["plant"].x), dtype=float).reshape(xh.shape)
+    e = xh - np.asarray(observer.plant_model.x_r(arc["plant"].x), dtype=float).reshape(xh.shape)
+    return Errors(arc.t, arc.j, e=e)
 
 
 def error_norm(arc, observer, floor=0.0):
     r"""``fn(x, t, j) -> max(|xhat_r - x_r|, floor)`` on the arc's interconnection, for plots.
 
-    The same quantity as ``np.linalg.norm(errors(arc, observer), axis=1)``,
+    The same quantity as ``errors(arc, observer).norm()``,
     as a function of the stacked state, for :func:`hybridsim.plot_flows`'s
     ``fn=`` (e.g. with ``yscale="log"``; ``floor`` > 0 keeps exact zeros on
     a log axis).
@@ -498,7 +364,7 @@ def error_norm(arc, observer, floor=0.0):
     >>> obs, rc = lti_observer([[0.0, 1.0], [-2.0, -3.0]], [[1.0, 0.0]], tau=0.5)
     >>> arc = simulate(obs, [1.0, -1.0], t_max=1.0)
     >>> fn = error_norm(arc, obs)
-    >>> bool(np.isclose(fn(arc.x[-1], arc.t[-1], arc.j[-1]), np.linalg.norm(errors(arc, obs)[-1])))
+    >>> bool(np.isclose(fn(arc.x[-1], arc.t[-1], arc.j[-1]), errors(arc, obs).norm()[-1]))
     True
     """
     sys = _interconnection(arc, observer)

@@ -10,6 +10,12 @@ r"""The hybrid systems of paper 001: the observer (23)/(27) and its plants.
     the system (16) built from an observer's own data.
 :class:`ChainedFormPlant`
     the closed-loop chained form (44) of Section IV.
+:func:`chained_form_observer`
+    the observer of Section IV-B for (45) (tau = 2 pi, L = -2 cos t), run
+    with :class:`ChainedFormPlant`.
+:func:`tracking_loop`
+    the output-feedback loop (44) + (58): the plant, the observer, and the
+    control (57) fed with the estimate (50).
 
 Each observer carries a :class:`PlantModel` (``observer.plant_model``): the
 plant it observes, what of the plant's output it measures, and where x_r
@@ -37,10 +43,18 @@ from scipy import linalg
 import hybridsim as hs
 
 from .._common import matrix, scalar, vector
-from .design import _dims, _rcond, _tv_data, choose_L_tau, reduced_coordinates
+from .design import (
+    _dims,
+    _rcond,
+    _tv_data,
+    choose_L_tau,
+    example_data,
+    reduced_coordinates,
+    v2_feedback,
+)
 
 __all__ = ["PlantModel", "ReducedOrderObserver", "TimeVaryingPlant", "lti_observer",
-           "ChainedFormPlant"]
+           "ChainedFormPlant", "chained_form_observer", "tracking_loop"]
 
 
 @dataclass(frozen=True)
@@ -274,6 +288,8 @@ class ReducedOrderObserver(hs.HybridSystem):
         Gn = PH @ Lt
         if self.eps is not None:
             r = r - Gn @ np.asarray(self.eps(t), dtype=float).reshape(p)
+        if m == 1:                                  # Lambda is a number: no LAPACK call
+            return np.concatenate([r, Gn.ravel()]) / Lam[0, 0]
         P = np.linalg.solve(Lam, r)
         G = np.linalg.solve(Lam, Gn)
         return np.concatenate([P, G.ravel()])
@@ -365,6 +381,19 @@ def _plant16(observer):
                                   "delta2; x0 = [z(0), x_r(0)]")
 
 
+def _expm_phi(Omega, tau):
+    """Phi(t, s) = e^{-Omega (t - s)} of (1) for a constant Omega; the value at t - s = tau
+    (what the observer's output reads at every sample) computed once."""
+    at_tau = linalg.expm(-Omega * tau)
+
+    def Phi(t, s):
+        d = t - s
+        if abs(d - tau) <= 4e-16 * max(abs(t), abs(s), tau):      # t - (t - tau), rounded
+            return at_tau
+        return linalg.expm(-Omega * d)
+    return Phi
+
+
 def lti_observer(A, C, *, tau=1.0, L=None, poles=None, delta=None, eps=None, N=None, xr_init=None):
     r"""The Section II observer (15) for xdot = A x + delta(t), y = C x (+ eps(t)).
 
@@ -397,10 +426,11 @@ def lti_observer(A, C, *, tau=1.0, L=None, poles=None, delta=None, eps=None, N=N
     L, tau, _ = choose_L_tau(rc.A2, rc.A1, L=L, tau=tau, poles=poles)
     H = rc.A2 + L @ rc.A1
     obs = ReducedOrderObserver(
-        tau, rc.A1, rc.A2, L,
-        Phi_A2=lambda t, s: linalg.expm(-rc.A2 * (t - s)),
-        Phi_H=lambda t, s: linalg.expm(-H * (t - s)),
-        delta1=rc.delta1(delta), delta2=rc.delta2(delta), eps=eps, xr_init=xr_init)
+        tau, rc.A1, rc.A2, L, Phi_A2=_expm_phi(rc.A2, tau), Phi_H=_expm_phi(H, tau),
+        delta1=rc.delta1(delta), delta2=rc.delta2(delta), eps=eps, xr_init=xr_init,
+        # Lambda(t) = M_tau (6) is constant and choose_L_tau checked it invertible: no check of
+        # Assumption 1 (two matrix exponentials) at every step of the flow
+        check_Lambda=False)
     obs.plant_model = PlantModel(
         make=lambda: hs.LinearPlant(A_lti, C=rc.C, disturbance=delta),
         measure=lambda y: y, x_r=rc.x_r,
@@ -482,3 +512,102 @@ class ChainedFormPlant(hs.HybridSystem):
         return np.array([x[0], x[1], x[3]])
 
 
+def chained_form_observer(xr_init=0.0, z_history=None):
+    r"""The observer of Section IV-B for (45): tau = 2 pi, L = -2 cos t, Lambda = 1 - e^{4 pi}.
+
+    Input [xi3, v2] (w = v2, delta2 = v2, delta1 = 0), closed forms (48) for
+    Phi_H and Phi_A2 = 1 (:func:`~observers.time_varying.example_data`); its
+    plant model is :class:`ChainedFormPlant` (x0 = (xi4, xi3, xi2, x1)).
+
+    Parameters
+    ----------
+    xr_init : float
+        The estimate before the window is filled (t < 2 pi).
+    z_history : callable s -> (1,), optional
+        Where to read xi3(t - 2 pi) (see :class:`ReducedOrderObserver`).
+
+    Returns
+    -------
+    ReducedOrderObserver
+
+    Examples
+    --------
+    >>> obs = chained_form_observer()
+    >>> round(float(obs.Lambda(1.0)[0, 0]), 2), obs.plant_model.description.split(":")[0]
+    (-286750.31, 'ChainedFormPlant')
+
+    References
+    ----------
+    [1] eqs. (45)-(50).
+    """
+    ex = example_data()
+    obs = ReducedOrderObserver(ex["tau"], ex["A1"], ex["A2"], ex["L"], ex["Phi_A2"], ex["Phi_H"],
+                               Ldot=ex["Ldot"], delta2=lambda t, z, w: w, p=1, m=1, w_dim=1,
+                               xr_init=[xr_init], z_history=z_history)
+    obs.plant_model = PlantModel(
+        make=ChainedFormPlant, measure=lambda y: np.asarray(y)[1:2],
+        x_r=lambda X: np.asarray(X)[:, 2:3],
+        initial_state=lambda x0: ChainedFormPlant.initial_state(*vector("x0", x0, 4)),
+        description="ChainedFormPlant: (44) with input v2; x0 = (xi4, xi3, xi2, x1)")
+    return obs
+
+
+def tracking_loop(xr_init=0.0, feedback="estimate"):
+    r"""The output-feedback tracking loop (44) + (58) as an interconnection.
+
+    Components ``"plant"`` (:class:`ChainedFormPlant`) and ``"observer"``
+    (:func:`chained_form_observer`). The plant's input is
+
+        v2(t) = (57) with xi2 replaced by xhat2(t) = P(t) + G(t) xi3(t),
+
+    which is (58): v2(t) depends on the past of v2 only through the
+    observer's states, so there is no algebraic loop (a distributed-delay
+    equation, see :mod:`observers.time_varying.example`). Before 2 pi
+    (window not filled) xhat2 = ``xr_init``. The observer reads
+    xi3(t - 2 pi) from the plant's history.
+
+    Parameters
+    ----------
+    xr_init : float
+        Estimate used before t = 2 pi.
+    feedback : {"estimate", "state"}
+        "state" feeds back the true xi2 (the state feedback (57)), for
+        comparison.
+
+    Returns
+    -------
+    loop : hybridsim.Interconnection
+    v2 : callable (t, y) -> float
+        The control, from the interconnection's outputs dict y.
+
+    Examples
+    --------
+    >>> loop, v2 = tracking_loop()
+    >>> sorted(loop.systems), loop.state_dim            # plant (5) and observer (4)
+    (['observer', 'plant'], 9)
+
+    References
+    ----------
+    [1] eqs. (51)-(59).
+    """
+    if feedback not in ("estimate", "state"):
+        raise ValueError(f"feedback must be 'estimate' or 'state', got {feedback!r}")
+    plant = ChainedFormPlant()
+    obs = chained_form_observer(xr_init, z_history=lambda s: np.array([plant.history(s)[1]]))
+    if feedback == "state":
+        plant.output_dim = 4
+        plant.output = lambda x, t, j: np.array([x[0], x[1], x[3], x[2]])
+
+    def v2(t, y):
+        yp = y["plant"]
+        if feedback == "state":
+            xi2h = yp[3]
+        else:
+            out = y["observer"]                     # [P, G]: xhat2 = P + G xi3 (m = p = 1)
+            xi2h = out[0] + out[1] * yp[1]
+        return float(v2_feedback(t, xi2h, yp[1], yp[0]))
+
+    loop = hs.Interconnection({"plant": plant, "observer": obs},
+                              inputs={"plant": lambda t, y: np.array([v2(t, y)]),
+                                      "observer": lambda t, y: np.array([y["plant"][1], v2(t, y)])})
+    return loop, v2
