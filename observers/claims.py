@@ -89,9 +89,10 @@ RELATIONS = ("==", "<=", ">=")
 PAPER_MODULES = {"li_sanfelice": "002", "gramian_delay": "004", "time_varying": "001",
                  "dynamic_gain": "000", "distributed": "003"}
 
-#: Columns of ``claims.csv``, in order.
-CSV_FIELDS = ("id", "paper", "where", "statement", "relation", "paper_value", "our_value",
-              "reference", "tol", "tol_why", "verdict", "expected", "passed", "reason",
+#: Columns of ``claims.csv``, in order (``package``: the paper's module, e.g. 000 is
+#: ``dynamic_gain``; ``relation``: "==", or "<=" / ">=" for a one-sided bound).
+CSV_FIELDS = ("id", "paper", "package", "where", "statement", "relation", "paper_value",
+              "our_value", "reference", "tol", "tol_why", "verdict", "expected", "passed", "reason",
               "seconds", "error")
 
 
@@ -311,7 +312,9 @@ class ClaimResult:
         """The claim and its outcome as a ``claims.csv`` row (keys :data:`CSV_FIELDS`, and
         ``boolean``, which the report reads and the CSV leaves out)."""
         c = self.claim
-        return {"id": c.id, "paper": c.paper, "where": c.where, "statement": c.statement,
+        package = {pid: m for m, pid in PAPER_MODULES.items()}.get(c.paper, "")
+        return {"id": c.id, "paper": c.paper, "package": package, "where": c.where,
+                "statement": c.statement,
                 "relation": c.relation, "paper_value": c.paper_value, "our_value": self.value,
                 "reference": c.reference, "tol": c.tol, "tol_why": c.tol_why,
                 "verdict": self.verdict, "expected": c.expected, "passed": self.passed,

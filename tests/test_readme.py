@@ -1,0 +1,99 @@
+"""README.md says what the code does: its commands, its pointers, and its numbers.
+
+The numbers README quotes from the papers' reproductions are tied here to
+the claims that produce them, so a claim that moves fails a test until
+README follows: the pinned values (a claim's printed or reference value) in
+the default suite, our measured values (which need the runs) in the slow one.
+"""
+from __future__ import annotations
+
+import pathlib
+import re
+
+import pytest
+
+from observers.claims import PAPER_MODULES, collect_claims, evaluate
+
+README = (pathlib.Path(__file__).resolve().parents[1] / "README.md").read_text()
+
+
+@pytest.fixture(scope="module")
+def claims():
+    return {c.id: c for reg in collect_claims().values() for c in reg}
+
+
+def _row(module):
+    return next(line for line in README.splitlines() if line.startswith(f"| `{module}` |"))
+
+
+def test_exactly_two_setup_commands():
+    block = README.split("## Set-up: the two commands", 1)[1].split("```bash", 1)[1]
+    block = block.split("```", 1)[0]
+    commands = [ln for ln in block.splitlines() if ln.strip() and not ln.startswith("#")]
+    assert commands == [
+        'python -m pip install ".[lmi]" && python -m observers reproduce --out results',
+        'python -m pip install ".[lmi,test]" && python -m pytest -q']
+
+
+def test_points_only_inside_the_repository():
+    assert "../" not in README and "/work/" not in README
+    for target in re.findall(r"`((?:hybridsim|observers|tests|benchmarks|examples|docs)/"
+                             r"[\w./-]+\.(?:py|rst|md))`", README):
+        assert (pathlib.Path(__file__).resolve().parents[1] / target).exists(), target
+
+
+def test_paper_ids_explained():
+    for module, pid in PAPER_MODULES.items():
+        assert re.search(rf"{pid} [^()]*\(`{module}`\)", README.replace("\n", " ")), module
+
+
+def test_claim_counts(claims):
+    for module, pid in PAPER_MODULES.items():
+        for n in re.findall(r"(\d+) claims", _row(module)):
+            assert int(n) == sum(c.paper == pid for c in claims.values()), module
+
+
+#: README text, the claim, which pinned field, and how README writes it.
+PINNED = [
+    ("li_sanfelice", "002-VA-K2-delta1", "paper_value", "δ = 1 is {:.4f}"),
+    ("li_sanfelice", "002-VA-eq15-delta1", "paper_value", "per unit of m {:.4f}"),
+    ("gramian_delay", "004-eq5-condS-k100", "reference",
+     lambda v: f"cond(S) = {v / 1e5:.3f}e5"),
+    ("gramian_delay", "004-fig2-k75-literal-horizon", "reference", "stops at {:.2f} s"),
+    ("time_varying", "001-eq28-la-example", "reference", "certified supremum {:.4f}"),
+    ("distributed", "003-thm1-settle", "reference", "settles to 1e-8 at {:.7f} s"),
+]
+
+#: README text tied to our measured value (the claim is evaluated).
+MEASURED = [
+    ("dynamic_gain", "000-fig1a-T-gamma2-0", lambda v: f"reproduced to {sci(abs(v - 5))} s"),
+    ("dynamic_gain", "000-fig1a-exact-after-T", lambda v: f"error after T {sci(v)}"),
+    ("dynamic_gain", "000-fig1a-settling-gamma2-1", "settles at {:.2f} s"),
+    ("dynamic_gain", "000-fig1a-1e-6-crossing-gamma2-1", "exceeds 1e-6 at {:.2f} s"),
+    ("dynamic_gain", "000-fig2-blowup-gamma2-0", "`BLOWUP` at t = {:.2f}"),
+    ("gramian_delay", "004-thm1-exact-k75",
+     lambda v: f"exact to {sci(v)} over the whole horizon"),
+]
+
+
+def sci(v, digits=1):
+    """As README writes it: 2.2e-6, not 2.2e-06."""
+    m, e = f"{v:.{digits}e}".split("e")
+    return f"{m}e{int(e)}"
+
+
+def _text(fmt, v):
+    return fmt(v) if callable(fmt) else fmt.format(v)
+
+
+@pytest.mark.parametrize("module, cid, field, fmt", PINNED, ids=[p[1] for p in PINNED])
+def test_pinned_numbers(claims, module, cid, field, fmt):
+    assert _text(fmt, getattr(claims[cid], field)) in _row(module)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("module, cid, fmt", MEASURED, ids=[m[1] for m in MEASURED])
+def test_measured_numbers(claims, module, cid, fmt):
+    r = evaluate(claims[cid])
+    assert r.passed, r.error
+    assert _text(fmt, r.value) in _row(module)
