@@ -6,9 +6,11 @@ The public face: :class:`HybridSystem` (the data), :func:`simulate` (one run),
 :class:`LinearPlant`), batches (:func:`simulate_many`, :func:`sweep`) and plots
 in hybrid time (:func:`plot_flows`, :func:`plot_jumps`, :func:`plot_hybrid`,
 :func:`plot_phase`, :func:`plot_time_domain`). Theorem-check helpers live in
-:mod:`hybridsim.testing`.
+:mod:`hybridsim.testing`; the search for counterexamples over a declared
+uncertainty space, :func:`falsify`, in :mod:`hybridsim.falsification`.
 """
 from . import compiled as compiled
+from . import falsification as falsification
 from . import library as library
 from . import rules as rules
 from . import testing as testing
@@ -17,6 +19,7 @@ from .arc import HybridArc, Termination
 from .batch import BatchError, BatchWarning, simulate_many, sweep
 from .batch_vectorized import simulate_vectorized
 from .compose import Interconnection, LinearPlant, connect, network
+from .falsification import falsify
 from .history import History, HistoryError
 from .options import METHODS
 from .plot import plot_flows, plot_hybrid, plot_jumps, plot_phase, plot_time_domain
@@ -30,4 +33,5 @@ __all__ = [
     "Interconnection", "LinearPlant", "connect", "network",
     "simulate_many", "sweep", "simulate_vectorized", "BatchError", "BatchWarning",
     "plot_flows", "plot_jumps", "plot_hybrid", "plot_phase", "plot_time_domain",
+    "falsify",
 ]

@@ -1,0 +1,736 @@
+"""Search for counterexamples: uncertainty spaces and :func:`falsify`.
+
+A theorem about a hybrid system is quantified: for every initial state in a
+set, every disturbance below a bound, every sampling sequence with gaps in
+[a, b], every delay in [τ1, τ2]. A test that runs the example and a few
+seeded cases samples that set; :func:`falsify` searches it for the least
+robust run. What may vary is declared as a :class:`Space` of named,
+bounded entries (:class:`Interval`, :class:`Box`, :class:`PiecewiseConstant`
+and :class:`Sinusoids` signals, :class:`Gaps`); the claim is a function of
+the arc that returns a signed margin (positive: it holds, by how much;
+negative: violated; see :mod:`hybridsim.testing`'s ``margin_*``
+functions); a run maps one point of the space to an arc, or a whole
+population of points to their arcs in one batch
+(:func:`hybridsim.simulate_many` on a vectorized system, :func:`batch_run`).
+
+The search is scipy's differential evolution over the space's box, which
+evaluates each population at once (``vectorized=True``), then a local
+Nelder-Mead refinement of the worst point within the remaining budget;
+``method="random"`` is the random-sampling baseline of the same budget.
+Only each run's margin is kept (the worst run is simulated again for its
+arc), so a search of 10^6 runs holds 10^6 floats, not 10^6 arcs.
+
+Examples
+--------
+A timer whose period is uncertain in [0.9, 1.2], against the claim "the
+first jump comes by t = 1.1":
+
+>>> import hybridsim as hs
+>>> from hybridsim.library import Timer
+>>> from hybridsim.falsification import Space, Interval, falsify
+>>> space = Space(period=Interval(0.9, 1.2))
+>>> def run(p):
+...     return hs.simulate(Timer(p["period"]), [0.0], t_max=2.0, j_max=1)
+>>> def by_1_1(arc):                       # margin: 1.1 - (first jump time)
+...     return 1.1 - arc.jump_times[0]
+>>> res = falsify(run, space, by_1_1, budget=200, seed=0, progress=False)
+>>> res.verdict, round(res.margin, 3), round(res.point["period"], 3)
+('counterexample', -0.1, 1.2)
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import numbers
+import time
+from collections.abc import Callable, Mapping
+
+import numpy as np
+
+from .rules import Termination
+
+__all__ = ["Interval", "Box", "PiecewiseConstant", "Sinusoids", "Gaps", "Space", "Point",
+           "Finding", "FalsificationResult", "falsify", "batch_run"]
+
+
+def _real(name, v):
+    if isinstance(v, bool) or not isinstance(v, (numbers.Real, np.floating, np.integer)):
+        raise TypeError(f"{name} must be a real number, got {type(v).__name__}")
+    v = float(v)
+    if not math.isfinite(v):
+        raise ValueError(f"{name} must be finite, got {v}")
+    return v
+
+
+def _count(name, v):
+    if isinstance(v, bool) or not isinstance(v, (numbers.Integral, np.integer)) or v < 1:
+        raise ValueError(f"{name} must be a positive integer, got {v!r}")
+    return int(v)
+
+
+class _Entry:
+    """One named, bounded coordinate block of a :class:`Space`."""
+
+    size: int
+
+    def bounds(self):                       # (lo, hi) arrays of length size
+        raise NotImplementedError
+
+    def value(self, z):                     # the user's value from its coordinates
+        raise NotImplementedError
+
+    def _check(self, lo, hi, what):
+        lo, hi = np.atleast_1d(np.asarray(lo, float)), np.atleast_1d(np.asarray(hi, float))
+        if lo.shape != hi.shape or lo.ndim != 1 or lo.size == 0:
+            raise ValueError(f"{what}: lo and hi must be non-empty vectors of one length, "
+                             f"got shapes {lo.shape} and {hi.shape}")
+        if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
+            raise ValueError(f"{what}: bounds must be finite")
+        if np.any(lo > hi):
+            k = int(np.argmax(lo > hi))
+            raise ValueError(f"{what}: inverted bounds at index {k}: lo {lo[k]} > hi {hi[k]}")
+        return lo, hi
+
+
+class Interval(_Entry):
+    """A scalar in [lo, hi] (a parameter, a delay, one initial coordinate).
+
+    Examples
+    --------
+    >>> Interval(0.1, 0.3).value(np.array([0.2]))
+    0.2
+    """
+
+    size = 1
+
+    def __init__(self, lo, hi):
+        self.lo, self.hi = _real("Interval lo", lo), _real("Interval hi", hi)
+        self._check(self.lo, self.hi, "Interval")
+
+    def bounds(self):
+        return np.array([self.lo]), np.array([self.hi])
+
+    def value(self, z):
+        return float(z[0])
+
+    def __repr__(self):
+        return f"Interval({self.lo:g}, {self.hi:g})"
+
+
+class Box(_Entry):
+    """A vector in the box [lo, hi] (initial states, parameter vectors).
+
+    Parameters
+    ----------
+    lo, hi : array_like, shape (n,)
+        lo <= hi componentwise; an entry with lo == hi is held fixed.
+
+    Examples
+    --------
+    >>> b = Box.around([1.0, 0.0], 0.1)
+    >>> b.bounds()[0].tolist(), b.bounds()[1].tolist()
+    ([0.9, -0.1], [1.1, 0.1])
+    """
+
+    def __init__(self, lo, hi):
+        self.lo, self.hi = self._check(lo, hi, "Box")
+        self.size = self.lo.size
+
+    @classmethod
+    def around(cls, nominal, radius):
+        """The box ``nominal ± radius`` (radius a scalar or one per coordinate, >= 0)."""
+        nominal = np.atleast_1d(np.asarray(nominal, float))
+        r = np.broadcast_to(np.asarray(radius, float), nominal.shape)
+        if np.any(r < 0) or not np.all(np.isfinite(r)):
+            raise ValueError(f"Box.around: radius must be finite and >= 0, got {radius!r}")
+        return cls(nominal - r, nominal + r)
+
+    def bounds(self):
+        return self.lo, self.hi
+
+    def value(self, z):
+        return np.array(z, dtype=float)
+
+    def __repr__(self):
+        return f"Box({self.lo.tolist()}, {self.hi.tolist()})"
+
+
+class _Signal:
+    """A bounded signal t -> R^dim from finitely many coordinates (callable)."""
+
+    def __init__(self, fn, dim, bound):
+        self._fn, self.dim, self.bound = fn, dim, bound
+
+    def __call__(self, t):
+        return self._fn(t)
+
+
+class PiecewiseConstant(_Entry):
+    """A signal |m(t)|_inf <= bound, constant on ``pieces`` equal intervals of [0, t_end].
+
+    The coordinates are the values on each piece (``pieces * dim`` of them,
+    each in [-bound, bound]); after ``t_end`` the last value is held. The
+    point's value is a callable ``m(t) -> ndarray (dim,)``.
+
+    Parameters
+    ----------
+    bound : float
+        ε >= 0: the class is |m_i(t)| <= ε.
+    t_end : float
+        > 0, the horizon the pieces cover.
+    pieces : int
+        Number of pieces (the search's resolution in time).
+    dim : int
+        Components of m.
+
+    Examples
+    --------
+    >>> s = PiecewiseConstant(0.5, 2.0, pieces=2)
+    >>> m = s.value(np.array([0.5, -0.25]))
+    >>> m(0.3).tolist(), m(1.5).tolist(), m(9.0).tolist()
+    ([0.5], [-0.25], [-0.25])
+    """
+
+    def __init__(self, bound, t_end, pieces, dim=1):
+        self.eps = _real("PiecewiseConstant bound", bound)
+        if self.eps < 0:
+            raise ValueError(f"PiecewiseConstant bound must be >= 0, got {bound}")
+        self.t_end = _real("PiecewiseConstant t_end", t_end)
+        if self.t_end <= 0:
+            raise ValueError(f"PiecewiseConstant t_end must be > 0, got {t_end}")
+        self.pieces = _count("PiecewiseConstant pieces", pieces)
+        self.dim = _count("PiecewiseConstant dim", dim)
+        self.size = self.pieces * self.dim
+
+    def bounds(self):
+        return np.full(self.size, -self.eps), np.full(self.size, self.eps)
+
+    def value(self, z):
+        vals = np.array(z, dtype=float).reshape(self.pieces, self.dim)
+        width = self.t_end / self.pieces
+
+        def m(t):
+            k = min(max(int(t // width), 0), self.pieces - 1)
+            return vals[k].copy()
+        return _Signal(m, self.dim, self.eps)
+
+    def __repr__(self):
+        return (f"PiecewiseConstant(bound={self.eps:g}, t_end={self.t_end:g}, "
+                f"pieces={self.pieces}, dim={self.dim})")
+
+
+class Sinusoids(_Entry):
+    """A signal |m(t)|_inf <= bound: a sum of ``terms`` sinusoids up to a bandwidth.
+
+    m_i(t) = bound / terms * sum_k a_ik sin(2π f_ik t + φ_ik) with a in
+    [-1, 1], f in [0, bandwidth] (Hz), φ in [0, 2π]: every point of the
+    space is in the class (|m_i| <= bound), and the class's smooth members
+    of bandwidth below ``bandwidth`` are approached as ``terms`` grows.
+
+    Examples
+    --------
+    >>> s = Sinusoids(0.2, bandwidth=5.0, terms=2)
+    >>> s.size
+    6
+    >>> m = s.value(np.array([1.0, 1.0, 0.0, 0.0, np.pi / 2, np.pi / 2]))
+    >>> m(0.0).tolist()                        # both terms at their peak
+    [0.2]
+    """
+
+    def __init__(self, bound, bandwidth, terms, dim=1):
+        self.eps = _real("Sinusoids bound", bound)
+        if self.eps < 0:
+            raise ValueError(f"Sinusoids bound must be >= 0, got {bound}")
+        self.bandwidth = _real("Sinusoids bandwidth", bandwidth)
+        if self.bandwidth <= 0:
+            raise ValueError(f"Sinusoids bandwidth must be > 0, got {bandwidth}")
+        self.terms = _count("Sinusoids terms", terms)
+        self.dim = _count("Sinusoids dim", dim)
+        self.size = 3 * self.terms * self.dim
+
+    def bounds(self):
+        k = self.terms * self.dim
+        lo = np.concatenate([-np.ones(k), np.zeros(k), np.zeros(k)])
+        hi = np.concatenate([np.ones(k), np.full(k, self.bandwidth), np.full(k, 2 * np.pi)])
+        return lo, hi
+
+    def value(self, z):
+        a, f, ph = (np.array(z, dtype=float).reshape(3, self.dim, self.terms))
+        scale = self.eps / self.terms
+
+        def m(t):
+            return scale * np.sum(a * np.sin(2 * np.pi * f * t + ph), axis=-1)
+        return _Signal(m, self.dim, self.eps)
+
+    def __repr__(self):
+        return (f"Sinusoids(bound={self.eps:g}, bandwidth={self.bandwidth:g}, "
+                f"terms={self.terms}, dim={self.dim})")
+
+
+class Gaps(_Entry):
+    """A sequence of ``count`` gaps, each in [lo, hi] (sampling or dwell times).
+
+    The point's value is the array of gaps; ``Gaps.times(gaps, t0)`` gives
+    the instants t0 + cumulative sums.
+
+    Examples
+    --------
+    >>> g = Gaps(0.05, 0.1, count=3)
+    >>> Gaps.times(g.value(np.array([0.1, 0.05, 0.1]))).round(2).tolist()
+    [0.1, 0.15, 0.25]
+    """
+
+    def __init__(self, lo, hi, count):
+        self.lo, self.hi = _real("Gaps lo", lo), _real("Gaps hi", hi)
+        if self.lo <= 0:
+            raise ValueError(f"Gaps lo must be > 0 (a gap of zero is not a gap), got {lo}")
+        self._check(self.lo, self.hi, "Gaps")
+        self.size = _count("Gaps count", count)
+
+    def bounds(self):
+        return np.full(self.size, self.lo), np.full(self.size, self.hi)
+
+    def value(self, z):
+        return np.array(z, dtype=float)
+
+    @staticmethod
+    def times(gaps, t0=0.0):
+        """The instants ``t0 + cumsum(gaps)``."""
+        return t0 + np.cumsum(gaps)
+
+    def __repr__(self):
+        return f"Gaps({self.lo:g}, {self.hi:g}, count={self.size})"
+
+
+class Point(Mapping):
+    """One point of a :class:`Space`: its entries' values by name, and ``z``,
+    its coordinates in the space's box."""
+
+    def __init__(self, values, z):
+        self._values, self.z = dict(values), np.array(z, dtype=float)
+
+    def __getitem__(self, name):
+        return self._values[name]
+
+    def __iter__(self):
+        return iter(self._values)
+
+    def __len__(self):
+        return len(self._values)
+
+    def __repr__(self):
+        def show(v):
+            if isinstance(v, np.ndarray):
+                return np.array2string(v, precision=4, separator=", ")
+            if isinstance(v, float):
+                return f"{v:.6g}"
+            return repr(v) if not isinstance(v, _Signal) else f"<signal, |m| <= {v.bound:g}>"
+        return "Point(" + ", ".join(f"{k}={show(v)}" for k, v in self._values.items()) + ")"
+
+
+class Space:
+    """What may vary in a claim, each entry named and bounded.
+
+    Parameters
+    ----------
+    **entries : Interval, Box, PiecewiseConstant, Sinusoids or Gaps
+        In order; the search runs over the product of their boxes.
+
+    Raises
+    ------
+    ValueError
+        No entries.
+    TypeError
+        An entry of another type (named).
+
+    Examples
+    --------
+    >>> s = Space(x0=Box.around([1.0, 0.0], 0.1), k=Interval(1.0, 2.0))
+    >>> s.dim, s.names
+    (3, ('x0', 'k'))
+    >>> p = s.point([1.05, 0.0, 1.5])
+    >>> p["x0"].tolist(), p["k"]
+    ([1.05, 0.0], 1.5)
+    """
+
+    def __init__(self, **entries):
+        if not entries:
+            raise ValueError("Space needs at least one entry (e.g. x0=Box(lo, hi))")
+        for name, e in entries.items():
+            if not isinstance(e, _Entry):
+                raise TypeError(f"Space entry {name!r} must be an Interval, Box, "
+                                f"PiecewiseConstant, Sinusoids or Gaps, got {type(e).__name__}")
+        self.entries = dict(entries)
+        self.names = tuple(entries)
+        lo, hi, self._slices, k = [], [], {}, 0
+        for name, e in entries.items():
+            a, b = e.bounds()
+            lo.append(a)
+            hi.append(b)
+            self._slices[name] = slice(k, k + e.size)
+            k += e.size
+        self.lo, self.hi = np.concatenate(lo), np.concatenate(hi)
+        self.dim = k
+
+    def point(self, z) -> Point:
+        """The point of coordinates ``z`` (clipped into the box)."""
+        z = np.asarray(z, dtype=float)
+        if z.shape != (self.dim,):
+            raise ValueError(f"z must have shape ({self.dim},), got {z.shape}")
+        z = np.clip(z, self.lo, self.hi)
+        return Point({n: e.value(z[self._slices[n]]) for n, e in self.entries.items()}, z)
+
+    def sample(self, n, seed=None) -> np.ndarray:
+        """``n`` coordinate vectors drawn uniformly from the box, shape (n, dim)."""
+        rng = np.random.default_rng(seed)
+        return self.lo + (self.hi - self.lo) * rng.random((_count("n", n), self.dim))
+
+    def __repr__(self):
+        return "Space(" + ", ".join(f"{n}={e!r}" for n, e in self.entries.items()) + ")"
+
+
+@dataclasses.dataclass(frozen=True)
+class Finding:
+    """A run that failed inside the search: its point and why (counted as a
+    counterexample, margin -inf)."""
+
+    point: Point
+    cause: str
+    message: str
+
+
+@dataclasses.dataclass(frozen=True)
+class FalsificationResult:
+    """What :func:`falsify` found.
+
+    Attributes
+    ----------
+    verdict : {"counterexample", "none found"}
+        ``"counterexample"`` when some run's margin was negative (or a run
+        failed, see ``findings``).
+    margin : float
+        The worst (smallest) margin found.
+    point : Point
+        The point of the space that gave it.
+    arc : HybridArc or None
+        That run, simulated again (plot it with the hybrid plots).
+    where : tuple or None
+        The hybrid time (t, j) the claim's margin names, when it names one.
+    history : ndarray
+        Every evaluation's margin, in order (``np.minimum.accumulate`` gives
+        the best-so-far curve).
+    evaluations : int
+    seconds : float
+    findings : list of Finding
+    method : str
+    seed : int or None
+    """
+
+    verdict: str
+    margin: float
+    point: Point
+    arc: object
+    where: tuple | None
+    history: np.ndarray
+    evaluations: int
+    seconds: float
+    findings: list
+    method: str
+    seed: int | None
+
+    def __repr__(self):
+        return (f"FalsificationResult({self.verdict}: margin {self.margin:.4g} at {self.point}"
+                f"{'' if self.where is None else f', (t, j) = {self.where}'}; "
+                f"{self.evaluations} evaluations in {self.seconds:.2f} s, {self.method})")
+
+
+def batch_run(system, x0_of, t_max, j_max=np.inf, **simulate_kwargs):
+    """A population run: all points of a population in one :func:`hybridsim.simulate_many`.
+
+    Parameters
+    ----------
+    system : HybridSystem
+        Preferably ``vectorized`` (the whole population is then one numpy
+        batch); the uncertain parameters and signals live in its state.
+    x0_of : callable
+        ``x0_of(point) -> initial state`` (the point's parameters written
+        into the state).
+    t_max, j_max, **simulate_kwargs
+        As in :func:`hybridsim.simulate_many`.
+
+    Returns
+    -------
+    callable
+        ``run(points) -> list of HybridArc``, with ``run.batch = True`` so
+        :func:`falsify` passes it whole populations.
+    """
+    from .batch import simulate_many
+
+    def run(points):
+        x0s = np.array([np.asarray(x0_of(p), dtype=float) for p in points])
+        return simulate_many(system, x0s, t_max, j_max, warn=False, **simulate_kwargs)
+    run.batch = True
+    return run
+
+
+class _Evaluator:
+    """Runs points, reduces each arc to its margin, keeps the history and the worst."""
+
+    def __init__(self, run, space, claim, budget, seconds, allow, progress, stop):
+        self.run, self.space, self.claim = run, space, claim
+        self.batch = bool(getattr(run, "batch", False))
+        self.budget, self.deadline = budget, time.perf_counter() + seconds
+        self.allow = allow
+        self.history, self.findings = [], []
+        self.best, self.best_z, self.best_where = math.inf, None, None
+        self.stop_at_counterexample = stop
+        self.error = None                   # a bad claim: raised after the optimizer
+        from tqdm.auto import tqdm
+        self.bar = tqdm(total=budget, unit="run", disable=None if progress is None
+                        else not progress, leave=False)
+
+    @property
+    def done(self):
+        return (len(self.history) >= self.budget or time.perf_counter() >= self.deadline
+                or (self.stop_at_counterexample and self.best < 0) or self.error is not None)
+
+    def _margin(self, arc, point):
+        cause = getattr(arc, "termination", None)
+        if isinstance(cause, Termination) and cause.name not in self.allow:
+            self.findings.append(Finding(point, cause.name, getattr(arc, "message", "")))
+            return -math.inf, None
+        m = self.claim(arc)
+        where = None
+        if hasattr(m, "where"):
+            where = m.where
+        try:
+            value = float(m)
+        except (TypeError, ValueError):
+            raise TypeError(f"claim must return a real number (a margin), got "
+                            f"{type(m).__name__}") from None
+        if math.isnan(value):
+            raise ValueError("claim returned NaN: a margin must be a number "
+                             "(positive: holds, negative: violated)")
+        return value, where
+
+    def __call__(self, Z):
+        """Margins of the rows of Z (n, dim); +inf for rows past the budget."""
+        Z = np.atleast_2d(Z)
+        room = max(0, self.budget - len(self.history))
+        if self.done:
+            room = 0
+        out = np.full(len(Z), np.inf)
+        rows = Z[:room]
+        if not len(rows):
+            return out
+        points = [self.space.point(z) for z in rows]
+        if self.batch:
+            arcs = list(self.run(points))
+            if len(arcs) != len(points):
+                raise ValueError(f"a batch run must return one arc per point: got {len(arcs)} "
+                                 f"for {len(points)}")
+        else:
+            arcs = []
+            for p in points:
+                try:
+                    arcs.append(self.run(p))
+                except Exception as exc:  # noqa: BLE001 - a failed run is a finding
+                    arcs.append(exc)
+        for k, (p, arc) in enumerate(zip(points, arcs)):
+            if isinstance(arc, BaseException):
+                self.findings.append(Finding(p, "RAISED", f"{type(arc).__name__}: {arc}"))
+                value, where = -math.inf, None
+            else:
+                try:
+                    value, where = self._margin(arc, p)
+                except (TypeError, ValueError) as exc:   # the claim's fault, not the run's
+                    self.error = exc
+                    return out
+            out[k] = value
+            self.history.append(value)
+            if value < self.best:
+                self.best, self.best_z, self.best_where = value, p.z, where
+        self.bar.update(len(rows))
+        return out
+
+
+def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
+            budget: int = 1000, seconds: float = math.inf, seed: int | None = None,
+            method: str = "de", popsize: int | None = None, refine: bool = True,
+            allow=("T_MAX", "J_MAX"), stop: bool = True,
+            progress: bool | None = None) -> FalsificationResult:
+    """Search ``space`` for a run on which ``claim``'s margin is negative.
+
+    Parameters
+    ----------
+    run : callable
+        ``run(point) -> HybridArc`` for one point of ``space``
+        (:class:`Point`: the entries' values by name); or, when it has an
+        attribute ``batch = True`` (:func:`batch_run`), ``run(points) ->
+        list of HybridArc`` for a whole population at once.
+    space : Space
+        What may vary.
+    claim : callable
+        ``claim(arc) -> margin``: a real number, positive when the claim
+        holds on the arc, negative when violated (the ``margin_*`` functions
+        of :mod:`hybridsim.testing` return one, with the (t, j) that decided
+        it as ``.where``).
+    budget : int
+        At most this many runs (>= 1).
+    seconds : float
+        At most this long (checked between populations).
+    seed : int, optional
+        The search is reproducible with it.
+    method : {"de", "random"}
+        ``"de"``: differential evolution (scipy, ``vectorized=True``: each
+        generation is one population evaluated at once, deferred updating;
+        the first population a Latin hypercube with a quarter of it on
+        vertices of the box, where worst cases under bounded uncertainty
+        often lie), then Nelder-Mead from the worst point with what is left
+        of the budget (``refine``: a fifth of it is kept for this). ``"random"``: uniform
+        sampling of the box in populations, the baseline to compare with.
+    popsize : int, optional
+        Population size (default ``max(15, 5 * space.dim)`` for DE, at least
+        5; 100 for random), capped by the budget.
+    refine : bool
+        Refine the worst point locally (``"de"`` only).
+    allow : iterable of str
+        Termination causes that are ordinary ends of a run; any other cause
+        (a blow-up, a map error, a run that raised) is a finding: recorded
+        in ``findings`` with its point and counted as margin -inf.
+    stop : bool
+        Stop at the first counterexample (default); False searches the whole
+        budget for the worst one.
+    progress : bool, optional
+        A progress bar over the runs (default: when stderr is a terminal).
+
+    Returns
+    -------
+    FalsificationResult
+
+    Raises
+    ------
+    TypeError, ValueError
+        A bad argument (named), or a claim that does not return a real number.
+
+    Notes
+    -----
+    Differential evolution is scipy's (:func:`scipy.optimize.differential_evolution`):
+    derivative-free, global, and it evaluates whole generations at once,
+    which is what the batch paths make cheap; PSY-TaLiRo and S-TaLiRo
+    default to similar population or annealing searches run one simulation
+    at a time.
+    """
+    if not isinstance(space, Space):
+        raise TypeError(f"space must be a hybridsim.falsification.Space, "
+                        f"got {type(space).__name__}")
+    if not callable(run):
+        raise TypeError(f"run must be callable (point -> arc), got {type(run).__name__}")
+    if not callable(claim):
+        raise TypeError(f"claim must be callable (arc -> margin), got {type(claim).__name__}")
+    if isinstance(budget, bool) or not isinstance(budget, (numbers.Integral, np.integer)) \
+            or budget < 1:
+        raise ValueError(f"budget must be a positive number of runs, got {budget!r}")
+    seconds = float(seconds)
+    if not seconds > 0:
+        raise ValueError(f"seconds must be > 0, got {seconds}")
+    if method not in ("de", "random"):
+        raise ValueError(f"method must be 'de' or 'random', got {method!r}")
+    allow = frozenset(allow)
+    unknown = allow - {c.name for c in Termination}
+    if unknown:
+        raise ValueError(f"allow names unknown termination causes {sorted(unknown)}")
+    budget = int(budget)
+    if popsize is None:
+        popsize = max(15, 5 * space.dim) if method == "de" else 100
+    popsize = max(1, min(int(popsize), budget))
+    t0 = time.perf_counter()
+    ev = _Evaluator(run, space, claim, budget, seconds, allow, progress, stop)
+    try:
+        if method == "random":
+            rng = np.random.default_rng(seed)
+            while not ev.done:
+                n = min(popsize, budget - len(ev.history))
+                ev(space.lo + (space.hi - space.lo) * rng.random((n, space.dim)))
+        else:
+            _de(ev, space, popsize, seed, budget - (budget // 5 if refine else 0))
+            if refine and not ev.done and ev.best_z is not None:
+                _refine(ev, space)
+    finally:
+        ev.bar.close()
+    if ev.error is not None:
+        raise ev.error
+    point = space.point(ev.best_z if ev.best_z is not None else (space.lo + space.hi) / 2)
+    arc = None
+    if ev.history:
+        try:
+            arc = run([point])[0] if ev.batch else run(point)
+        except Exception:  # noqa: BLE001 - the finding already records it
+            arc = None
+    found = ev.best < 0
+    return FalsificationResult(
+        verdict="counterexample" if found else "none found", margin=float(ev.best),
+        point=point, arc=arc, where=ev.best_where, history=np.array(ev.history),
+        evaluations=len(ev.history), seconds=time.perf_counter() - t0,
+        findings=list(ev.findings), method=method, seed=seed)
+
+
+def _de(ev, space, popsize, seed, budget):
+    from scipy.optimize import differential_evolution
+    free = space.hi > space.lo
+    if not np.any(free):                     # a single point
+        ev(space.lo[None, :])
+        return
+    lo, hi = space.lo[free], space.hi[free]
+
+    def full(Zf):                            # (k, n_free) -> (k, dim)
+        Z = np.tile(space.lo, (Zf.shape[0], 1))
+        Z[:, free] = Zf
+        return Z
+
+    nfree = int(free.sum())
+    npop = max(5, popsize)
+    maxiter = max(0, (budget - npop) // npop)
+    rng = np.random.default_rng(seed)
+    # a Latin hypercube, a quarter of it replaced by vertices of the box: worst
+    # cases under bounded uncertainty are often extreme (bang-bang noise)
+    u = (rng.permuted(np.tile(np.arange(npop), (nfree, 1)), axis=1).T
+         + rng.random((npop, nfree))) / npop
+    nv = min(npop // 4, 2 ** min(nfree, 20))
+    u[npop - nv:] = rng.integers(0, 2, (nv, nfree))
+    init = lo + u * (hi - lo)
+
+    def f(Zt):                               # scipy passes (n_free, k)
+        return ev(full(np.asarray(Zt).T))
+
+    differential_evolution(
+        f, list(zip(lo, hi)), maxiter=maxiter, seed=seed, init=init,
+        vectorized=True, updating="deferred", polish=False,
+        tol=0.0, atol=0.0, callback=lambda *a, **k: ev.done)
+
+
+def _refine(ev, space):
+    from scipy.optimize import minimize
+    free = space.hi > space.lo
+    z0 = ev.best_z.copy()
+    scale = np.where(free, space.hi - space.lo, 1.0)
+
+    def f(u):
+        if ev.done:
+            return np.inf
+        z = space.lo + u * scale
+        return float(ev(z[None, :])[0])
+
+    u0 = (z0 - space.lo) / scale
+    left = ev.budget - len(ev.history)
+    minimize(f, u0, method="Nelder-Mead", bounds=[(0.0, 1.0)] * space.dim,
+             options={"maxfev": left, "xatol": 1e-10, "fatol": 0.0,
+                      "initial_simplex": _simplex(u0, 0.05)})
+
+
+def _simplex(u0, step):
+    n = u0.size
+    S = np.tile(u0, (n + 1, 1))
+    for k in range(n):
+        S[k + 1, k] = u0[k] + step if u0[k] + step <= 1.0 else u0[k] - step
+    return S

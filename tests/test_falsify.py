@@ -1,0 +1,233 @@
+"""hybridsim.falsification: uncertainty spaces and the counterexample search.
+
+The systems here have closed forms, so every search's answer is known: the
+ball's first apex after a bounce is e^2 h0 (restitution e, drop height h0),
+the timer's first jump is at its period.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import hybridsim as hs
+from hybridsim.falsification import (
+    Box,
+    FalsificationResult,
+    Gaps,
+    Interval,
+    PiecewiseConstant,
+    Sinusoids,
+    Space,
+    batch_run,
+    falsify,
+)
+from hybridsim.library import BouncingBall
+
+
+class BallE(hs.HybridSystem):
+    """The bouncing ball with its restitution as a third, constant state
+    (so a population of restitutions is one vectorized batch)."""
+
+    state_dim = 3
+    vectorized = True
+    g = 9.81
+
+    def flow_map(self, x):
+        return np.stack([x[..., 1], np.full(x[..., 0].shape, -self.g),
+                         np.zeros(x[..., 0].shape)], axis=-1)
+
+    def jump_map(self, x):
+        return np.stack([np.zeros(x[..., 0].shape), -x[..., 2] * x[..., 1], x[..., 2]],
+                        axis=-1)
+
+    def flow_set(self, x):
+        return x[..., 0] >= 0
+
+    def jump_set(self, x):
+        return (x[..., 0] <= 0) & (x[..., 1] <= 0)
+
+    def jump_guard(self, x):
+        return -x[..., 0]
+
+    def flow_guard(self, x):
+        return x[..., 0]
+
+
+BALL = Space(h0=Interval(0.9, 1.1), e=Interval(0.7, 0.85))
+TOL = 1e-6          # rtol 1e-9 runs: an apex is exact to ~1e-9 of h0
+
+
+def apex_after_first_bounce(arc):
+    """Height of the apex after the first bounce (v = 0 on j = 1), by the
+    flow's closed form from the post-jump state."""
+    k = int(np.flatnonzero(arc.j == 1)[0])
+    h, v = arc.x[k, 0], arc.x[k, 1]
+    return h + v * v / (2 * 9.81)
+
+
+def below(level):
+    def claim(arc):
+        return level - apex_after_first_bounce(arc)
+    return claim
+
+
+def run_one(p):
+    return hs.simulate(BouncingBall(restitution=p["e"]), [p["h0"], 0.0], t_max=3.0, j_max=1,
+                       rtol=1e-9, atol=1e-12)
+
+
+def test_finds_the_corner_counterexample():
+    """Apex e^2 h0 <= 0.7 fails only near the corner (1.1, 0.85): 0.795."""
+    res = falsify(run_one, BALL, below(0.7), budget=300, seed=1, progress=False)
+    assert isinstance(res, FalsificationResult)
+    assert res.verdict == "counterexample" and res.margin < 0
+    assert res.point["e"] ** 2 * res.point["h0"] > 0.7
+    assert res.arc is not None and res.arc.jump_count == 1
+    assert res.evaluations <= 300 and len(res.history) == res.evaluations
+    assert res.history.min() == res.margin
+
+
+def test_worst_margin_at_least_as_bad_as_random_and_at_the_sup():
+    """With no counterexample (level 0.8 > 0.795), the search's worst margin
+    reaches the true infimum 0.8 - 0.85^2 * 1.1 within the integrator's
+    tolerance, and is no better than random sampling of the same budget."""
+    exact = 0.8 - 0.85 ** 2 * 1.1
+    de = falsify(run_one, BALL, below(0.8), budget=250, seed=3, stop=False, progress=False)
+    rnd = falsify(run_one, BALL, below(0.8), budget=250, seed=3, method="random",
+                  stop=False, progress=False)
+    assert de.verdict == rnd.verdict == "none found"
+    assert de.margin <= rnd.margin
+    assert abs(de.margin - exact) < 1e-4          # NM converges to the corner
+    assert de.margin >= exact - TOL               # and no run beats the closed form
+
+
+def test_populations_in_one_batch_agree_with_single_runs():
+    calls = []
+
+    def x0_of(p):
+        return [p["h0"], 0.0, p["e"]]
+    run = batch_run(BallE(), x0_of, t_max=3.0, j_max=1, rtol=1e-9, atol=1e-12)
+
+    def counted(points):
+        calls.append(len(points))
+        return run(points)
+    counted.batch = True
+    res = falsify(counted, BALL, below(0.8), budget=120, seed=0, stop=False, refine=False,
+                  popsize=30, progress=False)
+    assert len(calls) >= 2 and max(calls) == 30 and sum(calls) == res.evaluations + 1
+    one = falsify(run_one, BALL, below(0.8), budget=120, seed=0, stop=False, refine=False,
+                  popsize=30, progress=False)
+    # same seed, same candidates: margins equal to the integrators' accuracy
+    assert np.allclose(res.history, one.history, atol=1e-6)
+
+
+def test_reproducible_with_a_seed():
+    a = falsify(run_one, BALL, below(0.7), budget=60, seed=7, stop=False, progress=False)
+    b = falsify(run_one, BALL, below(0.7), budget=60, seed=7, stop=False, progress=False)
+    assert np.array_equal(a.history, b.history)
+
+
+def test_failed_runs_are_findings_not_silence():
+    """A run that raises, or ends in a blow-up, is recorded with its point and
+    cause and counts as a counterexample; the search goes on."""
+    space = Space(a=Interval(0.0, 1.5))
+
+    class Growth(hs.HybridSystem):
+        state_dim = 1
+
+        def __init__(self, a):
+            self.a = a
+
+        def flow_map(self, x):
+            return self.a * x
+
+    def run(p):                   # |x(2)| = e^(2a) > 5 for a > 0.80: BLOWUP
+        if p["a"] > 1.4:
+            raise RuntimeError("model broke")
+        return hs.simulate(Growth(p["a"]), [1.0], t_max=2.0, max_norm=5.0, max_step=0.1,
+                           warn=False)
+    res = falsify(run, space, lambda arc: 1.0, budget=80, seed=0, stop=False,
+                  method="random", progress=False)
+    causes = {f.cause for f in res.findings}
+    assert causes == {"RAISED", "BLOWUP"}
+    assert res.verdict == "counterexample" and res.margin == -math.inf
+    assert res.evaluations == 80
+    raised = next(f for f in res.findings if f.cause == "RAISED")
+    assert raised.point["a"] > 1.4 and "model broke" in raised.message
+    blown = [f.point["a"] for f in res.findings if f.cause == "BLOWUP"]
+    assert min(blown) > math.log(5.0) / 2
+
+
+def test_seconds_budget_and_stop_at_first():
+    res = falsify(run_one, BALL, below(0.0), budget=10_000, seconds=0.5, seed=0,
+                  progress=False)
+    assert res.verdict == "counterexample" and res.evaluations < 10_000
+
+
+@pytest.mark.parametrize("make, match", [
+    (lambda: Interval(1.0, 0.0), "inverted bounds"),
+    (lambda: Box([0.0, 1.0], [1.0, 0.5]), "inverted bounds at index 1"),
+    (lambda: Box([], []), "non-empty"),
+    (lambda: Space(), "at least one entry"),
+    (lambda: Gaps(0.0, 0.1, 3), "Gaps lo must be > 0"),
+    (lambda: PiecewiseConstant(-1.0, 1.0, 4), "bound must be >= 0"),
+    (lambda: Sinusoids(0.1, 0.0, 2), "bandwidth must be > 0"),
+    (lambda: falsify(run_one, BALL, below(0.7), budget=0), "budget must be a positive"),
+    (lambda: falsify(run_one, BALL, below(0.7), method="annealing"), "method must be"),
+    (lambda: falsify(run_one, BALL, below(0.7), allow=["T_MAX", "DONE"]), "unknown"),
+])
+def test_bad_input_is_named(make, match):
+    with pytest.raises(ValueError, match=match):
+        make()
+
+
+def test_bad_types_are_named():
+    with pytest.raises(TypeError, match="Space entry 'x' must be"):
+        Space(x=(0.0, 1.0))
+    with pytest.raises(TypeError, match="space must be"):
+        falsify(run_one, {"e": (0, 1)}, below(0.7))
+    with pytest.raises(TypeError, match="claim must return a real number"):
+        falsify(run_one, BALL, lambda arc: "fine", budget=5, progress=False)
+    with pytest.raises(ValueError, match="claim returned NaN"):
+        falsify(run_one, BALL, lambda arc: float("nan"), budget=5, progress=False)
+
+
+def test_signal_classes_hold_their_bound():
+    rng = np.random.default_rng(0)
+    for entry in (PiecewiseConstant(0.3, 2.0, pieces=8, dim=2),
+                  Sinusoids(0.3, bandwidth=4.0, terms=3, dim=2)):
+        space = Space(m=entry)
+        for z in space.sample(20, seed=rng):
+            m = space.point(z)["m"]
+            vals = np.array([m(t) for t in np.linspace(0, 3, 301)])
+            assert vals.shape == (301, 2) and np.max(np.abs(vals)) <= 0.3 + 1e-12
+    g = Space(gaps=Gaps(0.05, 0.1, 4)).point([0.05, 0.1, 0.07, 0.2])["gaps"]
+    assert np.allclose(g, [0.05, 0.1, 0.07, 0.1])                # clipped into [a, b]
+    assert np.allclose(Gaps.times(g, 1.0), [1.05, 1.15, 1.22, 1.32])
+
+
+def test_noise_counterexample_through_a_signal_entry():
+    """A first-order filter x' = -x + m(t), |m| <= 0.5: |x(2)| <= 0.4 holds
+    for constant noise of size below 0.4 / (1 - e^-2) ~ 0.46 only, so the
+    worst piecewise-constant noise (m = ±0.5 throughout) breaks it."""
+    space = Space(m=PiecewiseConstant(0.5, 2.0, pieces=4))
+
+    class Filter(hs.HybridSystem):
+        state_dim = 1
+
+        def __init__(self, m):
+            self.m = m
+
+        def flow_map(self, x, t):
+            return -x + self.m(t)
+
+    def run(p):
+        return hs.simulate(Filter(p["m"]), [0.0], t_max=2.0, rtol=1e-9, atol=1e-12,
+                           max_step=0.05)
+    res = falsify(run, space, lambda arc: 0.4 - abs(arc.x[-1, 0]), budget=400, seed=2,
+                  stop=False, progress=False)
+    exact = 0.4 - 0.5 * (1 - math.exp(-2.0))
+    assert res.verdict == "counterexample"
+    assert abs(res.margin - exact) < 1e-3 and res.margin >= exact - 1e-6
