@@ -4,16 +4,64 @@ Each takes an arc and a signal along it, given either as an (N, ...) array of
 values at the arc's samples or as a callable ``fn(x, t, j)``. The norm of a
 vector-valued signal is its Euclidean norm (max-abs with ``norm="inf"``).
 Failures name the first violating (t, j), the value and the bound.
+
+Hybrid time is compared as the engine compares it. A jump time is located
+only to :func:`hybridsim.rules.event_tolerance` (4 ulp of ``max(1, |t|)``),
+so a jump meant for t = δ may be stored a rounding step before or after δ.
+The helpers that select samples by time (``t=`` of :func:`assert_exact_after`
+and :func:`assert_bounded`) therefore count a sample whose time is within
+``event_tolerance(t, t)`` of a requested time ``t`` as *at* ``t``: the
+sample after a jump stored at 0.7999999999999998 is "at 0.8". The same
+tolerance is how the solver decides that a stored sample stands for a
+``t_eval`` time. Jump counts j are integers and compared exactly.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-__all__ = ["signal_norm", "settling_time", "assert_exact_after", "assert_bounded"]
+from .rules import event_tolerance
+
+__all__ = ["signal_norm", "settling_time", "assert_exact_after", "assert_bounded",
+           "Margin", "margin_exact_after", "margin_bounded", "margin_settles_by",
+           "margin_decays", "margin_in_set", "all_of", "any_of"]
 
 
 def signal_norm(arc, signal, norm=2):
-    """Norm of ``signal`` at every sample of ``arc``, shape (N,)."""
+    """Norm of ``signal`` at every sample of ``arc``.
+
+    Parameters
+    ----------
+    arc : HybridArc
+        The solution whose samples the signal is given at.
+    signal : array_like or callable
+        Values at the arc's samples, shape ``(N, ...)`` with ``N = len(arc)``,
+        or a callable ``fn(x, t, j)`` evaluated at each sample
+        (:meth:`HybridArc.evaluate`).
+    norm : {2, "inf"}, optional
+        Euclidean norm (default) or max-abs norm of each sample's value.
+
+    Returns
+    -------
+    ndarray
+        Shape ``(N,)``: the norm at each sample.
+
+    Raises
+    ------
+    ValueError
+        When ``signal`` does not have one value per sample.
+
+    Examples
+    --------
+    >>> import hybridsim as hs
+    >>> arc = hs.HybridArc([0.0, 1.0, 1.0], [0, 0, 1],
+    ...                    [[3.0, 4.0], [0.0, 1.0], [0.0, 0.0]], None)
+    >>> signal_norm(arc, arc.x)
+    array([5., 1., 0.])
+    >>> signal_norm(arc, lambda x, t, j: x, norm="inf")
+    array([4., 1., 0.])
+    """
     if callable(signal):
         v = np.asarray(arc.evaluate(signal), dtype=float)
     else:
@@ -27,13 +75,37 @@ def signal_norm(arc, signal, norm=2):
     return np.linalg.norm(v, axis=1)
 
 
+def _bounds(w, what):
+    """``(lo, hi)`` of a scalar (``[w, inf)``) or a closed range (None: open end)."""
+    if w is None:
+        return -math.inf, math.inf
+    if np.ndim(w) == 0:
+        return float(w), math.inf
+    try:
+        lo, hi = w
+    except (TypeError, ValueError):
+        raise TypeError(f"{what} must be a number or a closed range (lo, hi), "
+                        f"got {w!r}") from None
+    return (-math.inf if lo is None else float(lo)), (math.inf if hi is None else float(hi))
+
+
+def _widen(lo, hi):
+    """[lo, hi] widened by the engine's time tolerance at each finite end."""
+    if math.isfinite(lo):
+        lo -= event_tolerance(lo, lo)
+    if math.isfinite(hi):
+        hi += event_tolerance(hi, hi)
+    return lo, hi
+
+
 def _mask(arc, t, j):
+    """Samples with time in ``t`` (to the engine's tolerance) and jump count in ``j``."""
     m = np.ones(len(arc.t), dtype=bool)
     if t is not None:
-        lo, hi = (t, np.inf) if np.ndim(t) == 0 else t
+        lo, hi = _widen(*_bounds(t, "t"))
         m &= (arc.t >= lo) & (arc.t <= hi)
     if j is not None:
-        lo, hi = (j, np.inf) if np.ndim(j) == 0 else j
+        lo, hi = _bounds(j, "j")
         m &= (arc.j >= lo) & (arc.j <= hi)
     return m
 
@@ -41,9 +113,50 @@ def _mask(arc, t, j):
 def settling_time(arc, signal, threshold=1e-8, norm=2):
     """The last hybrid time (t, j) at which |signal| exceeds ``threshold``.
 
-    Returns ``(t, j)`` of the last sample above the threshold, or
-    ``(arc.t[0], arc.j[0])`` if it never is; ``(inf, None)`` if the final
-    sample is still above it (not settled within the arc).
+    Parameters
+    ----------
+    arc : HybridArc
+        The solution.
+    signal : array_like or callable
+        As for :func:`signal_norm`.
+    threshold : float, optional
+        A sample is above the threshold when its norm is strictly greater.
+    norm : {2, "inf"}, optional
+        As for :func:`signal_norm`.
+
+    Returns
+    -------
+    t : float
+        Time of the last sample above the threshold; ``arc.t[0]`` if no
+        sample is above it; ``inf`` if the final sample still is (not
+        settled within the arc).
+    j : int or None
+        Its jump count; ``arc.j[0]`` if no sample is above the threshold;
+        ``None`` if not settled.
+
+    Raises
+    ------
+    ValueError
+        When ``signal`` does not have one value per sample.
+
+    Notes
+    -----
+    No time is compared here: the answer is a stored sample's (t, j). A
+    finite-time observer whose error is reset to 0 by its jump at δ settles
+    at that jump's pre-jump sample, i.e. at the stored jump time, which may
+    differ from δ by the engine's event tolerance (see the module's notes).
+
+    Examples
+    --------
+    >>> import hybridsim as hs
+    >>> arc = hs.HybridArc([0.0, 0.5, 1.0, 1.0, 2.0], [0, 0, 0, 1, 1],
+    ...                    [[1.0], [0.5], [0.25], [0.0], [0.0]], None)
+    >>> settling_time(arc, arc.x, threshold=1e-10)
+    (1.0, 0)
+    >>> settling_time(arc, arc.x * 0.0)
+    (0.0, 0)
+    >>> settling_time(arc, arc.x + 1.0, threshold=0.5)
+    (inf, None)
     """
     v = signal_norm(arc, signal, norm)
     above = np.flatnonzero(v > threshold)
@@ -56,16 +169,65 @@ def settling_time(arc, signal, threshold=1e-8, norm=2):
 
 
 def assert_exact_after(arc, signal, t=None, j=None, atol=1e-8, norm=2):
-    """Assert |signal| <= atol at every sample with t' >= t and j' >= j.
+    """Assert |signal| <= ``atol`` at every sample from hybrid time (t, j) on.
 
-    ``t`` and ``j`` may also be closed ranges ``(lo, hi)``.
+    Parameters
+    ----------
+    arc : HybridArc
+        The solution.
+    signal : array_like or callable
+        As for :func:`signal_norm`.
+    t : float or (float, float), optional
+        The samples checked have time ``t' >= t``, or ``lo <= t' <= hi``
+        for a closed range ``(lo, hi)`` (``None`` for an open end). A sample
+        within the engine's time tolerance of ``t`` (or of ``lo``, ``hi``),
+        :func:`hybridsim.rules.event_tolerance` ``(t, t)`` = 4 ulp of
+        ``max(1, |t|)``, counts as at that time and is checked. ``None``:
+        any time.
+    j : int or (int, int), optional
+        The samples checked have jump count ``j' >= j``, or ``lo <= j' <= hi``
+        (compared exactly). ``None``: any jump count.
+    atol : float, optional
+        The largest norm allowed.
+    norm : {2, "inf"}, optional
+        As for :func:`signal_norm`.
+
+    Returns
+    -------
+    None
+
+    Raises
+    ------
+    AssertionError
+        When a checked sample's norm exceeds ``atol`` (or is NaN); the
+        message names the first one's (t, j) and the number of violations.
+        Also when no sample of the arc is in the requested range.
+    ValueError
+        When ``signal`` does not have one value per sample.
+
+    Examples
+    --------
+    A finite-time observer's error, reset to 0 by a jump meant for t = 0.8
+    that the engine stored one rounding step early:
+
+    >>> import hybridsim as hs
+    >>> t_jump = 0.7999999999999998
+    >>> arc = hs.HybridArc([0.0, t_jump, t_jump, 1.0], [0, 0, 1, 1],
+    ...                    [[1.0], [0.5], [0.0], [0.0]], None)
+    >>> assert_exact_after(arc, arc.x, t=0.8, j=1, atol=0.0)
+    >>> bad = arc.x.copy()
+    >>> bad[2] = 1e-3           # the first sample after the jump, "at 0.8"
+    >>> assert_exact_after(arc, bad, t=0.8, j=1)
+    Traceback (most recent call last):
+    ...
+    AssertionError: signal not exact after (t=0.8, j=1): first violation at (t=0.8, j=1) ...
     """
     m = _mask(arc, t, j)
     if not m.any():
         raise AssertionError(f"assert_exact_after: no sample with t >= {t} and j >= {j} "
                              f"(arc ends at t={arc.t[-1]}, j={arc.j[-1]})")
     v = signal_norm(arc, signal, norm)
-    bad = np.flatnonzero(m & ~(v <= atol))
+    bad = np.flatnonzero(m & ~(_slack(v, atol) >= 0))
     if bad.size:
         k = bad[0]
         raise AssertionError(
@@ -77,25 +239,274 @@ def assert_exact_after(arc, signal, t=None, j=None, atol=1e-8, norm=2):
 def assert_bounded(arc, signal, bound, t=None, j=None, rtol=0.0, atol=0.0, norm=2):
     """Assert |signal(t, j)| <= bound(t, j) * (1 + rtol) + atol over a range.
 
-    ``bound`` is a callable ``(t, j) -> float`` (vectorised over arrays is
-    fine), an array of one value per sample, or a constant.
+    Parameters
+    ----------
+    arc : HybridArc
+        The solution.
+    signal : array_like or callable
+        As for :func:`signal_norm`.
+    bound : callable, array_like or float
+        A callable ``(t, j) -> float`` (called once with the arrays
+        ``arc.t, arc.j`` if it accepts them, else sample by sample), an
+        array of one value per sample, or a constant.
+    t : float or (float, float), optional
+        The samples checked, as for :func:`assert_exact_after`: time
+        ``>= t`` or in the closed range ``(lo, hi)``, a sample within the
+        engine's time tolerance (:func:`hybridsim.rules.event_tolerance`)
+        of an end counting as at it. ``None``: any time.
+    j : int or (int, int), optional
+        Jump counts ``>= j`` or in the closed range ``(lo, hi)``.
+    rtol, atol : float, optional
+        Relative and absolute slack on the bound.
+    norm : {2, "inf"}, optional
+        As for :func:`signal_norm`.
+
+    Returns
+    -------
+    None
+
+    Raises
+    ------
+    AssertionError
+        When a checked sample's norm exceeds its bound (or is NaN); the
+        message names the first one's (t, j), value and bound. Also when no
+        sample of the arc is in the requested range.
+    ValueError
+        When ``signal`` does not have one value per sample.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import hybridsim as hs
+    >>> arc = hs.HybridArc([0.0, 0.5, 1.0], [0, 0, 0], [[1.0], [0.6], [0.36]], None)
+    >>> assert_bounded(arc, arc.x, lambda t, j: np.exp(-t))
+    >>> assert_bounded(arc, arc.x, 0.5, t=(1.0, None))
+    >>> assert_bounded(arc, arc.x, 0.5, t=0.5000000000000001)   # 1 ulp past 0.5: "at 0.5"
+    Traceback (most recent call last):
+    ...
+    AssertionError: bound violated: first at (t=0.5, j=0) with |signal|=6.000000e-01 > ...
     """
     m = _mask(arc, t, j)
     if not m.any():
-        raise AssertionError("assert_bounded: no sample in the requested range")
+        raise AssertionError(f"assert_bounded: no sample in the requested range "
+                             f"(t={t}, j={j}; the arc has t in [{arc.t[0]}, {arc.t[-1]}], "
+                             f"j in [{arc.j[0]}, {arc.j[-1]}])")
     v = signal_norm(arc, signal, norm)
-    if callable(bound):
-        try:
-            b = np.broadcast_to(np.asarray(bound(arc.t, arc.j), dtype=float), v.shape)
-        except (TypeError, ValueError):
-            b = np.array([float(bound(tt, jj)) for tt, jj in zip(arc.t, arc.j)])
-    else:
-        b = np.broadcast_to(np.asarray(bound, dtype=float), v.shape)
+    b = _bound_values(arc, bound, v.shape)
     lim = b * (1 + rtol) + atol
-    bad = np.flatnonzero(m & ~(v <= lim))
+    bad = np.flatnonzero(m & ~(_slack(v, lim) >= 0))
     if bad.size:
         k = bad[0]
         raise AssertionError(
             f"bound violated: first at (t={arc.t[k]:.12g}, j={arc.j[k]}) with "
             f"|signal|={v[k]:.6e} > bound={b[k]:.6e} (rtol={rtol}, atol={atol}); "
             f"{bad.size} of {int(m.sum())} samples violate")
+
+
+# ------------------------------------------------------------------ margins --
+
+def _slack(v, lim):
+    """lim - v, with NaN values (a broken signal) as -inf: never "holds"."""
+    d = np.asarray(lim, dtype=float) - np.asarray(v, dtype=float)
+    return np.where(np.isnan(d), -np.inf, d)
+
+
+def _bound_values(arc, bound, shape):
+    if callable(bound):
+        try:
+            return np.broadcast_to(np.asarray(bound(arc.t, arc.j), dtype=float), shape)
+        except (TypeError, ValueError):
+            return np.array([float(bound(tt, jj)) for tt, jj in zip(arc.t, arc.j)])
+    return np.broadcast_to(np.asarray(bound, dtype=float), shape)
+
+
+class Margin(float):
+    """A signed margin: by how much a claim holds (>= 0) or is violated (< 0).
+
+    A float (compare, add, ``min``, ``max`` it as one) that also says where
+    it was decided: :attr:`where` is the hybrid time ``(t, j)`` of the
+    deciding sample (None when no single sample decides), :attr:`what`
+    which claim.
+
+    Examples
+    --------
+    >>> m = Margin(-0.25, t=1.5, j=2, what="bounded")
+    >>> float(m), m.where, m.holds
+    (-0.25, (1.5, 2), False)
+    """
+
+    def __new__(cls, value, t=None, j=None, what=""):
+        self = super().__new__(cls, value)
+        self.where = None if t is None else (float(t), None if j is None else int(j))
+        self.what = what
+        return self
+
+    @property
+    def holds(self):
+        """``margin >= 0``."""
+        return float(self) >= 0
+
+    def __repr__(self):
+        at = "" if self.where is None else f" at (t={self.where[0]:.6g}, j={self.where[1]})"
+        return f"Margin({float(self):.6g}{at}{', ' + self.what if self.what else ''})"
+
+
+def _worst(arc, slack, m, what):
+    if not m.any():
+        raise ValueError(f"{what}: no sample of the arc in the requested range (the arc has "
+                         f"t in [{arc.t[0]}, {arc.t[-1]}], j in [{arc.j[0]}, {arc.j[-1]}])")
+    idx = np.flatnonzero(m)
+    k = idx[int(np.argmin(slack[idx]))]
+    return Margin(slack[k], arc.t[k], arc.j[k], what)
+
+
+def margin_exact_after(arc, signal, t=None, j=None, atol=1e-8, norm=2):
+    """The margin of "|signal| <= atol at every sample from (t, j) on".
+
+    ``atol - max |signal|`` over the samples selected as in
+    :func:`assert_exact_after` (the same time tolerance), with the deciding
+    sample's (t, j); NaN counts as -inf.
+
+    Parameters
+    ----------
+    arc, signal, t, j, atol, norm
+        As for :func:`assert_exact_after`.
+
+    Returns
+    -------
+    Margin
+
+    Raises
+    ------
+    ValueError
+        No sample in the range.
+
+    Examples
+    --------
+    >>> import hybridsim as hs
+    >>> arc = hs.HybridArc([0.0, 0.8, 0.8, 1.0], [0, 0, 1, 1], [[1.0], [0.5], [0.0], [2e-9]],
+    ...                    None)
+    >>> margin_exact_after(arc, arc.x, t=0.8, j=1, atol=1e-8)
+    Margin(8e-09 at (t=1, j=1), exact after)
+    """
+    v = signal_norm(arc, signal, norm)
+    return _worst(arc, _slack(v, atol), _mask(arc, t, j), "exact after")
+
+
+def margin_bounded(arc, signal, bound, t=None, j=None, rtol=0.0, atol=0.0, norm=2):
+    """The margin of "|signal(t, j)| <= bound(t, j) (1 + rtol) + atol over a range".
+
+    ``min (bound (1 + rtol) + atol - |signal|)`` over the selected samples
+    (as :func:`assert_bounded`), with the deciding sample's (t, j).
+
+    Parameters
+    ----------
+    arc, signal, bound, t, j, rtol, atol, norm
+        As for :func:`assert_bounded`.
+
+    Returns
+    -------
+    Margin
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import hybridsim as hs
+    >>> arc = hs.HybridArc([0.0, 0.5, 1.0], [0, 0, 0], [[1.0], [0.7], [0.3]], None)
+    >>> m = margin_bounded(arc, arc.x, lambda t, j: np.exp(-t))
+    >>> round(float(m), 4), m.where
+    (-0.0935, (0.5, 0))
+    """
+    v = signal_norm(arc, signal, norm)
+    lim = _bound_values(arc, bound, v.shape) * (1 + rtol) + atol
+    return _worst(arc, _slack(v, lim), _mask(arc, t, j), "bounded")
+
+
+def margin_decays(arc, signal, c, rate, t=None, j=None, norm=2):
+    """The margin of "|signal(t, j)| <= c e^(-rate (t - t0))" (t0 = ``arc.t[0]``).
+
+    A :func:`margin_bounded` with that bound. For an exponential decay the
+    absolute margin is small late in the arc whatever the decay; compare
+    claims of different size with a relative margin of your own
+    (``margin_bounded`` of ``|signal| / bound`` against 1).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import hybridsim as hs
+    >>> t = np.linspace(0, 2, 5)
+    >>> arc = hs.HybridArc(t, np.zeros(5, int), np.exp(-t)[:, None], None)
+    >>> margin_decays(arc, arc.x, c=1.0, rate=0.5).holds
+    True
+    >>> margin_decays(arc, arc.x, c=1.0, rate=2.0).holds
+    False
+    """
+    t0 = float(arc.t[0])
+    return margin_bounded(arc, signal, lambda tt, jj: c * np.exp(-rate * (np.asarray(tt) - t0)),
+                          t=t, j=j, norm=norm)
+
+
+def margin_settles_by(arc, signal, by, threshold=1e-8, norm=2):
+    """The margin of "|signal| <= threshold from time ``by`` on": ``by`` minus
+    the settling time (:func:`settling_time`).
+
+    Positive: it settled that long before ``by``. Negative: that long after
+    (the last sample above the threshold is the ``where``). -inf when the
+    arc ends above the threshold (never settled).
+
+    Examples
+    --------
+    >>> import hybridsim as hs
+    >>> arc = hs.HybridArc([0.0, 1.0, 2.0, 3.0], [0] * 4, [[1.0], [0.1], [0.0], [0.0]], None)
+    >>> margin_settles_by(arc, arc.x, by=1.5)
+    Margin(0.5 at (t=1, j=0), settles by)
+    """
+    ts, js = settling_time(arc, signal, threshold, norm)
+    if math.isinf(ts):
+        return Margin(-math.inf, arc.t[-1], arc.j[-1], "settles by")
+    return Margin(float(by) - ts, ts, js, "settles by")
+
+
+def margin_in_set(arc, distance, t=None, j=None):
+    """The margin of "the arc stays in a set", given its signed distance.
+
+    ``distance(x, t, j)`` is positive inside the set, negative outside (a
+    level function: ``r - |x|`` for a ball of radius r, ``min(x - lo, hi -
+    x)`` for a box); the margin is its minimum over the selected samples.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import hybridsim as hs
+    >>> arc = hs.HybridArc([0.0, 1.0], [0, 0], [[0.5, 0.0], [0.0, 1.2]], None)
+    >>> margin_in_set(arc, lambda x, t, j: 1.0 - np.linalg.norm(x))
+    Margin(-0.2 at (t=1, j=0), in set)
+    """
+    d = np.asarray(arc.evaluate(distance), dtype=float).reshape(len(arc.t))
+    return _worst(arc, np.where(np.isnan(d), -np.inf, d), _mask(arc, t, j), "in set")
+
+
+def all_of(*margins):
+    """Conjunction: the smallest margin (all hold iff it is >= 0), where it was decided.
+
+    Examples
+    --------
+    >>> all_of(Margin(0.3), Margin(-0.1, t=2.0, j=1)).where
+    (2.0, 1)
+    """
+    if not margins:
+        raise ValueError("all_of needs at least one margin")
+    return min(margins, key=float)
+
+
+def any_of(*margins):
+    """Disjunction: the largest margin (one holds iff it is >= 0).
+
+    Examples
+    --------
+    >>> float(any_of(Margin(0.3), Margin(-0.1)))
+    0.3
+    """
+    if not margins:
+        raise ValueError("any_of needs at least one margin")
+    return max(margins, key=float)
