@@ -412,6 +412,61 @@ def _claims_table(rows: list[dict]) -> list[str]:
     return h
 
 
+def _falsification(outdir: pathlib.Path, part: Part) -> list[str]:
+    """The part's falsification problems, if ``python -m observers falsify`` ran."""
+    path = outdir / part.name / "falsification.json"
+    if not path.is_file():
+        return []
+    try:
+        rows = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        return [f'<p class="fail">{_e(path.name)} cannot be read: {_e(exc)}</p>']
+    h = ["<h3>Falsification: searches for counterexamples</h3>",
+         '<p class="meta">Each statement searched over its hypotheses by differential '
+         "evolution (whole populations per run), beside random sampling with the same "
+         "budget; a margin below 0 is a counterexample. Expected: a counterexample for the "
+         "statements as printed where the paper errs, none for the corrected ones.</p>",
+         '<table class="falsification"><thead><tr><th>problem</th><th>where</th>'
+         "<th>statement</th><th>space</th><th>budget</th><th>expected</th><th>found</th>"
+         "<th>worst margin</th><th>random sampling</th><th>check</th></tr></thead><tbody>"]
+    figures = []
+    for r in rows:
+        if r.get("error"):
+            h.append(f'<tr class="notpassed"><td><code>{_e(r.get("id"))}</code></td>'
+                     f'<td colspan="9"><pre>{_e(r["error"])}</pre></td></tr>')
+            continue
+        check = ('<span class="ok">✓ as expected</span>' if r.get("passed")
+                 else '<span class="bad">✗ NOT as expected</span>')
+        found = r.get("found", "")
+        cls = "v-differs" if found == "counterexample" else "v-reproduced"
+        h.append(f'<tr class="{"passed" if r.get("passed") else "notpassed"}">'
+                 f'<td><code>{_e(r["id"])}</code></td><td>{_e(r["where"])}</td>'
+                 f'<td class="statement">{_e(r["statement"])}<br><span class="meta">'
+                 f'{_e(r.get("reason", ""))}</span></td>'
+                 f'<td class="why"><code>{_e(r.get("space", ""))}</code></td>'
+                 f'<td class="num">{_e(r.get("budget", ""))}</td><td>{_e(r["expect"])}</td>'
+                 f'<td class="verdict {cls}">{_e(found)}</td>'
+                 f'<td class="num">{_e(_num(r.get("margin")))}<br><span class="meta">'
+                 f'{_e(r.get("evaluations", ""))} runs, {_e(_secs(r.get("seconds")))}'
+                 f'</span></td>'
+                 f'<td class="num">{_e(_num(r.get("baseline_margin")))}<br>'
+                 f'<span class="meta">{_e(_secs(r.get("baseline_seconds")))}</span></td>'
+                 f"<td>{check}</td></tr>")
+        if r.get("figure"):
+            figures.append(r["figure"])
+    h.append("</tbody></table>")
+    for rel in figures:
+        png = outdir / rel
+        if not png.is_file():
+            continue
+        txt = png.with_suffix(".txt")
+        cap = _e(txt.read_text(encoding="utf-8").strip()) if txt.is_file() else ""
+        h.append(f'<figure><a href="{_href(rel)}"><img src="{_href(rel)}" '
+                 f'alt="{_e("worst run of " + pathlib.PurePosixPath(rel).stem)}"></a>'
+                 f"<figcaption>{cap}</figcaption></figure>")
+    return h
+
+
 def _items(title: str, items, what: str, engine: bool) -> list[str]:
     if engine:
         return []
@@ -490,6 +545,7 @@ def _section(part: Part, outdir: pathlib.Path) -> list[str]:
                      f"{', ' + str(c['error']) + ' could not be evaluated' if c['error'] else ''}"
                      f"; {c['total'] - c['failed']} of {c['total']} as expected.</p>")
             h += _claims_table(part.claims)
+    h += _falsification(outdir, part)
     h += _items("Errata found", part.errata, "ERRATA", engine)
     h += _items("Decisions taken where the paper is ambiguous", part.decisions, "DECISIONS",
                 engine)

@@ -410,8 +410,79 @@ def _summary_line(part: Part) -> str:
             + f"  ({part.seconds + part.claims_seconds:.1f} s)")
 
 
+def run_falsification(name: str, out, *, scale: float = 1.0, seed: int = 0,
+                      echo=None) -> list[dict]:
+    """Search every problem of a paper package's ``PROBLEMS`` and record them.
+
+    Each :class:`observers.falsification.Problem` is searched and sampled at
+    random with the same budget (:func:`observers.falsification.run_problem`);
+    the rows go to ``out/<name>/falsification.json`` (read by the report),
+    and each counterexample's worst run is drawn as
+    ``out/<name>/falsify_<id>.png`` with a caption.
+
+    Parameters
+    ----------
+    name : str
+        A paper package's name.
+    out : str or pathlib.Path
+        The output folder (the main job's).
+    scale : float
+        Multiplies every budget (the expected outcomes hold at 1).
+    seed : int
+        Seeds every search.
+    echo : callable, optional
+        Gets one line per problem (default ``print``).
+
+    Returns
+    -------
+    list of dict
+        One row per problem (:meth:`observers.falsification.ProblemResult.row`),
+        with ``figure`` (relative path or None) and ``error`` (a traceback
+        when the search itself failed).
+    """
+    import json
+
+    from ._common import save_figure
+    from .falsification import draw_worst, run_problem, validate_problems
+    echo = print if echo is None else echo
+    mod = importlib.import_module(f"observers.{name}")
+    d = pathlib.Path(out) / name
+    d.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for prob in validate_problems(getattr(mod, "PROBLEMS", []) or []):
+        try:
+            res = run_problem(prob, seed=seed, scale=scale)
+        except Exception:  # noqa: BLE001 - one broken problem does not stop the others
+            rows.append({"id": prob.id, "where": prob.where, "statement": prob.statement,
+                         "expect": prob.expect, "passed": False, "error":
+                         traceback.format_exc(), "figure": None})
+            echo(f"  ERROR  {prob.id}")
+            continue
+        row = res.row()
+        row["figure"], row["error"] = None, ""
+        if res.found == "counterexample" and res.search.arc is not None:
+            fig = draw_worst(res)
+            png = save_figure(fig, d, f"falsify_{prob.id}", (
+                f"{prob.id} ({prob.where}): {prob.statement} Worst run found by differential "
+                f"evolution in {res.search.evaluations} runs: margin {res.margin:.4g} at "
+                f"{res.search.point}. Left: the worst margin so far against the number of "
+                "runs, for the search (solid) and random sampling of the same budget "
+                "(dashed); below 0 the statement is violated. Right: the worst run's state "
+                "against t."))
+            row["figure"] = png.relative_to(pathlib.Path(out)).as_posix()
+        rows.append(row)
+        mark = "as expected" if res.passed else "NOT AS EXPECTED"
+        echo(f"  {mark:<16} {prob.id:<34} {res.found}: margin {res.margin:.4g} "
+             f"(random: {res.baseline.margin:.4g}), {res.search.evaluations} runs, "
+             f"{res.search.seconds:.1f} s")
+    (d / "falsification.json").write_text(json.dumps(rows, indent=1, default=str),
+                                         encoding="utf-8")
+    return rows
+
+
 def main(argv=None):
-    """The command line: ``reproduce [NAME ...] [--out DIR] [--no-claims]``, ``report``."""
+    """The command line: ``reproduce [NAME ...] [--out DIR] [--no-claims]``, ``falsify``,
+    ``report``."""
     p = argparse.ArgumentParser(prog="python -m observers",
                                 description="Reproduce the papers' results and figures.")
     sub = p.add_subparsers(dest="cmd", required=True)
@@ -423,6 +494,14 @@ def main(argv=None):
                    help="do not evaluate the papers' claims")
     r.add_argument("--verbose", "-v", action="store_true",
                    help="also print every part's log and every claim's line")
+    fal = sub.add_parser("falsify", help="search the papers' theorems for counterexamples "
+                                         "(each package's PROBLEMS) and add them to the report")
+    fal.add_argument("names", nargs="*", choices=[*PAPER_MODULES, []], default=[],
+                     help="which papers (default: all)")
+    fal.add_argument("--out", default="results", help="output folder (default: results)")
+    fal.add_argument("--scale", type=float, default=1.0,
+                     help="multiply every budget (default 1: the pinned outcomes)")
+    fal.add_argument("--seed", type=int, default=0, help="seed of every search (default 0)")
     rep = sub.add_parser("report", help="rewrite index.html and claims.csv from the parts "
                                         "recorded in the output folder")
     rep.add_argument("--out", default="results", help="output folder (default: results)")
@@ -437,6 +516,24 @@ def main(argv=None):
             return 2
         page = write_report(out, command=command)
         print(f"report: {page.resolve()}")
+        return 0
+    if args.cmd == "falsify":
+        if not args.scale > 0:
+            print(f"--scale must be > 0, got {args.scale}", file=sys.stderr)
+            return 2
+        off = []
+        for name in dict.fromkeys(args.names or PAPER_MODULES):
+            print(f"[{name}] falsification problems")
+            rows = run_falsification(name, out, scale=args.scale, seed=args.seed)
+            off += [r["id"] for r in rows if not r["passed"]]
+        if not any((out / n / "part.json").is_file() for n in PAPERS):
+            print("(no parts recorded in this folder yet: run `reproduce` into it for the "
+                  "full report)")
+        page = write_report(out, command=command)
+        print(f"report: {page.resolve()}")
+        if off:
+            print(f"problems not as expected: {', '.join(off)}", file=sys.stderr)
+            return 1
         return 0
     names = list(dict.fromkeys(args.names or PAPERS))
     t0 = time.perf_counter()

@@ -394,3 +394,47 @@ def test_report_lists_figures_not_reproduced_and_reads_yes_no_and_bounds(tmp_pat
     yes, bound = ([c["text"] for c in row] for row in table["rows"])
     assert yes[col["our value"]] == "yes" and yes[col["paper's value"]].startswith("yes")
     assert bound[col["paper's value"]] == "≤ 8" and bound[col["verdict"]] == "reproduced"
+
+
+# ------------------------------------------------------------ falsification --
+
+def _timer_problem(pid, level, expect):
+    import hybridsim as hs
+    from hybridsim.falsification import Interval, Space
+    from hybridsim.library import Timer
+    from observers.falsification import Problem
+    return Problem(id=pid, paper="002", where="(9)", statement=f"first reset by {level}",
+                   space=Space(period=Interval(0.9, 1.2)),
+                   run=lambda p: hs.simulate(Timer(p["period"]), [0.0], t_max=2.0, j_max=1),
+                   margin=lambda arc: level - arc.jump_times[0], budget=60, expect=expect,
+                   reason=f"periods reach 1.2 {EVIL}")
+
+
+def test_falsify_command_records_problems_and_the_report_shows_them(tmp_path, monkeypatch,
+                                                                    capsys):
+    mod = _fake("li_sanfelice", reproduce=_good)
+    mod.PROBLEMS = [_timer_problem("002-printed", 1.1, "counterexample"),
+                    _timer_problem("002-corrected", 1.25, "none")]
+    monkeypatch.setitem(sys.modules, "observers.li_sanfelice", mod)
+    assert rp.main(["reproduce", "li_sanfelice", "--out", str(tmp_path)]) == 0
+    assert rp.main(["falsify", "li_sanfelice", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "as expected" in out and "002-printed" in out
+    rows = json.loads((tmp_path / "li_sanfelice" / "falsification.json").read_text())
+    assert [(r["id"], r["found"], r["passed"]) for r in rows] == [
+        ("002-printed", "counterexample", True), ("002-corrected", "none", True)]
+    assert rows[0]["margin"] < 0 and rows[1]["margin"] >= 0.05 - 1e-9
+    png = tmp_path / rows[0]["figure"]
+    assert png.is_file() and png.with_suffix(".txt").is_file() and rows[1]["figure"] is None
+    text = (tmp_path / "index.html").read_text()
+    assert "Falsification: searches for counterexamples" in text
+    assert "periods reach 1.2 &lt;script" in text and rows[0]["figure"] in text
+    page = _Page()
+    page.feed(text)
+    table = next(t for t in page.tables if t["class"] == "falsification")
+    assert len(table["rows"]) == 2
+    # a problem off its expected outcome fails the command
+    mod.PROBLEMS = [_timer_problem("002-wrong", 1.1, "none")]
+    assert rp.main(["falsify", "li_sanfelice", "--out", str(tmp_path)]) == 1
+    assert "problems not as expected: 002-wrong" in capsys.readouterr().err
+    assert rp.main(["falsify", "--out", str(tmp_path), "--scale", "0"]) == 2
