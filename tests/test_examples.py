@@ -149,3 +149,18 @@ def test_timer(tmp_path):
     np.testing.assert_allclose(arc.jump_times, np.arange(1.0, 6.0), rtol=0, atol=8e-15)
     np.testing.assert_allclose(arc.flow_lengths, [1, 1, 1, 1, 1, 0.5], atol=1e-13)
     assert arc.x[:, 0].min() >= 0 and arc.x[:, 0].max() <= 1 + 1e-14
+
+
+def test_falsify_overshoot_finds_the_half_degree_claim_false(capsys):
+    """The worked falsification example: with |m| <= 1 the temperature reaches
+    z_max + 1 (or z_min - 1) exactly, so "within 0.5" fails by 0.5 and
+    "within 1" holds with margin equal to the slack TOL (1e-6)."""
+    ns = runpy.run_path(str(EXAMPLES / "falsify_overshoot.py"), run_name="__main__")
+    claimed, corrected, baseline = ns["claimed"], ns["corrected"], ns["baseline"]
+    assert claimed.verdict == "counterexample"
+    assert abs(claimed.margin + 0.5) < 1e-5          # 0.5 beyond, to the runs' accuracy
+    assert corrected.verdict == "none found" and 0 <= corrected.margin <= 2e-6
+    assert claimed.margin <= baseline.margin
+    z = claimed.arc.x[:, 0]
+    assert max(z.max() - 80.0, 70.0 - z.min()) == pytest.approx(1.0, abs=1e-5)
+    assert "claim: within 0.5 degree" in capsys.readouterr().out
