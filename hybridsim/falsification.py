@@ -15,7 +15,8 @@ population of points to their arcs in one batch
 
 The search is scipy's differential evolution over the space's box, which
 evaluates each population at once (``vectorized=True``), then a local
-Nelder-Mead refinement of the worst point within the remaining budget;
+compass-search refinement of the worst point within the remaining budget
+(each of its iterations one population too);
 ``method="random"`` is the random-sampling baseline of the same budget.
 Only each run's margin is kept (the worst run is simulated again for its
 arc), so a search of 10^6 runs holds 10^6 floats, not 10^6 arcs.
@@ -586,14 +587,16 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
         generation is one population evaluated at once, deferred updating;
         the first population a Latin hypercube with a quarter of it on
         vertices of the box, where worst cases under bounded uncertainty
-        often lie), then Nelder-Mead from the worst point with what is left
-        of the budget (``refine``: a fifth of it is kept for this). ``"random"``: uniform
+        often lie), then a compass search from the worst point with what is
+        left of the budget (``refine``: a fifth of it is kept for this; each
+        of its iterations, a step along every coordinate both ways, is one
+        population too). ``"random"``: uniform
         sampling of the box in populations, the baseline to compare with.
     popsize : int, optional
         Population size (default ``max(15, 5 * space.dim)`` for DE, at least
         5; 100 for random), capped by the budget.
     refine : bool
-        Refine the worst point locally (``"de"`` only).
+        Refine the worst point locally by compass search (``"de"`` only).
     allow : iterable of str
         Termination causes that are ordinary ends of a run; any other cause
         (a blow-up, a map error, a run that raised) is a finding: recorded
@@ -710,27 +713,23 @@ def _de(ev, space, popsize, seed, budget):
 
 
 def _refine(ev, space):
-    from scipy.optimize import minimize
-    free = space.hi > space.lo
-    z0 = ev.best_z.copy()
-    scale = np.where(free, space.hi - space.lo, 1.0)
-
-    def f(u):
-        if ev.done:
-            return np.inf
-        z = space.lo + u * scale
-        return float(ev(z[None, :])[0])
-
-    u0 = (z0 - space.lo) / scale
-    left = ev.budget - len(ev.history)
-    minimize(f, u0, method="Nelder-Mead", bounds=[(0.0, 1.0)] * space.dim,
-             options={"maxfev": left, "xatol": 1e-10, "fatol": 0.0,
-                      "initial_simplex": _simplex(u0, 0.05)})
-
-
-def _simplex(u0, step):
-    n = u0.size
-    S = np.tile(u0, (n + 1, 1))
-    for k in range(n):
-        S[k + 1, k] = u0[k] + step if u0[k] + step <= 1.0 else u0[k] - step
-    return S
+    """A compass (pattern) search from the worst point: each iteration tries a
+    step of +h and -h along every free coordinate as one population, moves to
+    the best if it improves, else halves h; steps are clipped into the box, so
+    a worst case on a face or a vertex is reached exactly."""
+    free = np.flatnonzero(space.hi > space.lo)
+    width = space.hi - space.lo
+    z, best = ev.best_z.copy(), ev.best
+    h = 0.1
+    while not ev.done and h > 1e-9:
+        cand = np.repeat(z[None, :], 2 * free.size, axis=0)
+        rows = np.arange(free.size)
+        cand[rows, free] += h * width[free]
+        cand[free.size + rows, free] -= h * width[free]
+        cand = np.clip(cand, space.lo, space.hi)
+        vals = ev(cand)
+        k = int(np.argmin(vals))
+        if vals[k] < best:
+            z, best = cand[k], vals[k]
+        else:
+            h /= 2

@@ -23,8 +23,10 @@ for all five by ``tests/test_contract.py``::
     figures.py    FIGURES (each figure's numbers, then its drawing), reproduce(),
                   NOT_REPRODUCED
     claims.py     CLAIMS: every quantitative statement, with its number
+    falsification.py  PROBLEMS: the quantified statements as searches for
+                  counterexamples (observers.falsification)
 
-Imports run downward (design, systems, example, figures, claims).
+Imports run downward (design, systems, example, figures, claims, falsification).
 
 1. **Design** from the paper's data: a ``design(...)`` function (or a
    ``Design`` class) validates its input at construction (dimensions,

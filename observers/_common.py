@@ -9,7 +9,8 @@
   numbers computed by one function, drawn by another); ``reproduce(outdir)``
   writes them through :func:`reproduce_figures`; ``NOT_REPRODUCED`` names the
   paper's figures left out, with the reason; ``PAPER``, ``ERRATA``,
-  ``DECISIONS``, ``CLAIMS``.
+  ``DECISIONS``, ``CLAIMS``; ``PROBLEMS``, the paper's quantified statements
+  as searches for counterexamples (:mod:`observers.falsification`).
 * **Input checks** (matrices, vectors, scalars, observability), so that a bad
   argument gets the same kind of message whichever observer it was given to.
 * **Figures**: :func:`save_figure` writes a PNG with its caption.
@@ -333,11 +334,14 @@ CONTRACT = {
     "simulate": "simulate(observer, x0, xhat0=None, *, t_max, noise=None, seed=None, "
                 "**simulate_kwargs) -> hybridsim.HybridArc",
     "errors": "errors(arc, observer) -> observers._common.Errors",
+    "PROBLEMS": "list of observers.falsification.Problem: the paper's quantified statements "
+                "as searches for counterexamples",
 }
 
 # Where each contract name is defined in a package.
 _HOME = {"FIGURES": "figures", "NOT_REPRODUCED": "figures", "reproduce": "figures",
-         "simulate": "example", "errors": "example", "CLAIMS": "claims"}
+         "simulate": "example", "errors": "example", "CLAIMS": "claims",
+         "PROBLEMS": "falsification"}
 
 
 def _signature_problems(name, fn, positional, keyword_only, var_keyword):
@@ -376,11 +380,11 @@ def contract_problems(package):
     Checks that every contract name is exported (in ``__all__``) and defined
     in its file (``simulate``/``errors`` in ``example.py``, ``FIGURES``,
     ``NOT_REPRODUCED`` and ``reproduce`` in ``figures.py``, ``CLAIMS`` in
-    ``claims.py``), the signatures of ``simulate``, ``errors`` and
-    ``reproduce``, the types of the registries, that ``__all__`` is the union
-    of the submodules' ``__all__``, that no object is exported under two
-    names (no aliases), and that every :class:`hybridsim.HybridSystem` it
-    exports is defined in ``systems.py``.
+    ``claims.py``, ``PROBLEMS`` in ``falsification.py``), the signatures of
+    ``simulate``, ``errors`` and ``reproduce``, the types of the registries,
+    that ``__all__`` is the union of the submodules' ``__all__``, that no
+    object is exported under two names (no aliases), and that every
+    :class:`hybridsim.HybridSystem` it exports is defined in ``systems.py``.
 
     Parameters
     ----------
@@ -406,7 +410,7 @@ def contract_problems(package):
         elif not hasattr(package, key):
             problems.append(f"{name} exports {key!r} but does not define it")
     subs = {}
-    for sub in ("design", "systems", "example", "figures", "claims"):
+    for sub in ("design", "systems", "example", "figures", "claims", "falsification"):
         try:
             subs[sub] = importlib.import_module(f"{name}.{sub}")
         except ImportError as exc:

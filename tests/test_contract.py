@@ -25,7 +25,7 @@ def test_package_keeps_the_contract(name):
 @pytest.mark.parametrize("name", PACKAGES)
 def test_dataclasses_are_frozen(name):
     """One dataclass style: every dataclass of a paper package is frozen."""
-    for sub in ("design", "systems", "example", "figures", "claims"):
+    for sub in ("design", "systems", "example", "figures", "claims", "falsification"):
         mod = importlib.import_module(f"observers.{name}.{sub}")
         for obj in vars(mod).values():
             if (inspect.isclass(obj) and obj.__module__ == mod.__name__
