@@ -7,8 +7,12 @@ Build (from the repository root; warnings are errors)::
 
 The API reference is generated from the docstrings (numpydoc format), the
 gallery from ``examples/`` by sphinx-gallery (which runs the fast scripts and
-shows the slow ones without running them: see ``NOT_RUN``), and the
-semantics page from README's "Semantics" section, so that text has one source.
+shows the slow ones without running them: see ``NOT_RUN``), the
+semantics page from README's "Semantics" section, so that text has one source,
+and the papers page from the paper packages (``_papers.py``). MathJax is
+bundled into the HTML (sphinx-mathjax-offline), so the math renders with no
+network. Every build ends by checking that each internal link of the HTML
+resolves, file and #anchor (``_linkcheck.py``; a broken one is a warning).
 """
 from __future__ import annotations
 
@@ -44,6 +48,9 @@ extensions = [
     "sphinx.ext.autodoc",
     "sphinx.ext.autosummary",
     "sphinx.ext.mathjax",
+    # MathJax 3 copied into _static/mathjax: math renders with no network
+    # (sphinx.ext.mathjax alone loads it from a CDN when the page is read)
+    "sphinx-mathjax-offline",
     "sphinx.ext.viewcode",
     "numpydoc",
     "sphinx_gallery.gen_gallery",
@@ -63,8 +70,10 @@ if os.environ.get("HYBRIDSIM_DOCS_INTERSPHINX"):
         "networkx": ("https://networkx.org/documentation/stable", None),
     }
 
+# primes stay primes: v' is a derivative, not a closing quote
+smartquotes = False
 templates_path = []
-exclude_patterns = ["_build", "**.ipynb_checkpoints", "auto_examples/*.ipynb",
+exclude_patterns = ["_build", "_generated", "**.ipynb_checkpoints", "auto_examples/*.ipynb",
                     "auto_examples/*.py", "auto_examples/*.zip", "auto_examples/*.json",
                     "auto_examples/*.md5", "auto_examples/*.pickle"]
 nitpicky = False
@@ -87,17 +96,31 @@ numpydoc_attributes_as_param_list = False
 # -- sphinx-gallery ----------------------------------------------------------
 
 # Examples that take more than ~20 s on a 2-core machine are rendered (code and
-# text) but not run; their output is what `python examples/<name>.py` prints.
-NOT_RUN = ("distributed_example.py",      # ~60 s: stiff signed powers near convergence
-           "dynamic_gain_example.py")     # ~20 s: four runs and LMI (10)
+# text) but not run; their output is what `python examples/<name>.py` prints,
+# and their thumbnail is sphinx-gallery's placeholder. None at present: every
+# example runs in a few seconds (measured with `time python examples/<name>.py`,
+# MPLBACKEND=Agg, on 2 cores: the papers' examples 1.4 to 4.2 s, the longest
+# falsify_overshoot.py 5.1 s) and draws its figure.
+NOT_RUN: tuple[str, ...] = ()
+
+
+def _run_pattern(not_run) -> str:
+    """sphinx-gallery's ``filename_pattern``: every ``.py`` but those of ``not_run``."""
+    if not not_run:
+        return r"\.py$"
+    return r"^(?!.*(" + "|".join(re.escape(n) for n in not_run) + r")$).*\.py$"
+
+
 sphinx_gallery_conf = {
     "examples_dirs": str(ROOT / "examples"),
     "gallery_dirs": "auto_examples",
-    "filename_pattern": r"^(?!.*(" + "|".join(re.escape(n) for n in NOT_RUN) + r")$).*\.py$",
+    "filename_pattern": _run_pattern(NOT_RUN),
     "ignore_pattern": r"__init__\.py",
     # the engine's examples write PNGs to sys.argv[1]: see _gallery.py
     "reset_argv": "_gallery.reset_argv",
-    "image_scrapers": ("matplotlib", "_gallery.png_scraper"),
+    # figures drawn with pyplot appear where the script shows them (plt.show),
+    # not empty after the block that made them: see _gallery.py
+    "image_scrapers": ("_gallery.mpl_scraper", "_gallery.png_scraper"),
     "within_subsection_order": "FileNameSortKey",
     "download_all_examples": False,
     "remove_config_comments": True,
@@ -131,7 +154,12 @@ def _escape_bars(line: str) -> str:
     return "".join(parts)
 
 
-def _plain_text_math(app, what, name, obj, options, lines):
+def _escape_plain_bars(lines, skip_directives=False):
+    """Escape, in place, the "|" of the plain-text lines of reST ``lines``.
+
+    ``skip_directives``: the content of every directive is left alone (a
+    gallery page's code and output blocks), not only that of literal blocks.
+    """
     literal_indent = None       # indentation of the line that opened a literal block
     for k, line in enumerate(lines):
         stripped = line.lstrip()
@@ -141,13 +169,27 @@ def _plain_text_math(app, what, name, obj, options, lines):
                 continue
             literal_indent = None
         if stripped.startswith((">>>", "... ", "| ", "+-", "+=", ".. ")) or stripped == "|":
-            if stripped.startswith(".. ") and stripped.rstrip().endswith("::"):
+            if stripped.startswith(".. ") and (stripped.rstrip().endswith("::") or (
+                    skip_directives and re.match(r"\.\. [\w:-]+::", stripped))):
                 literal_indent = indent
             continue
         if "|" in line:
             lines[k] = _escape_bars(line)
         if stripped.rstrip().endswith("::"):
             literal_indent = indent
+
+
+def _plain_text_math(app, what, name, obj, options, lines):
+    _escape_plain_bars(lines)
+
+
+def _gallery_plain_text_math(app, docname, source):
+    """The gallery's text blocks (the examples' comments) follow the
+    docstrings' convention too: ``|e|`` is a norm, not a substitution."""
+    if docname.startswith("auto_examples/") and "|" in source[0]:
+        lines = source[0].split("\n")
+        _escape_plain_bars(lines, skip_directives=True)
+        source[0] = "\n".join(lines)
 
 
 def _skip_foreign(app, what, name, obj, skip, options):
@@ -253,12 +295,29 @@ def _readme_semantics() -> str:
 
 
 def _write_generated(app):
+    """docs/_generated/: README's semantics section and the papers page
+    (:mod:`_papers`: the packages' PAPER, ERRATA, DECISIONS, NOT_REPRODUCED
+    and claims, read from the code without evaluating the claims). A file is
+    rewritten only when its text changed, so that an unchanged page is not
+    rebuilt."""
+    import _papers
+    from sphinx.util import logging
+
+    try:
+        papers = _papers.papers_rst()
+    except Exception as exc:  # noqa: BLE001 - any failure of a package is reported, the build goes on
+        logging.getLogger(__name__).warning(
+            "docs/papers.rst: reading the paper packages failed: %s: %s",
+            type(exc).__name__, exc)
+        papers = (f"The paper packages could not be read when this page was built "
+                  f"(``{type(exc).__name__}``).\n")
     gen = DOCS / "_generated"
     gen.mkdir(exist_ok=True)
-    target = gen / "semantics_readme.rst"
-    text = _readme_semantics()
-    if not target.exists() or target.read_text(encoding="utf-8") != text:
-        target.write_text(text, encoding="utf-8")
+    for name, text in (("semantics_readme.rst", _readme_semantics()),
+                       ("papers.rst", papers)):
+        target = gen / name
+        if not target.exists() or target.read_text(encoding="utf-8") != text:
+            target.write_text(text, encoding="utf-8")
 
 
 def _check_api_coverage(app):
@@ -275,6 +334,53 @@ def _check_api_coverage(app):
             ", ".join(missing))
 
 
+def _fix_viewcode_backlinks(app, env):
+    """Point each highlighted source page's [docs] links at anchors that exist.
+
+    sphinx.ext.viewcode keeps one reference prefix per source module (the
+    module name under which it first met one of the module's objects), and
+    for each object the last page that documented it. An object of
+    ``hybridsim.rules`` is documented twice: as ``hybridsim.SimulationError``
+    (re-exported, on its own page) and as ``hybridsim.rules.SimulationError``
+    (on the module's page). The source page then linked the module's page
+    with the other prefix, ``hybridsim.rules.html#hybridsim.SimulationError``:
+    anchors that do not exist. Here each module gets the prefix under which
+    all its linked objects are documented (its own name first), and each
+    object the page that documents it under that prefix.
+    """
+    modules = getattr(env, "_viewcode_modules", {})
+    objects = env.get_domain("py").objects
+    for modname, entry in list(modules.items()):
+        if not entry:
+            continue
+        code, tags, used, refname = entry
+        if not used:
+            continue
+        for prefix in dict.fromkeys(p for p in (modname, refname) if p):
+            if all(f"{prefix}.{name}" in objects for name in used):
+                for name in used:
+                    used[name] = objects[f"{prefix}.{name}"].docname
+                modules[modname] = (code, tags, used, prefix)
+                break
+
+
+def _check_links(app, exception):
+    """Every internal link (file and #anchor) of the built HTML resolves
+    (:mod:`_linkcheck`); each broken one is a warning, an error under -W."""
+    if exception is not None or app.builder.format != "html":
+        return
+    import _linkcheck
+    from sphinx.util import logging
+
+    n, problems = _linkcheck.check_links(app.outdir)
+    log = logging.getLogger(__name__)
+    for line in problems[:25]:
+        log.warning("broken internal link: %s", line)
+    if len(problems) > 25:
+        log.warning("... and %d more broken internal links", len(problems) - 25)
+    print(f"hybridsim docs: {n} internal links checked, {len(problems)} broken")
+
+
 _t0 = time.perf_counter()
 
 
@@ -283,10 +389,23 @@ def _report_time(app, exception):
         print(f"hybridsim docs built in {time.perf_counter() - _t0:.1f} s")
 
 
+def _declare_parallel_safe(app):
+    """sphinx-mathjax-offline (0.0.2) declares nothing, so that ``-j N`` would
+    warn (an error under -W); it only copies files after the build."""
+    ext = app.extensions.get("sphinx-mathjax-offline")
+    if ext is not None:
+        ext.parallel_read_safe = ext.parallel_write_safe = True
+
+
 def setup(app):
+    _declare_parallel_safe(app)
     app.connect("builder-inited", _install_known_warnings)
     app.connect("autodoc-process-docstring", _plain_text_math)
+    app.connect("source-read", _gallery_plain_text_math)
     app.connect("autodoc-skip-member", _skip_foreign)
     app.connect("builder-inited", _write_generated)
     app.connect("builder-inited", _check_api_coverage)
-    app.connect("build-finished", _report_time)
+    app.connect("env-updated", _fix_viewcode_backlinks)
+    # after sphinx-mathjax-offline (build-finished, priority 500) has copied MathJax
+    app.connect("build-finished", _check_links, priority=900)
+    app.connect("build-finished", _report_time, priority=950)

@@ -72,5 +72,6 @@ for ax, title in zip(axes, ["without disturbances", "with Section VI's disturban
     ax.set_xlabel("$t$ (s)")
     ax.legend(fontsize=8, loc="lower left")
 axes[0].set_ylabel(r"$\|\xi(t)\|_r = |v| + \sum_i |e_i|^{1/r_i}$")
+axes[1].set_ylabel("")
 fig.tight_layout()
 plt.show()

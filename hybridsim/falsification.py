@@ -590,7 +590,9 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
         often lie), then a compass search from the worst point with what is
         left of the budget (``refine``: a fifth of it is kept for this; each
         of its iterations, a step along every coordinate both ways, is one
-        population too). ``"random"``: uniform
+        population too). When DE converges before the budget is spent (its
+        population collapsed on one point), it restarts with a new seed on
+        what is left, so a search that finds nothing has used its budget. ``"random"``: uniform
         sampling of the box in populations, the baseline to compare with.
     popsize : int, optional
         Population size (default ``max(15, 5 * space.dim)`` for DE, at least
@@ -656,9 +658,17 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
                 n = min(popsize, budget - len(ev.history))
                 ev(space.lo + (space.hi - space.lo) * rng.random((n, space.dim)))
         else:
-            _de(ev, space, popsize, seed, budget - (budget // 5 if refine else 0))
-            if refine and not ev.done and ev.best_z is not None:
-                _refine(ev, space)
+            seeds = np.random.SeedSequence(seed)
+            round_seed = seed
+            while not ev.done:              # restarts while DE converges early
+                before = len(ev.history)
+                left = budget - before
+                _de(ev, space, popsize, round_seed, left - (left // 5 if refine else 0))
+                if refine and not ev.done and ev.best_z is not None:
+                    _refine(ev, space)
+                if len(ev.history) == before or not np.any(space.hi > space.lo):
+                    break
+                round_seed = int(seeds.spawn(1)[0].generate_state(1)[0])
     finally:
         ev.bar.close()
     if ev.error is not None:
@@ -721,7 +731,7 @@ def _refine(ev, space):
     width = space.hi - space.lo
     z, best = ev.best_z.copy(), ev.best
     h = 0.1
-    while not ev.done and h > 1e-9:
+    while not ev.done and h > 1e-6:
         cand = np.repeat(z[None, :], 2 * free.size, axis=0)
         rows = np.arange(free.size)
         cand[rows, free] += h * width[free]

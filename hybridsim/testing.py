@@ -8,12 +8,18 @@ Failures name the first violating (t, j), the value and the bound.
 Hybrid time is compared as the engine compares it. A jump time is located
 only to :func:`hybridsim.rules.event_tolerance` (4 ulp of ``max(1, |t|)``),
 so a jump meant for t = δ may be stored a rounding step before or after δ.
-The helpers that select samples by time (``t=`` of :func:`assert_exact_after`
-and :func:`assert_bounded`) therefore count a sample whose time is within
-``event_tolerance(t, t)`` of a requested time ``t`` as *at* ``t``: the
-sample after a jump stored at 0.7999999999999998 is "at 0.8". The same
-tolerance is how the solver decides that a stored sample stands for a
-``t_eval`` time. Jump counts j are integers and compared exactly.
+The helpers that select samples by time (``t=`` of :func:`assert_exact_after`,
+:func:`assert_bounded` and the ``margin_*`` functions) therefore count a
+sample whose time is within ``event_tolerance(t, t)`` of a requested time
+``t`` as *at* ``t``: the sample after a jump stored at 0.7999999999999998 is
+"at 0.8"; :func:`margin_settles_by` likewise counts a settling time within
+that tolerance after ``by`` as at ``by``. The same tolerance is how the
+solver decides that a stored sample stands for a ``t_eval`` time. Jump
+counts j are integers and compared exactly.
+
+Beside the asserts, each ``margin_*`` function returns by how much its
+claim holds (a :class:`Margin`, >= 0) or fails (< 0), and where it was
+decided.
 """
 from __future__ import annotations
 
@@ -430,6 +436,25 @@ def margin_decays(arc, signal, c, rate, t=None, j=None, norm=2):
     claims of different size with a relative margin of your own
     (``margin_bounded`` of ``|signal| / bound`` against 1).
 
+    Parameters
+    ----------
+    arc, signal, t, j, norm
+        As for :func:`assert_bounded` (``t``: the samples checked, to the
+        engine's time tolerance).
+    c : float
+        The bound at ``arc.t[0]``.
+    rate : float
+        The exponential rate.
+
+    Returns
+    -------
+    Margin
+
+    Raises
+    ------
+    ValueError
+        No sample in the range.
+
     Examples
     --------
     >>> import numpy as np
@@ -454,6 +479,21 @@ def margin_settles_by(arc, signal, by, threshold=1e-8, norm=2):
     (the last sample above the threshold is the ``where``). -inf when the
     arc ends above the threshold (never settled).
 
+    Parameters
+    ----------
+    arc, signal, threshold, norm
+        As for :func:`settling_time`.
+    by : float
+        The time by which the signal must have settled. A settling time
+        within the engine's time tolerance after ``by``
+        (:func:`hybridsim.rules.event_tolerance` ``(by, by)``, 4 ulp of
+        ``max(1, |by|)``) counts as at ``by``: margin 0, so a reset meant for
+        t = ``by`` that the engine stored a rounding step late holds.
+
+    Returns
+    -------
+    Margin
+
     Examples
     --------
     >>> import hybridsim as hs
@@ -464,7 +504,11 @@ def margin_settles_by(arc, signal, by, threshold=1e-8, norm=2):
     ts, js = settling_time(arc, signal, threshold, norm)
     if math.isinf(ts):
         return Margin(-math.inf, arc.t[-1], arc.j[-1], "settles by")
-    return Margin(float(by) - ts, ts, js, "settles by")
+    by = float(by)
+    late = ts - by
+    if 0 < late <= event_tolerance(by, by):
+        late = 0.0                      # within the engine's time tolerance: at ``by``
+    return Margin(-late, ts, js, "settles by")
 
 
 def margin_in_set(arc, distance, t=None, j=None):
@@ -473,6 +517,25 @@ def margin_in_set(arc, distance, t=None, j=None):
     ``distance(x, t, j)`` is positive inside the set, negative outside (a
     level function: ``r - |x|`` for a ball of radius r, ``min(x - lo, hi -
     x)`` for a box); the margin is its minimum over the selected samples.
+
+    Parameters
+    ----------
+    arc : HybridArc
+        The solution.
+    distance : callable
+        ``distance(x, t, j) -> float``, evaluated at each sample.
+    t, j
+        The samples checked, as for :func:`assert_exact_after` (``t`` to the
+        engine's time tolerance).
+
+    Returns
+    -------
+    Margin
+
+    Raises
+    ------
+    ValueError
+        No sample in the range.
 
     Examples
     --------
@@ -489,6 +552,21 @@ def margin_in_set(arc, distance, t=None, j=None):
 def all_of(*margins):
     """Conjunction: the smallest margin (all hold iff it is >= 0), where it was decided.
 
+    Parameters
+    ----------
+    *margins : Margin or float
+        At least one.
+
+    Returns
+    -------
+    Margin or float
+        The smallest of ``margins`` (itself, with its ``where``).
+
+    Raises
+    ------
+    ValueError
+        No margin given.
+
     Examples
     --------
     >>> all_of(Margin(0.3), Margin(-0.1, t=2.0, j=1)).where
@@ -501,6 +579,21 @@ def all_of(*margins):
 
 def any_of(*margins):
     """Disjunction: the largest margin (one holds iff it is >= 0).
+
+    Parameters
+    ----------
+    *margins : Margin or float
+        At least one.
+
+    Returns
+    -------
+    Margin or float
+        The largest of ``margins``.
+
+    Raises
+    ------
+    ValueError
+        No margin given.
 
     Examples
     --------

@@ -1071,7 +1071,7 @@ def example_gain_sup(n=2 ** 18):
 
     On the example (delta1 = 0, delta2 = v2 independent of z, so lip1 =
     lip2 = 0) the gain of :func:`noise_gain` is, with E = e^{4 pi} and
-    Phi_H(m, s) = g(m) / g(s), g(m) = e^{2m + sin 2m} (48),
+    Phi_H(m, s) = g(m) / g(s), g(m) = e^{2m + sin 2m} (48)::
 
         l(t) = [I(t) + 2 (E + 1) |cos t|] / (E - 1),
         I(t) = int_{t-2pi}^t Phi_H(m, t - 2 pi) |D(m)| dm
