@@ -101,11 +101,13 @@ References
 from . import claims as _claims
 from . import design as _design
 from . import example as _example
+from . import falsification
 from . import figures as _figures
 from . import systems as _systems
 from .claims import *
 from .design import *
 from .example import *
+from .falsification import *
 from .figures import *
 from .systems import *
 from .systems import _NodeData as _NodeData  # used by tests/test_observer_batches.py
@@ -152,4 +154,5 @@ DECISIONS = [
 ]
 
 __all__ = ["PAPER", "ERRATA", "DECISIONS", *_design.__all__, *_systems.__all__,
-           *_example.__all__, *_figures.__all__, *_claims.__all__]
+           *_example.__all__, *_figures.__all__, *_claims.__all__,
+           *falsification.__all__]

@@ -56,6 +56,7 @@ __all__ = [
     "error_system",
     "error_initial_state",
     "split_errors",
+    "PopulationErrorSystem",
 ]
 
 
@@ -601,3 +602,96 @@ def error_initial_state(dsg: DistributedDesign, x0, xhat0=None):
     e = [z[n * (k + 1):n * (k + 2)] - d.T.T @ x for k, d in enumerate(dsg.decomp)]
     return np.concatenate([ek[:d.n_o] for ek, d in zip(e, dsg.decomp)]
                           + [ek[d.n_o:] for ek, d in zip(e, dsg.decomp)])
+
+
+# --------------------------------------------------------------------------
+# the error system over batches, with noise (observers.distributed.falsification)
+# --------------------------------------------------------------------------
+class PopulationErrorSystem(hs.HybridSystem):
+    """The error system (6)-(9) written over batches, with measurement noise.
+
+    State ``(E, w)``: ``E = (E_o, E_u)`` as in :class:`ErrorSystem` (order of
+    (6)) and ``w`` the coefficients of a noise of ``terms`` sinusoids per
+    output, as :class:`hybridsim.falsification.Sinusoids` lays them out
+    (amplitudes ``a``, frequencies ``f`` in Hz, phases ``φ``, each (N, terms)
+    row-major; constant: their flow is zero). Node i's measurement is
+    ``y^i = C^i x + m_i`` with ``m_i(t) = bound / terms Σ_k a_ik sin(2π f_ik t
+    + φ_ik)``; the flow is, from (7) with that ``y^i`` and (9),
+
+    ``ė_o^i = Ã_o^i e_o^i − Θ^i p^i m_i − L̃_o^i ⌈1 (C_o^i e_o^i − m_i)⌋^{γ^i}``
+
+    ``Ė_u = (𝐀_u − α M) E_u + (𝐀_r + α K) E_o − ⌈M E_u − K E_o⌋^β``  (9)
+
+    (the unobservable part receives no measurement: the neighbours'
+    estimates carry the noise through ``E_o``). With ``terms = 0`` it is
+    :class:`ErrorSystem` over batches.
+
+    Parameters
+    ----------
+    dsg : DistributedDesign
+        A finite-time design whose nodes all have ``n_i >= 1`` and scalar
+        outputs (the example's).
+    terms : int
+        Sinusoids per output (0: no noise).
+    bound : float
+        The noise bound ε (|m_i| <= ε).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from observers.distributed import PopulationErrorSystem, example_observer, error_system
+    >>> dsg = example_observer().design
+    >>> pes = PopulationErrorSystem(dsg)
+    >>> E = np.random.default_rng(0).standard_normal((3, 24))
+    >>> bool(np.allclose(pes.flow_map(E, np.zeros(3))[1], error_system(dsg).flow_map(E[1])))
+    True
+    """
+
+    vectorized = True
+
+    def __init__(self, dsg: DistributedDesign, terms: int = 0, bound: float = 0.0):
+        if dsg.kind != "finite-time":
+            raise ValueError("PopulationErrorSystem needs a finite-time design (7)-(8)")
+        if any(d.n_o == 0 for d in dsg.decomp) or any(c.shape[0] != 1 for c in dsg.C):
+            raise ValueError("every node needs a scalar output and n_i >= 1")
+        es = ErrorSystem(dsg)
+        self.design, self.es = dsg, es
+        self.n_err, self.n_obs = es.state_dim, es.n_obs
+        self.terms, self.bound, self.p = int(terms), float(bound), dsg.N
+        self.state_dim = self.n_err + 3 * self.terms * self.p
+        cuts = np.cumsum([0] + list(dsg.n_o))
+        self._R = np.zeros((self.n_obs, self.p))            # 1 m_i in node i's rows
+        self._Pt = np.zeros((self.n_obs, self.p))           # Θ^i p^i m_i
+        for k in range(self.p):
+            self._R[cuts[k]:cuts[k + 1], k] = 1.0
+            self._Pt[cuts[k]:cuts[k + 1], k] = dsg.Theta[k] @ dsg.p[k]
+
+    def noise(self, x, t):
+        """The noise ``m(t)`` (..., N outputs) encoded in the states ``x``."""
+        x = np.asarray(x, dtype=float)
+        if not self.terms:
+            return np.zeros(x.shape[:-1] + (self.p,))
+        w = x[..., self.n_err:]
+        k = self.terms * self.p
+        a = w[..., :k].reshape(w.shape[:-1] + (self.p, self.terms))
+        f = w[..., k:2 * k].reshape(a.shape)
+        ph = w[..., 2 * k:].reshape(a.shape)
+        t = np.asarray(t, dtype=float).reshape(np.shape(t) + (1, 1))
+        return self.bound / self.terms * np.sum(a * np.sin(2 * np.pi * f * t + ph), axis=-1)
+
+    def flow_map(self, x, t):
+        es = self.es
+        x = np.asarray(x, dtype=float)
+        Eo, Eu = x[..., :self.n_obs], x[..., self.n_obs:self.n_err]
+        arg = Eo @ es._Co1.T
+        dEo = Eo @ es._Ato.T
+        if self.terms:
+            m = self.noise(x, t)
+            arg = arg - m @ self._R.T
+            dEo = dEo - m @ self._Pt.T
+        dEo = dEo - signed_power(arg, es._gamma) @ es._Lto.T                    # (7)
+        s = Eu @ es._M.T - Eo @ es._K.T
+        dEu = Eu @ es._Fu.T + Eo @ es._Gu.T - signed_power(s, es._beta)          # (9)
+        return np.concatenate([dEo, dEu, np.zeros(x.shape[:-1] + (self.state_dim
+                                                                   - self.n_err,))],
+                              axis=-1)

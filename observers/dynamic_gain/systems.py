@@ -10,6 +10,8 @@ r"""The hybrid systems of paper 000: observer (6)-(8) and the plant (1) of Secti
 :func:`uniform_noise`              Section VI's omega in (-1, 1), seeded
 :class:`NoisyExamplePlant`         plant (1) under scaled disturbances, batched
 :class:`ConsistentEuler`           the Euler scheme of ref. [8] (jump per step)
+:class:`AuxiliarySystem`           (13) with the clock (16): (9) in the time tau, batched
+:class:`BoxDisturbedPlant`         plant (1) under piecewise-constant |d_i| <= a, batched
 =================================  =============================================
 
 Examples
@@ -32,7 +34,7 @@ from .design import check_gains, check_mu, rbar
 
 __all__ = ["DynamicGainObserver", "proposed_observer", "prescribed_time_observer",
            "homogeneous_observer", "luenberger_observer", "uniform_noise", "example_plant",
-           "NoisyExamplePlant", "ConsistentEuler"]
+           "NoisyExamplePlant", "ConsistentEuler", "AuxiliarySystem", "BoxDisturbedPlant"]
 
 
 class DynamicGainObserver(hs.HybridSystem):
@@ -567,3 +569,161 @@ class ConsistentEuler(hs.HybridSystem):
         h = x[n + 1]
         y = y + h * self._f(y, t - h, j, None)                  # the Euler step
         return np.concatenate([y, [0.0, self.step(y)]])
+
+
+# ---------------------------------------------------------------------------
+# population runs of the falsification problems (observers.dynamic_gain.falsification)
+# ---------------------------------------------------------------------------
+class AuxiliarySystem(hs.HybridSystem):
+    r"""The auxiliary system (13) with the clock (16): system (9) in the time tau, batched.
+
+    State ``(eps_1..eps_{n+1}, ln nu, psi)``, in the time tau of (16)::
+
+        d eps/dtau   = (A + LC - (h(eps) - gamma1) H) eps                 (13)
+        d ln nu/dtau = h(eps) - gamma1                                    (13)
+        d psi/dtau   = nu^mu                                              (16)
+
+    with ``h(eps) = gamma2 |CA eps + L_0 C eps| + gamma1 (1 + ceil(gamma2 |C eps|
+    - 1)^{1-mu})``. For ``v(0) > gamma2 |w(0)|`` (so T_0 = 0) it is (9) under
+    the coordinate change (14) ``e = D_r(nu) eps``, ``v = nu`` and the time
+    change ``t = psi(tau)``: the proof of Theorem 3. The settling time of (9)
+    is ``T = psi(inf)`` (proof of Proposition 4); once eps is negligible
+    ``nu' = -gamma1 nu`` exactly, so ``T = psi(tau) + nu(tau)^mu/(mu gamma1)``
+    (:meth:`settling_time`). Unlike (9), whose gains ``z^{-rbar_i}`` blow up
+    at T, this system is smooth and exponentially stable: an explicit RK45
+    resolves T to the solver's tolerance, the whole population in one batch.
+
+    Parameters
+    ----------
+    L : (n+1,) array_like
+    mu, gamma1, gamma2 : float
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from observers.lmi import PAPER_L
+    >>> aux = AuxiliarySystem(PAPER_L, 0.2, 1.0, 1.0)
+    >>> x0 = aux.initial_state([0.0, 10.0, 0.0, -5.0], 1.0)
+    >>> arc = hs.simulate(aux, x0, t_max=40.0, rtol=1e-9, atol=1e-12, progress=False)
+    >>> round(aux.settling_time(arc.x[-1]), 3)      # the observer's run: 7.81 s
+    7.81
+
+    References
+    ----------
+    Nekhoroshikh et al., CDC 2022, (9), (13), (14), (16), proofs of Theorem 3 and
+    Proposition 4.
+    """
+
+    vectorized = True
+
+    def __init__(self, L, mu, gamma1, gamma2=1.0):
+        from observers.lmi import lmi10_matrices
+        self.L = check_gains(L)
+        n = self.n = self.L.size - 1
+        self.mu = check_mu(mu, n, strict=False)
+        self.gamma1 = scalar("gamma1", gamma1, positive=True)
+        self.gamma2 = scalar("gamma2", gamma2, nonneg=True)
+        A, C, H = lmi10_matrices(n, self.mu)
+        self.M = A + np.outer(self.L, C[0])                   # A + LC
+        self.h_diag = np.diag(H).copy()
+        self.state_dim = n + 3
+
+    def h(self, eps):
+        """``h(eps)`` of (13), rows of eps (N, n+1) or one eps."""
+        eps = np.asarray(eps, dtype=float)
+        c = eps[..., 0]
+        g = self.gamma2 * np.abs(eps[..., 1] + self.L[0] * c)     # |CA eps + L_0 C eps|
+        s = self.gamma2 * np.abs(c) - 1.0
+        return g + self.gamma1 * (1.0 + np.sign(s) * np.abs(s) ** (1.0 - self.mu))
+
+    def flow_map(self, x, t, j, u):
+        n = self.n
+        eps = x[..., :n + 1]
+        h = self.h(eps)
+        dx = np.empty(np.shape(x))
+        dx[..., :n + 1] = (eps @ self.M.T
+                           - ((h - self.gamma1)[..., None] * self.h_diag) * eps)  # (13)
+        dx[..., n + 1] = h - self.gamma1
+        dx[..., n + 2] = np.exp(self.mu * x[..., n + 1])                          # (16)
+        return dx
+
+    def initial_state(self, e0, v0):
+        """``(D_r^{-1}(v0) e0, ln v0, 0)`` (14); needs ``v0 > gamma2 |w(0)|`` (T_0 = 0)."""
+        e0 = vector("e0", e0, self.n + 1)
+        v0 = scalar("v0", v0, positive=True)
+        if not v0 > self.gamma2 * abs(e0[0]):
+            raise ValueError(f"v0 must exceed gamma2 |w(0)| = {self.gamma2 * abs(e0[0]):g} "
+                             f"(Proposition 4), got {v0}")
+        r = 1.0 - np.arange(self.n + 1) * self.mu
+        return np.concatenate([e0 / v0 ** r, [np.log(v0), 0.0]])
+
+    def settling_time(self, x):
+        """``T = psi + nu^mu / (mu gamma1)`` from a state (or rows) late in the run."""
+        x = np.asarray(x, dtype=float)
+        n = self.n
+        return x[..., n + 2] + np.exp(self.mu * x[..., n + 1]) / (self.mu * self.gamma1)
+
+
+class BoxDisturbedPlant(hs.HybridSystem):
+    r"""Plant (1) of Section VI under a piecewise-constant disturbance ``|d_i| <= a``, batched.
+
+    The closed loop of :func:`example_plant` (``u = Kx + cos 10t``, b = e_n)
+    with ``d = (d_y, d_x1..d_xn)`` constant on each of ``pieces`` equal
+    intervals of [0, t_end] (the last value held after), the values carried
+    in the state so that one vectorized batch runs a whole population of
+    disturbances: state ``(x_1..x_n, d_{piece 1}, ..., d_{piece P})`` (each
+    ``d_piece`` of length n+1). ``x' = (A + bK) x + b cos 10t + d_x(t)``,
+    output ``(y, u) = (x_1 + d_y(t), Kx + cos 10t)``. The error e of (19) is
+    driven by exactly this d (d_0 = d_y enters w', d_i = d_{x,i} enters
+    e_i'), the class of Proposition 5 with ``||d||_inf <= a``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> plant = BoxDisturbedPlant(pieces=2, t_end=2.0)
+    >>> x = np.r_[1.0, 0.0, 0.0, [0.1, 0, 0, 0], [-0.1, 0, 0, 0]]
+    >>> plant.output(x, 1.5, 0)[0].round(3).tolist()      # y = x_1 + d_y (2nd piece)
+    0.9
+    """
+
+    vectorized = True
+
+    def __init__(self, pieces, t_end, n=3, K=None):
+        ref = example_plant(n=n, K=K)
+        self.n = n
+        self.Acl = ref.A
+        self.K = ref.C[1]
+        self.pieces = int(pieces)
+        if self.pieces < 1:
+            raise ValueError(f"pieces must be >= 1, got {pieces}")
+        self.width = scalar("t_end", t_end, positive=True) / self.pieces
+        self.state_dim = n + self.pieces * (n + 1)
+        self.output_dim = 2
+
+    def d(self, x, t):
+        """The disturbance ``(d_y, d_x)`` at t, rows (N, n+1)."""
+        x2 = np.atleast_2d(x)
+        t = np.broadcast_to(np.asarray(t, dtype=float).reshape(-1), (len(x2),))
+        k = np.clip((t // self.width).astype(int), 0, self.pieces - 1)
+        n = self.n
+        vals = x2[:, n:].reshape(len(x2), self.pieces, n + 1)
+        return vals[np.arange(len(x2)), k]
+
+    def flow_map(self, x, t, j, u):
+        batch = np.ndim(x) == 2
+        x2 = x if batch else x[None, :]
+        n = self.n
+        t1 = np.asarray(t, dtype=float).reshape(-1)
+        dx = np.zeros(x2.shape)
+        dx[:, :n] = x2[:, :n] @ self.Acl.T + self.d(x2, t1)[:, 1:]
+        dx[:, n - 1] += np.cos(10 * t1)
+        return dx if batch else dx[0]
+
+    def output(self, x, t, j):
+        batch = np.ndim(x) == 2
+        x2 = x if batch else x[None, :]
+        t1 = np.asarray(t, dtype=float).reshape(-1)
+        y = np.empty((len(x2), 2))
+        y[:, 0] = x2[:, 0] + self.d(x2, t1)[:, 0]
+        y[:, 1] = x2[:, :self.n] @ self.K + np.cos(10 * t1)
+        return y if batch else y[0]

@@ -50,10 +50,11 @@ References
 """
 from __future__ import annotations
 
-from . import claims, design, example, figures, systems
+from . import claims, design, example, falsification, figures, systems
 from .claims import *
 from .design import *
 from .example import *
+from .falsification import *
 from .figures import *
 from .systems import *
 
@@ -119,4 +120,4 @@ DECISIONS = [
 ]
 
 __all__ = ["PAPER", "ERRATA", "DECISIONS", *design.__all__, *systems.__all__, *example.__all__,
-           *figures.__all__, *claims.__all__]
+           *figures.__all__, *claims.__all__, *falsification.__all__]

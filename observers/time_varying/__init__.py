@@ -47,10 +47,11 @@ References
 .. [1] F. Mazenc, S. Ahmed, M. Malisoff, "Reduced order finite time observers
    for time-varying nonlinear systems", 57th IEEE CDC, 2018, eqs. (1)-(59).
 """
-from . import claims, design, example, figures, systems
+from . import claims, design, example, falsification, figures, systems
 from .claims import *
 from .design import *
 from .example import *
+from .falsification import *
 from .figures import *
 from .systems import *
 
@@ -103,4 +104,4 @@ DECISIONS = [
 ]
 
 __all__ = ["PAPER", "ERRATA", "DECISIONS", *design.__all__, *systems.__all__, *example.__all__,
-           *figures.__all__, *claims.__all__]
+           *figures.__all__, *claims.__all__, *falsification.__all__]

@@ -44,6 +44,7 @@ import hybridsim as hs
 
 from .._common import matrix, scalar, vector
 from .design import (
+    TAU_EXAMPLE,
     _dims,
     _rcond,
     _tv_data,
@@ -54,7 +55,7 @@ from .design import (
 )
 
 __all__ = ["PlantModel", "ReducedOrderObserver", "TimeVaryingPlant", "lti_observer",
-           "ChainedFormPlant", "chained_form_observer", "tracking_loop"]
+           "ChainedFormPlant", "chained_form_observer", "tracking_loop", "ChainedFormEstimates"]
 
 
 @dataclass(frozen=True)
@@ -611,3 +612,228 @@ def tracking_loop(xr_init=0.0, feedback="estimate"):
                               inputs={"plant": lambda t, y: np.array([v2(t, y)]),
                                       "observer": lambda t, y: np.array([y["plant"][1], v2(t, y)])})
     return loop, v2
+
+
+# ---------------------------------------------------------------------------
+# populations: the example's estimate over many runs at once (falsification)
+# ---------------------------------------------------------------------------
+class ChainedFormEstimates(hs.HybridSystem):
+    r"""The chained form (44) in open loop and the estimate (50)/(27) on a grid, vectorized.
+
+    A population run for :mod:`observers.time_varying.falsification`: every
+    uncertain quantity (the initial state, the input v2, the measurement
+    noise eps of (17)) lives in the state, the maps are written over batches
+    (``vectorized = True``; a single state ``x[..., k]`` works as well), and
+    no map reads the run's history, so :func:`hybridsim.simulate_many`
+    integrates a whole population in numpy.
+
+    The window integrals of (49)/(50) are separable: with
+    g(m) = e^{2 (m - 2 pi) + sin 2m}, Phi_H(m, s) = e^{M(m, t)} = g(m) / g(s)
+    (48), so each integral over [s, t] = [t - 2 pi, t] is K(t) - K(s) of a
+    running integral K. The state carries V = int_0 v2, K_v = int_0 g v2,
+    K_y = int_0 g (4 cos^3 - sin) y (y = xi3 + eps, the measurement (17)),
+    and at the latch times s_k = t_k - 2 pi a jump copies (y, V, K_v, K_y)
+    into slot k; at t_k a jump evaluates::
+
+        xhat2(t_k) = [2 cos t_k (-e^{4 pi} y(t_k) + y(s_k)) + (V(t_k) - V(s_k))
+                      - (K_v(t_k) - K_v(s_k)) / g(s_k)
+                      + 2 (K_y(t_k) - K_y(s_k)) / g(s_k)] / (1 - e^{4 pi}),
+
+    which is (49) (with eps = 0, (50)) or the approximate observer (27)
+    (with eps), and stores ``e = xhat2(t_k) - xi2(t_k)`` (the state's ``e``,
+    held until the next evaluation). The grid is t_k = t_start + k h,
+    k = 0..points-1, with t_start = max{2 pi, sqrt|x1(0)|} (``start=
+    "printed"``, the range of (50) as printed) or 2 pi + sqrt|x1(0)|
+    (``"corrected"``, the range this project finds, ERRATA).
+
+    x1 follows its closed form sqrt|x1(t)| = max(sqrt|x1(0)| - t, 0)
+    (Section IV-A), so v1 (43) = -2 sign(x1(0)) max(sqrt|x1(0)| - t, 0) +
+    2 cos t needs no arrival jump (:class:`ChainedFormPlant` models it as a
+    jump instead).
+
+    State (time-major rows): ``[xi4, xi3, xi2, r0, V, K_v, K_y, c, e,
+    latches (5 points), v2 coefficients (3 v2_terms), noise coefficients]``
+    with r0 = sign(x1(0)) sqrt|x1(0)| and c the number of events so far
+    (2 points in all: points latches, then points evaluations).
+
+    Parameters
+    ----------
+    start : {"printed", "corrected"}
+        Where the grid starts (see above).
+    points : int
+        Evaluation times per run.
+    spacing : float
+        h > 0, between evaluation times.
+    v2_terms : int
+        v2(t) = (v2_bound / v2_terms) sum_i a_i sin(2 pi f_i t + phi_i)
+        (the parametrisation of :class:`hybridsim.falsification.Sinusoids`),
+        so |v2| <= v2_bound as Section IV-A requires.
+    v2_bound : float
+    noise : {None, "sinusoids", "pieces"}
+        eps of (17): none (the exact (50)), a :class:`Sinusoids` signal
+        (``noise_terms`` terms) or a :class:`PiecewiseConstant` one
+        (``noise_terms`` pieces of width ``noise_width``), |eps| <=
+        ``noise_bound``.
+    noise_terms : int
+    noise_bound : float
+    noise_width : float
+        Piece width (``noise="pieces"``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import hybridsim as hs
+    >>> sys = ChainedFormEstimates("corrected", points=3, spacing=0.2)
+    >>> x0 = sys.initial_state([1.0, -1.0, 0.5, 0.25], v2=[1.0, 0.3, 0.0])
+    >>> arcs = hs.simulate_many(sys, [x0], sys.t_max(0.5), rtol=1e-10, atol=1e-12,
+    ...                         progress=False)
+    >>> bool(np.abs(sys.evaluated_errors(arcs[0])).max() < 1e-8)   # (50) from 2 pi + 0.5
+    True
+
+    References
+    ----------
+    [1] eqs. (17), (27), (43)-(50).
+    """
+
+    vectorized = True
+    E4 = float(np.exp(4 * np.pi))
+
+    def __init__(self, start="corrected", *, points=8, spacing=0.15, v2_terms=1, v2_bound=1.0,
+                 noise=None, noise_terms=1, noise_bound=0.0, noise_width=1.0):
+        if start not in ("printed", "corrected"):
+            raise ValueError(f"start must be 'printed' or 'corrected', got {start!r}")
+        if noise not in (None, "sinusoids", "pieces"):
+            raise ValueError(f"noise must be None, 'sinusoids' or 'pieces', got {noise!r}")
+        for nm, v in (("points", points), ("v2_terms", v2_terms), ("noise_terms", noise_terms)):
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
+                raise ValueError(f"{nm} must be an int >= 1, got {v!r}")
+        self.start = start
+        self.points, self.v2_terms = int(points), int(v2_terms)
+        self.spacing = scalar("spacing", spacing, positive=True)
+        self.v2_bound = scalar("v2_bound", v2_bound, nonneg=True)
+        self.noise = noise
+        self.noise_terms = int(noise_terms)
+        self.noise_bound = scalar("noise_bound", noise_bound, nonneg=True)
+        self.noise_width = scalar("noise_width", noise_width, positive=True)
+        self._latch = 9
+        self._v2 = self._latch + 5 * self.points
+        self._eps = self._v2 + 3 * self.v2_terms
+        n_eps = {None: 0, "sinusoids": 3 * self.noise_terms, "pieces": self.noise_terms}[noise]
+        self.state_dim = self._eps + n_eps
+
+    # -- data ------------------------------------------------------------------
+    def initial_state(self, x0, v2=(), noise=()):
+        """One row of the state: x0 = (xi4, xi3, xi2, x1) at t = 0, the
+        coefficients of v2 (a (terms), f (terms, Hz), phi (terms), the order
+        of :class:`~hybridsim.falsification.Sinusoids`) and of the noise
+        (Sinusoids' coefficients, or the pieces' values)."""
+        xi4, xi3, xi2, x1 = vector("x0", x0, 4)
+        v2 = np.asarray(v2, dtype=float).ravel()
+        noise = np.asarray(noise, dtype=float).ravel()
+        nv, ne = self._eps - self._v2, self.state_dim - self._eps
+        if v2.size != nv or noise.size != ne:
+            raise ValueError(f"v2 must have {nv} coefficients and noise {ne}, "
+                             f"got {v2.size} and {noise.size}")
+        head = [xi4, xi3, xi2, np.sign(x1) * np.sqrt(abs(x1)), 0.0, 0.0, 0.0, 0.0, 0.0]
+        return np.concatenate([head, np.zeros(5 * self.points), v2, noise])
+
+    def t_start(self, s0):
+        """First evaluation time for sqrt|x1(0)| = s0."""
+        s0 = np.asarray(s0, dtype=float)
+        return np.maximum(TAU_EXAMPLE, s0) if self.start == "printed" else TAU_EXAMPLE + s0
+
+    def t_max(self, s0_max):
+        """A horizon just past the last evaluation time of every run with sqrt|x1(0)| <= s0_max."""
+        return float(self.t_start(s0_max)) + (self.points - 1) * self.spacing + 1e-3
+
+    def v2(self, x, t):
+        """v2(t) of each row (|v2| <= v2_bound)."""
+        k = self.v2_terms
+        c = x[..., self._v2:self._eps]
+        a, f, ph = c[..., :k], c[..., k:2 * k], c[..., 2 * k:]
+        tt = np.asarray(t, dtype=float)[..., None]
+        return self.v2_bound / k * np.sum(a * np.sin(2 * np.pi * f * tt + ph), axis=-1)
+
+    def eps(self, x, t):
+        """The measurement noise eps(t) of (17) of each row (|eps| <= noise_bound)."""
+        t = np.asarray(t, dtype=float)
+        if self.noise is None:
+            return np.zeros(np.broadcast_shapes(x.shape[:-1], t.shape))
+        c = x[..., self._eps:]
+        k = self.noise_terms
+        if self.noise == "sinusoids":
+            a, f, ph = c[..., :k], c[..., k:2 * k], c[..., 2 * k:]
+            return self.noise_bound / k * np.sum(
+                a * np.sin(2 * np.pi * f * t[..., None] + ph), axis=-1)
+        i = np.clip(np.floor(t / self.noise_width), 0, k - 1).astype(int)
+        i = np.broadcast_to(i, x.shape[:-1])
+        return np.take_along_axis(c, i[..., None], axis=-1)[..., 0]
+
+    @staticmethod
+    def _g(m):
+        return np.exp(2 * (m - TAU_EXAMPLE) + np.sin(2 * m))
+
+    def _next(self, x):
+        c = x[..., 7]
+        s0 = np.abs(x[..., 3])
+        t0 = self.t_start(s0)
+        k = np.where(c < self.points, c, c - self.points)
+        return np.where(c < self.points, t0 - TAU_EXAMPLE, t0) + k * self.spacing
+
+    # -- (C, f, D, g) ----------------------------------------------------------
+    def flow_map(self, x, t):
+        t = np.broadcast_to(np.asarray(t, dtype=float), x.shape[:-1])
+        xi3, xi2, r0 = x[..., 1], x[..., 2], x[..., 3]
+        v1 = -2 * np.sign(r0) * np.maximum(np.abs(r0) - t, 0.0) + 2 * np.cos(t)
+        v2 = self.v2(x, t)
+        y = xi3 + self.eps(x, t)
+        g = self._g(t)
+        dx = np.zeros_like(x)
+        dx[..., 0] = xi3 * v1
+        dx[..., 1] = xi2 * v1
+        dx[..., 2] = v2
+        dx[..., 4] = v2
+        dx[..., 5] = g * v2
+        dx[..., 6] = g * (4 * np.cos(t) ** 3 - np.sin(t)) * y
+        return dx
+
+    def jump_guard(self, x, t):
+        t = np.broadcast_to(np.asarray(t, dtype=float), x.shape[:-1])
+        return np.where(x[..., 7] < 2 * self.points, t - self._next(x), -1.0)
+
+    def jump_set(self, x, t):
+        return self.jump_guard(x, t) >= 0
+
+    def jump_map(self, x, t):
+        X = np.atleast_2d(np.asarray(x, dtype=float))
+        T = np.broadcast_to(np.asarray(t, dtype=float), X.shape[:-1])
+        XN = X.copy()
+        c = X[:, 7].astype(int)
+        now = np.stack([X[:, 1] + self.eps(X, T), X[:, 4], X[:, 5], X[:, 6]], axis=-1)
+        latch = c < self.points
+        r = np.flatnonzero(latch)                    # store (s, y, V, K_v, K_y) at s_k
+        cols = self._latch + 5 * c[r, None] + np.arange(5)
+        XN[r[:, None], cols] = np.column_stack([T[r], now[r]])
+        r = np.flatnonzero(~latch)                   # evaluate (49)/(27) at t_k
+        k = c[r] - self.points
+        s, ys, Vs, Kvs, Kys = X[r[:, None], self._latch + 5 * k[:, None] + np.arange(5)].T
+        gs, tr, nw = self._g(s), T[r], now[r]
+        ph = self._g(tr) / gs                        # Phi_H(t, s) (48), e^{4 pi} when t - s = 2 pi
+        xh = ((nw[:, 1] - Vs) - (nw[:, 2] - Kvs) / gs + 2 * (nw[:, 3] - Kys) / gs
+              - 2 * np.cos(tr) * ph * nw[:, 0] + 2 * np.cos(s) * ys) / (1 - ph)
+        XN[r, 8] = xh - X[r, 2]
+        XN[:, 7] = c + 1
+        return XN.reshape(np.shape(x))
+
+    # -- reading a run ---------------------------------------------------------
+    def evaluated_errors(self, arc):
+        """The errors xhat2(t_k) - xi2(t_k) of a run, one per evaluation done, in order."""
+        idx = self.evaluation_samples(arc)
+        return arc.x[idx, 8]
+
+    def evaluation_samples(self, arc):
+        """Indices of the samples right after each evaluation jump (``e`` set there)."""
+        c = arc.x[:, 7]
+        first = np.flatnonzero((c > self.points) & np.r_[True, np.diff(c) > 0])
+        return first
+
