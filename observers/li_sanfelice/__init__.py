@@ -49,10 +49,11 @@ References
 """
 from __future__ import annotations
 
-from . import claims, design, example, figures, systems
+from . import claims, design, example, falsification, figures, systems
 from .claims import *
 from .design import *
 from .example import *
+from .falsification import *
 from .figures import *
 from .systems import *
 
@@ -133,4 +134,4 @@ DECISIONS = [
 ]
 
 __all__ = ["PAPER", "ERRATA", "DECISIONS", *design.__all__, *systems.__all__, *example.__all__,
-           *figures.__all__, *claims.__all__]
+           *figures.__all__, *claims.__all__, *falsification.__all__]

@@ -6,6 +6,7 @@
 (7)-(9), (17)-(18) H_c             :class:`ConstantNoiseObserver`
 Section IV-E H_pc                  :class:`PiecewiseConstantNoiseObserver`
 bounded noise for batches          :class:`BoundedNoiseGenerator`
+H_n on a family of designs         :class:`RotatingFamily` (falsification)
 =================================  =============================================
 
 Each observer's input is the measured output y = H x + m (decision 2), its
@@ -26,6 +27,7 @@ Examples
 """
 from __future__ import annotations
 
+import math
 import warnings
 
 import numpy as np
@@ -49,6 +51,7 @@ __all__ = [
     "PiecewiseConstantNoiseObserver",
     "LuenbergerObserver",
     "BoundedNoiseGenerator",
+    "RotatingFamily",
 ]
 
 
@@ -386,3 +389,173 @@ class BoundedNoiseGenerator(hs.HybridSystem):
             ph = rng.uniform(0, 2 * np.pi, size=(self.p, self.K))
             out[r] = np.concatenate([a.ravel(), w.ravel(), ph.ravel()])
         return out
+
+
+# ---------------------------------------------------------------------------
+# H_n on a family of designs, everything in the state (falsification.py)
+# ---------------------------------------------------------------------------
+_J = np.array([[0.0, 1.0], [-1.0, 0.0]])
+_A = _J                                         # plant of Section V.B
+_H = np.array([[1.0, 2.0], [2.0, 1.0]])
+_HINV = np.linalg.inv(_H)
+
+# state layout of RotatingFamily
+_X, _XH1, _XH2, _C1, _C2 = slice(0, 2), slice(2, 4), slice(4, 6), slice(6, 8), slice(8, 10)
+_TAU, _Q, _K1, _K2, _W1, _W2, _DELTA = 10, 11, 12, 13, 14, 15, 16
+_NOISE = 17
+
+
+def _rot(theta):
+    """R(theta) = e^{theta J} = cos theta I + sin theta J, stacked: (..., 2, 2)."""
+    c, s = np.cos(theta), np.sin(theta)
+    return np.stack([np.stack([c, s], -1), np.stack([-s, c], -1)], -2)
+
+
+def _F(k, w):
+    """F = -k I + w J, stacked: (..., 2, 2)."""
+    k, w = np.asarray(k, float), np.asarray(w, float)
+    return np.stack([np.stack([-k, w], -1), np.stack([-w, -k], -1)], -2)
+
+
+class RotatingFamily(hs.HybridSystem):
+    """H_n (10)-(12) and plant (1) of V.B for F_i = -k_i I + w_i J, with noise, vectorized.
+
+    State (17 + noise coefficients)::
+
+        x (2), x̂1 (2), x̂2 (2)    plant and H_n fed y = H x + m (14), decision 2
+        c1 (2), c2 (2)            a noise-free twin of H_n (y = H x): the solution with
+                                  m = 0 from the same z_m(0, 0) (Theorem 4.9)
+        tau, q                    H_n's timer and jump counter (both copies share them)
+        k1, k2, w1, w2, delta     the design (constant)
+        noise coefficients        constant; m(t) as described by ``noise``
+
+    Flow (11): x' = A x, x̂_i' = F_i x̂_i + L_i y, tau' = 1 - q. Jump (12) on
+    {tau >= delta, q = 0}: x̂_i+ = K1 x̂1 + K2 x̂2 (and likewise the twin),
+    tau+ = 0, q+ = 1 - q.
+
+    Parameters
+    ----------
+    noise : {"none", "pwc", "sin"}
+        ``"pwc"``: the coordinates of a :class:`~hybridsim.falsification.PiecewiseConstant`
+        (``pieces`` x 2 values, pieces of width ``t_end / pieces``, the last held);
+        ``"sin"``: those of a :class:`~hybridsim.falsification.Sinusoids` of bound
+        ``eps`` (amplitudes, frequencies in Hz, phases; ``terms`` per component).
+    eps : float
+        The noise class's bound (each component |m_i| <= eps).
+    pieces, terms, t_end : int, int, float
+
+    References
+    ----------
+    Li & Sanfelice, (1), (10)-(12), (14); Section V.B.
+    """
+
+    vectorized = True
+
+    def __init__(self, noise="none", *, eps=0.0, pieces=8, terms=2, t_end=4.0):
+        if noise not in ("none", "pwc", "sin"):
+            raise ValueError(f"noise must be 'none', 'pwc' or 'sin', got {noise!r}")
+        self.noise, self.eps = noise, float(eps)
+        self.pieces, self.terms, self.t_end = int(pieces), int(terms), float(t_end)
+        self.noise_size = {"none": 0, "pwc": 2 * self.pieces, "sin": 6 * self.terms}[noise]
+        self.state_dim = _NOISE + self.noise_size
+
+    # -- noise ------------------------------------------------------------
+    def m(self, x, t):
+        """m(t) of each row: x (k, r), t (k,) or scalar -> (k, 2)."""
+        x = np.atleast_2d(x)
+        t = np.broadcast_to(np.asarray(t, float), (len(x),))
+        z = x[:, _NOISE:]
+        if self.noise == "none":
+            return np.zeros((len(x), 2))
+        if self.noise == "pwc":
+            width = self.t_end / self.pieces
+            k = np.clip(np.floor(t / width).astype(int), 0, self.pieces - 1)
+            vals = z.reshape(len(x), self.pieces, 2)
+            return vals[np.arange(len(x)), k]
+        a, f, ph = z.reshape(len(x), 3, 2, self.terms).transpose(1, 0, 2, 3)
+        return self.eps / self.terms * np.sum(
+            a * np.sin(2 * np.pi * f * t[:, None, None] + ph), axis=-1)
+
+    def sup_norms(self, x0, t_end):
+        """(|m|_delta, |m|_inf over [0, t_end]) of the realisation in the state x0 (Euclidean).
+
+        Exact for ``"pwc"`` (the pieces that meet [0, delta], [0, t_end]); for
+        ``"sin"`` a maximum on a grid of step h = 1e-3 plus |m'|_max h / 2 (an
+        upper bound, tight to |m'|_max h <= 3.6e-3 for the class searched:
+        |m'| <= 2 pi 2 Hz sqrt(2) eps; as decision 13, with a coarser grid).
+        """
+        x0 = np.asarray(x0, float)
+        delta = float(x0[_DELTA])
+        z = x0[_NOISE:]
+        if self.noise == "none":
+            return 0.0, 0.0
+        if self.noise == "pwc":
+            width = self.t_end / self.pieces
+            norms = np.linalg.norm(z.reshape(self.pieces, 2), axis=1)
+            start = width * np.arange(self.pieces)
+            m_inf = float(norms[start <= t_end].max())
+            return float(norms[start <= delta].max()), m_inf
+        a, f, _ = z.reshape(3, 2, self.terms)
+        amp = self.eps / self.terms
+        lip = float(np.linalg.norm(np.sum(np.abs(amp * a * 2 * np.pi * f), axis=1)))
+        h = 1e-3
+        ts = np.linspace(0.0, t_end, max(2, math.ceil(t_end / h) + 1))
+        norms = np.linalg.norm(self.m(np.broadcast_to(x0, (len(ts), x0.size)), ts), axis=1)
+        step = ts[1] - ts[0]
+        m_inf = float(norms.max()) + lip * step / 2
+        # [0, delta] ends up to one step past its last grid point: slack lip * step
+        return min(float(norms[ts <= delta].max()) + lip * step, m_inf), m_inf
+
+    # -- maps -------------------------------------------------------------
+    def flow_map(self, x, t):
+        X = np.atleast_2d(x)
+        F1, F2 = _F(X[:, _K1], X[:, _W1]), _F(X[:, _K2], X[:, _W2])
+        L1, L2 = (_A - F1) @ _HINV, (_A - F2) @ _HINV
+        y0 = X[:, _X] @ _H.T
+        y = y0 + self.m(X, t)
+        dx = np.zeros_like(X)
+        dx[:, _X] = X[:, _X] @ _A.T
+        for sl, F, L, yy in ((_XH1, F1, L1, y), (_XH2, F2, L2, y),
+                             (_C1, F1, L1, y0), (_C2, F2, L2, y0)):
+            dx[:, sl] = np.einsum("kij,kj->ki", F, X[:, sl]) + np.einsum("kij,kj->ki", L, yy)
+        dx[:, _TAU] = 1.0 - X[:, _Q]
+        return dx.reshape(np.shape(x))
+
+    def gains(self, x):
+        """(K1, K2) of (12) for each row's design, (k, 2, 2) each."""
+        X = np.atleast_2d(x)
+        d = X[:, _DELTA]
+        s = np.exp(-(X[:, _K2] - X[:, _K1]) * d)
+        M = np.eye(2) - s[:, None, None] * _rot((X[:, _W2] - X[:, _W1]) * d)
+        K2 = np.linalg.inv(M)
+        return np.eye(2) - K2, K2
+
+    def jump_map(self, x):
+        X = np.atleast_2d(x)
+        K1, K2 = self.gains(X)
+        xn = X.copy()
+        for a, b in ((_XH1, _XH2), (_C1, _C2)):
+            R = np.einsum("kij,kj->ki", K1, X[:, a]) + np.einsum("kij,kj->ki", K2, X[:, b])
+            xn[:, a] = R
+            xn[:, b] = R
+        xn[:, _TAU] = 0.0
+        xn[:, _Q] = 1.0 - X[:, _Q]
+        return xn.reshape(np.shape(x))
+
+    def jump_guard(self, x):
+        h = x[..., _TAU] - x[..., _DELTA]
+        return np.where(x[..., _Q] > 0.5, -1.0, h)
+
+    def jump_set(self, x):
+        return (x[..., _TAU] >= x[..., _DELTA]) & (x[..., _Q] < 0.5)
+
+    def state(self, x0, xhat0, params, noise=()):
+        """The initial state: plant x0, z_m(0, 0) in S_n (x̂1 = x̂2 = xhat0, tau = q = 0),
+        the design (k1, k2, w1, w2, delta) and the noise coordinates."""
+        z = np.zeros(self.state_dim)
+        z[_X] = x0
+        for sl in (_XH1, _XH2, _C1, _C2):
+            z[sl] = xhat0
+        z[_K1:_DELTA + 1] = params
+        z[_NOISE:] = np.asarray(noise, float).ravel()
+        return z
