@@ -475,14 +475,22 @@ def batch_run(system, x0_of, t_max, j_max=np.inf, **simulate_kwargs):
 
 
 class _Evaluator:
-    """Runs points, reduces each arc to its margin, keeps the history and the worst."""
+    """Runs points, reduces each arc to its margin, keeps the history and the worst.
+
+    The history is a preallocated float array (8 bytes a run); arcs are
+    dropped as soon as their margin is known. With ``stop``, single runs are
+    judged one by one, and a population run is split: the first population
+    into batches of 1, 2, 4, ... runs (a claim that almost every run breaks
+    is refuted by the first), later ones into quarters; so a counterexample
+    ends the search without simulating the rest of its population.
+    """
 
     def __init__(self, run, space, claim, budget, seconds, allow, progress, stop):
         self.run, self.space, self.claim = run, space, claim
         self.batch = bool(getattr(run, "batch", False))
         self.budget, self.deadline = budget, time.perf_counter() + seconds
         self.allow = allow
-        self.history, self.findings = [], []
+        self._hist, self.n, self.findings = np.empty(budget), 0, []
         self.best, self.best_z, self.best_where = math.inf, None, None
         self.stop_at_counterexample = stop
         self.error = None                   # a bad claim: raised after the optimizer
@@ -491,9 +499,17 @@ class _Evaluator:
                         else not progress, leave=False)
 
     @property
+    def history(self):
+        return self._hist[:self.n]
+
+    @property
+    def found(self):
+        return self.stop_at_counterexample and self.best < 0
+
+    @property
     def done(self):
-        return (len(self.history) >= self.budget or time.perf_counter() >= self.deadline
-                or (self.stop_at_counterexample and self.best < 0) or self.error is not None)
+        return (self.n >= self.budget or time.perf_counter() >= self.deadline
+                or self.found or self.error is not None)
 
     def _margin(self, arc, point):
         cause = getattr(arc, "termination", None)
@@ -514,44 +530,68 @@ class _Evaluator:
                              "(positive: holds, negative: violated)")
         return value, where
 
+    def _record(self, p, arc):
+        """Judge one run; False when the search must stop (a bad claim)."""
+        if isinstance(arc, BaseException):
+            self.findings.append(Finding(p, "RAISED", f"{type(arc).__name__}: {arc}"))
+            value, where = -math.inf, None
+        else:
+            try:
+                value, where = self._margin(arc, p)
+            except (TypeError, ValueError) as exc:   # the claim's fault, not the run's
+                self.error = exc
+                return None
+        self._hist[self.n] = value
+        self.n += 1
+        self.bar.update(1)
+        if value < self.best:
+            self.best, self.best_z, self.best_where = value, p.z, where
+        return value
+
     def __call__(self, Z):
-        """Margins of the rows of Z (n, dim); +inf for rows past the budget."""
+        """Margins of the rows of Z (n, dim); +inf for rows not run (past the
+        budget, or after a counterexample when stopping at the first)."""
         Z = np.atleast_2d(Z)
-        room = max(0, self.budget - len(self.history))
-        if self.done:
-            room = 0
         out = np.full(len(Z), np.inf)
+        room = 0 if self.done else max(0, self.budget - self.n)
         rows = Z[:room]
         if not len(rows):
             return out
         points = [self.space.point(z) for z in rows]
         if self.batch:
-            arcs = list(self.run(points))
-            if len(arcs) != len(points):
-                raise ValueError(f"a batch run must return one arc per point: got {len(arcs)} "
-                                 f"for {len(points)}")
+            if not self.stop_at_counterexample:
+                bounds = [0, len(points)]
+            elif self.n == 0:                # the first population: 1, 2, 4, ... runs
+                bounds = [0] + [min(2 ** k, len(points)) for k in
+                                range(math.ceil(math.log2(len(points))) + 1)]
+            else:                            # later ones: in quarters
+                size = max(8, math.ceil(len(points) / 4))
+                bounds = [*range(0, len(points), size), len(points)]
+            for a, b in zip(bounds[:-1], bounds[1:]):
+                chunk = points[a:b]
+                arcs = list(self.run(chunk))
+                if len(arcs) != len(chunk):
+                    raise ValueError(f"a batch run must return one arc per point: got "
+                                     f"{len(arcs)} for {len(chunk)}")
+                for k, (p, arc) in enumerate(zip(chunk, arcs)):
+                    value = self._record(p, arc)
+                    if value is None:
+                        return out
+                    out[a + k] = value
+                if self.found:
+                    break
         else:
-            arcs = []
-            for p in points:
+            for k, p in enumerate(points):
                 try:
-                    arcs.append(self.run(p))
+                    arc = self.run(p)
                 except Exception as exc:  # noqa: BLE001 - a failed run is a finding
-                    arcs.append(exc)
-        for k, (p, arc) in enumerate(zip(points, arcs)):
-            if isinstance(arc, BaseException):
-                self.findings.append(Finding(p, "RAISED", f"{type(arc).__name__}: {arc}"))
-                value, where = -math.inf, None
-            else:
-                try:
-                    value, where = self._margin(arc, p)
-                except (TypeError, ValueError) as exc:   # the claim's fault, not the run's
-                    self.error = exc
+                    arc = exc
+                value = self._record(p, arc)
+                if value is None:
                     return out
-            out[k] = value
-            self.history.append(value)
-            if value < self.best:
-                self.best, self.best_z, self.best_where = value, p.z, where
-        self.bar.update(len(rows))
+                out[k] = value
+                if self.found:
+                    break
         return out
 
 
@@ -655,18 +695,18 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
         if method == "random":
             rng = np.random.default_rng(seed)
             while not ev.done:
-                n = min(popsize, budget - len(ev.history))
+                n = min(popsize, budget - ev.n)
                 ev(space.lo + (space.hi - space.lo) * rng.random((n, space.dim)))
         else:
             seeds = np.random.SeedSequence(seed)
             round_seed = seed
             while not ev.done:              # restarts while DE converges early
-                before = len(ev.history)
+                before = ev.n
                 left = budget - before
                 _de(ev, space, popsize, round_seed, left - (left // 5 if refine else 0))
                 if refine and not ev.done and ev.best_z is not None:
                     _refine(ev, space)
-                if len(ev.history) == before or not np.any(space.hi > space.lo):
+                if ev.n == before or not np.any(space.hi > space.lo):
                     break
                 round_seed = int(seeds.spawn(1)[0].generate_state(1)[0])
     finally:
@@ -675,7 +715,7 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
         raise ev.error
     point = space.point(ev.best_z if ev.best_z is not None else (space.lo + space.hi) / 2)
     arc = None
-    if ev.history:
+    if ev.n:
         try:
             arc = run([point])[0] if ev.batch else run(point)
         except Exception:  # noqa: BLE001 - the finding already records it
@@ -683,8 +723,8 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
     found = ev.best < 0
     return FalsificationResult(
         verdict="counterexample" if found else "none found", margin=float(ev.best),
-        point=point, arc=arc, where=ev.best_where, history=np.array(ev.history),
-        evaluations=len(ev.history), seconds=time.perf_counter() - t0,
+        point=point, arc=arc, where=ev.best_where, history=ev.history.copy(),
+        evaluations=ev.n, seconds=time.perf_counter() - t0,
         findings=list(ev.findings), method=method, seed=seed)
 
 
