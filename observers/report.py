@@ -421,11 +421,15 @@ def _falsification(outdir: pathlib.Path, part: Part) -> list[str]:
         rows = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
         return [f'<p class="fail">{_e(path.name)} cannot be read: {_e(exc)}</p>']
+    if not rows:
+        return []
     h = ["<h3>Falsification: searches for counterexamples</h3>",
          '<p class="meta">Each statement searched over its hypotheses by differential '
          "evolution (whole populations per run), beside random sampling with the same "
          "budget; a margin below 0 is a counterexample. Expected: a counterexample for the "
-         "statements as printed where the paper errs, none for the corrected ones.</p>",
+         "statements as printed where the paper errs, none for the corrected ones. The main "
+         "job searches the statements expected to fail; <code>python -m observers falsify"
+         "</code> runs every problem.</p>",
          '<table class="falsification"><thead><tr><th>problem</th><th>where</th>'
          "<th>statement</th><th>space</th><th>budget</th><th>expected</th><th>found</th>"
          "<th>worst margin</th><th>random sampling</th><th>check</th></tr></thead><tbody>"]

@@ -17,7 +17,11 @@ NAME is one of ``engine`` (bouncing ball and timer demos of the engine),
    is computed twice;
 3. what it produced is recorded in ``DIR/NAME/part.json``
    (:class:`observers.report.Part`), with its ``PAPER``, ``ERRATA``,
-   ``DECISIONS`` and ``NOT_REPRODUCED``.
+   ``DECISIONS`` and ``NOT_REPRODUCED``;
+4. its falsification problems expected to find a counterexample (the
+   errata, searched from the statements as printed) are searched, unless
+   ``--no-falsify``; ``python -m observers falsify`` runs them all, those
+   expected to survive their budgets included.
 
 The terminal shows one progress bar over every figure and claim (when it
 is a terminal), one line per part, and what needs attention: a warning
@@ -411,7 +415,7 @@ def _summary_line(part: Part) -> str:
 
 
 def run_falsification(name: str, out, *, scale: float = 1.0, seed: int = 0,
-                      echo=None) -> list[dict]:
+                      expect: str | None = None, echo=None) -> list[dict]:
     """Search every problem of a paper package's ``PROBLEMS`` and record them.
 
     Each :class:`observers.falsification.Problem` is searched and sampled at
@@ -430,6 +434,10 @@ def run_falsification(name: str, out, *, scale: float = 1.0, seed: int = 0,
         Multiplies every budget (the expected outcomes hold at 1).
     seed : int
         Seeds every search.
+    expect : {"counterexample", "none"}, optional
+        Only the problems expecting this outcome (the main job searches the
+        statements expected to fail, which stop at their first
+        counterexample; ``python -m observers falsify`` runs all).
     echo : callable, optional
         Gets one line per problem (default ``print``).
 
@@ -450,6 +458,8 @@ def run_falsification(name: str, out, *, scale: float = 1.0, seed: int = 0,
     d.mkdir(parents=True, exist_ok=True)
     rows = []
     for prob in validate_problems(getattr(mod, "PROBLEMS", []) or []):
+        if expect is not None and prob.expect != expect:
+            continue
         try:
             res = run_problem(prob, seed=seed, scale=scale)
         except Exception:  # noqa: BLE001 - one broken problem does not stop the others
@@ -494,6 +504,9 @@ def main(argv=None):
                    help="do not evaluate the papers' claims")
     r.add_argument("--verbose", "-v", action="store_true",
                    help="also print every part's log and every claim's line")
+    r.add_argument("--no-falsify", action="store_true",
+                   help="do not search the statements expected to fail (the papers' "
+                        "errata, found by falsification)")
     fal = sub.add_parser("falsify", help="search the papers' theorems for counterexamples "
                                          "(each package's PROBLEMS) and add them to the report")
     fal.add_argument("names", nargs="*", choices=[*PAPER_MODULES, []], default=[],
@@ -548,6 +561,16 @@ def main(argv=None):
             if part.status != "ok":
                 failed.append(name)
             off += [row["id"] for row in part.claims or [] if not row["passed"]]
+            if name in PAPER_MODULES and part.status == "ok" and not args.no_falsify:
+                t1 = time.perf_counter()
+                rows = run_falsification(name, out, expect="counterexample",
+                                         echo=bar.write if args.verbose else lambda line: None)
+                bad = [r["id"] for r in rows if not r["passed"]]
+                off += bad
+                if rows:
+                    bar.write(f"{'ok' if not bad else 'FAILED':<6} {name:<14} {len(rows)} "
+                              f"erratum search(es): {len(rows) - len(bad)} found as expected"
+                              f"  ({time.perf_counter() - t1:.1f} s)")
     finally:
         bar.close()
     page = write_report(out, command=command)
