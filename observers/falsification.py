@@ -198,24 +198,43 @@ def run_problem(problem: Problem, *, seed: int = 0, scale: float = 1.0,
                          found == problem.expect and as_bad)
 
 
-def draw_worst(result: ProblemResult, signal=None):
-    """A figure of the search's worst run: the margin's history (search and
-    random baseline, best so far) beside the worst run's state against t."""
+def draw_worst(result: ProblemResult):
+    """A figure of a search: the worst margin so far against the number of runs
+    (the search and the random baseline), and where in the space the worst
+    run lies (each coordinate scaled to its bounds: 0 the lower, 1 the upper;
+    a counterexample on a face or a vertex shows as 0s and 1s).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
     from matplotlib.figure import Figure
     fig = Figure(figsize=(11, 4))
-    ax_h, ax_x = fig.subplots(1, 2)
-    for res, label, style in ((result.search, "differential evolution", "-"),
-                              (result.baseline, "random sampling", "--")):
-        h = np.minimum.accumulate(res.history) if res.history.size else res.history
-        ax_h.plot(np.arange(1, h.size + 1), h, style, label=label)
+    ax_h, ax_z = fig.subplots(1, 2, gridspec_kw={"width_ratios": [3, 2]})
+    for res, label, style in ((result.search, "differential evolution", "o-"),
+                              (result.baseline, "random sampling", "s--")):
+        h = np.minimum.accumulate(res.history)
+        ax_h.plot(np.arange(1, h.size + 1), h, style, ms=3, label=label)
     ax_h.axhline(0.0, color="0.4", lw=0.8)
     ax_h.set_xlabel("runs")
-    ax_h.set_ylabel("worst margin so far")
-    ax_h.set_title(f"{result.problem.id}: search")
+    ax_h.set_ylabel("worst margin so far (< 0: counterexample)")
+    ax_h.set_title(f"{result.problem.id}: margin {result.margin:.3g}"
+                   + ("" if result.search.where is None else
+                      f" at (t, j) = ({result.search.where[0]:.4g}, {result.search.where[1]})"))
     ax_h.legend()
-    arc = result.search.arc
-    if arc is not None:
-        hs.plot_flows(arc, ax=ax_x, fn=signal, xlabel="$t$")
-        ax_x.set_title(f"worst run: margin {result.margin:.3g}")
+    space, z = result.problem.space, result.search.point.z
+    width = np.where(space.hi > space.lo, space.hi - space.lo, 1.0)
+    u = (z - space.lo) / width
+    ax_z.plot(np.arange(z.size), u, "o", ms=4, color="C3")
+    k = 0
+    for name, entry in space.entries.items():
+        ax_z.axvspan(k - 0.5, k + entry.size - 0.5, color="0.93" if len(ax_z.patches) % 2
+                     else "0.85", zorder=0)
+        ax_z.text(k + entry.size / 2 - 0.5, 1.08, name, ha="center", fontsize=8)
+        k += entry.size
+    ax_z.set_ylim(-0.1, 1.18)
+    ax_z.set_xlim(-0.5, z.size - 0.5)
+    ax_z.set_xlabel("coordinate of the space")
+    ax_z.set_ylabel("worst point, scaled to its bounds")
     fig.tight_layout()
     return fig

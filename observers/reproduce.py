@@ -473,12 +473,13 @@ def run_falsification(name: str, out, *, scale: float = 1.0, seed: int = 0,
         if res.found == "counterexample" and res.search.arc is not None:
             fig = draw_worst(res)
             png = save_figure(fig, d, f"falsify_{prob.id}", (
-                f"{prob.id} ({prob.where}): {prob.statement} Worst run found by differential "
-                f"evolution in {res.search.evaluations} runs: margin {res.margin:.4g} at "
-                f"{res.search.point}. Left: the worst margin so far against the number of "
-                "runs, for the search (solid) and random sampling of the same budget "
-                "(dashed); below 0 the statement is violated. Right: the worst run's state "
-                "against t."))
+                f"{prob.id} ({prob.where}): {prob.statement} Counterexample found by "
+                f"differential evolution in {res.search.evaluations} runs: margin "
+                f"{res.margin:.4g} at {res.search.point}. Left: the worst margin so far "
+                "against the number of runs, for the search (circles) and random sampling "
+                "of the same budget (squares); below 0 the statement is violated. Right: "
+                "where the worst run lies in the space, each coordinate scaled to its bounds "
+                "(0 the lower, 1 the upper), entries named above."))
             row["figure"] = png.relative_to(pathlib.Path(out)).as_posix()
         rows.append(row)
         mark = "as expected" if res.passed else "NOT AS EXPECTED"
