@@ -53,7 +53,9 @@ def test_printed_decay_is_falsified_at_the_predicted_rate():
     r = run_problem(BY_ID["000-thm3-eps-decay-printed"], seed=0)
     assert r.found == "counterexample" and r.passed
     arc = r.search.arc
-    assert r.search.where[0] == pytest.approx(25.0)     # the ratio grows to the end
+    # the ratio grows like e^{0.307 tau} with an oscillation of period 11.7: its
+    # largest value is in the last oscillation's peak, near the end (tau <= 25)
+    assert 25.0 - 11.7 / 2 <= r.search.where[0] <= 25.0
     # closed form: ||eps|| e^tau grows like e^{(1 + Re lambda) tau}, lambda the slowest
     # eigenvalue of A + LC + gamma1 H; slope over tau in [15, 25], tol 0.05: the pair
     # -0.693 +- 0.539i makes ||eps|| oscillate with period 11.7 > the 10-long window
