@@ -41,6 +41,7 @@ first jump comes by t = 1.1":
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 import numbers
 import time
@@ -567,7 +568,7 @@ class _Evaluator:
             else:                            # later ones: in quarters
                 size = max(8, math.ceil(len(points) / 4))
                 bounds = [*range(0, len(points), size), len(points)]
-            for a, b in zip(bounds[:-1], bounds[1:]):
+            for a, b in itertools.pairwise(bounds):
                 chunk = points[a:b]
                 arcs = list(self.run(chunk))
                 if len(arcs) != len(chunk):

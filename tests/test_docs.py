@@ -149,7 +149,7 @@ def build(tmp_path_factory):
     ``HYBRIDSIM_DOCS_BUILD=DIR`` names a finished build to check instead."""
     given = os.environ.get("HYBRIDSIM_DOCS_BUILD")
     if given:
-        return Path(given), None
+        return Path(given).resolve(), None
     missing = _missing_docs_extra()
     if missing:
         pytest.skip(f"the docs extra is not installed (missing {', '.join(missing)}): "
