@@ -101,7 +101,8 @@ def distributed_monte_carlo(R, N=8, t_sim=1.0):
     x0 = np.random.default_rng(0).normal(size=A.shape[0])
     p = sum(np.atleast_2d(c).shape[0] for c in C.values())
     kw = dict(t_max=t_sim, rtol=1e-8, atol=1e-10)
-    sysm, X = dist.noise_batch(dsg, x0, power=1e-4, seeds=range(R), t_max=t_sim)
+    sysm, X = dist.noise_batch(dist.DistributedObserver(dsg), x0, power=1e-4, seeds=range(R),
+                               t_max=t_sim)
 
     def make(seed):
         return dist.observer_network(dsg, noise=dist.band_limited_noise(1e-4, 0.1, t_sim, p, seed))

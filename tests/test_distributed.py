@@ -753,13 +753,11 @@ def test_simulate_errors_bad_input(example, obs):
         arc = dist.simulate_errors(obs, E0=np.ones(24), t_max=0.01)
         arc.components = {"plant": slice(0, 6)}
         dist.errors(arc, obs)
-    # the contract's observer is the DistributedObserver (a design is wrapped in one)
-    with pytest.raises(TypeError, match=r"observer must be a DistributedObserver \(or its "
-                                        r"DistributedDesign\), got str"):
+    # the contract's observer is the DistributedObserver, and only it
+    with pytest.raises(TypeError, match=r"observer must be a DistributedObserver, got str"):
         dist.simulate_errors("obs", E0=np.ones(24), t_max=0.01)
-    arc = dist.simulate(example, np.zeros(6), t_max=0.01)
-    np.testing.assert_array_equal(dist.errors(arc, example).e,
-                                  dist.errors(arc, obs).e)
+    with pytest.raises(TypeError, match=r"got its design: pass DistributedObserver\(design\)"):
+        dist.simulate(example, np.zeros(6), t_max=0.01)
     with pytest.raises(TypeError, match="dsg must be a DistributedDesign"):
         DistributedObserver(obs)
 

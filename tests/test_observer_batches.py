@@ -392,6 +392,7 @@ def test_network_with_generator_batch_flow_equals_single(name):
 
 
 DIST_KW = dict(rtol=1e-8, atol=1e-10)
+DObs = dist.DistributedObserver          # the observer of a distributed design
 DIST_POWER, DIST_T_MAX, DIST_SEEDS = 1e-3, 0.3, (0, 1, 2)
 
 
@@ -401,10 +402,10 @@ def _dist_runs(name):
     on the same system, and dist.simulate with the callable noise."""
     dsg = _dist_design(name)
     x0 = np.random.default_rng(1).normal(size=dsg.n)
-    sysm, X = dist.noise_batch(dsg, x0, power=DIST_POWER, seeds=DIST_SEEDS, t_max=DIST_T_MAX)
+    sysm, X = dist.noise_batch(DObs(dsg), x0, power=DIST_POWER, seeds=DIST_SEEDS, t_max=DIST_T_MAX)
     arcs = hs.simulate_many(sysm, X, t_max=DIST_T_MAX, **DIST_KW)
     loop = [hs.simulate(sysm, x, t_max=DIST_T_MAX, **DIST_KW) for x in X]
-    refs = [dist.simulate(dsg, x0, noise=DIST_POWER, seed=s, t_max=DIST_T_MAX, **DIST_KW)
+    refs = [dist.simulate(DObs(dsg), x0, noise=DIST_POWER, seed=s, t_max=DIST_T_MAX, **DIST_KW)
             for s in DIST_SEEDS]
     return dsg, x0, sysm, X, arcs, loop, refs
 
@@ -431,8 +432,8 @@ def test_noise_batch_rows_are_the_realisations(name):
         np.testing.assert_allclose(gen.output(W, arc.t, arc.j), [m(t) for t in arc.t],
                                    rtol=1e-15, atol=0)
     # errors() leaves the generator's columns out
-    assert dist.errors(arcs[0], dsg)["e"].shape == (len(arcs[0].t), dsg.N * dsg.n)
-    assert dist.errors(refs[0], dsg)["e"].shape[1] == dsg.N * dsg.n
+    assert dist.errors(arcs[0], DObs(dsg))["e"].shape == (len(arcs[0].t), dsg.N * dsg.n)
+    assert dist.errors(refs[0], DObs(dsg))["e"].shape[1] == dsg.N * dsg.n
 
 
 # Two RK45 runs of the noisy network whose step sequences differ (any two of
@@ -448,7 +449,8 @@ VECTOR_RTOL = 1e-5    # final error vector and state, relative to their largest 
 
 
 def _assert_final_errors_agree(a, b, dsg):
-    Ea, Eb = dist.errors(a, dsg), dist.errors(b, dsg)
+    obs = DObs(dsg)
+    Ea, Eb = dist.errors(a, obs), dist.errors(b, obs)
     assert Ea["norm"][-1] == pytest.approx(Eb["norm"][-1], rel=NORM_RTOL)
     scale = float(np.abs(Eb["e"][-1]).max())
     np.testing.assert_allclose(Ea["e"][-1], Eb["e"][-1], rtol=0, atol=VECTOR_RTOL * scale)
@@ -505,11 +507,11 @@ def test_band_limited_noise_and_noise_batch_bad_input():
             gen.realisation(power, 0)
     dsg = _dist_design("example")
     with pytest.raises(ValueError, match="seeds must name at least one realisation"):
-        dist.noise_batch(dsg, np.zeros(6), power=1e-3, seeds=[], t_max=0.3)
+        dist.noise_batch(DObs(dsg), np.zeros(6), power=1e-3, seeds=[], t_max=0.3)
     with pytest.raises(ValueError, match="power must be >= 0"):
-        dist.noise_batch(dsg, np.zeros(6), power=-1e-3, seeds=[0], t_max=0.3)
+        dist.noise_batch(DObs(dsg), np.zeros(6), power=-1e-3, seeds=[0], t_max=0.3)
     with pytest.raises(ValueError, match="ts must be a positive"):
-        dist.noise_batch(dsg, np.zeros(6), power=1e-3, seeds=[0], t_max=0.3, noise_ts=0.0)
+        dist.noise_batch(DObs(dsg), np.zeros(6), power=1e-3, seeds=[0], t_max=0.3, noise_ts=0.0)
     for wrong in (dist.BandLimitedNoise(0.1, 1.0, 3), ls.BoundedNoiseGenerator(2)):
         with pytest.raises(ValueError, match=r"noise: the generator's output_dim must be .* = 4, "
                                              rf"got {wrong.output_dim}"):
@@ -531,6 +533,6 @@ def test_band_limited_noise_generator_before_the_grid_and_scalar_t_over_a_batch(
     for s, w in enumerate(W):
         np.testing.assert_array_equal(Y[s], gen.output(w, 0.35, 0))
     A, C, G = dist.example_system()
-    sysm, X = dist.noise_batch(dist.design(A, C, G), [1.0] * 6, power=1e-4, seeds=[0, 1],
+    sysm, X = dist.noise_batch(DObs(dist.design(A, C, G)), [1.0] * 6, power=1e-4, seeds=[0, 1],
                                t_max=0.5)
     assert sysm.outputs(X)["noise"].shape == (2, 4)

@@ -187,13 +187,13 @@ def random_system(N, seed=None, *, graph="ring", n_blocks=None, p_edge=0.3):
 
 
 def _observer(observer, what="observer"):
-    """``observer`` as a :class:`DistributedObserver` (a design is wrapped; TypeError else)."""
+    """``observer``, checked to be a :class:`DistributedObserver` (TypeError else)."""
     if isinstance(observer, DistributedObserver):
         return observer
     if isinstance(observer, DistributedDesign):
-        return DistributedObserver(observer)
-    raise TypeError(f"{what} must be a DistributedObserver (or its DistributedDesign), got "
-                    f"{type(observer).__name__}")
+        raise TypeError(f"{what} must be a DistributedObserver, got its design: pass "
+                        "DistributedObserver(design)")
+    raise TypeError(f"{what} must be a DistributedObserver, got {type(observer).__name__}")
 
 
 def example_observer(kind="finite-time"):
@@ -437,7 +437,7 @@ def settling_time(arc, observer, threshold=1e-8, *, xtol=1e-12):
     """
     threshold = scalar("threshold", threshold, positive=True)
     dsg = _observer(observer).design
-    E = errors(arc, dsg)
+    E = errors(arc, _observer(observer))
     t, norm = E.t, E["norm"]
     above = np.flatnonzero(norm > threshold)
     if above.size == 0:
