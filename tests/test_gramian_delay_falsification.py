@@ -83,13 +83,13 @@ def test_corrected_statement_survives_quick():
 @pytest.mark.parametrize("pid", [p.id for p in gdf.PROBLEMS if p.expect == "none"])
 def test_none_expected_survive_full_budget(pid):
     """A budget of 2,000 runs each, no counterexample, the search at least as bad as
-    random. The random baseline runs the whole budget; differential evolution may stop
-    earlier when its population has converged (1,749 runs on the corrected problem,
-    whose worst case is a corner of the box)."""
+    random, both running the whole budget (differential evolution restarts on what is
+    left when its population converges, as on the corrected problem, whose worst case
+    is a corner of the box)."""
     r = run_problem(BY_ID[pid], seed=0)
     assert r.problem.budget >= 2000
     assert r.found == "none" and r.passed
-    assert r.baseline.evaluations == r.problem.budget and r.search.evaluations >= 1500
+    assert r.baseline.evaluations == r.search.evaluations == r.problem.budget
 
 
 def test_bound15_population_matches_design():
