@@ -1492,6 +1492,16 @@ class _BatchRun:
                             m.flow_soft(xs[sample], ts[sample], j[sample]))
         self.t[rows] = ts
         self.x[rows] = xs
+        if self.max_norm < math.inf and sample.any():   # the event's sample, as a step's end
+            nrm = np.linalg.norm(xs, axis=1)
+            big = sample & (nrm > self.max_norm)
+            if big.any():
+                self._stop(rows[big], Termination.BLOWUP, norm=nrm[big],
+                           max_norm=self.max_norm, t=ts[big], j=j[big])
+                keep = ~big
+                rows, ts, xs, j, action, at_hi, lo, ylo, yhi = (
+                    rows[keep], ts[keep], xs[keep], j[keep], action[keep], at_hi[keep],
+                    lo[keep], ylo[keep], yhi[keep])
         jump = action == Action.JUMP
         if jump.any():
             self.force[rows[jump]] = True

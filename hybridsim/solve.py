@@ -1112,6 +1112,11 @@ class _Run:
         # at te is the event's sample already
         if te > b.t[b.m - 1] or j != b.j[b.m - 1]:
             b.append(te, j, xe, self._fdot(te, xe, j))
+            if o.max_norm < math.inf:        # the event's sample is checked like a step's end
+                nb = float(np.linalg.norm(xe))
+                if nb > o.max_norm:
+                    self._stop(Termination.BLOWUP, norm=nb, max_norm=o.max_norm, t=te, j=j)
+                    return self._end(st, te, xe, _Outcome.STOP)
         if o.t_eval is not None:
             self._skip_t_eval(te)
         return self._end(st, te, xe, outcome)

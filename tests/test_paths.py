@@ -189,6 +189,25 @@ def test_failures_warn_the_same_way_on_every_path(path):
 
 @pytest.mark.parametrize("path", path_params())
 @pytest.mark.parametrize("sets", ["both", "indicators"])
+def test_max_norm_is_checked_at_an_event_sample(path, sets):
+    """The ball from 1 m hits the floor at |v| = sqrt(2 g) = 4.43 m/s: with
+    max_norm 4 the run ends BLOWUP at the impact's pre-jump sample (it used to
+    jump on, ending J_MAX, on every path: a step ending on an event skipped the
+    norm check); with max_norm 5 it bounces."""
+    impact = np.sqrt(2 / 9.81)
+    arc = run(path, Ball(sets=sets), [1.0, 0.0], t_max=2.0, j_max=3, rtol=1e-10, atol=1e-12,
+              max_norm=4.0, warn=False)
+    assert arc.termination is T.BLOWUP and arc.jump_count == 0
+    assert arc.t[-1] == pytest.approx(impact, abs=1e-9)
+    assert np.linalg.norm(arc.x[-1]) == pytest.approx(np.sqrt(2 * 9.81), rel=1e-8)
+    arc.validate()
+    arc = run(path, Ball(sets=sets), [1.0, 0.0], t_max=2.0, j_max=3, rtol=1e-10, atol=1e-12,
+              max_norm=5.0, warn=False)
+    assert arc.termination is T.J_MAX
+
+
+@pytest.mark.parametrize("path", path_params())
+@pytest.mark.parametrize("sets", ["both", "indicators"])
 def test_the_ball_bounces_at_its_closed_form_times_on_every_path(path, sets):
     from hybridsim.library import bouncing_ball_jump_times
     arc = run(path, Ball(sets=sets), [1.0, 0.0], t_max=10.0, j_max=12, rtol=1e-10,

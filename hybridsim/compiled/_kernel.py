@@ -1302,6 +1302,15 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
                 if fe.shape[0] == n:
                     XD[ns] = fe
                 ns += 1
+                if max_norm < np.inf:        # the event's sample, as a step's end
+                    nb = math.sqrt(np.sum(xe * xe))
+                    if nb > max_norm:
+                        cause = BLOWUP
+                        info[0] = te
+                        info[2] = nb
+                        info[3] = j
+                        t, x = te, xe
+                        break
             t, x = te, xe
             outcome = kind
             if from_hi:
