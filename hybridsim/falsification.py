@@ -379,6 +379,8 @@ class Space:
         z = np.asarray(z, dtype=float)
         if z.shape != (self.dim,):
             raise ValueError(f"z must have shape ({self.dim},), got {z.shape}")
+        if not np.all(np.isfinite(z)):
+            raise ValueError(f"z must be finite, got {z}")
         z = np.clip(z, self.lo, self.hi)
         return Point({n: e.value(z[self._slices[n]]) for n, e in self.entries.items()}, z)
 
@@ -687,6 +689,9 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
     if unknown:
         raise ValueError(f"allow names unknown termination causes {sorted(unknown)}")
     budget = int(budget)
+    if popsize is not None and (isinstance(popsize, bool) or not isinstance(
+            popsize, (numbers.Integral, np.integer)) or popsize < 1):
+        raise ValueError(f"popsize must be a positive integer or None, got {popsize!r}")
     if popsize is None:
         popsize = max(15, 5 * space.dim) if method == "de" else 100
     popsize = max(1, min(int(popsize), budget))

@@ -177,6 +177,9 @@ def test_seconds_budget_and_stop_at_first():
     (lambda: falsify(run_one, BALL, below(0.7), budget=0), "budget must be a positive"),
     (lambda: falsify(run_one, BALL, below(0.7), method="annealing"), "method must be"),
     (lambda: falsify(run_one, BALL, below(0.7), allow=["T_MAX", "DONE"]), "unknown"),
+    (lambda: falsify(run_one, BALL, below(0.7), popsize=0), "popsize must be a positive"),
+    (lambda: BALL.point([np.nan, 0.8]), "z must be finite"),
+    (lambda: BALL.point([1.0]), r"z must have shape \(2,\)"),
 ])
 def test_bad_input_is_named(make, match):
     with pytest.raises(ValueError, match=match):
