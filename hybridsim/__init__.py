@@ -18,20 +18,27 @@ from ._version import __version__ as __version__
 from .arc import HybridArc, Termination
 from .batch import BatchError, BatchWarning, simulate_many, sweep
 from .batch_vectorized import simulate_vectorized
-from .compose import Interconnection, LinearPlant, connect, network
+from .compose import Interconnection, LinearInput, LinearPlant, connect, network
 from .falsification import falsify
 from .history import History, HistoryError
 from .options import METHODS
 from .plot import plot_flows, plot_hybrid, plot_jumps, plot_phase, plot_time_domain
 from .rules import MapError, SimulationError, SimulationWarning
+from .sensitivity import (
+    SensitivityArc,
+    SensitivityError,
+    SensitivityWarning,
+    simulate_sensitivity,
+)
 from .solve import simulate
 from .system import HybridSystem
 
 __all__ = [
     "HybridSystem", "HybridArc", "Termination", "simulate", "MapError",
     "SimulationError", "SimulationWarning", "METHODS", "History", "HistoryError",
-    "Interconnection", "LinearPlant", "connect", "network",
+    "Interconnection", "LinearInput", "LinearPlant", "connect", "network",
     "simulate_many", "sweep", "simulate_vectorized", "BatchError", "BatchWarning",
     "plot_flows", "plot_jumps", "plot_hybrid", "plot_phase", "plot_time_domain",
-    "falsify",
+    "falsify", "simulate_sensitivity", "SensitivityArc", "SensitivityError",
+    "SensitivityWarning",
 ]

@@ -407,9 +407,17 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
     **kwargs
         Passed to :func:`hybridsim.simulate` (``priority``, ``rtol``...).
         Argument errors (the same for every row) raise at once.
-        ``backend="compiled"`` (no executor) runs a
-        :class:`hybridsim.compiled.CompiledSystem`'s batch compiled and in
-        parallel over the cores (:func:`hybridsim.compiled.simulate_many_compiled`).
+        ``backend="compiled"`` (no executor) runs the batch compiled and
+        in parallel over the cores (:func:`hybridsim.compiled.simulate_many_compiled`):
+        a :class:`hybridsim.compiled.CompiledSystem`, or a system lowered to
+        one (:func:`hybridsim.compiled.lower`: a ``LinearPlant``, systems
+        with a compiled form, interconnections of them wired by
+        :class:`hybridsim.LinearInput`; others are refused by name).
+        ``backend="auto"`` runs compiled where numba is installed, the
+        system lowers and the options are the compiled path's (RK45; no
+        ``dense``, ``inputs``, ``prehistory``, ``t_eval``, executor), and as
+        ``"python"`` otherwise; a structure's maps compile once per process
+        (seconds), so it pays for batches of hundreds of runs and more.
 
     Returns
     -------
@@ -457,10 +465,16 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
     if N == 0:
         return []
     kwargs = dict(kwargs, t_max=t_max, j_max=j_max, progress=False)
+    if kwargs.get("backend") == "auto":
+        kwargs["backend"] = _auto_backend(system, kwargs, executor)
+    if kwargs.get("backend") == "python":
+        del kwargs["backend"]               # the default: the batch integrator may take it
     if kwargs.get("backend", "python") == "compiled" and executor is None:
         from .compiled import simulate_many_compiled
+        from .compiled._lower import lower, rebind
         kw = {k: v for k, v in kwargs.items() if k not in ("backend", "progress")}
-        out = simulate_many_compiled(system, X, throw=False, warn=False, **kw)
+        out = simulate_many_compiled(lower(system), X, throw=False, warn=False, **kw)
+        out = [rebind(a, system) for a in out]
         return finish_batch("simulate_many", out, throw, warn)
     if system.vectorized and executor is None and _batch_takes(kwargs):
         out = _many_vectorized(system, X, kwargs, progress)
@@ -471,6 +485,26 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
         bar = make_bar(progress, total=N, desc="simulate_many", unit="run", leave=True)
         out = _execute(_Batch(system, None, items, kwargs, throw, bar), executor, chunks, bar)
     return _warned("simulate_many", out, warn)
+
+
+#: options the compiled path runs (beyond those every path shares) at these values only
+_COMPILED_ONLY_AT = {"method": ("RK45",), "inputs": (None,), "prehistory": (None,),
+                     "dense": (False,), "t_eval": (None,)}
+
+
+def _auto_backend(system, kwargs, executor):
+    """``backend="auto"``: "compiled" where numba is installed, the system runs
+    compiled (:func:`hybridsim.compiled.lowerable`) and the options are the
+    compiled path's; "python" otherwise (which integrates a vectorized
+    system's batch together)."""
+    import importlib.util
+
+    from .compiled import lowerable
+    if executor is not None or importlib.util.find_spec("numba") is None:
+        return "python"
+    if any(kwargs.get(k, v[0]) not in v for k, v in _COMPILED_ONLY_AT.items()):
+        return "python"
+    return "compiled" if lowerable(system) else "python"
 
 
 def _raise_first_failure(out):

@@ -15,7 +15,7 @@ try:
 except ImportError:  # pragma: no cover - the options module predates this fallback
     from .solve import check_map_value
 
-__all__ = ["Interconnection", "LinearPlant", "connect", "network"]
+__all__ = ["Interconnection", "LinearInput", "LinearPlant", "connect", "network"]
 
 
 def _matrix(name, M, shape=None):
@@ -266,6 +266,13 @@ class LinearPlant(HybridSystem):
             dx = dx + self.disturbance(t)
         return dx
 
+    def compiled_component(self):
+        """The plant's compiled form (:func:`hybridsim.compiled.lower`): the
+        matrices in its parameters; refused where u, noise or disturbance is
+        a callable of t."""
+        from .compiled._lower import linear_plant_component
+        return linear_plant_component(self)
+
     def output(self, x, t, j):
         if np.ndim(x) == 2:
             return x @ self.C.T
@@ -337,6 +344,84 @@ def _rows_set(nm, system, kind):
                                           t, j) >= 0.0
 
 
+class LinearInput:
+    r"""An input wired linearly from outputs: :math:`u = \sum_s M_s\, y_s`.
+
+    The wiring every integration path understands, the compiled one included
+    (an arbitrary callable ``(t, y) -> u`` runs on the Python and vectorized
+    paths only). :func:`connect` wires with it; pass it in
+    :class:`Interconnection`'s ``inputs`` or :func:`network`'s.
+
+    Parameters
+    ----------
+    terms : dict
+        ``{source: M}``: ``source`` names a component, ``M`` is its
+        (input_dim, output_dim) matrix, or ``None`` for the identity
+        (u = y_source; then there is a single term).
+
+    Examples
+    --------
+    >>> import numpy as np, hybridsim as hs
+    >>> w = hs.LinearInput({"plant": None, "noise": None})      # u = y_plant + y_noise
+    >>> w(0.0, {"plant": np.array([1.0, 2.0]), "noise": np.array([0.5, 0.5])})
+    array([1.5, 2.5])
+    >>> w = hs.LinearInput({"a": [[1.0, 0.0], [0.0, 0.0]], "b": [[0.0], [1.0]]})
+    >>> w(0.0, {"a": np.array([3.0, 4.0]), "b": np.array([5.0])})   # u = (a_1, b)
+    array([3., 5.])
+    """
+
+    __slots__ = ("terms",)
+
+    def __init__(self, terms):
+        if not isinstance(terms, Mapping) or not terms:
+            raise TypeError(f"terms must be a non-empty dict {{source: matrix or None}}, "
+                            f"got {type(terms).__name__}")
+        out = {}
+        for src, M in terms.items():
+            out[src] = None if M is None else _matrix(f"terms[{src!r}]", M)
+        rows = {M.shape[0] for M in out.values() if M is not None}
+        if len(rows) > 1:
+            raise ValueError(f"terms: every matrix must have the same number of rows "
+                             f"(the input's dimension), got {sorted(rows)}")
+        self.terms = out
+
+    def __call__(self, t, y):
+        u = None
+        for src, M in self.terms.items():
+            v = y[src]
+            if M is not None:
+                v = v @ M.T if np.ndim(v) == 2 else M @ v
+            u = v if u is None else u + v
+        return u
+
+    def input_dim(self, output_dims):
+        """The input's dimension given ``{source: output_dim}`` (checking the shapes)."""
+        m = None
+        for src, M in self.terms.items():
+            q = output_dims[src]
+            if M is None:
+                k = q
+            else:
+                if M.shape[1] != q:
+                    raise ValueError(f"LinearInput: terms[{src!r}] has {M.shape[1]} columns "
+                                     f"but {src!r} has {q} outputs")
+                k = M.shape[0]
+            if m is not None and k != m:
+                raise ValueError(f"LinearInput: the terms give inputs of dimensions {m} and "
+                                 f"{k}; they must agree")
+            m = k
+        return m
+
+    def __repr__(self):
+        return f"LinearInput({{{', '.join(map(repr, self.terms))}}})"
+
+    def __getstate__(self):
+        return self.terms
+
+    def __setstate__(self, s):
+        self.terms = s
+
+
 class Interconnection(HybridSystem):
     """Several hybrid systems with one state vector, wired output to input.
 
@@ -393,6 +478,11 @@ class Interconnection(HybridSystem):
                 raise ValueError(f"inputs: {nm!r} is not a component; have {list(self.systems)}")
             if not callable(inputs[nm]):
                 raise TypeError(f"inputs[{nm!r}] must be a callable (t, y) -> u")
+            if isinstance(inputs[nm], LinearInput):
+                bad = [s for s in inputs[nm].terms if s not in self.systems]
+                if bad:
+                    raise ValueError(f"inputs[{nm!r}]: the LinearInput reads {bad}, which "
+                                     f"are not components; have {list(self.systems)}")
         for nm, s in self.systems.items():
             if int(s.input_dim or 0) > 0 and nm not in inputs:
                 raise ValueError(f"inputs: component {nm!r} has input_dim={s.input_dim} "
@@ -745,7 +835,7 @@ def connect(plant, observer, names=("plant", "observer")):
                          f"dimension input_dim={m} ({type(observer).__name__}); they must "
                          f"agree (check the plant's C matrix / output_dim and the observer's "
                          f"output matrix)")
-    return Interconnection({p: plant, o: observer}, inputs={o: _OutputOf(p)})
+    return Interconnection({p: plant, o: observer}, inputs={o: LinearInput({p: None})})
 
 
 def _output_dim(system):
@@ -760,16 +850,6 @@ def _output_dim(system):
         return int(np.size(y))
     except Exception:  # noqa: BLE001 - unknown: the run will tell
         return None
-
-
-class _OutputOf:
-    """Input wiring ``u = y[name]`` (a picklable callable)."""
-
-    def __init__(self, name):
-        self.name = name
-
-    def __call__(self, t, y):
-        return y[self.name]
 
 
 class _NodeInput:
@@ -792,10 +872,13 @@ def network(G, systems, inputs, *, nodelist=None, exogenous=None):
         Edge i -> k: node k receives node i's output.
     systems : dict or callable
         ``{node: HybridSystem}``, or ``node -> HybridSystem``.
-    inputs : callable
+    inputs : callable or dict
         ``inputs(node, t, received, exo) -> u`` where ``received`` maps each
         in-neighbour of ``node`` to its output and ``exo`` maps each
-        exogenous component's name to its output.
+        exogenous component's name to its output; or ``{node:
+        LinearInput}`` for nodes with an input, each term's source an
+        in-neighbour of the node or an exogenous component (the wiring the
+        compiled path runs, ``backend="compiled"``).
     nodelist : list, optional
         Order of the nodes in the stacked state (default: ``list(G)``).
     exogenous : dict, optional
@@ -835,8 +918,9 @@ def network(G, systems, inputs, *, nodelist=None, exogenous=None):
         raise ImportError("network() needs networkx") from e
     if not isinstance(G, nx.DiGraph):
         raise TypeError(f"G must be a networkx.DiGraph, got {type(G).__name__}")
-    if not callable(inputs):
-        raise TypeError("inputs must be a callable (node, t, received, exo) -> u")
+    if not callable(inputs) and not isinstance(inputs, Mapping):
+        raise TypeError("inputs must be a callable (node, t, received, exo) -> u, or a "
+                        "dict {node: LinearInput}")
     loops = list(nx.selfloop_edges(G))
     if loops:
         raise ValueError(f"G has self-loops at nodes {[u for u, _ in loops]}: an edge v -> v "
@@ -854,8 +938,23 @@ def network(G, systems, inputs, *, nodelist=None, exogenous=None):
         s = systems(v) if callable(systems) and not isinstance(systems, Mapping) else systems[v]
         comps[v] = s
     exo_names = list(exogenous)
-    wiring = {v: _NodeInput(inputs, v, list(G.predecessors(v)), exo_names)
-              for v in nodes if int(comps[v].input_dim or 0) > 0}
+    if isinstance(inputs, Mapping):
+        wiring = {}
+        for v, w in inputs.items():
+            if v not in G:
+                raise ValueError(f"inputs: {v!r} is not a node of G")
+            if not isinstance(w, LinearInput):
+                raise TypeError(f"inputs[{v!r}] must be a hybridsim.LinearInput, got "
+                                f"{type(w).__name__}")
+            allowed = set(G.predecessors(v)) | set(exo_names)
+            bad = [s for s in w.terms if s not in allowed]
+            if bad:
+                raise ValueError(f"inputs[{v!r}] reads {bad}, which are neither in-neighbours "
+                                 f"of {v!r} in G nor exogenous components")
+            wiring[v] = w
+    else:
+        wiring = {v: _NodeInput(inputs, v, list(G.predecessors(v)), exo_names)
+                  for v in nodes if int(comps[v].input_dim or 0) > 0}
     ic = Interconnection(comps, wiring)
     ic.graph = G
     ic.nodelist = nodes

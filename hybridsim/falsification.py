@@ -460,7 +460,9 @@ def batch_run(system, x0_of, t_max, j_max=np.inf, **simulate_kwargs):
         ``x0_of(point) -> initial state`` (the point's parameters written
         into the state).
     t_max, j_max, **simulate_kwargs
-        As in :func:`hybridsim.simulate_many`.
+        As in :func:`hybridsim.simulate_many`; ``backend`` defaults to
+        ``"auto"``: the compiled path where the system runs there (numba
+        installed, a system with a compiled form), else the numpy batch.
 
     Returns
     -------
@@ -469,6 +471,8 @@ def batch_run(system, x0_of, t_max, j_max=np.inf, **simulate_kwargs):
         :func:`falsify` passes it whole populations.
     """
     from .batch import simulate_many
+
+    simulate_kwargs.setdefault("backend", "auto")
 
     def run(points):
         x0s = np.array([np.asarray(x0_of(p), dtype=float) for p in points])
@@ -600,7 +604,7 @@ class _Evaluator:
 
 def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
             budget: int = 1000, seconds: float = math.inf, seed: int | None = None,
-            method: str = "de", popsize: int | None = None, refine: bool = True,
+            method: str = "de", popsize: int | None = None, refine: bool | str = True,
             allow=("T_MAX", "J_MAX"), stop: bool = True,
             progress: bool | None = None) -> FalsificationResult:
     """Search ``space`` for a run on which ``claim``'s margin is negative.
@@ -640,8 +644,16 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
     popsize : int, optional
         Population size (default ``max(15, 5 * space.dim)`` for DE, at least
         5; 100 for random), capped by the budget.
-    refine : bool
+    refine : bool or "gradient"
         Refine the worst point locally by compass search (``"de"`` only).
+        ``"gradient"``: by projected gradient descent instead, where ``run``
+        has an attribute ``sensitivity``, a callable ``point ->``
+        :class:`hybridsim.sensitivity.SensitivityArc` whose parameters are
+        the space's coordinates (``hs.simulate_sensitivity(make, x0, ...,
+        params=point.z, wrt="params")``); the margin's gradient comes from
+        :func:`hybridsim.sensitivity.margin_gradient`, one run a step. Where
+        a sensitivity is not defined (a grazing jump...) it falls back to
+        the compass search.
     allow : iterable of str
         Termination causes that are ordinary ends of a run; any other cause
         (a blow-up, a map error, a run that raised) is a finding: recorded
@@ -684,6 +696,13 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
         raise ValueError(f"seconds must be > 0, got {seconds}")
     if method not in ("de", "random"):
         raise ValueError(f"method must be 'de' or 'random', got {method!r}")
+    if not (refine is True or refine is False or refine == "gradient"):
+        raise ValueError(f"refine must be True, False or 'gradient', got {refine!r}")
+    if refine == "gradient" and not callable(getattr(run, "sensitivity", None)):
+        raise ValueError("refine='gradient' needs run.sensitivity: a callable point -> "
+                         "SensitivityArc whose parameters are the space's coordinates "
+                         "(hs.simulate_sensitivity(make, x0, ..., params=point.z, "
+                         "wrt='params'))")
     allow = frozenset(allow)
     unknown = allow - {c.name for c in Termination}
     if unknown:
@@ -711,7 +730,10 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
                 left = budget - before
                 _de(ev, space, popsize, round_seed, left - (left // 5 if refine else 0))
                 if refine and not ev.done and ev.best_z is not None:
-                    _refine(ev, space)
+                    if refine == "gradient":
+                        _refine_gradient(ev, space, run.sensitivity)
+                    else:
+                        _refine(ev, space)
                 if ev.n == before or not np.any(space.hi > space.lo):
                     break
                 round_seed = int(seeds.spawn(1)[0].generate_state(1)[0])
@@ -789,3 +811,61 @@ def _refine(ev, space):
             z, best = cand[k], vals[k]
         else:
             h /= 2
+
+
+
+class _NoGradient(Exception):
+    """The gradient is not defined at a point (or the refinement must stop)."""
+
+
+def _refine_gradient(ev, space, sensitivity):
+    """L-BFGS-B (scipy) from the worst point, on the free coordinates scaled
+    to [0, 1], with the margin's gradient from the sensitivities: one run of
+    ``sensitivity`` per evaluation, within what is left of the budget. Where
+    the gradient is not defined, the compass search takes over."""
+    from scipy.optimize import minimize
+
+    from .sensitivity import SensitivityArc, SensitivityError, margin_gradient
+    free = np.flatnonzero(space.hi > space.lo)
+    if not free.size:
+        return
+    lo, width = space.lo[free], (space.hi - space.lo)[free]
+    z0 = ev.best_z.copy()
+
+    def full(u):
+        z = z0.copy()
+        z[free] = np.clip(lo + u * width, space.lo[free], space.hi[free])
+        return z
+
+    def fun(u):
+        if ev.done:
+            raise _NoGradient
+        p = space.point(full(u))
+        try:
+            sarc = sensitivity(p)
+        except SensitivityError as exc:     # the state's arc is fine, its gradient not
+            if exc.arc is not None:
+                ev._record(p, exc.arc.arc)
+            raise _NoGradient from exc
+        except Exception as exc:            # a failed run is a finding
+            ev._record(p, exc)
+            raise _NoGradient from exc
+        if not isinstance(sarc, SensitivityArc) or sarc.system.m != space.dim:
+            raise TypeError(f"run.sensitivity must return a SensitivityArc with one "
+                            f"parameter per coordinate of the space ({space.dim}), got "
+                            f"{sarc!r}")
+        value = ev._record(p, sarc.arc)
+        if value is None or not math.isfinite(value) or ev.found:
+            raise _NoGradient
+        g = margin_gradient(sarc, ev.claim)[free] * width
+        if not np.all(np.isfinite(g)):
+            raise _NoGradient
+        return value, g
+
+    u0 = np.clip((z0[free] - lo) / width, 0.0, 1.0)
+    try:
+        minimize(fun, u0, jac=True, method="L-BFGS-B", bounds=[(0.0, 1.0)] * free.size,
+                 options={"maxfun": max(1, ev.budget - ev.n), "ftol": 0.0, "gtol": 0.0})
+    except _NoGradient:
+        if not ev.done and ev.error is None:
+            _refine(ev, space)

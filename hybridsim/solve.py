@@ -317,12 +317,17 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
         ``zeno_time * max(1, |t|)`` or ``zeno_rtol`` times the run's time
         scale (``t_max - t0``, or the time elapsed when t_max is inf).
 
-    backend : {"python", "compiled"}
+    backend : {"python", "compiled", "auto"}
         ``"compiled"`` runs a :class:`hybridsim.compiled.CompiledSystem`
         entirely in compiled code (numba: ``pip install 'hybridsim[fast]'``)
         through :func:`hybridsim.compiled.simulate_compiled`: the same
-        Dormand-Prince steps, events, rules and arc. Options it does not
-        support (inputs, prehistory, dense, t_eval, other methods) raise.
+        Dormand-Prince steps, events, rules and arc. Other systems are
+        lowered to one (:func:`hybridsim.compiled.lower`: a ``LinearPlant``,
+        systems with a compiled form, interconnections of them wired by
+        :class:`hybridsim.LinearInput`), or refused by name. Options it
+        does not support (inputs, prehistory, dense, t_eval, other methods)
+        raise. ``"auto"``: compiled where numba is installed, the system
+        lowers and the options allow it; the Python path otherwise.
 
     Returns
     -------
@@ -350,6 +355,11 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
     """
     if not isinstance(system, HybridSystem):
         raise TypeError(f"system must be a hybridsim.HybridSystem, got {type(system).__name__}")
+    if backend == "auto":
+        from .batch import _auto_backend
+        backend = _auto_backend(system, dict(method=method, inputs=inputs,
+                                             prehistory=prehistory, dense=dense,
+                                             t_eval=t_eval), None)
     if backend == "compiled":
         return _compiled_run(system, x0, t_max, j_max, dict(
             t0=t0, j0=j0, priority=priority, method=method, rtol=rtol, atol=atol,
@@ -359,7 +369,7 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
             zeno_rtol=zeno_rtol), dict(inputs=inputs, prehistory=prehistory, dense=dense,
                                        t_eval=t_eval, progress=progress))
     if backend != "python":
-        raise ValueError(f"backend must be 'python' or 'compiled', got {backend!r}")
+        raise ValueError(f"backend must be 'python', 'compiled' or 'auto', got {backend!r}")
     maps = system._compile()
     n = int(system.state_dim)
     x = check_x0(x0, n)
@@ -420,13 +430,16 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
 
 def _compiled_run(system, x0, t_max, j_max, opts, python_only):
     """``simulate(..., backend="compiled")``: the compiled path, or a clear refusal."""
-    from .compiled import CompiledSystem, simulate_compiled
-    if not isinstance(system, CompiledSystem):
-        raise TypeError(f"backend='compiled' needs a hybridsim.compiled.CompiledSystem (maps "
-                        f"written as numba-compilable functions of (x, t, j, p)); got "
-                        f"{type(system).__name__}: use backend='python' for it")
+    from .compiled import simulate_compiled
+    from .compiled._lower import lower, rebind
     check_unsupported("compiled", python_only)
-    return simulate_compiled(system, x0, t_max, j_max, **opts)
+    cs = lower(system)        # the system itself, or its lowered form (named refusals)
+    try:
+        return rebind(simulate_compiled(cs, x0, t_max, j_max, **opts), system)
+    except MapError as e:
+        if getattr(e, "arc", None) is not None:
+            rebind(e.arc, system)
+        raise
 
 
 class _Run:

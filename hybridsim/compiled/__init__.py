@@ -849,3 +849,10 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
     if ro.throw:
         _batch._raise_first_failure(arcs)
     return _batch._warned("simulate_many_compiled", arcs, ro.warn)
+
+
+# lowering ordinary systems (LinearPlant, interconnections, components with a
+# compiled form) onto this path: hybridsim/compiled/_lower.py
+from ._lower import Component, compiled_matvec, lower, lowerable, matvec  # noqa: E402
+
+__all__ += ["Component", "lower", "lowerable", "matvec", "compiled_matvec"]

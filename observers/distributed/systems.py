@@ -36,6 +36,7 @@ True
 """
 from __future__ import annotations
 
+import functools
 import itertools
 
 import numpy as np
@@ -225,23 +226,57 @@ class DistributedObserverNode(hs.HybridSystem):
     def output(self, x, t, j):
         return self.data.estimate(np.asarray(x, dtype=float))
 
+    def compiled_component(self):
+        """The node's compiled form (``backend="compiled"``): (7)-(8) or
+        (4)-(5) as :meth:`_NodeData.flow`, with H, N, κ and T in its parameters."""
+        from hybridsim.compiled import Component
+        d = self.data
+        rows, cols = d.H.shape
+        npow = d.N_pow.shape[1] if d._powers else 0
+        flow, output = _node_maps(d.n, cols, rows, npow)
+        mats = [d.H.ravel(), d.T.ravel()]
+        if npow:
+            mats += [d.N_pow.ravel(), d.kappa]
+        return Component(state_dim=d.n, input_dim=self.input_dim, flow=flow, output=output,
+                         output_dim=d.n, params=np.concatenate(mats))
 
-class _NetworkInputs:
-    """``inputs(node, t, received, exo)`` of :func:`hybridsim.network` (picklable)."""
 
-    def __init__(self, dsg):
-        self.slices, k = {}, 0
-        for v, Ci in zip(dsg.nodelist, dsg.C):
-            self.slices[v] = slice(k, k + Ci.shape[0])
-            k += Ci.shape[0]
-        self.neighbours = {v: dsg.in_neighbours(v) for v in dsg.nodelist}
+@functools.cache
+def _node_maps(n, cols, rows, npow):
+    """Compiled maps of a node: f = (H w)[:n] - N ⌈(H w)[n:]⌋^κ, w = (z, u), and
+    the estimate T z; H (rows, cols), T (n, n), N (n, npow), κ (npow,) in the
+    parameters (no power term where npow = 0)."""
+    from hybridsim.compiled import compiled_matvec
+    mv = compiled_matvec()
+    oT = rows * cols
+    oN = oT + n * n
+    ok = oN + n * npow
 
-    def __call__(self, node, t, received, exo):
-        y = exo["plant"]                         # outputs are float arrays (checked by hs)
-        if "noise" in exo:                       # a generator component (Remark 2)
-            y = y + exo["noise"]
-        return np.concatenate([y[..., self.slices[node]]]
-                              + [received[w] for w in self.neighbours[node]], axis=-1)
+    def flow(z, u, t, j, prm):
+        out = np.empty(n)
+        q = np.empty(rows - n)
+        for i in range(rows):                     # H (z, u), row by row
+            b = i * cols
+            acc = 0.0
+            for k in range(n):
+                acc += prm[b + k] * z[k]
+            for k in range(cols - n):
+                acc += prm[b + n + k] * u[k]
+            if i < n:
+                out[i] = acc
+            else:
+                q[i - n] = acc
+        for i in range(n):                        # - N ⌈q⌋^κ
+            acc = 0.0
+            for c in range(npow):
+                a = abs(q[c]) ** prm[ok + c]
+                acc += prm[oN + i * npow + c] * (a if q[c] >= 0.0 else -a)
+            out[i] -= acc
+        return out
+
+    def output(z, t, j, prm):
+        return mv(prm, oT, n, n, z)
+    return flow, output
 
 
 def observer_network(dsg: DistributedDesign, *, noise=None, disturbance=None):
@@ -283,8 +318,32 @@ def observer_network(dsg: DistributedDesign, *, noise=None, disturbance=None):
     plant = hs.LinearPlant(dsg.A, C=np.vstack(dsg.C), noise=noise, disturbance=disturbance)
     exo = {"plant": plant} if generator is None else {"plant": plant, "noise": generator}
     nodes = {v: DistributedObserverNode(dsg, v) for v in dsg.nodelist}
-    return hs.network(dsg.G, nodes, _NetworkInputs(dsg), nodelist=dsg.nodelist,
-                      exogenous=exo)
+    return hs.network(dsg.G, nodes, _wiring(dsg, generator is not None),
+                      nodelist=dsg.nodelist, exogenous=exo)
+
+
+def _wiring(dsg, noisy):
+    """Each node's input u = (y^i (+ m^i), x̃^{j_1}, ..., x̃^{j_K}) as a
+    :class:`hybridsim.LinearInput` (selection matrices: the same numbers as
+    concatenating, on every path, the compiled one included)."""
+    p = sum(Ci.shape[0] for Ci in dsg.C)
+    out, k = {}, 0
+    for v, Ci in zip(dsg.nodelist, dsg.C):
+        m = Ci.shape[0]
+        nb = dsg.in_neighbours(v)
+        dim = m + len(nb) * dsg.n
+        S = np.zeros((dim, p))
+        S[np.arange(m), k + np.arange(m)] = 1.0
+        terms = {"plant": S}
+        if noisy:
+            terms["noise"] = S
+        for q, w in enumerate(nb):
+            E = np.zeros((dim, dsg.n))
+            E[m + q * dsg.n + np.arange(dsg.n), np.arange(dsg.n)] = 1.0
+            terms[w] = E
+        out[v] = hs.LinearInput(terms)
+        k += m
+    return out
 
 
 class DistributedObserver:
@@ -404,6 +463,14 @@ class BandLimitedNoise(hs.HybridSystem):
     def flow_map(self, x, t, j, u):
         return np.zeros(np.shape(x))
 
+    def compiled_component(self):
+        """The generator's compiled form (``backend="compiled"``): the same
+        interpolation (numpy.interp's formula) over the grid in its parameters."""
+        from hybridsim.compiled import Component
+        return Component(state_dim=self.state_dim,
+                         output=_band_limited_maps(self.grid.size, self.dim),
+                         output_dim=self.dim, params=self.grid)
+
     def output(self, x, t, j):
         G, grid = self.grid.size, self.grid
         S = np.asarray(x, dtype=float)
@@ -418,6 +485,31 @@ class BandLimitedNoise(hs.HybridSystem):
         y = slope * (t - grid[k])[..., None] + lo
         y = np.where((t >= grid[-1])[..., None], S[..., -1, :], y)
         return np.where((t < grid[0])[..., None], S[..., 0, :], y)
+
+
+@functools.cache
+def _band_limited_maps(G, dim):
+    """Compiled output of :class:`BandLimitedNoise` (grid of G points in the parameters)."""
+    def output(x, t, j, grid):
+        y = np.empty(dim)
+        if t < grid[0]:
+            for c in range(dim):
+                y[c] = x[c]
+            return y
+        if t >= grid[G - 1]:
+            for c in range(dim):
+                y[c] = x[(G - 1) * dim + c]
+            return y
+        k = np.searchsorted(grid, t, side="right") - 1
+        k = min(max(k, 0), G - 2)
+        dt = t - grid[k]
+        h = grid[k + 1] - grid[k]
+        for c in range(dim):
+            lo = x[k * dim + c]
+            hi = x[(k + 1) * dim + c]
+            y[c] = (hi - lo) / h * dt + lo
+        return y
+    return output
 
 
 def initial_state(dsg: DistributedDesign, x0, xhat0=None):

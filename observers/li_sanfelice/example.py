@@ -205,7 +205,8 @@ def noise_batch(observer, x0, xhat0, noise_states, generator):
     d = observer.design
     plant = hs.LinearPlant(d.A, C=d.H)
     sys = hs.Interconnection({"noise": generator, "plant": plant, "observer": observer},
-                                      inputs={"observer": lambda t, y: y["plant"] + y["noise"]})
+                                      inputs={"observer": hs.LinearInput({"plant": None,
+                                                                          "noise": None})})
     z0 = np.concatenate([vector("x0", x0, d.n), observer.initial_state(xhat0)])
     S = np.atleast_2d(np.asarray(noise_states, dtype=float))
     if S.shape[1] != generator.state_dim:

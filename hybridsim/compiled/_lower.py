@@ -1,0 +1,631 @@
+"""Lowering: ordinary hybrid systems onto the compiled path.
+
+``simulate(system, ..., backend="compiled")`` runs a
+:class:`~hybridsim.compiled.CompiledSystem` as it is; any other system is
+*lowered* to one first, from the compiled forms of its parts:
+
+* a system with a ``compiled_component()`` method (a
+  :class:`Component`: its maps written for numba as functions of
+  ``(x, u, t, j, p)``, its output of ``(x, t, j, p)``) —
+  :class:`hybridsim.LinearPlant` has one, and so do the observers of the
+  papers that run compiled;
+* a :class:`~hybridsim.compiled.CompiledSystem` (maps of ``(x, t, j, p)``);
+* an :class:`hybridsim.Interconnection` (a cascade from :func:`hybridsim.connect`,
+  a network from :func:`hybridsim.network`) of such parts whose inputs are
+  :class:`hybridsim.LinearInput` wirings: the stacked maps are generated as
+  Python source that calls each part's compiled maps on its slice of the
+  state, with the interconnection's rules (C where every part is in its C;
+  D where some part is in its D; at a jump every part in its D jumps, from
+  the pre-jump outputs; the jump guard the largest of the parts', the flow
+  guard the smallest).
+
+Everything numeric (the parts' parameters, the wiring matrices) goes in the
+lowered system's parameter array, so the generated maps depend only on the
+structure (the parts' map functions and dimensions): a second system of the
+same structure reuses the compiled maps of the first (in the process).
+
+What cannot be lowered is refused by name: a part without a compiled form,
+an input given as a Python callable, a part reading its history.
+"""
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+
+from ..compose import Interconnection, LinearInput, LinearPlant
+from ..system import HybridSystem
+
+__all__ = ["Component", "lower", "lowerable", "matvec", "rebind"]
+
+_ROLES = ("flow", "jump", "jump_guard", "flow_guard", "jump_set", "flow_set")
+
+
+class Component:
+    r"""The compiled form of a hybrid system with an input: what
+    ``system.compiled_component()`` returns.
+
+    Each map is a function ``fn(x, u, t, j, p)`` numba can compile in
+    nopython mode (``x`` the part's state, ``u`` its input: a float64 array,
+    empty when ``input_dim`` is 0, ``p`` :attr:`params`); ``output(x, t, j,
+    p)`` is its output (default: the state). The sets follow
+    :class:`~hybridsim.compiled.CompiledSystem`: an indicator decides
+    membership where given, else the set is ``{guard >= 0}``.
+
+    Parameters
+    ----------
+    state_dim, input_dim : int
+    flow : callable, optional
+        Absent: the state is constant (x' = 0), as in a noise generator
+        whose state is its realisation.
+    jump, jump_guard, flow_guard, jump_set, flow_set, output : callable, optional
+    output_dim : int, optional
+        Required with ``output``.
+    params : array_like
+        Floats passed as ``p`` (put matrices here, flattened: the compiled
+        maps then serve every system of the same dimensions).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hybridsim.compiled import Component
+    >>> def flow(x, u, t, j, p):                 # x' = -p0 x + u
+    ...     return -p[0] * x + u
+    >>> c = Component(state_dim=1, input_dim=1, flow=flow, params=[2.0])
+    >>> c.maps["flow"](np.ones(1), np.zeros(1), 0.0, 0, c.params)
+    array([-2.])
+    """
+
+    __slots__ = ("state_dim", "input_dim", "output_dim", "maps", "output", "params")
+
+    def __init__(self, *, state_dim, flow=None, input_dim=0, jump=None, jump_guard=None,
+                 flow_guard=None, jump_set=None, flow_set=None, output=None,
+                 output_dim=None, params=()):
+        for name, v in (("state_dim", state_dim), ("input_dim", input_dim)):
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 0:
+                raise ValueError(f"{name} must be an int >= 0, got {v!r}")
+        if state_dim < 1:
+            raise ValueError(f"state_dim must be a positive int, got {state_dim!r}")
+        self.state_dim, self.input_dim = int(state_dim), int(input_dim)
+        self.maps = {}
+        for role, fn in zip(_ROLES, (flow, jump, jump_guard, flow_guard, jump_set, flow_set)):
+            if fn is None:
+                continue
+            if not callable(fn):
+                raise TypeError(f"{role} must be callable fn(x, u, t, j, p), got "
+                                f"{type(fn).__name__}")
+            self.maps[role] = fn
+        if output is not None and not callable(output):
+            raise TypeError(f"output must be callable fn(x, t, j, p), got {type(output).__name__}")
+        if output is not None and output_dim is None:
+            raise ValueError("output_dim is required with output")
+        self.output = output
+        self.output_dim = int(state_dim if output is None else output_dim)
+        self.params = np.ascontiguousarray(np.array(params, dtype=np.float64).reshape(-1))
+
+    @property
+    def has_D(self):
+        return "jump_set" in self.maps or "jump_guard" in self.maps
+
+    @property
+    def has_C(self):
+        return "flow_set" in self.maps or "flow_guard" in self.maps
+
+
+# ------------------------------------------------------------------ compiled helpers
+def _numba():
+    try:
+        import numba
+    except ImportError as e:
+        raise ImportError("the compiled path needs numba: pip install 'hybridsim[fast]'; "
+                          "run the system on the Python path (backend='python') "
+                          "without it") from e
+    return numba
+
+
+@functools.cache
+def _helpers():
+    numba = _numba()
+    nj = numba.njit(error_model="numpy")
+
+    @nj
+    def matvec(p, off, rows, cols, v):
+        """``M @ v`` with M (rows, cols) stored row-major in ``p`` from ``off``."""
+        out = np.zeros(rows)
+        for i in range(rows):
+            s = 0.0
+            b = off + i * cols
+            for k in range(cols):
+                s += p[b + k] * v[k]
+            out[i] = s
+        return out
+
+    @nj
+    def matvec_add(p, off, rows, cols, v, out):
+        """``out += M @ v`` (M as in :func:`matvec`)."""
+        for i in range(rows):
+            s = 0.0
+            b = off + i * cols
+            for k in range(cols):
+                s += p[b + k] * v[k]
+            out[i] += s
+
+    return {"matvec": matvec, "matvec_add": matvec_add}
+
+
+def matvec(p, off, rows, cols, v):
+    """``M @ v`` with M (rows, cols) stored row-major in the flat array ``p``
+    from index ``off``: the matrix product of compiled maps that read their
+    matrices from their parameters (compiled code; in Python, a plain loop).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hybridsim.compiled import matvec
+    >>> matvec(np.array([9.0, 1.0, 2.0, 3.0, 4.0]), 1, 2, 2, np.array([1.0, 1.0]))
+    array([3., 7.])
+    """
+    M = np.asarray(p[off:off + rows * cols]).reshape(rows, cols)
+    return M @ np.asarray(v, dtype=float)
+
+
+def compiled_matvec():
+    """The numba-compiled :func:`matvec` (for maps of compiled components)."""
+    return _helpers()["matvec"]
+
+
+_JITTED = {}
+
+
+def _jit(fn):
+    """``fn`` as a numba dispatcher (one per function object in the process)."""
+    numba = _numba()
+    if isinstance(fn, numba.core.dispatcher.Dispatcher):
+        return fn
+    key = id(fn)
+    hit = _JITTED.get(key)
+    if hit is not None and hit[0] is fn:
+        return hit[1]
+    d = numba.njit(error_model="numpy")(fn)
+    _JITTED[key] = (fn, d)
+    return d
+
+
+# ------------------------------------------------------------------ the parts
+class _Part:
+    """One part of a lowered system: its component, slices, wiring."""
+
+    def __init__(self, name, comp, xs, ps):
+        self.name, self.comp, self.xs, self.ps = name, comp, xs, ps
+        self.terms = []          # [(source index, None | (off, rows, cols))]
+
+
+def _refuse(what, why):
+    return TypeError(f"backend='compiled': {what} cannot run compiled: {why}. Run it on "
+                     f"the Python path (backend='python'), or see hybridsim.compiled's "
+                     f"notes on lowering")
+
+
+def _component_of(system, what):
+    """The :class:`Component` of a non-interconnection system, or a refusal."""
+    from . import CompiledSystem
+    if isinstance(system, CompiledSystem):
+        return _from_compiled_system(system)
+    if system.needs_history or system.delays:
+        raise _refuse(what, "it reads its history (delays are not compiled)")
+    make = getattr(system, "compiled_component", None)
+    if make is None:
+        raise _refuse(what, f"{type(system).__name__} has no compiled form (a "
+                            f"compiled_component() method returning a "
+                            f"hybridsim.compiled.Component)")
+    comp = make()
+    if not isinstance(comp, Component):
+        raise TypeError(f"{what}: compiled_component() must return a "
+                        f"hybridsim.compiled.Component, got {type(comp).__name__}")
+    n, m = int(system.state_dim), int(system.input_dim or 0)
+    if comp.state_dim != n or comp.input_dim != m:
+        raise ValueError(f"{what}: compiled_component() has state_dim={comp.state_dim}, "
+                         f"input_dim={comp.input_dim}; the system has {n}, {m}")
+    return comp
+
+
+@functools.cache
+def _adapter(fn):
+    """A map of ``(x, t, j, p)`` as one of ``(x, u, t, j, p)``."""
+    f = _jit(fn)
+
+    def a(x, u, t, j, p):
+        return f(x, t, j, p)
+    a._adapted = True
+    return a
+
+
+@functools.cache
+def _linear_maps(n, m, q):
+    """The maps of x' = A x + B u, y = C x with (A, B, C) flattened in p."""
+    mv = compiled_matvec()
+    ob, oc = n * n, n * n + n * m
+
+    def flow(x, u, t, j, p):
+        dx = mv(p, 0, n, n, x)
+        if m:
+            dx += mv(p, ob, n, m, u)
+        return dx
+
+    def output(x, t, j, p):
+        return mv(p, oc, q, n, x)
+    return flow, output
+
+
+def linear_plant_component(plant):
+    """The :class:`Component` of a :class:`hybridsim.LinearPlant` (no callables of t)."""
+    if not plant.vectorized:
+        which = [nm for nm in ("u", "noise", "disturbance") if getattr(plant, nm) is not None]
+        raise _refuse("LinearPlant", f"its {', '.join(which)} is a Python callable of t; put "
+                                     f"the signal in a component's state (a generator "
+                                     f"with a compiled form) and wire it in")
+    n, q = plant.A.shape[0], plant.C.shape[0]
+    m = int(plant.input_dim)
+    flow, output = _linear_maps(n, m, q)
+    B = np.zeros((n, 0)) if m == 0 else plant.B
+    return Component(state_dim=n, input_dim=m, flow=flow, output=output, output_dim=q,
+                     params=np.concatenate([plant.A.ravel(), B.ravel(), plant.C.ravel()]))
+
+
+def _from_compiled_system(cs):
+    return Component(state_dim=cs.state_dim, params=cs.params,
+                     **{r: _adapter(fn) for r, fn in cs.maps.items()})
+
+
+# ------------------------------------------------------------------ code generation
+def _reads_input(fn):
+    """Whether a map ``fn(x, u, t, j, p)`` reads its ``u`` (its second argument):
+    maps that do not are called without computing the input (guards and sets
+    of an observer usually read its own state only)."""
+    import dis
+    fn = getattr(fn, "py_func", fn)
+    code = getattr(fn, "__code__", None)
+    if code is None or code.co_argcount < 2:
+        return True
+    name = code.co_varnames[1]
+    if name in code.co_cellvars:
+        return True
+    for ins in dis.get_instructions(code):
+        if ins.opname.startswith(("LOAD_FAST", "DELETE_FAST", "STORE_FAST")):
+            v = ins.argval
+            if v == name or (isinstance(v, tuple) and name in v):
+                return True
+    return False
+
+
+def _generate(parts, n):
+    """Python source of the stacked maps of ``parts`` and the roles present."""
+    lines = []
+    P = range(len(parts))
+
+    def needed(ks, roles):
+        """Statements computing the inputs of parts ``ks`` whose maps ``roles``
+        read them (and the outputs those inputs read)."""
+        ks = [k for k in ks if parts[k].terms and any(
+            _reads_input(parts[k].comp.maps[r]) for r in roles if r in parts[k].comp.maps)]
+        outs = sorted({s for k in ks for s, _ in parts[k].terms})
+        st = [f"    y{s} = {_out_expr(parts[s], s)}" for s in outs]
+        for k in ks:
+            terms = parts[k].terms
+            if len(terms) == 1 and terms[0][1] is None:
+                st.append(f"    u{k} = y{terms[0][0]}")      # a fresh array already
+                continue
+            st.append(f"    u{k} = np.zeros({parts[k].comp.input_dim})")
+            for s, mat in terms:
+                if mat is None:
+                    st.append(f"    u{k} += y{s}")
+                elif mat[0] == "sel":               # a selection matrix: copies, no products
+                    st += [f"    u{k}[{i}] += y{s}[{c}]" for i, c in mat[2]]
+                else:
+                    st.append(f"    matvec_add(p, {mat[0]}, {mat[1]}, {mat[2]}, y{s}, u{k})")
+        return st
+
+    def head(name, ks, roles):
+        st = [f"def {name}(x, t, j, p):"]
+        st += [f"    x{k} = x[{parts[k].xs.start}:{parts[k].xs.stop}]" for k in P]
+        st += [f"    p{k} = p[{parts[k].ps.start}:{parts[k].ps.stop}]" for k in P]
+        st += needed(ks, roles)
+        return st
+
+    def u(k, role=None):
+        c = parts[k].comp
+        if not parts[k].terms or (role is not None and role in c.maps
+                                  and not _reads_input(c.maps[role])):
+            return "NOU"
+        return f"u{k}"
+
+    def in_set(k, which):
+        c = parts[k].comp
+        ind, guard = ("jump_set", "jump_guard") if which == "D" else ("flow_set", "flow_guard")
+        if ind in c.maps:
+            return f"as_bool({ind}{k}(x{k}, {u(k, ind)}, t, j, p{k}))"
+        return f"as_scalar({guard}{k}(x{k}, {u(k, guard)}, t, j, p{k})) >= 0.0"
+
+    roles = {"flow"}
+    lines += head("flow", list(P), ("flow",))
+    lines.append(f"    out = np.empty({n})")
+    for k in P:
+        sl = parts[k].xs
+        if "flow" not in parts[k].comp.maps:
+            lines.append(f"    out[{sl.start}:{sl.stop}] = 0.0")
+            continue
+        lines.append(f"    out[{sl.start}:{sl.stop}] = "
+                     f"as_vec(flow{k}(x{k}, {u(k, 'flow')}, t, j, p{k}))")
+    lines += ["    return out", ""]
+    D = [k for k in P if parts[k].comp.has_D]
+    C = [k for k in P if parts[k].comp.has_C]
+    if D:
+        roles |= {"jump", "jump_set"}
+        lines += head("jump", D, ("jump", "jump_set", "jump_guard"))
+        lines.append("    out = x.copy()")
+        for k in D:
+            sl = parts[k].xs
+            lines.append(f"    if {in_set(k, 'D')}:")
+            lines.append(f"        out[{sl.start}:{sl.stop}] = "
+                         f"as_vec(jump{k}(x{k}, {u(k, 'jump')}, t, j, p{k}))")
+        lines += ["    return out", ""]
+        lines += head("jump_set", D, ("jump_set", "jump_guard"))
+        lines += ["    return " + " or ".join(f"({in_set(k, 'D')})" for k in D), ""]
+        if all("jump_guard" in parts[k].comp.maps for k in D):
+            roles.add("jump_guard")
+            lines += head("jump_guard", D, ("jump_guard",))
+            lines.append("    h = -np.inf")
+            for k in D:
+                lines.append(f"    h = max(h, as_scalar(jump_guard{k}(x{k}, "
+                             f"{u(k, 'jump_guard')}, t, j, p{k})))")
+            lines += ["    return h", ""]
+    if C:
+        roles.add("flow_set")
+        lines += head("flow_set", C, ("flow_set", "flow_guard"))
+        lines += ["    return " + " and ".join(f"({in_set(k, 'C')})" for k in C), ""]
+        if all("flow_guard" in parts[k].comp.maps for k in C):
+            roles.add("flow_guard")
+            lines += head("flow_guard", C, ("flow_guard",))
+            lines.append("    h = np.inf")
+            for k in C:
+                lines.append(f"    h = min(h, as_scalar(flow_guard{k}(x{k}, "
+                             f"{u(k, 'flow_guard')}, t, j, p{k})))")
+            lines += ["    return h", ""]
+    return "\n".join(lines), roles
+
+
+def _out_expr(part, k):
+    if part.comp.output is None:
+        return f"x{k}.copy()"
+    return f"as_vec(output{k}(x{k}, t, j, p{k}))"
+
+
+def _structure(parts):
+    """The key of the generated maps: what they call and the dimensions."""
+    return tuple((tuple(sorted((r, id(f)) for r, f in p.comp.maps.items())),
+                  id(p.comp.output), p.xs.start, p.xs.stop, p.ps.start, p.ps.stop,
+                  tuple(p.terms)) for p in parts)
+
+
+_LOWERED = {}
+
+
+def _build(parts, n, pvec, name):
+    """The lowered :class:`CompiledSystem` (maps shared by structure)."""
+    from . import CompiledSystem, _load_kernel
+    key = (_structure(parts), n, len(pvec))
+    proto = _LOWERED.get(key)
+    if proto is None:
+        k = _load_kernel()
+        src, roles = _generate(parts, n)
+        ns = {"np": np, "math": math, "as_vec": k.as_vec, "as_scalar": k.as_scalar,
+              "as_bool": k.as_bool, "matvec": compiled_matvec(),
+              "matvec_add": _helpers()["matvec_add"],
+              "NOU": np.zeros(0)}
+        for i, p in enumerate(parts):
+            for r, f in p.comp.maps.items():
+                ns[f"{r}{i}"] = _jit(f)
+            if p.comp.output is not None:
+                ns[f"output{i}"] = _jit(p.comp.output)
+        exec(compile(src, f"<lowered {name}>", "exec"), ns)
+        maps = {r: ns[r] for r in roles}
+        proto = CompiledSystem(**maps, state_dim=n, params=pvec, name=f"lowered {name}")
+        proto._source = src
+        proto.compile()
+        _LOWERED[key] = proto
+    # a new system of the same structure: the prototype's compiled maps, its own
+    # parameters (copy.copy would drop the compiled maps, see __getstate__)
+    cs = object.__new__(CompiledSystem)
+    cs.__dict__.update(proto.__dict__)
+    cs.params = pvec
+    for attr in ("flow_map", "jump_map", "jump_guard", "flow_guard", "jump_set", "flow_set"):
+        m = cs.__dict__.get(attr)
+        if m is not None:
+            cs.__dict__[attr] = type(m)(m.fn, cs)
+    return cs
+
+
+def _is_selection(M):
+    """Every entry 0 or 1, at most one 1 a row: ``M @ y`` only copies entries."""
+    return bool(np.all((M == 0.0) | (M == 1.0)) and np.all(M.sum(axis=1) <= 1.0))
+
+
+def _parts_of(system):
+    """The :class:`_Part` list and the parameter vector of a system."""
+    if isinstance(system, Interconnection):
+        names = list(system.systems)
+        comps = [_component_of(s, f"component {nm!r} ({type(s).__name__})")
+                 for nm, s in system.systems.items()]
+    else:
+        names = [None]
+        comps = [_component_of(system, f"{type(system).__name__}")]
+    parts, pv, xo, po = [], [], 0, 0
+    for nm, c in zip(names, comps):
+        parts.append(_Part(nm, c, slice(xo, xo + c.state_dim), slice(po, po + c.params.size)))
+        pv.append(c.params)
+        xo += c.state_dim
+        po += c.params.size
+    if isinstance(system, Interconnection):
+        index = {nm: i for i, nm in enumerate(names)}
+        for i, nm in enumerate(names):
+            c = comps[i]
+            if c.input_dim == 0:
+                continue
+            w = system.inputs.get(nm)
+            if not isinstance(w, LinearInput):
+                raise _refuse(f"the input of component {nm!r}",
+                              f"it is a Python callable ({type(w).__name__}); wire it with "
+                              f"hybridsim.LinearInput ({{source: matrix}}), which every path "
+                              f"runs")
+            m = w.input_dim({s: comps[index[s]].output_dim for s in w.terms})
+            if m != c.input_dim:
+                raise ValueError(f"component {nm!r}: its LinearInput gives an input of "
+                                 f"dimension {m}, its input_dim is {c.input_dim}")
+            for s, M in w.terms.items():
+                if M is None:
+                    parts[i].terms.append((index[s], None))
+                elif _is_selection(M):
+                    pairs = tuple((int(r), int(c)) for r, c in zip(*np.nonzero(M)))
+                    parts[i].terms.append((index[s], ("sel", M.shape, pairs)))
+                else:
+                    parts[i].terms.append((index[s], (po, M.shape[0], M.shape[1])))
+                    pv.append(np.ascontiguousarray(M, dtype=np.float64).reshape(-1))
+                    po += M.size
+    elif comps[0].input_dim:
+        raise _refuse(type(system).__name__, f"it has an input (input_dim="
+                                             f"{comps[0].input_dim}); connect it in an "
+                                             f"Interconnection with a LinearInput")
+    n = xo
+    pvec = np.concatenate(pv) if pv else np.zeros(0)
+    return parts, n, pvec
+
+
+def lower(system):
+    """The :class:`~hybridsim.compiled.CompiledSystem` that runs ``system`` compiled.
+
+    A :class:`~hybridsim.compiled.CompiledSystem` is returned as it is; a
+    system with a compiled form, or an interconnection of such systems wired
+    by :class:`hybridsim.LinearInput`, is lowered (module notes). The result
+    is cached on the system.
+
+    Parameters
+    ----------
+    system : HybridSystem
+
+    Returns
+    -------
+    CompiledSystem
+        Its state is the system's (an interconnection's stacked state).
+
+    Raises
+    ------
+    TypeError
+        A part without a compiled form, or an input that is a Python
+        callable: the message names it.
+
+    Examples
+    --------
+    >>> import numpy as np, hybridsim as hs
+    >>> from hybridsim.compiled import lower
+    >>> plant = hs.LinearPlant([[0.0, 1.0], [-1.0, 0.0]], C=[[1.0, 0.0]])
+    >>> lower(plant).state_dim
+    2
+    """
+    from . import CompiledSystem
+    if isinstance(system, CompiledSystem):
+        return system
+    if not isinstance(system, HybridSystem):
+        raise TypeError(f"system must be a hybridsim.HybridSystem, got {type(system).__name__}")
+    cached = system.__dict__.get("_lowered")
+    if cached is not None:
+        return cached
+    parts, n, pvec = _parts_of(system)
+    _check_shapes(parts, pvec)
+    cs = _build(parts, n, pvec, type(system).__name__)
+    if system.max_step is not None:
+        cs.max_step = system.max_step
+    system.__dict__["_lowered"] = cs
+    return cs
+
+
+def _check_shapes(parts, pvec):
+    """Call each part's maps once in Python at x = 0 and check their shapes, so a
+    wrong size is named here rather than corrupting memory in compiled code."""
+    for part in parts:
+        c, what = part.comp, (f"component {part.name!r}" if part.name is not None
+                              else "the system")
+        x = np.zeros(c.state_dim)
+        u = np.zeros(c.input_dim)
+        p = pvec[part.ps]
+        for role, want in (("flow", c.state_dim), ("jump", c.state_dim)):
+            if role not in c.maps:
+                continue
+            fn = c.maps.get(role)
+            if fn is None or getattr(fn, "_adapted", False):
+                continue
+            v = _probe(getattr(fn, "py_func", fn), x, u, p)
+            if v is not None and np.shape(v) != (want,):
+                raise ValueError(f"{what}: its compiled {role} map returns shape "
+                                 f"{np.shape(v)}, expected ({want},)")
+        if c.output is not None:
+            v = _probe(getattr(c.output, "py_func", c.output), x, None, p)
+            if v is not None and np.shape(v) != (c.output_dim,):
+                raise ValueError(f"{what}: its compiled output returns shape {np.shape(v)}, "
+                                 f"expected ({c.output_dim},)")
+
+
+def _probe(fn, x, u, p):
+    try:
+        with np.errstate(all="ignore"):
+            return fn(x, 0.0, 0, p) if u is None else fn(x, u, 0.0, 0, p)
+    except Exception:  # noqa: BLE001 - numba-only code may not run in Python: skip the probe
+        return None
+
+
+def rebind(arc, system):
+    """Give an arc of a lowered system back to ``system`` (its components, its
+    description); an arc of ``system`` itself is returned as it is."""
+    if arc.system is system:
+        return arc
+    from ..arc import _describe
+    arc.system = system
+    arc.system_description = _describe(system)
+    arc.components = system.components
+    if arc.exception is not None and getattr(arc.exception, "arc", None) is not None:
+        arc.exception.arc = arc
+    return arc
+
+
+def lowerable(system):
+    """Whether :func:`lower` accepts ``system`` (without compiling anything;
+    numba need not be installed).
+
+    Examples
+    --------
+    >>> import hybridsim as hs
+    >>> from hybridsim.compiled import lowerable
+    >>> noisy = hs.LinearPlant([[-1.0]], noise=lambda t: [0.0])   # a callable of t
+    >>> lowerable(hs.LinearPlant([[-1.0]])), lowerable(noisy)
+    (True, False)
+    """
+    from . import CompiledSystem
+    if isinstance(system, CompiledSystem) or "_lowered" in system.__dict__:
+        return True
+    subs = system.systems.items() if isinstance(system, Interconnection) else [(None, system)]
+    try:
+        for nm, s in subs:
+            if isinstance(s, CompiledSystem):
+                continue
+            if s.needs_history or s.delays or not hasattr(s, "compiled_component"):
+                return False
+            if isinstance(s, Interconnection):
+                return False
+            if int(s.input_dim or 0) and (nm is None or not isinstance(
+                    system.inputs.get(nm), LinearInput)):
+                return False
+            if isinstance(s, LinearPlant) and not s.vectorized:
+                return False
+    except AttributeError:
+        return False
+    return True
