@@ -7,7 +7,9 @@ The public face: :class:`HybridSystem` (the data), :func:`simulate` (one run),
 in hybrid time (:func:`plot_flows`, :func:`plot_jumps`, :func:`plot_hybrid`,
 :func:`plot_phase`, :func:`plot_time_domain`). Theorem-check helpers live in
 :mod:`hybridsim.testing`; the search for counterexamples over a declared
-uncertainty space, :func:`falsify`, in :mod:`hybridsim.falsification`.
+uncertainty space, :func:`falsify`, in :mod:`hybridsim.falsification`;
+derivatives through jumps, :func:`simulate_sensitivity`, in
+:mod:`hybridsim.sensitivity`.
 """
 from . import compiled as compiled
 from . import falsification as falsification
@@ -24,12 +26,7 @@ from .history import History, HistoryError
 from .options import METHODS
 from .plot import plot_flows, plot_hybrid, plot_jumps, plot_phase, plot_time_domain
 from .rules import MapError, SimulationError, SimulationWarning
-from .sensitivity import (
-    SensitivityArc,
-    SensitivityError,
-    SensitivityWarning,
-    simulate_sensitivity,
-)
+from .sensitivity import simulate_sensitivity
 from .solve import simulate
 from .system import HybridSystem
 
@@ -39,6 +36,5 @@ __all__ = [
     "Interconnection", "LinearInput", "LinearPlant", "connect", "network",
     "simulate_many", "sweep", "simulate_vectorized", "BatchError", "BatchWarning",
     "plot_flows", "plot_jumps", "plot_hybrid", "plot_phase", "plot_time_domain",
-    "falsify", "simulate_sensitivity", "SensitivityArc", "SensitivityError",
-    "SensitivityWarning",
+    "falsify", "simulate_sensitivity",
 ]
