@@ -463,6 +463,9 @@ def batch_run(system, x0_of, t_max, j_max=np.inf, **simulate_kwargs):
         As in :func:`hybridsim.simulate_many`; ``backend`` defaults to
         ``"auto"``: the compiled path where the system runs there (numba
         installed, a system with a compiled form), else the numpy batch.
+        ``executor=`` (and ``chunks=``) spreads each population over an
+        executor: a ``concurrent.futures`` pool, or a dask cluster's
+        ``client.get_executor()`` for several machines.
 
     Returns
     -------

@@ -234,3 +234,34 @@ def test_noise_counterexample_through_a_signal_entry():
     exact = 0.4 - 0.5 * (1 - math.exp(-2.0))
     assert res.verdict == "counterexample"
     assert abs(res.margin - exact) < 1e-3 and res.margin >= exact - 1e-6
+
+
+def _x0_ball(p):
+    return [p["h0"], 0.0, p["e"]]
+
+
+@pytest.mark.parametrize("kind", ["process-pool", "dask"])
+def test_populations_spread_over_an_executor(kind):
+    """A population run with an executor (a process pool; a dask cluster's
+    executor) finds what the one-process batch finds: same seed, same
+    candidates, margins equal to the integrator's accuracy (1e-6: rtol 1e-9
+    runs of the per-row path against the numpy batch)."""
+    import concurrent.futures
+    kw = dict(budget=60, seed=2, stop=False, refine=False, popsize=20, progress=False)
+    local = falsify(batch_run(BallE(), _x0_ball, t_max=3.0, j_max=1, rtol=1e-9, atol=1e-12),
+                    BALL, below(0.8), **kw)
+    if kind == "process-pool":
+        with concurrent.futures.ProcessPoolExecutor(2) as ex:
+            spread = falsify(batch_run(BallE(), _x0_ball, t_max=3.0, j_max=1, rtol=1e-9,
+                                       atol=1e-12, executor=ex, chunks=2),
+                             BALL, below(0.8), **kw)
+    else:
+        distributed = pytest.importorskip("dask.distributed",
+                                          reason="dask is an optional extra (dask)")
+        with distributed.Client(processes=False, n_workers=1, threads_per_worker=2,
+                                dashboard_address=None) as client:
+            spread = falsify(batch_run(BallE(), _x0_ball, t_max=3.0, j_max=1, rtol=1e-9,
+                                       atol=1e-12, executor=client.get_executor(), chunks=2),
+                             BALL, below(0.8), **kw)
+    assert spread.evaluations == local.evaluations
+    np.testing.assert_allclose(spread.history, local.history, rtol=0, atol=1e-6)
