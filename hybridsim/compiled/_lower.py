@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import functools
 import math
+import types
 
 import numpy as np
 
@@ -179,7 +180,12 @@ _JITTED = {}
 
 
 def _jit(fn):
-    """``fn`` as a numba dispatcher (one per function object in the process)."""
+    """``fn`` as a numba dispatcher (one per function object in the process).
+
+    Plain Python functions ``fn`` closes over (helpers defined beside it in a
+    factory) are compiled with it: the function is rebuilt with their
+    dispatchers in its closure. Helpers at module level must be numba
+    functions already."""
     numba = _numba()
     if isinstance(fn, numba.core.dispatcher.Dispatcher):
         return fn
@@ -187,9 +193,26 @@ def _jit(fn):
     hit = _JITTED.get(key)
     if hit is not None and hit[0] is fn:
         return hit[1]
-    d = numba.njit(error_model="numpy")(fn)
+    target = fn
+    cells = getattr(fn, "__closure__", None) or ()
+    if any(isinstance(c.cell_contents, types.FunctionType) for c in cells
+           if _filled(c)):
+        new = tuple(types.CellType(_jit(c.cell_contents))
+                    if _filled(c) and isinstance(c.cell_contents, types.FunctionType)
+                    else c for c in cells)
+        target = types.FunctionType(fn.__code__, fn.__globals__, fn.__name__,
+                                    fn.__defaults__, new)
+    d = numba.njit(error_model="numpy")(target)
     _JITTED[key] = (fn, d)
     return d
+
+
+def _filled(cell):
+    try:
+        cell.cell_contents
+    except ValueError:          # an empty cell
+        return False
+    return True
 
 
 # ------------------------------------------------------------------ the parts

@@ -557,6 +557,82 @@ def _F(k, w):
     return np.stack([np.stack([-k, w], -1), np.stack([-w, -k], -1)], -2)
 
 
+@functools.cache
+def _rotating_maps(noise, pieces, terms):
+    """Compiled maps of :class:`RotatingFamily` (one state, the formulas of its
+    batch maps in the same order; eps, t_end in the parameters)."""
+    A, H, HINV = _A.copy(), _H.copy(), _HINV.copy()
+    two_pi = 2 * np.pi
+
+    def m(x, t, prm):
+        out = np.zeros(2)
+        if noise == "pwc":
+            width = prm[1] / pieces
+            k = min(max(int(math.floor(t / width)), 0), pieces - 1)
+            out[0] = x[_NOISE + 2 * k]
+            out[1] = x[_NOISE + 2 * k + 1]
+        elif noise == "sin":
+            for i in range(2):
+                acc = 0.0
+                for c in range(terms):
+                    a = x[_NOISE + i * terms + c]
+                    f = x[_NOISE + 2 * terms + i * terms + c]
+                    ph = x[_NOISE + 4 * terms + i * terms + c]
+                    acc += a * math.sin(two_pi * f * t + ph)
+                out[i] = prm[0] / terms * acc
+        return out
+
+    def flow(x, u, t, j, prm):
+        dx = np.zeros(x.shape[0])
+        y00 = H[0, 0] * x[0] + H[0, 1] * x[1]              # y0 = H x
+        y01 = H[1, 0] * x[0] + H[1, 1] * x[1]
+        mm = m(x, t, prm)
+        dx[0] = A[0, 0] * x[0] + A[0, 1] * x[1]
+        dx[1] = A[1, 0] * x[0] + A[1, 1] * x[1]
+        for b, ik, iw, noisy in ((2, _K1, _W1, True), (4, _K2, _W2, True),
+                                 (6, _K1, _W1, False), (8, _K2, _W2, False)):
+            kk, ww = x[ik], x[iw]
+            y0, y1 = (y00 + mm[0], y01 + mm[1]) if noisy else (y00, y01)
+            # F = -k I + w J, L = (A - F) H^-1
+            f00, f01, f10, f11 = -kk, ww, -ww, -kk
+            a00, a01, a10, a11 = A[0, 0] - f00, A[0, 1] - f01, A[1, 0] - f10, A[1, 1] - f11
+            l00 = a00 * HINV[0, 0] + a01 * HINV[1, 0]
+            l01 = a00 * HINV[0, 1] + a01 * HINV[1, 1]
+            l10 = a10 * HINV[0, 0] + a11 * HINV[1, 0]
+            l11 = a10 * HINV[0, 1] + a11 * HINV[1, 1]
+            dx[b] = (f00 * x[b] + f01 * x[b + 1]) + (l00 * y0 + l01 * y1)
+            dx[b + 1] = (f10 * x[b] + f11 * x[b + 1]) + (l10 * y0 + l11 * y1)
+        dx[_TAU] = 1.0 - x[_Q]
+        return dx
+
+    def jump(x, u, t, j, prm):
+        d = x[_DELTA]
+        s = math.exp(-(x[_K2] - x[_K1]) * d)
+        th = (x[_W2] - x[_W1]) * d
+        c, sn = math.cos(th), math.sin(th)
+        # M = I - s R(th), K2 = M^-1, K1 = I - K2
+        m00, m01, m10, m11 = 1.0 - s * c, -s * sn, s * sn, 1.0 - s * c
+        det = m00 * m11 - m01 * m10
+        k200, k201, k210, k211 = m11 / det, -m01 / det, -m10 / det, m00 / det
+        k100, k101, k110, k111 = 1.0 - k200, -k201, -k210, 1.0 - k211
+        xn = x.copy()
+        for a, b in ((2, 4), (6, 8)):
+            r0 = (k100 * x[a] + k101 * x[a + 1]) + (k200 * x[b] + k201 * x[b + 1])
+            r1 = (k110 * x[a] + k111 * x[a + 1]) + (k210 * x[b] + k211 * x[b + 1])
+            xn[a], xn[a + 1], xn[b], xn[b + 1] = r0, r1, r0, r1
+        xn[_TAU] = 0.0
+        xn[_Q] = 1.0 - x[_Q]
+        return xn
+
+    def jump_guard(x, u, t, j, prm):
+        return -1.0 if x[_Q] > 0.5 else x[_TAU] - x[_DELTA]
+
+    def jump_set(x, u, t, j, prm):
+        return x[_TAU] >= x[_DELTA] and x[_Q] < 0.5
+
+    return flow, jump, jump_guard, jump_set
+
+
 class RotatingFamily(hs.HybridSystem):
     """H_n (10)-(12) and plant (1) of V.B for F_i = -k_i I + w_i J, with noise, vectorized.
 
@@ -688,6 +764,15 @@ class RotatingFamily(hs.HybridSystem):
 
     def jump_set(self, x):
         return (x[..., _TAU] >= x[..., _DELTA]) & (x[..., _Q] < 0.5)
+
+    def compiled_component(self):
+        """The family's compiled form (``backend="compiled"``; what
+        :func:`hybridsim.falsification.batch_run` picks where numba is
+        installed): the same maps, row by row."""
+        from hybridsim.compiled import Component
+        f, g, hD, D = _rotating_maps(self.noise, self.pieces, self.terms)
+        return Component(state_dim=self.state_dim, flow=f, jump=g, jump_guard=hD,
+                         jump_set=D, params=[self.eps, self.t_end])
 
     def state(self, x0, xhat0, params, noise=()):
         """The initial state: plant x0, z_m(0, 0) in S_n (x̂1 = x̂2 = xhat0, tau = q = 0),
