@@ -209,7 +209,7 @@ def _jit(fn):
 
 def _filled(cell):
     try:
-        cell.cell_contents
+        _ = cell.cell_contents
     except ValueError:          # an empty cell
         return False
     return True

@@ -568,7 +568,7 @@ def _rotating_maps(noise, pieces, terms):
         out = np.zeros(2)
         if noise == "pwc":
             width = prm[1] / pieces
-            k = min(max(int(math.floor(t / width)), 0), pieces - 1)
+            k = min(max(math.floor(t / width), 0), pieces - 1)
             out[0] = x[_NOISE + 2 * k]
             out[1] = x[_NOISE + 2 * k + 1]
         elif noise == "sin":
