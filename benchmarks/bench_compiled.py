@@ -1,5 +1,5 @@
-"""Compiled path benchmark: hybridsim.compiled against a hand-written numba loop
-and the Python path, measured side by side in one run.
+"""Compiled path benchmark: hybridsim.compiled against a hand-written numba loop,
+diffrax (JAX) where installed, and the Python path, measured side by side in one run.
 
 Workloads (rtol 1e-8, atol 1e-10 unless said):
 
@@ -9,15 +9,21 @@ Workloads (rtol 1e-8, atol 1e-10 unless said):
 * 100,000 balls x 10 jumps, batch (fits and finishes; peak memory printed).
 
 Each is run by ``simulate_compiled`` / ``simulate_many_compiled`` (generic
-kernel, cached on disk; and ``specialize=True``, maps inlined), by a
-hand-written numba loop (Dormand-Prince 5(4) with scipy's step-size
+kernel, cached on disk; and ``specialize=True``, maps inlined, cached on disk
+too), by a hand-written numba loop (Dormand-Prince 5(4) with scipy's step-size
 controller, Illinois root-finding on the guard along the dense output, the
-ball's physics written in; the "floor" of a compiled engine), and by the
-Python path (``hs.simulate`` / ``hs.simulate_many``). First-call times
-(fresh processes: import, compile or cache load, first run) are measured in
-subprocesses.
+ball's physics written in; the "floor" of a compiled engine), by diffrax
+(``jax.jit`` of its Dopri5 with a PID controller and an event, ``jax.vmap``
+over the batch; skipped with a printed reason where diffrax is not
+installed: ``pip install diffrax``) and by the Python path (``hs.simulate`` /
+``hs.simulate_many``). The ball and the 1,000-ball batch are timed in
+interleaved rounds (every contender once per round), medians reported, so
+that a busy moment of a shared machine hits all alike. First calls (fresh
+processes: import, compile or cache load, first run) are measured in
+subprocesses, with the engine's kernels cached and with an empty cache
+(``NUMBA_CACHE_DIR`` a new folder; CPU seconds of the child, user + sys).
 
-Run: ``python benchmarks/bench_compiled.py [--quick] [--skip-big]``
+Run: ``python benchmarks/bench_compiled.py [--quick] [--skip-big] [--skip-first-call]``
 """
 from __future__ import annotations
 
@@ -237,6 +243,63 @@ def best(fn, repeat=5, number=1):
     return min(ts)
 
 
+def interleaved(fns, rounds, number=1):
+    """Medians over ``rounds`` rounds, each timing every function of ``fns`` (a
+    dict) once (``number`` calls), in turn: seconds per call, by name."""
+    ts = {k: [] for k in fns}
+    for _ in range(rounds):
+        for k, fn in fns.items():
+            t = time.perf_counter()
+            for _ in range(number):
+                fn()
+            ts[k].append((time.perf_counter() - t) / number)
+    return {k: float(np.median(v)) for k, v in ts.items()}
+
+
+# ------------------------------------------------------------------ diffrax, the peer
+def diffrax_peer():
+    """``(make, None)``: ``make(K, rtol, atol)`` builds the ball's K jump times
+    as a function of h0 for diffrax (Dopri5, PIDController, an Event on the
+    height while falling, Newton root finding; JAX on the CPU, float64); or
+    ``(None, reason)`` where it cannot run."""
+    try:
+        import jax
+        jax.config.update("jax_enable_x64", True)
+        jax.config.update("jax_platforms", "cpu")
+        import diffrax
+        import jax.numpy as jnp
+        import optimistix as optx
+    except Exception as e:  # noqa: BLE001 - any reason: printed, the peer skipped
+        return None, f"diffrax not available ({type(e).__name__}: {e}); pip install diffrax"
+
+    def make(K, rtol, atol):
+        term = diffrax.ODETerm(lambda t, y, args: jnp.stack([y[1], -G * jnp.ones_like(y[0])]))
+        solver = diffrax.Dopri5()
+        ctrl = diffrax.PIDController(rtol=rtol, atol=atol)
+        # falling and at the floor (positive before: no event at the bounce itself)
+        event = diffrax.Event(lambda t, y, args, **kw: jnp.where(y[1] < 0, y[0], 1.0),
+                              root_finder=optx.Newton(rtol=1e-13, atol=1e-14))
+
+        def one(h0):
+            def body(k, carry):
+                t, y, out = carry
+                sol = diffrax.diffeqsolve(term, solver, t, t + 10.0, None, y,
+                                          stepsize_controller=ctrl, event=event,
+                                          saveat=diffrax.SaveAt(t1=True), max_steps=256)
+                te, ye = sol.ts[-1], sol.ys[-1]
+                return te, jnp.stack([jnp.zeros_like(ye[0]), -E * ye[1]]), out.at[k].set(te)
+            z = jnp.zeros_like(h0)
+            _, _, out = jax.lax.fori_loop(0, K, body, (z, jnp.stack([h0, z]), jnp.zeros(K)))
+            return out
+        return one
+
+    def build(K, rtol, atol, batch):
+        f = make(K, rtol, atol)
+        f = jax.jit(jax.vmap(f) if batch else f)
+        return lambda h: np.asarray(f(jnp.asarray(h)).block_until_ready())
+    return build, None
+
+
 FIRST_CALL = r"""
 import time, warnings, numpy as np
 warnings.simplefilter("ignore")
@@ -245,26 +308,33 @@ import sys; sys.path.insert(0, {here!r})
 import bench_compiled as b
 from hybridsim.compiled import simulate_compiled, simulate_many_compiled
 t1 = time.perf_counter()
-s = b.make_ball()
-if {batch}:
-    h0 = np.linspace(0.5, 2.0, 1000)
-    simulate_many_compiled(s, np.column_stack([h0, 0 * h0]), t_max=1e9, j_max=10,
-                           rtol=1e-10, atol=1e-12)
-else:
-    simulate_compiled(s, [1.0, 0.0], t_max=1e9, j_max=30, rtol=1e-8, atol=1e-10)
+s = b.make_ball({spec})
+h0 = np.linspace(0.5, 2.0, 1000)
+simulate_compiled(s, [1.0, 0.0], t_max=1e9, j_max=30, rtol=1e-8, atol=1e-10)
 t2 = time.perf_counter()
-print(t1 - t0, t2 - t1)
+simulate_many_compiled(s, np.column_stack([h0, 0 * h0]), t_max=1e9, j_max=10,
+                       rtol=1e-10, atol=1e-12)
+t3 = time.perf_counter()
+print(t1 - t0, t2 - t1, t3 - t2)
 """
 
 
-def first_call(batch):
+def first_call(spec=False, cache_dir=None):
+    """A fresh process: (import s, first single run s, first batch s, the
+    child's CPU s, its stderr); ``cache_dir``: numba's cache folder."""
     here = os.path.dirname(os.path.abspath(__file__))
-    out = subprocess.run([sys.executable, "-c", FIRST_CALL.format(here=here, batch=batch)],
-                         capture_output=True, text=True, timeout=1200)
+    env = dict(os.environ)
+    if cache_dir is not None:
+        env["NUMBA_CACHE_DIR"] = cache_dir
+    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    out = subprocess.run([sys.executable, "-c", FIRST_CALL.format(here=here, spec=spec)],
+                         capture_output=True, text=True, timeout=1200, env=env)
+    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
     if out.returncode:
-        return math.nan, math.nan
-    imp, run = map(float, out.stdout.split()[-2:])
-    return imp, run
+        return math.nan, math.nan, math.nan, cpu, out.stderr[-500:]
+    imp, one, many = map(float, out.stdout.split()[-3:])
+    return imp, one, many, cpu, out.stderr
 
 
 def row(name, ours, floor, python, note=""):
@@ -278,27 +348,47 @@ def row(name, ours, floor, python, note=""):
 
 
 def main(argv=None):
+    import tempfile
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="fewer repeats, smaller Python runs")
+    ap.add_argument("--quick", action="store_true", help="fewer rounds, smaller Python runs")
     ap.add_argument("--skip-big", action="store_true", help="skip the 100,000-ball batch")
-    ap.add_argument("--skip-first-call", action="store_true")
+    ap.add_argument("--skip-first-call", action="store_true",
+                    help="skip the fresh-process measurements (the empty-cache one "
+                         "compiles the kernels: about 20 s of CPU)")
     args = ap.parse_args(argv)
-    rep = 3 if args.quick else 7
+    rounds = 7 if args.quick else 15
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, Python "
           f"{platform.python_version()}, numpy {np.__version__}, numba {numba.__version__}, "
           f"numba threads {numba.get_num_threads()}")
+    build, why = diffrax_peer()
+    if build is None:
+        print(f"diffrax peer skipped: {why}")
+    else:
+        import diffrax
+        import jax
+        print(f"diffrax {diffrax.__version__}, jax {jax.__version__} (CPU, float64)")
     if not args.skip_first_call:
-        imp, run = first_call(False)
-        print(f"first call, fresh process, single ball: import {imp:.2f} s, maps compiled + "
-              f"kernel loaded + run {run:.2f} s")
-        imp, run = first_call(True)
-        print(f"first call, fresh process, 1,000-ball batch: import {imp:.2f} s, maps compiled"
-              f" + kernels loaded + run {run:.2f} s")
+        with tempfile.TemporaryDirectory() as d:
+            imp, one, many, cpu, err = first_call(False, d)
+            print(f"first call, empty cache (kernels compiled): import {imp:.2f} s, single "
+                  f"ball {one:.2f} s, then 1,000-ball batch {many:.2f} s; {cpu:.1f} s of CPU "
+                  f"in all (target <= 20 s)")
+            print(f"RESULT first compiled call, empty cache: {cpu:.1f} s of CPU (import, "
+                  f"kernels compiled, ball, 1,000-ball batch)")
+            print("  its notice: " + (" | ".join(ln for ln in err.splitlines()
+                                                 if "hybridsim.compiled" in ln) or "none"))
+            imp, one, many, cpu, err = first_call(False, d)
+            print(f"first call, kernels cached: import {imp:.2f} s, single ball {one:.2f} s "
+                  f"(maps compiled, kernel loaded), batch {many:.2f} s; {cpu:.1f} s of CPU")
+            first_call(True, d)
+            imp, one, many, cpu, err = first_call(True, d)
+            print(f"first call, specialize=True, its kernel cached: single ball {one:.2f} s, "
+                  f"batch {many:.2f} s; {cpu:.1f} s of CPU")
     ball, ball_s, timer, timer_s = make_ball(), make_ball(True), make_timer(), make_timer(True)
     t = time.perf_counter()
     simulate_compiled(ball_s, [1.0, 0.0], t_max=1.0, j_max=1)
-    print(f"specialize=True: compiling the ball's own kernel took "
-          f"{time.perf_counter() - t:.1f} s (once per process)")
+    print(f"specialize=True in this process: its kernel compiled or loaded from the disk "
+          f"cache in {time.perf_counter() - t:.2f} s")
     # warm everything
     simulate_compiled(ball, [1.0, 0.0], t_max=1.0, j_max=1)
     simulate_compiled(timer, [0.0], t_max=2.0)
@@ -311,41 +401,56 @@ def main(argv=None):
 
     # 30-bounce ball
     kw = dict(rtol=1e-8, atol=1e-10)
-    exact = bouncing_ball_jump_times(1.0, 30, G, E)[0] if np.ndim(
-        bouncing_ball_jump_times(1.0, 30, G, E)) > 1 else bouncing_ball_jump_times(1.0, 30, G, E)
+    exact = bouncing_ball_jump_times(1.0, 30, G, E)
     arc = simulate_compiled(ball, [1.0, 0.0], t_max=1e9, j_max=30, **kw)
     err = np.max(np.abs(arc.jump_times - exact))
-    t_ours = best(lambda: simulate_compiled(ball, [1.0, 0.0], t_max=1e9, j_max=30, **kw),
-                  rep, 20)
-    t_spec = best(lambda: simulate_compiled(ball_s, [1.0, 0.0], t_max=1e9, j_max=30, **kw),
-                  rep, 20)
     y0 = np.array([1.0, 0.0])
-    t_hw = best(lambda: hand_written(0, y0, 1e9, 30, 1e-8, 1e-10, G, E, 1.0, out), rep, 20)
+    fns = {"ours": lambda: simulate_compiled(ball, [1.0, 0.0], t_max=1e9, j_max=30, **kw),
+           "spec": lambda: simulate_compiled(ball_s, [1.0, 0.0], t_max=1e9, j_max=30, **kw),
+           "hand": lambda: hand_written(0, y0, 1e9, 30, 1e-8, 1e-10, G, E, 1.0, out)}
+    dfx_note = ""
+    if build is not None:
+        t = time.perf_counter()
+        dball = build(30, 1e-8, 1e-10, False)
+        jt = dball(1.0)
+        dfx_first = time.perf_counter() - t
+        fns["diffrax"] = lambda: dball(1.0)
+        dfx_err = np.max(np.abs(jt - exact))
+    med = interleaved(fns, rounds, 20)
     hand_written(0, y0, 1e9, 30, 1e-8, 1e-10, G, E, 1.0, out)
     err_hw = np.max(np.abs(out[:30] - exact))
     t_py = best(lambda: hs.simulate(BouncingBall(G, E), [1.0, 0.0], t_max=1e9, j_max=30,
                                     **kw), 3 if not args.quick else 1)
-    row("30-bounce ball (generic kernel)", t_ours, t_hw, t_py,
-        f"jump times within {err:.1e} (hand-written {err_hw:.1e})")
-    row("30-bounce ball (specialize=True)", t_spec, t_hw, t_py)
+    if build is not None:
+        dfx_note = (f"; diffrax {med['diffrax'] * 1e3:.3f} ms ({med['ours'] / med['diffrax']:.2f}x"
+                    f" its time; its first call {dfx_first:.1f} s, within {dfx_err:.1e})")
+    row("30-bounce ball (generic kernel)", med["ours"], med["hand"], t_py,
+        f"jump times within {err:.1e} (hand-written {err_hw:.1e}){dfx_note}")
+    row("30-bounce ball (specialize=True)", med["spec"], med["hand"], t_py)
+    print(f"RESULT 30-bounce ball compiled: {med['ours'] * 1e3:.3f} ms, "
+          f"{med['ours'] / med['hand']:.2f}x the hand-written numba loop "
+          f"({med['spec'] / med['hand']:.2f}x specialised)"
+          + (f", {med['ours'] / med['diffrax']:.2f}x diffrax's time" if build else ""))
 
     # timer, 10,000 jumps
+    rep = 3 if args.quick else 7
     nj = 10_000
-    t_ours = best(lambda: simulate_compiled(timer, [0.0], t_max=math.inf, j_max=nj), rep)
-    t_spec = best(lambda: simulate_compiled(timer_s, [0.0], t_max=math.inf, j_max=nj), rep)
     y0 = np.array([0.0, 0.0])
-    t_hw = best(lambda: hand_written(1, y0, 1e9, nj, 1e-6, 1e-9, G, E, 1.0, out), rep)
+    med = interleaved({
+        "ours": lambda: simulate_compiled(timer, [0.0], t_max=math.inf, j_max=nj),
+        "spec": lambda: simulate_compiled(timer_s, [0.0], t_max=math.inf, j_max=nj),
+        "hand": lambda: hand_written(1, y0, 1e9, nj, 1e-6, 1e-9, G, E, 1.0, out)}, rep)
     # (the hand-written loop's timer: the same DOPRI5 and Illinois, state padded to 2)
     arc = simulate_compiled(timer, [0.0], t_max=math.inf, j_max=nj)
     terr = np.max(np.abs(arc.jump_times - np.arange(1, nj + 1)))
     npy = 1000 if args.quick else nj
     t_py = best(lambda: hs.simulate(Timer(1.0), [0.0], t_max=math.inf, j_max=npy), 1) \
         * nj / npy
-    row("timer, 10,000 jumps (generic)", t_ours, t_hw, t_py,
-        f"{t_ours / nj * 1e6:.1f} us/jump; jump times within {terr:.1e}"
+    row("timer, 10,000 jumps (generic)", med["ours"], med["hand"], t_py,
+        f"{med['ours'] / nj * 1e6:.1f} us/jump; jump times within {terr:.1e}"
         + ("" if npy == nj else f"; Python path from {npy} jumps, scaled"))
-    row("timer, 10,000 jumps (specialize=True)", t_spec, t_hw, t_py,
-        f"{t_spec / nj * 1e6:.1f} us/jump")
+    row("timer, 10,000 jumps (specialize=True)", med["spec"], med["hand"], t_py,
+        f"{med['spec'] / nj * 1e6:.1f} us/jump")
 
     # 1,000 balls x 10 jumps
     rng = np.random.default_rng(0)
@@ -358,20 +463,45 @@ def main(argv=None):
     jt = np.array([a.jump_times for a in arcs])
     errb = np.max(np.abs(jt - exact))
     simulate_many_compiled(ball_s, x0s[:8], t_max=1e9, j_max=K, **kwb)
-    # ~20-ms runs on two cores shared with other work: seven tries even with
-    # --quick, so that one busy moment does not decide the figure
-    t_ours = best(lambda: simulate_many_compiled(ball, x0s, t_max=1e9, j_max=K, **kwb), 7)
-    t_spec = best(lambda: simulate_many_compiled(ball_s, x0s, t_max=1e9, j_max=K, **kwb), 7)
-    t_ser = best(lambda: simulate_many_compiled(ball, x0s, t_max=1e9, j_max=K, parallel=False,
-                                                **kwb), max(1, rep // 2))
     hand_written_batch(h0[:4], K, 1e-10, 1e-12, G, E)
-    t_hw = best(lambda: hand_written_batch(h0, K, 1e-10, 1e-12, G, E), 7)
+    nt = numba.get_num_threads()
+
+    def one_thread(system):
+        def run():
+            numba.set_num_threads(1)
+            try:
+                simulate_many_compiled(system, x0s, t_max=1e9, j_max=K, **kwb)
+            finally:
+                numba.set_num_threads(nt)
+        return run
+    fns = {"ours": lambda: simulate_many_compiled(ball, x0s, t_max=1e9, j_max=K, **kwb),
+           "spec": lambda: simulate_many_compiled(ball_s, x0s, t_max=1e9, j_max=K, **kwb),
+           "ours1": one_thread(ball), "spec1": one_thread(ball_s),
+           "hand": lambda: hand_written_batch(h0, K, 1e-10, 1e-12, G, E)}
+    if build is not None:
+        t = time.perf_counter()
+        dbatch = build(K, 1e-10, 1e-12, True)
+        jt = dbatch(h0)
+        dfx_first = time.perf_counter() - t
+        dfx_err = np.max(np.abs(jt - exact))
+        fns["diffrax"] = lambda: dbatch(h0)
+    med = interleaved(fns, rounds)
     t_py = best(lambda: hs.simulate_many(BouncingBallBatch(G, E), x0s, t_max=1e9, j_max=K,
                                          **kwb), 3 if not args.quick else 1)
-    row("1,000 balls x 10 jumps (generic, parallel)", t_ours, t_hw, t_py,
-        f"jump times within {errb:.1e}; serial {t_ser * 1e3:.1f} ms")
-    row("1,000 balls x 10 jumps (specialize=True)", t_spec, t_hw, t_py,
-        "Python path: vectorized hs.simulate_many")
+    row(f"1,000 balls x 10 jumps (generic, {nt} threads)", med["ours"], med["hand"], t_py,
+        f"jump times within {errb:.1e}; one thread {med['ours1'] * 1e3:.1f} ms")
+    row(f"1,000 balls x 10 jumps (specialize, {nt} thr.)", med["spec"], med["hand"], t_py,
+        f"one thread {med['spec1'] * 1e3:.1f} ms; Python path: vectorized hs.simulate_many")
+    if build is not None:
+        best_ours = min(med["ours"], med["spec"], med["ours1"], med["spec1"])
+        print(f"{'1,000 balls x 10 jumps, diffrax jit(vmap)':<44} {med['diffrax'] * 1e3:9.3f} ms"
+              f"  first call {dfx_first:.1f} s, jump times within {dfx_err:.1e}; compiled "
+              f"(best setting) / diffrax = {best_ours / med['diffrax']:.2f}x, generic "
+              f"{med['ours'] / med['diffrax']:.2f}x (medians of {rounds} interleaved rounds)")
+        print(f"RESULT 1,000 balls x 10 jumps compiled (best setting): {best_ours * 1e3:.1f} ms"
+              f", {best_ours / med['diffrax']:.2f}x diffrax jit(vmap)'s time "
+              f"({med['diffrax'] * 1e3:.1f} ms), {best_ours / med['hand']:.2f}x the hand-written"
+              f" loop's")
 
     if not args.skip_big:
         N = 100_000
@@ -384,13 +514,25 @@ def main(argv=None):
         rss1 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
         held = sum(a.t.nbytes + a.j.nbytes + a.x.nbytes + a.xdot.nbytes for a in arcs) / 2**20
         n_ok = sum(a.jump_count == K for a in arcs)
-        del arcs
+        jt = np.array([a.jump_times for a in arcs])
+        errbig = np.max(np.abs(jt - bouncing_ball_jump_times(h0, K, G, E)))
+        del arcs, jt
         t_hw = best(lambda: hand_written_batch(h0, K, 1e-10, 1e-12, G, E), 1)
+        note = ""
+        if build is not None:
+            t = time.perf_counter()
+            dbatch(h0)      # recompiles for the new shape: timed again warm
+            t = time.perf_counter()
+            dbatch(h0)
+            note = f"; diffrax {time.perf_counter() - t:.2f} s"
+        print(f"RESULT 100,000 balls x 10 jumps compiled: {t_big:.2f} s, {t_big / t_hw:.2f}x "
+              f"the hand-written loop's time")
         row("100,000 balls x 10 jumps (generic)", t_big, t_hw, None,
-            f"{n_ok} of {N} with 10 jumps; samples held {held:.0f} MB, peak RSS "
-            f"{rss1:.0f} MB (before {rss0:.0f} MB)")
+            f"{n_ok} of {N} with 10 jumps, within {errbig:.1e}; samples held {held:.0f} MB, "
+            f"peak RSS {rss1:.0f} MB (before {rss0:.0f} MB){note}")
     print("\nvs hand: compiled time / hand-written numba loop time (same run); speed-up: "
-          "Python path time / compiled time.")
+          "Python path time / compiled time. Ball and batch rows: medians of interleaved "
+          "rounds.")
 
 
 if __name__ == "__main__":

@@ -606,15 +606,15 @@ def test_ctrl_c_during_a_serial_batch(timer):
 
 
 def test_fork_after_a_parallel_batch(ball):
-    """A fork-based process pool after a parallel batch (GNU OpenMP aborts the
-    child; the threading layer chosen is fork-safe)."""
+    """A fork-based process pool after a parallel batch (GNU OpenMP would abort
+    the child; the batch's threads are Python threads, no numba threading layer)."""
     code = (
         "import multiprocessing as mp, numpy as np\n"
         "from hybridsim.compiled import CompiledSystem, simulate_many_compiled\n"
         "s = CompiledSystem(lambda x, t, j, p: np.ones(1), lambda x, t, j, p: np.zeros(1),\n"
         "                   jump_guard=lambda x, t, j, p: x[0] - 1.0, state_dim=1)\n"
         "simulate_many_compiled(s, np.zeros((200, 1)), t_max=3.0)\n"
-        "import numba; print(numba.threading_layer())\n"
+        "from numba.np.ufunc import parallel as P; print('layer started', P._is_initialized)\n"
         "def work(i):\n"
         "    return len(simulate_many_compiled(s, np.zeros((50, 1)), t_max=3.0))\n"
         "with mp.get_context('fork').Pool(2) as pool:\n"
@@ -623,6 +623,7 @@ def test_fork_after_a_parallel_batch(ball):
                          timeout=300)
     assert out.returncode == 0, out.stderr
     assert "[50, 50]" in out.stdout
+    assert "layer started False" in out.stdout
 
 
 # ------------------------------------------------------------------ first compile

@@ -9,6 +9,14 @@ Python they are passed by address (an int64 array, :func:`map_addresses`),
 as are the Ctrl-C poll and the numpy Generator: numba's unboxing of a
 first-class function or Generator argument costs microseconds per call.
 
+Two kernels are compiled and cached: :func:`run_one` (one run) and
+:func:`run_rows` (a batch's rows, in GIL-free Python threads), which calls a
+run kernel by its code address instead of compiling it in (numba links and
+re-optimises a callee's code into every caller: the batch kernel used to
+cost as much to compile as the engine). A system with ``specialize=True``
+gets its own run kernel in a generated module (:func:`spec_module`), cached on
+disk like these, and batches run it through the same :func:`run_rows`.
+
 The rules (priorities, the jump-or-flow decision, event tolerances, the
 t_max slack, short flows, the time scale) are :mod:`hybridsim.rules`'s own
 functions, made callable from compiled code by ``register_jitable``; they are
@@ -36,7 +44,7 @@ import warnings
 import numba
 import numpy as np
 from llvmlite import ir
-from numba import njit, prange, types
+from numba import njit, types
 from numba.core import cgutils
 from numba.core import errors as nb_errors
 from numba.extending import intrinsic, overload, register_jitable, typeof_impl
@@ -44,10 +52,12 @@ from scipy.integrate._ivp.rk import RK45
 
 from .. import rules
 
-# The parallel batch's threading layer: a fork-safe one (a process pool that
-# forks after a parallel batch dies under GNU OpenMP: "fork() called from a
-# process already using GNU OpenMP"). TBB where installed, else numba's own
-# workqueue; the user's choice (NUMBA_THREADING_LAYER) is kept.
+# A parallel batch runs its rows in Python threads calling the GIL-free
+# :func:`run_rows`: no numba threading layer is started for it. Where one is
+# started all the same (numba.set_num_threads, the user's own prange), a
+# fork-safe one (a process pool that forks after a parallel region dies under
+# GNU OpenMP): TBB where installed, else numba's workqueue; the user's choice
+# (NUMBA_THREADING_LAYER) is kept.
 if os.environ.get("NUMBA_THREADING_LAYER") is None and numba.config.THREADING_LAYER == "default":
     numba.config.THREADING_LAYER_PRIORITY = ["tbb", "workqueue", "omp"]
 
@@ -202,31 +212,35 @@ def _ov_as_bool(v):
 _NJ = dict(error_model="numpy")
 
 
-def wrap_map(fn, kind):
+def wrap_map(fn, kind, lazy=False):
     """Compile a user map ``fn(x, t, j, p)`` to a first-class function.
 
     ``kind``: ``"vec"`` (flow/jump map), ``"scalar"`` (guard), ``"bool"`` (set
     indicator), ``"guard_set"`` (the set {guard >= 0} of a guard). Raises
-    numba's own errors (the caller names the map).
+    numba's own errors (the caller names the map). ``lazy``: compiled only
+    where a kernel that calls it compiles (a specialised kernel loaded from
+    the disk cache never compiles it).
     """
     jf = njit(**_NJ)(fn) if not isinstance(fn, numba.core.dispatcher.Dispatcher) else fn
     if kind == "vec":
         def w(x, t, j, p):
             return as_vec(jf(x, t, j, p))
-        return njit(VEC_SIG, **_NJ)(w)
-    if kind == "scalar":
+        sig = VEC_SIG
+    elif kind == "scalar":
         def w(x, t, j, p):
             return as_scalar(jf(x, t, j, p))
-        return njit(SCAL_SIG, **_NJ)(w)
-    if kind == "bool":
+        sig = SCAL_SIG
+    elif kind == "bool":
         def w(x, t, j, p):
             return as_bool(jf(x, t, j, p))
-        return njit(BOOL_SIG, **_NJ)(w)
-    if kind == "guard_set":
+        sig = BOOL_SIG
+    elif kind == "guard_set":
         def w(x, t, j, p):
             return as_scalar(jf(x, t, j, p)) >= 0.0
-        return njit(BOOL_SIG, **_NJ)(w)
-    raise ValueError(kind)
+        sig = BOOL_SIG
+    else:
+        raise ValueError(kind)
+    return njit(**_NJ)(w) if lazy else njit(sig, **_NJ)(w)
 
 
 @njit(VEC_SIG, cache=True, **_NJ)
@@ -391,8 +405,9 @@ def _fault(ev_addr, which, s, j):
         ev[2] = j
 
 
-# _inD, _inC, _pred: inlined into the event search (calls there are ~10% of a run)
-@njit(cache=True, inline='always', **_NJ)
+# _inD, _inC, _pred: plain calls (numba's IR inlining of them, at ~30 call sites,
+# cost ~10 s of the engine's first compile for no measurable speed: LLVM inlines)
+@njit(cache=True, **_NJ)
 def _inD(M, y, s, j, p):
     """x in D: the indicator, or {jump_guard >= 0} where D is derived from its guard
     (a NaN guard is the map's contract breach: recorded at ``M[8]``, as the Python
@@ -410,7 +425,7 @@ def _inD(M, y, s, j, p):
     return M[4](y, s, j, p)
 
 
-@njit(cache=True, inline='always', **_NJ)
+@njit(cache=True, **_NJ)
 def _inC(M, y, s, j, p):
     """x in C: the indicator, or {flow_guard >= 0} (see :func:`_inD`)."""
     if M[7]:
@@ -422,7 +437,7 @@ def _inC(M, y, s, j, p):
     return M[5](y, s, j, p)
 
 
-@njit(cache=True, inline='always', **_NJ)
+@njit(cache=True, **_NJ)
 def _pred(M, s, y, j, p, has_C, d_active):
     """The event has happened at (s, y): left C, or (watched) entered D."""
     if has_C and not _inC(M, y, s, j, p):
@@ -1358,7 +1373,8 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
             info, stats)
 
 
-#: one run on the first-class map signatures (called by :func:`run_one`)
+#: one run on the maps' own types: first-class functions (:func:`run_one`), or a
+#: system's dispatchers (:data:`run_one_spec`)
 _run_fc = njit(cache=True, **_NJ)(_run_core)
 
 
@@ -1366,83 +1382,103 @@ _run_fc = njit(cache=True, **_NJ)(_run_core)
 def run_one(maps, x0, p, fopt, iopt, atol, rngp, poll, stop):
     """One run of the maps at the addresses ``maps`` (f, g, hD, hC, D, C: their
     cfunc wrappers, :func:`map_addresses`): compiled once, cached on disk."""
-    return _run_fc(_vec_at(maps[0]), _vec_at(maps[1]), _scal_at(maps[2]), _scal_at(maps[3]),
-                   _bool_at(maps[4]), _bool_at(maps[5]), x0, p, fopt, iopt, atol, rngp, poll,
-                   stop)
-
-#: one run specialised on a system's own map dispatchers (maps inlined; not cached)
-run_one_spec = njit(**_NJ)(_run_core)
+    return _run_fc(_vec_at(maps[0]), _vec_at(maps[1]), _scal_at(maps[2]),
+                       _scal_at(maps[3]), _bool_at(maps[4]), _bool_at(maps[5]), x0, p, fopt,
+                       iopt, atol, rngp, poll, stop)
 
 
-def _batch_generic(maps, X0, p, fopt, iopt, atol, rngp, cap, poll, stop):
-    """Many runs in parallel (``prange``), each written into a slot of ``cap``
-    samples of a preallocated pool; a run longer than ``cap`` keeps only its
-    counts (``NS[i] > cap``) and is re-run by the caller with :func:`run_one`."""
+#: one run specialised on a system's own map dispatchers (maps compiled in): the
+#: module :func:`spec_module` generates calls it under ``run_one``'s signature
+run_one_spec = _run_fc
+
+#: what :func:`run_one` returns, and its type as a first-class function value
+ONE_RET = types.Tuple((types.float64[::1], types.int64[::1], types.float64[:, ::1],
+                       types.float64[:, ::1], types.int64, types.int64, types.float64[::1],
+                       types.int64[::1]))
+_I64C, _F64C = types.int64[::1], types.float64[::1]
+ONE_SIG = ONE_RET(_I64C, _F64C, _F64C, _F64C, _I64C, _F64C, _I64C, _I64C, _I64C)
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore", nb_errors.NumbaExperimentalFeatureWarning)
+    ONE_T = types.FunctionType(ONE_SIG)
+
+
+@intrinsic
+def _one_at(typingctx, addr):
+    """A kernel of :data:`ONE_SIG` by the address of its compiled code (numba's
+    own calling convention, ``jit_addr``: arrays and tuples pass as they are)."""
+    if not isinstance(addr, types.Integer):
+        return None
+
+    def codegen(context, builder, sig, args):
+        st = cgutils.create_struct_proxy(ONE_T)(context, builder)
+        vp = context.get_value_type(types.voidptr)
+        st.jit_addr = builder.inttoptr(args[0], vp)
+        st.c_addr = ir.Constant(vp, None)
+        st.py_addr = ir.Constant(vp, None)
+        return st._getvalue()
+    return ONE_T(addr), codegen
+
+
+def jit_address(disp):
+    """The address of ``disp``'s code compiled for :data:`ONE_SIG`'s arguments
+    (the ``one`` argument of :func:`run_rows`; ``disp`` must outlive its use)."""
+    cres = disp.overloads[_signature_one()]
+    if cres.signature.return_type != ONE_RET:
+        raise TypeError(f"a run kernel must return {ONE_RET}, got "
+                        f"{cres.signature.return_type}")
+    return cres.library.get_pointer_to_function(cres.fndesc.llvm_func_name)
+
+
+@intrinsic
+def _claim(typingctx, counter, step):
+    """``counter[0] += step`` atomically; returns the value before (the first row
+    of the chunk the calling thread takes)."""
+    if not (isinstance(counter, types.Array) and counter.dtype == types.int64
+            and isinstance(step, types.Integer)):
+        return None
+
+    def codegen(context, builder, sig, args):
+        arr = context.make_array(sig.args[0])(context, builder, args[0])
+        inc = context.cast(builder, args[1], sig.args[1], types.int64)
+        return builder.atomic_rmw("add", arr.data, inc, "monotonic")
+    return types.int64(counter, step), codegen
+
+
+@njit(cache=True, nogil=True, **_NJ)
+def run_rows(one, maps, X0, p, fopt, iopt, atol, rngp, poll, stop, next_row, chunk,
+             TT, JJ, XX, XXD, NS, CA, DE, INFO, ST):
+    """Runs of a batch, taken ``chunk`` rows at a time from the shared counter
+    ``next_row`` until none is left, each written into its row's slot of the
+    pool (``TT``... of ``cap = TT.shape[1]`` samples); a run longer than its
+    slot keeps only its counts (``NS[i] > cap``) and is re-run by the caller.
+
+    Released from the GIL: the caller runs it in as many threads as it wants
+    cores (dynamic scheduling: a thread slowed by other work on the machine
+    takes fewer chunks), all on one pool. ``one``: the address of the run
+    kernel (:func:`jit_address`: ``run_one`` for the maps at ``maps``, or a
+    system's specialised kernel), called, not compiled in: this kernel is
+    compiled once, small, and serves every system."""
     N = X0.shape[0]
-    n = X0.shape[1]
-    TT = np.empty((N, cap))
-    JJ = np.empty((N, cap), np.int64)
-    XX = np.empty((N, cap, n))
-    XXD = np.empty((N, cap, n))
-    NS = np.zeros(N, np.int64)
-    CA = np.zeros(N, np.int64)
-    DE = np.zeros(N, np.int64)
-    INFO = np.empty((N, 6))
-    ST = np.zeros((N, 6), np.int64)
-    for i in prange(N):
-        T, J, X, XD, cause, detail, info, stats = run_one(
-            maps, np.ascontiguousarray(X0[i]), p, fopt, iopt, atol, rngp, poll, stop)
-        m = T.shape[0]
-        NS[i] = m
-        CA[i] = cause
-        DE[i] = detail
-        INFO[i] = info
-        ST[i] = stats
-        if m <= cap:
-            TT[i, :m] = T
-            JJ[i, :m] = J
-            XX[i, :m] = X
-            XXD[i, :m] = XD
-    return TT, JJ, XX, XXD, NS, CA, DE, INFO, ST
-
-
-#: released from the GIL: the caller runs it in a helper thread and, on Ctrl-C in
-#: the main thread, sets ``stop[0]`` (see ``hybridsim.compiled._interruptible``)
-run_batch = njit(cache=True, parallel=True, nogil=True, **_NJ)(_batch_generic)
-
-
-def _batch_spec(f, g, hD, hC, D, C, X0, p, fopt, iopt, atol, rngp, cap, poll, stop):
-    """:func:`run_batch` calling the specialised :data:`run_one_spec`."""
-    N = X0.shape[0]
-    n = X0.shape[1]
-    TT = np.empty((N, cap))
-    JJ = np.empty((N, cap), np.int64)
-    XX = np.empty((N, cap, n))
-    XXD = np.empty((N, cap, n))
-    NS = np.zeros(N, np.int64)
-    CA = np.zeros(N, np.int64)
-    DE = np.zeros(N, np.int64)
-    INFO = np.empty((N, 6))
-    ST = np.zeros((N, 6), np.int64)
-    for i in prange(N):
-        T, J, X, XD, cause, detail, info, stats = run_one_spec(
-            f, g, hD, hC, D, C, np.ascontiguousarray(X0[i]), p, fopt, iopt, atol, rngp, poll,
-            stop)
-        m = T.shape[0]
-        NS[i] = m
-        CA[i] = cause
-        DE[i] = detail
-        INFO[i] = info
-        ST[i] = stats
-        if m <= cap:
-            TT[i, :m] = T
-            JJ[i, :m] = J
-            XX[i, :m] = X
-            XXD[i, :m] = XD
-    return TT, JJ, XX, XXD, NS, CA, DE, INFO, ST
-
-
-run_batch_spec = njit(parallel=True, nogil=True, **_NJ)(_batch_spec)
+    cap = TT.shape[1]
+    while True:
+        i0 = _claim(next_row, chunk)
+        if i0 >= N:
+            break
+        for i in range(i0, min(i0 + chunk, N)):
+            T, J, X, XD, cause, detail, info, stats = _one_at(one)(
+                maps, np.ascontiguousarray(X0[i]), p, fopt, iopt, atol, rngp, poll, stop)
+            m = T.shape[0]
+            NS[i] = m
+            CA[i] = cause
+            DE[i] = detail
+            INFO[i] = info
+            ST[i] = stats
+            if m <= cap:
+                TT[i, :m] = T
+                JJ[i, :m] = J
+                XX[i, :m] = X
+                XXD[i, :m] = XD
+    return 0
 
 
 def _signature_one():
@@ -1508,7 +1544,12 @@ _READY = set()
 
 
 def _batch_signature(sig):
-    return sig[:1] + (types.float64[:, ::1],) + sig[2:7] + (types.int64,) + sig[7:]
+    """:func:`run_rows`'s: one, maps, X0, p, fopt, iopt, atol, rngp, poll, stop,
+    next_row, chunk, then the pool (TT, JJ, XX, XXD, NS, CA, DE, INFO, ST)."""
+    f2, i2, f3 = types.float64[:, ::1], types.int64[:, ::1], types.float64[:, :, ::1]
+    i1 = types.int64[::1]
+    return ((types.int64,) + sig[:1] + (f2,) + sig[2:] + (i1, types.int64)
+            + (f2, i2, f3, f3, i1, i1, i1, f2, i2))
 
 
 def cache_dir():
@@ -1517,6 +1558,182 @@ def cache_dir():
         return run_one._cache._cache_path
     except AttributeError:
         return None
+
+
+# ------------------------------------------------------------------ specialised kernels
+# numba's ``cache=True`` cannot keep a kernel that closes over dispatchers made
+# at run time. A specialised kernel is therefore a generated module file, one
+# per system and engine (its name is a digest of the maps' code, constants,
+# closures and globals, and of the engine's source), whose ``one`` reads the
+# maps as module globals set before it compiles: numba caches it like any
+# function of a file, and a new process loads it without compiling the maps.
+_SPEC_SRC = """\"\"\"hybridsim.compiled: a run kernel specialised on one system's maps.
+
+Generated by hybridsim.compiled._kernel.spec_module (key {key}); safe to delete.
+\"\"\"
+import numba
+
+from hybridsim.compiled import _kernel as _k
+
+f = g = hD = hC = D = C = None     # the system's compiled maps, set before one compiles
+_f, _g, _hD, _hC, _D, _C = (_k.map_value(globals(), r) for r in ("f", "g", "hD", "hC", "D", "C"))
+
+
+@numba.njit(cache=True, error_model="numpy")
+def one(maps, x0, p, fopt, iopt, atol, rngp, poll, stop):
+    return _k.run_one_spec(_f(), _g(), _hD(), _hC(), _D(), _C(), x0, p, fopt, iopt, atol,
+                           rngp, poll, stop)
+"""
+
+
+def map_value(glb, name):
+    """An intrinsic: the dispatcher ``glb[name]`` as a value of its type, without
+    its address in the code (numba's constant for a dispatcher is its address,
+    a "dynamic global" that keeps the kernel out of the disk cache; the value
+    is never read: calls through a dispatcher's type are resolved statically)."""
+    @intrinsic
+    def value(typingctx):
+        ty = typingctx.resolve_value_type(glb[name])
+
+        def codegen(context, builder, sig, args):
+            return context.get_dummy_value()
+        return ty(), codegen
+    return value
+
+
+class Unkeyable(TypeError):
+    """A map reads a value the specialised kernel's digest cannot key on."""
+
+
+def _digest_value(v, h, seen, depth=0):
+    """Feed ``v`` (a constant, array, module, function or dispatcher a map reads)
+    into the hash ``h``; raise :class:`Unkeyable` for anything else."""
+    if depth > 50:
+        raise Unkeyable("too deeply nested")
+    if v is None or isinstance(v, (bool, int, float, complex, str, bytes, np.generic)):
+        h.update(f"{type(v).__name__}:{v!r};".encode())
+    elif isinstance(v, np.ndarray):
+        h.update(f"nd:{v.dtype.str}:{v.shape};".encode())
+        h.update(np.ascontiguousarray(v).tobytes())
+    elif isinstance(v, (tuple, list)):
+        h.update(f"{type(v).__name__}:{len(v)}(".encode())
+        for e in v:
+            _digest_value(e, h, seen, depth + 1)
+        h.update(b")")
+    elif inspect.ismodule(v):
+        h.update(f"module:{v.__name__};".encode())
+    elif isinstance(v, numba.core.dispatcher.Dispatcher):
+        h.update(f"dispatcher:{sorted(v.targetoptions.items())!r};".encode())
+        _digest_value(v.py_func, h, seen, depth + 1)
+    elif inspect.isfunction(v):
+        if id(v) in seen:
+            h.update(b"<seen>")
+            return
+        seen.add(id(v))
+        h.update(f"fn:{v.__module__}.{v.__qualname__};".encode())
+        _digest_code(v.__code__, v.__globals__, h, seen, depth)
+        for c in v.__closure__ or ():
+            _digest_value(c.cell_contents, h, seen, depth + 1)
+        _digest_value(v.__defaults__, h, seen, depth + 1)
+    elif isinstance(v, (np.ufunc, types.Type)) or inspect.isbuiltin(v) or \
+            (isinstance(v, type) and v.__module__ in ("builtins", "numpy", "math")):
+        h.update(f"named:{getattr(v, '__module__', '')}.{getattr(v, '__name__', v)!s};"
+                 .encode())
+    else:
+        raise Unkeyable(f"a map reads a {type(v).__name__}")
+
+
+def _digest_code(code, glb, h, seen, depth):
+    h.update(code.co_code)
+    h.update(repr(code.co_names).encode())
+    for c in code.co_consts:
+        if inspect.iscode(c):
+            _digest_code(c, glb, h, seen, depth + 1)
+        else:
+            _digest_value(c, h, seen, depth + 1)
+    for name in code.co_names:
+        if name in glb:
+            h.update(f"global:{name}=".encode())
+            _digest_value(glb[name], h, seen, depth + 1)
+
+
+def _engine_digest():
+    """The engine's own key: this file, the rules, numba's and Python's versions."""
+    import sys
+    h = hashlib.sha256()
+    with open(__file__, "rb") as fh:
+        h.update(fh.read())
+    h.update(_rules_digest().encode())
+    h.update(f"{numba.__version__};{sys.version};{np.__version__}".encode())
+    return h.hexdigest()
+
+
+_ENGINE_DIGEST = []
+
+
+def spec_key(maps):
+    """The digest naming a system's specialised kernel: ``maps`` is a tuple of
+    (role, kind, function or None) for f, g, hD, hC, D, C. Raises
+    :class:`Unkeyable` for a map reading a value that cannot be keyed."""
+    if not _ENGINE_DIGEST:
+        _ENGINE_DIGEST.append(_engine_digest())
+    h = hashlib.sha256(_ENGINE_DIGEST[0].encode())
+    seen = set()
+    for role, kind, fn in maps:
+        h.update(f"{role}:{kind}:".encode())
+        _digest_value(fn, h, seen)
+    return h.hexdigest()[:32]
+
+
+def _spec_dirs():
+    """Where generated kernels may go, the first writable one: beside numba's
+    cache of this module, then the user's cache directory."""
+    out = []
+    d = cache_dir()
+    if d:
+        out.append(os.path.join(d, "specialized"))
+    from numba.misc.appdirs import AppDirs
+    out.append(os.path.join(AppDirs(appname="hybridsim", appauthor=False).user_cache_dir,
+                            "specialized"))
+    return out
+
+
+def spec_module(key):
+    """The generated module of ``key`` (written once; None where no folder is
+    writable: the caller then compiles in memory)."""
+    import importlib.util
+    import sys
+    name = f"hybridsim_spec_{key}"
+    if name in sys.modules:
+        return sys.modules[name]
+    src = _SPEC_SRC.format(key=key)
+    for d in _spec_dirs():
+        path = os.path.join(d, name + ".py")
+        try:
+            os.makedirs(d, exist_ok=True)
+            if not os.access(d, os.W_OK):
+                continue
+            if not os.path.exists(path):
+                tmp = f"{path}.{os.getpid()}.tmp"
+                with open(tmp, "w") as fh:
+                    fh.write(src)
+                os.replace(tmp, path)       # atomic: processes may race here
+            with open(path) as fh:
+                if fh.read() != src:
+                    continue
+        except OSError:
+            continue
+        spec = importlib.util.spec_from_file_location(name, path)
+        mod = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(mod)
+        sys.modules[name] = mod
+        return mod
+    return None
+
+
+def spec_in_cache(mod):
+    """Whether the generated module's kernel is in numba's disk cache."""
+    return _in_cache(mod.one, _signature_one())
 
 
 def _in_cache(disp, sig):
@@ -1530,33 +1747,51 @@ def _in_cache(disp, sig):
         return False
 
 
-def compile_kernels(batch=True, notice=None):
+def compile_kernels(batch=True, notice=None, one=True):
     """Compile (or load from numba's on-disk cache) the kernels for the
-    first-class map signatures: ``run_one``, and ``run_batch`` when ``batch``.
+    first-class map signatures: ``run_one`` (unless not ``one``: a specialised
+    system's batch needs only ``run_rows``), and ``run_rows`` when ``batch``.
 
-    ``notice(cache_dir)`` is called once per process before kernels that are
-    not in the disk cache are compiled (a minute of silence otherwise)."""
-    if "one" in _READY and (not batch or "batch" in _READY):
+    ``notice(cache_dir, seconds)`` is called once per process before kernels
+    that are not in the disk cache are compiled (``seconds``: about how long)."""
+    want_one = one and "one" not in _READY
+    want_batch = batch and "batch" not in _READY
+    if not (want_one or want_batch):
         return          # every call of simulate_compiled asks: answer cheaply
     import warnings
     sig = _signature_one()
     if notice is not None and "noticed" not in _READY:
-        todo = [] if "one" in _READY else [(run_one, sig)]
-        if batch and "batch" not in _READY:
-            todo.append((run_batch, _batch_signature(sig)))
-        if any(not _in_cache(d, s) for d, s in todo):
+        todo = [(run_one, sig, COMPILE_SECONDS[0])] if want_one else []
+        if want_batch:
+            todo.append((run_rows, _batch_signature(sig), COMPILE_SECONDS[1]))
+        todo = [(d, s, c) for d, s, c in todo if not _in_cache(d, s)]
+        if todo:
             _READY.add("noticed")
-            notice(cache_dir())
+            notice(cache_dir(), sum(c for _, _, c in todo))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", nb_errors.NumbaExperimentalFeatureWarning)
         # compiled for the first-class map signatures only: a call with a
         # system's map dispatchers converts them instead of specialising
-        if "one" not in _READY:
+        if want_one:
             _compile_or_rebuild(run_one, sig)
+            _ONE_ADDR.append(jit_address(run_one))
             _READY.add("one")
-        if batch and "batch" not in _READY:
-            _compile_or_rebuild(run_batch, _batch_signature(sig))
+        if want_batch:
+            _compile_or_rebuild(run_rows, _batch_signature(sig))
             _READY.add("batch")
+
+
+#: CPU seconds to compile run_one, run_rows and a specialised run kernel with an
+#: empty cache (measured on the project's machine, issue 27; the notice quotes them)
+COMPILE_SECONDS = (16, 2, 14)
+#: run_one's code address (:func:`jit_address`), once compiled
+_ONE_ADDR = []
+
+
+def one_address():
+    """:func:`run_one`'s code address (the ``one`` of :func:`run_rows`)."""
+    compile_kernels(batch=False)
+    return _ONE_ADDR[0]
 
 
 def _compile_or_rebuild(disp, sig):
@@ -1632,7 +1867,7 @@ POLL_NONE = _addresses([h.addr for h in _POLL_NONE_H])
 
 
 def map_addresses(handles):
-    """The ``maps`` argument of :func:`run_one` / :func:`run_batch`: the
+    """The ``maps`` argument of :func:`run_one` / :func:`run_rows`: the
     addresses of six :class:`MapHandle` (f, g, hD, hC, D, C). The handles
     (which keep the compiled code alive) must outlive every call."""
     return _addresses([h.addr for h in handles])

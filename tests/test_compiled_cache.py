@@ -1,0 +1,209 @@
+"""The compiled path's kernels: what is cached where, the specialised kernel's
+disk cache and key, and the threaded batch (issue 27).
+
+Fast tests check the specialised kernel's key (no compiling) and where an
+installed, read-only copy keeps its cache; slow ones compile in fresh
+processes with an empty numba cache.
+"""
+import os
+import shutil
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+numba = pytest.importorskip("numba", reason="the compiled path needs numba "
+                                            "(pip install 'hybridsim[fast]')")
+
+from hybridsim.compiled import _kernel as k  # noqa: E402
+
+ROLES = ("flow", "jump", "jump_guard", "flow_guard", "jump_set", "flow_set")
+KINDS = ("vec", "vec", "scalar", "scalar", "bool", "bool")
+
+
+def _entries(*fns):
+    fns = fns + (None,) * (6 - len(fns))
+    return tuple(zip(ROLES, KINDS, fns))
+
+
+def _flow_with(c):
+    def f(x, t, j, p):
+        return np.array([x[1], -c])
+    return f
+
+
+SCALE = np.array([1.0, 2.0])
+
+
+def _flow_scaled(x, t, j, p):
+    return SCALE * x
+
+
+# ------------------------------------------------------------------ the specialised kernel's key
+def test_spec_key_same_maps_same_key():
+    assert k.spec_key(_entries(_flow_with(9.81))) == k.spec_key(_entries(_flow_with(9.81)))
+
+
+def test_spec_key_changes_with_a_closure_constant_a_global_array_or_a_role():
+    base = k.spec_key(_entries(_flow_with(9.81)))
+    assert k.spec_key(_entries(_flow_with(9.8))) != base          # closure cell
+    assert k.spec_key(_entries(_flow_with(9.81), _flow_with(1.0))) != base   # another map
+    scaled = k.spec_key(_entries(_flow_scaled))
+    SCALE[1] = 3.0                                                 # a global array read
+    try:
+        assert k.spec_key(_entries(_flow_scaled)) != scaled
+    finally:
+        SCALE[1] = 2.0
+    assert k.spec_key(_entries(_flow_scaled)) == scaled
+
+
+def test_spec_key_follows_jitted_helpers():
+    """Maps calling numba-jitted helpers (as lowered systems do) are keyed on
+    the helpers' code and constants too."""
+    def helper_for(c):
+        return numba.njit(lambda v: v * c)
+
+    def flow_for(h):
+        def f(x, t, j, p):
+            return h(x)
+        return f
+    assert k.spec_key(_entries(flow_for(helper_for(2.0)))) != \
+        k.spec_key(_entries(flow_for(helper_for(3.0))))
+
+
+def test_spec_key_refuses_an_object_it_cannot_key():
+    class Opaque:
+        pass
+    obj = Opaque()
+
+    def f(x, t, j, p):
+        return obj.v * x
+    with pytest.raises(k.Unkeyable, match="Opaque"):
+        k.spec_key(_entries(f))
+
+
+def test_generated_module_is_written_once_and_reused(tmp_path, monkeypatch):
+    """The first folder that can hold it: one that cannot (here a file is in
+    the way) is passed over."""
+    (tmp_path / "blocked").write_text("")
+    monkeypatch.setattr(k, "_spec_dirs",
+                        lambda: [str(tmp_path / "blocked" / "sub"), str(tmp_path / "rw")])
+    key = "0" * 32
+    try:
+        mod = k.spec_module(key)
+        assert mod is not None and os.path.dirname(mod.__file__) == str(tmp_path / "rw")
+        assert k.spec_module(key) is mod
+        assert hasattr(mod, "one") and mod.f is None
+        assert len(list((tmp_path / "rw").glob("*.py"))) == 1
+    finally:
+        sys.modules.pop("hybridsim_spec_" + key, None)
+
+
+# ------------------------------------------------------------------ an installed copy
+def test_read_only_installed_copy_caches_in_the_user_cache_dir(tmp_path):
+    """A copy of the package in a folder it cannot write (as site-packages may
+    be) keeps numba's cache, and the specialised kernels, in the user's cache
+    folder: the same policy as the checkout, one more compile per machine.
+    (Where the test runs as a user who writes anywhere, root, the folder's
+    refusal is simulated in the child: numba's in-tree locator fails there.)"""
+    import hybridsim
+    site = tmp_path / "site"
+    src = os.path.dirname(hybridsim.__file__)
+    shutil.copytree(src, site / "hybridsim",
+                    ignore=shutil.ignore_patterns("__pycache__", "*.nbi", "*.nbc"))
+    home = tmp_path / "home"
+    env = {key: v for key, v in os.environ.items() if key != "NUMBA_CACHE_DIR"}
+    env.update(HOME=str(home), XDG_CACHE_HOME=str(home / ".cache"), PYTHONPATH=str(site))
+    code = textwrap.dedent(f"""
+        from numba.core import caching
+        site = {str(site)!r}
+        ensure = caching.InTreeCacheLocator.ensure_cache_path
+
+        def refuse(self):          # the read-only folder, as a non-root user sees it
+            if self._cache_path.startswith(site):
+                raise PermissionError(self._cache_path)
+            return ensure(self)
+        caching.InTreeCacheLocator.ensure_cache_path = refuse
+        import hybridsim
+        from hybridsim.compiled import _kernel as k
+        print(hybridsim.__file__)
+        print(k.cache_dir())
+        print(k._spec_dirs()[0])
+    """)
+    out = subprocess.run([sys.executable, "-W", "ignore", "-c", code], capture_output=True,
+                         text=True, timeout=300, env=env, cwd=str(tmp_path))
+    assert out.returncode == 0, out.stderr
+    where, cache, spec = out.stdout.split()[-3:]
+    assert where.startswith(str(site))
+    assert cache.startswith(str(home / ".cache")), cache
+    assert spec.startswith(cache)
+    assert not any(p.name == "__pycache__" and any(p.glob("*.nbi"))
+                   for p in (site / "hybridsim").rglob("__pycache__"))
+
+
+# ------------------------------------------------------------------ compiled in fresh processes
+SPEC_RUN = textwrap.dedent("""
+    import sys, time, numpy as np
+    from hybridsim.compiled import CompiledSystem, simulate_compiled, simulate_many_compiled
+    c = 9.81
+    ball = CompiledSystem(lambda x, t, j, p: np.array([x[1], -c]),
+                          lambda x, t, j, p: np.array([0.0, -p[0] * x[1]]),
+                          jump_guard=lambda x, t, j, p: -x[0],
+                          flow_guard=lambda x, t, j, p: x[0],
+                          jump_set=lambda x, t, j, p: x[0] <= 0.0 and x[1] <= 0.0,
+                          state_dim=2, params=[0.8], specialize=True)
+    t = time.perf_counter()
+    arc = simulate_compiled(ball, [1.0, 0.0], t_max=1e9, j_max=30, rtol=1e-8, atol=1e-10)
+    first = time.perf_counter() - t
+    arcs = simulate_many_compiled(ball, [[1.0, 0.0], [2.0, 0.0]] * 20, t_max=1e9, j_max=5,
+                                  rtol=1e-8, atol=1e-10)
+    np.save(sys.argv[1], np.concatenate([arc.t, arc.x.ravel(), arcs[-1].t]))
+    print(first)
+""")
+
+
+@pytest.mark.slow
+def test_specialised_kernel_is_cached_on_disk(tmp_path):
+    """specialize=True compiles once per machine (with a notice) and a new
+    process loads it: no notice, no compiling, the same samples to the bit."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    runs = []
+    for i in range(2):
+        out = subprocess.run([sys.executable, "-W", "ignore", "-c", SPEC_RUN,
+                              str(tmp_path / f"r{i}.npy")], capture_output=True, text=True,
+                             timeout=900, env=env)
+        assert out.returncode == 0, out.stderr
+        runs.append(out)
+    assert "specialised on this system's maps" in runs[0].stderr
+    assert "compiling" not in runs[1].stderr
+    # loading is a fraction of a second; compiling takes >10 s (2 s: a loaded machine)
+    assert float(runs[1].stdout.split()[-1]) < 2.0
+    np.testing.assert_array_equal(np.load(tmp_path / "r0.npy"), np.load(tmp_path / "r1.npy"))
+    gen = list((tmp_path / "cache").rglob("hybridsim_spec_*.py"))
+    assert len(gen) == 1
+
+
+@pytest.mark.slow
+def test_batch_threads_give_the_same_arcs():
+    """One thread or several (rows claimed dynamically), the same arcs."""
+    from hybridsim.compiled import CompiledSystem, simulate_many_compiled
+    timer = CompiledSystem(lambda x, t, j, p: np.ones(1), lambda x, t, j, p: np.zeros(1),
+                           jump_guard=lambda x, t, j, p: x[0] - p[0], state_dim=1,
+                           params=[1.0])
+    x0s = np.random.default_rng(5).uniform(0.0, 0.9, (500, 1))
+    nt = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        one = simulate_many_compiled(timer, x0s, t_max=7.3)
+    finally:
+        numba.set_num_threads(nt)
+    many = simulate_many_compiled(timer, x0s, t_max=7.3)
+    serial = simulate_many_compiled(timer, x0s, t_max=7.3, parallel=False)
+    for a, b, c in zip(one, many, serial):
+        np.testing.assert_array_equal(a.t, b.t)
+        np.testing.assert_array_equal(a.x, b.x)
+        np.testing.assert_array_equal(a.t, c.t)
+        assert a.stats == b.stats == c.stats
+        assert a.termination is b.termination
