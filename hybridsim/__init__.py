@@ -5,7 +5,8 @@ The public face: :class:`HybridSystem` (the data), :func:`simulate` (one run),
 (:func:`connect`, :class:`Interconnection`, :func:`network`,
 :class:`LinearPlant`), batches (:func:`simulate_many`, :func:`sweep`) and plots
 in hybrid time (:func:`plot_flows`, :func:`plot_jumps`, :func:`plot_hybrid`,
-:func:`plot_phase`, :func:`plot_time_domain`). Theorem-check helpers live in
+:func:`plot_phase`, :func:`plot_time_domain`); every solution of a hybrid inclusion
+(:func:`explore`, drawn by :func:`plot_solutions`). Theorem-check helpers live in
 :mod:`hybridsim.testing`; the search for counterexamples over a declared
 uncertainty space, :func:`falsify`, in :mod:`hybridsim.falsification`;
 derivatives through jumps, :func:`simulate_sensitivity`, in
@@ -21,10 +22,18 @@ from .arc import HybridArc, Termination
 from .batch import BatchError, BatchWarning, simulate_many, sweep
 from .batch_vectorized import simulate_vectorized
 from .compose import Interconnection, LinearInput, LinearPlant, connect, network
+from .explore import Choice, ExploreEnd, SolutionTree, explore
 from .falsification import falsify
 from .history import History, HistoryError
 from .options import METHODS
-from .plot import plot_flows, plot_hybrid, plot_jumps, plot_phase, plot_time_domain
+from .plot import (
+    plot_flows,
+    plot_hybrid,
+    plot_jumps,
+    plot_phase,
+    plot_solutions,
+    plot_time_domain,
+)
 from .rules import MapError, SimulationError, SimulationWarning
 from .sensitivity import simulate_sensitivity
 from .solve import simulate
@@ -36,5 +45,6 @@ __all__ = [
     "Interconnection", "LinearInput", "LinearPlant", "connect", "network",
     "simulate_many", "sweep", "simulate_vectorized", "BatchError", "BatchWarning",
     "plot_flows", "plot_jumps", "plot_hybrid", "plot_phase", "plot_time_domain",
-    "falsify", "simulate_sensitivity",
+    "falsify", "simulate_sensitivity", "explore", "SolutionTree", "Choice", "ExploreEnd",
+    "plot_solutions",
 ]

@@ -489,7 +489,7 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
 
 #: options the compiled path runs (beyond those every path shares) at these values only
 _COMPILED_ONLY_AT = {"method": ("RK45",), "inputs": (None,), "prehistory": (None,),
-                     "dense": (False,), "t_eval": (None,)}
+                     "dense": (False,), "t_eval": (None,), "dwell": (None,)}
 
 
 def _auto_backend(system, kwargs, executor):

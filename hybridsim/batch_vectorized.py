@@ -84,7 +84,7 @@ _SAFETY, _MIN_FACTOR, _MAX_FACTOR = 0.9, 0.2, 10.0
 _TOO_SMALL = "Required step size is less than spacing between numbers."
 # options of simulate() the batch integrator does not implement (refused by
 # options.check_unsupported unless at their do-nothing value)
-_UNSUPPORTED = ("inputs", "prehistory", "dense", "t_eval")
+_UNSUPPORTED = ("inputs", "prehistory", "dense", "t_eval", "dwell")
 # rules.event_tolerance(a, b) = unit * max(1, |a|, |b|); the unit read from the rule
 _TOL_UNIT = event_tolerance(1.0, 1.0)
 _MAX_ITER = 200     # bisection steps of locate_event

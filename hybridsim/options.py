@@ -21,7 +21,7 @@ from .rules import PRIORITIES, MapError, Priority
 
 __all__ = ["RunOptions", "parse_run", "refuse", "SUPPORTS", "METHODS", "check_x0",
            "check_real", "check_count", "check_bool", "check_map_value", "check_options",
-           "check_seed", "check_t_eval", "resolve_method"]
+           "check_seed", "check_t_eval", "resolve_method", "check_dwell"]
 
 METHODS = {"RK23": RK23, "RK45": RK45, "DOP853": DOP853, "Radau": Radau,
            "BDF": BDF, "LSODA": LSODA}
@@ -30,7 +30,8 @@ METHODS = {"RK23": RK23, "RK45": RK45, "DOP853": DOP853, "Radau": Radau,
 #: options of :class:`RunOptions`); anything else given there is refused by
 #: :func:`refuse`
 SUPPORTS = {
-    "python": frozenset({"method", "inputs", "prehistory", "dense", "t_eval", "progress"}),
+    "python": frozenset({"method", "inputs", "prehistory", "dense", "t_eval", "progress",
+                         "dwell"}),
     "vectorized": frozenset({"progress"}),
     "compiled": frozenset(),
 }
@@ -40,7 +41,9 @@ _WHERE = {"method": "hs.simulate (the Python path) for methods other than 'RK45'
           "prehistory": "hs.simulate (the Python path)",
           "dense": "hs.simulate (the Python path)",
           "t_eval": "hs.simulate (the Python path)",
-          "progress": "hs.simulate or hs.simulate_many"}
+          "progress": "hs.simulate or hs.simulate_many",
+          "dwell": "hs.simulate (the Python path) or hs.explore",
+          "jump_map_values": "hs.simulate (the Python path) or hs.explore"}
 
 
 def refuse(path, name, value):
@@ -213,6 +216,57 @@ def check_seed(seed, build=True):
     return np.random.default_rng(seed) if build else None
 
 
+def check_dwell(dwell, prio):
+    """The dwell law in C ∩ D as a callable ``rng -> float >= 0`` (or None).
+
+    ``dwell`` is a scipy.stats frozen distribution (anything with
+    ``rvs(random_state=...)``) or a callable ``dwell(rng) -> float``; only
+    with ``priority="random"``. Each drawn value is checked (a real number
+    >= 0, ``inf`` allowed: flow on).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy import stats
+    >>> law = check_dwell(stats.uniform(0.0, 2.0), Priority.RANDOM)
+    >>> 0.0 <= law(np.random.default_rng(1)) <= 2.0
+    True
+    >>> check_dwell(0.5, Priority.RANDOM)
+    Traceback (most recent call last):
+    ...
+    TypeError: dwell must be a scipy.stats frozen distribution or a callable ...
+    """
+    if dwell is None:
+        return None
+    if hasattr(dwell, "rvs"):
+        def draw(rng, _d=dwell):
+            return _d.rvs(random_state=rng)
+    elif callable(dwell):
+        draw = dwell
+    else:
+        raise TypeError(f"dwell must be a scipy.stats frozen distribution or a callable "
+                        f"rng -> float, got {type(dwell).__name__} {dwell!r}")
+    if prio != Priority.RANDOM:
+        raise ValueError(f"dwell is the law of the time spent in C ∩ D under "
+                         f"priority='random'; got priority={PRIORITIES[int(prio)]!r}")
+
+    def law(rng):
+        # a failure is the user's, as a map's: MAP_ERROR (raised under throw=True)
+        try:
+            v = draw(rng)
+        except Exception as e:
+            raise MapError(f"dwell raised {type(e).__name__}: {e}", "dwell") from e
+        try:
+            f = float(np.asarray(v, dtype=float).reshape(()))
+        except (TypeError, ValueError) as e:
+            raise MapError(f"dwell must draw a real number >= 0 (or inf), got "
+                           f"{type(v).__name__} {v!r}", "dwell") from e
+        if not f >= 0.0:
+            raise MapError(f"dwell must draw a real number >= 0 (or inf), got {f!r}", "dwell")
+        return f
+    return law
+
+
 def check_t_eval(t_eval, t0, t_max):
     if t_eval is None:
         return None
@@ -277,8 +331,12 @@ class RunOptions:
 def parse_run(system, n, *, t0=0.0, j0=0, t_max, j_max=math.inf, priority="jumps",
               rtol=1e-6, atol=1e-9, max_step=math.inf, first_step=None, max_norm=math.inf,
               zeno_jumps=50, zeno_time=1e-12, zeno_rtol=1e-7, refine=1,
-              max_steps=1_000_000, max_samples=10_000_000, throw=True, warn=True):
+              max_steps=1_000_000, max_samples=10_000_000, throw=True, warn=True,
+              python=False):
     """Validate the options every path shares; one message per bad input.
+
+    ``python``: the caller is the Python path; the others refuse a system
+    with a set-valued jump map (``jump_map_values``) by name.
 
     Returns
     -------
@@ -298,6 +356,10 @@ def parse_run(system, n, *, t0=0.0, j0=0, t_max, j_max=math.inf, priority="jumps
     (t0, t_max, j_max, prio, rtol, atol, max_step, first_step, max_norm,
      zeno_time) = check_options(system, n, t0, t_max, j_max, priority, rtol, atol, max_step,
                                 first_step, max_norm, zeno_time)
+    if not python and getattr(system, "jump_map_values", None) is not None:
+        raise ValueError(f"{type(system).__name__} declares jump_map_values (a set-valued "
+                         f"jump map), which only the Python path supports; use "
+                         f"{_WHERE['jump_map_values']}")
     j0 = check_count("j0", j0)
     refine = check_count("refine", refine, minimum=1)
     max_steps = check_count("max_steps", max_steps, minimum=1, allow_inf=True)

@@ -8,6 +8,7 @@ Five functions share one set of keywords:
 :func:`plot_hybrid`       one component in 3-D over the hybrid time domain (t, j)
 :func:`plot_phase`        one component against another
 :func:`plot_time_domain`  the hybrid time domain itself: j against t
+:func:`plot_solutions`    every leaf of :func:`hybridsim.explore` on one Axes
 ========================  ======================================================
 
 Every function returns its Axes (``subplots=True``: an array of Axes), accepts
@@ -50,7 +51,8 @@ import numbers
 
 import numpy as np
 
-__all__ = ["plot_flows", "plot_jumps", "plot_hybrid", "plot_phase", "plot_time_domain"]
+__all__ = ["plot_flows", "plot_jumps", "plot_hybrid", "plot_phase", "plot_time_domain",
+           "plot_solutions"]
 
 #: Points inserted inside each interval between stored samples (smooth=True).
 _POINTS_PER_STEP = 20
@@ -920,4 +922,89 @@ def plot_time_domain(arc, *, ax=None, labels=None, filter=None, jumps=True, mark
     _finish(ax, T_LABEL if xlabel is None else xlabel, J_LABEL if ylabel is None else ylabel,
             legend, None)
     _integer_ticks(ax.yaxis)
+    return ax
+
+
+def plot_solutions(tree, idx=0, *, view="flows", ax=None, label=None, color=None,
+                   alpha=0.6, branch_kw=None, **line_kw):
+    r"""Every solution of an exploration on one Axes, its branch points marked.
+
+    Each leaf of ``tree`` is drawn by :func:`plot_flows` (``view="flows"``:
+    component ``idx`` against t), :func:`plot_jumps` (``"jumps"``: against
+    j) or :func:`plot_time_domain` (``"domain"``: the hybrid time domain),
+    all in one colour; the branch points (where the tree splits) are drawn
+    once, as black diamonds (``Line2D`` with gid ``"branch_points"``,
+    labelled "branch points").
+
+    Parameters
+    ----------
+    tree : SolutionTree or iterable of HybridArc
+        From :func:`hybridsim.explore` (branch points drawn), or any arcs.
+    idx : int
+        The state component (views "flows" and "jumps").
+    view : {"flows", "jumps", "domain"}
+    ax : matplotlib Axes, optional
+        Where to draw (default: a new figure).
+    label : str, optional
+        Legend entry of the solutions (default: "N solutions").
+    color : color, optional
+        Of every leaf (default ``"C0"``, the first colour of the cycle).
+    alpha : float
+        Of the leaves' lines (overlapping leaves show darker).
+    branch_kw : dict, optional
+        ``Line2D`` properties of the branch points' markers.
+    **line_kw
+        Passed to the per-leaf plot function.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+
+    Examples
+    --------
+    >>> import numpy as np, hybridsim as hs
+    >>> timer = hs.HybridSystem.from_functions(
+    ...     f=lambda x: np.array([1.0]), g=lambda x: np.array([0.0]),
+    ...     C=lambda x: x[0] <= 2.0, D=lambda x: x[0] >= 1.0, state_dim=1)
+    >>> tree = hs.explore(timer, [0.0], t_max=5.0, j_max=2, merge_tol=None)
+    >>> ax = hs.plot_solutions(tree)
+    >>> ax.get_legend().get_texts()[0].get_text()
+    '4 solutions'
+    >>> len([ln for ln in ax.lines if ln.get_gid() == "branch_points"][0].get_xdata())
+    3
+    """
+    where = "plot_solutions"
+    views = {"flows": plot_flows, "jumps": plot_jumps, "domain": plot_time_domain}
+    if view not in views:
+        raise ValueError(f"{where}: view must be one of {sorted(views)}, got {view!r}")
+    leaves = list(tree)
+    if not leaves:
+        raise ValueError(f"{where}: tree has no solution to draw")
+    for a in leaves:
+        _check_arc(a, where)
+    branch_kw = _check_kw("branch_kw", branch_kw, where)
+    if label is not None and not isinstance(label, str):
+        raise TypeError(f"{where}: label must be a str, got {type(label).__name__}")
+    ax = _axes(ax, where)
+    if color is None:
+        color = "C0"
+    label = f"{len(leaves)} solutions" if label is None else label
+    for k, a in enumerate(leaves):
+        kw = dict(ax=ax, color=color, alpha=alpha, legend=False, **line_kw)
+        name = [label if k == 0 else "_nolegend_"]
+        if view == "domain":
+            views[view](a, labels=name, **kw)
+        else:
+            views[view](a, idx, labels=name, **kw)
+    bp = getattr(tree, "branch_points", [])
+    if bp:
+        idx = _check_component("idx", idx, leaves[0].state_dim)
+        xs = np.array([p[0] for p in bp]) if view != "jumps" else \
+            np.array([p[1] for p in bp], dtype=float)
+        ys = np.array([p[1] for p in bp], dtype=float) if view == "domain" else \
+            np.array([p[2][idx] for p in bp])
+        st = {"marker": "D", "color": "k", "markersize": 5, "linestyle": "none",
+              "zorder": 3, **branch_kw}
+        ax.plot(xs, ys, label="branch points", gid="branch_points", **st)
+    ax.legend()
     return ax

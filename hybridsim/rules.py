@@ -16,7 +16,8 @@ import numpy as np
 __all__ = ["Termination", "Priority", "Action", "decide", "decide_at_event", "event_outcome",
            "after_jump", "CAUSES", "CODES", "J_MAX_CODE", "ZENO_CODE", "NO_CAUSE",
            "raises", "warns", "finish", "DETAILS", "message",
-           "jumps_now", "needs_coin", "is_short_flow", "is_sticking", "sticking_message",
+           "jumps_now", "needs_coin", "dwell_outcome", "is_short_flow", "is_sticking",
+           "sticking_message",
            "zeno_message", "time_scale", "t_max_slack", "event_tolerance", "PRIORITIES", "FAILURES",
            "post_jump_probe", "LOOP_JUMPS", "is_jump_loop",
            "SimulationWarning", "SimulationError", "MapError"]
@@ -195,6 +196,33 @@ def jumps_now(in_C, in_D, prio, coin, forced=False):
 def needs_coin(in_C, in_D, prio, forced=False):
     """Where :func:`jumps_now` reads the coin (a seeded run draws one only there)."""
     return (prio == _RANDOM) & in_C & in_D & (forced == False)  # noqa: E712
+
+
+def dwell_outcome(dwelling, t, deadline, tau):
+    """The random priority's choice at a point of C ∩ D under a dwell law.
+
+    A dwell ``tau`` (the time to spend in C ∩ D before jumping) is drawn
+    once, at the entry into C ∩ D; inside the dwell (``dwelling``) the run
+    jumps once ``t`` reaches its ``deadline`` (the flow is stopped there, as
+    at an event). ``tau`` is read only where not ``dwelling``. Returns
+    ``(jump, dwelling, deadline)``: the coin of :func:`jumps_now` and the
+    dwell's new state. Plain floats and bools, so that a compiled path
+    compiles it.
+
+    Examples
+    --------
+    >>> dwell_outcome(False, 1.0, math.inf, 0.25)     # entry: dwell 0.25
+    (False, True, 1.25)
+    >>> dwell_outcome(True, 1.25, 1.25, 0.0)          # the dwell has elapsed
+    (True, True, 1.25)
+    >>> dwell_outcome(False, 1.0, math.inf, 0.0)      # a dwell of 0 jumps at once
+    (True, False, inf)
+    """
+    if dwelling:
+        return t >= deadline, True, deadline
+    if tau <= 0.0:
+        return True, False, math.inf
+    return False, True, t + tau
 
 
 def decide(in_C: bool, in_D: bool, prio: int, coin: bool, forced: bool = False) -> int:

@@ -216,6 +216,7 @@ class SensitivitySystem(HybridSystem):
         self._maps = system._compile()
         # the systems at p ± δ e_k, built once: derivatives in p by central differences
         self._pm = []
+        self._pm_sys = []          # the same systems (an interconnection's jump is frozen)
         for k in range(self.np_):
             d = self.fd_step * max(1.0, abs(params[k]))
             pp, pm = params.copy(), params.copy()
@@ -235,6 +236,7 @@ class SensitivitySystem(HybridSystem):
                                     f"same state_dim ({n}), got {s!r}")
                 pair.append(s._compile())
             self._pm.append((pair[0], pair[1], pp[k] - pm[k]))
+            self._pm_sys.append((make_system(pp), make_system(pm), pp[k] - pm[k]))
         self._Jf = _user_jac(system, "flow_jacobian", lambda s: s == (n, n), f"({n}, {n})")
         self._Jg = _user_jac(system, "jump_jacobian", lambda s: s == (n, n), f"({n}, {n})")
         self._Jh = _user_jac(system, "jump_guard_gradient",
@@ -299,7 +301,12 @@ class SensitivitySystem(HybridSystem):
         S = y[c["S"]].reshape(n, m)
         dt_prev = y[c["dt"]]
         t_last, flag = float(y[c["t_last"]][0]), float(y[-1])
-        xp = np.asarray(mp.g(x, t, j, None), dtype=float)
+        # the jump map as it acts at this event: an interconnection jumps the
+        # components in their D here, and its derivatives keep that choice (a
+        # perturbation must not take a component out of D, nor p move a guard)
+        jumping = _jumping(self.base, x, t, j)
+        g = _frozen_jump(self.base, mp, jumping)
+        xp = np.asarray(g(x, t, j), dtype=float)
         out = np.zeros(self.state_dim)
         out[:n] = xp
         out[c["t_last"]] = t
@@ -308,11 +315,14 @@ class SensitivitySystem(HybridSystem):
             out[-1] = flag
             return out
         Dg = (self._Jg(x, t, j) if self._Jg is not None
-              else _fd_jac(lambda z: mp.g(z, t, j, None), x, step))
-        g_t = _fd_scalar(lambda s: mp.g(x, s, j, None), t, step)
+              else _fd_jac(lambda z: g(z, t, j), x, step))
+        g_t = _fd_scalar(lambda s: g(x, s, j), t, step)
         g_th = np.zeros((n, m))
         if self.np_:
-            g_th[:, self.nx0:] = self._dp("g", x, t, j)
+            g_th[:, self.nx0:] = np.stack(
+                [(np.asarray(_frozen_jump(a, a._compile(), jumping)(x, t, j), dtype=float)
+                  - np.asarray(_frozen_jump(b, b._compile(), jumping)(x, t, j), dtype=float))
+                 / d for a, b, d in self._pm_sys], axis=-1)
         f_minus = self._f(x, t, j)
         flowed = t > t_last
         dt, code = dt_prev, 0.0
@@ -352,6 +362,37 @@ class SensitivitySystem(HybridSystem):
         out[c["S"]] = Sp.ravel()
         out[c["dt"]] = dt
         return out
+
+
+def _jumping(system, x, t, j):
+    """The components of an interconnection that jump at (x, t, j) (None for
+    another system)."""
+    from .compose import Interconnection, _Outputs
+    if not isinstance(system, Interconnection):
+        return None
+    y = _Outputs(system, x, t, j)
+    return tuple(nm for nm, inD in system._in(system._D, x, t, j, y) if inD)
+
+
+def _frozen_jump(system, maps, jumping):
+    """``g(z, t, j)``: the jump map with the jumping components fixed.
+
+    For an interconnection, the components ``jumping`` jump (each from the
+    pre-jump outputs) and the others keep their state, whatever z: the map
+    the event applies, differentiable across the edges of the components'
+    jump sets. For another system, its jump map."""
+    if jumping is None:
+        return lambda z, t, j: maps.g(z, t, j, None)
+    from .compose import _Outputs
+
+    def g(z, t, j):
+        y = _Outputs(system, z, t, j)
+        out = np.array(z, dtype=float)
+        for nm in jumping:
+            sl = system._slices[nm]
+            out[sl] = system._g[nm](z[sl], t, j, system._u(nm, z, t, j, y))
+        return out
+    return g
 
 
 def _at_zero(hv, hdot, grad, x, t):

@@ -25,6 +25,7 @@ from .history import History
 from .options import (
     RunOptions,
     check_bool,
+    check_dwell,
     check_map_value,
     check_seed,
     check_t_eval,
@@ -44,6 +45,7 @@ from .rules import (
     Termination,
     after_jump,
     decide,
+    dwell_outcome,
     event_outcome,
     event_tolerance,
     finish,
@@ -56,7 +58,7 @@ from .rules import (
     t_max_slack,
     time_scale,
 )
-from .system import HybridSystem, guard_min
+from .system import HybridSystem, check_nested_set_valued, guard_min, successors
 
 __all__ = ["simulate", "MapError", "SimulationError", "SimulationWarning"]
 
@@ -182,6 +184,7 @@ class _Options(RunOptions):
     keep: bool
     delays: tuple
     rng: np.random.Generator | None     # None unless the priority is random
+    dwell: Callable | None = None       # the dwell law in C ∩ D (random priority)
 
 
 @dataclass
@@ -217,6 +220,8 @@ class _State:
     flow_lengths: list = field(default_factory=list)   # the last few flows
     h_hint: float | None = None
     breaks: list = field(default_factory=list)          # delay breakpoints
+    dwelling: bool = False      # in C ∩ D since an entry whose dwell time was drawn
+    deadline: float = math.inf  # ... and the time it jumps at (entry + dwell)
     stiff_hits: int = 0         # Hairer's stiffness counter (DOPRI5's IASTI)
     calm: int = 0               # ... and its reset counter (NONSTI)
     warned_stiff: bool = False
@@ -233,7 +238,7 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
              t_eval: ArrayLike | None = None, max_steps: float = 1_000_000,
              max_samples: float = 10_000_000, zeno_jumps: int = 50,
              zeno_time: float = 1e-12, zeno_rtol: float = 1e-7,
-             backend: str = "python") -> HybridArc:
+             backend: str = "python", dwell=None) -> HybridArc:
     r"""Simulate a hybrid system from x0 until t_max or j_max.
 
     Flows by :math:`\dot x = f(x)` with a scipy ODE solver while x is in C,
@@ -264,7 +269,10 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
         What happens in C ∩ D. ``"jumps"``: jump as soon as x is in D.
         ``"flows"``: jump only when x is in D and flowing is impossible (x not
         in C, or on the edge of C where the flow leaves C at once).
-        ``"random"``: a fair coin (seeded by ``seed``) at each such point.
+        ``"random"``: a fair coin (seeded by ``seed``) at each such point,
+        or the ``dwell`` law. A set-valued jump map (``jump_map_values``)
+        jumps to its first successor, under ``"random"`` to one drawn
+        uniformly with the seed.
     method : str or OdeSolver subclass
         "RK45" (default), "RK23", "DOP853", "Radau", "BDF", "LSODA" or a
         concrete subclass of :class:`scipy.integrate.OdeSolver`. The three
@@ -317,6 +325,16 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
         ``zeno_time * max(1, |t|)`` or ``zeno_rtol`` times the run's time
         scale (``t_max - t0``, or the time elapsed when t_max is inf).
 
+    dwell : scipy.stats frozen distribution or callable, optional
+        With ``priority="random"``: the time spent in C ∩ D before jumping,
+        drawn once at each entry into C ∩ D (``dist.rvs(random_state=rng)``,
+        or ``dwell(rng) -> float``, with the run's seeded generator) instead
+        of the fair coin. 0 jumps at once, ``inf`` flows on. The jump is
+        placed at entry + dwell exactly (the flow is stopped there, as at
+        any event), so the law does not depend on the step size. A flow
+        that leaves D first does not jump (the next entry draws again); one
+        that leaves C while in D jumps there (the dwell is cut short).
+        Python path only.
     backend : {"python", "compiled", "auto"}
         ``"compiled"`` runs a :class:`hybridsim.compiled.CompiledSystem`
         entirely in compiled code (numba: ``pip install 'hybridsim[fast]'``)
@@ -355,6 +373,8 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
     """
     if not isinstance(system, HybridSystem):
         raise TypeError(f"system must be a hybridsim.HybridSystem, got {type(system).__name__}")
+    if backend == "auto" and (dwell is not None or system.set_valued):
+        backend = "python"          # the compiled path has neither
     if backend == "auto":
         from .batch import _auto_backend
         backend = _auto_backend(system, dict(method=method, inputs=inputs,
@@ -367,9 +387,10 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
             throw=throw, warn=warn, refine=refine, max_steps=max_steps,
             max_samples=max_samples, zeno_jumps=zeno_jumps, zeno_time=zeno_time,
             zeno_rtol=zeno_rtol), dict(inputs=inputs, prehistory=prehistory, dense=dense,
-                                       t_eval=t_eval, progress=progress))
+                                       t_eval=t_eval, progress=progress, dwell=dwell))
     if backend != "python":
         raise ValueError(f"backend must be 'python', 'compiled' or 'auto', got {backend!r}")
+    check_nested_set_valued(system)
     maps = system._compile()
     n = int(system.state_dim)
     x = check_x0(x0, n)
@@ -377,7 +398,7 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
                    rtol=rtol, atol=atol, max_step=max_step, first_step=first_step,
                    max_norm=max_norm, zeno_jumps=zeno_jumps, zeno_time=zeno_time,
                    zeno_rtol=zeno_rtol, refine=refine, max_steps=max_steps,
-                   max_samples=max_samples, throw=throw, warn=warn)
+                   max_samples=max_samples, throw=throw, warn=warn, python=True)
     t0, t_max, j_max, j0, prio = ro.t0, ro.t_max, ro.j_max, ro.j0, ro.prio
     rtol, atol, max_step, first_step, max_norm = (ro.rtol, ro.atol, ro.max_step,
                                                   ro.first_step, ro.max_norm)
@@ -399,6 +420,7 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
         raise ValueError("t_eval and refine > 1 cannot be combined: choose one way of "
                          "placing samples")
     rng = check_seed(seed, build=prio == Priority.RANDOM)
+    dwell = check_dwell(dwell, prio)
     delays = tuple(float(d) for d in (system.delays or ()))
     if any(not (math.isfinite(d) and d > 0) for d in delays):
         raise ValueError(f"system.delays must be positive finite floats, got {system.delays!r}")
@@ -407,7 +429,8 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
     history = History(t0, x, j0, prehistory, inputs, maps.h)
     system._bind_history(history)
     opts = _Options(**{f.name: getattr(ro, f.name) for f in fields(RunOptions)}, n=n,
-                    Method=Method, t_eval=t_eval, keep=keep, delays=delays, rng=rng)
+                    Method=Method, t_eval=t_eval, keep=keep, delays=delays, rng=rng,
+                    dwell=dwell)
     run = _Run(system, maps, opts, inputs, history)
     run.pbar = _progress_bar(progress, t0, t_max, j_max)
     try:
@@ -526,7 +549,8 @@ class _Run:
 
     def _loop(self, t, j, x):
         o, maps = self.o, self.maps
-        C, D, g, ufun = maps.C, maps.D, maps.g, self.ufun
+        C, D, ufun = maps.C, maps.D, self.ufun
+        g = self._g if maps.G is not None else maps.g
         has_C, has_D = maps.has_C, maps.has_D
         st = self.state = _State(t, j, x, t_last_jump=t, h_hint=o.first_step,
                                  breaks=sorted(t + d for d in o.delays))
@@ -543,8 +567,10 @@ class _Run:
         in_C = (not has_C) or C(x, t, j, u)
         if in_C:
             check_map_value("flow_map", maps.f(x, t, j, u), o.n, t, j)
-        if in_D:
+        if in_D and maps.G is None:
             check_map_value("jump_map", g(x, t, j, u), o.n, t, j)
+        elif in_D:
+            successors(maps.G(x, t, j, u), o.n, t, j)
         try:
             while True:
                 t, j, x = st.t, st.j, st.x
@@ -563,7 +589,7 @@ class _Run:
                     u = ufun(t) if ufun is not None else None
                     in_D = has_D and D(x, t, j, u)
                     in_C = (not has_C) or C(x, t, j, u)
-                    coin = (o.rng.random() < 0.5) if needs_coin(in_C, in_D, o.prio, forced) \
+                    coin = self._coin(st, t) if needs_coin(in_C, in_D, o.prio, forced) \
                         else False
                     action = decide(in_C, in_D, o.prio, coin, forced)
                     forced = False
@@ -600,6 +626,27 @@ class _Run:
         except MapError as e:
             self._stop(Termination.MAP_ERROR, exc=e, error=str(e))
 
+    def _g(self, x, t, j, u):
+        """A set-valued jump map's successor: the first, or one drawn (random priority)."""
+        vals = successors(self.maps.G(x, t, j, u), self.o.n, t, j)
+        k = 0
+        if self.o.prio == Priority.RANDOM and len(vals) > 1:
+            k = int(self.o.rng.integers(len(vals)))
+        return vals[k]
+
+    def _coin(self, st, t):
+        """The random priority's choice at a point of C ∩ D: True jumps.
+
+        A fair coin; with a dwell law, the dwell drawn at the entry into
+        C ∩ D (the run then jumps when it has elapsed)."""
+        o = self.o
+        if o.dwell is None:
+            return o.rng.random() < 0.5
+        # inside a dwell (a breakpoint, or its deadline) nothing is drawn
+        tau = 0.0 if st.dwelling else o.dwell(o.rng)
+        jump, st.dwelling, st.deadline = dwell_outcome(st.dwelling, t, st.deadline, tau)
+        return jump
+
     def _near_C(self, post):
         """The post-jump state, in neither C nor D, is within the located
         event's tolerance of C (:func:`hybridsim.rules.post_jump_probe`)."""
@@ -622,6 +669,7 @@ class _Run:
         st.short = st.short + 1 if short else 0
         st.loop = st.loop + 1 if (from_C and flow == 0.0 and st.jumps > 0) else 0
         st.t_last_jump = t
+        st.dwelling, st.deadline = False, math.inf
         st.j = j + 1
         st.jumps += 1
         st.x = xn
@@ -751,6 +799,11 @@ class _Run:
             self._check_shared_output(t, j, x)
         fun = self.fun
         t_bound = self._bound(st) if o.delays else o.t_max
+        if st.dwelling:
+            if st.deadline <= t:        # out of D when its dwell ended: it is over
+                st.dwelling, st.deadline = False, math.inf
+            elif st.deadline < t_bound:
+                t_bound = st.deadline   # the dwell ends: stopped there, as at an event
         if t_bound == o.t_max < math.inf and t_bound - t <= t_max_slack(t_bound, st.jumps):
             return self._sliver(st, t_bound)
         h = st.h_hint
@@ -765,6 +818,8 @@ class _Run:
         buf.set_last_xdot(f0 if f0 is not None else fun(t, x))
         a, ya = t, x
         d_active = watch_D and not in_D_start     # D entries count only from outside D
+        # a dwell law locates the exit from D, so the next entry is an event
+        exits_D = watch_D and not d_active and o.dwell is not None
         sets = has_C or watch_D
         inner = keep or o.refine > 1 or o.t_eval is not None
         stiff = self.stiff_check
@@ -798,6 +853,10 @@ class _Run:
                 if sets:
                     try:
                         ub = ufun(b) if ufun is not None else None
+                        if exits_D and not d_active:
+                            out = self._leave_D(st, solver, a, ya, b, yb, j)
+                            if out is not None:
+                                return out
                         if (has_C and not C(yb, b, j, ub)) or (d_active and D(yb, b, j, ub)):
                             sol = solver.dense_output()
                             return self._event(st, sol, a, ya, a, b, j, solver, d_active,
@@ -829,6 +888,8 @@ class _Run:
                     if watch_D and not d_active:
                         d_active = not D(yb, b, j, ub)
                         pred = phi = None
+                        if d_active:        # left D: a dwell in C ∩ D is over
+                            st.dwelling, st.deadline = False, math.inf
                 if stiff and (st.stiff_hits or k % 25 == 0):
                     self._check_stiff(st, solver, stats.steps + k)
                 fin = solver.status == "finished"
@@ -1082,7 +1143,7 @@ class _Run:
             # C matters here only for the random priority's coin
             in_C_hi = (not has_C) or C(yhi, hi, j, uhi)
             if needs_coin(in_C_hi, True, o.prio):
-                coin = o.rng.random() < 0.5
+                coin = self._coin(st, hi)
         # D at lo matters only where the flow leaves C
         in_D_lo = has_D and not (d_active and in_D_hi) and D(ylo, lo, j, self._u(lo))
         action, side = event_outcome(d_active, in_D_hi, in_C_hi, in_D_lo, o.prio, coin)
@@ -1097,6 +1158,33 @@ class _Run:
             return self._commit(st, sol, a, j, te_hi if side else lo, yhi if side else ylo,
                                 _Outcome.JUMP, start)
         return self._commit(st, sol, a, j, te_hi, yhi, _Outcome.FLOW_ON, start)
+
+    def _leave_D(self, st, solver, a, ya, b, yb, j):
+        """With a dwell law, a flow in C ∩ D that leaves D within the step
+        (a, b] stops where it leaves (still in C): the flow then goes on
+        watching D, so a later entry within the same step is not missed.
+        None where it stays in D, or leaves C first (the step's own event)."""
+        maps, u = self.maps, self._u
+        C, D, hD = maps.C, maps.D, maps.hD
+
+        def out_D(s, y):
+            return not D(y, s, j, u(s))
+        phi = None if hD is None else (lambda s, y: -guard_min(hD(y, s, j, u(s))))
+        sol = solver.dense_output()
+        if not out_D(b, yb):
+            hit = find_interior_event(sol, a, b, out_D, phi)
+            if hit is None:
+                return None
+            _, hi, _, yhi = locate_event(sol, hit[0], hit[1], out_D, phi)
+        else:
+            _, hi, _, yhi = locate_event(sol, a, b, out_D, phi, ya=ya, yb=yb)
+        if maps.has_C and not C(yhi, hi, j, u(hi)):
+            return None
+        self.stats.events += 1
+        st.dwelling, st.deadline = False, math.inf
+        h = getattr(solver, "h_abs", None)
+        st.h_hint = None if h is None or hi <= st.t else min(h, 10.0 * (hi - st.t))
+        return self._commit(st, sol, a, j, hi, yhi, _Outcome.BREAK)
 
     def _event_past_t_max(self, st, solver, a, ya, b, j):
         """An entry into D within round-off after t_max is taken at t_max."""

@@ -229,6 +229,13 @@ class HybridSystem:
        maps use: the engine then stops each flow at t0 + tau and at every
        jump time + tau, where the delayed value is discontinuous, so no
        solver step straddles a kink of the right-hand side.
+    10. A set-valued jump map (a hybrid inclusion x+ ∈ G(x)) is declared by
+        defining ``jump_map_values(x, t, j, u)`` instead of ``jump_map``: it
+        returns the successors, a non-empty sequence of (n,) arrays (or a
+        (k, n) array). :func:`hybridsim.simulate` takes the first successor
+        (one drawn with the seed under ``priority="random"``);
+        :func:`hybridsim.explore` follows every one. Its ``jump_map`` is then
+        the first successor. Python path only.
 
     State arrays are time-major everywhere: a run's samples are (N, n).
     """
@@ -242,6 +249,8 @@ class HybridSystem:
     delays: tuple = ()
     jump_guard = None
     flow_guard = None
+    #: a set-valued jump map ``(x, t, j, u) -> successors`` (rule 10), or None
+    jump_map_values = None
     #: names of the components of an interconnection: ``{name: slice}``
     components: dict | None = None
 
@@ -250,6 +259,8 @@ class HybridSystem:
                                   "but the state is in its flow set")
 
     def jump_map(self, x, t, j, u):
+        if self.jump_map_values is not None:
+            return successors(self._compile().G(x, t, j, u), self.state_dim, t, j)[0]
         raise NotImplementedError(f"{type(self).__name__} defines no jump_map, "
                                   "but the state is in its jump set")
 
@@ -282,6 +293,11 @@ class HybridSystem:
         return (self._overrides("jump_set") or self.jump_guard is not None)
 
     @property
+    def set_valued(self) -> bool:
+        """True when the system declares a set-valued jump map (rule 10)."""
+        return self.jump_map_values is not None
+
+    @property
     def has_flow_boundary(self) -> bool:
         """False when C is the whole space by construction."""
         return (self._overrides("flow_set") or self.flow_guard is not None)
@@ -312,8 +328,21 @@ class HybridSystem:
             C = _indicator(named(self.flow_set, "flow_set"), "flow_set")
         else:
             C = _from_guard(hC, "flow_guard")
+        G = None
+        if self.jump_map_values is not None:
+            if self._overrides("jump_map"):
+                raise TypeError(f"{type(self).__name__} defines both jump_map and "
+                                "jump_map_values: define one (jump_map_values for a "
+                                "set-valued jump map)")
+            G = named(self.jump_map_values, "jump_map_values")
+
+            def g_first(x, t, j, u):
+                return successors(G(x, t, j, u), n, t, j)[0]
+            g = g_first
+        else:
+            g = named(self.jump_map, "jump_map")
         c = _Compiled(
-            f=named(self.flow_map, "flow_map"), g=named(self.jump_map, "jump_map"),
+            f=named(self.flow_map, "flow_map"), g=g, G=G,
             C=C, D=D, hD=hD, hC=hC, h=named(self.output, "output"),
             has_D=self.has_jumps, has_C=self.has_flow_boundary,
             h_u=_arity(self.output) >= 4,
@@ -326,7 +355,7 @@ class HybridSystem:
     def from_functions(cls, f=None, g=None, C=None, D=None, *, state_dim,
                        jump_guard=None, flow_guard=None, output=None,
                        input_dim=0, output_dim=None, vectorized=False,
-                       max_step=None, needs_history=False, name=None):
+                       max_step=None, needs_history=False, name=None, g_values=None):
         """Build a hybrid system from plain functions.
 
         Parameters
@@ -343,6 +372,9 @@ class HybridSystem:
             Continuous guards (see the class docstring, rule 6).
         output : callable, optional
             Output map ``(x, t, j)``; default the state.
+        g_values : callable, optional
+            A set-valued jump map (rule 10 of the class): returns the
+            successors, a sequence of (n,) arrays. Not with ``g``.
 
         Examples
         --------
@@ -355,7 +387,18 @@ class HybridSystem:
         >>> arc = hs.simulate(ball, [1.0, 0.0], t_max=3.0, j_max=5)
         >>> arc.jump_count
         5
+
+        A jump map with two successors (:func:`hybridsim.explore` follows both):
+
+        >>> coin = hs.HybridSystem.from_functions(
+        ...     f=lambda x: np.array([1.0]), D=lambda x: x[0] >= 1.0,
+        ...     C=lambda x: x[0] <= 1.0,
+        ...     g_values=lambda x: [np.array([0.0]), np.array([0.5])], state_dim=1)
+        >>> hs.simulate(coin, [0.0], t_max=3.0, j_max=1).xf    # the first successor
+        array([0.])
         """
+        if g is not None and g_values is not None:
+            raise TypeError("g and g_values: give one (g_values for a set-valued jump map)")
         sysobj = cls.__new__(cls)
         HybridSystem.__init__(sysobj)
         sysobj.state_dim = state_dim
@@ -367,7 +410,8 @@ class HybridSystem:
         sysobj._name = name
         for arg, attr, fn in (("f", "flow_map", f), ("g", "jump_map", g),
                               ("C", "flow_set", C), ("D", "jump_set", D),
-                              ("output", "output", output)):
+                              ("output", "output", output),
+                              ("g_values", "jump_map_values", g_values)):
             if fn is not None:
                 if not callable(fn):
                     raise TypeError(f"{arg} must be callable, got {type(fn).__name__}")
@@ -384,8 +428,46 @@ class HybridSystem:
         return f"<{name}: state_dim={self.state_dim}, input_dim={self.input_dim}>"
 
 
+def check_nested_set_valued(system, where=""):
+    """Refuse an interconnection with a component that declares a set-valued
+    jump map: its jump would silently take the first successor."""
+    for name, sub in (getattr(system, "systems", None) or {}).items():
+        if not isinstance(sub, HybridSystem):
+            continue
+        if sub.jump_map_values is not None:
+            raise ValueError(f"system: component {where + str(name)!r} declares "
+                             f"jump_map_values (a set-valued jump map), which an "
+                             f"interconnection does not support: the interconnection "
+                             f"would take its first successor only. Write the "
+                             f"interconnected system's own jump_map_values")
+        check_nested_set_valued(sub, f"{where}{name}.")
+
+
+def successors(vals, n, t=None, j=None):
+    """A set-valued jump map's value as a (k, n) float array, k >= 1, finite;
+    a :class:`MapError` naming ``jump_map_values`` otherwise."""
+    where = "" if t is None else f" (at {_where(t, j)})"
+    if isinstance(vals, np.ndarray) and vals.ndim == 1:
+        raise MapError(f"jump_map_values must return a sequence of successors (a list of "
+                       f"({n},) arrays or a (k, {n}) array), got a 1-D array{where}",
+                       "jump_map_values", t, j)
+    try:
+        arr = np.asarray(vals, dtype=float)
+    except (TypeError, ValueError) as e:
+        raise MapError(f"jump_map_values must return a sequence of ({n},) arrays, got "
+                       f"{type(vals).__name__}{where}", "jump_map_values", t, j) from e
+    if arr.ndim != 2 or arr.shape[1] != n or arr.shape[0] < 1:
+        raise MapError(f"jump_map_values must return k >= 1 successors of shape ({n},) "
+                       f"(a (k, {n}) array), got shape {arr.shape}{where}",
+                       "jump_map_values", t, j)
+    if not np.all(np.isfinite(arr)):
+        raise MapError(f"jump_map_values returned non-finite successors {arr}{where}",
+                       "jump_map_values", t, j)
+    return arr
+
+
 class _Compiled:
-    __slots__ = ("f", "g", "C", "D", "hD", "hC", "h", "has_D", "has_C", "h_u",
+    __slots__ = ("f", "g", "G", "C", "D", "hD", "hC", "h", "has_D", "has_C", "h_u",
                  "f_raw", "f_arity")
 
     def __init__(self, **kw):

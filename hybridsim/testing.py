@@ -20,9 +20,22 @@ counts j are integers and compared exactly.
 Beside the asserts, each ``margin_*`` function returns by how much its
 claim holds (a :class:`Margin`, >= 0) or fails (< 0), and where it was
 decided.
+
+**Every solution.** Each assert and ``margin_*`` function also takes, in
+place of one arc, a :class:`hybridsim.SolutionTree` (from
+:func:`hybridsim.explore`: its leaves and the prefixes of its merged
+branches, so every sample of every solution explored) or any iterable of
+arcs. The signal (and an array bound) must then be a callable. An assert
+fails on the first violating solution, naming it and its branch choices;
+a margin is the worst over the solutions, with ``.solution`` (its index)
+and ``.choices``. A solution without samples in the requested range is
+skipped (an error only when none has one); an incomplete tree (the
+budget ended :func:`hybridsim.explore`) is refused, since the claim would
+not be checked over every solution.
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -31,7 +44,123 @@ from .rules import event_tolerance
 
 __all__ = ["signal_norm", "settling_time", "assert_exact_after", "assert_bounded",
            "Margin", "margin_exact_after", "margin_bounded", "margin_settles_by",
-           "margin_decays", "margin_in_set", "all_of", "any_of"]
+           "margin_decays", "margin_in_set", "all_of", "any_of", "solutions_of"]
+
+
+class _NoSampleAssertion(AssertionError):
+    """An assert found no sample of the arc in the requested range."""
+
+
+class _NoSampleValue(ValueError):
+    """A margin found no sample of the arc in the requested range."""
+
+
+def _is_arc(a):
+    return hasattr(a, "t") and hasattr(a, "j") and hasattr(a, "x")
+
+
+def solutions_of(arcs, leaves_only=False):
+    """The arcs a check over many solutions runs on: a list of ``(label, arc)``.
+
+    Parameters
+    ----------
+    arcs : SolutionTree or iterable of HybridArc
+        A tree from :func:`hybridsim.explore` (its leaves, then the prefixes
+        of its merged branches unless ``leaves_only``), or any arcs.
+    leaves_only : bool
+        Only a tree's leaves (for claims about how a solution ends).
+
+    Returns
+    -------
+    list of (str, HybridArc)
+        The label names the solution and its branch choices.
+
+    Raises
+    ------
+    ValueError
+        An incomplete tree (its budget ended the exploration), or no arc.
+
+    Examples
+    --------
+    >>> import hybridsim as hs
+    >>> a = hs.HybridArc([0.0, 1.0], [0, 0], [[1.0], [0.5]], None)
+    >>> [label for label, _ in solutions_of([a, a])]
+    ['solution 0 of 2', 'solution 1 of 2']
+    """
+    if getattr(arcs, "complete", True) is False:
+        raise ValueError(f"the tree is incomplete ({arcs.end.name}: {arcs.message}); a "
+                         f"check over every solution needs a complete exploration")
+    if hasattr(arcs, "leaves") and hasattr(arcs, "merged"):
+        items = list(arcs.leaves) + ([] if leaves_only else list(arcs.merged))
+    else:
+        try:
+            items = list(arcs)
+        except TypeError:
+            raise TypeError(f"arc must be a HybridArc, a SolutionTree or an iterable of "
+                            f"HybridArc, got {type(arcs).__name__}") from None
+    if not items:
+        raise ValueError("no solution to check: the iterable of arcs is empty")
+    out = []
+    for i, a in enumerate(items):
+        if not _is_arc(a):
+            raise TypeError(f"arc: item {i} is a {type(a).__name__}, not a HybridArc")
+        label = f"solution {i} of {len(items)}"
+        ch = getattr(a, "choices", None)
+        if ch is not None:
+            label += f" ({'; '.join(str(c) for c in ch) or 'no choice'})"
+        if getattr(a, "merged_into", None) is not None:
+            label += f", up to where it merges into branch {a.merged_into}"
+        out.append((label, a))
+    return out
+
+
+def _no_arrays(where, **kw):
+    for name, v in kw.items():
+        if v is not None and not callable(v) and np.ndim(v) > 0:
+            raise TypeError(f"{where}: {name} must be a callable fn(x, t, j) (or a constant) "
+                            f"when checking several solutions, got an array")
+
+
+def _every(kind, leaves_only=False):
+    """Let an assert (``kind="assert"``) or a margin take many solutions."""
+    def wrap(fn):
+        @functools.wraps(fn)
+        def many(arc, *args, **kw):
+            if _is_arc(arc):
+                return fn(arc, *args, **kw)
+            if args and not callable(args[0]):
+                _no_arrays(fn.__name__, signal=args[0])
+            _no_arrays(fn.__name__, **{k: v for k, v in kw.items()
+                                       if k in ("signal", "distance")})
+            if len(args) > 1 and fn.__name__.endswith("bounded"):
+                _no_arrays(fn.__name__, bound=args[1])
+            if "bound" in kw:
+                _no_arrays(fn.__name__, bound=kw["bound"])
+            items = solutions_of(arc, leaves_only)
+            worst, checked, empty = None, 0, None
+            for i, (label, a) in enumerate(items):
+                try:
+                    m = fn(a, *args, **kw)
+                except (_NoSampleAssertion, _NoSampleValue) as e:
+                    empty = e           # this solution has no sample in the range
+                    continue
+                except AssertionError as e:
+                    raise AssertionError(f"{label}: {e}") from e
+                checked += 1
+                if kind == "margin" and (worst is None or float(m) < float(worst[0])):
+                    worst = (m, i, label, a)
+            if not checked:
+                err = AssertionError if kind == "assert" else ValueError
+                raise err(f"{fn.__name__}: no solution of the {len(items)} has a sample in "
+                          f"the requested range ({empty})")
+            if kind == "margin":
+                m, i, label, a = worst
+                out = Margin(float(m), *(m.where or (None, None)), f"{m.what}, {label}")
+                out.solution, out.choices = i, getattr(a, "choices", None)
+                return out
+            return None
+        return many
+    return wrap
 
 
 def signal_norm(arc, signal, norm=2):
@@ -121,8 +250,8 @@ def settling_time(arc, signal, threshold=1e-8, norm=2):
 
     Parameters
     ----------
-    arc : HybridArc
-        The solution.
+    arc : HybridArc, SolutionTree or iterable of HybridArc
+        The solution, or every solution (see the module notes).
     signal : array_like or callable
         As for :func:`signal_norm`.
     threshold : float, optional
@@ -174,13 +303,14 @@ def settling_time(arc, signal, threshold=1e-8, norm=2):
     return float(arc.t[k]), int(arc.j[k])
 
 
+@_every("assert")
 def assert_exact_after(arc, signal, t=None, j=None, atol=1e-8, norm=2):
     """Assert |signal| <= ``atol`` at every sample from hybrid time (t, j) on.
 
     Parameters
     ----------
-    arc : HybridArc
-        The solution.
+    arc : HybridArc, SolutionTree or iterable of HybridArc
+        The solution, or every solution (see the module notes).
     signal : array_like or callable
         As for :func:`signal_norm`.
     t : float or (float, float), optional
@@ -230,7 +360,7 @@ def assert_exact_after(arc, signal, t=None, j=None, atol=1e-8, norm=2):
     """
     m = _mask(arc, t, j)
     if not m.any():
-        raise AssertionError(f"assert_exact_after: no sample with t >= {t} and j >= {j} "
+        raise _NoSampleAssertion(f"assert_exact_after: no sample with t >= {t} and j >= {j} "
                              f"(arc ends at t={arc.t[-1]}, j={arc.j[-1]})")
     v = signal_norm(arc, signal, norm)
     bad = np.flatnonzero(m & ~(_slack(v, atol) >= 0))
@@ -242,13 +372,14 @@ def assert_exact_after(arc, signal, t=None, j=None, atol=1e-8, norm=2):
             f"({bad.size} of {int(m.sum())} samples violate)")
 
 
+@_every("assert")
 def assert_bounded(arc, signal, bound, t=None, j=None, rtol=0.0, atol=0.0, norm=2):
     """Assert |signal(t, j)| <= bound(t, j) * (1 + rtol) + atol over a range.
 
     Parameters
     ----------
-    arc : HybridArc
-        The solution.
+    arc : HybridArc, SolutionTree or iterable of HybridArc
+        The solution, or every solution (see the module notes).
     signal : array_like or callable
         As for :func:`signal_norm`.
     bound : callable, array_like or float
@@ -294,7 +425,7 @@ def assert_bounded(arc, signal, bound, t=None, j=None, rtol=0.0, atol=0.0, norm=
     """
     m = _mask(arc, t, j)
     if not m.any():
-        raise AssertionError(f"assert_bounded: no sample in the requested range "
+        raise _NoSampleAssertion(f"assert_bounded: no sample in the requested range "
                              f"(t={t}, j={j}; the arc has t in [{arc.t[0]}, {arc.t[-1]}], "
                              f"j in [{arc.j[0]}, {arc.j[-1]}])")
     v = signal_norm(arc, signal, norm)
@@ -359,13 +490,14 @@ class Margin(float):
 
 def _worst(arc, slack, m, what):
     if not m.any():
-        raise ValueError(f"{what}: no sample of the arc in the requested range (the arc has "
+        raise _NoSampleValue(f"{what}: no sample of the arc in the requested range (the arc has "
                          f"t in [{arc.t[0]}, {arc.t[-1]}], j in [{arc.j[0]}, {arc.j[-1]}])")
     idx = np.flatnonzero(m)
     k = idx[int(np.argmin(slack[idx]))]
     return Margin(slack[k], arc.t[k], arc.j[k], what)
 
 
+@_every("margin")
 def margin_exact_after(arc, signal, t=None, j=None, atol=1e-8, norm=2):
     """The margin of "|signal| <= atol at every sample from (t, j) on".
 
@@ -399,6 +531,7 @@ def margin_exact_after(arc, signal, t=None, j=None, atol=1e-8, norm=2):
     return _worst(arc, _slack(v, atol), _mask(arc, t, j), "exact after")
 
 
+@_every("margin")
 def margin_bounded(arc, signal, bound, t=None, j=None, rtol=0.0, atol=0.0, norm=2):
     """The margin of "|signal(t, j)| <= bound(t, j) (1 + rtol) + atol over a range".
 
@@ -428,6 +561,7 @@ def margin_bounded(arc, signal, bound, t=None, j=None, rtol=0.0, atol=0.0, norm=
     return _worst(arc, _slack(v, lim), _mask(arc, t, j), "bounded")
 
 
+@_every("margin")
 def margin_decays(arc, signal, c, rate, t=None, j=None, norm=2):
     """The margin of "|signal(t, j)| <= c e^(-rate (t - t0))" (t0 = ``arc.t[0]``).
 
@@ -471,6 +605,7 @@ def margin_decays(arc, signal, c, rate, t=None, j=None, norm=2):
                           t=t, j=j, norm=norm)
 
 
+@_every("margin", leaves_only=True)
 def margin_settles_by(arc, signal, by, threshold=1e-8, norm=2):
     """The margin of "|signal| <= threshold from time ``by`` on": ``by`` minus
     the settling time (:func:`settling_time`).
@@ -511,6 +646,7 @@ def margin_settles_by(arc, signal, by, threshold=1e-8, norm=2):
     return Margin(-late, ts, js, "settles by")
 
 
+@_every("margin")
 def margin_in_set(arc, distance, t=None, j=None):
     """The margin of "the arc stays in a set", given its signed distance.
 
@@ -520,8 +656,8 @@ def margin_in_set(arc, distance, t=None, j=None):
 
     Parameters
     ----------
-    arc : HybridArc
-        The solution.
+    arc : HybridArc, SolutionTree or iterable of HybridArc
+        The solution, or every solution (see the module notes).
     distance : callable
         ``distance(x, t, j) -> float``, evaluated at each sample.
     t, j

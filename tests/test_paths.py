@@ -298,3 +298,47 @@ def test_ctrl_c_ends_the_run_with_canceled_and_the_arc_so_far(path):
     assert f"t={arc.t[-1]:.10g}" in arc.message and f"j={arc.j[-1]}" in arc.message
     assert arc.jump_count > 10
 
+
+
+# ------------------------------------------------------------------ issue 25
+@pytest.mark.parametrize("path", path_params())
+def test_a_dwell_law_runs_on_the_python_path_and_is_refused_by_name_elsewhere(path):
+    """dwell (the time in C ∩ D under priority="random") is the Python path's:
+    there a dwell of 0 is priority "jumps"; the other paths refuse it naming
+    it (their keyword lists do not take it: TypeError naming ``dwell``;
+    ``simulate(backend="compiled")`` refuses it through options.refuse)."""
+    case = timer(0.5, sets="both")
+    if path == "python":
+        a = run(path, case, [0.0], t_max=2.0, priority="random", dwell=lambda rng: 0.0)
+        b = run(path, case, [0.0], t_max=2.0, priority="jumps")
+        np.testing.assert_allclose(a.jump_times, b.jump_times, rtol=0, atol=TOL_EVENT)
+        return
+    with pytest.raises((TypeError, ValueError), match="dwell"):
+        run(path, case, [0.0], t_max=2.0, priority="random", dwell=lambda rng: 0.0)
+    if path == "compiled":
+        with pytest.raises(ValueError, match=r"dwell=.* is not supported on the compiled path"):
+            hs.simulate(case.build("python"), [0.0], t_max=2.0, priority="random",
+                        dwell=lambda rng: 0.0, backend="compiled")
+
+
+@pytest.mark.parametrize("path", path_params())
+def test_a_set_valued_jump_map_is_the_python_paths(path):
+    """A system declaring jump_map_values: the Python path jumps to the first
+    successor; the others refuse the system naming jump_map_values."""
+    import copy
+    successors = lambda x: [np.zeros(1), np.full(1, 0.25)]  # noqa: E731
+    if path == "python":
+        system = hs.HybridSystem.from_functions(
+            f=lambda x: np.ones(1), jump_guard=lambda x: x[0] - 0.5, g_values=successors,
+            state_dim=1)
+        arc = hs.simulate(system, [0.0], t_max=1.0)
+        np.testing.assert_allclose(arc.jump_times, [0.5, 1.0], rtol=0, atol=TOL_EVENT)
+        return
+    system = copy.copy(timer(0.5, sets="both").build(path))
+    system.jump_map_values = successors
+    with pytest.raises(ValueError, match="declares jump_map_values .* only the Python path"):
+        if path == "vectorized":
+            hs.simulate_vectorized(system, np.zeros((1, 1)), t_max=1.0)
+        else:
+            from hybridsim.compiled import simulate_compiled
+            simulate_compiled(system, [0.0], t_max=1.0)

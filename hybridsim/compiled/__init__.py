@@ -437,7 +437,7 @@ def _check_system(system):
 
 
 #: the options a path may refuse (:data:`hybridsim.options.SUPPORTS`); others are unknown
-_REFUSABLE = ("inputs", "prehistory", "dense", "t_eval", "progress")
+_REFUSABLE = ("inputs", "prehistory", "dense", "t_eval", "progress", "dwell")
 
 
 def _options(system, n, caller, method, extra, **shared):

@@ -23,6 +23,7 @@ import functools
 import math
 
 import numpy as np
+from scipy.linalg import expm
 
 from observers.claims import Claim
 
@@ -132,6 +133,96 @@ def _Hn_VB_exact():
     obs = NominalObserver(d)
     arc = simulate(obs, [0.3, 0.4], [0.0, 0.0], t_max=3.0)
     return _after_jump(arc, errors(arc, obs))
+
+
+class _WindowedNominal(NominalObserver):
+    """H_n (10)-(12) whose one jump may happen at any tau in [delta_lo, delta],
+    with the gains of (12) for the tau it happens at (decision: see
+    :func:`_Hn_window_every_solution`)."""
+
+    vectorized = False
+
+    def __init__(self, d, delta_lo):
+        super().__init__(d)
+        self.delta_lo = float(delta_lo)
+
+    def gains(self, tau):
+        d = self.design
+        K2 = np.linalg.inv(np.eye(d.n) - expm(d.F2 * tau) @ expm(-d.F1 * tau))
+        return np.eye(d.n) - K2, K2
+
+    def jump_guard(self, x, t, j, u):
+        return -1.0 if x[self._q] > 0.5 else x[self._tau] - self.delta_lo
+
+    def jump_set(self, x, t, j, u):
+        return bool(x[self._q] < 0.5 and x[self._tau] >= self.delta_lo)
+
+    def flow_guard(self, x, t, j, u):
+        return 1.0 if x[self._q] > 0.5 else self.design.delta - x[self._tau]
+
+    def flow_set(self, x, t, j, u):
+        return bool(x[self._q] > 0.5 or x[self._tau] <= self.design.delta)
+
+    def jump_map(self, x, t, j, u):
+        n = self.design.n
+        K1, K2 = self.gains(x[self._tau])
+        xn = np.array(x, dtype=float)
+        xn[:n] = xn[n:2 * n] = K1 @ x[:n] + K2 @ x[n:2 * n]
+        xn[self._tau], xn[self._q] = 0.0, 1.0 - x[self._q]
+        return xn
+
+
+#: the jump window of the explored H_n: tau in [0.5, 1] = [delta / 2, delta], and
+#: the dwell grid inside it (jumps at tau = 0.5, 0.6, ..., 1.0: six solutions)
+_WINDOW = (0.5, (0.1, 0.2, 0.3, 0.4))
+
+
+@functools.cache
+def _Hn_window_tree():
+    import hybridsim as hs
+    d = example_VB()
+    obs = _WindowedNominal(d, _WINDOW[0])
+    plant = hs.LinearPlant(d.A, C=d.H)
+    sys_ = hs.connect(plant, obs, names=("plant", "observer"))
+    z0 = np.concatenate([[0.3, 0.4], obs.initial_state([0.0, 0.0])])
+    tree = hs.explore(sys_, z0, 3.0, 2, dwell_grid=_WINDOW[1], method="DOP853",
+                      rtol=1e-10, atol=1e-12)
+    return tree, obs
+
+
+def _Hn_window_every_solution():
+    """max over every explored solution of max |ē(t, 1)|: H_n jumping anywhere in
+    [delta / 2, delta] (example V.B, no noise).
+
+    Decision: the paper's H_n jumps at tau = delta; Assumption 4.1 A2 asks
+    det(I - e^{F2 t} e^{-F1 t}) != 0 for every t in (0, delta], so the gains
+    (12) exist for every jump time t in (0, delta], and the proof of
+    Theorem 4.7 (e(t, 1) = 0 from (14) with delta := t) holds for each. The
+    window is where the paper allows the jump; ours scales K by the tau it
+    happens at. The claim holds for every solution of that inclusion, not
+    one: checked over the tree of :func:`hybridsim.explore`.
+    """
+    from hybridsim import testing
+    tree, obs = _Hn_window_tree()
+    n = obs.design.n
+    sl = obs.slices
+
+    def ebar(x, t, j):          # the plant is x[:n], the observer after it
+        z = x[n:]
+        return obs.design.a1 * z[sl["xh1"]] + obs.design.a2 * z[sl["xh2"]] - x[:n]
+    m = testing.margin_bounded(tree, ebar, 0.0, j=1)
+    return -float(m)
+
+
+def _Hn_window_amp():
+    """The reset's amplification 1 + |K1(t)| + |K2(t)|, largest over the window."""
+    obs = _WindowedNominal(example_VB(), _WINDOW[0])
+    taus = [_WINDOW[0] + g for g in (0.0, *_WINDOW[1])] + [obs.design.delta]
+    return max(1 + sum(np.linalg.norm(K, 2) for K in obs.gains(tau)) for tau in taus)
+
+
+def _Hn_window_leaves():
+    return len(_Hn_window_tree()[0])
 
 
 @functools.cache
@@ -450,6 +541,20 @@ CLAIMS = [
           paper_value=None, compute=_Hn_VB_exact, reference=0.0,
           tol=1e-9 * _amp(example_VB()),
           tol_why=_INT + " (1e-9 accumulated over the flow) times the reset's 1 + |K1| + |K2|"),
+    Claim(id="002-thm4.7-window-every-solution", paper=_ID, where="Thm 4.7, Assumption 4.1",
+          statement="For every explored solution (6: H_n on example V.B jumping at tau = 0.5, "
+                    "0.6, ..., 1.0, the window [delta/2, delta] with the gains of its tau; "
+                    "hs.explore, dwell grid 0.1), without noise the estimate equals the state "
+                    "after the jump: max over the solutions of max |ē(t, 1)|.",
+          paper_value=None, compute=_Hn_window_every_solution, reference=0.0,
+          tol=1e-9 * _Hn_window_amp(),
+          tol_why=_INT + " (1e-9 accumulated) times the largest reset amplification "
+                         "1 + |K1(t)| + |K2(t)| over the window"),
+    Claim(id="002-thm4.7-window-tree-size", paper=_ID, where="Thm 4.7, Assumption 4.1",
+          statement="The tree of the window claim has one solution per jump time: the window's "
+                    "ends and the four dwell-grid times in it.",
+          paper_value=None, compute=_Hn_window_leaves, reference=6.0, tol=0.0,
+          tol_why="a count"),
     Claim(id="002-thm4.7-constant", paper=_ID, where="Thm 4.7",
           statement="|z_n(t, 0)|_A <= sqrt(c2/c1) |z_n(0,0)|_A exp(-lambda_min(P) t / (2 c2)); "
                     "here F1 = -I + J, F2 = -I - J, P_i = I/2, x = 0, x̂ = (1, 0), t = pi/2, "

@@ -1,0 +1,583 @@
+r"""explore(): every solution of a hybrid inclusion, as a tree of arcs.
+
+A hybrid system is an inclusion: where C and D overlap a solution may jump
+or flow on, and a set-valued jump map (``jump_map_values``) offers several
+successors. :func:`hybridsim.simulate` follows one solution (its
+``priority``); :func:`explore` follows them all, as a tree:
+
+* a **branch point** at each entry into C ∩ D where flowing is possible:
+  jump now (one branch per successor), or flow on, and optionally jump
+  after each dwell time of a grid (``dwell_grid``) while still in C ∩ D;
+* a **forced jump** (the flow leaves C inside D, x in D \ C, or a dwell
+  has elapsed): one branch per successor of the jump map.
+
+"Flow on" flows while in C ∩ D and past it: a flow that leaves D does not
+jump there (the next entry into D is a new branch point); one that leaves C
+inside D jumps where it leaves (the last point where flowing is possible).
+Each branch is an ordinary run of the engine (:func:`hybridsim.simulate`
+restarted at the branch point with ``t0``, ``j0`` and the random priority's
+dwell law, stopped at the next branch point by ``j_max=0``), so the events,
+rules and termination causes are those of ``simulate``.
+
+Branches reaching the same hybrid time and state are merged: two branch
+points (or two starts after a jump) merge when their j are equal and
+``|t - t'| <= merge_tol`` and ``max_i |x_i - x'_i| <= merge_tol`` (absolute,
+in the units of t and x): their futures are the same solutions, explored
+once. Choose ``merge_tol`` above the solver's error on the states (about
+``rtol`` times their size) and below the differences that matter.
+"""
+from __future__ import annotations
+
+import collections
+import enum
+import math
+import time
+import warnings
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+
+from .arc import HybridArc
+from .options import check_count, check_map_value, check_real, check_x0
+from .rules import MapError, SimulationWarning, Termination, event_tolerance, warns
+from .solve import simulate
+from .system import HybridSystem, successors
+
+__all__ = ["explore", "SolutionTree", "Node", "Choice", "ExploreEnd"]
+
+
+class ExploreEnd(enum.Enum):
+    """Why an exploration ended. ``.message`` is a sentence for the user."""
+
+    COMPLETE = "every branch was followed to its end"
+    MAX_BRANCHES = ("the budget of branches (max_branches) was spent before every branch "
+                    "was followed: raise it, lower t_max/j_max or coarsen dwell_grid")
+    MAX_SECONDS = ("the time budget (max_seconds) was spent before every branch was "
+                   "followed: raise it, lower t_max/j_max or coarsen dwell_grid")
+
+    @property
+    def message(self) -> str:
+        return self.value
+
+
+class Choice(NamedTuple):
+    """A choice taken at a branch point (t, j, x).
+
+    ``kind``: ``"jump"`` (to successor ``value`` of the jump map, 0 for a
+    single-valued one; None where j_max allows no more jumps: the solution
+    ends there, as :func:`hybridsim.simulate`'s), ``"flow"`` (flow on through C ∩ D) or ``"dwell"``
+    (jump after ``value`` time units in C ∩ D).
+    """
+
+    t: float
+    j: int
+    x: np.ndarray
+    kind: str
+    value: float | int | None
+
+    def __str__(self):
+        at = f"(t={self.t:.10g}, j={self.j})"
+        if self.kind == "jump" and self.value is None:
+            return f"jump, with no jump left (j_max), at {at}"
+        if self.kind == "jump":
+            return f"jump to successor {self.value} at {at}"
+        if self.kind == "flow":
+            return f"flow on at {at}"
+        return f"dwell {self.value:.10g} in C ∩ D from {at}"
+
+
+@dataclass
+class Node:
+    """One branch: a run of the engine between two branch points.
+
+    ``end`` is ``"branch"`` (a branch point with a choice: jump or flow
+    on), ``"forced"`` (a forced jump: only the successors), ``"leaf"`` (the
+    run ended: ``arc.termination``), ``"merged"`` (its end is another node's
+    branch point: ``merged_into``) or ``"pending"`` (not run: the budget
+    ended the exploration).
+    """
+
+    index: int
+    parent: int | None
+    choice: Choice | None           # the choice that started it (None: the root)
+    start: tuple                    # (t, j, x) where it starts
+    first: float | None = None      # its dwell at the start: inf flows on, None none
+    arc: HybridArc | None = None    # its own samples (from its start)
+    end: str = "pending"
+    children: list = field(default_factory=list)
+    merged_into: int | None = None
+
+
+class SolutionTree:
+    """The tree of solutions returned by :func:`explore`.
+
+    Iterating over it (or :attr:`leaves`) gives every leaf as a
+    :class:`hybridsim.HybridArc` from x0 to its end, with its termination
+    cause and ``arc.choices`` (the :class:`Choice` list taken on the way);
+    ``len(tree)`` is the number of leaves. :attr:`nodes` holds the
+    structure (parent, start, choice, end of each branch).
+
+    Attributes
+    ----------
+    nodes : list of Node
+    end : ExploreEnd
+        Why the exploration ended; :attr:`complete` is ``end is COMPLETE``.
+    merges : int
+        Branches not followed because another reached the same point (a
+        dwell that outlasts C ∩ D, or a "flow on" where the flow leaves C at
+        once, counts too: it is its sibling's branch).
+    seconds : float
+        Wall time of the exploration.
+    """
+
+    def __init__(self, system, nodes, end, merges, seconds):
+        self.system = system
+        self.nodes = nodes
+        self.end = end
+        self.merges = merges
+        self.seconds = seconds
+        self._leaves = None
+
+    @property
+    def complete(self) -> bool:
+        return self.end is ExploreEnd.COMPLETE
+
+    @property
+    def message(self) -> str:
+        return self.end.message
+
+    @property
+    def pending(self) -> int:
+        """Branches left unexplored by the budget."""
+        return sum(n.end == "pending" for n in self.nodes)
+
+    def path(self, index):
+        """The nodes from the root to node ``index``."""
+        out = []
+        k = index
+        while k is not None:
+            out.append(self.nodes[k])
+            k = self.nodes[k].parent
+        return out[::-1]
+
+    @property
+    def leaf_nodes(self):
+        """The leaves' nodes, depth first in the order of the choices."""
+        out, stack = [], [0]
+        while stack:
+            n = self.nodes[stack.pop()]
+            if n.end == "leaf":
+                out.append(n)
+            stack.extend(reversed(n.children))
+        return out
+
+    @property
+    def branch_points(self):
+        """``(t, j, x)`` of every node's end where the tree branches (more than one child)."""
+        return [(float(n.arc.t[-1]), int(n.arc.j[-1]), n.arc.x[-1]) for n in self.nodes
+                if n.end in ("branch", "forced") and len(n.children) > 1]
+
+    @property
+    def leaves(self):
+        """Every leaf as a HybridArc (built once, on first use)."""
+        if self._leaves is None:
+            self._leaves = [self._leaf(n) for n in self.leaf_nodes]
+        return self._leaves
+
+    @property
+    def merged(self):
+        """Each merged branch's arc from x0 to where it met another branch.
+
+        Its future is the other branch's (on a leaf), so the leaves and
+        these prefixes hold every sample of every solution explored (to
+        ``merge_tol``): what :mod:`hybridsim.testing` checks, given a tree.
+        ``arc.termination`` is None, ``arc.merged_into`` the other node.
+        """
+        return [self._leaf(n) for n in self.nodes
+                if n.end == "merged" and n.merged_into != n.parent]
+
+    def _leaf(self, node):
+        parts = self.path(node.index)
+        ts, js, xs, ds = [], [], [], []
+        stats = collections.Counter()
+        for p in parts:
+            a = p.arc
+            if a is None:           # merged at its start (after a jump): that sample
+                t, j, x = p.start
+                ts.append(np.array([t]))
+                js.append(np.array([j], dtype=np.int64))
+                xs.append(np.reshape(x, (1, -1)))
+                ds.append(np.full((1, len(x)), np.nan))
+                continue
+            # a branch that starts where its parent ends (flow on, dwell, no jump
+            # left) repeats the parent's last sample
+            k = 1 if (p.choice is not None and (p.choice.kind != "jump"
+                                                or p.choice.value is None)) else 0
+            ts.append(a.t[k:])
+            js.append(a.j[k:])
+            xs.append(a.x[k:])
+            ds.append(a.xdot[k:] if a.xdot is not None else np.full_like(a.x[k:], np.nan))
+            for key, v in (a.stats or {}).items():
+                if isinstance(v, (int, np.integer)):
+                    stats[key] += int(v)
+        last = node.arc
+        if node.end == "merged":
+            cause, msg, exc = None, f"merged into branch {node.merged_into}", None
+        else:
+            cause, msg, exc = last.termination, last.message, last.exception
+        arc = HybridArc._trusted(np.concatenate(ts), np.concatenate(js), np.concatenate(xs),
+                                 cause, msg, exc, components=self.system.components,
+                                 system=self.system, xdot=np.concatenate(ds),
+                                 stats=dict(stats))
+        arc.choices = [p.choice for p in parts if p.choice is not None]
+        arc.node = node.index
+        arc.merged_into = node.merged_into
+        return arc
+
+    def __iter__(self):
+        return iter(self.leaves)
+
+    def __len__(self):
+        return len(self.leaf_nodes)
+
+    def __repr__(self):
+        return (f"<SolutionTree: {len(self)} leaves, {len(self.nodes)} branches, "
+                f"{self.merges} merged, {self.end.name}>")
+
+
+def _describe(choices):
+    return "; ".join(str(c) for c in choices) or "no choice (the root's run)"
+
+
+class _Merger:
+    """Points seen so far, found again within ``tol`` (absolute, on t and every x_i)."""
+
+    def __init__(self, tol):
+        self.tol = tol
+        self.seen = {}
+
+    def _key(self, kind, t, j, x):
+        w = self.tol
+        if w == 0:
+            return (kind, j, t, x.tobytes())
+        return (kind, j, math.floor(t / w), math.floor(x[0] / w))
+
+    def find(self, kind, t, j, x):
+        if self.tol is None:
+            return None
+        w = self.tol
+        if w == 0:
+            return self.seen.get(self._key(kind, t, j, x))
+        kt, kx = math.floor(t / w), math.floor(x[0] / w)
+        for dt in (-1, 0, 1):
+            for dx in (-1, 0, 1):
+                for (tt, xx, node) in self.seen.get((kind, j, kt + dt, kx + dx), ()):
+                    if abs(tt - t) <= w and float(np.max(np.abs(xx - x))) <= w:
+                        return node
+        return None
+
+    def add(self, kind, t, j, x, node):
+        if self.tol is None:
+            return
+        if self.tol == 0:
+            self.seen[self._key(kind, t, j, x)] = node
+        else:
+            self.seen.setdefault(self._key(kind, t, j, x), []).append((t, x, node))
+
+
+#: options of simulate that explore decides itself, or cannot take
+_NOT_OPTIONS = {"priority": "explore follows every choice in C ∩ D",
+                "dwell": "explore follows every dwell of dwell_grid",
+                "seed": "explore draws nothing",
+                "prehistory": "explore restarts the engine at each branch point",
+                "dense": "explore's leaves are joined from the branches' samples",
+                "progress": "explore runs the engine once per branch",
+                "backend": "explore runs the Python path (the others refuse "
+                           "set-valued jumps and dwell laws)",
+                "j0": "give j0 to explore itself", "t0": "give t0 to explore itself"}
+
+
+def explore(system: HybridSystem, x0, t_max: float, j_max: float = math.inf, *,
+            t0: float = 0.0, j0: int = 0, dwell_grid=(), merge_tol: float | None = 1e-9,
+            max_branches: int = 100_000, max_seconds: float = 60.0, throw: bool = True,
+            warn: bool = True, **options) -> SolutionTree:
+    r"""Every solution of a hybrid inclusion from x0, as a tree of arcs.
+
+    At each entry into C ∩ D where flowing is possible the tree branches:
+    jump now, flow on, or (``dwell_grid``) jump after each of the given
+    dwell times while still in C ∩ D; at each jump, one branch per
+    successor of a set-valued jump map (``jump_map_values``). See the module
+    docstring for the rules, :class:`SolutionTree` for the result.
+
+    Parameters
+    ----------
+    system : HybridSystem
+        The data (C, f, D, g) or (C, f, D, G) with G set-valued. Not a system
+        that reads its history (the branches restart the engine).
+    x0 : array_like, shape (n,)
+        Initial state.
+    t_max, j_max : float, int or inf
+        Every solution stops at t_max or after j_max jumps, as in
+        :func:`hybridsim.simulate`.
+    t0, j0 : float, int
+        Initial hybrid time.
+    dwell_grid : sequence of float, optional
+        Dwell times (> 0) in C ∩ D after which a branch jumps, beside "jump
+        now" and "flow on". A dwell that outlasts C ∩ D is the "flow on"
+        branch and is not repeated.
+    merge_tol : float or None
+        Absolute tolerance on t and on each state component for merging
+        branches that reach the same (t, j, x); 0 merges exact equality
+        only, None never merges.
+    max_branches : int
+        At most this many branches (runs of the engine); then the
+        exploration ends with ``tree.end = ExploreEnd.MAX_BRANCHES``.
+    max_seconds : float
+        Wall-time budget; then ``ExploreEnd.MAX_SECONDS``.
+    throw : bool
+        Raise :class:`hybridsim.MapError` when a branch ends on a user map's
+        error (its message names the branch's choices); False: that leaf
+        ends with cause ``MAP_ERROR``.
+    warn : bool
+        One :class:`hybridsim.SimulationWarning` when leaves end on a
+        numerical failure, or when the budget ends the exploration.
+    **options
+        Passed to :func:`hybridsim.simulate` for every branch (``method``,
+        ``rtol``, ``atol``, ``max_step``, ``inputs``, ``max_norm``...).
+
+    Returns
+    -------
+    SolutionTree
+        Iterate over it for the leaves (HybridArcs, ``arc.choices`` the
+        choices taken); ``tree.nodes`` for the structure.
+
+    Raises
+    ------
+    TypeError, ValueError
+        Bad arguments, each naming the argument.
+    MapError
+        A user map failed on a branch (``throw=True``).
+
+    Examples
+    --------
+    A timer that may reset anywhere in [1, 2]: jump at 1, after a dwell of
+    0.5, or at 2, where it must; two resets give 3 x 3 solutions, which end
+    at 5 distinct times (merged, the default, one branch per end):
+
+    >>> import numpy as np, hybridsim as hs
+    >>> timer = hs.HybridSystem.from_functions(
+    ...     f=lambda x: np.array([1.0]), g=lambda x: np.array([0.0]),
+    ...     C=lambda x: x[0] <= 2.0, D=lambda x: x[0] >= 1.0, state_dim=1)
+    >>> tree = hs.explore(timer, [0.0], t_max=10.0, j_max=2, dwell_grid=[0.5],
+    ...                   merge_tol=None)
+    >>> len(tree), tree.complete
+    (9, True)
+    >>> print(tree.leaves[2].choices[1])
+    dwell 0.5 in C ∩ D from (t=2, j=1)
+    >>> tree = hs.explore(timer, [0.0], t_max=10.0, j_max=2, dwell_grid=[0.5])
+    >>> sorted(round(float(a.jump_times[-1]), 6) for a in tree)
+    [2.0, 2.5, 3.0, 3.5, 4.0]
+    """
+    if not isinstance(system, HybridSystem):
+        raise TypeError(f"system must be a hybridsim.HybridSystem, got {type(system).__name__}")
+    for name in options:
+        if name in _NOT_OPTIONS:
+            raise TypeError(f"explore() does not take {name}=: {_NOT_OPTIONS[name]}")
+    if system.needs_history or tuple(system.delays or ()):
+        raise ValueError(f"system: {type(system).__name__} reads its history (needs_history "
+                         f"or delays); explore restarts the engine at each branch point, "
+                         f"which loses the history. Explore a system without delays")
+    n = int(system.state_dim) if isinstance(system.state_dim, (int, np.integer)) else None
+    if n is None or n < 1:
+        raise ValueError(f"{type(system).__name__}.state_dim must be a positive int, "
+                         f"got {system.state_dim!r}")
+    x0 = check_x0(x0, n)
+    t0 = check_real("t0", t0)
+    t_max = check_real("t_max", t_max, allow_inf=True)
+    j_max = check_count("j_max", j_max, allow_inf=True)
+    j0 = check_count("j0", j0)
+    try:
+        grid = sorted({check_real("dwell_grid", float(d), positive=True)
+                       for d in np.atleast_1d(np.asarray(dwell_grid, dtype=float))})
+    except (TypeError, ValueError) as e:
+        raise type(e)(f"dwell_grid must be a sequence of positive finite floats: {e}") from e
+    if merge_tol is not None:
+        merge_tol = check_real("merge_tol", merge_tol, nonneg=True)
+    max_branches = check_count("max_branches", max_branches, minimum=1)
+    max_seconds = check_real("max_seconds", max_seconds, allow_inf=True, positive=True)
+    for name, v in (("throw", throw), ("warn", warn)):
+        if not isinstance(v, (bool, np.bool_)):
+            raise TypeError(f"{name} must be True or False, got {v!r}")
+    ex = _Explorer(system, n, t_max, j_max, j0, grid, merge_tol, options)
+    tree = ex.run(x0, t0, max_branches, max_seconds)
+    _report(tree, throw, warn)
+    return tree
+
+
+def _report(tree, throw, warn):
+    bad = [n for n in tree.nodes if n.end == "leaf" and n.arc.termination is not None
+           and n.arc.termination.failure]
+    if throw:
+        for n in bad:
+            if n.arc.termination is Termination.MAP_ERROR:
+                choices = [p.choice for p in tree.path(n.index) if p.choice is not None]
+                err = MapError(f"{n.arc.message} (on the branch: {_describe(choices)})",
+                               getattr(n.arc.exception, "map_name", None))
+                err.tree = tree
+                raise err from n.arc.exception
+    if warn:
+        failed = [n for n in bad if warns(n.arc.termination, True)]
+        if failed:
+            warnings.warn(f"{len(failed)} of {len(tree)} leaves ended on a numerical "
+                          f"failure, the first {failed[0].arc.termination.name}: "
+                          f"{failed[0].arc.message}", SimulationWarning, stacklevel=3)
+        if not tree.complete:
+            warnings.warn(f"explore: {tree.end.name}: {tree.message} ({tree.pending} "
+                          f"branches unexplored)", SimulationWarning, stacklevel=3)
+
+
+class _Explorer:
+    def __init__(self, system, n, t_max, j_max, j0, grid, tol, options):
+        self.system, self.n = system, n
+        self.t_max, self.j_max, self.j0 = t_max, j_max, j0
+        self.grid, self.options = grid, options
+        self.maps = system._compile()
+        self.inputs = options.get("inputs")
+        self.starts = _Merger(tol)
+        self.ends = _Merger(tol)
+        self.merges = 0
+        self.nodes = []
+
+    def _new(self, parent, choice, start, first=None):
+        node = Node(len(self.nodes), parent, choice, start, first)
+        self.nodes.append(node)
+        if parent is not None:
+            self.nodes[parent].children.append(node.index)
+        return node
+
+    def run(self, x0, t0, max_branches, max_seconds):
+        clock = time.perf_counter()
+        queue = collections.deque([self._new(None, None, (t0, self.j0, x0)).index])
+        end = ExploreEnd.COMPLETE
+        runs = 0
+        while queue:
+            if runs >= max_branches:
+                end = ExploreEnd.MAX_BRANCHES
+                break
+            if time.perf_counter() - clock > max_seconds:
+                end = ExploreEnd.MAX_SECONDS
+                break
+            node = self.nodes[queue.popleft()]
+            runs += 1
+            queue.extend(self._expand(node))
+        return SolutionTree(self.system, self.nodes, end, self.merges,
+                            time.perf_counter() - clock)
+
+    # ------------------------------------------------------------------ one branch
+    def _simulate(self, x, t, j, first):
+        """The engine from (t, j, x) to the next branch point; ``(arc, chose)``,
+        ``chose`` True where it stopped at an entry into C ∩ D with a choice."""
+        calls = [0, False]
+
+        def law(rng):
+            calls[0] += 1
+            if calls[0] == 1 and first is not None:
+                return first
+            calls[1] = True
+            return 0.0
+        arc = simulate(self.system, x, self.t_max, 0, t0=t, j0=j, priority="random",
+                       dwell=law, seed=0, throw=False, warn=False, **self.options)
+        return arc, calls[1]
+
+    def _leaf_arc(self, t, j, x, cause, message=None, exc=None):
+        xd = np.full((1, self.n), np.nan)
+        return HybridArc._trusted(np.array([t]), np.array([j], dtype=np.int64),
+                                  x.reshape(1, self.n).copy(), cause, message, exc,
+                                  components=self.system.components, system=self.system,
+                                  xdot=xd, stats={})
+
+    def _expand(self, node):
+        """Run a node; its children's indices to run next."""
+        t, j, x = node.start
+        if node.choice is not None and node.choice.kind == "jump":
+            other = self.starts.find("start", t, j, x)
+            if other is not None:
+                node.end, node.merged_into = "merged", other
+                self.merges += 1
+                return []
+            self.starts.add("start", t, j, x, node.index)
+            if j - self.j0 >= self.j_max:       # the last jump: simulate stops here too
+                node.arc = self._leaf_arc(t, j, x, Termination.J_MAX)
+                node.end = "leaf"
+                return []
+        arc, chose = self._simulate(x, t, j, node.first)
+        node.arc = arc
+        cause = arc.termination
+        if node.choice is not None and node.choice.kind == "dwell":
+            # a dwell that did not elapse inside C ∩ D is the "flow on" branch
+            if not (cause is Termination.J_MAX and not chose
+                    and abs(arc.t[-1] - (t + node.choice.value)) <= 1e-9 * max(1.0, abs(t))):
+                node.end = "merged"
+                node.merged_into = node.parent
+                self.merges += 1
+                self.nodes[node.parent].children.remove(node.index)
+                return []
+        if node.choice is not None and node.choice.kind == "flow" and cause is \
+                Termination.J_MAX and not chose and arc.j[-1] == j and \
+                arc.t[-1] - t <= 64.0 * event_tolerance(t, t):
+            # flowing was impossible (the flow leaves C at once): "jump now" again
+            node.end = "merged"
+            node.merged_into = node.parent
+            self.merges += 1
+            self.nodes[node.parent].children.remove(node.index)
+            return []
+        if cause is not Termination.J_MAX:
+            if cause is Termination.NOT_IN_SETS and node.parent is not None:
+                arc.termination = Termination.LEFT_SETS
+                arc.message = (f"{Termination.LEFT_SETS.message}: the state after the "
+                               f"jump, x={x}, is in neither C nor D (t={t:.10g}, j={j})")
+            node.end = "leaf"
+            return []
+        tp, jp, xp = float(arc.t[-1]), int(arc.j[-1]), arc.x[-1].copy()
+        kind = "branch" if chose else "forced"
+        other = self.ends.find(kind, tp, jp, xp)
+        if other is not None:
+            node.end, node.merged_into = "merged", other
+            self.merges += 1
+            return []
+        self.ends.add(kind, tp, jp, xp, node.index)
+        node.end = kind
+        out = []
+        if jp - self.j0 >= self.j_max:
+            # no jump left (j_max = 0): "jump" ends here, as simulate's run does
+            stop = self._new(node.index, Choice(tp, jp, xp, "jump", None), (tp, jp, xp))
+            stop.arc, stop.end = self._leaf_arc(tp, jp, xp, Termination.J_MAX), "leaf"
+            return self._flow_children(node, tp, jp, xp, chose)
+        u = self.inputs(tp) if self.inputs is not None else None
+        try:
+            if self.maps.G is not None:
+                succ = successors(self.maps.G(xp, tp, jp, u), self.n, tp, jp)
+            else:
+                succ = [check_map_value("jump_map", self.maps.g(xp, tp, jp, u), self.n,
+                                        tp, jp).copy()]
+        except MapError as e:
+            # the branch ends where its jump map failed (as simulate's run would)
+            arc.termination, arc.message, arc.exception = Termination.MAP_ERROR, str(e), e
+            node.end = "leaf"
+            return []
+        for i, xs in enumerate(succ):
+            c = Choice(tp, jp, xp, "jump", i)
+            out.append(self._new(node.index, c, (tp, jp + 1, np.array(xs, dtype=float))).index)
+        return out + self._flow_children(node, tp, jp, xp, chose)
+
+    def _flow_children(self, node, tp, jp, xp, chose):
+        """At a branch point: flow on, and jump after each dwell of the grid."""
+        out = []
+        if chose:
+            out.append(self._new(node.index, Choice(tp, jp, xp, "flow", None),
+                                 (tp, jp, xp), math.inf).index)
+            for d in self.grid:
+                out.append(self._new(node.index, Choice(tp, jp, xp, "dwell", d),
+                                     (tp, jp, xp), d).index)
+        return out

@@ -1,0 +1,487 @@
+"""Every solution of a hybrid inclusion: set-valued jumps, dwell laws in C ∩ D,
+hs.explore's tree, checks over every leaf, and its plot.
+
+The systems here flow at constant speed (x' = 1, z' = const): every solver
+step integrates them exactly, so the only errors are the event locations
+(4 ulp, :func:`hybridsim.rules.event_tolerance`) and their sums over a
+handful of jumps; the tolerances below (1e-9) are far above that and far
+below the smallest difference between two distinct solutions (0.25).
+"""
+import itertools
+import math
+import runpy
+import sys
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+import pytest
+from scipy import stats
+
+import hybridsim as hs
+from hybridsim import testing as ht
+
+TOL = 1e-9      # see the module docstring
+EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "explore_thermostat.py"
+
+
+@pytest.fixture(autouse=True)
+def _close_figures():
+    yield
+    plt.close("all")
+
+
+def window_timer(T1=1.0, T2=2.0):
+    """x' = 1; may reset to 0 anywhere in [T1, T2], must at T2."""
+    return hs.HybridSystem.from_functions(
+        f=lambda x: np.array([1.0]), g=lambda x: np.array([0.0]),
+        C=lambda x: x[0] <= T2, D=lambda x: x[0] >= T1, state_dim=1)
+
+
+def counter(offsets, period=1.0, rate=0.0):
+    """(tau, z): tau' = 1, z' = rate; at tau = period z+ in {z + c : c in offsets}."""
+    offs = [float(c) for c in offsets]
+    return hs.HybridSystem.from_functions(
+        f=lambda x: np.array([1.0, rate]), C=lambda x: x[0] <= period,
+        D=lambda x: x[0] >= period,
+        g_values=lambda x: [np.array([0.0, x[1] + c]) for c in offs], state_dim=2)
+
+
+# ---------------------------------------------------------------- the data
+def test_set_valued_jump_map_simulate_takes_the_first_or_a_seeded_draw():
+    sys_ = counter([1.0, 2.0])
+    arc = hs.simulate(sys_, [0.0, 0.0], t_max=10.0, j_max=5)
+    np.testing.assert_array_equal(arc.x[arc.jump_index, 1], [1, 2, 3, 4, 5])
+    a = hs.simulate(sys_, [0.0, 0.0], t_max=10.0, j_max=40, priority="random", seed=3)
+    b = hs.simulate(sys_, [0.0, 0.0], t_max=10.0, j_max=40, priority="random", seed=3)
+    steps = np.diff(np.concatenate([[0.0], a.x[a.jump_index, 1]]))
+    np.testing.assert_array_equal(a.x, b.x)                 # reproducible
+    assert set(steps) == {1.0, 2.0}                          # both successors drawn
+    assert sys_.set_valued and sys_.jump_map([1.0, 4.0], 0.0, 0, None)[1] == 5.0
+
+
+def test_set_valued_jump_map_contract():
+    bad = hs.HybridSystem.from_functions(
+        f=lambda x: np.array([1.0]), D=lambda x: x[0] >= 1.0, C=lambda x: x[0] <= 1.0,
+        g_values=lambda x: [], state_dim=1)
+    with pytest.raises(hs.MapError, match=r"jump_map_values must return k >= 1 successors"):
+        hs.simulate(bad, [0.0], t_max=3.0)
+    with pytest.raises(TypeError, match="g and g_values"):
+        hs.HybridSystem.from_functions(g=lambda x: x, g_values=lambda x: [x], state_dim=1)
+
+    class Both(hs.HybridSystem):
+        state_dim = 1
+
+        def jump_map(self, x):
+            return x
+
+        def jump_map_values(self, x):
+            return [x]
+    with pytest.raises(TypeError, match="both jump_map and jump_map_values"):
+        hs.simulate(Both(), [0.0], t_max=1.0)
+
+
+def test_a_set_valued_component_of_an_interconnection_is_refused_by_name():
+    both = hs.connect(counter([1.0, 2.0]), window_timer(), names=("counter", "timer"))
+    with pytest.raises(ValueError, match="component 'counter' declares jump_map_values"):
+        hs.simulate(both, [0.0, 0.0, 0.0], t_max=1.0)
+    with pytest.raises(ValueError, match="component 'counter' declares jump_map_values"):
+        hs.explore(both, [0.0, 0.0, 0.0], t_max=1.0, j_max=1)
+
+
+@pytest.mark.parametrize("dwell, priority", [(0.0, "jumps"), (math.inf, "flows")])
+def test_a_constant_dwell_is_a_priority(dwell, priority):
+    """dwell 0 in C ∩ D is priority "jumps", dwell inf is "flows"."""
+    sys_ = window_timer()
+    a = hs.simulate(sys_, [0.0], t_max=7.0, priority="random", dwell=lambda rng: dwell)
+    b = hs.simulate(sys_, [0.0], t_max=7.0, priority=priority)
+    np.testing.assert_allclose(a.jump_times, b.jump_times, rtol=0, atol=TOL)
+    assert a.jump_count == (7 if dwell == 0 else 3)
+
+
+def test_dwell_law_passes_kolmogorov_smirnov_at_three_step_sizes():
+    """The time spent in C ∩ D = [1, 10] before each reset is the declared law,
+    Exp(mean 0.5) (P(> 9) = e^-18: never cut by leaving C), whatever max_step:
+    the dwell is drawn once on entry and the jump placed at entry + dwell.
+    KS at the 1% level on 300 seeded draws; the draws are the same numbers
+    (to TOL) at the three step sizes."""
+    law = stats.expon(scale=0.5)
+    sys_ = window_timer(1.0, 10.0)
+    samples = []
+    for max_step in (math.inf, 0.05, 0.007):
+        arc = hs.simulate(sys_, [0.0], t_max=math.inf, j_max=300, priority="random",
+                          dwell=law, seed=11, max_step=max_step)
+        d = np.diff(np.concatenate([[0.0], arc.jump_times])) - 1.0
+        assert len(d) == 300
+        assert stats.kstest(d, law.cdf).pvalue > 0.01
+        samples.append(d)
+    np.testing.assert_allclose(samples[1], samples[0], rtol=0, atol=TOL)
+    np.testing.assert_allclose(samples[2], samples[0], rtol=0, atol=TOL)
+
+
+def test_dwell_that_outlasts_C_jumps_where_C_ends_and_one_that_outlasts_D_flows_on():
+    t2 = hs.simulate(window_timer(1.0, 2.0), [0.0], t_max=2.5, j_max=1, priority="random",
+                     dwell=lambda rng: 5.0)
+    assert abs(t2.jump_times[0] - 2.0) <= TOL                # cut short at the end of C
+    # D = [1, 1.5] inside C = [0, 3]: a dwell of 5 leaves D and never jumps
+    sys_ = hs.HybridSystem.from_functions(
+        f=lambda x: np.array([1.0]), g=lambda x: np.array([0.0]),
+        C=lambda x: x[0] <= 3.0, D=lambda x: 1.0 <= x[0] <= 1.5, state_dim=1)
+    arc = hs.simulate(sys_, [0.0], t_max=2.8, priority="random", dwell=lambda rng: 5.0)
+    assert arc.jump_count == 0 and arc.termination is hs.Termination.T_MAX
+
+
+def test_dwell_bad_input_is_named():
+    sys_ = window_timer()
+    with pytest.raises(ValueError, match="dwell .* priority='random'; got priority='jumps'"):
+        hs.simulate(sys_, [0.0], t_max=3.0, dwell=lambda rng: 1.0)
+    with pytest.raises(TypeError, match="dwell must be a scipy.stats frozen distribution"):
+        hs.simulate(sys_, [0.0], t_max=3.0, priority="random", dwell=0.5)
+    with pytest.raises(hs.MapError, match=r"dwell must draw a real number >= 0.*-1"):
+        hs.simulate(sys_, [0.0], t_max=3.0, priority="random", dwell=lambda rng: -1.0)
+    arc = hs.simulate(sys_, [0.0], t_max=3.0, priority="random", throw=False,
+                      dwell=lambda rng: 1 / 0)
+    assert arc.termination is hs.Termination.MAP_ERROR and "dwell raised" in arc.message
+
+
+# ---------------------------------------------------------------- known answers
+@pytest.mark.parametrize("J", [1, 2, 3])
+def test_timer_window_leaf_count_in_closed_form(J):
+    """Window [1, 2] inside C, dwell grid {0.25, 0.5, 0.75}: each reset happens
+    at one of m + 2 = 5 ages (jump now, each dwell, at 2 where it must), so J
+    resets give 5^J solutions; their reset times are sums of J ages in
+    1 + {0, 1/4, ..., 1}, so merged they end at 4J + 1 distinct times."""
+    sys_, grid = window_timer(), [0.25, 0.5, 0.75]
+    tree = hs.explore(sys_, [0.0], t_max=math.inf, j_max=J, dwell_grid=grid, merge_tol=None)
+    assert tree.complete and len(tree) == 5 ** J
+    ages = {1.0, 1.25, 1.5, 1.75, 2.0}
+    seen = set()
+    for arc in tree:
+        assert arc.termination is hs.Termination.J_MAX and arc.jump_count == J
+        gaps = np.diff(np.concatenate([[0.0], arc.jump_times]))
+        assert all(min(abs(g - a) for a in ages) <= TOL for g in gaps)
+        seen.add(tuple(np.round(gaps, 6)))
+    assert len(seen) == 5 ** J                               # every sequence, once
+    merged = hs.explore(sys_, [0.0], t_max=math.inf, j_max=J, dwell_grid=grid)
+    assert len(merged) == 4 * J + 1
+    ends = sorted(float(a.jump_times[-1]) for a in merged)
+    np.testing.assert_allclose(ends, J + 0.25 * np.arange(4 * J + 1), rtol=0, atol=TOL)
+
+
+@pytest.mark.parametrize("k, J", [(2, 3), (3, 2), (2, 5)])
+def test_k_successors_give_k_to_the_J_leaves_and_merge_by_their_sums(k, J):
+    """z+ in {z + 1, ..., z + k} at every tau = 1: k^J solutions; the (t, j, z)
+    reached after J jumps is (J, J, J + s) with s one of the J(k - 1) + 1
+    sums of J numbers in {0, ..., k - 1}: that many merged leaves."""
+    sys_ = counter(range(1, k + 1))
+    tree = hs.explore(sys_, [0.0, 0.0], t_max=50.0, j_max=J, merge_tol=None)
+    assert len(tree) == k ** J and not tree.branch_points == []
+    z = sorted(float(a.xf[1]) for a in tree)
+    merged = hs.explore(sys_, [0.0, 0.0], t_max=50.0, j_max=J)
+    assert len(merged) == J * (k - 1) + 1
+    np.testing.assert_allclose(sorted(float(a.xf[1]) for a in merged),
+                               J + np.arange(J * (k - 1) + 1), rtol=0, atol=TOL)
+    assert sorted(set(z)) == sorted(float(a.xf[1]) for a in merged)
+    # every merged branch's prefix is kept for the checks
+    assert len(merged.merged) == merged.merges
+
+
+def test_coinciding_successors_merge():
+    """G(z) = {z + 1, z + 1, z + 2}: 3^J branches, J + 1 distinct ends."""
+    sys_ = counter([1.0, 1.0, 2.0])
+    assert len(hs.explore(sys_, [0.0, 0.0], t_max=50.0, j_max=3, merge_tol=None)) == 27
+    assert len(hs.explore(sys_, [0.0, 0.0], t_max=50.0, j_max=3)) == 4
+
+
+def test_one_dimensional_overlaps_enumerated_by_hand():
+    """x' = 1 from 0; C = [0, 5] U [10, inf), D = [1, 2] U [3, 4] U [5, 6],
+    g = 10 (then it flows, outside D, to t_max = 8). By hand, a solution jumps
+    once: on entering [1, 2] (t = 1), on entering [3, 4] (t = 3), or at 5
+    where C ends inside D; with the dwell grid {0.5} also at 1.5 and 3.5.
+    It ends at x = 10 + (8 - t_jump). A flow that leaves D (at 2, at 4) does
+    not jump there, and at 5 "flow on" is impossible (C ends)."""
+    sys_ = hs.HybridSystem.from_functions(
+        f=lambda x: np.array([1.0]), g=lambda x: np.array([10.0]),
+        C=lambda x: x[0] <= 5.0 or x[0] >= 10.0,
+        D=lambda x: 1 <= x[0] <= 2 or 3 <= x[0] <= 4 or 5 <= x[0] <= 6, state_dim=1)
+    for grid, jumps in (((), [1.0, 3.0, 5.0]), ((0.5,), [1.0, 1.5, 3.0, 3.5, 5.0])):
+        tree = hs.explore(sys_, [0.0], t_max=8.0, j_max=5, dwell_grid=grid, merge_tol=None)
+        got = sorted(float(a.jump_times[0]) for a in tree)
+        np.testing.assert_allclose(got, jumps, rtol=0, atol=TOL)
+        for a in tree:
+            assert a.termination is hs.Termination.T_MAX and a.jump_count == 1
+            assert abs(a.xf[0] - (18.0 - a.jump_times[0])) <= TOL
+        # branch points: the entries at 1 and 3 (at 5 only "jump" is possible)
+        np.testing.assert_allclose(sorted(p[0] for p in tree.branch_points), [1.0, 3.0],
+                                   rtol=0, atol=TOL)
+
+
+# ---------------------------------------------------------------- every choice sequence
+def _replay(system, x0, t_max, j_max, grid, k):
+    """Every solution simulate finds under a deterministic choice sequence:
+    each run replays a script (a dwell at each entry into C ∩ D: 0, a grid
+    value or inf; a successor index at each jump), its unscripted choices
+    taken as the first option, and the alternatives to each are run in turn."""
+    dwells = [0.0, *grid, math.inf]
+    out, todo = [], [[]]
+    while todo:
+        prefix = todo.pop()
+        taken = []
+
+        def next_choice(options, prefix=prefix, taken=taken):
+            i = prefix[len(taken)] if len(taken) < len(prefix) else 0
+            taken.append((i, len(options)))
+            return options[i]
+
+        class Scripted(hs.HybridSystem):
+            state_dim = system.state_dim
+            flow_map = staticmethod(system.flow_map)
+            flow_set = staticmethod(system.flow_set)
+            jump_set = staticmethod(system.jump_set)
+
+            def jump_map(self, x, t, j, u):
+                vals = system.jump_map_values(x)
+                return np.asarray(vals[next_choice(list(range(len(vals))))])
+        arc = hs.simulate(Scripted(), x0, t_max, j_max, priority="random",
+                          dwell=lambda rng: next_choice(dwells))
+        out.append(arc)
+        for pos in range(len(prefix), len(taken)):
+            for alt in range(1, taken[pos][1]):
+                todo.append([c for c, _ in taken[:pos]] + [alt])
+    return out
+
+
+def _signature(arc):
+    k = arc.jump_index
+    return np.concatenate([arc.jump_times, arc.x[k].ravel(), [arc.tf], arc.xf])
+
+
+def _same_sets(a, b):
+    sa, sb = [_signature(x) for x in a], [_signature(x) for x in b]
+
+    def covered(xs, ys):
+        return all(any(len(x) == len(y) and np.max(np.abs(x - y)) <= TOL for y in ys)
+                   for x in xs)
+    return covered(sa, sb) and covered(sb, sa)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_leaves_are_the_solutions_of_every_choice_sequence(seed):
+    """Seeded random cases: a window [T1, T2] in C for tau, a drift on z, k in
+    {1, 2, 3} successors, a dwell grid strictly inside the window, j_max 2-3
+    and a horizon cutting some branches. The tree (unmerged) has each
+    solution once, and the same solutions (to TOL) as simulate's runs."""
+    rng = np.random.default_rng(seed)
+    T1 = float(rng.uniform(0.5, 1.0))
+    T2 = T1 + float(rng.uniform(0.4, 1.0))
+    k = int(rng.integers(1, 4))
+    offs = [float(c) for c in rng.uniform(-1.0, 1.0, size=k)]
+    rate = float(rng.uniform(-0.5, 0.5))
+    grid = sorted(float(g) for g in rng.uniform(0.1, 0.9, size=int(rng.integers(0, 3)))
+                  * (T2 - T1))
+    j_max = int(rng.integers(2, 4))
+    t_max = float(rng.uniform(1.5, 3.5)) * T2
+
+    def G(x):
+        return [np.array([0.0, x[1] + c]) for c in offs]
+    system = hs.HybridSystem.from_functions(
+        f=lambda x: np.array([1.0, rate]), C=lambda x: x[0] <= T2,
+        D=lambda x: x[0] >= T1, g_values=G, state_dim=2)
+    tree = hs.explore(system, [0.0, 0.0], t_max, j_max, dwell_grid=grid, merge_tol=None)
+    runs = _replay(system, np.array([0.0, 0.0]), t_max, j_max, grid, k)
+    assert tree.complete and _same_sets(tree.leaves, runs)
+    sigs = [_signature(a) for a in tree]
+    for i in range(len(sigs)):              # no solution twice
+        for m in range(i):
+            assert len(sigs[i]) != len(sigs[m]) or np.max(np.abs(sigs[i] - sigs[m])) > TOL
+
+
+# ---------------------------------------------------------------- the tree
+def test_j_max_zero_stops_where_a_jump_would_be_taken():
+    """simulate(j_max=0) ends at the first jump it would take (J_MAX, no jump);
+    at an entry into C ∩ D it may also flow on. So explore: the window timer
+    from 0 with t_max 2.5 ends at t = 1 (jump now), 1.5 (dwell) or 2 (flow on,
+    where C ends); no leaf has a jump."""
+    tree = hs.explore(window_timer(), [0.0], t_max=2.5, j_max=0, dwell_grid=[0.5])
+    ends = sorted(float(a.tf) for a in tree)
+    np.testing.assert_allclose(ends, [1.0, 1.5, 2.0], rtol=0, atol=TOL)
+    for a in tree:
+        assert a.termination is hs.Termination.J_MAX and a.jump_count == 0
+        a.validate()
+    sims = {round(float(hs.simulate(window_timer(), [0.0], 2.5, 0, priority=p).tf), 9)
+            for p in ("jumps", "flows")}
+    assert sims == {1.0, 2.0}
+
+
+def test_inputs_reach_every_branch():
+    """u(t) = t read by the jump map (x+ = u / 4): a reset at time s lands on
+    s / 4 on every branch (the successors are computed with the input too)."""
+    sys_ = hs.HybridSystem.from_functions(
+        f=lambda x, t, j, u: np.array([1.0]), g=lambda x, t, j, u: np.array([u[0] / 4]),
+        C=lambda x: x[0] <= 2.0, D=lambda x: x[0] >= 1.0, state_dim=1, input_dim=1)
+    tree = hs.explore(sys_, [0.0], t_max=2.5, j_max=1, dwell_grid=[0.5],
+                      inputs=lambda t: np.array([t]))
+    assert sorted(round(float(a.jump_times[0]), 9) for a in tree) == [1.0, 1.5, 2.0]
+    for a in tree:
+        assert abs(a.x[a.jump_index[0], 0] - a.jump_times[0] / 4) <= TOL
+
+
+def test_tree_structure_and_choices():
+    tree = hs.explore(window_timer(), [0.0], t_max=10.0, j_max=2, dwell_grid=[0.5],
+                      merge_tol=None)
+    root = tree.nodes[0]
+    assert root.parent is None and root.choice is None and root.end == "branch"
+    kinds = [tree.nodes[c].choice.kind for c in root.children]
+    assert kinds == ["jump", "flow", "dwell"]
+    for leaf in tree.leaf_nodes:
+        path = tree.path(leaf.index)
+        assert path[0] is root and path[-1] is leaf
+        for a, b in itertools.pairwise(path):
+            assert b.parent == a.index and b.index in a.children
+    # a leaf's arc: from x0, its choices those of its path, valid samples
+    arc = tree.leaves[-1]
+    assert arc.t[0] == 0.0 and len(arc.choices) >= 2
+    arc.validate()
+    assert str(arc.choices[0]).startswith(("jump to successor 0", "flow on", "dwell 0.5"))
+
+
+def test_budgets_end_the_exploration_with_a_cause():
+    sys_ = counter([1.0, 2.0])
+    with pytest.warns(hs.SimulationWarning, match="MAX_BRANCHES"):
+        tree = hs.explore(sys_, [0.0, 0.0], t_max=50.0, j_max=10, max_branches=7,
+                          merge_tol=None)
+    assert tree.end is hs.ExploreEnd.MAX_BRANCHES and not tree.complete
+    assert tree.pending > 0 and "max_branches" in tree.message
+    with pytest.warns(hs.SimulationWarning, match="MAX_SECONDS"):
+        tree = hs.explore(sys_, [0.0, 0.0], t_max=50.0, j_max=10, max_seconds=1e-9)
+    assert tree.end is hs.ExploreEnd.MAX_SECONDS
+    with pytest.raises(ValueError, match="incomplete"):
+        ht.assert_bounded(tree, lambda x, t, j: x[1], 100.0)
+
+
+def test_explore_bad_input_is_named():
+    sys_ = window_timer()
+    with pytest.raises(TypeError, match="priority=: explore follows every choice"):
+        hs.explore(sys_, [0.0], 3.0, 2, priority="jumps")
+    with pytest.raises(ValueError, match="dwell_grid must be a sequence of positive"):
+        hs.explore(sys_, [0.0], 3.0, 2, dwell_grid=[0.5, -1.0])
+    with pytest.raises(ValueError, match="merge_tol must be >= 0"):
+        hs.explore(sys_, [0.0], 3.0, 2, merge_tol=-1.0)
+    with pytest.raises(TypeError, match="system must be a hybridsim.HybridSystem"):
+        hs.explore(object(), [0.0], 3.0, 2)
+    delayed = hs.HybridSystem.from_functions(f=lambda x: -x, state_dim=1,
+                                             needs_history=True)
+    with pytest.raises(ValueError, match="reads its history"):
+        hs.explore(delayed, [1.0], 1.0, 1)
+
+
+def test_a_failing_map_names_the_branch():
+    def g(x, t):
+        if t > 1.5:
+            raise RuntimeError("broken reset")
+        return np.array([0.0])
+    sys_ = hs.HybridSystem.from_functions(
+        f=lambda x: np.array([1.0]), g=g, C=lambda x: x[0] <= 2.0,
+        D=lambda x: x[0] >= 1.0, state_dim=1)
+    with pytest.raises(hs.MapError, match=r"broken reset.*on the branch: flow on at"):
+        hs.explore(sys_, [0.0], 5.0, 1)
+    tree = hs.explore(sys_, [0.0], 5.0, 1, throw=False)
+    causes = sorted(a.termination.name for a in tree)
+    assert causes == ["J_MAX", "MAP_ERROR"]
+
+
+# ---------------------------------------------------------------- checks over every leaf
+def test_testing_helpers_report_the_first_violating_leaf_with_its_choices():
+    tree = hs.explore(window_timer(), [0.0], t_max=6.0, j_max=2, dwell_grid=[0.5])
+    ht.assert_bounded(tree, lambda x, t, j: x[0], 2.0, atol=TOL)      # x <= T2 always
+    with pytest.raises(AssertionError, match=r"solution \d+ of \d+ \(.*(flow on|dwell 0.5)"):
+        ht.assert_bounded(tree, lambda x, t, j: x[0], 1.6)
+    m = ht.margin_bounded(tree, lambda x, t, j: x[0], 1.6)
+    assert float(m) == pytest.approx(-0.4, abs=TOL) and not m.holds
+    assert any(c.kind == "flow" for c in m.choices) and "solution" in m.what
+    # an iterable of arcs serves too; signals must be callables there
+    ht.assert_bounded(list(tree), lambda x, t, j: x[0], 2.0, atol=TOL)
+    with pytest.raises(TypeError, match="signal must be a callable"):
+        ht.assert_bounded(list(tree), tree.leaves[0].x, 2.0)
+
+
+def test_checks_cover_the_prefixes_of_merged_branches():
+    """Merged, the timer's solutions that first reset at 1.5 (after a dwell of
+    0.5) all meet others later (at (3, 2, 0), (2.5, 2, 0)...): no leaf resets
+    at 1.5, but the merged branches' prefixes do, and they are checked."""
+    tree = hs.explore(window_timer(), [0.0], t_max=10.0, j_max=2, dwell_grid=[0.5])
+    assert not any(abs(a.jump_times[0] - 1.5) <= TOL for a in tree)
+
+    def mark(x, t, j):          # 1 on the sample just after a reset at 1.5
+        return 1.0 if (j == 1 and abs(t - 1.5) <= TOL) else 0.0
+    ht.assert_bounded(list(tree), mark, 0.5)                 # the leaves alone miss it
+    with pytest.raises(AssertionError, match=r"dwell 0.5 .*merges into branch"):
+        ht.assert_bounded(tree, mark, 0.5)
+
+
+def test_a_check_with_no_sample_in_range_on_any_solution_is_an_error():
+    tree = hs.explore(window_timer(), [0.0], t_max=3.0, j_max=1)
+    with pytest.raises(AssertionError, match="no solution of the .* has a sample"):
+        ht.assert_bounded(tree, lambda x, t, j: x[0], 2.0, t=(50.0, 60.0))
+    with pytest.raises(ValueError, match="no solution of the .* has a sample"):
+        ht.margin_bounded(tree, lambda x, t, j: x[0], 2.0, j=7)
+
+
+def test_jittery_sampling_every_gap_sequence_contracts():
+    """README's example: x' = x + u, u = -2 x held between samples whose gaps
+    h are 0.1, 0.2 or 0.3. Between samples x(s) = (2 - e^s) x_k, so every
+    solution satisfies |x(t, j)| <= (2 - e^0.1)^j |x0| (the worst contraction
+    per sample). 3^5 gap sequences; the state after j samples is the product
+    of the factors (order-free), so merged the tree ends at the C(7, 2) = 21
+    multisets of five gaps."""
+    jittery = hs.HybridSystem.from_functions(
+        f=lambda x: np.array([x[0] + x[1], 0.0, 1.0]),
+        g=lambda x: np.array([x[0], -2.0 * x[0], 0.0]),
+        C=lambda x: x[2] <= 0.3, D=lambda x: x[2] >= 0.1, state_dim=3)
+    tree = hs.explore(jittery, [1.0, -2.0, 0.0], t_max=2.0, j_max=5, dwell_grid=[0.1])
+    assert len(tree) == 21 and tree.complete
+    # rtol 1e-6: the solver's (rtol 1e-6) error on x, relative to the bound
+    ht.assert_bounded(tree, lambda x, t, j: x[0], lambda t, j: (2 - np.exp(0.1)) ** j,
+                      rtol=1e-6)
+    with pytest.raises(AssertionError, match="bound violated"):
+        ht.assert_bounded(tree, lambda x, t, j: x[0], lambda t, j: (2 - np.exp(0.2)) ** j)
+    assert len(hs.explore(jittery, [1.0, -2.0, 0.0], t_max=2.0, j_max=5, dwell_grid=[0.1],
+                          merge_tol=None)) == 3 ** 5
+
+
+# ---------------------------------------------------------------- plot
+@pytest.mark.parametrize("view", ["flows", "jumps", "domain"])
+def test_plot_solutions_draws_every_leaf_and_marks_branch_points(view):
+    tree = hs.explore(window_timer(), [0.0], t_max=5.0, j_max=2, dwell_grid=[0.5],
+                      merge_tol=None)
+    ax = hs.plot_solutions(tree, view=view)
+    flows = [ln for ln in ax.lines if ln.get_gid() == "flows"]
+    assert len(flows) == len(tree) == 9
+    assert len({ln.get_color() for ln in flows}) == 1
+    (bp,) = [ln for ln in ax.lines if ln.get_gid() == "branch_points"]
+    assert len(bp.get_xdata()) == len(tree.branch_points) and bp.get_marker() == "D"
+    texts = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert texts == ["9 solutions", "branch points"]
+    assert ax.get_xlabel() == ("$j$" if view == "jumps" else "$t$")
+    if view == "domain":
+        np.testing.assert_array_equal(np.asarray(bp.get_ydata()),
+                                      [p[1] for p in tree.branch_points])
+    with pytest.raises(ValueError, match="view must be one of"):
+        hs.plot_solutions(tree, view="phase")
+
+
+# ---------------------------------------------------------------- the example
+def test_explore_thermostat_example(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(sys, "argv", [str(EXAMPLE), str(tmp_path)])
+    ns = runpy.run_path(str(EXAMPLE), run_name="__main__")
+    tree = ns["TREE"]
+    assert tree.complete and len(tree) > 1
+    assert (tmp_path / "explore_thermostat.png").stat().st_size > 5000
+    lo, hi = ns["Z_LOW"], ns["Z_HIGH"]
+    # every solution stays in the band once inside it (the claim of the example)
+    ht.assert_bounded(tree, lambda x, t, j: abs(x[0] - (lo + hi) / 2), (hi - lo) / 2,
+                      atol=1e-6, t=ns["T_IN"])
+    assert "solutions" in capsys.readouterr().out
