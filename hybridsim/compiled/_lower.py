@@ -371,6 +371,18 @@ def _generate(parts, n):
         return f"as_scalar({guard}{k}(x{k}, {u(k, guard)}, t, j, p{k})) >= 0.0"
 
     roles = {"flow"}
+
+    def guard(role, ks, start, op):
+        """The stacked guard of parts ``ks``, where each of them has one."""
+        if not all(role in parts[k].comp.maps for k in ks):
+            return
+        roles.add(role)
+        lines.extend(head(role, ks, (role,)))
+        lines.append(f"    h = {start}")
+        lines.extend(f"    h = {op}(h, as_scalar({role}{k}(x{k}, {u(k, role)}, t, j, p{k})))"
+                     for k in ks)
+        lines.extend(["    return h", ""])
+
     lines += head("flow", list(P), ("flow",))
     lines.append(f"    out = np.empty({n})")
     for k in P:
@@ -395,26 +407,12 @@ def _generate(parts, n):
         lines += ["    return out", ""]
         lines += head("jump_set", D, ("jump_set", "jump_guard"))
         lines += ["    return " + " or ".join(f"({in_set(k, 'D')})" for k in D), ""]
-        if all("jump_guard" in parts[k].comp.maps for k in D):
-            roles.add("jump_guard")
-            lines += head("jump_guard", D, ("jump_guard",))
-            lines.append("    h = -np.inf")
-            for k in D:
-                lines.append(f"    h = max(h, as_scalar(jump_guard{k}(x{k}, "
-                             f"{u(k, 'jump_guard')}, t, j, p{k})))")
-            lines += ["    return h", ""]
+        guard("jump_guard", D, "-np.inf", "max")       # D is a union: the largest guard
     if C:
         roles.add("flow_set")
         lines += head("flow_set", C, ("flow_set", "flow_guard"))
         lines += ["    return " + " and ".join(f"({in_set(k, 'C')})" for k in C), ""]
-        if all("flow_guard" in parts[k].comp.maps for k in C):
-            roles.add("flow_guard")
-            lines += head("flow_guard", C, ("flow_guard",))
-            lines.append("    h = np.inf")
-            for k in C:
-                lines.append(f"    h = min(h, as_scalar(flow_guard{k}(x{k}, "
-                             f"{u(k, 'flow_guard')}, t, j, p{k})))")
-            lines += ["    return h", ""]
+        guard("flow_guard", C, "np.inf", "min")        # C an intersection: the smallest
     return "\n".join(lines), roles
 
 
