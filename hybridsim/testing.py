@@ -463,7 +463,9 @@ class Margin(float):
     A float (compare, add, ``min``, ``max`` it as one) that also says where
     it was decided: :attr:`where` is the hybrid time ``(t, j)`` of the
     deciding sample (None when no single sample decides), :attr:`what`
-    which claim.
+    which claim, and :attr:`series` (None where not kept) the margin at
+    every sample it judged, ``(t, j, value)`` arrays: what a plot of the
+    run against its claim draws (the margin is their minimum).
 
     Examples
     --------
@@ -472,10 +474,11 @@ class Margin(float):
     (-0.25, (1.5, 2), False)
     """
 
-    def __new__(cls, value, t=None, j=None, what=""):
+    def __new__(cls, value, t=None, j=None, what="", series=None):
         self = super().__new__(cls, value)
         self.where = None if t is None else (float(t), None if j is None else int(j))
         self.what = what
+        self.series = series
         return self
 
     @property
@@ -494,7 +497,8 @@ def _worst(arc, slack, m, what):
                          f"t in [{arc.t[0]}, {arc.t[-1]}], j in [{arc.j[0]}, {arc.j[-1]}])")
     idx = np.flatnonzero(m)
     k = idx[int(np.argmin(slack[idx]))]
-    return Margin(slack[k], arc.t[k], arc.j[k], what)
+    return Margin(slack[k], arc.t[k], arc.j[k], what,
+                  series=(arc.t[idx], arc.j[idx], np.asarray(slack, dtype=float)[idx]))
 
 
 @_every("margin")

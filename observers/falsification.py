@@ -198,19 +198,69 @@ def run_problem(problem: Problem, *, seed: int = 0, scale: float = 1.0,
                          found == problem.expect and as_bad)
 
 
+def _margin_series(result):
+    """``(t, j, value, what)``: the claim's margin at each sample of the worst
+    run, where the problem's margin keeps it
+    (:attr:`hybridsim.testing.Margin.series`), and what it measures; else None."""
+    arc = getattr(result.search, "arc", None)
+    if arc is None:
+        return None
+    try:
+        m = result.problem.margin(arc)
+    except Exception:  # noqa: BLE001 - a figure never fails on a margin that cannot be redrawn
+        return None
+    series = getattr(m, "series", None)
+    return None if series is None else (*series, getattr(m, "what", ""))
+
+
+def _draw_series(ax, series, result):
+    """The worst run itself: its margin at each sample, a line per flow (jumps
+    as gaps), the deciding sample marked."""
+    t, j, v = (np.asarray(a) for a in series[:3])
+    what = series[3]
+    finite = np.isfinite(v)
+    for jj in np.unique(j):
+        sel = (j == jj) & finite
+        ax.plot(t[sel], v[sel], ".-", color="C0", lw=1.2, ms=2.5,
+                label="margin at each sample of the worst run" if jj == j[0] else None)
+    ax.axhline(0.0, color="0.4", lw=0.8)
+    big = np.abs(v[finite])
+    if big.size and big.max() > 1e3 * max(float(np.median(big)), 1e-12):
+        ax.set_yscale("symlog", linthresh=1.0)      # margins spanning decades
+    where = result.search.where
+    if where is not None:
+        k = np.flatnonzero((t == where[0]) & (j == where[1]))
+        if k.size:
+            ax.plot(t[k[0]], v[k[0]], "o", color="C3", ms=6,
+                    label=f"deciding sample (t = {where[0]:.4g}, j = {where[1]})")
+    ax.set_xlabel("t (s), jumps as gaps between the flows")
+    ax.set_ylabel("margin (< 0: violated)")
+    ax.set_title(f"the worst run: the claim's margin at each sample{': ' + what if what else ''}",
+                 fontsize=10)
+    ax.legend(loc="best", fontsize=8)
+
+
 def draw_worst(result: ProblemResult):
     """A figure of a search: the worst margin so far against the number of runs
     (the search and the random baseline), and where in the space the worst
     run lies (each coordinate scaled to its bounds: 0 the lower, 1 the upper;
-    a counterexample on a face or a vertex shows as 0s and 1s).
+    a counterexample on a face or a vertex shows as 0s and 1s); below, where
+    the problem's margin keeps it (:attr:`hybridsim.testing.Margin.series`),
+    the worst run itself: the claim's margin at each of its samples.
 
     Returns
     -------
     matplotlib.figure.Figure
     """
     from matplotlib.figure import Figure
-    fig = Figure(figsize=(11, 4))
-    ax_h, ax_z = fig.subplots(1, 2, gridspec_kw={"width_ratios": [3, 2]})
+    series = _margin_series(result)
+    fig = Figure(figsize=(11, 7.5 if series is not None else 4))
+    if series is None:
+        ax_h, ax_z = fig.subplots(1, 2, gridspec_kw={"width_ratios": [3, 2]})
+    else:
+        grid = fig.add_gridspec(2, 2, width_ratios=[3, 2], height_ratios=[1, 1])
+        ax_h, ax_z = fig.add_subplot(grid[0, 0]), fig.add_subplot(grid[0, 1])
+        _draw_series(fig.add_subplot(grid[1, :]), series, result)
     for res, label, style in ((result.search, "differential evolution", "o-"),
                               (result.baseline, "random sampling", "s--")):
         h = np.minimum.accumulate(res.history)

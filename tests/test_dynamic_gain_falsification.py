@@ -88,3 +88,27 @@ def test_iss_worst_case_record():
     (w,) = iss_worst_cases((0.1,), budget=100)
     assert w.margin >= 0 and w.ratio <= w.bound and w.ratio >= top * 0.5
     assert w.values.shape == (5, 4) and np.abs(w.values).max() <= 0.1
+
+
+def test_the_worst_run_is_drawn_with_its_margin_at_each_sample():
+    """draw_worst's third panel is the worst run itself: the claim's margin at
+    each sample (the problem's Margin.series), its minimum at the deciding
+    sample, the zero line; and the margins of hybridsim.testing keep it."""
+    from hybridsim.testing import margin_bounded
+    from observers.falsification import draw_worst
+    r = run_problem(BY_ID["000-thm3-eps-decay-printed"], seed=0)
+    fig = draw_worst(r)
+    ax_run = fig.axes[2]
+    line = ax_run.lines[0]
+    assert line.get_label() == "margin at each sample of the worst run"
+    t, v = line.get_xdata(), line.get_ydata()
+    np.testing.assert_array_equal(t, r.search.arc.t)
+    assert v.min() == pytest.approx(r.margin, rel=1e-12)
+    dec = [ln for ln in ax_run.lines if ln.get_label().startswith("deciding sample")]
+    assert len(dec) == 1 and dec[0].get_xdata()[0] == pytest.approx(r.search.where[0])
+    assert "margin" in ax_run.get_ylabel() and ax_run.get_xlabel().startswith("t")
+    assert any(ln.get_ydata()[0] == 0 for ln in ax_run.lines[1:])        # the zero line
+    arc = r.search.arc
+    m = margin_bounded(arc, arc.x[:, :1], 1.0)
+    mt, mj, mv = m.series
+    assert mt.size == arc.t.size and float(m) == mv.min()

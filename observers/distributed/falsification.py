@@ -182,8 +182,10 @@ def _decades_margin(n_err, by):
             raise ValueError(f"the arc ends at t = {arc.t[-1]}, before {by}")
         v = np.max(np.abs(arc.x[keep, :n_err]), axis=1)
         k = int(np.argmax(v))
-        value = math.log10(SETTLE_THRESHOLD_FALS) - math.log10(max(float(v[k]), 1e-300))
-        return Margin(value, arc.t[keep[k]], arc.j[keep[k]], "decades below 1e-8 after T")
+        decades = math.log10(SETTLE_THRESHOLD_FALS) - np.log10(np.maximum(v, 1e-300))
+        return Margin(float(decades[k]), arc.t[keep[k]], arc.j[keep[k]],
+                      "decades below 1e-8 after T",
+                      series=(arc.t[keep], arc.j[keep], decades))
     return margin
 
 

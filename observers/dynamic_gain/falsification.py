@@ -132,7 +132,8 @@ def decay_margin(rate):
         ratio = nrm * np.exp(rate * arc.t) / (alpha * nrm[0])
         k = int(np.argmax(ratio))
         return Margin(1.0 - ratio[k], t=float(arc.t[k]), j=int(arc.j[k]),
-                      what=f"||eps|| <= alpha ||eps0|| e^(-{rate:g} tau)")
+                      what=f"||eps|| <= alpha ||eps0|| e^(-{rate:g} tau)",
+                      series=(arc.t, arc.j, 1.0 - ratio))
     return margin
 
 

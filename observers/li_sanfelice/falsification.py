@@ -174,7 +174,8 @@ def _thm47_margin(factor):
         bound = factor * math.sqrt(k2 / k1) * z0 * np.exp(-k1 * arc.t[pre])
         r = z[pre] / bound
         i = int(np.argmax(r))
-        m_pre = Margin(1.0 - r[i], arc.t[pre][i], 0, "Thm 4.7, j = 0")
+        m_pre = Margin(1.0 - r[i], arc.t[pre][i], 0, "Thm 4.7, j = 0",
+                       series=(arc.t[pre], arc.j[pre], 1.0 - r))
         post = arc.j >= 1
         if not post.any():
             return m_pre
@@ -183,8 +184,10 @@ def _thm47_margin(factor):
         tol = 1e-7 * (1 + np.linalg.norm(K1[0], 2) + np.linalg.norm(K2[0], 2)) * scale
         r1 = z[post] / tol
         i1 = int(np.argmax(r1))
-        return all_of(m_pre, Margin(1.0 - r1[i1], arc.t[post][i1], int(arc.j[post][i1]),
-                                    "Thm 4.7, exact after the jump"))
+        m = all_of(m_pre, Margin(1.0 - r1[i1], arc.t[post][i1], int(arc.j[post][i1]),
+                                 "Thm 4.7, exact after the jump"))
+        m.series = (arc.t, arc.j, np.concatenate([1.0 - r, 1.0 - r1]))   # pre, then post
+        return m
     return margin
 
 
