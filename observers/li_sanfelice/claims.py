@@ -23,7 +23,6 @@ import functools
 import math
 
 import numpy as np
-from scipy.linalg import expm
 
 from observers.claims import Claim
 
@@ -39,7 +38,7 @@ from .design import (
 )
 from .example import errors, example_VA, example_VB, simulate
 from .figures import fig2a_data, fig3_data
-from .systems import ConstantNoiseObserver, NominalObserver
+from .systems import ConstantNoiseObserver, NominalObserver, WindowedNominalObserver
 
 __all__ = ["CLAIMS", "closeness_sweep", "closeness_random", "theorem_4_11_ratios"]
 
@@ -135,43 +134,6 @@ def _Hn_VB_exact():
     return _after_jump(arc, errors(arc, obs))
 
 
-class _WindowedNominal(NominalObserver):
-    """H_n (10)-(12) whose one jump may happen at any tau in [delta_lo, delta],
-    with the gains of (12) for the tau it happens at (decision: see
-    :func:`_Hn_window_every_solution`)."""
-
-    vectorized = False
-
-    def __init__(self, d, delta_lo):
-        super().__init__(d)
-        self.delta_lo = float(delta_lo)
-
-    def gains(self, tau):
-        d = self.design
-        K2 = np.linalg.inv(np.eye(d.n) - expm(d.F2 * tau) @ expm(-d.F1 * tau))
-        return np.eye(d.n) - K2, K2
-
-    def jump_guard(self, x, t, j, u):
-        return -1.0 if x[self._q] > 0.5 else x[self._tau] - self.delta_lo
-
-    def jump_set(self, x, t, j, u):
-        return bool(x[self._q] < 0.5 and x[self._tau] >= self.delta_lo)
-
-    def flow_guard(self, x, t, j, u):
-        return 1.0 if x[self._q] > 0.5 else self.design.delta - x[self._tau]
-
-    def flow_set(self, x, t, j, u):
-        return bool(x[self._q] > 0.5 or x[self._tau] <= self.design.delta)
-
-    def jump_map(self, x, t, j, u):
-        n = self.design.n
-        K1, K2 = self.gains(x[self._tau])
-        xn = np.array(x, dtype=float)
-        xn[:n] = xn[n:2 * n] = K1 @ x[:n] + K2 @ x[n:2 * n]
-        xn[self._tau], xn[self._q] = 0.0, 1.0 - x[self._q]
-        return xn
-
-
 #: the jump window of the explored H_n: tau in [0.5, 1] = [delta / 2, delta], and
 #: the dwell grid inside it (jumps at tau = 0.5, 0.6, ..., 1.0: six solutions)
 _WINDOW = (0.5, (0.1, 0.2, 0.3, 0.4))
@@ -181,7 +143,7 @@ _WINDOW = (0.5, (0.1, 0.2, 0.3, 0.4))
 def _Hn_window_tree():
     import hybridsim as hs
     d = example_VB()
-    obs = _WindowedNominal(d, _WINDOW[0])
+    obs = WindowedNominalObserver(d, _WINDOW[0])
     plant = hs.LinearPlant(d.A, C=d.H)
     sys_ = hs.connect(plant, obs, names=("plant", "observer"))
     z0 = np.concatenate([[0.3, 0.4], obs.initial_state([0.0, 0.0])])
@@ -216,7 +178,7 @@ def _Hn_window_every_solution():
 
 def _Hn_window_amp():
     """The reset's amplification 1 + |K1(t)| + |K2(t)|, largest over the window."""
-    obs = _WindowedNominal(example_VB(), _WINDOW[0])
+    obs = WindowedNominalObserver(example_VB(), _WINDOW[0])
     taus = [_WINDOW[0] + g for g in (0.0, *_WINDOW[1])] + [obs.design.delta]
     return max(1 + sum(np.linalg.norm(K, 2) for K in obs.gains(tau)) for tau in taus)
 

@@ -3,6 +3,7 @@
 =================================  =============================================
 (2) Luenberger observer            :class:`LuenbergerObserver`
 (3), (10)-(12) H_n                 :class:`NominalObserver`
+H_n with a jump window             :class:`WindowedNominalObserver` (``hs.explore``)
 (7)-(9), (17)-(18) H_c             :class:`ConstantNoiseObserver`
 Section IV-E H_pc                  :class:`PiecewiseConstantNoiseObserver`
 bounded noise for batches          :class:`BoundedNoiseGenerator`
@@ -32,6 +33,7 @@ import math
 import warnings
 
 import numpy as np
+from scipy.linalg import expm
 
 import hybridsim as hs
 from observers._common import matrix, vector
@@ -48,6 +50,7 @@ from .design import (
 
 __all__ = [
     "NominalObserver",
+    "WindowedNominalObserver",
     "ConstantNoiseObserver",
     "PiecewiseConstantNoiseObserver",
     "LuenbergerObserver",
@@ -202,6 +205,63 @@ class NominalObserver(_TwoCopyObserver):
         xn[..., n:2 * n] = R
         xn[..., self._tau] = 0.0
         xn[..., self._q] = 1.0 - x[..., self._q]
+        return xn
+
+
+class WindowedNominalObserver(NominalObserver):
+    """H_n (10)-(12) whose one jump may happen at any tau in [delta_lo, delta],
+    with the gains (12) of the tau it happens at: a hybrid inclusion (C and D
+    overlap on [delta_lo, delta]) whose solutions :func:`hybridsim.explore`
+    enumerates.
+
+    Decision: the paper's H_n jumps at tau = delta; Assumption 4.1 A2 asks
+    det(I - e^{F2 t} e^{-F1 t}) != 0 for every t in (0, delta], so the gains
+    (12) exist for every jump time in (0, delta], and the proof of Theorem
+    4.7 ((14) with delta := t) gives e(t, 1) = 0 for each.
+
+    Parameters
+    ----------
+    d : Design
+    delta_lo : float
+        The window's start, in (0, delta].
+
+    References
+    ----------
+    Li & Sanfelice, (10)-(12), Assumption 4.1, Theorem 4.7.
+    """
+
+    vectorized = False
+
+    def __init__(self, d, delta_lo):
+        super().__init__(d)
+        self.delta_lo = float(delta_lo)
+        if not 0.0 < self.delta_lo <= d.delta:
+            raise ValueError(f"delta_lo must be in (0, delta = {d.delta}], got {delta_lo!r}")
+
+    def gains(self, tau):
+        """(K1, K2) of (12) for a jump at tau."""
+        d = self.design
+        K2 = np.linalg.inv(np.eye(d.n) - expm(d.F2 * tau) @ expm(-d.F1 * tau))
+        return np.eye(d.n) - K2, K2
+
+    def jump_guard(self, x, t, j, u):
+        return -1.0 if x[self._q] > 0.5 else x[self._tau] - self.delta_lo
+
+    def jump_set(self, x, t, j, u):
+        return bool(x[self._q] < 0.5 and x[self._tau] >= self.delta_lo)
+
+    def flow_guard(self, x, t, j, u):
+        return 1.0 if x[self._q] > 0.5 else self.design.delta - x[self._tau]
+
+    def flow_set(self, x, t, j, u):
+        return bool(x[self._q] > 0.5 or x[self._tau] <= self.design.delta)
+
+    def jump_map(self, x, t, j, u):
+        n = self.design.n
+        K1, K2 = self.gains(x[self._tau])
+        xn = np.array(x, dtype=float)
+        xn[:n] = xn[n:2 * n] = K1 @ x[:n] + K2 @ x[n:2 * n]
+        xn[self._tau], xn[self._q] = 0.0, 1.0 - x[self._q]
         return xn
 
 
