@@ -31,6 +31,14 @@ change of the maps, then loaded in a fraction of a second without compiling
 the maps. The rules (:mod:`hybridsim.rules`) are compiled into the engine
 from their one source; a change of them invalidates the cache.
 
+Ordinary systems run here too, lowered to a :class:`CompiledSystem` by
+:func:`lower` (what ``backend="compiled"`` does): a
+:class:`hybridsim.LinearPlant`, any system whose ``compiled_component()``
+returns a :class:`Component` (maps of ``(x, u, t, j, p)``), and
+interconnections of them wired by :class:`hybridsim.LinearInput` (module
+:mod:`hybridsim.compiled._lower`). The papers' observers that have compiled
+forms run so.
+
 numba is an optional dependency: ``pip install 'hybridsim[fast]'``. Importing
 this module does not need it; running compiled does.
 
@@ -38,7 +46,8 @@ Semantics are those of :func:`hybridsim.simulate` with ``method="RK45"``
 (same priorities, event location to 4 ulp, jumps at t_max within
 :func:`hybridsim.rules.t_max_slack`, termination causes) except for what
 a compiled map cannot do: raise an exception (``MAP_ERROR`` only for jump
-maps returning non-finite or mis-shaped values), take an input ``u``, or read
+maps returning non-finite or mis-shaped values), take an exogenous input
+``u`` (inputs come from other components, through :func:`lower`), or read
 ``self.history``. The Python path's stiffness warning is not issued.
 """
 from __future__ import annotations
