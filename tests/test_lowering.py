@@ -207,6 +207,14 @@ def test_what_cannot_be_lowered_is_refused_by_name(make, match):
         hs.simulate(system, np.zeros(system.state_dim), t_max=1.0, backend="compiled")
 
 
+def test_an_output_reading_its_input_is_refused_by_name():
+    class Feedthrough(Agent):
+        def output(self, x, t, j, u):
+            return x + u
+    with pytest.raises(TypeError, match="its output reads its input"):
+        lower(Feedthrough(1.0))
+
+
 def test_a_system_reading_its_history_is_refused_by_name():
     s = NoForm()
     s.needs_history = True

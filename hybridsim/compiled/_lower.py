@@ -237,6 +237,10 @@ def _component_of(system, what):
         return _from_compiled_system(system)
     if system.needs_history or system.delays:
         raise _refuse(what, "it reads its history (delays are not compiled)")
+    if system._compile().h_u:
+        raise _refuse(what, "its output reads its input (direct feedthrough, "
+                            "output(x, t, j, u)); a compiled output is a function of "
+                            "(x, t, j, p)")
     make = getattr(system, "compiled_component", None)
     if make is None:
         raise _refuse(what, f"{type(system).__name__} has no compiled form (a "
