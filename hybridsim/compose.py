@@ -504,7 +504,7 @@ class Interconnection(HybridSystem):
 
     _DERIVED = ("_f", "_g", "_C", "_D", "_Cv", "_Dv", "_h", "_h_u", "_hD", "_hC", "_items",
                 "_hout", "_hp", "jump_guard",
-                "flow_guard", "_compiled_maps", "history")
+                "flow_guard", "_compiled_maps", "history", "_lowered")
 
     def _build(self):
         """Tables of the components' compiled maps (rebuilt after unpickling)."""

@@ -281,6 +281,7 @@ class HybridSystem:
         state = self.__dict__.copy()
         state.pop("_compiled_maps", None)
         state.pop("history", None)
+        state.pop("_lowered", None)         # the compiled path's generated maps
         return state
 
     def _bind_history(self, history):

@@ -397,3 +397,33 @@ def test_random_feedback_loops_agree_with_the_python_path(path, seed):
     assert arc.jump_count == ref.jump_count > 3
     np.testing.assert_allclose(arc.jump_times, ref.jump_times, rtol=0, atol=1e-10)
     np.testing.assert_allclose(arc.xf, ref.xf, rtol=0, atol=1e-8 * max(1.0, np.abs(ref.x).max()))
+
+
+@needs_numba
+def test_a_lowered_system_still_pickles():
+    """The lowered maps are generated code: dropped when the system is pickled
+    (an executor ships it), rebuilt by the next compiled run."""
+    import pickle
+    sys = luenberger()
+    lower(sys)
+    again = pickle.loads(pickle.dumps(sys))
+    assert "_lowered" not in again.__dict__
+    arc = hs.simulate(again, [1.0, 0.0, 0.0, 0.0], t_max=1.0, backend="compiled")
+    assert arc.system is again and list(arc.components) == ["plant", "observer"]
+
+
+@needs_numba
+@pytest.mark.slow
+def test_lowering_specialised_runs_the_same_solutions():
+    """lower(system, specialize=True): the maps compiled into the kernel (cached
+    on disk by structure); the same arcs as the generic lowering, bit for bit
+    (the same arithmetic, inlined), and simulate picks the specialised one."""
+    sys, x0 = _random_loop(7)
+    generic = hs.simulate(sys, x0, t_max=2.0, backend="compiled", **dict(rtol=RTOL, atol=ATOL))
+    spec = lower(sys, specialize=True)
+    assert spec.specialize and lower(sys) is spec
+    arc = hs.simulate(sys, x0, t_max=2.0, backend="compiled", **dict(rtol=RTOL, atol=ATOL))
+    np.testing.assert_array_equal(arc.t, generic.t)
+    np.testing.assert_array_equal(arc.x, generic.x)
+    with pytest.raises(TypeError, match="specialize must be True, False or None"):
+        lower(sys, specialize="yes")

@@ -436,10 +436,10 @@ def _structure(parts):
 _LOWERED = {}
 
 
-def _build(parts, n, pvec, name):
+def _build(parts, n, pvec, name, specialize):
     """The lowered :class:`CompiledSystem` (maps shared by structure)."""
     from . import CompiledSystem, _load_kernel
-    key = (_structure(parts), n, len(pvec))
+    key = (_structure(parts), n, len(pvec), specialize)
     proto = _LOWERED.get(key)
     if proto is None:
         k = _load_kernel()
@@ -455,7 +455,8 @@ def _build(parts, n, pvec, name):
                 ns[f"output{i}"] = _jit(p.comp.output)
         exec(compile(src, f"<lowered {name}>", "exec"), ns)
         maps = {r: ns[r] for r in roles}
-        proto = CompiledSystem(**maps, state_dim=n, params=pvec, name=f"lowered {name}")
+        proto = CompiledSystem(**maps, state_dim=n, params=pvec, name=f"lowered {name}",
+                               specialize=specialize)
         proto._source = src
         proto.compile()
         _LOWERED[key] = proto
@@ -526,17 +527,26 @@ def _parts_of(system):
     return parts, n, pvec
 
 
-def lower(system):
+def lower(system, *, specialize=None):
     """The :class:`~hybridsim.compiled.CompiledSystem` that runs ``system`` compiled.
 
     A :class:`~hybridsim.compiled.CompiledSystem` is returned as it is; a
     system with a compiled form, or an interconnection of such systems wired
     by :class:`hybridsim.LinearInput`, is lowered (module notes). The result
-    is cached on the system.
+    is cached on the system (``simulate(system, backend="compiled")`` then
+    runs it), and dropped when the system is pickled.
 
     Parameters
     ----------
     system : HybridSystem
+    specialize : bool, optional
+        False (the default when lowering): the maps reach the engine's cached
+        kernel by address; they compile in each process (2-8 s for the
+        papers' observers). True: a kernel with the maps compiled in, cached
+        on disk by the structure's digest (about 15 s once per machine and
+        structure, then well under a second in a new process, and 10-20%
+        faster per run): for Monte Carlo studies run again and again. None
+        keeps what the system was lowered with.
 
     Returns
     -------
@@ -562,12 +572,14 @@ def lower(system):
         return system
     if not isinstance(system, HybridSystem):
         raise TypeError(f"system must be a hybridsim.HybridSystem, got {type(system).__name__}")
+    if specialize is not None and not isinstance(specialize, (bool, np.bool_)):
+        raise TypeError(f"specialize must be True, False or None, got {specialize!r}")
     cached = system.__dict__.get("_lowered")
-    if cached is not None:
+    if cached is not None and (specialize is None or cached.specialize == bool(specialize)):
         return cached
     parts, n, pvec = _parts_of(system)
     _check_shapes(parts, pvec)
-    cs = _build(parts, n, pvec, type(system).__name__)
+    cs = _build(parts, n, pvec, type(system).__name__, bool(specialize))
     if system.max_step is not None:
         cs.max_step = system.max_step
     system.__dict__["_lowered"] = cs
