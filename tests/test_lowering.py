@@ -222,6 +222,21 @@ def test_a_system_reading_its_history_is_refused_by_name():
         lower(s)
 
 
+def test_components_and_lowering_check_their_arguments():
+    with pytest.raises(ValueError, match="params must be finite"):
+        Component(state_dim=1, flow=_agent_flow, params=[np.nan])
+    with pytest.raises(TypeError, match="params must be an array of floats"):
+        Component(state_dim=1, flow=_agent_flow, params=object())
+    with pytest.raises(ValueError, match="state_dim must be a positive int"):
+        Component(state_dim=0, flow=_agent_flow)
+    with pytest.raises(TypeError, match="flow must be callable"):
+        Component(state_dim=1, flow=3.0)
+    with pytest.raises(TypeError, match="system must be a hybridsim.HybridSystem"):
+        lowerable(5)
+    with pytest.raises(TypeError, match="system must be a hybridsim.HybridSystem"):
+        lower("plant")
+
+
 def test_linear_input_checks_its_terms():
     with pytest.raises(TypeError, match="terms must be a non-empty dict"):
         hs.LinearInput({})

@@ -103,7 +103,14 @@ class Component:
             raise ValueError("output_dim is required with output")
         self.output = output
         self.output_dim = int(state_dim if output is None else output_dim)
-        self.params = np.ascontiguousarray(np.array(params, dtype=np.float64).reshape(-1))
+        try:
+            p = np.array(params, dtype=np.float64).reshape(-1)
+        except (TypeError, ValueError) as e:
+            raise TypeError(f"params must be an array of floats, got "
+                            f"{type(params).__name__}") from e
+        if not np.all(np.isfinite(p)):
+            raise ValueError(f"params must be finite, got {p[~np.isfinite(p)][:3]} among them")
+        self.params = np.ascontiguousarray(p)
 
     @property
     def has_D(self):
@@ -647,6 +654,8 @@ def lowerable(system):
     (True, False)
     """
     from . import CompiledSystem
+    if not isinstance(system, HybridSystem):
+        raise TypeError(f"system must be a hybridsim.HybridSystem, got {type(system).__name__}")
     if isinstance(system, CompiledSystem) or "_lowered" in system.__dict__:
         return True
     subs = system.systems.items() if isinstance(system, Interconnection) else [(None, system)]
