@@ -237,23 +237,58 @@ def _refuse(what, why):
                      f"notes on lowering")
 
 
-def _component_of(system, what):
-    """The :class:`Component` of a non-interconnection system, or a refusal."""
+def _refusal(system, what, wired=None):
+    """Why ``system`` cannot be lowered, as the TypeError to raise, or None.
+
+    Every check that needs no compiling (numba need not be installed): the one
+    list :func:`lower` raises from and :func:`lowerable` reads. ``wired``: for
+    a component of an interconnection, ``(its name, its input's wiring)``."""
     from . import CompiledSystem
     if isinstance(system, CompiledSystem):
-        return _from_compiled_system(system)
+        return None
     if system.needs_history or system.delays:
-        raise _refuse(what, "it reads its history (delays are not compiled)")
+        return _refuse(what, "it reads its history (delays are not compiled)")
+    if getattr(system, "set_valued", False):
+        return _refuse(what, "its jump map is set-valued (jump_map_values); its solutions "
+                             "are explored on the Python path (hs.explore)")
     if system._compile().h_u:
-        raise _refuse(what, "its output reads its input (direct feedthrough, "
-                            "output(x, t, j, u)); a compiled output is a function of "
-                            "(x, t, j, p)")
-    make = getattr(system, "compiled_component", None)
-    if make is None:
-        raise _refuse(what, f"{type(system).__name__} has no compiled form (a "
-                            f"compiled_component() method returning a "
-                            f"hybridsim.compiled.Component)")
-    comp = make()
+        return _refuse(what, "its output reads its input (direct feedthrough, "
+                             "output(x, t, j, u)); a compiled output is a function of "
+                             "(x, t, j, p)")
+    if getattr(system, "compiled_component", None) is None:
+        return _refuse(what, f"{type(system).__name__} has no compiled form (a "
+                             f"compiled_component() method returning a "
+                             f"hybridsim.compiled.Component)")
+    if isinstance(system, LinearPlant) and not system.vectorized:
+        return _plant_refusal(system, what)
+    if int(system.input_dim or 0):
+        if wired is None:
+            return _refuse(what, f"it has an input (input_dim={system.input_dim}); connect "
+                                 f"it in an Interconnection with a LinearInput")
+        name, wiring = wired
+        if not isinstance(wiring, LinearInput):
+            return _refuse(f"the input of component {name!r}",
+                           f"it is a Python callable ({type(wiring).__name__}); wire it with "
+                           f"hybridsim.LinearInput ({{source: matrix}}), which every path runs")
+    return None
+
+
+def _plant_refusal(plant, what):
+    which = [nm for nm in ("u", "noise", "disturbance") if getattr(plant, nm) is not None]
+    return _refuse(what, f"its {', '.join(which)} is a Python callable of t; put the "
+                         f"signal in a component's state (a generator with a compiled "
+                         f"form) and wire it in")
+
+
+def _component_of(system, what, wired=None):
+    """The :class:`Component` of a non-interconnection system, or a refusal."""
+    from . import CompiledSystem
+    refusal = _refusal(system, what, wired)
+    if refusal is not None:
+        raise refusal
+    if isinstance(system, CompiledSystem):
+        return _from_compiled_system(system)
+    comp = system.compiled_component()
     if not isinstance(comp, Component):
         raise TypeError(f"{what}: compiled_component() must return a "
                         f"hybridsim.compiled.Component, got {type(comp).__name__}")
@@ -294,11 +329,8 @@ def _linear_maps(n, m, q):
 
 def linear_plant_component(plant):
     """The :class:`Component` of a :class:`hybridsim.LinearPlant` (no callables of t)."""
-    if not plant.vectorized:
-        which = [nm for nm in ("u", "noise", "disturbance") if getattr(plant, nm) is not None]
-        raise _refuse("LinearPlant", f"its {', '.join(which)} is a Python callable of t; put "
-                                     f"the signal in a component's state (a generator "
-                                     f"with a compiled form) and wire it in")
+    if not plant.vectorized:                # called directly: the same refusal as lower's
+        raise _plant_refusal(plant, "LinearPlant")
     n, q = plant.A.shape[0], plant.C.shape[0]
     m = int(plant.input_dim)
     flow, output = _linear_maps(n, m, q)
@@ -488,7 +520,8 @@ def _parts_of(system):
     """The :class:`_Part` list and the parameter vector of a system."""
     if isinstance(system, Interconnection):
         names = list(system.systems)
-        comps = [_component_of(s, f"component {nm!r} ({type(s).__name__})")
+        comps = [_component_of(s, f"component {nm!r} ({type(s).__name__})",
+                               (nm, system.inputs.get(nm)))
                  for nm, s in system.systems.items()]
     else:
         names = [None]
@@ -505,12 +538,7 @@ def _parts_of(system):
             c = comps[i]
             if c.input_dim == 0:
                 continue
-            w = system.inputs.get(nm)
-            if not isinstance(w, LinearInput):
-                raise _refuse(f"the input of component {nm!r}",
-                              f"it is a Python callable ({type(w).__name__}); wire it with "
-                              f"hybridsim.LinearInput ({{source: matrix}}), which every path "
-                              f"runs")
+            w = system.inputs[nm]            # a LinearInput (_refusal)
             m = w.input_dim({s: comps[index[s]].output_dim for s in w.terms})
             if m != c.input_dim:
                 raise ValueError(f"component {nm!r}: its LinearInput gives an input of "
@@ -525,10 +553,6 @@ def _parts_of(system):
                     parts[i].terms.append((index[s], (po, M.shape[0], M.shape[1])))
                     pv.append(np.ascontiguousarray(M, dtype=np.float64).reshape(-1))
                     po += M.size
-    elif comps[0].input_dim:
-        raise _refuse(type(system).__name__, f"it has an input (input_dim="
-                                             f"{comps[0].input_dim}); connect it in an "
-                                             f"Interconnection with a LinearInput")
     n = xo
     pvec = np.concatenate(pv) if pv else np.zeros(0)
     return parts, n, pvec
@@ -642,8 +666,8 @@ def rebind(arc, system):
 
 
 def lowerable(system):
-    """Whether :func:`lower` accepts ``system`` (without compiling anything;
-    numba need not be installed).
+    """Whether :func:`lower` accepts ``system``: the same checks (no refusal),
+    without compiling anything (numba need not be installed).
 
     Examples
     --------
@@ -658,20 +682,7 @@ def lowerable(system):
         raise TypeError(f"system must be a hybridsim.HybridSystem, got {type(system).__name__}")
     if isinstance(system, CompiledSystem) or "_lowered" in system.__dict__:
         return True
-    subs = system.systems.items() if isinstance(system, Interconnection) else [(None, system)]
-    try:
-        for nm, s in subs:
-            if isinstance(s, CompiledSystem):
-                continue
-            if s.needs_history or s.delays or not hasattr(s, "compiled_component"):
-                return False
-            if isinstance(s, Interconnection):
-                return False
-            if int(s.input_dim or 0) and (nm is None or not isinstance(
-                    system.inputs.get(nm), LinearInput)):
-                return False
-            if isinstance(s, LinearPlant) and not s.vectorized:
-                return False
-    except AttributeError:
-        return False
-    return True
+    if isinstance(system, Interconnection):
+        return all(_refusal(sub, nm, (nm, system.inputs.get(nm))) is None
+                   for nm, sub in system.systems.items())
+    return _refusal(system, type(system).__name__) is None
