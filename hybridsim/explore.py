@@ -25,6 +25,13 @@ points (or two starts after a jump) merge when their j are equal and
 in the units of t and x): their futures are the same solutions, explored
 once. Choose ``merge_tol`` above the solver's error on the states (about
 ``rtol`` times their size) and below the differences that matter.
+
+A system that reads its past (``needs_history`` or ``delays``: a delay
+equation, an observer with a window) is explored too: each branch's run
+takes its parent's recorded past as its ``prehistory`` (a chain back to the
+root's), so a map reading ``self.history(t - tau)`` sees the past of its
+own solution, across branch points. Such branches are never merged: two
+solutions at the same (t, j, x) with different pasts have different futures.
 """
 from __future__ import annotations
 
@@ -107,6 +114,7 @@ class Node:
     end: str = "pending"
     children: list = field(default_factory=list)
     merged_into: int | None = None
+    history: object = None          # its run's past (systems that read their history)
 
 
 class SolutionTree:
@@ -226,10 +234,18 @@ class SolutionTree:
             cause, msg, exc = None, f"merged into branch {node.merged_into}", None
         else:
             cause, msg, exc = last.termination, last.message, last.exception
+        # the runs' dense output, where every part kept it (systems that read their past)
+        segs = []
+        for p in parts:
+            if p.arc is not None and p.arc._segments:
+                segs.extend(p.arc._segments)
+            elif p.arc is not None and len(p.arc.t) > 1:
+                segs = None
+                break
         arc = HybridArc._trusted(np.concatenate(ts), np.concatenate(js), np.concatenate(xs),
                                  cause, msg, exc, components=self.system.components,
-                                 system=self.system, xdot=np.concatenate(ds),
-                                 stats=dict(stats))
+                                 segments=segs or None, system=self.system,
+                                 xdot=np.concatenate(ds), stats=dict(stats))
         arc.choices = [p.choice for p in parts if p.choice is not None]
         arc.node = node.index
         arc.merged_into = node.merged_into
@@ -290,7 +306,6 @@ class _Merger:
 _NOT_OPTIONS = {"priority": "explore follows every choice in C ∩ D",
                 "dwell": "explore follows every dwell of dwell_grid",
                 "seed": "explore draws nothing",
-                "prehistory": "explore restarts the engine at each branch point",
                 "dense": "explore's leaves are joined from the branches' samples",
                 "progress": "explore runs the engine once per branch",
                 "backend": "explore runs the Python path (the others refuse "
@@ -298,8 +313,12 @@ _NOT_OPTIONS = {"priority": "explore follows every choice in C ∩ D",
                 "j0": "give j0 to explore itself", "t0": "give t0 to explore itself"}
 
 
+#: merge_tol's default: 1e-9, or None (never merge) for a system that reads its past
+_AUTO = "auto"
+
+
 def explore(system: HybridSystem, x0, t_max: float, j_max: float = math.inf, *,
-            t0: float = 0.0, j0: int = 0, dwell_grid=(), merge_tol: float | None = 1e-9,
+            t0: float = 0.0, j0: int = 0, dwell_grid=(), merge_tol: float | None | str = _AUTO,
             max_branches: int = 100_000, max_seconds: float = 60.0, throw: bool = True,
             warn: bool = True, **options) -> SolutionTree:
     r"""Every solution of a hybrid inclusion from x0, as a tree of arcs.
@@ -313,8 +332,9 @@ def explore(system: HybridSystem, x0, t_max: float, j_max: float = math.inf, *,
     Parameters
     ----------
     system : HybridSystem
-        The data (C, f, D, g) or (C, f, D, G) with G set-valued. Not a system
-        that reads its history (the branches restart the engine).
+        The data (C, f, D, g) or (C, f, D, G) with G set-valued. It may read
+        its history (each branch continues its parent's past; module
+        docstring).
     x0 : array_like, shape (n,)
         Initial state.
     t_max, j_max : float, int or inf
@@ -326,10 +346,12 @@ def explore(system: HybridSystem, x0, t_max: float, j_max: float = math.inf, *,
         Dwell times (> 0) in C ∩ D after which a branch jumps, beside "jump
         now" and "flow on". A dwell that outlasts C ∩ D is the "flow on"
         branch and is not repeated.
-    merge_tol : float or None
+    merge_tol : float, None or "auto"
         Absolute tolerance on t and on each state component for merging
         branches that reach the same (t, j, x); 0 merges exact equality
-        only, None never merges.
+        only, None never merges. ``"auto"`` (default): 1e-9, or None for a
+        system that reads its history (a number is then refused: equal
+        states with different pasts are different solutions).
     max_branches : int
         At most this many branches (runs of the engine); then the
         exploration ends with ``tree.end = ExploreEnd.MAX_BRANCHES``.
@@ -344,7 +366,8 @@ def explore(system: HybridSystem, x0, t_max: float, j_max: float = math.inf, *,
         numerical failure, or when the budget ends the exploration.
     **options
         Passed to :func:`hybridsim.simulate` for every branch (``method``,
-        ``rtol``, ``atol``, ``max_step``, ``inputs``, ``max_norm``...).
+        ``rtol``, ``atol``, ``max_step``, ``inputs``, ``max_norm``...);
+        ``prehistory`` is the root's (the branches read their parents').
 
     Returns
     -------
@@ -384,10 +407,13 @@ def explore(system: HybridSystem, x0, t_max: float, j_max: float = math.inf, *,
     for name in options:
         if name in _NOT_OPTIONS:
             raise TypeError(f"explore() does not take {name}=: {_NOT_OPTIONS[name]}")
-    if system.needs_history or tuple(system.delays or ()):
-        raise ValueError(f"system: {type(system).__name__} reads its history (needs_history "
-                         f"or delays); explore restarts the engine at each branch point, "
-                         f"which loses the history. Explore a system without delays")
+    past = bool(system.needs_history or tuple(system.delays or ()))
+    if isinstance(merge_tol, str) and merge_tol == _AUTO:
+        merge_tol = None if past else 1e-9
+    elif past and merge_tol is not None:
+        raise ValueError(f"merge_tol must be None (or 'auto') for {type(system).__name__}, "
+                         f"which reads its history: two branches at the same (t, j, x) "
+                         f"with different pasts are different solutions; got {merge_tol!r}")
     n = int(system.state_dim) if isinstance(system.state_dim, (int, np.integer)) else None
     if n is None or n < 1:
         raise ValueError(f"{type(system).__name__}.state_dim must be a positive int, "
@@ -444,6 +470,8 @@ class _Explorer:
         self.grid, self.options = grid, options
         self.maps = system._compile()
         self.inputs = options.get("inputs")
+        self.past = bool(system.needs_history or tuple(system.delays or ()))
+        self.prehistory = options.pop("prehistory", None)
         self.starts = _Merger(tol)
         self.ends = _Merger(tol)
         self.merges = 0
@@ -475,9 +503,10 @@ class _Explorer:
                             time.perf_counter() - clock)
 
     # ------------------------------------------------------------------ one branch
-    def _simulate(self, x, t, j, first):
+    def _simulate(self, x, t, j, first, pre):
         """The engine from (t, j, x) to the next branch point; ``(arc, chose)``,
-        ``chose`` True where it stopped at an entry into C ∩ D with a choice."""
+        ``chose`` True where it stopped at an entry into C ∩ D with a choice.
+        ``pre`` is the past before t (the parent's history), or None."""
         calls = [0, False]
 
         def law(rng):
@@ -486,9 +515,16 @@ class _Explorer:
                 return first
             calls[1] = True
             return 0.0
+        extra = {"prehistory": pre} if pre is not None else {}
         arc = simulate(self.system, x, self.t_max, 0, t0=t, j0=j, priority="random",
-                       dwell=law, seed=0, throw=False, warn=False, **self.options)
+                       dwell=law, seed=0, throw=False, warn=False, **extra, **self.options)
         return arc, calls[1]
+
+    def _past(self, node):
+        """The past a node's run continues: its parent's history (or the root's)."""
+        if node.parent is None:
+            return self.prehistory
+        return self.nodes[node.parent].history
 
     def _leaf_arc(self, t, j, x, cause, message=None, exc=None):
         xd = np.full((1, self.n), np.nan)
@@ -511,8 +547,10 @@ class _Explorer:
                 node.arc = self._leaf_arc(t, j, x, Termination.J_MAX)
                 node.end = "leaf"
                 return []
-        arc, chose = self._simulate(x, t, j, node.first)
+        arc, chose = self._simulate(x, t, j, node.first, self._past(node))
         node.arc = arc
+        if self.past:
+            node.history = self.system.history       # the past its children continue
         cause = arc.termination
         if node.choice is not None and node.choice.kind == "dwell":
             # a dwell that did not elapse inside C ∩ D is the "flow on" branch

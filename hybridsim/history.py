@@ -110,6 +110,8 @@ class History:
     def jump_count(self, s):
         """The j of the sample at time s (the later one at a jump time)."""
         if s < self.t0:
+            if hasattr(self._pre, "jump_count"):     # a past continued (explore's branches)
+                return self._pre.jump_count(s)
             return self._cur_j if not self._js else self._js[0]
         if s >= self._cur_t:
             return self._cur_j
@@ -121,7 +123,9 @@ class History:
 
         Gauss-Legendre (5 nodes) on each recorded dense segment: exact to the
         dense output for polynomial integrands of low degree. The prehistory
-        part (s < t0) uses 5-node Gauss-Legendre on [a, min(b, t0)].
+        part (s < t0) uses 5-node Gauss-Legendre on [a, min(b, t0)], or the
+        past's own integral where the prehistory is a recorded run's
+        :class:`History` (:func:`hybridsim.explore`'s branches).
         """
         a, b = float(a), float(b)
         if b < a:
@@ -129,7 +133,10 @@ class History:
         total = 0.0
         pieces = []
         if a < self.t0:
-            pieces.append((a, min(b, self.t0), None))
+            if hasattr(self._pre, "integral"):       # a past continued: its own pieces
+                total = self._pre.integral(fn, a, min(b, self.t0))
+            else:
+                pieces.append((a, min(b, self.t0), None))
         lo = max(a, self.t0)
         if b > lo:
             k = max(bisect_right(self._starts, lo) - 1, 0)

@@ -374,8 +374,8 @@ def test_explore_bad_input_is_named():
         hs.explore(object(), [0.0], 3.0, 2)
     delayed = hs.HybridSystem.from_functions(f=lambda x: -x, state_dim=1,
                                              needs_history=True)
-    with pytest.raises(ValueError, match="reads its history"):
-        hs.explore(delayed, [1.0], 1.0, 1)
+    with pytest.raises(ValueError, match="merge_tol must be None .* reads its history"):
+        hs.explore(delayed, [1.0], 1.0, 1, merge_tol=1e-9)
 
 
 def test_a_failing_map_names_the_branch():
@@ -485,3 +485,74 @@ def test_explore_thermostat_example(tmp_path, monkeypatch, capsys):
     ht.assert_bounded(tree, lambda x, t, j: abs(x[0] - (lo + hi) / 2), (hi - lo) / 2,
                       atol=1e-6, t=ns["T_IN"])
     assert "solutions" in capsys.readouterr().out
+
+
+# ---------------------------------------------------------------- systems with a past
+class _DelayedSampler(hs.HybridSystem):
+    """x' = -a x(t - tau) + b, a sample (x+ = c x) at a gap in [lo, hi] after the last
+    (a timer s); ``instants``: jump at those times instead (the deterministic replay)."""
+
+    state_dim, needs_history = 2, True
+
+    def __init__(self, a, b, c, tau, lo, hi, instants=None):
+        self.a, self.b, self.c, self.tau = a, b, c, tau
+        self.lo, self.hi, self.instants = lo, hi, instants
+        self.delays, self.max_step = (tau,), tau
+
+    def flow_map(self, x, t, j, u):
+        return np.array([-self.a * self.history(t - self.tau)[0] + self.b, 1.0])
+
+    def flow_guard(self, x, t, j, u):
+        if self.instants is not None:
+            return 1.0
+        return self.hi - x[1]
+
+    def jump_guard(self, x, t, j, u):
+        if self.instants is not None:
+            return t - self.instants[j] if j < len(self.instants) else -1.0
+        return x[1] - self.lo
+
+    def jump_map(self, x, t, j, u):
+        return np.array([self.c * x[0], 0.0])
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_system_with_delays_branches_with_its_past(seed):
+    """Seeded random delay systems with jittery samples: every leaf equals the
+    run of simulate that samples at the leaf's jump times (its past read
+    across the branch points the same way), to the integrators' 1e-8."""
+    rng = np.random.default_rng(seed)
+    a, b, c = rng.uniform(0.5, 2.0), rng.uniform(-1, 1), rng.uniform(-0.9, 0.9)
+    tau = float(rng.uniform(0.15, 0.4))
+    lo = float(rng.uniform(0.1, 0.2))
+    hi = lo + float(rng.uniform(0.1, 0.2))
+    grid = [0.5 * (hi - lo)]
+    system = _DelayedSampler(a, b, c, tau, lo, hi)
+    opts = dict(rtol=1e-11, atol=1e-13)
+    tree = hs.explore(system, [1.0, 0.0], t_max=5.0, j_max=3, dwell_grid=grid, **opts)
+    assert tree.complete and len(tree) == 3 ** 3
+    # never merged across solutions (equal states, different pasts)
+    assert all(n.merged_into in (None, n.parent) for n in tree.nodes)
+    pre = lambda s: np.array([1.0, 0.0])                            # noqa: E731
+    for leaf in tree.leaves[::4]:
+        replay = _DelayedSampler(a, b, c, tau, lo, hi, instants=leaf.jump_times)
+        arc = hs.simulate(replay, [1.0, 0.0], 5.0, 3, prehistory=pre, **opts)
+        np.testing.assert_allclose(arc.jump_times, leaf.jump_times, atol=1e-9)
+        np.testing.assert_allclose(arc.x[-1, 0], leaf.x[-1, 0], atol=1e-8)
+        # the leaf keeps its runs' dense output: x(s) read between samples
+        s = 0.5 * (leaf.jump_times[0] + leaf.jump_times[1])
+        np.testing.assert_allclose(leaf.at(s)[0], arc.at(s)[0], atol=1e-8)
+
+
+def test_a_past_is_continued_not_restarted():
+    """x' = -x(t - 1) from a constant past 1: the tree's one branch point sits at
+    t = 0.5, before the delay; the branch that flows on must read x(s) for s
+    in [0.5, 1.5] from its parent's run, not from a constant prehistory."""
+    system = _DelayedSampler(1.0, 0.0, 1.0, 1.0, 0.5, 3.0)
+    tree = hs.explore(system, [1.0, 0.0], t_max=2.0, j_max=1, rtol=1e-11, atol=1e-13)
+    flows = [a for a in tree if a.choices[0].kind == "flow"]
+    assert len(flows) == 1
+    # exact solution of x' = -x(t - 1), x = 1 before 0: 1 - t on [0, 1],
+    # 1 - t + (t - 1)^2 / 2 on [1, 2] (the jump x+ = x changes nothing)
+    t = 2.0
+    np.testing.assert_allclose(flows[0].x[-1, 0], 1 - t + (t - 1) ** 2 / 2, atol=1e-9)

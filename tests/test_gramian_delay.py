@@ -603,10 +603,23 @@ def test_theorem2_bound_42(seed, estimate, disturbed, q, m, use_instants):
 def test_observer_bad_input():
     ex = gd.dc_motor(100.0, 0.1)
     d, F1, F2 = ex.design, ex.form.F1, ex.form.F2
-    with pytest.raises(ValueError, match="give exactly one of period and instants"):
+    with pytest.raises(ValueError, match="give exactly one of period, instants and gaps"):
         gd.SampledGramianObserver(d, F1, F2)
-    with pytest.raises(ValueError, match="give exactly one of period and instants"):
+    with pytest.raises(ValueError, match="give exactly one of period, instants and gaps"):
         gd.SampledGramianObserver(d, F1, F2, period=0.1, instants=[0.0, 0.1])
+    with pytest.raises(ValueError, match="give exactly one of period, instants and gaps"):
+        gd.SampledGramianObserver(d, F1, F2, period=0.1, gaps=(0.05, 0.1))
+    with pytest.raises(ValueError, match=r"gaps must satisfy 0 < T_low < T_bar"):
+        gd.SampledGramianObserver(d, F1, F2, gaps=(0.1, 0.05))
+    with pytest.raises(ValueError, match="gaps needs realisation='literal'"):
+        gd.SampledGramianObserver(d, F1, F2, gaps=(0.05, 0.1), realisation="reset")
+    with pytest.raises(ValueError, match=r"gaps must be a pair \(T_low, T_bar\)"):
+        gd.SampledGramianObserver(d, F1, F2, gaps=0.1)
+    with pytest.raises(TypeError, match="built with gaps"):
+        gd.explore_samples(ex.sampled_observer(period=0.1), ex.chi0, samples=2, dwell_grid=())
+    with pytest.raises(ValueError, match="samples must be a positive int"):
+        gd.explore_samples(ex.sampled_observer(gaps=(0.05, 0.1)), ex.chi0, samples=0,
+                           dwell_grid=())
     with pytest.raises(ValueError, match="instants must be strictly increasing"):
         gd.SampledGramianObserver(d, F1, F2, instants=[0.0, 0.2, 0.1])
     with pytest.raises(ValueError, match="instants must be a non-empty finite"):
@@ -924,3 +937,30 @@ def test_periods_data_small_grid_and_drawing():
         r"$\omega(t)$ in (13) (implementable)", r"$\xi_2(t)$ in (13) (as printed)"]
     assert "between" not in gd.FIGURES[2].caption(d) and "0.0100-0.0175" in \
         gd.FIGURES[2].caption(d)
+
+
+def test_gap_window_is_the_inclusion_of_36():
+    """gaps=(T_low, T_bar): simulate samples every T_low (priority "jumps"), or every
+    T_bar (priority "flows": C ends there, the sample is forced). Every explored solution
+    with gaps {T_low, T_bar} over three samples equals the run with those
+    instants (the past carried across the branch points), to the integrator's
+    tolerance (rtol 1e-9: errors agree to 1e-7 on errors of size ~1)."""
+    ex = gd.dc_motor(100.0, 0.1, oracle=True)
+    lo, hi = 0.05, 0.1
+    for prio, T in (("jumps", lo), ("flows", hi)):
+        obs = ex.sampled_observer(gaps=(lo, hi), estimate="xi2")
+        arc = gd.simulate(obs, ex.chi0, t_max=0.32, priority=prio)
+        per = ex.sampled_observer(period=T, estimate="xi2")
+        ref = gd.simulate(per, ex.chi0, t_max=0.32)
+        np.testing.assert_allclose(arc.jump_times, ref.jump_times, atol=1e-9)
+        np.testing.assert_allclose(arc.x[-1], ref.x[-1], rtol=1e-6, atol=1e-8)
+    obs = ex.sampled_observer(gaps=(lo, hi), estimate="xi2")
+    tree = gd.explore_samples(obs, ex.chi0, samples=3, dwell_grid=(), t_max=0.5)
+    assert tree.complete and len(tree) == 4
+    for leaf in tree:
+        ins = ex.sampled_observer(instants=leaf.jump_times, estimate="xi2")
+        ref = gd.simulate(ins, ex.chi0, t_max=float(leaf.t[-1]), j_max=len(leaf.jump_times))
+        assert ref.t[-1] == pytest.approx(leaf.t[-1], abs=1e-9)
+        e_leaf = gd.errors(leaf, obs).e[-1]
+        e_ref = gd.errors(ref, ins).e[-1]
+        np.testing.assert_allclose(e_leaf, e_ref, atol=1e-7)

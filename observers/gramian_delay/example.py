@@ -7,6 +7,8 @@ r"""The paper's example (Section V, DC motor (64)-(67)) and how a run is made an
   the runs of (7) and (39).
 * :func:`simulate` -- an observer with its plant on :func:`hybridsim.simulate`
   (components ``"plant"`` and ``"observer"``).
+* :func:`explore_samples` -- every solution over the sampling sequences of
+  (36) (:func:`hybridsim.explore`).
 * :func:`errors` -- xi_1 - xi_e of (13) at the arc's samples, an
   :class:`~observers._common.Errors` (``"e"``, and ``"w_tilde"`` = xi_2 - omega
   of (44) for the sampled observer).
@@ -32,7 +34,8 @@ from .._common import Errors, scalar, vector
 from .design import ObserverForm
 from .systems import DCMotor, Plant, SampledGramianObserver, _ObserverBase, smooth_noise
 
-__all__ = ["DC_PARAMS", "dc_motor", "CONTINUOUS_RUN", "SAMPLED_RUN", "simulate", "errors"]
+__all__ = ["DC_PARAMS", "dc_motor", "CONTINUOUS_RUN", "SAMPLED_RUN", "simulate",
+           "explore_samples", "errors"]
 
 #: The motor's parameters (65), "as in [6]" (Section V).
 DC_PARAMS = dict(b0=40.0, b1=15.0, a1=35.0, a2=1.0, a3=36.4, a4=200.0)
@@ -150,11 +153,19 @@ def simulate(observer, x0, xhat0=None, *, t_max, noise=None, seed=None, plant=No
     >>> sorted(arc.components)
     ['observer', 'plant']
     """
+    t_max = scalar("t_max", t_max, positive=True)
+    sysc, x0 = _loop(observer, x0, xhat0, noise, seed, plant)
+    opts = dict(SAMPLED_RUN if isinstance(observer, SampledGramianObserver) else CONTINUOUS_RUN)
+    opts.update(simulate_kwargs)
+    return hs.simulate(sysc, x0, t_max=t_max, j_max=j_max, **opts)
+
+
+def _loop(observer, x0, xhat0, noise, seed, plant):
+    """The interconnection plant -> observer and its initial state (simulate, explore_samples)."""
     if not isinstance(observer, _ObserverBase):
         raise TypeError(f"observer must be a GramianObserver or SampledGramianObserver, "
                         f"got {type(observer).__name__}")
     plant = _plant_of(observer, plant)
-    t_max = scalar("t_max", t_max, positive=True)
     if noise is not None:
         q = plant.N.shape[0]
         if not callable(noise):
@@ -165,9 +176,62 @@ def simulate(observer, x0, xhat0=None, *, t_max, noise=None, seed=None, plant=No
     z0 = observer.initial_state() if xhat0 is None else vector("xhat0", xhat0,
                                                                   observer.state_dim)
     x0 = sysc.stack(plant=vector("x0", x0, plant.state_dim), observer=z0)
-    opts = dict(SAMPLED_RUN if isinstance(observer, SampledGramianObserver) else CONTINUOUS_RUN)
-    opts.update(simulate_kwargs)
-    return hs.simulate(sysc, x0, t_max=t_max, j_max=j_max, **opts)
+    return sysc, x0
+
+
+def explore_samples(observer, x0, xhat0=None, *, samples, dwell_grid, t_max=10.0, noise=None,
+                    seed=None, plant=None, **explore_kwargs):
+    r"""Every solution of (37), (39) over the sampling sequences of (36), as a tree.
+
+    The observer must be built with ``gaps=(T_low, T_bar)``: C ∩ D is then
+    T_low <= sigma <= T_bar, and :func:`hybridsim.explore` follows, at each
+    sample, a gap of T_low, of T_low + each dwell of ``dwell_grid``, and of
+    T_bar (Theorem 2 holds for every such sequence). Each branch continues
+    its parent's past (the delay of (13)); branches are never merged.
+
+    Parameters
+    ----------
+    observer : SampledGramianObserver
+        With ``gaps`` set.
+    x0, xhat0, noise, seed, plant
+        As in :func:`~observers.gramian_delay.simulate`.
+    samples : int
+        Samples per solution (the one at t0 included): the tree's depth.
+    dwell_grid : sequence of float
+        Dwells in C ∩ D (each in (0, T_bar - T_low)).
+    t_max : float
+        Each solution also stops here.
+    **explore_kwargs
+        To :func:`hybridsim.explore` (``max_branches``, ``max_seconds``...);
+        the integrator settings default to :data:`SAMPLED_RUN`'s.
+
+    Returns
+    -------
+    hybridsim.SolutionTree
+        Its leaves are arcs of the interconnection (components ``"plant"``
+        and ``"observer"``), read with :func:`~observers.gramian_delay.errors`.
+
+    Examples
+    --------
+    Gaps of 0.05 or 0.1 s, three samples: 2 x 2 sequences.
+
+    >>> from observers import gramian_delay as gd
+    >>> ex = gd.dc_motor(100.0, 0.1, oracle=True)
+    >>> obs = ex.sampled_observer(gaps=(0.05, 0.1), estimate="xi2")
+    >>> tree = gd.explore_samples(obs, ex.chi0, samples=3, dwell_grid=())
+    >>> sorted(tuple(a.jump_times.round(3)) for a in tree)[:2]
+    [(0.0, 0.05, 0.1), (0.0, 0.05, 0.15)]
+    """
+    if not isinstance(observer, SampledGramianObserver) or observer.gaps is None:
+        raise TypeError("observer must be a SampledGramianObserver built with gaps=(T_low, "
+                        f"T_bar), got {observer!r}")
+    if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 1:
+        raise ValueError(f"samples must be a positive int, got {samples!r}")
+    t_max = scalar("t_max", t_max, positive=True)
+    sysc, x0 = _loop(observer, x0, xhat0, noise, seed, plant)
+    opts = {k: v for k, v in SAMPLED_RUN.items() if k not in ("dense", "progress")}
+    opts.update(explore_kwargs)
+    return hs.explore(sysc, x0, t_max=t_max, j_max=samples, dwell_grid=dwell_grid, **opts)
 
 
 def errors(arc, observer, *, y=None, form=None, name="observer"):

@@ -546,7 +546,15 @@ class SampledGramianObserver(_ObserverBase):
         Periodic sampling by the timer: D = {sigma >= period}.
     instants : (K,) array_like, optional
         Increasing sampling instants (e.g. :func:`sampling_instants`):
-        D = {t >= instants[kappa]}. Exactly one of period, instants.
+        D = {t >= instants[kappa]}.
+    gaps : (float, float), optional
+        ``(T_low, T_bar)`` of (36): every gap between samples in [T_low,
+        T_bar], as a hybrid inclusion: C = {sigma <= T_bar}, D = {sigma >=
+        T_low}. :func:`hybridsim.simulate` samples every T_low (``priority``
+        "jumps"), or after a random dwell in C ∩ D (``dwell=``);
+        :func:`hybridsim.explore` follows every gap of a dwell grid
+        (Theorem 2 is a statement about all of them). Exactly one of
+        period, instants, gaps; gaps with ``realisation="literal"`` only.
     estimate : {"omega", "xi2"}
     t0 : float
         Start of the runs (history rule before t0 + tau).
@@ -568,12 +576,29 @@ class SampledGramianObserver(_ObserverBase):
     Mazenc & Malisoff (2022), eqs. (36)-(39), Theorem 2.
     """
 
-    def __init__(self, design, F1, F2, *, period=None, instants=None, estimate="omega",
-                 t0=0.0, realisation="literal"):
+    def __init__(self, design, F1, F2, *, period=None, instants=None, gaps=None,
+                 estimate="omega", t0=0.0, realisation="literal"):
         super().__init__(design, F1, F2, realisation)
-        if (period is None) == (instants is None):
-            raise ValueError("give exactly one of period and instants")
-        if period is not None:
+        if sum(v is not None for v in (period, instants, gaps)) != 1:
+            raise ValueError("give exactly one of period, instants and gaps")
+        self.gaps = None
+        if gaps is not None:
+            try:
+                lo, hi = (float(g) for g in gaps)
+            except (TypeError, ValueError):
+                raise ValueError(f"gaps must be a pair (T_low, T_bar) of (36), got "
+                                 f"{gaps!r}") from None
+            if not (np.isfinite(hi) and 0.0 < lo < hi):
+                raise ValueError(f"gaps must satisfy 0 < T_low < T_bar < inf (36), got "
+                                 f"({lo}, {hi})")
+            if realisation != "literal":
+                raise ValueError("gaps needs realisation='literal': the reset realisation's "
+                                 "resets are jumps too, and inside the window [T_low, T_bar] "
+                                 "one would take a sample that the sequence did not choose")
+            self.gaps = (lo, hi)
+            self.period = self.instants = None
+            self.flow_guard = self._gap_flow_guard                  # C = {sigma <= T_bar}
+        elif period is not None:
             self.period = scalar("period", period, positive=True)
             self.instants = None
         else:
@@ -604,7 +629,8 @@ class SampledGramianObserver(_ObserverBase):
         """Initial state; the timer/counter are set so that a sample is taken at t0."""
         q = self.design.q
         w = np.zeros(q) if omega0 is None else vector("omega0", omega0, q)
-        sigma0 = self.period if self.period is not None else 0.0
+        sigma0 = (self.period if self.period is not None
+                  else self.gaps[1] if self.gaps is not None else 0.0)
         return np.concatenate([self._initial(xi1_hat0, xi2_hat0, psi1_0, psi2_0), w,
                                [sigma0, 0.0]])
 
@@ -623,9 +649,14 @@ class SampledGramianObserver(_ObserverBase):
         out[self.i_kappa] = 0.0
         return out
 
+    def _gap_flow_guard(self, z, t, j, u):
+        return self.gaps[1] - z[self.i_sigma]
+
     def _sample_guard(self, z, t):
         if self.period is not None:
             return z[self.i_sigma] - self.period
+        if self.gaps is not None:
+            return z[self.i_sigma] - self.gaps[0]
         kap = round(float(z[self.i_kappa]))
         if kap >= len(self.instants):
             return -1.0
