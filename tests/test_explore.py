@@ -487,6 +487,36 @@ def test_explore_thermostat_example(tmp_path, monkeypatch, capsys):
     assert "solutions" in capsys.readouterr().out
 
 
+def test_explore_jittery_sampling_example(tmp_path, monkeypatch, capsys):
+    """The gallery's jittery sampling: 3^5 gap sequences merged at their distinct ends
+    (the loop is linear and time-invariant: the gaps' order does not change the end),
+    the contraction on every solution, a random run of the dwell law, and the figure's
+    artists: the leaves, the branch points, the random run and the bound."""
+    script = EXAMPLE.parent / "explore_jittery_sampling.py"
+    monkeypatch.setattr(sys, "argv", [str(script), str(tmp_path)])
+    monkeypatch.setattr(plt, "close", lambda *a: None)        # keep the figure to read it
+    ns = runpy.run_path(str(script), run_name="__main__")
+    tree, rnd = ns["TREE"], ns["RANDOM"]
+    assert tree.complete and len(tree) == 21
+    ends = {tuple(np.round(np.diff(np.r_[0.0, a.jump_times]), 6)) for a in tree}
+    assert all(set(g) <= {0.1, 0.2, 0.3} for g in ends)
+    ht.assert_bounded(tree, lambda x, t, j: x[0], lambda t, j: ns["RATE"] ** j, rtol=1e-6)
+    gaps = np.diff(np.r_[0.0, rnd.jump_times])
+    assert np.all((gaps >= 0.1 - 1e-9) & (gaps <= 0.3 + 1e-9)) and np.ptp(gaps) > 0.01
+    assert (tmp_path / "explore_jittery_sampling.png").stat().st_size > 5000
+    fig = plt.gcf()
+    ax, bx = fig.axes
+    labels = [ln.get_label() for ln in ax.get_lines()]
+    assert "21 solutions" in labels and "a random solution (dwell law)" in labels
+    assert any(ln.get_gid() == "branch_points" for ln in bx.get_lines())
+    bound = [ln for ln in bx.get_lines() if ln.get_label().startswith("bound")]
+    assert len(bound) == 1 and bound[0].get_linestyle() == "--"
+    np.testing.assert_allclose(bound[0].get_ydata(), ns["RATE"] ** np.arange(6))
+    assert ax.get_xlabel() == "$t$" and bx.get_xlabel() == "$j$"
+    assert "every solution" in capsys.readouterr().out
+    plt.close("all")
+
+
 # ---------------------------------------------------------------- systems with a past
 class _DelayedSampler(hs.HybridSystem):
     """x' = -a x(t - tau) + b, a sample (x+ = c x) at a gap in [lo, hi] after the last

@@ -1114,3 +1114,58 @@ def test_theorem_4_9_on_random_designs_p_below_n(seed, n, p):
     eps = 1e-3
     s_star = closeness_sweep((eps / K,), d, x0, xh0)
     assert s_star["dist"][0] <= eps * (1 + 1e-4)
+
+
+# ---------------------------------------------------------------- jump windows (issue 25)
+@pytest.mark.parametrize("windowed, plain", [
+    (ls.WindowedNominalObserver, ls.NominalObserver),
+    (ls.WindowedPiecewiseConstantNoiseObserver, ls.PiecewiseConstantNoiseObserver)])
+def test_a_window_that_closes_at_delta_is_the_paper_observer(windowed, plain):
+    """delta_lo = delta: C ∩ D is the point tau = delta, so the windowed observer is the
+    paper's (same jump times and states to the integrator's rtol 1e-10 on states of
+    size ~1); its gains at tau = delta are the design's (12)."""
+    d = ls.example_VB()
+    noise = ls.PiecewiseConstantNoise([2.5], [[0.3, 0.2], [0.4, 0.4]])
+    w, p = windowed(d, d.delta), plain(d)
+    for K, K_d in zip(w.gains(d.delta), (d.K1, d.K2)):
+        np.testing.assert_allclose(K, K_d, rtol=1e-12, atol=1e-12)
+    a = ls.simulate(w, [0.3, 0.4], [0.0, 0.0], noise=noise, t_max=4.0)
+    b = ls.simulate(p, [0.3, 0.4], [0.0, 0.0], noise=noise, t_max=4.0)
+    np.testing.assert_allclose(a.jump_times, b.jump_times, atol=1e-9)
+    np.testing.assert_allclose(a.x[-1], b.x[-1], rtol=1e-8, atol=1e-9)
+
+
+@pytest.mark.parametrize("windowed", [ls.WindowedNominalObserver,
+                                      ls.WindowedPiecewiseConstantNoiseObserver])
+def test_windowed_observers_are_refused_by_the_compiled_path_by_name(windowed):
+    """The lowered H_n / H_pc jump at delta with fixed gains: a windowed one has no
+    compiled form, so backend='auto' keeps it on the Python path."""
+    pytest.importorskip("numba")
+    from hybridsim.compiled import lower, lowerable
+    w = windowed(ls.example_VB(), 0.5)
+    assert not lowerable(w)
+    with pytest.raises(TypeError, match="has no compiled form"):
+        lower(w)
+    with pytest.raises(ValueError, match=r"delta_lo must be in \(0, delta"):
+        windowed(ls.example_VB(), 1.5)
+
+
+def test_windowed_Hpc_random_gaps_exact_within_two_jumps_of_each_switch():
+    """Seeded random gaps in [0.6, 1] (the dwell law): Theorem 4.14 with the gains of each
+    gap, on example V.B under Fig. 3's noise: exact from the second jump after each
+    switch (tolerance: the integrator's 1e-10 times the reset amplification ~ 50)."""
+    from scipy import stats
+    d = ls.example_VB()
+    noise = ls.PiecewiseConstantNoise([2.5, 4.5], [[0.3, 0.2], [0.4, 0.4], [0.2, 0.3]])
+    w = ls.WindowedPiecewiseConstantNoiseObserver(d, 0.6)
+    for seed in range(3):
+        arc = ls.simulate(w, [0.3, 0.4], [0.0, 0.0], noise=noise, t_max=7.0,
+                          priority="random", dwell=stats.uniform(0.0, 0.4), seed=seed)
+        gaps = np.diff(np.r_[0.0, arc.jump_times])
+        assert np.all((gaps > 0.6 - 1e-9) & (gaps < 1.0 + 1e-9)) and np.ptp(gaps) > 0.05
+        err = np.linalg.norm(ls.errors(arc, w)["ebar"], axis=1)
+        for a, b in ((0.0, 2.5), (2.5, 4.5), (4.5, 7.0)):
+            t2 = arc.jump_times[arc.jump_times > a][1]
+            J = int(np.flatnonzero(arc.jump_times == t2)[0])
+            m = ((arc.t > t2) | ((arc.t == t2) & (arc.j >= J + 1))) & (arc.t < b)
+            assert m.any() and err[m].max() < 1e-8

@@ -28,6 +28,7 @@ from observers.claims import Claim
 
 from .design import (
     Design,
+    PiecewiseConstantNoise,
     admissible_delta,
     dist_to_A,
     lemma_4_2_condition,
@@ -38,7 +39,12 @@ from .design import (
 )
 from .example import errors, example_VA, example_VB, simulate
 from .figures import fig2a_data, fig3_data
-from .systems import ConstantNoiseObserver, NominalObserver, WindowedNominalObserver
+from .systems import (
+    ConstantNoiseObserver,
+    NominalObserver,
+    WindowedNominalObserver,
+    WindowedPiecewiseConstantNoiseObserver,
+)
 
 __all__ = ["CLAIMS", "closeness_sweep", "closeness_random", "theorem_4_11_ratios"]
 
@@ -201,8 +207,13 @@ def _fig3_tol():
 def _fig3_after_switches():
     """(max |ē| from the second jump after each switch to the next, max jumps needed)."""
     _, noise, arc, E = _fig3_run()
+    return _after_switches(arc, E, [0.0, *noise.d, 8.0])
+
+
+def _after_switches(arc, E, edges):
+    """(max |ē| from the jump after each switch that makes it exact to the next switch,
+    the most jumps that took); inf where a piece never becomes exact."""
     err = np.linalg.norm(E["ebar"], axis=1)
-    edges = [0.0, *noise.d, 8.0]
     worst, jumps = 0.0, 0
     for k in range(len(edges) - 1):
         after = np.flatnonzero(arc.jump_times > edges[k] - 1e-9)
@@ -218,6 +229,52 @@ def _fig3_after_switches():
                 break
         else:
             return math.inf, math.inf
+    return worst, jumps
+
+
+#: H_pc jumping anywhere in [0.75, 1] (gaps 0.75 or 1), the noise of Fig. 3 up to its 2nd switch
+_PC_WINDOW, _PC_END, _PC_JUMPS = 0.75, 4.5, 6
+
+
+@functools.cache
+def _Hpc_window_tree():
+    import hybridsim as hs
+    d = example_VB()
+    noise = PiecewiseConstantNoise([2.5], [[0.3, 0.2], [0.4, 0.4]])   # Fig. 3's to t = 4.5
+    obs = WindowedPiecewiseConstantNoiseObserver(d, _PC_WINDOW)
+    plant = hs.LinearPlant(d.A, C=d.H, noise=noise)
+    sys_ = hs.connect(plant, obs, names=("plant", "observer"))
+    z0 = np.concatenate([[0.3, 0.4], obs.initial_state([0.0, 0.0])])
+    tree = hs.explore(sys_, z0, _PC_END, _PC_JUMPS, method="DOP853", rtol=1e-10, atol=1e-12)
+    return tree, obs, noise
+
+
+def _Hpc_window_tol():
+    """1e-9 times the largest reset amplification of the window's gaps (0.75 and 1)."""
+    d = example_VB()
+    return 1e-9 * max(_amp(Design(A=d.A, H=d.H, L1=d.L1, L2=d.L2, delta=g), True)
+                      for g in (_PC_WINDOW, d.delta))
+
+
+def _Hpc_window_every_solution():
+    """(max over every explored solution of max |ē| once exact after each switch, the
+    most jumps that took): H_pc jumping at every gap of 0.75 or 1 (example V.B,
+    Fig. 3's noise up to t = 4.5; Thm 4.14 asks delta = 1 < half the 2.5 s
+    between switches). Decision as in :class:`WindowedPiecewiseConstantNoiseObserver`.
+    A solution that ends on a failure, or whose estimate is never exact
+    after a switch, gives inf.
+    """
+    tree, obs, noise = _Hpc_window_tree()
+    if not tree.complete:
+        return math.inf, math.inf
+    worst, jumps = 0.0, 0
+    for leaf in tree:
+        if leaf.termination is not None and leaf.termination.failure:
+            return math.inf, math.inf
+        if leaf.termination is None:        # merged: its future is another leaf's
+            continue
+        w, n = _after_switches(leaf, errors(leaf, obs), [0.0, *noise.d, _PC_END])
+        worst, jumps = max(worst, w), max(jumps, n)
     return worst, jumps
 
 
@@ -517,6 +574,26 @@ CLAIMS = [
                     "ends and the four dwell-grid times in it.",
           paper_value=None, compute=_Hn_window_leaves, reference=6.0, tol=0.0,
           tol_why="a count"),
+    Claim(id="002-thm4.14-window-every-solution", paper=_ID, where="Thm 4.14, Fig. 3",
+          statement="For every explored solution (H_pc on example V.B jumping after every gap "
+                    "of 0.75 or 1, the gains of its gap; Fig. 3's noise up to t = 4.5; "
+                    "hs.explore, 6 jumps), the estimate is exact from the second jump after "
+                    "each switch until the next: max |ē| there over the solutions.",
+          paper_value=None, compute=lambda: _Hpc_window_every_solution()[0], reference=0.0,
+          tol=_Hpc_window_tol(),
+          tol_why=_INT + " (1e-9 accumulated) times the largest reset amplification of the "
+                         "two gaps, (1 + |K1| + |K2|)(1 + |T| |(HT - I)^-1|)"),
+    Claim(id="002-thm4.14-window-jumps", paper=_ID, where="Thm 4.14, Sec. V.B",
+          statement="On every solution of the H_pc window claim the estimate is exact within "
+                    "two jumps of each switch (the most jumps needed over the solutions).",
+          paper_value=2.0, compute=lambda: float(_Hpc_window_every_solution()[1]), tol=0.0,
+          tol_why="a count of jumps: exact"),
+    Claim(id="002-thm4.14-window-tree-size", paper=_ID, where="Thm 4.14",
+          statement="The tree of the H_pc window claim: the 2^6 gap sequences end in 7 "
+                    "solutions, the others merged where two reach the same (t, j, state) "
+                    "(exact estimates after a jump make the states equal): its leaves.",
+          paper_value=None, compute=lambda: float(len(_Hpc_window_tree()[0])), reference=7.0,
+          tol=0.0, tol_why="a count"),
     Claim(id="002-thm4.7-constant", paper=_ID, where="Thm 4.7",
           statement="|z_n(t, 0)|_A <= sqrt(c2/c1) |z_n(0,0)|_A exp(-lambda_min(P) t / (2 c2)); "
                     "here F1 = -I + J, F2 = -I - J, P_i = I/2, x = 0, x̂ = (1, 0), t = pi/2, "

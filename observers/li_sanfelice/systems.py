@@ -53,6 +53,7 @@ __all__ = [
     "WindowedNominalObserver",
     "ConstantNoiseObserver",
     "PiecewiseConstantNoiseObserver",
+    "WindowedPiecewiseConstantNoiseObserver",
     "LuenbergerObserver",
     "BoundedNoiseGenerator",
     "RotatingFamily",
@@ -208,7 +209,47 @@ class NominalObserver(_TwoCopyObserver):
         return xn
 
 
-class WindowedNominalObserver(NominalObserver):
+class _JumpWindow:
+    """A jump anywhere in tau in [delta_lo, delta] with the gains (12) of that tau.
+
+    Mixed into a two-copy observer: C and D overlap on [delta_lo, delta] (a
+    hybrid inclusion whose solutions :func:`hybridsim.explore` enumerates);
+    the sets are those of the observer with delta_lo for D's edge.
+    """
+
+    vectorized = False
+    #: no compiled form: the lowered H_n / H_pc would jump at delta with fixed gains
+    compiled_component = None
+
+    def _window(self, delta_lo):
+        self.delta_lo = float(delta_lo)
+        if not 0.0 < self.delta_lo <= self.design.delta:
+            raise ValueError(f"delta_lo must be in (0, delta = {self.design.delta}], "
+                             f"got {delta_lo!r}")
+
+    def gains(self, tau):
+        """(K1, K2) of (12) for a jump at tau."""
+        d = self.design
+        K2 = np.linalg.inv(np.eye(d.n) - expm(d.F2 * tau) @ expm(-d.F1 * tau))
+        return np.eye(d.n) - K2, K2
+
+    def _done(self, x):             # H_n: after its one jump (q = 1) it only flows
+        return self._has_q and x[self._q] > 0.5
+
+    def jump_guard(self, x, t, j, u):
+        return -1.0 if self._done(x) else x[self._tau] - self.delta_lo
+
+    def jump_set(self, x, t, j, u):
+        return bool(not self._done(x) and x[self._tau] >= self.delta_lo)
+
+    def flow_guard(self, x, t, j, u):
+        return 1.0 if self._done(x) else self.design.delta - x[self._tau]
+
+    def flow_set(self, x, t, j, u):
+        return bool(self._done(x) or x[self._tau] <= self.design.delta)
+
+
+class WindowedNominalObserver(_JumpWindow, NominalObserver):
     """H_n (10)-(12) whose one jump may happen at any tau in [delta_lo, delta],
     with the gains (12) of the tau it happens at: a hybrid inclusion (C and D
     overlap on [delta_lo, delta]) whose solutions :func:`hybridsim.explore`
@@ -230,31 +271,9 @@ class WindowedNominalObserver(NominalObserver):
     Li & Sanfelice, (10)-(12), Assumption 4.1, Theorem 4.7.
     """
 
-    vectorized = False
-
     def __init__(self, d, delta_lo):
         super().__init__(d)
-        self.delta_lo = float(delta_lo)
-        if not 0.0 < self.delta_lo <= d.delta:
-            raise ValueError(f"delta_lo must be in (0, delta = {d.delta}], got {delta_lo!r}")
-
-    def gains(self, tau):
-        """(K1, K2) of (12) for a jump at tau."""
-        d = self.design
-        K2 = np.linalg.inv(np.eye(d.n) - expm(d.F2 * tau) @ expm(-d.F1 * tau))
-        return np.eye(d.n) - K2, K2
-
-    def jump_guard(self, x, t, j, u):
-        return -1.0 if x[self._q] > 0.5 else x[self._tau] - self.delta_lo
-
-    def jump_set(self, x, t, j, u):
-        return bool(x[self._q] < 0.5 and x[self._tau] >= self.delta_lo)
-
-    def flow_guard(self, x, t, j, u):
-        return 1.0 if x[self._q] > 0.5 else self.design.delta - x[self._tau]
-
-    def flow_set(self, x, t, j, u):
-        return bool(x[self._q] > 0.5 or x[self._tau] <= self.design.delta)
+        self._window(delta_lo)
 
     def jump_map(self, x, t, j, u):
         n = self.design.n
@@ -381,6 +400,47 @@ class PiecewiseConstantNoiseObserver(_NoiseCompensating):
     """
 
     _has_q = False
+
+
+class WindowedPiecewiseConstantNoiseObserver(_JumpWindow, PiecewiseConstantNoiseObserver):
+    """H_pc (Section IV-E) whose every jump may happen at any tau in [delta_lo, delta],
+    with the gains (12) of the tau it happens at (K1, K2 in R and T of (18)).
+
+    Decision (as for :class:`WindowedNominalObserver`): the proof of
+    Theorem 4.14 uses one interval of constant noise between two jumps, H_c's
+    Theorem 4.13 with delta := the gap; the gains exist for every gap in
+    (0, delta] (Assumption 4.1 A2), and H T(gap) - I must be nonsingular for
+    each (checked at every jump: a singular one is a map error of that
+    solution). With delta < min(d_k - d_{k-1}) / 2, every solution is exact
+    from the second jump after each switch of the noise until the next.
+
+    Parameters
+    ----------
+    d : Design
+    delta_lo : float
+        The window's start, in (0, delta].
+
+    References
+    ----------
+    Li & Sanfelice, Section IV-E, (17)-(18), Theorem 4.14.
+    """
+
+    def __init__(self, d, delta_lo):
+        super().__init__(d)
+        self._window(delta_lo)
+
+    def jump_map(self, x, t, j, u):
+        d, n, p = self.design, self.design.n, self.design.p
+        s = self.slices
+        K1, K2 = self.gains(x[self._tau])
+        mh = x[s["mhat"]]
+        R = K1 @ x[:n] + K2 @ x[n:2 * n]                                        # (18)
+        T = K1 @ Xi_matrix(x[s["xi1"]], n, p) + K2 @ Xi_matrix(x[s["xi2"]], n, p)
+        w = np.linalg.solve(d.H @ T - np.eye(p), d.H @ R - (u - mh))
+        xn = np.zeros(self.state_dim)
+        xn[:n] = xn[n:2 * n] = R - T @ w
+        xn[s["mhat"]] = mh + w
+        return xn                                   # xi_i+ = 0, tau+ = 0
 
 
 class LuenbergerObserver(hs.HybridSystem):
