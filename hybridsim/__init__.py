@@ -24,7 +24,7 @@ from .batch_vectorized import simulate_vectorized
 from .compose import Interconnection, LinearInput, LinearPlant, connect, network
 from .explore import Choice, ExploreEnd, SolutionTree, explore
 from .falsification import falsify
-from .history import History, HistoryError
+from .history import BatchHistory, History, HistoryError
 from .options import METHODS
 from .plot import (
     plot_flows,
@@ -41,7 +41,7 @@ from .system import HybridSystem
 
 __all__ = [
     "HybridSystem", "HybridArc", "Termination", "simulate", "MapError",
-    "SimulationError", "SimulationWarning", "METHODS", "History", "HistoryError",
+    "SimulationError", "SimulationWarning", "METHODS", "History", "BatchHistory", "HistoryError",
     "Interconnection", "LinearInput", "LinearPlant", "connect", "network",
     "simulate_many", "sweep", "simulate_vectorized", "BatchError", "BatchWarning",
     "plot_flows", "plot_jumps", "plot_hybrid", "plot_phase", "plot_time_domain",

@@ -33,6 +33,7 @@ function, beside the other set's indicator (as on the Python path).
 """
 from __future__ import annotations
 
+import bisect
 import inspect
 import itertools
 import math
@@ -44,6 +45,7 @@ from ._progress import make_bar
 from .arc import HybridArc, Termination
 from .batch import _as_rows, finish_batch
 from .events import _maximize, _near_peak
+from .history import BatchHistory
 from .options import (
     check_bool,
     check_seed,
@@ -247,6 +249,7 @@ class _VMaps:
         self.has_D = system.has_jumps
         self.has_C = system.has_flow_boundary
         self.run = None
+        self.hist = None            # a BatchHistory where the maps read their past
 
     # ---------------------------------------------------------------- checks
     def _check(self, kind, name, val, k):
@@ -299,6 +302,9 @@ class _VMaps:
         if k == 0:
             return (np.empty((0, self.n)) if kind == "state"
                     else np.empty(0, dtype=bool if kind == "set" else float))
+        hist = self.hist
+        if hist is not None:        # the rows whose past self.history reads
+            hist.rows = rows
         try:
             out = self._check(kind, name, fn(x, t, j, None), k)
         except (KeyboardInterrupt, SystemExit):
@@ -317,6 +323,8 @@ class _VMaps:
         else:
             out = np.zeros(k, dtype=bool if kind == "set" else float)
         for i in range(k):
+            if hist is not None:
+                hist.rows = rows[i:i + 1]
             try:
                 out[i] = self._check(kind, name, fn(x[i:i + 1], t[i:i + 1], j[i:i + 1], None),
                                      1)[0]
@@ -336,14 +344,17 @@ class _VMaps:
     def flow(self, rows, x, t, j, strict=False):
         return self._call("state", "flow_map", self.f, rows, x, t, j, strict)
 
-    def flow_soft(self, x, t, j):
+    def flow_soft(self, x, t, j, rows=None):
         """The flow map's value where it is defined, NaN where it raises or is
         not a row of floats (samples' ``xdot``: outside C the flow map may be
-        undefined); nothing is recorded."""
+        undefined); nothing is recorded. ``rows``: whose past the maps read."""
         k = len(x)
         out = np.full((k, self.n), np.nan)
         if k == 0:
             return out
+        hist = self.hist
+        if hist is not None:
+            hist.rows = rows
         with np.errstate(all="ignore"):
             try:
                 v = np.asarray(self.f(x, t, j, None), dtype=float)
@@ -354,6 +365,8 @@ class _VMaps:
             except Exception:  # noqa: BLE001 - row by row below
                 pass
             for i in range(k):
+                if hist is not None:
+                    hist.rows = rows[i:i + 1]
                 try:
                     v = np.asarray(self.f(x[i:i + 1], t[i:i + 1], j[i:i + 1], None), dtype=float)
                 except (KeyboardInterrupt, SystemExit):
@@ -447,10 +460,9 @@ def _parse(system, x0s, t_max, j_max, kw, method, progress, seed, extra):
     check_unsupported("vectorized", extra)
     if int(system.input_dim or 0) > 0:
         refuse("vectorized", "inputs", f"<input_dim={system.input_dim}>")
-    if system.needs_history or getattr(system, "delays", ()):
-        raise ValueError("system: maps reading the run's history (needs_history, delays) "
-                         "are not supported on the vectorized path; use hs.simulate (the "
-                         "Python path)")
+    delays = tuple(float(d) for d in (system.delays or ()))
+    if any(not (math.isfinite(d) and d > 0) for d in delays):
+        raise ValueError(f"system.delays must be positive finite floats, got {system.delays!r}")
     progress = check_bool("progress", progress, allow_none=True)
     rng = check_seed(seed, build=ro.prio == Priority.RANDOM)
     return n, X, ro, progress, rng
@@ -532,6 +544,18 @@ def simulate_vectorized(system, x0s, t_max, j_max=math.inf, *, priority="jumps",
         (must be False) are accepted for compatibility with
         :func:`hybridsim.simulate_many` and refused otherwise
         (:func:`hybridsim.options.refuse`); anything else raises ``TypeError``.
+
+    Notes
+    -----
+    A system that reads its past (``needs_history``, ``delays``) runs here
+    too: its maps get ``self.history`` as a
+    :class:`hybridsim.BatchHistory` of the rows they are called on
+    (``history(s)`` returns the (k, n) states, s a float or one time per
+    row; the past before t0 is the constant x0), and every row's flows stop
+    at its delay breakpoints (t0 + tau, each jump time + tau), as in
+    :func:`hybridsim.simulate`. ``history.integral`` is refused by name.
+    Every accepted step's dense output is kept: memory grows with the
+    steps, about 5 n floats a step per row.
 
     Returns
     -------
@@ -672,6 +696,16 @@ class _BatchRun:
                         or (m.has_C and m.hC is not None))
         self.ev_action, self.ev_side = _outcome_table(self.prio)
         self.after = _after_jump_table()
+        # the past, for maps that read it: segments per row, and the delay breakpoints
+        # (t0 + d, each jump time + d) where every flow stops, as in simulate
+        self.delays = tuple(float(d) for d in (system.delays or ()))
+        self.hist = None
+        if system.needs_history or self.delays:
+            self.hist = BatchHistory(t0, X, j0, output=as_map(system.output, "output"))
+            system._bind_history(self.hist)
+            m.hist = self.hist
+        self.breaks = [sorted(t0 + d for d in self.delays) for _ in range(N)]
+        self.bp = np.array([b[0] if b else np.inf for b in self.breaks])
 
     # ------------------------------------------------------------ helpers
     def _stop(self, rows, cause, kind=None, **fields):
@@ -742,7 +776,7 @@ class _BatchRun:
                         dtype=np.int64)
         if fill.size:
             k = log.last[fill]
-            log.xd[k] = self.maps.flow_soft(log.x[k], log.t[k], log.j[k])
+            log.xd[k] = self.maps.flow_soft(log.x[k], log.t[k], log.j[k], fill)
         rej = (self.attempts - self.steps).tolist()
         cols = [c.tolist() for c in (self.steps, self.nfev, self.events, self.flows,
                                      self.attempts)]
@@ -924,6 +958,14 @@ class _BatchRun:
             self.jumps[rows] += 1
             self.x[rows] = xn
             self.log.append(rows, t, j, xn)
+            if self.hist is not None:
+                self.hist._restart(rows, t, xn, j)
+            if self.delays:                 # the delayed jump: a kink at t + d
+                for r, tt in zip(rows.tolist(), t.tolist()):
+                    br = self.breaks[r]
+                    for d in self.delays:
+                        bisect.insort(br, tt + d)
+                    self.bp[r] = br[0]
             # rules.after_jump: J_MAX before ZENO
             code = self.after[(self.jumps[rows] >= self.j_max).astype(np.intp),
                               (self.short[rows] >= self.zeno_jumps).astype(np.intp)]
@@ -956,7 +998,7 @@ class _BatchRun:
         ok = self._reap(rows)
         if ok is not None:
             rows, x, t, j, f0, inD = rows[ok], x[ok], t[ok], j[ok], f0[ok], inD[ok]
-        span = self.t_max - t
+        span = self._bound(rows, t) - t
         h = np.minimum(np.minimum(self.h[rows], span), self.max_step)
         need = ~(h > 0)                      # no hint (NaN) or a degenerate one
         if need.any():
@@ -974,6 +1016,21 @@ class _BatchRun:
         self.inD_prev[rows] = inD
         self.t_flow0[rows] = self.t[rows]
         self.decide[rows] = False
+
+    def _bound(self, rows, t):
+        """End of the rows' integration: t_max, or the next delay breakpoint (the
+        breakpoints at or before t, within round-off, are spent)."""
+        if not self.delays:
+            return self.t_max
+        tol = 4 * _EPS * np.maximum(1.0, np.abs(t))
+        stale = self.bp[rows] <= t + tol
+        if stale.any():
+            for r, tt, tl in zip(rows[stale].tolist(), t[stale].tolist(), tol[stale].tolist()):
+                br = self.breaks[r]
+                while br and br[0] <= tt + tl:
+                    br.pop(0)
+                self.bp[r] = br[0] if br else np.inf
+        return np.minimum(self.t_max, self.bp[rows])
 
     def _initial_step(self, rows, y0, t0, j, f0, span):
         """scipy's ``select_initial_step`` (order 4), row by row in one go."""
@@ -1019,7 +1076,7 @@ class _BatchRun:
                                            rej[keep], h_abs[keep])
             if not rows.size:
                 return
-        t_new = np.minimum(t + h_abs, self.t_max)
+        t_new = np.minimum(t + h_abs, self._bound(rows, t))
         h = t_new - t
         h_abs = np.abs(h)
         self.attempts[rows] += 1
@@ -1152,6 +1209,9 @@ class _BatchRun:
                 return
         rows, b, yb, j = rows[calm], b[calm], yb[calm], j[calm]
         fb = K[_NS][calm]
+        if self.hist is not None:
+            self.hist._add(rows, a[calm], b, j, h[calm], ya[calm],
+                           np.einsum("skn,sp->knp", K[:, calm], _P))
         if self.refine > 1:
             Qc = np.einsum("skn,sp->knp", K[:, calm], _P)
             self._refine(rows, a[calm], b, ya[calm], h[calm], Qc, j)
@@ -1485,11 +1545,14 @@ class _BatchRun:
         xs = np.where(at_hi[:, None], yhi, ylo)
         sample = ts > a
         if sample.any():
+            if self.hist is not None:       # the step up to the event
+                self.hist._add(rows[sample], a[sample], ts[sample], j[sample], h[sample],
+                               ya[sample], Q[sample])
             if self.refine > 1:
                 self._refine(rows[sample], a[sample], ts[sample], ya[sample], h[sample],
                              Q[sample], j[sample])
             self.log.append(rows[sample], ts[sample], j[sample], xs[sample],
-                            m.flow_soft(xs[sample], ts[sample], j[sample]))
+                            m.flow_soft(xs[sample], ts[sample], j[sample], rows[sample]))
         self.t[rows] = ts
         self.x[rows] = xs
         if self.max_norm < math.inf and sample.any():   # the event's sample, as a step's end

@@ -5,7 +5,7 @@ from bisect import bisect_right
 
 import numpy as np
 
-__all__ = ["History", "HistoryError"]
+__all__ = ["History", "HistoryError", "BatchHistory"]
 
 # 5-point Gauss-Legendre: exact for polynomials of degree 9 (the dense output
 # of RK45 is quartic, of DOP853 degree 7).
@@ -171,7 +171,7 @@ class ComponentHistory:
         self._name = name
 
     def __call__(self, s):
-        return self._parent(s)[self._sl]
+        return self._parent(s)[..., self._sl]     # (n,) or, on a batch, (k, n) rows
 
     state = __call__
 
@@ -189,4 +189,163 @@ class ComponentHistory:
 
     def integral(self, fn, a, b):
         sl = self._sl
-        return self._parent.integral(lambda x, s: fn(x[sl], s), a, b)
+        return self._parent.integral(lambda x, s: fn(x[..., sl], s), a, b)
+
+
+class BatchHistory:
+    """The past of every trajectory of a vectorized batch run (``simulate_many``).
+
+    A vectorized map reads it through ``self.history`` as on the Python path;
+    a call covers the rows the engine is evaluating (x of shape (k, n)):
+    ``history(s)`` with s a float or a (k,) array returns the (k, n) states
+    x(s), by the rules of :class:`History` (constant prehistory x0 before
+    t0, the post-jump value at a jump time, else the RK45 dense output of the
+    step that covers s). ``jump_count(s)`` returns (k,) ints.
+    """
+
+    def __init__(self, t0, X, j0, output=None):
+        N, n = X.shape
+        self.n, self.t0 = n, float(t0)
+        self._x0 = np.array(X, dtype=float)
+        self._h = output
+        self.rows = np.arange(N)                 # the rows of the call under way
+        cap = 8
+        self._cnt = np.zeros(N, dtype=np.int64)
+        self._a = np.full((N, cap), np.inf)      # segment starts (inf: unused)
+        self._b = np.zeros((N, cap))
+        self._dt = np.ones((N, cap))             # the step's h (the dense output's scale)
+        self._js = np.zeros((N, cap), dtype=np.int64)
+        self._ya = np.zeros((N, cap, n))
+        self._q = np.zeros((N, cap, n, 4))
+        self._cur_t = np.full(N, self.t0)
+        self._cur_x = self._x0.copy()
+        self._cur_j = np.full(N, int(j0), dtype=np.int64)
+
+    # -- written by the engine -------------------------------------------
+    def _add(self, rows, a, b, j, h, ya, Q):
+        """Steps a -> b of ``rows`` (dense output ``ya + h Q [s, s^2, s^3, s^4]``)."""
+        keep = b > a
+        if not keep.all():
+            rows, a, b, j, h, ya, Q = (rows[keep], a[keep], b[keep], j[keep], h[keep],
+                                       ya[keep], Q[keep])
+        if not rows.size:
+            return
+        c = self._cnt[rows]
+        cap = self._a.shape[1]
+        if c.max() >= cap:
+            grow = max(cap, int(c.max()) + 1 - cap)
+            N = len(self._cnt)
+            self._a = np.concatenate([self._a, np.full((N, grow), np.inf)], axis=1)
+            for name in ("_b", "_dt", "_js", "_ya", "_q"):
+                arr = getattr(self, name)
+                pad = np.zeros((N, grow) + arr.shape[2:], dtype=arr.dtype)
+                setattr(self, name, np.concatenate([arr, pad], axis=1))
+        self._a[rows, c], self._b[rows, c], self._dt[rows, c] = a, b, h
+        self._js[rows, c], self._ya[rows, c], self._q[rows, c] = j, ya, Q
+        self._cnt[rows] += 1
+
+    def _restart(self, rows, t, x, j):
+        self._cur_t[rows], self._cur_x[rows], self._cur_j[rows] = t, x, j
+
+    # -- read by maps ------------------------------------------------------
+    def _times(self, s):
+        k = len(self.rows)
+        s = np.asarray(s, dtype=float)
+        if s.ndim == 0 or s.shape == (1,):
+            return np.full(k, float(s.reshape(-1)[0]))
+        if s.shape != (k,):
+            raise ValueError(f"history: s must be a float or one time per row ({k},), "
+                             f"got shape {s.shape}")
+        return s
+
+    def _segments(self, s):
+        """(rows, segment index) for times s >= t0 outside the current flow's start."""
+        rows = self.rows
+        lo = np.zeros(len(rows), dtype=np.int64)
+        hi = self._cnt[rows].copy()
+        while True:                              # bisect_right over each row's starts
+            act = lo < hi
+            if not act.any():
+                break
+            mid = (lo + hi) // 2
+            go = self._a[rows, np.minimum(mid, self._a.shape[1] - 1)] <= s
+            lo = np.where(act & go, mid + 1, lo)
+            hi = np.where(act & ~go, mid, hi)
+        return lo - 1
+
+    def __call__(self, s):
+        """The rows' states x(s), shape (k, n) (see the class docstring)."""
+        s = self._times(s)
+        rows = self.rows
+        out = np.empty((len(rows), self.n))
+        pre = s < self.t0
+        out[pre] = self._x0[rows[pre]]
+        if pre.all():
+            return out
+        tol = 1e-12 * np.maximum(1.0, np.abs(s))
+        cnt = self._cnt[rows]
+        last = np.where(cnt > 0, self._a[rows, np.maximum(cnt - 1, 0)], -np.inf)
+        cur_t = self._cur_t[rows]
+        # no step of the current flow recorded yet: its start (the post-jump value)
+        fresh = ~pre & (s >= cur_t) & ~(last >= cur_t)
+        if fresh.any():
+            late = fresh & (s > cur_t + tol)
+            if late.any():
+                i = int(np.flatnonzero(late)[0])
+                raise HistoryError(
+                    f"history: x({s[i]}) lies in the solver step under way (the flow "
+                    f"started at t={cur_t[i]}); cap the step with max_step <= the "
+                    f"smallest delay")
+            out[fresh] = self._cur_x[rows[fresh]]
+        look = ~pre & ~fresh
+        if not look.any():
+            return out
+        k = self._segments(s)
+        ok = look & (k >= 0)
+        kk = np.maximum(k, 0)
+        b = self._b[rows, kk]
+        inside = ok & (s <= b + tol)
+        if not (inside == look).all():
+            i = int(np.flatnonzero(look & ~inside)[0])
+            if cnt[i] and s[i] > self._b[rows[i], cnt[i] - 1]:
+                raise HistoryError(
+                    f"history: x({s[i]}) lies in the solver step under way (recorded up to "
+                    f"t={self._b[rows[i], cnt[i] - 1]}); cap the step with max_step <= "
+                    f"the smallest delay")
+            raise HistoryError(f"history: no recorded value at s={s[i]}")
+        r, kk, ss = rows[look], kk[look], np.minimum(s[look], b[look])
+        h = self._dt[r, kk]
+        xx = (ss - self._a[r, kk]) / h
+        p = np.stack([xx, xx * xx, xx ** 3, xx ** 4], axis=1)
+        out[look] = self._ya[r, kk] + h[:, None] * np.einsum("knp,kp->kn", self._q[r, kk], p)
+        return out
+
+    state = __call__
+
+    def jump_count(self, s):
+        """The rows' j at time s, shape (k,) (the later one at a jump time)."""
+        s = self._times(s)
+        rows = self.rows
+        out = self._cur_j[rows].copy()
+        look = (s >= self.t0) & (s < self._cur_t[rows])
+        if look.any():
+            k = np.maximum(self._segments(s), 0)
+            out[look] = self._js[rows[look], k[look]]
+        first = (s < self.t0) & (self._cnt[rows] > 0)
+        out[first] = self._js[rows[first], 0]
+        return out
+
+    def input(self, s):
+        """None: a vectorized system has no input."""
+        return None
+
+    def output(self, s):
+        """The rows' outputs y(s)."""
+        s = self._times(s)
+        return self._h(self(s), s, self.jump_count(s), None)
+
+    def integral(self, fn, a, b):
+        """Not on the vectorized path: refused by name."""
+        raise HistoryError("history.integral is not available on the vectorized path "
+                           "(simulate_many with a vectorized system): run the system with "
+                           "hs.simulate, or read point values history(s)")

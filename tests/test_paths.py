@@ -342,3 +342,111 @@ def test_a_set_valued_jump_map_is_the_python_paths(path):
         else:
             from hybridsim.compiled import simulate_compiled
             simulate_compiled(system, [0.0], t_max=1.0)
+
+
+# ---------------------------------------------------------------- delays (the past)
+class _Lag(hs.HybridSystem):
+    """x0' = -a x0(t - tau) + b sin t, x1' = 1 (a timer), a reset x0+ = c x0, x1+ = 0
+    at x1 >= s (D by a guard): maps written with ``[..., k]`` serve one state and a
+    batch, so one class runs on the Python and the vectorized paths."""
+
+    state_dim, needs_history, vectorized = 2, True, True
+
+    def __init__(self, a=1.0, b=0.0, c=1.0, tau=1.0, s=1e9, max_step="tau"):
+        self.a, self.b, self.c, self.tau, self.s = a, b, c, tau, s
+        self.delays = (tau,)
+        self.max_step = tau if max_step == "tau" else max_step
+
+    def flow_map(self, x, t, j, u):
+        out = np.zeros_like(np.asarray(x, dtype=float))
+        out[..., 0] = -self.a * self.history(t - self.tau)[..., 0] + self.b * np.sin(t)
+        out[..., 1] = 1.0
+        return out
+
+    def jump_guard(self, x, t, j, u):
+        return x[..., 1] - self.s
+
+    def jump_map(self, x, t, j, u):
+        y = np.array(x, dtype=float)
+        y[..., 0] = self.c * x[..., 0]
+        y[..., 1] = 0.0
+        return y
+
+
+def _run_lag(path, system, x0, **kw):
+    if path == "python":
+        return hs.simulate(system, x0, **kw)
+    if path == "vectorized":
+        return hs.simulate_many(system, np.atleast_2d(x0), **kw)[0]
+    return hs.simulate(system, x0, backend="compiled", **kw)
+
+
+@pytest.mark.parametrize("path", path_params())
+def test_a_delay_equation_runs_on_every_path_or_is_refused_by_name(path):
+    """x' = -x(t - 1) from the constant past 1: x = 1 - t on [0, 1] and
+    1 - t + (t - 1)^2 / 2 on [1, 2] (method of steps), to the integrator's
+    rtol 1e-10 (1e-9 absolute). The compiled path refuses it by name."""
+    kw = dict(t_max=2.0, rtol=1e-10, atol=1e-12)
+    if path == "compiled":
+        with pytest.raises(TypeError, match="reads its history"):
+            _run_lag(path, _Lag(), [1.0, 0.0], **kw)
+        return
+    arc = _run_lag(path, _Lag(), [1.0, 0.0], **kw)
+    t = arc.t
+    exact = np.where(t <= 1.0, 1.0 - t, 1.0 - t + (t - 1.0) ** 2 / 2)
+    np.testing.assert_allclose(arc.x[:, 0], exact, atol=1e-9)
+    assert arc.termination is T.T_MAX and np.any(np.isclose(t, 1.0, atol=1e-15))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_delay_systems_with_jumps_agree_on_the_python_and_vectorized_paths(seed):
+    """Seeded random delays, gains, resets and forcing: a batch of 6 rows on the
+    vectorized path gives each row's Python-path solution (jump times to 1e-9,
+    states to 1e-7 at rtol 1e-10: the two paths read the past from the same RK45
+    dense output, but round-off moves their step sequences apart)."""
+    rng = np.random.default_rng(seed)
+    sys_ = _Lag(a=rng.uniform(0.5, 2.0), b=rng.uniform(-1, 1), c=rng.uniform(-0.9, 0.9),
+                tau=rng.uniform(0.2, 0.6), s=rng.uniform(0.3, 0.8))
+    X = np.column_stack([rng.uniform(-1, 1, 6), rng.uniform(0.0, 0.3, 6)])
+    kw = dict(t_max=3.0, j_max=8, rtol=1e-10, atol=1e-12)
+    arcs = hs.simulate_many(sys_, X, **kw)
+    for x0, b in zip(X, arcs):
+        a = hs.simulate(sys_, x0, **kw)
+        assert a.termination is b.termination
+        np.testing.assert_allclose(b.jump_times, a.jump_times, atol=1e-9)
+        np.testing.assert_allclose(b.x[-1], a.x[-1], atol=1e-7)
+        # the past is read at the located jump times too: x0 after each reset
+        np.testing.assert_allclose(b.x[b.j > 0][:1], a.x[a.j > 0][:1], atol=1e-7)
+
+
+@pytest.mark.parametrize("path", [p for p in path_params() if p.values[0] != "compiled"])
+def test_a_past_inside_the_step_under_way_is_a_map_error_on_every_path(path):
+    """Delay 0.1 with no cap on the step: the flow map reads a time inside the
+    step being taken; both paths end with MAP_ERROR and the same message."""
+    arc = _run_lag(path, _Lag(tau=0.1, max_step=None), [1.0, 0.0], t_max=1.0, throw=False,
+                   warn=False)
+    assert arc.termination is T.MAP_ERROR
+    assert "lies in the solver step under way" in arc.message
+    assert "cap the step with max_step" in arc.message
+
+
+def test_an_interconnection_reads_its_components_past_on_the_vectorized_path():
+    """A plant x' = -x feeding a component that reads its own past: z' = y - z(t - 0.5).
+    The components' history views slice the batch's rows (ComponentHistory on (k, n))."""
+    plant = hs.LinearPlant(np.array([[-1.0]]), C=np.eye(1))
+    assert plant.vectorized
+
+    class Echo(hs.HybridSystem):
+        state_dim, input_dim, needs_history, vectorized = 1, 1, True, True
+        delays, max_step = (0.5,), 0.5
+
+        def flow_map(self, z, t, j, u):
+            return u - self.history(t - 0.5)
+
+    sys_ = hs.connect(plant, Echo(), names=("plant", "echo"))
+    X = np.array([[1.0, 0.0], [2.0, 1.0], [-1.0, 0.5]])
+    kw = dict(t_max=2.0, rtol=1e-10, atol=1e-12)
+    arcs = hs.simulate_many(sys_, X, **kw)
+    for x0, b in zip(X, arcs):
+        a = hs.simulate(sys_, x0, **kw)
+        np.testing.assert_allclose(b.x[-1], a.x[-1], atol=1e-8)
