@@ -318,7 +318,7 @@ _AUTO = "auto"
 
 
 def explore(system: HybridSystem, x0, t_max: float, j_max: float = math.inf, *,
-            t0: float = 0.0, j0: int = 0, dwell_grid=(), merge_tol: float | None | str = _AUTO,
+            t0: float = 0.0, j0: int = 0, dwell_grid=(), merge_tol: float | str | None = _AUTO,
             max_branches: int = 100_000, max_seconds: float = 60.0, throw: bool = True,
             warn: bool = True, **options) -> SolutionTree:
     r"""Every solution of a hybrid inclusion from x0, as a tree of arcs.
