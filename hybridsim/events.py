@@ -214,7 +214,8 @@ def _near_peak(v, lo_nb):
     largest sample by at most a quarter of its drop to the lower neighbour;
     the factor 2 leaves an 8x margin for guards that are not parabolas.
     """
-    return v + 2.0 * (v - lo_nb) >= 0.0
+    with np.errstate(invalid="ignore"):       # -inf guards ("never"): nan, not a peak
+        return v + 2.0 * (v - lo_nb) >= 0.0
 
 
 def _maximize(F, l, r, fl, fr, pred, sol, max_iter=100):

@@ -450,3 +450,16 @@ def test_an_interconnection_reads_its_components_past_on_the_vectorized_path():
     for x0, b in zip(X, arcs):
         a = hs.simulate(sys_, x0, **kw)
         np.testing.assert_allclose(b.x[-1], a.x[-1], atol=1e-8)
+
+
+@pytest.mark.parametrize("path", path_params())
+def test_a_guard_that_is_never_reached_runs_quietly_on_every_path(path):
+    """D = {x >= inf}: the guard is -inf everywhere ("never"); no event, no
+    RuntimeWarning (the vectorized path's peak test once subtracted -inf from -inf)."""
+    import warnings
+    case = Linear(np.array([[-1.0]]), np.eye(1), np.zeros(1), np.array([1.0]), np.inf)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        arc = run(path, case, [1.0], t_max=1.0)
+    assert arc.termination is T.T_MAX and len(arc.jump_times) == 0
+    np.testing.assert_allclose(arc.x[-1, 0], np.exp(-1.0), rtol=1e-5)
