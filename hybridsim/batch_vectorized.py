@@ -545,18 +545,6 @@ def simulate_vectorized(system, x0s, t_max, j_max=math.inf, *, priority="jumps",
         :func:`hybridsim.simulate_many` and refused otherwise
         (:func:`hybridsim.options.refuse`); anything else raises ``TypeError``.
 
-    Notes
-    -----
-    A system that reads its past (``needs_history``, ``delays``) runs here
-    too: its maps get ``self.history`` as a
-    :class:`hybridsim.BatchHistory` of the rows they are called on
-    (``history(s)`` returns the (k, n) states, s a float or one time per
-    row; the past before t0 is the constant x0), and every row's flows stop
-    at its delay breakpoints (t0 + tau, each jump time + tau), as in
-    :func:`hybridsim.simulate`. ``history.integral`` is refused by name.
-    Every accepted step's dense output is kept: memory grows with the
-    steps, about 5 n floats a step per row.
-
     Returns
     -------
     list of HybridArc
@@ -588,6 +576,16 @@ def simulate_vectorized(system, x0s, t_max, j_max=math.inf, *, priority="jumps",
 
     Ctrl-C (KeyboardInterrupt) ends every trajectory still running with
     ``CANCELED``, keeping its samples so far and the finished trajectories.
+
+    A system that reads its past (``needs_history``, ``delays``) runs here
+    too: its maps get ``self.history`` as a
+    :class:`hybridsim.BatchHistory` of the rows they are called on
+    (``history(s)`` returns the (k, n) states, s a float or one time per
+    row; the past before t0 is the constant x0), and every row's flows stop
+    at its delay breakpoints (t0 + tau, each jump time + tau), as in
+    :func:`hybridsim.simulate`. ``history.integral`` is refused by name.
+    Every accepted step's dense output is kept: memory grows with the
+    steps, about 5 n floats a step per row.
 
     Examples
     --------

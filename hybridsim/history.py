@@ -73,9 +73,14 @@ class History:
         """The state x(s) (see the class docstring)."""
         s = float(s)
         if s < self.t0:
-            if self._pre is None:
-                return self._x0.copy()
-            return np.asarray(self._pre(s), dtype=float)
+            h = self
+            while s < h.t0 and isinstance(h._pre, History):   # a chain of pasts (explore)
+                h = h._pre
+            if s >= h.t0:
+                return h(s)
+            if h._pre is None:
+                return h._x0.copy()
+            return np.asarray(h._pre(s), dtype=float)
         tol = 1e-12 * max(1.0, abs(s))
         if s >= self._cur_t and (not self._starts or self._starts[-1] < self._cur_t):
             # no step of the current flow is recorded yet: its start (post-jump value)
@@ -110,9 +115,12 @@ class History:
     def jump_count(self, s):
         """The j of the sample at time s (the later one at a jump time)."""
         if s < self.t0:
-            if hasattr(self._pre, "jump_count"):     # a past continued (explore's branches)
-                return self._pre.jump_count(s)
-            return self._cur_j if not self._js else self._js[0]
+            h = self
+            while s < h.t0 and isinstance(h._pre, History):   # a chain of pasts (explore)
+                h = h._pre
+            if s >= h.t0:
+                return h.jump_count(s)
+            return h._cur_j if not h._js else h._js[0]
         if s >= self._cur_t:
             return self._cur_j
         k = self._locate(s)
@@ -131,14 +139,27 @@ class History:
         if b < a:
             return -self.integral(fn, b, a)
         total = 0.0
-        pieces = []
         if a < self.t0:
-            if hasattr(self._pre, "integral"):       # a past continued: its own pieces
-                total = self._pre.integral(fn, a, min(b, self.t0))
-            else:
-                pieces.append((a, min(b, self.t0), None))
-        lo = max(a, self.t0)
-        if b > lo:
+            # the part before t0 from the chain of pasts (explore), walked without recursion
+            h, hi = self, min(b, self.t0)
+            while isinstance(h._pre, History) and a < h.t0:
+                h = h._pre
+                lo = max(a, h.t0)
+                if hi > lo:
+                    total = total + h._own_integral(fn, lo, hi)
+                hi = min(hi, h.t0)
+            if a < hi:
+                total = total + h._own_integral(fn, a, hi, before=True)
+        return total + self._own_integral(fn, max(a, self.t0), b)
+
+    def _own_integral(self, fn, a, b, before=False):
+        """The integral over [a, b] within this run (``before``: a <= b <= t0, by
+        its prehistory)."""
+        pieces = []
+        if before:
+            pieces.append((a, b, None))
+        lo = a
+        if b > lo and not before:
             k = max(bisect_right(self._starts, lo) - 1, 0)
             while k < len(self._starts) and self._starts[k] < b:
                 pa, pb = max(self._starts[k], lo), min(self._ends[k], b)
@@ -149,6 +170,7 @@ class History:
             if b > covered + 1e-12 * max(1.0, abs(b)):
                 raise HistoryError(f"history.integral: [{a}, {b}] reaches past the "
                                    f"recorded run (up to t={covered})")
+        total = 0.0
         for pa, pb, sol in pieces:
             s = 0.5 * (pb - pa) * _GL_X + 0.5 * (pa + pb)
             if sol is None:
@@ -201,6 +223,19 @@ class BatchHistory:
     x(s), by the rules of :class:`History` (constant prehistory x0 before
     t0, the post-jump value at a jump time, else the RK45 dense output of the
     step that covers s). ``jump_count(s)`` returns (k,) ints.
+
+    Examples
+    --------
+    x' = -x(t - 1) from constant pasts 1 and 2, one batch: x = x0 (1 - t) on [0, 1].
+
+    >>> import numpy as np, hybridsim as hs
+    >>> class Lag(hs.HybridSystem):
+    ...     state_dim, vectorized, needs_history, delays, max_step = 1, True, True, (1.0,), 1.0
+    ...     def flow_map(self, x, t, j, u):
+    ...         return -self.history(t - 1.0)          # (k, 1): the rows being evaluated
+    >>> arcs = hs.simulate_many(Lag(), [[1.0], [2.0]], t_max=1.0, rtol=1e-10, atol=1e-12)
+    >>> [round(float(a.x[-1, 0]), 9) for a in arcs]
+    [0.0, 0.0]
     """
 
     def __init__(self, t0, X, j0, output=None):

@@ -586,3 +586,61 @@ def test_a_past_is_continued_not_restarted():
     # 1 - t + (t - 1)^2 / 2 on [1, 2] (the jump x+ = x changes nothing)
     t = 2.0
     np.testing.assert_allclose(flows[0].x[-1, 0], 1 - t + (t - 1) ** 2 / 2, atol=1e-9)
+
+
+def test_a_past_read_across_a_thousand_branch_points():
+    """A forced reset every 0.01 (each jump a new branch of the tree) and a delay of
+    11: x(t - 11) is read back through ~1,100 parents' pasts, a chain deeper than
+    Python's recursion limit, and is the exact x(s) = 1 + s for the flow x' = 1
+    with x(s) = 1 + s before 0 (the resets only touch the timer)."""
+    class Deep(hs.HybridSystem):
+        state_dim, needs_history, delays, max_step = 3, True, (11.0,), 11.0
+
+        def flow_map(self, x, t, j, u):
+            return np.array([1.0, 1.0, self.history(t - 11.0)[0]])
+
+        def flow_guard(self, x, t, j, u):
+            return 0.01 - x[1]
+
+        def jump_guard(self, x, t, j, u):
+            return x[1] - 0.01
+
+        def jump_map(self, x, t, j, u):
+            return np.array([x[0], 0.0, x[2]])
+
+    t_end = 11.05
+    tree = hs.explore(Deep(), [1.0, 0.0, 0.0], t_max=t_end, j_max=2000, atol=1e-12,
+                      rtol=1e-12, prehistory=lambda s: np.array([1.0 + s, 0.0, 0.0]))
+    (leaf,) = tree.leaves
+    assert len(leaf.jump_times) > 1000
+    # x2' = x0(t - 11) = t - 10, x2(0) = 0: x2(t) = t^2 / 2 - 10 t
+    np.testing.assert_allclose(leaf.x[-1, 2], t_end ** 2 / 2 - 10 * t_end, atol=1e-8)
+
+
+def test_an_integral_of_the_past_is_read_across_branch_points():
+    """x0' = 1 - int_{t-1.5}^{t-0.5} x0(s) cos s ds with a prehistory sin s and a forced
+    reset of a timer every 0.1: the window reaches back over up to 15 branch points
+    and into the root's prehistory; the tree's one solution is simulate's, to 1e-7
+    (rtol 1e-10; Gauss-Legendre on differently cut pieces)."""
+    class Window(hs.HybridSystem):
+        state_dim, needs_history, delays, max_step = 2, True, (0.5, 1.5), 0.5
+
+        def flow_map(self, x, t, j, u):
+            w = self.history.integral(lambda x, s: x[0] * np.cos(s), t - 1.5, t - 0.5)
+            return np.array([1.0 - w, 1.0])
+
+        def flow_guard(self, x, t, j, u):
+            return 0.1 - x[1]
+
+        def jump_guard(self, x, t, j, u):
+            return x[1] - 0.1
+
+        def jump_map(self, x, t, j, u):
+            return np.array([x[0], 0.0])
+
+    kw = dict(rtol=1e-10, atol=1e-12, prehistory=lambda s: np.array([np.sin(s), 0.0]))
+    tree = hs.explore(Window(), [0.0, 0.0], t_max=2.5, j_max=100, **kw)
+    arc = hs.simulate(Window(), [0.0, 0.0], 2.5, 100, **kw)
+    (leaf,) = tree.leaves
+    np.testing.assert_allclose(leaf.jump_times, arc.jump_times, atol=1e-9)
+    np.testing.assert_allclose(leaf.x[-1], arc.x[-1], atol=1e-7)
