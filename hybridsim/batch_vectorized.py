@@ -583,7 +583,8 @@ def simulate_vectorized(system, x0s, t_max, j_max=math.inf, *, priority="jumps",
     (``history(s)`` returns the (k, n) states, s a float or one time per
     row; the past before t0 is the constant x0), and every row's flows stop
     at its delay breakpoints (t0 + tau, each jump time + tau), as in
-    :func:`hybridsim.simulate`. ``history.integral`` is refused by name.
+    :func:`hybridsim.simulate`; ``history.integral(fn, a, b)`` integrates
+    each row's window (``fn`` called on batches).
     Every accepted step's dense output is kept: memory grows with the
     steps, about 5 n floats a step per row.
 

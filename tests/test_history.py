@@ -141,3 +141,38 @@ def test_history_covers_the_flow_up_to_the_jump_time(method):
 
     arc = hs.simulate(S(), [0.1, 1.0], t_max=1.0, j_max=100, rtol=1e-8, method=method)
     assert arc.termination is hs.Termination.T_MAX, arc.message
+
+
+def test_batch_history_reads_and_integrates_each_rows_past():
+    """BatchHistory with hand-made steps: row 0 has x(s) = s^2 on [0, 1], row 1
+    x(s) = 1 + s on [0, 0.5] and 3 s on [0.5, 1] (a jump at 0.5); before t0 = 0
+    each row's x0. Values, jump counts and Gauss-Legendre integrals (exact for
+    these polynomials), vector-valued integrands, reversed bounds, and a window
+    past the recorded run (HistoryError)."""
+    from hybridsim import BatchHistory, HistoryError
+    X0 = np.array([[0.0], [1.0]])
+    h = BatchHistory(0.0, X0, 0)
+    q2 = np.zeros((1, 1, 4))
+    q2[0, 0, 1] = 1.0                          # x = ya + h (s')^2, s' = (s - a) / h
+    h._add(np.array([0]), np.array([0.0]), np.array([1.0]), np.array([0]), np.array([1.0]),
+           np.array([[0.0]]), q2)
+    q1 = np.zeros((1, 1, 4))
+    q1[0, 0, 0] = 1.0                          # x = ya + h s'
+    h._add(np.array([1]), np.array([0.0]), np.array([0.5]), np.array([0]), np.array([0.5]),
+           np.array([[1.0]]), q1)
+    h._add(np.array([1]), np.array([0.5]), np.array([1.0]), np.array([1]), np.array([0.5]),
+           np.array([[1.5]]), q1 * 3.0)
+    h._restart(np.array([1]), np.array([0.5]), np.array([[1.5]]), np.array([1]))
+    h.rows = np.array([0, 1])
+    np.testing.assert_allclose(h(np.array([0.5, 0.25])), [[0.25], [1.25]])
+    np.testing.assert_allclose(h(-1.0), X0)                       # the constant past
+    np.testing.assert_allclose(h(np.array([0.75, 0.75])), [[0.5625], [2.25]])
+    assert h.jump_count(np.array([0.25, 0.75])).tolist() == [0, 1]
+    # int_{-1}^{1} x: row 0: 0 + 1/3; row 1: 1 (past) + [s + s^2/2]_0^0.5 + [3 s^2/2]_0.5^1
+    want = np.array([1 / 3, 1.0 + 0.625 + 1.125])
+    np.testing.assert_allclose(h.integral(lambda x, s: x[:, 0], -1.0, 1.0), want, rtol=1e-14)
+    np.testing.assert_allclose(h.integral(lambda x, s: x[:, 0], 1.0, -1.0), -want, rtol=1e-14)
+    two = h.integral(lambda x, s: np.column_stack([x[:, 0], s]), np.array([0.0, 0.5]), 1.0)
+    np.testing.assert_allclose(two, [[1 / 3, 0.5], [1.125, 0.375]], rtol=1e-14)
+    with pytest.raises(HistoryError, match="reaches past the recorded run"):
+        h.integral(lambda x, s: x[:, 0], 0.0, 1.5)
