@@ -119,9 +119,10 @@ DECISIONS = [
     "reproduction.",
     "10. The falsification populations (falsification.simulate_population) are integrated by "
     "a fixed-step RK4 (h = 2e-3, a divisor of tau, of every sampling period and of every "
-    "disturbance piece), vectorized over the members, not by the engine: the engine's batch "
-    "paths do not take a delayed right-hand side yet (issue 27 brings the observers to the "
-    "batch and compiled paths), and one adaptive run per member (0.1-1 s) would make a "
+    "disturbance piece), vectorized over the members, not by the engine. The engine's "
+    "vectorized path takes delays now (hybridsim.BatchHistory), but (39) and the DC motor "
+    "are not yet written over batches (each member's sampling sequence and disturbances "
+    "would live in the state), and one adaptive run per member (0.1-1 s) would make a "
     "2,000-run search take minutes. It is the one integrator of the package outside "
     "hybridsim, used only for searches; tests hold it to the engine's adaptive runs (2e-3 "
     "after tau), and every figure and claim still runs on the engine.",
