@@ -120,10 +120,12 @@ DECISIONS = [
     "10. The falsification populations (falsification.simulate_population) are integrated by "
     "a fixed-step RK4 (h = 2e-3, a divisor of tau, of every sampling period and of every "
     "disturbance piece), vectorized over the members, not by the engine. The engine's "
-    "vectorized path takes delays now (hybridsim.BatchHistory), but (39) and the DC motor "
-    "are not yet written over batches (each member's sampling sequence and disturbances "
-    "would live in the state), and one adaptive run per member (0.1-1 s) would make a "
-    "2,000-run search take minutes. It is the one integrator of the package outside "
+    "vectorized path takes delays now (hybridsim.BatchHistory), and (39) with the DC motor "
+    "written over a batch runs there (measured on 2026-11-28, 100 members, 0.5 s, RK45 "
+    "rtol 1e-6: margins equal to 6e-4), but it is 19x slower at T = 0.01 (1.9 s against "
+    "0.10 s a population) and 2,600x slower at the paper's T = 0.1, where (39) diverges "
+    "and the adaptive steps follow the blow-up (71 s against 0.027 s): a 2,000-run search "
+    "would take minutes to hours. It is the one integrator of the package outside "
     "hybridsim, used only for searches; tests hold it to the engine's adaptive runs (2e-3 "
     "after tau), and every figure and claim still runs on the engine.",
 ]
