@@ -135,6 +135,10 @@ class _TwoCopyObserver(hs.HybridSystem):
                          jump_guard=hD, jump_set=D, output=h, output_dim=d.n, params=params)
 
     # -- helpers --------------------------------------------------------
+    def _jump_gains(self, x):
+        """(K1, K2) of the jump from the state x (one state): the design's (12)."""
+        return self.design.K1, self.design.K2
+
     def split(self, X):
         """Dict of the named parts of a state (n_state,) or time-major (N, n_state) array."""
         X = np.asarray(X, dtype=float)
@@ -199,8 +203,11 @@ class NominalObserver(_TwoCopyObserver):
 
     def jump_map(self, x, t, j, u):
         d, n = self.design, self.design.n
-        R = x[..., :n] @ d.K1.T + x[..., n:2 * n] @ d.K2.T if np.ndim(x) == 2 else \
-            d.K1 @ x[:n] + d.K2 @ x[n:2 * n]                  # (12)
+        if np.ndim(x) == 2:
+            R = x[..., :n] @ d.K1.T + x[..., n:2 * n] @ d.K2.T
+        else:
+            K1, K2 = self._jump_gains(x)
+            R = K1 @ x[:n] + K2 @ x[n:2 * n]                  # (12)
         xn = np.empty(np.shape(x))
         xn[..., :n] = R
         xn[..., n:2 * n] = R
@@ -232,6 +239,9 @@ class _JumpWindow:
         d = self.design
         K2 = np.linalg.inv(np.eye(d.n) - expm(d.F2 * tau) @ expm(-d.F1 * tau))
         return np.eye(d.n) - K2, K2
+
+    def _jump_gains(self, x):
+        return self.gains(x[self._tau])
 
     def _done(self, x):             # H_n: after its one jump (q = 1) it only flows
         return self._has_q and x[self._q] > 0.5
@@ -275,14 +285,6 @@ class WindowedNominalObserver(_JumpWindow, NominalObserver):
         super().__init__(d)
         self._window(delta_lo)
 
-    def jump_map(self, x, t, j, u):
-        n = self.design.n
-        K1, K2 = self.gains(x[self._tau])
-        xn = np.array(x, dtype=float)
-        xn[:n] = xn[n:2 * n] = K1 @ x[:n] + K2 @ x[n:2 * n]
-        xn[self._tau], xn[self._q] = 0.0, 1.0 - x[self._q]
-        return xn
-
 
 class _NoiseCompensating(_TwoCopyObserver):
     _has_xi = True
@@ -318,8 +320,9 @@ class _NoiseCompensating(_TwoCopyObserver):
         if np.ndim(x) == 2:
             return self._jump_rows(x, u)
         mh = x[s["mhat"]]
-        R = d.K1 @ x[:n] + d.K2 @ x[n:2 * n]
-        T = d.K1 @ Xi_matrix(x[s["xi1"]], n, p) + d.K2 @ Xi_matrix(x[s["xi2"]], n, p)
+        K1, K2 = self._jump_gains(x)
+        R = K1 @ x[:n] + K2 @ x[n:2 * n]
+        T = K1 @ Xi_matrix(x[s["xi1"]], n, p) + K2 @ Xi_matrix(x[s["xi2"]], n, p)
         # (H T - I)^{-1}(H R - (y - m̂))
         w = np.linalg.solve(d.H @ T - np.eye(p), d.H @ R - (u - mh))
         xn = np.zeros(self.state_dim)
@@ -428,19 +431,6 @@ class WindowedPiecewiseConstantNoiseObserver(_JumpWindow, PiecewiseConstantNoise
     def __init__(self, d, delta_lo):
         super().__init__(d)
         self._window(delta_lo)
-
-    def jump_map(self, x, t, j, u):
-        d, n, p = self.design, self.design.n, self.design.p
-        s = self.slices
-        K1, K2 = self.gains(x[self._tau])
-        mh = x[s["mhat"]]
-        R = K1 @ x[:n] + K2 @ x[n:2 * n]                                        # (18)
-        T = K1 @ Xi_matrix(x[s["xi1"]], n, p) + K2 @ Xi_matrix(x[s["xi2"]], n, p)
-        w = np.linalg.solve(d.H @ T - np.eye(p), d.H @ R - (u - mh))
-        xn = np.zeros(self.state_dim)
-        xn[:n] = xn[n:2 * n] = R - T @ w
-        xn[s["mhat"]] = mh + w
-        return xn                                   # xi_i+ = 0, tau+ = 0
 
 
 class LuenbergerObserver(hs.HybridSystem):
