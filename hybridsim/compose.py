@@ -451,7 +451,7 @@ class Interconnection(HybridSystem):
       (N, m), a batch set (N,). Otherwise a :class:`hybridsim.MapError` names
       the component and the map (``map_name="plant.flow_map"``), t and j.
     * There is no cap on the number of components.
-    * When every component is ``vectorized`` (and none reads the history),
+    * When every component is ``vectorized`` (reading its past or not),
       so is the interconnection: :func:`hybridsim.simulate_many` then
       integrates a batch of it together, each component's maps receiving
       batches (its slice of the rows' states, the rows' t and j, and its
@@ -496,8 +496,8 @@ class Interconnection(HybridSystem):
         self.max_step = min(hints) if hints else None
         self.needs_history = any(s.needs_history for s in self.systems.values())
         # a batch of the whole interconnection when every component takes batches
-        self.vectorized = (all(bool(s.vectorized) for s in self.systems.values())
-                           and not self.needs_history)
+        # (the past too: each component reads its rows' through a ComponentHistory)
+        self.vectorized = all(bool(s.vectorized) for s in self.systems.values())
         self.delays = tuple(sorted({float(d) for s in self.systems.values()
                                     for d in (s.delays or ())}))
         self._build()

@@ -964,3 +964,46 @@ def test_gap_window_is_the_inclusion_of_36():
         e_leaf = gd.errors(leaf, obs).e[-1]
         e_ref = gd.errors(ref, ins).e[-1]
         np.testing.assert_allclose(e_leaf, e_ref, atol=1e-7)
+
+
+# ---------------------------------------------------------------- batches (simulate_many)
+@pytest.mark.parametrize("kind, kw", [
+    ("sampled", dict(period=0.01)),
+    ("sampled", dict(period=0.1, estimate="xi2")),
+    ("sampled", dict(gaps=(0.01, 0.02))),
+    ("sampled", dict(instants=[0.0, 0.013, 0.03, 0.041, 0.07])),
+    ("continuous", dict()),
+    ("continuous", dict(realisation="reset")),
+])
+def test_a_population_is_the_runs_one_by_one(kind, kw):
+    """The plant (1) and the observers (7) / (39) over a batch (hs.simulate_many, the
+    rows' pasts read by BatchHistory) give each row's Python-path run: jump times to
+    1e-9, states to 1e-8 and the errors of (13) to 1e-7 at rtol 1e-10 (the two paths
+    read psi(t - tau) from the same RK45 dense output, step sequences apart by
+    round-off)."""
+    ex = gd.dc_motor(100.0, 0.1, oracle=kw.get("estimate") == "xi2")
+    obs = ex.sampled_observer(**kw) if kind == "sampled" else ex.continuous_observer(**kw)
+    rng = np.random.default_rng(0)
+    X = ex.chi0 + rng.uniform(-0.3, 0.3, (4, 3))
+    system, rows = gd.population(obs, X)
+    assert system.vectorized
+    opts = dict(t_max=0.25, rtol=1e-10, atol=1e-12)
+    arcs = hs.simulate_many(system, rows, **opts)
+    for chi0, b in zip(X[:2], arcs[:2]):
+        a = gd.simulate(obs, chi0, method="RK45", dense=False, **opts)
+        assert a.termination is b.termination is hs.Termination.T_MAX
+        np.testing.assert_allclose(b.jump_times, a.jump_times, atol=1e-9)
+        np.testing.assert_allclose(b.x[-1], a.x[-1], rtol=1e-8, atol=1e-8)
+        np.testing.assert_allclose(gd.errors(b, obs).e[-1], gd.errors(a, obs).e[-1], atol=1e-7)
+
+
+def test_parts_without_a_batch_form_run_row_by_row():
+    """A user's Psi without Psi_rows (or the reset realisation of (39)): not vectorized,
+    so simulate_many runs the rows through simulate (same results, no error)."""
+    ex = gd.dc_motor(100.0, 0.1)
+    assert not ex.sampled_observer(period=0.01, realisation="reset").vectorized
+    plant = gd.Plant(ex.M, ex.N, lambda y, t: np.zeros(3))
+    assert not plant.vectorized
+    assert gd.Plant(ex.M, ex.N).vectorized
+    with pytest.raises(ValueError, match=r"x0s must have shape \(N, 3\)"):
+        gd.population(ex.continuous_observer(), np.zeros((2, 4)))

@@ -444,6 +444,7 @@ def test_an_interconnection_reads_its_components_past_on_the_vectorized_path():
             return u - self.history(t - 0.5)
 
     sys_ = hs.connect(plant, Echo(), names=("plant", "echo"))
+    assert sys_.vectorized and sys_.needs_history        # one batch, not rows through simulate
     X = np.array([[1.0, 0.0], [2.0, 1.0], [-1.0, 0.5]])
     kw = dict(t_max=2.0, rtol=1e-10, atol=1e-12)
     arcs = hs.simulate_many(sys_, X, **kw)

@@ -90,6 +90,8 @@ class ObserverForm:
     T_inv: np.ndarray
     M_xi: np.ndarray
     Psi: Callable | None = None
+    #: Psi over a batch, ``Psi_rows(Y (N, q), t (N,)) -> (N, n)`` (optional)
+    Psi_rows: Callable | None = None
 
     @property
     def n(self):
@@ -122,9 +124,20 @@ class ObserverForm:
         return out
 
     def F12(self, y, t):
-        """``(F1(y, t), F2(y, t))`` with one evaluation of Psi (what the observers call)."""
+        """``(F1(y, t), F2(y, t))`` with one evaluation of Psi (what the observers call).
+
+        ``y`` (N, q) with ``t`` (N,): a batch (needs ``Psi_rows``), (N, n-q) and (N, q).
+        """
         y = np.asarray(y, dtype=float)
         L1, L2 = self._linear
+        if y.ndim == 2:
+            if self.Psi is None:
+                return y @ L1.T, y @ L2.T
+            if self.Psi_rows is None:
+                raise ValueError("F12 over a batch needs the form's Psi_rows (Psi over "
+                                 "(N, q) outputs and (N,) times)")
+            ps = np.asarray(self.Psi_rows(y, t), dtype=float)
+            return y @ L1.T + ps @ self.P.T, y @ L2.T + ps @ self.N.T
         if self.Psi is None:
             return L1 @ y, L2 @ y
         ps = np.asarray(self.Psi(y, t), dtype=float)
@@ -139,7 +152,7 @@ class ObserverForm:
         return np.asarray(xi, dtype=float) @ self.T_inv.T
 
 
-def observer_form(M, N, Psi=None, *, P=None, k=None) -> ObserverForm:
+def observer_form(M, N, Psi=None, *, P=None, k=None, Psi_rows=None) -> ObserverForm:
     r"""Change of coordinates of Section II from (1) to the form (2).
 
     Parameters
@@ -157,6 +170,9 @@ def observer_form(M, N, Psi=None, *, P=None, k=None) -> ObserverForm:
         The constant of (2). Default: the spectral radius of A1 plus 1,
         which makes ``A1 + k I`` invertible (the paper: "taking k larger
         than the spectral radius of A1").
+    Psi_rows : callable, optional
+        Psi over a batch, ``(Y (N, q), t (N,)) -> (N, n)``: the observers'
+        maps then take batches (:func:`hybridsim.simulate_many`).
 
     Returns
     -------
@@ -201,7 +217,8 @@ def observer_form(M, N, Psi=None, *, P=None, k=None) -> ObserverForm:
         k = float(np.max(np.abs(np.linalg.eigvals(A1)))) + 1.0
     k = scalar("k", k, positive=True)
     _check_k(A1, k)
-    return ObserverForm(A1=A1, A2=A2, k=k, P=P, N=N, T=T, T_inv=T_inv, M_xi=M_xi, Psi=Psi)
+    return ObserverForm(A1=A1, A2=A2, k=k, P=P, N=N, T=T, T_inv=T_inv, M_xi=M_xi, Psi=Psi,
+                        Psi_rows=Psi_rows)
 
 
 def _check_k(A1, k):

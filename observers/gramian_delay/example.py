@@ -7,6 +7,8 @@ r"""The paper's example (Section V, DC motor (64)-(67)) and how a run is made an
   the runs of (7) and (39).
 * :func:`simulate` -- an observer with its plant on :func:`hybridsim.simulate`
   (components ``"plant"`` and ``"observer"``).
+* :func:`population` -- a batch of runs for :func:`hybridsim.simulate_many`
+  (one plant initial state per row, integrated together).
 * :func:`explore_samples` -- every solution over the sampling sequences of
   (36) (:func:`hybridsim.explore`).
 * :func:`errors` -- xi_1 - xi_e of (13) at the arc's samples, an
@@ -35,10 +37,31 @@ from .design import ObserverForm
 from .systems import DCMotor, Plant, SampledGramianObserver, _ObserverBase, smooth_noise
 
 __all__ = ["DC_PARAMS", "dc_motor", "CONTINUOUS_RUN", "SAMPLED_RUN", "simulate",
-           "explore_samples", "errors"]
+           "population", "explore_samples", "errors"]
 
 #: The motor's parameters (65), "as in [6]" (Section V).
 DC_PARAMS = dict(b0=40.0, b1=15.0, a1=35.0, a2=1.0, a3=36.4, a4=200.0)
+
+
+# decision 7's signals; each takes a time or a batch of times (N,) (``batch``: rows (N, dim))
+def _example_u(t):
+    return 2.0 * np.sin(2.0 * t)
+
+
+def _example_delta1(t):
+    if np.ndim(t):
+        t = np.asarray(t, dtype=float)
+        return np.column_stack([np.zeros_like(t), 0.5 * np.sin(5 * t), 0.5 * np.cos(3 * t)])
+    return np.array([0.0, 0.5 * np.sin(5 * t), 0.5 * np.cos(3 * t)])
+
+
+def _example_delta2(t):
+    if np.ndim(t):
+        return 1e-3 * np.sin(20 * np.asarray(t, dtype=float))[:, None]
+    return np.array([1e-3 * np.sin(20 * t)])
+
+
+_example_u.batch = _example_delta1.batch = _example_delta2.batch = True
 
 
 def dc_motor(k=100.0, tau=0.1, *, disturbed=True, u=None, delta1=None, delta2=None,
@@ -81,12 +104,12 @@ def dc_motor(k=100.0, tau=0.1, *, disturbed=True, u=None, delta1=None, delta2=No
     Mazenc & Malisoff (2022), Section V, eqs. (64)-(67).
     """
     if u is None:
-        u = lambda t: 2.0 * np.sin(2.0 * t)  # noqa: E731
+        u = _example_u
     if disturbed:
         if delta1 is None:
-            delta1 = lambda t: np.array([0.0, 0.5 * np.sin(5 * t), 0.5 * np.cos(3 * t)])  # noqa: E731
+            delta1 = _example_delta1
         if delta2 is None:
-            delta2 = lambda t: np.array([1e-3 * np.sin(20 * t)])  # noqa: E731
+            delta2 = _example_delta2
     elif delta1 is not None or delta2 is not None:
         raise ValueError("delta1 and delta2 must be None when disturbed=False")
     chi0 = np.array([0.5, -1.0, 0.2]) if chi0 is None else chi0
@@ -177,6 +200,58 @@ def _loop(observer, x0, xhat0, noise, seed, plant):
                                                                   observer.state_dim)
     x0 = sysc.stack(plant=vector("x0", x0, plant.state_dim), observer=z0)
     return sysc, x0
+
+
+def population(observer, x0s, xhat0=None, *, noise=None, seed=None, plant=None):
+    r"""A batch of runs of an observer with its plant: ``(system, rows)`` for
+    :func:`hybridsim.simulate_many`, one row per plant initial state.
+
+    The plant (1) and the observers (7) and (39) (literal realisation) take
+    batches when the plant's Psi has a batch form (the DC motor's does):
+    the rows are integrated together in numpy, each reading its own past
+    (:class:`hybridsim.BatchHistory`). Read each arc with
+    :func:`~observers.gramian_delay.errors` as a single run's.
+
+    Parameters
+    ----------
+    observer : GramianObserver or SampledGramianObserver
+    x0s : (N, n) array_like
+        The plants' initial states chi(0).
+    xhat0, noise, seed, plant
+        As in :func:`~observers.gramian_delay.simulate` (the same for every
+        row).
+
+    Returns
+    -------
+    system : hybridsim.Interconnection
+        Components ``"plant"`` and ``"observer"``; ``system.vectorized`` is
+        False where a part has no batch form (``simulate_many`` then runs
+        the rows one by one).
+    rows : (N, r) array
+
+    Examples
+    --------
+    >>> import numpy as np, hybridsim as hs
+    >>> from observers import gramian_delay as gd
+    >>> ex = gd.dc_motor(100.0, 0.1)
+    >>> obs = ex.sampled_observer(period=0.01)
+    >>> system, rows = gd.population(obs, ex.chi0 + [[0.0, 0, 0], [0.1, 0, 0]])
+    >>> arcs = hs.simulate_many(system, rows, t_max=0.05, rtol=1e-8, atol=1e-10)
+    >>> system.vectorized, [len(a.jump_times) for a in arcs]
+    (True, [6, 6])
+    """
+    if not isinstance(observer, _ObserverBase):
+        raise TypeError(f"observer must be a GramianObserver or SampledGramianObserver, "
+                        f"got {type(observer).__name__}")
+    n = _plant_of(observer, plant).state_dim
+    X = np.asarray(x0s, dtype=float)
+    if X.ndim != 2 or X.shape[0] < 1 or X.shape[1] != n:
+        raise ValueError(f"x0s must have shape (N, {n}) (one plant state per row), "
+                         f"got {X.shape}")
+    system, first = _loop(observer, X[0], xhat0, noise, seed, plant)
+    rows = np.repeat(first[None, :], len(X), axis=0)
+    rows[:, system.components["plant"]] = X
+    return system, rows
 
 
 def explore_samples(observer, x0, xhat0=None, *, samples, dwell_grid, t_max=10.0, noise=None,

@@ -62,7 +62,13 @@ REALISATIONS = ("literal", "reset")
 
 
 def _signal(name, fn, dim):
-    """A callable t -> (dim,) array (None: zero); a signal made here is not wrapped again."""
+    """A callable t -> (dim,) array (None: zero); a signal made here is not wrapped again.
+
+    Its ``rows(t)`` takes a batch of times (N,) and returns (N, dim): in one
+    call where ``fn`` declares it takes arrays (``fn.batch = True``: the
+    signals of :func:`dc_motor` and :func:`smooth_noise`), else one call per
+    time.
+    """
     if getattr(fn, "_signal_dim", None) == dim:
         return fn
     if fn is None:
@@ -70,6 +76,9 @@ def _signal(name, fn, dim):
 
         def signal(t):
             return z
+
+        def rows(t):
+            return np.zeros((np.size(t), dim))
         signal._zero = True
     elif not callable(fn):
         raise TypeError(f"{name} must be callable t -> ({dim},) array or None, "
@@ -77,6 +86,14 @@ def _signal(name, fn, dim):
     else:
         def signal(t):
             return np.asarray(fn(t), dtype=float).reshape(dim)
+
+        if getattr(fn, "batch", False):
+            def rows(t):
+                return np.asarray(fn(np.asarray(t, dtype=float)), dtype=float).reshape(-1, dim)
+        else:
+            def rows(t):
+                return np.array([signal(float(s)) for s in np.atleast_1d(t)]).reshape(-1, dim)
+    signal.rows = rows
     signal._signal_dim = dim
     return signal
 
@@ -124,7 +141,11 @@ def smooth_noise(sigma, dim=1, *, seed=None, n_modes=8, f_max=50.0):
     ph = rng.uniform(0.0, 2 * np.pi, size=(n_modes, dim))
 
     def noise(t):
+        if np.ndim(t):              # a batch of times (N,) -> (N, dim)
+            t = np.asarray(t, dtype=float)[:, None, None]
+            return np.sum(a * np.sin(2 * np.pi * f * t + ph), axis=1)
         return np.sum(a * np.sin(2 * np.pi * f * t + ph), axis=0)
+    noise.batch = True
     return noise
 
 
@@ -147,13 +168,20 @@ class Plant(hs.HybridSystem):
     delta2 : callable, optional
         ``t -> (q,)`` measurement disturbance.
     oracle : bool
+    Psi_rows : callable, optional
+        Psi over a batch, ``Psi_rows(Y, t) -> (N, n)`` for ``Y`` (N, q) and
+        ``t`` (N,). With it (or without Psi) the plant is ``vectorized``:
+        :func:`hybridsim.simulate_many` integrates a batch of plants at once
+        (the disturbances are read per time, in one call where they declare
+        ``batch = True``).
 
     References
     ----------
     Mazenc & Malisoff (2022), eq. (1).
     """
 
-    def __init__(self, M, N, Psi=None, *, delta1=None, delta2=None, oracle=False):
+    def __init__(self, M, N, Psi=None, *, delta1=None, delta2=None, oracle=False,
+                 Psi_rows=None):
         self.M = matrix("M", M)
         n = self.M.shape[0]
         if self.M.shape != (n, n):
@@ -173,8 +201,20 @@ class Plant(hs.HybridSystem):
         self.oracle = bool(oracle)
         self.state_dim = n
         self.output_dim = 2 * q if oracle else q
+        if Psi_rows is not None and not callable(Psi_rows):
+            raise TypeError(f"Psi_rows must be callable, got {type(Psi_rows).__name__}")
+        self.Psi_rows = Psi_rows
+        # maps over (N, n) batches where Psi has a batch form (or there is none)
+        self.vectorized = Psi is None or Psi_rows is not None
 
     def flow_map(self, x, t):
+        if np.ndim(x) == 2:                             # a batch: x (N, n), t (N,)
+            dx = x @ self.M.T
+            if self._d1 is not None:
+                dx = dx + self.delta1.rows(t)
+            if self.Psi is not None:
+                dx = dx + np.asarray(self.Psi_rows(x @ self.N.T, t), dtype=float)
+            return dx
         dx = self.M @ x
         if self._d1 is not None:
             dx = dx + self._d1(t)
@@ -183,6 +223,10 @@ class Plant(hs.HybridSystem):
         return dx
 
     def output(self, x, t, j):
+        if np.ndim(x) == 2:                             # a batch
+            y = x @ self.N.T
+            Y = y if self._d2 is None else y + self.delta2.rows(t)
+            return np.concatenate([Y, y], axis=1) if self.oracle else Y
         y = self.N @ x
         Y = y if self._d2 is None else y + self._d2(t)
         return np.concatenate([Y, y]) if self.oracle else Y
@@ -251,10 +295,21 @@ class DCMotor(Plant):
         def Psi(y, t):
             return np.array([0.0, -a1 * np.sin(y[0]), b0 * float(u(t))])
 
-        super().__init__(M, Nmat, Psi, delta1=delta1, delta2=delta2, oracle=oracle)
+        def u_rows(t):
+            if getattr(u, "batch", False):
+                return np.asarray(u(t), dtype=float).reshape(-1)
+            return np.array([float(u(float(s))) for s in t])
+
+        def Psi_rows(Y, t):                             # Psi over a batch (N, 1), (N,)
+            t = np.broadcast_to(np.asarray(t, dtype=float), (len(Y),))
+            return np.column_stack([np.zeros(len(Y)), -a1 * np.sin(Y[:, 0]), b0 * u_rows(t)])
+
+        super().__init__(M, Nmat, Psi, delta1=delta1, delta2=delta2, oracle=oracle,
+                         Psi_rows=Psi_rows)
         self.params = p
         self.u = u
-        self.form = observer_form(M, Nmat, Psi, P=[[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], k=k)
+        self.form = observer_form(M, Nmat, Psi, P=[[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], k=k,
+                                  Psi_rows=Psi_rows)
         self.design = gramian_design(self.form.A1, self.form.A2, self.form.k, tau)
         self.K1, self.K2 = p["a1"], float(self.form.k)
         self.chi0 = vector("chi0", chi0, 3)
@@ -321,6 +376,9 @@ class _ObserverBase(hs.HybridSystem):
                         np.asarray(F2(y, t), dtype=float).reshape(design.q))
             self._F12 = F12
         self.realisation = realisation
+        # maps over batches where F1, F2 are an ObserverForm's with a batch form of Psi
+        self._batch = form is not None and hasattr(form, "F12") and (
+            form.Psi is None or getattr(form, "Psi_rows", None) is not None)
         m, q = design.m, design.q
         # dimensions agree at construction, not as a broadcast error inside a run
         for name, F, dim in (("F1", F1, m), ("F2", F2, q)):
@@ -350,6 +408,8 @@ class _ObserverBase(hs.HybridSystem):
         Returns F2(y, t) (the flow of omega in (39) needs it too).
         """
         d = self.design
+        if np.ndim(z) == 2:
+            return self._extension_flow_rows(z, t, y, out)
         xi1, xi2 = z[self.sl_xi1], z[self.sl_xi2]
         innov = d.H @ (y - xi2)
         f1, f2 = self._F12(y, t)
@@ -363,17 +423,33 @@ class _ObserverBase(hs.HybridSystem):
             out[self.i_rho] = 1.0                                                   # rho
         return f2
 
+    def _extension_flow_rows(self, z, t, y, out):
+        """:meth:`_extension_flow` over a batch: z (N, r), y (N, q), t (N,)."""
+        d = self.design
+        xi1, xi2 = z[:, self.sl_xi1], z[:, self.sl_xi2]
+        innov = (y - xi2) @ d.H.T
+        f1, f2 = self._F12(y, np.broadcast_to(np.asarray(t, dtype=float), (len(z),)))
+        out[:, self.sl_xi1] = xi1 @ d.A1.T + f1                                     # (7)
+        out[:, self.sl_xi2] = xi1 @ d.A2.T - d.k * xi2 + f2
+        out[:, self.sl_psi1] = -d.k * z[:, self.sl_psi1] + innov
+        out[:, self.sl_psi2] = z[:, self.sl_psi2] @ self._mA2.T + innov
+        if self.realisation == "reset":
+            out[:, self.sl_phi] = z[:, self.sl_phi] @ self._mA2.T
+            out[:, self.sl_P] = 0.0
+            out[:, self.i_rho] = 1.0
+        return f2
+
     def _reset_guard(self, z):
-        """rho - tau: >= 0 when the reset realisation's timer is due."""
-        return z[self.i_rho] - self.design.tau
+        """rho - tau: >= 0 when the reset realisation's timer is due (a batch: (N,))."""
+        return z[..., self.i_rho] - self.design.tau
 
     def _reset(self, z):
         """The reset realisation's jump: P+ = phi+ = p, p+ = 0, rho+ = 0 (in place)."""
-        p = z[self.sl_p].copy()
-        z[self.sl_P] = p
-        z[self.sl_phi] = p
-        z[self.sl_p] = 0.0
-        z[self.i_rho] = 0.0
+        p = z[..., self.sl_p].copy()
+        z[..., self.sl_P] = p
+        z[..., self.sl_phi] = p
+        z[..., self.sl_p] = 0.0
+        z[..., self.i_rho] = 0.0
         return z
 
     def _initial(self, xi1_hat0, xi2_hat0, psi10, psi20):
@@ -475,11 +551,12 @@ class GramianObserver(_ObserverBase):
         self.t0 = float(t0)
         self.state_dim = self.n_ext
         self.input_dim = design.q
+        self.vectorized = self._batch                      # maps over (N, r) batches too
         if realisation == "reset":
             self.jump_guard = self._jump_guard_reset       # D = {rho >= tau}; literal: D empty
 
     def flow_map(self, z, t, j, u):
-        out = np.empty(self.n_ext)
+        out = np.empty(np.shape(z))
         self._extension_flow(z, t, np.asarray(u, dtype=float), out)
         return out
 
@@ -623,6 +700,8 @@ class SampledGramianObserver(_ObserverBase):
         self.needs_history = True
         # psi' jumps with omega at the samples, so psi(t - tau) has kinks at t_k + tau
         self.delays = (design.tau,)
+        # maps over (N, r) batches (hs.simulate_many, the past read by hs.BatchHistory)
+        self.vectorized = self._batch and realisation == "literal"
 
     def initial_state(self, xi1_hat0=None, xi2_hat0=None, psi1_0=None, psi2_0=None,
                       omega0=None):
@@ -638,8 +717,34 @@ class SampledGramianObserver(_ObserverBase):
         y = z[self.sl_omega] if self.estimate_source == "omega" else np.asarray(u)[self.design.q:]
         return self._estimate(z, t, y, self.history)
 
+    def _xi_e_rows(self, z, t, u):
+        """xi_e of (13) for a batch: z (N, r), t (N,), the rows' past from the run's
+        BatchHistory (decision 3's window h = min(tau, t - t0) per row)."""
+        d = self.design
+        y = z[:, self.sl_omega] if self.estimate_source == "omega" else u[:, d.q:]
+        t = np.broadcast_to(np.asarray(t, dtype=float), (len(z),))
+        full = t - self.t0 >= d.tau
+        past = self.history(np.where(full, t - d.tau, self.t0))          # psi(t - h)
+        args = (z[:, self.sl_xi1], z[:, self.sl_xi2], z[:, self.sl_psi1], z[:, self.sl_psi2],
+                past[:, self.sl_psi1], past[:, self.sl_psi2], y)
+        out = np.empty((len(z), d.m))
+        if full.any():
+            out[full] = d.xi_e(*(a[full] for a in args))                       # (13)
+        for i in np.flatnonzero(~full):         # before t0 + tau: each row's own window
+            out[i] = d.xi_e(*(a[i] for a in args), h=t[i] - self.t0)
+        return out
+
     def flow_map(self, z, t, j, u):
         d = self.design
+        if np.ndim(z) == 2:                                        # a batch (N, r)
+            w = z[:, self.sl_omega]
+            out = np.empty(np.shape(z))
+            f2 = self._extension_flow(z, t, w, out)
+            xe = self._xi_e_rows(z, t, u)
+            out[:, self.sl_omega] = xe @ d.A2.T - d.k * w + f2                 # (39)
+            out[:, self.i_sigma] = 1.0
+            out[:, self.i_kappa] = 0.0
+            return out
         w = z[self.sl_omega]
         out = np.empty(self.state_dim)
         f2 = self._extension_flow(z, t, w, out)                                     # F2(omega, t)
@@ -650,9 +755,11 @@ class SampledGramianObserver(_ObserverBase):
         return out
 
     def _gap_flow_guard(self, z, t, j, u):
-        return self.gaps[1] - z[self.i_sigma]
+        return self.gaps[1] - z[..., self.i_sigma]
 
     def _sample_guard(self, z, t):
+        if np.ndim(z) == 2:                                        # a batch: (N,)
+            return self._sample_guard_rows(z, t)
         if self.period is not None:
             return z[self.i_sigma] - self.period
         if self.gaps is not None:
@@ -662,6 +769,15 @@ class SampledGramianObserver(_ObserverBase):
             return -1.0
         return t - self.instants[kap]
 
+    def _sample_guard_rows(self, z, t):
+        if self.period is not None:
+            return z[:, self.i_sigma] - self.period
+        if self.gaps is not None:
+            return z[:, self.i_sigma] - self.gaps[0]
+        kap = np.rint(z[:, self.i_kappa]).astype(np.int64)
+        ins = self.instants[np.minimum(kap, len(self.instants) - 1)]
+        return np.where(kap >= len(self.instants), -1.0, t - ins)
+
     def jump_guard(self, z, t, j, u):
         g = self._sample_guard(z, t)
         if self.realisation == "reset":
@@ -669,6 +785,12 @@ class SampledGramianObserver(_ObserverBase):
         return g
 
     def jump_map(self, z, t, j, u):
+        if np.ndim(z) == 2:                   # a batch (literal realisation): every row samples
+            z = np.array(z, dtype=float)
+            z[:, self.sl_omega] = np.asarray(u, dtype=float)[:, :self.design.q]   # (39)
+            z[:, self.i_sigma] = 0.0
+            z[:, self.i_kappa] += 1.0
+            return z
         z = np.array(z, dtype=float)
         if self.realisation == "reset" and self._reset_guard(z) >= 0:
             self._reset(z)
