@@ -200,14 +200,22 @@ class ComponentHistory:
     def jump_count(self, s):
         return self._parent.jump_count(s)
 
+    @staticmethod
+    def _when(s, x):
+        """s as the wiring takes it: a float, or (k,) times for a batch's rows."""
+        if np.ndim(x) == 2:
+            return np.broadcast_to(np.asarray(s, dtype=float), (len(x),)).copy()
+        return float(s)
+
     def input(self, s):
         """The component's input u(s), through the interconnection's wiring."""
         x = self._parent(s)
-        return self._owner._input_of(self._name, x, float(s), self._parent.jump_count(s))
+        return self._owner._input_of(self._name, x, self._when(s, x),
+                                     self._parent.jump_count(s))
 
     def output(self, s):
         x = self._parent(s)
-        return self._owner.outputs(x, float(s), self._parent.jump_count(s))[self._name]
+        return self._owner.outputs(x, self._when(s, x), self._parent.jump_count(s))[self._name]
 
     def integral(self, fn, a, b):
         sl = self._sl

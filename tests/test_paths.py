@@ -496,3 +496,28 @@ def test_an_integral_of_the_past_agrees_on_the_python_and_vectorized_paths(seed)
         a = hs.simulate(sys_, x0, **kw)
         np.testing.assert_allclose(b.jump_times, a.jump_times, atol=1e-9)
         np.testing.assert_allclose(b.x[-1], a.x[-1], atol=1e-9)
+
+
+def test_a_component_reads_its_past_input_on_the_vectorized_path():
+    """A component integrating its own input from tau ago (z' = u(t - 0.3)), fed by a
+    plant x' = -x: its ComponentHistory's input(s) over a batch's rows (the wiring
+    evaluated on the rows' past states) gives the Python path's solution."""
+    plant = hs.LinearPlant(np.array([[-1.0]]), C=np.eye(1))
+
+    class Delayed(hs.HybridSystem):
+        state_dim, input_dim, needs_history, vectorized = 1, 1, True, True
+        delays, max_step = (0.3,), 0.3
+
+        def flow_map(self, z, t, j, u):
+            return np.asarray(self.history.input(t - 0.3), dtype=float).reshape(np.shape(z))
+
+    sys_ = hs.connect(plant, Delayed(), names=("plant", "lag"))
+    assert sys_.vectorized
+    X = np.array([[1.0, 0.0], [-2.0, 0.5]])
+    kw = dict(t_max=1.5, rtol=1e-10, atol=1e-12)
+    for x0, b in zip(X, hs.simulate_many(sys_, X, **kw)):
+        a = hs.simulate(sys_, x0, **kw)
+        np.testing.assert_allclose(b.x[-1], a.x[-1], atol=1e-9)
+        # z(1.5) = z0 + 0.3 x0 + int_0^1.2 x0 e^{-s} ds (the past before 0 is x0)
+        np.testing.assert_allclose(b.x[-1, 1], x0[1] + x0[0] * (0.3 + 1 - np.exp(-1.2)),
+                                   atol=1e-8)
