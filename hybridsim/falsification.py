@@ -18,8 +18,9 @@ evaluates each population at once (``vectorized=True``), then a local
 compass-search refinement of the worst point within the remaining budget
 (each of its iterations one population too);
 ``method="random"`` is the random-sampling baseline of the same budget.
-Only each run's margin is kept (the worst run is simulated again for its
-arc), so a search of 10^6 runs holds 10^6 floats, not 10^6 arcs.
+Only each run's margin is kept, and the arc of the worst run so far (the one
+the result returns; simulated again only if that run raised), so a search of
+10^6 runs holds 10^6 floats and one arc, not 10^6 arcs.
 
 Examples
 --------
@@ -381,7 +382,10 @@ class Space:
             raise ValueError(f"z must have shape ({self.dim},), got {z.shape}")
         if not np.all(np.isfinite(z)):
             raise ValueError(f"z must be finite, got {z}")
-        z = np.clip(z, self.lo, self.hi)
+        return self._point(np.clip(z, self.lo, self.hi))
+
+    def _point(self, z):
+        """The point of coordinates ``z``, already checked and in the box."""
         return Point({n: e.value(z[self._slices[n]]) for n, e in self.entries.items()}, z)
 
     def sample(self, n, seed=None) -> np.ndarray:
@@ -417,7 +421,9 @@ class FalsificationResult:
     point : Point
         The point of the space that gave it.
     arc : HybridArc or None
-        That run, simulated again (plot it with the hybrid plots).
+        That run, as it was judged (plot it with the hybrid plots); None
+        when it failed without an arc (a run that raised, simulated again
+        to no avail).
     where : tuple or None
         The hybrid time (t, j) the claim's margin names, when it names one.
     history : ndarray
@@ -488,11 +494,13 @@ class _Evaluator:
     """Runs points, reduces each arc to its margin, keeps the history and the worst.
 
     The history is a preallocated float array (8 bytes a run); arcs are
-    dropped as soon as their margin is known. With ``stop``, single runs are
-    judged one by one, and a population run is split: the first population
-    into batches of 1, 2, 4, ... runs (a claim that almost every run breaks
-    is refuted by the first), later ones into quarters; so a counterexample
-    ends the search without simulating the rest of its population.
+    dropped as soon as their margin is known, but for the worst so far. With
+    ``stop``, single runs are judged one by one, and a population run is
+    split: the first population into batches of 1, 2, 4, ... runs (a claim
+    that almost every run breaks is refuted by the first), later ones into
+    quarters; so a counterexample ends the search without simulating the
+    rest of its population. Points are built from the coordinates one chunk
+    at a time, as the chunk runs.
     """
 
     def __init__(self, run, space, claim, budget, seconds, allow, progress, stop):
@@ -502,6 +510,7 @@ class _Evaluator:
         self.allow = allow
         self._hist, self.n, self.findings = np.empty(budget), 0, []
         self.best, self.best_z, self.best_where = math.inf, None, None
+        self.best_arc = None                # the worst run's arc (None: it raised)
         self.stop_at_counterexample = stop
         self.error = None                   # a bad claim: raised after the optimizer
         from tqdm.auto import tqdm
@@ -556,6 +565,7 @@ class _Evaluator:
         self.bar.update(1)
         if value < self.best:
             self.best, self.best_z, self.best_where = value, p.z, where
+            self.best_arc = None if isinstance(arc, BaseException) else arc
         return value
 
     def __call__(self, Z):
@@ -567,18 +577,22 @@ class _Evaluator:
         rows = Z[:room]
         if not len(rows):
             return out
-        points = [self.space.point(z) for z in rows]
+        # the optimizers' rows are finite and of the space's width; clipped once
+        # here, and each made a Point only when its chunk runs (a counterexample
+        # in the first chunk builds one Point, not a population of them)
+        rows = np.clip(rows, self.space.lo, self.space.hi)
+        point = self.space._point
         if self.batch:
             if not self.stop_at_counterexample:
-                bounds = [0, len(points)]
+                bounds = [0, len(rows)]
             elif self.n == 0:                # the first population: 1, 2, 4, ... runs
-                bounds = [0] + [min(2 ** k, len(points)) for k in
-                                range(math.ceil(math.log2(len(points))) + 1)]
+                bounds = [0] + [min(2 ** k, len(rows)) for k in
+                                range(math.ceil(math.log2(len(rows))) + 1)]
             else:                            # later ones: in quarters
-                size = max(8, math.ceil(len(points) / 4))
-                bounds = [*range(0, len(points), size), len(points)]
+                size = max(8, math.ceil(len(rows) / 4))
+                bounds = [*range(0, len(rows), size), len(rows)]
             for a, b in itertools.pairwise(bounds):
-                chunk = points[a:b]
+                chunk = [point(z) for z in rows[a:b]]
                 arcs = list(self.run(chunk))
                 if len(arcs) != len(chunk):
                     raise ValueError(f"a batch run must return one arc per point: got "
@@ -591,7 +605,8 @@ class _Evaluator:
                 if self.found:
                     break
         else:
-            for k, p in enumerate(points):
+            for k, z in enumerate(rows):
+                p = point(z)
                 try:
                     arc = self.run(p)
                 except Exception as exc:  # noqa: BLE001 - a failed run is a finding
@@ -637,13 +652,16 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
         generation is one population evaluated at once, deferred updating;
         the first population a Latin hypercube with a quarter of it on
         vertices of the box, where worst cases under bounded uncertainty
-        often lie), then a compass search from the worst point with what is
-        left of the budget (``refine``: a fifth of it is kept for this; each
-        of its iterations, a step along every coordinate both ways, is one
-        population too). When DE converges before the budget is spent (its
-        population collapsed on one point), it restarts with a new seed on
-        what is left, so a search that finds nothing has used its budget. ``"random"``: uniform
-        sampling of the box in populations, the baseline to compare with.
+        often lie, run first), then a compass search from the worst point
+        with what is left of the budget (``refine``: a fifth of it is kept
+        for this; each of its iterations, a step along every coordinate both
+        ways, is one population too). When DE converges before the budget is
+        spent (its population collapsed on one point), it restarts with a
+        new seed on what is left, so a search that finds nothing has used
+        its budget. The first population is run before scipy's solver is
+        set up, so a claim its first runs refute costs no solver.
+        ``"random"``: uniform sampling of the box in populations, the
+        baseline to compare with.
     popsize : int, optional
         Population size (default ``max(15, 5 * space.dim)`` for DE, at least
         5; 100 for random), capped by the budget.
@@ -745,8 +763,8 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
     if ev.error is not None:
         raise ev.error
     point = space.point(ev.best_z if ev.best_z is not None else (space.lo + space.hi) / 2)
-    arc = None
-    if ev.n:
+    arc = ev.best_arc                       # kept as it was judged: no second run
+    if arc is None and ev.n:
         try:
             arc = run([point])[0] if ev.batch else run(point)
         except Exception:  # noqa: BLE001 - the finding already records it
@@ -777,14 +795,29 @@ def _de(ev, space, popsize, seed, budget):
     maxiter = max(0, (budget - npop) // npop)
     rng = np.random.default_rng(seed)
     # a Latin hypercube, a quarter of it replaced by vertices of the box: worst
-    # cases under bounded uncertainty are often extreme (bang-bang noise)
+    # cases under bounded uncertainty are often extreme (bang-bang noise). The
+    # vertices come first (the first population runs in chunks of 1, 2, 4, ...
+    # when the search stops at a counterexample) and are distinct where the
+    # box has few of them
     u = (rng.permuted(np.tile(np.arange(npop), (nfree, 1)), axis=1).T
          + rng.random((npop, nfree))) / npop
     nv = min(npop // 4, 2 ** min(nfree, 20))
-    u[npop - nv:] = rng.integers(0, 2, (nv, nfree))
+    if nfree <= 12:
+        corners = rng.choice(2 ** nfree, nv, replace=False)
+        u[:nv] = (corners[:, None] >> np.arange(nfree)) & 1
+    else:
+        u[:nv] = rng.integers(0, 2, (nv, nfree))
     init = lo + u * (hi - lo)
+    # the first population is run before scipy's solver is built (a claim the
+    # first runs refute costs no solver setup); the solver's first call, on
+    # this population, is answered from it
+    first = [ev(full(init))]
+    if ev.done:
+        return
 
     def f(Zt):                               # scipy passes (n_free, k)
+        if first:
+            return first.pop()
         return ev(full(np.asarray(Zt).T))
 
     differential_evolution(

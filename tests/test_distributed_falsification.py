@@ -6,7 +6,9 @@ atol 1e-14 run to ~3e-3 s, and settling_time reads a stored sample, spaced
 < 0.01 s there) and rtol 1e-5, atol 1e-8 (noise: the late error agrees with an
 rtol 1e-6 run to ~1e-3 on a level of 2.7). The printed-sign errors grow
 like e^(λ t) with λ = printed_sign_growth_rate(); their log-slope is checked
-to 1 % (the power term of (9) and the decaying modes bend it by less).
+to 1 % (the power term of (9) and the decaying modes bend it by less). The
+delayed runs (Python path, history) integrate at rtol 1e-6, atol 1e-9: the
+late error agrees with an rtol 1e-8 run to 2e-3 of the level.
 """
 from __future__ import annotations
 
@@ -27,9 +29,13 @@ PROBS = {p.id: p for p in F.PROBLEMS}
 def test_problems_are_valid_and_exported():
     assert validate_problems(F.PROBLEMS, paper="003") == F.PROBLEMS
     assert list(PROBS) == ["003-thm1-settle-box", "003-rem2-noise-band-limited",
+                           "003-rem2-delay-bounded", "003-rem2-delay-finite-time",
                            "003-sec2-laplacian-printed"]
-    assert [p.expect for p in F.PROBLEMS] == ["none", "none", "counterexample"]
-    assert all(p.budget >= 2000 for p in F.PROBLEMS)
+    assert [p.expect for p in F.PROBLEMS] == ["none", "none", "none", "counterexample",
+                                              "counterexample"]
+    # the delayed runs are Python-path runs one by one (~0.1-0.5 s): 200 of them
+    assert all(p.budget >= 2000 for p in F.PROBLEMS if p.id != "003-rem2-delay-bounded")
+    assert PROBS["003-rem2-delay-bounded"].budget == 200
     assert dist.PROBLEMS is F.PROBLEMS and F.__all__ == ["PROBLEMS"]
 
 
@@ -120,3 +126,112 @@ def test_noise_statement_full_budget():
     r = run_problem(PROBS["003-rem2-noise-band-limited"], seed=0)
     assert r.found == PROBS["003-rem2-noise-band-limited"].expect and r.passed
     assert r.search.evaluations == 2000
+
+
+# ------------------------------------------------------------------ delays --
+def test_delayed_flow_is_the_nodes_flow_with_late_estimates():
+    """DelayedErrorSystem's flow is, node by node, (7)-(8) with the
+    in-neighbours' estimates x^j(t - tau_i) + T^j e^j(t - tau_i) received
+    late, minus the plant's flow, in each node's coordinates (2); the last
+    six entries are the plant (1). Checked against the nodes' own maps
+    (systems._NodeData.rhs) at random states and random pasts."""
+    from observers.distributed.systems import _NodeData
+    dsg = dist.example_observer().design
+    taus = [0.01, 0.1, 0.1, 0.03]
+    sysd = F.DelayedErrorSystem(dsg, taus)
+    assert sysd.delays == (0.01, 0.03, 0.1) and sysd.max_step == 0.01 and sysd.needs_history
+    rng = np.random.default_rng(1)
+    t = 0.7
+    z = rng.standard_normal(30)
+    past = {tau: rng.standard_normal(30) for tau in sysd.delays}
+    sysd.history = lambda s: past[min(past, key=lambda tau: abs(t - tau - s))]
+    got = sysd.flow_map(z, t)
+    E, x = z[:24], z[24:]
+    e_o, e_u = dist.split_errors(dsg, E)
+    want_o, want_u = [], []
+    for k, d in enumerate(dsg.decomp):
+        node = _NodeData(dsg, k)
+        zk = np.concatenate([e_o[k], e_u[k]]) + d.T.T @ x           # x~^i in node coords
+        h = past[taus[k]]
+        po, pu = dist.split_errors(dsg, h[:24])
+        nb = [dsg.nodelist.index(v) for v in node.neighbours]
+        xhat_nb = [h[24:] + dsg.decomp[q].T @ np.concatenate([po[q], pu[q]]) for q in nb]
+        de = node.rhs(zk, dsg.C[k] @ x, np.array(xhat_nb)) - d.T.T @ dsg.A @ x
+        want_o.append(de[:d.n_o])
+        want_u.append(de[d.n_o:])
+    want = np.concatenate(want_o + want_u + [dsg.A @ x])
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
+
+
+def test_delayed_system_tends_to_the_error_system():
+    """As tau -> 0 the delayed errors tend to (9)'s, at first order: at
+    t = 1 s they differ from ErrorSystem's run by ~4 tau (errors of size
+    ~1.75), halving with tau."""
+    dsg = dist.example_observer().design
+    ref = hs.simulate(dist.error_system(dsg), F.example_initial_error(), 1.0, rtol=1e-10,
+                      atol=1e-12)
+    diffs = []
+    for tau in (2e-3, 1e-3):
+        arc = F.delayed_run(tau, t_max=1.0, rtol=1e-10, atol=1e-12)
+        diffs.append(np.max(np.abs(arc.x[-1, :24] - ref.x[-1])))
+        assert diffs[-1] < 5 * tau
+    assert diffs[0] / diffs[1] == pytest.approx(2.0, rel=0.05)
+
+
+def test_the_delayed_system_is_refused_by_name_where_it_cannot_run():
+    """Its maps take one state (not batches): simulate_vectorized refuses it by name,
+    simulate_many runs its rows one by one, and the compiled path refuses a system
+    that reads its history by name."""
+    sysd = F.DelayedErrorSystem(dist.example_observer().design, 0.05)
+    z0 = np.zeros((2, 30))
+    with pytest.raises(ValueError, match="vectorized = True"):
+        hs.simulate_vectorized(sysd, z0, 1.0)
+    with pytest.raises(TypeError, match="history"):
+        hs.simulate_many(sysd, z0, 1.0, backend="compiled")
+    with pytest.raises(ValueError, match="taus"):
+        F.DelayedErrorSystem(dist.example_observer().design, [0.1, 0.0, 0.1, 0.1])
+    with pytest.raises(ValueError, match="taus"):
+        F.DelayedErrorSystem(dist.example_observer().design, [0.1, 0.1])
+
+
+def test_delay_level_is_the_recorded_reference():
+    """DELAY_REFERENCE is the late error at every tau_i = DELAY_MAX (one run),
+    and the problem's tolerances read it to 2e-3 of the level."""
+    ref = F.delay_level_reference()
+    assert ref == pytest.approx(F.DELAY_REFERENCE, rel=1e-3)
+    fine = F.delayed_run(F.DELAY_MAX, rtol=1e-8, atol=1e-10)
+    late = fine.t >= SETTLE_REFERENCE + F.SETTLE_SLACK
+    assert abs(np.max(np.abs(fine.x[late, :24])) - ref) < 2e-3 * F.DELAY_LEVEL
+    p = PROBS["003-rem2-delay-bounded"]
+    m = p.margin(F.delayed_run(F.DELAY_MAX))
+    assert float(m) == pytest.approx(F.DELAY_LEVEL - ref, rel=1e-9)
+
+
+def test_delays_break_the_finite_time_at_the_first_run():
+    """003-rem2-delay-finite-time: the first run is a counterexample (the
+    errors follow the plant's decay, 1e-5-1e-3 at T, not 1e-8)."""
+    r = run_problem(PROBS["003-rem2-delay-finite-time"], seed=0)
+    assert r.found == "counterexample" and r.passed
+    assert r.search.evaluations == 1 and r.baseline.evaluations == 1
+    assert r.margin < -2.5                      # decades above 1e-8
+    assert r.search.arc is not None and r.search.arc.t[-1] == pytest.approx(10.0)
+
+
+def test_delay_bounded_holds_on_a_small_budget():
+    """A fiftieth of the budget (4 runs each for the search and the
+    baseline, ~3 s): no counterexample; the worst margin is positive."""
+    r = run_problem(PROBS["003-rem2-delay-bounded"], seed=0, scale=0.02)
+    assert r.found == "none" and r.passed
+    assert r.search.evaluations == 4
+    assert 0 < r.search.margin <= r.baseline.margin
+
+
+@pytest.mark.slow
+def test_delay_bounded_full_budget():
+    """200 delay vectors: none breaks the level; the search reaches the worst
+    corner (every tau_i = DELAY_MAX: margin DELAY_LEVEL - DELAY_REFERENCE)."""
+    r = run_problem(PROBS["003-rem2-delay-bounded"], seed=0)
+    assert r.found == "none" and r.passed
+    assert r.search.evaluations == 200
+    assert 0 < r.search.margin <= r.baseline.margin
+    assert r.search.margin == pytest.approx(F.DELAY_LEVEL - F.DELAY_REFERENCE, rel=0.02)
