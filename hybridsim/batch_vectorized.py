@@ -695,6 +695,9 @@ class _BatchRun:
                         or (m.has_C and m.hC is not None))
         self.ev_action, self.ev_side = _outcome_table(self.prio)
         self.after = _after_jump_table()
+        # every watched set is its guard's: membership and guard value from one call
+        self.shared = (self.use_phi and (not m.has_C or (m.C_from_guard and m.hC is not None))
+                       and (not self.watch_D or (m.D_from_guard and m.hD is not None)))
         # the past, for maps that read it: segments per row, and the delay breakpoints
         # (t0 + d, each jump time + d) where every flow stops, as in simulate
         self.delays = tuple(float(d) for d in (system.delays or ()))
@@ -1262,6 +1265,25 @@ class _BatchRun:
             ev |= wd & m.in_D(rows, y, s, j)
         return ev
 
+    def _pred_phi(self, rows, y, s, j, wd):
+        """:meth:`_pred` and :meth:`_phi` at once: from one evaluation of each guard
+        where the sets are the guards' (``shared``), else each on its own."""
+        if not self.shared:
+            return self._pred(rows, y, s, j, wd), self._phi(rows, y, s, j, wd)
+        m = self.maps
+        self._finite(rows, y)
+        ev = np.zeros(len(rows), dtype=bool)
+        v = np.full(len(rows), -np.inf)
+        if self.watch_D and wd.any():
+            gD = m.guard_D(rows, y, s, j)
+            ev |= wd & (gD >= 0.0)
+            v = np.where(wd, gD, -np.inf)
+        if m.has_C:
+            gC = m.guard_C(rows, y, s, j)
+            ev |= ~(gC >= 0.0)
+            v = np.maximum(v, -gC)
+        return ev, v
+
     def _phi(self, rows, y, s, j, wd):
         """Continuous version of :meth:`_pred` (>= 0 where the event has happened)."""
         m = self.maps
@@ -1437,13 +1459,16 @@ class _BatchRun:
         for q in (1, 2, 3):
             s = a + (b - a) * (q / 4.0)
             ys = self._dense(a, h, ya, Q, s)
-            hit = ~found & self._pred(rows, ys, s, j, wd)
+            if self.use_phi:
+                ev, v = self._pred_phi(rows, ys, s, j, wd)
+                vals.append(v)
+            else:
+                ev = self._pred(rows, ys, s, j, wd)
+            hit = ~found & ev
             lo_b[hit], hi_b[hit] = prev[hit], s[hit]
             found |= hit
             prev = s
             pts.append(s)
-            if self.use_phi:
-                vals.append(self._phi(rows, ys, s, j, wd))
         found &= ~self.bad[rows]
         if not self.use_phi or found.all():
             return lo_b, hi_b, found
