@@ -8,6 +8,7 @@ numba-compiled ones) and, where there is one, checks the closed form.
 import doctest
 import math
 import pickle
+import re
 import subprocess
 import sys
 import warnings
@@ -540,7 +541,14 @@ def test_messages_are_the_python_paths(kw, cause):
         a, b = both(grow, [1.0], **kw)
     assert a.termination is b.termination is cause
     if "max_norm" not in kw:              # |x| at the step differs in the last digits
-        assert a.message == b.message
+        # the same words and numbers; the step ends agree to 1e-8 relative, not to every
+        # printed digit: x' = x's error estimate cancels (sum of E_i = 0 over stages
+        # that are nearly equal), so its rounding (numba may fuse multiply-adds where
+        # numpy does not) moves each step size by ~1e-9 (seen: t = 1.528471786 vs 787)
+        num = r"[-+]?\d+\.?\d*(?:e[-+]?\d+)?"
+        assert re.sub(num, "#", a.message) == re.sub(num, "#", b.message)
+        np.testing.assert_allclose([float(v) for v in re.findall(num, a.message)],
+                                   [float(v) for v in re.findall(num, b.message)], rtol=1e-8)
 
 
 def test_messages_zeno_left_sets_not_in_sets(ball, leave):
