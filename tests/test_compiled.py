@@ -414,6 +414,49 @@ def test_batch_equals_single_runs_and_python_path(ball):
         np.testing.assert_array_equal(a.t, b.t)
 
 
+def mixed_f(x, t, j, p):
+    return np.array([1.0, x[1]])
+
+
+def mixed_g(x, t, j, p):
+    return np.array([0.0, x[1]])
+
+
+def mixed_hD(x, t, j, p):
+    return x[0] - 1.0
+
+
+def test_batch_members_ending_differently_agree_with_single_runs():
+    """One parallel batch whose rows end T_MAX, J_MAX, BLOWUP and NON_FINITE (a
+    timer z and a growing r = r0 e^t): each row's arc is the single run's, to
+    the bit (the batch's worker threads read private copies of the options and
+    poll nothing but the stop flag), and the Python path's."""
+    mixed = _compiled(CompiledSystem(mixed_f, mixed_g, jump_guard=mixed_hD, state_dim=2))
+    base = np.array([[0.0, 0.0],       # jumps at 1, 2; flows on to t_max
+                     [0.9, 0.0],       # jumps at 0.1, 1.1, 2.1: the third is j_max
+                     [0.0, 1e5],       # jumps at 1, 2; r > 1e6 at t = ln 10: BLOWUP
+                     [0.2, 1.0],       # jumps at 0.8, 1.8; T_MAX
+                     [np.nan, 0.0]])   # its own NON_FINITE arc
+    x0s = np.tile(base, (13, 1))
+    kw = dict(t_max=2.5, j_max=3, max_norm=1e6)
+    with pytest.warns(hs.BatchWarning):
+        arcs = simulate_many_compiled(mixed, x0s, **kw)
+    want = [T.T_MAX, T.J_MAX, T.BLOWUP, T.T_MAX, T.NON_FINITE]
+    assert [a.termination for a in arcs] == want * 13
+    for i, arc in enumerate(arcs):
+        if i % 5 == 4:
+            continue
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", hs.SimulationWarning)
+            single = simulate_compiled(mixed, x0s[i], **kw)
+            ref = hs.simulate(mixed, x0s[i], **kw)
+        np.testing.assert_array_equal(arc.t, single.t)
+        np.testing.assert_array_equal(arc.x, single.x)
+        np.testing.assert_array_equal(arc.xdot, single.xdot)
+        assert arc.termination is single.termination and arc.stats == single.stats
+        assert_agree(arc, ref, tol=1e-5, jt_tol=1e-9)
+
+
 def test_batch_bad_arguments(ball):
     with pytest.raises(ValueError, match="x0s"):
         simulate_many_compiled(ball, np.zeros((3, 3)), t_max=1.0)

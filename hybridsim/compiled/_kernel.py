@@ -326,21 +326,6 @@ def _coin(rngp):
     return _next_double(rngp[1], rngp[0]) < 0.5
 
 
-@njit(_CHECK_SIG, cache=True)
-def _no_signal():  # pragma: no cover - called from compiled code
-    return 0
-
-
-@njit(_OCC_SIG, cache=True)
-def _no_error():  # pragma: no cover
-    return 0
-
-
-@njit(_CLEAR_SIG, cache=True)
-def _no_clear():  # pragma: no cover
-    return None
-
-
 # ------------------------------------------------------------------ helpers
 @njit(cache=True, **_NJ)
 def _dense(yold, hQ, told, h, s):
@@ -824,11 +809,14 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
     ``poll``: the addresses of (check, occurred, clear): ``PyErr_CheckSignals``,
     ``PyErr_Occurred`` and ``PyErr_Clear`` for a run in the thread that holds
     the GIL (Ctrl-C is read at every step and jump: the run ends ``CANCELED``),
-    no-ops inside a parallel batch, whose runs read ``stop[0]`` instead.
+    zeros inside a parallel batch (nothing is called), whose runs read ``stop[0]``
+    instead.
     """
     # the first NaN guard (which, s, j): written by ``_fault`` through its address
     ev = np.zeros(3)
     M = (f, g, hD, hC, D, C, iopt[11] != 0, iopt[12] != 0, ev.ctypes.data)
+    # polled only where given (a batch's worker threads pass zeros: stop[0] only)
+    polling = poll[0] != 0
     check = _check_at(poll[0])
     occurred = _occ_at(poll[1])
     clear = _clear_at(poll[2])
@@ -922,8 +910,9 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
     hs = 1.0
     done = False
     while not done:
-        if stop[0] != 0 or check() != 0 or occurred() != 0:
-            clear()                  # the KeyboardInterrupt: the run ends CANCELED
+        if stop[0] != 0 or (polling and (check() != 0 or occurred() != 0)):
+            if polling:
+                clear()              # the KeyboardInterrupt: the run ends CANCELED
             cause = CANCELED
             break
         if flow_on:
@@ -1059,8 +1048,9 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
                 t, x = a, ya
                 outcome = _O_STOP
                 break
-            if stop[0] != 0 or check() != 0 or occurred() != 0:
-                clear()
+            if stop[0] != 0 or (polling and (check() != 0 or occurred() != 0)):
+                if polling:
+                    clear()
                 cause = CANCELED
                 t, x = a, ya
                 break
@@ -1857,13 +1847,9 @@ def _addresses(a):
 #: (the run ends CANCELED)
 POLL_GIL = _addresses([_c_api_address(n) for n in
                        ("PyErr_CheckSignals", "PyErr_Occurred", "PyErr_Clear")])
-with warnings.catch_warnings():
-    warnings.simplefilter("ignore", nb_errors.NumbaExperimentalFeatureWarning)
-    # the same slots for runs on a parallel batch's worker threads (no GIL:
-    # they read the batch's stop flag only)
-    _POLL_NONE_H = (MapHandle(_no_signal, _CHECK_SIG), MapHandle(_no_error, _OCC_SIG),
-                    MapHandle(_no_clear, _CLEAR_SIG))
-POLL_NONE = _addresses([h.addr for h in _POLL_NONE_H])
+#: the same slots for runs on a parallel batch's worker threads: none (no GIL:
+#: they read the batch's stop flag only, and call nothing at every step)
+POLL_NONE = _addresses([0, 0, 0])
 
 
 def map_addresses(handles):
