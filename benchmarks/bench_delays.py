@@ -50,6 +50,17 @@ class Lag(hs.HybridSystem):
         return y
 
 
+def _interleaved(batch, loop, rounds):
+    """``((median s, result), (median s, result))`` of the two, run in turn."""
+    times, out = ([], []), [None, None]
+    for _ in range(rounds):
+        for k, fn in enumerate((batch, loop)):
+            t0 = time.perf_counter()
+            out[k] = fn()
+            times[k].append(time.perf_counter() - t0)
+    return tuple((statistics.median(times[k]), out[k]) for k in (0, 1))
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="smaller batches")
@@ -59,15 +70,9 @@ def main(argv=None):
     X = np.column_stack([rng.uniform(-1, 1, N), rng.uniform(0, 0.7, N)])
     system = Lag()
     kw = dict(t_max=5.0, rtol=1e-8, atol=1e-10)
-    tv, tl = [], []
-    for _ in range(rounds):
-        t0 = time.perf_counter()
-        batch = hs.simulate_many(system, X, **kw)
-        tv.append(time.perf_counter() - t0)
-        t0 = time.perf_counter()
-        loop = [hs.simulate(system, x0, **kw) for x0 in X]
-        tl.append(time.perf_counter() - t0)
-    v, lp = statistics.median(tv), statistics.median(tl)
+    (v, batch), (lp, loop) = _interleaved(
+        lambda: hs.simulate_many(system, X, **kw),
+        lambda: [hs.simulate(system, x0, **kw) for x0 in X], rounds)
     diff = max(float(np.abs(a.x[-1] - b.x[-1]).max()) for a, b in zip(batch, loop))
     jumps = sum(len(a.jump_times) for a in batch)
     print(f"delay batch, {N} rows x 5 s ({jumps} jumps in all), RK45 rtol 1e-8")
@@ -88,15 +93,9 @@ def gramian(quick):
     X = ex.chi0 + np.random.default_rng(1).uniform(-0.3, 0.3, (P, 3))
     system, rows = gd.population(obs, X)
     kw = dict(t_max=0.3, rtol=1e-8, atol=1e-10)
-    tv, tl = [], []
-    for _ in range(rounds):
-        t0 = time.perf_counter()
-        batch = hs.simulate_many(system, rows, **kw)
-        tv.append(time.perf_counter() - t0)
-        t0 = time.perf_counter()
-        loop = [gd.simulate(obs, x0, method="RK45", dense=False, **kw) for x0 in X]
-        tl.append(time.perf_counter() - t0)
-    v, lp = statistics.median(tv), statistics.median(tl)
+    (v, batch), (lp, loop) = _interleaved(
+        lambda: hs.simulate_many(system, rows, **kw),
+        lambda: [gd.simulate(obs, x0, method="RK45", dense=False, **kw) for x0 in X], rounds)
     diff = max(float(np.abs(gd.errors(a, obs).e[-1] - gd.errors(b, obs).e[-1]).max())
                for a, b in zip(batch, loop))
     print(f"\nMazenc-Malisoff (39), DC motor, {P} initial states x 0.3 s, samples every 0.01 s")
