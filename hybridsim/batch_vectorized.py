@@ -48,6 +48,7 @@ from .events import _maximize, _near_peak
 from .history import BatchHistory
 from .options import (
     check_bool,
+    check_delays,
     check_seed,
     check_unsupported,
     parse_run,
@@ -460,9 +461,7 @@ def _parse(system, x0s, t_max, j_max, kw, method, progress, seed, extra):
     check_unsupported("vectorized", extra)
     if int(system.input_dim or 0) > 0:
         refuse("vectorized", "inputs", f"<input_dim={system.input_dim}>")
-    delays = tuple(float(d) for d in (system.delays or ()))
-    if any(not (math.isfinite(d) and d > 0) for d in delays):
-        raise ValueError(f"system.delays must be positive finite floats, got {system.delays!r}")
+    check_delays(system)
     progress = check_bool("progress", progress, allow_none=True)
     rng = check_seed(seed, build=ro.prio == Priority.RANDOM)
     return n, X, ro, progress, rng
@@ -700,7 +699,7 @@ class _BatchRun:
                        and (not self.watch_D or (m.D_from_guard and m.hD is not None)))
         # the past, for maps that read it: segments per row, and the delay breakpoints
         # (t0 + d, each jump time + d) where every flow stops, as in simulate
-        self.delays = tuple(float(d) for d in (system.delays or ()))
+        self.delays = check_delays(system)
         self.hist = None
         if system.needs_history or self.delays:
             self.hist = BatchHistory(t0, X, j0, output=as_map(system.output, "output"))
@@ -1211,12 +1210,12 @@ class _BatchRun:
                 return
         rows, b, yb, j = rows[calm], b[calm], yb[calm], j[calm]
         fb = K[_NS][calm]
-        if self.hist is not None:
-            self.hist._add(rows, a[calm], b, j, h[calm], ya[calm],
-                           np.einsum("skn,sp->knp", K[:, calm], _P))
-        if self.refine > 1:
-            Qc = np.einsum("skn,sp->knp", K[:, calm], _P)
-            self._refine(rows, a[calm], b, ya[calm], h[calm], Qc, j)
+        if self.hist is not None or self.refine > 1:
+            Qc = np.einsum("skn,sp->knp", K[:, calm], _P)      # the steps' dense output
+            if self.hist is not None:
+                self.hist._add(rows, a[calm], b, j, h[calm], ya[calm], Qc)
+            if self.refine > 1:
+                self._refine(rows, a[calm], b, ya[calm], h[calm], Qc, j)
         self.t[rows] = b
         self.x[rows] = yb
         self.fx[rows] = fb

@@ -73,9 +73,7 @@ class History:
         """The state x(s) (see the class docstring)."""
         s = float(s)
         if s < self.t0:
-            h = self
-            while s < h.t0 and isinstance(h._pre, History):   # a chain of pasts (explore)
-                h = h._pre
+            h = self._holder(s)
             if s >= h.t0:
                 return h(s)
             if h._pre is None:
@@ -104,6 +102,14 @@ class History:
 
     state = __call__
 
+    def _holder(self, s):
+        """The run of a chain of pasts (explore's branches) that recorded s, or the
+        first whose plain prehistory holds it; walked without recursion."""
+        h = self
+        while s < h.t0 and isinstance(h._pre, History):
+            h = h._pre
+        return h
+
     def input(self, s):
         """The input u(s) of a standalone system (``simulate(inputs=...)``)."""
         return None if self._ufun is None else self._ufun(float(s))
@@ -115,9 +121,7 @@ class History:
     def jump_count(self, s):
         """The j of the sample at time s (the later one at a jump time)."""
         if s < self.t0:
-            h = self
-            while s < h.t0 and isinstance(h._pre, History):   # a chain of pasts (explore)
-                h = h._pre
+            h = self._holder(s)
             if s >= h.t0:
                 return h.jump_count(s)
             return h._cur_j if not h._js else h._js[0]

@@ -216,6 +216,22 @@ def check_seed(seed, build=True):
     return np.random.default_rng(seed) if build else None
 
 
+def check_delays(system):
+    """``system.delays`` as a tuple of positive finite floats (every path's rule).
+
+    Examples
+    --------
+    >>> class S:
+    ...     delays = (0.5, 1)
+    >>> check_delays(S())
+    (0.5, 1.0)
+    """
+    delays = tuple(float(d) for d in (getattr(system, "delays", None) or ()))
+    if any(not (math.isfinite(d) and d > 0) for d in delays):
+        raise ValueError(f"system.delays must be positive finite floats, got {system.delays!r}")
+    return delays
+
+
 def check_dwell(dwell, prio):
     """The dwell law in C ∩ D as a callable ``rng -> float >= 0`` (or None).
 

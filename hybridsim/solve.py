@@ -25,6 +25,7 @@ from .history import History
 from .options import (
     RunOptions,
     check_bool,
+    check_delays,
     check_dwell,
     check_map_value,
     check_seed,
@@ -421,9 +422,7 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
                          "placing samples")
     rng = check_seed(seed, build=prio == Priority.RANDOM)
     dwell = check_dwell(dwell, prio)
-    delays = tuple(float(d) for d in (system.delays or ()))
-    if any(not (math.isfinite(d) and d > 0) for d in delays):
-        raise ValueError(f"system.delays must be positive finite floats, got {system.delays!r}")
+    delays = check_delays(system)
 
     keep = dense or system.needs_history
     history = History(t0, x, j0, prehistory, inputs, maps.h)

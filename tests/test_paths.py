@@ -521,3 +521,12 @@ def test_a_component_reads_its_past_input_on_the_vectorized_path():
         # z(1.5) = z0 + 0.3 x0 + int_0^1.2 x0 e^{-s} ds (the past before 0 is x0)
         np.testing.assert_allclose(b.x[-1, 1], x0[1] + x0[0] * (0.3 + 1 - np.exp(-1.2)),
                                    atol=1e-8)
+
+
+@pytest.mark.parametrize("path", [p for p in path_params() if p.values[0] != "compiled"])
+@pytest.mark.parametrize("delays", [(-1.0,), (float("nan"),), (0.0,)])
+def test_bad_delays_get_the_same_error_on_every_path(path, delays):
+    sys_ = _Lag()
+    sys_.delays = delays
+    with pytest.raises(ValueError, match="system.delays must be positive finite floats"):
+        _run_lag(path, sys_, [1.0, 0.0], t_max=1.0)
