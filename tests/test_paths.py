@@ -373,24 +373,42 @@ class _Lag(hs.HybridSystem):
         return y
 
 
+def _lag_flow(x, t, j, p):            # p: a, b, c, tau, s, then x(t - tau) (2)
+    return np.array([-p[0] * p[5] + p[1] * np.sin(t), 1.0])
+
+
+def _lag_guard(x, t, j, p):
+    return x[1] - p[4]
+
+
+def _lag_jump(x, t, j, p):
+    return np.array([p[2] * x[0], 0.0])
+
+
+def _compiled_lag(system):
+    """``_Lag`` as a CompiledSystem: the flow map reads x(t - tau) from ``p``."""
+    from hybridsim.compiled import CompiledSystem
+    s = system
+    return CompiledSystem(flow=_lag_flow, jump=_lag_jump, jump_guard=_lag_guard, state_dim=2,
+                          params=[s.a, s.b, s.c, s.tau, s.s], delays=(s.tau,),
+                          max_step=None if s.max_step is None else s.max_step)
+
+
 def _run_lag(path, system, x0, **kw):
     if path == "python":
         return hs.simulate(system, x0, **kw)
     if path == "vectorized":
         return hs.simulate_many(system, np.atleast_2d(x0), **kw)[0]
-    return hs.simulate(system, x0, backend="compiled", **kw)
+    return hs.simulate(_compiled_lag(system), x0, backend="compiled", **kw)
 
 
 @pytest.mark.parametrize("path", path_params())
-def test_a_delay_equation_runs_on_every_path_or_is_refused_by_name(path):
+def test_a_delay_equation_runs_on_every_path(path):
     """x' = -x(t - 1) from the constant past 1: x = 1 - t on [0, 1] and
     1 - t + (t - 1)^2 / 2 on [1, 2] (method of steps), to the integrator's
-    rtol 1e-10 (1e-9 absolute). The compiled path refuses it by name."""
+    rtol 1e-10 (1e-9 absolute). The compiled path runs its CompiledSystem twin
+    (the past in the flow map's ``p``)."""
     kw = dict(t_max=2.0, rtol=1e-10, atol=1e-12)
-    if path == "compiled":
-        with pytest.raises(TypeError, match="reads its history"):
-            _run_lag(path, _Lag(), [1.0, 0.0], **kw)
-        return
     arc = _run_lag(path, _Lag(), [1.0, 0.0], **kw)
     t = arc.t
     exact = np.where(t <= 1.0, 1.0 - t, 1.0 - t + (t - 1.0) ** 2 / 2)
@@ -417,6 +435,68 @@ def test_delay_systems_with_jumps_agree_on_the_python_and_vectorized_paths(seed)
         np.testing.assert_allclose(b.x[-1], a.x[-1], atol=1e-7)
         # the past is read at the located jump times too: x0 after each reset
         np.testing.assert_allclose(b.x[b.j > 0][:1], a.x[a.j > 0][:1], atol=1e-7)
+
+
+@pytest.mark.parametrize("path", [p for p in path_params() if p.values[0] == "compiled"])
+@pytest.mark.parametrize("seed", range(4))
+def test_delay_systems_with_jumps_agree_on_the_python_and_compiled_paths(path, seed):
+    """The seeded systems above as CompiledSystem twins: compiled single runs and
+    a compiled batch give the Python path's solution (jump times to 1e-9, states
+    to 1e-7 at rtol 1e-10, as above); the twin's own maps on the Python path
+    give the compiled run's jump times to 1e-12 and end states to 1e-8
+    (measured 2.4e-9: the kernel's arithmetic differs from numpy's in
+    round-off, e.g. fused multiply-adds, and at rtol 1e-10 the error estimate
+    turns that into other step sizes from the third step on)."""
+    rng = np.random.default_rng(seed)
+    sys_ = _Lag(a=rng.uniform(0.5, 2.0), b=rng.uniform(-1, 1), c=rng.uniform(-0.9, 0.9),
+                tau=rng.uniform(0.2, 0.6), s=rng.uniform(0.3, 0.8))
+    twin = _compiled_lag(sys_)
+    X = np.column_stack([rng.uniform(-1, 1, 4), rng.uniform(0.0, 0.3, 4)])
+    kw = dict(t_max=3.0, j_max=8, rtol=1e-10, atol=1e-12)
+    batch = hs.simulate_many(twin, X, backend="compiled", **kw)
+    for x0, b in zip(X, batch):
+        a = hs.simulate(sys_, x0, **kw)
+        c = hs.simulate(twin, x0, backend="compiled", **kw)
+        p = hs.simulate(twin, x0, backend="python", **kw)
+        assert a.termination is c.termination is b.termination
+        np.testing.assert_allclose(c.jump_times, a.jump_times, atol=1e-9)
+        np.testing.assert_allclose(c.x[-1], a.x[-1], atol=1e-7)
+        np.testing.assert_array_equal(b.t, c.t)
+        np.testing.assert_array_equal(b.x, c.x)
+        np.testing.assert_allclose(p.jump_times, c.jump_times, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(p.x[-1], c.x[-1], rtol=0, atol=1e-8)
+        # breakpoints t_k + tau of the jumps (and t0 + tau) are samples
+        for tb in [kw.get("t0", 0.0) + sys_.tau, *(c.jump_times + sys_.tau)]:
+            if tb < c.t[-1]:
+                assert np.min(np.abs(c.t - tb)) < 1e-12
+
+
+@pytest.mark.parametrize("path", path_params())
+def test_maps_other_than_the_flow_map_see_no_past(path):
+    """A CompiledSystem with delays whose jump guard reads the past's place in
+    ``p``: NaN there on both paths that run it, so the run ends MAP_ERROR
+    naming the guard (never a silently stale value)."""
+    if path == "vectorized":
+        pytest.skip("a CompiledSystem runs on the Python and compiled paths")
+    from hybridsim.compiled import CompiledSystem
+    twin = CompiledSystem(flow=_lag_flow, jump=_lag_jump,
+                          jump_guard=lambda x, t, j, p: x[1] - p[4] + 0.0 * p[5],
+                          state_dim=2, params=[1.0, 0.0, 0.5, 0.5, 0.3], delays=(0.5,))
+    arc = hs.simulate(twin, [1.0, 0.0], t_max=1.0, throw=False, warn=False,
+                      backend="compiled" if path == "compiled" else "python")
+    assert arc.termination is T.MAP_ERROR
+    assert "jump_guard returned NaN" in arc.message
+
+
+def test_compiled_system_delays_are_checked_and_cap_the_step():
+    from hybridsim.compiled import CompiledSystem
+    for bad in [(-1.0,), (float("nan"),), (0.0,)]:
+        with pytest.raises(ValueError, match="delays must be positive finite floats"):
+            CompiledSystem(flow=_lag_flow, state_dim=2, delays=bad)
+    with pytest.raises(TypeError, match="delays must be a sequence"):
+        CompiledSystem(flow=_lag_flow, state_dim=2, delays="a")
+    cs = CompiledSystem(flow=_lag_flow, state_dim=2, delays=(0.5, 0.2), max_step=1.0)
+    assert cs.max_step == 0.2 and cs.needs_history and cs.delays == (0.5, 0.2)
 
 
 @pytest.mark.parametrize("path", [p for p in path_params() if p.values[0] != "compiled"])

@@ -157,7 +157,21 @@ class _PyMap:
         self.fn, self.system = fn, system
 
     def __call__(self, x, t, j):
-        return self.fn(x, t, j, self.system.params)
+        s = self.system
+        return self.fn(x, t, j, s._p_nan if s.delays else s.params)
+
+
+class _PyFlowPast(_PyMap):
+    """The flow map of a :class:`CompiledSystem` with ``delays`` on the Python
+    path: ``p`` is the parameters followed by x(t - tau_i) for each delay, read
+    from the run's :class:`hybridsim.History` (the kernel's convention)."""
+
+    __slots__ = ()
+
+    def __call__(self, x, t, j):
+        s = self.system
+        past = [s.history(t - d) for d in s.delays]
+        return self.fn(x, t, j, np.concatenate([s.params, *past]))
 
     def __getstate__(self):
         return (self.fn, self.system)
@@ -195,7 +209,18 @@ class CompiledSystem(HybridSystem):
         Float parameters passed to every map as ``p`` (changing
         ``system.params`` later is seen by the next run; nothing recompiles).
     max_step : float, optional
-        A cap on the solver step (as :attr:`HybridSystem.max_step`).
+        A cap on the solver step (as :attr:`HybridSystem.max_step`); with
+        ``delays``, at most the smallest delay.
+    delays : tuple of float, optional
+        Delays tau_1, ..., tau_m > 0 read by the flow map (a delay equation
+        x' = f(x(t), x(t - tau_1), ..., x(t - tau_m))): the flow map's ``p``
+        is then ``params`` followed by the m past states, ``p[len(params) +
+        i n : len(params) + (i + 1) n] = x(t - tau_i)``, read as
+        :class:`hybridsim.History` reads the past (the RK45 dense output;
+        the post-jump value at a jump time; x0 before t0). The other maps see
+        NaN there (they must not read the past). Flows stop at the
+        breakpoints t_k + tau_i of the jumps t_k, on every path. Reading the
+        past, the compiled path takes no ``prehistory``.
     specialize : bool
         False (default): the maps reach the engine as first-class functions;
         the engine is the one compiled kernel cached on disk, so a new system
@@ -226,13 +251,24 @@ class CompiledSystem(HybridSystem):
 
     def __init__(self, flow=None, jump=None, *, jump_guard=None, flow_guard=None,
                  jump_set=None, flow_set=None, state_dim, params=(), max_step=None,
-                 specialize=False, name=None):
+                 delays=(), specialize=False, name=None):
         HybridSystem.__init__(self)
         if isinstance(state_dim, bool) or not isinstance(state_dim, (int, np.integer)) \
                 or state_dim < 1:
             raise ValueError(f"state_dim must be a positive int, got {state_dim!r}")
         self.state_dim = int(state_dim)
+        try:
+            self.delays = tuple(float(d) for d in (delays or ()))
+        except (TypeError, ValueError):
+            raise TypeError(f"delays must be a sequence of positive floats, got "
+                            f"{delays!r}") from None
+        if not all(math.isfinite(d) and d > 0 for d in self.delays):
+            raise ValueError(f"delays must be positive finite floats, got {delays!r}")
+        self.needs_history = bool(self.delays)
         self.params = params
+        if self.delays:     # a step must not reach past the smallest delay (hs.History)
+            cap = min(self.delays)
+            max_step = cap if max_step is None else min(float(max_step), cap)
         self.max_step = max_step
         if not isinstance(specialize, (bool, np.bool_)):
             raise TypeError(f"specialize must be True or False, got {specialize!r}")
@@ -255,7 +291,8 @@ class CompiledSystem(HybridSystem):
         attrs = {"flow": "flow_map", "jump": "jump_map", "jump_guard": "jump_guard",
                  "flow_guard": "flow_guard", "jump_set": "jump_set", "flow_set": "flow_set"}
         for role, fn in self.maps.items():
-            setattr(self, attrs[role], _PyMap(fn, self))
+            cls = _PyFlowPast if role == "flow" and self.delays else _PyMap
+            setattr(self, attrs[role], cls(fn, self))
         self._nb = None
 
     @property
@@ -271,6 +308,9 @@ class CompiledSystem(HybridSystem):
             raise TypeError(f"params must be an array of floats, got "
                             f"{type(value).__name__}") from e
         self._params = np.ascontiguousarray(p)
+        # what maps other than the flow map see as p: the past's place is NaN
+        self._p_nan = np.concatenate([self._params, np.full(
+            len(getattr(self, "delays", ())) * self.state_dim, np.nan)])
 
     def __getstate__(self):
         state = HybridSystem.__getstate__(self)
@@ -484,14 +524,16 @@ def _parse_options(system, n, caller, method, extra, shared):
             raise TypeError(f"{caller}() got an unexpected keyword argument {name!r}")
     check_unsupported("compiled", dict(extra, method=method))
     ro = parse_run(system, n, **shared)
+    # the delays (the flow map's past, CompiledSystem(delays=)) after the options
     fopt = np.array([ro.t0, ro.t_max, ro.j_max, ro.rtol, ro.max_step,
                      np.nan if ro.first_step is None else ro.first_step, ro.max_norm,
-                     ro.zeno_time, ro.zeno_rtol], dtype=np.float64)
+                     ro.zeno_time, ro.zeno_rtol, *system.delays], dtype=np.float64)
     nb = system._nb
     iopt = np.array([ro.j0, int(ro.prio), _I64_MAX if ro.max_steps == math.inf else ro.max_steps,
                      _I64_MAX if ro.max_samples == math.inf else ro.max_samples,
                      ro.zeno_jumps, ro.refine, nb["has_C"], nb["has_D"], nb["has_hC"],
-                     nb["has_hD"], 64, nb["D_from_guard"], nb["C_from_guard"]],
+                     nb["has_hD"], 64, nb["D_from_guard"], nb["C_from_guard"],
+                     len(system.delays)],
                     dtype=np.int64)
     if isinstance(ro.atol, float):
         atol_a = np.full(n, ro.atol)
@@ -558,6 +600,10 @@ def _map_error(system, k, detail, info, x, t, j):
     if detail == k.MAP_GUARD:
         name = "jump_guard" if info[2] == 1.0 else "flow_guard"
         return f"{name} returned NaN (at t={t:.10g}, j={j})", name
+    if detail == k.MAP_HISTORY:         # the Python path's HistoryError, in its words
+        return (f"flow_map raised HistoryError: history: x({info[1]}) lies in the solver step "
+                f"under way (recorded up to t={info[2]}); cap the step with max_step <= the "
+                f"smallest delay (at t={t:.10g}, j={j})"), "flow_map"
     jumpish = detail in (k.MAP_JUMP_SHAPE, k.MAP_JUMP_VALUE, k.MAP_JUMP_X0)
     name = "jump_map" if jumpish else "flow_map"
     role = "jump" if jumpish else "flow"
@@ -565,7 +611,8 @@ def _map_error(system, k, detail, info, x, t, j):
         return (f"the state is in the jump set at t={t:.10g}, j={j} but the system has no "
                 f"jump map"), name
     try:
-        check_map_value(name, system.maps[role](np.array(x), t, j, system.params), n, t, j)
+        p = system._p_nan if system.delays else system.params     # the past: unread here
+        check_map_value(name, system.maps[role](np.array(x), t, j, p), n, t, j)
     except MapError as e:
         return str(e), name
     except Exception as e:  # noqa: BLE001 - the map raised in Python: say so

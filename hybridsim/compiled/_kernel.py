@@ -104,13 +104,14 @@ T_MAX, J_MAX, NOT_IN_SETS, LEFT_SETS, NON_FINITE, BLOWUP, SOLVER_FAILED, MAP_ERR
 _GOES_ON = rules.NO_CAUSE
 _OUTSIDE = -2                   # in neither set: decided by ``_Run._stop_outside``'s rules
 #: MAP_ERROR details (which map, and where)
-MAP_JUMP_SHAPE, MAP_JUMP_VALUE, MAP_FLOW_SHAPE, MAP_FLOW_X0, MAP_JUMP_X0, MAP_GUARD = range(6)
+MAP_JUMP_SHAPE, MAP_JUMP_VALUE, MAP_FLOW_SHAPE, MAP_FLOW_X0, MAP_JUMP_X0, MAP_GUARD, \
+    MAP_HISTORY = range(7)
 #: the detail code of a J_MAX or ZENO end after a jump loop (``rules.is_jump_loop``;
 #: ZENO's others: 0 the Zeno test, 1 sticking, 2 flows too short to resolve)
 DETAIL_LOOP = 3
 
 # flow outcomes
-_O_TMAX, _O_JUMP, _O_FLOW_ON, _O_STOP = 0, 1, 2, 3
+_O_TMAX, _O_JUMP, _O_FLOW_ON, _O_STOP, _O_BREAK = 0, 1, 2, 3, 4
 
 # ------------------------------------------------------------------ map signatures
 _ARGS = (types.float64[::1], types.float64, types.int64, types.float64[::1])
@@ -720,8 +721,123 @@ def _push(T, J, X, XD, ns, t, j, x):
     return T, J, X, XD
 
 
+# ------------------------------------------------------------------ the past (delays)
+# A run with delays (CompiledSystem(delays=)) keeps every recorded step's dense
+# output, as hybridsim.History does: HS[k] = (start, end, h), HY[k] the step's
+# start state, HQ[k] its h K^T P; HM = (count, the last jump's time, the time
+# read where the past was missing, the recorded end then). The flow map's p
+# holds x(t - tau_i) after the parameters while it runs, NaN otherwise.
 @njit(cache=True, **_NJ)
-def _initial_step(f, t0, y0, t_bound, max_step, f0, rtol, atol, j, p):
+def _past(p, pb, dl, s, H):
+    """Write x(s - tau_i) for every delay into ``p[pb:]`` (``hybridsim.History``'s
+    rules). False, the tail NaN and HM[2:4] set, where a value is not recorded
+    yet (the solver step under way)."""
+    HS, HY, HQ, HM, cur_x, x0, t0 = H
+    n = x0.shape[0]
+    hn = int(HM[0])
+    cur_t = HM[1]
+    for i in range(dl.shape[0]):
+        r = s - dl[i]
+        o = pb + i * n
+        if r < t0:                          # the prehistory: constant x0
+            for q in range(n):
+                p[o + q] = x0[q]
+            continue
+        tol = 1e-12 * max(1.0, abs(r))
+        if r >= cur_t and (hn == 0 or HS[hn - 1, 0] < cur_t):
+            if r <= cur_t + tol:            # the current flow's start: post-jump value
+                for q in range(n):
+                    p[o + q] = cur_x[q]
+                continue
+            HM[2] = r
+            HM[3] = cur_t
+            p[pb:] = np.nan
+            return False
+        lo = 0
+        hi = hn
+        while lo < hi:                      # bisect_right on the starts
+            mid = (lo + hi) // 2
+            if r < HS[mid, 0]:
+                hi = mid
+            else:
+                lo = mid + 1
+        k = lo - 1
+        if not (k >= 0 and r <= HS[k, 1]):
+            if hn > 0 and HS[hn - 1, 1] < r <= HS[hn - 1, 1] + tol:
+                k = hn - 1
+            else:
+                HM[2] = r
+                HM[3] = HS[hn - 1, 1] if hn > 0 else cur_t
+                p[pb:] = np.nan
+                return False
+        x = (r - HS[k, 0]) / HS[k, 2]
+        x2 = x * x
+        x3 = x2 * x
+        x4 = x3 * x
+        for q in range(n):
+            p[o + q] = HY[k, q] + (HQ[k, q, 0] * x + HQ[k, q, 1] * x2 + HQ[k, q, 2] * x3
+                                   + HQ[k, q, 3] * x4)
+    return True
+
+
+@njit(cache=True, **_NJ)
+def _fd(f, y, s, j, p, pb, dl, H):
+    """The flow map at (y, s), with the past in ``p[pb:]`` where there are delays
+    (NaN again afterwards); a value of NaN where the past is missing (HM[2])."""
+    if dl.shape[0] == 0:
+        return f(y, s, j, p)
+    if not _past(p, pb, dl, s, H):
+        return np.full(y.shape[0], np.nan)
+    v = f(y, s, j, p)
+    p[pb:] = np.nan
+    return v
+
+
+@njit(cache=True, **_NJ)
+def _record(HS, HY, HQ, HM, a, b, h, ya, hQ):
+    """Record the step from a (dense output ya, hQ over h) up to b; the arrays,
+    grown by doubling where full."""
+    if not b > a:
+        return HS, HY, HQ
+    hn = int(HM[0])
+    if hn == HS.shape[0]:
+        c2 = 2 * hn
+        HS2 = np.empty((c2, 3))
+        HY2 = np.empty((c2, HY.shape[1]))
+        HQ2 = np.empty((c2, HY.shape[1], 4))
+        HS2[:hn] = HS[:hn]
+        HY2[:hn] = HY[:hn]
+        HQ2[:hn] = HQ[:hn]
+        HS, HY, HQ = HS2, HY2, HQ2
+    HS[hn, 0] = a
+    HS[hn, 1] = b
+    HS[hn, 2] = h
+    HY[hn] = ya
+    HQ[hn] = hQ
+    HM[0] = hn + 1
+    return HS, HY, HQ
+
+
+@njit(cache=True, **_NJ)
+def _add_breaks(BR, nbr, t, dl):
+    """Insert t + tau_i into the sorted breakpoints BR[:nbr]; (BR, nbr)."""
+    for i in range(dl.shape[0]):
+        v = t + dl[i]
+        if nbr == BR.shape[0]:
+            BR2 = np.empty(2 * nbr + 4)
+            BR2[:nbr] = BR[:nbr]
+            BR = BR2
+        k = nbr
+        while k > 0 and BR[k - 1] > v:
+            BR[k] = BR[k - 1]
+            k -= 1
+        BR[k] = v
+        nbr += 1
+    return BR, nbr
+
+
+@njit(cache=True, **_NJ)
+def _initial_step(f, t0, y0, t_bound, max_step, f0, rtol, atol, j, p, pb, dl, H):
     """scipy's ``select_initial_step`` (direction +1, order 4)."""
     interval = abs(t_bound - t0)
     if interval == 0.0:
@@ -738,7 +854,7 @@ def _initial_step(f, t0, y0, t_bound, max_step, f0, rtol, atol, j, p):
         h0 = 0.01 * d0 / d1
     h0 = min(h0, interval)
     y1 = y0 + h0 * f0
-    f1 = f(y1, t0 + h0, j, p)
+    f1 = _fd(f, y1, t0 + h0, j, p, pb, dl, H)
     if f1.shape[0] != n:
         return -1.0
     d2 = _rms((f1 - f0) / scale) / h0
@@ -797,7 +913,7 @@ def _near_C(M, x, j, p, lo, yold, hQ, told, h, x_hi):
     return _inC(M, xp, tp, j, p)
 
 
-def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
+def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     """One run, entirely compiled.
 
     Returns ``(T, J, X, XD, cause, detail, info, stats)``: the samples
@@ -829,6 +945,8 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
     max_norm = fopt[6]
     zeno_time = fopt[7]
     zeno_rtol = fopt[8]
+    nd = iopt[13]                    # delays read by the flow map (fopt[9:])
+    dl = fopt[9:9 + nd].copy()
     j0 = iopt[0]
     prio = iopt[1]
     max_steps = iopt[2]
@@ -845,6 +963,29 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
     useC = has_C and has_hC
 
     n = x0.shape[0]
+    # with delays: the run's own p, the past's place after the parameters (NaN
+    # but while the flow map runs), and the record of the steps (``_past``)
+    pb = p_in.shape[0]
+    if nd > 0:
+        p = np.empty(pb + nd * n)
+        p[:pb] = p_in
+        p[pb:] = np.nan
+    else:
+        p = p_in
+    hcap = 64 if nd > 0 else 1
+    HS = np.empty((hcap, 3))
+    HY = np.empty((hcap, n))
+    HQ = np.empty((hcap, n, 4))
+    HM = np.zeros(4)
+    HM[1] = t0
+    HM[2] = np.nan
+    cur_x = x0.copy()
+    H = (HS, HY, HQ, HM, cur_x, x0, t0)
+    BR = np.empty(4 * nd + 4)        # delay breakpoints t_k + tau_i, sorted, from ibr
+    nbr = 0
+    ibr = 0
+    if nd > 0:
+        BR, nbr = _add_breaks(BR, nbr, t0, dl)
     T = np.empty(cap)
     J = np.empty(cap, np.int64)
     X = np.empty((cap, n))
@@ -877,7 +1018,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
         return (T[:1].copy(), J[:1].copy(), X[:1].copy(), XD[:1].copy(), MAP_ERROR,
                 MAP_GUARD, info, stats)
     if (not has_C) or _inC(M, x, t, j, p):
-        v0 = f(x, t, j, p)
+        v0 = _fd(f, x, t, j, p, pb, dl, H)
         if v0.shape[0] != n or not _all_finite(v0):
             info[0] = t
             info[2] = v0.shape[0]
@@ -980,6 +1121,10 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
                 j += 1
                 jumps += 1
                 x = xn.copy()
+                if nd > 0:                   # ``History._restart``, the new breakpoints
+                    cur_x[:] = x
+                    HM[1] = t
+                    BR, nbr = _add_breaks(BR, nbr, t, dl)
                 if ns >= max_samples:
                     cause = MAX_STEPS
                     detail = 1
@@ -1007,13 +1152,19 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
         flow_on = False
         # ---------------------------------------------------------- a flow
         t_bound = t_max
+        if nd > 0:                           # ``_Run._bound``: the next breakpoint
+            tol = 4.0 * _EPS * max(1.0, abs(t))
+            while ibr < nbr and BR[ibr] <= t + tol:
+                ibr += 1
+            if ibr < nbr and BR[ibr] < t_max:
+                t_bound = BR[ibr]
         flow_t0 = t
         hh0 = h_hint
         if hh0 == hh0:
             hh0 = min(hh0, t_bound - t, max_step)
             if not hh0 > 0:
                 hh0 = np.nan
-        fa = f(x, t, j, p)
+        fa = _fd(f, x, t, j, p, pb, dl, H)
         stats[2] += 1
         if fa.shape[0] != n:
             cause = MAP_ERROR
@@ -1025,7 +1176,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
         if hh0 == hh0:
             h_abs = hh0
         else:
-            h_abs = _initial_step(f, t, x, t_bound, max_step, fa, rtol, atol, j, p)
+            h_abs = _initial_step(f, t, x, t_bound, max_step, fa, rtol, atol, j, p, pb, dl, H)
             stats[2] += 1
             if h_abs < 0.0:
                 cause = MAP_ERROR
@@ -1033,6 +1184,14 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
                 info[0] = t
                 info[3] = j
                 break
+        if HM[2] == HM[2]:                   # the past is missing (a delay under a step)
+            cause = MAP_ERROR
+            detail = MAP_HISTORY
+            info[0] = t
+            info[1] = HM[2]
+            info[2] = HM[3]
+            info[3] = j
+            break
         stats[4] += 1
         XD[ns - 1] = fa
         a = t
@@ -1090,7 +1249,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
                         for m in range(s):
                             acc += K[m, i] * _A[s, m]
                         yi[i] = ya[i] + acc * hs
-                    ks = f(yi, a + _Cc[s] * hs, j, p)
+                    ks = _fd(f, yi, a + _Cc[s] * hs, j, p, pb, dl, H)
                     if ks.shape[0] != n:
                         bad_len = True
                         break
@@ -1103,8 +1262,10 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
                     for m in range(6):
                         acc += K[m, i] * _B[m]
                     ynew[i] = ya[i] + hs * acc
-                fnew = f(ynew, b, j, p)
+                fnew = _fd(f, ynew, b, j, p, pb, dl, H)
                 stats[2] += 6
+                if HM[2] == HM[2]:
+                    break
                 if fnew.shape[0] != n:
                     bad_len = True
                     break
@@ -1136,6 +1297,15 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
                     rejected = True
             if attempts > 1:
                 stats[1] += attempts - 1
+            if HM[2] == HM[2]:
+                cause = MAP_ERROR
+                detail = MAP_HISTORY
+                info[0] = a
+                info[1] = HM[2]
+                info[2] = HM[3]
+                info[3] = j
+                t, x = a, ya
+                break
             if bad_len:
                 cause = MAP_ERROR
                 detail = 2
@@ -1147,7 +1317,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
                 # ``_Run._solver_failed``
                 bad = tried and not _all_finite(K)
                 if not bad:
-                    fy = f(ya, a, j, p)
+                    fy = _fd(f, ya, a, j, p, pb, dl, H)
                     bad = fy.shape[0] != n or not _all_finite(fy)
                 if bad:
                     cause = NON_FINITE
@@ -1212,6 +1382,9 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
                 t, x = a, ya
                 break
             if not hit:
+                if nd > 0:                   # ``History._add``
+                    HS, HY, HQ = _record(HS, HY, HQ, HM, a, b, hs, ya, hQ)
+                    H = (HS, HY, HQ, HM, cur_x, x0, t0)
                 ns_step = ns             # this step's samples start here
                 if refine > 1 and b > a:
                     if ns + refine - 1 > max_samples:
@@ -1243,6 +1416,11 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
                         t, x = b, yb
                         break
                 if b - t_bound >= 0:          # the solver finished
+                    if t_bound < t_max:       # a delay breakpoint: flow on, a new flow
+                        h_hint = h_abs
+                        t, x = b, yb
+                        outcome = _O_BREAK
+                        break
                     h_hint = np.nan
                     if d_active:
                         # ``_event_past_t_max``: an entry into D within round-off
@@ -1284,6 +1462,9 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
                 t, x = a, ya
                 break
             # ``_commit``
+            if nd > 0 and not past and te > a:
+                HS, HY, HQ = _record(HS, HY, HQ, HM, a, te, hs, ya, hQ)
+                H = (HS, HY, HQ, HM, cur_x, x0, t0)
             if te > a:
                 if refine > 1:
                     if ns + refine - 1 > max_samples:
@@ -1303,7 +1484,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
                     info[0] = t
                     break
                 T, J, X, XD = _push(T, J, X, XD, ns, te, j, xe)
-                fe = f(xe, te, j, p)
+                fe = _fd(f, xe, te, j, p, pb, dl, H)
                 if fe.shape[0] == n:
                     XD[ns] = fe
                 ns += 1
@@ -1355,7 +1536,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop):
         info[2] = ev[0]
         info[3] = ev[2]
     if cause != MAP_ERROR and XD[ns - 1, 0] != XD[ns - 1, 0]:
-        fl = f(np.ascontiguousarray(X[ns - 1]), T[ns - 1], J[ns - 1], p)
+        fl = _fd(f, np.ascontiguousarray(X[ns - 1]), T[ns - 1], J[ns - 1], p, pb, dl, H)
         if fl.shape[0] == n:
             XD[ns - 1] = fl
     stats[5] = jumps
