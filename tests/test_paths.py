@@ -482,10 +482,10 @@ def test_maps_other_than_the_flow_map_see_no_past(path):
     twin = CompiledSystem(flow=_lag_flow, jump=_lag_jump,
                           jump_guard=lambda x, t, j, p: x[1] - p[4] + 0.0 * p[5],
                           state_dim=2, params=[1.0, 0.0, 0.5, 0.5, 0.3], delays=(0.5,))
-    arc = hs.simulate(twin, [1.0, 0.0], t_max=1.0, throw=False, warn=False,
-                      backend="compiled" if path == "compiled" else "python")
-    assert arc.termination is T.MAP_ERROR
-    assert "jump_guard returned NaN" in arc.message
+    with pytest.raises(hs.MapError, match="jump_guard returned NaN") as info:
+        hs.simulate(twin, [1.0, 0.0], t_max=1.0,
+                    backend="compiled" if path == "compiled" else "python")
+    assert info.value.arc.termination is T.MAP_ERROR
 
 
 def test_compiled_system_delays_are_checked_and_cap_the_step():
