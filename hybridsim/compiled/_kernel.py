@@ -854,7 +854,10 @@ def _initial_step(f, t0, y0, t_bound, max_step, f0, rtol, atol, j, p, pb, dl, H)
         h0 = 0.01 * d0 / d1
     h0 = min(h0, interval)
     y1 = y0 + h0 * f0
-    f1 = _fd(f, y1, t0 + h0, j, p, pb, dl, H)
+    if dl.shape[0] == 0:
+        f1 = f(y1, t0 + h0, j, p)
+    else:
+        f1 = _fd(f, y1, t0 + h0, j, p, pb, dl, H)
     if f1.shape[0] != n:
         return -1.0
     d2 = _rms((f1 - f0) / scale) / h0
@@ -1018,7 +1021,10 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
         return (T[:1].copy(), J[:1].copy(), X[:1].copy(), XD[:1].copy(), MAP_ERROR,
                 MAP_GUARD, info, stats)
     if (not has_C) or _inC(M, x, t, j, p):
-        v0 = _fd(f, x, t, j, p, pb, dl, H)
+        if nd == 0:
+            v0 = f(x, t, j, p)
+        else:
+            v0 = _fd(f, x, t, j, p, pb, dl, H)
         if v0.shape[0] != n or not _all_finite(v0):
             info[0] = t
             info[2] = v0.shape[0]
@@ -1164,7 +1170,10 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             hh0 = min(hh0, t_bound - t, max_step)
             if not hh0 > 0:
                 hh0 = np.nan
-        fa = _fd(f, x, t, j, p, pb, dl, H)
+        if nd == 0:
+            fa = f(x, t, j, p)
+        else:
+            fa = _fd(f, x, t, j, p, pb, dl, H)
         stats[2] += 1
         if fa.shape[0] != n:
             cause = MAP_ERROR
@@ -1249,7 +1258,10 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                         for m in range(s):
                             acc += K[m, i] * _A[s, m]
                         yi[i] = ya[i] + acc * hs
-                    ks = _fd(f, yi, a + _Cc[s] * hs, j, p, pb, dl, H)
+                    if nd == 0:
+                        ks = f(yi, a + _Cc[s] * hs, j, p)
+                    else:
+                        ks = _fd(f, yi, a + _Cc[s] * hs, j, p, pb, dl, H)
                     if ks.shape[0] != n:
                         bad_len = True
                         break
@@ -1262,7 +1274,10 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                     for m in range(6):
                         acc += K[m, i] * _B[m]
                     ynew[i] = ya[i] + hs * acc
-                fnew = _fd(f, ynew, b, j, p, pb, dl, H)
+                if nd == 0:
+                    fnew = f(ynew, b, j, p)
+                else:
+                    fnew = _fd(f, ynew, b, j, p, pb, dl, H)
                 stats[2] += 6
                 if HM[2] == HM[2]:
                     break
@@ -1317,7 +1332,10 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 # ``_Run._solver_failed``
                 bad = tried and not _all_finite(K)
                 if not bad:
-                    fy = _fd(f, ya, a, j, p, pb, dl, H)
+                    if nd == 0:
+                        fy = f(ya, a, j, p)
+                    else:
+                        fy = _fd(f, ya, a, j, p, pb, dl, H)
                     bad = fy.shape[0] != n or not _all_finite(fy)
                 if bad:
                     cause = NON_FINITE
@@ -1484,7 +1502,10 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                     info[0] = t
                     break
                 T, J, X, XD = _push(T, J, X, XD, ns, te, j, xe)
-                fe = _fd(f, xe, te, j, p, pb, dl, H)
+                if nd == 0:
+                    fe = f(xe, te, j, p)
+                else:
+                    fe = _fd(f, xe, te, j, p, pb, dl, H)
                 if fe.shape[0] == n:
                     XD[ns] = fe
                 ns += 1
@@ -1536,7 +1557,10 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
         info[2] = ev[0]
         info[3] = ev[2]
     if cause != MAP_ERROR and XD[ns - 1, 0] != XD[ns - 1, 0]:
-        fl = _fd(f, np.ascontiguousarray(X[ns - 1]), T[ns - 1], J[ns - 1], p, pb, dl, H)
+        if nd == 0:
+            fl = f(np.ascontiguousarray(X[ns - 1]), T[ns - 1], J[ns - 1], p)
+        else:
+            fl = _fd(f, np.ascontiguousarray(X[ns - 1]), T[ns - 1], J[ns - 1], p, pb, dl, H)
         if fl.shape[0] == n:
             XD[ns - 1] = fl
     stats[5] = jumps
