@@ -48,7 +48,9 @@ Semantics are those of :func:`hybridsim.simulate` with ``method="RK45"``
 a compiled map cannot do: raise an exception (``MAP_ERROR`` only for jump
 maps returning non-finite or mis-shaped values), take an exogenous input
 ``u`` (inputs come from other components, through :func:`lower`), or read
-``self.history``. The Python path's stiffness warning is not issued.
+``self.history`` (the past reaches a flow map through ``p`` instead:
+``CompiledSystem(..., delays=)``). The Python path's stiffness warning is not
+issued.
 """
 from __future__ import annotations
 
@@ -247,6 +249,13 @@ class CompiledSystem(HybridSystem):
     >>> arc = hs.simulate(ball, [1.0, 0.0], t_max=2.0, j_max=3)   # the Python path
     >>> arc.jump_count
     3
+
+    A delay equation x' = -x(t - 1), past x = 1: the flow map reads x(t - 1)
+    at ``p[len(params):]`` (method of steps: x(2) = -1/2).
+
+    >>> lag = CompiledSystem(flow=lambda x, t, j, p: -p[0:1], state_dim=1, delays=(1.0,))
+    >>> round(float(hs.simulate(lag, [1.0], t_max=2.0).x[-1, 0]), 9)
+    -0.5
     """
 
     def __init__(self, flow=None, jump=None, *, jump_guard=None, flow_guard=None,
