@@ -8,6 +8,11 @@ against the vectorized numpy batch measured in the same run.
 2. The distributed finite-time observer (7)-(8) over a directed ring of 8
    nodes, 30 band-limited noise realisations, RK45 rtol 1e-8, atol 1e-10,
    to t = 1 s.
+3. Mazenc-Malisoff's sampled observer (39) (literal realisation, omega in
+   (13)) with the DC motor (65), samples every 0.01 s, 20 initial states of
+   the motor (``gramian_delay.population``, as in ``bench_delays.py``), RK45
+   rtol 1e-8, atol 1e-10, to t = 0.3 s: a delay equation, its flow reading
+   psi(t - tau) (the compiled path's ``delays``).
 
 Each study is one interconnection (noise generator -> plant -> observer)
 whose batch of realisations is a batch of initial states: the vectorized
@@ -18,7 +23,8 @@ are warm (the lowered maps compiled once before, reported apart), over
 interleaved rounds (vectorized, compiled, vectorized, ...), medians; the
 results of the two paths are compared row by row.
 
-Run: ``python benchmarks/bench_observers_compiled.py [--quick] [--rounds 5]``
+Run: ``python benchmarks/bench_observers_compiled.py [--quick] [--rounds 5]
+[--only hc,ring,gramian]``
 """
 from __future__ import annotations
 
@@ -67,6 +73,19 @@ def ring_study(R, N=8, t_sim=1.0):
     return f"distributed ring of {N}, {R} noise realisations", sysm, X, kw, result
 
 
+def gramian_study(P=20):
+    from observers import gramian_delay as gd
+    ex = gd.dc_motor(100.0, 0.1)
+    obs = ex.sampled_observer(period=0.01)
+    X = ex.chi0 + np.random.default_rng(1).uniform(-0.3, 0.3, (P, 3))
+    sysm, rows = gd.population(obs, X)
+    kw = dict(t_max=0.3, rtol=1e-8, atol=1e-10)
+
+    def result(arcs):            # xi_1 - xi_e of (13) at the end of each run
+        return np.array([gd.errors(a, obs).e[-1] for a in arcs])
+    return f"Mazenc-Malisoff (39) with the DC motor, {P} initial states", sysm, rows, kw, result
+
+
 def compare(study, rounds):
     name, sysm, x0s, kw, result = study
     from hybridsim.compiled import lower
@@ -100,12 +119,19 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--rounds", type=int, default=5)
+    ap.add_argument("--only", default="hc,ring,gramian",
+                    help="the studies to run, comma-separated (default: all three)")
     a = ap.parse_args(argv)
+    only = set(a.only.split(","))
     import numba
     print(f"{os.cpu_count()} cores, numba {numba.__version__}, {numba.get_num_threads()} "
           f"threads; medians of {a.rounds} interleaved rounds")
-    compare(hc_study(200 if a.quick else 1000), a.rounds)
-    compare(ring_study(30), a.rounds)
+    if "hc" in only:
+        compare(hc_study(200 if a.quick else 1000), a.rounds)
+    if "ring" in only:
+        compare(ring_study(30), a.rounds)
+    if "gramian" in only:
+        compare(gramian_study(20), a.rounds)
 
 
 if __name__ == "__main__":

@@ -24,8 +24,17 @@ lowered system's parameter array, so the generated maps depend only on the
 structure (the parts' map functions and dimensions): a second system of the
 same structure reuses the compiled maps of the first (in the process).
 
+A part whose flow map reads its own past state x(t - tau) (a delay equation:
+the Gramian observer (39) of Mazenc-Malisoff) declares its delays in its
+:class:`Component` (``delays=``): its flow map then receives its parameters
+followed by its own state at t - tau_i for each of them, and the lowered
+system reads its past through :class:`~hybridsim.compiled.CompiledSystem`'s
+``delays`` (the sorted union of the parts'; see there for the rules of the
+past).
+
 What cannot be lowered is refused by name: a part without a compiled form,
-an input given as a Python callable, a part reading its history.
+an input given as a Python callable, a part reading its history without a
+compiled form that declares the delays it reads.
 """
 from __future__ import annotations
 
@@ -66,6 +75,15 @@ class Component:
     params : array_like
         Floats passed as ``p`` (put matrices here, flattened: the compiled
         maps then serve every system of the same dimensions).
+    delays : tuple of float, optional
+        The delays tau_1, ..., tau_m (positive, distinct) at which the flow
+        map reads the component's own past state. Its ``p`` is then
+        ``params`` followed by x(t - tau_i) for each i: ``p[len(params) +
+        i*n : len(params) + (i+1)*n]`` (n = ``state_dim``), with the rules of
+        :class:`hybridsim.History` (constant x0 before t0, the post-jump
+        value at a jump time), the convention of
+        :class:`~hybridsim.compiled.CompiledSystem`'s ``delays``. The other
+        maps receive ``params`` alone: they must not read the past.
 
     Examples
     --------
@@ -78,11 +96,12 @@ class Component:
     array([-2.])
     """
 
-    __slots__ = ("state_dim", "input_dim", "output_dim", "maps", "output", "params")
+    __slots__ = ("state_dim", "input_dim", "output_dim", "maps", "output", "params",
+                 "delays")
 
     def __init__(self, *, state_dim, flow=None, input_dim=0, jump=None, jump_guard=None,
                  flow_guard=None, jump_set=None, flow_set=None, output=None,
-                 output_dim=None, params=()):
+                 output_dim=None, params=(), delays=()):
         for name, v in (("state_dim", state_dim), ("input_dim", input_dim)):
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 0:
                 raise ValueError(f"{name} must be an int >= 0, got {v!r}")
@@ -111,6 +130,10 @@ class Component:
         if not np.all(np.isfinite(p)):
             raise ValueError(f"params must be finite, got {p[~np.isfinite(p)][:3]} among them")
         self.params = np.ascontiguousarray(p)
+        self.delays = _check_delays(delays)
+        if self.delays and "flow" not in self.maps:
+            raise ValueError("delays are read by the flow map: a component with delays "
+                             "needs flow")
 
     @property
     def has_D(self):
@@ -119,6 +142,20 @@ class Component:
     @property
     def has_C(self):
         return "flow_set" in self.maps or "flow_guard" in self.maps
+
+
+def _check_delays(delays):
+    """``delays`` as a tuple of distinct positive finite floats (ValueError naming it)."""
+    try:
+        d = tuple(float(v) for v in (delays or ()))
+    except (TypeError, ValueError):
+        raise ValueError(f"delays must be a sequence of positive floats, got "
+                         f"{delays!r}") from None
+    if not all(math.isfinite(v) and v > 0.0 for v in d):
+        raise ValueError(f"delays must be positive and finite, got {d}")
+    if len(set(d)) != len(d):
+        raise ValueError(f"delays must be distinct, got {d}")
+    return d
 
 
 # ------------------------------------------------------------------ compiled helpers
@@ -229,6 +266,7 @@ class _Part:
     def __init__(self, name, comp, xs, ps):
         self.name, self.comp, self.xs, self.ps = name, comp, xs, ps
         self.terms = []          # [(source index, None | (off, rows, cols))]
+        self.past = ()           # where each of the part's delays is in the system's
 
 
 def _refuse(what, why):
@@ -246,8 +284,10 @@ def _refusal(system, what, wired=None):
     from . import CompiledSystem
     if isinstance(system, CompiledSystem):
         return None
-    if system.needs_history or system.delays:
-        return _refuse(what, "it reads its history (delays are not compiled)")
+    if _reads_history(system) and getattr(system, "compiled_component", None) is None:
+        return _refuse(what, f"it reads its history (x(t - tau)) and {type(system).__name__} "
+                             f"has no compiled form declaring the delays it reads (a "
+                             f"compiled_component() returning a Component(delays=...))")
     if getattr(system, "set_valued", False):
         return _refuse(what, "its jump map is set-valued (jump_map_values); its solutions "
                              "are explored on the Python path (hs.explore)")
@@ -261,6 +301,10 @@ def _refusal(system, what, wired=None):
                              f"hybridsim.compiled.Component)")
     if isinstance(system, LinearPlant) and not system.vectorized:
         return _plant_refusal(system, what)
+    why = getattr(system, "compiled_refusal", None)
+    why = why() if callable(why) else None
+    if why:                 # the system's own reason (a callable of t without a compiled form)
+        return _refuse(what, why)
     if int(system.input_dim or 0):
         if wired is None:
             return _refuse(what, f"it has an input (input_dim={system.input_dim}); connect "
@@ -271,6 +315,10 @@ def _refusal(system, what, wired=None):
                            f"it is a Python callable ({type(wiring).__name__}); wire it with "
                            f"hybridsim.LinearInput ({{source: matrix}}), which every path runs")
     return None
+
+
+def _reads_history(system):
+    return bool(system.needs_history or tuple(system.delays or ()))
 
 
 def _plant_refusal(plant, what):
@@ -296,6 +344,9 @@ def _component_of(system, what, wired=None):
     if comp.state_dim != n or comp.input_dim != m:
         raise ValueError(f"{what}: compiled_component() has state_dim={comp.state_dim}, "
                          f"input_dim={comp.input_dim}; the system has {n}, {m}")
+    if _reads_history(system) and not comp.delays:
+        raise _refuse(what, "it reads its history (x(t - tau)) but its compiled form "
+                            "declares no delays (Component(delays=...))")
     return comp
 
 
@@ -340,7 +391,9 @@ def linear_plant_component(plant):
 
 
 def _from_compiled_system(cs):
+    # a CompiledSystem's flow reads its past as a Component's does: params, then x(t - tau_i)
     return Component(state_dim=cs.state_dim, params=cs.params,
+                     delays=tuple(getattr(cs, "delays", None) or ()),
                      **{r: _adapter(fn) for r, fn in cs.maps.items()})
 
 
@@ -365,10 +418,26 @@ def _reads_input(fn):
     return False
 
 
-def _generate(parts, n):
-    """Python source of the stacked maps of ``parts`` and the roles present."""
+def _generate(parts, n, npar=0):
+    """Python source of the stacked maps of ``parts`` and the roles present.
+
+    ``npar``: the length of the system's parameters, after which the flow map
+    reads the past state x(t - tau_i), n floats per delay of the system."""
     lines = []
     P = range(len(parts))
+
+    def flow_params(k):
+        """Statements building part k's flow parameters: its own, then its slice
+        of x(t - tau_i) for each of its delays (:class:`Component`)."""
+        part = parts[k]
+        a, b, nk = part.ps.start, part.ps.stop, part.comp.state_dim
+        st = [f"    p{k} = np.empty({b - a + nk * len(part.past)})",
+              f"    p{k}[0:{b - a}] = p[{a}:{b}]"]
+        for i, g in enumerate(part.past):
+            src = npar + g * n + part.xs.start
+            dst = b - a + i * nk
+            st.append(f"    p{k}[{dst}:{dst + nk}] = p[{src}:{src + nk}]")
+        return st
 
     def needed(ks, roles):
         """Statements computing the inputs of parts ``ks`` whose maps ``roles``
@@ -395,7 +464,11 @@ def _generate(parts, n):
     def head(name, ks, roles):
         st = [f"def {name}(x, t, j, p):"]
         st += [f"    x{k} = x[{parts[k].xs.start}:{parts[k].xs.stop}]" for k in P]
-        st += [f"    p{k} = p[{parts[k].ps.start}:{parts[k].ps.stop}]" for k in P]
+        for k in P:
+            if name == "flow" and parts[k].past:
+                st += flow_params(k)
+            else:
+                st.append(f"    p{k} = p[{parts[k].ps.start}:{parts[k].ps.stop}]")
         st += needed(ks, roles)
         return st
 
@@ -469,20 +542,21 @@ def _structure(parts):
     """The key of the generated maps: what they call and the dimensions."""
     return tuple((tuple(sorted((r, id(f)) for r, f in p.comp.maps.items())),
                   id(p.comp.output), p.xs.start, p.xs.stop, p.ps.start, p.ps.stop,
-                  tuple(p.terms)) for p in parts)
+                  tuple(p.terms), p.past) for p in parts)
 
 
 _LOWERED = {}
 
 
-def _build(parts, n, pvec, name, specialize):
-    """The lowered :class:`CompiledSystem` (maps shared by structure)."""
+def _build(parts, n, pvec, name, specialize, delays=()):
+    """The lowered :class:`CompiledSystem` (maps shared by structure; ``delays``
+    the system's, the sorted union of its parts')."""
     from . import CompiledSystem, _load_kernel
-    key = (_structure(parts), n, len(pvec), specialize)
+    key = (_structure(parts), n, len(pvec), specialize, len(delays))
     proto = _LOWERED.get(key)
     if proto is None:
         k = _load_kernel()
-        src, roles = _generate(parts, n)
+        src, roles = _generate(parts, n, len(pvec))
         ns = {"np": np, "math": math, "as_vec": k.as_vec, "as_scalar": k.as_scalar,
               "as_bool": k.as_bool, "matvec": compiled_matvec(),
               "matvec_add": _helpers()["matvec_add"],
@@ -494,8 +568,9 @@ def _build(parts, n, pvec, name, specialize):
                 ns[f"output{i}"] = _jit(p.comp.output)
         exec(compile(src, f"<lowered {name}>", "exec"), ns)
         maps = {r: ns[r] for r in roles}
+        past = {"delays": delays} if delays else {}
         proto = CompiledSystem(**maps, state_dim=n, params=pvec, name=f"lowered {name}",
-                               specialize=specialize)
+                               specialize=specialize, **past)
         proto._source = src
         proto.compile()
         _LOWERED[key] = proto
@@ -504,6 +579,9 @@ def _build(parts, n, pvec, name, specialize):
     cs = object.__new__(CompiledSystem)
     cs.__dict__.update(proto.__dict__)
     cs.params = pvec
+    if delays:                  # the same structure reads its past at this system's delays
+        cs.delays = delays
+        cs.max_step = min(delays)       # the prototype's is its own delays' (lower caps it)
     for attr in ("flow_map", "jump_map", "jump_guard", "flow_guard", "jump_set", "flow_set"):
         m = cs.__dict__.get(attr)
         if m is not None:
@@ -555,7 +633,10 @@ def _parts_of(system):
                     po += M.size
     n = xo
     pvec = np.concatenate(pv) if pv else np.zeros(0)
-    return parts, n, pvec
+    delays = tuple(sorted({d for c in comps for d in c.delays}))
+    for part in parts:
+        part.past = tuple(delays.index(d) for d in part.comp.delays)
+    return parts, n, pvec, delays
 
 
 def lower(system, *, specialize=None):
@@ -582,13 +663,15 @@ def lower(system, *, specialize=None):
     Returns
     -------
     CompiledSystem
-        Its state is the system's (an interconnection's stacked state).
+        Its state is the system's (an interconnection's stacked state); its
+        ``delays`` the sorted union of the parts' (:class:`Component`).
 
     Raises
     ------
     TypeError
-        A part without a compiled form, or an input that is a Python
-        callable: the message names it.
+        A part without a compiled form, an input that is a Python callable,
+        or a part reading its history whose compiled form declares no
+        delays: the message names it.
 
     Examples
     --------
@@ -608,11 +691,11 @@ def lower(system, *, specialize=None):
     cached = system.__dict__.get("_lowered")
     if cached is not None and (specialize is None or cached.specialize == bool(specialize)):
         return cached
-    parts, n, pvec = _parts_of(system)
+    parts, n, pvec, delays = _parts_of(system)
     _check_shapes(parts, pvec)
-    cs = _build(parts, n, pvec, type(system).__name__, bool(specialize))
-    if system.max_step is not None:
-        cs.max_step = system.max_step
+    cs = _build(parts, n, pvec, type(system).__name__, bool(specialize), delays)
+    if system.max_step is not None:      # with delays, at most the smallest (CompiledSystem)
+        cs.max_step = min([float(system.max_step), *delays])
     system.__dict__["_lowered"] = cs
     return cs
 
@@ -632,7 +715,10 @@ def _check_shapes(parts, pvec):
             fn = c.maps.get(role)
             if fn is None or getattr(fn, "_adapted", False):
                 continue
-            v = _probe(getattr(fn, "py_func", fn), x, u, p)
+            pr = p                  # the flow reads the past after its params: x0 = 0 here
+            if role == "flow" and c.delays:
+                pr = np.concatenate([p, np.zeros(c.state_dim * len(c.delays))])
+            v = _probe(getattr(fn, "py_func", fn), x, u, pr)
             if v is not None and np.shape(v) != (want,):
                 raise ValueError(f"{what}: its compiled {role} map returns shape "
                                  f"{np.shape(v)}, expected ({want},)")
@@ -667,7 +753,9 @@ def rebind(arc, system):
 
 def lowerable(system):
     """Whether :func:`lower` accepts ``system``: the same checks (no refusal),
-    without compiling anything (numba need not be installed).
+    without compiling anything (numba need not be installed). (Not built
+    either: a part reading its history whose compiled form, once built,
+    declares no delays passes here and is refused by :func:`lower`.)
 
     Examples
     --------

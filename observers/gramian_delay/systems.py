@@ -34,6 +34,14 @@ Two realisations of psi_2 of (7) (``realisation=``):
     reset. In exact arithmetic I_2 is the same, so (13) and Theorem 1's
     exactness are unchanged.
 
+On the compiled path (``backend="compiled"``, :func:`hybridsim.compiled.lower`)
+the plant (1) runs where Psi, delta1 and delta2 have compiled forms (the DC
+motor's Psi with a control u given as sinusoids, and the disturbances of
+:func:`~observers.gramian_delay.dc_motor` and :func:`smooth_noise`: a
+``sinusoids`` table, see :class:`Plant`), and (39) in the literal
+realisation: its compiled flow reads psi(t - tau) from the past state the
+engine hands it (``Component(delays=(tau,))``).
+
 Examples
 --------
 >>> import numpy as np
@@ -45,6 +53,9 @@ Examples
 """
 from __future__ import annotations
 
+import cmath
+import functools
+import math
 import numbers
 
 import numpy as np
@@ -52,7 +63,7 @@ import numpy as np
 import hybridsim as hs
 
 from .._common import matrix, scalar, vector
-from .design import GramianDesign, gramian_design, observer_form
+from .design import GramianDesign, ObserverForm, gramian_design, observer_form
 
 __all__ = ["Plant", "DCMotor", "GramianObserver", "SampledGramianObserver", "estimate_along",
            "REALISATIONS", "smooth_noise"]
@@ -95,7 +106,99 @@ def _signal(name, fn, dim):
                 return np.array([signal(float(s)) for s in np.atleast_1d(t)]).reshape(-1, dim)
     signal.rows = rows
     signal._signal_dim = dim
+    signal.sinusoids = None if fn is None else getattr(fn, "sinusoids", None)
     return signal
+
+
+def _sinusoid_params(fn, dim, name):
+    r"""The compiled form of a signal ``fn``: ``[K, rows...]`` from its ``sinusoids``.
+
+    ``fn.sinusoids`` is a (K, 5) table of rows (component i, amplitude a,
+    angular frequency w, phase phi, cos flag): component i of the signal is
+    the sum of its rows' ``a sin(w t + phi)`` (``a cos(w t + phi)`` with
+    the flag 1), in the rows' order. Returns None when ``fn`` has none.
+    """
+    tab = getattr(fn, "sinusoids", None)
+    if tab is None:
+        return None
+    tab = np.asarray(tab, dtype=float).reshape(-1, 5)
+    comp = tab[:, 0]
+    if not np.all(np.isfinite(tab)) or np.any((comp < 0) | (comp >= dim)) or np.any(
+            comp != np.round(comp)) or not np.all(np.isin(tab[:, 4], (0.0, 1.0))):
+        raise ValueError(f"{name}.sinusoids must be rows (component in [0, {dim}), amplitude, "
+                         f"angular frequency, phase, cos flag 0 or 1) of finite floats")
+    return np.concatenate([[float(len(tab))], tab.ravel()])
+
+
+@functools.cache
+def _signal_map():
+    """Compiled evaluation of a signal's ``sinusoids`` table stored at ``p[o:]``
+    (:func:`_sinusoid_params`): ``signal(t, p, o, dim) -> (dim,)``."""
+    def signal(t, p, o, dim):
+        out = np.zeros(dim)
+        for r in range(int(p[o])):
+            b = o + 1 + 5 * r
+            arg = p[b + 2] * t + p[b + 3]
+            v = p[b + 1] * (math.cos(arg) if p[b + 4] > 0.5 else math.sin(arg))
+            i = int(p[b])
+            out[i] = out[i] + v
+        return out
+    return signal
+
+
+@functools.cache
+def _dc_psi():
+    """Compiled Psi of the DC motor (65): ``psi(y, t, p, o)`` = (0, -a1 sin y, b0 u(t))
+    with a1, b0 and u's sinusoids at ``p[o:]``."""
+    signal = _signal_map()
+
+    def psi(y, t, p, o):
+        out = np.zeros(3)
+        out[1] = -p[o] * math.sin(y[0])
+        out[2] = p[o + 1] * signal(t, p, o + 2, 1)[0]
+        return out
+    return psi
+
+
+@functools.cache
+def _no_psi(n):
+    def psi(y, t, p, o):          # Psi = 0 (never called: the branch is constant)
+        return np.zeros(n)
+    return psi
+
+
+@functools.cache
+def _plant_maps(n, q, psi, has_d1, has_d2, oracle):
+    """Compiled flow and output of the plant (1), reading M, N and the offsets of
+    delta1, delta2 and Psi's parameters from ``p`` (:meth:`Plant.compiled_component`)."""
+    from hybridsim.compiled import compiled_matvec
+    signal, mv = _signal_map(), compiled_matvec()
+    oN, oo = n * n, n * n + q * n
+    has_psi = psi is not None
+    psi = psi if has_psi else _no_psi(n)
+
+    def flow(x, u, t, j, p):
+        dx = mv(p, 0, n, n, x)                                      # M chi
+        if has_d1:
+            d1 = signal(t, p, int(p[oo]), n)                        # + delta1(t)
+            for i in range(n):
+                dx[i] = dx[i] + d1[i]
+        if has_psi:
+            ps = psi(mv(p, oN, q, n, x), t, p, int(p[oo + 2]))      # + Psi(N chi, t)
+            for i in range(n):
+                dx[i] = dx[i] + ps[i]
+        return dx
+
+    def output(x, t, j, p):
+        y = mv(p, oN, q, n, x)
+        out = np.empty(2 * q if oracle else q)
+        d2 = signal(t, p, int(p[oo + 1]), q) if has_d2 else np.zeros(q)
+        for i in range(q):
+            out[i] = y[i] + d2[i] if has_d2 else y[i]               # Y = N chi + delta2(t)
+            if oracle:
+                out[q + i] = y[i]
+        return out
+    return flow, output
 
 
 def smooth_noise(sigma, dim=1, *, seed=None, n_modes=8, f_max=50.0):
@@ -120,7 +223,8 @@ def smooth_noise(sigma, dim=1, *, seed=None, n_modes=8, f_max=50.0):
     Returns
     -------
     callable
-        ``t -> (dim,)`` array.
+        ``t -> (dim,)`` array; its ``sinusoids`` table (one row a mode) is
+        its compiled form (:class:`Plant`'s notes).
 
     Examples
     --------
@@ -146,6 +250,11 @@ def smooth_noise(sigma, dim=1, *, seed=None, n_modes=8, f_max=50.0):
             return np.sum(a * np.sin(2 * np.pi * f * t + ph), axis=1)
         return np.sum(a * np.sin(2 * np.pi * f * t + ph), axis=0)
     noise.batch = True
+    # its compiled form (Plant's notes): one row (component, a, 2 pi f, phase, sin) a mode
+    w = 2 * np.pi * f
+    comp = np.broadcast_to(np.arange(dim), (n_modes, dim))
+    noise.sinusoids = np.column_stack([comp.ravel(), a.ravel(), w.ravel(), ph.ravel(),
+                                       np.zeros(n_modes * dim)])
     return noise
 
 
@@ -174,6 +283,19 @@ class Plant(hs.HybridSystem):
         :func:`hybridsim.simulate_many` integrates a batch of plants at once
         (the disturbances are read per time, in one call where they declare
         ``batch = True``).
+
+    Notes
+    -----
+    The compiled path (``backend="compiled"``, :meth:`compiled_component`)
+    takes the plant where every callable has a compiled form: ``Psi`` one
+    in its attribute ``Psi.compiled = (fn, params)``, ``fn(y, t, p, o) ->
+    (n,)`` a numba-compilable function reading its numbers from ``p[o:]``
+    (``params``, as :class:`DCMotor` sets it); ``delta1`` and ``delta2`` a
+    ``sinusoids`` table, rows (component, amplitude, angular frequency,
+    phase, cos flag) summed as ``a sin(w t + phi)`` (or ``a cos``), as the
+    disturbances of :func:`~observers.gramian_delay.dc_motor` and
+    :func:`smooth_noise` carry. Others are refused by name
+    (:meth:`compiled_refusal`).
 
     References
     ----------
@@ -222,6 +344,48 @@ class Plant(hs.HybridSystem):
             dx = dx + np.asarray(self.Psi(self.N @ x, t), dtype=float)
         return dx
 
+    def compiled_refusal(self):
+        """Why the plant has no compiled form (a sentence naming the callable), or None."""
+        if self.Psi is not None and getattr(self.Psi, "compiled", None) is None:
+            return getattr(self, "_psi_refusal", None) or (
+                "its Psi is a Python callable without a compiled form (Psi.compiled = "
+                "(fn(y, t, p, o), params), see gramian_delay.Plant)")
+        for name, sig in (("delta1", self._d1), ("delta2", self._d2)):
+            if sig is not None and sig.sinusoids is None:
+                return (f"its {name} is a Python callable of t without a compiled form (a "
+                        f"'sinusoids' table, see gramian_delay.Plant)")
+        return None
+
+    def compiled_component(self):
+        r"""The plant (1) in compiled form (``backend="compiled"``): the same
+        chi' = M chi + delta1(t) + Psi(N chi, t) and Y = N chi + delta2(t)
+        (with N chi after Y when ``oracle``), M and N and the signals'
+        numbers in the parameters.
+
+        Raises
+        ------
+        TypeError
+            A callable without a compiled form (:meth:`compiled_refusal`).
+        """
+        from hybridsim.compiled import Component
+        why = self.compiled_refusal()
+        if why:
+            raise TypeError(f"backend='compiled': {type(self).__name__} cannot run "
+                            f"compiled: {why}")
+        n, q = self.state_dim, self.N.shape[0]
+        d1 = None if self._d1 is None else _sinusoid_params(self._d1, n, "delta1")
+        d2 = None if self._d2 is None else _sinusoid_params(self._d2, q, "delta2")
+        fn, pp = (None, ()) if self.Psi is None else self.Psi.compiled
+        head = np.concatenate([self.M.ravel(), self.N.ravel()])
+        o1 = head.size + 3                         # delta1, delta2, Psi after the offsets
+        o2 = o1 + (0 if d1 is None else d1.size)
+        o3 = o2 + (0 if d2 is None else d2.size)
+        params = np.concatenate([head, [o1, o2, o3]] + [v for v in (d1, d2) if v is not None]
+                                + [np.asarray(pp, dtype=float).reshape(-1)])
+        flow, output = _plant_maps(n, q, fn, d1 is not None, d2 is not None, self.oracle)
+        return Component(state_dim=n, flow=flow, output=output, output_dim=self.output_dim,
+                         params=params)
+
     def output(self, x, t, j):
         if np.ndim(x) == 2:                             # a batch
             y = x @ self.N.T
@@ -258,7 +422,9 @@ class DCMotor(Plant):
     k, tau : float
         The constant of (2) and the delay.
     u : callable
-        The control ``t -> float``.
+        The control ``t -> float``; with a ``sinusoids`` table (:class:`Plant`'s
+        notes; :func:`~observers.gramian_delay.dc_motor`'s has one) Psi has a
+        compiled form.
     delta1, delta2 : callable, optional
         ``t -> (3,)``, ``t -> (1,)``; None means zero.
     chi0 : (3,) array_like
@@ -304,6 +470,12 @@ class DCMotor(Plant):
             t = np.broadcast_to(np.asarray(t, dtype=float), (len(Y),))
             return np.column_stack([np.zeros(len(Y)), -a1 * np.sin(Y[:, 0]), b0 * u_rows(t)])
 
+        u_sin = _sinusoid_params(u, 1, "u")
+        if u_sin is not None:               # the compiled form of Psi (Plant's notes)
+            Psi.compiled = (_dc_psi(), np.concatenate([[a1, b0], u_sin]))
+        else:
+            self._psi_refusal = ("its control u is a Python callable of t without a "
+                                 "compiled form (a 'sinusoids' table, see gramian_delay.Plant)")
         super().__init__(M, Nmat, Psi, delta1=delta1, delta2=delta2, oracle=oracle,
                          Psi_rows=Psi_rows)
         self.params = p
@@ -335,6 +507,133 @@ class DCMotor(Plant):
         obs = SampledGramianObserver(self.design, self.form.F1, self.form.F2, **kw)
         obs.plant, obs.form = self, self.form
         return obs
+
+
+@functools.cache
+def _sampled_maps(m, q, n, psi, sampling, xi2):
+    r"""Compiled maps of (39) (literal realisation) with (7) and (13).
+
+    State ``(xi1_hat, xi2_hat, psi1, psi2, omega, sigma, kappa)``; parameters
+    in the order of :meth:`SampledGramianObserver.compiled_component`, then
+    (the flow only) the state at t - tau. ``psi`` is the compiled Psi of the
+    form (None: Psi = 0); ``sampling`` "period", "instants" or "gaps";
+    ``xi2``: (13) reads xi_2 from the input's second half, else omega.
+    """
+    from hybridsim.compiled import compiled_matvec
+    mv = compiled_matvec()
+    e = 3 * m + q
+    r = e + q + 2
+    mm, mq = m * m, m * q
+    # parameter offsets
+    oA1 = 0
+    oA2 = oA1 + mm
+    ok = oA2 + q * m
+    oH = ok + 1
+    omA = oH + mq
+    oR = omA + mm
+    oSi = oR + mq
+    oE1 = oSi + mm
+    oE2 = oE1 + 1
+    otau = oE2 + mm
+    ot0 = otau + 1
+    oVr = ot0 + 1
+    oVi = oVr + mm
+    owr = oVi + mm
+    owi = owr + m
+    oWr = owi + m
+    oWi = oWr + mm
+    oL1 = oWi + mm
+    oL2 = oL1 + mq
+    oP = oL2 + q * q
+    oN = oP + m * n
+    os_ = oN + q * n               # period | (T_low, T_bar) | (K, offset of the instants)
+    opsi = os_ + 2                 # offset of Psi's parameters
+    has_psi = psi is not None
+    psi = psi if has_psi else _no_psi(n)
+
+    def decay(h, p):
+        """(e^{-k h}, e^{-(A1^T + 2kI) h}) for h < tau, from the modes (GramianDesign.decay)."""
+        ee = np.empty(m, np.complex128)
+        for i in range(m):
+            ee[i] = cmath.exp(complex(p[owr + i] * h, p[owi + i] * h))
+        E2 = np.empty((m, m))
+        for a in range(m):
+            for b in range(m):
+                acc = complex(0.0, 0.0)
+                for i in range(m):
+                    acc += (complex(p[oVr + a * m + i], p[oVi + a * m + i]) * ee[i]) * complex(
+                        p[oWr + i * m + b], p[oWi + i * m + b])
+                E2[a, b] = acc.real
+        return math.exp(-p[ok] * h), E2
+
+    def core(z, y, t, p):
+        k = p[ok]
+        w = z[e:e + q]
+        xi1, xi2 = z[0:m], z[m:m + q]
+        ps1, ps2 = z[m + q:2 * m + q], z[2 * m + q:e]
+        out = np.empty(r)
+        f1 = mv(p, oL1, m, q, w)                                    # F1(omega, t), F2 of (2)
+        f2 = mv(p, oL2, q, q, w)
+        if has_psi:
+            pv = psi(w, t, p, int(p[opsi]))
+            f1 = f1 + mv(p, oP, m, n, pv)
+            f2 = f2 + mv(p, oN, q, n, pv)
+        innov = mv(p, oH, m, q, w - xi2)                            # H (omega - xi2_hat)
+        out[0:m] = mv(p, oA1, m, m, xi1) + f1                       # (7) xi1_hat
+        out[m:m + q] = mv(p, oA2, q, m, xi1) - k * xi2 + f2         # (7) xi2_hat (decision 1)
+        out[m + q:2 * m + q] = -k * ps1 + innov                     # (7) psi1
+        out[2 * m + q:e] = mv(p, omA, m, m, ps2) + innov            # (7) psi2, literal
+        # (13) with decision 3's window h = min(tau, t - t0); psi(t - tau) is the past
+        # the engine hands over after the parameters (x0 before t0 = psi(t0))
+        b = p.shape[0] - r
+        pd1, pd2 = p[b + m + q:b + 2 * m + q], p[b + 2 * m + q:b + e]
+        tau = p[otau]
+        h = min(tau, t - p[ot0])
+        if h < tau:
+            E1, E2 = decay(h, p)
+            e2 = np.empty(m)
+            for a in range(m):
+                acc = 0.0
+                for c in range(m):
+                    acc += E2[a, c] * pd2[c]
+                e2[a] = acc
+        else:
+            E1 = p[oE1]
+            e2 = mv(p, oE2, m, m, pd2)
+        v = E1 * pd1 - ps1 + ps2 - e2
+        xe = xi1 + mv(p, oR, m, q, y - xi2) + mv(p, oSi, m, m, v)     # (13)
+        out[e:e + q] = mv(p, oA2, q, m, xe) - k * w + f2            # (39) omega
+        out[e + q] = 1.0                                            # sigma
+        out[e + q + 1] = 0.0                                        # kappa
+        return out
+
+    if xi2:
+        def flow(z, u, t, j, p):                                    # (13) with xi_2 (oracle)
+            return core(z, u[q:2 * q], t, p)
+    else:
+        def flow(z, u, t, j, p):                # (13) with omega: the input is not read
+            return core(z, z[e:e + q], t, p)
+
+    def jump(z, u, t, j, p):                                        # a sample, (39)
+        out = z.copy()
+        for c in range(q):
+            out[e + c] = u[c]
+        out[e + q] = 0.0
+        out[e + q + 1] = z[e + q + 1] + 1.0
+        return out
+
+    def jump_guard(z, u, t, j, p):
+        if sampling != "instants":                  # sigma - period, or sigma - T_low (36)
+            return z[e + q] - p[os_]
+        kap = math.floor(z[e + q + 1] + 0.5)
+        if kap >= int(p[os_]):
+            return -1.0
+        return t - p[int(p[os_ + 1]) + kap]
+
+    def flow_guard(z, u, t, j, p):                                  # gaps: C = {sigma <= T_bar}
+        return p[os_ + 1] - z[e + q]
+
+    return flow, jump, jump_guard, (flow_guard if sampling == "gaps" else None)
 
 
 def _probe_shape(name, call, shape, what):
@@ -800,6 +1099,83 @@ class SampledGramianObserver(_ObserverBase):
         z[self.i_sigma] = 0.0
         z[self.i_kappa] += 1.0
         return z
+
+    def compiled_refusal(self):
+        """Why (39) has no compiled form here (a sentence naming the argument), or None."""
+        if self.realisation != "literal":
+            return ("realisation='reset' has no compiled form (its reading of p(t - tau) "
+                    "depends on the reset interval); use realisation='literal'")
+        form = getattr(self.F1, "__self__", None)
+        if not isinstance(form, ObserverForm) or getattr(self.F2, "__self__", None) is not form:
+            return ("its F1, F2 are not an ObserverForm's (the compiled form reads F1, F2 of "
+                    "(2) from the form's matrices and its Psi's compiled form)")
+        if form.Psi is not None and getattr(form.Psi, "compiled", None) is None:
+            return ("the Psi of its form is a Python callable without a compiled form "
+                    "(Psi.compiled = (fn(y, t, p, o), params), see gramian_delay.Plant)")
+        if self.design._psi2_modes is None:
+            return ("the early window of (13) (decision 3) needs e^{-(A1^T + 2kI) h} for "
+                    "h < tau, computed from the eigen-decomposition of A1^T + 2kI, which is "
+                    "ill conditioned for this design (cond > 1e6)")
+        return None
+
+    def compiled_component(self):
+        r"""(39) in compiled form (``backend="compiled"``, realisation "literal").
+
+        The same flow (7) with omega in place of Y, (39) for omega with xi_e of
+        (13), and the samples of (39) (``period``, ``instants`` or ``gaps`` of
+        (36)); the design's matrices (A1, A2, k, H, R, S^{-1}, E1, E2, the
+        modes of A1^T + 2kI for decision 3's early window) and F1, F2 of (2)
+        (the form's M12, M22 + kI, P, N and Psi's compiled form) are in the
+        parameters. The flow reads psi(t - tau) from the past state the
+        engine hands it (``delays=(tau,)``: :class:`hybridsim.compiled.Component`);
+        before t0 + tau that is the constant x0 (the compiled path's
+        prehistory), whose psi is psi(t0), the value (13) reads there
+        (decision 3), for runs starting at the observer's ``t0`` or later.
+
+        Raises
+        ------
+        TypeError
+            Naming what has no compiled form (:meth:`compiled_refusal`).
+
+        References
+        ----------
+        Mazenc & Malisoff (2022), eqs. (7), (13), (36)-(39).
+        """
+        from hybridsim.compiled import Component
+        why = self.compiled_refusal()
+        if why:
+            raise TypeError(f"backend='compiled': SampledGramianObserver cannot run "
+                            f"compiled: {why}")
+        d = self.design
+        form = self.F1.__self__
+        m, q, n = d.m, d.q, form.n
+        V, w, Vi = d._psi2_modes
+
+        def re_im(a):
+            a = np.asarray(a)
+            return [a.real.ravel(), (a.imag.ravel() if np.iscomplexobj(a)
+                                     else np.zeros(a.size))]
+        L1, L2 = form._linear
+        head = [d.A1.ravel(), d.A2.ravel(), [d.k], d.H.ravel(), self._mA2.ravel(),
+                d.R.ravel(), d.S_inv.ravel(), [d.E1], d.E2.ravel(), [d.tau, self.t0],
+                *re_im(V), *re_im(w), *re_im(Vi), L1.ravel(), L2.ravel(), form.P.ravel(),
+                form.N.ravel()]
+        size = sum(np.size(a) for a in head) + 3
+        fn, pp = (None, np.zeros(0)) if form.Psi is None else form.Psi.compiled
+        pp = np.asarray(pp, dtype=float).reshape(-1)
+        if self.period is not None:
+            sampling, samp = "period", [self.period, 0.0]
+        elif self.gaps is not None:
+            sampling, samp = "gaps", list(self.gaps)
+        else:
+            sampling, samp = "instants", [len(self.instants), size + pp.size]
+        params = np.concatenate([np.concatenate([np.ravel(a) for a in head]), samp, [size], pp]
+                                + ([self.instants] if sampling == "instants" else []))
+        flow, jump, guard, fguard = _sampled_maps(m, q, n, fn, sampling,
+                                                  self.estimate_source == "xi2")
+        return Component(state_dim=self.state_dim, input_dim=self.input_dim, flow=flow,
+                         jump=jump, jump_guard=guard, flow_guard=fguard, params=params,
+                         delays=(d.tau,))
 
     def estimate(self, arc, *, y=None, name=None):
         r"""xi_e (13) at every sample of ``arc`` as the observer used it.
