@@ -724,14 +724,15 @@ def _push(T, J, X, XD, ns, t, j, x):
 # ------------------------------------------------------------------ the past (delays)
 # A run with delays (CompiledSystem(delays=)) keeps every recorded step's dense
 # output, as hybridsim.History does: HS[k] = (start, end, h), HY[k] the step's
-# start state, HQ[k] its h K^T P; HM = (count, the last jump's time, the time
-# read where the past was missing, the recorded end then). The flow map's p
-# holds x(t - tau_i) after the parameters while it runs, NaN otherwise.
+# start state, HQ[k] its h K^T P; HM = (count, the last jump's time, and where
+# the past was first missing: the time read, the recorded end, the flow map's t).
+# The flow map's p holds x(t - tau_i) after the parameters while it runs, NaN
+# otherwise.
 @njit(cache=True, **_NJ)
 def _past(p, pb, dl, s, H):
     """Write x(s - tau_i) for every delay into ``p[pb:]`` (``hybridsim.History``'s
-    rules). False, the tail NaN and HM[2:4] set, where a value is not recorded
-    yet (the solver step under way)."""
+    rules). False, the tail NaN and HM[2:5] set (the first time), where a value
+    is not recorded yet (the solver step under way)."""
     HS, HY, HQ, HM, cur_x, x0, t0 = H
     n = x0.shape[0]
     hn = int(HM[0])
@@ -749,8 +750,10 @@ def _past(p, pb, dl, s, H):
                 for q in range(n):
                     p[o + q] = cur_x[q]
                 continue
-            HM[2] = r
-            HM[3] = cur_t
+            if HM[2] != HM[2]:
+                HM[2] = r
+                HM[3] = cur_t
+                HM[4] = s
             p[pb:] = np.nan
             return False
         lo = 0
@@ -766,8 +769,10 @@ def _past(p, pb, dl, s, H):
             if hn > 0 and HS[hn - 1, 1] < r <= HS[hn - 1, 1] + tol:
                 k = hn - 1
             else:
-                HM[2] = r
-                HM[3] = HS[hn - 1, 1] if hn > 0 else cur_t
+                if HM[2] != HM[2]:
+                    HM[2] = r
+                    HM[3] = HS[hn - 1, 1] if hn > 0 else cur_t
+                    HM[4] = s
                 p[pb:] = np.nan
                 return False
         x = (r - HS[k, 0]) / HS[k, 2]
@@ -979,7 +984,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     HS = np.empty((hcap, 3))
     HY = np.empty((hcap, n))
     HQ = np.empty((hcap, n, 4))
-    HM = np.zeros(4)
+    HM = np.zeros(5)
     HM[1] = t0
     HM[2] = np.nan
     cur_x = x0.copy()
@@ -1196,7 +1201,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
         if HM[2] == HM[2]:                   # the past is missing (a delay under a step)
             cause = MAP_ERROR
             detail = MAP_HISTORY
-            info[0] = t
+            info[0] = HM[4]
             info[1] = HM[2]
             info[2] = HM[3]
             info[3] = j
@@ -1315,7 +1320,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             if HM[2] == HM[2]:
                 cause = MAP_ERROR
                 detail = MAP_HISTORY
-                info[0] = a
+                info[0] = HM[4]
                 info[1] = HM[2]
                 info[2] = HM[3]
                 info[3] = j
