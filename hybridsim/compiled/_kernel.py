@@ -799,6 +799,17 @@ def _fd(f, y, s, j, p, pb, dl, H):
 
 
 @njit(cache=True, **_NJ)
+def _past_missing(info, HM, j):
+    """The run's end where the past was missing: MAP_ERROR, with ``info`` = (the
+    flow map's t, the time read, the recorded end, j) for the message."""
+    info[0] = HM[4]
+    info[1] = HM[2]
+    info[2] = HM[3]
+    info[3] = j
+    return MAP_ERROR, MAP_HISTORY
+
+
+@njit(cache=True, **_NJ)
 def _record(HS, HY, HQ, HM, a, b, h, ya, hQ):
     """Record the step from a (dense output ya, hQ over h) up to b; the arrays,
     grown by doubling where full."""
@@ -1199,12 +1210,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 info[3] = j
                 break
         if HM[2] == HM[2]:                   # the past is missing (a delay under a step)
-            cause = MAP_ERROR
-            detail = MAP_HISTORY
-            info[0] = HM[4]
-            info[1] = HM[2]
-            info[2] = HM[3]
-            info[3] = j
+            cause, detail = _past_missing(info, HM, j)
             break
         stats[4] += 1
         XD[ns - 1] = fa
@@ -1318,12 +1324,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             if attempts > 1:
                 stats[1] += attempts - 1
             if HM[2] == HM[2]:
-                cause = MAP_ERROR
-                detail = MAP_HISTORY
-                info[0] = HM[4]
-                info[1] = HM[2]
-                info[2] = HM[3]
-                info[3] = j
+                cause, detail = _past_missing(info, HM, j)
                 t, x = a, ya
                 break
             if bad_len:
