@@ -48,6 +48,7 @@ from numba import njit, types
 from numba.core import cgutils
 from numba.core import errors as nb_errors
 from numba.extending import intrinsic, overload, register_jitable, typeof_impl
+from numba.typed import List
 from scipy.integrate._ivp.rk import RK45
 
 from .. import rules
@@ -723,17 +724,28 @@ def _push(T, J, X, XD, ns, t, j, x):
 
 # ------------------------------------------------------------------ the past (delays)
 # A run with delays (CompiledSystem(delays=)) keeps every recorded step's dense
-# output, as hybridsim.History does: HS[k] = (start, end, h), HY[k] the step's
-# start state, HQ[k] its h K^T P; HM = (count, the last jump's time, and where
+# output, as hybridsim.History does: one row a step, (start, end, h, the step's
+# start state (n), its h K^T P (n x 4, row-major)), in chunks of _CH rows kept in
+# a typed List HL (appended to, never reassigned: an array reassigned in the run's
+# loop costs every run about 10%, delays or not); HM = (count, the last jump's time, and where
 # the past was first missing: the time read, the recorded end, the flow map's t).
 # The flow map's p holds x(t - tau_i) after the parameters while it runs, NaN
 # otherwise.
+_CH = 256                           # rows of a chunk of the step record
+_CHUNK_T = types.float64[:, ::1]
+
+
 @njit(cache=True, **_NJ)
-def _past(p, pb, dl, s, H):
+def _hr(HL, k, c):
+    """Entry c of the step record's row k."""
+    return HL[k // _CH][k % _CH, c]
+
+
+@njit(cache=True, **_NJ)
+def _past(p, pb, dl, s, HL, HM, cur_x, x0, t0):
     """Write x(s - tau_i) for every delay into ``p[pb:]`` (``hybridsim.History``'s
     rules). False, the tail NaN and HM[2:5] set (the first time), where a value
     is not recorded yet (the solver step under way)."""
-    HS, HY, HQ, HM, cur_x, x0, t0 = H
     n = x0.shape[0]
     hn = int(HM[0])
     cur_t = HM[1]
@@ -745,7 +757,7 @@ def _past(p, pb, dl, s, H):
                 p[o + q] = x0[q]
             continue
         tol = 1e-12 * max(1.0, abs(r))
-        if r >= cur_t and (hn == 0 or HS[hn - 1, 0] < cur_t):
+        if r >= cur_t and (hn == 0 or _hr(HL, hn - 1, 0) < cur_t):
             if r <= cur_t + tol:            # the current flow's start: post-jump value
                 for q in range(n):
                     p[o + q] = cur_x[q]
@@ -760,38 +772,41 @@ def _past(p, pb, dl, s, H):
         hi = hn
         while lo < hi:                      # bisect_right on the starts
             mid = (lo + hi) // 2
-            if r < HS[mid, 0]:
+            if r < _hr(HL, mid, 0):
                 hi = mid
             else:
                 lo = mid + 1
         k = lo - 1
-        if not (k >= 0 and r <= HS[k, 1]):
-            if hn > 0 and HS[hn - 1, 1] < r <= HS[hn - 1, 1] + tol:
+        if not (k >= 0 and r <= _hr(HL, k, 1)):
+            if hn > 0 and _hr(HL, hn - 1, 1) < r <= _hr(HL, hn - 1, 1) + tol:
                 k = hn - 1
             else:
                 if HM[2] != HM[2]:
                     HM[2] = r
-                    HM[3] = HS[hn - 1, 1] if hn > 0 else cur_t
+                    HM[3] = _hr(HL, hn - 1, 1) if hn > 0 else cur_t
                     HM[4] = s
                 p[pb:] = np.nan
                 return False
-        x = (r - HS[k, 0]) / HS[k, 2]
+        R = HL[k // _CH]
+        kk = k % _CH
+        x = (r - R[kk, 0]) / R[kk, 2]
         x2 = x * x
         x3 = x2 * x
         x4 = x3 * x
         for q in range(n):
-            p[o + q] = HY[k, q] + (HQ[k, q, 0] * x + HQ[k, q, 1] * x2 + HQ[k, q, 2] * x3
-                                   + HQ[k, q, 3] * x4)
+            c = 3 + n + 4 * q
+            p[o + q] = R[kk, 3 + q] + (R[kk, c] * x + R[kk, c + 1] * x2 + R[kk, c + 2] * x3
+                                       + R[kk, c + 3] * x4)
     return True
 
 
 @njit(cache=True, **_NJ)
-def _fd(f, y, s, j, p, pb, dl, H):
+def _fd(f, y, s, j, p, pb, dl, HL, HM, cur_x, x0, t0):
     """The flow map at (y, s), with the past in ``p[pb:]`` where there are delays
     (NaN again afterwards); a value of NaN where the past is missing (HM[2])."""
     if dl.shape[0] == 0:
         return f(y, s, j, p)
-    if not _past(p, pb, dl, s, H):
+    if not _past(p, pb, dl, s, HL, HM, cur_x, x0, t0):
         return np.full(y.shape[0], np.nan)
     v = f(y, s, j, p)
     p[pb:] = np.nan
@@ -810,50 +825,41 @@ def _past_missing(info, HM, j):
 
 
 @njit(cache=True, **_NJ)
-def _record(HS, HY, HQ, HM, a, b, h, ya, hQ):
-    """Record the step from a (dense output ya, hQ over h) up to b; the arrays,
-    grown by doubling where full."""
+def _record(HL, HM, a, b, h, ya, hQ):
+    """Record the step from a (dense output ya, hQ over h) up to b (a new chunk
+    where the last is full)."""
     if not b > a:
-        return HS, HY, HQ
+        return
     hn = int(HM[0])
-    if hn == HS.shape[0]:
-        c2 = 2 * hn
-        HS2 = np.empty((c2, 3))
-        HY2 = np.empty((c2, HY.shape[1]))
-        HQ2 = np.empty((c2, HY.shape[1], 4))
-        HS2[:hn] = HS[:hn]
-        HY2[:hn] = HY[:hn]
-        HQ2[:hn] = HQ[:hn]
-        HS, HY, HQ = HS2, HY2, HQ2
-    HS[hn, 0] = a
-    HS[hn, 1] = b
-    HS[hn, 2] = h
-    HY[hn] = ya
-    HQ[hn] = hQ
+    n = ya.shape[0]
+    if hn // _CH == len(HL):
+        HL.append(np.empty((_CH, 3 + 5 * n)))
+    R = HL[hn // _CH]
+    k = hn % _CH
+    R[k, 0] = a
+    R[k, 1] = b
+    R[k, 2] = h
+    for q in range(n):
+        R[k, 3 + q] = ya[q]
+        for c in range(4):
+            R[k, 3 + n + 4 * q + c] = hQ[q, c]
     HM[0] = hn + 1
-    return HS, HY, HQ
 
 
 @njit(cache=True, **_NJ)
-def _add_breaks(BR, nbr, t, dl):
-    """Insert t + tau_i into the sorted breakpoints BR[:nbr]; (BR, nbr)."""
+def _add_breaks(BL, t, dl):
+    """Insert t + tau_i into the sorted breakpoints BL (a typed List)."""
     for i in range(dl.shape[0]):
         v = t + dl[i]
-        if nbr == BR.shape[0]:
-            BR2 = np.empty(2 * nbr + 4)
-            BR2[:nbr] = BR[:nbr]
-            BR = BR2
-        k = nbr
-        while k > 0 and BR[k - 1] > v:
-            BR[k] = BR[k - 1]
+        k = len(BL)
+        while k > 0 and BL[k - 1] > v:
             k -= 1
-        BR[k] = v
-        nbr += 1
-    return BR, nbr
+        BL.insert(k, v)
 
 
 @njit(cache=True, **_NJ)
-def _initial_step(f, t0, y0, t_bound, max_step, f0, rtol, atol, j, p, pb, dl, H):
+def _initial_step(f, t0, y0, t_bound, max_step, f0, rtol, atol, j, p, pb, dl, HL, HM, cur_x,
+                  x0, ts0):
     """scipy's ``select_initial_step`` (direction +1, order 4)."""
     interval = abs(t_bound - t0)
     if interval == 0.0:
@@ -873,7 +879,7 @@ def _initial_step(f, t0, y0, t_bound, max_step, f0, rtol, atol, j, p, pb, dl, H)
     if dl.shape[0] == 0:
         f1 = f(y1, t0 + h0, j, p)
     else:
-        f1 = _fd(f, y1, t0 + h0, j, p, pb, dl, H)
+        f1 = _fd(f, y1, t0 + h0, j, p, pb, dl, HL, HM, cur_x, x0, ts0)
     if f1.shape[0] != n:
         return -1.0
     d2 = _rms((f1 - f0) / scale) / h0
@@ -991,20 +997,15 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
         p[pb:] = np.nan
     else:
         p = p_in
-    hcap = 64 if nd > 0 else 1
-    HS = np.empty((hcap, 3))
-    HY = np.empty((hcap, n))
-    HQ = np.empty((hcap, n, 4))
+    HL = List.empty_list(_CHUNK_T)
     HM = np.zeros(5)
     HM[1] = t0
     HM[2] = np.nan
     cur_x = x0.copy()
-    H = (HS, HY, HQ, HM, cur_x, x0, t0)
-    BR = np.empty(4 * nd + 4)        # delay breakpoints t_k + tau_i, sorted, from ibr
-    nbr = 0
-    ibr = 0
+    BL = List.empty_list(types.float64)     # delay breakpoints t_k + tau_i, sorted
+    ibr = 0                                 # the first not yet passed
     if nd > 0:
-        BR, nbr = _add_breaks(BR, nbr, t0, dl)
+        _add_breaks(BL, t0, dl)
     T = np.empty(cap)
     J = np.empty(cap, np.int64)
     X = np.empty((cap, n))
@@ -1040,7 +1041,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
         if nd == 0:
             v0 = f(x, t, j, p)
         else:
-            v0 = _fd(f, x, t, j, p, pb, dl, H)
+            v0 = _fd(f, x, t, j, p, pb, dl, HL, HM, cur_x, x0, t0)
         if v0.shape[0] != n or not _all_finite(v0):
             info[0] = t
             info[2] = v0.shape[0]
@@ -1146,7 +1147,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 if nd > 0:                   # ``History._restart``, the new breakpoints
                     cur_x[:] = x
                     HM[1] = t
-                    BR, nbr = _add_breaks(BR, nbr, t, dl)
+                    _add_breaks(BL, t, dl)
                 if ns >= max_samples:
                     cause = MAX_STEPS
                     detail = 1
@@ -1176,10 +1177,10 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
         t_bound = t_max
         if nd > 0:                           # ``_Run._bound``: the next breakpoint
             tol = 4.0 * _EPS * max(1.0, abs(t))
-            while ibr < nbr and BR[ibr] <= t + tol:
+            while ibr < len(BL) and BL[ibr] <= t + tol:
                 ibr += 1
-            if ibr < nbr and BR[ibr] < t_max:
-                t_bound = BR[ibr]
+            if ibr < len(BL) and BL[ibr] < t_max:
+                t_bound = BL[ibr]
         flow_t0 = t
         hh0 = h_hint
         if hh0 == hh0:
@@ -1189,7 +1190,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
         if nd == 0:
             fa = f(x, t, j, p)
         else:
-            fa = _fd(f, x, t, j, p, pb, dl, H)
+            fa = _fd(f, x, t, j, p, pb, dl, HL, HM, cur_x, x0, t0)
         stats[2] += 1
         if fa.shape[0] != n:
             cause = MAP_ERROR
@@ -1201,7 +1202,8 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
         if hh0 == hh0:
             h_abs = hh0
         else:
-            h_abs = _initial_step(f, t, x, t_bound, max_step, fa, rtol, atol, j, p, pb, dl, H)
+            h_abs = _initial_step(f, t, x, t_bound, max_step, fa, rtol, atol, j, p, pb, dl, HL,
+                                  HM, cur_x, x0, t0)
             stats[2] += 1
             if h_abs < 0.0:
                 cause = MAP_ERROR
@@ -1272,7 +1274,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                     if nd == 0:
                         ks = f(yi, a + _Cc[s] * hs, j, p)
                     else:
-                        ks = _fd(f, yi, a + _Cc[s] * hs, j, p, pb, dl, H)
+                        ks = _fd(f, yi, a + _Cc[s] * hs, j, p, pb, dl, HL, HM, cur_x, x0, t0)
                     if ks.shape[0] != n:
                         bad_len = True
                         break
@@ -1288,7 +1290,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 if nd == 0:
                     fnew = f(ynew, b, j, p)
                 else:
-                    fnew = _fd(f, ynew, b, j, p, pb, dl, H)
+                    fnew = _fd(f, ynew, b, j, p, pb, dl, HL, HM, cur_x, x0, t0)
                 stats[2] += 6
                 if HM[2] == HM[2]:
                     break
@@ -1341,7 +1343,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                     if nd == 0:
                         fy = f(ya, a, j, p)
                     else:
-                        fy = _fd(f, ya, a, j, p, pb, dl, H)
+                        fy = _fd(f, ya, a, j, p, pb, dl, HL, HM, cur_x, x0, t0)
                     bad = fy.shape[0] != n or not _all_finite(fy)
                 if bad:
                     cause = NON_FINITE
@@ -1407,8 +1409,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 break
             if not hit:
                 if nd > 0:                   # ``History._add``
-                    HS, HY, HQ = _record(HS, HY, HQ, HM, a, b, hs, ya, hQ)
-                    H = (HS, HY, HQ, HM, cur_x, x0, t0)
+                    _record(HL, HM, a, b, hs, ya, hQ)
                 ns_step = ns             # this step's samples start here
                 if refine > 1 and b > a:
                     if ns + refine - 1 > max_samples:
@@ -1487,8 +1488,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 break
             # ``_commit``
             if nd > 0 and not past and te > a:
-                HS, HY, HQ = _record(HS, HY, HQ, HM, a, te, hs, ya, hQ)
-                H = (HS, HY, HQ, HM, cur_x, x0, t0)
+                _record(HL, HM, a, te, hs, ya, hQ)
             if te > a:
                 if refine > 1:
                     if ns + refine - 1 > max_samples:
@@ -1511,7 +1511,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 if nd == 0:
                     fe = f(xe, te, j, p)
                 else:
-                    fe = _fd(f, xe, te, j, p, pb, dl, H)
+                    fe = _fd(f, xe, te, j, p, pb, dl, HL, HM, cur_x, x0, t0)
                 if fe.shape[0] == n:
                     XD[ns] = fe
                 ns += 1
@@ -1566,7 +1566,8 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
         if nd == 0:
             fl = f(np.ascontiguousarray(X[ns - 1]), T[ns - 1], J[ns - 1], p)
         else:
-            fl = _fd(f, np.ascontiguousarray(X[ns - 1]), T[ns - 1], J[ns - 1], p, pb, dl, H)
+            fl = _fd(f, np.ascontiguousarray(X[ns - 1]), T[ns - 1], J[ns - 1], p, pb, dl, HL, HM,
+                     cur_x, x0, t0)
         if fl.shape[0] == n:
             XD[ns - 1] = fl
     stats[5] = jumps
