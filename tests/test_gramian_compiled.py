@@ -195,7 +195,10 @@ def motor():
     return gd.dc_motor(100.0, 0.1)           # decision 7's u, delta1, delta2
 
 
-@pytest.mark.parametrize("case", sorted(CASES))
+# period in the default suite; instants and gaps (their own compiled maps, 8-14 s
+# each to compile) with the slow tests
+@pytest.mark.parametrize("case", [pytest.param(c, marks=() if c == "period" else
+                                               pytest.mark.slow) for c in sorted(CASES)])
 def test_39_lowered_agrees_with_its_python_path(motor, case):
     """(39) with the DC motor, samples by period, instants and gaps: the lowered
     interconnection on the Python engine and on the compiled one against the
@@ -212,6 +215,7 @@ def test_39_lowered_agrees_with_its_python_path(motor, case):
     assert arc.system is sysc and list(arc.components) == ["plant", "observer"]
 
 
+@pytest.mark.slow
 def test_39_with_the_oracle_and_smooth_noise_agrees(motor):
     """estimate="xi2" (13) reads xi_2 from the oracle plant's output (the input's
     second half), and a measurement noise of smooth_noise (its compiled form)."""
