@@ -165,8 +165,9 @@ def test_a_history_reader_without_declared_delays_is_refused_by_name():
     with pytest.raises(TypeError, match="reads its history .* NoForm has no compiled form"):
         lower(NoForm())
     assert not lowerable(NoForm())
-    for bad, msg in (((0.0,), "positive"), ((0.1, 0.1), "distinct"), ("x", "sequence")):
-        with pytest.raises(ValueError, match=msg):
+    for bad, err, msg in (((0.0,), ValueError, "positive"), ((0.1, 0.1), ValueError, "distinct"),
+                          ("x", TypeError, "sequence")):
+        with pytest.raises(err, match=msg):
             Component(state_dim=1, flow=_lag_flow, delays=bad)
     with pytest.raises(ValueError, match="needs flow"):
         Component(state_dim=1, delays=(0.1,))

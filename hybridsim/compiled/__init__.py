@@ -266,13 +266,8 @@ class CompiledSystem(HybridSystem):
                 or state_dim < 1:
             raise ValueError(f"state_dim must be a positive int, got {state_dim!r}")
         self.state_dim = int(state_dim)
-        try:
-            self.delays = tuple(float(d) for d in (delays or ()))
-        except (TypeError, ValueError):
-            raise TypeError(f"delays must be a sequence of positive floats, got "
-                            f"{delays!r}") from None
-        if not all(math.isfinite(d) and d > 0 for d in self.delays):
-            raise ValueError(f"delays must be positive finite floats, got {delays!r}")
+        from ._lower import _check_delays
+        self.delays = _check_delays(delays)
         self.needs_history = bool(self.delays)
         self.params = params
         if self.delays:     # a step must not reach past the smallest delay (hs.History)

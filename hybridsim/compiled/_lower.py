@@ -145,14 +145,16 @@ class Component:
 
 
 def _check_delays(delays):
-    """``delays`` as a tuple of distinct positive finite floats (ValueError naming it)."""
+    """``delays`` as a tuple of distinct positive finite floats (the one check of
+    :class:`Component` and :class:`~hybridsim.compiled.CompiledSystem`; errors
+    name the argument)."""
     try:
         d = tuple(float(v) for v in (delays or ()))
     except (TypeError, ValueError):
-        raise ValueError(f"delays must be a sequence of positive floats, got "
-                         f"{delays!r}") from None
+        raise TypeError(f"delays must be a sequence of positive floats, got "
+                        f"{delays!r}") from None
     if not all(math.isfinite(v) and v > 0.0 for v in d):
-        raise ValueError(f"delays must be positive and finite, got {d}")
+        raise ValueError(f"delays must be positive finite floats, got {d}")
     if len(set(d)) != len(d):
         raise ValueError(f"delays must be distinct, got {d}")
     return d
