@@ -354,13 +354,15 @@ class HybridArc:
 
     @classmethod
     def _trusted(cls, t, j, x, termination, message=None, exception=None,
-                 components=None, segments=None, system=None, xdot=None, stats=None):
+                 components=None, segments=None, system=None, xdot=None, stats=None,
+                 description=None):
         """An arc from the engine's own output, without re-validating it.
 
         ``t`` (N,) float, ``j`` (N,) int64 and ``x``/``xdot`` (N, n) float
         arrays, as every integration path produces them; saves the checks of
         :meth:`__init__` (a large share of a short run in a batch of
-        thousands).
+        thousands). ``description``: the system's, where the caller made it
+        once for many arcs.
         """
         arc = cls.__new__(cls)
         arc.t, arc.j, arc.x, arc.xdot, arc.stats = t, j, x, xdot, stats
@@ -369,7 +371,8 @@ class HybridArc:
         arc.exception = exception
         arc.components = components
         arc.system = system
-        arc.system_description = None if system is None else _describe(system)
+        arc.system_description = description if description is not None or system is None \
+            else _describe(system)
         arc._segments = segments
         arc._cache = {}
         if CHECK_ARCS:

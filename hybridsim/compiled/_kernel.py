@@ -212,6 +212,9 @@ def _ov_as_bool(v):
 
 
 _NJ = dict(error_model="numpy")
+#: the kernels' internal functions: no CPython or C wrappers (never called from
+#: Python; the wrappers' code cost seconds of the first compile)
+_NJI = dict(_NJ, no_cpython_wrapper=True, no_cfunc_wrapper=True)
 
 
 def wrap_map(fn, kind, lazy=False):
@@ -321,7 +324,7 @@ def _next_double(typingctx, fnaddr, state):
     return types.float64(types.int64, types.int64), codegen
 
 
-@njit(cache=True, **_NJ)
+@njit(cache=True, **_NJI)
 def _coin(rngp):
     """A fair coin from the run's numpy Generator (``rngp``: its BitGenerator's
     ``state_address`` and ``next_double`` address): ``rng.random() < 0.5``."""
@@ -329,7 +332,7 @@ def _coin(rngp):
 
 
 # ------------------------------------------------------------------ helpers
-@njit(cache=True, **_NJ)
+@njit(cache=True, **_NJI)
 def _dense(yold, hQ, told, h, s):
     """RK45's dense output at s (as :func:`hybridsim.events.fast_dense`)."""
     x = (s - told) / h
@@ -343,7 +346,7 @@ def _dense(yold, hQ, told, h, s):
     return out
 
 
-@njit(cache=True, **_NJ)
+@njit(cache=True, **_NJI)
 def _dense_deriv(Q, told, h, s):
     """d/dt of the dense output at s (``solve._dense_derivative``)."""
     x = (s - told) / h
@@ -354,7 +357,7 @@ def _dense_deriv(Q, told, h, s):
     return out
 
 
-@njit(cache=True, **_NJ)
+@njit(cache=True, **_NJI)
 def _rms(v):
     s = 0.0
     for i in range(v.shape[0]):
@@ -362,7 +365,7 @@ def _rms(v):
     return math.sqrt(s) / math.sqrt(v.shape[0])
 
 
-@njit(cache=True, **_NJ)
+@njit(cache=True, **_NJI)
 def _all_finite(v):
     for i in range(v.size):
         if not np.isfinite(v.flat[i]):
@@ -381,7 +384,7 @@ def _f64_ptr(typingctx, addr):
     return types.CPointer(types.float64)(addr), codegen
 
 
-@njit(cache=True, **_NJ)
+@njit(cache=True, **_NJI)
 def _fault(ev_addr, which, s, j):
     """Record the first NaN guard of the run in the kernel's ``ev`` (at
     ``ev_addr``; ``ev[0]``: 1 jump_guard, 2 flow_guard, then s and j)."""
@@ -394,7 +397,7 @@ def _fault(ev_addr, which, s, j):
 
 # _inD, _inC, _pred: plain calls (numba's IR inlining of them, at ~30 call sites,
 # cost ~10 s of the engine's first compile for no measurable speed: LLVM inlines)
-@njit(cache=True, **_NJ)
+@njit(cache=True, **_NJI)
 def _inD(M, y, s, j, p):
     """x in D: the indicator, or {jump_guard >= 0} where D is derived from its guard
     (a NaN guard is the map's contract breach: recorded at ``M[8]``, as the Python
@@ -412,7 +415,7 @@ def _inD(M, y, s, j, p):
     return M[4](y, s, j, p)
 
 
-@njit(cache=True, **_NJ)
+@njit(cache=True, **_NJI)
 def _inC(M, y, s, j, p):
     """x in C: the indicator, or {flow_guard >= 0} (see :func:`_inD`)."""
     if M[7]:
@@ -424,7 +427,7 @@ def _inC(M, y, s, j, p):
     return M[5](y, s, j, p)
 
 
-@njit(cache=True, **_NJ)
+@njit(cache=True, **_NJI)
 def _pred(M, s, y, j, p, has_C, d_active):
     """The event has happened at (s, y): left C, or (watched) entered D."""
     if has_C and not _inC(M, y, s, j, p):
@@ -434,7 +437,7 @@ def _pred(M, s, y, j, p, has_C, d_active):
     return False
 
 
-@njit(cache=True, **_NJ)
+@njit(cache=True, **_NJI)
 def _phi(M, s, y, j, p, useD, useC):
     """The continuous event function (>= 0 once the event has happened): every
     given guard of the flow (``_Run._phi``). A NaN guard is recorded as the
@@ -453,7 +456,7 @@ def _phi(M, s, y, j, p, useD, useC):
     return v
 
 
-@njit(cache=True, **_NJ)
+@njit(cache=True, **_NJI)
 def _phi_nan(M, s, y, j, p, useD):
     """Record which guard returned NaN in :func:`_phi` (the jump guard first, as
     ``_Run._phi`` names it): off the event search's fast path."""
@@ -465,7 +468,7 @@ def _phi_nan(M, s, y, j, p, useD):
     _fault(M[8], 2.0, s, j)
 
 
-@njit(cache=True, **_NJ)
+@njit(cache=True, **_NJI)
 def _secant(M, yold, hQ, told, h, j, p, useD, useC, lo, hi, flo, fhi, ylo, yhi,
             seeded, s0, slope0):
     """``events._secant``: secant steps from the last evaluation, accepted inside
@@ -517,7 +520,7 @@ def _secant(M, yold, hQ, told, h, j, p, useD, useC, lo, hi, flo, fhi, ylo, yhi,
     return lo, hi, ylo, yhi
 
 
-@njit(cache=True, **_NJ)
+@njit(cache=True, **_NJI)
 def _root_off_zero(f0, fd, fw, d, w):
     """``events._root_off_zero``: (offset, slope), NaNs where the model has no root."""
     m = (fd - f0) / d
@@ -532,7 +535,7 @@ def _root_off_zero(f0, fd, fw, d, w):
     return np.nan, np.nan
 
 
-@njit(cache=True, **_NJ)
+@njit(cache=True, **_NJI)
 def _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, b,
             yb, yb_known):
     """:func:`hybridsim.events.locate_event` on the step's dense output (``yb``:
@@ -600,12 +603,12 @@ def _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, 
     return lo, hi, ylo, yhi
 
 
-@njit(cache=True, **_NJ)
+@njit(cache=True, **_NJI)
 def _near_peak(v, lo_nb):
     return v + 2.0 * (v - lo_nb) >= 0.0
 
 
-@njit(cache=True, **_NJ)
+@njit(cache=True, **_NJI)
 def _maximize(M, yold, hQ, told, h, j, p, has_C, d_active, useD, useC, l, r, fl, fr):
     """Golden-section search (``events._maximize``); returns NaN when nothing found."""
     x1 = r - _INVPHI * (r - l)
@@ -642,7 +645,7 @@ def _maximize(M, yold, hQ, told, h, j, p, has_C, d_active, useD, useC, l, r, fl,
     return np.nan
 
 
-@njit(cache=True, **_NJ)
+@njit(cache=True, **_NJI)
 def _interior(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, b):
     """:func:`hybridsim.events.find_interior_event` with 3 samples: (found, lo, hi)."""
     hh = b - a
@@ -660,7 +663,7 @@ def _interior(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a
     for k in range(1, 4):
         s = pts[k]
         y = _dense(yold, hQ, told, h, s)
-        ys[k - 1] = y
+        _put(ys, k - 1, y)
         if _pred(M, s, y, j, p, has_C, d_active):
             return True, prev, s
         prev = s
@@ -700,25 +703,37 @@ def _interior(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a
     return False, a, b
 
 
-@njit(cache=True, **_NJ)
+@njit(cache=True, **_NJI)
+def _put(A, i, v):
+    """``A[i] = v`` as a loop (numba's broadcasting setitem compiles its shape
+    error's formatting, seconds of every first compile)."""
+    for q in range(v.shape[0]):
+        A[i, q] = v[q]
+
+
+@njit(cache=True, **_NJI)
 def _push(T, J, X, XD, ns, t, j, x):
     """Append a sample (xdot NaN), growing the buffers by doubling."""
     cap = T.shape[0]
+    n = X.shape[1]
     if ns == cap:
         cap2 = 2 * cap
         T2 = np.empty(cap2)
         J2 = np.empty(cap2, np.int64)
-        X2 = np.empty((cap2, X.shape[1]))
-        XD2 = np.empty((cap2, X.shape[1]))
-        T2[:ns] = T[:ns]
-        J2[:ns] = J[:ns]
-        X2[:ns] = X[:ns]
-        XD2[:ns] = XD[:ns]
+        X2 = np.empty((cap2, n))
+        XD2 = np.empty((cap2, n))
+        for r in range(ns):
+            T2[r] = T[r]
+            J2[r] = J[r]
+            for q in range(n):
+                X2[r, q] = X[r, q]
+                XD2[r, q] = XD[r, q]
         T, J, X, XD = T2, J2, X2, XD2
     T[ns] = t
     J[ns] = j
-    X[ns] = x
-    XD[ns] = np.nan
+    for q in range(n):
+        X[ns, q] = x[q]
+        XD[ns, q] = np.nan
     return T, J, X, XD
 
 
@@ -735,13 +750,13 @@ _CH = 256                           # rows of a chunk of the step record
 _CHUNK_T = types.float64[:, ::1]
 
 
-@njit(cache=True, **_NJ)
+@njit(cache=True, **_NJI)
 def _hr(HL, k, c):
     """Entry c of the step record's row k."""
     return HL[k // _CH][k % _CH, c]
 
 
-@njit(cache=True, **_NJ)
+@njit(cache=True, **_NJI)
 def _past(p, pb, dl, s, HL, HM, cur_x, x0, t0):
     """Write x(s - tau_i) for every delay into ``p[pb:]`` (``hybridsim.History``'s
     rules). False, the tail NaN and HM[2:5] set (the first time), where a value
@@ -800,7 +815,7 @@ def _past(p, pb, dl, s, HL, HM, cur_x, x0, t0):
     return True
 
 
-@njit(cache=True, **_NJ)
+@njit(cache=True, **_NJI)
 def _fd(f, y, s, j, p, pb, dl, HL, HM, cur_x, x0, t0):
     """The flow map at (y, s), with the past in ``p[pb:]`` where there are delays
     (NaN again afterwards); a value of NaN where the past is missing (HM[2])."""
@@ -813,7 +828,7 @@ def _fd(f, y, s, j, p, pb, dl, HL, HM, cur_x, x0, t0):
     return v
 
 
-@njit(cache=True, **_NJ)
+@njit(cache=True, **_NJI)
 def _past_missing(info, HM, j):
     """The run's end where the past was missing: MAP_ERROR, with ``info`` = (the
     flow map's t, the time read, the recorded end, j) for the message."""
@@ -824,7 +839,7 @@ def _past_missing(info, HM, j):
     return MAP_ERROR, MAP_HISTORY
 
 
-@njit(cache=True, **_NJ)
+@njit(cache=True, **_NJI)
 def _record(HL, HM, a, b, h, ya, hQ):
     """Record the step from a (dense output ya, hQ over h) up to b (a new chunk
     where the last is full)."""
@@ -846,7 +861,7 @@ def _record(HL, HM, a, b, h, ya, hQ):
     HM[0] = hn + 1
 
 
-@njit(cache=True, **_NJ)
+@njit(cache=True, **_NJI)
 def _add_breaks(BL, t, dl):
     """Insert t + tau_i into the sorted breakpoints BL (a typed List)."""
     for i in range(dl.shape[0]):
@@ -857,7 +872,7 @@ def _add_breaks(BL, t, dl):
         BL.insert(k, v)
 
 
-@njit(cache=True, **_NJ)
+@njit(cache=True, **_NJI)
 def _initial_step(f, t0, y0, t_bound, max_step, f0, rtol, atol, j, p, pb, dl, HL, HM, cur_x,
                   x0, ts0):
     """scipy's ``select_initial_step`` (direction +1, order 4)."""
@@ -890,7 +905,7 @@ def _initial_step(f, t0, y0, t_bound, max_step, f0, rtol, atol, j, p, pb, dl, HL
     return min(100.0 * h0, h1, interval, max_step)
 
 
-@njit(cache=True, **_NJ)
+@njit(cache=True, **_NJI)
 def _event(M, yold, hQ, told, h, j, p, has_C, has_D, d_active, phi_on, useD, useC,
            a, lo, hi, clamp, h_abs, flow_t0, prio, rngp, yb, yb_known):
     """``_Run._event``: locate, then decide. Returns (kind, te, xe, lo, ylo, h_hint,
@@ -924,7 +939,7 @@ def _event(M, yold, hQ, told, h, j, p, has_C, has_D, d_active, phi_on, useD, use
     return _O_JUMP, lo, ylo, lo, ylo, hint, False
 
 
-@njit(cache=True, **_NJ)
+@njit(cache=True, **_NJI)
 def _near_C(M, x, j, p, lo, yold, hQ, told, h, x_hi):
     """``_Run._near_C``: a post-jump state in neither C nor D is within the located
     event's tolerance of C (``rules.post_jump_probe``; off the run's main loop).
@@ -993,7 +1008,8 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     pb = p_in.shape[0]
     if nd > 0:
         p = np.empty(pb + nd * n)
-        p[:pb] = p_in
+        for q in range(pb):
+            p[q] = p_in[q]
         p[pb:] = np.nan
     else:
         p = p_in
@@ -1126,7 +1142,9 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 # ---- the jump (``_Run._jump``)
                 flow = t - t_last_jump
                 if n_flows_last == 4:
-                    flows_last[:3] = flows_last[1:].copy()
+                    flows_last[0] = flows_last[1]
+                    flows_last[1] = flows_last[2]
+                    flows_last[2] = flows_last[3]
                     flows_last[3] = flow
                 else:
                     flows_last[n_flows_last] = flow
@@ -1145,7 +1163,8 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 jumps += 1
                 x = xn.copy()
                 if nd > 0:                   # ``History._restart``, the new breakpoints
-                    cur_x[:] = x
+                    for q in range(n):
+                        cur_x[q] = x[q]
                     HM[1] = t
                     _add_breaks(BL, t, dl)
                 if ns >= max_samples:
@@ -1215,7 +1234,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             cause, detail = _past_missing(info, HM, j)
             break
         stats[4] += 1
-        XD[ns - 1] = fa
+        _put(XD, ns - 1, fa)
         a = t
         ya = x
         d_active = watch_D and not in_D
@@ -1421,7 +1440,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                         s = a + (b - a) * (r / refine)
                         T, J, X, XD = _push(T, J, X, XD, ns, s, j,
                                             _dense(ya, hQ, a, hs, s))
-                        XD[ns] = _dense_deriv(hQ / hs, a, hs, s)
+                        _put(XD, ns, _dense_deriv(hQ / hs, a, hs, s))
                         ns += 1
                 if ns >= max_samples:
                     cause = MAX_STEPS
@@ -1429,7 +1448,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                     info[0] = t
                     break
                 T, J, X, XD = _push(T, J, X, XD, ns, b, j, yb)
-                XD[ns] = fb
+                _put(XD, ns, fb)
                 ns += 1
                 if max_norm < np.inf:
                     nb = math.sqrt(np.sum(yb * yb))
@@ -1500,7 +1519,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                         s = a + (te - a) * (r / refine)
                         T, J, X, XD = _push(T, J, X, XD, ns, s, j,
                                             _dense(ya, hQ, a, hs, s))
-                        XD[ns] = _dense_deriv(hQ / hs, a, hs, s)
+                        _put(XD, ns, _dense_deriv(hQ / hs, a, hs, s))
                         ns += 1
                 if ns >= max_samples:
                     cause = MAX_STEPS
@@ -1513,7 +1532,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 else:
                     fe = _fd(f, xe, te, j, p, pb, dl, HL, HM, cur_x, x0, t0)
                 if fe.shape[0] == n:
-                    XD[ns] = fe
+                    _put(XD, ns, fe)
                 ns += 1
                 if max_norm < np.inf:        # the event's sample, as a step's end
                     nb = math.sqrt(np.sum(xe * xe))
@@ -1569,7 +1588,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             fl = _fd(f, np.ascontiguousarray(X[ns - 1]), T[ns - 1], J[ns - 1], p, pb, dl, HL, HM,
                      cur_x, x0, t0)
         if fl.shape[0] == n:
-            XD[ns - 1] = fl
+            _put(XD, ns - 1, fl)
     stats[5] = jumps
     return (T[:ns].copy(), J[:ns].copy(), X[:ns].copy(), XD[:ns].copy(), cause, detail,
             info, stats)
@@ -1577,7 +1596,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
 
 #: one run on the maps' own types: first-class functions (:func:`run_one`), or a
 #: system's dispatchers (:data:`run_one_spec`)
-_run_fc = njit(cache=True, **_NJ)(_run_core)
+_run_fc = njit(cache=True, **_NJI)(_run_core)
 
 
 @njit(cache=True, **_NJ)
