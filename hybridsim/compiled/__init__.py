@@ -17,8 +17,8 @@ controller and dense output, event location, the decision loop) is compiled
 once per machine and kept in numba's on-disk cache (``__pycache__`` beside
 this package; ``NUMBA_CACHE_DIR``; or, where the package's folder cannot be
 written, as in a read-only site-packages, numba's user cache folder): a new
-process loads it in a fraction of a second. Compiling it takes about 16 s of
-CPU (the run kernel; the batch kernel, which calls it by address, about 1.5 s)
+process loads it in a fraction of a second. Compiling it takes about 21 s of
+CPU (the run kernel; the batch kernel, which calls it by address, about 0.5 s)
 and is announced once on stderr. The user's maps reach it as numba
 first-class functions of a fixed signature; they are compiled per system, when
 the system is first run (about 0.1-0.3 s per map), and are not cached across

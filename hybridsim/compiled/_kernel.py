@@ -1234,7 +1234,8 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             cause, detail = _past_missing(info, HM, j)
             break
         stats[4] += 1
-        _put(XD, ns - 1, fa)
+        for q in range(n):
+            XD[ns - 1, q] = fa[q]
         a = t
         ya = x
         d_active = watch_D and not in_D
@@ -1283,7 +1284,8 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 ha = abs(hs)
                 attempts += 1
                 tried = True
-                K[0] = fa
+                for q in range(n):
+                    K[0, q] = fa[q]
                 for s in range(1, 6):
                     for i in range(n):
                         acc = 0.0
@@ -1297,7 +1299,8 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                     if ks.shape[0] != n:
                         bad_len = True
                         break
-                    K[s] = ks
+                    for q in range(n):
+                        K[s, q] = ks[q]
                 if bad_len:
                     break
                 ynew = np.empty(n)
@@ -1316,7 +1319,8 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 if fnew.shape[0] != n:
                     bad_len = True
                     break
-                K[6] = fnew
+                for q in range(n):
+                    K[6, q] = fnew[q]
                 es = 0.0
                 for i in range(n):
                     acc = 0.0
@@ -1448,7 +1452,8 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                     info[0] = t
                     break
                 T, J, X, XD = _push(T, J, X, XD, ns, b, j, yb)
-                _put(XD, ns, fb)
+                for q in range(n):
+                    XD[ns, q] = fb[q]
                 ns += 1
                 if max_norm < np.inf:
                     nb = math.sqrt(np.sum(yb * yb))
@@ -1532,7 +1537,8 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 else:
                     fe = _fd(f, xe, te, j, p, pb, dl, HL, HM, cur_x, x0, t0)
                 if fe.shape[0] == n:
-                    _put(XD, ns, fe)
+                    for q in range(n):
+                        XD[ns, q] = fe[q]
                 ns += 1
                 if max_norm < np.inf:        # the event's sample, as a step's end
                     nb = math.sqrt(np.sum(xe * xe))
@@ -1692,13 +1698,15 @@ def run_rows(one, maps, X0, p, fopt, iopt, atol, rngp, poll, stop, next_row, chu
             NS[i] = m
             CA[i] = cause
             DE[i] = detail
-            INFO[i] = info
-            ST[i] = stats
+            _put(INFO, i, info)
+            _put(ST, i, stats)
             if m <= cap:
-                TT[i, :m] = T
-                JJ[i, :m] = J
-                XX[i, :m] = X
-                XXD[i, :m] = XD
+                for r in range(m):
+                    TT[i, r] = T[r]
+                    JJ[i, r] = J[r]
+                    for q in range(X.shape[1]):
+                        XX[i, r, q] = X[r, q]
+                        XXD[i, r, q] = XD[r, q]
     return 0
 
 
@@ -2004,7 +2012,7 @@ def compile_kernels(batch=True, notice=None, one=True):
 
 #: CPU seconds to compile run_one, run_rows and a specialised run kernel with an
 #: empty cache (measured on the project's machine, issue 27; the notice quotes them)
-COMPILE_SECONDS = (16, 2, 14)
+COMPILE_SECONDS = (21, 1, 21)
 #: run_one's code address (:func:`jit_address`), once compiled
 _ONE_ADDR = []
 

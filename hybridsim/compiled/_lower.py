@@ -198,7 +198,24 @@ def _helpers():
                 s += p[b + k] * v[k]
             out[i] += s
 
-    return {"matvec": matvec, "matvec_add": matvec_add}
+    @nj
+    def put(out, a, b, v):
+        """``out[a:b] = v`` as a loop (numba's slice assignment compiles the
+        formatting of its shape error: seconds of the first compile)."""
+        if v.shape[0] != b - a:
+            raise ValueError("a component's map returned an array of another length")
+        for q in range(b - a):
+            out[a + q] = v[q]
+
+    @nj
+    def add_into(u, v):
+        """``u += v`` as a loop (see ``put``)."""
+        if v.shape[0] != u.shape[0]:
+            raise ValueError("a component's output has another length than the input it feeds")
+        for q in range(u.shape[0]):
+            u[q] += v[q]
+
+    return {"matvec": matvec, "matvec_add": matvec_add, "put": put, "add_into": add_into}
 
 
 def matvec(p, off, rows, cols, v):
@@ -434,11 +451,11 @@ def _generate(parts, n, npar=0):
         part = parts[k]
         a, b, nk = part.ps.start, part.ps.stop, part.comp.state_dim
         st = [f"    p{k} = np.empty({b - a + nk * len(part.past)})",
-              f"    p{k}[0:{b - a}] = p[{a}:{b}]"]
+              f"    put(p{k}, 0, {b - a}, p[{a}:{b}])"]
         for i, g in enumerate(part.past):
             src = npar + g * n + part.xs.start
             dst = b - a + i * nk
-            st.append(f"    p{k}[{dst}:{dst + nk}] = p[{src}:{src + nk}]")
+            st.append(f"    put(p{k}, {dst}, {dst + nk}, p[{src}:{src + nk}])")
         return st
 
     def needed(ks, roles):
@@ -456,7 +473,7 @@ def _generate(parts, n, npar=0):
             st.append(f"    u{k} = np.zeros({parts[k].comp.input_dim})")
             for s, mat in terms:
                 if mat is None:
-                    st.append(f"    u{k} += y{s}")
+                    st.append(f"    add_into(u{k}, y{s})")
                 elif mat[0] == "sel":               # a selection matrix: copies, no products
                     st += [f"    u{k}[{i}] += y{s}[{c}]" for i, c in mat[2]]
                 else:
@@ -508,8 +525,8 @@ def _generate(parts, n, npar=0):
         if "flow" not in parts[k].comp.maps:
             lines.append(f"    out[{sl.start}:{sl.stop}] = 0.0")
             continue
-        lines.append(f"    out[{sl.start}:{sl.stop}] = "
-                     f"as_vec(flow{k}(x{k}, {u(k, 'flow')}, t, j, p{k}))")
+        lines.append(f"    put(out, {sl.start}, {sl.stop}, "
+                     f"as_vec(flow{k}(x{k}, {u(k, 'flow')}, t, j, p{k})))")
     lines += ["    return out", ""]
     D = [k for k in P if parts[k].comp.has_D]
     C = [k for k in P if parts[k].comp.has_C]
@@ -520,8 +537,8 @@ def _generate(parts, n, npar=0):
         for k in D:
             sl = parts[k].xs
             lines.append(f"    if {in_set(k, 'D')}:")
-            lines.append(f"        out[{sl.start}:{sl.stop}] = "
-                         f"as_vec(jump{k}(x{k}, {u(k, 'jump')}, t, j, p{k}))")
+            lines.append(f"        put(out, {sl.start}, {sl.stop}, "
+                         f"as_vec(jump{k}(x{k}, {u(k, 'jump')}, t, j, p{k})))")
         lines += ["    return out", ""]
         lines += head("jump_set", D, ("jump_set", "jump_guard"))
         lines += ["    return " + " or ".join(f"({in_set(k, 'D')})" for k in D), ""]
@@ -561,7 +578,8 @@ def _build(parts, n, pvec, name, specialize, delays=()):
         src, roles = _generate(parts, n, len(pvec))
         ns = {"np": np, "math": math, "as_vec": k.as_vec, "as_scalar": k.as_scalar,
               "as_bool": k.as_bool, "matvec": compiled_matvec(),
-              "matvec_add": _helpers()["matvec_add"],
+              "matvec_add": _helpers()["matvec_add"], "put": _helpers()["put"],
+              "add_into": _helpers()["add_into"],
               "NOU": np.zeros(0)}
         for i, p in enumerate(parts):
             for r, f in p.comp.maps.items():
