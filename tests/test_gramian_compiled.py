@@ -152,6 +152,19 @@ def test_a_structure_serves_other_delays_and_a_compiled_system_is_a_part():
     assert_same_run(hs.simulate(mixed, x0, t_max=3.0, backend="compiled", **RUN), ref)
 
 
+def test_systems_lowered_from_one_structure_run_at_their_own_delays():
+    """Unions (0.5, 1.0) and (0.5, 1.2) share the lowered maps and the smallest
+    delay (the max_step): the second run, with the same options, reads its past
+    at 1.2, not at the first system's 1.0 (the packed options are memoized per
+    structure; the delays are part of their key)."""
+    x0 = np.array([1.0, 0.2, -0.1])
+    first, second = pair_system(1.0, (0.5, 1.0)), pair_system(1.2, (0.5, 1.2))
+    assert lower(second).maps["flow"] is lower(first).maps["flow"]
+    hs.simulate(first, x0, t_max=3.0, backend="compiled", **RUN)
+    arc = hs.simulate(second, x0, t_max=3.0, backend="compiled", **RUN)
+    assert_same_run(arc, hs.simulate(second, x0, t_max=3.0, **RUN))
+
+
 def test_a_history_reader_without_declared_delays_is_refused_by_name():
     class Undeclared(Lag):
         def compiled_component(self):

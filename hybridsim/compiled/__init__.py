@@ -504,8 +504,10 @@ def _options(system, n, caller, method, extra, **shared):
     if not extra:
         vals = tuple(shared.values())
         try:
-            key = (caller, method, n, type(system.max_step), system.max_step, vals,
-                   tuple(map(type, vals)))
+            # what the packed arrays read of the system: its max_step and delays
+            # (systems lowered from one structure share this memo, not their delays)
+            key = (caller, method, n, type(system.max_step), system.max_step,
+                   system.delays, vals, tuple(map(type, vals)))
             hash(key)
         except TypeError:       # an array atol: parsed every time
             key = None
