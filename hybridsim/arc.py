@@ -37,6 +37,8 @@ _AT_JUMP = ("start", "end", "mean", "nan", "both")
 #: validate every arc an integration path returns (``HYBRIDSIM_CHECK_ARCS=1``;
 #: the test suite sets it): a defect of the engine then fails at its run
 CHECK_ARCS = os.environ.get("HYBRIDSIM_CHECK_ARCS", "") not in ("", "0")
+#: the attributes a pooled arc makes on first access (``HybridArc._pooled``)
+_POOLED = frozenset(("t", "j", "x", "xdot", "stats"))
 _KEYS_V1 = ("t", "j", "x", "termination", "message", "comp_names", "comp_bounds")
 _KEYS_V2 = ("format_version", "t", "j", "x", "termination", "message",
             "components", "stats", "system_description")
@@ -354,15 +356,13 @@ class HybridArc:
 
     @classmethod
     def _trusted(cls, t, j, x, termination, message=None, exception=None,
-                 components=None, segments=None, system=None, xdot=None, stats=None,
-                 description=None):
+                 components=None, segments=None, system=None, xdot=None, stats=None):
         """An arc from the engine's own output, without re-validating it.
 
         ``t`` (N,) float, ``j`` (N,) int64 and ``x``/``xdot`` (N, n) float
         arrays, as every integration path produces them; saves the checks of
         :meth:`__init__` (a large share of a short run in a batch of
-        thousands). ``description``: the system's, where the caller made it
-        once for many arcs.
+        thousands).
         """
         arc = cls.__new__(cls)
         arc.t, arc.j, arc.x, arc.xdot, arc.stats = t, j, x, xdot, stats
@@ -371,13 +371,51 @@ class HybridArc:
         arc.exception = exception
         arc.components = components
         arc.system = system
-        arc.system_description = description if description is not None or system is None \
-            else _describe(system)
+        arc.system_description = None if system is None else _describe(system)
         arc._segments = segments
         arc._cache = {}
         if CHECK_ARCS:
             arc.validate(where="the engine's arc")
         return arc
+
+    @classmethod
+    def _pooled(cls, pool, bounds, termination, message, system, stats_of):
+        """Arcs of a batch's runs, each one's samples ``bounds[i] = (a, b)``,
+        rows a:b of the batch's compact pool ``pool = (t, j, x, xdot)``, and its
+        stats ``stats_of(i)`` (a dict), made on first access: a batch of
+        thousands of short runs otherwise spends most of its Python time
+        slicing. ``termination`` and ``message``: one each, for every run.
+        """
+        desc = _describe(system)
+        new = cls.__new__
+        out = []
+        for i, ab in enumerate(bounds):
+            arc = new(cls)
+            arc.__dict__ = {"termination": termination, "message": message,
+                            "exception": None, "components": None, "system": system,
+                            "system_description": desc, "_segments": None, "_cache": {},
+                            "_pool": (pool, ab, stats_of, i)}
+            out.append(arc)
+        if CHECK_ARCS:
+            for arc in out:
+                arc.validate(where="the engine's arc")
+        return out
+
+    def _unpool(self):
+        """A pooled arc's samples and stats, set (see :meth:`_pooled`)."""
+        pooled = self.__dict__.get("_pool")
+        if pooled is not None:          # set before the pool is dropped: threads may race here
+            (t, j, x, xdot), (a, b), stats_of, i = pooled
+            self.t, self.j, self.x, self.xdot = t[a:b], j[a:b], x[a:b], xdot[a:b]
+            self.stats = stats_of(i)
+            self.__dict__.pop("_pool", None)
+
+    def __getattr__(self, name):
+        # only for attributes not set: a pooled arc's samples and stats
+        if name in _POOLED and "_pool" in self.__dict__:
+            self._unpool()
+            return self.__dict__[name]
+        raise AttributeError(f"'{type(self).__name__}' object has no attribute {name!r}")
 
     def _like(self, t, j, x, *, xdot=None, segments=None, components=None,
               system=None, keep=True):
@@ -413,6 +451,7 @@ class HybridArc:
         return bool(self.components) and name in self.components
 
     def __copy__(self):
+        self._unpool()
         new = object.__new__(HybridArc)
         new.__dict__.update(self.__dict__)
         new._cache = {}
@@ -420,6 +459,7 @@ class HybridArc:
 
     def __deepcopy__(self, memo):
         import copy
+        self._unpool()
         new = object.__new__(HybridArc)
         memo[id(self)] = new
         state = {k: v for k, v in self.__dict__.items() if k != "_cache"}
@@ -429,6 +469,7 @@ class HybridArc:
 
     def __getstate__(self):
         """Pickle state: the system and dense outputs only when they pickle."""
+        self._unpool()
         state = self.__dict__.copy()
         state.pop("_cache", None)
         state.pop("_seg_starts", None)

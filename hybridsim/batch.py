@@ -327,8 +327,11 @@ class _Batch:
 
 def _summary(what, arcs, offset=0):
     """One warning text for the failed and canceled rows, or None."""
-    failed = [(i, a) for i, a in enumerate(arcs) if a.termination in FAILED]
-    canceled = [i for i, a in enumerate(arcs) if a.termination is Termination.CANCELED]
+    # by identity (an Enum member hashes in Python code: 0.3 µs a row)
+    bad, stop = {id(c) for c in FAILED}, id(Termination.CANCELED)
+    terms = [id(a.termination) for a in arcs]
+    failed = [(i, arcs[i]) for i, c in enumerate(terms) if c in bad]
+    canceled = [i for i, c in enumerate(terms) if c == stop]
     parts = []
     if failed:
         named = []

@@ -122,6 +122,39 @@ def test_arcs_carry_stats_and_xdot_as_the_python_path(readme):
     np.testing.assert_allclose(a.xdot[:, 1], -9.81, atol=1e-9)
 
 
+def test_batch_arcs_made_on_first_access_are_whole_arcs(readme, monkeypatch):
+    """A batch's plain rows (T_MAX, J_MAX) are pooled arcs: their samples and
+    stats are sliced from the batch's pool on first access (the suite validates
+    every arc at once, HYBRIDSIM_CHECK_ARCS: here they stay pooled until read).
+    Read, copied, deep-copied or pickled before any access, each is the single
+    run's arc to the bit."""
+    import copy
+    import pickle
+
+    import hybridsim.arc as arc_mod
+    monkeypatch.setattr(arc_mod, "CHECK_ARCS", False)
+    ball = readme["ball"]
+    x0s = np.column_stack([np.linspace(0.5, 2.0, 40), np.zeros(40)])
+    kw = dict(t_max=20.0, j_max=4, rtol=1e-10, atol=1e-12)
+    arcs = simulate_many_compiled(ball, x0s, **kw)
+    rows = [i for i, a in enumerate(arcs) if "_pool" in a.__dict__]
+    assert len(rows) >= 30            # every row but the few run alone first
+    r = rows[:5]
+    read = [arcs[r[0]], copy.copy(arcs[r[1]]), copy.deepcopy(arcs[r[2]]),
+            pickle.loads(pickle.dumps(arcs[r[3]]))]
+    assert all("_pool" not in arcs[i].__dict__ for i in r[1:4])   # copy, pickle: unpooled
+    for i, a in zip(r, read):
+        single = simulate_compiled(ball, x0s[i], **kw)
+        for f in ("t", "j", "x", "xdot"):
+            np.testing.assert_array_equal(getattr(a, f), getattr(single, f))
+        assert a.stats == single.stats and a.termination is single.termination
+        assert a.message == single.message and a.jump_count == 4
+        a.validate(where="a pooled arc")
+    with pytest.raises(AttributeError, match="no attribute 'nope'"):
+        _ = arcs[r[4]].nope
+    assert "_pool" in arcs[r[4]].__dict__       # a missing name does not unpool
+
+
 # ------------------------------------------------------------------ a timer
 def test_timer_jump_at_t_max_refined_samples_stored_once(timer):
     a = simulate_compiled(timer, [0.0], t_max=1.0, refine=2)

@@ -62,7 +62,7 @@ import warnings
 
 import numpy as np
 
-from ..arc import HybridArc, _describe
+from ..arc import HybridArc
 from ..options import check_unsupported, check_x0, parse_run
 from ..rules import CAUSES, DETAILS, MapError, Priority, Termination, finish, message
 from ..system import HybridSystem
@@ -675,13 +675,22 @@ def _message(system, k, code, detail, info, T, J, X, stats, ro):
     return cause, message(cause, kind, **fields), None
 
 
+def _stats(s):
+    """An arc's ``stats`` from the kernel's (steps, rejected, nfev, events, flows, jumps)."""
+    return {"steps": s[0], "nfev": s[2], "njev": 0, "nlu": 0, "events": s[3], "flows": s[4],
+            "rejected": s[1]}
+
+
+def _stats_of(ST, rows):
+    """``i -> _stats(ST[rows[i]])`` (a pooled arc's, made on first access)."""
+    return lambda i: _stats(ST[rows[i]].tolist())
+
+
 def _arc(system, k, T, J, X, XD, code, detail, info, stats, ro):
     """The run's :class:`HybridArc`; a map's breach at x0 is raised at once (as
     on the Python path), with ``.arc`` (cause ``MAP_ERROR``) set."""
     cause, msg, exc = _message(system, k, code, detail, info, T, J, X, stats, ro)
-    s = stats.tolist() if isinstance(stats, np.ndarray) else stats
-    st = {"steps": s[0], "nfev": s[2], "njev": 0, "nlu": 0, "events": s[3], "flows": s[4],
-          "rejected": s[1]}
+    st = _stats(stats.tolist() if isinstance(stats, np.ndarray) else stats)
     # the kernels' own arrays: (N,) float64 t, int64 j, (N, n) float64 x and xdot
     arc = HybridArc._trusted(T, J, X, cause, msg, exc, system=system, xdot=XD, stats=st)
     if exc is not None:
@@ -838,21 +847,6 @@ def _interruptible(fn, args, stop, threads=1):
     return interrupted
 
 
-def _compact(TT, JJ, XX, XXD, NS, cap):
-    """The pool's rows one after another, each cut to its run's length
-    (``min(NS[r], cap)`` samples): one gather per field (a boolean mask over
-    the pool took 2.5x as long)."""
-    B = TT.shape[0]
-    n = XX.shape[2]
-    m = np.minimum(NS[:B], cap)
-    tot = int(m.sum())
-    idx = np.arange(tot) + np.repeat(np.arange(B) * cap - (np.cumsum(m) - m), m)
-    row = np.dtype((np.void, 8 * n))        # a state as one item: a 1-D gather
-    return (TT.reshape(-1)[idx], JJ.reshape(-1)[idx],
-            XX.reshape(-1, n).view(row).reshape(-1)[idx].view(np.float64).reshape(tot, n),
-            XXD.reshape(-1, n).view(row).reshape(-1)[idx].view(np.float64).reshape(tot, n))
-
-
 def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
                            chunk_bytes=64 * 2**20, t0=0.0, j0=0, priority="jumps",
                            rtol=1e-6, atol=1e-9, max_step=math.inf, first_step=None,
@@ -988,8 +982,6 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
             # their message the cause's own (as _arc would)
             plain = {c: (t, t.message) for c, t in ((k.T_MAX, Termination.T_MAX),
                                                      (k.J_MAX, Termination.J_MAX))}
-            trusted = HybridArc._trusted
-            desc = _describe(system)
             loop = k.DETAIL_LOOP
             while c < len(rows) and not stopped:
                 B = int(max(64, min(len(rows) - c, chunk_bytes // (cap * per))))
@@ -1006,33 +998,33 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
                     _threads(parallel, B))
                 # every run's samples in one compact array per field (one copy of
                 # the pool), each arc a view of its rows
-                ns_l, ca_l, de_l = NS.tolist(), CA.tolist(), DE.tolist()
-                s_steps, s_rej, s_nfev, s_ev, s_fl = (ST[:, c].tolist() for c in range(5))
-                Tf, Jf, Xf, XDf = _compact(TT, JJ, XX, XXD, NS, cap)
-                o = 0
-                for r, i in enumerate(idx.tolist()):
-                    m = ns_l[r]
-                    if m <= cap:
-                        e = o + m
-                        ca = ca_l[r]
-                        cm = plain.get(ca)
-                        if cm is not None and de_l[r] != loop:
-                            arcs[i] = trusted(
-                                Tf[o:e], Jf[o:e], Xf[o:e], cm[0], cm[1], None,
-                                system=system, xdot=XDf[o:e],
-                                stats={"steps": s_steps[r], "nfev": s_nfev[r], "njev": 0,
-                                       "nlu": 0, "events": s_ev[r], "flows": s_fl[r],
-                                       "rejected": s_rej[r]}, description=desc)
-                        elif not (stopped and ca == canceled and m == 1 and
-                                  not ST[r].any()):
+                pool = k.compact_rows(TT, JJ, XX, XXD, NS, cap)
+                m_c = np.minimum(NS, cap)
+                ends = np.cumsum(m_c)
+                starts = ends - m_c
+                easy = (NS <= cap) & (NS > 0) & (DE != loop)
+                done = np.zeros(B, bool)
+                for code, (term, msg) in plain.items():
+                    sel = np.flatnonzero(easy & (CA == code))
+                    if len(sel):
+                        made = HybridArc._pooled(
+                            pool, zip(starts[sel].tolist(), ends[sel].tolist()), term, msg,
+                            system, _stats_of(ST, sel))
+                        for i, arc in zip(idx[sel].tolist(), made):
+                            arcs[i] = arc
+                        done[sel] = True
+                Tf, Jf, Xf, XDf = pool
+                for r in np.flatnonzero(~done).tolist():
+                    i = int(idx[r])
+                    o, e = int(starts[r]), int(ends[r])
+                    if NS[r] <= cap:
+                        ca = int(CA[r])
+                        if not (stopped and ca == canceled and NS[r] == 1 and
+                                not ST[r].any()):
                             arcs[i] = _arc(system, k, Tf[o:e], Jf[o:e], Xf[o:e], XDf[o:e],
-                                           ca, de_l[r], INFO[r], ST[r].tolist(), ro)
-                        o = e
+                                           ca, int(DE[r]), INFO[r], ST[r].tolist(), ro)
                     elif not stopped:          # longer than its slot: run it alone
                         stopped, _ = one(i, rng)
-                        o += cap
-                    else:
-                        o += cap
                 # the next chunk's slots: room for the longest run seen, with margin
                 longest = int(NS.max()) if B else cap
                 cap = max(cap, 1 << math.ceil(math.log2(max(longest, 2) * 1.25)))

@@ -1710,6 +1710,37 @@ def run_rows(one, maps, X0, p, fopt, iopt, atol, rngp, poll, stop, next_row, chu
     return 0
 
 
+@njit(cache=True, **_NJ)
+def compact_rows(TT, JJ, XX, XXD, NS, cap):
+    """A batch pool's rows one after another, each cut to its run's length
+    (``min(NS[r], cap)`` samples): the fields (t, j, x, xdot) of every run in
+    one array each (:func:`run_rows` writes the pool)."""
+    B = NS.shape[0]
+    n = XX.shape[2]
+    tot = 0
+    for r in range(B):
+        tot += min(NS[r], cap)
+    T = np.empty(tot)
+    J = np.empty(tot, np.int64)
+    X = np.empty((tot, n))
+    XD = np.empty((tot, n))
+    o = 0
+    for r in range(B):
+        for i in range(min(NS[r], cap)):
+            T[o] = TT[r, i]
+            J[o] = JJ[r, i]
+            for q in range(n):
+                X[o, q] = XX[r, i, q]
+                XD[o, q] = XXD[r, i, q]
+            o += 1
+    return T, J, X, XD
+
+
+def _compact_signature():
+    f2, i2, f3 = types.float64[:, ::1], types.int64[:, ::1], types.float64[:, :, ::1]
+    return (f2, i2, f3, f3, types.int64[::1], types.int64)
+
+
 def _signature_one():
     i64, f64 = types.int64[::1], types.float64[::1]
     # maps, x0, p, fopt, iopt, atol, rngp, poll, stop
@@ -2007,6 +2038,7 @@ def compile_kernels(batch=True, notice=None, one=True):
             _READY.add("one")
         if want_batch:
             _compile_or_rebuild(run_rows, _batch_signature(sig))
+            _compile_or_rebuild(compact_rows, _compact_signature())
             _READY.add("batch")
 
 
