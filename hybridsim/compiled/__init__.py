@@ -895,7 +895,9 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
     Returns
     -------
     list of HybridArc
-        One per row of ``x0s``, in order.
+        One per row of ``x0s``, in order. The arcs of runs ending at ``t_max``
+        or ``j_max`` take their samples and stats from the batch's compact
+        pool on first access (views of it, as every row's arrays are).
 
     Examples
     --------
