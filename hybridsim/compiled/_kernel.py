@@ -213,7 +213,7 @@ def _ov_as_bool(v):
 
 _NJ = dict(error_model="numpy")
 #: the kernels' internal functions: no CPython or C wrappers (never called from
-#: Python; the wrappers' code cost seconds of the first compile)
+#: Python, so none is compiled; no measurable change of the first compile)
 _NJI = dict(_NJ, no_cpython_wrapper=True, no_cfunc_wrapper=True)
 
 
