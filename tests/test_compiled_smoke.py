@@ -149,6 +149,8 @@ def test_batch_arcs_made_on_first_access_are_whole_arcs(readme, monkeypatch):
             np.testing.assert_array_equal(getattr(a, f), getattr(single, f))
         assert a.stats == single.stats and a.termination is single.termination
         assert a.message == single.message and a.jump_count == 4
+        # the same fields as an arc made whole (HybridArc._trusted), none missing
+        assert set(vars(a)) - {"_cache"} == set(vars(single)) - {"_cache"}
         a.validate(where="a pooled arc")
     with pytest.raises(AttributeError, match="no attribute 'nope'"):
         _ = arcs[r[4]].nope
