@@ -419,7 +419,7 @@ class CompiledSystem(HybridSystem):
                 run = k.run_one_spec
 
                 def one_mem(maps, x0, p, fopt, iopt, atol, rngp, poll, stop):
-                    return run(f, g, hD, hC, D, C, x0, p, fopt, iopt, atol, rngp, poll, stop)
+                    return run((f, g, hD, hC, D, C), x0, p, fopt, iopt, atol, rngp, poll, stop)
                 one = numba.njit(error_model="numpy")(one_mem)
             one.compile(sig)
             one.disable_compile()

@@ -309,6 +309,26 @@ _vec_at, _scal_at, _bool_at = (_from_address(t) for t in (VEC_T, SCAL_T, BOOL_T)
 _check_at, _occ_at, _clear_at = (_from_address(t) for t in (CHECK_T, OCC_T, CLEAR_T))
 
 
+def maps_of(maps):
+    """The six maps (f, g, hD, hC, D, C) a run calls (compiled code only): made
+    from their addresses where ``maps`` is an int64 array (the generic kernel,
+    :func:`run_one`), or ``maps`` itself, a tuple of a system's dispatchers (a
+    specialised kernel)."""
+    raise NotImplementedError
+
+
+@overload(maps_of, jit_options=dict(_NJI))
+def _ov_maps_of(maps):
+    if isinstance(maps, types.Array) and maps.dtype == types.int64:
+        def by_address(maps):
+            return (_vec_at(maps[0]), _vec_at(maps[1]), _scal_at(maps[2]), _scal_at(maps[3]),
+                    _bool_at(maps[4]), _bool_at(maps[5]))
+        return by_address
+    if isinstance(maps, types.BaseTuple) and len(maps) == 6:
+        return lambda maps: maps
+    return None
+
+
 @intrinsic
 def _next_double(typingctx, fnaddr, state):
     """numpy's ``bitgen.next_double(state)`` by the addresses of its
@@ -953,8 +973,12 @@ def _near_C(M, x, j, p, lo, yold, hQ, told, h, x_hi):
     return _inC(M, xp, tp, j, p)
 
 
-def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
+def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     """One run, entirely compiled.
+
+    ``maps``: the maps f, g, hD, hC, D, C by their addresses (an int64 array of
+    their cfunc wrappers, :func:`map_addresses`), or a tuple of a system's own
+    dispatchers (a specialised kernel; :func:`maps_of`).
 
     Returns ``(T, J, X, XD, cause, detail, info, stats)``: the samples
     (trimmed), the cause code (:data:`CAUSES`), a detail code saying which
@@ -968,6 +992,7 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     zeros inside a parallel batch (nothing is called), whose runs read ``stop[0]``
     instead.
     """
+    f, g, hD, hC, D, C = maps_of(maps)
     # the first NaN guard (which, s, j): written by ``_fault`` through its address
     ev = np.zeros(3)
     M = (f, g, hD, hC, D, C, iopt[11] != 0, iopt[12] != 0, ev.ctypes.data)
@@ -1600,23 +1625,17 @@ def _run_core(f, g, hD, hC, D, C, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             info, stats)
 
 
-#: one run on the maps' own types: first-class functions (:func:`run_one`), or a
-#: system's dispatchers (:data:`run_one_spec`)
-_run_fc = njit(cache=True, **_NJI)(_run_core)
+#: one run of the maps at the addresses ``maps`` (f, g, hD, hC, D, C: their cfunc
+#: wrappers, :func:`map_addresses`): compiled once, cached on disk. The core
+#: itself, not a wrapper calling it: a wrapper's library is optimized and
+#: code-generated again with the whole core linked in (about 2.6 s of the
+#: first compile)
+run_one = njit(cache=True, **_NJ)(_run_core)
 
-
-@njit(cache=True, **_NJ)
-def run_one(maps, x0, p, fopt, iopt, atol, rngp, poll, stop):
-    """One run of the maps at the addresses ``maps`` (f, g, hD, hC, D, C: their
-    cfunc wrappers, :func:`map_addresses`): compiled once, cached on disk."""
-    return _run_fc(_vec_at(maps[0]), _vec_at(maps[1]), _scal_at(maps[2]),
-                       _scal_at(maps[3]), _bool_at(maps[4]), _bool_at(maps[5]), x0, p, fopt,
-                       iopt, atol, rngp, poll, stop)
-
-
-#: one run specialised on a system's own map dispatchers (maps compiled in): the
-#: module :func:`spec_module` generates calls it under ``run_one``'s signature
-run_one_spec = _run_fc
+#: one run specialised on a system's own map dispatchers (maps compiled in, passed
+#: as a tuple): the module :func:`spec_module` generates calls it under
+#: ``run_one``'s signature (never cached itself: its signature names the system)
+run_one_spec = njit(**_NJI)(_run_core)
 
 #: what :func:`run_one` returns, and its type as a first-class function value
 ONE_RET = types.Tuple((types.float64[::1], types.int64[::1], types.float64[:, ::1],
@@ -1841,7 +1860,7 @@ _f, _g, _hD, _hC, _D, _C = (_k.map_value(globals(), r) for r in ("f", "g", "hD",
 
 @numba.njit(cache=True, error_model="numpy")
 def one(maps, x0, p, fopt, iopt, atol, rngp, poll, stop):
-    return _k.run_one_spec(_f(), _g(), _hD(), _hC(), _D(), _C(), x0, p, fopt, iopt, atol,
+    return _k.run_one_spec((_f(), _g(), _hD(), _hC(), _D(), _C()), x0, p, fopt, iopt, atol,
                            rngp, poll, stop)
 """
 
