@@ -367,6 +367,28 @@ def _dense(yold, hQ, told, h, s):
 
 
 @njit(cache=True, **_NJI)
+def _dense_to(out, yold, hQ, told, h, s):
+    """:func:`_dense` written into ``out`` (the event search's trial points: no
+    array made per evaluation; the same arithmetic, the same values)."""
+    x = (s - told) / h
+    x2 = x * x
+    x3 = x2 * x
+    x4 = x3 * x
+    for i in range(yold.shape[0]):
+        out[i] = yold[i] + (hQ[i, 0] * x + hQ[i, 1] * x2 + hQ[i, 2] * x3 + hQ[i, 3] * x4)
+
+
+@njit(cache=True, **_NJI)
+def _at(y, y_at, s, yold, hQ, told, h):
+    """The state at ``s``: ``y`` where it is the state kept at ``y_at == s``,
+    else the dense output there (the event search keeps only times while it
+    narrows a bracket, and makes the states of its ends when it is done)."""
+    if s == y_at:
+        return y
+    return _dense(yold, hQ, told, h, s)
+
+
+@njit(cache=True, **_NJI)
 def _dense_deriv(Q, told, h, s):
     """d/dt of the dense output at s (``solve._dense_derivative``)."""
     x = (s - told) / h
@@ -489,11 +511,12 @@ def _phi_nan(M, s, y, j, p, useD):
 
 
 @njit(cache=True, **_NJI)
-def _secant(M, yold, hQ, told, h, j, p, useD, useC, lo, hi, flo, fhi, ylo, yhi,
-            seeded, s0, slope0):
+def _secant(M, yold, hQ, told, h, j, p, useD, useC, lo, hi, flo, fhi, seeded, s0, slope0,
+            wk):
     """``events._secant``: secant steps from the last evaluation, accepted inside
     the bracket when shorter than half the step before last, else bisection;
-    ``seeded``: ``s0`` is the first trial, ``slope0`` the guard's slope there."""
+    ``seeded``: ``s0`` is the first trial, ``slope0`` the guard's slope there.
+    Returns the bracket (lo, hi); ``wk`` holds the trial points' states."""
     d1 = np.inf
     d2 = np.inf
     if -flo < fhi:
@@ -518,8 +541,8 @@ def _secant(M, yold, hQ, told, h, j, p, useD, useC, lo, hi, flo, fhi, ylo, yhi,
             s = lo + q
         elif not s < hi - q:
             s = hi - q
-        ys = _dense(yold, hQ, told, h, s)
-        fs = _phi(M, s, ys, j, p, useD, useC)
+        _dense_to(wk, yold, hQ, told, h, s)
+        fs = _phi(M, s, wk, j, p, useD, useC)
         if seeded:
             slope = slope0
             seeded = False
@@ -531,13 +554,11 @@ def _secant(M, yold, hQ, told, h, j, p, useD, useC, lo, hi, flo, fhi, ylo, yhi,
         fl = fs
         if fs >= 0.0:
             hi = s
-            yhi = ys
             fhi = fs
         else:
             lo = s
-            ylo = ys
             flo = fs
-    return lo, hi, ylo, yhi
+    return lo, hi
 
 
 @njit(cache=True, **_NJI)
@@ -557,12 +578,18 @@ def _root_off_zero(f0, fd, fw, d, w):
 
 @njit(cache=True, **_NJI)
 def _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, b,
-            yb, yb_known):
+            yb, yb_known, wk):
     """:func:`hybridsim.events.locate_event` on the step's dense output (``yb``:
-    the state at b where ``yb_known``; the state at the step's start is exact)."""
+    the state at b where ``yb_known``; the state at the step's start is exact).
+
+    The bracket is narrowed on times, trial points evaluated in ``wk``; the
+    states of its ends (``ylo`` kept for ``ylo_at``, ``yhi`` for ``yhi_at``)
+    are made when it is done (:func:`_at`): the same values, no array a trial."""
     lo, hi = a, b
     ylo = yold.copy() if a == told else _dense(yold, hQ, told, h, lo)
     yhi = yb if yb_known else _dense(yold, hQ, told, h, hi)
+    ylo_at = lo
+    yhi_at = hi
     if phi_on:
         flo = _phi(M, lo, ylo, j, p, useD, useC)
         fhi = _phi(M, hi, yhi, j, p, useD, useC)
@@ -583,44 +610,47 @@ def _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, 
                         s0 = lo + tau
                     lo = lo + d
                     ylo = yd
+                    ylo_at = lo
                     flo = fd
         for _ in range(200):
             if (flo < 0.0 and 0.0 <= fhi) or hi - lo <= rules.event_tolerance(lo, hi):
                 break
             m = 0.5 * (lo + hi)
-            ym = _dense(yold, hQ, told, h, m)
-            if _pred(M, m, ym, j, p, has_C, d_active):
+            _dense_to(wk, yold, hQ, told, h, m)
+            if _pred(M, m, wk, j, p, has_C, d_active):
                 hi = m
-                yhi = ym
-                fhi = _phi(M, m, ym, j, p, useD, useC)
+                fhi = _phi(M, m, wk, j, p, useD, useC)
             else:
                 lo = m
-                ylo = ym
-                flo = _phi(M, m, ym, j, p, useD, useC)
+                flo = _phi(M, m, wk, j, p, useD, useC)
         if (flo < 0.0 and 0.0 <= fhi) and hi - lo > rules.event_tolerance(lo, hi):
-            l2, h2, yl2, yh2 = _secant(M, yold, hQ, told, h, j, p, useD, useC, lo, hi,
-                                         flo, fhi, ylo, yhi, seeded, s0, slope0)
+            l2, h2 = _secant(M, yold, hQ, told, h, j, p, useD, useC, lo, hi, flo, fhi,
+                             seeded, s0, slope0, wk)
+            yh2 = _at(yhi, yhi_at, h2, yold, hQ, told, h)
+            yl2 = _at(ylo, ylo_at, l2, yold, hQ, told, h)
             # the indicator decides membership: keep the guard's bracket where it agrees
             if _pred(M, h2, yh2, j, p, has_C, d_active):
                 hi = h2
                 yhi = yh2
+                yhi_at = hi
                 lo = l2
                 ylo = yl2
+                ylo_at = lo
             elif not _pred(M, l2, yl2, j, p, has_C, d_active):
                 lo = l2
                 ylo = yl2
+                ylo_at = lo
     for _ in range(200):
         if hi - lo <= rules.event_tolerance(lo, hi):
             break
         m = 0.5 * (lo + hi)
-        ym = _dense(yold, hQ, told, h, m)
-        if _pred(M, m, ym, j, p, has_C, d_active):
+        _dense_to(wk, yold, hQ, told, h, m)
+        if _pred(M, m, wk, j, p, has_C, d_active):
             hi = m
-            yhi = ym
         else:
             lo = m
-            ylo = ym
-    return lo, hi, ylo, yhi
+    return lo, hi, _at(ylo, ylo_at, lo, yold, hQ, told, h), _at(yhi, yhi_at, hi, yold, hQ,
+                                                                 told, h)
 
 
 @njit(cache=True, **_NJI)
@@ -666,60 +696,72 @@ def _maximize(M, yold, hQ, told, h, j, p, has_C, d_active, useD, useC, l, r, fl,
 
 
 @njit(cache=True, **_NJI)
-def _interior(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, b):
-    """:func:`hybridsim.events.find_interior_event` with 3 samples: (found, lo, hi)."""
+def _interior(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, b, wk):
+    """:func:`hybridsim.events.find_interior_event` with 3 samples: (found, lo, hi).
+
+    Every sample's state is made in ``wk`` where it is read (once per step:
+    arrays made here cost a run about a tenth of its time)."""
     hh = b - a
     if not hh > 0:
         return False, a, b
-    pts = np.empty(5)
-    vals = np.empty(5)
-    pts[0] = a
-    pts[4] = b
-    prev = a
-    for k in range(1, 4):
-        s = a + hh * (k / 4.0)
-        pts[k] = s
-    ys = np.empty((3, yold.shape[0]))
-    for k in range(1, 4):
-        s = pts[k]
-        y = _dense(yold, hQ, told, h, s)
-        _put(ys, k - 1, y)
-        if _pred(M, s, y, j, p, has_C, d_active):
-            return True, prev, s
-        prev = s
+    s1 = a + hh * 0.25
+    s2 = a + hh * 0.5
+    s3 = a + hh * 0.75
+    _dense_to(wk, yold, hQ, told, h, s1)
+    if _pred(M, s1, wk, j, p, has_C, d_active):
+        return True, a, s1
+    _dense_to(wk, yold, hQ, told, h, s2)
+    if _pred(M, s2, wk, j, p, has_C, d_active):
+        return True, s1, s2
+    _dense_to(wk, yold, hQ, told, h, s3)
+    if _pred(M, s3, wk, j, p, has_C, d_active):
+        return True, s2, s3
     if not phi_on:
         return False, a, b
-    vals[0] = _phi(M, a, _dense(yold, hQ, told, h, a), j, p, useD, useC)
+    _dense_to(wk, yold, hQ, told, h, a)
+    v0 = _phi(M, a, wk, j, p, useD, useC)
+    _dense_to(wk, yold, hQ, told, h, s1)
+    v1 = _phi(M, s1, wk, j, p, useD, useC)
+    _dense_to(wk, yold, hQ, told, h, s2)
+    v2 = _phi(M, s2, wk, j, p, useD, useC)
+    _dense_to(wk, yold, hQ, told, h, s3)
+    v3 = _phi(M, s3, wk, j, p, useD, useC)
+    _dense_to(wk, yold, hQ, told, h, b)
+    v4 = _phi(M, b, wk, j, p, useD, useC)
+    if not (np.isfinite(v0) and np.isfinite(v1) and np.isfinite(v2) and np.isfinite(v3)
+            and np.isfinite(v4)):
+        return False, a, b
+    # a peak at a sample between its neighbours (the samples' order: s1, s2, s3)
     for k in range(1, 4):
-        vals[k] = _phi(M, pts[k], np.ascontiguousarray(ys[k - 1]), j, p, useD, useC)
-    vals[4] = _phi(M, b, _dense(yold, hQ, told, h, b), j, p, useD, useC)
-    for k in range(5):
-        if not np.isfinite(vals[k]):
-            return False, a, b
-    for k in range(1, 4):
-        v = vals[k]
-        if v >= vals[k - 1] and v >= vals[k + 1] and \
-                _near_peak(v, min(vals[k - 1], vals[k + 1])):
+        if k == 1:
+            left, v, right, vl, vr = a, v1, s2, v0, v2
+        elif k == 2:
+            left, v, right, vl, vr = s1, v2, s3, v1, v3
+        else:
+            left, v, right, vl, vr = s2, v3, b, v2, v4
+        if v >= vl and v >= vr and _near_peak(v, min(vl, vr)):
             s = _maximize(M, yold, hQ, told, h, j, p, has_C, d_active, useD, useC,
-                          pts[k - 1], pts[k + 1], vals[k - 1], vals[k + 1])
+                          left, right, vl, vr)
             if s == s:
-                return True, pts[k - 1], s
-    if vals[0] >= vals[1] and _near_peak(vals[0], vals[1]):
-        eps = 1e-3 * (pts[1] - a)
-        if _phi(M, a + eps, _dense(yold, hQ, told, h, a + eps), j, p, useD, useC) > vals[0]:
+                return True, left, s
+    if v0 >= v1 and _near_peak(v0, v1):
+        eps = 1e-3 * (s1 - a)
+        _dense_to(wk, yold, hQ, told, h, a + eps)
+        if _phi(M, a + eps, wk, j, p, useD, useC) > v0:
             s = _maximize(M, yold, hQ, told, h, j, p, has_C, d_active, useD, useC,
-                          a, pts[1], vals[0], vals[1])
+                          a, s1, v0, v1)
             if s == s:
                 return True, a, s
     # a peak between the last sample and b: only where the guard falls at b (the
     # next step starts falling, so its own search never looks back)
-    if vals[4] >= vals[3] and _near_peak(vals[4], vals[3]):
-        eps = 1e-3 * (b - pts[3])
-        if _phi(M, b - eps, _dense(yold, hQ, told, h, b - eps), j, p, useD, useC) > vals[4]:
+    if v4 >= v3 and _near_peak(v4, v3):
+        eps = 1e-3 * (b - s3)
+        _dense_to(wk, yold, hQ, told, h, b - eps)
+        if _phi(M, b - eps, wk, j, p, useD, useC) > v4:
             s = _maximize(M, yold, hQ, told, h, j, p, has_C, d_active, useD, useC,
-                          pts[3], b, vals[3], vals[4])
+                          s3, b, v3, v4)
             if s == s:
-                return True, pts[3], s
+                return True, s3, s
     return False, a, b
 
 
@@ -927,12 +969,12 @@ def _initial_step(f, t0, y0, t_bound, max_step, f0, rtol, atol, j, p, pb, dl, HL
 
 @njit(cache=True, **_NJI)
 def _event(M, yold, hQ, told, h, j, p, has_C, has_D, d_active, phi_on, useD, useC,
-           a, lo, hi, clamp, h_abs, flow_t0, prio, rngp, yb, yb_known):
+           a, lo, hi, clamp, h_abs, flow_t0, prio, rngp, yb, yb_known, wk):
     """``_Run._event``: locate, then decide. Returns (kind, te, xe, lo, ylo, h_hint,
     from_hi): ``from_hi``, a jump from the bracket's hi (``xe`` the state there),
     whose bracket the post-jump tolerance reads (``rules.post_jump_probe``)."""
     lo, hi, ylo, yhi = _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on,
-                               useD, useC, lo, hi, yb, yb_known)
+                               useD, useC, lo, hi, yb, yb_known, wk)
     if hi <= flow_t0:
         hint = np.nan
     else:
@@ -1058,6 +1100,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     K = np.zeros((7, n))
     hQ = np.zeros((n, 4))
     yi = np.empty(n)                 # a stage's state: read by f, never kept
+    wk = np.empty(n)                 # the event search's trial point: read by guards, never kept
 
     t = t0
     j = j0
@@ -1445,7 +1488,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             elif has_C or d_active:
                 phi_on = (d_active and has_hD) or useC
                 hit, elo, ehi = _interior(M, ya, hQ, a, hs, j, p, has_C, d_active, phi_on,
-                                          d_active and has_hD, useC, a, b)
+                                          d_active and has_hD, useC, a, b, wk)
             clamp = np.nan
             past = False
             if not hit and watch_D and not d_active:
@@ -1528,7 +1571,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             stats[3] += 1
             kind, te, xe, lo, _ylo, hint, from_hi = _event(
                 M, ya, hQ, a, hs, j, p, has_C, has_D, da, phi_on, da and has_hD, useC,
-                a, elo, ehi, clamp, h_abs, flow_t0, prio, rngp, yb, ehi == b and not past)
+                a, elo, ehi, clamp, h_abs, flow_t0, prio, rngp, yb, ehi == b and not past, wk)
             h_hint = hint
             if ev[0] != 0.0:
                 cause = MAP_ERROR
@@ -1846,7 +1889,7 @@ def cache_dir():
 # closures and globals, and of the engine's source), whose ``one`` reads the
 # maps as module globals set before it compiles: numba caches it like any
 # function of a file, and a new process loads it without compiling the maps.
-_SPEC_SRC = """\"\"\"hybridsim.compiled: a run kernel specialised on one system's maps.
+_SPEC_HEAD = """\"\"\"hybridsim.compiled: a run kernel specialised on one system's maps.
 
 Generated by hybridsim.compiled._kernel.spec_module (key {key}); safe to delete.
 \"\"\"
@@ -1854,15 +1897,32 @@ import numba
 
 from hybridsim.compiled import _kernel as _k
 
+# the run core's globals: the engine's helpers and constants
+globals().update((k, v) for k, v in vars(_k).items() if not k.startswith("__"))
+
 f = g = hD = hC = D = C = None     # the system's compiled maps, set before one compiles
 _f, _g, _hD, _hC, _D, _C = (_k.map_value(globals(), r) for r in ("f", "g", "hD", "hC", "D", "C"))
 
 
-@numba.njit(cache=True, error_model="numpy")
-def one(maps, x0, p, fopt, iopt, atol, rngp, poll, stop):
-    return _k.run_one_spec((_f(), _g(), _hD(), _hC(), _D(), _C()), x0, p, fopt, iopt, atol,
-                           rngp, poll, stop)
 """
+
+#: the line of the run core that takes its maps, and its specialised kernel's
+_MAPS_LINE = "    f, g, hD, hC, D, C = maps_of(maps)\n"
+_SPEC_MAPS_LINE = "    f, g, hD, hC, D, C = _f(), _g(), _hD(), _hC(), _D(), _C()\n"
+
+
+def _spec_source(key):
+    """A specialised kernel's module: the run core itself (its source, the maps
+    read from the module's globals), so that numba optimizes and generates its
+    code once (a wrapper calling :data:`run_one_spec` took 2.6 s more)."""
+    import inspect
+    core = inspect.getsource(_run_core)
+    head = "def _run_core(maps, "
+    if not core.startswith(head) or core.count(_MAPS_LINE) != 1:
+        raise RuntimeError("hybridsim.compiled: the run core's source is not as expected")
+    core = "def one(maps, " + core[len(head):].replace(_MAPS_LINE, _SPEC_MAPS_LINE)
+    return (_SPEC_HEAD.format(key=key) + core
+            + '\n\none = numba.njit(cache=True, error_model="numpy")(one)\n')
 
 
 def map_value(glb, name):
@@ -1985,7 +2045,7 @@ def spec_module(key):
     name = f"hybridsim_spec_{key}"
     if name in sys.modules:
         return sys.modules[name]
-    src = _SPEC_SRC.format(key=key)
+    src = _spec_source(key)
     for d in _spec_dirs():
         path = os.path.join(d, name + ".py")
         try:
