@@ -17,7 +17,7 @@ controller and dense output, event location, the decision loop) is compiled
 once per machine and kept in numba's on-disk cache (``__pycache__`` beside
 this package; ``NUMBA_CACHE_DIR``; or, where the package's folder cannot be
 written, as in a read-only site-packages, numba's user cache folder): a new
-process loads it in a fraction of a second. Compiling it takes about 21 s of
+process loads it in a fraction of a second. Compiling it takes about 19 s of
 CPU (the run kernel; the batch kernel, which calls it by address, about 0.5 s)
 and is announced once on stderr. The user's maps reach it as numba
 first-class functions of a fixed signature; they are compiled per system, when
@@ -26,7 +26,7 @@ processes (they are often lambdas or closures). A system with
 ``specialize=True`` gets its own run kernel, its maps compiled in; it is kept
 on disk too, in a module generated beside the engine's cache and named by a
 digest of the maps' code, constants, closures and globals and of the engine
-(see ``_kernel.spec_module``): about 14 s of CPU once per machine and per
+(see ``_kernel.spec_module``): about 18 s of CPU once per machine and per
 change of the maps, then loaded in a fraction of a second without compiling
 the maps. The rules (:mod:`hybridsim.rules`) are compiled into the engine
 from their one source; a change of them invalidates the cache.
@@ -228,7 +228,7 @@ class CompiledSystem(HybridSystem):
         the engine is the one compiled kernel cached on disk, so a new system
         costs only its maps' compilation (about 1 s, see the module notes).
         True: the engine is compiled for this system with its maps inlined,
-        10-20% faster per run; about 14 s of CPU the first time on a machine
+        10-20% faster per run; about 18 s of CPU the first time on a machine
         (and after a change of the maps), kept on disk and loaded in a
         fraction of a second by later processes (maps reading objects other
         than constants, arrays, modules and functions are compiled in each
