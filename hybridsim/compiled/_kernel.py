@@ -353,29 +353,23 @@ def _coin(rngp):
 
 # ------------------------------------------------------------------ helpers
 @njit(cache=True, **_NJI)
-def _dense(yold, hQ, told, h, s):
-    """RK45's dense output at s (as :func:`hybridsim.events.fast_dense`)."""
-    x = (s - told) / h
-    x2 = x * x
-    x3 = x2 * x
-    x4 = x3 * x
-    n = yold.shape[0]
-    out = np.empty(n)
-    for i in range(n):
-        out[i] = yold[i] + (hQ[i, 0] * x + hQ[i, 1] * x2 + hQ[i, 2] * x3 + hQ[i, 3] * x4)
-    return out
-
-
-@njit(cache=True, **_NJI)
 def _dense_to(out, yold, hQ, told, h, s):
-    """:func:`_dense` written into ``out`` (the event search's trial points: no
-    array made per evaluation; the same arithmetic, the same values)."""
+    """RK45's dense output at s written into ``out`` (the event search's trial
+    points: no array made per evaluation; :func:`_dense` makes one)."""
     x = (s - told) / h
     x2 = x * x
     x3 = x2 * x
     x4 = x3 * x
     for i in range(yold.shape[0]):
         out[i] = yold[i] + (hQ[i, 0] * x + hQ[i, 1] * x2 + hQ[i, 2] * x3 + hQ[i, 3] * x4)
+
+
+@njit(cache=True, **_NJI)
+def _dense(yold, hQ, told, h, s):
+    """RK45's dense output at s (as :func:`hybridsim.events.fast_dense`)."""
+    out = np.empty(yold.shape[0])
+    _dense_to(out, yold, hQ, told, h, s)
+    return out
 
 
 @njit(cache=True, **_NJI)
