@@ -5,6 +5,7 @@ Fast tests check the specialised kernel's key (no compiling) and where an
 installed, read-only copy keeps its cache; slow ones compile in fresh
 processes with an empty numba cache.
 """
+import enum
 import os
 import shutil
 import subprocess
@@ -183,6 +184,38 @@ def test_specialised_kernel_is_cached_on_disk(tmp_path):
     np.testing.assert_array_equal(np.load(tmp_path / "r0.npy"), np.load(tmp_path / "r1.npy"))
     gen = list((tmp_path / "cache").rglob("hybridsim_spec_*.py"))
     assert len(gen) == 1
+
+
+@pytest.mark.slow
+def test_maps_the_digest_cannot_key_specialise_in_memory():
+    """specialize=True with a map reading an object the key cannot digest: the
+    kernel is compiled in memory (no generated module), its maps inlined, and
+    its runs and batches equal the generic kernel's to the bit."""
+    from hybridsim.compiled import CompiledSystem, simulate_compiled, simulate_many_compiled
+
+    class Gravity(enum.Enum):           # numba types it; spec_key cannot digest it
+        EARTH = 9.81
+
+    def ball(specialize):
+        return CompiledSystem(lambda x, t, j, p: np.array([x[1], -Gravity.EARTH.value]),
+                              lambda x, t, j, p: np.array([0.0, -p[0] * x[1]]),
+                              jump_guard=lambda x, t, j, p: -x[0],
+                              flow_guard=lambda x, t, j, p: x[0],
+                              state_dim=2, params=[0.8], specialize=specialize)
+    spec, gen = ball(True), ball(False)
+    kw = dict(t_max=1e9, j_max=20, rtol=1e-8, atol=1e-10)
+    a, b = simulate_compiled(spec, [1.0, 0.0], **kw), simulate_compiled(gen, [1.0, 0.0], **kw)
+    assert spec._nb["one"] is not k.run_one
+    # compiled in memory: no generated module
+    assert not spec._nb["one"].py_func.__module__.startswith("hybridsim_spec_")
+    for f in ("t", "j", "x", "xdot"):
+        np.testing.assert_array_equal(getattr(a, f), getattr(b, f))
+    assert a.termination is b.termination and a.stats == b.stats
+    x0s = np.column_stack([np.linspace(0.5, 2.0, 40), np.zeros(40)])
+    for u, v in zip(simulate_many_compiled(spec, x0s, **kw),
+                    simulate_many_compiled(gen, x0s, **kw)):
+        np.testing.assert_array_equal(u.x, v.x)
+        np.testing.assert_array_equal(u.t, v.t)
 
 
 @pytest.mark.slow
