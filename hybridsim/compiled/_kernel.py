@@ -1910,7 +1910,7 @@ _SPEC_MAPS_LINE = "    f, g, hD, hC, D, C = _f(), _g(), _hD(), _hC(), _D(), _C()
 def _spec_source(key):
     """A specialised kernel's module: the run core itself (its source, the maps
     read from the module's globals), so that numba optimizes and generates its
-    code once (a wrapper calling :data:`run_one_spec` took 2.6 s more)."""
+    code once (a wrapper calling :data:`run_one_spec` took about 2.4 s more)."""
     import inspect
     core = inspect.getsource(_run_core)
     head = "def _run_core(maps, "
