@@ -806,9 +806,12 @@ _CHUNK_T = types.float64[:, ::1]
 
 
 @njit(cache=True, **_NJI)
-def _hr(HL, k, c):
-    """Entry c of the step record's row k."""
-    return HL[k // _CH][k % _CH, c]
+def _span(HL, k):
+    """The step record's row k: its (start, end). One function for both entries
+    (an entry index passed as a constant compiled one version per constant)."""
+    R = HL[k // _CH]
+    i = k % _CH
+    return R[i, 0], R[i, 1]
 
 
 @njit(cache=True, **_NJI)
@@ -827,7 +830,7 @@ def _past(p, pb, dl, s, HL, HM, cur_x, x0, t0):
                 p[o + q] = x0[q]
             continue
         tol = 1e-12 * max(1.0, abs(r))
-        if r >= cur_t and (hn == 0 or _hr(HL, hn - 1, 0) < cur_t):
+        if r >= cur_t and (hn == 0 or _span(HL, hn - 1)[0] < cur_t):
             if r <= cur_t + tol:            # the current flow's start: post-jump value
                 for q in range(n):
                     p[o + q] = cur_x[q]
@@ -842,18 +845,18 @@ def _past(p, pb, dl, s, HL, HM, cur_x, x0, t0):
         hi = hn
         while lo < hi:                      # bisect_right on the starts
             mid = (lo + hi) // 2
-            if r < _hr(HL, mid, 0):
+            if r < _span(HL, mid)[0]:
                 hi = mid
             else:
                 lo = mid + 1
         k = lo - 1
-        if not (k >= 0 and r <= _hr(HL, k, 1)):
-            if hn > 0 and _hr(HL, hn - 1, 1) < r <= _hr(HL, hn - 1, 1) + tol:
+        if not (k >= 0 and r <= _span(HL, k)[1]):
+            if hn > 0 and _span(HL, hn - 1)[1] < r <= _span(HL, hn - 1)[1] + tol:
                 k = hn - 1
             else:
                 if HM[2] != HM[2]:
                     HM[2] = r
-                    HM[3] = _hr(HL, hn - 1, 1) if hn > 0 else cur_t
+                    HM[3] = _span(HL, hn - 1)[1] if hn > 0 else cur_t
                     HM[4] = s
                 p[pb:] = np.nan
                 return False
@@ -1107,8 +1110,11 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     flows_last = np.zeros(4)        # the last (up to) 4 flow lengths, oldest first
     n_flows_last = 0
     h_hint = first_step              # NaN: none
-    T, J, X, XD = _push(T, J, X, XD, 0, t, j, x)
-    ns = 1
+    # counters as int64 from the start: a constant argument (Literal[int]) compiles
+    # a helper again for it, even where type inference only tries it on the way
+    ns = np.int64(0)
+    T, J, X, XD = _push(T, J, X, XD, ns, t, j, x)
+    ns = np.int64(1)
     # at x0: the maps' values are checked (the Python path raises at once)
     in_D0 = has_D and _inD(M, x, t, j, p)
     if ev[0] != 0.0:
@@ -1425,7 +1431,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 break
             if failed:
                 # ``_Run._solver_failed``
-                bad = tried and not _all_finite(K)
+                bad = tried and not _all_finite(K.reshape(K.size))
                 if not bad:
                     if nd == 0:
                         fy = f(ya, a, j, p)
@@ -1538,7 +1544,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                     if d_active:
                         # ``_event_past_t_max``: an entry into D within round-off
                         tb = b + rules.t_max_slack(b, jumps)
-                        if _pred(M, tb, _dense(ya, hQ, a, hs, tb), j, p, has_C, True):
+                        if _pred(M, tb, _dense(ya, hQ, a, hs, tb), j, p, has_C, d_active):
                             # the step's samples are stored again by the
                             # event's commit (up to te = b): drop them here
                             ns = ns_step
@@ -1757,7 +1763,8 @@ def run_rows(one, maps, X0, p, fopt, iopt, atol, rngp, poll, stop, next_row, chu
             CA[i] = cause
             DE[i] = detail
             _put(INFO, i, info)
-            _put(ST, i, stats)
+            for q in range(stats.shape[0]):     # (not _put: a second version for int64)
+                ST[i, q] = stats[q]
             if m <= cap:
                 for r in range(m):
                     TT[i, r] = T[r]
