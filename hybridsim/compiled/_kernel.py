@@ -420,6 +420,24 @@ def _f64_ptr(typingctx, addr):
     return types.CPointer(types.float64)(addr), codegen
 
 
+@intrinsic
+def _bare(typingctx, a):
+    """A view of the C-contiguous array ``a`` without its owner (no meminfo):
+    passing it to a helper or a map costs no atomic reference count on entry
+    and exit (numba counts every array argument of every call; they were a
+    fifth of a ball run's time). The caller keeps ``a`` alive while the view
+    is in use, and the view never escapes the call it is passed to."""
+    if not (isinstance(a, types.Array) and a.layout == "C"):
+        return None
+
+    def codegen(context, builder, sig, args):
+        ary = context.make_array(a)(context, builder, value=args[0])
+        ary.meminfo = cgutils.get_null_value(ary.meminfo.type)
+        ary.parent = cgutils.get_null_value(ary.parent.type)
+        return ary._getvalue()
+    return a(a), codegen
+
+
 @njit(cache=True, **_NJI)
 def _fault(ev_addr, which, s, j):
     """Record the first NaN guard of the run in the kernel's ``ev`` (at
@@ -585,8 +603,8 @@ def _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, 
     ylo_at = lo
     yhi_at = hi
     if phi_on:
-        flo = _phi(M, lo, ylo, j, p, useD, useC)
-        fhi = _phi(M, hi, yhi, j, p, useD, useC)
+        flo = _phi(M, lo, _bare(ylo), j, p, useD, useC)
+        fhi = _phi(M, hi, _bare(yhi), j, p, useD, useC)
         seeded = False
         s0 = np.nan
         slope0 = np.nan
@@ -596,8 +614,8 @@ def _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, 
             d = max(64.0 * rules.event_tolerance(lo, hi), 1e-9 * (hi - lo))
             if lo + d < hi:
                 yd = _dense(yold, hQ, told, h, lo + d)
-                fd = _phi(M, lo + d, yd, j, p, useD, useC)
-                if fd < 0.0 and not _pred(M, lo + d, yd, j, p, has_C, d_active):
+                fd = _phi(M, lo + d, _bare(yd), j, p, useD, useC)
+                if fd < 0.0 and not _pred(M, lo + d, _bare(yd), j, p, has_C, d_active):
                     tau, slope0 = _root_off_zero(flo, fd, fhi, d, hi - lo)
                     if tau == tau:
                         seeded = True
@@ -623,14 +641,14 @@ def _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, 
             yh2 = _at(yhi, yhi_at, h2, yold, hQ, told, h)
             yl2 = _at(ylo, ylo_at, l2, yold, hQ, told, h)
             # the indicator decides membership: keep the guard's bracket where it agrees
-            if _pred(M, h2, yh2, j, p, has_C, d_active):
+            if _pred(M, h2, _bare(yh2), j, p, has_C, d_active):
                 hi = h2
                 yhi = yh2
                 yhi_at = hi
                 lo = l2
                 ylo = yl2
                 ylo_at = lo
-            elif not _pred(M, l2, yl2, j, p, has_C, d_active):
+            elif not _pred(M, l2, _bare(yl2), j, p, has_C, d_active):
                 lo = l2
                 ylo = yl2
                 ylo_at = lo
@@ -659,12 +677,12 @@ def _maximize(M, yold, hQ, told, h, j, p, has_C, d_active, useD, useC, l, r, fl,
     x2 = l + _INVPHI * (r - l)
     y1 = _dense(yold, hQ, told, h, x1)
     y2 = _dense(yold, hQ, told, h, x2)
-    f1 = _phi(M, x1, y1, j, p, useD, useC)
-    f2 = _phi(M, x2, y2, j, p, useD, useC)
+    f1 = _phi(M, x1, _bare(y1), j, p, useD, useC)
+    f2 = _phi(M, x2, _bare(y2), j, p, useD, useC)
     for _ in range(100):
-        if f1 >= 0.0 and _pred(M, x1, y1, j, p, has_C, d_active):
+        if f1 >= 0.0 and _pred(M, x1, _bare(y1), j, p, has_C, d_active):
             return x1
-        if f2 >= 0.0 and _pred(M, x2, y2, j, p, has_C, d_active):
+        if f2 >= 0.0 and _pred(M, x2, _bare(y2), j, p, has_C, d_active):
             return x2
         if r - l <= rules.event_tolerance(l, r) or not _near_peak(max(f1, f2), min(fl, fr)):
             return np.nan
@@ -676,7 +694,7 @@ def _maximize(M, yold, hQ, told, h, j, p, has_C, d_active, useD, useC, l, r, fl,
             f2 = f1
             x1 = r - _INVPHI * (r - l)
             y1 = _dense(yold, hQ, told, h, x1)
-            f1 = _phi(M, x1, y1, j, p, useD, useC)
+            f1 = _phi(M, x1, _bare(y1), j, p, useD, useC)
         else:
             l = x1
             fl = f1
@@ -685,7 +703,7 @@ def _maximize(M, yold, hQ, told, h, j, p, has_C, d_active, useD, useC, l, r, fl,
             f1 = f2
             x2 = l + _INVPHI * (r - l)
             y2 = _dense(yold, hQ, told, h, x2)
-            f2 = _phi(M, x2, y2, j, p, useD, useC)
+            f2 = _phi(M, x2, _bare(y2), j, p, useD, useC)
     return np.nan
 
 
@@ -767,29 +785,35 @@ def _put(A, i, v):
 
 
 @njit(cache=True, **_NJI)
-def _push(T, J, X, XD, ns, t, j, x):
-    """Append a sample (xdot NaN), growing the buffers by doubling."""
-    cap = T.shape[0]
+def _grown(T, J, X, XD, ns):
+    """The sample buffers, full at ``ns``, doubled (the first ``ns`` rows kept)."""
+    cap2 = 2 * T.shape[0]
     n = X.shape[1]
-    if ns == cap:
-        cap2 = 2 * cap
-        T2 = np.empty(cap2)
-        J2 = np.empty(cap2, np.int64)
-        X2 = np.empty((cap2, n))
-        XD2 = np.empty((cap2, n))
-        for r in range(ns):
-            T2[r] = T[r]
-            J2[r] = J[r]
-            for q in range(n):
-                X2[r, q] = X[r, q]
-                XD2[r, q] = XD[r, q]
-        T, J, X, XD = T2, J2, X2, XD2
+    T2 = np.empty(cap2)
+    J2 = np.empty(cap2, np.int64)
+    X2 = np.empty((cap2, n))
+    XD2 = np.empty((cap2, n))
+    for r in range(ns):
+        T2[r] = T[r]
+        J2[r] = J[r]
+        for q in range(n):
+            X2[r, q] = X[r, q]
+            XD2[r, q] = XD[r, q]
+    return T2, J2, X2, XD2
+
+
+@njit(cache=True, **_NJI)
+def _store(T, J, X, XD, ns, t, j, x):
+    """Write the sample (t, j, x) at row ``ns`` (xdot NaN); the buffers have room.
+
+    The run appends with ``if ns == T.shape[0]: T, J, X, XD = _grown(...)``
+    then this on :func:`_bare` views: a helper returning the four buffers made
+    eight atomic reference counts a sample."""
     T[ns] = t
     J[ns] = j
-    for q in range(n):
+    for q in range(X.shape[1]):
         X[ns, q] = x[q]
         XD[ns, q] = np.nan
-    return T, J, X, XD
 
 
 # ------------------------------------------------------------------ the past (delays)
@@ -977,16 +1001,16 @@ def _event(M, yold, hQ, told, h, j, p, has_C, has_D, d_active, phi_on, useD, use
         hint = min(h_abs, 10.0 * (hi - flow_t0))
     te_hi = hi if not clamp == clamp else min(hi, clamp)
     # ``rules.event_outcome``: the maps are read only where the rule needs them
-    in_D_hi = has_D and _inD(M, yhi, hi, j, p)
+    in_D_hi = has_D and _inD(M, _bare(yhi), hi, j, p)
     in_C_hi = True
     in_D_lo = False
     coin = True
     if d_active and in_D_hi:
-        in_C_hi = (not has_C) or _inC(M, yhi, hi, j, p)
+        in_C_hi = (not has_C) or _inC(M, _bare(yhi), hi, j, p)
         if rules.needs_coin(in_C_hi, True, prio):
             coin = _coin(rngp)
     elif has_D:
-        in_D_lo = _inD(M, ylo, lo, j, p)
+        in_D_lo = _inD(M, _bare(ylo), lo, j, p)
     action, side = rules.event_outcome(d_active, in_D_hi, in_C_hi, in_D_lo, prio, coin)
     if action == _A_FLOW:
         return _O_FLOW_ON, te_hi, yhi, lo, ylo, hint, False
@@ -1008,7 +1032,7 @@ def _near_C(M, x, j, p, lo, yold, hQ, told, h, x_hi):
     itself where ``lo`` is the step's start)."""
     x_lo = yold.copy() if lo == told else _dense(yold, hQ, told, h, lo)
     tp, xp = rules.post_jump_probe(x, lo, x_lo, x_hi)
-    return _inC(M, xp, tp, j, p)
+    return _inC(M, _bare(xp), tp, j, p)
 
 
 def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
@@ -1075,7 +1099,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             p[q] = p_in[q]
         p[pb:] = np.nan
     else:
-        p = p_in
+        p = _bare(p_in)              # the caller's: alive for the whole run
     HL = List.empty_list(_CHUNK_T)
     HM = np.zeros(5)
     HM[1] = t0
@@ -1093,12 +1117,15 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     info = np.full(6, np.nan)
     cause = -1
     detail = 0
-    K = np.zeros((7, n))
-    hQ = np.zeros((n, 4))
-    yi = np.empty(n)                 # a stage's state: read by f, never kept
+    # the run's scratch, one owned array read again before the run returns (alive
+    # throughout), its parts views without reference counts (:func:`_bare`)
+    work = np.zeros(16 * n)
+    K = _bare(work[:7 * n]).reshape((7, n))
+    hQ = _bare(work[7 * n:11 * n]).reshape((n, 4))
+    yi = _bare(work[11 * n:12 * n])  # a stage's state: read by f, never kept
     # the event search's states: the interior search's three samples, and a
     # trial point (``wk``, its last row); read by guards, never kept
-    WS = np.empty((4, n))
+    WS = _bare(work[12 * n:]).reshape((4, n))
     wk = WS[3]
 
     t = t0
@@ -1113,17 +1140,19 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     # counters as int64 from the start: a constant argument (Literal[int]) compiles
     # a helper again for it, even where type inference only tries it on the way
     ns = np.int64(0)
-    T, J, X, XD = _push(T, J, X, XD, ns, t, j, x)
+    if ns == T.shape[0]:
+        T, J, X, XD = _grown(T, J, X, XD, ns)
+    _store(_bare(T), _bare(J), _bare(X), _bare(XD), ns, t, j, _bare(x))
     ns = np.int64(1)
     # at x0: the maps' values are checked (the Python path raises at once)
-    in_D0 = has_D and _inD(M, x, t, j, p)
+    in_D0 = has_D and _inD(M, _bare(x), t, j, p)
     if ev[0] != 0.0:
         info[0] = ev[1]
         info[2] = ev[0]
         info[3] = ev[2]
         return (T[:1].copy(), J[:1].copy(), X[:1].copy(), XD[:1].copy(), MAP_ERROR,
                 MAP_GUARD, info, stats)
-    if (not has_C) or _inC(M, x, t, j, p):
+    if (not has_C) or _inC(M, _bare(x), t, j, p):
         if nd == 0:
             v0 = f(x, t, j, p)
         else:
@@ -1176,8 +1205,8 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 post = pend
                 pend = False
             else:
-                in_D = has_D and _inD(M, x, t, j, p)
-                in_C = (not has_C) or _inC(M, x, t, j, p)
+                in_D = has_D and _inD(M, _bare(x), t, j, p)
+                in_C = (not has_C) or _inC(M, _bare(x), t, j, p)
                 if ev[0] != 0.0:
                     cause = MAP_ERROR
                     detail = MAP_GUARD
@@ -1186,7 +1215,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 if rules.needs_coin(in_C, in_D, prio, False):
                     coin = _coin(rngp)
                 action = rules.decide(in_C, in_D, prio, coin, False)
-                if action == _A_STOP and post and _near_C(M, x, j, p, post_lo, ya, hQ, a,
+                if action == _A_STOP and post and _near_C(M, x, j, p, post_lo, _bare(ya), hQ, a,
                                                           hs, X[ns - 2]):
                     # within the located event's own error of C: in C
                     in_C = True
@@ -1242,7 +1271,9 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                     detail = 1
                     info[0] = t
                     break
-                T, J, X, XD = _push(T, J, X, XD, ns, t, j, x)
+                if ns == T.shape[0]:
+                    T, J, X, XD = _grown(T, J, X, XD, ns)
+                _store(_bare(T), _bare(J), _bare(X), _bare(XD), ns, t, j, _bare(x))
                 ns += 1
                 c = rules.after_jump(jumps, short, j_max, zeno_jumps)
                 if c != _GOES_ON:
@@ -1479,9 +1510,9 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 info[3] = j
                 t, x = a, ya
                 break
-            event = has_C and not _inC(M, yb, b, j, p)
+            event = has_C and not _inC(M, _bare(yb), b, j, p)
             if d_active:
-                event = event or _inD(M, yb, b, j, p)
+                event = event or _inD(M, _bare(yb), b, j, p)
             hit = False
             elo = a
             ehi = b
@@ -1489,12 +1520,12 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 hit = True
             elif has_C or d_active:
                 phi_on = (d_active and has_hD) or useC
-                hit, elo, ehi = _interior(M, ya, hQ, a, hs, j, p, has_C, d_active, phi_on,
+                hit, elo, ehi = _interior(M, _bare(ya), hQ, a, hs, j, p, has_C, d_active, phi_on,
                                           d_active and has_hD, useC, a, b, WS)
             clamp = np.nan
             past = False
             if not hit and watch_D and not d_active:
-                d_active = not _inD(M, yb, b, j, p)
+                d_active = not _inD(M, _bare(yb), b, j, p)
             if ev[0] != 0.0:
                 cause = MAP_ERROR
                 detail = MAP_GUARD
@@ -1512,8 +1543,10 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                         break
                     for r in range(1, refine):
                         s = a + (b - a) * (r / refine)
-                        T, J, X, XD = _push(T, J, X, XD, ns, s, j,
-                                            _dense(ya, hQ, a, hs, s))
+                        if ns == T.shape[0]:
+                            T, J, X, XD = _grown(T, J, X, XD, ns)
+                        yr = _dense(ya, hQ, a, hs, s)
+                        _store(_bare(T), _bare(J), _bare(X), _bare(XD), ns, s, j, _bare(yr))
                         _put(XD, ns, _dense_deriv(hQ / hs, a, hs, s))
                         ns += 1
                 if ns >= max_samples:
@@ -1521,7 +1554,9 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                     detail = 1
                     info[0] = t
                     break
-                T, J, X, XD = _push(T, J, X, XD, ns, b, j, yb)
+                if ns == T.shape[0]:
+                    T, J, X, XD = _grown(T, J, X, XD, ns)
+                _store(_bare(T), _bare(J), _bare(X), _bare(XD), ns, b, j, _bare(yb))
                 for q in range(n):
                     XD[ns, q] = fb[q]
                 ns += 1
@@ -1572,7 +1607,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             phi_on = (da and has_hD) or useC
             stats[3] += 1
             kind, te, xe, lo, _ylo, hint, from_hi = _event(
-                M, ya, hQ, a, hs, j, p, has_C, has_D, da, phi_on, da and has_hD, useC,
+                M, _bare(ya), hQ, a, hs, j, p, has_C, has_D, da, phi_on, da and has_hD, useC,
                 a, elo, ehi, clamp, h_abs, flow_t0, prio, rngp, yb, ehi == b and not past, wk)
             h_hint = hint
             if ev[0] != 0.0:
@@ -1592,8 +1627,10 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                         break
                     for r in range(1, refine):
                         s = a + (te - a) * (r / refine)
-                        T, J, X, XD = _push(T, J, X, XD, ns, s, j,
-                                            _dense(ya, hQ, a, hs, s))
+                        if ns == T.shape[0]:
+                            T, J, X, XD = _grown(T, J, X, XD, ns)
+                        yr = _dense(ya, hQ, a, hs, s)
+                        _store(_bare(T), _bare(J), _bare(X), _bare(XD), ns, s, j, _bare(yr))
                         _put(XD, ns, _dense_deriv(hQ / hs, a, hs, s))
                         ns += 1
                 if ns >= max_samples:
@@ -1601,7 +1638,9 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                     detail = 1
                     info[0] = t
                     break
-                T, J, X, XD = _push(T, J, X, XD, ns, te, j, xe)
+                if ns == T.shape[0]:
+                    T, J, X, XD = _grown(T, J, X, XD, ns)
+                _store(_bare(T), _bare(J), _bare(X), _bare(XD), ns, te, j, _bare(xe))
                 if nd == 0:
                     fe = f(xe, te, j, p)
                 else:
@@ -1666,6 +1705,8 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
         if fl.shape[0] == n:
             _put(XD, ns - 1, fl)
     stats[5] = jumps
+    if work[0] != work[0]:           # (keeps the scratch's owner alive to here)
+        stats[5] = jumps
     return (T[:ns].copy(), J[:ns].copy(), X[:ns].copy(), XD[:ns].copy(), cause, detail,
             info, stats)
 
