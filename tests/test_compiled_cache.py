@@ -102,6 +102,56 @@ def test_generated_module_is_written_once_and_reused(tmp_path, monkeypatch):
         sys.modules.pop("hybridsim_spec_" + key, None)
 
 
+def test_modules_of_another_engine_are_removed_once_a_week_old(tmp_path):
+    """Writing a new generated module removes, in its folder, the modules this
+    engine would not write (another engine's core) once older than a week,
+    with their numba cache and bytecode; this engine's modules, and another
+    engine's younger than a week (a checkout switched back soon), stay."""
+    import time
+    d = tmp_path / "specialized"
+    (d / "__pycache__").mkdir(parents=True)
+    old = time.time() - k.STALE_AGE - 60
+
+    def module(key, text, mtime):
+        path = d / f"hybridsim_spec_{key}.py"
+        path.write_text(text)
+        for ext in (".one-16.py311.nbi", ".one-16.py311.1.nbc", ".cpython-311.pyc"):
+            (d / "__pycache__" / f"hybridsim_spec_{key}{ext}").write_text("x")
+        os.utime(path, (mtime, mtime))
+    stale, young, ours = "a" * 32, "b" * 32, "c" * 32
+    module(stale, k._spec_source(stale).replace("_store(", "_push("), old)
+    module(young, k._spec_source(young) + "\n# another engine\n", time.time())
+    module(ours, k._spec_source(ours), old)
+    (d / "unrelated.py").write_text("")
+    assert k.remove_stale(str(d)) == [stale]
+    left = sorted(p.name for p in d.rglob("*") if p.is_file())
+    assert not [n for n in left if stale in n]
+    assert sum(young in n for n in left) == 4 and sum(ours in n for n in left) == 4
+    assert "unrelated.py" in left
+    assert k.remove_stale(str(d)) == []                  # nothing more to remove
+    assert k.remove_stale(str(d), age=0.0) == [young]    # age=0: every other engine's
+
+
+def test_writing_a_new_module_cleans_its_folder(tmp_path, monkeypatch):
+    """spec_module calls the cleaning when it writes a module (not when it
+    reuses one)."""
+    import time
+    d = tmp_path / "rw"
+    d.mkdir()
+    stale = "d" * 32
+    path = d / f"hybridsim_spec_{stale}.py"
+    path.write_text("an older engine's module")
+    old = time.time() - k.STALE_AGE - 60
+    os.utime(path, (old, old))
+    monkeypatch.setattr(k, "_spec_dirs", lambda: [str(d)])
+    key = "1" * 32
+    try:
+        assert k.spec_module(key) is not None
+        assert not path.exists() and (d / f"hybridsim_spec_{key}.py").exists()
+    finally:
+        sys.modules.pop("hybridsim_spec_" + key, None)
+
+
 # ------------------------------------------------------------------ an installed copy
 def test_read_only_installed_copy_caches_in_the_user_cache_dir(tmp_path):
     """A copy of the package in a folder it cannot write (as site-packages may

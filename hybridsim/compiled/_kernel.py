@@ -2101,6 +2101,7 @@ def spec_module(key):
                 with open(tmp, "w") as fh:
                     fh.write(src)
                 os.replace(tmp, path)       # atomic: processes may race here
+                remove_stale(d)             # (a new module: the engine may have changed)
             with open(path) as fh:
                 if fh.read() != src:
                     continue
@@ -2112,6 +2113,55 @@ def spec_module(key):
         sys.modules[name] = mod
         return mod
     return None
+
+
+#: a generated module another engine wrote is removed once it is this old (seconds):
+#: a checkout switched back to that engine within the week still finds it
+STALE_AGE = 7 * 24 * 3600.0
+
+
+def remove_stale(d, age=None):
+    """Remove the generated modules in the folder ``d`` that this engine would
+    not write, with their numba cache and bytecode, once older than ``age``
+    seconds (default :data:`STALE_AGE`). Returns the keys removed.
+
+    A module is this engine's when its text is exactly what
+    :func:`_spec_source` makes for its key: a module of another engine (an
+    older checkout, another installed version sharing the user cache folder)
+    can never be loaded by this one, and nothing else removes it. Its age is
+    its file's (written once: numba's index records that time). Files that
+    vanish meanwhile (another process cleaning) are passed over.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> remove_stale(tempfile.mkdtemp())
+    []
+    """
+    import glob
+    import time
+    age = STALE_AGE if age is None else age
+    now = time.time()
+    removed = []
+    for path in glob.glob(os.path.join(d, "hybridsim_spec_*.py")):
+        name = os.path.basename(path)[:-3]
+        key = name[len("hybridsim_spec_"):]
+        try:
+            if now - os.path.getmtime(path) < age:
+                continue
+            with open(path) as fh:
+                if fh.read() == _spec_source(key):
+                    continue
+            os.remove(path)
+        except (OSError, ValueError):
+            continue
+        for cached in glob.glob(os.path.join(d, "__pycache__", glob.escape(name) + ".*")):
+            try:
+                os.remove(cached)
+            except OSError:
+                pass
+        removed.append(key)
+    return sorted(removed)
 
 
 def spec_in_cache(mod):
