@@ -426,7 +426,12 @@ def _bare(typingctx, a):
     passing it to a helper or a map costs no atomic reference count on entry
     and exit (numba counts every array argument of every call; they were a
     fifth of a ball run's time). The caller keeps ``a`` alive while the view
-    is in use, and the view never escapes the call it is passed to."""
+    is in use, and the view never escapes the call it is passed to.
+
+    "Alive" means ``a`` is read again after the call on some path: numba
+    deletes a variable right after its last use, so a view of a temporary, or
+    of a variable the call is the last reader of, would be read after its
+    owner is freed (such calls pass the owned array itself)."""
     if not (isinstance(a, types.Array) and a.layout == "C"):
         return None
 
@@ -1032,7 +1037,7 @@ def _near_C(M, x, j, p, lo, yold, hQ, told, h, x_hi):
     itself where ``lo`` is the step's start)."""
     x_lo = yold.copy() if lo == told else _dense(yold, hQ, told, h, lo)
     tp, xp = rules.post_jump_probe(x, lo, x_lo, x_hi)
-    return _inC(M, _bare(xp), tp, j, p)
+    return _inC(M, xp, tp, j, p)
 
 
 def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
@@ -1215,7 +1220,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 if rules.needs_coin(in_C, in_D, prio, False):
                     coin = _coin(rngp)
                 action = rules.decide(in_C, in_D, prio, coin, False)
-                if action == _A_STOP and post and _near_C(M, x, j, p, post_lo, _bare(ya), hQ, a,
+                if action == _A_STOP and post and _near_C(M, x, j, p, post_lo, ya, hQ, a,
                                                           hs, X[ns - 2]):
                     # within the located event's own error of C: in C
                     in_C = True
@@ -1545,8 +1550,8 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                         s = a + (b - a) * (r / refine)
                         if ns == T.shape[0]:
                             T, J, X, XD = _grown(T, J, X, XD, ns)
-                        yr = _dense(ya, hQ, a, hs, s)
-                        _store(_bare(T), _bare(J), _bare(X), _bare(XD), ns, s, j, _bare(yr))
+                        _store(_bare(T), _bare(J), _bare(X), _bare(XD), ns, s, j,
+                               _dense(ya, hQ, a, hs, s))
                         _put(XD, ns, _dense_deriv(hQ / hs, a, hs, s))
                         ns += 1
                 if ns >= max_samples:
@@ -1629,8 +1634,8 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                         s = a + (te - a) * (r / refine)
                         if ns == T.shape[0]:
                             T, J, X, XD = _grown(T, J, X, XD, ns)
-                        yr = _dense(ya, hQ, a, hs, s)
-                        _store(_bare(T), _bare(J), _bare(X), _bare(XD), ns, s, j, _bare(yr))
+                        _store(_bare(T), _bare(J), _bare(X), _bare(XD), ns, s, j,
+                               _dense(ya, hQ, a, hs, s))
                         _put(XD, ns, _dense_deriv(hQ / hs, a, hs, s))
                         ns += 1
                 if ns >= max_samples:
