@@ -1144,9 +1144,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     h_hint = first_step              # NaN: none
     # counters as int64 from the start: a constant argument (Literal[int]) compiles
     # a helper again for it, even where type inference only tries it on the way
-    ns = np.int64(0)
-    if ns == T.shape[0]:
-        T, J, X, XD = _grown(T, J, X, XD, ns)
+    ns = np.int64(0)                 # (the buffers start with room: iopt[10] rows)
     _store(_bare(T), _bare(J), _bare(X), _bare(XD), ns, t, j, _bare(x))
     ns = np.int64(1)
     # at x0: the maps' values are checked (the Python path raises at once)
