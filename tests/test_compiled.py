@@ -414,6 +414,28 @@ def test_batch_equals_single_runs_and_python_path(ball):
         np.testing.assert_array_equal(a.t, b.t)
 
 
+def test_batch_runs_without_room_in_the_pool_run_alone():
+    # a timer whose period is in its state: the first rows (which size the
+    # chunk's pool) jump twice, the last ones 2,000 times, far more samples than
+    # the pool of 64 rows holds; those rows run alone, and every arc is its
+    # single run's, bit for bit
+    timer = CompiledSystem(flow=lambda x, t, j, p: np.array([1.0, 0.0]),
+                           jump=lambda x, t, j, p: np.array([0.0, x[1]]),
+                           jump_guard=lambda x, t, j, p: x[0] - x[1], state_dim=2)
+    period = np.full(70, 1.0)
+    period[[40, 66, 69]] = 1e-3
+    x0s = np.column_stack([np.zeros(70), period])
+    arcs = simulate_many_compiled(timer, x0s, t_max=2.5)
+    assert [a.jump_count for a in arcs[:4]] == [2] * 4
+    assert all(arcs[i].jump_count > 2000 for i in (40, 66, 69))
+    for i in (0, 39, 40, 41, 66, 69):
+        single = simulate_compiled(timer, x0s[i], t_max=2.5)
+        np.testing.assert_array_equal(arcs[i].t, single.t)
+        np.testing.assert_array_equal(arcs[i].j, single.j)
+        np.testing.assert_array_equal(arcs[i].x, single.x)
+        assert arcs[i].stats == single.stats and arcs[i].termination is single.termination
+
+
 def mixed_f(x, t, j, p):
     return np.array([1.0, x[1]])
 

@@ -989,22 +989,29 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
                 B = int(max(64, min(len(rows) - c, chunk_bytes // (cap * per))))
                 B = min(B, len(rows) - c)
                 idx = rows[c:c + B]
-                TT, JJ = np.empty((B, cap)), np.empty((B, cap), np.int64)
-                XX, XXD = np.empty((B, cap, n)), np.empty((B, cap, n))
+                # the chunk's compact pool: room for B runs of cap samples, each
+                # run's rows claimed when it ends (pages never written are never
+                # made; the pool is cut to what was written afterwards)
+                size = B * cap
+                TT, JJ = np.empty(size), np.empty(size, np.int64)
+                XX, XXD = np.empty((size, n)), np.empty((size, n))
+                fill = np.zeros(1, np.int64)
+                AT = np.full(B, -1, np.int64)         # -1: not in the pool (not run, no room)
                 NS, CA, DE = (np.zeros(B, np.int64) for _ in range(3))
                 INFO, ST = np.empty((B, 6)), np.zeros((B, 6), np.int64)
                 stopped = _interruptible(
                     k.run_rows, (one_addr, *maps, X0[idx] if B < N else X0, p, fopt, iopt,
                                  atol_a, rng[1], k.POLL_NONE, stop, np.zeros(1, np.int64),
-                                 _CHUNK, TT, JJ, XX, XXD, NS, CA, DE, INFO, ST), stop,
-                    _threads(parallel, B))
-                # every run's samples in one compact array per field (one copy of
-                # the pool), each arc a view of its rows
-                pool = k.compact_rows(TT, JJ, XX, XXD, NS, cap)
-                m_c = np.minimum(NS, cap)
-                ends = np.cumsum(m_c)
-                starts = ends - m_c
-                easy = (NS <= cap) & (NS > 0) & (DE != loop)
+                                 _CHUNK, TT, JJ, XX, XXD, fill, AT, NS, CA, DE, INFO, ST),
+                    stop, _threads(parallel, B))
+                used = int(fill[0])
+                for a in (TT, JJ, XX, XXD):     # in place: no copy, the tail's memory freed
+                    a.resize((used,) + a.shape[1:], refcheck=False)
+                pool = (TT, JJ, XX, XXD)
+                fits = AT >= 0
+                starts = np.where(fits, AT, 0)
+                ends = starts + np.where(fits, NS, 0)
+                easy = fits & (NS > 0) & (DE != loop)
                 done = np.zeros(B, bool)
                 for code, (term, msg) in plain.items():
                     sel = np.flatnonzero(easy & (CA == code))
@@ -1019,18 +1026,18 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
                 for r in np.flatnonzero(~done).tolist():
                     i = int(idx[r])
                     o, e = int(starts[r]), int(ends[r])
-                    if NS[r] <= cap:
+                    if fits[r]:
                         ca = int(CA[r])
                         if not (stopped and ca == canceled and NS[r] == 1 and
                                 not ST[r].any()):
                             arcs[i] = _arc(system, k, Tf[o:e], Jf[o:e], Xf[o:e], XDf[o:e],
                                            ca, int(DE[r]), INFO[r], ST[r].tolist(), ro)
-                    elif not stopped:          # longer than its slot: run it alone
+                    elif not stopped:          # no room left in the pool: run it alone
                         stopped, _ = one(i, rng)
-                # the next chunk's slots: room for the longest run seen, with margin
+                # the next chunk's room: the longest run seen, with margin
                 longest = int(NS.max()) if B else cap
                 cap = max(cap, 1 << math.ceil(math.log2(max(longest, 2) * 1.25)))
-                del TT, JJ, XX, XXD
+                del TT, JJ, XX, XXD, pool
                 c += B
     except KeyboardInterrupt:           # between two kernels: the runs so far are kept
         stopped = True

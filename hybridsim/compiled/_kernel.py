@@ -1779,22 +1779,58 @@ def _claim(typingctx, counter, step):
     return types.int64(counter, step), codegen
 
 
+@intrinsic
+def _claim_within(typingctx, counter, step, size):
+    """``counter[0] += step`` atomically where the sum stays within ``size``;
+    returns the value before, or -1 (the counter unchanged) where it would
+    not: a compare-and-swap loop, so a claim that fails takes nothing."""
+    if not (isinstance(counter, types.Array) and counter.dtype == types.int64
+            and isinstance(step, types.Integer) and isinstance(size, types.Integer)):
+        return None
+
+    def codegen(context, builder, sig, args):
+        arr = context.make_array(sig.args[0])(context, builder, args[0])
+        inc = context.cast(builder, args[1], sig.args[1], types.int64)
+        top = context.cast(builder, args[2], sig.args[2], types.int64)
+        i64 = ir.IntType(64)
+        out = cgutils.alloca_once_value(builder, ir.Constant(i64, -1))
+        loop = builder.append_basic_block("claim.loop")
+        done = builder.append_basic_block("claim.done")
+        builder.branch(loop)
+        builder.position_at_end(loop)
+        old = builder.load_atomic(arr.data, "monotonic", 8)
+        new = builder.add(old, inc)
+        with builder.if_then(builder.icmp_signed(">", new, top)):
+            builder.branch(done)
+        pair = builder.cmpxchg(arr.data, old, new, "monotonic", "monotonic")
+        with builder.if_then(builder.extract_value(pair, 1)):
+            builder.store(old, out)
+            builder.branch(done)
+        builder.branch(loop)
+        builder.position_at_end(done)
+        return builder.load(out)
+    return types.int64(counter, step, size), codegen
+
+
 @njit(cache=True, nogil=True, **_NJ)
 def run_rows(one, maps, X0, p, fopt, iopt, atol, rngp, poll, stop, next_row, chunk,
-             TT, JJ, XX, XXD, NS, CA, DE, INFO, ST):
+             TT, JJ, XX, XXD, fill, AT, NS, CA, DE, INFO, ST):
     """Runs of a batch, taken ``chunk`` rows at a time from the shared counter
-    ``next_row`` until none is left, each written into its row's slot of the
-    pool (``TT``... of ``cap = TT.shape[1]`` samples); a run longer than its
-    slot keeps only its counts (``NS[i] > cap``) and is re-run by the caller.
+    ``next_row`` until none is left, each run's samples written one after
+    another into the batch's compact pool (``TT``, ``JJ``, ``XX``, ``XXD``):
+    at rows ``AT[i]:AT[i] + NS[i]``, claimed from the shared ``fill`` counter
+    when the run ends. A run that does not fit in the pool keeps only its
+    counts (``AT[i] = -1``) and is re-run by the caller.
 
     Released from the GIL: the caller runs it in as many threads as it wants
     cores (dynamic scheduling: a thread slowed by other work on the machine
     takes fewer chunks), all on one pool. ``one``: the address of the run
     kernel (:func:`jit_address`: ``run_one`` for the maps at ``maps``, or a
     system's specialised kernel), called, not compiled in: this kernel is
-    compiled once, small, and serves every system."""
+    compiled once, small, and serves every system. The pool needs no
+    compaction afterwards: every arc is a view of its rows."""
     N = X0.shape[0]
-    cap = TT.shape[1]
+    size = TT.shape[0]
     while True:
         i0 = _claim(next_row, chunk)
         if i0 >= N:
@@ -1809,45 +1845,16 @@ def run_rows(one, maps, X0, p, fopt, iopt, atol, rngp, poll, stop, next_row, chu
             _put(INFO, i, info)
             for q in range(stats.shape[0]):     # (not _put: a second version for int64)
                 ST[i, q] = stats[q]
-            if m <= cap:
+            o = _claim_within(fill, m, size)
+            AT[i] = o
+            if o >= 0:
                 for r in range(m):
-                    TT[i, r] = T[r]
-                    JJ[i, r] = J[r]
+                    TT[o + r] = T[r]
+                    JJ[o + r] = J[r]
                     for q in range(X.shape[1]):
-                        XX[i, r, q] = X[r, q]
-                        XXD[i, r, q] = XD[r, q]
+                        XX[o + r, q] = X[r, q]
+                        XXD[o + r, q] = XD[r, q]
     return 0
-
-
-@njit(cache=True, **_NJ)
-def compact_rows(TT, JJ, XX, XXD, NS, cap):
-    """A batch pool's rows one after another, each cut to its run's length
-    (``min(NS[r], cap)`` samples): the fields (t, j, x, xdot) of every run in
-    one array each (:func:`run_rows` writes the pool)."""
-    B = NS.shape[0]
-    n = XX.shape[2]
-    tot = 0
-    for r in range(B):
-        tot += min(NS[r], cap)
-    T = np.empty(tot)
-    J = np.empty(tot, np.int64)
-    X = np.empty((tot, n))
-    XD = np.empty((tot, n))
-    o = 0
-    for r in range(B):
-        for i in range(min(NS[r], cap)):
-            T[o] = TT[r, i]
-            J[o] = JJ[r, i]
-            for q in range(n):
-                X[o, q] = XX[r, i, q]
-                XD[o, q] = XXD[r, i, q]
-            o += 1
-    return T, J, X, XD
-
-
-def _compact_signature():
-    f2, i2, f3 = types.float64[:, ::1], types.int64[:, ::1], types.float64[:, :, ::1]
-    return (f2, i2, f3, f3, types.int64[::1], types.int64)
 
 
 def _signature_one():
@@ -1914,11 +1921,12 @@ _READY = set()
 
 def _batch_signature(sig):
     """:func:`run_rows`'s: one, maps, X0, p, fopt, iopt, atol, rngp, poll, stop,
-    next_row, chunk, then the pool (TT, JJ, XX, XXD, NS, CA, DE, INFO, ST)."""
-    f2, i2, f3 = types.float64[:, ::1], types.int64[:, ::1], types.float64[:, :, ::1]
+    next_row, chunk, then the pool (TT, JJ, XX, XXD, fill, AT) and the rows'
+    records (NS, CA, DE, INFO, ST)."""
+    f1, f2, i2 = types.float64[::1], types.float64[:, ::1], types.int64[:, ::1]
     i1 = types.int64[::1]
     return ((types.int64,) + sig[:1] + (f2,) + sig[2:] + (i1, types.int64)
-            + (f2, i2, f3, f3, i1, i1, i1, f2, i2))
+            + (f1, i1, f2, f2, i1, i1, i1, i1, i1, f2, i2))
 
 
 def cache_dir():
@@ -2214,7 +2222,6 @@ def compile_kernels(batch=True, notice=None, one=True):
             _READY.add("one")
         if want_batch:
             _compile_or_rebuild(run_rows, _batch_signature(sig))
-            _compile_or_rebuild(compact_rows, _compact_signature())
             _READY.add("batch")
 
 
