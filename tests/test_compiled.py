@@ -396,7 +396,8 @@ def test_batch_equals_single_runs_and_python_path(ball):
     rng = np.random.default_rng(3)
     h0 = rng.uniform(0.5, 2.0, 300)
     x0s = np.column_stack([h0, np.zeros_like(h0)])
-    # a tiny chunk budget: many chunks, and runs longer than their slot re-run alone
+    # a tiny chunk budget: many chunks, and runs without room in their chunk's
+    # pool run again in a later round
     arcs = simulate_many_compiled(ball, x0s, t_max=20.0, j_max=10, chunk_bytes=4096,
                                   **TIGHT)
     assert len(arcs) == 300
@@ -414,21 +415,27 @@ def test_batch_equals_single_runs_and_python_path(ball):
         np.testing.assert_array_equal(a.t, b.t)
 
 
-def test_batch_runs_without_room_in_the_pool_run_alone():
-    # a timer whose period is in its state: the first rows (which size the
-    # chunk's pool) jump twice, the last ones 2,000 times, far more samples than
-    # the pool of 64 rows holds; those rows run alone, and every arc is its
-    # single run's, bit for bit
+def test_batch_runs_without_room_in_the_pool_run_again_in_parallel(monkeypatch):
+    # a timer whose period is in its state: the rows that size the pool (four,
+    # spread over the batch: 0, 23, 46, 69) jump twice, rows 40, 50 and 60
+    # 2,000 times, far more samples than the pool holds; those rows run again
+    # in a second round of the batch kernel, and every arc is its single
+    # run's, bit for bit
     timer = CompiledSystem(flow=lambda x, t, j, p: np.array([1.0, 0.0]),
                            jump=lambda x, t, j, p: np.array([0.0, x[1]]),
                            jump_guard=lambda x, t, j, p: x[0] - x[1], state_dim=2)
     period = np.full(70, 1.0)
-    period[[40, 66, 69]] = 1e-3
+    period[[40, 50, 60]] = 1e-3
     x0s = np.column_stack([np.zeros(70), period])
+    simulate_many_compiled(timer, x0s[:2], t_max=2.5)
+    calls = []
+    real = hc._interruptible
+    monkeypatch.setattr(hc, "_interruptible", lambda *a, **k: calls.append(1) or real(*a, **k))
     arcs = simulate_many_compiled(timer, x0s, t_max=2.5)
-    assert [a.jump_count for a in arcs[:4]] == [2] * 4
-    assert all(arcs[i].jump_count > 2000 for i in (40, 66, 69))
-    for i in (0, 39, 40, 41, 66, 69):
+    assert len(calls) == 2                      # the batch, then the rows without room
+    assert [arcs[i].jump_count for i in (0, 23, 46, 69)] == [2] * 4
+    assert all(arcs[i].jump_count > 2000 for i in (40, 50, 60))
+    for i in (0, 39, 40, 41, 50, 60, 69):
         single = simulate_compiled(timer, x0s[i], t_max=2.5)
         np.testing.assert_array_equal(arcs[i].t, single.t)
         np.testing.assert_array_equal(arcs[i].j, single.j)

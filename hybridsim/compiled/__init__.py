@@ -863,8 +863,11 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
     threads are Python threads running a GIL-free kernel (no numba threading
     layer: a fork-based process pool afterwards is safe, and several threads
     may run batches at once). The batch is processed in chunks
-    whose sample pool stays under ``chunk_bytes``; a run longer than its
-    slot is re-run alone, so memory is the returned arcs plus one chunk.
+    whose sample pool stays under ``chunk_bytes``, sized by four runs spread
+    over the batch; each run's samples go into the pool when it ends, and
+    the runs that find no room run again, in parallel, in a later round
+    sized for the longest run seen. Memory is the returned arcs plus one
+    chunk's pool.
 
     A batch keeps going when one of its runs fails, as
     :func:`hybridsim.simulate_many`: a row whose initial state is not finite
@@ -968,8 +971,12 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
                     break
         else:
             rng = _rng_for(k, ro.prio, seed)
-            # a few runs alone first: their length sizes the pool's slots
-            first = rows[:4].tolist()
+            # a few runs alone first, spread over the batch (a sweep's first
+            # rows may be its shortest runs): their length sizes the pools
+            pick = np.unique(np.linspace(0, len(rows) - 1, min(4, len(rows))).round()
+                             .astype(np.int64)) if len(rows) else np.zeros(0, np.int64)
+            first = rows[pick].tolist()
+            rows = np.delete(rows, pick)
             longest = 2
             for i in first:
                 stopped, m = one(i, rng)
@@ -978,14 +985,19 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
                     break
             cap = 1 << math.ceil(math.log2(longest * 1.25 + 1))
             per = (2 + 2 * n) * 8
-            c = len(first)
+            c = 0
             stop = np.zeros(1, np.int64)
             # the arcs of runs ending at t_max or j_max (most rows): built here,
             # their message the cause's own (as _arc would)
             plain = {c: (t, t.message) for c, t in ((k.T_MAX, Termination.T_MAX),
                                                      (k.J_MAX, Termination.J_MAX))}
             loop = k.DETAIL_LOOP
-            while c < len(rows) and not stopped:
+            retry = []              # runs that found no room: the next round's rows
+            while not stopped:
+                if c >= len(rows):
+                    if not retry:
+                        break
+                    rows, retry, c = np.array(retry, np.int64), [], 0
                 B = int(max(64, min(len(rows) - c, chunk_bytes // (cap * per))))
                 B = min(B, len(rows) - c)
                 idx = rows[c:c + B]
@@ -1032,8 +1044,12 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
                                 not ST[r].any()):
                             arcs[i] = _arc(system, k, Tf[o:e], Jf[o:e], Xf[o:e], XDf[o:e],
                                            ca, int(DE[r]), INFO[r], ST[r].tolist(), ro)
-                    elif not stopped:          # no room left in the pool: run it alone
-                        stopped, _ = one(i, rng)
+                    elif not stopped:
+                        # no room left in the pool: run again in a later round,
+                        # in parallel, with room for the longest run seen (so
+                        # a batch whose first rows are its shortest runs does
+                        # not run the others one by one)
+                        retry.append(i)
                 # the next chunk's room: the longest run seen, with margin
                 longest = int(NS.max()) if B else cap
                 cap = max(cap, 1 << math.ceil(math.log2(max(longest, 2) * 1.25)))
