@@ -379,22 +379,26 @@ class HybridArc:
         return arc
 
     @classmethod
-    def _pooled(cls, pool, bounds, termination, message, system, stats_of):
-        """Arcs of a batch's runs, each one's samples ``bounds[i] = (a, b)``,
-        rows a:b of the batch's compact pool ``pool = (t, j, x, xdot)``, and its
-        stats ``stats_of(i)`` (a dict), made on first access: a batch of
-        thousands of short runs otherwise spends most of its Python time
-        slicing. ``termination`` and ``message``: one each, for every run.
+    def _pooled(cls, pool, starts, ends, termination, message, system, stats_of):
+        """Arcs of a batch's runs, run ``i``'s samples rows ``starts[i]:ends[i]``
+        of the batch's compact pool ``pool = (t, j, x, xdot)`` and its stats
+        ``stats_of(i)`` (a dict), made on first access: a batch of thousands
+        of short runs otherwise spends most of its Python time slicing.
+        ``termination`` and ``message``: one each, for every run. The arcs
+        share one record of the pool (each holds its index): two objects an
+        arc for the garbage collector to visit, not four.
         """
-        desc = _describe(system)
-        new = cls.__new__
+        like = {"termination": termination, "message": message, "exception": None,
+                "components": None, "system": system, "system_description": _describe(system),
+                "_segments": None, "_cache": None, "_pool": (pool, starts, ends, stats_of),
+                "_row": 0}
+        new, copy = cls.__new__, like.copy
         out = []
-        for i, ab in enumerate(bounds):
+        for i in range(len(starts)):
             arc = new(cls)
-            arc.__dict__ = {"termination": termination, "message": message,
-                            "exception": None, "components": None, "system": system,
-                            "system_description": desc, "_segments": None, "_cache": {},
-                            "_pool": (pool, ab, stats_of, i)}
+            arc.__dict__ = d = copy()
+            d["_cache"] = {}
+            d["_row"] = i
             out.append(arc)
         if CHECK_ARCS:
             for arc in out:
@@ -403,12 +407,16 @@ class HybridArc:
 
     def _unpool(self):
         """A pooled arc's samples and stats, set (see :meth:`_pooled`)."""
-        pooled = self.__dict__.get("_pool")
-        if pooled is not None:          # set before the pool is dropped: threads may race here
-            (t, j, x, xdot), (a, b), stats_of, i = pooled
+        d = self.__dict__
+        pooled, i = d.get("_pool"), d.get("_row")
+        # the fields are set before the keys are dropped: threads may race here
+        if pooled is not None and i is not None:
+            (t, j, x, xdot), starts, ends, stats_of = pooled
+            a, b = starts[i], ends[i]
             self.t, self.j, self.x, self.xdot = t[a:b], j[a:b], x[a:b], xdot[a:b]
             self.stats = stats_of(i)
-            self.__dict__.pop("_pool", None)
+            d.pop("_pool", None)
+            d.pop("_row", None)
 
     def __getattr__(self, name):
         # only for attributes not set: a pooled arc's samples and stats

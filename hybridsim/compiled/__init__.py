@@ -1029,7 +1029,7 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
                     sel = np.flatnonzero(easy & (CA == code))
                     if len(sel):
                         made = HybridArc._pooled(
-                            pool, zip(starts[sel].tolist(), ends[sel].tolist()), term, msg,
+                            pool, starts[sel].tolist(), ends[sel].tolist(), term, msg,
                             system, _stats_of(ST, sel))
                         for i, arc in zip(idx[sel].tolist(), made):
                             arcs[i] = arc
