@@ -17,6 +17,7 @@ from __future__ import annotations
 import concurrent.futures
 import itertools
 import numbers
+import operator
 import warnings
 from collections.abc import Callable, Iterable
 from typing import Any
@@ -325,11 +326,16 @@ class _Batch:
                     self.out[i] = arc
 
 
+_TERMINATION = operator.attrgetter("termination")
+
+
 def _summary(what, arcs, offset=0):
     """One warning text for the failed and canceled rows, or None."""
     # by identity (an Enum member hashes in Python code: 0.3 µs a row)
     bad, stop = {id(c) for c in FAILED}, id(Termination.CANCELED)
-    terms = [id(a.termination) for a in arcs]
+    terms = list(map(id, map(_TERMINATION, arcs)))
+    if bad.isdisjoint(terms) and stop not in terms:     # the common case: one pass
+        return None
     failed = [(i, arcs[i]) for i, c in enumerate(terms) if c in bad]
     canceled = [i for i, c in enumerate(terms) if c == stop]
     parts = []
