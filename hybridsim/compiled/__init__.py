@@ -54,9 +54,11 @@ issued.
 """
 from __future__ import annotations
 
+import concurrent.futures
 import gc
 import math
 import os
+import threading
 import time
 import warnings
 
@@ -814,34 +816,54 @@ def _threads(parallel, rows):
     return max(1, min(nt, os.cpu_count() or 1, rows // 8))
 
 
+#: the batch kernels' worker threads, kept between batches (starting two
+#: threads and joining them took about 0.2 ms a chunk); made on first use and
+#: forgotten in a forked child (its threads do not exist there)
+_POOL = []
+_POOL_LOCK = threading.Lock()
+
+
+def _forget_pool():
+    _POOL.clear()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_pool)
+
+
+def _workers(threads):
+    """The worker pool, with room for ``threads`` tasks at once."""
+    with _POOL_LOCK:
+        if not _POOL or _POOL[0][1] < threads:
+            if _POOL:
+                _POOL.pop()[0].shutdown(wait=False)
+            size = max(threads, os.cpu_count() or 1)
+            _POOL.append((concurrent.futures.ThreadPoolExecutor(
+                size, thread_name_prefix="hybridsim-compiled-batch"), size))
+        return _POOL[0][0]
+
+
 def _interruptible(fn, args, stop, threads=1):
-    """Call a GIL-free batch kernel in ``threads`` helper threads (each takes
-    rows from the batch's shared counter) so that Ctrl-C stops it: the main
-    thread waits and, on KeyboardInterrupt, sets ``stop[0]`` (every run reads
-    it at each step and ends ``CANCELED``). Returns ``interrupted``. Off the
-    main thread (no signals arrive there) it waits without that."""
-    import threading
-    errors = []
-
-    def target():
-        try:
-            fn(*args)
-        except BaseException as e:  # noqa: BLE001 - re-raised in the caller's thread
-            errors.append(e)
-
-    ths = [threading.Thread(target=target, name="hybridsim-compiled-batch", daemon=True)
-           for _ in range(threads)]
-    for th in ths:
-        th.start()
+    """Call a GIL-free batch kernel in ``threads`` worker threads (each takes
+    rows from the batch's shared counter) so that Ctrl-C stops it: the
+    calling thread waits and, on KeyboardInterrupt, sets ``stop[0]`` (every
+    run reads it at each step and ends ``CANCELED``). Returns
+    ``interrupted``. Off the main thread (no signals arrive there) it waits
+    without that. The workers are Python threads kept between batches
+    (:func:`_workers`), not a numba threading layer."""
+    futures = [_workers(threads).submit(fn, *args) for _ in range(threads)]
     interrupted = False
-    for th in ths:
+    errors = []
+    for fut in futures:
         while True:
             try:
-                th.join()
+                err = fut.exception()
                 break
             except KeyboardInterrupt:
                 stop[0] = 1
                 interrupted = True
+        if err is not None:
+            errors.append(err)
     if errors:
         raise errors[0]
     return interrupted
