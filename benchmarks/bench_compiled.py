@@ -226,6 +226,18 @@ def make_ball(specialize=False):
                           state_dim=2, params=[G, E], specialize=specialize)
 
 
+def sweep_f(x, t, j, p):
+    return np.array([1.0, 0.0])
+
+
+def sweep_g(x, t, j, p):
+    return np.array([0.0, x[1]])
+
+
+def sweep_hD(x, t, j, p):
+    return x[0] - x[1]
+
+
 def make_timer(specialize=False):
     return CompiledSystem(timer_f, timer_g, jump_guard=timer_hD, flow_guard=timer_hC,
                           state_dim=1, params=[1.0], specialize=specialize)
@@ -536,6 +548,20 @@ def main(argv=None):
         print(f"  1,000 balls ({name}, {nt} threads): of {tot * 1e3:.1f} ms, the batch kernel "
               f"{ker * 1e3:.1f} ms, the Python side (options, pools, 1,000 arcs) "
               f"{(tot - ker) * 1e3:.1f} ms (medians of {rounds})")
+
+    # a sweep whose runs grow along the batch: the pools are sized by four runs
+    # spread over it, and runs without room run again in a parallel round
+    sweep = CompiledSystem(sweep_f, sweep_g, jump_guard=sweep_hD, state_dim=2)
+    per = np.geomspace(1.0, 0.01, 2000)
+    up = np.column_stack([np.zeros_like(per), per])
+    down = up[::-1].copy()
+    simulate_many_compiled(sweep, up[:8], t_max=3.0)
+    med = interleaved({"up": lambda: simulate_many_compiled(sweep, up, t_max=3.0),
+                       "down": lambda: simulate_many_compiled(sweep, down, t_max=3.0)}, rounds)
+    n_s = sum(len(a.t) for a in simulate_many_compiled(sweep, up, t_max=3.0))
+    print(f"sweep of 2,000 timers, periods 1 -> 0.01 ({n_s:,} samples): shortest runs first "
+          f"{med['up'] * 1e3:.1f} ms, longest first {med['down'] * 1e3:.1f} ms "
+          f"({med['up'] / med['down']:.2f}x; medians of {rounds} interleaved rounds)")
 
     if not args.skip_big:
         N = 100_000
