@@ -17,16 +17,18 @@ controller and dense output, event location, the decision loop) is compiled
 once per machine and kept in numba's on-disk cache (``__pycache__`` beside
 this package; ``NUMBA_CACHE_DIR``; or, where the package's folder cannot be
 written, as in a read-only site-packages, numba's user cache folder): a new
-process loads it in a fraction of a second. Compiling it takes about 19 s of
+process loads it in a fraction of a second. Compiling it takes about 15 s of
 CPU (the run kernel; the batch kernel, which calls it by address, about 0.5 s)
-and is announced once on stderr. The user's maps reach it as numba
+and is announced once on stderr. Flow maps that read the past
+(``delays=``) run in a kernel of their own, compiled (about 20 s, announced
+too) when the first such system runs. The user's maps reach it as numba
 first-class functions of a fixed signature; they are compiled per system, when
 the system is first run (about 0.1-0.3 s per map), and are not cached across
 processes (they are often lambdas or closures). A system with
 ``specialize=True`` gets its own run kernel, its maps compiled in; it is kept
 on disk too, in a module generated beside the engine's cache and named by a
 digest of the maps' code, constants, closures and globals and of the engine
-(see ``_kernel.spec_module``): about 18 s of CPU once per machine and per
+(see ``_kernel.spec_module``): about 15 s of CPU once per machine and per
 change of the maps, then loaded in a fraction of a second without compiling
 the maps. The rules (:mod:`hybridsim.rules`) are compiled into the engine
 from their one source; a change of them invalidates the cache.
@@ -127,13 +129,26 @@ def _load_kernel():
     return k
 
 
-def compile_kernels():
+def compile_kernels(delays=False):
     """Compile the engine's kernels now (or load them from numba's disk cache).
 
-    Returns the seconds it took. Called by the first compiled run anyway.
+    Parameters
+    ----------
+    delays : bool
+        Also the run kernel of flow maps that read the past
+        (``CompiledSystem(delays=)``): a kernel of its own, compiled on the
+        first run of such a system otherwise.
+
+    Returns
+    -------
+    float
+        The seconds it took. Called by the first compiled run anyway.
     """
     t = time.perf_counter()
-    _load_kernel().compile_kernels(batch=True, notice=_notice)
+    k = _load_kernel()
+    k.compile_kernels(batch=True, notice=_notice)
+    if delays:
+        k.compile_kernels(batch=False, notice=_notice, delays=True)
     return time.perf_counter() - t
 
 
@@ -230,7 +245,7 @@ class CompiledSystem(HybridSystem):
         the engine is the one compiled kernel cached on disk, so a new system
         costs only its maps' compilation (about 1 s, see the module notes).
         True: the engine is compiled for this system with its maps inlined,
-        10-20% faster per run; about 18 s of CPU the first time on a machine
+        10-20% faster per run; about 15 s of CPU the first time on a machine
         (and after a change of the maps), kept on disk and loaded in a
         fraction of a second by later processes (maps reading objects other
         than constants, arrays, modules and functions are compiled in each
@@ -362,7 +377,7 @@ class CompiledSystem(HybridSystem):
                 nb = self._flags(out, absent)
                 six = tuple(nb[r] for r in ("f", "g", "hD", "hC", "D", "C"))
                 nb["args"] = (k.map_addresses(six),)
-                nb["one"] = None                # k.run_one, once compiled
+                nb["one"] = None                # k.run_kernel(delays), once compiled
                 self._nb = nb
         return time.perf_counter() - t
 
@@ -393,7 +408,8 @@ class CompiledSystem(HybridSystem):
         that is not a constant, array, module or function) compile in memory."""
         entries = tuple((role, kind, self.maps.get(role)) for role, kind in _ROLES)
         try:
-            mod = k.spec_module(k.spec_key(entries))
+            delays = bool(self.delays)
+            mod = k.spec_module(k.spec_key(entries, delays), delays)
         except k.Unkeyable:
             mod = None
         sig = k._signature_one()
@@ -418,7 +434,7 @@ class CompiledSystem(HybridSystem):
                 mod.f, mod.g, mod.hD, mod.hC, mod.D, mod.C = f, g, hD, hC, D, C
                 one = mod.one
             else:
-                run = k.run_one_spec
+                run = k.run_one_spec_delays if self.delays else k.run_one_spec
 
                 def one_mem(maps, x0, p, fopt, iopt, atol, rngp, poll, stop):
                     return run((f, g, hD, hC, D, C), x0, p, fopt, iopt, atol, rngp, poll, stop)
@@ -557,12 +573,15 @@ def _kernels(k, system, batch):
     address for :func:`_kernel.run_rows` (compiled when ``batch``)."""
     nb = system._nb
     one = nb["one"]
+    # (one structure lowered with other delays shares ``nb``: with delays or not)
+    delays = bool(system.delays)
     if one is None:
-        k.compile_kernels(batch=batch, notice=_notice)
-        nb["one"] = one = k.run_one
-        nb["one_addr"] = k.one_address()
+        k.compile_kernels(batch=batch, notice=_notice, delays=delays)
+        nb["one"] = one = k.run_kernel(delays)
+        nb["one_addr"] = k.one_address(delays)
     elif batch:
-        k.compile_kernels(batch=True, notice=_notice, one=one is k.run_one)
+        k.compile_kernels(batch=True, notice=_notice, one=one is k.run_kernel(delays),
+                          delays=delays)
     return one, nb["one_addr"]
 
 

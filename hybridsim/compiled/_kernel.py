@@ -13,7 +13,10 @@ Two kernels are compiled and cached: :func:`run_one` (one run) and
 :func:`run_rows` (a batch's rows, in GIL-free Python threads), which calls a
 run kernel by its code address instead of compiling it in (numba links and
 re-optimises a callee's code into every caller: the batch kernel used to
-cost as much to compile as the engine). A system with ``specialize=True``
+cost as much to compile as the engine). A flow map that reads the past
+(delays) runs in a third, :func:`run_one_delays`, compiled when such a
+system first runs: the same run core with the record of the steps, which
+:func:`run_one` leaves out (a quarter of its compile time). A system with ``specialize=True``
 gets its own run kernel in a generated module (:func:`spec_module`), cached on
 disk like these, and batches run it through the same :func:`run_rows`.
 
@@ -89,6 +92,10 @@ _P = np.ascontiguousarray(RK45.P, dtype=np.float64)
 _SAFETY, _MIN_FACTOR, _MAX_FACTOR = 0.9, 0.2, 10.0
 _ERR_EXP = -1.0 / (RK45.error_estimator_order + 1)
 _ORDER = float(RK45.error_estimator_order)
+#: a constant of the run core: whether its flow map reads the past (delays).
+#: False in :data:`run_one` (numba prunes every branch on it: no code for the
+#: past, a smaller kernel to compile), True in :data:`run_one_delays`
+_DELAYS = False
 _JUMPS, _FLOWS, _RANDOM = int(rules.Priority.JUMPS), int(rules.Priority.FLOWS), \
     int(rules.Priority.RANDOM)
 _A_JUMP, _A_FLOW, _A_STOP = int(rules.Action.JUMP), int(rules.Action.FLOW), \
@@ -383,22 +390,22 @@ def _at(y, y_at, s, yold, hQ, told, h):
 
 
 @njit(cache=True, **_NJI)
-def _dense_deriv(Q, told, h, s):
-    """d/dt of the dense output at s (``solve._dense_derivative``)."""
+def _dense_deriv_to(XD, r, hQ, told, h, s):
+    """d/dt of the dense output at s (``solve._dense_derivative``, Q = hQ / h)
+    written into row ``r`` of ``XD``."""
     x = (s - told) / h
-    n = Q.shape[0]
-    out = np.empty(n)
-    for i in range(n):
-        out[i] = Q[i, 0] + 2.0 * Q[i, 1] * x + 3.0 * Q[i, 2] * x * x + 4.0 * Q[i, 3] * x * x * x
-    return out
+    for i in range(hQ.shape[0]):
+        XD[r, i] = (hQ[i, 0] / h + 2.0 * (hQ[i, 1] / h) * x + 3.0 * (hQ[i, 2] / h) * x * x
+                    + 4.0 * (hQ[i, 3] / h) * x * x * x)
 
 
 @njit(cache=True, **_NJI)
-def _rms(v):
+def _norm(v):
+    """The 2-norm of ``v`` (``np.sum(v * v)``'s order of sums: no array made)."""
     s = 0.0
     for i in range(v.shape[0]):
         s += v[i] * v[i]
-    return math.sqrt(s) / math.sqrt(v.shape[0])
+    return math.sqrt(s)
 
 
 @njit(cache=True, **_NJI)
@@ -960,36 +967,54 @@ def _add_breaks(BL, t, dl):
 
 
 @njit(cache=True, **_NJI)
-def _initial_step(f, t0, y0, t_bound, max_step, f0, rtol, atol, j, p, pb, dl, HL, HM, cur_x,
-                  x0, ts0):
-    """scipy's ``select_initial_step`` (direction +1, order 4)."""
+def _scaled_rms(v, w, scale, diff):
+    """The RMS norm of ``v / scale``, or of ``(v - w) / scale`` where ``diff``
+    (a loop: no array made)."""
+    s = 0.0
+    for i in range(v.shape[0]):
+        e = ((v[i] - w[i]) if diff else v[i]) / scale[i]
+        s += e * e
+    return math.sqrt(s) / math.sqrt(v.shape[0])
+
+
+@njit(cache=True, **_NJI)
+def _initial_guess(t0, y0, t_bound, f0, rtol, atol, y1, scale):
+    """scipy's ``select_initial_step`` (direction +1, order 4), its first part:
+    ``(h0, d1)`` (h0 0.0 where the interval is empty), with the Euler point
+    ``y1`` and the error ``scale`` written in place. The caller evaluates the
+    flow map at (t0 + h0, y1) and ends with :func:`_initial_step` (the flow
+    map with delays is another function: this one never calls it)."""
     interval = abs(t_bound - t0)
     if interval == 0.0:
-        return 0.0
+        return 0.0, 0.0
     n = y0.shape[0]
-    scale = np.empty(n)
     for i in range(n):
         scale[i] = atol[i] + abs(y0[i]) * rtol
-    d0 = _rms(y0 / scale)
-    d1 = _rms(f0 / scale)
+    d0 = _scaled_rms(y0, y0, scale, False)
+    d1 = _scaled_rms(f0, f0, scale, False)
     if d0 < 1e-5 or d1 < 1e-5:
         h0 = 1e-6
     else:
         h0 = 0.01 * d0 / d1
     h0 = min(h0, interval)
-    y1 = y0 + h0 * f0
-    if dl.shape[0] == 0:
-        f1 = f(y1, t0 + h0, j, p)
-    else:
-        f1 = _fd(f, y1, t0 + h0, j, p, pb, dl, HL, HM, cur_x, x0, ts0)
-    if f1.shape[0] != n:
+    for i in range(n):
+        y1[i] = y0[i] + h0 * f0[i]
+    return h0, d1
+
+
+@njit(cache=True, **_NJI)
+def _initial_step(t0, t_bound, max_step, f0, f1, h0, d1, scale):
+    """``select_initial_step``'s end, from :func:`_initial_guess`'s ``h0``,
+    ``d1`` and ``scale`` and the flow map's value ``f1`` at its Euler point;
+    -1.0 where ``f1`` has the wrong length."""
+    if f1.shape[0] != f0.shape[0]:
         return -1.0
-    d2 = _rms((f1 - f0) / scale) / h0
+    d2 = _scaled_rms(f1, f0, scale, True) / h0
     if d1 <= 1e-15 and d2 <= 1e-15:
         h1 = max(1e-6, h0 * 1e-3)
     else:
         h1 = (0.01 / max(d1, d2)) ** (1.0 / (_ORDER + 1.0))
-    return min(100.0 * h0, h1, interval, max_step)
+    return min(100.0 * h0, h1, abs(t_bound - t0), max_step)
 
 
 @njit(cache=True, **_NJI)
@@ -1078,7 +1103,6 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     zeno_time = fopt[7]
     zeno_rtol = fopt[8]
     nd = iopt[13]                    # delays read by the flow map (fopt[9:])
-    dl = fopt[9:9 + nd].copy()
     j0 = iopt[0]
     prio = iopt[1]
     max_steps = iopt[2]
@@ -1097,23 +1121,25 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     n = x0.shape[0]
     # with delays: the run's own p, the past's place after the parameters (NaN
     # but while the flow map runs), and the record of the steps (``_past``)
+    # (``_DELAYS``: a constant of the kernel, False in :data:`run_one`, whose
+    # code has none of this; :data:`run_one_delays` is the kernel with it)
     pb = p_in.shape[0]
-    if nd > 0:
+    if _DELAYS:
+        dl = fopt[9:9 + nd].copy()
         p = np.empty(pb + nd * n)
         for q in range(pb):
             p[q] = p_in[q]
         p[pb:] = np.nan
+        HL = List.empty_list(_CHUNK_T)
+        HM = np.zeros(5)
+        HM[1] = t0
+        HM[2] = np.nan
+        cur_x = x0.copy()
+        BL = List.empty_list(types.float64)     # delay breakpoints t_k + tau_i, sorted
+        ibr = 0                                 # the first not yet passed
+        _add_breaks(BL, t0, dl)
     else:
         p = _bare(p_in)              # the caller's: alive for the whole run
-    HL = List.empty_list(_CHUNK_T)
-    HM = np.zeros(5)
-    HM[1] = t0
-    HM[2] = np.nan
-    cur_x = x0.copy()
-    BL = List.empty_list(types.float64)     # delay breakpoints t_k + tau_i, sorted
-    ibr = 0                                 # the first not yet passed
-    if nd > 0:
-        _add_breaks(BL, t0, dl)
     T = np.empty(cap)
     J = np.empty(cap, np.int64)
     X = np.empty((cap, n))
@@ -1156,10 +1182,10 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
         return (T[:1].copy(), J[:1].copy(), X[:1].copy(), XD[:1].copy(), MAP_ERROR,
                 MAP_GUARD, info, stats)
     if (not has_C) or _inC(M, _bare(x), t, j, p):
-        if nd == 0:
-            v0 = f(x, t, j, p)
-        else:
+        if _DELAYS:
             v0 = _fd(f, x, t, j, p, pb, dl, HL, HM, cur_x, x0, t0)
+        else:
+            v0 = f(x, t, j, p)
         if v0.shape[0] != n or not _all_finite(v0):
             info[0] = t
             info[2] = v0.shape[0]
@@ -1264,7 +1290,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 j += 1
                 jumps += 1
                 x = xn.copy()
-                if nd > 0:                   # ``History._restart``, the new breakpoints
+                if _DELAYS:                  # ``History._restart``, the new breakpoints
                     for q in range(n):
                         cur_x[q] = x[q]
                     HM[1] = t
@@ -1298,7 +1324,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
         flow_on = False
         # ---------------------------------------------------------- a flow
         t_bound = t_max
-        if nd > 0:                           # ``_Run._bound``: the next breakpoint
+        if _DELAYS:                          # ``_Run._bound``: the next breakpoint
             tol = 4.0 * _EPS * max(1.0, abs(t))
             while ibr < len(BL) and BL[ibr] <= t + tol:
                 ibr += 1
@@ -1310,10 +1336,10 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             hh0 = min(hh0, t_bound - t, max_step)
             if not hh0 > 0:
                 hh0 = np.nan
-        if nd == 0:
-            fa = f(x, t, j, p)
-        else:
+        if _DELAYS:
             fa = _fd(f, x, t, j, p, pb, dl, HL, HM, cur_x, x0, t0)
+        else:
+            fa = f(x, t, j, p)
         stats[2] += 1
         if fa.shape[0] != n:
             cause = MAP_ERROR
@@ -1324,9 +1350,16 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             break
         if hh0 == hh0:
             h_abs = hh0
-        else:
-            h_abs = _initial_step(f, t, x, t_bound, max_step, fa, rtol, atol, j, p, pb, dl, HL,
-                                  HM, cur_x, x0, t0)
+        elif fa.shape[0] == n:
+            # scipy's select_initial_step: the Euler point in yi, the scale in WS[0]
+            h0, d1 = _initial_guess(t, x, t_bound, fa, rtol, atol, yi, WS[0])
+            h_abs = 0.0
+            if abs(t_bound - t) != 0.0:
+                if _DELAYS:
+                    f1 = _fd(f, yi, t + h0, j, p, pb, dl, HL, HM, cur_x, x0, t0)
+                else:
+                    f1 = f(yi, t + h0, j, p)
+                h_abs = _initial_step(t, t_bound, max_step, fa, f1, h0, d1, WS[0])
             stats[2] += 1
             if h_abs < 0.0:
                 cause = MAP_ERROR
@@ -1334,7 +1367,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 info[0] = t
                 info[3] = j
                 break
-        if HM[2] == HM[2]:                   # the past is missing (a delay under a step)
+        if _DELAYS and HM[2] == HM[2]:       # the past is missing (a delay under a step)
             cause, detail = _past_missing(info, HM, j)
             break
         stats[4] += 1
@@ -1396,10 +1429,10 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                         for m in range(s):
                             acc += K[m, i] * _A[s, m]
                         yi[i] = ya[i] + acc * hs
-                    if nd == 0:
-                        ks = f(yi, a + _Cc[s] * hs, j, p)
-                    else:
+                    if _DELAYS:
                         ks = _fd(f, yi, a + _Cc[s] * hs, j, p, pb, dl, HL, HM, cur_x, x0, t0)
+                    else:
+                        ks = f(yi, a + _Cc[s] * hs, j, p)
                     if ks.shape[0] != n:
                         bad_len = True
                         break
@@ -1413,12 +1446,12 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                     for m in range(6):
                         acc += K[m, i] * _B[m]
                     ynew[i] = ya[i] + hs * acc
-                if nd == 0:
-                    fnew = f(ynew, b, j, p)
-                else:
+                if _DELAYS:
                     fnew = _fd(f, ynew, b, j, p, pb, dl, HL, HM, cur_x, x0, t0)
+                else:
+                    fnew = f(ynew, b, j, p)
                 stats[2] += 6
-                if HM[2] == HM[2]:
+                if _DELAYS and HM[2] == HM[2]:
                     break
                 if fnew.shape[0] != n:
                     bad_len = True
@@ -1452,7 +1485,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                     rejected = True
             if attempts > 1:
                 stats[1] += attempts - 1
-            if HM[2] == HM[2]:
+            if _DELAYS and HM[2] == HM[2]:
                 cause, detail = _past_missing(info, HM, j)
                 t, x = a, ya
                 break
@@ -1467,10 +1500,10 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 # ``_Run._solver_failed``
                 bad = tried and not _all_finite(K.reshape(K.size))
                 if not bad:
-                    if nd == 0:
-                        fy = f(ya, a, j, p)
-                    else:
+                    if _DELAYS:
                         fy = _fd(f, ya, a, j, p, pb, dl, HL, HM, cur_x, x0, t0)
+                    else:
+                        fy = f(ya, a, j, p)
                     bad = fy.shape[0] != n or not _all_finite(fy)
                 if bad:
                     cause = NON_FINITE
@@ -1535,7 +1568,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 t, x = a, ya
                 break
             if not hit:
-                if nd > 0:                   # ``History._add``
+                if _DELAYS:                  # ``History._add``
                     _record(HL, HM, a, b, hs, ya, hQ)
                 ns_step = ns             # this step's samples start here
                 if refine > 1 and b > a:
@@ -1550,7 +1583,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                             T, J, X, XD = _grown(T, J, X, XD, ns)
                         _store(_bare(T), _bare(J), _bare(X), _bare(XD), ns, s, j,
                                _dense(ya, hQ, a, hs, s))
-                        _put(XD, ns, _dense_deriv(hQ / hs, a, hs, s))
+                        _dense_deriv_to(_bare(XD), ns, hQ, a, hs, s)
                         ns += 1
                 if ns >= max_samples:
                     cause = MAX_STEPS
@@ -1564,7 +1597,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                     XD[ns, q] = fb[q]
                 ns += 1
                 if max_norm < np.inf:
-                    nb = math.sqrt(np.sum(yb * yb))
+                    nb = _norm(yb)
                     if nb > max_norm:
                         cause = BLOWUP
                         info[0] = b
@@ -1619,7 +1652,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 t, x = a, ya
                 break
             # ``_commit``
-            if nd > 0 and not past and te > a:
+            if _DELAYS and not past and te > a:
                 _record(HL, HM, a, te, hs, ya, hQ)
             if te > a:
                 if refine > 1:
@@ -1634,7 +1667,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                             T, J, X, XD = _grown(T, J, X, XD, ns)
                         _store(_bare(T), _bare(J), _bare(X), _bare(XD), ns, s, j,
                                _dense(ya, hQ, a, hs, s))
-                        _put(XD, ns, _dense_deriv(hQ / hs, a, hs, s))
+                        _dense_deriv_to(_bare(XD), ns, hQ, a, hs, s)
                         ns += 1
                 if ns >= max_samples:
                     cause = MAX_STEPS
@@ -1644,16 +1677,16 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 if ns == T.shape[0]:
                     T, J, X, XD = _grown(T, J, X, XD, ns)
                 _store(_bare(T), _bare(J), _bare(X), _bare(XD), ns, te, j, _bare(xe))
-                if nd == 0:
-                    fe = f(xe, te, j, p)
-                else:
+                if _DELAYS:
                     fe = _fd(f, xe, te, j, p, pb, dl, HL, HM, cur_x, x0, t0)
+                else:
+                    fe = f(xe, te, j, p)
                 if fe.shape[0] == n:
                     for q in range(n):
                         XD[ns, q] = fe[q]
                 ns += 1
                 if max_norm < np.inf:        # the event's sample, as a step's end
-                    nb = math.sqrt(np.sum(xe * xe))
+                    nb = _norm(xe)
                     if nb > max_norm:
                         cause = BLOWUP
                         info[0] = te
@@ -1700,11 +1733,11 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
         info[2] = ev[0]
         info[3] = ev[2]
     if cause != MAP_ERROR and XD[ns - 1, 0] != XD[ns - 1, 0]:
-        if nd == 0:
-            fl = f(np.ascontiguousarray(X[ns - 1]), T[ns - 1], J[ns - 1], p)
-        else:
+        if _DELAYS:
             fl = _fd(f, np.ascontiguousarray(X[ns - 1]), T[ns - 1], J[ns - 1], p, pb, dl, HL, HM,
                      cur_x, x0, t0)
+        else:
+            fl = f(np.ascontiguousarray(X[ns - 1]), T[ns - 1], J[ns - 1], p)
         if fl.shape[0] == n:
             _put(XD, ns - 1, fl)
     stats[5] = jumps
@@ -1725,6 +1758,31 @@ run_one = njit(cache=True, **_NJ)(_run_core)
 #: as a tuple): the module :func:`spec_module` generates calls it under
 #: ``run_one``'s signature (never cached itself: its signature names the system)
 run_one_spec = njit(**_NJI)(_run_core)
+
+
+def _with_delays(fn):
+    """``fn`` (the run core) as a function of its own whose ``_DELAYS`` is True:
+    the same code, its module's globals but that one (numba reads a global
+    as a constant of the compiled code, and caches this function apart from
+    ``fn``, under its own name)."""
+    import types as pytypes
+    glb = dict(fn.__globals__)
+    glb["_DELAYS"] = True
+    out = pytypes.FunctionType(fn.__code__, glb, fn.__name__ + "_delays", fn.__defaults__,
+                               fn.__closure__)
+    out.__qualname__ = fn.__qualname__ + "_delays"
+    out.__module__ = fn.__module__
+    out.__doc__ = fn.__doc__
+    return out
+
+
+#: :data:`run_one` for a flow map that reads the past (``CompiledSystem(delays=)``):
+#: the run core with the record of the steps and the delay breakpoints,
+#: compiled (and cached) only when a system with delays first runs
+run_one_delays = njit(cache=True, **_NJ)(_with_delays(_run_core))
+
+#: :data:`run_one_spec` with delays
+run_one_spec_delays = njit(**_NJI)(_with_delays(_run_core))
 
 #: what :func:`run_one` returns, and its type as a first-class function value
 ONE_RET = types.Tuple((types.float64[::1], types.int64[::1], types.float64[:, ::1],
@@ -1966,17 +2024,22 @@ _MAPS_LINE = "    f, g, hD, hC, D, C = maps_of(maps)\n"
 _SPEC_MAPS_LINE = "    f, g, hD, hC, D, C = _f(), _g(), _hD(), _hC(), _D(), _C()\n"
 
 
-def _spec_source(key):
+def _spec_source(key, delays=False):
     """A specialised kernel's module: the run core itself (its source, the maps
     read from the module's globals), so that numba optimizes and generates its
-    code once (a wrapper calling :data:`run_one_spec` took about 2.4 s more)."""
+    code once (a wrapper calling :data:`run_one_spec` took about 2.4 s more);
+    with the code for the past where ``delays`` (see :data:`run_one_delays`;
+    ``key`` then names it too, :func:`spec_key`)."""
     import inspect
     core = inspect.getsource(_run_core)
     head = "def _run_core(maps, "
     if not core.startswith(head) or core.count(_MAPS_LINE) != 1:
         raise RuntimeError("hybridsim.compiled: the run core's source is not as expected")
     core = "def one(maps, " + core[len(head):].replace(_MAPS_LINE, _SPEC_MAPS_LINE)
-    return (_SPEC_HEAD.format(key=key) + core
+    head = _SPEC_HEAD.format(key=key)
+    if delays:
+        head += "_DELAYS = True     # the flow map reads the past\n\n\n"
+    return (head + core
             + '\n\none = numba.njit(cache=True, error_model="numpy")(one)\n')
 
 
@@ -2065,13 +2128,16 @@ def _engine_digest():
 _ENGINE_DIGEST = []
 
 
-def spec_key(maps):
+def spec_key(maps, delays=False):
     """The digest naming a system's specialised kernel: ``maps`` is a tuple of
-    (role, kind, function or None) for f, g, hD, hC, D, C. Raises
-    :class:`Unkeyable` for a map reading a value that cannot be keyed."""
+    (role, kind, function or None) for f, g, hD, hC, D, C; ``delays``: whether
+    its flow map reads the past. Raises :class:`Unkeyable` for a map reading
+    a value that cannot be keyed."""
     if not _ENGINE_DIGEST:
         _ENGINE_DIGEST.append(_engine_digest())
     h = hashlib.sha256(_ENGINE_DIGEST[0].encode())
+    if delays:
+        h.update(b"delays;")
     seen = set()
     for role, kind, fn in maps:
         h.update(f"{role}:{kind}:".encode())
@@ -2092,15 +2158,16 @@ def _spec_dirs():
     return out
 
 
-def spec_module(key):
+def spec_module(key, delays=False):
     """The generated module of ``key`` (written once; None where no folder is
-    writable: the caller then compiles in memory)."""
+    writable: the caller then compiles in memory); ``delays`` as
+    :func:`_spec_source`'s, the one ``key`` was made with."""
     import importlib.util
     import sys
     name = f"hybridsim_spec_{key}"
     if name in sys.modules:
         return sys.modules[name]
-    src = _spec_source(key)
+    src = _spec_source(key, delays)
     for d in _spec_dirs():
         path = os.path.join(d, name + ".py")
         try:
@@ -2161,7 +2228,7 @@ def remove_stale(d, age=None):
             if now - os.path.getmtime(path) < age:
                 continue
             with open(path) as fh:
-                if fh.read() == _spec_source(key):
+                if fh.read() in (_spec_source(key), _spec_source(key, True)):
                     continue
             os.remove(path)
         except (OSError, ValueError):
@@ -2191,51 +2258,66 @@ def _in_cache(disp, sig):
         return False
 
 
-def compile_kernels(batch=True, notice=None, one=True):
-    """Compile (or load from numba's on-disk cache) the kernels for the
-    first-class map signatures: ``run_one`` (unless not ``one``: a specialised
-    system's batch needs only ``run_rows``), and ``run_rows`` when ``batch``.
+def run_kernel(delays=False):
+    """The cached run kernel of systems whose maps are passed by address:
+    :data:`run_one`, or :data:`run_one_delays` for a flow map that reads the
+    past."""
+    return run_one_delays if delays else run_one
 
-    ``notice(cache_dir, seconds)`` is called once per process before kernels
-    that are not in the disk cache are compiled (``seconds``: about how long)."""
-    want_one = one and "one" not in _READY
+
+def compile_kernels(batch=True, notice=None, one=True, delays=False):
+    """Compile (or load from numba's on-disk cache) the kernels for the
+    first-class map signatures: the run kernel (:func:`run_kernel` of
+    ``delays``; unless not ``one``: a specialised system's batch needs only
+    ``run_rows``), and ``run_rows`` when ``batch``.
+
+    ``notice(cache_dir, seconds)`` is called once per kernel and process before
+    kernels that are not in the disk cache are compiled (``seconds``: about
+    how long)."""
+    tag = "one_delays" if delays else "one"
+    want_one = one and tag not in _READY
     want_batch = batch and "batch" not in _READY
     if not (want_one or want_batch):
         return          # every call of simulate_compiled asks: answer cheaply
     import warnings
     sig = _signature_one()
-    if notice is not None and "noticed" not in _READY:
-        todo = [(run_one, sig, COMPILE_SECONDS[0])] if want_one else []
+    run = run_kernel(delays)
+    if notice is not None:
+        todo = [(run, sig, COMPILE_SECONDS[3 if delays else 0])] if want_one else []
         if want_batch:
             todo.append((run_rows, _batch_signature(sig), COMPILE_SECONDS[1]))
-        todo = [(d, s, c) for d, s, c in todo if not _in_cache(d, s)]
+        todo = [(d, s, c) for d, s, c in todo
+                if ("noticed", d) not in _READY and not _in_cache(d, s)]
         if todo:
-            _READY.add("noticed")
-            notice(cache_dir(), sum(c for _, _, c in todo))
+            _READY.update(("noticed", d) for d, _, _ in todo)
+            notice(cache_dir(), sum(c for _, _, c in todo),
+                   what="the engine's kernels for flow maps with delays" if delays
+                   else "the engine's kernels")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", nb_errors.NumbaExperimentalFeatureWarning)
         # compiled for the first-class map signatures only: a call with a
         # system's map dispatchers converts them instead of specialising
         if want_one:
-            _compile_or_rebuild(run_one, sig)
-            _ONE_ADDR.append(jit_address(run_one))
-            _READY.add("one")
+            _compile_or_rebuild(run, sig)
+            _ONE_ADDR[tag] = jit_address(run)
+            _READY.add(tag)
         if want_batch:
             _compile_or_rebuild(run_rows, _batch_signature(sig))
             _READY.add("batch")
 
 
-#: CPU seconds to compile run_one, run_rows and a specialised run kernel with an
-#: empty cache (measured on the project's machine, issue 27; the notice quotes them)
-COMPILE_SECONDS = (19, 1, 18)
-#: run_one's code address (:func:`jit_address`), once compiled
-_ONE_ADDR = []
+#: CPU seconds to compile run_one, run_rows, a specialised run kernel and
+#: run_one_delays with an empty cache (measured on the project's machine,
+#: issue 27; the notice quotes them)
+COMPILE_SECONDS = (15, 1, 15, 20)
+#: the run kernels' code addresses (:func:`jit_address`), once compiled
+_ONE_ADDR = {}
 
 
-def one_address():
-    """:func:`run_one`'s code address (the ``one`` of :func:`run_rows`)."""
-    compile_kernels(batch=False)
-    return _ONE_ADDR[0]
+def one_address(delays=False):
+    """:func:`run_kernel`'s code address (the ``one`` of :func:`run_rows`)."""
+    compile_kernels(batch=False, delays=delays)
+    return _ONE_ADDR["one_delays" if delays else "one"]
 
 
 def _compile_or_rebuild(disp, sig):
