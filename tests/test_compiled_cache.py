@@ -152,6 +152,43 @@ def test_writing_a_new_module_cleans_its_folder(tmp_path, monkeypatch):
         sys.modules.pop("hybridsim_spec_" + key, None)
 
 
+def test_a_flow_map_with_delays_has_its_own_key_and_module_text():
+    """The past's code is in the specialised kernel only where the flow map
+    reads it: another key, a module that says so, and the cleaning keeps
+    this engine's modules of both kinds."""
+    base = _entries(_flow_with(9.81))
+    assert k.spec_key(base, True) != k.spec_key(base)
+    assert k.spec_key(base, False) == k.spec_key(base)
+    key = "e" * 32
+    plain, past = k._spec_source(key), k._spec_source(key, True)
+    assert "_DELAYS = True" in past and "_DELAYS = True" not in plain
+    assert past.replace("_DELAYS = True     # the flow map reads the past\n\n\n", "") == plain
+
+
+def test_the_run_core_reads_the_past_only_in_its_kernel_with_delays():
+    """run_one and run_one_delays are one source; the constant ``_DELAYS``
+    they are compiled with decides whether the past's code is there (numba
+    prunes the branches on it)."""
+    assert k.run_kernel(False) is k.run_one and k.run_kernel(True) is k.run_one_delays
+    assert k.run_one.py_func.__code__ is k.run_one_delays.py_func.__code__
+    assert k.run_one.py_func.__globals__["_DELAYS"] is False
+    assert k.run_one_delays.py_func.__globals__["_DELAYS"] is True
+    assert k.run_one_spec_delays.py_func.__globals__["_DELAYS"] is True
+    assert k.run_one_delays.py_func.__qualname__ == "_run_core_delays"   # cached apart
+
+
+def test_systems_with_and_without_delays_take_their_own_kernel():
+    from hybridsim.compiled import CompiledSystem, simulate_compiled
+    plain = CompiledSystem(flow=lambda x, t, j, p: -x, state_dim=1)
+    lag = CompiledSystem(flow=lambda x, t, j, p: -p[0:1], state_dim=1, delays=(1.0,))
+    a = simulate_compiled(plain, [1.0], t_max=1.0)
+    b = simulate_compiled(lag, [1.0], t_max=2.0, rtol=1e-10, atol=1e-12)
+    assert plain._nb["one"] is k.run_one and lag._nb["one"] is k.run_one_delays
+    assert a.x[-1, 0] == pytest.approx(np.exp(-1.0), rel=1e-5)
+    # the method of steps: x = 1 - t on [0, 1], then 1 - t + (t - 1)^2 / 2: x(2) = -1/2
+    assert b.x[-1, 0] == pytest.approx(-0.5, abs=1e-9)
+
+
 # ------------------------------------------------------------------ an installed copy
 def test_read_only_installed_copy_caches_in_the_user_cache_dir(tmp_path):
     """A copy of the package in a folder it cannot write (as site-packages may
@@ -290,3 +327,28 @@ def test_batch_threads_give_the_same_arcs():
         np.testing.assert_array_equal(a.t, c.t)
         assert a.stats == b.stats == c.stats
         assert a.termination is b.termination
+
+
+@pytest.mark.slow
+def test_a_specialised_kernel_with_delays_equals_the_generic_one():
+    """specialize=True on a flow map that reads the past: its generated module
+    keeps the past's code (``_DELAYS``), and its runs equal run_one_delays's
+    to the bit."""
+    from hybridsim.compiled import CompiledSystem, simulate_compiled
+
+    def lag(specialize):
+        # a timer whose rate reads its own value 0.4 ago (p[2:4] after the params)
+        return CompiledSystem(flow=lambda x, t, j, p: np.array([1.0 + p[1] * p[2], x[0]]),
+                              jump=lambda x, t, j, p: np.array([0.0, x[1]]),
+                              jump_guard=lambda x, t, j, p: x[0] - p[0],
+                              state_dim=2, params=[0.7, 0.5], delays=(0.4,),
+                              specialize=specialize)
+    spec, gen = lag(True), lag(False)
+    kw = dict(t_max=3.0, rtol=1e-9, atol=1e-12)
+    a, b = simulate_compiled(spec, [0.0, 0.0], **kw), simulate_compiled(gen, [0.0, 0.0], **kw)
+    assert gen._nb["one"] is k.run_one_delays
+    assert spec._nb["one"].py_func.__globals__["_DELAYS"] is True
+    assert a.jump_count >= 2
+    for f in ("t", "j", "x", "xdot"):
+        np.testing.assert_array_equal(getattr(a, f), getattr(b, f))
+    assert a.termination is b.termination and a.stats == b.stats
