@@ -380,13 +380,9 @@ def _dense(yold, hQ, told, h, s):
 
 
 @njit(cache=True, **_NJI)
-def _at(y, y_at, s, yold, hQ, told, h):
-    """The state at ``s``: ``y`` where it is the state kept at ``y_at == s``,
-    else the dense output there (the event search keeps only times while it
-    narrows a bracket, and makes the states of its ends when it is done)."""
-    if s == y_at:
-        return y
-    return _dense(yold, hQ, told, h, s)
+def _copy_to(out, y):
+    for i in range(y.shape[0]):
+        out[i] = y[i]
 
 
 @njit(cache=True, **_NJI)
@@ -602,21 +598,30 @@ def _root_off_zero(f0, fd, fw, d, w):
 
 @njit(cache=True, **_NJI)
 def _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, b,
-            yb, yb_known, wk):
+            yb, yb_known, wk, ylo, yhi):
     """:func:`hybridsim.events.locate_event` on the step's dense output (``yb``:
     the state at b where ``yb_known``; the state at the step's start is exact).
+    Returns the bracket (lo, hi); the states of its ends are written into
+    ``ylo`` and ``yhi`` (the run's scratch rows: no array made an event).
 
-    The bracket is narrowed on times, trial points evaluated in ``wk``; the
-    states of its ends (``ylo`` kept for ``ylo_at``, ``yhi`` for ``yhi_at``)
-    are made when it is done (:func:`_at`): the same values, no array a trial."""
+    The bracket is narrowed on times, trial points evaluated in ``wk``;
+    ``ylo`` holds the state at ``ylo_at`` (and ``yhi`` at ``yhi_at``), made
+    again at the bracket's end times when it is done: the same values as
+    the states kept along the way."""
     lo, hi = a, b
-    ylo = yold.copy() if a == told else _dense(yold, hQ, told, h, lo)
-    yhi = yb if yb_known else _dense(yold, hQ, told, h, hi)
+    if a == told:
+        _copy_to(ylo, yold)
+    else:
+        _dense_to(ylo, yold, hQ, told, h, lo)
+    if yb_known:
+        _copy_to(yhi, yb)
+    else:
+        _dense_to(yhi, yold, hQ, told, h, hi)
     ylo_at = lo
     yhi_at = hi
     if phi_on:
-        flo = _phi(M, lo, _bare(ylo), j, p, useD, useC)
-        fhi = _phi(M, hi, _bare(yhi), j, p, useD, useC)
+        flo = _phi(M, lo, ylo, j, p, useD, useC)
+        fhi = _phi(M, hi, yhi, j, p, useD, useC)
         seeded = False
         s0 = np.nan
         slope0 = np.nan
@@ -625,15 +630,15 @@ def _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, 
             # and with the end value a first estimate of the root
             d = max(64.0 * rules.event_tolerance(lo, hi), 1e-9 * (hi - lo))
             if lo + d < hi:
-                yd = _dense(yold, hQ, told, h, lo + d)
-                fd = _phi(M, lo + d, _bare(yd), j, p, useD, useC)
-                if fd < 0.0 and not _pred(M, lo + d, _bare(yd), j, p, has_C, d_active):
+                _dense_to(wk, yold, hQ, told, h, lo + d)
+                fd = _phi(M, lo + d, wk, j, p, useD, useC)
+                if fd < 0.0 and not _pred(M, lo + d, wk, j, p, has_C, d_active):
                     tau, slope0 = _root_off_zero(flo, fd, fhi, d, hi - lo)
                     if tau == tau:
                         seeded = True
                         s0 = lo + tau
                     lo = lo + d
-                    ylo = yd
+                    _copy_to(ylo, wk)
                     ylo_at = lo
                     flo = fd
         for _ in range(200):
@@ -650,20 +655,31 @@ def _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, 
         if (flo < 0.0 and 0.0 <= fhi) and hi - lo > rules.event_tolerance(lo, hi):
             l2, h2 = _secant(M, yold, hQ, told, h, j, p, useD, useC, lo, hi, flo, fhi,
                              seeded, s0, slope0, wk)
-            yh2 = _at(yhi, yhi_at, h2, yold, hQ, told, h)
-            yl2 = _at(ylo, ylo_at, l2, yold, hQ, told, h)
-            # the indicator decides membership: keep the guard's bracket where it agrees
-            if _pred(M, h2, _bare(yh2), j, p, has_C, d_active):
+            # the indicator decides membership: keep the guard's bracket where it
+            # agrees (the state at h2, then at l2, in wk where not kept already)
+            if h2 == yhi_at:
+                in_h2 = _pred(M, h2, yhi, j, p, has_C, d_active)
+            else:
+                _dense_to(wk, yold, hQ, told, h, h2)
+                in_h2 = _pred(M, h2, wk, j, p, has_C, d_active)
+                if in_h2:
+                    _copy_to(yhi, wk)
+            if in_h2:
                 hi = h2
-                yhi = yh2
                 yhi_at = hi
                 lo = l2
-                ylo = yl2
+                if l2 != ylo_at:
+                    _dense_to(ylo, yold, hQ, told, h, l2)
                 ylo_at = lo
-            elif not _pred(M, l2, _bare(yl2), j, p, has_C, d_active):
-                lo = l2
-                ylo = yl2
-                ylo_at = lo
+            elif l2 == ylo_at:
+                if not _pred(M, l2, ylo, j, p, has_C, d_active):
+                    lo = l2
+            else:
+                _dense_to(wk, yold, hQ, told, h, l2)
+                if not _pred(M, l2, wk, j, p, has_C, d_active):
+                    lo = l2
+                    _copy_to(ylo, wk)
+                    ylo_at = lo
     for _ in range(200):
         if hi - lo <= rules.event_tolerance(lo, hi):
             break
@@ -673,8 +689,11 @@ def _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, 
             hi = m
         else:
             lo = m
-    return lo, hi, _at(ylo, ylo_at, lo, yold, hQ, told, h), _at(yhi, yhi_at, hi, yold, hQ,
-                                                                 told, h)
+    if lo != ylo_at:
+        _dense_to(ylo, yold, hQ, told, h, lo)
+    if hi != yhi_at:
+        _dense_to(yhi, yold, hQ, told, h, hi)
+    return lo, hi
 
 
 @njit(cache=True, **_NJI)
@@ -1019,12 +1038,14 @@ def _initial_step(t0, t_bound, max_step, f0, f1, h0, d1, scale):
 
 @njit(cache=True, **_NJI)
 def _event(M, yold, hQ, told, h, j, p, has_C, has_D, d_active, phi_on, useD, useC,
-           a, lo, hi, clamp, h_abs, flow_t0, prio, rngp, yb, yb_known, wk):
+           a, lo, hi, clamp, h_abs, flow_t0, prio, rngp, yb, yb_known, wk, ylo, yhi):
     """``_Run._event``: locate, then decide. Returns (kind, te, xe, lo, ylo, h_hint,
     from_hi): ``from_hi``, a jump from the bracket's hi (``xe`` the state there),
-    whose bracket the post-jump tolerance reads (``rules.post_jump_probe``)."""
-    lo, hi, ylo, yhi = _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on,
-                               useD, useC, lo, hi, yb, yb_known, wk)
+    whose bracket the post-jump tolerance reads (``rules.post_jump_probe``).
+    ``xe`` and ``ylo`` are the scratch rows ``ylo``/``yhi`` the bracket's end
+    states are written into (:func:`_locate`): read before the next event."""
+    lo, hi = _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, lo, hi,
+                     yb, yb_known, wk, ylo, yhi)
     if hi <= flow_t0:
         hint = np.nan
     else:
@@ -1150,14 +1171,17 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     detail = 0
     # the run's scratch, one owned array read again before the run returns (alive
     # throughout), its parts views without reference counts (:func:`_bare`)
-    work = np.zeros(16 * n)
+    work = np.zeros(18 * n)
     K = _bare(work[:7 * n]).reshape((7, n))
     hQ = _bare(work[7 * n:11 * n]).reshape((n, 4))
     yi = _bare(work[11 * n:12 * n])  # a stage's state: read by f, never kept
     # the event search's states: the interior search's three samples, and a
     # trial point (``wk``, its last row); read by guards, never kept
-    WS = _bare(work[12 * n:]).reshape((4, n))
+    WS = _bare(work[12 * n:16 * n]).reshape((4, n))
     wk = WS[3]
+    # the steps' new states, in turn: a step writes the row its start is not in
+    # (``ya`` in row ``ya_row``, -1: not in these rows); copied where a flow ends
+    YY = _bare(work[16 * n:]).reshape((2, n))
 
     t = t0
     j = j0
@@ -1375,6 +1399,8 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             XD[ns - 1, q] = fa[q]
         a = t
         ya = x
+        ya_row = -1
+        yb_row = -1
         d_active = watch_D and not in_D
         tried = False
         outcome = _O_STOP
@@ -1440,7 +1466,8 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                         K[s, q] = ks[q]
                 if bad_len:
                     break
-                ynew = np.empty(n)
+                ynew_row = 1 if ya_row == 0 else 0
+                ynew = YY[ynew_row]
                 for i in range(n):
                     acc = 0.0
                     for m in range(6):
@@ -1478,6 +1505,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                     ha *= factor
                     accepted = True
                     yb = ynew
+                    yb_row = ynew_row
                     fb = fnew
                 else:
                     fc = _SAFETY * err ** _ERR_EXP
@@ -1608,7 +1636,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 if b - t_bound >= 0:          # the solver finished
                     if t_bound < t_max:       # a delay breakpoint: flow on, a new flow
                         h_hint = h_abs
-                        t, x = b, yb
+                        t, x = b, yb.copy()
                         outcome = _O_BREAK
                         break
                     h_hint = np.nan
@@ -1630,21 +1658,25 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                             t, x = b, yb
                             break
                     if not past:
-                        t, x = b, yb
+                        t, x = b, yb.copy()
                         outcome = _O_TMAX
                         break
                 if not hit:
                     a = b
                     ya = yb
+                    ya_row = yb_row
                     fa = fb
                     continue
             # ---- an event in (elo, ehi] of the step from a (``_Run._event``)
             da = True if past else d_active
             phi_on = (da and has_hD) or useC
             stats[3] += 1
+            # the bracket's end states in WS's first two rows (free: the interior
+            # search's samples are read no more); ``xe`` is one of them
             kind, te, xe, lo, _ylo, hint, from_hi = _event(
                 M, _bare(ya), hQ, a, hs, j, p, has_C, has_D, da, phi_on, da and has_hD, useC,
-                a, elo, ehi, clamp, h_abs, flow_t0, prio, rngp, yb, ehi == b and not past, wk)
+                a, elo, ehi, clamp, h_abs, flow_t0, prio, rngp, yb, ehi == b and not past, wk,
+                WS[0], WS[1])
             h_hint = hint
             if ev[0] != 0.0:
                 cause = MAP_ERROR
@@ -1692,9 +1724,11 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                         info[0] = te
                         info[2] = nb
                         info[3] = j
-                        t, x = te, xe
+                        t, x = te, xe.copy()
                         break
-            t, x = te, xe
+            # a jump reads xe (its scratch row) at once and makes its own state; a
+            # run that flows on from xe, or ends there, keeps a copy
+            t, x = te, (xe if kind == _O_JUMP else xe.copy())
             outcome = kind
             if from_hi:
                 pend = True
