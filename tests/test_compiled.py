@@ -511,6 +511,23 @@ def test_bad_arguments_name_themselves(ball):
         CompiledSystem(jump=zero, state_dim=1)
 
 
+def test_options_parsed_once_still_refuse_an_equal_value_of_another_type(ball):
+    """Repeated options are parsed once per system (a memo keyed by their
+    values); 1 and 1.0 equal True as keys, not as options: after a run with
+    throw=True (and t_max=1.0), throw=1 and t_max=True get the errors a first
+    call gets, and a run with equal options of another type is parsed anew."""
+    simulate_compiled(ball, [1.0, 0.0], t_max=1.0, throw=True)
+    for bad in (1, 1.0):
+        with pytest.raises(TypeError, match="throw must be True or False"):
+            simulate_compiled(ball, [1.0, 0.0], t_max=1.0, throw=bad)
+    simulate_compiled(ball, [1.0, 0.0], t_max=1, j_max=3)
+    with pytest.raises(TypeError, match="t_max must be a real number, got bool"):
+        simulate_compiled(ball, [1.0, 0.0], t_max=True, j_max=3)
+    a = simulate_compiled(ball, [1.0, 0.0], t_max=2.0, j_max=3)
+    b = simulate_compiled(ball, [1.0, 0.0], t_max=2, j_max=3.0)
+    np.testing.assert_array_equal(a.t, b.t)
+
+
 def test_uncompilable_map_names_itself_and_the_fallback():
     class Opaque:
         pass

@@ -511,33 +511,39 @@ def _check_system(system):
 _REFUSABLE = ("inputs", "prehistory", "dense", "t_eval", "progress", "dwell")
 
 
-def _options(system, n, caller, method, extra, **shared):
+#: the options of both compiled entry points, in the order :func:`_options` takes them
+_OPTION_NAMES = ("t0", "j0", "t_max", "j_max", "priority", "rtol", "atol", "max_step",
+                 "first_step", "max_norm", "zeno_jumps", "zeno_time", "zeno_rtol", "refine",
+                 "max_steps", "max_samples", "throw", "warn")
+
+
+def _options(system, n, caller, method, extra, vals):
     """Validate like :func:`hybridsim.simulate` (:func:`hybridsim.options.parse_run`:
     the same exception and message for the same bad input) and pack the
-    kernel's option arrays. Returns ``(ro, fopt, iopt, atol)`` (the kernels
-    only read the arrays: a repeated call returns the same ones)."""
-    # the same options again (a loop of runs): parsed once per system
+    kernel's option arrays. ``vals``: the values of :data:`_OPTION_NAMES`, in
+    order. Returns ``(ro, fopt, iopt, atol)`` (the kernels only read the
+    arrays: a repeated call returns the same ones)."""
+    # the same options again (a loop of runs): parsed once per system (a
+    # positional key: packing keywords into a dict was a tenth of a short run)
     memo = system._nb["memo"]
     key = None
     if not extra:
-        vals = tuple(shared.values())
         try:
             # what the packed arrays read of the system: its max_step and delays
-            # (systems lowered from one structure share this memo, not their delays)
-            key = (caller, method, n, type(system.max_step), system.max_step,
-                   system.delays, vals, tuple(map(type, vals)))
-            hash(key)
-        except TypeError:       # an array atol: parsed every time
-            key = None
-        else:
+            # (systems lowered from one structure share this memo, not their delays);
+            # the types too: 1, 1.0 and True are equal keys, not equal options
+            key = (caller, method, n, system.max_step, system.delays, vals)
             hit = memo.get(key)
-            if hit is not None:
-                return hit
-    out = _parse_options(system, n, caller, method, extra, shared)
+        except TypeError:       # an array atol: parsed every time
+            key = hit = None
+        types = (type(system.max_step), *map(type, vals))
+        if hit is not None and hit[0] == types:
+            return hit[1]
+    out = _parse_options(system, n, caller, method, extra, dict(zip(_OPTION_NAMES, vals)))
     if key is not None:
         if len(memo) >= 64:
             memo.clear()
-        memo[key] = out
+        memo[key] = (types, out)
     return out
 
 
@@ -803,17 +809,17 @@ def simulate_compiled(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priori
     x = _x0(x0, n)
     system.compile()
     ro, fopt, iopt, atol_a = _options(
-        system, n, "simulate_compiled", method, unsupported, t0=t0, j0=j0, t_max=t_max,
-        j_max=j_max, priority=priority, rtol=rtol, atol=atol, max_step=max_step,
-        first_step=first_step, max_norm=max_norm, zeno_jumps=zeno_jumps,
-        zeno_time=zeno_time, zeno_rtol=zeno_rtol, refine=refine, max_steps=max_steps,
-        max_samples=max_samples, throw=throw, warn=warn)
+        system, n, "simulate_compiled", method, unsupported,
+        (t0, j0, t_max, j_max, priority, rtol, atol, max_step, first_step, max_norm,
+         zeno_jumps, zeno_time, zeno_rtol, refine, max_steps, max_samples, throw, warn))
     one, _ = _kernels(k, system, batch=False)
     rng, rngp = _rng_for(k, ro.prio, seed)
     T, J, X, XD, code, detail, info, stats = one(
         *system._nb["args"], x, system.params, fopt, iopt, atol_a, rngp, k.POLL_GIL, _NO_STOP)
     del rng
     arc = _arc(system, k, T, J, X, XD, code, detail, info, stats, ro)
+    if code == k.T_MAX or code == k.J_MAX:      # neither raised nor warned (rules.finish)
+        return arc
     if _at_x0(k, arc, detail):
         raise arc.exception
     return finish(arc, ro.throw, ro.warn)
@@ -974,11 +980,9 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
     chunk_bytes = _check_count("chunk_bytes", chunk_bytes, minimum=1)
     system.compile()
     ro, fopt, iopt, atol_a = _options(
-        system, n, "simulate_many_compiled", method, unsupported, t0=t0, j0=j0,
-        t_max=t_max, j_max=j_max, priority=priority, rtol=rtol, atol=atol, max_step=max_step,
-        first_step=first_step, max_norm=max_norm, zeno_jumps=zeno_jumps,
-        zeno_time=zeno_time, zeno_rtol=zeno_rtol, refine=refine, max_steps=max_steps,
-        max_samples=max_samples, throw=throw, warn=warn)
+        system, n, "simulate_many_compiled", method, unsupported,
+        (t0, j0, t_max, j_max, priority, rtol, atol, max_step, first_step, max_norm,
+         zeno_jumps, zeno_time, zeno_rtol, refine, max_steps, max_samples, throw, warn))
     run, one_addr = _kernels(k, system, batch=parallel)
     p = system.params
     maps = system._nb["args"]
