@@ -563,7 +563,10 @@ def _parse_options(system, n, caller, method, extra, shared):
                      _I64_MAX if ro.max_samples == math.inf else ro.max_samples,
                      ro.zeno_jumps, ro.refine, nb["has_C"], nb["has_D"], nb["has_hC"],
                      nb["has_hD"], 64, nb["D_from_guard"], nb["C_from_guard"],
-                     len(system.delays)],
+                     len(system.delays),
+                     # 1 in the batch kernel's rows: the run returns its buffers
+                     # uncopied (run_rows copies them into its pool)
+                     0],
                     dtype=np.int64)
     if isinstance(ro.atol, float):
         atol_a = np.full(n, ro.atol)
@@ -1032,6 +1035,8 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
             per = (2 + 2 * n) * 8
             c = 0
             stop = np.zeros(1, np.int64)
+            iopt_rows = iopt.copy()
+            iopt_rows[14] = 1
             # the arcs of runs ending at t_max or j_max (most rows): built here,
             # their message the cause's own (as _arc would)
             plain = {c: (t, t.message) for c, t in ((k.T_MAX, Termination.T_MAX),
@@ -1057,7 +1062,7 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
                 NS, CA, DE = (np.zeros(B, np.int64) for _ in range(3))
                 INFO, ST = np.empty((B, 6)), np.zeros((B, 6), np.int64)
                 stopped = _interruptible(
-                    k.run_rows, (one_addr, *maps, X0[idx] if B < N else X0, p, fopt, iopt,
+                    k.run_rows, (one_addr, *maps, X0[idx] if B < N else X0, p, fopt, iopt_rows,
                                  atol_a, rng[1], k.POLL_NONE, stop, np.zeros(1, np.int64),
                                  _CHUNK, TT, JJ, XX, XXD, fill, AT, NS, CA, DE, INFO, ST),
                     stop, _threads(parallel, B))
