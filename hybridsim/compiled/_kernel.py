@@ -1375,7 +1375,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             break
         if hh0 == hh0:
             h_abs = hh0
-        elif fa.shape[0] == n:
+        else:
             # scipy's select_initial_step: the Euler point in yi, the scale in WS[0]
             h0, d1 = _initial_guess(t, x, t_bound, fa, rtol, atol, yi, WS[0])
             h_abs = 0.0
