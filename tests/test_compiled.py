@@ -725,18 +725,26 @@ def test_fork_after_a_parallel_batch(ball):
 
 # ------------------------------------------------------------------ first compile
 def test_first_compile_says_so_once(tmp_path):
-    """A fresh cache: one notice naming the cache; the next process: none."""
+    """A fresh cache: one notice naming the cache (a batch after the first
+    run compiles the small batch kernel without another; the first system
+    with delays, its own kernel with its own); the next process: none."""
     import os
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
     code = ("import numpy as np\n"
-            "from hybridsim.compiled import CompiledSystem, simulate_compiled\n"
+            "from hybridsim.compiled import CompiledSystem, simulate_compiled, "
+            "simulate_many_compiled\n"
             "s = CompiledSystem(lambda x, t, j, p: np.ones(1), state_dim=1)\n"
             "simulate_compiled(s, [0.0], t_max=1.0)\n"
-            "simulate_compiled(s, [0.0], t_max=1.0)\n")
+            "simulate_compiled(s, [0.0], t_max=1.0)\n"
+            "simulate_many_compiled(s, np.zeros((20, 1)), t_max=1.0)\n"
+            "lag = CompiledSystem(lambda x, t, j, p: -p[0:1], state_dim=1, delays=(0.5,))\n"
+            "simulate_compiled(lag, [1.0], t_max=1.0)\n")
     runs = [subprocess.run([sys.executable, "-W", "ignore", "-c", code], capture_output=True,
                            text=True, timeout=600, env=env) for _ in range(2)]
     for r in runs:
         assert r.returncode == 0, r.stderr
-    assert runs[0].stderr.count("compiling the engine's kernels") == 1
+    assert runs[0].stderr.count("compiling the engine's kernels,") == 1
+    # the kernel for flow maps that read the past: its own notice, when first needed
+    assert runs[0].stderr.count("compiling the engine's kernels for flow maps with delays") == 1
     assert str(tmp_path) in runs[0].stderr
     assert "compiling" not in runs[1].stderr

@@ -2310,9 +2310,10 @@ def compile_kernels(batch=True, notice=None, one=True, delays=False):
     ``delays``; unless not ``one``: a specialised system's batch needs only
     ``run_rows``), and ``run_rows`` when ``batch``.
 
-    ``notice(cache_dir, seconds)`` is called once per kernel and process before
-    kernels that are not in the disk cache are compiled (``seconds``: about
-    how long)."""
+    ``notice(cache_dir, seconds)`` is called once per run kernel and process
+    before it is compiled (not in the disk cache; ``seconds``: about how
+    long, the batch kernel's included where it is compiled with it). The
+    batch kernel alone (about a second) is compiled without one."""
     tag = "one_delays" if delays else "one"
     want_one = one and tag not in _READY
     want_batch = batch and "batch" not in _READY
@@ -2321,17 +2322,15 @@ def compile_kernels(batch=True, notice=None, one=True, delays=False):
     import warnings
     sig = _signature_one()
     run = run_kernel(delays)
-    if notice is not None:
-        todo = [(run, sig, COMPILE_SECONDS[3 if delays else 0])] if want_one else []
-        if want_batch:
-            todo.append((run_rows, _batch_signature(sig), COMPILE_SECONDS[1]))
-        todo = [(d, s, c) for d, s, c in todo
-                if ("noticed", d) not in _READY and not _in_cache(d, s)]
-        if todo:
-            _READY.update(("noticed", d) for d, _, _ in todo)
-            notice(cache_dir(), sum(c for _, _, c in todo),
-                   what="the engine's kernels for flow maps with delays" if delays
-                   else "the engine's kernels")
+    if notice is not None and want_one and ("noticed", tag) not in _READY \
+            and not _in_cache(run, sig):
+        _READY.add(("noticed", tag))
+        seconds = COMPILE_SECONDS[3 if delays else 0]
+        if want_batch and not _in_cache(run_rows, _batch_signature(sig)):
+            seconds += COMPILE_SECONDS[1]
+        notice(cache_dir(), seconds,
+               what="the engine's kernels for flow maps with delays" if delays
+               else "the engine's kernels")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", nb_errors.NumbaExperimentalFeatureWarning)
         # compiled for the first-class map signatures only: a call with a
