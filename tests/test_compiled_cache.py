@@ -177,6 +177,13 @@ def test_the_run_core_reads_the_past_only_in_its_kernel_with_delays():
     assert k.run_one_delays.py_func.__qualname__ == "_run_core_delays"   # cached apart
 
 
+def test_compile_kernels_names_a_bad_delays_argument():
+    from hybridsim.compiled import compile_kernels
+    for bad in ("yes", 1, None):
+        with pytest.raises(TypeError, match="delays must be True or False"):
+            compile_kernels(delays=bad)
+
+
 def test_systems_with_and_without_delays_take_their_own_kernel():
     from hybridsim.compiled import CompiledSystem, simulate_compiled
     plain = CompiledSystem(flow=lambda x, t, j, p: -x, state_dim=1)

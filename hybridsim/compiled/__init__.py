@@ -144,6 +144,8 @@ def compile_kernels(delays=False):
     float
         The seconds it took. Called by the first compiled run anyway.
     """
+    from ..options import check_bool
+    delays = check_bool("delays", delays)
     t = time.perf_counter()
     k = _load_kernel()
     k.compile_kernels(batch=True, notice=_notice)
