@@ -16,9 +16,10 @@ re-optimises a callee's code into every caller: the batch kernel used to
 cost as much to compile as the engine). A flow map that reads the past
 (delays) runs in a third, :func:`run_one_delays`, compiled when such a
 system first runs: the same run core with the record of the steps, which
-:func:`run_one` leaves out (a quarter of its compile time). A system with ``specialize=True``
-gets its own run kernel in a generated module (:func:`spec_module`), cached on
-disk like these, and batches run it through the same :func:`run_rows`.
+:func:`run_one` leaves out (a quarter of its compile time). A system with
+``specialize=True`` gets its own run kernel in a generated module
+(:func:`spec_module`), cached on disk like these, and batches run it
+through the same :func:`run_rows`.
 
 The rules (priorities, the jump-or-flow decision, event tolerances, the
 t_max slack, short flows, the time scale) are :mod:`hybridsim.rules`'s own
@@ -381,6 +382,7 @@ def _dense(yold, hQ, told, h, s):
 
 @njit(cache=True, **_NJI)
 def _copy_to(out, y):
+    """``out[:] = y`` as a loop (a state into a scratch row of the run)."""
     for i in range(y.shape[0]):
         out[i] = y[i]
 
