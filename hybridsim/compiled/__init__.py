@@ -1085,6 +1085,7 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
                 # run's rows claimed when it ends (pages never written are never
                 # made; the pool is cut to what was written afterwards)
                 size = B * cap
+                iopt_rows[10] = cap         # each run's first buffers: no doubling
                 TT, JJ = _untouched((size,)), _untouched((size,), np.int64)
                 XX, XXD = _untouched((size, n)), _untouched((size, n))
                 fill = np.zeros(1, np.int64)
