@@ -416,10 +416,10 @@ def test_batch_equals_single_runs_and_python_path(ball):
 
 
 def test_batch_runs_without_room_in_the_pool_run_again_in_parallel(monkeypatch):
-    # a timer whose period is in its state: the rows that size the pool (four,
-    # spread over the batch: 0, 23, 46, 69) jump twice, rows 40, 50 and 60
-    # 2,000 times, far more samples than the pool holds; those rows run again
-    # in a second round of the batch kernel, and every arc is its single
+    # a timer whose period is in its state: the rows that size the pool (the
+    # warm-up batch's, whose length the batch reuses) jump twice, rows 40, 50
+    # and 60 2,000 times, far more samples than the pool holds; those rows run
+    # again in a second round of the batch kernel, and every arc is its single
     # run's, bit for bit
     timer = CompiledSystem(flow=lambda x, t, j, p: np.array([1.0, 0.0]),
                            jump=lambda x, t, j, p: np.array([0.0, x[1]]),
@@ -441,6 +441,38 @@ def test_batch_runs_without_room_in_the_pool_run_again_in_parallel(monkeypatch):
         np.testing.assert_array_equal(arcs[i].j, single.j)
         np.testing.assert_array_equal(arcs[i].x, single.x)
         assert arcs[i].stats == single.stats and arcs[i].termination is single.termination
+
+
+def test_a_batch_again_reuses_the_pools_size_and_runs_every_row_in_parallel(monkeypatch):
+    """The first batch sizes its pools by four runs alone (single-run arcs);
+    the same system, options and parameters again take that size and run all
+    rows in the batch kernel; other options or parameters size again. The arcs
+    are the same to the bit either way."""
+    def make(e):
+        return _compiled(CompiledSystem(ball_f, ball_g, jump_guard=ball_hD, flow_guard=ball_hC,
+                                        jump_set=ball_D, flow_set=ball_C, state_dim=2,
+                                        params=[9.81, e]))
+    ball = make(0.8)
+    h0 = np.random.default_rng(4).uniform(0.5, 2.0, 64)
+    x0s = np.column_stack([h0, np.zeros_like(h0)])
+    alone = []
+    real = hc._arc
+    monkeypatch.setattr(hc, "_arc", lambda *a, **k: alone.append(1) or real(*a, **k))
+    sized = [simulate_many_compiled(ball, x0s, t_max=20.0, j_max=5, **TIGHT)]
+    assert len(alone) == 4
+    sized.append(simulate_many_compiled(ball, x0s[::-1], t_max=20.0, j_max=5, **TIGHT))
+    assert len(alone) == 4                          # no run alone: the size reused
+    for a, b in zip(sized[0], sized[1][::-1]):
+        np.testing.assert_array_equal(a.t, b.t)
+        np.testing.assert_array_equal(a.x, b.x)
+        np.testing.assert_array_equal(a.xdot, b.xdot)
+        assert a.stats == b.stats and a.termination is b.termination
+    simulate_many_compiled(ball, x0s, t_max=20.0, j_max=6, **TIGHT)
+    assert len(alone) == 8                          # other options: sized again
+    ball.params = [9.81, 0.5]       # the same system, other parameters
+    simulate_many_compiled(ball, x0s, t_max=20.0, j_max=5, **TIGHT)
+    assert len(alone) == 12                         # other parameters: sized again
+    assert "_batch_lengths" not in pickle.loads(pickle.dumps(ball)).__dict__
 
 
 def mixed_f(x, t, j, p):

@@ -339,6 +339,7 @@ class CompiledSystem(HybridSystem):
     def __getstate__(self):
         state = HybridSystem.__getstate__(self)
         state["_nb"] = None           # compiled functions are rebuilt after unpickling
+        state.pop("_batch_lengths", None)       # a batch's sizing memo (of this process)
         return state
 
     def compile(self):
@@ -1050,17 +1051,28 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
         else:
             rng = _rng_for(k, ro.prio, seed)
             # a few runs alone first, spread over the batch (a sweep's first
-            # rows may be its shortest runs): their length sizes the pools
-            pick = np.unique(np.linspace(0, len(rows) - 1, min(4, len(rows))).round()
-                             .astype(np.int64)) if len(rows) else np.zeros(0, np.int64)
-            first = rows[pick].tolist()
-            rows = np.delete(rows, pick)
-            longest = 2
-            for i in first:
-                stopped, m = one(i, rng)
-                longest = max(longest, m)
-                if stopped:
-                    break
+            # rows may be its shortest runs): their length sizes the pools. A
+            # batch of the same system, options and parameters again (a Monte
+            # Carlo's or a falsification's next batch) takes the last one's
+            # length and runs every row in parallel
+            sizes = system.__dict__.setdefault("_batch_lengths", {})
+            skey = (fopt.tobytes(), iopt.tobytes(), atol_a.tobytes(), p.tobytes())
+            longest = sizes.get(skey, 0)
+            if not longest:
+                pick = np.unique(np.linspace(0, len(rows) - 1, min(4, len(rows))).round()
+                                 .astype(np.int64)) if len(rows) else np.zeros(0, np.int64)
+                first = rows[pick].tolist()
+                rows = np.delete(rows, pick)
+                longest = 2
+                for i in first:
+                    stopped, m = one(i, rng)
+                    longest = max(longest, m)
+                    if stopped:
+                        break
+                if not stopped:
+                    if len(sizes) >= 16:
+                        sizes.clear()
+                    sizes[skey] = longest
             cap = 1 << math.ceil(math.log2(longest * 1.25 + 1))
             per = (2 + 2 * n) * 8
             c = 0
