@@ -157,6 +157,37 @@ def test_batch_arcs_made_on_first_access_are_whole_arcs(readme, monkeypatch):
     assert "_pool" in arcs[r[4]].__dict__       # a missing name does not unpool
 
 
+def test_a_large_batchs_pool_is_mapped_memory_and_its_arcs_are_the_single_runs(readme):
+    """A pool of 4 MiB or more is on fresh pages without numpy's huge-page
+    advice (``_untouched``: an anonymous private map; the pages the batch never
+    writes are never made): its arcs are views of the map, writable as any
+    arc's arrays, and each is its single run to the bit. A smaller pool is a
+    numpy array, cut in place."""
+    import mmap
+
+    import hybridsim.compiled as hc
+    ball = readme["ball"]
+    h0 = np.random.default_rng(5).uniform(0.5, 2.0, 20_000)
+    x0s = np.column_stack([h0, np.zeros_like(h0)])
+    kw = dict(t_max=20.0, j_max=2, rtol=1e-8, atol=1e-10)
+    arcs = simulate_many_compiled(ball, x0s, **kw)
+    base = arcs[100].x
+    while isinstance(base, np.ndarray):
+        base = base.base
+    assert isinstance(base, memoryview) and isinstance(base.obj, mmap.mmap)
+    for i in (3, 100, 9_999, 19_998):
+        single = simulate_compiled(ball, x0s[i], **kw)
+        for f in ("t", "j", "x", "xdot"):
+            np.testing.assert_array_equal(getattr(arcs[i], f), getattr(single, f))
+            assert getattr(arcs[i], f).flags.writeable
+    small = hc._untouched((10, 2))
+    assert small.flags.owndata and hc._cut(small, 4).shape == (4, 2)
+    big = hc._untouched((1 << 20, 2))
+    assert not big.flags.owndata and big.flags.writeable and big.dtype == np.float64
+    cut = hc._cut(big, 5)
+    assert cut.shape == (5, 2) and np.shares_memory(cut, big)
+
+
 # ------------------------------------------------------------------ a timer
 def test_timer_jump_at_t_max_refined_samples_stored_once(timer):
     a = simulate_compiled(timer, [0.0], t_max=1.0, refine=2)
