@@ -866,7 +866,7 @@ def _untouched(shape, dtype=np.float64):
     the batch never writes are never made; the memory is returned when the
     last view of it (a pooled arc's) is gone."""
     nbytes = math.prod(shape) * np.dtype(dtype).itemsize
-    if nbytes < (4 << 20) or not hasattr(mmap, "MAP_PRIVATE"):
+    if nbytes < (4 << 20) or not hasattr(mmap, "MAP_ANONYMOUS"):     # (not on Windows)
         return np.empty(shape, dtype)
     buf = mmap.mmap(-1, nbytes, flags=mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS)
     return np.frombuffer(buf, dtype).reshape(shape)
