@@ -184,6 +184,36 @@ def test_compile_kernels_names_a_bad_delays_argument():
             compile_kernels(delays=bad)
 
 
+def test_the_kernels_compile_at_their_own_optimisation_level_and_restore_numbas():
+    """The engine's kernels compile at ``KERNEL_OPT`` (LLVM level 1: faster to
+    compile, as fast to run, the same bits); numba's level is restored
+    afterwards, also after a failed compile, and a lower level the user set
+    (``NUMBA_OPT=0``) is kept."""
+    cfg = numba.core.config
+    before = cfg.OPT
+    seen = []
+
+    class Fake:                     # a dispatcher: what level does it compile at?
+        def compile(self, sig):
+            seen.append(int(cfg.OPT))
+
+        def disable_compile(self):
+            seen.append("no other signature")
+    k._compile_or_rebuild(Fake(), None)
+    assert seen == [min(int(before), k.KERNEL_OPT), "no other signature"]
+    assert k.KERNEL_OPT == 1 and cfg.OPT is before
+    with pytest.raises(RuntimeError, match="failed"):
+        with k.kernel_opt():
+            raise RuntimeError("a failed compile")
+    assert cfg.OPT is before
+    cfg.OPT = cfg._OptLevel(0)
+    try:
+        with k.kernel_opt():
+            assert int(cfg.OPT) == 0
+    finally:
+        cfg.OPT = before
+
+
 def test_systems_with_and_without_delays_take_their_own_kernel():
     from hybridsim.compiled import CompiledSystem, simulate_compiled
     plain = CompiledSystem(flow=lambda x, t, j, p: -x, state_dim=1)

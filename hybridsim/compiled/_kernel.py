@@ -39,6 +39,7 @@ not written again here. The algorithms ported from the Python path are:
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import inspect
 import math
@@ -2360,18 +2361,48 @@ def one_address(delays=False):
     return _ONE_ADDR["one_delays" if delays else "one"]
 
 
-def _compile_or_rebuild(disp, sig):
-    """``disp.compile(sig)``, then no other specialisation. A disk cache that
-    cannot be read (written by another numba, or damaged) is bypassed: the
-    kernels are compiled in memory for this process."""
+#: LLVM's optimisation level for the engine's cached kernels (``run_one``,
+#: ``run_one_delays``, ``run_rows``): numba's default is 3 (``NUMBA_OPT``; a
+#: lower level set there is kept). At 1 they compiled 1.2-2.8 s faster (of
+#: 12-17 s) and ran as fast or faster (the generic 30-bounce ball 1.72-1.78x
+#: the hand-written loop against 1.80-1.85x at 3, three alternating
+#: processes), to the same bits: the run core is one large function of
+#: branches and short loops over the state, where level 3's inlining and
+#: unrolling cost compile time and instruction cache. A specialised kernel
+#: keeps numba's level: with the maps inlined it ran 20% slower at 1.
+KERNEL_OPT = 1
+
+
+@contextlib.contextmanager
+def kernel_opt(level=KERNEL_OPT):
+    """numba's optimisation level lowered to ``level`` while a kernel
+    compiles (numba reads ``config.OPT`` for each library's LLVM passes; the
+    target machine's own level is unchanged)."""
+    cfg = numba.core.config
+    old = cfg.OPT
+    if int(old) > level:
+        cfg.OPT = cfg._OptLevel(level)
     try:
-        disp.compile(sig)
-    except Exception:  # noqa: BLE001 - an unreadable cache index
-        from numba.core.caching import NullCache
-        for obj in list(globals().values()):
-            if isinstance(obj, numba.core.dispatcher.Dispatcher) and obj._cache is not None:
-                obj._cache = NullCache()
-        disp.compile(sig)
+        yield
+    finally:
+        cfg.OPT = old
+
+
+def _compile_or_rebuild(disp, sig):
+    """``disp.compile(sig)`` at :data:`KERNEL_OPT`, then no other
+    specialisation. A disk cache that cannot be read (written by another
+    numba, or damaged) is bypassed: the kernels are compiled in memory for
+    this process."""
+    with kernel_opt():
+        try:
+            disp.compile(sig)
+        except Exception:  # noqa: BLE001 - an unreadable cache index
+            from numba.core.caching import NullCache
+            for obj in list(globals().values()):
+                if isinstance(obj, numba.core.dispatcher.Dispatcher) and \
+                        obj._cache is not None:
+                    obj._cache = NullCache()
+            disp.compile(sig)
     disp.disable_compile()
 
 
