@@ -862,11 +862,11 @@ def _untouched(shape, dtype=np.float64):
     numpy advises huge pages for arrays of 4 MiB and more; where the kernel
     compacts memory to make them at the first write (Linux's default THP
     ``defrag`` policy for advised memory), a 100,000-ball batch spent up to
-    0.7 s of system time in it, against about 0.1 s on ordinary pages. Pages
+    0.9 s of system time in it, against 0.1-0.18 s on ordinary pages. Pages
     the batch never writes are never made; the memory is returned when the
-    last view of it (a pooled arc's) is gone."""
+    last view of it (a pooled arc's) is gone. (No map on Windows: numpy's.)"""
     nbytes = math.prod(shape) * np.dtype(dtype).itemsize
-    if nbytes < (4 << 20) or not hasattr(mmap, "MAP_ANONYMOUS"):     # (not on Windows)
+    if nbytes < (4 << 20) or not hasattr(mmap, "MAP_ANONYMOUS"):
         return np.empty(shape, dtype)
     buf = mmap.mmap(-1, nbytes, flags=mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS)
     return np.frombuffer(buf, dtype).reshape(shape)
