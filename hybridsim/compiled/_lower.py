@@ -383,13 +383,13 @@ def _adapter(fn):
 @functools.cache
 def _linear_maps(n, m, q):
     """The maps of x' = A x + B u, y = C x with (A, B, C) flattened in p."""
-    mv = compiled_matvec()
+    mv, mv_add = compiled_matvec(), _helpers()["matvec_add"]
     ob, oc = n * n, n * n + n * m
 
     def flow(x, u, t, j, p):
         dx = mv(p, 0, n, n, x)
         if m:
-            dx += mv(p, ob, n, m, u)
+            mv_add(p, ob, n, m, u, dx)      # += B u, no second array
         return dx
 
     def output(x, t, j, p):
@@ -465,12 +465,21 @@ def _generate(parts, n, npar=0):
             _reads_input(parts[k].comp.maps[r]) for r in roles if r in parts[k].comp.maps)]
         outs = sorted({s for k in ks for s, _ in parts[k].terms})
         st = [f"    y{s} = {_out_expr(parts[s], s)}" for s in outs]
+        # the inputs that are sums: slices of one zeroed array (an array an
+        # input was a fifth of the ring of 8's flow map)
+        summed = [k for k in ks if not (len(parts[k].terms) == 1
+                                        and parts[k].terms[0][1] is None)]
+        if summed:
+            st.append(f"    U = np.zeros({sum(parts[k].comp.input_dim for k in summed)})")
+        at = 0
         for k in ks:
             terms = parts[k].terms
-            if len(terms) == 1 and terms[0][1] is None:
-                st.append(f"    u{k} = y{terms[0][0]}")      # a fresh array already
+            if k not in summed:
+                st.append(f"    u{k} = y{terms[0][0]}")      # its source's output itself
                 continue
-            st.append(f"    u{k} = np.zeros({parts[k].comp.input_dim})")
+            m = parts[k].comp.input_dim
+            st.append(f"    u{k} = U[{at}:{at + m}]")
+            at += m
             for s, mat in terms:
                 if mat is None:
                     st.append(f"    add_into(u{k}, y{s})")

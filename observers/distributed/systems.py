@@ -253,24 +253,23 @@ def _node_maps(n, cols, rows, npow):
     ok = oN + n * npow
 
     def flow(z, u, t, j, prm):
-        out = np.empty(n)
-        q = np.empty(rows - n)
-        for i in range(rows):                     # H (z, u), row by row
+        w = np.empty(rows)                        # H (z, u), row by row: one array,
+        for i in range(rows):                     # the flow's rows, then q's
             b = i * cols
             acc = 0.0
             for k in range(n):
                 acc += prm[b + k] * z[k]
             for k in range(cols - n):
                 acc += prm[b + n + k] * u[k]
-            if i < n:
-                out[i] = acc
-            else:
-                q[i - n] = acc
+            w[i] = acc
+        out, q = w[:n], w[n:]
+        for c in range(npow):                     # ⌈q⌋^κ, once a component
+            a = abs(q[c]) ** prm[ok + c]
+            q[c] = a if q[c] >= 0.0 else -a
         for i in range(n):                        # - N ⌈q⌋^κ
             acc = 0.0
             for c in range(npow):
-                a = abs(q[c]) ** prm[ok + c]
-                acc += prm[oN + i * npow + c] * (a if q[c] >= 0.0 else -a)
+                acc += prm[oN + i * npow + c] * q[c]
             out[i] -= acc
         return out
 
