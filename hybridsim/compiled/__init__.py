@@ -945,7 +945,9 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
     layer: a fork-based process pool afterwards is safe, and several threads
     may run batches at once). The batch is processed in chunks
     whose sample pool stays under ``chunk_bytes``, sized by four runs spread
-    over the batch; each run's samples go into the pool when it ends, and
+    over the batch (or, when the same system runs again with the same
+    options and parameters, by the last batch's, every row in parallel);
+    each run's samples go into the pool when it ends, and
     the runs that find no room run again, in parallel, in a later round
     sized for the longest run seen. Memory is the returned arcs plus one
     chunk's pool.
