@@ -27,6 +27,7 @@ from numpy.typing import ArrayLike
 
 from ._progress import make_bar
 from .arc import HybridArc
+from .options import method_on
 from .rules import FAILURES, MapError, SimulationError, SimulationWarning, Termination
 from .system import HybridSystem
 
@@ -423,8 +424,9 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
         with a compiled form, interconnections of them wired by
         :class:`hybridsim.LinearInput`; others are refused by name).
         ``backend="auto"`` runs compiled where numba is installed, the
-        system lowers and the options are the compiled path's (RK45; no
-        ``dense``, ``inputs``, ``prehistory``, ``t_eval``, executor), and as
+        system lowers and the options are the compiled path's (RK45 or
+        DOP853; no ``dense``, ``inputs``, ``prehistory``, ``t_eval``,
+        executor), and as
         ``"python"`` otherwise; a structure's maps compile once per process
         (seconds), so it pays for batches of hundreds of runs and more.
 
@@ -496,8 +498,9 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
     return _warned("simulate_many", out, warn)
 
 
-#: options the compiled path runs (beyond those every path shares) at these values only
-_COMPILED_ONLY_AT = {"method": ("RK45",), "inputs": (None,), "prehistory": (None,),
+#: options the compiled path runs (beyond those every path shares) at these values
+#: only (its methods: :data:`hybridsim.options.METHODS_ON`)
+_COMPILED_ONLY_AT = {"inputs": (None,), "prehistory": (None,),
                      "dense": (False,), "t_eval": (None,), "dwell": (None,)}
 
 
@@ -513,6 +516,12 @@ def _auto_backend(system, kwargs, executor):
         return "python"
     if any(kwargs.get(k, v[0]) not in v for k, v in _COMPILED_ONLY_AT.items()):
         return "python"
+    try:
+        method = method_on("compiled", kwargs.get("method"))
+    except (TypeError, ValueError):
+        return "python"
+    if method != "RK45" and getattr(system, "needs_history", False):
+        return "python"             # the compiled path steps delays with RK45 only
     return "compiled" if lowerable(system) else "python"
 
 

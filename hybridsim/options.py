@@ -17,9 +17,11 @@ import numpy as np
 from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, OdeSolver, Radau
 from scipy.integrate._ivp.rk import RungeKutta
 
+from ._rk import LEAN
 from .rules import PRIORITIES, MapError, Priority
 
-__all__ = ["RunOptions", "parse_run", "refuse", "SUPPORTS", "METHODS", "check_x0",
+__all__ = ["RunOptions", "parse_run", "refuse", "SUPPORTS", "METHODS", "METHODS_ON",
+           "method_on", "check_x0",
            "check_real", "check_count", "check_bool", "check_map_value", "check_options",
            "check_seed", "check_t_eval", "resolve_method", "check_dwell"]
 
@@ -33,8 +35,11 @@ SUPPORTS = {
     "python": frozenset({"method", "inputs", "prehistory", "dense", "t_eval", "progress",
                          "dwell"}),
     "vectorized": frozenset({"progress"}),
-    "compiled": frozenset(),
+    "compiled": frozenset({"method"}),
 }
+#: the methods a path implements where it takes ``method`` (every one on the
+#: Python path); the others are refused by name
+METHODS_ON = {"compiled": ("RK45", "DOP853")}
 #: where to go for an option a path refuses
 _WHERE = {"method": "hs.simulate (the Python path) for methods other than 'RK45'",
           "inputs": "hs.simulate, or close the loop with hs.connect first",
@@ -318,6 +323,34 @@ def check_unsupported(path, given):
     for name, value in given.items():
         if name not in SUPPORTS[path] and not _is_default(name, value):
             refuse(path, name, value)
+        if name == "method" and path in METHODS_ON:
+            method_on(path, value)
+
+
+def method_on(path, method):
+    """The name of ``method`` (a name or scipy's class) among the methods
+    ``path`` implements (:data:`METHODS_ON`); refused by name otherwise.
+
+    Examples
+    --------
+    >>> from scipy.integrate import DOP853
+    >>> method_on("compiled", DOP853)
+    'DOP853'
+    >>> method_on("compiled", "Radau")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ValueError: method='Radau' is not supported on the compiled path; use hs.simulate ...
+    """
+    if method is None or (type(method) is str and method == "RK45"):
+        return "RK45"
+    cls = resolve_method(method)
+    names = METHODS_ON[path]
+    for name in names:
+        if cls is METHODS[name] or cls is LEAN.get(METHODS[name]):
+            return name
+    others = " and ".join(repr(m) for m in names)
+    raise ValueError(f"method={method!r} is not supported on the {path} path; use "
+                     f"hs.simulate (the Python path) for methods other than {others}")
 
 
 @dataclass(frozen=True)

@@ -34,9 +34,22 @@ from hybridsim.library import BouncingBall, Timer, bouncing_ball_jump_times  # n
 
 T = hs.Termination
 TIGHT = dict(rtol=1e-8, atol=1e-10)
+DOP853 = pytest.importorskip("scipy.integrate").DOP853
 
 
 # ------------------------------------------------------------------ the systems' maps
+def pend_f(x, t, j, p):          # a damped pendulum
+    return np.array([x[1], -np.sin(x[0]) - p[0] * x[1]])
+
+
+def pend_g(x, t, j, p):          # a kick back when it swings through the bottom
+    return np.array([1e-9, 0.9 * abs(x[1])])
+
+
+def pend_hD(x, t, j, p):
+    return -x[0]
+
+
 def ball_f(x, t, j, p):
     return np.array([x[1], -p[0]])
 
@@ -413,6 +426,35 @@ def test_batch_equals_single_runs_and_python_path(ball):
                                     **TIGHT)
     for a, b in zip(serial, arcs[:20]):
         np.testing.assert_array_equal(a.t, b.t)
+
+
+def test_a_dop853_batch_equals_its_single_runs_and_the_python_paths():
+    """method="DOP853": a damped pendulum's batch (guards, jumps, a flow that is
+    no polynomial: the error estimate is not round-off) gives each row its
+    single run to the bit, and the Python path's DOP853 run to round-off
+    (steps of rtol 1e-10: jump times to 1e-9). The pool-size memo keeps the
+    methods apart: an RK45 batch of the same rows sizes again."""
+    pend = _compiled(CompiledSystem(pend_f, pend_g, jump_guard=pend_hD, state_dim=2,
+                                    params=[0.3]))
+    x0s = np.column_stack([np.linspace(0.5, 1.4, 40), np.zeros(40)])
+    kw = dict(t_max=12.0, j_max=6, rtol=1e-10, atol=1e-12)
+    arcs = simulate_many_compiled(pend, x0s, method="DOP853", **kw)
+    for i in (0, 17, 39):
+        single = simulate_compiled(pend, x0s[i], method=DOP853, **kw)
+        np.testing.assert_array_equal(arcs[i].t, single.t)
+        np.testing.assert_array_equal(arcs[i].x, single.x)
+        assert arcs[i].stats == single.stats
+        ref = hs.simulate(pend, x0s[i], method="DOP853", **kw)
+        assert arcs[i].termination is ref.termination and arcs[i].jump_count == ref.jump_count
+        np.testing.assert_allclose(arcs[i].jump_times, ref.jump_times, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(arcs[i].xf, ref.xf, rtol=1e-8, atol=1e-9)
+        # far fewer steps than RK45 at this tolerance
+        rk = simulate_compiled(pend, x0s[i], **kw)
+        assert arcs[i].stats["steps"] < rk.stats["steps"] / 2
+    sizes = pend.__dict__["_batch_lengths"]
+    assert {k[0] for k in sizes} == {"DOP853"}
+    simulate_many_compiled(pend, x0s, **kw)
+    assert {k[0] for k in sizes} == {"DOP853", "RK45"}
 
 
 def test_batch_runs_without_room_in_the_pool_run_again_in_parallel(monkeypatch):

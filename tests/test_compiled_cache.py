@@ -177,6 +177,25 @@ def test_the_run_core_reads_the_past_only_in_its_kernel_with_delays():
     assert k.run_one_delays.py_func.__qualname__ == "_run_core_delays"   # cached apart
 
 
+def test_dop853_has_its_own_kernel_key_and_module_text():
+    """DOP853's run core is the same source with ``_DOP`` set (numba prunes
+    RK45's branches): its own cached kernel, its own key and module text for
+    a specialised system, kept by the cleaning; never with delays."""
+    assert k.run_kernel(method="DOP853") is k.run_one_dop853
+    assert k.run_one_dop853.py_func.__code__ is k.run_one.py_func.__code__
+    assert k.run_one.py_func.__globals__["_DOP"] is False
+    assert k.run_one_dop853.py_func.__globals__["_DOP"] is True
+    assert k.run_one_spec_dop853.py_func.__globals__["_DOP"] is True
+    assert k.run_one_dop853.py_func.__qualname__ == "_run_core_dop853"     # cached apart
+    base = _entries(_flow_with(9.81))
+    assert k.spec_key(base, method="DOP853") not in (k.spec_key(base), k.spec_key(base, True))
+    key = "d" * 32
+    dop = k._spec_source(key, method="DOP853")
+    assert "DOP853_GLOBALS" in dop and "DOP853_GLOBALS" not in k._spec_source(key)
+    with pytest.raises(ValueError, match="delays with RK45 only"):
+        k.run_kernel(True, "DOP853")
+
+
 def test_compile_kernels_names_a_bad_delays_argument():
     from hybridsim.compiled import compile_kernels
     for bad in ("yes", 1, None):
@@ -364,6 +383,35 @@ def test_batch_threads_give_the_same_arcs():
         np.testing.assert_array_equal(a.t, c.t)
         assert a.stats == b.stats == c.stats
         assert a.termination is b.termination
+
+
+@pytest.mark.slow
+def test_a_specialised_dop853_kernel_equals_the_generic_one():
+    """specialize=True with method="DOP853": the system's DOP853 kernel is made
+    when a run first asks for it (its RK45 one by compile()), and its runs
+    and batches equal run_one_dop853's to the bit."""
+    from hybridsim.compiled import CompiledSystem, simulate_compiled, simulate_many_compiled
+
+    def osc(specialize):
+        return CompiledSystem(flow=lambda x, t, j, p: np.array([x[1], -p[0] * x[0]]),
+                              jump=lambda x, t, j, p: np.array([x[0], -0.5 * x[1]]),
+                              jump_guard=lambda x, t, j, p: -x[0],
+                              jump_set=lambda x, t, j, p: x[0] <= 0.0 and x[1] < 0.0,
+                              state_dim=2, params=[4.0], specialize=specialize)
+    spec, gen = osc(True), osc(False)
+    kw = dict(t_max=6.0, rtol=1e-11, atol=1e-13, method="DOP853")
+    a, b = simulate_compiled(spec, [1.0, 0.0], **kw), simulate_compiled(gen, [1.0, 0.0], **kw)
+    assert gen._nb["one_DOP853"] is k.run_one_dop853
+    assert spec._nb["one_DOP853"].py_func.__globals__["_DOP"] is True
+    assert spec._nb["one"].py_func.__globals__["_DOP"] is False
+    assert a.jump_count >= 2
+    for f in ("t", "j", "x", "xdot"):
+        np.testing.assert_array_equal(getattr(a, f), getattr(b, f))
+    assert a.termination is b.termination and a.stats == b.stats
+    x0s = np.column_stack([np.linspace(0.5, 1.5, 24), np.zeros(24)])
+    for u, v in zip(simulate_many_compiled(spec, x0s, **kw),
+                    simulate_many_compiled(gen, x0s, **kw)):
+        np.testing.assert_array_equal(u.x, v.x)
 
 
 @pytest.mark.slow

@@ -279,8 +279,8 @@ def test_a_component_of_the_wrong_size_is_named_before_compiling():
 
 @needs_numba
 def test_auto_picks_compiled_where_the_system_allows_it(monkeypatch):
-    """backend="auto": compiled for a lowerable system at RK45, the numpy batch
-    otherwise (DOP853, or a callable input)."""
+    """backend="auto": compiled for a lowerable system at RK45 or DOP853, the
+    numpy batch otherwise (another method, or a callable input)."""
     import hybridsim.compiled as hc
     calls = []
     real = hc.simulate_many_compiled
@@ -291,7 +291,9 @@ def test_auto_picks_compiled_where_the_system_allows_it(monkeypatch):
     arcs = hs.simulate_many(sys, x0s, t_max=1.0, backend="auto")
     assert calls == [1] and arcs[0].system is sys
     hs.simulate_many(sys, x0s, t_max=1.0, backend="auto", method="DOP853")
-    assert calls == [1]
+    assert calls == [1, 1]
+    hs.simulate_many(sys, x0s, t_max=1.0, backend="auto", method="RK23")
+    assert calls == [1, 1]
 
 
 def test_reads_input_sees_through_the_bytecode():

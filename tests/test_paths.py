@@ -27,6 +27,9 @@ import hybridsim as hs
 from hybridsim import Termination
 
 T = Termination
+#: the methods each path steps with (others refused by name; every one on the Python path)
+METHODS = {"python": ("RK45", "DOP853"), "vectorized": ("RK45",),
+           "compiled": ("RK45", "DOP853")}
 TOL_EVENT = 1e-8
 FUZZ = settings(max_examples=25, deadline=None,
                 suppress_health_check=[HealthCheck.too_slow,
@@ -110,20 +113,68 @@ def test_every_path_gives_the_python_paths_samples(path, seed, n, with_C, sets, 
             np.testing.assert_allclose(arc.at(t, j), ref.at(t, j), rtol=1e-6, atol=1e-7)
 
 
+@pytest.mark.parametrize("path", [p for p in path_params() if p.values[0] == "compiled"])
+@FUZZ
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 3), with_C=st.booleans(),
+       sets=st.sampled_from(["guards", "both"]), priority=st.sampled_from(["jumps", "flows"]),
+       refine=st.sampled_from([1, 3]), t_max=st.floats(2.0, 6.0), j_max=st.integers(6, 20))
+def test_dop853_gives_the_python_paths_samples(path, seed, n, with_C, sets, priority, refine,
+                                               t_max, j_max):
+    """method="DOP853" on the compiled path: the arc keeps the invariants and is
+    the Python path's DOP853 run (scipy's steps, its dense output, the
+    interior search on the step's cubic Hermite confirmed on the dense
+    output): jump times to 1e-7, states to 1e-6 relative, as RK45's above."""
+    case, x0 = random_linear(seed, n, with_C, sets)
+    kw = dict(t_max=t_max, j_max=j_max, priority=priority, refine=refine, method="DOP853",
+              **OPTS)
+    arc = run(path, case, x0, **kw)
+    assert_invariants(arc, case, priority, t_max, j_max)
+    ref = run("python", case, x0, **kw)
+    assert arc.termination is ref.termination, (arc.message, ref.message)
+    assert arc.jump_count == ref.jump_count
+    np.testing.assert_allclose(arc.jump_times, ref.jump_times, rtol=0, atol=1e-7)
+    np.testing.assert_allclose(arc.xf, ref.xf, rtol=1e-6, atol=1e-7)
+    assert abs(arc.stats["steps"] - ref.stats["steps"]) <= 2 + ref.stats["steps"] // 20
+
+
+@pytest.mark.parametrize("path", path_params())
+def test_methods_run_where_implemented_and_are_refused_by_name_elsewhere(path):
+    """DOP853 by name or as scipy's class: stepped on the Python and compiled
+    paths (the timer's jumps exact), refused by name on the vectorized path;
+    a method the compiled path lacks names the ones it has."""
+    from scipy.integrate import DOP853
+    for method in ("DOP853", DOP853):
+        if "DOP853" in METHODS[path]:
+            arc = run(path, timer(), [0.0], t_max=1.0, method=method)
+            np.testing.assert_allclose(arc.jump_times, [0.5, 1.0], atol=1e-12)
+        else:
+            with pytest.raises(ValueError, match=rf"method=.*DOP853.* is not supported on "
+                                                 rf"the {path} path"):
+                run(path, timer(), [0.0], t_max=1.0, method=method)
+    if path == "compiled":
+        with pytest.raises(ValueError, match="other than 'RK45' and 'DOP853'"):
+            run(path, timer(), [0.0], t_max=1.0, method="RK23")
+
+
 @pytest.mark.parametrize("path", path_params())
 @pytest.mark.parametrize("sets", SETS)
 @pytest.mark.parametrize("refine", [1, 2, 4])
-def test_a_jump_at_t_max_stores_every_sample_once(path, sets, refine):
+@pytest.mark.parametrize("method", ["RK45", "DOP853"])
+def test_a_jump_at_t_max_stores_every_sample_once(path, sets, refine, method):
     """The timer x' = 1, D = {x >= 0.5}, g = 0 to t_max = 1: jumps at 0.5 and 1.0,
     samples refine - 1 per step, none twice, time never running backwards."""
+    if method not in METHODS[path]:
+        pytest.skip(f"{method} is refused on the {path} path (tested below)")
     case = timer(0.5, sets)
-    arc = run(path, case, [0.0], t_max=1.0, refine=refine, warn=False)
+    arc = run(path, case, [0.0], t_max=1.0, refine=refine, warn=False, method=method)
     assert_invariants(arc, case, "jumps", 1.0, math.inf)
     np.testing.assert_allclose(arc.jump_times, [0.5, 1.0], atol=1e-12)
     assert arc.t[-1] == 1.0 and arc.j[-1] == 2
-    ref = run("python", case, [0.0], t_max=1.0, refine=refine, warn=False)
+    ref = run("python", case, [0.0], t_max=1.0, refine=refine, warn=False, method=method)
     np.testing.assert_allclose(arc.t, ref.t, atol=1e-12)
     np.testing.assert_array_equal(arc.j, ref.j)
+    # refined samples carry the dense output's derivative (RK45), none for DOP853
+    np.testing.assert_array_equal(np.isnan(arc.xdot), np.isnan(ref.xdot))
 
 
 @pytest.mark.parametrize("path", path_params())
@@ -208,10 +259,13 @@ def test_max_norm_is_checked_at_an_event_sample(path, sets):
 
 @pytest.mark.parametrize("path", path_params())
 @pytest.mark.parametrize("sets", ["both", "indicators"])
-def test_the_ball_bounces_at_its_closed_form_times_on_every_path(path, sets):
+@pytest.mark.parametrize("method", ["RK45", "DOP853"])
+def test_the_ball_bounces_at_its_closed_form_times_on_every_path(path, sets, method):
     from hybridsim.library import bouncing_ball_jump_times
+    if method not in METHODS[path]:
+        pytest.skip(f"{method} is refused on the {path} path (tested below)")
     arc = run(path, Ball(sets=sets), [1.0, 0.0], t_max=10.0, j_max=12, rtol=1e-10,
-              atol=1e-12)
+              atol=1e-12, method=method)
     assert arc.termination is T.J_MAX
     np.testing.assert_allclose(arc.jump_times, bouncing_ball_jump_times(1.0, 12, 9.81, 0.8),
                                rtol=0, atol=1e-9)

@@ -21,10 +21,12 @@ process loads it in a fraction of a second. Compiling it takes about 15 s of
 CPU (the run kernel; the batch kernel, which calls it by address, about 0.5 s)
 and is announced once on stderr. Flow maps that read the past
 (``delays=``) run in a kernel of their own, compiled (about 20 s, announced
-too) when the first such system runs. The user's maps reach it as numba
-first-class functions of a fixed signature; they are compiled per system, when
-the system is first run (about 0.1-0.3 s per map), and are not cached across
-processes (they are often lambdas or closures). A system with
+too) when the first such system runs, and so do runs with
+``method="DOP853"`` (scipy's DOP853, for tight tolerances; about 15 s).
+The user's maps reach it as numba first-class functions of a fixed
+signature; they are compiled per system, when the system is first run
+(about 0.1-0.3 s per map), and are not cached across processes (they are
+often lambdas or closures). A system with
 ``specialize=True`` gets its own run kernel, its maps compiled in; it is kept
 on disk too, in a module generated beside the engine's cache and named by a
 digest of the maps' code, constants, closures and globals and of the engine
@@ -45,7 +47,7 @@ numba is an optional dependency: ``pip install 'hybridsim[fast]'``. Importing
 this module does not need it; running compiled does.
 
 Semantics are those of :func:`hybridsim.simulate` with ``method="RK45"``
-(same priorities, event location to 4 ulp, jumps at t_max within
+or ``"DOP853"`` (same priorities, event location to 4 ulp, jumps at t_max within
 :func:`hybridsim.rules.t_max_slack`, termination causes) except for what
 a compiled map cannot do: raise an exception (``MAP_ERROR`` only for jump
 maps returning non-finite or mis-shaped values), take an exogenous input
@@ -68,7 +70,7 @@ import warnings
 import numpy as np
 
 from ..arc import HybridArc
-from ..options import check_unsupported, check_x0, parse_run
+from ..options import check_unsupported, check_x0, method_on, parse_run
 from ..rules import CAUSES, DETAILS, MapError, Priority, Termination, finish, message
 from ..system import HybridSystem
 
@@ -404,16 +406,18 @@ class CompiledSystem(HybridSystem):
             "memo": {},
         }
 
-    def _compile_specialised(self, k, numba):
+    def _compile_specialised(self, k, numba, method="RK45"):
         """The run kernel specialised on this system's maps: a generated module
         keyed by the maps' digest, cached on disk by numba (see
         ``_kernel.spec_module``); a new process with the kernel in its cache
         compiles nothing. Maps whose digest cannot be taken (they read an object
-        that is not a constant, array, module or function) compile in memory."""
+        that is not a constant, array, module or function) compile in memory.
+        ``method``: "RK45" (made by :meth:`compile`) or "DOP853" (made when a
+        run first asks for it)."""
         entries = tuple((role, kind, self.maps.get(role)) for role, kind in _ROLES)
         try:
             delays = bool(self.delays)
-            mod = k.spec_module(k.spec_key(entries, delays), delays)
+            mod = k.spec_module(k.spec_key(entries, delays, method), delays, method)
         except k.Unkeyable:
             mod = None
         sig = k._signature_one()
@@ -438,7 +442,8 @@ class CompiledSystem(HybridSystem):
                 mod.f, mod.g, mod.hD, mod.hC, mod.D, mod.C = f, g, hD, hC, D, C
                 one = mod.one
             else:
-                run = k.run_one_spec_delays if self.delays else k.run_one_spec
+                run = (k.run_one_spec_dop853 if method == "DOP853" else
+                       k.run_one_spec_delays if self.delays else k.run_one_spec)
 
                 def one_mem(maps, x0, p, fopt, iopt, atol, rngp, poll, stop):
                     return run((f, g, hD, hC, D, C), x0, p, fopt, iopt, atol, rngp, poll, stop)
@@ -557,6 +562,9 @@ def _parse_options(system, n, caller, method, extra, shared):
         if name not in _REFUSABLE:
             raise TypeError(f"{caller}() got an unexpected keyword argument {name!r}")
     check_unsupported("compiled", dict(extra, method=method))
+    if system.delays and method_on("compiled", method) != "RK45":
+        raise ValueError(f"method={method!r} with delays (CompiledSystem(delays=)) is not "
+                         f"supported on the compiled path; use hs.simulate (the Python path)")
     ro = parse_run(system, n, **shared)
     # the delays (the flow map's past, CompiledSystem(delays=)) after the options
     fopt = np.array([ro.t0, ro.t_max, ro.j_max, ro.rtol, ro.max_step,
@@ -580,22 +588,32 @@ def _parse_options(system, n, caller, method, extra, shared):
     return ro, fopt, iopt, atol_a
 
 
-def _kernels(k, system, batch):
-    """``(run, address)``: the system's run kernel (the cached generic one,
-    maps passed by address, or its specialised one) and that kernel's code
-    address for :func:`_kernel.run_rows` (compiled when ``batch``)."""
+def _kernels(k, system, batch, method="RK45"):
+    """``(run, address)``: the system's run kernel for ``method`` ("RK45" or
+    "DOP853"; the cached generic one, maps passed by address, or its
+    specialised one) and that kernel's code address for
+    :func:`_kernel.run_rows` (compiled when ``batch``)."""
     nb = system._nb
-    one = nb["one"]
     # (one structure lowered with other delays shares ``nb``: with delays or not)
     delays = bool(system.delays)
+    tag = "" if method == "RK45" else "_" + method
+    one = nb.get("one" + tag)
+    if one is None and system.specialize:
+        # DOP853's specialised kernel: made when a run first asks for it
+        import numba
+        from numba.core.errors import NumbaExperimentalFeatureWarning
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", NumbaExperimentalFeatureWarning)
+            sub = system._compile_specialised(k, numba, method)
+        nb["one" + tag], nb["one_addr" + tag] = one, _ = sub["one"], sub["one_addr"]
     if one is None:
-        k.compile_kernels(batch=batch, notice=_notice, delays=delays)
-        nb["one"] = one = k.run_kernel(delays)
-        nb["one_addr"] = k.one_address(delays)
+        k.compile_kernels(batch=batch, notice=_notice, delays=delays, method=method)
+        nb["one" + tag] = one = k.run_kernel(delays, method)
+        nb["one_addr" + tag] = k.one_address(delays, method)
     elif batch:
-        k.compile_kernels(batch=True, notice=_notice, one=one is k.run_kernel(delays),
-                          delays=delays)
-    return one, nb["one_addr"]
+        k.compile_kernels(batch=True, notice=_notice, one=one is k.run_kernel(delays, method),
+                          delays=delays, method=method)
+    return one, nb["one_addr" + tag]
 
 
 def _notice(cache_dir, seconds, what="the engine's kernels"):
@@ -760,9 +778,10 @@ def simulate_compiled(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priori
                       refine=1, throw=True, warn=True, method="RK45", **unsupported):
     """Simulate a :class:`CompiledSystem` entirely in compiled code.
 
-    The same run as ``hs.simulate(system, x0, t_max, j_max, method="RK45",
+    The same run as ``hs.simulate(system, x0, t_max, j_max, method=method,
     ...)``: Dormand-Prince 5(4) steps with scipy RK45's error control and
-    step-size controller, events located to 4 ulp on the step's dense output
+    step-size controller (or scipy DOP853's 8(5,3)), events located to 4 ulp
+    on the step's dense output
     (the Python path's root finder on guards, bisection of the indicators,
     the interior search for excursions within one step), the same priorities, limits and
     termination causes, and the same :class:`hybridsim.HybridArc` (``t``,
@@ -777,8 +796,15 @@ def simulate_compiled(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priori
         As in :func:`hybridsim.simulate` (``seed`` drives ``priority="random"``
         with the same numpy Generator stream, so coins agree with the Python
         path).
-    method : {"RK45"}
-        The only method compiled.
+    method : {"RK45", "DOP853"} or scipy's class
+        The Runge-Kutta pair (scipy's steps, error norm, step-size controller
+        and dense output). DOP853, for tight tolerances (rtol 1e-8 and
+        below), takes several times fewer steps; as on the Python path, its
+        interior event search runs on the cubic Hermite of each step's ends
+        and confirms a hit on the dense output (three more evaluations of
+        the flow map), and its refined samples carry no derivative (NaN).
+        Its kernel compiles (about 15 s, once per machine) when a run first
+        asks for it. Not with ``delays``; other methods are refused by name.
 
     Returns
     -------
@@ -819,7 +845,7 @@ def simulate_compiled(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priori
         system, n, "simulate_compiled", method, unsupported,
         (t0, j0, t_max, j_max, priority, rtol, atol, max_step, first_step, max_norm,
          zeno_jumps, zeno_time, zeno_rtol, refine, max_steps, max_samples, throw, warn))
-    one, _ = _kernels(k, system, batch=False)
+    one, _ = _kernels(k, system, False, method_on("compiled", method))
     rng, rngp = _rng_for(k, ro.prio, seed)
     T, J, X, XD, code, detail, info, stats = one(
         *system._nb["args"], x, system.params, fopt, iopt, atol_a, rngp, k.POLL_GIL, _NO_STOP)
@@ -1019,7 +1045,8 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
         system, n, "simulate_many_compiled", method, unsupported,
         (t0, j0, t_max, j_max, priority, rtol, atol, max_step, first_step, max_norm,
          zeno_jumps, zeno_time, zeno_rtol, refine, max_steps, max_samples, throw, warn))
-    run, one_addr = _kernels(k, system, batch=parallel)
+    mname = method_on("compiled", method)
+    run, one_addr = _kernels(k, system, parallel, mname)
     p = system.params
     maps = system._nb["args"]
     N = len(X0)
@@ -1058,7 +1085,7 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
             # Carlo's or a falsification's next batch) takes the last one's
             # length and runs every row in parallel
             sizes = system.__dict__.setdefault("_batch_lengths", {})
-            skey = (fopt.tobytes(), iopt.tobytes(), atol_a.tobytes(), p.tobytes())
+            skey = (mname, fopt.tobytes(), iopt.tobytes(), atol_a.tobytes(), p.tobytes())
             longest = sizes.get(skey, 0)
             if not longest:
                 pick = np.unique(np.linspace(0, len(rows) - 1, min(4, len(rows))).round()

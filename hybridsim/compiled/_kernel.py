@@ -54,7 +54,8 @@ from numba.core import cgutils
 from numba.core import errors as nb_errors
 from numba.extending import intrinsic, overload, register_jitable, typeof_impl
 from numba.typed import List
-from scipy.integrate._ivp.rk import RK45
+from scipy.integrate._ivp import dop853_coefficients as _dop
+from scipy.integrate._ivp.rk import DOP853, RK45
 
 from .. import rules
 
@@ -94,6 +95,21 @@ _P = np.ascontiguousarray(RK45.P, dtype=np.float64)
 _SAFETY, _MIN_FACTOR, _MAX_FACTOR = 0.9, 0.2, 10.0
 _ERR_EXP = -1.0 / (RK45.error_estimator_order + 1)
 _ORDER = float(RK45.error_estimator_order)
+# scipy's DOP853 (Dormand-Prince 8(5,3)): 12 stages, the 3 more of its dense output
+_A8 = np.ascontiguousarray(DOP853.A, dtype=np.float64)
+_B8 = np.ascontiguousarray(DOP853.B, dtype=np.float64)
+_C8 = np.ascontiguousarray(DOP853.C, dtype=np.float64)
+_E3 = np.ascontiguousarray(DOP853.E3, dtype=np.float64)
+_E5 = np.ascontiguousarray(DOP853.E5, dtype=np.float64)
+_A8X = np.ascontiguousarray(_dop.A, dtype=np.float64)     # the extra stages' rows too
+_C8X = np.ascontiguousarray(_dop.C, dtype=np.float64)
+_D8 = np.ascontiguousarray(DOP853.D, dtype=np.float64)
+#: a constant of the run core: its method is DOP853 (False: RK45). True in
+#: :data:`run_one_dop853` (:func:`_variant`), whose steps, error norm and dense
+#: output are DOP853's; numba prunes the other method's branches from each
+_DOP = False
+#: the run core's globals in its DOP853 variant
+DOP853_GLOBALS = {"_DOP": True}
 #: a constant of the run core: whether its flow map reads the past (delays).
 #: False in :data:`run_one` (numba prunes every branch on it: no code for the
 #: past, a smaller kernel to compile), True in :data:`run_one_delays`
@@ -363,14 +379,36 @@ def _coin(rngp):
 # ------------------------------------------------------------------ helpers
 @njit(cache=True, **_NJI)
 def _dense_to(out, yold, hQ, told, h, s):
-    """RK45's dense output at s written into ``out`` (the event search's trial
-    points: no array made per evaluation; :func:`_dense` makes one)."""
+    """A step's dense output at s written into ``out`` (the event search's trial
+    points: no array made per evaluation; :func:`_dense` makes one).
+
+    ``hQ`` says which, by its columns: 4, RK45's (h K^T P); 7, DOP853's
+    (scipy's ``Dop853DenseOutput``, its F transposed); 3, the cubic Hermite
+    of the step's ends (``solve._Hermite``: the state at the end, h f at the
+    start and h f at the end), DOP853's first interior search."""
     x = (s - told) / h
-    x2 = x * x
-    x3 = x2 * x
-    x4 = x3 * x
-    for i in range(yold.shape[0]):
-        out[i] = yold[i] + (hQ[i, 0] * x + hQ[i, 1] * x2 + hQ[i, 2] * x3 + hQ[i, 3] * x4)
+    m = hQ.shape[1]
+    if m == 4:
+        x2 = x * x
+        x3 = x2 * x
+        x4 = x3 * x
+        for i in range(yold.shape[0]):
+            out[i] = yold[i] + (hQ[i, 0] * x + hQ[i, 1] * x2 + hQ[i, 2] * x3 + hQ[i, 3] * x4)
+    elif m == 7:
+        x1 = 1.0 - x
+        for i in range(yold.shape[0]):
+            acc = 0.0
+            for k in range(6, -1, -1):
+                acc += hQ[i, k]
+                acc *= x if k % 2 == 0 else x1
+            out[i] = acc + yold[i]
+    else:
+        x2 = x * x
+        c1 = x2 * (3.0 - 2.0 * x)
+        c2 = x * (1.0 - x) ** 2
+        c3 = x2 * (x - 1.0)
+        for i in range(yold.shape[0]):
+            out[i] = (yold[i] + c1 * (hQ[i, 0] - yold[i]) + c2 * hQ[i, 1]) + c3 * hQ[i, 2]
 
 
 @njit(cache=True, **_NJI)
@@ -1025,17 +1063,18 @@ def _initial_guess(t0, y0, t_bound, f0, rtol, atol, y1, scale):
 
 
 @njit(cache=True, **_NJI)
-def _initial_step(t0, t_bound, max_step, f0, f1, h0, d1, scale):
+def _initial_step(t0, t_bound, max_step, f0, f1, h0, d1, scale, order):
     """``select_initial_step``'s end, from :func:`_initial_guess`'s ``h0``,
-    ``d1`` and ``scale`` and the flow map's value ``f1`` at its Euler point;
-    -1.0 where ``f1`` has the wrong length."""
+    ``d1`` and ``scale`` and the flow map's value ``f1`` at its Euler point
+    (``order``: the method's error estimator's); -1.0 where ``f1`` has the
+    wrong length."""
     if f1.shape[0] != f0.shape[0]:
         return -1.0
     d2 = _scaled_rms(f1, f0, scale, True) / h0
     if d1 <= 1e-15 and d2 <= 1e-15:
         h1 = max(1e-6, h0 * 1e-3)
     else:
-        h1 = (0.01 / max(d1, d2)) ** (1.0 / (_ORDER + 1.0))
+        h1 = (0.01 / max(d1, d2)) ** (1.0 / (order + 1.0))
     return min(100.0 * h0, h1, abs(t_bound - t0), max_step)
 
 
@@ -1087,6 +1126,57 @@ def _near_C(M, x, j, p, lo, yold, hQ, told, h, x_hi):
     x_lo = yold.copy() if lo == told else _dense(yold, hQ, told, h, lo)
     tp, xp = rules.post_jump_probe(x, lo, x_lo, x_hi)
     return _inC(M, xp, tp, j, p)
+
+
+@njit(cache=True, **_NJI)
+def _dop853_dense(f, K, ya, yb, a, hs, j, p, yi, hQ):
+    """DOP853's dense output of the step from (a, ya) over hs to yb
+    (scipy's ``DOP853._dense_output_impl``): its three extra stages into
+    ``K[13:16]`` (``K[:13]``: the step's), F into ``hQ`` (n x 7, F
+    transposed). Returns 0, 1 where the flow map gave the wrong length, 2
+    where F is not finite (an overflow inside the step)."""
+    n = ya.shape[0]
+    for s in range(13, 16):
+        for i in range(n):
+            acc = 0.0
+            for m in range(s):
+                acc += K[m, i] * _A8X[s, m]
+            yi[i] = ya[i] + acc * hs
+        ks = f(yi, a + _C8X[s] * hs, j, p)
+        if ks.shape[0] != n:
+            return 1
+        for q in range(n):
+            K[s, q] = ks[q]
+    ok = True
+    for i in range(n):
+        dy = yb[i] - ya[i]
+        hQ[i, 0] = dy
+        hQ[i, 1] = hs * K[0, i] - dy
+        hQ[i, 2] = 2.0 * dy - hs * (K[12, i] + K[0, i])
+        for k in range(4):
+            acc = 0.0
+            for m in range(16):
+                acc += _D8[k, m] * K[m, i]
+            hQ[i, 3 + k] = hs * acc
+        for k in range(7):
+            ok = ok and math.isfinite(hQ[i, k])
+    return 0 if ok else 2
+
+
+@njit(cache=True, **_NJI)
+def _dop853_step_dense(f, K, ya, yb, a, hs, j, p, yi, hQ, stats, info):
+    """:func:`_dop853_dense` for the run core: its evaluations counted, and
+    the run's (cause, detail) where it fails (``info`` filled)."""
+    r = _dop853_dense(f, K, ya, yb, a, hs, j, p, yi, hQ)
+    stats[2] += 3
+    if r == 0:
+        return _GOES_ON, 0
+    info[0] = a
+    info[3] = j
+    if r == 1:
+        return MAP_ERROR, 2
+    info[1] = a + hs
+    return NON_FINITE, 2
 
 
 def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
@@ -1175,17 +1265,32 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     detail = 0
     # the run's scratch, one owned array read again before the run returns (alive
     # throughout), its parts views without reference counts (:func:`_bare`)
-    work = np.zeros(18 * n)
-    K = _bare(work[:7 * n]).reshape((7, n))
-    hQ = _bare(work[7 * n:11 * n]).reshape((n, 4))
-    yi = _bare(work[11 * n:12 * n])  # a stage's state: read by f, never kept
+    # the method (``_DOP``, a constant: the other's code is pruned): its
+    # stages (the first the flow at the step's start), the rows of K (DOP853's
+    # dense output adds three) and the dense output's columns
+    NST = 12 if _DOP else 6
+    NK = 16 if _DOP else 7
+    NQ = 7 if _DOP else 4
+    SA = _A8 if _DOP else _A
+    SB = _B8 if _DOP else _B
+    SC = _C8 if _DOP else _Cc
+    ERRX = -1.0 / 8.0 if _DOP else _ERR_EXP
+    work = np.zeros((NK + NQ + 10) * n)
+    K = _bare(work[:NK * n]).reshape((NK, n))
+    Ks = _bare(work[:(NST + 1) * n])         # the step's stages (scipy's solver.K)
+    o = NK * n
+    hQ = _bare(work[o:o + NQ * n]).reshape((n, NQ))
+    o += NQ * n
+    yi = _bare(work[o:o + n])        # a stage's state: read by f, never kept
     # the event search's states: the interior search's three samples, and a
     # trial point (``wk``, its last row); read by guards, never kept
-    WS = _bare(work[12 * n:16 * n]).reshape((4, n))
+    WS = _bare(work[o + n:o + 5 * n]).reshape((4, n))
     wk = WS[3]
     # the steps' new states, in turn: a step writes the row its start is not in
     # (``ya`` in row ``ya_row``, -1: not in these rows); copied where a flow ends
-    YY = _bare(work[16 * n:]).reshape((2, n))
+    YY = _bare(work[o + 5 * n:o + 7 * n]).reshape((2, n))
+    # DOP853's first interior search: the cubic Hermite of the step's ends
+    hH = _bare(work[o + 7 * n:o + 10 * n]).reshape((n, 3))
 
     t = t0
     j = j0
@@ -1387,7 +1492,8 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                     f1 = _fd(f, yi, t + h0, j, p, pb, dl, HL, HM, cur_x, x0, t0)
                 else:
                     f1 = f(yi, t + h0, j, p)
-                h_abs = _initial_step(t, t_bound, max_step, fa, f1, h0, d1, WS[0])
+                h_abs = _initial_step(t, t_bound, max_step, fa, f1, h0, d1, WS[0],
+                                      7.0 if _DOP else _ORDER)
             stats[2] += 1
             if h_abs < 0.0:
                 cause = MAP_ERROR
@@ -1453,16 +1559,16 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 tried = True
                 for q in range(n):
                     K[0, q] = fa[q]
-                for s in range(1, 6):
+                for s in range(1, NST):
                     for i in range(n):
                         acc = 0.0
                         for m in range(s):
-                            acc += K[m, i] * _A[s, m]
+                            acc += K[m, i] * SA[s, m]
                         yi[i] = ya[i] + acc * hs
                     if _DELAYS:
-                        ks = _fd(f, yi, a + _Cc[s] * hs, j, p, pb, dl, HL, HM, cur_x, x0, t0)
+                        ks = _fd(f, yi, a + SC[s] * hs, j, p, pb, dl, HL, HM, cur_x, x0, t0)
                     else:
-                        ks = f(yi, a + _Cc[s] * hs, j, p)
+                        ks = f(yi, a + SC[s] * hs, j, p)
                     if ks.shape[0] != n:
                         bad_len = True
                         break
@@ -1474,35 +1580,57 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 ynew = YY[ynew_row]
                 for i in range(n):
                     acc = 0.0
-                    for m in range(6):
-                        acc += K[m, i] * _B[m]
+                    for m in range(NST):
+                        acc += K[m, i] * SB[m]
                     ynew[i] = ya[i] + hs * acc
                 if _DELAYS:
                     fnew = _fd(f, ynew, b, j, p, pb, dl, HL, HM, cur_x, x0, t0)
                 else:
                     fnew = f(ynew, b, j, p)
-                stats[2] += 6
+                stats[2] += NST
                 if _DELAYS and HM[2] == HM[2]:
                     break
                 if fnew.shape[0] != n:
                     bad_len = True
                     break
                 for q in range(n):
-                    K[6, q] = fnew[q]
-                es = 0.0
-                for i in range(n):
-                    acc = 0.0
-                    for m in range(7):
-                        acc += K[m, i] * _E[m]
-                    sc = atol[i] + max(abs(ya[i]), abs(ynew[i])) * rtol
-                    e = acc * hs / sc
-                    es += e * e
-                err = math.sqrt(es) / math.sqrt(n)
+                    K[NST, q] = fnew[q]
+                if _DOP:
+                    # ``DOP853._estimate_error_norm``
+                    s5 = 0.0
+                    s3 = 0.0
+                    for i in range(n):
+                        a5 = 0.0
+                        a3 = 0.0
+                        for m in range(13):
+                            a5 += K[m, i] * _E5[m]
+                            a3 += K[m, i] * _E3[m]
+                        sc = atol[i] + max(abs(ya[i]), abs(ynew[i])) * rtol
+                        e5 = a5 / sc
+                        e3 = a3 / sc
+                        s5 += e5 * e5
+                        s3 += e3 * e3
+                    n5 = math.sqrt(s5) ** 2
+                    n3 = math.sqrt(s3) ** 2
+                    if n5 == 0 and n3 == 0:
+                        err = 0.0
+                    else:
+                        err = abs(hs) * n5 / math.sqrt((n5 + 0.01 * n3) * n)
+                else:
+                    es = 0.0
+                    for i in range(n):
+                        acc = 0.0
+                        for m in range(7):
+                            acc += K[m, i] * _E[m]
+                        sc = atol[i] + max(abs(ya[i]), abs(ynew[i])) * rtol
+                        e = acc * hs / sc
+                        es += e * e
+                    err = math.sqrt(es) / math.sqrt(n)
                 if err < 1:
                     if err == 0:
                         factor = _MAX_FACTOR
                     else:
-                        fc = _SAFETY * err ** _ERR_EXP
+                        fc = _SAFETY * err ** ERRX
                         factor = fc if fc < _MAX_FACTOR else _MAX_FACTOR
                     if rejected:
                         factor = factor if factor < 1.0 else 1.0
@@ -1512,7 +1640,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                     yb_row = ynew_row
                     fb = fnew
                 else:
-                    fc = _SAFETY * err ** _ERR_EXP
+                    fc = _SAFETY * err ** ERRX
                     ha *= fc if fc > _MIN_FACTOR else _MIN_FACTOR
                     rejected = True
             if attempts > 1:
@@ -1530,7 +1658,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 break
             if failed:
                 # ``_Run._solver_failed``
-                bad = tried and not _all_finite(K.reshape(K.size))
+                bad = tried and not _all_finite(Ks)
                 if not bad:
                     if _DELAYS:
                         fy = _fd(f, ya, a, j, p, pb, dl, HL, HM, cur_x, x0, t0)
@@ -1559,16 +1687,19 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 info[3] = j
                 t, x = a, ya
                 break
-            # dense output of the step: hQ = h K^T P
+            # dense output of the step: hQ = h K^T P (RK45); DOP853's costs three
+            # evaluations more, made where it is read (``dense``: made)
             dense_ok = True
-            for i in range(n):
-                for k in range(4):
-                    acc = 0.0
-                    for m in range(7):
-                        acc += K[m, i] * _P[m, k]
-                    acc *= hs
-                    hQ[i, k] = acc
-                    dense_ok = dense_ok and math.isfinite(acc)
+            dense = not _DOP
+            if not _DOP:
+                for i in range(n):
+                    for k in range(4):
+                        acc = 0.0
+                        for m in range(7):
+                            acc += K[m, i] * _P[m, k]
+                        acc *= hs
+                        hQ[i, k] = acc
+                        dense_ok = dense_ok and math.isfinite(acc)
             if not dense_ok:
                 # the dense output overflowed (a finite end, a non-finite interior)
                 cause = NON_FINITE
@@ -1586,10 +1717,38 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             ehi = b
             if event:
                 hit = True
+                if _DOP and not dense:
+                    cause, detail = _dop853_step_dense(f, K, ya, yb, a, hs, j, p, yi, hQ,
+                                                       stats, info)
+                    dense = True
+                    if cause != _GOES_ON:
+                        t, x = a, ya
+                        break
             elif has_C or d_active:
                 phi_on = (d_active and has_hD) or useC
-                hit, elo, ehi = _interior(M, _bare(ya), hQ, a, hs, j, p, has_C, d_active, phi_on,
-                                          d_active and has_hD, useC, a, b, WS)
+                if _DOP:
+                    # ``_Run._flow``: the search on the cubic Hermite of the step's
+                    # ends first, a hit confirmed on the dense output
+                    for i in range(n):
+                        hH[i, 0] = yb[i]
+                        hH[i, 1] = hs * fa[i]
+                        hH[i, 2] = hs * fb[i]
+                    hit, elo, ehi = _interior(M, _bare(ya), hH, a, hs, j, p, has_C, d_active,
+                                              phi_on, d_active and has_hD, useC, a, b, WS)
+                    if hit:
+                        if _DOP and not dense:
+                            cause, detail = _dop853_step_dense(f, K, ya, yb, a, hs, j, p, yi, hQ,
+                                                               stats, info)
+                            dense = True
+                            if cause != _GOES_ON:
+                                t, x = a, ya
+                                break
+                        hit, elo, ehi = _interior(M, _bare(ya), hQ, a, hs, j, p, has_C,
+                                                  d_active, phi_on, d_active and has_hD, useC,
+                                                  a, b, WS)
+                else:
+                    hit, elo, ehi = _interior(M, _bare(ya), hQ, a, hs, j, p, has_C, d_active,
+                                              phi_on, d_active and has_hD, useC, a, b, WS)
             clamp = np.nan
             past = False
             if not hit and watch_D and not d_active:
@@ -1603,6 +1762,14 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 if _DELAYS:                  # ``History._add``
                     _record(HL, HM, a, b, hs, ya, hQ)
                 ns_step = ns             # this step's samples start here
+                if refine > 1:
+                    if _DOP and not dense:
+                        cause, detail = _dop853_step_dense(f, K, ya, yb, a, hs, j, p, yi, hQ,
+                                                           stats, info)
+                        dense = True
+                        if cause != _GOES_ON:
+                            t, x = a, ya
+                            break
                 if refine > 1 and b > a:
                     if ns + refine - 1 > max_samples:
                         cause = MAX_STEPS
@@ -1615,7 +1782,8 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                             T, J, X, XD = _grown(T, J, X, XD, ns)
                         _store(_bare(T), _bare(J), _bare(X), _bare(XD), ns, s, j,
                                _dense(ya, hQ, a, hs, s))
-                        _dense_deriv_to(_bare(XD), ns, hQ, a, hs, s)
+                        if not _DOP:         # (the Python path's: none for DOP853)
+                            _dense_deriv_to(_bare(XD), ns, hQ, a, hs, s)
                         ns += 1
                 if ns >= max_samples:
                     cause = MAX_STEPS
@@ -1646,6 +1814,13 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                     h_hint = np.nan
                     if d_active:
                         # ``_event_past_t_max``: an entry into D within round-off
+                        if _DOP and not dense:
+                            cause, detail = _dop853_step_dense(f, K, ya, yb, a, hs, j, p, yi, hQ,
+                                                               stats, info)
+                            dense = True
+                            if cause != _GOES_ON:
+                                t, x = a, ya
+                                break
                         tb = b + rules.t_max_slack(b, jumps)
                         if _pred(M, tb, _dense(ya, hQ, a, hs, tb), j, p, has_C, d_active):
                             # the step's samples are stored again by the
@@ -1703,7 +1878,8 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                             T, J, X, XD = _grown(T, J, X, XD, ns)
                         _store(_bare(T), _bare(J), _bare(X), _bare(XD), ns, s, j,
                                _dense(ya, hQ, a, hs, s))
-                        _dense_deriv_to(_bare(XD), ns, hQ, a, hs, s)
+                        if not _DOP:         # (the Python path's: none for DOP853)
+                            _dense_deriv_to(_bare(XD), ns, hQ, a, hs, s)
                         ns += 1
                 if ns >= max_samples:
                     cause = MAX_STEPS
@@ -1802,17 +1978,17 @@ run_one = njit(cache=True, **_NJ)(_run_core)
 run_one_spec = njit(**_NJI)(_run_core)
 
 
-def _with_delays(fn):
-    """``fn`` (the run core) as a function of its own whose ``_DELAYS`` is True:
-    the same code, its module's globals but that one (numba reads a global
-    as a constant of the compiled code, and caches this function apart from
-    ``fn``, under its own name)."""
+def _variant(fn, suffix, **consts):
+    """``fn`` (the run core) as a function of its own whose constants
+    ``consts`` (``_DELAYS``, ``_DOP``) are set: the same code, its module's
+    globals but those (numba reads a global as a constant of the compiled
+    code, and caches this function apart from ``fn``, under its own name)."""
     import types as pytypes
     glb = dict(fn.__globals__)
-    glb["_DELAYS"] = True
-    out = pytypes.FunctionType(fn.__code__, glb, fn.__name__ + "_delays", fn.__defaults__,
+    glb.update(consts)
+    out = pytypes.FunctionType(fn.__code__, glb, fn.__name__ + suffix, fn.__defaults__,
                                fn.__closure__)
-    out.__qualname__ = fn.__qualname__ + "_delays"
+    out.__qualname__ = fn.__qualname__ + suffix
     out.__module__ = fn.__module__
     out.__doc__ = fn.__doc__
     return out
@@ -1821,10 +1997,17 @@ def _with_delays(fn):
 #: :data:`run_one` for a flow map that reads the past (``CompiledSystem(delays=)``):
 #: the run core with the record of the steps and the delay breakpoints,
 #: compiled (and cached) only when a system with delays first runs
-run_one_delays = njit(cache=True, **_NJ)(_with_delays(_run_core))
+run_one_delays = njit(cache=True, **_NJ)(_variant(_run_core, "_delays", _DELAYS=True))
 
 #: :data:`run_one_spec` with delays
-run_one_spec_delays = njit(**_NJI)(_with_delays(_run_core))
+run_one_spec_delays = njit(**_NJI)(_variant(_run_core, "_delays", _DELAYS=True))
+
+#: :data:`run_one` stepping with scipy's DOP853 (``method="DOP853"``): compiled
+#: (and cached) when a run first asks for it. Not with delays (refused by name)
+run_one_dop853 = njit(cache=True, **_NJ)(_variant(_run_core, "_dop853", **DOP853_GLOBALS))
+
+#: :data:`run_one_spec` stepping with DOP853
+run_one_spec_dop853 = njit(**_NJI)(_variant(_run_core, "_dop853", **DOP853_GLOBALS))
 
 #: what :func:`run_one` returns, and its type as a first-class function value
 ONE_RET = types.Tuple((types.float64[::1], types.int64[::1], types.float64[:, ::1],
@@ -2066,12 +2249,13 @@ _MAPS_LINE = "    f, g, hD, hC, D, C = maps_of(maps)\n"
 _SPEC_MAPS_LINE = "    f, g, hD, hC, D, C = _f(), _g(), _hD(), _hC(), _D(), _C()\n"
 
 
-def _spec_source(key, delays=False):
+def _spec_source(key, delays=False, method="RK45"):
     """A specialised kernel's module: the run core itself (its source, the maps
     read from the module's globals), so that numba optimizes and generates its
     code once (a wrapper calling :data:`run_one_spec` took about 2.4 s more);
-    with the code for the past where ``delays`` (see :data:`run_one_delays`;
-    ``key`` then names it too, :func:`spec_key`)."""
+    with the code for the past where ``delays`` (see :data:`run_one_delays`),
+    DOP853's steps where ``method`` is ``"DOP853"`` (``key`` then names them
+    too, :func:`spec_key`)."""
     import inspect
     core = inspect.getsource(_run_core)
     head = "def _run_core(maps, "
@@ -2081,6 +2265,8 @@ def _spec_source(key, delays=False):
     head = _SPEC_HEAD.format(key=key)
     if delays:
         head += "_DELAYS = True     # the flow map reads the past\n\n\n"
+    if method == "DOP853":
+        head += "globals().update(_k.DOP853_GLOBALS)     # DOP853's steps\n\n\n"
     return (head + core
             + '\n\none = numba.njit(cache=True, error_model="numpy")(one)\n')
 
@@ -2170,16 +2356,18 @@ def _engine_digest():
 _ENGINE_DIGEST = []
 
 
-def spec_key(maps, delays=False):
+def spec_key(maps, delays=False, method="RK45"):
     """The digest naming a system's specialised kernel: ``maps`` is a tuple of
     (role, kind, function or None) for f, g, hD, hC, D, C; ``delays``: whether
-    its flow map reads the past. Raises :class:`Unkeyable` for a map reading
-    a value that cannot be keyed."""
+    its flow map reads the past; ``method``: "RK45" or "DOP853". Raises
+    :class:`Unkeyable` for a map reading a value that cannot be keyed."""
     if not _ENGINE_DIGEST:
         _ENGINE_DIGEST.append(_engine_digest())
     h = hashlib.sha256(_ENGINE_DIGEST[0].encode())
     if delays:
         h.update(b"delays;")
+    if method != "RK45":
+        h.update(f"{method};".encode())
     seen = set()
     for role, kind, fn in maps:
         h.update(f"{role}:{kind}:".encode())
@@ -2200,16 +2388,16 @@ def _spec_dirs():
     return out
 
 
-def spec_module(key, delays=False):
+def spec_module(key, delays=False, method="RK45"):
     """The generated module of ``key`` (written once; None where no folder is
-    writable: the caller then compiles in memory); ``delays`` as
-    :func:`_spec_source`'s, the one ``key`` was made with."""
+    writable: the caller then compiles in memory); ``delays`` and ``method``
+    as :func:`_spec_source`'s, the ones ``key`` was made with."""
     import importlib.util
     import sys
     name = f"hybridsim_spec_{key}"
     if name in sys.modules:
         return sys.modules[name]
-    src = _spec_source(key, delays)
+    src = _spec_source(key, delays, method)
     for d in _spec_dirs():
         path = os.path.join(d, name + ".py")
         try:
@@ -2270,7 +2458,8 @@ def remove_stale(d, age=None):
             if now - os.path.getmtime(path) < age:
                 continue
             with open(path) as fh:
-                if fh.read() in (_spec_source(key), _spec_source(key, True)):
+                if fh.read() in (_spec_source(key), _spec_source(key, True),
+                                 _spec_source(key, method="DOP853")):
                     continue
             os.remove(path)
         except (OSError, ValueError):
@@ -2300,40 +2489,50 @@ def _in_cache(disp, sig):
         return False
 
 
-def run_kernel(delays=False):
+def _tag(delays, method):
+    if method == "DOP853":
+        if delays:
+            raise ValueError("the compiled path steps a flow map with delays with RK45 only")
+        return "one_dop853"
+    return "one_delays" if delays else "one"
+
+
+def run_kernel(delays=False, method="RK45"):
     """The cached run kernel of systems whose maps are passed by address:
-    :data:`run_one`, or :data:`run_one_delays` for a flow map that reads the
-    past."""
-    return run_one_delays if delays else run_one
+    :data:`run_one`, :data:`run_one_delays` for a flow map that reads the
+    past, :data:`run_one_dop853` for ``method="DOP853"``."""
+    return {"one": run_one, "one_delays": run_one_delays,
+            "one_dop853": run_one_dop853}[_tag(delays, method)]
 
 
-def compile_kernels(batch=True, notice=None, one=True, delays=False):
+def compile_kernels(batch=True, notice=None, one=True, delays=False, method="RK45"):
     """Compile (or load from numba's on-disk cache) the kernels for the
     first-class map signatures: the run kernel (:func:`run_kernel` of
-    ``delays``; unless not ``one``: a specialised system's batch needs only
-    ``run_rows``), and ``run_rows`` when ``batch``.
+    ``delays`` and ``method``; unless not ``one``: a specialised system's
+    batch needs only ``run_rows``), and ``run_rows`` when ``batch``.
 
     ``notice(cache_dir, seconds)`` is called once per run kernel and process
     before it is compiled (not in the disk cache; ``seconds``: about how
     long, the batch kernel's included where it is compiled with it). The
     batch kernel alone (about a second) is compiled without one."""
-    tag = "one_delays" if delays else "one"
+    tag = _tag(delays, method)
     want_one = one and tag not in _READY
     want_batch = batch and "batch" not in _READY
     if not (want_one or want_batch):
         return          # every call of simulate_compiled asks: answer cheaply
     import warnings
     sig = _signature_one()
-    run = run_kernel(delays)
+    run = run_kernel(delays, method)
     if notice is not None and want_one and ("noticed", tag) not in _READY \
             and not _in_cache(run, sig):
         _READY.add(("noticed", tag))
-        seconds = COMPILE_SECONDS[3 if delays else 0]
+        seconds = COMPILE_SECONDS[{"one": 0, "one_delays": 3, "one_dop853": 4}[tag]]
         if want_batch and not _in_cache(run_rows, _batch_signature(sig)):
             seconds += COMPILE_SECONDS[1]
         notice(cache_dir(), seconds,
-               what="the engine's kernels for flow maps with delays" if delays
-               else "the engine's kernels")
+               what={"one": "the engine's kernels",
+                     "one_delays": "the engine's kernels for flow maps with delays",
+                     "one_dop853": "the engine's DOP853 kernel"}[tag])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", nb_errors.NumbaExperimentalFeatureWarning)
         # compiled for the first-class map signatures only: a call with a
@@ -2347,18 +2546,18 @@ def compile_kernels(batch=True, notice=None, one=True, delays=False):
             _READY.add("batch")
 
 
-#: CPU seconds to compile run_one, run_rows, a specialised run kernel and
-#: run_one_delays with an empty cache (measured on the project's machine,
-#: issue 27; the notice quotes them)
-COMPILE_SECONDS = (15, 1, 15, 20)
+#: CPU seconds to compile run_one, run_rows, a specialised run kernel,
+#: run_one_delays and run_one_dop853 with an empty cache (measured on the
+#: project's machine, issue 27; the notice quotes them)
+COMPILE_SECONDS = (15, 1, 15, 20, 15)
 #: the run kernels' code addresses (:func:`jit_address`), once compiled
 _ONE_ADDR = {}
 
 
-def one_address(delays=False):
+def one_address(delays=False, method="RK45"):
     """:func:`run_kernel`'s code address (the ``one`` of :func:`run_rows`)."""
-    compile_kernels(batch=False, delays=delays)
-    return _ONE_ADDR["one_delays" if delays else "one"]
+    compile_kernels(batch=False, delays=delays, method=method)
+    return _ONE_ADDR[_tag(delays, method)]
 
 
 #: LLVM's optimisation level for the engine's cached kernels (``run_one``,
