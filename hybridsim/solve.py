@@ -340,12 +340,12 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
         ``"compiled"`` runs a :class:`hybridsim.compiled.CompiledSystem`
         entirely in compiled code (numba: ``pip install 'hybridsim[fast]'``)
         through :func:`hybridsim.compiled.simulate_compiled`: the same
-        Dormand-Prince steps, events, rules and arc. Other systems are
-        lowered to one (:func:`hybridsim.compiled.lower`: a ``LinearPlant``,
-        systems with a compiled form, interconnections of them wired by
-        :class:`hybridsim.LinearInput`), or refused by name. Options it
-        does not support (inputs, prehistory, dense, t_eval, other methods)
-        raise. ``"auto"``: compiled where numba is installed, the system
+        Dormand-Prince steps (RK45, or DOP853), events, rules and arc.
+        Other systems are lowered to one (:func:`hybridsim.compiled.lower`:
+        a ``LinearPlant``, systems with a compiled form, interconnections of
+        them wired by :class:`hybridsim.LinearInput`), or refused by name.
+        Options it does not support (inputs, prehistory, dense, t_eval,
+        other methods) raise. ``"auto"``: compiled where numba is installed, the system
         lowers and the options allow it; the Python path otherwise.
 
     Returns

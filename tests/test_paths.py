@@ -471,6 +471,30 @@ def test_a_delay_equation_runs_on_every_path(path):
     assert arc.termination is T.T_MAX and np.any(np.isclose(t, 1.0, atol=1e-15))
 
 
+@pytest.mark.parametrize("path", path_params())
+def test_dop853_with_delays_is_the_python_paths_and_refused_by_name_elsewhere(path):
+    """A delay equation with method="DOP853": the Python path steps it (its
+    history reads DOP853's dense output) to the method of steps' solution,
+    also for the CompiledSystem twin under backend="auto" (which falls back
+    to it); the vectorized and compiled paths refuse it by name."""
+    kw = dict(t_max=2.0, rtol=1e-10, atol=1e-12, method="DOP853")
+    if path == "python":
+        for arc in (_run_lag(path, _Lag(), [1.0, 0.0], **kw),
+                    hs.simulate(_compiled_lag(_Lag()), [1.0, 0.0], backend="auto", **kw)):
+            t = arc.t
+            exact = np.where(t <= 1.0, 1.0 - t, 1.0 - t + (t - 1.0) ** 2 / 2)
+            np.testing.assert_allclose(arc.x[:, 0], exact, atol=1e-9)
+        return
+    if path == "vectorized":
+        with pytest.raises(ValueError, match="method='DOP853' is not supported on the "
+                                             "vectorized path"):
+            hs.simulate_vectorized(_Lag(), np.array([[1.0, 0.0]]), **kw)
+        return
+    with pytest.raises(ValueError, match=r"method='DOP853' with delays \(CompiledSystem"
+                                         r"\(delays=\)\) is not supported on the compiled"):
+        _run_lag(path, _Lag(), [1.0, 0.0], **kw)
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_delay_systems_with_jumps_agree_on_the_python_and_vectorized_paths(seed):
     """Seeded random delays, gains, resets and forcing: a batch of 6 rows on the
