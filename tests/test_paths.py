@@ -116,7 +116,7 @@ def test_every_path_gives_the_python_paths_samples(path, seed, n, with_C, sets, 
 @pytest.mark.parametrize("path", [p for p in path_params() if p.values[0] == "compiled"])
 @FUZZ
 @given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 3), with_C=st.booleans(),
-       sets=st.sampled_from(["guards", "both"]), priority=st.sampled_from(["jumps", "flows"]),
+       sets=st.sampled_from(SETS), priority=st.sampled_from(["jumps", "flows"]),
        refine=st.sampled_from([1, 3]), t_max=st.floats(2.0, 6.0), j_max=st.integers(6, 20))
 def test_dop853_gives_the_python_paths_samples(path, seed, n, with_C, sets, priority, refine,
                                                t_max, j_max):
