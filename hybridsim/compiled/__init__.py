@@ -835,6 +835,12 @@ def simulate_compiled(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priori
     >>> arc = simulate_compiled(timer, [0.0], t_max=3.0)
     >>> np.round(arc.jump_times, 12)
     array([1., 2., 3.])
+
+    DOP853, for tight tolerances (its kernel compiles on first use):
+
+    >>> arc = simulate_compiled(timer, [0.0], t_max=3.0, method="DOP853", rtol=1e-12)
+    >>> np.round(arc.jump_times, 12)
+    array([1., 2., 3.])
     """
     k = _load_kernel()
     _check_system(system)
