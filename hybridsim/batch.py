@@ -381,8 +381,9 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
     system : HybridSystem
         With ``vectorized = True`` (maps written over (N, n) batches), no
         executor and options the batch integrator implements (``method=
-        "RK45"``, the default; no ``dense``, ``inputs``, ``prehistory`` or
-        ``t_eval``), the whole batch is integrated together in numpy
+        "RK45"``, the default, or ``"DOP853"`` where the system does not read
+        its past; no ``dense``, ``inputs``, ``prehistory`` or ``t_eval``),
+        the whole batch is integrated together in numpy
         (:func:`hybridsim.batch_vectorized.simulate_vectorized`), each
         trajectory with its own steps, events and jumps. Otherwise the runs
         are looped over (or spread over ``executor``) with
@@ -487,7 +488,7 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
         out = simulate_many_compiled(lower(system), X, throw=False, warn=False, **kw)
         out = [rebind(a, system) for a in out]
         return finish_batch("simulate_many", out, throw, warn)
-    if system.vectorized and executor is None and _batch_takes(kwargs):
+    if system.vectorized and executor is None and _batch_takes(system, kwargs):
         out = _many_vectorized(system, X, kwargs, progress)
         return finish_batch("simulate_many", out, throw, warn)
     else:
@@ -588,9 +589,9 @@ def _warned(name, out, warn, stacklevel=3):
     return out
 
 
-def _batch_takes(kwargs):
+def _batch_takes(system, kwargs):
     from .batch_vectorized import takes_options
-    return takes_options(kwargs)
+    return takes_options(kwargs, system)
 
 
 def _many_vectorized(system, X, kwargs, progress):

@@ -2,14 +2,17 @@
 
 :func:`simulate_vectorized` integrates a batch of initial states of a system
 whose maps are written over batches (``system.vectorized = True``) together in
-numpy: an embedded Dormand-Prince 5(4) pair (scipy's RK45 coefficients) with a
-per-trajectory step size, error control and dense output, per-trajectory event
+numpy: an embedded Dormand-Prince 5(4) pair (scipy's RK45 coefficients; or
+scipy's DOP853, ``method="DOP853"``) with a per-trajectory step size, error
+control and dense output, per-trajectory event
 location on the dense output, per-trajectory jumps, and the same priority,
 limits, termination causes and messages as :func:`hybridsim.simulate`.
 
-Each trajectory follows the rules ``simulate(..., method="RK45")`` follows
-(the same initial-step rule, step-size controller and first step after an
-event) and locates its events with the same algorithm as
+Each trajectory follows the rules ``simulate(..., method="RK45")`` (or
+``"DOP853"``) follows (the same initial-step rule, step-size controller and
+first step after an event; for DOP853 the interior search on each step's
+cubic Hermite, a hit confirmed on the dense output) and locates its events
+with the same algorithm as
 :func:`hybridsim.events.locate_event` (a start on the guard's zero probed and
 modelled by a quadratic, bisection of the set indicators until the guard
 changes sign, safeguarded secant steps under Brent's test, the indicators
@@ -39,7 +42,8 @@ import itertools
 import math
 
 import numpy as np
-from scipy.integrate import RK45
+from scipy.integrate import DOP853, RK45
+from scipy.integrate._ivp import dop853_coefficients as _dop
 
 from ._progress import make_bar
 from .arc import HybridArc, Termination
@@ -51,6 +55,7 @@ from .options import (
     check_delays,
     check_seed,
     check_unsupported,
+    method_on,
     parse_run,
     refuse,
     resolve_method,
@@ -83,6 +88,12 @@ _EPS = np.finfo(float).eps
 _A, _B, _C, _E, _P = RK45.A, RK45.B, RK45.C, RK45.E, RK45.P
 _NS = RK45.n_stages
 _ERR_EXP = -1.0 / (RK45.error_estimator_order + 1)
+#: scipy's DOP853 (``method="DOP853"``): its tableau (12 stages), error weights
+#: and dense output (3 more stages, then D); the rules of simulate's DOP853
+_DOP = {"A": DOP853.A, "B": DOP853.B, "C": DOP853.C, "E3": DOP853.E3, "E5": DOP853.E5,
+        "D": DOP853.D, "AX": _dop.A, "CX": _dop.C, "ns": DOP853.n_stages,
+        "exp": -1.0 / (DOP853.error_estimator_order + 1),
+        "order": DOP853.error_estimator_order}
 _SAFETY, _MIN_FACTOR, _MAX_FACTOR = 0.9, 0.2, 10.0
 _TOO_SMALL = "Required step size is less than spacing between numbers."
 # options of simulate() the batch integrator does not implement (refused by
@@ -402,20 +413,22 @@ class _VMaps:
         return self._call("set", "flow_set", self.C, rows, x, t, j, strict)
 
 
-def _is_rk45(method):
-    return (isinstance(method, str) and method == "RK45") or method is RK45
-
-
-def takes_options(kwargs):
+def takes_options(kwargs, system=None):
     """Whether :func:`simulate_vectorized` implements these options of ``simulate``.
 
-    It is Dormand-Prince 5(4) (``method="RK45"``, the default) without dense
-    output, inputs, a prehistory or ``t_eval`` (the options
+    It is Dormand-Prince 5(4) (``method="RK45"``, the default) or DOP853
+    (not for a ``system`` reading its past) without dense output, inputs, a
+    prehistory or ``t_eval`` (the options
     :func:`hybridsim.options.check_unsupported` refuses on the vectorized
     path); :func:`hybridsim.simulate_many` runs a vectorized system's rows
     through ``simulate`` otherwise.
     """
-    if not _is_rk45(kwargs.get("method", "RK45")):
+    try:
+        method = method_on("vectorized", kwargs.get("method"))
+    except (TypeError, ValueError):
+        return False
+    if method != "RK45" and system is not None and (
+            system.needs_history or getattr(system, "delays", ())):
         return False
     known = inspect.signature(simulate_vectorized).parameters
     for name, val in kwargs.items():
@@ -456,15 +469,18 @@ def _parse(system, x0s, t_max, j_max, kw, method, progress, seed, extra):
                          f"(row {bad[0]}: {X[bad[0]]})")
     ro = parse_run(system, n, t_max=t_max, j_max=j_max, **kw)
     resolve_method(method)          # a bad method: simulate's message
-    if not _is_rk45(method):
-        refuse("vectorized", "method", method)
+    method = method_on("vectorized", method)
+    if method != "RK45" and (system.needs_history or getattr(system, "delays", ())):
+        raise ValueError(f"method={method!r} for a system that reads its past is not "
+                         f"supported on the vectorized path; use hs.simulate (the Python "
+                         f"path)")
     check_unsupported("vectorized", extra)
     if int(system.input_dim or 0) > 0:
         refuse("vectorized", "inputs", f"<input_dim={system.input_dim}>")
     check_delays(system)
     progress = check_bool("progress", progress, allow_none=True)
     rng = check_seed(seed, build=ro.prio == Priority.RANDOM)
-    return n, X, ro, progress, rng
+    return n, X, ro, progress, rng, method
 
 
 def simulate_vectorized(system, x0s, t_max, j_max=math.inf, *, priority="jumps",
@@ -476,7 +492,8 @@ def simulate_vectorized(system, x0s, t_max, j_max=math.inf, *, priority="jumps",
     r"""Simulate a vectorized hybrid system from many initial states at once.
 
     The whole batch is integrated together in numpy by an embedded
-    Dormand-Prince 5(4) pair with scipy's RK45 coefficients, each trajectory
+    Dormand-Prince 5(4) pair with scipy's RK45 coefficients (or DOP853's,
+    ``method="DOP853"``), each trajectory
     with its own step size (scipy's step-size rule), error control, dense
     output, event location and jumps. Only the trajectories still running are
     evaluated. Semantics, termination causes and messages are those of
@@ -514,8 +531,13 @@ def simulate_vectorized(system, x0s, t_max, j_max=math.inf, *, priority="jumps",
     progress : bool or None
         A tqdm bar over finished trajectories (None: at a terminal and in a
         notebook; see :func:`hybridsim._progress.progress_enabled`).
-    method : {"RK45"}
-        The only method of the batch integrator (others raise ``ValueError``).
+    method : {"RK45", "DOP853"} or scipy's class
+        The Runge-Kutta pair (scipy's coefficients, error norm, step-size
+        controller and dense output; DOP853 takes several times fewer steps
+        at tight tolerances, and its dense output, three more evaluations of
+        the flow map, is made only for steps with an event or refined
+        samples). DOP853 not for a system that reads its past; other methods
+        raise ``ValueError`` naming these two.
     t0, j0 : float, int
         Initial hybrid time of every trajectory.
     max_norm : float
@@ -600,14 +622,14 @@ def simulate_vectorized(system, x0s, t_max, j_max=math.inf, *, priority="jumps",
     >>> sorted(arcs[0].stats)
     ['events', 'flows', 'nfev', 'njev', 'nlu', 'rejected', 'steps']
     """
-    n, X, ro, progress, rng = _parse(
+    n, X, ro, progress, rng, method = _parse(
         system, x0s, t_max, j_max, dict(
             t0=t0, j0=j0, priority=priority, rtol=rtol, atol=atol, max_step=max_step,
             first_step=first_step, max_norm=max_norm, zeno_jumps=zeno_jumps,
             zeno_time=zeno_time, zeno_rtol=zeno_rtol, refine=refine, max_steps=max_steps,
             max_samples=max_samples, throw=throw, warn=warn),
         method, progress, seed, unsupported)
-    run = _BatchRun(system, X, n, ro, rng)
+    run = _BatchRun(system, X, n, ro, rng, method)
     run.pbar = make_bar(progress, total=len(X), desc="simulate_vectorized", unit="run")
     try:
         run.run()
@@ -630,9 +652,13 @@ def simulate_vectorized(system, x0s, t_max, j_max=math.inf, *, priority="jumps",
 class _BatchRun:
     """State of a batch run: one entry per trajectory in every array."""
 
-    def __init__(self, system, X, n, ro, rng):
+    def __init__(self, system, X, n, ro, rng, method="RK45"):
         N = len(X)
         self.N, self.n = N, n
+        # the method: RK45's stages and exponent, or DOP853's (``self.dop``)
+        self.dop = _DOP if method == "DOP853" else None
+        self.ns = _DOP["ns"] if self.dop else _NS
+        self.err_exp = _DOP["exp"] if self.dop else _ERR_EXP
         self.maps = _VMaps(system, n)
         self.maps.run = self
         self.t_max, self.j_max, self.prio = ro.t_max, ro.j_max, ro.prio
@@ -1034,7 +1060,8 @@ class _BatchRun:
         return np.minimum(self.t_max, self.bp[rows])
 
     def _initial_step(self, rows, y0, t0, j, f0, span):
-        """scipy's ``select_initial_step`` (order 4), row by row in one go."""
+        """scipy's ``select_initial_step`` (the method's error order), row by row
+        in one go."""
         rtol, atol = self.rtol, self.atol
         scale = atol + np.abs(y0) * rtol
         d0 = _rms(y0 / scale)
@@ -1045,9 +1072,10 @@ class _BatchRun:
         y1 = y0 + h0[:, None] * f0
         f1 = self.maps.flow(rows, y1, t0 + h0, j)
         d2 = _rms((f1 - f0) / scale) / h0
+        order = self.dop["order"] if self.dop else 4
         with np.errstate(divide="ignore"):
             h1 = np.where((d1 <= 1e-15) & (d2 <= 1e-15), np.maximum(1e-6, h0 * 1e-3),
-                          (0.01 / np.maximum(d1, d2)) ** (1.0 / 5.0))
+                          (0.01 / np.maximum(d1, d2)) ** (1.0 / (order + 1)))
         return np.minimum(np.minimum(np.minimum(100 * h0, h1), span), self.max_step)
 
     # ------------------------------------------------------------ flows
@@ -1081,22 +1109,31 @@ class _BatchRun:
         h = t_new - t
         h_abs = np.abs(h)
         self.attempts[rows] += 1
-        self.nfev[rows] += _NS
+        ns, dop = self.ns, self.dop
+        A, B, C = (dop["A"], dop["B"], dop["C"]) if dop else (_A, _B, _C)
+        self.nfev[rows] += ns
         # Dormand-Prince stages (scipy's rk_step, one row per trajectory)
         k = len(rows)
-        K = np.empty((_NS + 1, k, self.n))
+        K = np.empty((ns + 1, k, self.n))
         K[0] = f
         hc = h[:, None]
         # overflow/NaN end as a rejected step or NON_FINITE, as in simulate
-        with np.errstate(invalid="ignore", over="ignore"):
-            for s in range(1, _NS):
-                dy = np.tensordot(_A[s, :s], K[:s], axes=(0, 0)) * hc
-                K[s] = m.flow(rows, y + dy, t + _C[s] * h, j)
-            y_new = y + hc * np.tensordot(_B, K[:_NS], axes=(0, 0))
-            K[_NS] = m.flow(rows, y_new, t + h, j)
+        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+            for s in range(1, ns):
+                dy = np.tensordot(A[s, :s], K[:s], axes=(0, 0)) * hc
+                K[s] = m.flow(rows, y + dy, t + C[s] * h, j)
+            y_new = y + hc * np.tensordot(B, K[:ns], axes=(0, 0))
+            K[ns] = m.flow(rows, y_new, t + h, j)
             scale = self.atol + np.maximum(np.abs(y), np.abs(y_new)) * self.rtol
-            err = np.tensordot(_E, K, axes=(0, 0)) * hc
-            err_norm = _rms(err / scale)
+            if dop:
+                # DOP853._estimate_error_norm, row by row
+                e5 = np.sum((np.tensordot(dop["E5"], K, axes=(0, 0)) / scale) ** 2, axis=1)
+                e3 = np.sum((np.tensordot(dop["E3"], K, axes=(0, 0)) / scale) ** 2, axis=1)
+                err_norm = np.where((e5 == 0) & (e3 == 0), 0.0,
+                                    h_abs * e5 / np.sqrt((e5 + 0.01 * e3) * self.n))
+            else:
+                err = np.tensordot(_E, K, axes=(0, 0)) * hc
+                err_norm = _rms(err / scale)
         ok = self._reap(rows)
         if ok is not None:
             rows, t, y, j, rej, h, h_abs, t_new, y_new, err_norm = (
@@ -1108,7 +1145,7 @@ class _BatchRun:
         acc = err_norm < 1
         self.nonfinite[rows] = ~np.isfinite(K).all(axis=(0, 2))
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            factor = _SAFETY * err_norm ** _ERR_EXP
+            factor = _SAFETY * err_norm ** self.err_exp
         grow = np.where(err_norm == 0, _MAX_FACTOR, np.minimum(_MAX_FACTOR, factor))
         grow = np.where(rej, np.minimum(1.0, grow), grow)
         shrink = np.maximum(_MIN_FACTOR, factor)   # NaN error: NaN factor -> shrink (max)
@@ -1154,7 +1191,7 @@ class _BatchRun:
                 return
         if event.any():
             e = event
-            Q = np.einsum("skn,sp->knp", K[:, e], _P)
+            Q = self._dense_of(rows[e], a[e], ya[e], h[e], yb[e], K[:, e], j[e])
             self._event(rows[e], a[e], a[e], b[e], ya[e], h[e], Q, j[e], ylo=ya[e], yhi=yb[e])
         calm = ~event
         if not calm.any():
@@ -1170,12 +1207,41 @@ class _BatchRun:
         watch &= calm
         if watch.any():
             w = np.flatnonzero(watch)
-            Qw = np.einsum("skn,sp->knp", K[:, w], _P)
-            lo_b, hi_b, found = self._interior(rows[w], a[w], b[w], ya[w], h[w], Qw, j[w])
+            if self.dop:
+                # simulate's rule for DOP853: the search on the cubic Hermite of
+                # each step's ends, a hit confirmed on the dense output (made
+                # only for the rows that need it: three evaluations more)
+                Qh = np.stack([yb[w], h[w][:, None] * K[0][w], h[w][:, None] * K[self.ns][w]],
+                              axis=2)
+                lo_b, hi_b, found = self._interior(rows[w], a[w], b[w], ya[w], h[w], Qh, j[w])
+                Qw = np.full((len(w), self.n, 7), np.nan)
+                made = np.zeros(len(w), dtype=bool)
+
+                def dense(sel):
+                    sel = sel[~made[sel]]
+                    if sel.size:
+                        ws = w[sel]
+                        Qw[sel] = self._dense_of(rows[ws], a[ws], ya[ws], h[ws], yb[ws],
+                                                 K[:, ws], j[ws])
+                        made[sel] = True
+                fi = np.flatnonzero(found)
+                if fi.size:
+                    dense(fi)
+                    wf = w[fi]
+                    lo_b[fi], hi_b[fi], found[fi] = self._interior(
+                        rows[wf], a[wf], b[wf], ya[wf], h[wf], Qw[fi], j[wf])
+            else:
+                Qw = np.einsum("skn,sp->knp", K[:, w], _P)
+                lo_b, hi_b, found = self._interior(rows[w], a[w], b[w], ya[w], h[w], Qw,
+                                                   j[w])
             late = ~found & (b[w] >= self.t_max) & ~self.bad[rows[w]]
+            if self.dop:             # (simulate: only a flow watching D reads it)
+                late &= ~self.inD_prev[rows[w]]
             found_late = np.zeros(len(w), dtype=bool)
             if self.watch_D and late.any():
                 wl = np.flatnonzero(late)
+                if self.dop:
+                    dense(wl)
                 rl = rows[w][wl]
                 tb = b[w][wl] + t_max_slack(self.t_max, self.jumps[rl])
                 ys = self._dense(a[w][wl], h[w][wl], ya[w][wl], Qw[wl], tb)
@@ -1202,16 +1268,17 @@ class _BatchRun:
         over = calm & (self.steps[rows] >= self.max_steps)
         if over.any():
             orow, ot = rows[over], b[over]
-            self.log.append(orow, ot, j[over], yb[over], K[_NS][over])
+            self.log.append(orow, ot, j[over], yb[over], K[self.ns][over])
             self._stop(orow, Termination.MAX_STEPS, "steps", steps=self.max_steps,
                        max_steps=self.max_steps, t=ot)
             calm &= ~over
             if not calm.any():
                 return
         rows, b, yb, j = rows[calm], b[calm], yb[calm], j[calm]
-        fb = K[_NS][calm]
+        fb = K[self.ns][calm]
         if self.hist is not None or self.refine > 1:
-            Qc = np.einsum("skn,sp->knp", K[:, calm], _P)      # the steps' dense output
+            # the steps' dense output
+            Qc = self._dense_of(rows, a[calm], ya[calm], h[calm], yb, K[:, calm], j)
             if self.hist is not None:
                 self.hist._add(rows, a[calm], b, j, h[calm], ya[calm], Qc)
             if self.refine > 1:
@@ -1237,21 +1304,62 @@ class _BatchRun:
     # ------------------------------------------------------------ events
     def _refine(self, rows, a, b, ya, h, Q, j):
         """Store ``refine - 1`` dense-output samples strictly inside each (a, b),
-        with the dense output's derivative as their ``xdot`` (as simulate)."""
+        with the dense output's derivative as their ``xdot`` (as simulate: RK45's;
+        NaN for DOP853, whose dense output simulate does not differentiate)."""
         R = self.refine
         for k in range(1, R):
             s = a + (b - a) * (k / R)
             xx = (s - a) / h
-            p = np.stack([np.ones_like(xx), xx, xx * xx, xx ** 3], axis=1) * _DP
-            self.log.append(rows, s, j, self._dense(a, h, ya, Q, s),
-                            np.einsum("knp,kp->kn", Q, p))
+            if Q.shape[2] == 4:
+                p = np.stack([np.ones_like(xx), xx, xx * xx, xx ** 3], axis=1) * _DP
+                xd = np.einsum("knp,kp->kn", Q, p)
+            else:
+                xd = None
+            self.log.append(rows, s, j, self._dense(a, h, ya, Q, s), xd)
+
+    def _dense_of(self, rows, a, ya, h, yb, K, j):
+        """The dense output of the accepted steps a -> a + h of ``rows`` (``K``:
+        their stages): RK45's Q = K^T P, (k, n, 4); DOP853's F, (k, n, 7),
+        scipy's ``DOP853._dense_output_impl`` (its three more stages
+        evaluated here)."""
+        if not self.dop:
+            return np.einsum("skn,sp->knp", K, _P)
+        d, ns, k = self.dop, self.ns, len(rows)
+        hc = h[:, None]
+        KX = np.empty((ns + 4, k, self.n))
+        KX[:ns + 1] = K
+        with np.errstate(invalid="ignore", over="ignore"):
+            for s in range(ns + 1, ns + 4):
+                dy = np.tensordot(d["AX"][s, :s], KX[:s], axes=(0, 0)) * hc
+                KX[s] = self.maps.flow(rows, ya + dy, a + d["CX"][s] * h, j)
+            self.nfev[rows] += 3
+            dyb = yb - ya
+            F = np.empty((k, self.n, 7))
+            F[:, :, 0] = dyb
+            F[:, :, 1] = hc * K[0] - dyb
+            F[:, :, 2] = 2 * dyb - hc * (K[ns] + K[0])
+            F[:, :, 3:] = hc[:, :, None] * np.einsum("ps,skn->knp", d["D"], KX)
+        return F
 
     def _dense(self, a, h, ya, Q, s):
-        """RK45 dense output (scipy's RkDenseOutput) of each row at its time s."""
+        """Each row's dense output at its time s, by the form of ``Q``: RK45's
+        (scipy's RkDenseOutput, Q = K^T P), DOP853's (its Dop853DenseOutput, F)
+        or the cubic Hermite of the step's ends (the end state, h f at both
+        ends: ``solve._Hermite``)."""
         xx = (s - a) / h
-        p = np.stack([xx, xx * xx, xx ** 3, xx ** 4], axis=1)
         with np.errstate(invalid="ignore", over="ignore"):
-            return ya + h[:, None] * np.einsum("knp,kp->kn", Q, p)
+            if Q.shape[2] == 4:
+                p = np.stack([xx, xx * xx, xx ** 3, xx ** 4], axis=1)
+                return ya + h[:, None] * np.einsum("knp,kp->kn", Q, p)
+            x = xx[:, None]
+            if Q.shape[2] == 7:
+                y = np.zeros_like(ya)
+                for i in range(7):
+                    y = (y + Q[:, :, 6 - i]) * (x if i % 2 == 0 else 1 - x)
+                return y + ya
+            x2 = x * x
+            return (ya + x2 * (3.0 - 2.0 * x) * (Q[:, :, 0] - ya) + x * (1.0 - x) ** 2 * Q[:, :, 1]
+                    + x2 * (x - 1.0) * Q[:, :, 2])
 
     def _pred(self, rows, y, s, j, wd):
         """The event has happened: x left C, or entered D (rows with ``wd``)."""

@@ -34,14 +34,14 @@ METHODS = {"RK23": RK23, "RK45": RK45, "DOP853": DOP853, "Radau": Radau,
 SUPPORTS = {
     "python": frozenset({"method", "inputs", "prehistory", "dense", "t_eval", "progress",
                          "dwell"}),
-    "vectorized": frozenset({"progress"}),
+    "vectorized": frozenset({"progress", "method"}),
     "compiled": frozenset({"method"}),
 }
 #: the methods a path implements where it takes ``method`` (every one on the
 #: Python path); the others are refused by name
-METHODS_ON = {"compiled": ("RK45", "DOP853")}
+METHODS_ON = {"vectorized": ("RK45", "DOP853"), "compiled": ("RK45", "DOP853")}
 #: where to go for an option a path refuses
-_WHERE = {"method": "hs.simulate (the Python path) for methods other than 'RK45'",
+_WHERE = {"method": "hs.simulate (the Python path) for methods other than 'RK45' and 'DOP853'",
           "inputs": "hs.simulate, or close the loop with hs.connect first",
           "prehistory": "hs.simulate (the Python path)",
           "dense": "hs.simulate (the Python path)",

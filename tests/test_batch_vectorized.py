@@ -561,6 +561,7 @@ def test_unsupported_options_refused_by_the_one_rule():
     assert not takes_options(dict(dense=True))
     assert not takes_options(dict(t_eval=[0.5]))
     assert not takes_options(dict(method="Radau"))
+    assert takes_options(dict(method="DOP853"))
     assert not takes_options(dict(backend="python"))
 
 

@@ -27,9 +27,6 @@ import hybridsim as hs
 from hybridsim import Termination
 
 T = Termination
-#: the methods each path steps with (others refused by name; every one on the Python path)
-METHODS = {"python": ("RK45", "DOP853"), "vectorized": ("RK45",),
-           "compiled": ("RK45", "DOP853")}
 TOL_EVENT = 1e-8
 FUZZ = settings(max_examples=25, deadline=None,
                 suppress_health_check=[HealthCheck.too_slow,
@@ -113,17 +110,18 @@ def test_every_path_gives_the_python_paths_samples(path, seed, n, with_C, sets, 
             np.testing.assert_allclose(arc.at(t, j), ref.at(t, j), rtol=1e-6, atol=1e-7)
 
 
-@pytest.mark.parametrize("path", [p for p in path_params() if p.values[0] == "compiled"])
+@pytest.mark.parametrize("path", [p for p in path_params() if p.values[0] != "python"])
 @FUZZ
 @given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 3), with_C=st.booleans(),
        sets=st.sampled_from(SETS), priority=st.sampled_from(["jumps", "flows"]),
        refine=st.sampled_from([1, 3]), t_max=st.floats(2.0, 6.0), j_max=st.integers(6, 20))
 def test_dop853_gives_the_python_paths_samples(path, seed, n, with_C, sets, priority, refine,
                                                t_max, j_max):
-    """method="DOP853" on the compiled path: the arc keeps the invariants and is
-    the Python path's DOP853 run (scipy's steps, its dense output, the
-    interior search on the step's cubic Hermite confirmed on the dense
-    output): jump times to 1e-7, states to 1e-6 relative, as RK45's above."""
+    """method="DOP853" on the vectorized and compiled paths: the arc keeps the
+    invariants and is the Python path's DOP853 run (scipy's steps, its dense
+    output, the interior search on the step's cubic Hermite confirmed on the
+    dense output): jump times to 1e-7, states to 1e-6 relative, as RK45's
+    above."""
     case, x0 = random_linear(seed, n, with_C, sets)
     kw = dict(t_max=t_max, j_max=j_max, priority=priority, refine=refine, method="DOP853",
               **OPTS)
@@ -139,20 +137,16 @@ def test_dop853_gives_the_python_paths_samples(path, seed, n, with_C, sets, prio
 
 @pytest.mark.parametrize("path", path_params())
 def test_methods_run_where_implemented_and_are_refused_by_name_elsewhere(path):
-    """DOP853 by name or as scipy's class: stepped on the Python and compiled
-    paths (the timer's jumps exact), refused by name on the vectorized path;
-    a method the compiled path lacks names the ones it has."""
+    """DOP853 by name or as scipy's class: stepped on every path (the timer's
+    jumps exact); a method the vectorized or compiled path lacks is refused
+    naming the ones it has."""
     from scipy.integrate import DOP853
     for method in ("DOP853", DOP853):
-        if "DOP853" in METHODS[path]:
-            arc = run(path, timer(), [0.0], t_max=1.0, method=method)
-            np.testing.assert_allclose(arc.jump_times, [0.5, 1.0], atol=1e-12)
-        else:
-            with pytest.raises(ValueError, match=rf"method=.*DOP853.* is not supported on "
-                                                 rf"the {path} path"):
-                run(path, timer(), [0.0], t_max=1.0, method=method)
-    if path == "compiled":
-        with pytest.raises(ValueError, match="other than 'RK45' and 'DOP853'"):
+        arc = run(path, timer(), [0.0], t_max=1.0, method=method)
+        np.testing.assert_allclose(arc.jump_times, [0.5, 1.0], atol=1e-12)
+    if path != "python":
+        with pytest.raises(ValueError, match=rf"method='RK23' is not supported on the {path} "
+                                             r"path; .* other than 'RK45' and 'DOP853'"):
             run(path, timer(), [0.0], t_max=1.0, method="RK23")
 
 
@@ -163,8 +157,6 @@ def test_methods_run_where_implemented_and_are_refused_by_name_elsewhere(path):
 def test_a_jump_at_t_max_stores_every_sample_once(path, sets, refine, method):
     """The timer x' = 1, D = {x >= 0.5}, g = 0 to t_max = 1: jumps at 0.5 and 1.0,
     samples refine - 1 per step, none twice, time never running backwards."""
-    if method not in METHODS[path]:
-        pytest.skip(f"{method} is refused on the {path} path (tested below)")
     case = timer(0.5, sets)
     arc = run(path, case, [0.0], t_max=1.0, refine=refine, warn=False, method=method)
     assert_invariants(arc, case, "jumps", 1.0, math.inf)
@@ -262,8 +254,6 @@ def test_max_norm_is_checked_at_an_event_sample(path, sets):
 @pytest.mark.parametrize("method", ["RK45", "DOP853"])
 def test_the_ball_bounces_at_its_closed_form_times_on_every_path(path, sets, method):
     from hybridsim.library import bouncing_ball_jump_times
-    if method not in METHODS[path]:
-        pytest.skip(f"{method} is refused on the {path} path (tested below)")
     arc = run(path, Ball(sets=sets), [1.0, 0.0], t_max=10.0, j_max=12, rtol=1e-10,
               atol=1e-12, method=method)
     assert arc.termination is T.J_MAX
@@ -475,8 +465,9 @@ def test_a_delay_equation_runs_on_every_path(path):
 def test_dop853_with_delays_is_the_python_paths_and_refused_by_name_elsewhere(path):
     """A delay equation with method="DOP853": the Python path steps it (its
     history reads DOP853's dense output) to the method of steps' solution,
-    also for the CompiledSystem twin under backend="auto" (which falls back
-    to it); the vectorized and compiled paths refuse it by name."""
+    also for the CompiledSystem twin under backend="auto" and for the
+    vectorized system through simulate_many (which fall back to it); the
+    vectorized and compiled paths refuse it by name."""
     kw = dict(t_max=2.0, rtol=1e-10, atol=1e-12, method="DOP853")
     if path == "python":
         for arc in (_run_lag(path, _Lag(), [1.0, 0.0], **kw),
@@ -486,9 +477,13 @@ def test_dop853_with_delays_is_the_python_paths_and_refused_by_name_elsewhere(pa
             np.testing.assert_allclose(arc.x[:, 0], exact, atol=1e-9)
         return
     if path == "vectorized":
-        with pytest.raises(ValueError, match="method='DOP853' is not supported on the "
-                                             "vectorized path"):
+        with pytest.raises(ValueError, match="method='DOP853' for a system that reads its past "
+                                             "is not supported on the vectorized path"):
             hs.simulate_vectorized(_Lag(), np.array([[1.0, 0.0]]), **kw)
+        arc = hs.simulate_many(_Lag(), np.array([[1.0, 0.0]]), **kw)[0]   # per run
+        t = arc.t
+        exact = np.where(t <= 1.0, 1.0 - t, 1.0 - t + (t - 1.0) ** 2 / 2)
+        np.testing.assert_allclose(arc.x[:, 0], exact, atol=1e-9)
         return
     with pytest.raises(ValueError, match=r"method='DOP853' with delays \(CompiledSystem"
                                          r"\(delays=\)\) is not supported on the compiled"):
