@@ -112,7 +112,7 @@ _ID = "002"
 #: Example V.B in the family: (k1, k2, w1, w2, delta).
 VB_PARAMS = (5.0, 8.0, 1.0, 1.0, 1.0)
 
-#: Integration of every population (the batch integrator: RK45 only).
+#: Integration of every population (the batch integrator, RK45).
 _SIM = dict(rtol=1e-8, atol=1e-11)
 _T_END = 4.0                                    # horizon: twice the largest delta
 
