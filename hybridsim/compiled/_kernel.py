@@ -1688,9 +1688,8 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 t, x = a, ya
                 break
             # dense output of the step: hQ = h K^T P (RK45); DOP853's costs three
-            # evaluations more, made where it is read (``dense``: made)
+            # evaluations more, made where it may be read (below)
             dense_ok = True
-            dense = not _DOP
             if not _DOP:
                 for i in range(n):
                     for k in range(4):
@@ -1715,38 +1714,32 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             hit = False
             elo = a
             ehi = b
+            phi_on = (d_active and has_hD) or useC
             if event:
                 hit = True
-                if _DOP and not dense:
-                    cause, detail = _dop853_step_dense(f, K, ya, yb, a, hs, j, p, yi, hQ,
-                                                       stats, info)
-                    dense = True
-                    if cause != _GOES_ON:
-                        t, x = a, ya
-                        break
             elif has_C or d_active:
-                phi_on = (d_active and has_hD) or useC
                 if _DOP:
                     # ``_Run._flow``: the search on the cubic Hermite of the step's
-                    # ends first, a hit confirmed on the dense output
+                    # ends first, a hit confirmed on the dense output (below)
                     for i in range(n):
                         hH[i, 0] = yb[i]
                         hH[i, 1] = hs * fa[i]
                         hH[i, 2] = hs * fb[i]
                     hit, elo, ehi = _interior(M, _bare(ya), hH, a, hs, j, p, has_C, d_active,
                                               phi_on, d_active and has_hD, useC, a, b, WS)
-                    if hit:
-                        if _DOP and not dense:
-                            cause, detail = _dop853_step_dense(f, K, ya, yb, a, hs, j, p, yi, hQ,
-                                                               stats, info)
-                            dense = True
-                            if cause != _GOES_ON:
-                                t, x = a, ya
-                                break
-                        hit, elo, ehi = _interior(M, _bare(ya), hQ, a, hs, j, p, has_C,
-                                                  d_active, phi_on, d_active and has_hD, useC,
-                                                  a, b, WS)
                 else:
+                    hit, elo, ehi = _interior(M, _bare(ya), hQ, a, hs, j, p, has_C, d_active,
+                                              phi_on, d_active and has_hD, useC, a, b, WS)
+            if _DOP and ev[0] == 0.0 and (hit or refine > 1 or (
+                    b - t_bound >= 0 and not t_bound < t_max and watch_D)):
+                # DOP853's dense output, made where it may be read: an event, a hit
+                # to confirm, refined samples, an entry into D after t_max (below)
+                cause, detail = _dop853_step_dense(f, K, ya, yb, a, hs, j, p, yi, hQ,
+                                                   stats, info)
+                if cause != _GOES_ON:
+                    t, x = a, ya
+                    break
+                if hit and not event:
                     hit, elo, ehi = _interior(M, _bare(ya), hQ, a, hs, j, p, has_C, d_active,
                                               phi_on, d_active and has_hD, useC, a, b, WS)
             clamp = np.nan
@@ -1762,14 +1755,6 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 if _DELAYS:                  # ``History._add``
                     _record(HL, HM, a, b, hs, ya, hQ)
                 ns_step = ns             # this step's samples start here
-                if refine > 1:
-                    if _DOP and not dense:
-                        cause, detail = _dop853_step_dense(f, K, ya, yb, a, hs, j, p, yi, hQ,
-                                                           stats, info)
-                        dense = True
-                        if cause != _GOES_ON:
-                            t, x = a, ya
-                            break
                 if refine > 1 and b > a:
                     if ns + refine - 1 > max_samples:
                         cause = MAX_STEPS
@@ -1814,13 +1799,6 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                     h_hint = np.nan
                     if d_active:
                         # ``_event_past_t_max``: an entry into D within round-off
-                        if _DOP and not dense:
-                            cause, detail = _dop853_step_dense(f, K, ya, yb, a, hs, j, p, yi, hQ,
-                                                               stats, info)
-                            dense = True
-                            if cause != _GOES_ON:
-                                t, x = a, ya
-                                break
                         tb = b + rules.t_max_slack(b, jumps)
                         if _pred(M, tb, _dense(ya, hQ, a, hs, tb), j, p, has_C, d_active):
                             # the step's samples are stored again by the
