@@ -329,12 +329,26 @@ def test_specialised_kernel_is_cached_on_disk(tmp_path):
     assert len(gen) == 1
 
 
+def _assert_same(spec, gen, a, b, h0, kw):
+    """A specialised kernel's run ``a`` and batch from the heights ``h0`` are
+    the generic kernel's (``b``) to the bit."""
+    from hybridsim.compiled import simulate_many_compiled
+    for f in ("t", "j", "x", "xdot"):
+        np.testing.assert_array_equal(getattr(a, f), getattr(b, f))
+    assert a.termination is b.termination and a.stats == b.stats
+    x0s = np.column_stack([h0, np.zeros_like(h0)])
+    for u, v in zip(simulate_many_compiled(spec, x0s, **kw),
+                    simulate_many_compiled(gen, x0s, **kw)):
+        np.testing.assert_array_equal(u.x, v.x)
+        np.testing.assert_array_equal(u.t, v.t)
+
+
 @pytest.mark.slow
 def test_maps_the_digest_cannot_key_specialise_in_memory():
     """specialize=True with a map reading an object the key cannot digest: the
     kernel is compiled in memory (no generated module), its maps inlined, and
     its runs and batches equal the generic kernel's to the bit."""
-    from hybridsim.compiled import CompiledSystem, simulate_compiled, simulate_many_compiled
+    from hybridsim.compiled import CompiledSystem, simulate_compiled
 
     class Gravity(enum.Enum):           # numba types it; spec_key cannot digest it
         EARTH = 9.81
@@ -351,14 +365,7 @@ def test_maps_the_digest_cannot_key_specialise_in_memory():
     assert spec._nb["one"] is not k.run_one
     # compiled in memory: no generated module
     assert not spec._nb["one"].py_func.__module__.startswith("hybridsim_spec_")
-    for f in ("t", "j", "x", "xdot"):
-        np.testing.assert_array_equal(getattr(a, f), getattr(b, f))
-    assert a.termination is b.termination and a.stats == b.stats
-    x0s = np.column_stack([np.linspace(0.5, 2.0, 40), np.zeros(40)])
-    for u, v in zip(simulate_many_compiled(spec, x0s, **kw),
-                    simulate_many_compiled(gen, x0s, **kw)):
-        np.testing.assert_array_equal(u.x, v.x)
-        np.testing.assert_array_equal(u.t, v.t)
+    _assert_same(spec, gen, a, b, np.linspace(0.5, 2.0, 40), kw)
 
 
 @pytest.mark.slow
@@ -390,7 +397,7 @@ def test_a_specialised_dop853_kernel_equals_the_generic_one():
     """specialize=True with method="DOP853": the system's DOP853 kernel is made
     when a run first asks for it (its RK45 one by compile()), and its runs
     and batches equal run_one_dop853's to the bit."""
-    from hybridsim.compiled import CompiledSystem, simulate_compiled, simulate_many_compiled
+    from hybridsim.compiled import CompiledSystem, simulate_compiled
 
     def osc(specialize):
         return CompiledSystem(flow=lambda x, t, j, p: np.array([x[1], -p[0] * x[0]]),
@@ -405,13 +412,7 @@ def test_a_specialised_dop853_kernel_equals_the_generic_one():
     assert spec._nb["one_DOP853"].py_func.__globals__["_DOP"] is True
     assert spec._nb["one"].py_func.__globals__["_DOP"] is False
     assert a.jump_count >= 2
-    for f in ("t", "j", "x", "xdot"):
-        np.testing.assert_array_equal(getattr(a, f), getattr(b, f))
-    assert a.termination is b.termination and a.stats == b.stats
-    x0s = np.column_stack([np.linspace(0.5, 1.5, 24), np.zeros(24)])
-    for u, v in zip(simulate_many_compiled(spec, x0s, **kw),
-                    simulate_many_compiled(gen, x0s, **kw)):
-        np.testing.assert_array_equal(u.x, v.x)
+    _assert_same(spec, gen, a, b, np.linspace(0.5, 1.5, 24), kw)
 
 
 @pytest.mark.slow
