@@ -200,6 +200,8 @@ def test_options_a_path_does_not_implement_are_refused_by_name(path, option, val
 
 @pytest.mark.parametrize("path", path_params())
 @pytest.mark.parametrize("method", ["RK45", "DOP853"])
+@pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning")
+@pytest.mark.filterwarnings("ignore:invalid value encountered:RuntimeWarning")
 def test_overflow_is_non_finite_on_every_path(path, method):
     """A ball (x' = (v, -9.81), C = {h >= 0}, D = {-h >= 0}) from (1e308, 1e308):
     the flow at x0 is finite, the state overflows inside the first step. That is
