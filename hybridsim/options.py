@@ -331,20 +331,45 @@ def method_on(path, method):
     """The name of ``method`` (a name or scipy's class) among the methods
     ``path`` implements (:data:`METHODS_ON`); refused by name otherwise.
 
+    Parameters
+    ----------
+    path : {"vectorized", "compiled"}
+        The integration path (the Python path takes every method).
+    method : str, scipy ``OdeSolver`` subclass or None
+        None means the default, "RK45".
+
+    Returns
+    -------
+    str
+        "RK45" or "DOP853".
+
+    Raises
+    ------
+    ValueError
+        An unknown ``path``; a method the path does not implement (naming
+        the ones it has), or an unknown name (:func:`resolve_method`'s
+        message).
+    TypeError
+        ``method`` neither a string nor an ``OdeSolver`` subclass.
+
     Examples
     --------
     >>> from scipy.integrate import DOP853
     >>> method_on("compiled", DOP853)
+    'DOP853'
+    >>> method_on("vectorized", "DOP853")
     'DOP853'
     >>> method_on("compiled", "Radau")  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
     ValueError: method='Radau' is not supported on the compiled path; use hs.simulate ...
     """
+    names = METHODS_ON.get(path) if isinstance(path, str) else None
+    if names is None:
+        raise ValueError(f"path must be one of {sorted(METHODS_ON)}, got {path!r}")
     if method is None or (type(method) is str and method == "RK45"):
         return "RK45"
     cls = resolve_method(method)
-    names = METHODS_ON[path]
     for name in names:
         if cls is METHODS[name] or cls is LEAN.get(METHODS[name]):
             return name

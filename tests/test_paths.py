@@ -148,6 +148,12 @@ def test_methods_run_where_implemented_and_are_refused_by_name_elsewhere(path):
         with pytest.raises(ValueError, match=rf"method='RK23' is not supported on the {path} "
                                              r"path; .* other than 'RK45' and 'DOP853'"):
             run(path, timer(), [0.0], t_max=1.0, method="RK23")
+        with pytest.raises(ValueError, match="method must be one of"):
+            run(path, timer(), [0.0], t_max=1.0, method="dop853")
+    else:
+        from hybridsim.options import method_on
+        with pytest.raises(ValueError, match="path must be one of"):
+            method_on(path, "DOP853")           # every method there: no list to check
 
 
 @pytest.mark.parametrize("path", path_params())
