@@ -518,11 +518,9 @@ def _auto_backend(system, kwargs, executor):
     if any(kwargs.get(k, v[0]) not in v for k, v in _COMPILED_ONLY_AT.items()):
         return "python"
     try:
-        method = method_on("compiled", kwargs.get("method"))
+        method_on("compiled", kwargs.get("method"), system)
     except (TypeError, ValueError):
         return "python"
-    if method != "RK45" and getattr(system, "needs_history", False):
-        return "python"             # the compiled path steps delays with RK45 only
     return "compiled" if lowerable(system) else "python"
 
 

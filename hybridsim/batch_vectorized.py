@@ -424,11 +424,8 @@ def takes_options(kwargs, system=None):
     through ``simulate`` otherwise.
     """
     try:
-        method = method_on("vectorized", kwargs.get("method"))
+        method_on("vectorized", kwargs.get("method"), system)
     except (TypeError, ValueError):
-        return False
-    if method != "RK45" and system is not None and (
-            system.needs_history or getattr(system, "delays", ())):
         return False
     known = inspect.signature(simulate_vectorized).parameters
     for name, val in kwargs.items():
@@ -469,11 +466,7 @@ def _parse(system, x0s, t_max, j_max, kw, method, progress, seed, extra):
                          f"(row {bad[0]}: {X[bad[0]]})")
     ro = parse_run(system, n, t_max=t_max, j_max=j_max, **kw)
     resolve_method(method)          # a bad method: simulate's message
-    method = method_on("vectorized", method)
-    if method != "RK45" and (system.needs_history or getattr(system, "delays", ())):
-        raise ValueError(f"method={method!r} for a system that reads its past is not "
-                         f"supported on the vectorized path; use hs.simulate (the Python "
-                         f"path)")
+    method = method_on("vectorized", method, system)
     check_unsupported("vectorized", extra)
     if int(system.input_dim or 0) > 0:
         refuse("vectorized", "inputs", f"<input_dim={system.input_dim}>")

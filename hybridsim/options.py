@@ -21,7 +21,7 @@ from ._rk import LEAN
 from .rules import PRIORITIES, MapError, Priority
 
 __all__ = ["RunOptions", "parse_run", "refuse", "SUPPORTS", "METHODS", "METHODS_ON",
-           "method_on", "check_x0",
+           "method_on", "reads_past", "check_x0",
            "check_real", "check_count", "check_bool", "check_map_value", "check_options",
            "check_seed", "check_t_eval", "resolve_method", "check_dwell"]
 
@@ -41,8 +41,7 @@ SUPPORTS = {
 #: Python path); the others are refused by name
 METHODS_ON = {"vectorized": ("RK45", "DOP853"), "compiled": ("RK45", "DOP853")}
 #: where to go for an option a path refuses
-_WHERE = {"method": "hs.simulate (the Python path) for methods other than 'RK45' and 'DOP853'",
-          "inputs": "hs.simulate, or close the loop with hs.connect first",
+_WHERE = {"inputs": "hs.simulate, or close the loop with hs.connect first",
           "prehistory": "hs.simulate (the Python path)",
           "dense": "hs.simulate (the Python path)",
           "t_eval": "hs.simulate (the Python path)",
@@ -327,7 +326,12 @@ def check_unsupported(path, given):
             method_on(path, value)
 
 
-def method_on(path, method):
+def reads_past(system):
+    """Whether ``system``'s flow reads its past (``needs_history`` or ``delays``)."""
+    return bool(getattr(system, "needs_history", False) or getattr(system, "delays", ()))
+
+
+def method_on(path, method, system=None):
     """The name of ``method`` (a name or scipy's class) among the methods
     ``path`` implements (:data:`METHODS_ON`); refused by name otherwise.
 
@@ -337,6 +341,10 @@ def method_on(path, method):
         The integration path (the Python path takes every method).
     method : str, scipy ``OdeSolver`` subclass or None
         None means the default, "RK45".
+    system : HybridSystem, optional
+        The system to run: one that reads its past (:func:`reads_past`) is
+        stepped with RK45 only on these paths (their record of the past is
+        RK45's dense output).
 
     Returns
     -------
@@ -348,7 +356,7 @@ def method_on(path, method):
     ValueError
         An unknown ``path``; a method the path does not implement (naming
         the ones it has), or an unknown name (:func:`resolve_method`'s
-        message).
+        message); a method other than RK45 for a system reading its past.
     TypeError
         ``method`` neither a string nor an ``OdeSolver`` subclass.
 
@@ -372,6 +380,10 @@ def method_on(path, method):
     cls = resolve_method(method)
     for name in names:
         if cls is METHODS[name] or cls is LEAN.get(METHODS[name]):
+            if name != "RK45" and system is not None and reads_past(system):
+                raise ValueError(f"method={method!r} for a system that reads its past "
+                                 f"(delays) is not supported on the {path} path; use "
+                                 f"hs.simulate (the Python path)")
             return name
     others = " and ".join(repr(m) for m in names)
     raise ValueError(f"method={method!r} is not supported on the {path} path; use "

@@ -562,9 +562,7 @@ def _parse_options(system, n, caller, method, extra, shared):
         if name not in _REFUSABLE:
             raise TypeError(f"{caller}() got an unexpected keyword argument {name!r}")
     check_unsupported("compiled", dict(extra, method=method))
-    if system.delays and method_on("compiled", method) != "RK45":
-        raise ValueError(f"method={method!r} with delays (CompiledSystem(delays=)) is not "
-                         f"supported on the compiled path; use hs.simulate (the Python path)")
+    method_on("compiled", method, system)
     ro = parse_run(system, n, **shared)
     # the delays (the flow map's past, CompiledSystem(delays=)) after the options
     fopt = np.array([ro.t0, ro.t_max, ro.j_max, ro.rtol, ro.max_step,
