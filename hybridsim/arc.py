@@ -356,13 +356,15 @@ class HybridArc:
 
     @classmethod
     def _trusted(cls, t, j, x, termination, message=None, exception=None,
-                 components=None, segments=None, system=None, xdot=None, stats=None):
+                 components=None, segments=None, system=None, xdot=None, stats=None,
+                 description=None):
         """An arc from the engine's own output, without re-validating it.
 
         ``t`` (N,) float, ``j`` (N,) int64 and ``x``/``xdot`` (N, n) float
         arrays, as every integration path produces them; saves the checks of
         :meth:`__init__` (a large share of a short run in a batch of
-        thousands).
+        thousands). ``description``: ``_describe(system)``, where the caller
+        keeps it.
         """
         arc = cls.__new__(cls)
         # one dict, set at once (faster than an attribute at a time: a short
@@ -371,8 +373,8 @@ class HybridArc:
             "t": t, "j": j, "x": x, "xdot": xdot, "stats": stats, "termination": termination,
             "message": message or (termination.message if termination else ""),
             "exception": exception, "components": components, "system": system,
-            "system_description": None if system is None else _describe(system),
-            "_segments": segments, "_cache": {}}
+            "system_description": description if description is not None else
+            _describe(system), "_segments": segments, "_cache": {}}
         if CHECK_ARCS:
             arc.validate(where="the engine's arc")
         return arc

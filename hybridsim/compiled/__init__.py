@@ -69,7 +69,7 @@ import warnings
 
 import numpy as np
 
-from ..arc import HybridArc
+from ..arc import HybridArc, _describe
 from ..options import check_unsupported, check_x0, method_on, parse_run
 from ..rules import CAUSES, DETAILS, MapError, Priority, Termination, finish, message
 from ..system import HybridSystem
@@ -680,9 +680,16 @@ def _map_error(system, k, detail, info, x, t, j):
     return f"{name} returned non-finite values (at t={t:.10g}, j={j})", name
 
 
+#: ``_message``'s result for the plain ends (t_max, j_max): by cause code
+_PLAIN_END = {CAUSES.index(c): (c, c.message, None) for c in (Termination.T_MAX,
+                                                              Termination.J_MAX)}
+
+
 def _message(system, k, code, detail, info, T, J, X, stats, ro):
     """``(cause, message, exception)`` of a kernel's result: the words of
     :data:`hybridsim.rules.DETAILS` (:func:`hybridsim.rules.message`)."""
+    if (code == k.T_MAX or code == k.J_MAX) and detail != k.DETAIL_LOOP:
+        return _PLAIN_END[code]
     cause = CAUSES[code]
     if (cause is Termination.J_MAX or cause is Termination.ZENO) and detail == k.DETAIL_LOOP:
         # a jump loop (rules.is_jump_loop): its jumps, all at one instant
@@ -742,7 +749,11 @@ def _arc(system, k, T, J, X, XD, code, detail, info, stats, ro):
     cause, msg, exc = _message(system, k, code, detail, info, T, J, X, stats, ro)
     st = _stats(stats.tolist() if isinstance(stats, np.ndarray) else stats)
     # the kernels' own arrays: (N,) float64 t, int64 j, (N, n) float64 x and xdot
-    arc = HybridArc._trusted(T, J, X, cause, msg, exc, system=system, xdot=XD, stats=st)
+    desc = system._nb.get("description")
+    if desc is None:
+        system._nb["description"] = desc = _describe(system)
+    arc = HybridArc._trusted(T, J, X, cause, msg, exc, system=system, xdot=XD, stats=st,
+                             description=desc)
     if exc is not None:
         exc.arc = arc
     return arc
