@@ -259,6 +259,11 @@ def test_ball_agrees_with_python_path_and_closed_form(ball):
     assert a.termination is T.J_MAX
     assert a.stats["events"] == a.stats["flows"] == 30
     assert a.stats["steps"] > 30 and a.stats["nfev"] >= 6 * a.stats["steps"]
+    # the plain end's words and the system's description (kept per system)
+    assert a.message == T.J_MAX.message and a.exception is None
+    c = simulate_compiled(ball, [1.0, 0.0], t_max=0.5, **TIGHT)
+    assert c.termination is T.T_MAX and c.message == T.T_MAX.message
+    assert a.system_description == c.system_description == "hybridsim.compiled.CompiledSystem"
 
 
 def test_specialised_kernel_same_results(ball):
