@@ -236,10 +236,20 @@ def _ov_as_bool(v):
     raise nb_errors.TypingError(f"must return a bool (x in the set or not), got {v}")
 
 
-_NJ = dict(error_model="numpy")
+#: ``_nrt`` set, not inherited: a function numba compiles for a caller's call
+#: inherits the caller's reference counting where it does not set its own (a
+#: helper called first from one of the leaf helpers below would be compiled
+#: without it, or fail to compile where it makes arrays)
+_NJ = dict(error_model="numpy", _nrt=True)
 #: the kernels' internal functions: no CPython or C wrappers (never called from
 #: Python, so none is compiled; no measurable change of the first compile)
 _NJI = dict(_NJ, no_cpython_wrapper=True, no_cfunc_wrapper=True)
+#: the leaf helpers (no array made, kept or returned; the event search, the
+#: dense output, the error norm): compiled without numba's reference counting.
+#: numba counts every array argument of every call on entry and exit, and the
+#: counts of a helper with several exits are not pruned: these calls were a
+#: tenth of a ball run's time (the maps they call keep theirs: :data:`_NJ`)
+_NJL = dict(_NJI, _nrt=False)
 
 
 def wrap_map(fn, kind, lazy=False):
@@ -369,7 +379,7 @@ def _next_double(typingctx, fnaddr, state):
     return types.float64(types.int64, types.int64), codegen
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=True, **_NJL)
 def _coin(rngp):
     """A fair coin from the run's numpy Generator (``rngp``: its BitGenerator's
     ``state_address`` and ``next_double`` address): ``rng.random() < 0.5``."""
@@ -377,7 +387,7 @@ def _coin(rngp):
 
 
 # ------------------------------------------------------------------ helpers
-@njit(cache=True, **_NJI)
+@njit(cache=True, **_NJL)
 def _dense_to(out, yold, hQ, told, h, s):
     """A step's dense output at s written into ``out`` (the event search's trial
     points: no array made per evaluation; :func:`_dense` makes one).
@@ -419,14 +429,14 @@ def _dense(yold, hQ, told, h, s):
     return out
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=True, **_NJL)
 def _copy_to(out, y):
     """``out[:] = y`` as a loop (a state into a scratch row of the run)."""
     for i in range(y.shape[0]):
         out[i] = y[i]
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=True, **_NJL)
 def _dense_deriv_to(XD, r, hQ, told, h, s):
     """d/dt of the dense output at s (``solve._dense_derivative``, Q = hQ / h)
     written into row ``r`` of ``XD``."""
@@ -436,7 +446,7 @@ def _dense_deriv_to(XD, r, hQ, told, h, s):
                     + 4.0 * (hQ[i, 3] / h) * x * x * x)
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=True, **_NJL)
 def _norm(v):
     """The 2-norm of ``v`` (``np.sum(v * v)``'s order of sums: no array made)."""
     s = 0.0
@@ -445,7 +455,7 @@ def _norm(v):
     return math.sqrt(s)
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=True, **_NJL)
 def _all_finite(v):
     for i in range(v.size):
         if not np.isfinite(v.flat[i]):
@@ -487,11 +497,11 @@ def _bare(typingctx, a):
     return a(a), codegen
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=True, **_NJL)
 def _fault(ev_addr, which, s, j):
     """Record the first NaN guard of the run in the kernel's ``ev`` (at
     ``ev_addr``; ``ev[0]``: 1 jump_guard, 2 flow_guard, then s and j)."""
-    ev = numba.carray(_f64_ptr(ev_addr), 3)
+    ev = _f64_ptr(ev_addr)
     if ev[0] == 0.0:
         ev[0] = which
         ev[1] = s
@@ -500,7 +510,7 @@ def _fault(ev_addr, which, s, j):
 
 # _inD, _inC, _pred: plain calls (numba's IR inlining of them, at ~30 call sites,
 # cost ~10 s of the engine's first compile for no measurable speed: LLVM inlines)
-@njit(cache=True, **_NJI)
+@njit(cache=True, **_NJL)
 def _inD(M, y, s, j, p):
     """x in D: the indicator, or {jump_guard >= 0} where D is derived from its guard
     (a NaN guard is the map's contract breach: recorded at ``M[8]``, as the Python
@@ -518,7 +528,7 @@ def _inD(M, y, s, j, p):
     return M[4](y, s, j, p)
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=True, **_NJL)
 def _inC(M, y, s, j, p):
     """x in C: the indicator, or {flow_guard >= 0} (see :func:`_inD`)."""
     if M[7]:
@@ -530,7 +540,7 @@ def _inC(M, y, s, j, p):
     return M[5](y, s, j, p)
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=True, **_NJL)
 def _pred(M, s, y, j, p, has_C, d_active):
     """The event has happened at (s, y): left C, or (watched) entered D."""
     if has_C and not _inC(M, y, s, j, p):
@@ -540,7 +550,7 @@ def _pred(M, s, y, j, p, has_C, d_active):
     return False
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=True, **_NJL)
 def _phi(M, s, y, j, p, useD, useC):
     """The continuous event function (>= 0 once the event has happened): every
     given guard of the flow (``_Run._phi``). A NaN guard is recorded as the
@@ -559,7 +569,7 @@ def _phi(M, s, y, j, p, useD, useC):
     return v
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=True, **_NJL)
 def _phi_nan(M, s, y, j, p, useD):
     """Record which guard returned NaN in :func:`_phi` (the jump guard first, as
     ``_Run._phi`` names it): off the event search's fast path."""
@@ -571,7 +581,7 @@ def _phi_nan(M, s, y, j, p, useD):
     _fault(M[8], 2.0, s, j)
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=True, **_NJL)
 def _secant(M, yold, hQ, told, h, j, p, useD, useC, lo, hi, flo, fhi, seeded, s0, slope0,
             wk):
     """``events._secant``: secant steps from the last evaluation, accepted inside
@@ -622,7 +632,7 @@ def _secant(M, yold, hQ, told, h, j, p, useD, useC, lo, hi, flo, fhi, seeded, s0
     return lo, hi
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=True, **_NJL)
 def _root_off_zero(f0, fd, fw, d, w):
     """``events._root_off_zero``: (offset, slope), NaNs where the model has no root."""
     m = (fd - f0) / d
@@ -637,7 +647,7 @@ def _root_off_zero(f0, fd, fw, d, w):
     return np.nan, np.nan
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=True, **_NJL)
 def _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, b,
             yb, yb_known, wk, ylo, yhi):
     """:func:`hybridsim.events.locate_event` on the step's dense output (``yb``:
@@ -737,7 +747,7 @@ def _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, 
     return lo, hi
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=True, **_NJL)
 def _near_peak(v, lo_nb):
     return v + 2.0 * (v - lo_nb) >= 0.0
 
@@ -779,7 +789,7 @@ def _maximize(M, yold, hQ, told, h, j, p, has_C, d_active, useD, useC, l, r, fl,
     return np.nan
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=True, **_NJL)
 def _interior(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, b, WS):
     """:func:`hybridsim.events.find_interior_event` with 3 samples: (found, lo, hi).
 
@@ -848,7 +858,7 @@ def _interior(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a
     return False, a, b
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=True, **_NJL)
 def _put(A, i, v):
     """``A[i] = v`` as a loop (numba's broadcasting setitem compiles its shape
     error's formatting, seconds of every first compile)."""
@@ -874,7 +884,7 @@ def _grown(T, J, X, XD, ns):
     return T2, J2, X2, XD2
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=True, **_NJL)
 def _store(T, J, X, XD, ns, t, j, x):
     """Write the sample (t, j, x) at row ``ns`` (xdot NaN); the buffers have room.
 
@@ -1026,7 +1036,7 @@ def _add_breaks(BL, t, dl):
         BL.insert(k, v)
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=True, **_NJL)
 def _scaled_rms(v, w, scale, diff):
     """The RMS norm of ``v / scale``, or of ``(v - w) / scale`` where ``diff``
     (a loop: no array made)."""
@@ -1037,7 +1047,7 @@ def _scaled_rms(v, w, scale, diff):
     return math.sqrt(s) / math.sqrt(v.shape[0])
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=True, **_NJL)
 def _initial_guess(t0, y0, t_bound, f0, rtol, atol, y1, scale):
     """scipy's ``select_initial_step`` (direction +1, order 4), its first part:
     ``(h0, d1)`` (h0 0.0 where the interval is empty), with the Euler point
@@ -1062,7 +1072,7 @@ def _initial_guess(t0, y0, t_bound, f0, rtol, atol, y1, scale):
     return h0, d1
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=True, **_NJL)
 def _initial_step(t0, t_bound, max_step, f0, f1, h0, d1, scale, order):
     """``select_initial_step``'s end, from :func:`_initial_guess`'s ``h0``,
     ``d1`` and ``scale`` and the flow map's value ``f1`` at its Euler point
