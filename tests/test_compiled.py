@@ -7,6 +7,7 @@ numba-compiled ones) and, where there is one, checks the closed form.
 """
 import doctest
 import math
+import os
 import pickle
 import re
 import subprocess
@@ -644,6 +645,66 @@ def test_pickle_round_trip(ball):
     a = simulate_compiled(again, [1.0, 0.0], t_max=2.0, j_max=3)
     b = simulate_compiled(ball, [1.0, 0.0], t_max=2.0, j_max=3)
     np.testing.assert_array_equal(a.x, b.x)
+
+
+def test_runs_free_every_array_they_make():
+    """The leaf helpers of the event search run without numba's reference
+    counting (``_kernel._NJL``), the maps and the rest of the kernel with it:
+    numba's allocation statistics (on in a fresh process) balance after runs
+    through every part of the search (events on guards and on indicators,
+    a guard that makes arrays, an excursion within one step found by the
+    interior search, refined samples, random priority, a batch), and a second
+    round of the same runs allocates exactly what the first did."""
+    code = """
+import gc, sys, numpy as np
+from numba.core.runtime import rtsys
+from hybridsim.compiled import CompiledSystem, simulate_compiled, simulate_many_compiled
+f = lambda x, t, j, p: np.array([x[1], -p[0]])
+g = lambda x, t, j, p: np.array([0.0, -p[1] * x[1]])
+hD = lambda x, t, j, p: np.min(np.array([-x[0], 1.0]))     # makes an array
+hC = lambda x, t, j, p: x[0]
+D = lambda x, t, j, p: x[0] <= 0.0 and x[1] <= 0.0
+ball = CompiledSystem(f, g, jump_guard=hD, flow_guard=hC, jump_set=D, state_dim=2,
+                      params=[9.81, 0.8])
+ball_sets = CompiledSystem(f, g, flow_set=lambda x, t, j, p: x[0] >= 0.0, jump_set=D,
+                           state_dim=2, params=[9.81, 0.8])
+apex = CompiledSystem(lambda x, t, j, p: np.array([x[1], -1.0]),
+                      lambda x, t, j, p: np.array([0.0, p[0]]),
+                      jump_guard=lambda x, t, j, p: x[0] - 1.0,
+                      jump_set=lambda x, t, j, p: x[0] >= 1.0, state_dim=2,
+                      params=[np.sqrt(2.0 + 2e-6)])
+X0 = np.column_stack([np.linspace(0.5, 2.0, 40), np.zeros(40)])
+def runs():
+    out = [simulate_compiled(ball, [1.0, 0.0], t_max=20.0, j_max=30, rtol=1e-8),
+           simulate_compiled(ball, [1.0, 0.0], t_max=5.0, j_max=8, refine=4),
+           simulate_compiled(ball, [1.0, 0.0], t_max=5.0, j_max=8, priority="random",
+                             seed=1),
+           simulate_compiled(ball_sets, [1.0, 0.0], t_max=5.0, j_max=8),
+           simulate_compiled(apex, [0.0, apex.params[0]], t_max=3.0 * apex.params[0],
+                             j_max=2),
+           simulate_compiled(ball, [1.0, 0.0], t_max=5.0, j_max=8, method="DOP853"),
+           *simulate_many_compiled(ball, X0, t_max=5.0, j_max=10)]
+    assert out[4].jump_count == 2 and out[0].jump_count == 30
+    return [len(a.t) for a in out]
+runs()                                   # compiled (or loaded), maps included
+del_stats = []
+for _ in range(2):
+    gc.collect()
+    a = rtsys.get_allocation_stats()
+    n = runs()
+    gc.collect()
+    b = rtsys.get_allocation_stats()
+    del_stats.append((b.alloc - a.alloc, b.free - a.free, b.mi_alloc - a.mi_alloc,
+                      b.mi_free - a.mi_free))
+print(del_stats)
+"""
+    env = dict(os.environ, NUMBA_NRT_STATS="1")
+    out = subprocess.run([sys.executable, "-W", "ignore", "-c", code], capture_output=True,
+                         text=True, timeout=600, env=env)
+    assert out.returncode == 0, out.stderr[-3000:]
+    (a1, f1, m1, mf1), (a2, f2, m2, mf2) = eval(out.stdout.strip().splitlines()[-1])
+    assert a1 > 0 and a1 == f1 and m1 == mf1, out.stdout
+    assert (a2, f2, m2, mf2) == (a1, f1, m1, mf1), out.stdout
 
 
 def test_without_numba_import_error_names_the_extra():
