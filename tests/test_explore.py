@@ -431,8 +431,8 @@ def test_a_check_with_no_sample_in_range_on_any_solution_is_an_error():
 
 
 def test_jittery_sampling_every_gap_sequence_contracts():
-    """README's example: x' = x + u, u = -2 x held between samples whose gaps
-    h are 0.1, 0.2 or 0.3. Between samples x(s) = (2 - e^s) x_k, so every
+    """The guide's example (docs/guide/explore.rst): x' = x + u, u = -2 x held
+    between samples whose gaps h are 0.1, 0.2 or 0.3. Between samples x(s) = (2 - e^s) x_k, so every
     solution satisfies |x(t, j)| <= (2 - e^0.1)^j |x0| (the worst contraction
     per sample). 3^5 gap sequences; the state after j samples is the product
     of the factors (order-free), so merged the tree ends at the C(7, 2) = 21
