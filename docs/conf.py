@@ -52,6 +52,8 @@ extensions = [
     # (sphinx.ext.mathjax alone loads it from a CDN when the page is read)
     "sphinx-mathjax-offline",
     "sphinx.ext.viewcode",
+    # the user guide's figures: its examples run when the page is built
+    "matplotlib.sphinxext.plot_directive",
     "numpydoc",
     "sphinx_gallery.gen_gallery",
 ]
@@ -128,6 +130,15 @@ sphinx_gallery_conf = {
     "abort_on_example_error": False,
     "only_warn_on_example_error": False,
 }
+
+# -- the guide's figures (matplotlib's plot directive) ------------------------
+
+plot_include_source = True
+plot_html_show_source_link = False
+plot_html_show_formats = False
+plot_formats = [("png", 100)]
+plot_rcparams = {"figure.figsize": (7.0, 4.0)}
+plot_apply_rcparams = True
 
 # -- HTML --------------------------------------------------------------------
 
