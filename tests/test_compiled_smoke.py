@@ -25,14 +25,14 @@ from hybridsim.compiled import CompiledSystem, simulate_compiled, simulate_many_
 from hybridsim.library import bouncing_ball_jump_times  # noqa: E402
 
 T = hs.Termination
-README = Path(__file__).resolve().parents[1] / "docs" / "compiled.rst"
+PAGE = Path(__file__).resolve().parents[1] / "docs" / "compiled.rst"
 
 
 def readme_example():
     """The first python block of the compiled path's docs page."""
     import textwrap
 
-    text = README.read_text(encoding="utf-8")
+    text = PAGE.read_text(encoding="utf-8")
     block = re.search(r"^\.\. code-block:: python\n\n((?:   .*\n|\n)+)", text, re.M)
     return textwrap.dedent(block.group(1))
 
@@ -84,9 +84,9 @@ def ball_D(x, t, j, p):
 
 @pytest.fixture(scope="module")
 def readme():
-    """README's example, run as printed: its namespace after the run."""
+    """The compiled page's example, run as printed: its namespace after the run."""
     ns = {}
-    exec(compile(readme_example(), str(README), "exec"), ns)
+    exec(compile(readme_example(), str(PAGE), "exec"), ns)
     return ns
 
 
@@ -101,7 +101,7 @@ def ball_bad():
                           jump_set=ball_D, state_dim=2)
 
 
-# ------------------------------------------------------------------ README's example
+# ------------------------------------------------------------------ the page's example
 def test_readme_example_runs_and_bounces_right(readme):
     arc, arcs, x0s = readme["arc"], readme["arcs"], readme["x0s"]
     assert arc.termination is T.J_MAX and arc.jump_count == 30
