@@ -8,10 +8,10 @@ Build (from the repository root; warnings are errors)::
 The API reference is generated from the docstrings (numpydoc format), the
 gallery from ``examples/`` by sphinx-gallery (which runs the fast scripts and
 shows the slow ones without running them: see ``NOT_RUN``), the
-semantics page from README's "Semantics" section, so that text has one source,
-and the papers page from the paper packages (``_papers.py``). MathJax is
-bundled into the HTML (sphinx-mathjax-offline), so the math renders with no
-network. Every build ends by checking that each internal link of the HTML
+papers page from the paper packages (``_papers.py``); the benchmarks page,
+``benchmarks.rst``, is written by ``benchmarks/run_all.py`` from one run and
+committed. MathJax is bundled into the HTML (sphinx-mathjax-offline), so
+the math renders with no network. Every build ends by checking that each internal link of the HTML
 resolves, file and #anchor (``_linkcheck.py``; a broken one is a warning).
 """
 from __future__ import annotations
@@ -52,6 +52,8 @@ extensions = [
     # (sphinx.ext.mathjax alone loads it from a CDN when the page is read)
     "sphinx-mathjax-offline",
     "sphinx.ext.viewcode",
+    # the user guide's figures: its examples run when the page is built
+    "matplotlib.sphinxext.plot_directive",
     "numpydoc",
     "sphinx_gallery.gen_gallery",
 ]
@@ -128,6 +130,15 @@ sphinx_gallery_conf = {
     "abort_on_example_error": False,
     "only_warn_on_example_error": False,
 }
+
+# -- the guide's figures (matplotlib's plot directive) ------------------------
+
+plot_include_source = True
+plot_html_show_source_link = False
+plot_html_show_formats = False
+plot_formats = [("png", 100)]
+plot_rcparams = {"figure.figsize": (7.0, 4.0)}
+plot_apply_rcparams = True
 
 # -- HTML --------------------------------------------------------------------
 
@@ -231,73 +242,10 @@ def _install_known_warnings(app):
 
 # -- generated pages ---------------------------------------------------------
 
-def _md_inline(text: str) -> str:
-    """Markdown inline markup as reST: `code` -> ``code``, [a](b) -> `a <b>`_."""
-    text = re.sub(r"\[([^\]]+)\]\(([^)]+)\)", r"`\1 <\2>`_", text)
-
-    def code(m):
-        before, body, after = m.group(1), m.group(2), m.group(3)
-        pre = "\\ " if before and (before.isalnum() or before in ")]") else ""
-        post = "\\ " if after and after.isalnum() else ""
-        return f"{before}{pre}``{body}``{post}{after}"
-
-    return re.sub(r"(^|.)(?<!`)`([^`\n]+)`(?!`)(.|$)", code, text, flags=re.M)
-
-
-def _md_table(rows: list[str]) -> list[str]:
-    def cells(row):
-        row = row.strip().strip("|")
-        out, cur, in_code = [], "", False
-        for ch in row:
-            if ch == "`":
-                in_code = not in_code
-            if ch == "|" and not in_code:
-                out.append(cur.strip())
-                cur = ""
-            else:
-                cur += ch
-        out.append(cur.strip())
-        return out
-
-    header, body = cells(rows[0]), [cells(r) for r in rows[2:]]
-    out = [".. list-table::", "   :header-rows: 1", ""]
-    for row in [header, *body]:
-        for i, cell in enumerate(row):
-            out.append(("   * - " if i == 0 else "     - ") + (_md_inline(cell) or "\\"))
-    return [*out, ""]
-
-
-def _readme_semantics() -> str:
-    """README's "### Semantics" section as reStructuredText (bullets, bold,
-    code, links, pipe tables and sub-headings)."""
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
-    m = re.search(r"^### Semantics[ \t]*\n(.*?)(?=^#{1,3} )", text, flags=re.S | re.M)
-    if m is None:
-        raise RuntimeError("README.md has no '### Semantics' section before the next heading")
-    lines, out, k = m.group(1).strip().splitlines(), [], 0
-    while k < len(lines):
-        line = lines[k]
-        if line.startswith("|"):
-            table = []
-            while k < len(lines) and lines[k].startswith("|"):
-                table.append(lines[k])
-                k += 1
-            out += _md_table(table)
-            continue
-        heading = re.match(r"^#{4,6}\s+(.*)$", line)
-        if heading:
-            title = _md_inline(heading.group(1))
-            out += [title, "-" * len(title)]
-        else:
-            out.append(_md_inline(line))
-        k += 1
-    return "\n".join(out) + "\n"
-
-
 def _write_generated(app):
-    """docs/_generated/: README's semantics section and the papers page
-    (:mod:`_papers`: the packages' PAPER, ERRATA, DECISIONS, NOT_REPRODUCED
-    and claims, read from the code without evaluating the claims). A file is
+    """docs/_generated/: the papers page (:mod:`_papers`: the packages'
+    PAPER, ERRATA, DECISIONS, NOT_REPRODUCED and claims, read from the code
+    without evaluating the claims). A file is
     rewritten only when its text changed, so that an unchanged page is not
     rebuilt."""
     import _papers
@@ -313,8 +261,7 @@ def _write_generated(app):
                   f"(``{type(exc).__name__}``).\n")
     gen = DOCS / "_generated"
     gen.mkdir(exist_ok=True)
-    for name, text in (("semantics_readme.rst", _readme_semantics()),
-                       ("papers.rst", papers)):
+    for name, text in (("papers.rst", papers),):
         target = gen / name
         if not target.exists() or target.read_text(encoding="utf-8") != text:
             target.write_text(text, encoding="utf-8")

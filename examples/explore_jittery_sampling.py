@@ -36,9 +36,12 @@ the jump count j under the bound (2 - e^0.1)^j.
 Run it with::
 
     python examples/explore_jittery_sampling.py [output_folder]
+
+The figures go to ``output_folder``, else to the folder named by the
+environment variable ``HYBRIDSIM_FIGURES``, else to the working folder.
 """
+import os
 import sys
-import tempfile
 from pathlib import Path
 
 import matplotlib
@@ -118,4 +121,6 @@ def main(out):
 
 
 if __name__ == "__main__":
-    TREE, RANDOM = main(sys.argv[1] if len(sys.argv) > 1 else tempfile.mkdtemp(prefix="hybridsim_"))
+    # the folder given, else $HYBRIDSIM_FIGURES, else the working folder
+    OUT = sys.argv[1] if len(sys.argv) > 1 else os.environ.get("HYBRIDSIM_FIGURES", ".")
+    TREE, RANDOM = main(OUT)

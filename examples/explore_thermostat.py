@@ -24,9 +24,12 @@ Figure: all solutions' temperatures on one set of axes, the branch points
 Run it with::
 
     python examples/explore_thermostat.py [output_folder]
+
+The figures go to ``output_folder``, else to the folder named by the
+environment variable ``HYBRIDSIM_FIGURES``, else to the working folder.
 """
+import os
 import sys
-import tempfile
 from pathlib import Path
 
 import matplotlib
@@ -100,4 +103,6 @@ def main(out):
 
 
 if __name__ == "__main__":
-    TREE = main(sys.argv[1] if len(sys.argv) > 1 else tempfile.mkdtemp(prefix="hybridsim_"))
+    # the folder given, else $HYBRIDSIM_FIGURES, else the working folder
+    OUT = sys.argv[1] if len(sys.argv) > 1 else os.environ.get("HYBRIDSIM_FIGURES", ".")
+    TREE = main(OUT)

@@ -26,9 +26,12 @@ sensitivity to the gain, d|x_bar - x|/dk, through the jump at t = delta.
 Run it with::
 
     python examples/li_sanfelice_gain_tuning.py [output_folder]
+
+The figures go to ``output_folder``, else to the folder named by the
+environment variable ``HYBRIDSIM_FIGURES``, else to the working folder.
 """
+import os
 import sys
-import tempfile
 from pathlib import Path
 
 import matplotlib
@@ -176,5 +179,7 @@ def main(out):
 
 
 if __name__ == "__main__":
-    _, fig = main(sys.argv[1] if len(sys.argv) > 1 else tempfile.mkdtemp(prefix="hybridsim_"))
+    # the folder given, else $HYBRIDSIM_FIGURES, else the working folder
+    OUT = sys.argv[1] if len(sys.argv) > 1 else os.environ.get("HYBRIDSIM_FIGURES", ".")
+    _, fig = main(OUT)
     plt.close(fig)

@@ -24,9 +24,12 @@ plane of the plant, where the flows bend at each update.
 Run it with::
 
     python examples/sample_and_hold.py [output_folder]
+
+The figures go to ``output_folder``, else to the folder named by the
+environment variable ``HYBRIDSIM_FIGURES``, else to the working folder.
 """
+import os
 import sys
-import tempfile
 from pathlib import Path
 
 import matplotlib
@@ -101,4 +104,6 @@ def main(out):
 
 
 if __name__ == "__main__":
-    main(sys.argv[1] if len(sys.argv) > 1 else tempfile.mkdtemp(prefix="hybridsim_"))
+    # the folder given, else $HYBRIDSIM_FIGURES, else the working folder
+    OUT = sys.argv[1] if len(sys.argv) > 1 else os.environ.get("HYBRIDSIM_FIGURES", ".")
+    main(OUT)

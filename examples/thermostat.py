@@ -26,9 +26,12 @@ jumps, on a shared t axis; and the hybrid time domain.
 Run it with::
 
     python examples/thermostat.py [output_folder]
+
+The figures go to ``output_folder``, else to the folder named by the
+environment variable ``HYBRIDSIM_FIGURES``, else to the working folder.
 """
+import os
 import sys
-import tempfile
 from pathlib import Path
 
 import matplotlib
@@ -102,4 +105,6 @@ def main(out):
 
 
 if __name__ == "__main__":
-    main(sys.argv[1] if len(sys.argv) > 1 else tempfile.mkdtemp(prefix="hybridsim_"))
+    # the folder given, else $HYBRIDSIM_FIGURES, else the working folder
+    OUT = sys.argv[1] if len(sys.argv) > 1 else os.environ.get("HYBRIDSIM_FIGURES", ".")
+    main(OUT)

@@ -15,9 +15,12 @@ the hybrid time domain E = [0, 1] x {0} U [1, 2] x {1} U ...
 Run it with::
 
     python examples/timer.py [output_folder]
+
+The figures go to ``output_folder``, else to the folder named by the
+environment variable ``HYBRIDSIM_FIGURES``, else to the working folder.
 """
+import os
 import sys
-import tempfile
 from pathlib import Path
 
 import matplotlib
@@ -59,4 +62,6 @@ def main(out):
 
 
 if __name__ == "__main__":
-    main(sys.argv[1] if len(sys.argv) > 1 else tempfile.mkdtemp(prefix="hybridsim_"))
+    # the folder given, else $HYBRIDSIM_FIGURES, else the working folder
+    OUT = sys.argv[1] if len(sys.argv) > 1 else os.environ.get("HYBRIDSIM_FIGURES", ".")
+    main(OUT)

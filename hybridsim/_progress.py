@@ -3,13 +3,19 @@
 ``progress=None`` everywhere in hybridsim means *automatic*: a bar at an
 interactive terminal and in a Jupyter notebook (an IPython kernel), none
 otherwise (under pytest, in CI, when stderr is redirected to a file).
-``True`` and ``False`` force it on or off. The bars are tqdm's
-(``tqdm.auto``: a widget in a notebook, text elsewhere).
+``True`` and ``False`` force it on or off. The bars are tqdm's: a widget
+in a notebook with ipywidgets, text elsewhere. A notebook without ipywidgets
+gets one line of text: the bar of the outermost run only (a run inside a
+batch or a study adds none), drawn after half a second (a short run leaves
+nothing behind) and erased when it ends unless it is meant to stay.
 """
 from __future__ import annotations
 
+import functools
+import importlib.util
 import os
 import sys
+import weakref
 
 __all__ = ["in_notebook", "make_bar", "progress_enabled"]
 
@@ -38,6 +44,42 @@ def in_notebook() -> bool:
         return shell is not None and "IPKernelApp" in getattr(shell, "config", {})
     except Exception:  # noqa: BLE001 - a broken IPython means: not a notebook
         return False
+
+
+def _widgets_available() -> bool:
+    """ipywidgets is installed (tqdm's notebook bar needs it)."""
+    return importlib.util.find_spec("ipywidgets") is not None
+
+
+#: The one-line text bar open in a notebook without ipywidgets (at most one; a
+#: bar nobody holds any more is collected, and closed, by tqdm).
+_ONE_LINE: weakref.WeakSet = weakref.WeakSet()
+
+
+@functools.cache
+def _one_line_class():
+    from tqdm.std import tqdm as text_tqdm
+
+    class OneLineBar(text_tqdm):
+        """tqdm's text bar, which frees the notebook's one line when closed."""
+
+        def close(self):
+            try:
+                super().close()
+            finally:
+                _ONE_LINE.discard(self)
+
+    return OneLineBar
+
+
+def _one_line_bar(kw):
+    """The text bar of a notebook without widgets: one line at position 0, or
+    None when a bar already draws it (a run inside a batch or a study)."""
+    if any(not b.disable for b in _ONE_LINE):
+        return None
+    bar = _one_line_class()(**{"delay": 0.5, "mininterval": 0.5, **kw, "position": 0})
+    _ONE_LINE.add(bar)
+    return bar
 
 
 def _stderr_is_terminal() -> bool:
@@ -118,7 +160,10 @@ def make_bar(progress, *, total, desc, unit="it", postfix=None, bar_format=None,
         Keep the finished bar on screen (default: erase it).
     file : file-like, optional
         Where to draw (default: stderr, or the notebook's widget). With a
-        file given the text bar is used, also in a notebook.
+        file given the text bar is used, also in a notebook. In a notebook
+        without ipywidgets, the bar is one line of text on stderr, shown
+        after half a second (``delay``); a bar asked for while that line is
+        in use is None.
     **tqdm_kwargs
         Any other keyword of :class:`tqdm.tqdm` (``mininterval``...).
 
@@ -154,19 +199,20 @@ def make_bar(progress, *, total, desc, unit="it", postfix=None, bar_format=None,
     kw = dict(total=total, desc=desc, unit=unit, leave=leave, **tqdm_kwargs)
     if bar_format is not None:
         kw["bar_format"] = bar_format
+    if postfix is not None:            # shown from the bar's first line on
+        kw["postfix"] = dict(postfix) if isinstance(postfix, dict) else str(postfix)
     if file is not None:
         from tqdm.std import tqdm as text_tqdm
         bar = text_tqdm(file=file, **kw)
-    else:
+    elif in_notebook() and _widgets_available():
         try:
-            from tqdm.auto import tqdm as auto_tqdm
-            bar = auto_tqdm(**kw)
-        except ImportError:      # a notebook without ipywidgets: the text bar
-            from tqdm.std import tqdm as text_tqdm
-            bar = text_tqdm(**kw)
-    if postfix is not None:
-        if isinstance(postfix, dict):
-            bar.set_postfix(postfix, refresh=False)
-        else:
-            bar.set_postfix_str(str(postfix), refresh=False)
+            from tqdm.notebook import tqdm as widget_tqdm
+            bar = widget_tqdm(**kw)
+        except ImportError:          # an ipywidgets tqdm cannot use: one line of text
+            bar = _one_line_bar(kw)
+    elif in_notebook():
+        bar = _one_line_bar(kw)
+    else:
+        from tqdm.std import tqdm as text_tqdm
+        bar = text_tqdm(**kw)
     return bar

@@ -925,24 +925,31 @@ def plot_time_domain(arc, *, ax=None, labels=None, filter=None, jumps=True, mark
     return ax
 
 
-def plot_solutions(tree, idx=0, *, view="flows", ax=None, label=None, color=None,
-                   alpha=0.6, branch_kw=None, **line_kw):
+def plot_solutions(tree, idx=0, *, view="flows", fn=None, ax=None, label=None, color=None,
+                   alpha=0.6, branch_kw=None, ylabel=None, **line_kw):
     r"""Every solution of an exploration on one Axes, its branch points marked.
 
     Each leaf of ``tree`` is drawn by :func:`plot_flows` (``view="flows"``:
-    component ``idx`` against t), :func:`plot_jumps` (``"jumps"``: against
-    j) or :func:`plot_time_domain` (``"domain"``: the hybrid time domain),
-    all in one colour; the branch points (where the tree splits) are drawn
-    once, as black diamonds (``Line2D`` with gid ``"branch_points"``,
-    labelled "branch points").
+    component ``idx``, or output ``idx`` of ``fn``, against t),
+    :func:`plot_jumps` (``"jumps"``: against j) or :func:`plot_time_domain`
+    (``"domain"``: the hybrid time domain), all in one colour; the branch
+    points (where the tree splits) are drawn once, on the curves, as black
+    diamonds (``Line2D`` with gid ``"branch_points"``, labelled "branch
+    points").
 
     Parameters
     ----------
     tree : SolutionTree or iterable of HybridArc
         From :func:`hybridsim.explore` (branch points drawn), or any arcs.
     idx : int
-        The state component (views "flows" and "jumps").
+        The state component, or with ``fn`` the output of ``fn`` (views
+        "flows" and "jumps").
     view : {"flows", "jumps", "domain"}
+    fn : callable, optional
+        Views "flows" and "jumps": plot ``fn(x)``, ``fn(x, t)`` or
+        ``fn(x, t, j)`` (a float or a 1-D array, as in :func:`plot_flows`)
+        instead of the state; the branch points are drawn at ``fn`` of their
+        state. Refused with ``view="domain"``.
     ax : matplotlib Axes, optional
         Where to draw (default: a new figure).
     label : str, optional
@@ -953,12 +960,21 @@ def plot_solutions(tree, idx=0, *, view="flows", ax=None, label=None, color=None
         Of the leaves' lines (overlapping leaves show darker).
     branch_kw : dict, optional
         ``Line2D`` properties of the branch points' markers.
+    ylabel : str, optional
+        The value axis' label (default: the component's name, ``$x_1$``...,
+        or ``fn``'s; ``$j$`` for the domain).
     **line_kw
-        Passed to the per-leaf plot function.
+        Passed to the per-leaf plot function (``flow_kw``, ``smooth``,
+        ``filter``, ``Line2D`` properties...).
 
     Returns
     -------
     matplotlib.axes.Axes
+
+    Raises
+    ------
+    TypeError, ValueError
+        For an argument of the wrong type or value, naming it.
 
     Examples
     --------
@@ -968,10 +984,14 @@ def plot_solutions(tree, idx=0, *, view="flows", ax=None, label=None, color=None
     ...     C=lambda x: x[0] <= 2.0, D=lambda x: x[0] >= 1.0, state_dim=1)
     >>> tree = hs.explore(timer, [0.0], t_max=5.0, j_max=2, merge_tol=None)
     >>> ax = hs.plot_solutions(tree)
-    >>> ax.get_legend().get_texts()[0].get_text()
-    '4 solutions'
-    >>> len([ln for ln in ax.lines if ln.get_gid() == "branch_points"][0].get_xdata())
-    3
+    >>> ax.get_legend().get_texts()[0].get_text(), ax.get_ylabel()
+    ('4 solutions', '$x_1$')
+    >>> bp = [ln for ln in ax.lines if ln.get_gid() == "branch_points"][0]
+    >>> bp.get_xdata(), bp.get_ydata()
+    (array([1., 2., 3.]), array([1., 1., 1.]))
+    >>> ax = hs.plot_solutions(tree, fn=lambda x: x[0] ** 2, ylabel="tau squared")
+    >>> ax.get_ylabel()
+    'tau squared'
     """
     where = "plot_solutions"
     views = {"flows": plot_flows, "jumps": plot_jumps, "domain": plot_time_domain}
@@ -985,26 +1005,57 @@ def plot_solutions(tree, idx=0, *, view="flows", ax=None, label=None, color=None
     branch_kw = _check_kw("branch_kw", branch_kw, where)
     if label is not None and not isinstance(label, str):
         raise TypeError(f"{where}: label must be a str, got {type(label).__name__}")
+    if ylabel is not None and not isinstance(ylabel, str):
+        raise TypeError(f"{where}: ylabel must be a str, got {type(ylabel).__name__}")
+    if fn is not None and view == "domain":
+        raise TypeError(f"{where}: fn= applies to the views 'flows' and 'jumps', not "
+                        f"'domain' (which draws j against t)")
+    if fn is not None and not callable(fn):
+        raise TypeError(f"{where}: fn must be a callable fn(x), fn(x, t) or fn(x, t, j), "
+                        f"got {type(fn).__name__}")
+    if view != "domain" and not (isinstance(idx, (int, np.integer)) and not isinstance(
+            idx, bool)):
+        raise TypeError(f"{where}: idx must be an int (one component, or one output of fn), "
+                        f"got {type(idx).__name__}")
     ax = _axes(ax, where)
     if color is None:
         color = "C0"
     label = f"{len(leaves)} solutions" if label is None else label
+    # the branch points, on the plotted curves: (x coordinate, value)
+    bp = list(getattr(tree, "branch_points", []))
+    if view == "domain":
+        bx = np.array([p[0] for p in bp], dtype=float)
+        by = np.array([p[1] for p in bp], dtype=float)
+    else:
+        bx = np.array([p[0] if view == "flows" else p[1] for p in bp], dtype=float)
+        if fn is None:
+            i = _check_component("idx", idx, leaves[0].state_dim)
+            by = np.array([p[2][i] for p in bp], dtype=float)
+            default_y = _component_names(leaves[0])[i]
+        else:
+            from .system import as_map
+            f = as_map(fn, "fn")
+            a0 = leaves[0]
+            X = np.array([a0.x[0], *[p[2] for p in bp]], dtype=float)
+            T = np.array([a0.t[0], *[p[0] for p in bp]], dtype=float)
+            J = np.array([a0.j[0], *[p[1] for p in bp]], dtype=np.int64)
+            V, names = _eval_fn(f, X, T, J, np.ones(len(X), bool), fn, where)
+            i = _check_component("idx", idx, V.shape[1])
+            by, default_y = V[1:, i], names[i]
+        if ylabel is None:
+            ylabel = default_y
     for k, a in enumerate(leaves):
         kw = dict(ax=ax, color=color, alpha=alpha, legend=False, **line_kw)
         name = [label if k == 0 else "_nolegend_"]
         if view == "domain":
-            views[view](a, labels=name, **kw)
+            views[view](a, labels=name, ylabel=ylabel, **kw)
         else:
-            views[view](a, idx, labels=name, **kw)
-    bp = getattr(tree, "branch_points", [])
+            if fn is not None:
+                kw["fn"] = fn
+            views[view](a, idx, labels=name, ylabel=ylabel, **kw)
     if bp:
-        idx = _check_component("idx", idx, leaves[0].state_dim)
-        xs = np.array([p[0] for p in bp]) if view != "jumps" else \
-            np.array([p[1] for p in bp], dtype=float)
-        ys = np.array([p[1] for p in bp], dtype=float) if view == "domain" else \
-            np.array([p[2][idx] for p in bp])
         st = {"marker": "D", "color": "k", "markersize": 5, "linestyle": "none",
               "zorder": 3, **branch_kw}
-        ax.plot(xs, ys, label="branch points", gid="branch_points", **st)
+        ax.plot(bx, by, label="branch points", gid="branch_points", **st)
     ax.legend()
     return ax

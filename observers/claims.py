@@ -53,7 +53,9 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import functools
 import importlib
+import inspect
 import math
 import numbers
 import pathlib
@@ -70,6 +72,7 @@ __all__ = [
     "VERDICTS",
     "Claim",
     "ClaimResult",
+    "code_location",
     "collect_claims",
     "evaluate",
     "read_csv",
@@ -310,7 +313,8 @@ class ClaimResult:
 
     def row(self) -> dict:
         """The claim and its outcome as a ``claims.csv`` row (keys :data:`CSV_FIELDS`, and
-        ``boolean``, which the report reads and the CSV leaves out)."""
+        ``boolean`` and ``code`` (:func:`code_location` of ``compute``), which the report
+        reads and the CSV leaves out)."""
         c = self.claim
         package = {pid: m for m, pid in PAPER_MODULES.items()}.get(c.paper, "")
         return {"id": c.id, "paper": c.paper, "package": package, "where": c.where,
@@ -319,7 +323,47 @@ class ClaimResult:
                 "reference": c.reference, "tol": c.tol, "tol_why": c.tol_why,
                 "verdict": self.verdict, "expected": c.expected, "passed": self.passed,
                 "reason": c.reason, "seconds": self.seconds, "error": self.error,
-                "boolean": self.boolean}
+                "boolean": self.boolean, "code": code_location(c.compute)}
+
+
+def code_location(fn) -> dict:
+    """Where a claim's value is computed: the function ``fn`` stands for.
+
+    Parameters
+    ----------
+    fn : callable
+        A claim's ``compute`` (a function, a lambda, a closure or a
+        :class:`functools.partial` of one).
+
+    Returns
+    -------
+    dict
+        ``function``: ``"module:qualified name"`` (a lambda is
+        ``module:<lambda>``, its line says which); ``file``: the source
+        file's absolute path, or None; ``line``: the line it starts on, or
+        None.
+
+    Examples
+    --------
+    >>> loc = code_location(code_location)
+    >>> loc["function"], pathlib.Path(loc["file"]).name
+    ('observers.claims:code_location', 'claims.py')
+    """
+    f = fn
+    while isinstance(f, functools.partial):
+        f = f.func
+    f = inspect.unwrap(f)
+    module = getattr(f, "__module__", None) or "?"
+    name = getattr(f, "__qualname__", None) or getattr(f, "__name__", None) or \
+        type(f).__qualname__
+    try:
+        file = inspect.getsourcefile(f)
+        line = inspect.getsourcelines(f)[1]
+    except (TypeError, OSError):        # a builtin, or code without a source file
+        file, line = None, None
+    return {"function": f"{module}:{name}",
+            "file": None if file is None else str(pathlib.Path(file).resolve()),
+            "line": line}
 
 
 def evaluate(claim: Claim) -> ClaimResult:

@@ -10,8 +10,10 @@ part recorded in the folder and writes
   summary table (papers, claims reproduced / differing / not as expected,
   figures, time), then per part its title, authors and venue, each figure
   with its caption (the ``.txt`` beside the PNG), the claims table with
-  verdicts (in words and colour), the errata found, the decisions taken,
-  how long the figures and the claims took, and its console output;
+  verdicts (in words and colour) and, for each claim, the function that
+  computes it (``module:name``, linked to its source file and line), the
+  errata found, the decisions taken, how long the figures and the claims
+  took, and its console output;
 * ``results/claims.csv``: every claim of every part
   (:data:`observers.claims.CSV_FIELDS`), linked from the page.
 
@@ -259,7 +261,13 @@ td.why, td.reason { color: #444; font-size: .92em; }
 .v-differs { background: #fff1cc; color: #6b4a00; }
 .v-error { background: #fbdada; color: #8a1111; }
 .problem { color: #8a1111; font-weight: 600; }
-td.reason, td.why, td.statement { overflow-wrap: anywhere; }
+td.reason, td.why { overflow-wrap: anywhere; }
+.wide { overflow-x: auto; }
+table.claims { min-width: 70em; }
+td.statement { min-width: 18em; max-width: 32em; white-space: normal; overflow-wrap: break-word;
+               hyphens: auto; }
+td.code { min-width: 10em; max-width: 16em; font-size: .88em; }
+td.code code.fn { overflow-wrap: anywhere; }
 .ok { color: #155d22; font-weight: 600; white-space: nowrap; }
 .bad { background: #fbdada; color: #8a1111; font-weight: 700; white-space: nowrap; }
 tr.notpassed td:first-child { border-left: 5px solid #c62828; }
@@ -375,9 +383,30 @@ def _summary(parts: list[Part]) -> list[str]:
     return h
 
 
-def _claims_table(rows: list[dict]) -> list[str]:
-    h = ['<table class="claims">', "<thead><tr><th>claim</th><th>where</th><th>statement</th>"
-         "<th>paper's value</th><th>our value</th><th>tolerance</th><th>verdict</th>"
+def _code_cell(code, outdir: pathlib.Path) -> str:
+    """The function computing a claim (``module:name``), linked to its source
+    file by a path relative to the page (the folder's own copy of the page
+    keeps working where the checkout is), with the line it starts on."""
+    if not code:
+        return '<span class="meta">not recorded</span>'
+    name = f'<code class="fn">{_e(code.get("function", "?"))}</code>'
+    file, line = code.get("file"), code.get("line")
+    if not file:
+        return name
+    try:
+        rel = pathlib.Path(os.path.relpath(file, outdir.resolve())).as_posix()
+        href = _href(rel)
+    except ValueError:                    # another drive: an absolute file URI
+        href = pathlib.Path(file).as_uri()
+    where = f"{pathlib.Path(file).name}" + (f", line {line}" if line else "")
+    anchor = f"#L{line}" if line else ""
+    return f'<a href="{_e(href + anchor)}">{name}</a><br><span class="meta">{_e(where)}</span>'
+
+
+def _claims_table(rows: list[dict], outdir: pathlib.Path) -> list[str]:
+    h = ['<div class="wide"><table class="claims">', "<thead><tr><th>claim</th><th>where</th>"
+         "<th>statement</th><th>computed by</th><th>paper's value</th><th>our value</th>"
+         "<th>tolerance</th><th>verdict</th>"
          "<th>expected</th><th>check</th><th>reason / note</th><th>time</th></tr></thead>",
          "<tbody>"]
     for r in rows:
@@ -400,7 +429,9 @@ def _claims_table(rows: list[dict]) -> list[str]:
             note += (("<br>" if note else "") + f'<span class="problem">{_e(r["error"])}</span>')
         h.append(f'<tr class="{"passed" if r["passed"] else "notpassed"}">'
                  f'<td><code>{_e(r["id"])}</code></td><td>{_e(r["where"])}</td>'
-                 f'<td class="statement">{_e(r["statement"])}</td><td class="num">{paper_v}</td>'
+                 f'<td class="statement">{_e(r["statement"])}</td>'
+                 f'<td class="code">{_code_cell(r.get("code"), outdir)}</td>'
+                 f'<td class="num">{paper_v}</td>'
                  f'<td class="num">{_e(ours)}</td>'
                  f'<td class="why"><span class="num">± {_e(_num(r["tol"]))}</span><br>'
                  f'{_e(r["tol_why"])}</td>'
@@ -408,7 +439,7 @@ def _claims_table(rows: list[dict]) -> list[str]:
                  f'<td>{_e(r["expected"])}</td><td>{check}</td>'
                  f'<td class="reason">{note}</td>'
                  f'<td class="num">{_e(_secs(r["seconds"]))}</td></tr>')
-    h.append("</tbody></table>")
+    h.append("</tbody></table></div>")
     return h
 
 
@@ -548,7 +579,7 @@ def _section(part: Part, outdir: pathlib.Path) -> list[str]:
             h.append(f"<p>{c['reproduced']} reproduced, {c['differs']} differ"
                      f"{', ' + str(c['error']) + ' could not be evaluated' if c['error'] else ''}"
                      f"; {c['total'] - c['failed']} of {c['total']} as expected.</p>")
-            h += _claims_table(part.claims)
+            h += _claims_table(part.claims, outdir)
     h += _falsification(outdir, part)
     h += _items("Errata found", part.errata, "ERRATA", engine)
     h += _items("Decisions taken where the paper is ambiguous", part.decisions, "DECISIONS",

@@ -491,6 +491,21 @@ def run_falsification(name: str, out, *, scale: float = 1.0, seed: int = 0,
     return rows
 
 
+def _one_of(names):
+    """An argparse ``type`` accepting one of ``names`` (argparse's ``choices``
+    with ``nargs="*"`` would list an empty choice in ``--help``)."""
+    names = list(names)
+
+    def check(value):
+        if value not in names:
+            raise argparse.ArgumentTypeError(
+                f"invalid choice: {value!r} (choose from {', '.join(names)})")
+        return value
+
+    check.__name__ = "name"
+    return check
+
+
 def main(argv=None):
     """The command line: ``reproduce [NAME ...] [--out DIR] [--no-claims]``, ``falsify``,
     ``report``."""
@@ -498,8 +513,8 @@ def main(argv=None):
                                 description="Reproduce the papers' results and figures.")
     sub = p.add_subparsers(dest="cmd", required=True)
     r = sub.add_parser("reproduce", help="regenerate figures, claims and the report")
-    r.add_argument("names", nargs="*", choices=[*PAPERS, []], default=[],
-                   help="which to run (default: all)")
+    r.add_argument("names", nargs="*", type=_one_of(PAPERS), default=[], metavar="NAME",
+                   help=f"which parts to run: {', '.join(PAPERS)} (default: all)")
     r.add_argument("--out", default="results", help="output folder (default: results)")
     r.add_argument("--no-claims", action="store_true",
                    help="do not evaluate the papers' claims")
@@ -510,8 +525,9 @@ def main(argv=None):
                         "errata, found by falsification)")
     fal = sub.add_parser("falsify", help="search the papers' theorems for counterexamples "
                                          "(each package's PROBLEMS) and add them to the report")
-    fal.add_argument("names", nargs="*", choices=[*PAPER_MODULES, []], default=[],
-                     help="which papers (default: all)")
+    fal.add_argument("names", nargs="*", type=_one_of(PAPER_MODULES), default=[],
+                     metavar="NAME",
+                     help=f"which papers: {', '.join(PAPER_MODULES)} (default: all)")
     fal.add_argument("--out", default="results", help="output folder (default: results)")
     fal.add_argument("--scale", type=float, default=1.0,
                      help="multiply every budget (default 1: the pinned outcomes)")

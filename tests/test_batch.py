@@ -140,6 +140,45 @@ def test_single_run_bar_shows_t_and_j():
     bar.close()
 
 
+def _one_line(err):
+    """The text a one-line bar left: what follows its last carriage return."""
+    assert "\n" not in err and "\x1b[" not in err, repr(err)   # one line, no cursor moves
+    return err.rstrip("\r").rsplit("\r", 1)[-1]
+
+
+def test_notebook_without_widgets_gets_one_clean_line(monkeypatch, capsys):
+    """A Jupyter kernel without ipywidgets: tqdm's widget bar cannot be made
+    (it raised, and left a half-made bar printing a traceback when
+    collected); the bar is one line of text, a second bar while it is open
+    is refused (a run inside a batch), and a closed bar leaves no stale
+    0% line behind."""
+    from hybridsim import _progress
+    from hybridsim._progress import make_bar
+    monkeypatch.delenv("CI", raising=False)
+    _fake_ipython(monkeypatch, {"IPKernelApp": {}})
+    monkeypatch.setattr(_progress, "_widgets_available", lambda: False)
+    bar = make_bar(None, total=2.0, desc="simulate", unit="t", postfix="j=0", delay=0,
+                   mininterval=0, bar_format="{desc}: t={n:.3g}/{total:.3g}{postfix}")
+    assert bar is not None
+    assert make_bar(None, total=3, desc="simulate_many", unit="run") is None   # nested
+    bar.update(1.5)
+    bar.set_postfix_str("j=2")
+    err = capsys.readouterr().err
+    assert _one_line(err) == "simulate: t=1.5/2, j=2"
+    bar.close()
+    err = capsys.readouterr().err
+    assert _one_line(err).strip() == ""                  # erased: no stale bar
+    assert "Exception ignored" not in err
+    # the line is free again; a run shorter than the bar's delay draws nothing
+    later = make_bar(None, total=1, desc="simulate_many", unit="run")
+    assert later is not None
+    later.close()
+    hs.simulate_many(Decay(), np.ones((3, 1)), t_max=0.1, progress=None)
+    hs.simulate(Decay(), [1.0], t_max=0.1, progress=None)
+    err = capsys.readouterr().err                      # "" unless the machine is slow
+    assert err == "" or _one_line(err).strip() == ""
+
+
 def test_batches_draw_one_bar_over_runs(capsys):
     hs.simulate_many(Decay(), np.ones((3, 1)), t_max=0.1, progress=True)
     err = capsys.readouterr().err

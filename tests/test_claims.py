@@ -333,7 +333,9 @@ def test_paper_package_contract(name):
 def test_claim_result_row_has_the_csv_columns():
     r = evaluate(make())
     assert isinstance(r, ClaimResult)
-    assert tuple(r.row()) == (*CSV_FIELDS, "boolean")
+    assert tuple(r.row()) == (*CSV_FIELDS, "boolean", "code")
+    code = r.row()["code"]                       # where the value is computed
+    assert code["function"].endswith("<lambda>") and code["file"] and code["line"]
 
 
 # ------------------------------------------------- one-sided claims, yes/no --

@@ -1,7 +1,7 @@
 """The compiled path's smoke set: part of the default test command (not slow).
 
 A few systems through ``hybridsim.compiled`` against the Python path and
-closed forms: README's example (the ball, run as README prints it), a timer
+closed forms: the docs' example (the ball, run as docs/compiled.rst prints it), a timer
 with a jump at t_max, NaN guards and overflow, a batch with bad rows, Ctrl-C,
 and the arcs' stats and xdot. On a fresh numba cache the engine's kernels
 compile first (under a minute on two cores); afterwards the set takes seconds.
@@ -25,15 +25,16 @@ from hybridsim.compiled import CompiledSystem, simulate_compiled, simulate_many_
 from hybridsim.library import bouncing_ball_jump_times  # noqa: E402
 
 T = hs.Termination
-README = Path(__file__).resolve().parents[1] / "README.md"
+PAGE = Path(__file__).resolve().parents[1] / "docs" / "compiled.rst"
 
 
 def readme_example():
-    """The first python block of README's section on the compiled path."""
-    text = README.read_text(encoding="utf-8")
-    start = text.index("### The compiled path")
-    block = re.search(r"```python\n(.*?)```", text[start:], re.S)
-    return block.group(1)
+    """The first python block of the compiled path's docs page."""
+    import textwrap
+
+    text = PAGE.read_text(encoding="utf-8")
+    block = re.search(r"^\.\. code-block:: python\n\n((?:   .*\n|\n)+)", text, re.M)
+    return textwrap.dedent(block.group(1))
 
 
 # ------------------------------------------------------------------ maps
@@ -83,9 +84,9 @@ def ball_D(x, t, j, p):
 
 @pytest.fixture(scope="module")
 def readme():
-    """README's example, run as printed: its namespace after the run."""
+    """The compiled page's example, run as printed: its namespace after the run."""
     ns = {}
-    exec(compile(readme_example(), str(README), "exec"), ns)
+    exec(compile(readme_example(), str(PAGE), "exec"), ns)
     return ns
 
 
@@ -100,7 +101,7 @@ def ball_bad():
                           jump_set=ball_D, state_dim=2)
 
 
-# ------------------------------------------------------------------ README's example
+# ------------------------------------------------------------------ the page's example
 def test_readme_example_runs_and_bounces_right(readme):
     arc, arcs, x0s = readme["arc"], readme["arcs"], readme["x0s"]
     assert arc.termination is T.J_MAX and arc.jump_count == 30

@@ -136,6 +136,42 @@ def test_gallery_configuration_names_existing_examples():
     assert '"sphinx-mathjax-offline"' in text   # math needs no network when read
 
 
+def test_benchmarks_page_is_one_dated_run_on_one_named_machine():
+    """benchmarks/run_all.py --page writes the benchmarks page from one run:
+    dated once, the machine named once, every RESULT line in the table,
+    valid reST whatever the figures' characters."""
+    docutils = pytest.importorskip("docutils")
+    import datetime
+
+    from docutils.core import publish_doctree
+
+    spec = importlib.util.spec_from_file_location("run_all", ROOT / "benchmarks" / "run_all.py")
+    run_all = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(run_all)
+    host = run_all.machine()
+    results = [("bench_a.py", "30-bounce ball: 2.8 ms vs *loop* 10.6 ms | 0.27x"),
+               ("bench_a.py", "timer_jump: 50.7 us per jump (`fast`) \\ done"),
+               ("bench_b.py", "no colon here")]
+    status = [("bench_a.py", 0, 12.34), ("bench_b.py", 1, 0.5)]
+    when = datetime.datetime(2026, 11, 29, 8, 35, tzinfo=datetime.UTC)
+    text = run_all.page(results, status, when=when, host=host, argv=["--quick"],
+                        load=("1.00 / 1.00 / 1.00", "2.00 / 1.50 / 1.20"))
+    assert text.count("2026-11-29 08:35 UTC") == 1
+    assert text.count(host["processor"]) == 1 and f"{host['cores']} cores" in text
+    assert "python benchmarks/run_all.py --quick" in text and "1 of 2 scripts" in text
+    doctree = publish_doctree(text, settings_overrides={
+        "report_level": 2, "halt_level": 5, "warning_stream": False})
+    assert [m.astext() for m in doctree.findall(docutils.nodes.system_message)] == []
+    cells = [e.astext() for e in doctree.findall(docutils.nodes.entry)]
+    assert "30-bounce ball" in cells and "2.8 ms vs *loop* 10.6 ms | 0.27x" in cells
+    assert "50.7 us per jump (`fast`) \\ done" in cells and "no colon here" in cells
+    assert "failed (1)" in cells
+    # the committed page: dated, the machine named, the command that rewrites it
+    committed = (DOCS / "benchmarks.rst").read_text(encoding="utf-8")
+    assert re.search(r"on \d{4}-\d{2}-\d{2}", committed)
+    assert "python benchmarks/run_all.py --quick --page docs/benchmarks.rst" in committed
+
+
 # -- slow: a full build ------------------------------------------------------
 
 def _missing_docs_extra():

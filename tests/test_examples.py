@@ -62,14 +62,31 @@ def test_script_from_the_command_line(script, tmp_path, monkeypatch, capsys):
     _check_pngs(out, FIGURES[script])
 
 
-def test_script_default_folder_is_a_temp_dir(tmp_path):
-    env = dict(os.environ, MPLBACKEND="Agg", TMPDIR=str(tmp_path))
+def test_script_default_folder_is_the_working_folder(tmp_path):
+    """With no argument the figures go to $HYBRIDSIM_FIGURES, else to the
+    working folder (never to a folder the user did not ask for)."""
+    env = {k: v for k, v in os.environ.items() if k != "HYBRIDSIM_FIGURES"}
+    # this checkout's package, installed or not
+    path = os.pathsep.join(p for p in (str(EXAMPLES.parent), env.get("PYTHONPATH")) if p)
+    env.update(MPLBACKEND="Agg", TMPDIR=str(tmp_path / "tmp"), PYTHONPATH=path)
+    (tmp_path / "tmp").mkdir()
     res = subprocess.run([sys.executable, str(EXAMPLES / "timer.py")], cwd=tmp_path,
                          capture_output=True, text=True, timeout=120, env=env)
     assert res.returncode == 0, res.stderr
-    folder = Path(res.stdout.strip().splitlines()[-1].removeprefix("figures written to "))
-    assert folder.parent == tmp_path
-    _check_pngs(folder, FIGURES["timer.py"])
+    assert res.stdout.strip().splitlines()[-1] == "figures written to ."
+    _check_pngs(tmp_path, FIGURES["timer.py"])
+    assert not any((tmp_path / "tmp").iterdir())
+
+
+def test_script_folder_from_the_environment(tmp_path, monkeypatch, capsys):
+    out = tmp_path / "from_env"
+    monkeypatch.setenv("HYBRIDSIM_FIGURES", str(out))
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(sys, "argv", [str(EXAMPLES / "timer.py")])
+    runpy.run_path(str(EXAMPLES / "timer.py"), run_name="__main__")
+    assert f"figures written to {out}" in capsys.readouterr().out
+    _check_pngs(out, FIGURES["timer.py"])
+    assert not list(tmp_path.glob("*.png"))
 
 
 def test_bouncing_ball(tmp_path):

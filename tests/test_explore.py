@@ -431,8 +431,8 @@ def test_a_check_with_no_sample_in_range_on_any_solution_is_an_error():
 
 
 def test_jittery_sampling_every_gap_sequence_contracts():
-    """README's example: x' = x + u, u = -2 x held between samples whose gaps
-    h are 0.1, 0.2 or 0.3. Between samples x(s) = (2 - e^s) x_k, so every
+    """The guide's example (docs/guide/explore.rst): x' = x + u, u = -2 x held
+    between samples whose gaps h are 0.1, 0.2 or 0.3. Between samples x(s) = (2 - e^s) x_k, so every
     solution satisfies |x(t, j)| <= (2 - e^0.1)^j |x0| (the worst contraction
     per sample). 3^5 gap sequences; the state after j samples is the product
     of the factors (order-free), so merged the tree ends at the C(7, 2) = 21
@@ -471,6 +471,61 @@ def test_plot_solutions_draws_every_leaf_and_marks_branch_points(view):
                                       [p[1] for p in tree.branch_points])
     with pytest.raises(ValueError, match="view must be one of"):
         hs.plot_solutions(tree, view="phase")
+
+
+def _on_a_curve(ax, x, y):
+    """Whether (x, y) is a point of one of the Axes' flow lines (to 1e-12)."""
+    for ln in ax.lines:
+        if ln.get_gid() == "flows":
+            xs, ys = np.asarray(ln.get_xdata(), float), np.asarray(ln.get_ydata(), float)
+            if np.any((np.abs(xs - x) <= 1e-12) & (np.abs(ys - y) <= 1e-12)):
+                return True
+    return False
+
+
+@pytest.mark.parametrize("view", ["flows", "jumps"])
+@pytest.mark.parametrize("fn", [None, "square"])
+def test_plot_solutions_labels_and_puts_branch_points_on_the_curves(view, fn):
+    tree = hs.explore(window_timer(), [0.0], t_max=5.0, j_max=2, dwell_grid=[0.5],
+                      merge_tol=None)
+
+    def square(x):
+        return x[0] ** 2
+
+    ax = hs.plot_solutions(tree, view=view, fn=square if fn else None)
+    # the value axis names what is drawn, never matplotlib's "_nolegend_"
+    assert ax.get_ylabel() == ("square" if fn else "$x_1$")
+    (bp,) = [ln for ln in ax.lines if ln.get_gid() == "branch_points"]
+    xs, ys = np.asarray(bp.get_xdata(), float), np.asarray(bp.get_ydata(), float)
+    assert len(xs) == len(tree.branch_points) > 0
+    for (t, j, x), bx, by in zip(tree.branch_points, xs, ys):
+        assert bx == (t if view == "flows" else j)
+        assert by == (x[0] ** 2 if fn else x[0])
+        assert _on_a_curve(ax, bx, by), (bx, by)
+    # the flow lines themselves are fn's values where fn is given
+    flows = [ln for ln in ax.lines if ln.get_gid() == "flows"]
+    if fn and view == "flows":
+        leaf = next(iter(tree))
+        y = np.asarray(flows[0].get_ydata(), float)
+        assert np.nanmax(y) == pytest.approx(np.max(leaf.x[:, 0] ** 2), abs=1e-12)
+    texts = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert texts == ["9 solutions", "branch points"]
+    ax = hs.plot_solutions(tree, view=view, ylabel="timer")
+    assert ax.get_ylabel() == "timer"
+
+
+def test_plot_solutions_refuses_what_it_cannot_draw():
+    tree = hs.explore(window_timer(), [0.0], t_max=3.0, j_max=1, merge_tol=None)
+    with pytest.raises(TypeError, match="fn= applies to the views"):
+        hs.plot_solutions(tree, view="domain", fn=lambda x: x[0])
+    with pytest.raises(TypeError, match="fn must be a callable"):
+        hs.plot_solutions(tree, fn=3.0)
+    with pytest.raises(TypeError, match="idx must be an int"):
+        hs.plot_solutions(tree, idx=[0])
+    with pytest.raises(ValueError, match="idx"):
+        hs.plot_solutions(tree, idx=1, fn=lambda x: x[0])
+    with pytest.raises(TypeError, match="ylabel must be a str"):
+        hs.plot_solutions(tree, ylabel=1)
 
 
 # ---------------------------------------------------------------- the example

@@ -1,9 +1,10 @@
-"""README.md says what the code does: its commands, its pointers, and its numbers.
+"""README.md says what the code does: its commands, its pointers, its length.
 
-The numbers README quotes from the papers' reproductions are tied here to
-the claims that produce them, so a claim that moves fails a test until
-README follows: the pinned values (a claim's printed or reference value) in
-the default suite, our measured values (which need the runs) in the slow one.
+The numbers the documentation quotes from the papers' reproductions (each
+package's section of ``docs/observers.rst``) are tied here to the claims
+that produce them, so a claim that moves fails a test until the text
+follows: the pinned values (a claim's printed or reference value) in the
+default suite, our measured values (which need the runs) in the slow one.
 """
 from __future__ import annotations
 
@@ -14,7 +15,9 @@ import pytest
 
 from observers.claims import PAPER_MODULES, collect_claims, evaluate
 
-README = (pathlib.Path(__file__).resolve().parents[1] / "README.md").read_text()
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+README = (ROOT / "README.md").read_text()
+OBSERVERS = (ROOT / "docs" / "observers.rst").read_text()
 
 
 @pytest.fixture(scope="module")
@@ -23,7 +26,22 @@ def claims():
 
 
 def _row(module):
-    return next(line for line in README.splitlines() if line.startswith(f"| `{module}` |"))
+    """A paper package's section of docs/observers.rst, its whitespace collapsed."""
+    m = re.search(rf"^``{module}``\n-+\n(.*?)(?=^\.\. _observers-|\Z)", OBSERVERS,
+                  flags=re.S | re.M)
+    assert m, f"docs/observers.rst has no section for {module}"
+    return " ".join(m.group(1).split())
+
+
+def test_readme_is_one_page():
+    """A newcomer's first page: at most 200 lines, its times filled in, the
+    question "which path do I use" answered in a table."""
+    assert len(README.splitlines()) <= 200, len(README.splitlines())
+    for placeholder in ("WALL_TESTS", "CPU_TESTS", "WALL_MAIN", "CPU_MAIN", "DOCS_BUILD_TIME"):
+        assert placeholder not in README
+    table = README.split("## Which path when", 1)[1].split("\n## ", 1)[0]
+    for path in ("Python", "vectorized", "compiled"):
+        assert re.search(rf"^\| \*\*{path}", table, flags=re.M), path
 
 
 def test_exactly_two_setup_commands():
@@ -35,11 +53,39 @@ def test_exactly_two_setup_commands():
         'python -m pip install ".[lmi,test]" && python -m pytest -q']
 
 
+def test_ten_line_example_runs_as_printed():
+    """README's example block, run as printed (Agg backend): the ball's first
+    bounces at the closed-form times, to the engine's event accuracy."""
+    import matplotlib
+    import numpy as np
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from hybridsim.library import bouncing_ball_jump_times
+
+    block = README.split("## Ten lines: define, simulate, plot", 1)[1]
+    code = block.split("```python\n", 1)[1].split("```", 1)[0]
+    assert len(code.strip().splitlines()) <= 14
+    ns = {}
+    exec(compile(code, "README.md", "exec"), ns)
+    plt.close("all")
+    arc = ns["arc"]
+    assert arc.jump_count == 20 and arc.termination.name == "J_MAX"
+    # default rtol 1e-6, but RK45 integrates the parabola exactly: 1e-9 on t_k
+    np.testing.assert_allclose(arc.jump_times, bouncing_ball_jump_times(1.0, 20), rtol=0,
+                               atol=1e-9)
+    assert [a.get_ylabel() for a in ns["axs"]] == ["height (m)", "velocity (m/s)"]
+
+
 def test_points_only_inside_the_repository():
     assert "../" not in README and "/work/" not in README
-    for target in re.findall(r"`((?:hybridsim|observers|tests|benchmarks|examples|docs)/"
-                             r"[\w./-]+\.(?:py|rst|md))`", README):
-        assert (pathlib.Path(__file__).resolve().parents[1] / target).exists(), target
+    targets = re.findall(r"`((?:hybridsim|observers|tests|benchmarks|examples|docs)/"
+                         r"[\w./-]+\.(?:py|rst|md|png))`", README)
+    targets += re.findall(r"\]\(((?:docs|examples|benchmarks)/[\w./-]+)\)", README)
+    assert targets
+    for target in targets:
+        assert (ROOT / target).exists(), target
 
 
 def test_paper_ids_explained():
@@ -70,7 +116,7 @@ MEASURED = [
     ("dynamic_gain", "000-fig1a-exact-after-T", lambda v: f"error after T {sci(v)}"),
     ("dynamic_gain", "000-fig1a-settling-gamma2-1", "settles at {:.2f} s"),
     ("dynamic_gain", "000-fig1a-1e-6-crossing-gamma2-1", "exceeds 1e-6 at {:.2f} s"),
-    ("dynamic_gain", "000-fig2-blowup-gamma2-0", "`BLOWUP` at t = {:.2f}"),
+    ("dynamic_gain", "000-fig2-blowup-gamma2-0", "``BLOWUP`` at t = {:.2f}"),
     ("gramian_delay", "004-thm1-exact-k75",
      lambda v: f"exact to {sci(v)} over the whole horizon"),
 ]

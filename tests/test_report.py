@@ -186,6 +186,21 @@ def test_page_structure(outdir):
         assert f"v-{row['verdict']}" in verdict["class"].split()       # ... and in colour
         assert got["check"]["text"] == ("✓ as expected" if row["passed"]
                                         else "✗ NOT as expected")
+    # each claim names the function computing it, linked to its source file and line
+    page_links = [h for h in p.links if h and "#L" in h]
+    assert len(page_links) == 5
+    for cells, link in zip(claims[0]["rows"], page_links, strict=True):
+        got = dict(zip(head, cells, strict=True))["computed by"]
+        assert got["class"] == "code"
+        assert got["text"].startswith(f"{_claims.__module__}:_claims.<locals>.")
+        target, line = link.split("#L")
+        assert (outdir / target).resolve() == pathlib.Path(__file__).resolve()
+        assert f"test_report.py, line {line}" in got["text"]
+        assert "compute=" in pathlib.Path(__file__).read_text().splitlines()[int(line) - 1] \
+            or "def c(" in pathlib.Path(__file__).read_text().splitlines()[int(line) - 1]
+    # the statements wrap in a column of readable width; a wide table scrolls
+    assert re.search(r"td\.statement \{[^}]*min-width: 18em;[^}]*white-space: normal", text)
+    assert '<div class="wide"><table class="claims">' in text
     paper_cells = [dict(zip(head, c, strict=True))["paper's value"]["text"]
                    for c in claims[0]["rows"]]
     assert paper_cells[2].startswith("none printed") and "reference 0" in paper_cells[2]
@@ -230,6 +245,22 @@ def test_bad_arguments_are_named(tmp_path):
         Part(name="a/b")
     with pytest.raises(ValueError, match="name must be one of"):
         rp.run_part("nope", tmp_path)
+
+
+@pytest.mark.parametrize("cmd, names", [("reproduce", rp.PAPERS),
+                                         ("falsify", rp.PAPER_MODULES)])
+def test_command_line_help_lists_each_name_once_and_no_empty_choice(cmd, names, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        rp.main([cmd, "--help"])
+    assert exit_.value.code == 0
+    out = capsys.readouterr().out
+    assert "[]" not in out and ",}" not in out and "{" not in out
+    listed = " ".join(out.split())               # argparse wraps the help text
+    assert f"{', '.join(names)} (default: all)" in listed
+    with pytest.raises(SystemExit) as exit_:
+        rp.main([cmd, "nope"])
+    assert exit_.value.code == 2
+    assert "invalid choice: 'nope' (choose from " in capsys.readouterr().err
 
 
 # ------------------------------------------------ the runner, on fake papers --

@@ -356,11 +356,30 @@ def test_refine_adds_interior_samples_on_the_flow():
     np.testing.assert_allclose(a5.select(j=0).x[:, 0], exact, atol=1e-9)
 
 
-def test_progress_bar_runs(capsys):
+def test_progress_bar_runs(capsys, monkeypatch):
+    """The bar follows the run (t on the bar, j after it; or jumps when t_max
+    is infinite), reaches the run's end and is erased when the run ends."""
+    from hybridsim import _progress
+    bars, make = [], _progress.make_bar
+
+    def recording(*args, **kwargs):
+        bar = make(*args, mininterval=0, **kwargs)
+        bars.append(bar)
+        return bar
+
+    monkeypatch.setattr(_progress, "make_bar", recording)
     arc = hs.simulate(timer(), [0.0], t_max=3.5, progress=True)
     assert arc.jump_count == 3
+    (bar,) = bars
+    assert bar.n == pytest.approx(3.5) and bar.total == pytest.approx(3.5)
+    assert bar.postfix == "j=3" and bar.disable          # closed
+    err = capsys.readouterr().err
+    assert "simulate: " in err and "t=0/3.5, j=0" in err
+    assert err.rstrip("\r").rsplit("\r", 1)[-1].strip() == ""        # erased at the end
     arc = hs.simulate(timer(), [0.0], t_max=np.inf, j_max=4, progress=True)
     assert arc.jump_count == 4
+    assert bars[1].n == 4 and bars[1].total == 4 and bars[1].unit == "jump"
+    assert "4/4" in capsys.readouterr().err
 
 
 def test_random_priority_jumps_only_at_entry_or_exit_of_overlap():
