@@ -370,8 +370,8 @@ def test_jump_from_the_guards_zero_without_flow_is_named():
 
 
 def test_zeno_accumulation_warns_with_the_last_jump():
-    # graze_tol=0: near the accumulation the impacts graze (v -> 0); here
-    # only the Zeno warning is under test
+    # graze_tol=0: only the Zeno warning is under test (the default
+    # tolerance: test_a_zeno_ball_is_zeno_not_grazing)
     with pytest.warns(SensitivityWarning, match=r"Zeno accumulation.*j=\d+"):
         sarc = simulate_sensitivity(BouncingBall(), [H0, 0.0], t_max=10.0, graze_tol=0.0)
     assert sarc.termination is hs.Termination.ZENO
