@@ -408,9 +408,11 @@ class Finding:
     ``cause`` is the run's termination cause (``"BLOWUP"``, ``"MAP_ERROR"``...,
     any not in ``allow``), ``"RAISED"`` (the run raised), ``"NOT_AN_ARC"``
     (the run returned something else) or ``"CLAIM_RAISED"`` (the claim
-    raised on the run's arc); ``message`` names the exception's type, its
-    text and where it was raised; ``exception`` is the exception itself
-    (without its traceback, so that findings hold no arcs), or None.
+    raised on the run's arc); ``message`` says why (the run's message, or
+    the exception's type, text and where it was raised); ``exception`` is
+    the exception that was raised (without its traceback, so that findings
+    hold no arcs), or None for a termination cause (the worst run's arc
+    keeps its own, ``result.arc.exception``).
     """
 
     point: Point
@@ -614,8 +616,7 @@ class _Evaluator:
             self.interrupted = True
             return None, None
         if isinstance(cause, Termination) and cause.name not in self.allow:
-            self.findings.append(Finding(point, cause.name, arc.message or "",
-                                         arc.exception))
+            self.findings.append(Finding(point, cause.name, arc.message or ""))
             return -math.inf, None
         try:
             m = self.claim(arc)
