@@ -823,6 +823,7 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
         Termination causes that are ordinary ends of a run; any other cause
         (a blow-up, a map error, a run that raised) is a finding: recorded
         in ``findings`` with its point and counted as margin -inf.
+        ``CANCELED`` is neither: a run Ctrl-C cut short ends the search.
     stop : bool
         Stop at the first counterexample (default); False searches the whole
         budget for the worst one.
