@@ -15,6 +15,8 @@ import math
 import os
 import signal
 import sys
+import threading
+import time
 import tracemalloc
 import types
 
@@ -104,6 +106,38 @@ def test_ctrl_c_inside_a_run_ends_the_search_without_a_finding(sigint, stop, at)
     assert res.verdict == "none found" and res.margin == 1.0 and not res.findings
     assert res.evaluations == 6 and res.history.tolist() == [1.0] * 6
     assert "stopped: interrupted" in repr(res)
+
+
+class KillFromAThread:
+    """At its ``at``-th call, asks a helper thread to send one SIGINT to this
+    process (os.kill) and waits for it (at most 120 s): the signal arrives
+    from another thread at a point the test chooses, not after a delay."""
+
+    def __init__(self, at):
+        self.at, self.calls = at, 0
+
+    def __call__(self):
+        self.calls += 1
+        if self.calls != self.at:
+            return
+        threading.Thread(target=os.kill, args=(os.getpid(), signal.SIGINT)).start()
+        for _ in range(12000):             # KeyboardInterrupt ends this wait
+            time.sleep(0.01)
+        raise AssertionError("SIGINT from the helper thread never arrived")
+
+
+def test_ctrl_c_from_another_thread_ends_the_search(sigint):
+    runs = [0]
+    hit = KillFromAThread(3)
+
+    def run(p):
+        runs[0] += 1
+        return hs.simulate(SignalTimer(p["period"], hit if runs[0] == 4 else lambda: None),
+                           [0.0], t_max=2.0, j_max=1, warn=False)
+    res = falsify(run, SPACE, _holds, budget=50, seed=0, stop=False, method="random",
+                  popsize=10, progress=False)
+    assert res.interrupted and res.evaluations == 3 and not res.findings
+    assert res.verdict == "none found"
 
 
 def test_ctrl_c_in_the_claim_keeps_the_counterexample_found_before(sigint):
