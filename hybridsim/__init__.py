@@ -18,7 +18,7 @@ from . import library as library
 from . import rules as rules
 from . import testing as testing
 from ._version import __version__ as __version__
-from .arc import HybridArc, Termination
+from .arc import HybridArc, Termination, load
 from .batch import BatchError, BatchWarning, simulate_many, sweep
 from .batch_vectorized import simulate_vectorized
 from .compose import Interconnection, LinearInput, LinearPlant, connect, network
@@ -46,5 +46,5 @@ __all__ = [
     "simulate_many", "sweep", "simulate_vectorized", "BatchError", "BatchWarning",
     "plot_flows", "plot_jumps", "plot_hybrid", "plot_phase", "plot_time_domain",
     "falsify", "simulate_sensitivity", "explore", "SolutionTree", "Choice", "ExploreEnd",
-    "plot_solutions",
+    "plot_solutions", "load",
 ]

@@ -16,6 +16,7 @@ import math
 import numbers
 import os
 import pickle
+import stat
 import struct
 import zipfile
 from pathlib import Path
@@ -25,13 +26,19 @@ import numpy as np
 
 from .rules import Termination  # one source of the causes
 
-__all__ = ["HybridArc", "Termination", "ArcValues", "ArcFileError", "FORMAT_VERSION"]
+__all__ = ["HybridArc", "Termination", "ArcValues", "ArcFileError", "FORMAT_VERSION", "load",
+           "MAX_FILE_BYTES"]
 
 #: Version of the ``.npz`` layout written by :meth:`HybridArc.save`.
 #: 1: t, j, x, termination, message, comp_names, comp_bounds (no version key).
 #: 2: adds format_version, components (JSON, any hashable names), xdot, stats,
-#:    system_description.
+#:    system_description; choices (JSON, optional, like xdot: the choices of a
+#:    leaf of :func:`hybridsim.explore`).
 FORMAT_VERSION = 2
+#: What :meth:`HybridArc.load` reads at most by default: the file, and the
+#: arrays it declares once decompressed (16 GiB; ``max_bytes=`` for more)
+MAX_FILE_BYTES = 1 << 34
+_CHOICE_KINDS = ("jump", "flow", "dwell")
 
 _AT_JUMP = ("start", "end", "mean", "nan", "both")
 #: validate every arc an integration path returns (``HYBRIDSIM_CHECK_ARCS=1``;
@@ -192,16 +199,20 @@ def _read_member(z, info, key, size, bad):
     return arr.reshape(shape, order="F" if fortran else "C")
 
 
-def _read_npz(fh, bad):
+def _read_npz(fh, bad, max_bytes=MAX_FILE_BYTES):
     """The arrays of an arc file open in ``fh`` and its format version.
 
     Raises ``bad(...)`` for what it recognises; anything else a damaged
-    file raises is named by the caller.
+    file raises is named by the caller. The file, and the arrays its members
+    declare (decompressed), hold at most ``max_bytes``.
     """
     start = fh.tell()
     head = fh.read(6)
     size = fh.seek(0, os.SEEK_END) - start
     fh.seek(start)
+    if size > max_bytes:
+        raise bad(f"the file holds {size} bytes, more than max_bytes = {max_bytes}; pass "
+                  f"max_bytes= to read a larger arc")
     if head == b"\x93NUMPY":
         raise bad("not an .npz archive (a single .npy array?); expected a file "
                   "written by HybridArc.save")
@@ -244,12 +255,101 @@ def _read_npz(fh, bad):
         want = [k for k in need if k != "format_version"]
         if version > 1 and "xdot" in members:
             want.append("xdot")
+        if version > 1 and "choices" in members:
+            want.append("choices")
+        declared = sum(members[k].file_size for k in want if k in members)
+        if declared > max_bytes:
+            raise bad(f"its arrays declare {declared} bytes once decompressed, more than "
+                      f"max_bytes = {max_bytes}; pass max_bytes= to read a larger arc")
         # anything else is damage (a member's name changed) or another format
         extra = sorted(set(members) - set(want) - {"format_version"})
         if extra or any(not members[k].filename.endswith(".npy") for k in want):
             raise bad(f"unexpected members {extra or sorted(members)} for format version "
                       f"{version}; expected {need} (and xdot) as .npy arrays")
         return {k: _read_member(z, members[k], k, size, bad) for k in want}, version
+
+
+def _regular(st, name):
+    """Refuse what is not a regular file (a FIFO, a device, a socket...)."""
+    if not stat.S_ISREG(st.st_mode):
+        kind = ("a FIFO" if stat.S_ISFIFO(st.st_mode) else
+                "a character device" if stat.S_ISCHR(st.st_mode) else
+                "a block device" if stat.S_ISBLK(st.st_mode) else
+                "a socket" if stat.S_ISSOCK(st.st_mode) else
+                "a directory" if stat.S_ISDIR(st.st_mode) else "not a regular file")
+        raise ArcFileError(f"load: {name!r}: is {kind}, not a regular file written by "
+                           f"HybridArc.save")
+
+
+def _check_made(arc, where, empty_ok=False):
+    """Refuse an arc no run of the engine makes (after :meth:`HybridArc.validate`)."""
+    if arc.x.shape[1] == 0:
+        raise ValueError(f"{where}: the state has dimension 0 (x of shape {arc.x.shape}); "
+                         f"a hybrid system's state has at least one component")
+    if len(arc.j) and int(arc.j.min()) < 0:
+        k = int(np.argmax(arc.j < 0))
+        raise ValueError(f"{where}: sample {k} has the negative jump count j = {arc.j[k]}")
+    if not len(arc.t) and arc.termination is not None and not empty_ok:
+        raise ValueError(f"{where}: no samples, yet the run ended {arc.termination.name}: a "
+                         f"run has at least its initial sample (an empty window is "
+                         f"saved without a termination cause)")
+
+
+def _encode_choices(arc):
+    """An explore leaf's choices as JSON, or None."""
+    choices = arc.__dict__.get("choices")
+    if choices is None:
+        return None
+    return json.dumps([[float(c.t), int(c.j), np.asarray(c.x, dtype=float).tolist(),
+                        str(c.kind), c.value if c.value is None or isinstance(c.value, int)
+                        else float(c.value)] for c in choices])
+
+
+def _decode_choices(text, n, bad):
+    """An explore leaf's choices from their JSON form, strictly."""
+    from .explore import Choice
+    try:
+        raw = json.loads(text)
+    except (ValueError, RecursionError):
+        raw = None
+    out = []
+    for c in raw if isinstance(raw, list) else [None]:
+        ok = isinstance(c, list) and len(c) == 5
+        if ok:
+            t, j, x, kind, value = c
+            ok = (isinstance(t, (int, float)) and math.isfinite(t)
+                  and isinstance(j, int) and not isinstance(j, bool) and j >= 0
+                  and isinstance(x, list) and len(x) == n
+                  and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in x)
+                  and kind in _CHOICE_KINDS
+                  and (value is None or (isinstance(value, (int, float))
+                                         and not isinstance(value, bool))))
+        if not ok:
+            raise bad(f"choices are not of the expected form (a list of [t, j, x of "
+                      f"{n} floats, kind in {list(_CHOICE_KINDS)}, value]): "
+                      f"{str(c)[:80]}")
+        out.append(Choice(float(t), j, np.array(x, dtype=float), kind, value))
+    return out
+
+
+def load(path, *, max_bytes: int = MAX_FILE_BYTES):
+    """Load what :meth:`HybridArc.save` wrote: a :class:`HybridArc` (an
+    explore leaf with its ``choices``). The file format holds arcs only.
+
+    Parameters and errors as :meth:`HybridArc.load`.
+
+    Examples
+    --------
+    >>> import os, tempfile, hybridsim as hs
+    >>> tree = hs.explore(hs.HybridSystem.from_functions(
+    ...     f=lambda x: np.array([1.0]), g=lambda x: np.array([0.0]),
+    ...     C=lambda x: x[0] <= 2.0, D=lambda x: x[0] >= 1.0, state_dim=1),
+    ...     [0.0], t_max=3.0, j_max=1)
+    >>> path = tree.leaves[0].save(os.path.join(tempfile.mkdtemp(), "leaf"))
+    >>> [str(c) for c in hs.load(path).choices]
+    ['jump to successor 0 at (t=1, j=0)']
+    """
+    return HybridArc.load(path, max_bytes=max_bytes)
 
 
 class HybridArc:
@@ -1329,7 +1429,9 @@ class HybridArc:
         Raises
         ------
         ValueError
-            When the arc is not valid (:meth:`validate`); nothing is written.
+            When the arc is not valid (:meth:`validate`), or not one the
+            engine makes (a state of dimension 0, a negative jump count);
+            nothing is written.
         IsADirectoryError
             When ``path`` names a directory (``"results/"``, an existing
             directory, or one named ``path + ".npz"``).
@@ -1338,8 +1440,10 @@ class HybridArc:
         -----
         Stores t, j, x, the termination and message, the components (any
         names of str, int, float or tuples of them), xdot and stats (as JSON)
-        when present, and the system's description. Not stored: the system,
-        the dense outputs, the exception (its text is in the message).
+        when present, the system's description, and an explore leaf's
+        ``choices``. Not stored: the system, the dense outputs, the exception
+        (its text is in the message); an empty arc (a window with no
+        samples) is stored without its termination cause.
 
         Examples
         --------
@@ -1353,12 +1457,15 @@ class HybridArc:
         """
         target = self._npz_path(path)
         self.validate(where="save")
+        _check_made(self, "save", empty_ok=True)
         comps = [] if not self.components else [
             [_encode_name(k), s.start, s.stop] for k, s in self.components.items()]
+        # an empty window (restrict) has no end: saved without a cause
+        term = self.termination.name if self.termination and len(self.t) else ""
         data = dict(
             format_version=np.array(FORMAT_VERSION, dtype=np.int64),
             t=self.t, j=self.j, x=self.x,
-            termination=np.array(self.termination.name if self.termination else ""),
+            termination=np.array(term),
             message=np.array(self.message or ""),
             components=np.array(json.dumps(comps)),
             stats=np.array("" if self.stats is None else
@@ -1366,17 +1473,26 @@ class HybridArc:
             system_description=np.array(self.system_description or ""))
         if self.xdot is not None:
             data["xdot"] = self.xdot
+        choices = _encode_choices(self)
+        if choices is not None:
+            data["choices"] = np.array(choices)
         np.savez_compressed(target, **data)
         return target
 
     @classmethod
-    def load(cls, path):
+    def load(cls, path, *, max_bytes: int = MAX_FILE_BYTES):
         """Load and validate an arc written by :meth:`save`.
 
         Parameters
         ----------
         path : str, path-like or binary file
             When ``path`` does not exist and ``path + ".npz"`` does, that file.
+            It must be a regular file (or a symlink to one): a FIFO, a
+            device (``/dev/zero``), a socket or a directory is refused before
+            anything is read.
+        max_bytes : int
+            The most the file, and its arrays once decompressed, may hold
+            (default :data:`MAX_FILE_BYTES`, 16 GiB).
 
         Returns
         -------
@@ -1396,31 +1512,52 @@ class HybridArc:
             this hybridsim reads), arrays of the wrong
             dtype or shape or declaring more data than they hold, object
             arrays (pickled data is never loaded), components/stats that are
-            not JSON of the expected form, an unknown termination name, and
-            samples that break :meth:`validate`.
+            not JSON of the expected form, an unknown termination name,
+            samples that break :meth:`validate`, and arcs no run of the
+            engine makes (a state of dimension 0, a negative jump count, no
+            samples with a termination cause); a path that is not a regular
+            file, or more than ``max_bytes``.
 
         Examples
         --------
         See :meth:`save`.
         """
+        if isinstance(max_bytes, bool) or not isinstance(max_bytes, (int, np.integer)) \
+                or max_bytes < 1:
+            raise ValueError(f"load: max_bytes must be a positive int, got {max_bytes!r}")
         if hasattr(path, "read"):
-            return cls._load_from(path, getattr(path, "name", repr(path)))
+            name = getattr(path, "name", repr(path))
+            try:
+                fd = path.fileno()
+            except (AttributeError, OSError, ValueError):
+                fd = None                   # in memory (BytesIO): bounded already
+            if fd is not None:
+                _regular(os.fstat(fd), name)
+            return cls._load_from(path, name, max_bytes)
         p = Path(os.fspath(path))
         if not p.exists() and p.suffix != ".npz" and p.with_name(p.name + ".npz").exists():
             p = p.with_name(p.name + ".npz")
         if not p.exists():
             raise FileNotFoundError(f"load: no such file {str(p)!r}"
                                     + ("" if p.suffix == ".npz" else " (nor with .npz)"))
-        with open(p, "rb") as fh:
-            return cls._load_from(fh, str(p))
+        # opened without blocking (a FIFO with no writer) and checked before a
+        # byte is read: a device or a pipe never ends
+        fd = os.open(p, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
+        try:
+            _regular(os.fstat(fd), str(p))
+        except BaseException:
+            os.close(fd)
+            raise
+        with os.fdopen(fd, "rb") as fh:
+            return cls._load_from(fh, str(p), max_bytes)
 
     @classmethod
-    def _load_from(cls, fh, name):
+    def _load_from(cls, fh, name, max_bytes=MAX_FILE_BYTES):
         def bad(msg):
             return ArcFileError(f"load: {name!r}: {msg}")
 
         try:
-            arrays, version = _read_npz(fh, bad)
+            arrays, version = _read_npz(fh, bad, max_bytes)
             return cls._from_arrays(arrays, version, bad)
         except ArcFileError:
             raise
@@ -1501,8 +1638,11 @@ class HybridArc:
         arc.system_description = desc
         try:
             arc.validate(where="")
+            _check_made(arc, "")
         except ValueError as e:
             raise bad(str(e)[2:]) from None
+        if "choices" in d:
+            arc.choices = _decode_choices(scalar_str("choices"), n, bad)
         return arc
 
     def to_pandas(self, names=None):

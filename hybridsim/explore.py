@@ -47,7 +47,7 @@ import numpy as np
 
 from .arc import HybridArc
 from .options import check_count, check_map_value, check_real, check_x0
-from .rules import MapError, SimulationWarning, Termination, event_tolerance, warns
+from .rules import MapError, SimulationError, SimulationWarning, Termination, event_tolerance, warns
 from .solve import simulate
 from .system import HybridSystem, successors
 
@@ -62,6 +62,9 @@ class ExploreEnd(enum.Enum):
                     "was followed: raise it, lower t_max/j_max or coarsen dwell_grid")
     MAX_SECONDS = ("the time budget (max_seconds) was spent before every branch was "
                    "followed: raise it, lower t_max/j_max or coarsen dwell_grid")
+    INTERRUPTED = ("interrupted (KeyboardInterrupt): the branches followed so far are "
+                   "kept, the branch under way ends CANCELED with its arc so far, the "
+                   "others are pending")
 
     @property
     def message(self) -> str:
@@ -356,7 +359,10 @@ def explore(system: HybridSystem, x0, t_max: float, j_max: float = math.inf, *,
         At most this many branches (runs of the engine); then the
         exploration ends with ``tree.end = ExploreEnd.MAX_BRANCHES``.
     max_seconds : float
-        Wall-time budget; then ``ExploreEnd.MAX_SECONDS``.
+        Wall-time budget; then ``ExploreEnd.MAX_SECONDS``. Ctrl-C
+        (KeyboardInterrupt) ends the exploration too, with what was explored
+        (``ExploreEnd.INTERRUPTED``: the branch under way a leaf ending
+        ``CANCELED``, the others pending).
     throw : bool
         Raise :class:`hybridsim.MapError` when a branch ends on a user map's
         error (its message names the branch's choices); False: that leaf
@@ -498,9 +504,39 @@ class _Explorer:
                 break
             node = self.nodes[queue.popleft()]
             runs += 1
-            queue.extend(self._expand(node))
+            count = len(self.nodes)
+            try:
+                queue.extend(self._expand(node))
+            except (KeyboardInterrupt, SimulationError) as e:
+                # Ctrl-C between the engine's runs, or as one started (the engine's
+                # SimulationError from it): this branch is the one under way
+                if isinstance(e, SimulationError) and not isinstance(e.__cause__,
+                                                                     KeyboardInterrupt):
+                    raise
+                self._cancel(node, count)
+                end = ExploreEnd.INTERRUPTED
+                break
+            if node.arc is not None and node.arc.termination is Termination.CANCELED:
+                end = ExploreEnd.INTERRUPTED    # Ctrl-C inside the branch's run
+                break
         return SolutionTree(self.system, self.nodes, end, self.merges,
                             time.perf_counter() - clock)
+
+    def _cancel(self, node, count):
+        """A node whose expansion Ctrl-C cut short: a CANCELED leaf (its run's
+        arc, or its start), its new children dropped."""
+        for k in range(count, len(self.nodes)):
+            if self.nodes[k].index in node.children:
+                node.children.remove(self.nodes[k].index)
+        del self.nodes[count:]
+        if node.arc is None:
+            t, j, x = node.start
+            node.arc = self._leaf_arc(t, j, np.asarray(x, dtype=float), Termination.CANCELED,
+                                      Termination.CANCELED.message)
+        else:
+            node.arc.termination = Termination.CANCELED
+            node.arc.message = Termination.CANCELED.message
+        node.end = "leaf"
 
     # ------------------------------------------------------------------ one branch
     def _simulate(self, x, t, j, first, pre):

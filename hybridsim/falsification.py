@@ -41,15 +41,18 @@ first jump comes by t = 1.1":
 """
 from __future__ import annotations
 
+import concurrent.futures
 import dataclasses
 import itertools
 import math
 import numbers
 import time
+import traceback
 from collections.abc import Callable, Mapping
 
 import numpy as np
 
+from .arc import HybridArc
 from .rules import Termination
 
 __all__ = ["Interval", "Box", "PiecewiseConstant", "Sinusoids", "Gaps", "Space", "Point",
@@ -400,11 +403,22 @@ class Space:
 @dataclasses.dataclass(frozen=True)
 class Finding:
     """A run that failed inside the search: its point and why (counted as a
-    counterexample, margin -inf)."""
+    counterexample, margin -inf).
+
+    ``cause`` is the run's termination cause (``"BLOWUP"``, ``"MAP_ERROR"``...,
+    any not in ``allow``), ``"RAISED"`` (the run raised), ``"NOT_AN_ARC"``
+    (the run returned something else) or ``"CLAIM_RAISED"`` (the claim
+    raised on the run's arc); ``message`` says why (the run's message, or
+    the exception's type, text and where it was raised); ``exception`` is
+    the exception that was raised (without its traceback, so that findings
+    hold no arcs), or None for a termination cause (the worst run's arc
+    keeps its own, ``result.arc.exception``).
+    """
 
     point: Point
     cause: str
     message: str
+    exception: BaseException | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -434,6 +448,17 @@ class FalsificationResult:
     findings : list of Finding
     method : str
     seed : int or None
+    stopped : str
+        Why the search ended: ``"counterexample"`` (the first, with
+        ``stop=True``), ``"budget"``, ``"seconds"``, ``"converged"`` (the
+        search had nothing left to try: a space of one point, DE collapsed
+        without new points), ``"interrupted"`` (Ctrl-C: the results are
+        those of the runs finished before it) or ``"error"`` (a failure with
+        ``on_error="stop"``, or an executor that broke: see ``error``).
+    error : Finding or None
+        With ``stopped == "error"``: the failure that ended the search (its
+        point, cause, message and exception); not counted in ``findings``
+        when ``on_error="stop"``.
     """
 
     verdict: str
@@ -447,11 +472,20 @@ class FalsificationResult:
     findings: list
     method: str
     seed: int | None
+    stopped: str = "budget"
+    error: Finding | None = None
+
+    @property
+    def interrupted(self) -> bool:
+        """True when Ctrl-C (KeyboardInterrupt) ended the search."""
+        return self.stopped == "interrupted"
 
     def __repr__(self):
+        end = "" if self.stopped in ("budget", "counterexample", "converged") \
+            else f", stopped: {self.stopped}"
         return (f"FalsificationResult({self.verdict}: margin {self.margin:.4g} at {self.point}"
                 f"{'' if self.where is None else f', (t, j) = {self.where}'}; "
-                f"{self.evaluations} evaluations in {self.seconds:.2f} s, {self.method})")
+                f"{self.evaluations} evaluations in {self.seconds:.2f} s, {self.method}{end})")
 
 
 def batch_run(system, x0_of, t_max, j_max=np.inf, **simulate_kwargs):
@@ -490,29 +524,56 @@ def batch_run(system, x0_of, t_max, j_max=np.inf, **simulate_kwargs):
     return run
 
 
+def _where(exc):
+    """``file:line in function`` of the frame that raised ``exc``, or ""."""
+    tb = traceback.extract_tb(exc.__traceback__) if exc.__traceback__ else None
+    if not tb:
+        return ""
+    f = tb[-1]
+    return f" (at {f.filename.rsplit('/', 1)[-1]}:{f.lineno} in {f.name})"
+
+
+def _name(fn):
+    return getattr(fn, "__qualname__", None) or getattr(fn, "__name__", None) or repr(fn)
+
+
 class _Evaluator:
     """Runs points, reduces each arc to its margin, keeps the history and the worst.
 
-    The history is a preallocated float array (8 bytes a run); arcs are
-    dropped as soon as their margin is known, but for the worst so far. With
-    ``stop``, single runs are judged one by one, and a population run is
-    split: the first population into batches of 1, 2, 4, ... runs (a claim
-    that almost every run breaks is refuted by the first), later ones into
-    quarters; so a counterexample ends the search without simulating the
-    rest of its population. Points are built from the coordinates one chunk
-    at a time, as the chunk runs.
+    The history is a float array grown as runs finish (8 bytes a run, never
+    the whole budget at once); arcs are dropped as soon as their margin is
+    known, but for the worst so far. With ``stop``, single runs are judged
+    one by one, and a population run is split: the first population into
+    batches of 1, 2, 4, ... runs (a claim that almost every run breaks is
+    refuted by the first), later ones into quarters; so a counterexample
+    ends the search without simulating the rest of its population. With a
+    finite ``seconds``, a population run is split further so that each
+    chunk is expected to end before the deadline (at most twice the last
+    chunk, at the rate measured so far): the search stops within one chunk
+    of runs of it. Points are built from the coordinates one chunk at a
+    time, as the chunk runs.
+
+    A run ending ``CANCELED`` (Ctrl-C inside the engine) is not judged: the
+    search stops there (``interrupted``), as it does on a KeyboardInterrupt
+    anywhere else.
     """
 
-    def __init__(self, run, space, claim, budget, seconds, allow, progress, stop):
+    def __init__(self, run, space, claim, budget, seconds, allow, progress, stop,
+                 on_error="finding"):
         self.run, self.space, self.claim = run, space, claim
         self.batch = bool(getattr(run, "batch", False))
         self.budget, self.deadline = budget, time.perf_counter() + seconds
+        self.timed = math.isfinite(seconds)
         self.allow = allow
-        self._hist, self.n, self.findings = np.empty(budget), 0, []
+        self.on_error = on_error
+        self._hist, self.n, self.findings = np.empty(min(budget, 1024)), 0, []
         self.best, self.best_z, self.best_where = math.inf, None, None
         self.best_arc = None                # the worst run's arc (None: it raised)
         self.stop_at_counterexample = stop
         self.error = None                   # a bad claim: raised after the optimizer
+        self.failure = None                 # the Finding that stopped the search
+        self.interrupted = False
+        self._rate, self._last = None, 0    # seconds a run, size of the last chunk
         from tqdm.auto import tqdm
         self.bar = tqdm(total=budget, unit="run", disable=None if progress is None
                         else not progress, leave=False)
@@ -527,50 +588,119 @@ class _Evaluator:
 
     @property
     def done(self):
-        return (self.n >= self.budget or time.perf_counter() >= self.deadline
-                or self.found or self.error is not None)
+        return (self.n >= self.budget or self.interrupted or self.failure is not None
+                or self.error is not None or self.found
+                or time.perf_counter() >= self.deadline)
+
+    def _fail(self, p, cause, exc, message):
+        """A run or claim that failed at p: a finding, the end of the search,
+        or the exception raised, as ``on_error`` says; the margin, or None."""
+        if self.on_error == "raise":
+            exc.add_note(f"(falsify: {message.split(': ', 1)[0]}, at {p!r})")
+            raise exc
+        if self.on_error == "stop":
+            self.failure = Finding(p, cause, message, exc)
+            return None
+        self.findings.append(Finding(p, cause, message, exc.with_traceback(None)))
+        return -math.inf
 
     def _margin(self, arc, point):
-        cause = getattr(arc, "termination", None)
+        """(margin, where) of one arc, or None when the search must stop."""
+        if not isinstance(arc, HybridArc):
+            exc = TypeError(f"run must return a HybridArc, got {type(arc).__name__}: "
+                            f"{str(arc)[:80]}")
+            return self._fail(point, "NOT_AN_ARC", exc, f"run {_name(self.run)} "
+                              f"returned {type(arc).__name__}, not a HybridArc"), None
+        cause = arc.termination
+        if cause is Termination.CANCELED:   # Ctrl-C inside the engine: not a finding
+            self.interrupted = True
+            return None, None
         if isinstance(cause, Termination) and cause.name not in self.allow:
-            self.findings.append(Finding(point, cause.name, getattr(arc, "message", "")))
+            self.findings.append(Finding(point, cause.name, arc.message or ""))
             return -math.inf, None
-        m = self.claim(arc)
+        try:
+            m = self.claim(arc)
+        except Exception as exc:  # noqa: BLE001 - the claim failed on this run
+            return self._fail(point, "CLAIM_RAISED", exc,
+                              f"claim {_name(self.claim)} raised {type(exc).__name__}: "
+                              f"{exc}{_where(exc)}"), None
         where = None
         if hasattr(m, "where"):
             where = m.where
         try:
             value = float(m)
         except (TypeError, ValueError):
-            raise TypeError(f"claim must return a real number (a margin), got "
-                            f"{type(m).__name__}") from None
+            self.error = TypeError(f"claim must return a real number (a margin), got "
+                                   f"{type(m).__name__} at {point!r}")
+            return None, None
         if math.isnan(value):
-            raise ValueError("claim returned NaN: a margin must be a number "
-                             "(positive: holds, negative: violated)")
+            self.error = ValueError(f"claim returned NaN at {point!r}: a margin must be a "
+                                    f"number (positive: holds, negative: violated)")
+            return None, None
         return value, where
 
-    def _record(self, p, arc):
-        """Judge one run; False when the search must stop (a bad claim)."""
+    def _record(self, p, arc, message=None):
+        """Judge one run (an arc, or the exception its run raised, ``message``
+        saying so): its margin, or None when the search must stop."""
+        if isinstance(arc, BaseException) and isinstance(arc.__cause__, KeyboardInterrupt):
+            self.interrupted = True         # Ctrl-C as the run started (the engine's
+            return None                     # SimulationError from KeyboardInterrupt)
         if isinstance(arc, BaseException):
-            self.findings.append(Finding(p, "RAISED", f"{type(arc).__name__}: {arc}"))
-            value, where = -math.inf, None
+            message = message or f"{type(arc).__name__}: {arc}{_where(arc)}"
+            value, where = self._fail(p, "RAISED", arc, message), None
         else:
-            try:
-                value, where = self._margin(arc, p)
-            except (TypeError, ValueError) as exc:   # the claim's fault, not the run's
-                self.error = exc
-                return None
+            value, where = self._margin(arc, p)
+        if value is None:
+            return None
+        if self.n == len(self._hist):       # grown as runs finish, never past the budget
+            grown = np.empty(min(self.budget, 2 * len(self._hist)))
+            grown[:self.n] = self._hist
+            self._hist = grown
         self._hist[self.n] = value
         self.n += 1
         self.bar.update(1)
         if value < self.best:
             self.best, self.best_z, self.best_where = value, p.z, where
-            self.best_arc = None if isinstance(arc, BaseException) else arc
+            self.best_arc = arc if isinstance(arc, HybridArc) else None
         return value
+
+    def _bounds(self, size):
+        """The planned chunks of a population of ``size`` rows."""
+        if not self.stop_at_counterexample:
+            return [0, size]
+        if self.n == 0:                      # the first population: 1, 2, 4, ... runs
+            return [0] + [min(2 ** k, size) for k in range(math.ceil(math.log2(size)) + 1)]
+        step = max(8, math.ceil(size / 4))   # later ones: in quarters
+        return [*range(0, size, step), size]
+
+    def _fit(self, want):
+        """Rows of the next chunk: ``want``, fewer if the deadline comes first."""
+        if not self.timed:
+            return want
+        if self._rate is None:
+            return 1                        # the first chunk measures the rate
+        left = self.deadline - time.perf_counter()
+        fit = int(left / self._rate) if self._rate > 0 else want
+        return max(1, min(want, 2 * self._last, fit))
+
+    def _run_batch(self, chunk):
+        """The arcs of one chunk of points, or the exception its run raised."""
+        start = time.perf_counter()
+        try:
+            arcs = list(self.run(chunk))
+        except Exception as exc:  # noqa: BLE001 - a failed population run: its points
+            return exc
+        if len(arcs) != len(chunk):
+            raise ValueError(f"a batch run must return one arc per point: got "
+                             f"{len(arcs)} for {len(chunk)}")
+        self._rate = (time.perf_counter() - start) / len(chunk)
+        self._last = len(chunk)
+        return arcs
 
     def __call__(self, Z):
         """Margins of the rows of Z (n, dim); +inf for rows not run (past the
-        budget, or after a counterexample when stopping at the first)."""
+        budget, the deadline, or after a counterexample when stopping at the
+        first)."""
         Z = np.atleast_2d(Z)
         out = np.full(len(Z), np.inf)
         room = 0 if self.done else max(0, self.budget - self.n)
@@ -583,26 +713,38 @@ class _Evaluator:
         rows = np.clip(rows, self.space.lo, self.space.hi)
         point = self.space._point
         if self.batch:
-            if not self.stop_at_counterexample:
-                bounds = [0, len(rows)]
-            elif self.n == 0:                # the first population: 1, 2, 4, ... runs
-                bounds = [0] + [min(2 ** k, len(rows)) for k in
-                                range(math.ceil(math.log2(len(rows))) + 1)]
-            else:                            # later ones: in quarters
-                size = max(8, math.ceil(len(rows) / 4))
-                bounds = [*range(0, len(rows), size), len(rows)]
-            for a, b in itertools.pairwise(bounds):
-                chunk = [point(z) for z in rows[a:b]]
-                arcs = list(self.run(chunk))
-                if len(arcs) != len(chunk):
-                    raise ValueError(f"a batch run must return one arc per point: got "
-                                     f"{len(arcs)} for {len(chunk)}")
-                for k, (p, arc) in enumerate(zip(chunk, arcs)):
-                    value = self._record(p, arc)
-                    if value is None:
-                        return out
-                    out[a + k] = value
-                if self.found:
+            for a, b in itertools.pairwise(self._bounds(len(rows))):
+                while a < b and not self.done:
+                    c = a + self._fit(b - a)
+                    chunk = [point(z) for z in rows[a:c]]
+                    arcs = self._run_batch(chunk)
+                    if isinstance(arcs, BaseException):
+                        exc = arcs
+                        msg = (f"the population run raised {type(exc).__name__}: {exc}"
+                               f"{_where(exc)} on the chunk of {len(chunk)} points this "
+                               f"one was in")
+                        for k, p in enumerate(chunk):
+                            value = self._record(p, exc, msg)
+                            if value is None:
+                                return out
+                            out[a + k] = value
+                        if isinstance(exc, concurrent.futures.BrokenExecutor):
+                            # the executor cannot run anything more: the search ends
+                            self.failure = Finding(chunk[0], "RAISED", f"the population "
+                                                   f"run's executor broke: "
+                                                   f"{type(exc).__name__}: {exc}", exc)
+                            return out
+                    else:
+                        for k, (p, arc) in enumerate(zip(chunk, arcs)):
+                            if getattr(arc, "termination", None) is Termination.CANCELED:
+                                self.interrupted = True     # the finished rows still count
+                                continue
+                            value = self._record(p, arc)
+                            if value is None:
+                                return out
+                            out[a + k] = value
+                    a = c
+                if self.done:
                     break
         else:
             for k, z in enumerate(rows):
@@ -615,7 +757,7 @@ class _Evaluator:
                 if value is None:
                     return out
                 out[k] = value
-                if self.found:
+                if self.done:
                     break
         return out
 
@@ -623,7 +765,7 @@ class _Evaluator:
 def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
             budget: int = 1000, seconds: float = math.inf, seed: int | None = None,
             method: str = "de", popsize: int | None = None, refine: bool | str = True,
-            allow=("T_MAX", "J_MAX"), stop: bool = True,
+            allow=("T_MAX", "J_MAX"), stop: bool = True, on_error: str = "finding",
             progress: bool | None = None) -> FalsificationResult:
     """Search ``space`` for a run on which ``claim``'s margin is negative.
 
@@ -644,7 +786,9 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
     budget : int
         At most this many runs (>= 1).
     seconds : float
-        At most this long (checked between populations).
+        At most this long: checked after every run, and a population run is
+        split into chunks expected to end before the deadline, so the search
+        overshoots it by at most one chunk of runs.
     seed : int, optional
         The search is reproducible with it.
     method : {"de", "random"}
@@ -679,20 +823,41 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
         Termination causes that are ordinary ends of a run; any other cause
         (a blow-up, a map error, a run that raised) is a finding: recorded
         in ``findings`` with its point and counted as margin -inf.
+        ``CANCELED`` is neither: a run Ctrl-C cut short ends the search.
     stop : bool
         Stop at the first counterexample (default); False searches the whole
         budget for the worst one.
+    on_error : {"finding", "stop", "raise"}
+        What a failure of the user's code at a point does: a run that raises
+        (or a population run that raises: each of its chunk's points), a run
+        that returns something other than a :class:`hybridsim.HybridArc`, a
+        claim that raises on a run's arc. ``"finding"`` (default, as for a
+        run ending on a failure cause): recorded in ``findings`` with its
+        point, cause (``"RAISED"``, ``"NOT_AN_ARC"``, ``"CLAIM_RAISED"``)
+        and the exception (type, text, where; the claim or run named), and
+        counted as margin -inf. ``"stop"``: the search ends there with the
+        results so far (``stopped == "error"``, the failure in ``error``).
+        ``"raise"``: the exception propagates at once, a note naming the
+        point. A population run's executor that breaks
+        (:class:`concurrent.futures.BrokenExecutor`, e.g. a process-pool
+        worker that died) fails its chunk's points (not re-run: the executor
+        runs nothing more) and ends the search (``stopped == "error"``).
     progress : bool, optional
         A progress bar over the runs (default: when stderr is a terminal).
 
     Returns
     -------
     FalsificationResult
+        ``stopped`` says why the search ended. Ctrl-C (KeyboardInterrupt,
+        inside a run or between runs) ends it with the results of the runs
+        finished before: ``stopped == "interrupted"``, ``interrupted`` True;
+        the run it cut short (``CANCELED``) is neither judged nor a finding.
 
     Raises
     ------
     TypeError, ValueError
-        A bad argument (named), or a claim that does not return a real number.
+        A bad argument (named), or a claim that does not return a real number
+        (or returns NaN), raised after the search with the point named.
 
     Notes
     -----
@@ -724,6 +889,8 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
                          "SensitivityArc whose parameters are the space's coordinates "
                          "(hs.simulate_sensitivity(make, x0, ..., params=point.z, "
                          "wrt='params'))")
+    if on_error not in ("finding", "stop", "raise"):
+        raise ValueError(f"on_error must be 'finding', 'stop' or 'raise', got {on_error!r}")
     allow = frozenset(allow)
     unknown = allow - {c.name for c in Termination}
     if unknown:
@@ -736,9 +903,12 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
         popsize = max(15, 5 * space.dim) if method == "de" else 100
     popsize = max(1, min(int(popsize), budget))
     t0 = time.perf_counter()
-    ev = _Evaluator(run, space, claim, budget, seconds, allow, progress, stop)
+    ev = _Evaluator(run, space, claim, budget, seconds, allow, progress, stop, on_error)
+    fixed = not np.any(space.hi > space.lo)          # a space of one point: one run
     try:
-        if method == "random":
+        if fixed:
+            ev(space.lo[None, :])
+        elif method == "random":
             rng = np.random.default_rng(seed)
             while not ev.done:
                 n = min(popsize, budget - ev.n)
@@ -755,26 +925,43 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
                         _refine_gradient(ev, space, run.sensitivity)
                     else:
                         _refine(ev, space)
-                if ev.n == before or not np.any(space.hi > space.lo):
+                if ev.n == before:
                     break
                 round_seed = int(seeds.spawn(1)[0].generate_state(1)[0])
+    except KeyboardInterrupt:               # Ctrl-C between runs, or in the claim
+        ev.interrupted = True
     finally:
         ev.bar.close()
     if ev.error is not None:
         raise ev.error
     point = space.point(ev.best_z if ev.best_z is not None else (space.lo + space.hi) / 2)
     arc = ev.best_arc                       # kept as it was judged: no second run
-    if arc is None and ev.n:
+    if arc is None and ev.n and not ev.interrupted and ev.failure is None:
         try:
             arc = run([point])[0] if ev.batch else run(point)
-        except Exception:  # noqa: BLE001 - the finding already records it
+        except (Exception, KeyboardInterrupt):  # noqa: BLE001 - the finding records it
+            arc = None
+        if not isinstance(arc, HybridArc):
             arc = None
     found = ev.best < 0
+    if ev.interrupted:
+        stopped = "interrupted"
+    elif ev.failure is not None:
+        stopped = "error"
+    elif ev.found:
+        stopped = "counterexample"
+    elif ev.n >= budget:
+        stopped = "budget"
+    elif time.perf_counter() >= ev.deadline:
+        stopped = "seconds"
+    else:
+        stopped = "converged"
     return FalsificationResult(
         verdict="counterexample" if found else "none found", margin=float(ev.best),
         point=point, arc=arc, where=ev.best_where, history=ev.history.copy(),
         evaluations=ev.n, seconds=time.perf_counter() - t0,
-        findings=list(ev.findings), method=method, seed=seed)
+        findings=list(ev.findings), method=method, seed=seed, stopped=stopped,
+        error=ev.failure)
 
 
 def _de(ev, space, popsize, seed, budget):
@@ -832,6 +1019,8 @@ def _refine(ev, space):
     the best if it improves, else halves h; steps are clipped into the box, so
     a worst case on a face or a vertex is reached exactly."""
     free = np.flatnonzero(space.hi > space.lo)
+    if not free.size:                        # every coordinate fixed: nothing to move
+        return
     width = space.hi - space.lo
     z, best = ev.best_z.copy(), ev.best
     h = 0.1
@@ -893,7 +1082,10 @@ def _refine_gradient(ev, space, sensitivity):
         value = ev._record(p, sarc.arc)
         if value is None or not math.isfinite(value) or ev.found:
             raise _NoGradient
-        g = margin_gradient(sarc, ev.claim)[free] * width
+        try:
+            g = margin_gradient(sarc, ev.claim)[free] * width
+        except Exception as exc:            # the claim on the perturbed arcs
+            raise _NoGradient from exc
         if not np.all(np.isfinite(g)):
             raise _NoGradient
         return value, g
@@ -903,5 +1095,5 @@ def _refine_gradient(ev, space, sensitivity):
         minimize(fun, u0, jac=True, method="L-BFGS-B", bounds=[(0.0, 1.0)] * free.size,
                  options={"maxfun": max(1, ev.budget - ev.n), "ftol": 0.0, "gtol": 0.0})
     except _NoGradient:
-        if not ev.done and ev.error is None:
+        if not ev.done:
             _refine(ev, space)

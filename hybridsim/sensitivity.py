@@ -54,8 +54,11 @@ Design
   step: user maps build float arrays (``np.zeros(n)`` then item assignment
   drops an imaginary part with only a warning) and use comparisons, ``min``
   and ``abs``, so it would be silently wrong on ordinary maps.
-* **Where the derivative does not exist, say so**: a grazing jump
-  (:math:`|\nabla h f^- + h_t| \le` ``graze_tol`` :math:`|\nabla h||f^-|`),
+* **Where the derivative does not exist, say so**: a grazing jump (the
+  guard's rate along the flow, :math:`\dot h = \nabla h f^- + h_t`, is
+  that of a tangency: :math:`2|\dot h| \le` ``graze_tol``
+  :math:`|\ddot h| (t_j - t_{j-1})`, the rate changing sign within
+  ``graze_tol`` of the flow's duration; see ``SensitivitySystem._tangency``),
   a jump without a guard or triggered by the jump set away from the
   guard's zero, simultaneous guards (two components of a vector guard at
   zero within 1e-9 max(1, |t|) of time along the flow), a jump from a
@@ -107,9 +110,10 @@ FD_STEP = _EPS ** (1 / 3)
 # reasons a jump's sensitivity is not defined (the flag component's codes)
 _GRAZING, _NO_GUARD, _SIMULTANEOUS, _NO_FLOW = 1.0, 2.0, 3.0, 4.0
 REASONS = {
-    _GRAZING: "a grazing jump: the flow is tangent to the guard (|dh/dt| = {ratio:.2e} "
-              "|grad h| |f|, at most graze_tol = {tol:g}); the jump time is not "
-              "differentiable there",
+    _GRAZING: "a grazing jump: the flow is tangent to the guard (its rate dh/dt = "
+              "{rate:.3g} changes sign {ratio:.2e} times the flow's duration ({flow:.3g}) "
+              "away, at most graze_tol = {tol:g}); the jump time is not differentiable "
+              "there",
     _NO_GUARD: "the jump was not triggered at a guard's zero ({why}); the saltation "
                "matrix needs the guard h whose crossing times the jump",
     _SIMULTANEOUS: "simultaneous guards: components {comps} of the vector jump_guard "
@@ -281,6 +285,38 @@ class SensitivitySystem(HybridSystem):
                 / d for a, b, d in self._pm]
         return np.stack(cols, axis=-1)
 
+    def _tangency(self, x, t, j, hdot, i, t_last):
+        """How near the jump at (x, t) is to a tangency of guard component i,
+        in units of the flow that led to it: ``2 |h'| / (|h''| (t - t_last))``
+        (h' = dh/dt, h'' = d^2h/dt^2 along the flow).
+
+        Along the flow h(t + s) = h' s + h'' s^2 / 2 near the jump, whose rate
+        changes sign (the tangency) at s = -h'/h'': the jump time is
+        differentiable only for perturbations that move it by less than that.
+        Measured against the flow's own duration, the test reads the guard
+        along the flow alone (no component of f the guard does not see, no
+        scale of x), and is the same at every bounce of a self-similar Zeno
+        accumulation (1 for the ball: the apex halves each flow). h'' is a
+        central difference of the rate along the flow (the rate itself a
+        central difference of h along f), steps ``fd_step`` of the time in
+        which the state moves by its own scale.
+        """
+        mp, f = self._maps, self._f(x, t, j)
+        moving = np.abs(f) > 0
+        scale = np.maximum(1.0, np.abs(x[moving])) / np.abs(f[moving])
+        d = self.fd_step * min(max(1.0, abs(t)), float(np.min(scale)) if scale.size else np.inf)
+
+        def rate(z, s):                     # dh/dt along the flow at (z, s)
+            fz = self._f(z, s, j)
+            hp = np.atleast_1d(np.asarray(mp.hD(z + d * fz, s + d, j, None), dtype=float))
+            hm = np.atleast_1d(np.asarray(mp.hD(z - d * fz, s - d, j, None), dtype=float))
+            return (hp[i] - hm[i]) / (2 * d)
+        hddot = (rate(x + d * f, t + d) - rate(x - d * f, t - d)) / (2 * d)
+        span = abs(hddot) * (t - t_last)
+        if span == 0:
+            return 0.0 if hdot == 0 else math.inf
+        return 2 * abs(hdot) / span
+
     # ---------------------------------------------------------------- the maps
     def flow_map(self, y, t, j):
         n, m, c = self.n, self.m, self.components
@@ -339,8 +375,7 @@ class SensitivitySystem(HybridSystem):
             if flowed and zero[i]:
                 if np.count_nonzero(zero) > 1:
                     code = _SIMULTANEOUS
-                elif abs(hdot[i]) <= self.graze_tol * (np.linalg.norm(grad[i])
-                                                       * np.linalg.norm(f_minus) + abs(h_t[i])):
+                elif self._tangency(x, t, j, hdot[i], i, t_last) <= self.graze_tol:
                     code = _GRAZING
                 else:
                     num = grad[i] @ S
@@ -418,7 +453,10 @@ def sensitivity_system(system, *, params: ArrayLike | None = None, wrt=None,
     fd_step : float
         Relative step of the central differences (default eps^(1/3)).
     graze_tol : float
-        A jump is grazing when ``|dh/dt| <= graze_tol * |grad h| |f|``.
+        A jump is grazing when the guard's rate along the flow changes sign
+        within ``graze_tol`` times the flow's duration of it:
+        ``2 |h'| <= graze_tol * |h''| * (t_j - t_last)`` (h', h'' the first
+        and second derivatives of the guard along the flow).
 
     Returns
     -------
@@ -630,7 +668,11 @@ def simulate_sensitivity(system, x0: ArrayLike, t_max: float, j_max: float = mat
     fd_step : float
         Relative step of the central differences (default eps^(1/3)).
     graze_tol : float
-        A jump with ``|dh/dt| <= graze_tol * |grad h| |f|`` is grazing.
+        A jump is grazing when the guard's rate along the flow changes sign
+        within ``graze_tol`` times the flow's duration of it (``2 |h'| <=
+        graze_tol * |h''| * (t_j - t_last)``); a Zeno accumulation is not
+        grazing (the ball's ratio is 1 at every bounce): it ends ``ZENO``
+        and warns.
     undefined : {"raise", "warn"}
         Where a jump's sensitivity is not defined: raise
         :class:`SensitivityError`, or warn (:class:`SensitivityWarning`)
@@ -720,9 +762,13 @@ def _explain(ssys, aug, k, code):
     if code == _GRAZING:
         f = np.asarray(mp.f(x, t, j, None), dtype=float)
         grad = np.atleast_2d(_fd_jac(lambda z: mp.hD(z, t, j, None), x, ssys.fd_step))
+        h_t = _fd_scalar(lambda s: mp.hD(x, s, j, None), t, ssys.fd_step)
         i = int(np.argmin(np.atleast_1d(mp.hD(x, t, j, None))))
-        ratio = abs(grad[i] @ f) / max(np.linalg.norm(grad[i]) * np.linalg.norm(f), 1e-300)
-        return REASONS[code].format(ratio=ratio, tol=ssys.graze_tol)
+        hdot = float(grad[i] @ f + h_t[i])
+        t_last = float(aug.x[k - 1, ssys.components["t_last"]][0])
+        ratio = ssys._tangency(x, t, j, hdot, i, t_last)
+        return REASONS[code].format(rate=hdot, ratio=ratio, flow=t - t_last,
+                                    tol=ssys.graze_tol)
     if code == _NO_GUARD:
         why = ("the system has no jump_guard: a jump set given by an indicator alone"
                if mp.hD is None else "the jump set fired where the guard is not at zero")

@@ -293,21 +293,52 @@ def test_covariance_checks_its_input():
 
 # ----------------------------------------------------------------------- undefined
 def test_grazing_jump_is_named():
-    # the flow crosses the guard x2 = 0 at a slope 1e-9 of its speed
+    # the guard h = x2 - (x1 - 1)^2 along x1' = 1 from x2 = EPS^2: the flow
+    # crosses it at t = 1 - EPS, EPS = 1e-7 of the flow's duration before the
+    # tangency (h' = 2 EPS, h'' = -2): grazing; t_j = 1 - x1(0) - sqrt(x2(0))
+    eps = 1e-7
     sys_ = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0, 1e-9]), g=lambda x: np.array([x[0], -1.0]),
-        jump_guard=lambda x: x[1], state_dim=2)
-    with pytest.raises(SensitivityError, match=r"t=1(\.0+\d*)? \(j=0 -> 1\).*grazing") as ei:
-        simulate_sensitivity(sys_, [0.0, -1e-9], t_max=1.5)
-    assert ei.value.j == 1 and ei.value.t == pytest.approx(1.0)
+        f=lambda x: np.array([1.0, 0.0]), g=lambda x: np.array([x[0], -1.0]),
+        jump_guard=lambda x: x[1] - (x[0] - 1.0) ** 2, state_dim=2)
+    x0 = [0.0, eps ** 2]
+    with pytest.raises(SensitivityError, match=r"t=0\.9999999\d* \(j=0 -> 1\).*grazing") as ei:
+        simulate_sensitivity(sys_, x0, t_max=1.5)
+    assert ei.value.j == 1 and ei.value.t == pytest.approx(1.0 - eps, abs=1e-12)
     with pytest.warns(SensitivityWarning, match="grazing"):
-        sarc = simulate_sensitivity(sys_, [0.0, -1e-9], t_max=1.5, undefined="warn")
+        sarc = simulate_sensitivity(sys_, x0, t_max=1.5, undefined="warn")
     assert np.isnan(sarc.S[-1]).all() and np.isnan(sarc.dtj_dtheta).all()
     assert not np.isnan(sarc.S[0]).any() and np.isfinite(sarc.x).all()
     assert np.isnan(sarc.S_at(1.2)).all() and not np.isnan(sarc.S_at(0.5)).any()
-    # with the tolerance below the slope it is a (badly conditioned) number
-    sarc = simulate_sensitivity(sys_, [0.0, -1e-9], t_max=1.5, graze_tol=1e-10)
+    # with the tolerance below 2 EPS it is a (badly conditioned) number:
+    # dt_j/dx2(0) = -1 / (2 EPS); 1e-6: the event time's rounding over EPS
+    sarc = simulate_sensitivity(sys_, x0, t_max=1.5, graze_tol=1e-8)
+    assert sarc.dtj_dx0[0, 1] == pytest.approx(-0.5 / eps, rel=1e-6)
+    assert sarc.dtj_dx0[0, 0] == pytest.approx(-1.0, rel=1e-9)
+
+
+def test_a_slow_transversal_crossing_is_not_grazing():
+    # h = x2 along x2' = 1e-9: the rate is small against |f| (1, the other
+    # component) but never changes sign: dt_j/dx2(0) = -1e9 exactly
+    sys_ = hs.HybridSystem.from_functions(
+        f=lambda x: np.array([1.0, 1e-9]), g=lambda x: np.array([x[0], -1.0]),
+        jump_guard=lambda x: x[1], state_dim=2)
+    sarc = simulate_sensitivity(sys_, [0.0, -1e-9], t_max=1.5)
     assert sarc.dtj_dx0[0, 1] == pytest.approx(-1e9, rel=1e-6)
+
+
+def test_a_zeno_ball_is_zeno_not_grazing():
+    """Restitution 0.5: the impact speeds fall to 1e-15 (each below 1e-6 of
+    |f|, which holds gravity: the old test called bounce 20 grazing). The
+    guard's rate changes sign mid-flow at every bounce (the apex), so no
+    jump is grazing: the run ends ZENO with its warning, the jump times'
+    sensitivities those of the closed form t_k = t_1 (1 + 2e + ... + 2e^(k-1)),
+    d t_k / d h0 = t_k / (2 h0), to 1e-6 over the first 20 bounces."""
+    with pytest.warns(SensitivityWarning, match=r"Zeno accumulation.*j=\d+"):
+        sarc = simulate_sensitivity(BouncingBall(restitution=0.5), [1.0, 0.0], t_max=10.0,
+                                    j_max=200)
+    assert sarc.termination is hs.Termination.ZENO and sarc.undefined is None
+    tk = sarc.jump_times[:20]
+    np.testing.assert_allclose(sarc.dtj_dx0[:20, 0], tk / 2.0, rtol=1e-6)
 
 
 def test_indicator_without_guard_is_named():
@@ -339,8 +370,8 @@ def test_jump_from_the_guards_zero_without_flow_is_named():
 
 
 def test_zeno_accumulation_warns_with_the_last_jump():
-    # graze_tol=0: near the accumulation the impacts graze (v -> 0); here
-    # only the Zeno warning is under test
+    # graze_tol=0: only the Zeno warning is under test (the default
+    # tolerance: test_a_zeno_ball_is_zeno_not_grazing)
     with pytest.warns(SensitivityWarning, match=r"Zeno accumulation.*j=\d+"):
         sarc = simulate_sensitivity(BouncingBall(), [H0, 0.0], t_max=10.0, graze_tol=0.0)
     assert sarc.termination is hs.Termination.ZENO
