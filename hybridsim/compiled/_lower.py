@@ -47,7 +47,7 @@ import numpy as np
 from ..compose import Interconnection, LinearInput, LinearPlant
 from ..system import HybridSystem
 
-__all__ = ["Component", "lower", "lowerable", "matvec", "rebind"]
+__all__ = ["Component", "Lowerable", "lower", "lowerable", "matvec", "rebind"]
 
 _ROLES = ("flow", "jump", "jump_guard", "flow_guard", "jump_set", "flow_set")
 
@@ -315,6 +315,13 @@ def _refusal(system, what, wired=None):
                              "output(x, t, j, u)); a compiled output is a function of "
                              "(x, t, j, p)")
     if getattr(system, "compiled_component", None) is None:
+        from . import _from_source
+        if wired is None and _from_source.applies(system):
+            # a plain model: its own maps, rewritten (hybridsim.compiled._from_source)
+            if int(system.input_dim or 0):
+                return _refuse(what, f"it has an input (input_dim={system.input_dim})")
+            why = _from_source.refusal(system)
+            return None if why is None else _refuse(what, _from_source._text(system, why))
         return _refuse(what, f"{type(system).__name__} has no compiled form (a "
                              f"compiled_component() method returning a "
                              f"hybridsim.compiled.Component)")
@@ -717,6 +724,12 @@ def lower(system, *, specialize=None):
         raise TypeError(f"system must be a hybridsim.HybridSystem, got {type(system).__name__}")
     if specialize is not None and not isinstance(specialize, (bool, np.bool_)):
         raise TypeError(f"specialize must be True, False or None, got {specialize!r}")
+    from . import _from_source
+    if _from_source.applies(system):        # a plain model: its maps rewritten
+        why = _refusal(system, type(system).__name__)
+        if why is not None:
+            raise why
+        return _from_source.lower_source(system, specialize)
     cached = system.__dict__.get("_lowered")
     if cached is not None and (specialize is None or cached.specialize == bool(specialize)):
         return cached
@@ -780,26 +793,58 @@ def rebind(arc, system):
     return arc
 
 
+class Lowerable:
+    """:func:`lowerable`'s answer: true where the system runs compiled; else
+    false, with ``reason`` (the message :func:`lower` raises)."""
+
+    __slots__ = ("reason",)
+
+    def __init__(self, reason=None):
+        self.reason = reason
+
+    def __bool__(self):
+        return self.reason is None
+
+    def __repr__(self):
+        return "Lowerable(True)" if self.reason is None else \
+            f"Lowerable(False, reason={self.reason!r})"
+
+
 def lowerable(system):
     """Whether :func:`lower` accepts ``system``: the same checks (no refusal),
     without compiling anything (numba need not be installed). (Not built
     either: a part reading its history whose compiled form, once built,
-    declares no delays passes here and is refused by :func:`lower`.)
+    declares no delays passes here and is refused by :func:`lower`; a plain
+    model whose rewritten maps numba refuses passes here and is refused by
+    :func:`lower` with numba's reason.)
+
+    Returns
+    -------
+    Lowerable
+        True or false; where false, ``.reason`` says why (for a plain model,
+        the method and line that cannot be rewritten).
 
     Examples
     --------
     >>> import hybridsim as hs
     >>> from hybridsim.compiled import lowerable
     >>> noisy = hs.LinearPlant([[-1.0]], noise=lambda t: [0.0])   # a callable of t
-    >>> lowerable(hs.LinearPlant([[-1.0]])), lowerable(noisy)
+    >>> bool(lowerable(hs.LinearPlant([[-1.0]]))), bool(lowerable(noisy))
     (True, False)
+    >>> print(lowerable(noisy).reason)
+    backend='compiled': LinearPlant cannot run compiled: its noise is a Python callable of t; ...
     """
     from . import CompiledSystem
     if not isinstance(system, HybridSystem):
         raise TypeError(f"system must be a hybridsim.HybridSystem, got {type(system).__name__}")
-    if isinstance(system, CompiledSystem) or "_lowered" in system.__dict__:
-        return True
+    if isinstance(system, CompiledSystem) or (
+            "_lowered" in system.__dict__ and "_source_plan" not in system.__dict__):
+        return Lowerable()
     if isinstance(system, Interconnection):
-        return all(_refusal(sub, nm, (nm, system.inputs.get(nm))) is None
-                   for nm, sub in system.systems.items())
-    return _refusal(system, type(system).__name__) is None
+        for nm, sub in system.systems.items():
+            why = _refusal(sub, nm, (nm, system.inputs.get(nm)))
+            if why is not None:
+                return Lowerable(str(why))
+        return Lowerable()
+    why = _refusal(system, type(system).__name__)
+    return Lowerable(None if why is None else str(why))
