@@ -94,6 +94,24 @@ def _names_in(node, args):
     return out
 
 
+def _consts(code):
+    return tuple(repr(c) for c in code.co_consts if not isinstance(c, types.CodeType))
+
+
+def _same_code(lam, code):
+    """Whether the lambda node compiles to ``code`` (its constants, and its
+    bytecode where it has no closure)."""
+    try:
+        mod = compile(ast.fix_missing_locations(ast.Expression(body=copy.deepcopy(lam))),
+                      code.co_filename, "eval")
+    except (SyntaxError, ValueError):
+        return False
+    mine = next((c for c in mod.co_consts if isinstance(c, types.CodeType)), None)
+    if mine is None or _consts(mine) != _consts(code):
+        return False
+    return bool(code.co_freevars) or mine.co_code == code.co_code
+
+
 def _node_of(func, qualname):
     """The FunctionDef of ``func`` in its file (a lambda as one)."""
     code = func.__code__
@@ -116,6 +134,8 @@ def _node_of(func, qualname):
         want = set(code.co_names) | set(code.co_freevars)
         cands = [c for c in cands if {a.arg for a in c.args.args} == args
                  and _names_in(c.body, args) == want] or cands
+        if len(cands) > 1:
+            cands = [c for c in cands if _same_code(c, code)] or cands
         if len({ast.dump(c) for c in cands}) > 1:
             raise SourceRefusal(qualname, where, "several lambdas on one line: its source "
                                 "cannot be told apart; put it on a line of its own")
@@ -325,9 +345,9 @@ def derived_guard(system, name):
     key = _set_fn(system, set_name)
     entry = _GUARDS.get(id(system))
     if entry is None or entry[0]() is not system:
-        i = id(system)
+        i, guards = id(system), _GUARDS
         try:
-            ref = weakref.ref(system, lambda _r: _GUARDS.pop(i, None))
+            ref = weakref.ref(system, lambda _r: guards.pop(i, None))
         except TypeError:
             ref = None
         entry = (ref, {})

@@ -479,9 +479,10 @@ def test_falsify_gradient_falls_back_and_checks_its_input():
     from hybridsim.falsification import Interval, Space, falsify
 
     def no_guard(p):         # the jump set alone: no gradient (SensitivityError)
+        # (bool(...): a set no guard is derived from, hybridsim._source)
         return hs.HybridSystem.from_functions(
             f=lambda x: np.array([p[0]]), g=lambda x: np.array([p[1]]),
-            D=lambda x: x[0] >= 1.0, state_dim=1)
+            D=lambda x: bool(x[0] >= 1.0), state_dim=1)
 
     def run(pt):
         return hs.simulate(_rate_reset(pt.z), [0.0], t_max=5.0, j_max=2)
