@@ -28,10 +28,10 @@ class ReadmeBall(hs.HybridSystem):
     """README's ten-line bouncing ball, indicators only."""
     state_dim = 2
 
-    def flow_map(self, x):  return np.array([x[1], -9.81])          # noqa: E704
-    def jump_map(self, x):  return np.array([0.0, -0.8 * x[1]])     # noqa: E704
-    def flow_set(self, x):  return x[0] >= 0                         # noqa: E704
-    def jump_set(self, x):  return x[0] <= 0 and x[1] <= 0           # noqa: E704
+    def flow_map(self, x):  return np.array([x[1], -9.81])
+    def jump_map(self, x):  return np.array([0.0, -0.8 * x[1]])
+    def flow_set(self, x):  return x[0] >= 0
+    def jump_set(self, x):  return x[0] <= 0 and x[1] <= 0
 
 
 class HandBall(ReadmeBall):

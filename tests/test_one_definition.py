@@ -26,10 +26,10 @@ from hybridsim.compiled._from_source import FallbackWarning  # noqa: E402
 
 class BouncingBall(hs.HybridSystem):             # README's, as written
     state_dim = 2                                         # x = (height, velocity)
-    def flow_map(self, x):  return np.array([x[1], -9.81])          # noqa: E704
-    def jump_map(self, x):  return np.array([0.0, -0.8 * x[1]])     # noqa: E704
-    def flow_set(self, x):  return x[0] >= 0                         # noqa: E704
-    def jump_set(self, x):  return x[0] <= 0 and x[1] <= 0           # noqa: E704
+    def flow_map(self, x):  return np.array([x[1], -9.81])
+    def jump_map(self, x):  return np.array([0.0, -0.8 * x[1]])
+    def flow_set(self, x):  return x[0] >= 0
+    def jump_set(self, x):  return x[0] <= 0 and x[1] <= 0
 
 
 class Ball(hs.HybridSystem):

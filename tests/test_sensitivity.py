@@ -311,9 +311,11 @@ def test_grazing_jump_is_named():
 
 
 def test_indicator_without_guard_is_named():
+    # a set no guard is derived from (a call: hybridsim._source); the same ball's
+    # D written as comparisons gets one (tests/test_derived_guards.py)
     b = hs.HybridSystem.from_functions(
         f=lambda x: np.array([x[1], -G]), g=lambda x: np.array([0.0, -E * x[1]]),
-        C=lambda x: x[0] >= 0, D=lambda x: x[0] <= 0 and x[1] <= 0, state_dim=2)
+        C=lambda x: x[0] >= 0, D=lambda x: bool(x[0] <= 0 and x[1] <= 0), state_dim=2)
     with pytest.raises(SensitivityError, match=r"\(j=0 -> 1\).*no jump_guard") as ei:
         simulate_sensitivity(b, [H0, 0.0], t_max=1.0)
     assert ei.value.t == pytest.approx(np.sqrt(2 * H0 / G), rel=1e-9)
