@@ -45,13 +45,20 @@ class FallbackWarning(UserWarning):
     cannot run compiled (the message says which method and line, and why)."""
 
 
+_PLAIN = {}
+
+
 def applies(system):
     """Whether ``system`` is a plain model: a single system with no compiled form."""
-    from ..compose import Interconnection
-    from . import CompiledSystem
-    return (isinstance(system, HybridSystem) and not isinstance(system, CompiledSystem)
-            and not isinstance(system, Interconnection)
-            and getattr(system, "compiled_component", None) is None)
+    t = type(system)
+    hit = _PLAIN.get(t)
+    if hit is None:
+        from ..compose import Interconnection
+        from . import CompiledSystem
+        hit = _PLAIN[t] = (issubclass(t, HybridSystem)
+                           and not issubclass(t, (CompiledSystem, Interconnection))
+                           and getattr(t, "compiled_component", None) is None)
+    return hit and "compiled_component" not in system.__dict__
 
 
 def _plan(system):
@@ -69,12 +76,31 @@ def _plan(system):
 
 
 def _identity(system):
-    """What a plan depends on besides its slots' values: the maps themselves."""
-    out = []
-    for attr, _ in _source.ROLES:
-        fn = getattr(system, attr, None)
-        out.append(id(getattr(fn, "__func__", fn)))
-    return tuple(out)
+    """What a plan depends on besides its slots' values: the class, the maps
+    given on the instance and what the lowering's checks read (a class whose
+    methods are replaced after its first compiled run keeps its first plan)."""
+    g = system.__dict__.get
+    return (type(system), system.needs_history, system.delays, system.input_dim,
+            id(g("flow_map")), id(g("jump_map")), id(g("jump_guard")), id(g("flow_guard")),
+            id(g("jump_set")), id(g("flow_set")))
+
+
+def cached(system):
+    """The system's compiled form when nothing it depends on changed since it
+    was made (its ``p`` read again now), else None: the fast path of every
+    run after the first."""
+    d = system.__dict__
+    hit, sp = d.get("_lowered"), d.get("_source_plan")
+    if hit is None or sp is None or hit.__dict__.get("_source_plan_of") is not sp[1] \
+            or sp[0] != _identity(system):
+        return None
+    p = sp[1].layout.read()
+    if p is None:
+        return None
+    if p.size and not np.array_equal(hit.params, p):
+        hit.params = p
+    hit.max_step = system.max_step
+    return hit
 
 
 def refusal(system):
@@ -130,6 +156,8 @@ def _written(path, src):
 
 def _module(plan):
     """``(module, digest)``: the plan's functions compiled (numba dispatchers)."""
+    from . import _load_kernel
+    _load_kernel()                  # numba, or the ImportError saying how to install it
     import numba
     digest = _digest(plan)
     mod = _MODULES.get(digest)
@@ -201,6 +229,9 @@ def lower_source(system, specialize=None):
     """
     from . import CompiledSystem
     from ._lower import _refuse
+    hit = cached(system)
+    if hit is not None and (specialize is None or hit.specialize == bool(specialize)):
+        return hit
     pl = _plan(system)
     if isinstance(pl, _source.SourceRefusal):
         err = _refuse(type(system).__name__, _text(system, pl))
@@ -213,13 +244,13 @@ def lower_source(system, specialize=None):
         if isinstance(pl, _source.SourceRefusal):
             return lower_source(system, specialize)
         p = pl.layout.read()
-    cached = system.__dict__.get("_lowered")
-    if cached is not None and cached.__dict__.get("_source_plan_of") is pl and (
-            specialize is None or cached.specialize == bool(specialize)):
-        if not np.array_equal(cached.params, p):
-            cached.params = p
-        cached.max_step = system.max_step
-        return cached
+    prev = system.__dict__.get("_lowered")
+    if prev is not None and prev.__dict__.get("_source_plan_of") is pl and (
+            specialize is None or prev.specialize == bool(specialize)):
+        if not np.array_equal(prev.params, p):
+            prev.params = p
+        prev.max_step = system.max_step
+        return prev
     spec = bool(specialize) if specialize is not None else False
     mod, digest = _module(pl)
     proto = _PROTOS.get((digest, spec))

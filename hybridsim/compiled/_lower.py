@@ -726,6 +726,9 @@ def lower(system, *, specialize=None):
         raise TypeError(f"specialize must be True, False or None, got {specialize!r}")
     from . import _from_source
     if _from_source.applies(system):        # a plain model: its maps rewritten
+        hit = _from_source.cached(system)
+        if hit is not None and (specialize is None or hit.specialize == bool(specialize)):
+            return hit
         why = _refusal(system, type(system).__name__)
         if why is not None:
             raise why
@@ -839,6 +842,9 @@ def lowerable(system):
         raise TypeError(f"system must be a hybridsim.HybridSystem, got {type(system).__name__}")
     if isinstance(system, CompiledSystem) or (
             "_lowered" in system.__dict__ and "_source_plan" not in system.__dict__):
+        return Lowerable()
+    from . import _from_source
+    if "_source_plan" in system.__dict__ and _from_source.cached(system) is not None:
         return Lowerable()
     if isinstance(system, Interconnection):
         for nm, sub in system.systems.items():
