@@ -32,9 +32,17 @@ system reads its past through :class:`~hybridsim.compiled.CompiledSystem`'s
 ``delays`` (the sorted union of the parts'; see there for the rules of the
 past).
 
+A plain model (a single system with no compiled form: README's
+``BouncingBall`` class, a ``from_functions`` system) is lowered from its
+own maps, rewritten from their source as functions of ``(x, t, j, p)``
+(:mod:`hybridsim.compiled._from_source`; its ``p`` is read again before
+every run). As a component of an interconnection it still needs a
+compiled form.
+
 What cannot be lowered is refused by name: a part without a compiled form,
 an input given as a Python callable, a part reading its history without a
-compiled form that declares the delays it reads.
+compiled form that declares the delays it reads, a plain model's map that
+cannot be rewritten (the method and its line).
 """
 from __future__ import annotations
 
@@ -680,7 +688,9 @@ def lower(system, *, specialize=None):
 
     A :class:`~hybridsim.compiled.CompiledSystem` is returned as it is; a
     system with a compiled form, or an interconnection of such systems wired
-    by :class:`hybridsim.LinearInput`, is lowered (module notes). The result
+    by :class:`hybridsim.LinearInput`, is lowered (module notes); a plain
+    model is lowered from its own maps, rewritten from source (its numbers
+    and arrays read into ``p`` at each call). The result
     is cached on the system (``simulate(system, backend="compiled")`` then
     runs it), and dropped when the system is pickled.
 
@@ -706,8 +716,12 @@ def lower(system, *, specialize=None):
     ------
     TypeError
         A part without a compiled form, an input that is a Python callable,
-        or a part reading its history whose compiled form declares no
-        delays: the message names it.
+        a part reading its history whose compiled form declares no delays,
+        or a plain model's map that cannot be rewritten (a Python object
+        numba cannot type, global state, random draws): the message names
+        it (for a map, its method and line). numba's own refusal of a
+        rewritten map is a :class:`~hybridsim.compiled.CompileError` naming
+        the method and line.
 
     Examples
     --------
