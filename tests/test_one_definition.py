@@ -276,3 +276,23 @@ def test_the_rewritten_source_is_kept_on_disk_and_verified():
     # a file that is not the text generated here is never run
     plan = ball.__dict__["_source_plan"][1]
     assert _from_source._written(path, "something else") == plan.source
+
+
+def test_a_file_at_the_modules_path_that_is_not_its_text_is_never_run(tmp_path, monkeypatch):
+    from hybridsim import _source
+    from hybridsim.compiled import _from_source
+
+    class Decay(hs.HybridSystem):
+        state_dim = 1
+
+        def flow_map(self, x):
+            return -0.75 * x
+    plan = _source.plan(Decay())
+    name = f"hybridsim_src_{_from_source._digest(plan)}"
+    monkeypatch.setattr(_from_source, "_dirs", lambda: [str(tmp_path)])
+    monkeypatch.setattr(_from_source, "_MODULES", {})
+    (tmp_path / f"{name}.py").write_text("raise SystemExit('planted')\n")
+    mod, _ = _from_source._module(plan)
+    assert mod.__file__ == f"<hybridsim {name}>"           # compiled in memory instead
+    arc = hs.simulate(Decay(), [1.0], t_max=1.0, backend="compiled", **TIGHT)
+    np.testing.assert_allclose(arc.xf, [np.exp(-0.75)], rtol=1e-9)
