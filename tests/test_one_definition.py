@@ -203,7 +203,7 @@ class Noisy(hs.HybridSystem):
     state_dim = 1
 
     def flow_map(self, x):
-        return -x + np.random.normal()           # random draws: refused
+        return -x + np.random.normal()  # noqa: NPY002 - random draws: refused
 
 
 class Counting(hs.HybridSystem):
