@@ -109,9 +109,11 @@ def refusal(system):
     return pl if isinstance(pl, _source.SourceRefusal) else None
 
 
+_CANNOT = "has no compiled form and its maps cannot be rewritten for numba"
+
+
 def _text(system, e):
-    return (f"{type(system).__name__} has no compiled form and its maps cannot be "
-            f"rewritten for numba: {e}")
+    return f"{type(system).__name__} {_CANNOT}: {e}"
 
 
 # ------------------------------------------------------------------ the module
@@ -282,9 +284,10 @@ _WARNED = set()
 
 def auto_choice(system, ok):
     """``backend="auto"``'s choice for a system :func:`~hybridsim.compiled.lowerable`
-    judged (``ok``): a plain model is lowered and compiled here, and where it
-    cannot be, one :class:`FallbackWarning` per class and reason says why and
-    the Python path runs it."""
+    judged (``ok``): a plain model is lowered and compiled here, and where its
+    maps cannot be (rewritten, or compiled by numba), one :class:`FallbackWarning`
+    per class and reason says why and the Python path runs it (other reasons,
+    such as reading the history, are ``lowerable(system).reason``)."""
     if not applies(system):
         return "compiled" if ok else "python"
     why = None if ok else getattr(ok, "reason", None)
@@ -295,6 +298,8 @@ def auto_choice(system, ok):
             why = str(e)
     if why is None:
         return "compiled"
+    if _CANNOT not in why and "numba could not compile" not in why:
+        return "python"     # history, inputs...: lowerable(system).reason says why
     key = (type(system), why)
     if key not in _WARNED:
         _WARNED.add(key)
