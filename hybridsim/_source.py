@@ -499,6 +499,9 @@ class _Unresolved:
 _MISSING = _Unresolved()
 
 
+_DTYPES = {"float": "float64", "int": "int64", "bool": "bool_", "complex": "complex128"}
+
+
 class _Rewrite(ast.NodeTransformer):
     """One function's body, rewritten for the plan (module notes)."""
 
@@ -666,7 +669,8 @@ class _Rewrite(ast.NodeTransformer):
         f = node.func
         self._check_random(f)
         args = [self.visit(a) for a in node.args]
-        kws = [ast.keyword(arg=k.arg, value=self.visit(k.value)) for k in node.keywords]
+        kws = [ast.keyword(arg=k.arg, value=self._dtype(k.value) if k.arg == "dtype"
+                           else self.visit(k.value)) for k in node.keywords]
         target = None
         if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) \
                 and f.value.id == fn.self_name and fn.self_name is not None:
@@ -681,6 +685,14 @@ class _Rewrite(ast.NodeTransformer):
         return ast.copy_location(ast.Call(func=ast.Name(id=target, ctx=ast.Load()),
                                           args=[ast.Name(id=P, ctx=ast.Load()), *args],
                                           keywords=kws), node)
+
+    def _dtype(self, v):
+        """``dtype=float`` (a builtin type numba does not take as a dtype) as numpy's."""
+        if isinstance(v, ast.Name) and v.id in _DTYPES and v.id not in self.locals \
+                and self._lookup(v.id)[1] == ("builtin", v.id):
+            return ast.copy_location(ast.parse(f"_hs_m_numpy.{_DTYPES[v.id]}",
+                                               mode="eval").body, v)
+        return self.visit(v)
 
     def _self_method(self, f):
         fn, obj = self.fn, self.fn.obj
