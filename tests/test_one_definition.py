@@ -296,3 +296,40 @@ def test_a_file_at_the_modules_path_that_is_not_its_text_is_never_run(tmp_path, 
     assert mod.__file__ == f"<hybridsim {name}>"           # compiled in memory instead
     arc = hs.simulate(Decay(), [1.0], t_max=1.0, backend="compiled", **TIGHT)
     np.testing.assert_allclose(arc.xf, [np.exp(-0.75)], rtol=1e-9)
+
+
+GRAVITY = 9.81
+
+
+def _fall(x):
+    return np.array([x[1], -GRAVITY])
+
+
+def test_module_globals_and_followed_functions_are_read_per_run():
+    global GRAVITY
+    scale = 1.0
+
+    def accel(v):                   # a function of the closure: followed
+        return -scale * GRAVITY + 0.0 * v
+    kw = dict(x0=[1.0, 0.0], t_max=10.0, j_max=4, backend="compiled", **TIGHT)
+    for make in (lambda: hs.HybridSystem.from_functions(
+                     f=_fall, g=lambda x: np.array([0.0, -0.8 * x[1]]),
+                     C=lambda x: x[0] >= 0, D=lambda x: x[0] <= 0 and x[1] <= 0, state_dim=2),
+                 lambda: hs.HybridSystem.from_functions(
+                     f=lambda x: np.array([x[1], accel(x[1])]),
+                     g=lambda x: np.array([0.0, -0.8 * x[1]]),
+                     C=lambda x: x[0] >= 0, D=lambda x: x[0] <= 0 and x[1] <= 0, state_dim=2)):
+        s = make()
+        try:
+            for g in (9.81, 4.0):
+                GRAVITY = g
+                np.testing.assert_allclose(hs.simulate(s, **kw).jump_times,
+                                           bouncing_ball_jump_times(1.0, 4, g, 0.8), rtol=1e-12)
+        finally:
+            GRAVITY = 9.81
+
+
+def test_an_interconnection_of_plain_models_is_refused_with_its_reason():
+    ic = hs.Interconnection({"a": BouncingBall(), "b": BouncingBall()})
+    why = lowerable(ic)
+    assert not why and "component 'a'" in why.reason and "has no compiled form" in why.reason

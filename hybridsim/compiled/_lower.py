@@ -864,7 +864,8 @@ def lowerable(system):
         return Lowerable()
     if isinstance(system, Interconnection):
         for nm, sub in system.systems.items():
-            why = _refusal(sub, nm, (nm, system.inputs.get(nm)))
+            why = _refusal(sub, f"component {nm!r} ({type(sub).__name__})",
+                           (nm, system.inputs.get(nm)))
             if why is not None:
                 return Lowerable(str(why))
         return Lowerable()
