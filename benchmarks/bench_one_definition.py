@@ -121,7 +121,7 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
     args = ap.parse_args()
-    rounds = 7 if args.quick else 15
+    rounds = 15 if args.quick else 41
     warnings.simplefilter("ignore")
     plain, hand = BouncingBall(), hand_written()
     kw = dict(x0=[1.0, 0.0], t_max=np.inf, j_max=30, **TOL)
@@ -133,12 +133,12 @@ def main():
           f"vs the closed form {np.max(np.abs(a.jump_times / exact - 1)):.1e} relative")
     one = _rounds({"plain": lambda: hs.simulate(plain, backend="auto", **kw),
                    "hand": lambda: hs.simulate(hand, backend="compiled", **kw)},
-                  rounds, 20 if args.quick else 50)
+                  rounds, 10)
     x0s = np.column_stack([np.linspace(0.5, 2.0, 1000), np.zeros(1000)])
     mkw = dict(t_max=np.inf, j_max=10, **TOL)
     many = _rounds({"plain": lambda: hs.simulate_many(plain, x0s, backend="auto", **mkw),
                     "hand": lambda: hs.simulate_many(hand, x0s, backend="compiled", **mkw)},
-                   rounds, 1)
+                   max(5, rounds // 4), 1)
     print(f"{'workload':<34}{'plain (auto)':>14}{'hand-written':>14}{'ratio':>8}")
     for name, r in (("one run, 30 bounces", one), ("simulate_many, 1,000 x 10", many)):
         print(f"{name:<34}{r['plain'] * 1e3:>11.3f} ms{r['hand'] * 1e3:>11.3f} ms"

@@ -229,11 +229,11 @@ def lower_source(system, specialize=None):
     CompileError
         numba cannot compile a rewritten map (named by method and line).
     """
-    from . import CompiledSystem
-    from ._lower import _refuse
     hit = cached(system)
     if hit is not None and (specialize is None or hit.specialize == bool(specialize)):
         return hit
+    from . import CompiledSystem
+    from ._lower import _refuse
     pl = _plan(system)
     if isinstance(pl, _source.SourceRefusal):
         err = _refuse(type(system).__name__, _text(system, pl))

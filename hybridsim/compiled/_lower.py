@@ -54,6 +54,7 @@ import numpy as np
 
 from ..compose import Interconnection, LinearInput, LinearPlant
 from ..system import HybridSystem
+from . import _from_source
 
 __all__ = ["Component", "Lowerable", "lower", "lowerable", "matvec", "rebind"]
 
@@ -323,7 +324,6 @@ def _refusal(system, what, wired=None):
                              "output(x, t, j, u)); a compiled output is a function of "
                              "(x, t, j, p)")
     if getattr(system, "compiled_component", None) is None:
-        from . import _from_source
         if wired is None and _from_source.applies(system):
             # a plain model: its own maps, rewritten (hybridsim.compiled._from_source)
             if int(system.input_dim or 0):
@@ -733,6 +733,11 @@ def lower(system, *, specialize=None):
     >>> lower(plant).state_dim
     2
     """
+    if "_source_plan" in getattr(system, "__dict__", ()) and (
+            specialize is None or isinstance(specialize, bool)):
+        hit = _from_source.cached(system)       # a plain model run before: nothing changed
+        if hit is not None and (specialize is None or hit.specialize == specialize):
+            return hit
     from . import CompiledSystem
     if isinstance(system, CompiledSystem):
         return system
@@ -740,11 +745,7 @@ def lower(system, *, specialize=None):
         raise TypeError(f"system must be a hybridsim.HybridSystem, got {type(system).__name__}")
     if specialize is not None and not isinstance(specialize, (bool, np.bool_)):
         raise TypeError(f"specialize must be True, False or None, got {specialize!r}")
-    from . import _from_source
     if _from_source.applies(system):        # a plain model: its maps rewritten
-        hit = _from_source.cached(system)
-        if hit is not None and (specialize is None or hit.specialize == bool(specialize)):
-            return hit
         why = _refusal(system, type(system).__name__)
         if why is not None:
             raise why
@@ -853,14 +854,14 @@ def lowerable(system):
     >>> print(lowerable(noisy).reason)
     backend='compiled': LinearPlant cannot run compiled: its noise is a Python callable of t; ...
     """
+    if "_source_plan" in getattr(system, "__dict__", ()) and \
+            _from_source.cached(system) is not None:         # a plain model run before
+        return Lowerable()
     from . import CompiledSystem
     if not isinstance(system, HybridSystem):
         raise TypeError(f"system must be a hybridsim.HybridSystem, got {type(system).__name__}")
     if isinstance(system, CompiledSystem) or (
             "_lowered" in system.__dict__ and "_source_plan" not in system.__dict__):
-        return Lowerable()
-    from . import _from_source
-    if "_source_plan" in system.__dict__ and _from_source.cached(system) is not None:
         return Lowerable()
     if isinstance(system, Interconnection):
         for nm, sub in system.systems.items():
