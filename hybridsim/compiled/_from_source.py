@@ -298,8 +298,10 @@ def auto_choice(system, ok):
             why = str(e)
     if why is None:
         return "compiled"
-    if _CANNOT not in why and "numba could not compile" not in why:
-        return "python"     # history, inputs...: lowerable(system).reason says why
+    if (_CANNOT not in why and "numba could not compile" not in why) or system.vectorized:
+        # history, inputs...; or a vectorized system, whose batches integrate
+        # together in numpy: lowerable(system).reason says why
+        return "python"
     key = (type(system), why)
     if key not in _WARNED:
         _WARNED.add(key)
