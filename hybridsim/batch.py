@@ -521,7 +521,8 @@ def _auto_backend(system, kwargs, executor):
         method_on("compiled", kwargs.get("method"), system)
     except (TypeError, ValueError):
         return "python"
-    return "compiled" if lowerable(system) else "python"
+    from .compiled._from_source import auto_choice
+    return auto_choice(system, lowerable(system))   # a plain model: compiled, or one warning
 
 
 def _raise_first_failure(out):

@@ -186,6 +186,22 @@ def as_map(fn, name: str):
     return fn
 
 
+class _DerivedGuard:
+    """``jump_guard`` / ``flow_guard`` where a system gives none: the signed
+    guard derived from its set indicator (:func:`hybridsim._source.derived_guard`),
+    or None. An instance attribute, a method or ``jump_guard = None`` in a
+    subclass replaces it."""
+
+    def __init__(self, name):
+        self.name = name
+
+    def __get__(self, obj, owner=None):
+        if obj is None:
+            return None
+        from ._source import derived_guard
+        return derived_guard(obj, self.name)
+
+
 class HybridSystem:
     r"""A hybrid system with data (C, f, D, g), an optional input u and output y.
 
@@ -209,7 +225,12 @@ class HybridSystem:
        near the events, ``flow_guard`` with C = {min_i c_i >= 0}. Where the set
        indicator is not overridden it is derived from its guard. Where both
        are given, the indicator decides membership and the guard locates the
-       crossing.
+       crossing. Where no guard is given and the set is built from
+       comparisons, ``and``, ``or``, ``not`` and ``if``/``else``, its guard is
+       derived from its source (``a >= b`` gives ``a - b``, ``and`` the
+       minimum, ``or`` the maximum, ``not`` the negation; zero on the
+       boundary, where the indicator decides); ``jump_guard = None`` in a
+       subclass keeps the indicator alone.
     7. ``output(x, t, j)`` is the output y (default: x). Written
        ``output(x, t, j, u)`` it may read the input (direct feedthrough): an
        interconnection then evaluates outputs in dependency order and raises
@@ -247,8 +268,8 @@ class HybridSystem:
     max_step: float | None = None
     needs_history: bool = False
     delays: tuple = ()
-    jump_guard = None
-    flow_guard = None
+    jump_guard = _DerivedGuard("jump_guard")
+    flow_guard = _DerivedGuard("flow_guard")
     #: a set-valued jump map ``(x, t, j, u) -> successors`` (rule 10), or None
     jump_map_values = None
     #: names of the components of an interconnection: ``{name: slice}``
@@ -282,6 +303,7 @@ class HybridSystem:
         state.pop("_compiled_maps", None)
         state.pop("history", None)
         state.pop("_lowered", None)         # the compiled path's generated maps
+        state.pop("_source_plan", None)     # its rewrite of the maps (hybridsim._source)
         return state
 
     def _bind_history(self, history):

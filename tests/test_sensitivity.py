@@ -342,9 +342,11 @@ def test_a_zeno_ball_is_zeno_not_grazing():
 
 
 def test_indicator_without_guard_is_named():
+    # a set no guard is derived from (a call: hybridsim._source); the same ball's
+    # D written as comparisons gets one (tests/test_derived_guards.py)
     b = hs.HybridSystem.from_functions(
         f=lambda x: np.array([x[1], -G]), g=lambda x: np.array([0.0, -E * x[1]]),
-        C=lambda x: x[0] >= 0, D=lambda x: x[0] <= 0 and x[1] <= 0, state_dim=2)
+        C=lambda x: x[0] >= 0, D=lambda x: bool(x[0] <= 0 and x[1] <= 0), state_dim=2)
     with pytest.raises(SensitivityError, match=r"\(j=0 -> 1\).*no jump_guard") as ei:
         simulate_sensitivity(b, [H0, 0.0], t_max=1.0)
     assert ei.value.t == pytest.approx(np.sqrt(2 * H0 / G), rel=1e-9)
@@ -510,9 +512,10 @@ def test_falsify_gradient_falls_back_and_checks_its_input():
     from hybridsim.falsification import Interval, Space, falsify
 
     def no_guard(p):         # the jump set alone: no gradient (SensitivityError)
+        # (bool(...): a set no guard is derived from, hybridsim._source)
         return hs.HybridSystem.from_functions(
             f=lambda x: np.array([p[0]]), g=lambda x: np.array([p[1]]),
-            D=lambda x: x[0] >= 1.0, state_dim=1)
+            D=lambda x: bool(x[0] >= 1.0), state_dim=1)
 
     def run(pt):
         return hs.simulate(_rate_reset(pt.z), [0.0], t_max=5.0, j_max=2)

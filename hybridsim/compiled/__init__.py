@@ -1210,6 +1210,8 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
 
 # lowering ordinary systems (LinearPlant, interconnections, components with a
 # compiled form) onto this path: hybridsim/compiled/_lower.py
-from ._lower import Component, compiled_matvec, lower, lowerable, matvec  # noqa: E402
+from ._from_source import FallbackWarning  # noqa: E402
+from ._lower import Component, Lowerable, compiled_matvec, lower, lowerable, matvec  # noqa: E402
 
-__all__ += ["Component", "lower", "lowerable", "matvec", "compiled_matvec"]
+__all__ += ["Component", "lower", "lowerable", "matvec", "compiled_matvec", "Lowerable",
+            "FallbackWarning"]

@@ -32,9 +32,17 @@ system reads its past through :class:`~hybridsim.compiled.CompiledSystem`'s
 ``delays`` (the sorted union of the parts'; see there for the rules of the
 past).
 
+A plain model (a single system with no compiled form: README's
+``BouncingBall`` class, a ``from_functions`` system) is lowered from its
+own maps, rewritten from their source as functions of ``(x, t, j, p)``
+(:mod:`hybridsim.compiled._from_source`; its ``p`` is read again before
+every run). As a component of an interconnection it still needs a
+compiled form.
+
 What cannot be lowered is refused by name: a part without a compiled form,
 an input given as a Python callable, a part reading its history without a
-compiled form that declares the delays it reads.
+compiled form that declares the delays it reads, a plain model's map that
+cannot be rewritten (the method and its line).
 """
 from __future__ import annotations
 
@@ -46,8 +54,9 @@ import numpy as np
 
 from ..compose import Interconnection, LinearInput, LinearPlant
 from ..system import HybridSystem
+from . import _from_source
 
-__all__ = ["Component", "lower", "lowerable", "matvec", "rebind"]
+__all__ = ["Component", "Lowerable", "lower", "lowerable", "matvec", "rebind"]
 
 _ROLES = ("flow", "jump", "jump_guard", "flow_guard", "jump_set", "flow_set")
 
@@ -315,6 +324,14 @@ def _refusal(system, what, wired=None):
                              "output(x, t, j, u)); a compiled output is a function of "
                              "(x, t, j, p)")
     if getattr(system, "compiled_component", None) is None:
+        if wired is None and _from_source.applies(system):
+            # a plain model: its own maps, rewritten (hybridsim.compiled._from_source)
+            if int(system.input_dim or 0):
+                return _refuse(what, _from_source._text(
+                    system, f"it has an input (input_dim={system.input_dim}); connect it "
+                            f"in an Interconnection with a LinearInput"))
+            why = _from_source.refusal(system)
+            return None if why is None else _refuse(what, _from_source._text(system, why))
         return _refuse(what, f"{type(system).__name__} has no compiled form (a "
                              f"compiled_component() method returning a "
                              f"hybridsim.compiled.Component)")
@@ -673,7 +690,9 @@ def lower(system, *, specialize=None):
 
     A :class:`~hybridsim.compiled.CompiledSystem` is returned as it is; a
     system with a compiled form, or an interconnection of such systems wired
-    by :class:`hybridsim.LinearInput`, is lowered (module notes). The result
+    by :class:`hybridsim.LinearInput`, is lowered (module notes); a plain
+    model is lowered from its own maps, rewritten from source (its numbers
+    and arrays read into ``p`` at each call). The result
     is cached on the system (``simulate(system, backend="compiled")`` then
     runs it), and dropped when the system is pickled.
 
@@ -699,8 +718,12 @@ def lower(system, *, specialize=None):
     ------
     TypeError
         A part without a compiled form, an input that is a Python callable,
-        or a part reading its history whose compiled form declares no
-        delays: the message names it.
+        a part reading its history whose compiled form declares no delays,
+        or a plain model's map that cannot be rewritten (a Python object
+        numba cannot type, global state, random draws): the message names
+        it (for a map, its method and line). numba's own refusal of a
+        rewritten map is a :class:`~hybridsim.compiled.CompileError` naming
+        the method and line.
 
     Examples
     --------
@@ -710,6 +733,11 @@ def lower(system, *, specialize=None):
     >>> lower(plant).state_dim
     2
     """
+    if "_source_plan" in getattr(system, "__dict__", ()) and (
+            specialize is None or isinstance(specialize, bool)):
+        hit = _from_source.cached(system)       # a plain model run before: nothing changed
+        if hit is not None and (specialize is None or hit.specialize == specialize):
+            return hit
     from . import CompiledSystem
     if isinstance(system, CompiledSystem):
         return system
@@ -717,6 +745,11 @@ def lower(system, *, specialize=None):
         raise TypeError(f"system must be a hybridsim.HybridSystem, got {type(system).__name__}")
     if specialize is not None and not isinstance(specialize, (bool, np.bool_)):
         raise TypeError(f"specialize must be True, False or None, got {specialize!r}")
+    if _from_source.applies(system):        # a plain model: its maps rewritten
+        why = _refusal(system, type(system).__name__)
+        if why is not None:
+            raise why
+        return _from_source.lower_source(system, specialize)
     cached = system.__dict__.get("_lowered")
     if cached is not None and (specialize is None or cached.specialize == bool(specialize)):
         return cached
@@ -780,26 +813,62 @@ def rebind(arc, system):
     return arc
 
 
+class Lowerable:
+    """:func:`lowerable`'s answer: true where the system runs compiled; else
+    false, with ``reason`` (the message :func:`lower` raises)."""
+
+    __slots__ = ("reason",)
+
+    def __init__(self, reason=None):
+        self.reason = reason
+
+    def __bool__(self):
+        return self.reason is None
+
+    def __repr__(self):
+        return "Lowerable(True)" if self.reason is None else \
+            f"Lowerable(False, reason={self.reason!r})"
+
+
 def lowerable(system):
     """Whether :func:`lower` accepts ``system``: the same checks (no refusal),
     without compiling anything (numba need not be installed). (Not built
     either: a part reading its history whose compiled form, once built,
-    declares no delays passes here and is refused by :func:`lower`.)
+    declares no delays passes here and is refused by :func:`lower`; a plain
+    model whose rewritten maps numba refuses passes here and is refused by
+    :func:`lower` with numba's reason.)
+
+    Returns
+    -------
+    Lowerable
+        True or false; where false, ``.reason`` says why (for a plain model,
+        the method and line that cannot be rewritten).
 
     Examples
     --------
     >>> import hybridsim as hs
     >>> from hybridsim.compiled import lowerable
     >>> noisy = hs.LinearPlant([[-1.0]], noise=lambda t: [0.0])   # a callable of t
-    >>> lowerable(hs.LinearPlant([[-1.0]])), lowerable(noisy)
+    >>> bool(lowerable(hs.LinearPlant([[-1.0]]))), bool(lowerable(noisy))
     (True, False)
+    >>> print(lowerable(noisy).reason)
+    backend='compiled': LinearPlant cannot run compiled: its noise is a Python callable of t; ...
     """
+    if "_source_plan" in getattr(system, "__dict__", ()) and \
+            _from_source.cached(system) is not None:         # a plain model run before
+        return Lowerable()
     from . import CompiledSystem
     if not isinstance(system, HybridSystem):
         raise TypeError(f"system must be a hybridsim.HybridSystem, got {type(system).__name__}")
-    if isinstance(system, CompiledSystem) or "_lowered" in system.__dict__:
-        return True
+    if isinstance(system, CompiledSystem) or (
+            "_lowered" in system.__dict__ and "_source_plan" not in system.__dict__):
+        return Lowerable()
     if isinstance(system, Interconnection):
-        return all(_refusal(sub, nm, (nm, system.inputs.get(nm))) is None
-                   for nm, sub in system.systems.items())
-    return _refusal(system, type(system).__name__) is None
+        for nm, sub in system.systems.items():
+            why = _refusal(sub, f"component {nm!r} ({type(sub).__name__})",
+                           (nm, system.inputs.get(nm)))
+            if why is not None:
+                return Lowerable(str(why))
+        return Lowerable()
+    why = _refusal(system, type(system).__name__)
+    return Lowerable(None if why is None else str(why))

@@ -1,0 +1,877 @@
+"""The user's maps as source: read, checked and rewritten with :mod:`ast`.
+
+Two transformations share this module's reading of a map's source (the
+function's own node in its file, so every message names the file and line):
+
+* **Guards from sets** (:func:`derived_guard`). A set indicator built from
+  comparisons with ``and``, ``or``, ``not``, ``&``, ``|``, ``~`` and
+  ``if``/``else`` expressions gives a signed guard: ``a >= b`` and ``a > b``
+  give ``a - b``, ``a <= b`` and ``a < b`` give ``b - a``, a chain the
+  smallest of its links, ``and`` (``&``) the smallest, ``or`` (``|``) the
+  largest, ``not`` (``~``) the negation, ``A if c else B`` the guard of the
+  branch taken. Boundary convention: ``{guard >= 0}`` is the set with its
+  boundary; the guard is positive only inside the set and negative only
+  outside it, and zero on the boundary, where the set's own indicator
+  decides (the engine's rule 6: the indicator decides membership, the guard
+  locates the crossing). A set of anything else (``==``, a call, a bool
+  variable) has no derived guard (:func:`guard_refusal` says why) and runs
+  as today, by bisection of its indicator.
+* **Maps of (x, t, j, p)** (:func:`plan`). The maps of a plain
+  :class:`hybridsim.HybridSystem` (methods, or the functions of
+  :meth:`~hybridsim.HybridSystem.from_functions`) rewritten as functions of
+  ``(x, t, j, p)`` that numba compiles: every number and array a map reads
+  from ``self``, from a closure, from a default argument or from a module
+  global becomes a slot of ``p`` (:class:`Layout`, read again before every
+  run: changing ``ball.e`` changes the next run), ``self.helper(...)`` and
+  calls of plain functions are followed (rewritten the same way), modules
+  are imported by name. What cannot be rewritten is refused by a
+  :class:`SourceRefusal` naming the method and its line: ``self`` passed or
+  written, global state, random draws, an object numba cannot type.
+
+Reading source (rather than tracing calls) keeps every branch of a map,
+whatever state a trial call would take, and sees every read of ``self``.
+Nothing here needs numba (:mod:`hybridsim.compiled._from_source` compiles
+the plan).
+"""
+from __future__ import annotations
+
+import ast
+import builtins
+import copy
+import hashlib
+import inspect
+import linecache
+import math
+import types
+import weakref
+
+import numpy as np
+
+__all__ = ["SourceRefusal", "derived_guard", "guard_refusal", "plan", "Layout"]
+
+P = "_hs_p"          # the parameter array of generated functions
+_RESERVED = "_hs_"
+
+
+class SourceRefusal(TypeError):
+    """A map that cannot be rewritten: ``method`` (its qualified name),
+    ``line`` (file:line) and ``why``."""
+
+    def __init__(self, method, line, why):
+        super().__init__(f"{method} ({line}): {why}")
+        self.method, self.line, self.why = method, line, why
+
+
+# ------------------------------------------------------------------ reading source
+_TREES = {}
+
+
+def _tree(file, func):
+    lines = linecache.getlines(file, func.__globals__)
+    if not lines:
+        return None
+    text = "".join(lines)
+    key = (file, hashlib.sha1(text.encode()).hexdigest())
+    t = _TREES.get(key)
+    if t is None:
+        try:
+            t = ast.parse(text, file)
+        except SyntaxError:
+            return None
+        if len(_TREES) > 64:
+            _TREES.clear()
+        _TREES[key] = t
+    return t
+
+
+def _names_in(node, args):
+    out = set()
+    for n in ast.walk(node):
+        if isinstance(n, ast.Name) and n.id not in args:
+            out.add(n.id)
+        elif isinstance(n, ast.Attribute):
+            out.add(n.attr)
+    return out
+
+
+def _consts(code):
+    return tuple(repr(c) for c in code.co_consts if not isinstance(c, types.CodeType))
+
+
+def _same_code(lam, code):
+    """Whether the lambda node compiles to ``code`` (its constants, and its
+    bytecode where it has no closure)."""
+    try:
+        mod = compile(ast.fix_missing_locations(ast.Expression(body=copy.deepcopy(lam))),
+                      code.co_filename, "eval")
+    except (SyntaxError, ValueError):
+        return False
+    mine = next((c for c in mod.co_consts if isinstance(c, types.CodeType)), None)
+    if mine is None or _consts(mine) != _consts(code):
+        return False
+    return bool(code.co_freevars) or mine.co_code == code.co_code
+
+
+def _node_of(func, qualname):
+    """The FunctionDef of ``func`` in its file (a lambda as one)."""
+    code = func.__code__
+    tree = _tree(code.co_filename, func)
+    where = f"{code.co_filename}:{code.co_firstlineno}"
+    if tree is None:
+        raise SourceRefusal(qualname, where, "its source is not available (defined "
+                            "interactively or by exec); define it in a file")
+    cands = []
+    for n in ast.walk(tree):
+        if code.co_name == "<lambda>" and isinstance(n, ast.Lambda) \
+                and n.lineno == code.co_firstlineno:
+            cands.append(n)
+        elif isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef)) and n.name == code.co_name:
+            first = n.decorator_list[0].lineno if n.decorator_list else n.lineno
+            if first == code.co_firstlineno:
+                cands.append(n)
+    if len(cands) > 1 and code.co_name == "<lambda>":
+        args = set(code.co_varnames[:code.co_argcount])
+        want = set(code.co_names) | set(code.co_freevars)
+        cands = [c for c in cands if {a.arg for a in c.args.args} == args
+                 and _names_in(c.body, args) == want] or cands
+        if len(cands) > 1:
+            cands = [c for c in cands if _same_code(c, code)] or cands
+        if len({ast.dump(c) for c in cands}) > 1:
+            raise SourceRefusal(qualname, where, "several lambdas on one line: its source "
+                                "cannot be told apart; put it on a line of its own")
+    if not cands:
+        raise SourceRefusal(qualname, where, "its source was not found in its file")
+    n = cands[0]
+    if isinstance(n, ast.AsyncFunctionDef):
+        raise SourceRefusal(qualname, where, "an async function")
+    if isinstance(n, ast.Lambda):
+        fd = ast.FunctionDef(name="_lambda", args=n.args, body=[ast.Return(n.body)],
+                             decorator_list=[], returns=None, type_comment=None)
+        ast.copy_location(fd, n)
+        ast.copy_location(fd.body[0], n.body)
+        n = fd
+    return copy.deepcopy(n)
+
+
+class Fn:
+    """One function's source and context: its node, globals, closure cells,
+    the object bound to its first parameter (``obj``, a method's self)."""
+
+    def __init__(self, func, obj, qualname, node=None):
+        self.func, self.obj, self.qualname = func, obj, qualname
+        code = func.__code__
+        self.file = code.co_filename
+        self.globals = func.__globals__
+        self.cells = dict(zip(code.co_freevars, func.__closure__ or ()))
+        self.node = node if node is not None else _node_of(func, qualname)
+        a = self.node.args
+        if a.vararg or a.kwarg or a.kwonlyargs:
+            raise SourceRefusal(qualname, self.at(self.node),
+                                "takes *args, **kwargs or keyword-only arguments")
+        self.params = [p.arg for p in a.posonlyargs + a.args]
+        self.self_name = self.params[0] if obj is not None and self.params else None
+        defaults = func.__defaults__ or ()
+        self.defaults = dict(zip(self.params[len(self.params) - len(defaults):], defaults))
+
+    def at(self, node):
+        return f"{self.file}:{getattr(node, 'lineno', self.node.lineno)}"
+
+    def refuse(self, node, why):
+        return SourceRefusal(self.qualname, self.at(node), why)
+
+
+def _unwrap(fn, qualname):
+    """``(function, bound object)`` of a map (a function, lambda or bound method)."""
+    if isinstance(fn, types.MethodType):
+        return fn.__func__, fn.__self__
+    if isinstance(fn, types.FunctionType):
+        return fn, None
+    raise SourceRefusal(qualname, "?", f"it is a {type(fn).__name__}, not a function or "
+                        f"method (its source cannot be read)")
+
+
+def _fn_of(fn, qualname):
+    func, obj = _unwrap(fn, qualname)
+    hit = getattr(func, "__hs_fn__", None)      # a derived guard: its source is its node
+    if hit is not None:
+        return Fn(func, obj, hit.qualname, copy.deepcopy(hit.node))
+    return Fn(func, obj, qualname)
+
+
+# ------------------------------------------------------------------ guards from sets
+class _NoGuard(Exception):
+    def __init__(self, node, why):
+        super().__init__(why)
+        self.node, self.why = node, why
+
+
+def _call(name, args, like):
+    return ast.copy_location(ast.Call(func=ast.Name(id=name, ctx=ast.Load()), args=args,
+                                      keywords=[]), like)
+
+
+def _sub(a, b, like):
+    return ast.copy_location(ast.BinOp(left=a, op=ast.Sub(), right=b), like)
+
+
+def _guard_expr(e):
+    """The guard expression of a boolean expression ``e`` (module notes)."""
+    if isinstance(e, ast.Compare):
+        terms, left = [], e.left
+        for op, right in zip(e.ops, e.comparators):
+            if isinstance(op, (ast.Gt, ast.GtE)):
+                terms.append(_sub(copy.deepcopy(left), copy.deepcopy(right), e))
+            elif isinstance(op, (ast.Lt, ast.LtE)):
+                terms.append(_sub(copy.deepcopy(right), copy.deepcopy(left), e))
+            else:
+                raise _NoGuard(e, f"the comparison {type(op).__name__} "
+                                  f"({ast.unparse(e)}) has no signed distance")
+            left = right
+        return terms[0] if len(terms) == 1 else _call("_hs_min", terms, e)
+    if isinstance(e, ast.BoolOp):
+        name = "_hs_min" if isinstance(e.op, ast.And) else "_hs_max"
+        return _call(name, [_guard_expr(v) for v in e.values], e)
+    if isinstance(e, ast.BinOp) and isinstance(e.op, (ast.BitAnd, ast.BitOr)):
+        name = "_hs_minimum" if isinstance(e.op, ast.BitAnd) else "_hs_maximum"
+        return _call(name, [_guard_expr(e.left), _guard_expr(e.right)], e)
+    if isinstance(e, ast.UnaryOp) and isinstance(e.op, (ast.Not, ast.Invert)):
+        return ast.copy_location(ast.UnaryOp(op=ast.USub(), operand=_guard_expr(e.operand)), e)
+    if isinstance(e, ast.IfExp):
+        return ast.copy_location(ast.IfExp(test=e.test, body=_guard_expr(e.body),
+                                           orelse=_guard_expr(e.orelse)), e)
+    if isinstance(e, ast.Constant) and isinstance(e.value, bool):
+        return ast.copy_location(ast.Constant(math.inf if e.value else -math.inf), e)
+    raise _NoGuard(e, f"{ast.unparse(e)!r} is not a comparison, and, or, not or if/else "
+                      f"of comparisons")
+
+
+class _Returns(ast.NodeTransformer):
+    def visit_FunctionDef(self, node):       # nested functions keep their returns
+        return node
+
+    visit_Lambda = visit_FunctionDef
+
+    def visit_Return(self, node):
+        if node.value is None:
+            raise _NoGuard(node, "a bare return")
+        return ast.copy_location(ast.Return(value=_guard_expr(node.value)), node)
+
+
+#: the helpers a derived guard's expression calls (bound in its closure)
+_GUARD_CELLS = {"_hs_min": min, "_hs_max": max, "_hs_minimum": np.minimum,
+                "_hs_maximum": np.maximum}
+
+#: code object -> (guard node, None) or (None, (line, why)): the rewrite of a set's source
+_DERIVED = {}
+
+
+def _guard_node(fn):
+    key = fn.func.__code__
+    hit = _DERIVED.get(key)
+    if hit is None:
+        node = copy.deepcopy(fn.node)
+        try:
+            node.body = [_Returns().visit(s) for s in node.body]
+            if not any(isinstance(n, ast.Return) for s in node.body for n in ast.walk(s)):
+                raise _NoGuard(node, "it returns nothing")
+            hit = (node, None)
+        except _NoGuard as e:
+            hit = (None, (fn.at(e.node), e.why))
+        if len(_DERIVED) > 1024:
+            _DERIVED.clear()
+        _DERIVED[key] = hit
+    return hit
+
+
+def _as_function(fn, node, name):
+    """A Python function of ``node`` in ``fn``'s globals and closure (plus the
+    guard helpers), its line numbers the source's."""
+    node = copy.deepcopy(node)
+    node.name = name
+    node.decorator_list = []
+    free = sorted(set(fn.cells) | set(_GUARD_CELLS))
+    outer = ast.FunctionDef(
+        name="_hs_outer", args=ast.arguments(posonlyargs=[], args=[], kwonlyargs=[],
+                                             kw_defaults=[], defaults=[]),
+        body=[ast.Assign(targets=[ast.Name(id=v, ctx=ast.Store())],
+                         value=ast.Constant(None)) for v in free]
+        + [node, ast.Return(ast.Name(id=name, ctx=ast.Load()))],
+        decorator_list=[], returns=None, type_comment=None)
+    ast.copy_location(outer, node)
+    mod = ast.fix_missing_locations(ast.Module(body=[outer], type_ignores=[]))
+    code = compile(mod, fn.file, "exec")
+    outer_code = next(c for c in code.co_consts if isinstance(c, types.CodeType))
+    inner = next(c for c in outer_code.co_consts if isinstance(c, types.CodeType))
+    cells = dict(fn.cells)
+    for k, v in _GUARD_CELLS.items():
+        cells.setdefault(k, types.CellType(v))
+    f = types.FunctionType(inner, fn.globals, name, fn.func.__defaults__,
+                           tuple(cells[v] for v in inner.co_freevars))
+    f.__qualname__ = fn.qualname
+    return f
+
+
+#: the guard helpers in generated (numba) code
+_GUARD_NAMES = {"_hs_min": "min", "_hs_max": "max", "_hs_minimum": "_hs_m_numpy.minimum",
+                "_hs_maximum": "_hs_m_numpy.maximum"}
+
+_SETS = {"jump_guard": "jump_set", "flow_guard": "flow_set"}
+#: id(system) -> (weakref, {guard name: (set function, guard)})
+_GUARDS = {}
+
+
+def _set_fn(system, set_name):
+    fn = getattr(system, set_name)
+    return getattr(fn, "__func__", fn)
+
+
+def derived_guard(system, name):
+    """The guard ``name`` (``"jump_guard"`` or ``"flow_guard"``) derived from
+    ``system``'s set indicator, or None (no set given, or one that cannot be
+    turned into a guard: :func:`guard_refusal`). Cached per system and set.
+
+    Examples
+    --------
+    >>> import numpy as np, hybridsim as hs
+    >>> ball = hs.HybridSystem.from_functions(
+    ...     f=lambda x: np.array([x[1], -9.81]), D=lambda x: x[0] <= 0 and x[1] <= 0,
+    ...     state_dim=2)
+    >>> ball.jump_guard(np.array([0.5, -1.0]))      # min(-x0, -x1)
+    -0.5
+    """
+    set_name = _SETS[name]
+    if not system._overrides(set_name):
+        return None
+    key = _set_fn(system, set_name)
+    entry = _GUARDS.get(id(system))
+    if entry is None or entry[0]() is not system:
+        i, guards = id(system), _GUARDS
+        try:
+            ref = weakref.ref(system, lambda _r: guards.pop(i, None))
+        except TypeError:
+            ref = None
+        entry = (ref, {})
+        if ref is not None:
+            _GUARDS[id(system)] = entry
+    hit = entry[1].get(name)
+    if hit is not None and hit[0] is key:
+        return hit[1]
+    guard = _derive(system, set_name, name)
+    entry[1][name] = (key, guard)
+    return guard
+
+
+def _derive(system, set_name, name):
+    try:
+        fn = _fn_of(getattr(system, set_name), f"{type(system).__name__}.{set_name}")
+    except SourceRefusal:
+        return None
+    node, _ = _guard_node(fn)
+    if node is None:
+        return None
+    f = _as_function(fn, node, name)
+    f.__hs_fn__ = types.SimpleNamespace(node=node, qualname=f"{fn.qualname} (its guard)")
+    return types.MethodType(f, fn.obj) if fn.obj is not None else f
+
+
+def guard_refusal(system, name):
+    """Why no guard ``name`` is derived from ``system``'s set: ``"file:line:
+    reason"``, or None where one is (or where no set is given)."""
+    set_name = _SETS[name]
+    if not system._overrides(set_name):
+        return None
+    try:
+        fn = _fn_of(getattr(system, set_name), f"{type(system).__name__}.{set_name}")
+    except SourceRefusal as e:
+        return str(e)
+    node, why = _guard_node(fn)
+    return None if node is not None else f"{fn.qualname} ({why[0]}): {why[1]}"
+
+
+# ------------------------------------------------------------------ maps of (x, t, j, p)
+_NUMBA_MODULES = ("numpy", "math", "cmath")
+_RANDOM_MODULES = ("random", "numpy.random", "secrets")
+
+
+def _kind(v):
+    """``(kind, shape)`` of a value a map may read as a parameter, or None."""
+    if isinstance(v, (bool, np.bool_)):
+        return ("bool", ())
+    if isinstance(v, (int, np.integer)):
+        return ("int", ())
+    if isinstance(v, (float, np.floating)):
+        return ("float", ())
+    if isinstance(v, np.ndarray):
+        if v.dtype.kind in "f":
+            return ("farray", v.shape)
+        if v.dtype.kind in "iub":
+            return ("iarray", v.shape)
+        return None
+    if isinstance(v, (list, tuple)) and v and all(
+            isinstance(e, (int, float, np.integer, np.floating)) and not isinstance(e, bool)
+            for e in v):
+        return ("farray", (len(v),))
+    return None
+
+
+class Layout:
+    """The named slots of ``p``: ``slots`` a list of ``(name, kind, shape,
+    offset, size)``, ``size`` their total. :meth:`read` reads every value
+    again (a system's attributes, a closure's numbers, module globals)."""
+
+    def __init__(self):
+        self.slots, self.readers, self.size, self._index = [], [], 0, {}
+
+    def add(self, key, name, value, reader):
+        hit = self._index.get(key)
+        if hit is not None:
+            return self.slots[hit]
+        kind, shape = _kind(value)
+        size = int(np.prod(shape)) if shape else 1
+        slot = (name, kind, shape, self.size, size)
+        self._index[key] = len(self.slots)
+        self.slots.append(slot)
+        self.readers.append(reader)
+        self.size += size
+        return slot
+
+    def read(self):
+        """``p`` now, or None where a value changed kind or shape (the maps must
+        be rewritten)."""
+        p = np.empty(self.size)
+        for (_, kind, shape, off, size), rd in zip(self.slots, self.readers):
+            try:
+                v = rd()
+            except Exception:  # noqa: BLE001 - an attribute deleted since: rewrite
+                return None
+            k = _kind(v)
+            if k is None or k != (kind, shape):
+                return None
+            if size == 1 and not shape:
+                p[off] = float(v)
+            else:
+                p[off:off + size] = np.asarray(v, dtype=np.float64).reshape(-1)
+        return p
+
+    def names(self):
+        """``{name: (offset, shape)}`` (for reading ``p`` by name)."""
+        return {s[0]: (s[3], s[2]) for s in self.slots}
+
+
+def _slot_expr(slot, like):
+    _, kind, shape, off, size = slot
+    pv = ast.Name(id=P, ctx=ast.Load())
+    if not shape and kind != "farray" and kind != "iarray":
+        e = ast.Subscript(value=pv, slice=ast.Constant(off), ctx=ast.Load())
+        if kind == "int":
+            e = ast.Call(func=ast.Name(id="int", ctx=ast.Load()), args=[e], keywords=[])
+        elif kind == "bool":
+            e = ast.Compare(left=e, ops=[ast.NotEq()], comparators=[ast.Constant(0.0)])
+    else:
+        if not shape:
+            e = ast.Subscript(value=pv, slice=ast.Constant(off), ctx=ast.Load())
+        else:
+            e = ast.parse(f"{P}[{off}:{off + size}]", mode="eval").body
+            if len(shape) > 1:
+                e = ast.parse(f"{P}[{off}:{off + size}].reshape({tuple(shape)!r})",
+                              mode="eval").body
+            if kind == "iarray":
+                e = ast.Call(func=ast.Attribute(value=e, attr="astype", ctx=ast.Load()),
+                             args=[ast.Name(id="_hs_m_numpy.int64", ctx=ast.Load())],
+                             keywords=[])
+    return ast.fix_missing_locations(ast.copy_location(e, like))
+
+
+def _locals(node):
+    out = {a.arg for a in node.args.posonlyargs + node.args.args}
+    for n in ast.walk(node):
+        if isinstance(n, ast.Name) and isinstance(n.ctx, (ast.Store, ast.Del)):
+            out.add(n.id)
+        elif isinstance(n, ast.arg):
+            out.add(n.arg)
+    return out
+
+
+class _Unresolved:
+    pass
+
+
+_MISSING = _Unresolved()
+
+
+_DTYPES = {"float": "float64", "int": "int64", "bool": "bool_", "complex": "complex128"}
+
+
+class _Rewrite(ast.NodeTransformer):
+    """One function's body, rewritten for the plan (module notes)."""
+
+    def __init__(self, planner, fn):
+        self.pl, self.fn = planner, fn
+        self.locals = _locals(fn.node)
+        for v in self.locals:
+            if v.startswith(_RESERVED):
+                raise fn.refuse(fn.node, f"the name {v!r} is reserved for hybridsim")
+
+    # -- what a name is
+    def _lookup(self, name):
+        fn = self.fn
+        if name in fn.cells:
+            cell = fn.cells[name]
+            try:
+                return cell.cell_contents, ("cell", id(cell)), lambda c=cell: c.cell_contents
+            except ValueError:
+                return _MISSING, None, None
+        if name in fn.globals:
+            g = fn.globals
+            return g[name], ("global", id(g), name), lambda g=g, n=name: g[n]
+        if hasattr(builtins, name):
+            return getattr(builtins, name), ("builtin", name), None
+        return _MISSING, None, None
+
+    def _module_of(self, node):
+        """The module an attribute chain ``a.b.c`` starting at a module names, or None."""
+        if isinstance(node, ast.Name) and node.id not in self.locals:
+            v = self._lookup(node.id)[0]
+            return v if isinstance(v, types.ModuleType) else None
+        if isinstance(node, ast.Attribute):
+            m = self._module_of(node.value)
+            v = getattr(m, node.attr, None) if m is not None else None
+            return v if isinstance(v, types.ModuleType) else None
+        return None
+
+    def _check_random(self, node):
+        m = self._module_of(node)
+        if m is not None and m.__name__ in _RANDOM_MODULES:
+            raise self.fn.refuse(node, f"it draws random numbers ({ast.unparse(node)}): the "
+                                       f"draws would differ between the paths; put the "
+                                       f"noise in the state or the parameters")
+        base = node
+        while isinstance(base, ast.Attribute):
+            base = base.value
+            mm = self._module_of(base)
+            if mm is not None and mm.__name__ in _RANDOM_MODULES:
+                raise self.fn.refuse(node, f"it draws random numbers ({ast.unparse(node)}): "
+                                           f"the draws would differ between the paths; put "
+                                           f"the noise in the state or the parameters")
+
+    # -- statements that are refused
+    def visit_Global(self, node):
+        raise self.fn.refuse(node, f"it declares global {', '.join(node.names)}: a map with "
+                                   f"global state would differ between the paths")
+
+    def visit_Nonlocal(self, node):
+        raise self.fn.refuse(node, f"it declares nonlocal {', '.join(node.names)}: a map "
+                                   f"with state of its own would differ between the paths")
+
+    def _check_store(self, target):
+        base = target
+        while isinstance(base, (ast.Subscript, ast.Attribute)):
+            if isinstance(base, ast.Attribute) and isinstance(base.value, ast.Name) \
+                    and base.value.id == self.fn.self_name:
+                raise self.fn.refuse(target, f"it writes {ast.unparse(target)}: a map that "
+                                             f"changes the system's state would differ "
+                                             f"between the paths")
+            base = base.value
+        if isinstance(base, ast.Name) and base.id not in self.locals \
+                and target is not base:
+            raise self.fn.refuse(target, f"it writes into {base.id!r}, which is not its own "
+                                         f"(global or closure state)")
+
+    def visit_Assign(self, node):
+        for t in node.targets:
+            for e in (t.elts if isinstance(t, (ast.Tuple, ast.List)) else [t]):
+                self._check_store(e)
+        return self.generic_visit(node)
+
+    def visit_AugAssign(self, node):
+        self._check_store(node.target)
+        return self.generic_visit(node)
+
+    def visit_AnnAssign(self, node):
+        self._check_store(node.target)
+        return self.generic_visit(node)
+
+    # -- reads
+    def visit_Attribute(self, node):
+        fn = self.fn
+        if isinstance(node.value, ast.Name) and node.value.id == fn.self_name \
+                and fn.self_name not in (None,) and isinstance(node.ctx, ast.Load):
+            return self._self_attr(node)
+        self._check_random(node)
+        m = self._module_of(node)
+        if m is not None:
+            return self._module_name(m, node)
+        return self.generic_visit(node)
+
+    def _self_attr(self, node):
+        fn, attr = self.fn, node.attr
+        obj = fn.obj
+        static = inspect.getattr_static(obj, attr, _MISSING)
+        if isinstance(static, (types.FunctionType, staticmethod, classmethod)) or \
+                inspect.ismethod(getattr(obj, attr, None)):
+            raise fn.refuse(node, f"it reads the method self.{attr} without calling it")
+        if attr in ("history",):
+            raise fn.refuse(node, "it reads self.history (the run's past); declare the "
+                                  "delays in a CompiledSystem(delays=...)")
+        try:
+            v = getattr(obj, attr)
+        except AttributeError:
+            raise fn.refuse(node, f"self.{attr} does not exist") from None
+        if _kind(v) is None:
+            raise fn.refuse(node, f"it reads self.{attr}, a {type(v).__name__} (not a number "
+                                  f"or an array of numbers): numba cannot type it")
+        slot = self.pl.layout.add(("self", id(obj), attr), attr, v,
+                                  lambda o=obj, a=attr: getattr(o, a))
+        return _slot_expr(slot, node)
+
+    def _module_name(self, m, node):
+        top = m.__name__.split(".")[0]
+        if top not in _NUMBA_MODULES:
+            raise self.fn.refuse(node, f"it uses the module {m.__name__}, which numba cannot "
+                                       f"compile")
+        return ast.copy_location(ast.Name(id=self.pl.module(m), ctx=ast.Load()), node)
+
+    def visit_Name(self, node):
+        fn = self.fn
+        if node.id in self.locals:
+            if node.id == fn.self_name:
+                raise fn.refuse(node, f"it uses {fn.self_name} other than to read its "
+                                      f"numbers and arrays or call its methods")
+            return node
+        if node.id in _GUARD_NAMES and node.id in fn.cells:
+            return ast.copy_location(ast.parse(_GUARD_NAMES[node.id], mode="eval").body, node)
+        v, key, reader = self._lookup(node.id)
+        if v is _MISSING:
+            raise fn.refuse(node, f"{node.id!r} is not defined")
+        if isinstance(v, types.ModuleType):
+            if v.__name__ in _RANDOM_MODULES:
+                raise fn.refuse(node, f"it uses the module {v.__name__}: random draws would "
+                                      f"differ between the paths")
+            return self._module_name(v, node)
+        if key[0] == "builtin" and not isinstance(v, (bool, int, float)):
+            return node
+        if _kind(v) is not None:
+            slot = self.pl.layout.add(key, node.id, v, reader)
+            return _slot_expr(slot, node)
+        if v is None:
+            raise fn.refuse(node, f"it reads {node.id!r}, which is None")
+        dispatcher = self.pl.dispatcher(v)
+        if dispatcher is not None:
+            return ast.copy_location(ast.Name(id=dispatcher, ctx=ast.Load()), node)
+        if isinstance(v, types.FunctionType):
+            raise fn.refuse(node, f"it passes the function {node.id!r} as a value (only "
+                                  f"calls of functions are followed)")
+        raise fn.refuse(node, f"it reads {node.id!r}, a {type(v).__name__}: numba cannot "
+                              f"type it")
+
+    def visit_Call(self, node):
+        fn = self.fn
+        f = node.func
+        self._check_random(f)
+        args = [self.visit(a) for a in node.args]
+        kws = [ast.keyword(arg=k.arg, value=self._dtype(k.value) if k.arg == "dtype"
+                           else self.visit(k.value)) for k in node.keywords]
+        target = None
+        if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) \
+                and f.value.id == fn.self_name and fn.self_name is not None:
+            target = self._self_method(f)
+        elif isinstance(f, ast.Name) and f.id not in self.locals:
+            v = self._lookup(f.id)[0]
+            if isinstance(v, types.FunctionType) and self.pl.dispatcher(v) is None:
+                target = self.pl.follow(_fn_of_plain(v, fn, f))
+        if target is None:
+            return ast.copy_location(ast.Call(func=self.visit(f), args=args, keywords=kws),
+                                     node)
+        return ast.copy_location(ast.Call(func=ast.Name(id=target, ctx=ast.Load()),
+                                          args=[ast.Name(id=P, ctx=ast.Load()), *args],
+                                          keywords=kws), node)
+
+    def _dtype(self, v):
+        """``dtype=float`` (a builtin type numba does not take as a dtype) as numpy's."""
+        if isinstance(v, ast.Name) and v.id in _DTYPES and v.id not in self.locals \
+                and self._lookup(v.id)[1] == ("builtin", v.id):
+            return ast.copy_location(ast.parse(f"_hs_m_numpy.{_DTYPES[v.id]}",
+                                               mode="eval").body, v)
+        return self.visit(v)
+
+    def _self_method(self, f):
+        fn, obj = self.fn, self.fn.obj
+        static = inspect.getattr_static(obj, f.attr, _MISSING)
+        if isinstance(static, classmethod):
+            raise fn.refuse(f, f"it calls the classmethod self.{f.attr}")
+        bound = getattr(obj, f.attr, None)
+        if isinstance(static, staticmethod):
+            func = static.__func__
+            if not isinstance(func, types.FunctionType):
+                raise fn.refuse(f, f"self.{f.attr} is not a Python function")
+            return self.pl.follow(Fn(func, None, f"{type(obj).__name__}.{f.attr}"))
+        if isinstance(bound, types.MethodType) and isinstance(bound.__func__,
+                                                               types.FunctionType):
+            if bound.__self__ is not obj:
+                raise fn.refuse(f, f"self.{f.attr} is bound to another object")
+            return self.pl.follow(Fn(bound.__func__, obj, f"{type(obj).__name__}.{f.attr}"))
+        if isinstance(bound, types.FunctionType):      # a function stored on the instance
+            return self.pl.follow(Fn(bound, None, f"{type(obj).__name__}.{f.attr}"))
+        raise fn.refuse(f, f"it calls self.{f.attr}, a {type(bound).__name__} that cannot "
+                           f"be followed")
+
+
+def _default_reader(func, params, name):
+    """Reads the current default of parameter ``name`` of ``func``."""
+    i = params.index(name)
+
+    def read():
+        d = func.__defaults__
+        return d[i - (len(params) - len(d))]
+    return read
+
+
+def _fn_of_plain(v, caller, node):
+    try:
+        return Fn(v, None, v.__qualname__)
+    except SourceRefusal as e:
+        raise caller.refuse(node, f"it calls {v.__qualname__}, which cannot be followed: "
+                                  f"{e.why}") from None
+
+
+class _Planner:
+    def __init__(self):
+        self.layout = Layout()
+        self.functions = []          # (generated name, FunctionDef, Fn)
+        self._names = {}             # id(func), id(obj) -> generated name
+        self.modules = {"numpy": "_hs_m_numpy"}     # module name -> generated name
+        self.dispatchers = {}        # id -> (generated name, dispatcher)
+        self.lines = {}
+
+    def module(self, m):
+        name = self.modules.get(m.__name__)
+        if name is None:
+            name = self.modules[m.__name__] = "_hs_m_" + m.__name__.replace(".", "_")
+        return name
+
+    def dispatcher(self, v):
+        py = getattr(v, "py_func", None)
+        if py is None or not hasattr(v, "overloads"):
+            return None
+        hit = self.dispatchers.get(id(v))
+        if hit is None:
+            hit = self.dispatchers[id(v)] = (f"_hs_d{len(self.dispatchers)}_{py.__name__}", v)
+        return hit[0]
+
+    def follow(self, fn, role=None, form=None):
+        key = (id(fn.func), id(fn.obj))
+        name = self._names.get(key)
+        if name is not None:
+            return name
+        name = f"_hs_{role}" if role else f"_hs_f{len(self._names)}_{fn.func.__name__}"
+        self._names[key] = name
+        node = copy.deepcopy(fn.node)
+        args = [a.arg for a in node.args.posonlyargs + node.args.args]
+        if fn.self_name is not None:
+            args = args[1:]
+        pre = []
+        if role is not None:            # the engine's (x, t, j, p)
+            k = form
+            if len(args) < k:
+                raise fn.refuse(node, f"it takes {len(args)} arguments, expected {k}")
+            for extra in args[k:]:
+                # a defaulted parameter past the engine's: its value is a parameter
+                value = fn.defaults.get(extra, _MISSING)
+                if _kind(value) is None:
+                    raise fn.refuse(node, f"its default {extra}={value!r} is not a "
+                                          f"number or an array")
+                slot = self.layout.add(("default", id(fn.func), extra), extra, value,
+                                       _default_reader(fn.func, fn.params, extra))
+                pre.append(ast.Assign(targets=[ast.Name(id=extra, ctx=ast.Store())],
+                                      value=_slot_expr(slot, node)))
+            own = args[:k]
+            sig = [own[i] if i < len(own) else f"_hs_{'xtj'[i]}" for i in range(3)] + [P]
+            if k >= 4:                  # u: no input on this path
+                pre.append(ast.Assign(targets=[ast.Name(id=own[3], ctx=ast.Store())],
+                                      value=ast.Constant(None)))
+            new_args = [ast.arg(arg=a) for a in sig]
+            defaults = []
+        else:
+            for d in node.args.defaults:
+                if not isinstance(d, ast.Constant):
+                    raise fn.refuse(d, "a default argument that is not a constant")
+            new_args = [ast.arg(arg=P)] + [ast.arg(arg=a) for a in args]
+            defaults = node.args.defaults
+        body = _Rewrite(self, fn)
+        node.body = [body.visit(s) for s in node.body]
+        node.body = pre + node.body
+        node.args = ast.arguments(posonlyargs=[], args=new_args, kwonlyargs=[],
+                                  kw_defaults=[], defaults=defaults)
+        node.name = name
+        node.decorator_list = []
+        node.returns = None
+        for a in ast.walk(node):
+            if isinstance(a, ast.arg):
+                a.annotation = None
+        ast.fix_missing_locations(node)
+        self.functions.append((name, node, fn))
+        return name
+
+
+class Plan:
+    """The rewritten maps: ``source`` (a module's text), ``roles`` (engine role
+    -> generated function name), ``layout``, ``dispatchers`` (names to bind
+    before compiling), ``lines`` (generated line -> original ``(method,
+    file:line)``)."""
+
+    def __init__(self, source, roles, layout, dispatchers, lines, qualnames):
+        self.source, self.roles, self.layout = source, roles, layout
+        self.dispatchers, self.lines, self.qualnames = dispatchers, lines, qualnames
+
+    def where(self, line):
+        return self.lines.get(line)
+
+
+#: HybridSystem attribute -> CompiledSystem role
+ROLES = (("flow_map", "flow"), ("jump_map", "jump"), ("jump_guard", "jump_guard"),
+         ("flow_guard", "flow_guard"), ("jump_set", "jump_set"), ("flow_set", "flow_set"))
+
+
+def plan(system):
+    """The :class:`Plan` of ``system``'s maps as functions of ``(x, t, j, p)``;
+    a :class:`SourceRefusal` naming the method and line otherwise."""
+    from .system import _arity
+    pl = _Planner()
+    roles = {}
+    cls = type(system).__name__
+    for attr, role in ROLES:
+        if attr in ("jump_guard", "flow_guard"):
+            fn = getattr(system, attr)
+            if fn is None:
+                continue
+        elif attr in ("flow_map", "jump_map"):
+            if not system._overrides(attr):
+                continue
+            fn = getattr(system, attr)
+        else:
+            if not system._overrides(attr):
+                continue
+            fn = getattr(system, attr)
+        f = _fn_of(fn, f"{cls}.{attr}")
+        roles[role] = pl.follow(f, role=role, form=max(1, min(_arity(fn), 4)))
+    if "flow" not in roles:
+        raise SourceRefusal(f"{cls}.flow_map", "-", "the system defines no flow_map")
+    lines = [f"# hybridsim: the maps of {cls}, rewritten as functions of (x, t, j, p)",
+ ]
+    lines += [f"import {m} as {n}" for m, n in sorted(pl.modules.items())]
+    lines.append("")
+    where = {}
+    qual = {}
+    for name, node, fn in pl.functions:
+        text = ast.unparse(node)
+        start = len(lines) + 1
+        # generated line -> the source line (the trees have one shape: walk them together)
+        gen = ast.parse(text).body[0]
+        for g, o in zip(ast.walk(gen), ast.walk(node)):
+            if hasattr(g, "lineno") and hasattr(o, "lineno"):
+                where.setdefault(start + g.lineno - 1, (fn.qualname, f"{fn.file}:{o.lineno}"))
+        qual[name] = fn.qualname
+        lines += text.splitlines()
+        lines.append("")
+    src = "\n".join(lines) + "\n"
+    return Plan(src, roles, pl.layout, {n: d for n, d in pl.dispatchers.values()}, where, qual)

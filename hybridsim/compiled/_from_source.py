@@ -1,0 +1,310 @@
+"""Plain hybrid systems on the compiled path: their own maps, rewritten and compiled.
+
+A :class:`hybridsim.HybridSystem` subclass (or a
+:meth:`~hybridsim.HybridSystem.from_functions` system) with no compiled
+form of its own runs compiled as written: :func:`hybridsim._source.plan`
+rewrites its maps as functions of ``(x, t, j, p)`` (the numbers and arrays
+they read are slots of ``p``; helpers are followed), and this module
+compiles them into a :class:`~hybridsim.compiled.CompiledSystem`.
+
+Before every run ``p`` is read again from the system (its attributes, its
+closures' numbers, module globals): changing ``ball.e`` between runs
+changes the next run, and a value that changes kind or shape (a float
+becoming an array) rewrites the maps. The compiled maps depend only on the
+rewritten source: systems whose source is the same (every instance of a
+class) share them.
+
+The rewritten source is a module of its own, named by the digest of its
+text (and of numba's and Python's versions), kept on disk beside the
+engine's specialised kernels and compiled with numba's ``cache=True``: a
+new process loads the compiled maps instead of compiling them. The file is
+created exclusively (written to a private temporary file, then linked to
+its name, never replaced), and its text is read back and compared with the
+text generated in this process before it is executed; a file that differs
+is never run (the module is then compiled in memory).
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+import sys
+import types
+import warnings
+
+import numpy as np
+
+from .. import _source
+from ..system import HybridSystem
+
+__all__ = ["FallbackWarning", "applies", "refusal", "lower_source", "auto_choice"]
+
+
+class FallbackWarning(UserWarning):
+    """``backend="auto"`` ran a system on the Python path because its maps
+    cannot run compiled (the message says which method and line, and why)."""
+
+
+_PLAIN = {}
+
+
+def applies(system):
+    """Whether ``system`` is a plain model: a single system with no compiled form."""
+    t = type(system)
+    hit = _PLAIN.get(t)
+    if hit is None:
+        from ..compose import Interconnection
+        from . import CompiledSystem
+        hit = _PLAIN[t] = (issubclass(t, HybridSystem)
+                           and not issubclass(t, (CompiledSystem, Interconnection))
+                           and getattr(t, "compiled_component", None) is None)
+    return hit and "compiled_component" not in system.__dict__
+
+
+def _plan(system):
+    """The system's plan (cached on the system while its maps are the same)."""
+    key = _identity(system)
+    hit = system.__dict__.get("_source_plan")
+    if hit is not None and hit[0] == key:
+        return hit[1]
+    try:
+        pl = _source.plan(system)
+    except _source.SourceRefusal as e:
+        pl = e
+    system.__dict__["_source_plan"] = (key, pl)
+    return pl
+
+
+def _identity(system):
+    """What a plan depends on besides its slots' values: the class, the maps
+    given on the instance and what the lowering's checks read (a class whose
+    methods are replaced after its first compiled run keeps its first plan)."""
+    g = system.__dict__.get
+    return (type(system), system.needs_history, system.delays, system.input_dim,
+            id(g("flow_map")), id(g("jump_map")), id(g("jump_guard")), id(g("flow_guard")),
+            id(g("jump_set")), id(g("flow_set")))
+
+
+def cached(system):
+    """The system's compiled form when nothing it depends on changed since it
+    was made (its ``p`` read again now), else None: the fast path of every
+    run after the first."""
+    d = system.__dict__
+    hit, sp = d.get("_lowered"), d.get("_source_plan")
+    if hit is None or sp is None or hit.__dict__.get("_source_plan_of") is not sp[1] \
+            or sp[0] != _identity(system):
+        return None
+    p = sp[1].layout.read()
+    if p is None:
+        return None
+    if p.size and not np.array_equal(hit.params, p):
+        hit.params = p
+    hit.max_step = system.max_step
+    return hit
+
+
+def refusal(system):
+    """Why ``system``'s maps cannot be rewritten (a :class:`SourceRefusal`), or None."""
+    pl = _plan(system)
+    return pl if isinstance(pl, _source.SourceRefusal) else None
+
+
+_CANNOT = "has no compiled form and its maps cannot be rewritten for numba"
+
+
+def _text(system, e):
+    return f"{type(system).__name__} {_CANNOT}: {e}"
+
+
+# ------------------------------------------------------------------ the module
+_MODULES = {}
+
+
+def _digest(plan):
+    import numba
+    h = hashlib.sha256()
+    for part in (plan.source, numba.__version__, sys.version, "hybridsim-source-1"):
+        h.update(part.encode())
+        h.update(b"\0")
+    for name, d in sorted(plan.dispatchers.items()):
+        code = d.py_func.__code__
+        h.update(name.encode() + code.co_code + repr(code.co_consts).encode())
+    return h.hexdigest()[:32]
+
+
+def _dirs():
+    from . import _load_kernel
+    k = _load_kernel()
+    return [os.path.join(os.path.dirname(d), "source") for d in k._spec_dirs()]
+
+
+def _written(path, src):
+    """The text at ``path`` (created exclusively with ``src`` where absent), or None."""
+    if not os.path.exists(path):
+        tmp = f"{path}.{os.getpid()}.{os.urandom(6).hex()}.tmp"
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+        try:
+            with os.fdopen(fd, "w") as fh:
+                fh.write(src)
+            try:
+                os.link(tmp, path)          # never replaces a file already there
+            except FileExistsError:
+                pass
+        finally:
+            os.unlink(tmp)
+    with open(path) as fh:
+        return fh.read()
+
+
+def _module(plan):
+    """``(module, digest)``: the plan's functions compiled (numba dispatchers)."""
+    from . import _load_kernel
+    _load_kernel()                  # numba, or the ImportError saying how to install it
+    import numba
+    digest = _digest(plan)
+    mod = _MODULES.get(digest)
+    if mod is not None:
+        return mod, digest
+    name = f"hybridsim_src_{digest}"
+    src = plan.source
+    path = None
+    for d in _dirs():
+        p = os.path.join(d, name + ".py")
+        try:
+            os.makedirs(d, exist_ok=True)
+            if _written(p, src) == src:
+                path = p
+                break
+        except OSError:
+            continue
+    mod = types.ModuleType(name)
+    mod.__file__ = path or f"<hybridsim {name}>"
+    # the text generated here (compared with the file's), compiled under the file's name
+    exec(compile(src, mod.__file__, "exec"), mod.__dict__)
+    mod.__dict__.update(plan.dispatchers)
+    if path is not None:
+        sys.modules[name] = mod
+    for fname in plan.qualnames:
+        mod.__dict__[fname] = numba.njit(cache=path is not None,
+                                         error_model="numpy")(mod.__dict__[fname])
+    _MODULES[digest] = mod
+    return mod, digest
+
+
+# ------------------------------------------------------------------ lowering
+#: (digest, specialize) -> the compiled prototype its systems copy
+_PROTOS = {}
+
+_LINE = re.compile(r'hybridsim_src_[0-9a-f]+\.py"?, line (\d+)')
+
+
+def _compile_error(system, plan, e):
+    """numba's failure, named by the user's method and line."""
+    from . import CompileError, _summarise
+    cause = e.__cause__ if e.__cause__ is not None else e
+    where = None
+    for m in _LINE.finditer(str(cause)):
+        where = plan.where(int(m.group(1)))
+        if where is not None:
+            break
+    role = getattr(e, "map_name", None)
+    at = (f"{where[0]} ({where[1]})" if where is not None else
+          plan.qualnames.get(plan.roles.get(role, ""), role))
+    err = CompileError(f"backend='compiled': {type(system).__name__} cannot run compiled: "
+                       f"numba could not compile {at}: {_summarise(cause)}. Run it on the "
+                       f"Python path (backend='python')", role)
+    err.where = where
+    return err
+
+
+def lower_source(system, specialize=None):
+    """The :class:`~hybridsim.compiled.CompiledSystem` of a plain model
+    (module notes), its ``params`` read from the system now; cached on the
+    system as :func:`~hybridsim.compiled.lower` caches.
+
+    Raises
+    ------
+    TypeError
+        The maps cannot be rewritten (the message names the method and line).
+    CompileError
+        numba cannot compile a rewritten map (named by method and line).
+    """
+    hit = cached(system)
+    if hit is not None and (specialize is None or hit.specialize == bool(specialize)):
+        return hit
+    from . import CompiledSystem
+    from ._lower import _refuse
+    pl = _plan(system)
+    if isinstance(pl, _source.SourceRefusal):
+        err = _refuse(type(system).__name__, _text(system, pl))
+        err.method, err.line, err.why = pl.method, pl.line, pl.why
+        raise err
+    p = pl.layout.read()
+    if p is None:                   # a value changed kind or shape: rewrite
+        system.__dict__.pop("_source_plan", None)
+        pl = _plan(system)
+        if isinstance(pl, _source.SourceRefusal):
+            return lower_source(system, specialize)
+        p = pl.layout.read()
+    prev = system.__dict__.get("_lowered")
+    if prev is not None and prev.__dict__.get("_source_plan_of") is pl and (
+            specialize is None or prev.specialize == bool(specialize)):
+        if not np.array_equal(prev.params, p):
+            prev.params = p
+        prev.max_step = system.max_step
+        return prev
+    spec = bool(specialize) if specialize is not None else False
+    mod, digest = _module(pl)
+    proto = _PROTOS.get((digest, spec))
+    if proto is None:
+        maps = {role: getattr(mod, name) for role, name in pl.roles.items()}
+        proto = CompiledSystem(**maps, state_dim=int(system.state_dim), params=p,
+                               specialize=spec, name=f"{type(system).__name__} (compiled)")
+        try:
+            proto.compile()
+        except TypeError as e:          # CompileError: named by the user's method and line
+            raise _compile_error(system, pl, e) from e
+        _PROTOS[(digest, spec)] = proto
+    cs = object.__new__(CompiledSystem)
+    cs.__dict__.update(proto.__dict__)
+    cs.params = p
+    cs.max_step = system.max_step
+    for attr in ("flow_map", "jump_map", "jump_guard", "flow_guard", "jump_set", "flow_set"):
+        m = cs.__dict__.get(attr)
+        if m is not None:
+            cs.__dict__[attr] = type(m)(m.fn, cs)
+    cs.__dict__["_source_plan_of"] = pl
+    cs.layout = pl.layout
+    system.__dict__["_lowered"] = cs
+    return cs
+
+
+_WARNED = set()
+
+
+def auto_choice(system, ok):
+    """``backend="auto"``'s choice for a system :func:`~hybridsim.compiled.lowerable`
+    judged (``ok``): a plain model is lowered and compiled here, and where its
+    maps cannot be (rewritten, or compiled by numba), one :class:`FallbackWarning`
+    per class and reason says why and the Python path runs it (other reasons,
+    such as reading the history, are ``lowerable(system).reason``)."""
+    if not applies(system):
+        return "compiled" if ok else "python"
+    why = None if ok else getattr(ok, "reason", None)
+    if ok:
+        try:
+            lower_source(system)
+        except TypeError as e:
+            why = str(e)
+    if why is None:
+        return "compiled"
+    if (_CANNOT not in why and "numba could not compile" not in why) or system.vectorized:
+        # history, inputs...; or a vectorized system, whose batches integrate
+        # together in numpy: lowerable(system).reason says why
+        return "python"
+    key = (type(system), why)
+    if key not in _WARNED:
+        _WARNED.add(key)
+        warnings.warn(f"backend='auto' runs {type(system).__name__} on the Python path: "
+                      f"{why}", FallbackWarning, stacklevel=4)
+    return "python"

@@ -1,0 +1,335 @@
+"""A plain model, as written, on the compiled path (hybridsim.compiled._from_source).
+
+README's ``BouncingBall`` class and ``from_functions`` systems run compiled
+unchanged: their maps are rewritten as functions of (x, t, j, p), the
+numbers they read from ``self``, closures and defaults read into ``p``
+before each run; what cannot be rewritten is refused naming the method and
+its line, and ``backend="auto"`` then warns once and runs the Python path.
+"""
+from __future__ import annotations
+
+import random
+import warnings
+
+import numpy as np
+import pytest
+
+import hybridsim as hs
+from hybridsim.compiled import lowerable
+from hybridsim.library import bouncing_ball_jump_times
+
+numba = pytest.importorskip("numba")
+
+from hybridsim.compiled import CompileError, lower  # noqa: E402
+from hybridsim.compiled._from_source import FallbackWarning  # noqa: E402
+
+
+class BouncingBall(hs.HybridSystem):             # README's, as written
+    state_dim = 2                                         # x = (height, velocity)
+    def flow_map(self, x):  return np.array([x[1], -9.81])
+    def jump_map(self, x):  return np.array([0.0, -0.8 * x[1]])
+    def flow_set(self, x):  return x[0] >= 0
+    def jump_set(self, x):  return x[0] <= 0 and x[1] <= 0
+
+
+class Ball(hs.HybridSystem):
+    """A ball whose numbers are attributes, read through a helper method."""
+    state_dim = 2
+
+    def __init__(self, g=9.81, e=0.8):
+        self.g, self.e = g, e
+
+    def accel(self, v):
+        return -self.g + 0.0 * v
+
+    def flow_map(self, x, t):
+        return np.array([x[1], self.accel(x[1])])
+
+    def jump_map(self, x):
+        return np.array([0.0, -self.e * x[1]])
+
+    def flow_set(self, x):
+        return x[0] >= 0
+
+    def jump_set(self, x):
+        return x[0] <= 0 and x[1] <= 0
+
+
+TIGHT = dict(rtol=1e-10, atol=1e-12)
+
+
+def _as_hand_written(a, b):
+    """The run of the rewritten maps is the run of the same maps written by
+    hand as a CompiledSystem: bit for bit (one kernel, the same arithmetic)."""
+    assert a.termination is b.termination
+    np.testing.assert_array_equal(a.t, b.t)
+    np.testing.assert_array_equal(a.x, b.x)
+
+
+def _same_arcs(a, b, rtol=1e-12):
+    """The same arcs to round-off: the same samples, jump times within
+    ``rtol`` relative (events are located to 4 ulp on each path; over 20
+    bounces their round-off accumulates to a few 1e-14 here), states within
+    1e-9 (a sample just after a jump carries the velocity times the jump
+    times' difference)."""
+    assert a.jump_count == b.jump_count and len(a.t) == len(b.t)
+    assert a.termination is b.termination
+    np.testing.assert_allclose(a.jump_times, b.jump_times, rtol=rtol, atol=0)
+    np.testing.assert_allclose(a.x, b.x, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("backend", ["auto", "compiled"])
+def test_readme_ball_runs_compiled_with_the_python_paths_arcs(backend, monkeypatch):
+    import hybridsim.compiled as hc
+    calls = []
+    real = hc.simulate_compiled
+    monkeypatch.setattr(hc, "simulate_compiled", lambda *a, **k: calls.append(1) or real(*a, **k))
+    ball = BouncingBall()
+    kw = dict(x0=[1.0, 0.0], t_max=5.0, j_max=20, **TIGHT)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        fast = hs.simulate(ball, backend=backend, **kw)
+    assert calls == [1] and fast.system is ball
+    _same_arcs(fast, hs.simulate(ball, **kw))
+    np.testing.assert_allclose(fast.jump_times, bouncing_ball_jump_times(1.0, 20),
+                               rtol=1e-12)
+    assert lowerable(ball) and repr(lowerable(ball)) == "Lowerable(True)"
+
+
+def test_a_batch_of_the_readme_ball_runs_compiled():
+    x0s = np.column_stack([np.linspace(0.5, 2.0, 16), np.zeros(16)])
+    arcs = hs.simulate_many(BouncingBall(), x0s, t_max=10.0, j_max=10, backend="auto", **TIGHT)
+    jt = np.array([a.jump_times for a in arcs])
+    np.testing.assert_allclose(jt, bouncing_ball_jump_times(x0s[:, 0], 10), rtol=1e-12)
+
+
+def test_changing_an_attribute_changes_the_next_run():
+    ball = Ball(e=0.8)
+    kw = dict(x0=[1.0, 0.0], t_max=10.0, j_max=6, backend="compiled", **TIGHT)
+    a = hs.simulate(ball, **kw)
+    ball.e = 0.5
+    b = hs.simulate(ball, **kw)
+    ball.g = 3.0
+    c = hs.simulate(ball, **kw)
+    for arc, g, e in ((a, 9.81, 0.8), (b, 9.81, 0.5), (c, 3.0, 0.5)):
+        np.testing.assert_allclose(arc.jump_times, bouncing_ball_jump_times(1.0, 6, g, e),
+                                   rtol=1e-12)
+    # the layout is named; one compiled form serves every instance of the class
+    cs = lower(ball)
+    assert set(cs.layout.names()) == {"g", "e"}
+    assert cs.params[cs.layout.names()["e"][0]] == 0.5
+    assert lower(Ball(e=0.3)).maps["flow"] is cs.maps["flow"]
+
+
+def test_an_attribute_that_changes_shape_rewrites_the_maps():
+    class Gains(hs.HybridSystem):
+        state_dim = 2
+
+        def __init__(self, k):
+            self.k = k
+
+        def flow_map(self, x):
+            return -self.k * x
+    s = Gains(1.0)
+    a = hs.simulate(s, [1.0, 1.0], t_max=1.0, backend="compiled", **TIGHT)
+    s.k = np.array([1.0, 2.0])
+    b = hs.simulate(s, [1.0, 1.0], t_max=1.0, backend="compiled", **TIGHT)
+    np.testing.assert_allclose(a.xf, np.exp(-1.0) * np.ones(2), rtol=1e-9)
+    np.testing.assert_allclose(b.xf, np.exp([-1.0, -2.0]), rtol=1e-9)
+
+
+def test_from_functions_with_closures_and_defaults_over_numbers():
+    def make(rate):
+        return hs.HybridSystem.from_functions(
+            f=lambda x: -rate * x,
+            g=lambda x, floor=0.25: np.array([x[0] + floor]),
+            D=lambda x: x[0] <= 0.5, state_dim=1)
+    from hybridsim.compiled import CompiledSystem
+    for rate in (1.0, 2.0):
+        s = make(rate)
+        hand = CompiledSystem(flow=lambda x, t, j, p: -p[0] * x,
+                              jump=lambda x, t, j, p: np.array([x[0] + p[1]]),
+                              jump_guard=lambda x, t, j, p: 0.5 - x[0],
+                              jump_set=lambda x, t, j, p: x[0] <= 0.5,
+                              state_dim=1, params=[rate, 0.25])
+        kw = dict(x0=[1.0], t_max=3.0, j_max=3, **TIGHT)
+        a = hs.simulate(s, backend="compiled", **kw)
+        _as_hand_written(a, hs.simulate(hand, backend="compiled", **kw))
+        # and the Python path's run to the integrator's tolerance
+        b = hs.simulate(s, **kw)
+        assert a.jump_count == b.jump_count == 3
+        np.testing.assert_allclose(a.jump_times, b.jump_times, rtol=1e-8)
+
+
+def test_a_matrix_attribute_and_module_functions():
+    class Osc(hs.HybridSystem):
+        state_dim = 2
+
+        def __init__(self):
+            self.A = np.array([[0.0, 1.0], [-4.0, 0.0]])
+
+        def flow_map(self, x):
+            return self.A @ x
+
+        def jump_map(self, x):
+            return np.array([1.0, 0.0])
+
+        def jump_set(self, x):
+            return np.linalg.norm(x) >= 1.9 or x[0] >= 2.0
+    kw = dict(x0=[1.0, 0.0], t_max=3.0, **TIGHT)
+    a, b = hs.simulate(Osc(), backend="compiled", **kw), hs.simulate(Osc(), **kw)
+    assert a.jump_count == b.jump_count >= 1
+    np.testing.assert_allclose(a.jump_times, b.jump_times, rtol=1e-8)
+    np.testing.assert_allclose(a.xf, b.xf, atol=1e-8)
+
+
+# ------------------------------------------------------------ refusals, by name and line
+class Table(hs.HybridSystem):
+    state_dim = 1
+
+    def __init__(self):
+        self.table = {"rate": 1.0}
+
+    def flow_map(self, x):
+        return -self.table["rate"] * x          # a dict: refused
+
+
+_LINE = Table.flow_map.__code__.co_firstlineno + 1
+
+COUNT = [0]
+
+
+class Noisy(hs.HybridSystem):
+    state_dim = 1
+
+    def flow_map(self, x):
+        return -x + np.random.normal()  # noqa: NPY002 - random draws: refused
+
+
+class Counting(hs.HybridSystem):
+    state_dim = 1
+
+    def flow_map(self, x):
+        self.calls = 1                           # writes the system: refused
+        return -x
+
+
+class Global(hs.HybridSystem):
+    state_dim = 1
+
+    def flow_map(self, x):
+        COUNT[0] += 1                            # writes global state: refused
+        return -x
+
+
+class PyRandom(hs.HybridSystem):
+    state_dim = 1
+
+    def flow_map(self, x):
+        return -x * random.random()              # the random module: refused
+
+
+@pytest.mark.parametrize("cls, words", [
+    (Table, f"Table.flow_map \\(.*test_one_definition.py:{_LINE}\\): it reads self.table, "
+            f"a dict \\(not a number or an array of numbers\\)"),
+    (Noisy, r"Noisy.flow_map \(.*:\d+\): it draws random numbers \(np.random.normal\)"),
+    (Counting, r"Counting.flow_map \(.*:\d+\): it writes self.calls"),
+    (Global, r"Global.flow_map \(.*:\d+\): it writes into 'COUNT'"),
+    (PyRandom, r"PyRandom.flow_map \(.*:\d+\): .*random"),
+])
+def test_what_cannot_be_rewritten_is_refused_naming_the_method_and_line(cls, words):
+    s = cls()
+    why = lowerable(s)
+    assert not why and "cannot be rewritten" in why.reason
+    with pytest.raises(TypeError, match=words):
+        hs.simulate(s, [1.0], t_max=1.0, backend="compiled")
+    # auto: one warning naming the reason, then the Python path
+    with pytest.warns(FallbackWarning, match=words):
+        arc = hs.simulate(s, [1.0], t_max=0.1, backend="auto")
+    assert arc.t[-1] == 0.1
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        hs.simulate(s, [1.0], t_max=0.1, backend="auto")        # once per class and reason
+
+
+def test_what_numba_cannot_compile_is_named_by_method_and_line():
+    class Untyped(hs.HybridSystem):
+        state_dim = 1
+
+        def flow_map(self, x):
+            return -x * len(object.__doc__)
+    line = Untyped.flow_map.__code__.co_firstlineno + 1
+    with pytest.raises(CompileError, match=rf"Untyped.flow_map \(.*:{line}\)"):
+        hs.simulate(Untyped(), [1.0], t_max=1.0, backend="compiled")
+    with pytest.warns(FallbackWarning, match="numba could not compile Untyped.flow_map"):
+        arc = hs.simulate(Untyped(), [1.0], t_max=0.1, backend="auto")
+    assert arc.t[-1] == 0.1
+
+
+def test_the_rewritten_source_is_kept_on_disk_and_verified():
+    from hybridsim.compiled import _from_source
+    ball = BouncingBall()
+    cs = lower(ball)
+    path = cs.maps["flow"].py_func.__code__.co_filename
+    with open(path) as fh:
+        assert fh.read() == ball.__dict__["_source_plan"][1].source
+    # a file that is not the text generated here is never run
+    plan = ball.__dict__["_source_plan"][1]
+    assert _from_source._written(path, "something else") == plan.source
+
+
+def test_a_file_at_the_modules_path_that_is_not_its_text_is_never_run(tmp_path, monkeypatch):
+    from hybridsim import _source
+    from hybridsim.compiled import _from_source
+
+    class Decay(hs.HybridSystem):
+        state_dim = 1
+
+        def flow_map(self, x):
+            return -0.75 * x
+    plan = _source.plan(Decay())
+    name = f"hybridsim_src_{_from_source._digest(plan)}"
+    monkeypatch.setattr(_from_source, "_dirs", lambda: [str(tmp_path)])
+    monkeypatch.setattr(_from_source, "_MODULES", {})
+    (tmp_path / f"{name}.py").write_text("raise SystemExit('planted')\n")
+    mod, _ = _from_source._module(plan)
+    assert mod.__file__ == f"<hybridsim {name}>"           # compiled in memory instead
+    arc = hs.simulate(Decay(), [1.0], t_max=1.0, backend="compiled", **TIGHT)
+    np.testing.assert_allclose(arc.xf, [np.exp(-0.75)], rtol=1e-9)
+
+
+GRAVITY = 9.81
+
+
+def _fall(x):
+    return np.array([x[1], -GRAVITY])
+
+
+def test_module_globals_and_followed_functions_are_read_per_run():
+    global GRAVITY
+    scale = 1.0
+
+    def accel(v):                   # a function of the closure: followed
+        return -scale * GRAVITY + 0.0 * v
+    kw = dict(x0=[1.0, 0.0], t_max=10.0, j_max=4, backend="compiled", **TIGHT)
+    for make in (lambda: hs.HybridSystem.from_functions(
+                     f=_fall, g=lambda x: np.array([0.0, -0.8 * x[1]]),
+                     C=lambda x: x[0] >= 0, D=lambda x: x[0] <= 0 and x[1] <= 0, state_dim=2),
+                 lambda: hs.HybridSystem.from_functions(
+                     f=lambda x: np.array([x[1], accel(x[1])]),
+                     g=lambda x: np.array([0.0, -0.8 * x[1]]),
+                     C=lambda x: x[0] >= 0, D=lambda x: x[0] <= 0 and x[1] <= 0, state_dim=2)):
+        s = make()
+        try:
+            for g in (9.81, 4.0):
+                GRAVITY = g
+                np.testing.assert_allclose(hs.simulate(s, **kw).jump_times,
+                                           bouncing_ball_jump_times(1.0, 4, g, 0.8), rtol=1e-12)
+        finally:
+            GRAVITY = 9.81
+
+
+def test_an_interconnection_of_plain_models_is_refused_with_its_reason():
+    ic = hs.Interconnection({"a": BouncingBall(), "b": BouncingBall()})
+    why = lowerable(ic)
+    assert not why and "component 'a'" in why.reason and "has no compiled form" in why.reason
