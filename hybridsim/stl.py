@@ -41,7 +41,7 @@ kept one, else cubic Hermite from ``xdot``, else linear), root-found to
 propagated through nested operators), and the local maxima and minima of
 the predicate inside every step (``refine=4``, the default, reads the
 interpolant at 3 evenly spaced points per step and locates each extremum
-they reveal by golden-section search to 1e-6 of the step). Between its
+they reveal by parabolic interpolation to 1e-5 of the step). Between its
 instants a predicate is taken linear (the piecewise-linear semantics of
 Breach), and from there the
 temporal operators are computed **exactly**: every breakpoint where a
@@ -529,6 +529,8 @@ def _combine(s1, s2, op):
     if k.size:
         w = d0[k] / (d0[k] - d1[k])
         tc = T[k] + w * (T[k + 1] - T[k])
+        inside = (tc > T[k]) & (tc < T[k + 1])      # a crossing at an instant is one already
+        k, w, tc = k[inside], w[inside], tc[inside]
         vc = _lerp(r1[k], l1[k + 1], w)
         T, J, v, l, r = _sorted_points(np.concatenate((T, tc)), np.concatenate((J, J[k])),
                                        np.concatenate((v, vc)), np.concatenate((l, vc)),
@@ -710,7 +712,7 @@ class Formula:
         refine : int
             Evaluate every predicate at ``refine - 1`` evenly spaced
             interpolant points inside each step of the arc and at the local
-            extrema they reveal (located by golden-section search), so that
+            extrema they reveal (located by parabolic interpolation), so that
             its maxima and minima between samples are instants (default 4;
             1: the samples, crossings and window ends only).
 
@@ -792,8 +794,10 @@ class _Predicate(Formula):
 
     def _compute(self, ctx, lo, hi, probes):
         at, aj = ctx.t, ctx.j
-        a = int(np.searchsorted(at, lo, side="left"))
-        b = int(np.searchsorted(at, hi, side="right"))
+        lo, hi = max(lo, ctx.t0), min(hi, ctx.tf)
+        # the samples within the engine's tolerance of the range count as in it
+        a = int(np.searchsorted(at, lo - _tol(lo), side="left"))
+        b = int(np.searchsorted(at, hi + _tol(hi), side="right"))
         Ts, Js, Xs = at[a:b], aj[a:b], ctx.x[a:b]
         extra = [np.array([lo, hi])]
         if len(probes):
@@ -819,6 +823,8 @@ class _Predicate(Formula):
                                & np.isfinite(v[:-1]) & np.isfinite(v[1:]))
         if k.size:
             tc = self._roots(ctx, T[k], T[k + 1], v[k], v[k + 1], J[k])
+            inside = (tc > T[k]) & (tc < T[k + 1])  # else within 4 ulp of an instant
+            k, tc = k[inside], tc[inside]
             T, J, v = _sorted_points(np.concatenate((T, tc)), np.concatenate((J, J[k])),
                                      np.concatenate((v, np.zeros(len(tc)))))
         return _Sig(T, J, v)
@@ -832,7 +838,7 @@ class _Predicate(Formula):
 
     def _extrema(self, ctx, T, J, v):
         """Add ``refine - 1`` interpolant values inside every step, and each
-        local extremum they reveal, located by golden-section search."""
+        local extremum they reveal, located by parabolic interpolation."""
         k = np.flatnonzero(J[1:] == J[:-1])
         if not k.size:
             return T, J, v
@@ -865,7 +871,8 @@ class _Predicate(Formula):
     def _minimum(self, ctx, lo, mid, hi, flo, fmid, fhi, sgn, J, h):
         """Minima of ``sgn * rho`` in brackets (lo, mid, hi) with fmid below both
         ends: successive parabolic interpolation, golden-section where a
-        vertex falls outside, to 1e-6 of the step."""
+        vertex falls outside, until a step or the bracket is below 1e-5 or
+        1e-6 of the arc's step."""
         g = 0.5 * (3.0 - math.sqrt(5.0))
         live = np.ones(len(lo), dtype=bool)
         for _ in range(60):
@@ -891,6 +898,8 @@ class _Predicate(Formula):
             fhi[i] = np.where(better, np.where(left, fm, fb), np.where(left, fb, fx))
             mid[i] = np.where(better, x, m)
             fmid[i] = np.where(better, fx, fm)
+            # converged: a parabolic step this short moves the value by O(step^2)
+            live[i] &= ~((np.abs(x - m) <= 1e-5 * h[i]) & ~near)
         return mid, fmid
 
     def _roots(self, ctx, a, b, fa, fb, J):
@@ -1071,14 +1080,17 @@ def _window_sup(ctx, s, a, b, lo, hi):
         p = np.clip(p, 0, M - 2)
         return _lerp(R[p], L[p + 1], (x - u[p]) / du[p])
 
-    def locate(x):
-        i = np.searchsorted(u, x)
-        ic = np.minimum(i, M - 1)
-        ip = np.maximum(i - 1, 0)
-        hit_i = (i < M) & (np.abs(u[ic] - x) <= _tol(x))
-        hit_p = ~hit_i & (i > 0) & (np.abs(x - u[ip]) <= _tol(x))
-        idx = np.where(hit_i, ic, np.where(hit_p, ip, np.clip(i - 1, 0, max(M - 2, 0))))
-        return idx, hit_i | hit_p
+    def locate(x, first):
+        """The instant within the engine's tolerance of x (the first such for a
+        window's start, the last for its end), else the piece x lies in."""
+        tx = _tol(x)
+        if first:
+            i = np.minimum(np.searchsorted(u, x - tx, side="left"), M - 1)
+            hit = np.abs(u[i] - x) <= tx
+            return np.where(hit, i, np.clip(i - 1, 0, max(M - 2, 0))), hit
+        i = np.maximum(np.searchsorted(u, x + tx, side="right") - 1, 0)
+        hit = np.abs(u[i] - x) <= tx
+        return np.where(hit, i, np.clip(i, 0, max(M - 2, 0))), hit
 
     # the output's breakpoints
     if hi <= lo:
@@ -1092,8 +1104,8 @@ def _window_sup(ctx, s, a, b, lo, hi):
     alpha = taus + a
     beta = np.minimum(taus + b, E)
     empty = alpha > E + _tol(E)
-    ia, ea = locate(alpha)
-    ib, eb = locate(beta)
+    ia, ea = locate(alpha, True)
+    ib, eb = locate(beta, False)
     deg = ea & eb & (ia == ib) | (alpha >= beta)
     val = np.where(ea, P[ia], piece(ia, alpha))
     val = np.maximum(val, np.where(ea & ~deg, R[ia], -_INF))
@@ -1174,7 +1186,7 @@ class _Window(Formula):
             else f"{name}{win}({inner})"
 
     def _range(self, ctx, lo, hi):
-        return lo + self.a, min(hi + self.b, ctx.tf)
+        return max(lo + self.a, ctx.t0), min(hi + self.b, ctx.tf)
 
     def _compute(self, ctx, lo, hi, probes):
         clo, chi = self._range(ctx, lo, hi)
@@ -1310,26 +1322,42 @@ def _restrict(ctx, s, lo, hi):
 
 
 def _untimed_until(sp, sq):
-    """phi U psi (untimed, to the end of the signals) at the instants of both."""
-    # both at the union of their instants, with the crossings of psi - phi
-    mn = _combine(sp, sq, np.minimum)           # adds the crossings
-    T, J, (pv, pl, pr), (qv, ql, qr) = _merge(_combine(sp, mn, np.minimum), sq)
-    # a sequence of atoms in hybrid time: each instant, then the open piece after it
+    """phi U psi (untimed, to the end of the signals) at the instants of both.
+
+    At the union of the instants and the crossings of phi and psi, both and
+    m = min(phi, psi) are linear on every open piece, where
+    U(T_k+) = max(min(max(m(T_k+), m(T_k+1 -)), phi(T_k+)),
+    min(phi(T_k+), phi(T_k+1 -), U(T_k+1))) and at each instant
+    U(T_k) = max(m(T_k), min(phi(T_k), U(T_k+))): each a map
+    x -> max(a, min(b, x)), a family closed under composition
+    ((a1, b1) after (a2, b2) is (max(a1, min(b1, a2)), min(b1, b2))), so the
+    backward recursion is a suffix scan, O(n log n) in numpy.
+    """
+    mn = _combine(sp, sq, np.minimum)           # every instant of both, and their crossings
+    T, J = mn.t, mn.j
+    _, _, (pv, pl, pr), _ = _merge(sp, mn)
     n = len(T)
     succ = np.zeros(n, dtype=bool)
     succ[:-1] = J[1:] == J[:-1]
-    U = np.empty(n)
-    nxt = -_INF
-    for k in range(n - 1, -1, -1):
-        if succ[k]:
-            # the open piece (T[k], T[k+1]): phi and psi linear, their min too
-            piece = max(min(qr[k], pr[k]), min(ql[k + 1], pl[k + 1]),
-                        min(pr[k], pl[k + 1], nxt))
-            inf_piece = min(pr[k], pl[k + 1])
-            nxt = max(piece, min(inf_piece, nxt))
-        U[k] = max(min(qv[k], pv[k]), min(pv[k], nxt))
-        nxt = U[k]
-    return _Sig(T, J, U)
+    A = np.full(2 * n, -_INF)
+    B = np.full(2 * n, _INF)
+    A[0::2], B[0::2] = mn.v, pv                 # the instant T_k
+    k = np.flatnonzero(succ)                    # the open piece after it
+    A[2 * k + 1] = np.minimum(np.maximum(mn.r[k], mn.l[k + 1]), pr[k])
+    B[2 * k + 1] = np.minimum(pr[k], pl[k + 1])
+    s = 1
+    while s < 2 * n:
+        a2 = np.concatenate((A[s:], np.full(s, -_INF)))
+        b2 = np.concatenate((B[s:], np.full(s, _INF)))
+        A, B = np.maximum(A, np.minimum(B, a2)), np.minimum(B, b2)
+        s *= 2
+    U = A[0::2]
+    right = np.where(succ, A[1::2], U)
+    left = np.empty(n)
+    left[0] = U[0]
+    # U(T_k -) from the piece before: max(m(T_k -), min(phi(T_k -), U(T_k)))
+    left[1:] = np.where(succ[:-1], np.maximum(mn.l[1:], np.minimum(pl[1:], U[1:])), U[1:])
+    return _Sig(T, J, U, left, right)
 
 
 def until(phi, psi, a=0.0, b=_INF):
