@@ -156,6 +156,11 @@ class Signal:
     def _values(self, T, J, X):  # pragma: no cover - every subclass defines it
         raise NotImplementedError
 
+    def _affine(self):
+        """``({i: c_i}, c_t)`` where the signal is sum c_i x_i + c_t t + const
+        (within a flow), else None: its time derivative is then known from xdot."""
+        return None
+
     def _bin(self, other, op, name, swap=False):
         o = _as_signal(other, f"the operand of {name}")
         a, b = (o, self) if swap else (self, o)
@@ -230,6 +235,9 @@ class _Const(Signal):
     def __init__(self, c):
         self.c = float(c)
 
+    def _affine(self):
+        return {}, 0.0
+
     def _values(self, T, J, X):
         return np.full(len(T), self.c)
 
@@ -240,6 +248,9 @@ class _Const(Signal):
 class _State(Signal):
     def __init__(self, i, name):
         self.i, self.name = i, name
+
+    def _affine(self):
+        return {self.i: 1.0}, 0.0
 
     def _values(self, T, J, X):
         if self.i >= X.shape[1] or self.i < -X.shape[1]:
@@ -255,6 +266,9 @@ class _Time(Signal):
     def _values(self, T, J, X):
         return np.asarray(T, float)
 
+    def _affine(self):
+        return {}, 1.0
+
     def __str__(self):
         return "t"
 
@@ -262,6 +276,9 @@ class _Time(Signal):
 class _Jumps(Signal):
     def _values(self, T, J, X):
         return np.asarray(J, float)
+
+    def _affine(self):
+        return {}, 0.0                          # constant within a flow
 
     def __str__(self):
         return "j"
@@ -318,6 +335,24 @@ class _Bin(Signal):
     def __str__(self):
         return f"({self.a} {self.name} {self.b})"
 
+    def _affine(self):
+        fa, fb = self.a._affine(), self.b._affine()
+        if fa is None or fb is None:
+            return None
+        if self.name in "+-":
+            sg = 1.0 if self.name == "+" else -1.0
+            c = dict(fa[0])
+            for i, w in fb[0].items():
+                c[i] = c.get(i, 0.0) + sg * w
+            return c, fa[1] + sg * fb[1]
+        # a product or quotient is affine when the factor is a constant
+        if self.name == "*" and isinstance(self.a, _Const):
+            return {i: self.a.c * w for i, w in fb[0].items()}, self.a.c * fb[1]
+        if isinstance(self.b, _Const) and self.b.c != 0:
+            k = self.b.c if self.name == "*" else 1.0 / self.b.c
+            return {i: k * w for i, w in fa[0].items()}, k * fa[1]
+        return None
+
 
 class _Unary(Signal):
     def __init__(self, a, op, fmt):
@@ -325,6 +360,10 @@ class _Unary(Signal):
 
     def _values(self, T, J, X):
         return self.op(self.a._values(T, J, X))
+
+    def _affine(self):
+        f = self.a._affine() if self.op is np.negative else None
+        return None if f is None else ({i: -w for i, w in f[0].items()}, -f[1])
 
     def __str__(self):
         return self.fmt.format(self.a)
@@ -602,7 +641,9 @@ class _Context:
         """The arc's interpolant at the instants (T, J)."""
         if len(T) == 0:
             return np.zeros((0, self.x.shape[1]))
-        return np.asarray(self.arc.at(T, j=J), dtype=float).reshape(len(T), -1)
+        # the arc's interpolant (HybridArc.at without its argument checks: the
+        # instants are the arc's own)
+        return self.arc._interp(np.asarray(T, float), np.asarray(J, np.int64), "stl")[0]
 
 
 def _real(v, what):
@@ -807,16 +848,20 @@ class _Predicate(Formula):
         pos = np.searchsorted(at, e)
         stored = (pos < len(at)) & (at[np.minimum(pos, len(at) - 1)] == e)
         e = e[~stored]
+        src = np.arange(a, b)                   # each instant's sample, or -1
         if e.size:
             Te, Je, *_ = ctx.domain(e)
             Xe = ctx.states(Te, Je)
-            T, J, X = _sorted_points(np.concatenate((Ts, Te)), np.concatenate((Js, Je)),
-                                     np.concatenate((Xs, Xe)))
+            T, J, X, src = _sorted_points(np.concatenate((Ts, Te)), np.concatenate((Js, Je)),
+                                          np.concatenate((Xs, Xe)),
+                                          np.concatenate((src, np.full(len(Te), -1))))
         else:
             T, J, X = Ts, Js, Xs
         v = self._rho(T, J, X)
         if ctx.refine > 1 and len(T) > 1:
-            T, J, v = self._extrema(ctx, T, J, v)
+            dv = self._slopes(ctx, src)
+            if dv is not False:
+                T, J, v = self._extrema(ctx, T, J, v, dv)
         # zero crossings inside each step, on the arc's interpolant
         with np.errstate(invalid="ignore"):
             k = np.flatnonzero((J[1:] == J[:-1]) & (v[:-1] * v[1:] < 0)
@@ -836,10 +881,32 @@ class _Predicate(Formula):
     def _at(self, ctx, T, J):
         return self._rho(T, J, ctx.states(T, J))
 
-    def _extrema(self, ctx, T, J, v):
-        """Add ``refine - 1`` interpolant values inside every step, and each
-        local extremum they reveal, located by parabolic interpolation."""
+    def _slopes(self, ctx, src):
+        """d rho / dt at the instants that are samples with a finite ``xdot``
+        (NaN elsewhere), for a rho affine in (x, t); None where rho is not;
+        False when rho is affine on an arc interpolated linearly (it has no
+        extremum inside a step)."""
+        aff = self.rho._affine()
+        if aff is None:
+            return None
+        if ctx.arc.xdot is None:
+            return False if not getattr(ctx.arc, "_segments", None) else None
+        coef, ct = aff
+        xd = np.asarray(ctx.arc.xdot, dtype=float)[np.maximum(src, 0)]
+        ds = np.full(len(src), ct)
+        for i, w in coef.items():
+            ds = ds + w * xd[:, i]
+        return np.where(src >= 0, ds, np.nan)
+
+    def _extrema(self, ctx, T, J, v, dv=None):
+        """Probe ``refine - 1`` interpolant values inside every step and add each
+        local extremum they reveal, located by parabolic interpolation. With
+        the slopes ``dv`` at the instants known, only the steps where the
+        slope changes sign (or is unknown at an end) are probed."""
         k = np.flatnonzero(J[1:] == J[:-1])
+        if dv is not None and k.size:
+            with np.errstate(invalid="ignore"):
+                k = k[~(dv[k] * dv[k + 1] > 0)]
         if not k.size:
             return T, J, v
         m = ctx.refine - 1
@@ -854,8 +921,9 @@ class _Predicate(Formula):
             d = np.diff(vv, axis=1)
             peak = (d[:, :-1] > 0) & (d[:, 1:] < 0)
             dip = (d[:, :-1] < 0) & (d[:, 1:] > 0)
-        ext_t, ext_j = [S.ravel()], [Js]
-        ext_v = [Vs.ravel()]
+        # the extrema become instants (the probes only reveal them: an excursion
+        # of the sign between samples shows in its extremum, and so its crossings)
+        ext_t, ext_j, ext_v = [], [], []
         r, c = np.nonzero(peak | dip)
         if r.size:
             sgn = np.where(peak[r, c], -1.0, 1.0)          # minimise sgn * rho
@@ -886,8 +954,17 @@ class _Predicate(Formula):
             with np.errstate(invalid="ignore", divide="ignore"):
                 x = m - 0.5 * p / q
             gold = np.where(b - m > m - a, m + g * (b - m), m - g * (m - a))
-            near = np.abs(x - m) < 0.25 * (1e-6 * h[i] + _tol(m))
-            x = np.where(~np.isfinite(x) | (x <= a) | (x >= b) | near, gold, x)
+            usable = np.isfinite(x) & (x > a) & (x < b)
+            # converged: a parabolic step this short moves the value by O(step^2)
+            conv = usable & (np.abs(x - m) <= 1e-5 * h[i])
+            if conv.any():
+                live[i[conv]] = False
+                keep = ~conv
+                i, a, m, b, fa, fm, fb = (y[keep] for y in (i, a, m, b, fa, fm, fb))
+                x, gold, usable = x[keep], gold[keep], usable[keep]
+                if not i.size:
+                    break
+            x = np.where(usable, x, gold)
             fx = sgn[i] * self._at(ctx, x, J[i])
             better = fx < fm
             left = x < m
@@ -898,8 +975,6 @@ class _Predicate(Formula):
             fhi[i] = np.where(better, np.where(left, fm, fb), np.where(left, fb, fx))
             mid[i] = np.where(better, x, m)
             fmid[i] = np.where(better, fx, fm)
-            # converged: a parabolic step this short moves the value by O(step^2)
-            live[i] &= ~((np.abs(x - m) <= 1e-5 * h[i]) & ~near)
         return mid, fmid
 
     def _roots(self, ctx, a, b, fa, fb, J):
