@@ -33,22 +33,27 @@ robustness tol - |sig - value|: on integer-valued signals (gears, modes,
 :func:`jumps`) +0.5 where equal and -(d - 0.5) at distance d >= 1 (a
 quantitative convention, not a ±1 indicator).
 
-**Dense time.** Each predicate is evaluated at its instants: the arc's
-samples, the zero crossings of its robustness on the arc's interpolant
-(:meth:`hybridsim.HybridArc.at`: the solver's dense output where the run
-kept one, else cubic Hermite from ``xdot``, else linear), root-found to
-4 ulp of t, and the instants where the windows' ends fall (t + a, t + b,
-propagated through nested operators), and the local maxima and minima of
-the predicate inside every step (``refine=4``, the default, reads the
-interpolant at 3 evenly spaced points per step and locates each extremum
-they reveal by parabolic interpolation to 1e-5 of the step). Between its
-instants a predicate is taken linear (the piecewise-linear semantics of
-Breach), and from there the
-temporal operators are computed **exactly**: every breakpoint where a
-window's end meets an instant (t - a, t - b), every kink of a max or min of
-linear pieces, and the arc's jump times are instants of the result, and a
-result can differ at a point from its one-sided limits (a window closing on
-a jump time reads both of its values). Hence:
+**Dense time.** Each predicate is evaluated at its instants on the arc's
+interpolant (:meth:`hybridsim.HybridArc.at`: the solver's dense output where
+the run kept one, else cubic Hermite from ``xdot``, else linear): the arc's
+samples; the instants where the windows' ends fall (t + a, t + b,
+propagated through nested operators); its local maxima and minima inside
+the steps (``refine=4``, the default, probes the interpolant at 3 evenly
+spaced points of a step and locates each extremum they reveal by parabolic
+interpolation to 1e-5 of the step; a predicate affine in x and t on an arc
+with ``xdot`` is probed only in the steps where its slope changes sign, and
+on a linearly interpolated arc it has no extremum inside a step); and the
+zeros of its robustness, root-found by a safeguarded secant to 4 ulp of t.
+Between its instants a predicate is taken linear (the piecewise-linear
+semantics of Breach), and from there the temporal operators are computed
+**exactly**: every breakpoint where a window's end meets an instant
+(t - a, t - b), every kink of a max or min of linear pieces and the arc's
+jump times are instants of the result, and a result can differ at a point
+from its one-sided limits (a window closing on a jump time reads both of its
+values). A window's end within the engine's event tolerance
+(:func:`hybridsim.rules.event_tolerance`, 4 ulp of max(1, |t|)) of an
+instant counts as at it, as in :mod:`hybridsim.testing`: a jump meant for
+t = 1 and stored a rounding step early is in ``G[1, 2]``. Hence:
 
 - the *sign* of every predicate is exact at its crossings, and a jump
   located by the engine is an exact instant: ``G[0, 2.5] (gear == 3)`` and
@@ -56,17 +61,18 @@ a jump time reads both of its values). Hence:
 - the *value* is exact for the piecewise-linear interpolation through the
   predicates' instants; against the arc's own interpolant it errs by at most
   the largest deviation of a predicate from its chord between two
-  consecutive instants (on a sampled arc without dense output or ``xdot``
-  the interpolant itself is linear, and the result is exact for it);
-- a predicate's excursion between two of its probes that leaves no sign in
-  them (narrower than a quarter step, by default) is missed: use a larger
-  ``refine`` or denser samples. ``refine=1`` gives the plain sampled
-  semantics with crossings (the samples, crossings and window ends only).
+  consecutive instants, which its extrema being instants keeps second
+  order in the step (on an arc without dense output or ``xdot`` the
+  interpolant is linear, and for affine predicates the result is exact);
+- an excursion of a predicate between two of its probes that changes the
+  sign of none of them (narrower than a quarter step, by default) is
+  missed: use a larger ``refine`` or denser samples. ``refine=1`` reads the
+  samples, the window ends and the crossings only.
 
 Until is computed by the identity phi U[a,b] psi = G[0,a] phi ∧
-F[a,a] ((phi U psi) ∧ F[0,b-a] psi) (exact in the quantitative semantics);
-the untimed phi U psi is evaluated exactly at the instants of its operands
-(points, one-sided limits and mutual crossings) and taken linear between.
+F[a,a] ((phi U psi) ∧ F[0,b-a] psi), exact in the quantitative semantics;
+the untimed phi U psi is exact at the instants of its operands (their
+points, one-sided limits and mutual crossings) and taken linear between.
 
 **Horizon.** ``phi.horizon`` is how far past t the formula reads (b plus
 the operand's horizon; infinite for an unbounded window, which reads to the
@@ -158,7 +164,12 @@ class Signal:
 
     def _affine(self):
         """``({i: c_i}, c_t)`` where the signal is sum c_i x_i + c_t t + const
-        (within a flow), else None: its time derivative is then known from xdot."""
+        (within a flow), else None."""
+        return None
+
+    def _dt(self, T, J, X, XD):
+        """The time derivative along the flow at the samples, by the chain rule
+        from ``XD`` (xdot), or None where unknown (a user function)."""
         return None
 
     def _bin(self, other, op, name, swap=False):
@@ -238,6 +249,9 @@ class _Const(Signal):
     def _affine(self):
         return {}, 0.0
 
+    def _dt(self, T, J, X, XD):
+        return np.zeros(len(T))
+
     def _values(self, T, J, X):
         return np.full(len(T), self.c)
 
@@ -251,6 +265,9 @@ class _State(Signal):
 
     def _affine(self):
         return {self.i: 1.0}, 0.0
+
+    def _dt(self, T, J, X, XD):
+        return XD[:, self.i]
 
     def _values(self, T, J, X):
         if self.i >= X.shape[1] or self.i < -X.shape[1]:
@@ -269,6 +286,9 @@ class _Time(Signal):
     def _affine(self):
         return {}, 1.0
 
+    def _dt(self, T, J, X, XD):
+        return np.ones(len(T))
+
     def __str__(self):
         return "t"
 
@@ -279,6 +299,9 @@ class _Jumps(Signal):
 
     def _affine(self):
         return {}, 0.0                          # constant within a flow
+
+    def _dt(self, T, J, X, XD):
+        return np.zeros(len(T))
 
     def __str__(self):
         return "j"
@@ -353,6 +376,18 @@ class _Bin(Signal):
             return {i: k * w for i, w in fa[0].items()}, k * fa[1]
         return None
 
+    def _dt(self, T, J, X, XD):
+        da, db = self.a._dt(T, J, X, XD), self.b._dt(T, J, X, XD)
+        if da is None or db is None:
+            return None
+        if self.name == "+":
+            return da + db
+        if self.name == "-":
+            return da - db
+        a, b = self.a._values(T, J, X), self.b._values(T, J, X)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return da * b + a * db if self.name == "*" else (da * b - a * db) / (b * b)
+
 
 class _Unary(Signal):
     def __init__(self, a, op, fmt):
@@ -364,6 +399,14 @@ class _Unary(Signal):
     def _affine(self):
         f = self.a._affine() if self.op is np.negative else None
         return None if f is None else ({i: -w for i, w in f[0].items()}, -f[1])
+
+    def _dt(self, T, J, X, XD):
+        d = self.a._dt(T, J, X, XD)
+        if d is None:
+            return None
+        if self.op is np.negative:
+            return -d
+        return np.sign(self.a._values(T, J, X)) * d      # |a|: a kink where a = 0
 
     def __str__(self):
         return self.fmt.format(self.a)
@@ -834,35 +877,45 @@ class _Predicate(Formula):
         return self.text
 
     def _compute(self, ctx, lo, hi, probes):
-        at, aj = ctx.t, ctx.j
         lo, hi = max(lo, ctx.t0), min(hi, ctx.tf)
-        # the samples within the engine's tolerance of the range count as in it
-        a = int(np.searchsorted(at, lo - _tol(lo), side="left"))
-        b = int(np.searchsorted(at, hi + _tol(hi), side="right"))
-        Ts, Js, Xs = at[a:b], aj[a:b], ctx.x[a:b]
-        extra = [np.array([lo, hi])]
+        if hi <= lo:                            # one time: its instants' values
+            T, J, *_ = ctx.domain(np.array([lo]))
+            return _Sig(T, J, self._at(ctx, T, J))
+        base = self._intrinsic(ctx)
+        # the instants within the engine's tolerance of the range count as in it
+        a = int(np.searchsorted(base.t, lo - _tol(lo), side="left"))
+        b = int(np.searchsorted(base.t, hi + _tol(hi), side="right"))
+        T, J, v = base.t[a:b], base.j[a:b], base.v[a:b]
+        e = np.array([lo, hi])
         if len(probes):
             p = np.asarray(sorted(probes), float)
-            extra.append(p[(p > lo) & (p < hi)])
-        e = np.unique(np.concatenate(extra))
-        pos = np.searchsorted(at, e)
-        stored = (pos < len(at)) & (at[np.minimum(pos, len(at) - 1)] == e)
-        e = e[~stored]
-        src = np.arange(a, b)                   # each instant's sample, or -1
+            e = np.concatenate((e, p[(p > lo) & (p < hi)]))
+        e = np.unique(e)
+        e = e[~np.isin(e, T)]
         if e.size:
             Te, Je, *_ = ctx.domain(e)
-            Xe = ctx.states(Te, Je)
-            T, J, X, src = _sorted_points(np.concatenate((Ts, Te)), np.concatenate((Js, Je)),
-                                          np.concatenate((Xs, Xe)),
-                                          np.concatenate((src, np.full(len(Te), -1))))
-        else:
-            T, J, X = Ts, Js, Xs
-        v = self._rho(T, J, X)
-        if ctx.refine > 1 and len(T) > 1:
-            dv = self._slopes(ctx, src)
-            if dv is not False:
-                T, J, v = self._extrema(ctx, T, J, v, dv)
-        # zero crossings inside each step, on the arc's interpolant
+            T, J, v = _sorted_points(np.concatenate((T, Te)), np.concatenate((J, Je)),
+                                     np.concatenate((v, self._at(ctx, Te, Je))))
+            T, J, v = self._crossings(ctx, T, J, v)
+        return _Sig(T, J, v)
+
+    def _intrinsic(self, ctx):
+        """The predicate at its instants over the whole arc (computed once per
+        evaluation): the samples, the extrema inside the steps, the crossings."""
+        key = ("instants", id(self))
+        got = ctx.memo.get(key)
+        if got is None:
+            T, J = ctx.t, ctx.j
+            v = self._rho(T, J, ctx.x)
+            if ctx.refine > 1 and len(T) > 1:
+                dv = self._slopes(ctx)
+                if dv is not False:
+                    T, J, v = self._extrema(ctx, T, J, v, dv)
+            got = ctx.memo[key] = self._crossings(ctx, T, J, v)
+        return _Sig(*got)
+
+    def _crossings(self, ctx, T, J, v):
+        """Add the zeros of rho inside the steps where it changes sign (value 0)."""
         with np.errstate(invalid="ignore"):
             k = np.flatnonzero((J[1:] == J[:-1]) & (v[:-1] * v[1:] < 0)
                                & np.isfinite(v[:-1]) & np.isfinite(v[1:]))
@@ -872,7 +925,7 @@ class _Predicate(Formula):
             k, tc = k[inside], tc[inside]
             T, J, v = _sorted_points(np.concatenate((T, tc)), np.concatenate((J, J[k])),
                                      np.concatenate((v, np.zeros(len(tc)))))
-        return _Sig(T, J, v)
+        return T, J, v
 
     def _rho(self, T, J, X):
         v = np.asarray(self.rho._values(T, J, X), dtype=float).reshape(len(T))
@@ -881,22 +934,19 @@ class _Predicate(Formula):
     def _at(self, ctx, T, J):
         return self._rho(T, J, ctx.states(T, J))
 
-    def _slopes(self, ctx, src):
-        """d rho / dt at the instants that are samples with a finite ``xdot``
-        (NaN elsewhere), for a rho affine in (x, t); None where rho is not;
-        False when rho is affine on an arc interpolated linearly (it has no
-        extremum inside a step)."""
-        aff = self.rho._affine()
-        if aff is None:
-            return None
-        if ctx.arc.xdot is None:
-            return False if not getattr(ctx.arc, "_segments", None) else None
-        coef, ct = aff
-        xd = np.asarray(ctx.arc.xdot, dtype=float)[np.maximum(src, 0)]
-        ds = np.full(len(src), ct)
-        for i, w in coef.items():
-            ds = ds + w * xd[:, i]
-        return np.where(src >= 0, ds, np.nan)
+    def _slopes(self, ctx):
+        """d rho / dt at the arc's samples by the chain rule from ``xdot`` (NaN
+        where xdot is); None where unknown (a user function, or no xdot);
+        False when rho is affine in (x, t) on an arc interpolated linearly (it
+        has no extremum inside a step)."""
+        arc = ctx.arc
+        if arc.xdot is None:
+            linear = not getattr(arc, "_segments", None)
+            return False if linear and self.rho._affine() is not None else None
+        XD = np.asarray(arc.xdot, dtype=float)
+        with np.errstate(invalid="ignore"):
+            d = self.rho._dt(ctx.t, ctx.j, ctx.x, XD)
+        return None if d is None else np.asarray(d, dtype=float).reshape(len(ctx.t))
 
     def _extrema(self, ctx, T, J, v, dv=None):
         """Probe ``refine - 1`` interpolant values inside every step and add each

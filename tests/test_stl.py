@@ -73,6 +73,24 @@ def test_ball_until_by_hand(ball):
     assert float(stl.U(h >= -0.1, v >= 1, 0, 0.4)(ball)) == pytest.approx(-1.0, abs=1e-12)
 
 
+def test_an_excursion_between_samples_is_found_by_the_probes():
+    """|x| with x = t - 0.55 sampled at 0 and 1 only: |x| <= 0.1 holds on
+    [0.45, 0.65], between the samples, where both give -0.35 and -0.45. The probes
+    reveal the dip, whose minimum (the kink at 0.55) is located to 1e-5 of the
+    step; then its crossings are found too. With refine=1 it is missed."""
+    arc = hs.HybridArc([0.0, 1.0], [0, 0], [[-0.55], [0.45]], hs.Termination.T_MAX)
+    phi = stl.F(abs(stl.state(0)) <= 0.1, 0, 1)
+    m = phi(arc)
+    assert float(m) == pytest.approx(0.1, abs=1e-5) and m.where[0] == pytest.approx(0.55, abs=1e-5)
+    assert float(phi(arc, refine=1)) == pytest.approx(-0.35)
+    # the instants of G over the window: the crossings at 0.45 and 0.65 are exact
+    g = stl.G(abs(stl.state(0)) >= 0.1, 0, 1)(arc)
+    assert float(g) == pytest.approx(-0.1, abs=1e-5)
+    t, j, val = g.series
+    assert np.min(val) == float(g)
+    assert np.any(np.abs(t - 0.45) < 1e-12) and np.any(np.abs(t - 0.65) < 1e-12)
+
+
 def test_boolean_connectives_by_hand(ball):
     p, q = h >= 0.5, v <= -1
     at0 = (0.5, -1.0)                                  # h - 0.5 and -1 - v at t = 0
@@ -293,6 +311,8 @@ def brute(phi, arc, t, dt):
             out = f._rho(T, J, X)
         elif isinstance(f, stl._Not):
             out = -rho(f.phi)
+        elif isinstance(f, stl._Implies):
+            out = np.maximum(-rho(f.phi), rho(f.psi))
         elif isinstance(f, stl._Binary):
             out = f.op(rho(f.phi), rho(f.psi))
         elif isinstance(f, stl._Window):
