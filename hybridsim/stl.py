@@ -681,12 +681,10 @@ class _Context:
         return T, J, first, last, np.repeat(np.arange(len(times)), cnt)
 
     def states(self, T, J):
-        """The arc's interpolant at the instants (T, J)."""
+        """The arc's interpolant at the instants (T, J) (:meth:`HybridArc.at`)."""
         if len(T) == 0:
             return np.zeros((0, self.x.shape[1]))
-        # the arc's interpolant (HybridArc.at without its argument checks: the
-        # instants are the arc's own)
-        return self.arc._interp(np.asarray(T, float), np.asarray(J, np.int64), "stl")[0]
+        return np.asarray(self.arc.at(T, j=J), dtype=float).reshape(len(T), -1)
 
 
 def _real(v, what):
@@ -854,17 +852,18 @@ class Formula:
 
 
 def _value(sig, tau, j):
-    """The value of a signal at the instant (tau, j), one-sided limits included."""
-    T = np.array([tau])
+    """The value of a signal at the instant (tau, j)."""
     k = np.flatnonzero((sig.t == tau) & (sig.j == j))
     if k.size:
         return float(sig.v[k[0]])
-    k = np.flatnonzero(sig.t <= tau)
-    idx = np.full(1, -1)
-    if not k.size:
-        return float(sig.v[0])
-    v, _, _ = _values_at(sig, T, idx if sig.j[k[-1]] == j else np.array([k[-1]]))
-    return float(v[0])
+    m = np.flatnonzero((sig.j == j) & (sig.t < tau))
+    if not m.size:
+        return float(sig.v[int(np.argmin(np.abs(sig.t - tau)))])
+    k0 = int(m[-1])
+    if k0 + 1 < len(sig.t) and sig.j[k0 + 1] == j:
+        w = (tau - sig.t[k0]) / (sig.t[k0 + 1] - sig.t[k0])
+        return float(_lerp(sig.r[k0], sig.l[k0 + 1], min(max(w, 0.0), 1.0)))
+    return float(sig.v[k0])
 
 
 class _Predicate(Formula):
