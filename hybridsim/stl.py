@@ -18,10 +18,16 @@ Semantics
 E = ∪_j [t_j, t_{j+1}] × {j}: at a jump time both the pre- and the post-jump
 values belong to it (two instants (t, j) and (t, j + 1) at the same t).
 Time intervals [a, b] are in ordinary time t, and at an instant where the
-arc has several j **all** of its values are read: ``F[a,b] phi`` at t is the
-sup of phi over every (t', j') of E with t' in [t + a, t + b], ``G`` the inf.
-A temporal formula's value thus depends on t only; a predicate's on (t, j).
-A formula is evaluated at hybrid time (t, j) (default: the first j at t).
+arc has several j **all** of its values are read, but never one before the
+current hybrid instant: ``F[a,b] phi`` at (t, j) is the sup of phi over the
+(t', j') of E with t' in [t + a, t + b] and (t', j') not before (t, j) (which
+matters only for a = 0: at a jump time, the window of the pre-jump instant
+holds both values, that of the post-jump instant the post-jump one), ``G``
+the inf. So ``G[0, 2.5] (gear == 2)`` holds right after a shift into gear 2
+at the shift's post-jump instant, and ``F[0.001, 0.1] G[0, 2.5] (gear == 2)``
+holds just before it; a window that reaches a jump time with t' > t reads
+both values there. A formula is evaluated at hybrid time (t, j) (default: the
+first j at t, so every value at t counts).
 
 **Robustness** is the Donzé–Maler space robustness: ``sig >= c`` and
 ``sig > c`` have robustness sig - c, ``sig <= c`` and ``sig < c`` c - sig;
@@ -134,12 +140,15 @@ def _tol(x):
 
 def _lerp(y0, y1, w):
     """y0 + w (y1 - y0), the nearer end where an end is not finite."""
-    y0, y1, w = np.broadcast_arrays(np.asarray(y0, float), np.asarray(y1, float),
-                                    np.asarray(w, float))
-    fin = np.isfinite(y0) & np.isfinite(y1)
     with np.errstate(invalid="ignore"):
         out = y0 + w * (y1 - y0)
-    return np.where(fin, out, np.where(w < 0.5, y0, y1))
+    bad = ~np.isfinite(out)
+    if np.any(bad):
+        y0, y1, w = np.broadcast_arrays(np.asarray(y0, float), np.asarray(y1, float),
+                                        np.asarray(w, float))
+        fin = np.isfinite(y0) & np.isfinite(y1)
+        out = np.where(fin, out, np.where(w < 0.5, y0, y1))
+    return out
 
 
 # ------------------------------------------------------------------ signals --
@@ -1145,8 +1154,10 @@ class _Binary(Formula):
     def _decide(self, ctx, lo, hi, tau, j, target):
         s1, s2 = self._parts(ctx, lo, hi, ())
         v1, v2 = _value(s1, tau, j), _value(s2, tau, j)
-        sgn = -1.0 if isinstance(self, _Implies) else 1.0
-        if abs(sgn * v1 - target) <= abs(v2 - target):
+        imp = isinstance(self, _Implies)        # a tie: the consequent is the reason
+        sgn = -1.0 if imp else 1.0
+        d1, d2 = abs(sgn * v1 - target), abs(v2 - target)
+        if d1 < d2 or (d1 == d2 and not imp):
             return self.phi._decide(ctx, lo, hi, tau, j, sgn * target)
         return self.psi._decide(ctx, lo, hi, tau, j, target)
 
@@ -1231,12 +1242,14 @@ def _window_sup(ctx, s, a, b, lo, hi):
     ia, ea = locate(alpha, True)
     ib, eb = locate(beta, False)
     deg = ea & eb & (ia == ib) | (alpha >= beta)
-    val = np.where(ea, P[ia], piece(ia, alpha))
-    val = np.maximum(val, np.where(ea & ~deg, R[ia], -_INF))
-    val = np.maximum(val, np.where(eb, P[ib], piece(ib, beta)))
-    val = np.maximum(val, np.where(eb & ~deg, L[ib], -_INF))
-    val = np.maximum(val, rm.query(ia + 1, np.where(eb, ib - 1, ib)))
-    val[empty] = -_INF
+    # the window's start (its instants, or the piece it falls in), and the rest
+    Pa = np.where(ea, P[ia], piece(ia, alpha))
+    rest = np.where(ea & ~deg, R[ia], -_INF)
+    rest = np.maximum(rest, np.where(deg, -_INF, np.where(eb, P[ib], piece(ib, beta))))
+    rest = np.maximum(rest, np.where(eb & ~deg, L[ib], -_INF))
+    rest = np.maximum(rest, rm.query(ia + 1, np.where(eb, ib - 1, ib)))
+    Pa[empty] = rest[empty] = -_INF
+    val = np.maximum(Pa, rest)
     # the open intervals between breakpoints: max of two lines and a constant
     K = len(taus) - 1
     vl, vr = val.copy(), val.copy()
@@ -1284,14 +1297,31 @@ def _window_sup(ctx, s, a, b, lo, hi):
                 with np.errstate(invalid="ignore"):
                     yy = y0[kk] + np.where(sl[kk] == 0, 0.0, sl[kk] * (kink_t - t0[kk]))
                 kink_v = np.maximum(kink_v, np.where(np.isnan(yy), -_INF, yy))
+    nk = len(kink_t)
     times = np.concatenate((taus, kink_t))
     V = np.concatenate((val, kink_v))
     Lv = np.concatenate((vl, kink_v))
     Rv = np.concatenate((vr, kink_v))
+    Re = np.concatenate((rest, kink_v))
+    own = np.concatenate((ea & (a == 0.0), np.zeros(nk, dtype=bool)))
+    Ia = np.concatenate((ia, np.zeros(nk, dtype=np.int64)))
     order = np.argsort(times, kind="stable")
-    times, V, Lv, Rv = times[order], V[order], Lv[order], Rv[order]
+    times, V, Lv, Rv, Re, own, Ia = (z[order] for z in (times, V, Lv, Rv, Re, own, Ia))
     T, J, fst, lst, src = ctx.domain(times)
     Vd = V[src]
+    # a window starting at the evaluation instant (tau, j) itself reads the
+    # instants of tau from j on, not those before it in hybrid time
+    sp = own[src] & ~(fst & lst)
+    if sp.any():
+        vs = v.copy()                       # max of v over the later instants of its time
+        gid = np.cumsum(first) - 1
+        for off in range(1, int(np.max(np.diff(np.append(fi, len(t))))) if M else 1):
+            same = np.zeros(len(t), dtype=bool)
+            same[:-off] = gid[off:] == gid[:-off]
+            vs[same] = np.maximum(vs[same], vs[np.flatnonzero(same) + off])
+        g = Ia[src][sp]
+        c = np.clip(fi[g] + (J[sp] - s.j[fi[g]]), fi[g], la[g])
+        Vd[sp] = np.maximum(Re[src][sp], vs[c])
     return _Sig(T, J, Vd, np.where(fst, Lv[src], Vd), np.where(lst, Rv[src], Vd))
 
 
@@ -1334,6 +1364,8 @@ class _Window(Formula):
         if lo + self.a > ctx.tf:
             return tau, j
         s, m, clo, chi = self._window_points(ctx, lo, hi, tau)
+        if self.a == 0:                         # not before (tau, j) in hybrid time
+            m &= ~((np.abs(s.t - tau) <= _tol(tau)) & (s.j < j))
         k = np.flatnonzero(m)
         if not k.size:
             return tau, j

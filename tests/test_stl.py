@@ -127,6 +127,30 @@ def test_a_mode_change_at_a_located_event_is_an_exact_instant(t_shift):
     assert float(stl.G(stl.equals(stl.jumps(), 0), 0, te - eps)(arc)) == 0.5
 
 
+def test_a_window_never_reaches_back_before_its_hybrid_instant():
+    """At a shift's post-jump instant G[0, d] (gear == 2) reads the post-jump value
+    only, so the ARCH-COMP AT5x pattern holds at every shift instead of failing at
+    the single tau where the short window's end meets the shift."""
+    arc = hs.simulate(gear_box(1.0), [0.0, 1.0], t_max=5.0)
+    te = float(arc.jump_times[0])
+    gear = stl.state(1, "gear")
+    two = stl.equals(gear, 2)
+    g = stl.G(two, 0, 0.5)
+    assert float(g(arc, t=te, j=1)) == 0.5            # from the post-jump instant on
+    assert float(g(arc, t=te, j=0)) == -0.5           # the pre-jump instant: gear 1
+    assert float(g(arc, t=te)) == -0.5                # (the first j at t by default)
+    at5x = stl.G((~two & stl.F(two, 0.001, 0.1)) >> stl.F(stl.G(two, 0, 0.5), 0.001, 0.1),
+                 0, 2.5)
+    assert float(at5x(arc)) == 0.5
+    # gear 2 lasts 1 s: a G[0, 1.5] consequent fails, decided at a shift (a gear
+    # other than 2 inside the window)
+    at5x = stl.G((~two & stl.F(two, 0.001, 0.1)) >> stl.F(stl.G(two, 0, 1.5), 0.001, 0.1),
+                 0, 2.5)
+    m = at5x(arc)
+    assert float(m) == -0.5
+    assert np.min(np.abs(m.where[0] - arc.jump_times)) < 1e-12
+
+
 def test_equals_convention():
     arc = hs.HybridArc([0.0, 1.0, 1.0, 2.0], [0, 0, 1, 1], [[1.0], [1.0], [4.0], [4.0]], None)
     gear = stl.state(0)
@@ -318,18 +342,18 @@ def brute(phi, arc, t, dt):
         elif isinstance(f, stl._Window):
             r = rho(f.phi)
             red = np.max if f.sup else np.min
-            out = np.array([red(r[(T >= s + f.a - 1e-9) & (T <= min(s + f.b, tf) + 1e-9)],
-                                initial=-np.inf if f.sup else np.inf) for s in T])
+            # the instants in the window, none before (s, j) in hybrid time
+            out = np.array([red(r[(T >= s + f.a - 1e-9) & (T <= min(s + f.b, tf) + 1e-9)
+                                  & ~((T == s) & (J < jk))],
+                                initial=-np.inf if f.sup else np.inf) for s, jk in zip(T, J)])
         else:                                           # until
             r1, r2 = rho(f.phi), rho(f.psi)
             out = np.empty(len(T))
             for k, s in enumerate(T):
                 # every instant from (s, j) on, in hybrid time order
-                seq = np.arange(k - (k > 0 and T[k - 1] == s), len(T))
+                seq = np.arange(k, len(T))
                 seq = seq[T[seq] <= min(s + f.b, tf) + 1e-9]
-                m = np.minimum.accumulate(np.minimum.reduceat(
-                    r1[seq], np.r_[0, np.flatnonzero(np.diff(T[seq])) + 1])
-                    [np.cumsum(np.r_[0, np.diff(T[seq]) > 0])])
+                m = np.minimum.accumulate(r1[seq])
                 ok = T[seq] >= s + f.a - 1e-9
                 out[k] = np.max(np.minimum(r2[seq], m)[ok]) if ok.any() else -np.inf
         memo[id(f)] = out
