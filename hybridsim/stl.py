@@ -33,8 +33,9 @@ first j at t, so every value at t counts).
 ``sig > c`` have robustness sig - c, ``sig <= c`` and ``sig < c`` c - sig;
 and / or are min / max, ``~`` is negation, ``implies(phi, psi)`` is
 ``~phi | psi``; ``F`` and ``G`` are sup and inf over their windows and
-``phi U[a,b] psi`` at t is sup over t' in [t+a, t+b] of
-min(psi(t'), inf over [t, t'] of phi). ``equals(sig, value, tol=0.5)`` has
+``phi U[a,b] psi`` at (t, j) is the sup over the instants (t', j') not before
+(t, j) with t' in [t+a, t+b] of min(psi(t', j'), inf of phi over the
+instants from (t, j) to (t', j') in hybrid time). ``equals(sig, value, tol=0.5)`` has
 robustness tol - |sig - value|: on integer-valued signals (gears, modes,
 :func:`jumps`) +0.5 where equal and -(d - 0.5) at distance d >= 1 (a
 quantitative convention, not a ±1 indicator).
@@ -46,10 +47,12 @@ samples; the instants where the windows' ends fall (t + a, t + b,
 propagated through nested operators); its local maxima and minima inside
 the steps (``refine=4``, the default, probes the interpolant at 3 evenly
 spaced points of a step and locates each extremum they reveal by parabolic
-interpolation to 1e-5 of the step; a predicate affine in x and t on an arc
-with ``xdot`` is probed only in the steps where its slope changes sign, and
-on a linearly interpolated arc it has no extremum inside a step); and the
-zeros of its robustness, root-found by a safeguarded secant to 4 ulp of t.
+interpolation to 1e-5 of the step; on an arc with ``xdot``, a predicate
+built from :func:`state`, :func:`time`, :func:`jumps` and constants (any
+arithmetic and ``abs``) is probed only in the steps where its slope, by the
+chain rule from ``xdot``, changes sign; one affine in x and t on a linearly
+interpolated arc has no extremum inside a step); and the zeros of its
+robustness, root-found by a safeguarded secant to 4 ulp of t.
 Between its instants a predicate is taken linear (the piecewise-linear
 semantics of Breach), and from there the temporal operators are computed
 **exactly**: every breakpoint where a window's end meets an instant
