@@ -329,6 +329,13 @@ class _Fn(Signal):
         if self.name == "<lambda>":
             self.name = "signal"
 
+    def __getstate__(self):                     # the wrapper is remade, not pickled
+        return {k: v for k, v in self.__dict__.items() if k != "f"}
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self.f = as_map(self.fn, self.what)
+
     def _row(self, x, t, j):
         y = np.asarray(self.f(x, float(t), int(j), None), dtype=float)
         if y.size != 1:

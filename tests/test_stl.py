@@ -460,6 +460,15 @@ def test_signal_functions_vectorised_or_row_by_row(ball):
     assert float(m) == pytest.approx(-1.0, abs=1e-12)       # (t, j) = (1, 1) at the end
 
 
+def test_formulas_pickle(ball):
+    """Claims travel to worker processes (distributed falsification): a formula
+    pickles whenever its user functions do."""
+    import pickle
+    phi = stl.G((h > 0.5) >> stl.F(stl.signal(np.linalg.norm, "n") >= 3, 0, 0.5), 0, 1)
+    back = pickle.loads(pickle.dumps(phi))
+    assert str(back) == str(phi) and float(back(ball)) == float(phi(ball))
+
+
 def test_strict_horizon_and_cut_windows():
     arc = hs.simulate(gear_box(1.0), [0.0, 1.0], t_max=1.5)
     x = stl.state(0)
