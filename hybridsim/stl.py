@@ -1080,7 +1080,7 @@ class _Predicate(Formula):
             xl[i], fl[i] = s, fs
             up = fs >= 0
             hi[i] = np.where(up, s, hi[i])
-            lo[i] = np.where(up, lo[i], s)
+            lo[i] = np.where(up & (fs != 0), lo[i], s)     # an exact zero: found
         return hi
 
 
