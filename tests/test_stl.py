@@ -1,0 +1,528 @@
+"""Signal temporal logic over hybrid arcs (hybridsim.stl): hand-computed
+robustness, RTAMT where both semantics apply, jumps at located event times,
+properties against a brute-force evaluation on a fine grid, and use as a claim."""
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import hybridsim as hs
+from hybridsim import stl
+from hybridsim.falsification import Interval, Space
+from hybridsim.library import BouncingBall
+from hybridsim.sensitivity import margin_gradient
+
+G_ACC, E_REST = 9.81, 0.8
+T1 = math.sqrt(2.0 / G_ACC)                 # first impact from h0 = 1 at rest
+V_PLUS = E_REST * math.sqrt(2.0 * G_ACC)     # speed after it
+h, v = stl.state(0, "h"), stl.state(1, "v")
+
+
+@pytest.fixture(scope="module")
+def ball():
+    return hs.simulate(BouncingBall(), [1.0, 0.0], t_max=1.5)
+
+
+def gear_box(t_shift):
+    """(clock, gear): clock' = 1; at clock = t_shift the gear goes up, the clock to 0."""
+    return hs.HybridSystem.from_functions(
+        f=lambda x: np.array([1.0, 0.0]), g=lambda x: np.array([0.0, x[1] + 1.0]),
+        jump_guard=lambda x: x[0] - t_shift, flow_guard=lambda x: t_shift - x[0],
+        state_dim=2)
+
+
+# ---------------------------------------------------------- hand-computed --
+def test_ball_always_and_eventually_by_hand(ball):
+    # the floor: the least height is 0, at an impact (rounding of the event: 1e-12)
+    m = stl.G(h >= 0, 0, 1.5)(ball)
+    assert abs(float(m)) < 1e-12 and m.where[0] in ball.jump_times
+    # the start decides G(h <= 0.9): 0.9 - 1
+    m = stl.G(h <= 0.9, 0, 1.5)(ball)
+    assert float(m) == pytest.approx(-0.1, abs=1e-15) and m.where == (0.0, 0)
+    # the apex after the first bounce lies between samples: e^2 = 0.64 at t1 (1 + e);
+    # the arc's Hermite interpolant is exact on the parabola, the extremum located
+    # to 1e-5 of a step (value error O(step^2 1e-10))
+    m = stl.F(h >= 0.5, 0.5, 1.0)(ball)
+    assert float(m) == pytest.approx(E_REST ** 2 - 0.5, abs=1e-9)
+    assert m.where == (pytest.approx(T1 * (1 + E_REST), abs=1e-5), 1)
+    # with refine=1 only the samples, crossings and window ends: below the apex
+    assert float(stl.F(h >= 0.5, 0.5, 1.0)(ball, refine=1)) < float(m) - 1e-3
+    # the speed right after the impact (the post-jump instant decides)
+    m = stl.G(v <= 3, 0, 1.0)(ball)
+    assert float(m) == pytest.approx(3 - V_PLUS, rel=1e-9)
+    assert m.where == (pytest.approx(T1, abs=1e-12), 1)
+
+
+def test_ball_window_ends_are_evaluation_instants(ball):
+    # h(0.3) = 1 - g 0.3^2 / 2 exactly (the window end is evaluated on the interpolant)
+    m = stl.G(h >= 0.0, 0.0, 0.3)(ball, t=0.0)
+    assert float(m) == pytest.approx(1 - G_ACC * 0.09 / 2, abs=1e-12)
+    m = stl.F(stl.G(h >= 0.1, 0, 0.2), 0, 1)(ball)    # decided at tau = 0: h(0.2) - 0.1
+    assert float(m) == pytest.approx(1 - G_ACC * 0.04 / 2 - 0.1, abs=1e-12)
+
+
+def test_ball_until_by_hand(ball):
+    # v >= 1 first holds right after the impact; h >= 0.2 fails before it (h = 0 at
+    # the impact): sup over t' of min(psi, inf phi) = inf over [0, t1] of h - 0.2 = -0.2
+    assert float(stl.until(h >= 0.2, v >= 1, 0, 1)(ball)) == pytest.approx(-0.2, abs=1e-12)
+    # with phi = h >= -0.1 it holds by 0.1 (the impact, psi = V_PLUS - 1 there)
+    assert float(stl.U(h >= -0.1, v >= 1, 0, 1)(ball)) == pytest.approx(0.1, abs=1e-12)
+    # psi is needed inside [a, b]: before the impact it never holds (v <= 0 < 1)
+    assert float(stl.U(h >= -0.1, v >= 1, 0, 0.4)(ball)) == pytest.approx(-1.0, abs=1e-12)
+
+
+def test_an_excursion_between_samples_is_found_by_the_probes():
+    """|x| with x = t - 0.55 sampled at 0 and 1 only: |x| <= 0.1 holds on
+    [0.45, 0.65], between the samples, where both give -0.35 and -0.45. The probes
+    reveal the dip, whose minimum (the kink at 0.55) is located to 1e-5 of the
+    step; then its crossings are found too. With refine=1 it is missed."""
+    arc = hs.HybridArc([0.0, 1.0], [0, 0], [[-0.55], [0.45]], hs.Termination.T_MAX)
+    phi = stl.F(abs(stl.state(0)) <= 0.1, 0, 1)
+    m = phi(arc)
+    assert float(m) == pytest.approx(0.1, abs=1e-5) and m.where[0] == pytest.approx(0.55, abs=1e-5)
+    assert float(phi(arc, refine=1)) == pytest.approx(-0.35)
+    # the instants of G over the window: the crossings at 0.45 and 0.65 are exact
+    g = stl.G(abs(stl.state(0)) >= 0.1, 0, 1)(arc)
+    assert float(g) == pytest.approx(-0.1, abs=1e-5)
+    t, j, val = g.series
+    assert np.min(val) == float(g)
+    assert np.any(np.abs(t - 0.45) < 1e-12) and np.any(np.abs(t - 0.65) < 1e-12)
+
+
+def test_boolean_connectives_by_hand(ball):
+    p, q = h >= 0.5, v <= -1
+    at0 = (0.5, -1.0)                                  # h - 0.5 and -1 - v at t = 0
+    assert float((p & q)(ball)) == min(at0)
+    assert float((p | q)(ball)) == max(at0)
+    assert float((~p)(ball)) == -at0[0]
+    assert float(stl.implies(p, q)(ball)) == max(-at0[0], at0[1])
+    assert float((p >> q)(ball)) == float(stl.implies(p, q)(ball))
+
+
+# ------------------------------------------------- jumps at located events --
+@pytest.mark.parametrize("t_shift", [2.5, 0.05])
+def test_a_mode_change_at_a_located_event_is_an_exact_instant(t_shift):
+    arc = hs.simulate(gear_box(t_shift), [0.0, 1.0], t_max=2 * t_shift + 0.3)
+    te = float(arc.jump_times[0])
+    assert te == pytest.approx(t_shift, abs=1e-12)
+    gear = stl.state(1, "gear")
+    one, two = stl.equals(gear, 1), stl.equals(gear, 2)
+    eps = 1e-9
+    assert float(stl.G(one, 0, te - eps)(arc)) == 0.5
+    m = stl.G(one, 0, te + eps)(arc)
+    assert float(m) == -0.5 and m.where == (te, 1)          # decided at the event itself
+    # a window closing on the jump time reads both of its values
+    assert float(stl.G(one, 0, te)(arc)) == -0.5
+    assert float(stl.F(two, 0, te)(arc)) == 0.5
+    assert float(stl.F(two, 0, te - eps)(arc)) == -0.5
+    # the competition's short windows: F[0.001, 0.1] sees the shift iff it lies inside
+    f = stl.F(two, 0.001, 0.1)(arc, t=te - 0.05)
+    assert float(f) == 0.5 and f.where == (te, 1)
+    if te - 0.1 - eps >= 0:
+        assert float(stl.F(two, 0.001, 0.1)(arc, t=te - 0.1 - eps)) == -0.5
+    assert float(stl.F(two, 0.001, 0.1)(arc, t=te - 0.001 + eps)) == 0.5  # (te, 1) itself
+    # the mode as the jump counter
+    assert float(stl.G(stl.equals(stl.jumps(), 0), 0, te - eps)(arc)) == 0.5
+
+
+def test_a_window_never_reaches_back_before_its_hybrid_instant():
+    """At a shift's post-jump instant G[0, d] (gear == 2) reads the post-jump value
+    only, so the ARCH-COMP AT5x pattern holds at every shift instead of failing at
+    the single tau where the short window's end meets the shift."""
+    arc = hs.simulate(gear_box(1.0), [0.0, 1.0], t_max=5.0)
+    te = float(arc.jump_times[0])
+    gear = stl.state(1, "gear")
+    two = stl.equals(gear, 2)
+    g = stl.G(two, 0, 0.5)
+    assert float(g(arc, t=te, j=1)) == 0.5            # from the post-jump instant on
+    assert float(g(arc, t=te, j=0)) == -0.5           # the pre-jump instant: gear 1
+    assert float(g(arc, t=te)) == -0.5                # (the first j at t by default)
+    at5x = stl.G((~two & stl.F(two, 0.001, 0.1)) >> stl.F(stl.G(two, 0, 0.5), 0.001, 0.1),
+                 0, 2.5)
+    assert float(at5x(arc)) == 0.5
+    # gear 2 lasts 1 s: a G[0, 1.5] consequent fails, decided at a shift (a gear
+    # other than 2 inside the window)
+    at5x = stl.G((~two & stl.F(two, 0.001, 0.1)) >> stl.F(stl.G(two, 0, 1.5), 0.001, 0.1),
+                 0, 2.5)
+    m = at5x(arc)
+    assert float(m) == -0.5
+    assert np.min(np.abs(m.where[0] - arc.jump_times)) < 1e-12
+
+
+def test_equals_convention():
+    arc = hs.HybridArc([0.0, 1.0, 1.0, 2.0], [0, 0, 1, 1], [[1.0], [1.0], [4.0], [4.0]], None)
+    gear = stl.state(0)
+    # tol - |sig - value|: +0.5 where equal, -(d - 0.5) at distance d
+    assert float(stl.G(stl.equals(gear, 1), 0, 2)(arc)) == -2.5
+    assert float(stl.F(stl.equals(gear, 4), 0, 2)(arc)) == 0.5
+    assert float(stl.F(stl.equals(gear, 4.25, tol=0.3), 0, 2)(arc)) == pytest.approx(0.05)
+    assert str(stl.equals(gear, 4.25, tol=0.3)) == "|x[0] - 4.25| <= 0.3"
+
+
+# ------------------------------------------------------------- RTAMT ------
+def _rtamt():
+    try:
+        import rtamt
+    except Exception as e:  # noqa: BLE001 - any import failure: skip with its reason
+        pytest.skip(f"rtamt does not import: {type(e).__name__}: {e}")
+    return rtamt
+
+
+def _rtamt_discrete(spec_text, period, series, t):
+    rtamt = _rtamt()
+    spec = rtamt.StlDiscreteTimeSpecification()
+    for name in series:
+        spec.declare_var(name, "float")
+    spec.set_sampling_period(round(period * 1000), "ms", 0.1)
+    spec.spec = spec_text
+    spec.parse()
+    data = {"time": [float(s) for s in t]}
+    data.update({k: [float(y) for y in val] for k, val in series.items()})
+    return np.array([r[1] for r in spec.evaluate(data)])
+
+
+SAMPLED = [  # (ours, RTAMT's text): formulas whose dense and discrete semantics agree
+    (lambda x, y: stl.G(x >= 0.2, 0, 1), "always[0:1](x >= 0.2)"),
+    (lambda x, y: stl.F(x <= -0.3, 0.5, 1.5), "eventually[0.5:1.5](x <= -0.3)"),
+    (lambda x, y: stl.G(x >= 0.2, 0, 1) | stl.F(y > 0.1, 0, 0.5),
+     "always[0:1](x >= 0.2) or eventually[0:0.5](y > 0.1)"),
+    (lambda x, y: stl.implies(x > 0, stl.G(y < 0.9, 0.25, 0.75)),
+     "(x > 0) implies always[0.25:0.75](y < 0.9)"),
+    (lambda x, y: ~stl.F(x - y >= 0.5, 0, 1) & (y <= 0.8),
+     "not(eventually[0:1](x - y >= 0.5)) and (y <= 0.8)"),
+]
+
+
+@pytest.mark.parametrize("k", range(len(SAMPLED)))
+def test_agrees_with_rtamt_discrete_time_on_a_linear_sampled_signal(k):
+    """On a uniform grid with linear interpolation between samples (an arc without
+    xdot or dense output), windows whose ends are samples, and predicates of one
+    signal each under a temporal operator, the dense and the discrete semantics give
+    the same numbers: a linear piece's extremes are at its ends, and a crossing's
+    value 0 is never an extreme over a window it lies in."""
+    period = 0.25
+    t = np.arange(0, 6.0 + 1e-12, period)
+    rng = np.random.default_rng(k)
+    X = np.column_stack((np.sin(1.3 * t) + 0.2 * rng.standard_normal(t.size),
+                         np.cos(0.7 * t) + 0.2 * rng.standard_normal(t.size)))
+    arc = hs.HybridArc(t, np.zeros(t.size, int), X, hs.Termination.T_MAX)
+    ours_fn, text = SAMPLED[k]
+    phi = ours_fn(stl.state(0), stl.state(1))
+    ref = _rtamt_discrete(text, period, {"x": X[:, 0], "y": X[:, 1]}, t)
+    n = round((t[-1] - phi.horizon) / period) + 1     # times with a full window
+    ours = np.array([float(phi(arc, t=float(s))) for s in t[:n]])
+    np.testing.assert_allclose(ours, ref[:n], rtol=0, atol=1e-12)
+
+
+def test_differs_from_rtamt_where_a_crossing_lies_between_samples():
+    """Two signals that hold together only between samples: dense time finds the
+    instant (t = 0.5, robustness 0.1); discrete time sees the samples only (-0.9)."""
+    t = np.array([0.0, 1.0, 2.0])
+    X = np.column_stack((1.1 - 2 * t, 2 * t - 0.9))
+    arc = hs.HybridArc(t, [0, 0, 0], X, hs.Termination.T_MAX)
+    phi = stl.F((stl.state(0) >= 0) & (stl.state(1) >= 0), 0, 1)
+    m = phi(arc)
+    assert float(m) == pytest.approx(0.1, abs=1e-15) and m.where == (0.5, 0)
+    ref = _rtamt_discrete("eventually[0:1]((x >= 0) and (y >= 0))", 1.0,
+                          {"x": X[:, 0], "y": X[:, 1]}, t)
+    assert ref[0] == pytest.approx(-0.9)
+
+
+def test_the_crossing_instant_is_exact_on_the_dense_output():
+    """x = 1 - t^2 (cubic Hermite from xdot: exact), samples at 0, 0.75, 1.5: the
+    zero of x >= 0 at t = 1 is found to 4 ulp; no sampled monitor puts it there."""
+    t = np.array([0.0, 0.75, 1.5])
+    arc = hs.HybridArc(t, [0, 0, 0], (1 - t ** 2)[:, None], hs.Termination.T_MAX,
+                       xdot=(-2 * t)[:, None])
+    x = stl.state(0)
+    for d in (1e-6, 1e-9):
+        assert stl.G(x >= 0, 0, 1 - d)(arc) > 0
+        m = stl.G(x >= 0, 0, 1 + d)(arc)
+        assert float(m) == pytest.approx(-(2 * d + d * d), rel=1e-6) and m.where[0] == 1 + d
+    # F[0,1.5] (x <= 0) & ...: the crossing is an instant (value 0) of the predicate
+    m = stl.F(stl.G(x <= 0, 0, 0.5), 0, 1)(arc)
+    assert abs(float(m)) < 1e-15 and m.where[0] == pytest.approx(1.0, abs=4e-16)
+
+
+def test_jumps_agree_with_rtamt_dense_time_except_at_the_jump_instant():
+    """RTAMT's dense time reads a sampled signal as piecewise constant, right-continuous:
+    a mode signal changing at the arc's jump times. Windows that do not start at a jump
+    agree; one that starts at a jump time differs: the hybrid time domain holds both
+    the pre- and the post-jump value at that instant, RTAMT only the new one."""
+    rtamt = _rtamt()
+    arc = hs.simulate(gear_box(1.0), [0.0, 1.0], t_max=3.5)
+    te = arc.jump_times
+    samples = [[0.0, 1.0]] + [[float(s), float(g)] for s, g in zip(te, [2.0, 3.0, 4.0])]
+
+    def dense(text):
+        spec = rtamt.StlDenseTimeSpecification()
+        spec.declare_var("gear", "float")
+        spec.spec = text
+        spec.parse()
+        return spec.evaluate(["gear", samples])[0][1]
+
+    gear = stl.state(1)
+    for a, b in [(0, 0.9), (0, 1.0), (0, 2.5), (0.5, 1.5), (0.2, 0.7), (1.5, 3.2)]:
+        for ours, text in [
+                (stl.G(stl.equals(gear, 1), a, b), "always[{}:{}](abs(gear - 1) <= 0.5)"),
+                (stl.F(stl.equals(gear, 3), a, b), "eventually[{}:{}](abs(gear - 3) <= 0.5)")]:
+            assert float(ours(arc)) == pytest.approx(dense(text.format(a, b)), abs=1e-12)
+    # a window starting at the jump at t = 1
+    assert dense("always[1:1.5](abs(gear - 2) <= 0.5)") == pytest.approx(0.5)
+    assert float(stl.G(stl.equals(gear, 2), 1.0, 1.5)(arc)) == -0.5
+
+
+# --------------------------------------------------------------- properties --
+@st.composite
+def pl_arcs(draw):
+    """Random piecewise-linear arcs (no xdot): samples on a 0.1 grid, values in [-1, 1],
+    jumps at some of the sample times."""
+    n = draw(st.integers(8, 30))
+    times = np.round(np.arange(n) * 0.1, 10)
+    jumps = draw(st.lists(st.integers(1, n - 2), max_size=4, unique=True))
+    vals = draw(st.lists(st.floats(-1, 1), min_size=2 * (n + len(jumps)),
+                         max_size=2 * (n + len(jumps))))
+    T, J = [], []
+    j = 0
+    for k, s in enumerate(times):
+        T.append(s)
+        J.append(j)
+        if k in jumps:
+            j += 1
+            T.append(s)
+            J.append(j)
+    X = np.array(vals[:2 * len(T)]).reshape(len(T), 2)
+    return hs.HybridArc(T, J, X, hs.Termination.T_MAX)
+
+
+WIN = st.sampled_from([(0.0, 0.0), (0.0, 0.3), (0.1, 0.5), (0.2, 0.2), (0.0, 1.0), (0.3, 0.7)])
+
+
+@st.composite
+def formulas(draw, depth=2):
+    x = [stl.state(0), stl.state(1)]
+    if depth == 0 or draw(st.booleans()):
+        c = draw(st.sampled_from([-0.5, 0.0, 0.3]))
+        i = draw(st.integers(0, 1))
+        return x[i] >= c if draw(st.booleans()) else x[i] <= c
+    kind = draw(st.sampled_from(["F", "G", "and", "or", "not", "U"]))
+    if kind in ("F", "G"):
+        a, b = draw(WIN)
+        return (stl.F if kind == "F" else stl.G)(draw(formulas(depth - 1)), a, b)
+    if kind == "not":
+        return ~draw(formulas(depth - 1))
+    if kind == "U":
+        a, b = draw(WIN)
+        return stl.until(draw(formulas(0)), draw(formulas(0)), a, b)
+    p, q = draw(formulas(depth - 1)), draw(formulas(depth - 1))
+    return p & q if kind == "and" else p | q
+
+
+def brute(phi, arc, t, dt):
+    """The robustness on a uniform grid of step dt (the arc's samples on it, both
+    values at each jump time): min / max over the grid instants in each window."""
+    tf = float(arc.t[-1])
+    grid = np.round(np.arange(0, tf + dt / 2, dt), 12)
+    T, J, X = arc.interpolate(grid, at_jump="both")
+    memo = {}
+
+    def rho(f):
+        if id(f) in memo:
+            return memo[id(f)]
+        if isinstance(f, stl._Predicate):
+            out = f._rho(T, J, X)
+        elif isinstance(f, stl._Not):
+            out = -rho(f.phi)
+        elif isinstance(f, stl._Implies):
+            out = np.maximum(-rho(f.phi), rho(f.psi))
+        elif isinstance(f, stl._Binary):
+            out = f.op(rho(f.phi), rho(f.psi))
+        elif isinstance(f, stl._Window):
+            r = rho(f.phi)
+            red = np.max if f.sup else np.min
+            # the instants in the window, none before (s, j) in hybrid time
+            out = np.array([red(r[(T >= s + f.a - 1e-9) & (T <= min(s + f.b, tf) + 1e-9)
+                                  & ~((T == s) & (J < jk))],
+                                initial=-np.inf if f.sup else np.inf) for s, jk in zip(T, J)])
+        else:                                           # until
+            r1, r2 = rho(f.phi), rho(f.psi)
+            out = np.empty(len(T))
+            for k, s in enumerate(T):
+                # every instant from (s, j) on, in hybrid time order
+                seq = np.arange(k, len(T))
+                seq = seq[T[seq] <= min(s + f.b, tf) + 1e-9]
+                m = np.minimum.accumulate(r1[seq])
+                ok = T[seq] >= s + f.a - 1e-9
+                out[k] = np.max(np.minimum(r2[seq], m)[ok]) if ok.any() else -np.inf
+        memo[id(f)] = out
+        return out
+
+    k = np.flatnonzero(np.isclose(T, t))[0]
+    return float(rho(phi)[k])
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(arc=pl_arcs(), phi=formulas(), a=st.sampled_from([0.0, 0.1, 0.3]))
+def test_robustness_against_a_fine_grid(arc, phi, a):
+    """Against the brute-force semantics on a grid of step 1e-3 (the arc's samples on
+    it): the two differ by at most the signals' variation over a grid step, 20 (slope
+    of a piece: 2 / 0.1) x 1e-3 per nested window end, 3 levels: 0.06; the sign agrees
+    wherever the robustness is larger than that; the Boolean connectives are exact."""
+    t = a
+    if t + phi.horizon > arc.t[-1] + 1e-9:
+        return
+    ours = float(phi(arc, t=t))
+    ref = brute(phi, arc, t, 1e-3)
+    assert ours == pytest.approx(ref, abs=0.06)
+    if abs(ours) > 0.06:
+        assert np.sign(ours) == np.sign(ref)
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(arc=pl_arcs(), p=formulas(1), q=formulas(1), w=WIN)
+def test_duality_and_distribution(arc, p, q, w):
+    a, b = w
+    if b + max(p.horizon, q.horizon) > arc.t[-1]:
+        return
+    r = float
+    assert r((~stl.F(p, a, b))(arc)) == r(stl.G(~p, a, b)(arc))
+    assert r((~stl.G(p, a, b))(arc)) == r(stl.F(~p, a, b)(arc))
+    # sup distributes over max, inf over min; a window splits at any inner point
+    assert r(stl.F(p | q, a, b)(arc)) == pytest.approx(r((stl.F(p, a, b) | stl.F(q, a, b))(arc)),
+                                                       abs=1e-12)
+    assert r(stl.G(p & q, a, b)(arc)) == pytest.approx(r((stl.G(p, a, b) & stl.G(q, a, b))(arc)),
+                                                       abs=1e-12)
+    c = 0.5 * (a + b)
+    assert r(stl.F(p, a, b)(arc)) == pytest.approx(r((stl.F(p, a, c) | stl.F(p, c, b))(arc)),
+                                                   abs=1e-12)
+    # the until at [0, b] against F: phi U psi <= F psi
+    assert r(stl.U(p, q, a, b)(arc)) <= r(stl.F(q, a, b)(arc)) + 1e-12
+
+
+# ----------------------------------------------------------- as a claim ---
+def test_a_formula_is_a_claim_for_falsify():
+    space = Space(e=Interval(0.5, 0.9))
+
+    def run(p):
+        return hs.simulate(BouncingBall(restitution=p["e"]), [1.0, 0.0], t_max=1.0)
+
+    claim = stl.G(v <= 3, 0, 1)              # fails for e > 3 / sqrt(2 g) = 0.677
+    res = hs.falsify(run, space, claim, budget=40, seed=0, progress=False)
+    assert res.verdict == "counterexample" and res.margin < 0
+    assert res.where == (pytest.approx(T1, abs=1e-12), 1)
+    assert res.margin == pytest.approx(3 - res.point["e"] * math.sqrt(2 * G_ACC), rel=1e-9)
+
+
+def test_over_every_solution_of_an_exploration():
+    counter = hs.HybridSystem.from_functions(
+        f=lambda x: np.array([1.0, 0.0]), C=lambda x: x[0] <= 1.0, D=lambda x: x[0] >= 1.0,
+        g_values=lambda x: [np.array([0.0, x[1] + c]) for c in (1.0, 2.0)], state_dim=2)
+    tree = hs.explore(counter, [0.0, 0.0], t_max=3.5, j_max=4)
+    m = stl.G(stl.state(1) <= 5, 0, 3.5)(tree)
+    assert float(m) == -1.0 and m.where == (pytest.approx(3.0), 3)   # z = 6 after 2 + 2 + 2
+    assert "solution" in m.what and m.solution is not None
+
+
+def test_margin_gradient_through_the_jump():
+    sarc = hs.simulate_sensitivity(BouncingBall(), [1.0, 0.0], t_max=1.0)
+    g = margin_gradient(sarc, stl.G(v <= 3, 0, 1))
+    # 3 - e sqrt(2 g h0 + v0^2): d/dh0 = -e g / sqrt(2 g h0), d/dv0 = 0 at v0 = 0
+    assert g[0] == pytest.approx(-E_REST * G_ACC / math.sqrt(2 * G_ACC), rel=1e-5)
+    assert abs(g[1]) < 1e-5
+
+
+# ------------------------------------------------------------ the API -----
+def test_text_and_horizon():
+    x = stl.state(0)
+    phi = stl.G((x > 1) >> stl.F(stl.state(2, "gear") < 3, 0.001, 0.1), 0, 10)
+    assert str(phi) == "G[0,10]((x[0] > 1) -> F[0.001,0.1](gear < 3))"
+    assert phi.horizon == pytest.approx(10.1)
+    assert str(stl.until(x < 1, ~(x > 2), 0, 5)) == "((x[0] < 1) U[0,5] ~(x[0] > 2))"
+    assert str(stl.F(abs(x - 1) / 2 <= stl.time())) == "F((|(x[0] - 1)| / 2) <= t)"
+    assert stl.G(x > 0).horizon == math.inf and (x > 0).horizon == 0
+
+
+def test_signal_functions_vectorised_or_row_by_row(ball):
+    def norm(x):                   # written for one state: fails the probe rows on (m, n)
+        return float(np.linalg.norm(x))
+
+    def norm_v(x):
+        return np.linalg.norm(x, axis=-1)
+
+    a = stl.F(stl.signal(norm) >= 3.0, 0, 1)(ball)
+    b = stl.F(stl.output(norm_v, "n") >= 3.0, 0, 1)(ball)
+    assert float(a) == pytest.approx(float(b), abs=1e-12)
+    assert float(a) == pytest.approx(math.sqrt(2 * G_ACC) - 3.0, rel=1e-9)   # |v| before the impact
+    # t and j reach the function too
+    m = stl.G(stl.signal(lambda x, t, j: t + j) <= 1.0, 0, 1.0)(ball)
+    assert float(m) == pytest.approx(-1.0, abs=1e-12)       # (t, j) = (1, 1) at the end
+
+
+def test_formulas_pickle(ball):
+    """Claims travel to worker processes (distributed falsification): a formula
+    pickles whenever its user functions do."""
+    import pickle
+    phi = stl.G((h > 0.5) >> stl.F(stl.signal(np.linalg.norm, "n") >= 3, 0, 0.5), 0, 1)
+    back = pickle.loads(pickle.dumps(phi))
+    assert str(back) == str(phi) and float(back(ball)) == float(phi(ball))
+
+
+def test_strict_horizon_and_cut_windows():
+    arc = hs.simulate(gear_box(1.0), [0.0, 1.0], t_max=1.5)
+    x = stl.state(0)
+    with pytest.raises(ValueError, match="reads the arc up to t = 3.*ends at t = 1.5"):
+        stl.G(x >= 0, 0, 3)(arc)
+    assert float(stl.G(x <= 0.9, 0, 3)(arc, strict=False)) == pytest.approx(-0.1)
+    assert float(stl.F(x >= 0, 2, 3)(arc, strict=False)) == -math.inf
+    assert float(stl.G(x >= 0, 2, 3)(arc, strict=False)) == math.inf
+    # unbounded windows read to the end of the arc
+    assert float(stl.F(stl.equals(stl.state(1), 2))(arc)) == 0.5
+
+
+def test_bad_input_is_named():
+    x = stl.state(0)
+    arc = hs.HybridArc([0.0, 1.0], [0, 0], [[0.0], [1.0]], None)
+    with pytest.raises(ValueError, match="always: a must be finite and >= 0"):
+        stl.G(x > 0, -1, 1)
+    with pytest.raises(ValueError, match="eventually: b must be >= a"):
+        stl.F(x > 0, 2, 1)
+    with pytest.raises(ValueError, match="until: a must be"):
+        stl.U(x > 0, x < 1, math.inf, math.inf)
+    with pytest.raises(TypeError, match="until: b must be a real number"):
+        stl.U(x > 0, x < 1, 0, "1")
+    with pytest.raises(ValueError, match="a must be a number, got NaN"):
+        stl.G(x > 0, math.nan, 1)
+    with pytest.raises(TypeError, match="phi must be a stl formula, got the signal x"):
+        stl.G(x, 0, 1)
+    with pytest.raises(TypeError, match="implies: psi must be a stl formula"):
+        stl.implies(x > 0, 3)
+    with pytest.raises(TypeError, match="right operand of & must be a stl formula"):
+        (x > 0) & 1
+    with pytest.raises(TypeError, match="i must be an int"):
+        stl.state(1.0)
+    with pytest.raises(TypeError, match="fn must be a callable"):
+        stl.signal(3)
+    with pytest.raises(TypeError, match="right side of < must be a number or a stl.Signal"):
+        _ = x < "a"
+    with pytest.raises(TypeError, match="no truth value"):
+        _ = 0 < x < 1
+    with pytest.raises(TypeError, match="no truth value"):
+        bool(x)
+    with pytest.raises(ValueError, match="equals: tol must be finite and >= 0"):
+        stl.equals(x, 1, tol=-1)
+    with pytest.raises(TypeError, match="arc: item 0 is a str"):
+        (x > 0)(["no arc"])
+    with pytest.raises(TypeError, match="robustness: arc must be a HybridArc"):
+        (x > 0)(3.0)
+    with pytest.raises(ValueError, match=r"t = 2.0 is outside the arc's time range \[0.0, 1.0\]"):
+        (x > 0)(arc, t=2.0)
+    with pytest.raises(ValueError, match="refine must be an int >= 1"):
+        (x > 0)(arc, refine=0)
+    with pytest.raises(ValueError, match="not in the arc's hybrid time domain"):
+        (x > 0)(arc, j=3)
+    with pytest.raises(IndexError, match=r"stl.state\(4\): the arc's state has 1"):
+        (stl.state(4) > 0)(arc)
+    with pytest.raises(ValueError, match="the arc is empty"):
+        (x > 0)(hs.HybridArc(np.zeros(0), np.zeros(0, int), np.zeros((0, 1)), None))
