@@ -69,9 +69,18 @@ import warnings
 
 import numpy as np
 
-from ..arc import HybridArc, _describe
+from ..arc import HybridArc, _describe, _one_sample
 from ..options import check_unsupported, check_x0, method_on, parse_run
-from ..rules import CAUSES, DETAILS, MapError, Priority, Termination, finish, message
+from ..rules import (
+    CAUSES,
+    DETAILS,
+    MapError,
+    Priority,
+    Termination,
+    finish,
+    finish_batch,
+    message,
+)
 from ..system import HybridSystem
 
 __all__ = ["CompiledSystem", "simulate_compiled", "simulate_many_compiled", "CompileError",
@@ -1038,8 +1047,6 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
     >>> [a.jump_count for a in arcs]
     [2, 2]
     """
-    from .. import batch as _batch
-    from ..batch import _one_sample
     from ..options import check_bool as _check_bool
     from ..options import check_count as _check_count
     k = _load_kernel()
@@ -1201,11 +1208,7 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
                 arcs[i] = _one_sample(X0[i], where, Termination.CANCELED,
                                       "never started (the batch was interrupted)", None,
                                       system)
-    if hasattr(_batch, "finish_batch"):     # the batch policy of every path
-        return _batch.finish_batch("simulate_many_compiled", arcs, ro.throw, ro.warn)
-    if ro.throw:
-        _batch._raise_first_failure(arcs)
-    return _batch._warned("simulate_many_compiled", arcs, ro.warn)
+    return finish_batch("simulate_many_compiled", arcs, ro.throw, ro.warn)
 
 
 # lowering ordinary systems (LinearPlant, interconnections, components with a

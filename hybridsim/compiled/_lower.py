@@ -303,7 +303,7 @@ def _refusal(system, what, wired=None):
     from . import CompiledSystem
     if isinstance(system, CompiledSystem):
         return None
-    if _reads_history(system) and getattr(system, "compiled_component", None) is None:
+    if _reads_history(system) and _compiled_form(system) is None:
         return _refuse(what, f"it reads its history (x(t - tau)) and {type(system).__name__} "
                              f"has no compiled form declaring the delays it reads (a "
                              f"compiled_component() returning a Component(delays=...))")
@@ -314,7 +314,7 @@ def _refusal(system, what, wired=None):
         return _refuse(what, "its output reads its input (direct feedthrough, "
                              "output(x, t, j, u)); a compiled output is a function of "
                              "(x, t, j, p)")
-    if getattr(system, "compiled_component", None) is None:
+    if _compiled_form(system) is None:
         return _refuse(what, f"{type(system).__name__} has no compiled form (a "
                              f"compiled_component() method returning a "
                              f"hybridsim.compiled.Component)")
@@ -336,6 +336,17 @@ def _refusal(system, what, wired=None):
     return None
 
 
+def _compiled_form(system):
+    """The system's ``compiled_component`` (a callable returning its
+    :class:`Component`), or None. A :class:`hybridsim.LinearPlant`'s is
+    :func:`linear_plant_component`: the lowering knows the plant, the plant
+    does not know the lowering."""
+    form = getattr(system, "compiled_component", None)
+    if form is None and isinstance(system, LinearPlant):
+        return functools.partial(linear_plant_component, system)
+    return form
+
+
 def _reads_history(system):
     return bool(system.needs_history or tuple(system.delays or ()))
 
@@ -355,7 +366,7 @@ def _component_of(system, what, wired=None):
         raise refusal
     if isinstance(system, CompiledSystem):
         return _from_compiled_system(system)
-    comp = system.compiled_component()
+    comp = _compiled_form(system)()
     if not isinstance(comp, Component):
         raise TypeError(f"{what}: compiled_component() must return a "
                         f"hybridsim.compiled.Component, got {type(comp).__name__}")
