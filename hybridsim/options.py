@@ -519,3 +519,19 @@ def check_params(params):
         raise TypeError(f"params must be an iterable of parameter values (a list, a range, "
                         f"an array...), got {type(params).__name__} {params!r}")
     return list(params)
+
+
+def check_delay_times(delays):
+    """``delays`` as a tuple of distinct positive finite floats (the one check of
+    :class:`hybridsim.compiled.Component` and :class:`hybridsim.compiled.CompiledSystem`; errors
+    name the argument)."""
+    try:
+        d = tuple(float(v) for v in (delays or ()))
+    except (TypeError, ValueError):
+        raise TypeError(f"delays must be a sequence of positive floats, got "
+                        f"{delays!r}") from None
+    if not all(math.isfinite(v) and v > 0.0 for v in d):
+        raise ValueError(f"delays must be positive finite floats, got {d}")
+    if len(set(d)) != len(d):
+        raise ValueError(f"delays must be distinct, got {d}")
+    return d

@@ -34,10 +34,10 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.integrate import OdeSolver
 
+from . import compiled
 from ._progress import make_bar
 from .arc import HybridArc, _one_sample
 from .batch_vectorized import simulate_vectorized, takes_options
-from .compiled import lowerable, simulate_compiled, simulate_many_compiled
 from .compiled._lower import lower, rebind
 from .history import History
 from .options import (
@@ -304,7 +304,7 @@ def _compiled_run(system, x0, t_max, j_max, opts, python_only):
     check_unsupported("compiled", python_only)
     cs = lower(system)        # the system itself, or its lowered form (named refusals)
     try:
-        return rebind(simulate_compiled(cs, x0, t_max, j_max, **opts), system)
+        return rebind(compiled.simulate_compiled(cs, x0, t_max, j_max, **opts), system)
     except MapError as e:
         if getattr(e, "arc", None) is not None:
             rebind(e.arc, system)
@@ -425,7 +425,7 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
         del kwargs["backend"]               # the default: the batch integrator may take it
     if kwargs.get("backend", "python") == "compiled" and executor is None:
         kw = {k: v for k, v in kwargs.items() if k not in ("backend", "progress")}
-        out = simulate_many_compiled(lower(system), X, throw=False, warn=False, **kw)
+        out = compiled.simulate_many_compiled(lower(system), X, throw=False, warn=False, **kw)
         out = [rebind(a, system) for a in out]
         return finish_batch("simulate_many", out, throw, warn)
     if system.vectorized and executor is None and _batch_takes(system, kwargs):
@@ -458,7 +458,7 @@ def _auto_backend(system, kwargs, executor):
         method_on("compiled", kwargs.get("method"), system)
     except (TypeError, ValueError):
         return "python"
-    return "compiled" if lowerable(system) else "python"
+    return "compiled" if compiled.lowerable(system) else "python"
 
 
 def _batch_takes(system, kwargs):

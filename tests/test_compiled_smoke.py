@@ -180,11 +180,11 @@ def test_a_large_batchs_pool_is_mapped_memory_and_its_arcs_are_the_single_runs(r
         for f in ("t", "j", "x", "xdot"):
             np.testing.assert_array_equal(getattr(arcs[i], f), getattr(single, f))
             assert getattr(arcs[i], f).flags.writeable
-    small = hc._untouched((10, 2))
-    assert small.flags.owndata and hc._cut(small, 4).shape == (4, 2)
-    big = hc._untouched((1 << 20, 2))
+    small = hc._run._untouched((10, 2))
+    assert small.flags.owndata and hc._run._cut(small, 4).shape == (4, 2)
+    big = hc._run._untouched((1 << 20, 2))
     assert not big.flags.owndata and big.flags.writeable and big.dtype == np.float64
-    cut = hc._cut(big, 5)
+    cut = hc._run._cut(big, 5)
     assert cut.shape == (5, 2) and np.shares_memory(cut, big)
 
 

@@ -45,7 +45,9 @@ import types
 import numpy as np
 
 from ..compose import Interconnection, LinearInput, LinearPlant
+from ..options import check_delay_times
 from ..system import HybridSystem
+from ._system import CompiledSystem, _load_kernel
 
 __all__ = ["Component", "lower", "lowerable", "matvec", "rebind"]
 
@@ -130,7 +132,7 @@ class Component:
         if not np.all(np.isfinite(p)):
             raise ValueError(f"params must be finite, got {p[~np.isfinite(p)][:3]} among them")
         self.params = np.ascontiguousarray(p)
-        self.delays = _check_delays(delays)
+        self.delays = check_delay_times(delays)
         if self.delays and "flow" not in self.maps:
             raise ValueError("delays are read by the flow map: a component with delays "
                              "needs flow")
@@ -142,22 +144,6 @@ class Component:
     @property
     def has_C(self):
         return "flow_set" in self.maps or "flow_guard" in self.maps
-
-
-def _check_delays(delays):
-    """``delays`` as a tuple of distinct positive finite floats (the one check of
-    :class:`Component` and :class:`~hybridsim.compiled.CompiledSystem`; errors
-    name the argument)."""
-    try:
-        d = tuple(float(v) for v in (delays or ()))
-    except (TypeError, ValueError):
-        raise TypeError(f"delays must be a sequence of positive floats, got "
-                        f"{delays!r}") from None
-    if not all(math.isfinite(v) and v > 0.0 for v in d):
-        raise ValueError(f"delays must be positive finite floats, got {d}")
-    if len(set(d)) != len(d):
-        raise ValueError(f"delays must be distinct, got {d}")
-    return d
 
 
 # ------------------------------------------------------------------ compiled helpers
@@ -300,7 +286,6 @@ def _refusal(system, what, wired=None):
     Every check that needs no compiling (numba need not be installed): the one
     list :func:`lower` raises from and :func:`lowerable` reads. ``wired``: for
     a component of an interconnection, ``(its name, its input's wiring)``."""
-    from . import CompiledSystem
     if isinstance(system, CompiledSystem):
         return None
     if _reads_history(system) and _compiled_form(system) is None:
@@ -360,7 +345,6 @@ def _plant_refusal(plant, what):
 
 def _component_of(system, what, wired=None):
     """The :class:`Component` of a non-interconnection system, or a refusal."""
-    from . import CompiledSystem
     refusal = _refusal(system, what, wired)
     if refusal is not None:
         raise refusal
@@ -590,7 +574,6 @@ _LOWERED = {}
 def _build(parts, n, pvec, name, specialize, delays=()):
     """The lowered :class:`CompiledSystem` (maps shared by structure; ``delays``
     the system's, the sorted union of its parts')."""
-    from . import CompiledSystem, _load_kernel
     key = (_structure(parts), n, len(pvec), specialize, len(delays))
     proto = _LOWERED.get(key)
     if proto is None:
@@ -721,7 +704,6 @@ def lower(system, *, specialize=None):
     >>> lower(plant).state_dim
     2
     """
-    from . import CompiledSystem
     if isinstance(system, CompiledSystem):
         return system
     if not isinstance(system, HybridSystem):
@@ -805,7 +787,6 @@ def lowerable(system):
     >>> lowerable(hs.LinearPlant([[-1.0]])), lowerable(noisy)
     (True, False)
     """
-    from . import CompiledSystem
     if not isinstance(system, HybridSystem):
         raise TypeError(f"system must be a hybridsim.HybridSystem, got {type(system).__name__}")
     if isinstance(system, CompiledSystem) or "_lowered" in system.__dict__:
