@@ -64,6 +64,9 @@ from ._lower import Component, compiled_matvec, lower, lowerable, matvec
 from ._run import simulate_compiled, simulate_many_compiled
 from ._system import CompiledSystem, CompileError, _load_kernel, _notice
 
+# the public classes under the name users import them by (pickles, descriptions)
+CompiledSystem.__module__ = CompileError.__module__ = __name__
+
 __all__ = ["CompiledSystem", "simulate_compiled", "simulate_many_compiled", "CompileError",
            "available", "compile_kernels", "Component", "lower", "lowerable", "matvec",
            "compiled_matvec"]
