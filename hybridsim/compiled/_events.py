@@ -9,12 +9,10 @@ golden-section search on guard peaks).
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
 
-from .. import rules
+from .. import events, rules
 from ._steps import (
     _copy_to,
     _dense,
@@ -122,7 +120,8 @@ def _phi_nan(M, s, y, j, p, useD):
 @njit(cache=True, **_NJL)
 def _secant(M, yold, hQ, told, h, j, p, useD, useC, lo, hi, flo, fhi, seeded, s0, slope0,
             wk):
-    """``events._secant``: secant steps from the last evaluation, accepted inside
+    """``events._secant`` (its steps :func:`hybridsim.events.secant_trial` and
+    :func:`hybridsim.events.secant_slope`): secant steps from the last evaluation, accepted inside
     the bracket when shorter than half the step before last, else bisection;
     ``seeded``: ``s0`` is the first trial, ``slope0`` the guard's slope there.
     Returns the bracket (lo, hi); ``wk`` holds the trial points' states."""
@@ -139,24 +138,14 @@ def _secant(M, yold, hQ, told, h, j, p, useD, useC, lo, hi, flo, fhi, seeded, s0
         tol = rules.event_tolerance(lo, hi)
         if hi - lo <= tol:
             break
-        if seeded:
-            s = s0
-        else:
-            s = xl - fl / slope if slope != 0.0 else np.nan
-            if not (lo <= s and s <= hi and abs(s - xl) < 0.5 * d2):
-                s = 0.5 * (lo + hi)
-        q = 0.25 * tol
-        if not s > lo + q:
-            s = lo + q
-        elif not s < hi - q:
-            s = hi - q
+        s = events.secant_trial(lo, hi, xl, fl, slope, d2, tol, seeded, s0)
         _dense_to(wk, yold, hQ, told, h, s)
         fs = _phi(M, s, wk, j, p, useD, useC)
         if seeded:
             slope = slope0
             seeded = False
         else:
-            slope = (fs - fl) / (s - xl) if s != xl else np.nan
+            slope = events.secant_slope(fs, fl, s, xl)
         d2 = d1
         d1 = abs(s - xl)
         xl = s
@@ -168,21 +157,6 @@ def _secant(M, yold, hQ, told, h, j, p, useD, useC, lo, hi, flo, fhi, seeded, s0
             lo = s
             flo = fs
     return lo, hi
-
-
-@njit(cache=True, **_NJL)
-def _root_off_zero(f0, fd, fw, d, w):
-    """``events._root_off_zero``: (offset, slope), NaNs where the model has no root."""
-    m = (fd - f0) / d
-    c = (fw - f0 - m * w) / (w * w)
-    disc = m * m - 4.0 * c * f0
-    if not (c > 0.0 and disc >= 0.0):
-        return np.nan, np.nan
-    r = math.sqrt(disc)
-    tau = (r - m) / (2.0 * c)
-    if d < tau and tau < w:
-        return tau, r
-    return np.nan, np.nan
 
 
 @njit(cache=True, **_NJL)
@@ -222,7 +196,7 @@ def _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, 
                 _dense_to(wk, yold, hQ, told, h, lo + d)
                 fd = _phi(M, lo + d, wk, j, p, useD, useC)
                 if fd < 0.0 and not _pred(M, lo + d, wk, j, p, has_C, d_active):
-                    tau, slope0 = _root_off_zero(flo, fd, fhi, d, hi - lo)
+                    tau, slope0 = events.root_off_zero(flo, fd, fhi, d, hi - lo)
                     if tau == tau:
                         seeded = True
                         s0 = lo + tau
@@ -285,11 +259,6 @@ def _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, 
     return lo, hi
 
 
-@njit(cache=True, **_NJL)
-def _near_peak(v, lo_nb):
-    return v + 2.0 * (v - lo_nb) >= 0.0
-
-
 @njit(cache=True, **_NJI)
 def _maximize(M, yold, hQ, told, h, j, p, has_C, d_active, useD, useC, l, r, fl, fr):
     """Golden-section search (``events._maximize``); returns NaN when nothing found."""
@@ -304,7 +273,7 @@ def _maximize(M, yold, hQ, told, h, j, p, has_C, d_active, useD, useC, l, r, fl,
             return x1
         if f2 >= 0.0 and _pred(M, x2, _bare(y2), j, p, has_C, d_active):
             return x2
-        if r - l <= rules.event_tolerance(l, r) or not _near_peak(max(f1, f2), min(fl, fr)):
+        if r - l <= rules.event_tolerance(l, r) or not events.near_peak(max(f1, f2), min(fl, fr)):
             return np.nan
         if f1 >= f2:
             r = x2
@@ -370,12 +339,12 @@ def _interior(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a
             left, v, right, vl, vr = s1, v2, s3, v1, v3
         else:
             left, v, right, vl, vr = s2, v3, b, v2, v4
-        if v >= vl and v >= vr and _near_peak(v, min(vl, vr)):
+        if v >= vl and v >= vr and events.near_peak(v, min(vl, vr)):
             s = _maximize(M, yold, hQ, told, h, j, p, has_C, d_active, useD, useC,
                           left, right, vl, vr)
             if s == s:
                 return True, left, s
-    if v0 >= v1 and _near_peak(v0, v1):
+    if v0 >= v1 and events.near_peak(v0, v1):
         eps = 1e-3 * (s1 - a)
         _dense_to(wk, yold, hQ, told, h, a + eps)
         if _phi(M, a + eps, wk, j, p, useD, useC) > v0:
@@ -385,7 +354,7 @@ def _interior(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a
                 return True, a, s
     # a peak between the last sample and b: only where the guard falls at b (the
     # next step starts falling, so its own search never looks back)
-    if v4 >= v3 and _near_peak(v4, v3):
+    if v4 >= v3 and events.near_peak(v4, v3):
         eps = 1e-3 * (b - s3)
         _dense_to(wk, yold, hQ, told, h, b - eps)
         if _phi(M, b - eps, wk, j, p, useD, useC) > v4:

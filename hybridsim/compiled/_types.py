@@ -3,8 +3,9 @@ constants (the Runge-Kutta tables, cause and detail codes), the maps' numba
 signatures and the calls of a map, the Ctrl-C poll and the random draw by
 their C addresses, and the handles that pass them from Python.
 
-Every function of :mod:`hybridsim.rules` is made callable from compiled code
-here as it is (``register_jitable``): the rules are not written again.
+Every function of :mod:`hybridsim.rules`, and the algorithms' steps of
+:mod:`hybridsim.events` (:data:`hybridsim.events.COMPILED`), are made callable
+from compiled code here as they are (``register_jitable``): not written again.
 """
 from __future__ import annotations
 
@@ -23,7 +24,8 @@ from numba.extending import intrinsic, overload, register_jitable, typeof_impl
 from scipy.integrate._ivp import dop853_coefficients as _dop
 from scipy.integrate._ivp.rk import DOP853, RK45
 
-from .. import rules
+from .. import events, rules
+from .._rk import MAX_FACTOR, MIN_FACTOR, SAFETY
 
 # A parallel batch runs its rows in Python threads calling the GIL-free
 # :func:`run_rows`: no numba threading layer is started for it. Where one is
@@ -40,6 +42,9 @@ if os.environ.get("NUMBA_THREADING_LAYER") is None and numba.config.THREADING_LA
 for _name, _fn in vars(rules).items():
     if inspect.isfunction(_fn) and _fn.__module__ == rules.__name__:
         register_jitable(_fn)
+# ... and so does each algorithm's step of hybridsim.events written for both paths
+for _fn in events.COMPILED:
+    register_jitable(_fn)
 
 
 # ------------------------------------------------------------------ constants
@@ -50,7 +55,8 @@ _B = np.ascontiguousarray(RK45.B, dtype=np.float64)
 _Cc = np.ascontiguousarray(RK45.C, dtype=np.float64)
 _E = np.ascontiguousarray(RK45.E, dtype=np.float64)
 _P = np.ascontiguousarray(RK45.P, dtype=np.float64)
-_SAFETY, _MIN_FACTOR, _MAX_FACTOR = 0.9, 0.2, 10.0
+# scipy's step-size controller constants (hybridsim._rk takes them from scipy)
+_SAFETY, _MIN_FACTOR, _MAX_FACTOR = SAFETY, MIN_FACTOR, MAX_FACTOR
 _ERR_EXP = -1.0 / (RK45.error_estimator_order + 1)
 _ORDER = float(RK45.error_estimator_order)
 # scipy's DOP853 (Dormand-Prince 8(5,3)): 12 stages, the 3 more of its dense output
