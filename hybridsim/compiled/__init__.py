@@ -35,6 +35,16 @@ change of the maps, then loaded in a fraction of a second without compiling
 the maps. The rules (:mod:`hybridsim.rules`) are compiled into the engine
 from their one source; a change of them invalidates the cache.
 
+The cache folders are code this process runs (numba's index files are
+pickles), so they must be the user's own: the engine reads and keeps its
+kernels only in a folder owned by the user (or root) and writable by no one
+else, under folders no one else can swap it in (:mod:`._private`). A
+``NUMBA_CACHE_DIR`` others can write to is refused with a warning (the kernels
+then compile in memory in each process), and a specialised kernel's module
+goes to the next private folder. A generated module is written under an
+unpredictable name, created exclusively, and its checked text is what runs
+(never a bytecode file beside it).
+
 Ordinary systems run here too, lowered to a :class:`CompiledSystem` by
 :func:`lower` (what ``backend="compiled"`` does): a
 :class:`hybridsim.LinearPlant`, any system whose ``compiled_component()``

@@ -33,6 +33,7 @@ from ._kernel import (
     run_one_spec_dop853,
     run_rows,
 )
+from ._private import private_folder
 from ._types import (
     CANCELED,
     CAUSES,
@@ -224,7 +225,7 @@ def _spec_source(key, delays=False, method="RK45"):
     if method == "DOP853":
         head += "globals().update(_k.DOP853_GLOBALS)     # DOP853's steps\n\n\n"
     return (head + core
-            + '\n\none = numba.njit(cache=True, error_model="numpy")(one)\n')
+            + '\n\none = numba.njit(cache=_k.CACHE, error_model="numpy")(one)\n')
 
 
 def map_value(glb, name):
@@ -333,7 +334,8 @@ def spec_key(maps, delays=False, method="RK45"):
 
 
 def _spec_dirs():
-    """Where generated kernels may go, the first writable one: beside numba's
+    """Where generated kernels may go, the first private one
+    (:func:`hybridsim.compiled._private.private_folder`): beside numba's
     cache of this module, then the user's cache directory."""
     out = []
     d = cache_dir()
@@ -347,35 +349,50 @@ def _spec_dirs():
 
 def spec_module(key, delays=False, method="RK45"):
     """The generated module of ``key`` (written once; None where no folder is
-    writable: the caller then compiles in memory); ``delays`` and ``method``
+    private and writable: the caller then compiles in memory); ``delays`` and ``method``
     as :func:`_spec_source`'s, the ones ``key`` was made with."""
-    import importlib.util
     import sys
+    import tempfile
+    import types as pytypes
     name = f"hybridsim_spec_{key}"
     if name in sys.modules:
         return sys.modules[name]
     src = _spec_source(key, delays, method)
     for d in _spec_dirs():
         path = os.path.join(d, name + ".py")
+        # code is read from the folder and from numba's cache beside it: both
+        # must be the user's own (no one else can plant or swap a file there)
+        if private_folder(d) or private_folder(os.path.join(d, "__pycache__")):
+            continue
         try:
-            os.makedirs(d, exist_ok=True)
-            if not os.access(d, os.W_OK):
-                continue
             if not os.path.exists(path):
-                tmp = f"{path}.{os.getpid()}.tmp"
-                with open(tmp, "w") as fh:
-                    fh.write(src)
-                os.replace(tmp, path)       # atomic: processes may race here
+                # an unpredictable name, created exclusively (O_EXCL, no link
+                # followed), then moved in place atomically: processes may race
+                fd, tmp = tempfile.mkstemp(prefix=f".{name}.", suffix=".tmp", dir=d)
+                try:
+                    with os.fdopen(fd, "w") as fh:
+                        fh.write(src)
+                    os.replace(tmp, path)
+                except BaseException:
+                    with contextlib.suppress(OSError):
+                        os.remove(tmp)
+                    raise
                 remove_stale(d)             # (a new module: the engine may have changed)
             with open(path) as fh:
                 if fh.read() != src:
                     continue
         except OSError:
             continue
-        spec = importlib.util.spec_from_file_location(name, path)
-        mod = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(mod)
+        # the checked text itself is run (never a bytecode file the import
+        # system would pick beside it); numba caches ``one`` by this path
+        mod = pytypes.ModuleType(name)
+        mod.__file__ = path
         sys.modules[name] = mod
+        try:
+            exec(compile(src, path, "exec"), mod.__dict__)
+        except BaseException:
+            sys.modules.pop(name, None)
+            raise
         return mod
     return None
 

@@ -27,13 +27,14 @@ from ._types import (
     _O_FLOW_ON,
     _O_JUMP,
     _O_STOP,
+    CACHE,
     _bare,
     _coin,
     _f64_ptr,
 )
 
 
-@njit(cache=True, **_NJL)
+@njit(cache=CACHE, **_NJL)
 def _fault(ev_addr, which, s, j):
     """Record the first NaN guard of the run in the kernel's ``ev`` (at
     ``ev_addr``; ``ev[0]``: 1 jump_guard, 2 flow_guard, then s and j)."""
@@ -46,7 +47,7 @@ def _fault(ev_addr, which, s, j):
 
 # _inD, _inC, _pred: plain calls (numba's IR inlining of them, at ~30 call sites,
 # cost ~10 s of the engine's first compile for no measurable speed: LLVM inlines)
-@njit(cache=True, **_NJL)
+@njit(cache=CACHE, **_NJL)
 def _inD(M, y, s, j, p):
     """x in D: the indicator, or {jump_guard >= 0} where D is derived from its guard
     (a NaN guard is the map's contract breach: recorded at ``M[8]``, as the Python
@@ -64,7 +65,7 @@ def _inD(M, y, s, j, p):
     return M[4](y, s, j, p)
 
 
-@njit(cache=True, **_NJL)
+@njit(cache=CACHE, **_NJL)
 def _inC(M, y, s, j, p):
     """x in C: the indicator, or {flow_guard >= 0} (see :func:`_inD`)."""
     if M[7]:
@@ -76,7 +77,7 @@ def _inC(M, y, s, j, p):
     return M[5](y, s, j, p)
 
 
-@njit(cache=True, **_NJL)
+@njit(cache=CACHE, **_NJL)
 def _pred(M, s, y, j, p, has_C, d_active):
     """The event has happened at (s, y): left C, or (watched) entered D."""
     if has_C and not _inC(M, y, s, j, p):
@@ -86,7 +87,7 @@ def _pred(M, s, y, j, p, has_C, d_active):
     return False
 
 
-@njit(cache=True, **_NJL)
+@njit(cache=CACHE, **_NJL)
 def _phi(M, s, y, j, p, useD, useC):
     """The continuous event function (>= 0 once the event has happened): every
     given guard of the flow (``_Run._phi``). A NaN guard is recorded as the
@@ -105,7 +106,7 @@ def _phi(M, s, y, j, p, useD, useC):
     return v
 
 
-@njit(cache=True, **_NJL)
+@njit(cache=CACHE, **_NJL)
 def _phi_nan(M, s, y, j, p, useD):
     """Record which guard returned NaN in :func:`_phi` (the jump guard first, as
     ``_Run._phi`` names it): off the event search's fast path."""
@@ -117,7 +118,7 @@ def _phi_nan(M, s, y, j, p, useD):
     _fault(M[8], 2.0, s, j)
 
 
-@njit(cache=True, **_NJL)
+@njit(cache=CACHE, **_NJL)
 def _secant(M, yold, hQ, told, h, j, p, useD, useC, lo, hi, flo, fhi, seeded, s0, slope0,
             wk):
     """``events._secant`` (its steps :func:`hybridsim.events.secant_trial` and
@@ -159,7 +160,7 @@ def _secant(M, yold, hQ, told, h, j, p, useD, useC, lo, hi, flo, fhi, seeded, s0
     return lo, hi
 
 
-@njit(cache=True, **_NJL)
+@njit(cache=CACHE, **_NJL)
 def _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, b,
             yb, yb_known, wk, ylo, yhi):
     """:func:`hybridsim.events.locate_event` on the step's dense output (``yb``:
@@ -259,7 +260,7 @@ def _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, 
     return lo, hi
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=CACHE, **_NJI)
 def _maximize(M, yold, hQ, told, h, j, p, has_C, d_active, useD, useC, l, r, fl, fr):
     """Golden-section search (``events._maximize``); returns NaN when nothing found."""
     x1 = r - _INVPHI * (r - l)
@@ -296,7 +297,7 @@ def _maximize(M, yold, hQ, told, h, j, p, has_C, d_active, useD, useC, l, r, fl,
     return np.nan
 
 
-@njit(cache=True, **_NJL)
+@njit(cache=CACHE, **_NJL)
 def _interior(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, b, WS):
     """:func:`hybridsim.events.find_interior_event` with 3 samples: (found, lo, hi).
 
@@ -365,7 +366,7 @@ def _interior(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a
     return False, a, b
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=CACHE, **_NJI)
 def _event(M, yold, hQ, told, h, j, p, has_C, has_D, d_active, phi_on, useD, useC,
            a, lo, hi, clamp, h_abs, flow_t0, prio, rngp, yb, yb_known, wk, ylo, yhi):
     """``_Run._event``: locate, then decide. Returns (kind, te, xe, lo, ylo, h_hint,
@@ -401,7 +402,7 @@ def _event(M, yold, hQ, told, h, j, p, has_C, has_D, d_active, phi_on, useD, use
     return _O_JUMP, lo, ylo, lo, ylo, hint, False
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=CACHE, **_NJI)
 def _near_C(M, x, j, p, lo, yold, hQ, told, h, x_hi):
     """``_Run._near_C``: a post-jump state in neither C nor D is within the located
     event's tolerance of C (``rules.post_jump_probe``; off the run's main loop).

@@ -125,6 +125,7 @@ from ._types import (
     _P,
     _SAFETY,
     BLOWUP,
+    CACHE,
     CANCELED,
     DETAIL_LOOP,
     J_MAX,
@@ -918,7 +919,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
 #: itself, not a wrapper calling it: a wrapper's library is optimized and
 #: code-generated again with the whole core linked in (about 2.6 s of the
 #: first compile)
-run_one = njit(cache=True, **_NJ)(_run_core)
+run_one = njit(cache=CACHE, **_NJ)(_run_core)
 
 #: one run specialised on a system's own map dispatchers (maps compiled in, passed
 #: as a tuple): the module :func:`spec_module` generates calls it under
@@ -945,20 +946,20 @@ def _variant(fn, suffix, **consts):
 #: :data:`run_one` for a flow map that reads the past (``CompiledSystem(delays=)``):
 #: the run core with the record of the steps and the delay breakpoints,
 #: compiled (and cached) only when a system with delays first runs
-run_one_delays = njit(cache=True, **_NJ)(_variant(_run_core, "_delays", _DELAYS=True))
+run_one_delays = njit(cache=CACHE, **_NJ)(_variant(_run_core, "_delays", _DELAYS=True))
 
 #: :data:`run_one_spec` with delays
 run_one_spec_delays = njit(**_NJI)(_variant(_run_core, "_delays", _DELAYS=True))
 
 #: :data:`run_one` stepping with scipy's DOP853 (``method="DOP853"``): compiled
 #: (and cached) when a run first asks for it. Not with delays (refused by name)
-run_one_dop853 = njit(cache=True, **_NJ)(_variant(_run_core, "_dop853", **DOP853_GLOBALS))
+run_one_dop853 = njit(cache=CACHE, **_NJ)(_variant(_run_core, "_dop853", **DOP853_GLOBALS))
 
 #: :data:`run_one_spec` stepping with DOP853
 run_one_spec_dop853 = njit(**_NJI)(_variant(_run_core, "_dop853", **DOP853_GLOBALS))
 
 
-@njit(cache=True, nogil=True, **_NJ)
+@njit(cache=CACHE, nogil=True, **_NJ)
 def run_rows(one, maps, X0, p, fopt, iopt, atol, rngp, poll, stop, next_row, chunk,
              TT, JJ, XX, XXD, fill, AT, NS, CA, DE, INFO, ST):
     """Runs of a batch, taken ``chunk`` rows at a time from the shared counter

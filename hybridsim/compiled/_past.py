@@ -11,6 +11,7 @@ from numba import njit, types
 
 from ._types import (
     _NJI,
+    CACHE,
     MAP_ERROR,
     MAP_HISTORY,
 )
@@ -28,7 +29,7 @@ _CH = 256                           # rows of a chunk of the step record
 _CHUNK_T = types.float64[:, ::1]
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=CACHE, **_NJI)
 def _span(HL, k):
     """The step record's row k: its (start, end). One function for both entries
     (an entry index passed as a constant compiled one version per constant)."""
@@ -37,7 +38,7 @@ def _span(HL, k):
     return R[i, 0], R[i, 1]
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=CACHE, **_NJI)
 def _past(p, pb, dl, s, HL, HM, cur_x, x0, t0):
     """Write x(s - tau_i) for every delay into ``p[pb:]`` (``hybridsim.History``'s
     rules). False, the tail NaN and HM[2:5] set (the first time), where a value
@@ -96,7 +97,7 @@ def _past(p, pb, dl, s, HL, HM, cur_x, x0, t0):
     return True
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=CACHE, **_NJI)
 def _fd(f, y, s, j, p, pb, dl, HL, HM, cur_x, x0, t0):
     """The flow map at (y, s), with the past in ``p[pb:]`` where there are delays
     (NaN again afterwards); a value of NaN where the past is missing (HM[2])."""
@@ -109,7 +110,7 @@ def _fd(f, y, s, j, p, pb, dl, HL, HM, cur_x, x0, t0):
     return v
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=CACHE, **_NJI)
 def _past_missing(info, HM, j):
     """The run's end where the past was missing: MAP_ERROR, with ``info`` = (the
     flow map's t, the time read, the recorded end, j) for the message."""
@@ -120,7 +121,7 @@ def _past_missing(info, HM, j):
     return MAP_ERROR, MAP_HISTORY
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=CACHE, **_NJI)
 def _record(HL, HM, a, b, h, ya, hQ):
     """Record the step from a (dense output ya, hQ over h) up to b (a new chunk
     where the last is full)."""
@@ -142,7 +143,7 @@ def _record(HL, HM, a, b, h, ya, hQ):
     HM[0] = hn + 1
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=CACHE, **_NJI)
 def _add_breaks(BL, t, dl):
     """Insert t + tau_i into the sorted breakpoints BL (a typed List)."""
     for i in range(dl.shape[0]):

@@ -18,13 +18,14 @@ from ._types import (
     _GOES_ON,
     _NJI,
     _NJL,
+    CACHE,
     MAP_ERROR,
     NON_FINITE,
     _bare,
 )
 
 
-@njit(cache=True, **_NJL)
+@njit(cache=CACHE, **_NJL)
 def _dense_to(out, yold, hQ, told, h, s):
     """A step's dense output at s written into ``out`` (the event search's trial
     points: no array made per evaluation; :func:`_dense` makes one).
@@ -58,7 +59,7 @@ def _dense_to(out, yold, hQ, told, h, s):
             out[i] = (yold[i] + c1 * (hQ[i, 0] - yold[i]) + c2 * hQ[i, 1]) + c3 * hQ[i, 2]
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=CACHE, **_NJI)
 def _dense(yold, hQ, told, h, s):
     """RK45's dense output at s (as :func:`hybridsim.events.fast_dense`)."""
     out = np.empty(yold.shape[0])
@@ -66,14 +67,14 @@ def _dense(yold, hQ, told, h, s):
     return out
 
 
-@njit(cache=True, **_NJL)
+@njit(cache=CACHE, **_NJL)
 def _copy_to(out, y):
     """``out[:] = y`` as a loop (a state into a scratch row of the run)."""
     for i in range(y.shape[0]):
         out[i] = y[i]
 
 
-@njit(cache=True, **_NJL)
+@njit(cache=CACHE, **_NJL)
 def _dense_deriv_to(XD, r, hQ, told, h, s):
     """d/dt of the dense output at s (``solve._dense_derivative``, Q = hQ / h)
     written into row ``r`` of ``XD``."""
@@ -83,7 +84,7 @@ def _dense_deriv_to(XD, r, hQ, told, h, s):
                     + 4.0 * (hQ[i, 3] / h) * x * x * x)
 
 
-@njit(cache=True, **_NJL)
+@njit(cache=CACHE, **_NJL)
 def _norm(v):
     """The 2-norm of ``v`` (``np.sum(v * v)``'s order of sums: no array made)."""
     s = 0.0
@@ -92,7 +93,7 @@ def _norm(v):
     return math.sqrt(s)
 
 
-@njit(cache=True, **_NJL)
+@njit(cache=CACHE, **_NJL)
 def _all_finite(v):
     for i in range(v.size):
         if not np.isfinite(v.flat[i]):
@@ -100,7 +101,7 @@ def _all_finite(v):
     return True
 
 
-@njit(cache=True, **_NJL)
+@njit(cache=CACHE, **_NJL)
 def _put(A, i, v):
     """``A[i] = v`` as a loop (numba's broadcasting setitem compiles its shape
     error's formatting, seconds of every first compile)."""
@@ -108,7 +109,7 @@ def _put(A, i, v):
         A[i, q] = v[q]
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=CACHE, **_NJI)
 def _grown(T, J, X, XD, ns):
     """The sample buffers, full at ``ns``, doubled (the first ``ns`` rows kept)."""
     cap2 = 2 * T.shape[0]
@@ -126,7 +127,7 @@ def _grown(T, J, X, XD, ns):
     return T2, J2, X2, XD2
 
 
-@njit(cache=True, **_NJL)
+@njit(cache=CACHE, **_NJL)
 def _store(T, J, X, XD, ns, t, j, x):
     """Write the sample (t, j, x) at row ``ns`` (xdot NaN); the buffers have room.
 
@@ -140,7 +141,7 @@ def _store(T, J, X, XD, ns, t, j, x):
         XD[ns, q] = np.nan
 
 
-@njit(cache=True, **_NJL)
+@njit(cache=CACHE, **_NJL)
 def _scaled_rms(v, w, scale, diff):
     """The RMS norm of ``v / scale``, or of ``(v - w) / scale`` where ``diff``
     (a loop: no array made)."""
@@ -151,7 +152,7 @@ def _scaled_rms(v, w, scale, diff):
     return math.sqrt(s) / math.sqrt(v.shape[0])
 
 
-@njit(cache=True, **_NJL)
+@njit(cache=CACHE, **_NJL)
 def _initial_guess(t0, y0, t_bound, f0, rtol, atol, y1, scale):
     """scipy's ``select_initial_step`` (direction +1, order 4), its first part:
     ``(h0, d1)`` (h0 0.0 where the interval is empty), with the Euler point
@@ -176,7 +177,7 @@ def _initial_guess(t0, y0, t_bound, f0, rtol, atol, y1, scale):
     return h0, d1
 
 
-@njit(cache=True, **_NJL)
+@njit(cache=CACHE, **_NJL)
 def _initial_step(t0, t_bound, max_step, f0, f1, h0, d1, scale, order):
     """``select_initial_step``'s end, from :func:`_initial_guess`'s ``h0``,
     ``d1`` and ``scale`` and the flow map's value ``f1`` at its Euler point
@@ -192,7 +193,7 @@ def _initial_step(t0, t_bound, max_step, f0, f1, h0, d1, scale, order):
     return min(100.0 * h0, h1, abs(t_bound - t0), max_step)
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=CACHE, **_NJI)
 def _dop853_dense(f, K, ya, yb, a, hs, j, p, yi, hQ):
     """DOP853's dense output of the step from (a, ya) over hs to yb
     (scipy's ``DOP853._dense_output_impl``): its three extra stages into
@@ -227,7 +228,7 @@ def _dop853_dense(f, K, ya, yb, a, hs, j, p, yi, hQ):
     return 0 if ok else 2
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=CACHE, **_NJI)
 def _dop853_step_dense(f, K, ya, yb, a, hs, j, p, yi, hQ, stats, info):
     """:func:`_dop853_dense` for the run core: its evaluations counted, and
     the run's (cause, detail) where it fails (``info`` filled)."""
@@ -243,7 +244,7 @@ def _dop853_step_dense(f, K, ya, yb, a, hs, j, p, yi, hQ, stats, info):
     return NON_FINITE, 2
 
 
-@njit(cache=True, **_NJI)
+@njit(cache=CACHE, **_NJI)
 def _refined(T, J, X, XD, ns, a, e, j, refine, ya, hQ, hs, deriv):
     """The ``refine - 1`` samples inside a step's part from ``a`` to ``e``
     (MATLAB's ``Refine``), from the step's dense output (``ya``, ``hQ``, its

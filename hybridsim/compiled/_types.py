@@ -26,6 +26,7 @@ from scipy.integrate._ivp.rk import DOP853, RK45
 
 from .. import events, rules
 from .._rk import MAX_FACTOR, MIN_FACTOR, SAFETY
+from ._private import unsafe
 
 # A parallel batch runs its rows in Python threads calling the GIL-free
 # :func:`run_rows`: no numba threading layer is started for it. Where one is
@@ -92,6 +93,36 @@ DETAIL_LOOP = 3
 
 # flow outcomes
 _O_TMAX, _O_JUMP, _O_FLOW_ON, _O_STOP, _O_BREAK = 0, 1, 2, 3, 4
+
+# ------------------------------------------------------------------ the disk cache
+def _probe():  # pragma: no cover - never called: its file locates numba's cache
+    pass
+
+
+def _engine_cache():
+    """Whether the engine's kernels are kept in numba's disk cache: only where
+    its folder (the one numba picks for this package's files) is private to
+    the user (:func:`hybridsim.compiled._private.unsafe`): numba's index files
+    are pickles, which run code when loaded. Elsewhere the kernels compile in
+    memory, and a warning says why."""
+    from numba.core.caching import FunctionCache
+    try:
+        path = FunctionCache(_probe)._cache_path
+    except Exception:  # noqa: BLE001 - no cache folder numba can use (numba says so)
+        return True
+    why = unsafe(path)
+    if why is None:
+        return True
+    warnings.warn(f"hybridsim.compiled: numba's cache folder {path} is not private ({why}): "
+                  f"the engine's kernels are compiled in memory in each process, not read "
+                  f"from or kept there. Point NUMBA_CACHE_DIR at a folder of your own",
+                  RuntimeWarning, stacklevel=2)
+    return False
+
+
+#: whether the engine's kernels are cached on disk (``cache=`` of each)
+CACHE = _engine_cache()
+
 
 # ------------------------------------------------------------------ map signatures
 _ARGS = (types.float64[::1], types.float64, types.int64, types.float64[::1])
@@ -237,22 +268,22 @@ def wrap_map(fn, kind, lazy=False):
     return njit(**_NJ)(w) if lazy else njit(sig, **_NJ)(w)
 
 
-@njit(VEC_SIG, cache=True, **_NJ)
+@njit(VEC_SIG, cache=CACHE, **_NJ)
 def absent_vec(x, t, j, p):  # pragma: no cover - never called (flags say absent)
     return np.full(x.shape[0], np.nan)
 
 
-@njit(SCAL_SIG, cache=True, **_NJ)
+@njit(SCAL_SIG, cache=CACHE, **_NJ)
 def absent_scalar(x, t, j, p):  # pragma: no cover
     return np.nan
 
 
-@njit(BOOL_SIG, cache=True, **_NJ)
+@njit(BOOL_SIG, cache=CACHE, **_NJ)
 def absent_false(x, t, j, p):
     return False
 
 
-@njit(BOOL_SIG, cache=True, **_NJ)
+@njit(BOOL_SIG, cache=CACHE, **_NJ)
 def absent_true(x, t, j, p):
     return True
 
@@ -333,7 +364,7 @@ def _next_double(typingctx, fnaddr, state):
     return types.float64(types.int64, types.int64), codegen
 
 
-@njit(cache=True, **_NJL)
+@njit(cache=CACHE, **_NJL)
 def _coin(rngp):
     """A fair coin from the run's numpy Generator (``rngp``: its BitGenerator's
     ``state_address`` and ``next_double`` address): ``rng.random() < 0.5``."""
