@@ -141,6 +141,7 @@ from ._types import (
     NOT_IN_SETS,
     SOLVER_FAILED,
     T_MAX,
+    YIELD_EVERY,
     ZENO,
     _bare,
     _Cc,
@@ -149,6 +150,7 @@ from ._types import (
     _claim_within,
     _clear_at,
     _coin,
+    _let_threads_run,
     _occ_at,
     _one_at,
     maps_of,
@@ -192,6 +194,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     check = _check_at(poll[0])
     occurred = _occ_at(poll[1])
     clear = _clear_at(poll[2])
+    polls = 0                        # polls since other threads last ran
     t0 = fopt[F_T0]
     t_max = fopt[F_T_MAX]
     j_max = fopt[F_J_MAX]
@@ -336,6 +339,11 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     hs = 1.0
     done = False
     while not done:
+        if polling:
+            polls += 1
+            if polls >= YIELD_EVERY:
+                polls = 0
+                _let_threads_run(poll)
         if stop[0] != 0 or (polling and (check() != 0 or occurred() != 0)):
             if polling:
                 clear()              # the KeyboardInterrupt: the run ends CANCELED
@@ -507,6 +515,11 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 t, x = a, ya
                 outcome = _O_STOP
                 break
+            if polling:
+                polls += 1
+                if polls >= YIELD_EVERY:
+                    polls = 0
+                    _let_threads_run(poll)
             if stop[0] != 0 or (polling and (check() != 0 or occurred() != 0)):
                 if polling:
                     clear()

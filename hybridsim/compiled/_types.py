@@ -292,10 +292,17 @@ def absent_true(x, t, j, p):
 _CHECK_SIG = types.int32()
 _OCC_SIG = types.intp()
 _CLEAR_SIG = types.none()
+# PyEval_SaveThread / PyEval_RestoreThread: the thread state as an address
+_SAVE_SIG = types.intp()
+_RESTORE_SIG = types.none(types.intp)
 with warnings.catch_warnings():
     warnings.simplefilter("ignore", nb_errors.NumbaExperimentalFeatureWarning)
-    CHECK_T, OCC_T, CLEAR_T = (types.FunctionType(s) for s in (_CHECK_SIG, _OCC_SIG,
-                                                               _CLEAR_SIG))
+    CHECK_T, OCC_T, CLEAR_T, SAVE_T, RESTORE_T = (
+        types.FunctionType(s) for s in (_CHECK_SIG, _OCC_SIG, _CLEAR_SIG, _SAVE_SIG,
+                                        _RESTORE_SIG))
+#: a run in the GIL's thread lets other threads run every this many polls
+#: (``_let_threads_run``): a timer's thread can then send its SIGINT
+YIELD_EVERY = 64
 
 
 # ------------------------------------------------------------------ functions by address
@@ -327,6 +334,16 @@ def _from_address(fnty):
 
 _vec_at, _scal_at, _bool_at = (_from_address(t) for t in (VEC_T, SCAL_T, BOOL_T))
 _check_at, _occ_at, _clear_at = (_from_address(t) for t in (CHECK_T, OCC_T, CLEAR_T))
+_save_at, _restore_at = (_from_address(t) for t in (SAVE_T, RESTORE_T))
+
+
+@njit(cache=CACHE, **_NJL)
+def _let_threads_run(poll):
+    """Release the GIL and take it back (``poll[3]``, ``poll[4]``: the C API's
+    ``PyEval_SaveThread`` and ``PyEval_RestoreThread``): a thread waiting for
+    it (a timer about to send SIGINT) runs meanwhile; where none waits this
+    is two uncontended locks."""
+    _restore_at(poll[4])(_save_at(poll[3])())
 
 
 def maps_of(maps):
@@ -450,12 +467,14 @@ def _addresses(a):
 #: what a run in the GIL's thread polls for Ctrl-C (addresses, see :func:`_run_core`):
 #: the interpreter's own signal check (the SIGINT handler runs, raising
 #: KeyboardInterrupt), whether an exception is set, and the call that clears it
-#: (the run ends CANCELED)
+#: (the run ends CANCELED); then the pair that lets other threads run
+#: (:func:`_let_threads_run`)
 POLL_GIL = _addresses([_c_api_address(n) for n in
-                       ("PyErr_CheckSignals", "PyErr_Occurred", "PyErr_Clear")])
+                       ("PyErr_CheckSignals", "PyErr_Occurred", "PyErr_Clear",
+                        "PyEval_SaveThread", "PyEval_RestoreThread")])
 #: the same slots for runs on a parallel batch's worker threads: none (no GIL:
 #: they read the batch's stop flag only, and call nothing at every step)
-POLL_NONE = _addresses([0, 0, 0])
+POLL_NONE = _addresses([0, 0, 0, 0, 0])
 
 
 def map_addresses(handles):
