@@ -39,17 +39,33 @@ def _check(path, strict):
     if not _owner_ok(st):
         return f"{path} belongs to another user (uid {st.st_uid})"
     mode = st.st_mode
-    if mode & 0o022 and (strict or not mode & stat.S_ISVTX):
+    writers = mode & (0o022 if not _own_group(st.st_gid) else 0o002)
+    if writers and (strict or not mode & stat.S_ISVTX):
         who = "others" if mode & 0o002 else "its group"
         return f"{path} is writable by {who} (mode {oct(mode & 0o7777)})"
     return None
+
+
+def _own_group(gid):
+    """Whether the group ``gid`` is the user's own private group (its primary
+    group, named as the user, with no other members: the convention under
+    which a umask of 002 makes folders group-writable harmlessly)."""
+    try:
+        import grp
+        import pwd
+        user = pwd.getpwuid(os.getuid()).pw_name
+        g = grp.getgrgid(gid)
+    except (ImportError, KeyError, OSError):
+        return False
+    return gid == os.getgid() and g.gr_name == user and set(g.gr_mem) <= {user}
 
 
 def unsafe(path):
     """Why code read from the folder ``path`` could be someone else's, or None.
 
     The folder must be owned by the user (or root) and writable by no one
-    else; each folder above it (as written and with links resolved) owned
+    else (its group may write where it is the user's own private group);
+    each folder above it (as written and with links resolved) owned
     by the user or root and writable by no one else unless sticky.
     On systems without POSIX owners (Windows) the answer is None.
     """
