@@ -21,7 +21,6 @@ from . import stl as stl
 from . import testing as testing
 from ._version import __version__ as __version__
 from .arc import HybridArc, Termination, load
-from .batch import BatchError, BatchWarning, simulate_many, sweep
 from .batch_vectorized import simulate_vectorized
 from .compose import Interconnection, LinearInput, LinearPlant, connect, network
 from .explore import Choice, ExploreEnd, SolutionTree, explore
@@ -36,9 +35,9 @@ from .plot import (
     plot_solutions,
     plot_time_domain,
 )
-from .rules import MapError, SimulationError, SimulationWarning
+from .rules import BatchError, BatchWarning, MapError, SimulationError, SimulationWarning
+from .run import simulate, simulate_many, sweep
 from .sensitivity import simulate_sensitivity
-from .solve import simulate
 from .system import HybridSystem
 
 __all__ = [

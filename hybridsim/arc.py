@@ -1696,3 +1696,14 @@ class _Mapped:
         t = np.asarray(t, dtype=float)
         return np.stack([self.fn(np.asarray(self.sol(s), dtype=float), float(s), self.j)
                          for s in t], axis=1)
+
+
+def _one_sample(x0, kwargs, cause, detail, exc=None, system=None):
+    """A one-sample arc at (t0, j0, x0) ending with ``cause`` (x0 None: unknown)."""
+    try:
+        x = np.empty((1, 0)) if x0 is None else np.array(x0, dtype=float).reshape(1, -1)
+    except (TypeError, ValueError):
+        x = np.empty((1, 0))
+    return HybridArc([float(kwargs.get("t0", 0.0))], [int(kwargs.get("j0", 0))], x, cause,
+                     f"{cause.message}: {detail}", exc,
+                     components=getattr(system, "components", None), system=system)

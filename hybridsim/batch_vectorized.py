@@ -47,7 +47,6 @@ from scipy.integrate._ivp import dop853_coefficients as _dop
 
 from ._progress import make_bar
 from .arc import HybridArc, Termination
-from .batch import _as_rows, finish_batch
 from .events import _maximize, _near_peak
 from .history import BatchHistory
 from .options import (
@@ -55,6 +54,7 @@ from .options import (
     check_delays,
     check_seed,
     check_unsupported,
+    check_x0s,
     method_on,
     parse_run,
     refuse,
@@ -69,6 +69,7 @@ from .rules import (
     after_jump,
     event_outcome,
     event_tolerance,
+    finish_batch,
     is_jump_loop,
     is_short_flow,
     is_sticking,
@@ -456,7 +457,7 @@ def _parse(system, x0s, t_max, j_max, kw, method, progress, seed, extra):
     if n is None or isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
         raise ValueError(f"{type(system).__name__}.state_dim must be a positive int, got {n!r}")
     n = int(n)
-    X = _as_rows(x0s, n)            # the messages of simulate_many
+    X = check_x0s(x0s, n)            # the messages of simulate_many
     if X.shape[0] < 1:
         raise ValueError(f"x0s must have shape (N, {n}) with N >= 1 (one row per "
                          f"trajectory), got shape {X.shape}")
@@ -492,7 +493,7 @@ def simulate_vectorized(system, x0s, t_max, j_max=math.inf, *, priority="jumps",
     evaluated. Semantics, termination causes and messages are those of
     :func:`hybridsim.simulate`; the arcs carry ``xdot`` and ``stats`` as
     its arcs do. Failed rows follow the batch policy of
-    :func:`hybridsim.simulate_many` (:func:`hybridsim.batch.finish_batch`).
+    :func:`hybridsim.simulate_many` (:func:`hybridsim.rules.finish_batch`).
 
     Parameters
     ----------

@@ -7,13 +7,9 @@ from collections.abc import Mapping
 import numpy as np
 
 from .history import ComponentHistory
+from .options import check_map_value
 from .rules import MapError
 from .system import HybridSystem, as_map, guard_min, guard_rows
-
-try:
-    from .options import check_map_value
-except ImportError:  # pragma: no cover - the options module predates this fallback
-    from .solve import check_map_value
 
 __all__ = ["Interconnection", "LinearInput", "LinearPlant", "connect", "network"]
 
@@ -265,13 +261,6 @@ class LinearPlant(HybridSystem):
         if self.disturbance is not None:
             dx = dx + self.disturbance(t)
         return dx
-
-    def compiled_component(self):
-        """The plant's compiled form (:func:`hybridsim.compiled.lower`): the
-        matrices in its parameters; refused where u, noise or disturbance is
-        a callable of t."""
-        from .compiled._lower import linear_plant_component
-        return linear_plant_component(self)
 
     def output(self, x, t, j):
         if np.ndim(x) == 2:

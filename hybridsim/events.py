@@ -8,7 +8,8 @@ from scipy.integrate._ivp.rk import RkDenseOutput
 
 from .rules import event_tolerance
 
-__all__ = ["locate_event", "event_tolerance", "find_interior_event"]
+__all__ = ["locate_event", "event_tolerance", "find_interior_event", "secant_trial",
+           "secant_slope", "root_off_zero", "near_peak"]
 
 _EPS = np.finfo(float).eps
 _INVPHI = (math.sqrt(5.0) - 1.0) / 2.0
@@ -38,6 +39,107 @@ def fast_dense(sol):
     return call
 
 
+# ------------------------------------------------------------------ the algorithms' steps
+# Plain functions of floats, written once: the Python path calls them, and the
+# compiled path compiles them from this source (hybridsim.compiled._types
+# registers each of COMPILED with numba, as it does hybridsim.rules).
+def secant_trial(lo, hi, xl, fl, slope, d2, tol, seeded, s0):
+    """The next trial point of the safeguarded secant search (:func:`_secant`).
+
+    The secant step from the last evaluation ``(xl, fl)`` with ``slope``,
+    accepted where it falls inside the bracket ``[lo, hi]`` and is shorter
+    than half the step before last ``d2``, else the bracket's midpoint; a
+    model's estimate ``s0`` instead where ``seeded``. Kept a quarter of the
+    tolerance ``tol`` inside the bracket.
+
+    Examples
+    --------
+    >>> secant_trial(0.0, 1.0, 0.0, -1.0, 2.0, float("inf"), 1e-3, False, 0.0)
+    0.5
+    >>> secant_trial(0.0, 1.0, 0.0, -1.0, 2.0, 0.1, 1e-3, False, 0.0)     # too long: bisect
+    0.5
+    >>> secant_trial(0.0, 1.0, 0.0, -1.0, 2.0, 0.1, 1e-3, True, 1.0)      # a model's, inside
+    0.99975
+    """
+    if seeded:
+        s = s0
+    else:
+        s = xl - fl / slope if slope != 0.0 else math.nan
+        if not (lo <= s and s <= hi and abs(s - xl) < 0.5 * d2):
+            s = 0.5 * (lo + hi)
+    q = 0.25 * tol
+    if not s > lo + q:
+        s = lo + q
+    elif not s < hi - q:
+        s = hi - q
+    return s
+
+
+def secant_slope(fs, fl, s, xl):
+    """The secant's slope through the last two evaluations ``(xl, fl)`` and
+    ``(s, fs)`` (NaN where they coincide).
+
+    Examples
+    --------
+    >>> secant_slope(1.0, -1.0, 1.0, 0.0)
+    2.0
+    """
+    return (fs - fl) / (s - xl) if s != xl else math.nan
+
+
+def root_off_zero(f0, fd, fw, d, w):
+    """Where a guard that starts on its zero comes back to it, from a quadratic model.
+
+    The guard is ``f0`` (about 0) at the step's start, ``fd < 0`` a probe
+    ``d`` into it and ``fw >= 0`` at its end ``w``: the quadratic with that
+    value, the probe's secant slope and that end value has its second root
+    at the returned offset: within about ``d`` of the true root where the
+    guard is quadratic along the step (as an affine guard is on a ball's
+    parabola), since the secant over ``[0, d]`` stands in for the slope at
+    the start; the secant steps that follow polish it.
+    Returns ``(offset, slope there)``, NaNs where the model has no root in
+    (d, w).
+
+    Examples
+    --------
+    >>> g = lambda tau: tau * (tau - 1.0)        # back to its zero at 1
+    >>> tau, slope = root_off_zero(g(0.0), g(1e-3), g(2.0), 1e-3, 2.0)
+    >>> round(tau, 2), round(slope, 2)
+    (1.0, 1.0)
+    >>> root_off_zero(0.0, -1e-9, -1.0, 1e-9, 1.0)       # still falling at the end: none
+    (nan, nan)
+    """
+    m = (fd - f0) / d
+    c = (fw - f0 - m * w) / (w * w)
+    disc = m * m - 4.0 * c * f0
+    if not (c > 0.0 and disc >= 0.0):
+        return math.nan, math.nan
+    r = math.sqrt(disc)
+    tau = (r - m) / (2.0 * c)
+    if d < tau and tau < w:
+        return tau, r
+    return math.nan, math.nan
+
+
+def near_peak(v, lo_nb):
+    """Could a smooth guard peak near a sample v (neighbours' minimum lo_nb) reach 0?
+
+    For a parabola through equally spaced samples, the vertex exceeds the
+    largest sample by at most a quarter of its drop to the lower neighbour;
+    the factor 2 leaves an 8x margin for guards that are not parabolas.
+
+    Examples
+    --------
+    >>> near_peak(-0.1, -0.5), near_peak(-0.5, -0.6)
+    (True, False)
+    """
+    return v + 2.0 * (v - lo_nb) >= 0.0
+
+
+#: the functions the compiled path compiles from this source
+COMPILED = (secant_trial, secant_slope, root_off_zero, near_peak)
+
+
 def _secant(F, lo, hi, flo, fhi, ylo, yhi, ev, seed=None, max_iter=100):
     """Shrink a sign-change bracket of ``F(s, y(s))`` to 4 ulp.
 
@@ -59,23 +161,14 @@ def _secant(F, lo, hi, flo, fhi, ylo, yhi, ev, seed=None, max_iter=100):
         tol = event_tolerance(lo, hi)
         if hi - lo <= tol:
             break
-        if seed is not None:
-            s = seed[0]
-        else:
-            s = xl - fl / slope if slope != 0.0 else math.nan
-            if not (lo <= s <= hi and abs(s - xl) < 0.5 * d2):
-                s = 0.5 * (lo + hi)
-        q = 0.25 * tol
-        if not s > lo + q:
-            s = lo + q
-        elif not s < hi - q:
-            s = hi - q
+        s = secant_trial(lo, hi, xl, fl, slope, d2, tol, seed is not None,
+                         seed[0] if seed is not None else math.nan)
         ys = ev(s)
         fs = F(s, ys)
         if seed is not None:
             slope, seed = seed[1], None
         else:
-            slope = (fs - fl) / (s - xl) if s != xl else math.nan
+            slope = secant_slope(fs, fl, s, xl)
         d2, d1 = d1, abs(s - xl)
         xl, fl = s, fs
         if fs >= 0.0:
@@ -86,26 +179,9 @@ def _secant(F, lo, hi, flo, fhi, ylo, yhi, ev, seed=None, max_iter=100):
 
 
 def _root_off_zero(f0, fd, fw, d, w):
-    """Where a guard that starts on its zero comes back to it, from a quadratic model.
-
-    The guard is ``f0`` (about 0) at the step's start, ``fd < 0`` a probe
-    ``d`` into it and ``fw >= 0`` at its end ``w``: the quadratic with that
-    value, the probe's secant slope and that end value has its second root
-    at the returned offset: within about ``d`` of the true root where the
-    guard is quadratic along the step (as an affine guard is on a ball's
-    parabola), since the secant over ``[0, d]`` stands in for the slope at
-    the start; the secant steps that follow polish it.
-    Returns ``(offset, slope there)``, or None where the model has no root
-    in (d, w).
-    """
-    m = (fd - f0) / d
-    c = (fw - f0 - m * w) / (w * w)
-    disc = m * m - 4.0 * c * f0
-    if not (c > 0.0 and disc >= 0.0):
-        return None
-    r = math.sqrt(disc)
-    tau = (r - m) / (2.0 * c)
-    return (tau, r) if d < tau < w else None
+    """:func:`root_off_zero`, None where the model has no root in (d, w)."""
+    tau, r = root_off_zero(f0, fd, fw, d, w)
+    return (tau, r) if tau == tau else None
 
 
 def locate_event(sol, a, b, pred, phi=None, max_iter=200, ya=None, yb=None):
@@ -208,14 +284,9 @@ def locate_event(sol, a, b, pred, phi=None, max_iter=200, ya=None, yb=None):
 
 
 def _near_peak(v, lo_nb):
-    """Could a smooth guard peak near a sample v (neighbours' minimum lo_nb) reach 0?
-
-    For a parabola through equally spaced samples, the vertex exceeds the
-    largest sample by at most a quarter of its drop to the lower neighbour;
-    the factor 2 leaves an 8x margin for guards that are not parabolas.
-    """
+    """:func:`near_peak`, of floats or arrays (a batch's rows)."""
     with np.errstate(invalid="ignore"):       # -inf guards ("never"): nan, not a peak
-        return v + 2.0 * (v - lo_nb) >= 0.0
+        return near_peak(v, lo_nb)
 
 
 def _maximize(F, l, r, fl, fr, pred, sol, max_iter=100):

@@ -48,7 +48,7 @@ import numpy as np
 from .arc import HybridArc
 from .options import check_count, check_map_value, check_real, check_x0
 from .rules import MapError, SimulationError, SimulationWarning, Termination, event_tolerance, warns
-from .solve import simulate
+from .run import simulate
 from .system import HybridSystem, successors
 
 __all__ = ["explore", "SolutionTree", "Node", "Choice", "ExploreEnd"]

@@ -513,7 +513,7 @@ def batch_run(system, x0_of, t_max, j_max=np.inf, **simulate_kwargs):
         ``run(points) -> list of HybridArc``, with ``run.batch = True`` so
         :func:`falsify` passes it whole populations.
     """
-    from .batch import simulate_many
+    from .run import simulate_many
 
     simulate_kwargs.setdefault("backend", "auto")
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import numbers
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -18,7 +19,7 @@ from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, OdeSolver, Radau
 from scipy.integrate._ivp.rk import RungeKutta
 
 from ._rk import LEAN
-from .rules import PRIORITIES, MapError, Priority
+from .rules import _SHOW, PRIORITIES, MapError, Priority
 
 __all__ = ["RunOptions", "parse_run", "refuse", "SUPPORTS", "METHODS", "METHODS_ON",
            "method_on", "reads_past", "check_x0",
@@ -459,3 +460,78 @@ def parse_run(system, n, *, t0=0.0, j0=0, t_max, j_max=math.inf, priority="jumps
     return RunOptions(t0, t_max, j_max, j0, prio, rtol, atol, max_step, first_step, max_norm,
                       zeno_jumps, zeno_time, zeno_rtol, refine, max_steps, max_samples,
                       throw, warn)
+
+
+# ------------------------------------------------------------------ batches
+def check_chunks(chunks):
+    if chunks is None:
+        return None
+    if isinstance(chunks, bool) or not isinstance(chunks, numbers.Integral):
+        raise TypeError(f"chunks must be a positive int or None (default: 4 per worker), "
+                        f"got {type(chunks).__name__} {chunks!r}")
+    if chunks < 1:
+        raise ValueError(f"chunks must be a positive int or None (default: 4 per worker), "
+                         f"got {chunks}")
+    return int(chunks)
+
+
+def check_executor(executor):
+    if executor is not None and not callable(getattr(executor, "submit", None)):
+        raise TypeError(f"executor must be a concurrent.futures.Executor (an object with a "
+                        f".submit method, e.g. ProcessPoolExecutor()) or None, got "
+                        f"{type(executor).__name__} {executor!r}")
+
+
+def check_x0s(x0s, n):
+    """x0s as an (N, n) float array, with messages naming x0s."""
+    try:
+        if np.iscomplexobj(x0s):
+            raise TypeError("x0s must be real, got complex values")
+        X = np.array(x0s, dtype=float)
+    except (TypeError, ValueError) as e:
+        if "x0s must be real" in str(e):
+            raise
+        detail = ""
+        if isinstance(x0s, (list, tuple)):
+            shapes = []
+            for i, r in enumerate(x0s):
+                try:
+                    s = np.shape(r)
+                except ValueError:
+                    s = "ragged"
+                if s != (n,):
+                    shapes.append(f"row {i} has shape {s}")
+            if not shapes:
+                shapes = ["its rows do not form an array of floats"]
+            if shapes:
+                detail = ": " + ", ".join(shapes[:_SHOW]) + \
+                    (f" and {len(shapes) - _SHOW} more" if len(shapes) > _SHOW else "")
+        raise ValueError(f"x0s must be a rectangular array of shape (N, {n}) of floats (one "
+                         f"initial state per row){detail or f'; got {type(x0s).__name__}'}") \
+            from e
+    if X.ndim != 2 or X.shape[1] != n:
+        raise ValueError(f"x0s must have shape (N, {n}), got {X.shape}")
+    return X
+
+
+def check_params(params):
+    if isinstance(params, (str, bytes)) or not isinstance(params, Iterable):
+        raise TypeError(f"params must be an iterable of parameter values (a list, a range, "
+                        f"an array...), got {type(params).__name__} {params!r}")
+    return list(params)
+
+
+def check_delay_times(delays):
+    """``delays`` as a tuple of distinct positive finite floats (the one check of
+    :class:`hybridsim.compiled.Component` and :class:`hybridsim.compiled.CompiledSystem`; errors
+    name the argument)."""
+    try:
+        d = tuple(float(v) for v in (delays or ()))
+    except (TypeError, ValueError):
+        raise TypeError(f"delays must be a sequence of positive floats, got "
+                        f"{delays!r}") from None
+    if not all(math.isfinite(v) and v > 0.0 for v in d):
+        raise ValueError(f"delays must be positive finite floats, got {d}")
+    if len(set(d)) != len(d):
+        raise ValueError(f"delays must be distinct, got {d}")
+    return d

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import enum
 import math
+import operator
+import warnings
 
 import numpy as np
 
@@ -528,3 +530,127 @@ def time_scale(t0, t, t_max):
     if math.isfinite(t_max) and t_max > t0:
         return t_max - t0
     return _max(t - t0, 0.0)
+
+
+# ------------------------------------------------------------------ batches
+# The batch policy (what fails a row, the one summary warning, throw=True), the
+# same on every path: :func:`finish`'s counterpart for a batch.
+#: causes that make a row "failed" in a batch (named in the summary warning)
+FAILED = frozenset(FAILURES | {Termination.MAX_STEPS})
+_SHOW = 5               # failed rows named one by one in the summary
+
+
+class BatchWarning(SimulationWarning):
+    """Some runs of a batch failed or were canceled; the message names the rows.
+
+    Each failed row's arc carries its cause (``arc.termination``,
+    ``arc.message``, ``arc.exception``).
+    """
+
+
+class BatchError(SimulationError):
+    """A run of a batch failed and the batch was called with ``throw=True``.
+
+    Attributes
+    ----------
+    row : int
+        Index of the failed row (its place in ``x0s`` or ``params``).
+    arc : HybridArc
+        That row's arc (its cause in ``arc.termination``/``arc.exception``).
+    arcs : list of HybridArc or None
+        The batch's arcs so far, in row order (None for rows not run).
+    """
+
+    def __init__(self, message, row=None, arc=None, arcs=None):
+        super().__init__(message, arc)
+        self.row, self.arcs = row, arcs
+
+
+_TERMINATION = operator.attrgetter("termination")
+
+
+def _summary(what, arcs, offset=0):
+    """One warning text for the failed and canceled rows, or None."""
+    # by identity (an Enum member hashes in Python code: 0.3 µs a row)
+    bad, stop = {id(c) for c in FAILED}, id(Termination.CANCELED)
+    terms = list(map(id, map(_TERMINATION, arcs)))
+    if bad.isdisjoint(terms) and stop not in terms:     # the common case: one pass
+        return None
+    failed = [(i, arcs[i]) for i, c in enumerate(terms) if c in bad]
+    canceled = [i for i, c in enumerate(terms) if c == stop]
+    parts = []
+    if failed:
+        named = []
+        for i, a in failed[:_SHOW]:
+            msg = a.message or a.termination.message
+            if isinstance(a.exception, SimulationError):      # names the map already
+                msg = str(a.exception)
+            elif a.exception is not None:
+                msg = f"{type(a.exception).__name__}: {a.exception}"
+            msg = " ".join(str(msg).split())
+            if len(msg) > 160:
+                msg = msg[:157] + "..."
+            named.append(f"row {i}: {a.termination.name} ({msg})")
+        more = f"; and {len(failed) - _SHOW} more" if len(failed) > _SHOW else ""
+        parts.append(f"{len(failed)} of {len(arcs)} runs failed: " + "; ".join(named) + more
+                     + ". Each failed row's arc carries its cause (arc.termination, "
+                       "arc.message, arc.exception); pass throw=True to raise at the first "
+                       "failure instead")
+    if canceled:
+        rows = canceled if len(canceled) <= 2 * _SHOW else \
+            [*canceled[:_SHOW], "...", *canceled[-1:]]
+        finished = len(arcs) - len(canceled)
+        parts.append(f"interrupted (KeyboardInterrupt): {finished} of {len(arcs)} runs finished, "
+                     f"rows {', '.join(map(str, rows))} end with CANCELED (the arc so far, or "
+                     f"one sample at x0 for rows never started)")
+    if not parts:
+        return None
+    return f"{what}: " + ". ".join(parts) + "."
+
+
+def _raise_first_failure(out):
+    """``throw=True`` on a batch that ran in one piece: the first failed row raises."""
+    for i, arc in enumerate(out):
+        if arc.termination in FAILED:
+            raise BatchError(f"row {i} of the batch failed: {arc.termination.name}: "
+                             f"{arc.message}", i, arc, out) from arc.exception
+
+
+def finish_batch(name, arcs, throw, warn, stacklevel=3):
+    """The batch policy, applied once a batch has run: the same on every path.
+
+    Every row has run and every failed row keeps its arc and cause (one of
+    :data:`FAILED`). ``throw=True`` raises :class:`BatchError` (``.row``,
+    ``.arc``, ``.arcs``) for the first failed row; otherwise ``warn=True``
+    issues one :class:`BatchWarning` naming the failed (and canceled) rows.
+    Used by :func:`hybridsim.simulate_many`, :func:`hybridsim.simulate_vectorized`
+    and the compiled batch (every path imports it from here).
+
+    Parameters
+    ----------
+    name : str
+        The entry point named in the warning (``"simulate_many"``...).
+    arcs : list of HybridArc
+        One per row, in order.
+    throw, warn : bool
+    stacklevel : int
+        Of the warning: 3 points at the caller of the function that calls
+        ``finish_batch``.
+
+    Returns
+    -------
+    list of HybridArc
+        ``arcs``.
+    """
+    if throw:
+        _raise_first_failure(arcs)
+    return _warned(name, arcs, warn, stacklevel + 1)
+
+
+def _warned(name, out, warn, stacklevel=3):
+    """One BatchWarning summarising the failed rows (if any and if asked)."""
+    if warn:
+        msg = _summary(name, out)
+        if msg:
+            warnings.warn(msg, BatchWarning, stacklevel=stacklevel)
+    return out

@@ -98,7 +98,7 @@ from numpy.typing import ArrayLike
 
 from .arc import Termination
 from .rules import SimulationError, SimulationWarning
-from .solve import simulate
+from .run import simulate
 from .system import HybridSystem, as_map
 
 __all__ = ["simulate_sensitivity", "sensitivity_system", "margin_gradient", "SensitivityArc",

@@ -1,4 +1,4 @@
-"""simulate(): the flow/jump loop with exact event location.
+"""The Python path: the flow/jump loop with exact event location.
 
 The rules (priority, causes, the jump-or-flow decision, Zeno and t_max
 tolerances) come from :mod:`hybridsim.rules`; this module runs them with a
@@ -11,29 +11,18 @@ import enum
 import math
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import ArrayLike
-from scipy.integrate import DOP853, RK23, RK45, OdeSolver
+from scipy.integrate import DOP853, RK23, RK45
 from scipy.integrate._ivp.rk import RungeKutta
 
 from ._rk import LEAN
 from .arc import HybridArc
 from .events import find_interior_event, locate_event
-from .history import History
 from .options import (
     RunOptions,
-    check_bool,
-    check_delays,
-    check_dwell,
     check_map_value,
-    check_seed,
-    check_t_eval,
-    check_unsupported,
-    check_x0,
-    parse_run,
-    resolve_method,
 )
 from .rules import (
     CAUSES,
@@ -49,7 +38,6 @@ from .rules import (
     dwell_outcome,
     event_outcome,
     event_tolerance,
-    finish,
     is_jump_loop,
     is_short_flow,
     is_sticking,
@@ -59,9 +47,9 @@ from .rules import (
     t_max_slack,
     time_scale,
 )
-from .system import HybridSystem, check_nested_set_valued, guard_min, successors
+from .system import guard_min, successors
 
-__all__ = ["simulate", "MapError", "SimulationError", "SimulationWarning"]
+__all__ = ["MapError", "SimulationError", "SimulationWarning"]
 
 _EXPLICIT = (RK23, RK45, DOP853)
 
@@ -226,242 +214,6 @@ class _State:
     stiff_hits: int = 0         # Hairer's stiffness counter (DOPRI5's IASTI)
     calm: int = 0               # ... and its reset counter (NONSTI)
     warned_stiff: bool = False
-
-
-def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = math.inf, *,
-             t0: float = 0.0, j0: int = 0, priority: str = "jumps",
-             method: str | type[OdeSolver] = "RK45", rtol: float = 1e-6,
-             atol: float | ArrayLike = 1e-9, max_step: float = math.inf,
-             first_step: float | None = None, inputs: Callable | None = None,
-             prehistory: Callable | None = None, max_norm: float = math.inf,
-             seed: int | np.random.Generator | None = None, progress: bool | None = None,
-             throw: bool = True, warn: bool = True, dense: bool = False, refine: int = 1,
-             t_eval: ArrayLike | None = None, max_steps: float = 1_000_000,
-             max_samples: float = 10_000_000, zeno_jumps: int = 50,
-             zeno_time: float = 1e-12, zeno_rtol: float = 1e-7,
-             backend: str = "python", dwell=None) -> HybridArc:
-    r"""Simulate a hybrid system from x0 until t_max or j_max.
-
-    Flows by :math:`\dot x = f(x)` with a scipy ODE solver while x is in C,
-    jumps by :math:`x^+ = g(x)` when x is in D (as the priority decides).
-    Events are located on each step's dense output to 4 ulp of the event
-    time: safeguarded secant steps on the guards where the system has them
-    (a flow that starts on a guard's zero takes its first estimate from a
-    probe's slope), else bisection of the set indicators. Each step's interior is searched too
-    (the guard sampled and its maxima refined), so a jump set entered and
-    left within one solver step is not missed.
-
-    Parameters
-    ----------
-    system : HybridSystem
-        The data (C, f, D, g).
-    x0 : array_like, shape (n,)
-        Initial state.
-    t_max : float
-        Flows stop at t_max; a run that flows up to t_max ends with a sample
-        there. Jumps at t = t_max are still taken, including events that land
-        on t_max only up to round-off (:func:`hybridsim.rules.t_max_slack`).
-        May be ``inf``.
-    j_max : int or inf, optional
-        At most this many jumps; the run stops at the sample after the last.
-    t0, j0 : float, int, optional
-        Initial hybrid time (j0 a non-negative int).
-    priority : {"jumps", "flows", "random"}
-        What happens in C ∩ D. ``"jumps"``: jump as soon as x is in D.
-        ``"flows"``: jump only when x is in D and flowing is impossible (x not
-        in C, or on the edge of C where the flow leaves C at once).
-        ``"random"``: a fair coin (seeded by ``seed``) at each such point,
-        or the ``dwell`` law. A set-valued jump map (``jump_map_values``)
-        jumps to its first successor, under ``"random"`` to one drawn
-        uniformly with the seed.
-    method : str or OdeSolver subclass
-        "RK45" (default), "RK23", "DOP853", "Radau", "BDF", "LSODA" or a
-        concrete subclass of :class:`scipy.integrate.OdeSolver`. The three
-        explicit Runge-Kutta methods take scipy's steps bit for bit, through
-        ``hybridsim._rk``'s copies without scipy's per-step overheads.
-    rtol, atol, max_step, first_step : float
-        Passed to the solver. ``max_step`` is also capped by
-        ``system.max_step``.
-    inputs : callable, optional
-        ``u(t)`` for a system with ``input_dim > 0`` simulated on its own.
-    prehistory : callable, optional
-        ``x(s)`` for s < t0, read by maps through ``self.history``
-        (default: constant x0).
-    max_norm : float
-        Stop with cause ``BLOWUP`` when the state's norm exceeds it.
-    seed : int or numpy Generator, optional
-        Seed of ``priority="random"``.
-    progress : bool or None
-        Show a progress bar (tqdm) with t and j. None: at a terminal and in
-        a notebook.
-    throw : bool
-        True (default): when a user map raises or breaks its contract (wrong
-        shape, complex or non-finite value), raise :class:`MapError` (a
-        :class:`SimulationError`) naming the map, t and j, chained from the
-        original exception, with the arc so far on ``.arc``. False: return the
-        arc with cause ``MAP_ERROR`` (``arc.exception`` holds the error).
-    warn : bool
-        Issue one :class:`SimulationWarning` when the run ends on a numerical
-        failure (``NON_FINITE``, ``BLOWUP``, ``SOLVER_FAILED``) or on
-        ``MAX_STEPS``, and when an explicit method's steps signal stiffness.
-        The arc is returned either way.
-    refine : int
-        Samples stored per solver step (as MATLAB's ``Refine``): ``refine - 1``
-        points of the step's dense output are added inside each step.
-    t_eval : array_like, optional
-        Store samples at these times (from the dense output) instead of at
-        the solver's steps; the initial and final samples and both samples
-        of every jump are kept. Not with ``refine > 1``.
-    dense : bool
-        Keep every step's dense output, so ``arc.at(t, j)`` is exact to the
-        integrator and the history is available after the run. Without it
-        ``arc.at`` interpolates by cubic Hermite with the flow derivative
-        stored at each sample (``arc.xdot``).
-    max_steps, max_samples : int or inf
-        Safety limits: the run ends with cause ``MAX_STEPS`` after this many
-        accepted solver steps, or this many stored samples.
-    zeno_jumps, zeno_time, zeno_rtol : int, float, float
-        The run stops with cause ``ZENO`` after ``zeno_jumps`` consecutive
-        jumps each preceded by a short flow: at most
-        ``zeno_time * max(1, |t|)`` or ``zeno_rtol`` times the run's time
-        scale (``t_max - t0``, or the time elapsed when t_max is inf).
-
-    dwell : scipy.stats frozen distribution or callable, optional
-        With ``priority="random"``: the time spent in C ∩ D before jumping,
-        drawn once at each entry into C ∩ D (``dist.rvs(random_state=rng)``,
-        or ``dwell(rng) -> float``, with the run's seeded generator) instead
-        of the fair coin. 0 jumps at once, ``inf`` flows on. The jump is
-        placed at entry + dwell exactly (the flow is stopped there, as at
-        any event), so the law does not depend on the step size. A flow
-        that leaves D first does not jump (the next entry draws again); one
-        that leaves C while in D jumps there (the dwell is cut short).
-        Python path only.
-    backend : {"python", "compiled", "auto"}
-        ``"compiled"`` runs a :class:`hybridsim.compiled.CompiledSystem`
-        entirely in compiled code (numba: ``pip install 'hybridsim[fast]'``)
-        through :func:`hybridsim.compiled.simulate_compiled`: the same
-        Dormand-Prince steps (RK45, or DOP853), events, rules and arc.
-        Other systems are lowered to one (:func:`hybridsim.compiled.lower`:
-        a ``LinearPlant``, systems with a compiled form, interconnections of
-        them wired by :class:`hybridsim.LinearInput`), or refused by name.
-        Options it does not support (inputs, prehistory, dense, t_eval,
-        other methods) raise. ``"auto"``: compiled where numba is installed, the system
-        lowers and the options allow it; the Python path otherwise.
-
-    Returns
-    -------
-    HybridArc
-        The solution; ``arc.termination`` says why it stopped and
-        ``arc.stats`` counts steps, evaluations and events.
-
-    Raises
-    ------
-    MapError
-        A user map raised or broke its contract (``throw=True``).
-    TypeError, ValueError
-        Bad arguments, each naming the argument.
-
-    Examples
-    --------
-    >>> import numpy as np, hybridsim as hs
-    >>> timer = hs.HybridSystem.from_functions(
-    ...     f=lambda x: np.array([1.0]), g=lambda x: np.array([0.0]),
-    ...     jump_guard=lambda x: x[0] - 1.0, flow_guard=lambda x: 1.0 - x[0],
-    ...     state_dim=1)
-    >>> arc = hs.simulate(timer, [0.0], t_max=3.0)
-    >>> np.round(arc.jump_times, 12)         # the jump at t_max is taken
-    array([1., 2., 3.])
-    """
-    if not isinstance(system, HybridSystem):
-        raise TypeError(f"system must be a hybridsim.HybridSystem, got {type(system).__name__}")
-    if backend == "auto" and (dwell is not None or system.set_valued):
-        backend = "python"          # the compiled path has neither
-    if backend == "auto":
-        from .batch import _auto_backend
-        backend = _auto_backend(system, dict(method=method, inputs=inputs,
-                                             prehistory=prehistory, dense=dense,
-                                             t_eval=t_eval), None)
-    if backend == "compiled":
-        return _compiled_run(system, x0, t_max, j_max, dict(
-            t0=t0, j0=j0, priority=priority, method=method, rtol=rtol, atol=atol,
-            max_step=max_step, first_step=first_step, max_norm=max_norm, seed=seed,
-            throw=throw, warn=warn, refine=refine, max_steps=max_steps,
-            max_samples=max_samples, zeno_jumps=zeno_jumps, zeno_time=zeno_time,
-            zeno_rtol=zeno_rtol), dict(inputs=inputs, prehistory=prehistory, dense=dense,
-                                       t_eval=t_eval, progress=progress, dwell=dwell))
-    if backend != "python":
-        raise ValueError(f"backend must be 'python', 'compiled' or 'auto', got {backend!r}")
-    check_nested_set_valued(system)
-    maps = system._compile()
-    n = int(system.state_dim)
-    x = check_x0(x0, n)
-    ro = parse_run(system, n, t0=t0, j0=j0, t_max=t_max, j_max=j_max, priority=priority,
-                   rtol=rtol, atol=atol, max_step=max_step, first_step=first_step,
-                   max_norm=max_norm, zeno_jumps=zeno_jumps, zeno_time=zeno_time,
-                   zeno_rtol=zeno_rtol, refine=refine, max_steps=max_steps,
-                   max_samples=max_samples, throw=throw, warn=warn, python=True)
-    t0, t_max, j_max, j0, prio = ro.t0, ro.t_max, ro.j_max, ro.j0, ro.prio
-    rtol, atol, max_step, first_step, max_norm = (ro.rtol, ro.atol, ro.max_step,
-                                                  ro.first_step, ro.max_norm)
-    zeno_jumps, zeno_time, zeno_rtol = ro.zeno_jumps, ro.zeno_time, ro.zeno_rtol
-    refine, max_steps, max_samples, throw, warn = (ro.refine, ro.max_steps, ro.max_samples,
-                                                   ro.throw, ro.warn)
-    Method = resolve_method(method)
-    if int(system.input_dim or 0) > 0 and inputs is None:
-        raise ValueError(f"inputs: the system has input_dim={system.input_dim}; pass "
-                         "inputs=callable(t) -> u, or connect it with hs.connect")
-    if inputs is not None and not callable(inputs):
-        raise TypeError(f"inputs must be a callable u(t), got {type(inputs).__name__}")
-    if prehistory is not None and not callable(prehistory):
-        raise TypeError(f"prehistory must be a callable x(s), got {type(prehistory).__name__}")
-    dense = check_bool("dense", dense)
-    progress = check_bool("progress", progress, allow_none=True)
-    t_eval = check_t_eval(t_eval, t0, t_max)
-    if t_eval is not None and refine > 1:
-        raise ValueError("t_eval and refine > 1 cannot be combined: choose one way of "
-                         "placing samples")
-    rng = check_seed(seed, build=prio == Priority.RANDOM)
-    dwell = check_dwell(dwell, prio)
-    delays = check_delays(system)
-
-    keep = dense or system.needs_history
-    history = History(t0, x, j0, prehistory, inputs, maps.h)
-    system._bind_history(history)
-    opts = _Options(**{f.name: getattr(ro, f.name) for f in fields(RunOptions)}, n=n,
-                    Method=Method, t_eval=t_eval, keep=keep, delays=delays, rng=rng,
-                    dwell=dwell)
-    run = _Run(system, maps, opts, inputs, history)
-    run.pbar = _progress_bar(progress, t0, t_max, j_max)
-    try:
-        run.run(t0, j0, x)
-    except MapError as e:
-        # at x0 (a map's contract checked before the loop): bad input, raised at
-        # once whatever throw says; its arc is x0 alone, ended by MAP_ERROR
-        run._stop(Termination.MAP_ERROR, exc=e, error=str(e))
-        e.arc = run.arc()
-        raise
-    except BaseException as e:
-        raise SimulationError(f"internal error of the engine or solver: "
-                              f"{type(e).__name__}: {e}", run.arc()) from e
-    finally:
-        if run.pbar is not None:
-            run.pbar.close()
-    # finish -> simulate -> the caller
-    return finish(run.arc(), throw, warn, stacklevel=3)
-
-
-def _compiled_run(system, x0, t_max, j_max, opts, python_only):
-    """``simulate(..., backend="compiled")``: the compiled path, or a clear refusal."""
-    from .compiled import simulate_compiled
-    from .compiled._lower import lower, rebind
-    check_unsupported("compiled", python_only)
-    cs = lower(system)        # the system itself, or its lowered form (named refusals)
-    try:
-        return rebind(simulate_compiled(cs, x0, t_max, j_max, **opts), system)
-    except MapError as e:
-        if getattr(e, "arc", None) is not None:
-            rebind(e.arc, system)
-        raise
 
 
 class _Run:

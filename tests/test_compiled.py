@@ -477,8 +477,8 @@ def test_batch_runs_without_room_in_the_pool_run_again_in_parallel(monkeypatch):
     x0s = np.column_stack([np.zeros(70), period])
     simulate_many_compiled(timer, x0s[:2], t_max=2.5)
     calls = []
-    real = hc._interruptible
-    monkeypatch.setattr(hc, "_interruptible", lambda *a, **k: calls.append(1) or real(*a, **k))
+    real = hc._run._interruptible
+    monkeypatch.setattr(hc._run, "_interruptible", lambda *a, **k: calls.append(1) or real(*a, **k))
     arcs = simulate_many_compiled(timer, x0s, t_max=2.5)
     assert len(calls) == 2                      # the batch, then the rows without room
     assert [arcs[i].jump_count for i in (0, 23, 46, 69)] == [2] * 4
@@ -504,8 +504,8 @@ def test_a_batch_again_reuses_the_pools_size_and_runs_every_row_in_parallel(monk
     h0 = np.random.default_rng(4).uniform(0.5, 2.0, 64)
     x0s = np.column_stack([h0, np.zeros_like(h0)])
     alone = []
-    real = hc._arc
-    monkeypatch.setattr(hc, "_arc", lambda *a, **k: alone.append(1) or real(*a, **k))
+    real = hc._run._arc
+    monkeypatch.setattr(hc._run, "_arc", lambda *a, **k: alone.append(1) or real(*a, **k))
     sized = [simulate_many_compiled(ball, x0s, t_max=20.0, j_max=5, **TIGHT)]
     assert len(alone) == 4
     sized.append(simulate_many_compiled(ball, x0s[::-1], t_max=20.0, j_max=5, **TIGHT))
@@ -728,8 +728,9 @@ def test_without_numba_import_error_names_the_extra():
 def test_doctests():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = doctest.testmod(hc, optionflags=doctest.NORMALIZE_WHITESPACE)
-    assert res.failed == 0 and res.attempted > 0
+        for mod in (hc, hc._run):       # (CompiledSystem is hc's: its __module__)
+            res = doctest.testmod(mod, optionflags=doctest.NORMALIZE_WHITESPACE)
+            assert res.failed == 0 and res.attempted > 0, mod.__name__
 
 
 # ------------------------------------------------------------------ one source of rules
@@ -750,7 +751,7 @@ def test_same_bad_input_same_error_as_the_python_path(ball):
 
 def test_cause_codes_and_rules_come_from_rules():
     from hybridsim import rules
-    from hybridsim.compiled import _kernel as k
+    from hybridsim.compiled import _types as k
     assert k.CAUSES == tuple(c.name for c in rules.CAUSES)
     for name in k.CAUSES:
         assert getattr(k, name) == rules.CODES[T[name]]

@@ -18,7 +18,7 @@ import pytest
 numba = pytest.importorskip("numba", reason="the compiled path needs numba "
                                             "(pip install 'hybridsim[fast]')")
 
-from hybridsim.compiled import _kernel as k  # noqa: E402
+from hybridsim.compiled import _cache as k  # noqa: E402
 
 ROLES = ("flow", "jump", "jump_guard", "flow_guard", "jump_set", "flow_set")
 KINDS = ("vec", "vec", "scalar", "scalar", "bool", "bool")
@@ -271,7 +271,7 @@ def test_read_only_installed_copy_caches_in_the_user_cache_dir(tmp_path):
             return ensure(self)
         caching.InTreeCacheLocator.ensure_cache_path = refuse
         import hybridsim
-        from hybridsim.compiled import _kernel as k
+        from hybridsim.compiled import _cache as k
         print(hybridsim.__file__)
         print(k.cache_dir())
         print(k._spec_dirs()[0])

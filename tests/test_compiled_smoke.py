@@ -181,11 +181,11 @@ def test_a_large_batchs_pool_is_mapped_memory_and_its_arcs_are_the_single_runs(r
         for f in ("t", "j", "x", "xdot"):
             np.testing.assert_array_equal(getattr(arcs[i], f), getattr(single, f))
             assert getattr(arcs[i], f).flags.writeable
-    small = hc._untouched((10, 2))
-    assert small.flags.owndata and hc._cut(small, 4).shape == (4, 2)
-    big = hc._untouched((1 << 20, 2))
+    small = hc._run._untouched((10, 2))
+    assert small.flags.owndata and hc._run._cut(small, 4).shape == (4, 2)
+    big = hc._run._untouched((1 << 20, 2))
     assert not big.flags.owndata and big.flags.writeable and big.dtype == np.float64
-    cut = hc._cut(big, 5)
+    cut = hc._run._cut(big, 5)
     assert cut.shape == (5, 2) and np.shares_memory(cut, big)
 
 
@@ -280,6 +280,34 @@ def test_ctrl_c_ends_a_run_canceled_with_the_arc_so_far(timer):
         th.wait()
     assert a.termination is T.CANCELED
     assert 1.0 < a.t[-1] < 5e7 and a.jump_count > 0
+    assert a.message == hs.rules.message(T.CANCELED, t=a.t[-1], j=a.j[-1])
+
+
+@pytest.mark.skipif(threading.current_thread() is not threading.main_thread(),
+                    reason="Python runs signal handlers in the main thread")
+def test_one_sigint_from_a_timer_thread_ends_a_single_run(timer):
+    """One SIGINT, raised once by a timer thread of the same process (issue 45):
+    a single run lets other threads run every ``YIELD_EVERY`` polls, so the
+    timer's thread gets to raise it and the run ends CANCELED with the arc so
+    far. (Without that the timer's thread waits for the GIL until the run has
+    ended, here at its Zeno end after millions of jumps, and the signal
+    lands after it.) The test's own handler; no wall-clock bound asserted."""
+    import signal
+    simulate_compiled(timer, [0.0], t_max=10.0)               # compiled before the clock
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)
+    alarm = threading.Timer(0.3, signal.raise_signal, (signal.SIGINT,))
+    try:
+        alarm.start()
+        a = simulate_compiled(timer, [0.0], t_max=math.inf, j_max=10**8, max_samples=10**9,
+                              max_steps=10**9)
+        alarm.join(timeout=60)
+    except KeyboardInterrupt:
+        pytest.fail("the SIGINT was not honoured by the run (it arrived after it)")
+    finally:
+        alarm.cancel()
+        signal.signal(signal.SIGINT, old)
+    assert a.termination is T.CANCELED
+    assert a.jump_count > 0 and a.t[-1] < 5e6          # before the run's Zeno end
     assert a.message == hs.rules.message(T.CANCELED, t=a.t[-1], j=a.j[-1])
 
 

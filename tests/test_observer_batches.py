@@ -257,10 +257,10 @@ def test_simulate_many_dop853_on_vectorized_system_is_one_batch(monkeypatch):
     rounding (DOP853's error estimate at rtol 1e-10: measured 2.8e-6)."""
     d, obs, sysm, x0s, arcs, _, dop = _hc_runs("VB")
     assert sysm.vectorized
-    import hybridsim.solve
+    import hybridsim.run
     calls = []
-    real = hybridsim.solve.simulate
-    monkeypatch.setattr(hybridsim.solve, "simulate",
+    real = hybridsim.run.simulate
+    monkeypatch.setattr(hybridsim.run, "simulate",
                         lambda *a, **k: calls.append(1) or real(*a, **k))
     hs.simulate_many(sysm, x0s[:1], t_max=1.5 * d.delta, dense=True, **HC_KW)
     assert calls == [1]                 # (an option the batch lacks: a run of simulate)

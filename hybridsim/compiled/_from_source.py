@@ -36,6 +36,7 @@ import numpy as np
 
 from .. import _source
 from ..system import HybridSystem
+from ._private import private_folder
 
 __all__ = ["FallbackWarning", "applies", "refusal", "lower_source", "auto_choice"]
 
@@ -54,7 +55,7 @@ def applies(system):
     hit = _PLAIN.get(t)
     if hit is None:
         from ..compose import Interconnection
-        from . import CompiledSystem
+        from ._system import CompiledSystem
         hit = _PLAIN[t] = (issubclass(t, HybridSystem)
                            and not issubclass(t, (CompiledSystem, Interconnection))
                            and getattr(t, "compiled_component", None) is None)
@@ -133,16 +134,24 @@ def _digest(plan):
 
 
 def _dirs():
-    from . import _load_kernel
-    k = _load_kernel()
-    return [os.path.join(os.path.dirname(d), "source") for d in k._spec_dirs()]
+    """The folders generated sources may be read from: beside the specialised
+    kernels, each private (:func:`hybridsim.compiled._private.private_folder`),
+    with numba's cache folder beside it private too."""
+    from ._cache import _spec_dirs
+    out = []
+    for d in _spec_dirs():
+        d = os.path.join(os.path.dirname(d), "source")
+        if not (private_folder(d) or private_folder(os.path.join(d, "__pycache__"))):
+            out.append(d)
+    return out
 
 
 def _written(path, src):
     """The text at ``path`` (created exclusively with ``src`` where absent), or None."""
     if not os.path.exists(path):
-        tmp = f"{path}.{os.getpid()}.{os.urandom(6).hex()}.tmp"
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+        tmp = f"{path}.{os.getpid()}.{os.urandom(16).hex()}.tmp"
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0),
+                     0o600)
         try:
             with os.fdopen(fd, "w") as fh:
                 fh.write(src)
@@ -158,7 +167,7 @@ def _written(path, src):
 
 def _module(plan):
     """``(module, digest)``: the plan's functions compiled (numba dispatchers)."""
-    from . import _load_kernel
+    from ._system import _load_kernel
     _load_kernel()                  # numba, or the ImportError saying how to install it
     import numba
     digest = _digest(plan)
@@ -171,7 +180,6 @@ def _module(plan):
     for d in _dirs():
         p = os.path.join(d, name + ".py")
         try:
-            os.makedirs(d, exist_ok=True)
             if _written(p, src) == src:
                 path = p
                 break
@@ -200,7 +208,7 @@ _LINE = re.compile(r'hybridsim_src_[0-9a-f]+\.py"?, line (\d+)')
 
 def _compile_error(system, plan, e):
     """numba's failure, named by the user's method and line."""
-    from . import CompileError, _summarise
+    from ._system import CompileError, _summarise
     cause = e.__cause__ if e.__cause__ is not None else e
     where = None
     for m in _LINE.finditer(str(cause)):
@@ -232,8 +240,7 @@ def lower_source(system, specialize=None):
     hit = cached(system)
     if hit is not None and (specialize is None or hit.specialize == bool(specialize)):
         return hit
-    from . import CompiledSystem
-    from ._lower import _refuse
+    from ._system import CompiledSystem, _refuse
     pl = _plan(system)
     if isinstance(pl, _source.SourceRefusal):
         err = _refuse(type(system).__name__, _text(system, pl))

@@ -53,8 +53,10 @@ import types
 import numpy as np
 
 from ..compose import Interconnection, LinearInput, LinearPlant
+from ..options import check_delay_times
 from ..system import HybridSystem
 from . import _from_source
+from ._system import CompiledSystem, _load_kernel, _refuse
 
 __all__ = ["Component", "Lowerable", "lower", "lowerable", "matvec", "rebind"]
 
@@ -139,7 +141,7 @@ class Component:
         if not np.all(np.isfinite(p)):
             raise ValueError(f"params must be finite, got {p[~np.isfinite(p)][:3]} among them")
         self.params = np.ascontiguousarray(p)
-        self.delays = _check_delays(delays)
+        self.delays = check_delay_times(delays)
         if self.delays and "flow" not in self.maps:
             raise ValueError("delays are read by the flow map: a component with delays "
                              "needs flow")
@@ -151,22 +153,6 @@ class Component:
     @property
     def has_C(self):
         return "flow_set" in self.maps or "flow_guard" in self.maps
-
-
-def _check_delays(delays):
-    """``delays`` as a tuple of distinct positive finite floats (the one check of
-    :class:`Component` and :class:`~hybridsim.compiled.CompiledSystem`; errors
-    name the argument)."""
-    try:
-        d = tuple(float(v) for v in (delays or ()))
-    except (TypeError, ValueError):
-        raise TypeError(f"delays must be a sequence of positive floats, got "
-                        f"{delays!r}") from None
-    if not all(math.isfinite(v) and v > 0.0 for v in d):
-        raise ValueError(f"delays must be positive finite floats, got {d}")
-    if len(set(d)) != len(d):
-        raise ValueError(f"delays must be distinct, got {d}")
-    return d
 
 
 # ------------------------------------------------------------------ compiled helpers
@@ -297,22 +283,15 @@ class _Part:
         self.past = ()           # where each of the part's delays is in the system's
 
 
-def _refuse(what, why):
-    return TypeError(f"backend='compiled': {what} cannot run compiled: {why}. Run it on "
-                     f"the Python path (backend='python'), or see hybridsim.compiled's "
-                     f"notes on lowering")
-
-
 def _refusal(system, what, wired=None):
     """Why ``system`` cannot be lowered, as the TypeError to raise, or None.
 
     Every check that needs no compiling (numba need not be installed): the one
     list :func:`lower` raises from and :func:`lowerable` reads. ``wired``: for
     a component of an interconnection, ``(its name, its input's wiring)``."""
-    from . import CompiledSystem
     if isinstance(system, CompiledSystem):
         return None
-    if _reads_history(system) and getattr(system, "compiled_component", None) is None:
+    if _reads_history(system) and _compiled_form(system) is None:
         return _refuse(what, f"it reads its history (x(t - tau)) and {type(system).__name__} "
                              f"has no compiled form declaring the delays it reads (a "
                              f"compiled_component() returning a Component(delays=...))")
@@ -323,7 +302,7 @@ def _refusal(system, what, wired=None):
         return _refuse(what, "its output reads its input (direct feedthrough, "
                              "output(x, t, j, u)); a compiled output is a function of "
                              "(x, t, j, p)")
-    if getattr(system, "compiled_component", None) is None:
+    if _compiled_form(system) is None:
         if wired is None and _from_source.applies(system):
             # a plain model: its own maps, rewritten (hybridsim.compiled._from_source)
             if int(system.input_dim or 0):
@@ -353,6 +332,17 @@ def _refusal(system, what, wired=None):
     return None
 
 
+def _compiled_form(system):
+    """The system's ``compiled_component`` (a callable returning its
+    :class:`Component`), or None. A :class:`hybridsim.LinearPlant`'s is
+    :func:`linear_plant_component`: the lowering knows the plant, the plant
+    does not know the lowering."""
+    form = getattr(system, "compiled_component", None)
+    if form is None and isinstance(system, LinearPlant):
+        return functools.partial(linear_plant_component, system)
+    return form
+
+
 def _reads_history(system):
     return bool(system.needs_history or tuple(system.delays or ()))
 
@@ -366,13 +356,12 @@ def _plant_refusal(plant, what):
 
 def _component_of(system, what, wired=None):
     """The :class:`Component` of a non-interconnection system, or a refusal."""
-    from . import CompiledSystem
     refusal = _refusal(system, what, wired)
     if refusal is not None:
         raise refusal
     if isinstance(system, CompiledSystem):
         return _from_compiled_system(system)
-    comp = system.compiled_component()
+    comp = _compiled_form(system)()
     if not isinstance(comp, Component):
         raise TypeError(f"{what}: compiled_component() must return a "
                         f"hybridsim.compiled.Component, got {type(comp).__name__}")
@@ -596,7 +585,6 @@ _LOWERED = {}
 def _build(parts, n, pvec, name, specialize, delays=()):
     """The lowered :class:`CompiledSystem` (maps shared by structure; ``delays``
     the system's, the sorted union of its parts')."""
-    from . import CompiledSystem, _load_kernel
     key = (_structure(parts), n, len(pvec), specialize, len(delays))
     proto = _LOWERED.get(key)
     if proto is None:
@@ -738,7 +726,6 @@ def lower(system, *, specialize=None):
         hit = _from_source.cached(system)       # a plain model run before: nothing changed
         if hit is not None and (specialize is None or hit.specialize == specialize):
             return hit
-    from . import CompiledSystem
     if isinstance(system, CompiledSystem):
         return system
     if not isinstance(system, HybridSystem):
@@ -857,7 +844,6 @@ def lowerable(system):
     if "_source_plan" in getattr(system, "__dict__", ()) and \
             _from_source.cached(system) is not None:         # a plain model run before
         return Lowerable()
-    from . import CompiledSystem
     if not isinstance(system, HybridSystem):
         raise TypeError(f"system must be a hybridsim.HybridSystem, got {type(system).__name__}")
     if isinstance(system, CompiledSystem) or (

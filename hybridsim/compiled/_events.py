@@ -1,0 +1,416 @@
+"""The compiled path's event location (imported only when numba is installed).
+
+The port of :func:`hybridsim.events.locate_event` (a flow starting on the
+guard's zero, a probe and a quadratic model's first estimate; indicator
+bisection until the guard changes sign; safeguarded secant steps on the guard
+to a bracket of 4 ulp confirmed by the indicator) and
+:func:`hybridsim.events.find_interior_event` (three interior samples and a
+golden-section search on guard peaks).
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .. import events, rules
+from ._steps import (
+    _copy_to,
+    _dense,
+    _dense_to,
+)
+from ._types import (
+    _A_FLOW,
+    _A_STOP,
+    _INVPHI,
+    _NJI,
+    _NJL,
+    _O_FLOW_ON,
+    _O_JUMP,
+    _O_STOP,
+    CACHE,
+    _bare,
+    _coin,
+    _f64_ptr,
+)
+
+
+@njit(cache=CACHE, **_NJL)
+def _fault(ev_addr, which, s, j):
+    """Record the first NaN guard of the run in the kernel's ``ev`` (at
+    ``ev_addr``; ``ev[0]``: 1 jump_guard, 2 flow_guard, then s and j)."""
+    ev = _f64_ptr(ev_addr)
+    if ev[0] == 0.0:
+        ev[0] = which
+        ev[1] = s
+        ev[2] = j
+
+
+# _inD, _inC, _pred: plain calls (numba's IR inlining of them, at ~30 call sites,
+# cost ~10 s of the engine's first compile for no measurable speed: LLVM inlines)
+@njit(cache=CACHE, **_NJL)
+def _inD(M, y, s, j, p):
+    """x in D: the indicator, or {jump_guard >= 0} where D is derived from its guard
+    (a NaN guard is the map's contract breach: recorded at ``M[8]``, as the Python
+    path's ``MapError``).
+
+    ``M`` = (f, g, hD, hC, D, C, D from its guard, C from its guard, the
+    address of the kernel's fault record): scalars only. An array in ``M``
+    (passed to every helper of the event search) cost 10% of a run."""
+    if M[6]:
+        v = M[2](y, s, j, p)
+        if v != v:
+            _fault(M[8], 1.0, s, j)
+            return False
+        return v >= 0.0
+    return M[4](y, s, j, p)
+
+
+@njit(cache=CACHE, **_NJL)
+def _inC(M, y, s, j, p):
+    """x in C: the indicator, or {flow_guard >= 0} (see :func:`_inD`)."""
+    if M[7]:
+        v = M[3](y, s, j, p)
+        if v != v:
+            _fault(M[8], 2.0, s, j)
+            return True
+        return v >= 0.0
+    return M[5](y, s, j, p)
+
+
+@njit(cache=CACHE, **_NJL)
+def _pred(M, s, y, j, p, has_C, d_active):
+    """The event has happened at (s, y): left C, or (watched) entered D."""
+    if has_C and not _inC(M, y, s, j, p):
+        return True
+    if d_active and _inD(M, y, s, j, p):
+        return True
+    return False
+
+
+@njit(cache=CACHE, **_NJL)
+def _phi(M, s, y, j, p, useD, useC):
+    """The continuous event function (>= 0 once the event has happened): every
+    given guard of the flow (``_Run._phi``). A NaN guard is recorded as the
+    Python path's ``MapError`` naming it (see :func:`_fault`)."""
+    v = -np.inf
+    if useD:
+        v = M[2](y, s, j, p)
+    if useC:
+        w = -M[3](y, s, j, p)
+        if w > v:
+            v = w
+        elif w != w:
+            v = w
+    if v != v:                       # either guard NaN (kept by the max above)
+        _phi_nan(M, s, y, j, p, useD)
+    return v
+
+
+@njit(cache=CACHE, **_NJL)
+def _phi_nan(M, s, y, j, p, useD):
+    """Record which guard returned NaN in :func:`_phi` (the jump guard first, as
+    ``_Run._phi`` names it): off the event search's fast path."""
+    if useD:
+        v = M[2](y, s, j, p)
+        if v != v:
+            _fault(M[8], 1.0, s, j)
+            return
+    _fault(M[8], 2.0, s, j)
+
+
+@njit(cache=CACHE, **_NJL)
+def _secant(M, yold, hQ, told, h, j, p, useD, useC, lo, hi, flo, fhi, seeded, s0, slope0,
+            wk):
+    """``events._secant`` (its steps :func:`hybridsim.events.secant_trial` and
+    :func:`hybridsim.events.secant_slope`): secant steps from the last evaluation, accepted inside
+    the bracket when shorter than half the step before last, else bisection;
+    ``seeded``: ``s0`` is the first trial, ``slope0`` the guard's slope there.
+    Returns the bracket (lo, hi); ``wk`` holds the trial points' states."""
+    d1 = np.inf
+    d2 = np.inf
+    if -flo < fhi:
+        xl = lo
+        fl = flo
+    else:
+        xl = hi
+        fl = fhi
+    slope = (fhi - flo) / (hi - lo)
+    for _ in range(100):
+        tol = rules.event_tolerance(lo, hi)
+        if hi - lo <= tol:
+            break
+        s = events.secant_trial(lo, hi, xl, fl, slope, d2, tol, seeded, s0)
+        _dense_to(wk, yold, hQ, told, h, s)
+        fs = _phi(M, s, wk, j, p, useD, useC)
+        if seeded:
+            slope = slope0
+            seeded = False
+        else:
+            slope = events.secant_slope(fs, fl, s, xl)
+        d2 = d1
+        d1 = abs(s - xl)
+        xl = s
+        fl = fs
+        if fs >= 0.0:
+            hi = s
+            fhi = fs
+        else:
+            lo = s
+            flo = fs
+    return lo, hi
+
+
+@njit(cache=CACHE, **_NJL)
+def _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, b,
+            yb, yb_known, wk, ylo, yhi):
+    """:func:`hybridsim.events.locate_event` on the step's dense output (``yb``:
+    the state at b where ``yb_known``; the state at the step's start is exact).
+    Returns the bracket (lo, hi); the states of its ends are written into
+    ``ylo`` and ``yhi`` (the run's scratch rows: no array made an event).
+
+    The bracket is narrowed on times, trial points evaluated in ``wk``;
+    ``ylo`` holds the state at ``ylo_at`` (and ``yhi`` at ``yhi_at``), made
+    again at the bracket's end times when it is done: the same values as
+    the states kept along the way."""
+    lo, hi = a, b
+    if a == told:
+        _copy_to(ylo, yold)
+    else:
+        _dense_to(ylo, yold, hQ, told, h, lo)
+    if yb_known:
+        _copy_to(yhi, yb)
+    else:
+        _dense_to(yhi, yold, hQ, told, h, hi)
+    ylo_at = lo
+    yhi_at = hi
+    if phi_on:
+        flo = _phi(M, lo, ylo, j, p, useD, useC)
+        fhi = _phi(M, hi, yhi, j, p, useD, useC)
+        seeded = False
+        s0 = np.nan
+        slope0 = np.nan
+        if not flo < 0.0 and fhi >= 0.0:
+            # on the guard's zero at the start: one probe gives the direction,
+            # and with the end value a first estimate of the root
+            d = max(64.0 * rules.event_tolerance(lo, hi), 1e-9 * (hi - lo))
+            if lo + d < hi:
+                _dense_to(wk, yold, hQ, told, h, lo + d)
+                fd = _phi(M, lo + d, wk, j, p, useD, useC)
+                if fd < 0.0 and not _pred(M, lo + d, wk, j, p, has_C, d_active):
+                    tau, slope0 = events.root_off_zero(flo, fd, fhi, d, hi - lo)
+                    if tau == tau:
+                        seeded = True
+                        s0 = lo + tau
+                    lo = lo + d
+                    _copy_to(ylo, wk)
+                    ylo_at = lo
+                    flo = fd
+        for _ in range(200):
+            if (flo < 0.0 and 0.0 <= fhi) or hi - lo <= rules.event_tolerance(lo, hi):
+                break
+            m = 0.5 * (lo + hi)
+            _dense_to(wk, yold, hQ, told, h, m)
+            if _pred(M, m, wk, j, p, has_C, d_active):
+                hi = m
+                fhi = _phi(M, m, wk, j, p, useD, useC)
+            else:
+                lo = m
+                flo = _phi(M, m, wk, j, p, useD, useC)
+        if (flo < 0.0 and 0.0 <= fhi) and hi - lo > rules.event_tolerance(lo, hi):
+            l2, h2 = _secant(M, yold, hQ, told, h, j, p, useD, useC, lo, hi, flo, fhi,
+                             seeded, s0, slope0, wk)
+            # the indicator decides membership: keep the guard's bracket where it
+            # agrees (the state at h2, then at l2, in wk where not kept already)
+            if h2 == yhi_at:
+                in_h2 = _pred(M, h2, yhi, j, p, has_C, d_active)
+            else:
+                _dense_to(wk, yold, hQ, told, h, h2)
+                in_h2 = _pred(M, h2, wk, j, p, has_C, d_active)
+                if in_h2:
+                    _copy_to(yhi, wk)
+            if in_h2:
+                hi = h2
+                yhi_at = hi
+                lo = l2
+                if l2 != ylo_at:
+                    _dense_to(ylo, yold, hQ, told, h, l2)
+                ylo_at = lo
+            elif l2 == ylo_at:
+                if not _pred(M, l2, ylo, j, p, has_C, d_active):
+                    lo = l2
+            else:
+                _dense_to(wk, yold, hQ, told, h, l2)
+                if not _pred(M, l2, wk, j, p, has_C, d_active):
+                    lo = l2
+                    _copy_to(ylo, wk)
+                    ylo_at = lo
+    for _ in range(200):
+        if hi - lo <= rules.event_tolerance(lo, hi):
+            break
+        m = 0.5 * (lo + hi)
+        _dense_to(wk, yold, hQ, told, h, m)
+        if _pred(M, m, wk, j, p, has_C, d_active):
+            hi = m
+        else:
+            lo = m
+    if lo != ylo_at:
+        _dense_to(ylo, yold, hQ, told, h, lo)
+    if hi != yhi_at:
+        _dense_to(yhi, yold, hQ, told, h, hi)
+    return lo, hi
+
+
+@njit(cache=CACHE, **_NJI)
+def _maximize(M, yold, hQ, told, h, j, p, has_C, d_active, useD, useC, l, r, fl, fr):
+    """Golden-section search (``events._maximize``); returns NaN when nothing found."""
+    x1 = r - _INVPHI * (r - l)
+    x2 = l + _INVPHI * (r - l)
+    y1 = _dense(yold, hQ, told, h, x1)
+    y2 = _dense(yold, hQ, told, h, x2)
+    f1 = _phi(M, x1, _bare(y1), j, p, useD, useC)
+    f2 = _phi(M, x2, _bare(y2), j, p, useD, useC)
+    for _ in range(100):
+        if f1 >= 0.0 and _pred(M, x1, _bare(y1), j, p, has_C, d_active):
+            return x1
+        if f2 >= 0.0 and _pred(M, x2, _bare(y2), j, p, has_C, d_active):
+            return x2
+        if r - l <= rules.event_tolerance(l, r) or not events.near_peak(max(f1, f2), min(fl, fr)):
+            return np.nan
+        if f1 >= f2:
+            r = x2
+            fr = f2
+            x2 = x1
+            y2 = y1
+            f2 = f1
+            x1 = r - _INVPHI * (r - l)
+            y1 = _dense(yold, hQ, told, h, x1)
+            f1 = _phi(M, x1, _bare(y1), j, p, useD, useC)
+        else:
+            l = x1
+            fl = f1
+            x1 = x2
+            y1 = y2
+            f1 = f2
+            x2 = l + _INVPHI * (r - l)
+            y2 = _dense(yold, hQ, told, h, x2)
+            f2 = _phi(M, x2, _bare(y2), j, p, useD, useC)
+    return np.nan
+
+
+@njit(cache=CACHE, **_NJL)
+def _interior(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, b, WS):
+    """:func:`hybridsim.events.find_interior_event` with 3 samples: (found, lo, hi).
+
+    ``WS``: the run's (4, n) buffer, the samples' states in its first three
+    rows (read again for the guard values), other points in the last: no
+    array made a step."""
+    hh = b - a
+    if not hh > 0:
+        return False, a, b
+    y1, y2, y3, wk = WS[0], WS[1], WS[2], WS[3]
+    s1 = a + hh * 0.25
+    s2 = a + hh * 0.5
+    s3 = a + hh * 0.75
+    _dense_to(y1, yold, hQ, told, h, s1)
+    if _pred(M, s1, y1, j, p, has_C, d_active):
+        return True, a, s1
+    _dense_to(y2, yold, hQ, told, h, s2)
+    if _pred(M, s2, y2, j, p, has_C, d_active):
+        return True, s1, s2
+    _dense_to(y3, yold, hQ, told, h, s3)
+    if _pred(M, s3, y3, j, p, has_C, d_active):
+        return True, s2, s3
+    if not phi_on:
+        return False, a, b
+    _dense_to(wk, yold, hQ, told, h, a)
+    v0 = _phi(M, a, wk, j, p, useD, useC)
+    v1 = _phi(M, s1, y1, j, p, useD, useC)
+    v2 = _phi(M, s2, y2, j, p, useD, useC)
+    v3 = _phi(M, s3, y3, j, p, useD, useC)
+    _dense_to(wk, yold, hQ, told, h, b)
+    v4 = _phi(M, b, wk, j, p, useD, useC)
+    if not (np.isfinite(v0) and np.isfinite(v1) and np.isfinite(v2) and np.isfinite(v3)
+            and np.isfinite(v4)):
+        return False, a, b
+    # a peak at a sample between its neighbours (the samples' order: s1, s2, s3)
+    for k in range(1, 4):
+        if k == 1:
+            left, v, right, vl, vr = a, v1, s2, v0, v2
+        elif k == 2:
+            left, v, right, vl, vr = s1, v2, s3, v1, v3
+        else:
+            left, v, right, vl, vr = s2, v3, b, v2, v4
+        if v >= vl and v >= vr and events.near_peak(v, min(vl, vr)):
+            s = _maximize(M, yold, hQ, told, h, j, p, has_C, d_active, useD, useC,
+                          left, right, vl, vr)
+            if s == s:
+                return True, left, s
+    if v0 >= v1 and events.near_peak(v0, v1):
+        eps = 1e-3 * (s1 - a)
+        _dense_to(wk, yold, hQ, told, h, a + eps)
+        if _phi(M, a + eps, wk, j, p, useD, useC) > v0:
+            s = _maximize(M, yold, hQ, told, h, j, p, has_C, d_active, useD, useC,
+                          a, s1, v0, v1)
+            if s == s:
+                return True, a, s
+    # a peak between the last sample and b: only where the guard falls at b (the
+    # next step starts falling, so its own search never looks back)
+    if v4 >= v3 and events.near_peak(v4, v3):
+        eps = 1e-3 * (b - s3)
+        _dense_to(wk, yold, hQ, told, h, b - eps)
+        if _phi(M, b - eps, wk, j, p, useD, useC) > v4:
+            s = _maximize(M, yold, hQ, told, h, j, p, has_C, d_active, useD, useC,
+                          s3, b, v3, v4)
+            if s == s:
+                return True, s3, s
+    return False, a, b
+
+
+@njit(cache=CACHE, **_NJI)
+def _event(M, yold, hQ, told, h, j, p, has_C, has_D, d_active, phi_on, useD, useC,
+           a, lo, hi, clamp, h_abs, flow_t0, prio, rngp, yb, yb_known, wk, ylo, yhi):
+    """``_Run._event``: locate, then decide. Returns (kind, te, xe, lo, ylo, h_hint,
+    from_hi): ``from_hi``, a jump from the bracket's hi (``xe`` the state there),
+    whose bracket the post-jump tolerance reads (``rules.post_jump_probe``).
+    ``xe`` and ``ylo`` are the scratch rows ``ylo``/``yhi`` the bracket's end
+    states are written into (:func:`_locate`): read before the next event."""
+    lo, hi = _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, lo, hi,
+                     yb, yb_known, wk, ylo, yhi)
+    if hi <= flow_t0:
+        hint = np.nan
+    else:
+        hint = min(h_abs, 10.0 * (hi - flow_t0))
+    te_hi = hi if not clamp == clamp else min(hi, clamp)
+    # ``rules.event_outcome``: the maps are read only where the rule needs them
+    in_D_hi = has_D and _inD(M, _bare(yhi), hi, j, p)
+    in_C_hi = True
+    in_D_lo = False
+    coin = True
+    if d_active and in_D_hi:
+        in_C_hi = (not has_C) or _inC(M, _bare(yhi), hi, j, p)
+        if rules.needs_coin(in_C_hi, True, prio):
+            coin = _coin(rngp)
+    elif has_D:
+        in_D_lo = _inD(M, _bare(ylo), lo, j, p)
+    action, side = rules.event_outcome(d_active, in_D_hi, in_C_hi, in_D_lo, prio, coin)
+    if action == _A_FLOW:
+        return _O_FLOW_ON, te_hi, yhi, lo, ylo, hint, False
+    if action == _A_STOP:
+        return _O_STOP, lo, ylo, lo, ylo, hint, False
+    if side == 1:
+        return _O_JUMP, te_hi, yhi, lo, ylo, hint, True
+    return _O_JUMP, lo, ylo, lo, ylo, hint, False
+
+
+@njit(cache=CACHE, **_NJI)
+def _near_C(M, x, j, p, lo, yold, hQ, told, h, x_hi):
+    """``_Run._near_C``: a post-jump state in neither C nor D is within the located
+    event's tolerance of C (``rules.post_jump_probe``; off the run's main loop).
+
+    The bracket's x_lo is rebuilt here, not kept per jump: the event step's
+    dense output (``yold``, ``hQ``, ``told``, ``h``: untouched between the
+    event and this test) at ``lo``, as :func:`_locate` made it (``yold``
+    itself where ``lo`` is the step's start)."""
+    x_lo = yold.copy() if lo == told else _dense(yold, hQ, told, h, lo)
+    tp, xp = rules.post_jump_probe(x, lo, x_lo, x_hi)
+    return _inC(M, xp, tp, j, p)

@@ -1,0 +1,739 @@
+"""The compiled path's runners: :func:`simulate_compiled` (one run) and
+:func:`simulate_many_compiled` (a batch on worker threads taking rows from a
+shared counter), the options packed for the kernels, and the arcs and messages
+made of the kernels' results.
+"""
+from __future__ import annotations
+
+import concurrent.futures
+import gc
+import math
+import mmap
+import os
+import threading
+import warnings
+
+import numpy as np
+
+from ..arc import HybridArc, _describe, _one_sample
+from ..options import check_unsupported, check_x0, method_on, parse_run
+from ..rules import (
+    CAUSES,
+    DETAILS,
+    MapError,
+    Priority,
+    Termination,
+    finish,
+    finish_batch,
+    message,
+)
+from . import _layout as lay
+from ._system import CompiledSystem, _load_kernel, _notice
+
+__all__ = ["simulate_compiled", "simulate_many_compiled"]
+
+_I64_MAX = np.iinfo(np.int64).max
+_RANDOM = Priority.RANDOM
+#: the Generator of runs that draw no coins, and its addresses (built once)
+_DUMMY_RNG = None
+#: the stop flag of single runs (never set: they poll the interpreter's signal check)
+_NO_STOP = np.zeros(1, np.int64)
+#: the rows a batch's thread takes at a time from the shared counter
+_CHUNK = 4
+
+
+def _x0(x0, n):
+    """:func:`hybridsim.options.check_x0` (same errors), a list or tuple of n
+    finite floats or a float64 array of shape (n,) taken without numpy's
+    per-call costs (the kernel copies x0, never writes it)."""
+    t = type(x0)
+    if t is list or t is tuple:
+        if len(x0) == n and all(type(v) is float for v in x0) and all(map(math.isfinite, x0)):
+            return np.array(x0)
+    elif t is np.ndarray and x0.dtype == np.float64 and x0.shape == (n,) and \
+            x0.flags.c_contiguous and all(map(math.isfinite, x0.tolist())):
+        return x0
+    return np.ascontiguousarray(check_x0(x0, n))
+
+
+def _check_system(system):
+    if not isinstance(system, CompiledSystem):
+        raise TypeError(f"system must be a hybridsim.compiled.CompiledSystem (maps of "
+                        f"(x, t, j, p) numba can compile), got {type(system).__name__}; "
+                        f"run other systems with hs.simulate (the Python path)")
+
+
+#: the options a path may refuse (:data:`hybridsim.options.SUPPORTS`); others are unknown
+_REFUSABLE = ("inputs", "prehistory", "dense", "t_eval", "progress", "dwell")
+
+
+#: the options of both compiled entry points, in the order :func:`_options` takes them
+_OPTION_NAMES = ("t0", "j0", "t_max", "j_max", "priority", "rtol", "atol", "max_step",
+                 "first_step", "max_norm", "zeno_jumps", "zeno_time", "zeno_rtol", "refine",
+                 "max_steps", "max_samples", "throw", "warn")
+
+
+def _options(system, n, caller, method, extra, vals):
+    """Validate like :func:`hybridsim.simulate` (:func:`hybridsim.options.parse_run`:
+    the same exception and message for the same bad input) and pack the
+    kernel's option arrays. ``vals``: the values of :data:`_OPTION_NAMES`, in
+    order. Returns ``(ro, fopt, iopt, atol)`` (the kernels only read the
+    arrays: a repeated call returns the same ones)."""
+    # the same options again (a loop of runs): parsed once per system (a
+    # positional key: packing keywords into a dict was a tenth of a short run)
+    memo = system._nb["memo"]
+    key = None
+    if not extra:
+        try:
+            # what the packed arrays read of the system: its max_step and delays
+            # (systems lowered from one structure share this memo, not their delays);
+            # the types too: 1, 1.0 and True are equal keys, not equal options
+            key = (caller, method, n, system.max_step, system.delays, vals)
+            hit = memo.get(key)
+        except TypeError:       # an array atol: parsed every time
+            key = hit = None
+        types = (type(system.max_step), *map(type, vals))
+        if hit is not None and hit[0] == types:
+            return hit[1]
+    out = _parse_options(system, n, caller, method, extra, dict(zip(_OPTION_NAMES, vals)))
+    if key is not None:
+        if len(memo) >= 64:
+            memo.clear()
+        memo[key] = (types, out)
+    return out
+
+
+def _parse_options(system, n, caller, method, extra, shared):
+    """:func:`_options` without its memo."""
+    for name in extra:
+        if name not in _REFUSABLE:
+            raise TypeError(f"{caller}() got an unexpected keyword argument {name!r}")
+    check_unsupported("compiled", dict(extra, method=method))
+    method_on("compiled", method, system)
+    ro = parse_run(system, n, **shared)
+    # the delays (the flow map's past, CompiledSystem(delays=)) after the options
+    fopt = np.empty(lay.F_DELAYS + len(system.delays))
+    fopt[lay.F_T0] = ro.t0
+    fopt[lay.F_T_MAX] = ro.t_max
+    fopt[lay.F_J_MAX] = ro.j_max
+    fopt[lay.F_RTOL] = ro.rtol
+    fopt[lay.F_MAX_STEP] = ro.max_step
+    fopt[lay.F_FIRST_STEP] = np.nan if ro.first_step is None else ro.first_step
+    fopt[lay.F_MAX_NORM] = ro.max_norm
+    fopt[lay.F_ZENO_TIME] = ro.zeno_time
+    fopt[lay.F_ZENO_RTOL] = ro.zeno_rtol
+    fopt[lay.F_DELAYS:] = system.delays
+    nb = system._nb
+    iopt = np.empty(lay.I_SIZE, np.int64)
+    iopt[lay.I_J0] = ro.j0
+    iopt[lay.I_PRIO] = int(ro.prio)
+    iopt[lay.I_MAX_STEPS] = _I64_MAX if ro.max_steps == math.inf else ro.max_steps
+    iopt[lay.I_MAX_SAMPLES] = _I64_MAX if ro.max_samples == math.inf else ro.max_samples
+    iopt[lay.I_ZENO_JUMPS] = ro.zeno_jumps
+    iopt[lay.I_REFINE] = ro.refine
+    iopt[lay.I_HAS_C] = nb["has_C"]
+    iopt[lay.I_HAS_D] = nb["has_D"]
+    iopt[lay.I_HAS_HC] = nb["has_hC"]
+    iopt[lay.I_HAS_HD] = nb["has_hD"]
+    iopt[lay.I_CAP] = 64
+    iopt[lay.I_D_FROM_GUARD] = nb["D_from_guard"]
+    iopt[lay.I_C_FROM_GUARD] = nb["C_from_guard"]
+    iopt[lay.I_N_DELAYS] = len(system.delays)
+    # 1 in the batch kernel's rows: the run returns its buffers uncopied
+    # (run_rows copies them into its pool)
+    iopt[lay.I_ROW] = 0
+    if isinstance(ro.atol, float):
+        atol_a = np.full(n, ro.atol)
+    else:
+        atol_a = np.array(np.broadcast_to(np.asarray(ro.atol, dtype=np.float64), (n,)),
+                          order="C")
+    return ro, fopt, iopt, atol_a
+
+
+def _kernels(k, system, batch, method="RK45"):
+    """``(run, address)``: the system's run kernel for ``method`` ("RK45" or
+    "DOP853"; the cached generic one, maps passed by address, or its
+    specialised one) and that kernel's code address for
+    :func:`_kernel.run_rows` (compiled when ``batch``)."""
+    nb = system._nb
+    # (one structure lowered with other delays shares ``nb``: with delays or not)
+    delays = bool(system.delays)
+    tag = "" if method == "RK45" else "_" + method
+    one = nb.get("one" + tag)
+    if one is None and system.specialize:
+        # DOP853's specialised kernel: made when a run first asks for it
+        import numba
+        from numba.core.errors import NumbaExperimentalFeatureWarning
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", NumbaExperimentalFeatureWarning)
+            sub = system._compile_specialised(k, numba, method)
+        nb["one" + tag], nb["one_addr" + tag] = one, _ = sub["one"], sub["one_addr"]
+    if one is None:
+        k.compile_kernels(batch=batch, notice=_notice, delays=delays, method=method)
+        nb["one" + tag] = one = k.run_kernel(delays, method)
+        nb["one_addr" + tag] = k.one_address(delays, method)
+    elif batch:
+        k.compile_kernels(batch=True, notice=_notice, one=one is k.run_kernel(delays, method),
+                          delays=delays, method=method)
+    return one, nb["one_addr" + tag]
+
+
+# ---------------------------------------------------------------- arcs and messages
+#: the Python path's stats keys, in its order
+_STAT_KEYS = ("steps", "nfev", "njev", "nlu", "events", "flows", "rejected")
+_SOLVER_REASON = "Required step size is less than spacing between numbers."   # scipy's words
+
+
+def _map_error(system, k, detail, info, x, t, j):
+    """``(text, map_name)`` of a map's contract breach, in the Python path's words:
+    the map is evaluated again in Python at the point the kernel reports and
+    its value checked by :func:`hybridsim.options.check_map_value`."""
+    from ..options import check_map_value
+    n = system.state_dim
+    if detail == k.MAP_GUARD:
+        name = "jump_guard" if info[2] == 1.0 else "flow_guard"
+        return f"{name} returned NaN (at t={t:.10g}, j={j})", name
+    if detail == k.MAP_HISTORY:         # the Python path's HistoryError, in its words
+        return (f"flow_map raised HistoryError: history: x({info[1]}) lies in the solver step "
+                f"under way (recorded up to t={info[2]}); cap the step with max_step <= the "
+                f"smallest delay (at t={t:.10g}, j={j})"), "flow_map"
+    jumpish = detail in (k.MAP_JUMP_SHAPE, k.MAP_JUMP_VALUE, k.MAP_JUMP_X0)
+    name = "jump_map" if jumpish else "flow_map"
+    role = "jump" if jumpish else "flow"
+    if role not in system.maps:
+        return (f"the state is in the jump set at t={t:.10g}, j={j} but the system has no "
+                f"jump map"), name
+    try:
+        p = system._p_nan if system.delays else system.params     # the past: unread here
+        check_map_value(name, system.maps[role](np.array(x), t, j, p), n, t, j)
+    except MapError as e:
+        return str(e), name
+    except Exception as e:  # noqa: BLE001 - the map raised in Python: say so
+        return f"{name} raised {type(e).__name__}: {e} (at t={t:.10g}, j={j})", name
+    m = int(info[2]) if info[2] == info[2] else n
+    if m != n:
+        return f"{name} must return an array of shape ({n},), got shape ({m},) " \
+               f"(at t={t:.10g}, j={j})", name
+    return f"{name} returned non-finite values (at t={t:.10g}, j={j})", name
+
+
+#: ``_message``'s result for the plain ends (t_max, j_max): by cause code
+_PLAIN_END = {CAUSES.index(c): (c, c.message, None) for c in (Termination.T_MAX,
+                                                              Termination.J_MAX)}
+
+
+def _message(system, k, code, detail, info, T, J, X, stats, ro):
+    """``(cause, message, exception)`` of a kernel's result: the words of
+    :data:`hybridsim.rules.DETAILS` (:func:`hybridsim.rules.message`)."""
+    if (code == k.T_MAX or code == k.J_MAX) and detail != k.DETAIL_LOOP:
+        return _PLAIN_END[code]
+    cause = CAUSES[code]
+    if (cause is Termination.J_MAX or cause is Termination.ZENO) and detail == k.DETAIL_LOOP:
+        # a jump loop (rules.is_jump_loop): its jumps, all at one instant
+        return cause, message(cause, "loop", count=int(info[2]), t=float(info[0])), None
+    if cause is Termination.T_MAX or cause is Termination.J_MAX:
+        return cause, cause.message, None
+    t = float(info[0]) if info[0] == info[0] else float(T[-1])
+    j = int(info[3]) if info[3] == info[3] else int(J[-1])
+    x = X[-1]
+    if cause is Termination.MAP_ERROR:
+        text, name = _map_error(system, k, detail, info, X[-1], t, j)
+        return cause, message(cause, error=text), MapError(text, name, t, j)
+    if cause is Termination.CANCELED:
+        return cause, message(cause, t=float(T[-1]), j=int(J[-1])), None
+    if cause is Termination.ZENO:
+        if detail == 0:
+            return cause, message(cause, "zeno", count=int(info[2]), t=t), None
+        if detail == 1:
+            return cause, message(cause, "sticking", t=t, j=j, x=x,
+                                  flows=[info[1], info[4], info[5]]), None
+        return cause, message(cause, "short", t=t), None
+    kind, fields = None, {"t": t, "j": j, "x": x}
+    if cause is Termination.LEFT_SETS and detail == 1:
+        kind = "left"
+    elif cause is Termination.NON_FINITE:
+        kind = ("step", "flow", "dense")[detail]
+        if (cause, kind) not in DETAILS:
+            kind = "step"
+        fields["t2"] = float(info[1])
+    elif cause is Termination.BLOWUP:
+        fields.update(norm=float(info[2]), max_norm=ro.max_norm)
+    elif cause is Termination.SOLVER_FAILED:
+        fields["reason"] = _SOLVER_REASON
+    elif cause is Termination.MAX_STEPS:
+        kind = "steps" if detail == 0 else "samples"
+        if detail != 0:             # the sample cap: where the last sample was stored
+            fields["t"] = float(T[-1])
+        fields.update(steps=int(stats[0]), max_steps=ro.max_steps, samples=len(T),
+                      max_samples=ro.max_samples)
+    return cause, message(cause, kind, **fields), None
+
+
+def _stats(s):
+    """An arc's ``stats`` from the kernel's (steps, rejected, nfev, events, flows, jumps)."""
+    return {"steps": s[0], "nfev": s[2], "njev": 0, "nlu": 0, "events": s[3], "flows": s[4],
+            "rejected": s[1]}
+
+
+def _stats_of(ST, rows):
+    """``i -> _stats(ST[rows[i]])`` (a pooled arc's, made on first access)."""
+    return lambda i: _stats(ST[rows[i]].tolist())
+
+
+def _arc(system, k, T, J, X, XD, code, detail, info, stats, ro):
+    """The run's :class:`HybridArc`; a map's breach at x0 is raised at once (as
+    on the Python path), with ``.arc`` (cause ``MAP_ERROR``) set."""
+    cause, msg, exc = _message(system, k, code, detail, info, T, J, X, stats, ro)
+    st = _stats(stats.tolist() if isinstance(stats, np.ndarray) else stats)
+    # the kernels' own arrays: (N,) float64 t, int64 j, (N, n) float64 x and xdot
+    desc = system._nb.get("description")
+    if desc is None:
+        system._nb["description"] = desc = _describe(system)
+    arc = HybridArc._trusted(T, J, X, cause, msg, exc, system=system, xdot=XD, stats=st,
+                             description=desc)
+    if exc is not None:
+        exc.arc = arc
+    return arc
+
+
+def _at_x0(k, arc, detail):
+    """A map's breach at x0: raised at once by a single run (as on the Python path)."""
+    return arc.termination is Termination.MAP_ERROR and (
+        detail in (k.MAP_FLOW_X0, k.MAP_JUMP_X0) or (detail == k.MAP_GUARD and len(arc.t) == 1))
+
+
+def _rng_for(k, prio, seed):
+    """``(rng, rngp)``: the run's numpy Generator and its addresses for the
+    kernel (:func:`_types.rng_pointers`; the caller keeps ``rng`` alive)."""
+    global _DUMMY_RNG
+    if prio == _RANDOM or seed is not None:
+        from ..options import check_seed as _check_seed
+        rng = _check_seed(seed)
+        if prio == _RANDOM:
+            return rng, k.rng_pointers(rng)
+    if _DUMMY_RNG is None:
+        rng = np.random.default_rng(0)
+        _DUMMY_RNG = rng, k.rng_pointers(rng)
+    return _DUMMY_RNG
+
+
+def simulate_compiled(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priority="jumps",
+                      rtol=1e-6, atol=1e-9, max_step=math.inf, first_step=None,
+                      max_steps=1_000_000, max_samples=10_000_000, zeno_jumps=50,
+                      zeno_time=1e-12, zeno_rtol=1e-7, max_norm=math.inf, seed=None,
+                      refine=1, throw=True, warn=True, method="RK45", **unsupported):
+    """Simulate a :class:`CompiledSystem` entirely in compiled code.
+
+    The same run as ``hs.simulate(system, x0, t_max, j_max, method=method,
+    ...)``: Dormand-Prince 5(4) steps with scipy RK45's error control and
+    step-size controller (or scipy DOP853's 8(5,3)), events located to 4 ulp
+    on the step's dense output
+    (the Python path's root finder on guards, bisection of the indicators,
+    the interior search for excursions within one step), the same priorities, limits and
+    termination causes, and the same :class:`hybridsim.HybridArc` (``t``,
+    ``j``, ``x``, ``xdot``, ``stats``, ``termination``, ``message``).
+
+    Parameters
+    ----------
+    system : CompiledSystem
+    x0 : array_like, shape (n,)
+    t_max, j_max, t0, j0, priority, rtol, atol, max_step, first_step, max_steps,
+    max_samples, zeno_jumps, zeno_time, zeno_rtol, max_norm, seed, refine, throw, warn
+        As in :func:`hybridsim.simulate` (``seed`` drives ``priority="random"``
+        with the same numpy Generator stream, so coins agree with the Python
+        path).
+    method : {"RK45", "DOP853"} or scipy's class
+        The Runge-Kutta pair (scipy's steps, error norm, step-size controller
+        and dense output). DOP853, for tight tolerances (rtol 1e-8 and
+        below), takes several times fewer steps; as on the Python path, its
+        interior event search runs on the cubic Hermite of each step's ends
+        and confirms a hit on the dense output (three more evaluations of
+        the flow map), and its refined samples carry no derivative (NaN).
+        Its kernel compiles (about 15 s, once per machine) when a run first
+        asks for it. Not with ``delays``; other methods are refused by name.
+
+    Returns
+    -------
+    HybridArc
+        Ctrl-C during the run ends it with ``CANCELED`` and the arc so far.
+
+    Raises
+    ------
+    ImportError
+        numba is missing (``pip install 'hybridsim[fast]'``).
+    CompileError
+        A map numba cannot compile (named); ``hs.simulate`` is the fallback.
+    MapError
+        A jump map returned a non-finite or mis-shaped value, or a guard that
+        defines a set returned NaN (``throw=True``; the policy of
+        :func:`hybridsim.rules.finish`); bad values at x0 are raised at once,
+        as on the Python path. ``.arc`` ends with ``MAP_ERROR``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hybridsim.compiled import CompiledSystem, simulate_compiled
+    >>> timer = CompiledSystem(flow=lambda x, t, j, p: np.ones(1),
+    ...                        jump=lambda x, t, j, p: np.zeros(1),
+    ...                        jump_guard=lambda x, t, j, p: x[0] - p[0],
+    ...                        flow_guard=lambda x, t, j, p: p[0] - x[0],
+    ...                        state_dim=1, params=[1.0])
+    >>> arc = simulate_compiled(timer, [0.0], t_max=3.0)
+    >>> np.round(arc.jump_times, 12)
+    array([1., 2., 3.])
+
+    DOP853, for tight tolerances (its kernel compiles on first use):
+
+    >>> arc = simulate_compiled(timer, [0.0], t_max=3.0, method="DOP853", rtol=1e-12)
+    >>> np.round(arc.jump_times, 12)
+    array([1., 2., 3.])
+    """
+    k = _load_kernel()
+    _check_system(system)
+    n = system.state_dim
+    x = _x0(x0, n)
+    system.compile()
+    ro, fopt, iopt, atol_a = _options(
+        system, n, "simulate_compiled", method, unsupported,
+        (t0, j0, t_max, j_max, priority, rtol, atol, max_step, first_step, max_norm,
+         zeno_jumps, zeno_time, zeno_rtol, refine, max_steps, max_samples, throw, warn))
+    one, _ = _kernels(k, system, False, method_on("compiled", method))
+    rng, rngp = _rng_for(k, ro.prio, seed)
+    T, J, X, XD, code, detail, info, stats = one(
+        *system._nb["args"], x, system.params, fopt, iopt, atol_a, rngp, k.POLL_GIL, _NO_STOP)
+    del rng
+    arc = _arc(system, k, T, J, X, XD, code, detail, info, stats, ro)
+    if code == k.T_MAX or code == k.J_MAX:      # neither raised nor warned (rules.finish)
+        return arc
+    if _at_x0(k, arc, detail):
+        raise arc.exception
+    return finish(arc, ro.throw, ro.warn)
+
+
+def _threads(parallel, rows):
+    """How many threads run a batch of ``rows``: numba's thread count
+    (``NUMBA_NUM_THREADS``, or ``numba.set_num_threads`` where numba's threads
+    were started), at most one per 8 rows. numba's threading layer is not
+    started here (``numba.get_num_threads`` would start it)."""
+    if not parallel:
+        return 1
+    import numba
+    from numba.np.ufunc import parallel as nb_parallel
+    if getattr(nb_parallel, "_is_initialized", False):
+        nt = numba.get_num_threads()
+    else:
+        nt = numba.config.NUMBA_NUM_THREADS
+    return max(1, min(nt, os.cpu_count() or 1, rows // 8))
+
+
+#: the batch kernels' worker threads, kept between batches (starting two
+#: threads and joining them took about 0.2 ms a chunk); made on first use and
+#: forgotten in a forked child (its threads do not exist there)
+_POOL = []
+_POOL_LOCK = threading.Lock()
+
+
+def _untouched(shape, dtype=np.float64):
+    """An uninitialised array for a batch's sample pool, on fresh pages without
+    numpy's huge-page advice.
+
+    numpy advises huge pages for arrays of 4 MiB and more; where the kernel
+    compacts memory to make them at the first write (Linux's default THP
+    ``defrag`` policy for advised memory), a 100,000-ball batch spent up to
+    0.9 s of system time in it, against 0.1-0.18 s on ordinary pages. Pages
+    the batch never writes are never made; the memory is returned when the
+    last view of it (a pooled arc's) is gone. (No map on Windows: numpy's.)"""
+    nbytes = math.prod(shape) * np.dtype(dtype).itemsize
+    if nbytes < (4 << 20) or not hasattr(mmap, "MAP_ANONYMOUS"):
+        return np.empty(shape, dtype)
+    buf = mmap.mmap(-1, nbytes, flags=mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS)
+    return np.frombuffer(buf, dtype).reshape(shape)
+
+
+def _cut(a, used):
+    """The first ``used`` rows of a pool array from :func:`_untouched`: numpy's
+    own cut in place (no copy, the tail freed), the mapped one as a view (its
+    tail never written, so never made)."""
+    if a.flags.owndata:
+        a.resize((used,) + a.shape[1:], refcheck=False)
+        return a
+    return a[:used]
+
+
+def _forget_pool():
+    _POOL.clear()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_pool)
+
+
+def _workers(threads):
+    """The worker pool, with room for ``threads`` tasks at once."""
+    with _POOL_LOCK:
+        if not _POOL or _POOL[0][1] < threads:
+            if _POOL:
+                _POOL.pop()[0].shutdown(wait=False)
+            size = max(threads, os.cpu_count() or 1)
+            _POOL.append((concurrent.futures.ThreadPoolExecutor(
+                size, thread_name_prefix="hybridsim-compiled-batch"), size))
+        return _POOL[0][0]
+
+
+def _interruptible(fn, args, stop, threads=1):
+    """Call a GIL-free batch kernel in ``threads`` worker threads (each takes
+    rows from the batch's shared counter) so that Ctrl-C stops it: the
+    calling thread waits and, on KeyboardInterrupt, sets ``stop[0]`` (every
+    run reads it at each step and ends ``CANCELED``). Returns
+    ``interrupted``. Off the main thread (no signals arrive there) it waits
+    without that. The workers are Python threads kept between batches
+    (:func:`_workers`), not a numba threading layer."""
+    futures = [_workers(threads).submit(fn, *args) for _ in range(threads)]
+    interrupted = False
+    errors = []
+    for fut in futures:
+        while True:
+            try:
+                err = fut.exception()
+                break
+            except KeyboardInterrupt:
+                stop[0] = 1
+                interrupted = True
+        if err is not None:
+            errors.append(err)
+    if errors:
+        raise errors[0]
+    return interrupted
+
+
+def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
+                           chunk_bytes=64 * 2**20, t0=0.0, j0=0, priority="jumps",
+                           rtol=1e-6, atol=1e-9, max_step=math.inf, first_step=None,
+                           max_steps=1_000_000, max_samples=10_000_000, zeno_jumps=50,
+                           zeno_time=1e-12, zeno_rtol=1e-7, max_norm=math.inf, seed=None,
+                           refine=1, throw=False, warn=True, method="RK45", **unsupported):
+    """Simulate a :class:`CompiledSystem` from many initial states, compiled and in parallel.
+
+    Each run is exactly :func:`simulate_compiled`'s (same steps, events and
+    arc); runs are spread over threads, one per core (``NUMBA_NUM_THREADS`` or
+    ``numba.set_num_threads`` limits them), each taking the next few rows
+    from a shared counter as it finishes: a thread slowed by other work on
+    the machine takes fewer rows, so threads help under load too. The
+    threads are Python threads running a GIL-free kernel (no numba threading
+    layer: a fork-based process pool afterwards is safe, and several threads
+    may run batches at once). The batch is processed in chunks
+    whose sample pool stays under ``chunk_bytes``, sized by four runs spread
+    over the batch (or, when the same system runs again with the same
+    options and parameters, by the last batch's, every row in parallel);
+    each run's samples go into the pool when it ends, and
+    the runs that find no room run again, in parallel, in a later round
+    sized for the longest run seen. Memory is the returned arcs plus one
+    chunk's pool.
+
+    A batch keeps going when one of its runs fails, as
+    :func:`hybridsim.simulate_many`: a row whose initial state is not finite
+    (cause ``NON_FINITE``), whose map fails at its x0 (``MAP_ERROR``) or whose
+    run ends on a failure gets its own arc carrying the cause, and one
+    :class:`hybridsim.BatchWarning` names the failed rows. Ctrl-C stops the
+    batch: finished runs are kept, runs under way end ``CANCELED`` with the arc
+    so far, runs never started get a one-sample ``CANCELED`` arc.
+
+    Parameters
+    ----------
+    system : CompiledSystem
+    x0s : array_like, shape (N, n)
+        One initial state per row.
+    parallel : bool
+        False runs the batch on one core.
+    chunk_bytes : int
+        Memory budget of one chunk's sample pool.
+    throw : bool
+        False (default, as :func:`hybridsim.simulate_many`): failed rows keep
+        their arcs. True: after the whole batch ran, the first failed row
+        raises :class:`hybridsim.BatchError` (``.row``, ``.arc``, ``.arcs``).
+    t_max, j_max, **options
+        As in :func:`simulate_compiled`. With ``priority="random"`` the runs
+        go one after another, each with its own ``numpy.random.default_rng(seed)``
+        (as ``hs.simulate_many`` passes ``seed`` to every run).
+
+    Returns
+    -------
+    list of HybridArc
+        One per row of ``x0s``, in order. The arcs of runs ending at ``t_max``
+        or ``j_max`` take their samples and stats from the batch's compact
+        pool on first access (views of it, as every row's arrays are).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hybridsim.compiled import CompiledSystem, simulate_many_compiled
+    >>> timer = CompiledSystem(flow=lambda x, t, j, p: np.ones(1),
+    ...                        jump=lambda x, t, j, p: np.zeros(1),
+    ...                        jump_guard=lambda x, t, j, p: x[0] - p[0],
+    ...                        state_dim=1, params=[1.0])
+    >>> arcs = simulate_many_compiled(timer, [[0.0], [0.5]], t_max=2.0)
+    >>> [a.jump_count for a in arcs]
+    [2, 2]
+    """
+    from ..options import check_bool as _check_bool
+    from ..options import check_count as _check_count
+    k = _load_kernel()
+    _check_system(system)
+    n = system.state_dim
+    try:
+        X0 = np.array(x0s, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise TypeError(f"x0s must be an (N, {n}) array of floats, got "
+                        f"{type(x0s).__name__}") from e
+    if X0.ndim != 2 or X0.shape[1] != n:
+        raise ValueError(f"x0s must have shape (N, {n}), got {X0.shape}")
+    X0 = np.ascontiguousarray(X0)
+    parallel = _check_bool("parallel", parallel)
+    chunk_bytes = _check_count("chunk_bytes", chunk_bytes, minimum=1)
+    system.compile()
+    ro, fopt, iopt, atol_a = _options(
+        system, n, "simulate_many_compiled", method, unsupported,
+        (t0, j0, t_max, j_max, priority, rtol, atol, max_step, first_step, max_norm,
+         zeno_jumps, zeno_time, zeno_rtol, refine, max_steps, max_samples, throw, warn))
+    mname = method_on("compiled", method)
+    run, one_addr = _kernels(k, system, parallel, mname)
+    p = system.params
+    maps = system._nb["args"]
+    N = len(X0)
+    arcs = [None] * N
+    where = {"t0": ro.t0, "j0": ro.j0}
+    good = np.isfinite(X0).all(axis=1)
+    for i in np.flatnonzero(~good).tolist():        # as hs.simulate_many: the row's own arc
+        arcs[i] = _one_sample(X0[i], where, Termination.NON_FINITE,
+                              f"the initial state is not finite: {X0[i]}",
+                              ValueError(f"x0 must be finite, got {X0[i]}"), system)
+    rows = np.flatnonzero(good)
+    canceled = k.CANCELED
+
+    def one(i, rng):
+        T, J, X, XD, code, detail, info, stats = run(
+            *maps, X0[i], p, fopt, iopt, atol_a, rng[1], k.POLL_GIL, _NO_STOP)
+        arcs[i] = _arc(system, k, T, J, X, XD, code, detail, info, stats, ro)
+        return code == canceled, len(T)
+
+    stopped = False
+    # no cyclic garbage collection while the arcs are built (a 100,000-row batch
+    # makes 300,000 objects and triggered 400 collections, 6% of its time)
+    gc_on = gc.isenabled()
+    gc.disable()
+    try:
+        if ro.prio == Priority.RANDOM or not parallel:
+            for i in rows.tolist():
+                stopped, _ = one(i, _rng_for(k, ro.prio, seed))
+                if stopped:
+                    break
+        else:
+            rng = _rng_for(k, ro.prio, seed)
+            # a few runs alone first, spread over the batch (a sweep's first
+            # rows may be its shortest runs): their length sizes the pools. A
+            # batch of the same system, options and parameters again (a Monte
+            # Carlo's or a falsification's next batch) takes the last one's
+            # length and runs every row in parallel
+            sizes = system.__dict__.setdefault("_batch_lengths", {})
+            skey = (mname, fopt.tobytes(), iopt.tobytes(), atol_a.tobytes(), p.tobytes())
+            longest = sizes.get(skey, 0)
+            if not longest:
+                pick = np.unique(np.linspace(0, len(rows) - 1, min(4, len(rows))).round()
+                                 .astype(np.int64)) if len(rows) else np.zeros(0, np.int64)
+                first = rows[pick].tolist()
+                rows = np.delete(rows, pick)
+                longest = 2
+                for i in first:
+                    stopped, m = one(i, rng)
+                    longest = max(longest, m)
+                    if stopped:
+                        break
+                if not stopped:
+                    if len(sizes) >= 16:
+                        sizes.clear()
+                    sizes[skey] = longest
+            cap = 1 << math.ceil(math.log2(longest * 1.25 + 1))
+            per = (2 + 2 * n) * 8
+            c = 0
+            stop = np.zeros(1, np.int64)
+            iopt_rows = iopt.copy()
+            iopt_rows[lay.I_ROW] = 1
+            # the arcs of runs ending at t_max or j_max (most rows): built here,
+            # their message the cause's own (as _arc would)
+            plain = {c: (t, t.message) for c, t in ((k.T_MAX, Termination.T_MAX),
+                                                     (k.J_MAX, Termination.J_MAX))}
+            loop = k.DETAIL_LOOP
+            retry = []              # runs that found no room: the next round's rows
+            while not stopped:
+                if c >= len(rows):
+                    if not retry:
+                        break
+                    rows, retry, c = np.array(retry, np.int64), [], 0
+                B = int(max(64, min(len(rows) - c, chunk_bytes // (cap * per))))
+                B = min(B, len(rows) - c)
+                idx = rows[c:c + B]
+                # the chunk's compact pool: room for B runs of cap samples, each
+                # run's rows claimed when it ends (pages never written are never
+                # made; the pool is cut to what was written afterwards)
+                size = B * cap
+                iopt_rows[lay.I_CAP] = cap         # each run's first buffers: no doubling
+                TT, JJ = _untouched((size,)), _untouched((size,), np.int64)
+                XX, XXD = _untouched((size, n)), _untouched((size, n))
+                fill = np.zeros(1, np.int64)
+                AT = np.full(B, -1, np.int64)         # -1: not in the pool (not run, no room)
+                NS, CA, DE = (np.zeros(B, np.int64) for _ in range(3))
+                INFO, ST = np.empty((B, 6)), np.zeros((B, 6), np.int64)
+                stopped = _interruptible(
+                    k.run_rows, (one_addr, *maps, X0[idx] if B < N else X0, p, fopt, iopt_rows,
+                                 atol_a, rng[1], k.POLL_NONE, stop, np.zeros(1, np.int64),
+                                 _CHUNK, TT, JJ, XX, XXD, fill, AT, NS, CA, DE, INFO, ST),
+                    stop, _threads(parallel, B))
+                used = int(fill[0])
+                pool = tuple(_cut(a, used) for a in (TT, JJ, XX, XXD))
+                fits = AT >= 0
+                starts = np.where(fits, AT, 0)
+                ends = starts + np.where(fits, NS, 0)
+                easy = fits & (NS > 0) & (DE != loop)
+                done = np.zeros(B, bool)
+                for code, (term, msg) in plain.items():
+                    sel = np.flatnonzero(easy & (CA == code))
+                    if len(sel):
+                        made = HybridArc._pooled(
+                            pool, starts[sel].tolist(), ends[sel].tolist(), term, msg,
+                            system, _stats_of(ST, sel))
+                        for i, arc in zip(idx[sel].tolist(), made):
+                            arcs[i] = arc
+                        done[sel] = True
+                Tf, Jf, Xf, XDf = pool
+                for r in np.flatnonzero(~done).tolist():
+                    i = int(idx[r])
+                    o, e = int(starts[r]), int(ends[r])
+                    if fits[r]:
+                        ca = int(CA[r])
+                        if not (stopped and ca == canceled and NS[r] == 1 and
+                                not ST[r].any()):
+                            arcs[i] = _arc(system, k, Tf[o:e], Jf[o:e], Xf[o:e], XDf[o:e],
+                                           ca, int(DE[r]), INFO[r], ST[r].tolist(), ro)
+                    elif not stopped:
+                        # no room left in the pool: run again in a later round,
+                        # in parallel, with room for the longest run seen (so
+                        # a batch whose first rows are its shortest runs does
+                        # not run the others one by one)
+                        retry.append(i)
+                # the next chunk's room: the longest run seen, with margin
+                longest = int(NS.max()) if B else cap
+                cap = max(cap, 1 << math.ceil(math.log2(max(longest, 2) * 1.25)))
+                del TT, JJ, XX, XXD, pool
+                c += B
+    except KeyboardInterrupt:           # between two kernels: the runs so far are kept
+        stopped = True
+    finally:
+        if gc_on:
+            gc.enable()
+    if stopped:
+        for i in range(N):
+            if arcs[i] is None:
+                arcs[i] = _one_sample(X0[i], where, Termination.CANCELED,
+                                      "never started (the batch was interrupted)", None,
+                                      system)
+    return finish_batch("simulate_many_compiled", arcs, ro.throw, ro.warn)

@@ -1,0 +1,262 @@
+"""The compiled path's steps: dense output, error norms, the first step, and
+the sample store (imported only when numba is installed).
+
+Ported from scipy's ``RungeKutta`` (``select_initial_step``,
+``RkDenseOutput``, DOP853's dense output), as :mod:`hybridsim._rk` takes them.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ._types import (
+    _A8X,
+    _C8X,
+    _D8,
+    _GOES_ON,
+    _NJI,
+    _NJL,
+    CACHE,
+    MAP_ERROR,
+    NON_FINITE,
+    _bare,
+)
+
+
+@njit(cache=CACHE, **_NJL)
+def _dense_to(out, yold, hQ, told, h, s):
+    """A step's dense output at s written into ``out`` (the event search's trial
+    points: no array made per evaluation; :func:`_dense` makes one).
+
+    ``hQ`` says which, by its columns: 4, RK45's (h K^T P); 7, DOP853's
+    (scipy's ``Dop853DenseOutput``, its F transposed); 3, the cubic Hermite
+    of the step's ends (``solve._Hermite``: the state at the end, h f at the
+    start and h f at the end), DOP853's first interior search."""
+    x = (s - told) / h
+    m = hQ.shape[1]
+    if m == 4:
+        x2 = x * x
+        x3 = x2 * x
+        x4 = x3 * x
+        for i in range(yold.shape[0]):
+            out[i] = yold[i] + (hQ[i, 0] * x + hQ[i, 1] * x2 + hQ[i, 2] * x3 + hQ[i, 3] * x4)
+    elif m == 7:
+        x1 = 1.0 - x
+        for i in range(yold.shape[0]):
+            acc = 0.0
+            for k in range(6, -1, -1):
+                acc += hQ[i, k]
+                acc *= x if k % 2 == 0 else x1
+            out[i] = acc + yold[i]
+    else:
+        x2 = x * x
+        c1 = x2 * (3.0 - 2.0 * x)
+        c2 = x * (1.0 - x) ** 2
+        c3 = x2 * (x - 1.0)
+        for i in range(yold.shape[0]):
+            out[i] = (yold[i] + c1 * (hQ[i, 0] - yold[i]) + c2 * hQ[i, 1]) + c3 * hQ[i, 2]
+
+
+@njit(cache=CACHE, **_NJI)
+def _dense(yold, hQ, told, h, s):
+    """RK45's dense output at s (as :func:`hybridsim.events.fast_dense`)."""
+    out = np.empty(yold.shape[0])
+    _dense_to(out, yold, hQ, told, h, s)
+    return out
+
+
+@njit(cache=CACHE, **_NJL)
+def _copy_to(out, y):
+    """``out[:] = y`` as a loop (a state into a scratch row of the run)."""
+    for i in range(y.shape[0]):
+        out[i] = y[i]
+
+
+@njit(cache=CACHE, **_NJL)
+def _dense_deriv_to(XD, r, hQ, told, h, s):
+    """d/dt of the dense output at s (``solve._dense_derivative``, Q = hQ / h)
+    written into row ``r`` of ``XD``."""
+    x = (s - told) / h
+    for i in range(hQ.shape[0]):
+        XD[r, i] = (hQ[i, 0] / h + 2.0 * (hQ[i, 1] / h) * x + 3.0 * (hQ[i, 2] / h) * x * x
+                    + 4.0 * (hQ[i, 3] / h) * x * x * x)
+
+
+@njit(cache=CACHE, **_NJL)
+def _norm(v):
+    """The 2-norm of ``v`` (``np.sum(v * v)``'s order of sums: no array made)."""
+    s = 0.0
+    for i in range(v.shape[0]):
+        s += v[i] * v[i]
+    return math.sqrt(s)
+
+
+@njit(cache=CACHE, **_NJL)
+def _all_finite(v):
+    for i in range(v.size):
+        if not np.isfinite(v.flat[i]):
+            return False
+    return True
+
+
+@njit(cache=CACHE, **_NJL)
+def _put(A, i, v):
+    """``A[i] = v`` as a loop (numba's broadcasting setitem compiles its shape
+    error's formatting, seconds of every first compile)."""
+    for q in range(v.shape[0]):
+        A[i, q] = v[q]
+
+
+@njit(cache=CACHE, **_NJI)
+def _grown(T, J, X, XD, ns):
+    """The sample buffers, full at ``ns``, doubled (the first ``ns`` rows kept)."""
+    cap2 = 2 * T.shape[0]
+    n = X.shape[1]
+    T2 = np.empty(cap2)
+    J2 = np.empty(cap2, np.int64)
+    X2 = np.empty((cap2, n))
+    XD2 = np.empty((cap2, n))
+    for r in range(ns):
+        T2[r] = T[r]
+        J2[r] = J[r]
+        for q in range(n):
+            X2[r, q] = X[r, q]
+            XD2[r, q] = XD[r, q]
+    return T2, J2, X2, XD2
+
+
+@njit(cache=CACHE, **_NJL)
+def _store(T, J, X, XD, ns, t, j, x):
+    """Write the sample (t, j, x) at row ``ns`` (xdot NaN); the buffers have room.
+
+    The run appends with ``if ns == T.shape[0]: T, J, X, XD = _grown(...)``
+    then this on :func:`_bare` views: a helper returning the four buffers made
+    eight atomic reference counts a sample."""
+    T[ns] = t
+    J[ns] = j
+    for q in range(X.shape[1]):
+        X[ns, q] = x[q]
+        XD[ns, q] = np.nan
+
+
+@njit(cache=CACHE, **_NJL)
+def _scaled_rms(v, w, scale, diff):
+    """The RMS norm of ``v / scale``, or of ``(v - w) / scale`` where ``diff``
+    (a loop: no array made)."""
+    s = 0.0
+    for i in range(v.shape[0]):
+        e = ((v[i] - w[i]) if diff else v[i]) / scale[i]
+        s += e * e
+    return math.sqrt(s) / math.sqrt(v.shape[0])
+
+
+@njit(cache=CACHE, **_NJL)
+def _initial_guess(t0, y0, t_bound, f0, rtol, atol, y1, scale):
+    """scipy's ``select_initial_step`` (direction +1, order 4), its first part:
+    ``(h0, d1)`` (h0 0.0 where the interval is empty), with the Euler point
+    ``y1`` and the error ``scale`` written in place. The caller evaluates the
+    flow map at (t0 + h0, y1) and ends with :func:`_initial_step` (the flow
+    map with delays is another function: this one never calls it)."""
+    interval = abs(t_bound - t0)
+    if interval == 0.0:
+        return 0.0, 0.0
+    n = y0.shape[0]
+    for i in range(n):
+        scale[i] = atol[i] + abs(y0[i]) * rtol
+    d0 = _scaled_rms(y0, y0, scale, False)
+    d1 = _scaled_rms(f0, f0, scale, False)
+    if d0 < 1e-5 or d1 < 1e-5:
+        h0 = 1e-6
+    else:
+        h0 = 0.01 * d0 / d1
+    h0 = min(h0, interval)
+    for i in range(n):
+        y1[i] = y0[i] + h0 * f0[i]
+    return h0, d1
+
+
+@njit(cache=CACHE, **_NJL)
+def _initial_step(t0, t_bound, max_step, f0, f1, h0, d1, scale, order):
+    """``select_initial_step``'s end, from :func:`_initial_guess`'s ``h0``,
+    ``d1`` and ``scale`` and the flow map's value ``f1`` at its Euler point
+    (``order``: the method's error estimator's); -1.0 where ``f1`` has the
+    wrong length."""
+    if f1.shape[0] != f0.shape[0]:
+        return -1.0
+    d2 = _scaled_rms(f1, f0, scale, True) / h0
+    if d1 <= 1e-15 and d2 <= 1e-15:
+        h1 = max(1e-6, h0 * 1e-3)
+    else:
+        h1 = (0.01 / max(d1, d2)) ** (1.0 / (order + 1.0))
+    return min(100.0 * h0, h1, abs(t_bound - t0), max_step)
+
+
+@njit(cache=CACHE, **_NJI)
+def _dop853_dense(f, K, ya, yb, a, hs, j, p, yi, hQ):
+    """DOP853's dense output of the step from (a, ya) over hs to yb
+    (scipy's ``DOP853._dense_output_impl``): its three extra stages into
+    ``K[13:16]`` (``K[:13]``: the step's), F into ``hQ`` (n x 7, F
+    transposed). Returns 0, 1 where the flow map gave the wrong length, 2
+    where F is not finite (an overflow inside the step)."""
+    n = ya.shape[0]
+    for s in range(13, 16):
+        for i in range(n):
+            acc = 0.0
+            for m in range(s):
+                acc += K[m, i] * _A8X[s, m]
+            yi[i] = ya[i] + acc * hs
+        ks = f(yi, a + _C8X[s] * hs, j, p)
+        if ks.shape[0] != n:
+            return 1
+        for q in range(n):
+            K[s, q] = ks[q]
+    ok = True
+    for i in range(n):
+        dy = yb[i] - ya[i]
+        hQ[i, 0] = dy
+        hQ[i, 1] = hs * K[0, i] - dy
+        hQ[i, 2] = 2.0 * dy - hs * (K[12, i] + K[0, i])
+        for k in range(4):
+            acc = 0.0
+            for m in range(16):
+                acc += _D8[k, m] * K[m, i]
+            hQ[i, 3 + k] = hs * acc
+        for k in range(7):
+            ok = ok and math.isfinite(hQ[i, k])
+    return 0 if ok else 2
+
+
+@njit(cache=CACHE, **_NJI)
+def _dop853_step_dense(f, K, ya, yb, a, hs, j, p, yi, hQ, stats, info):
+    """:func:`_dop853_dense` for the run core: its evaluations counted, and
+    the run's (cause, detail) where it fails (``info`` filled)."""
+    r = _dop853_dense(f, K, ya, yb, a, hs, j, p, yi, hQ)
+    stats[2] += 3
+    if r == 0:
+        return _GOES_ON, 0
+    info[0] = a
+    info[3] = j
+    if r == 1:
+        return MAP_ERROR, 2
+    info[1] = a + hs
+    return NON_FINITE, 2
+
+
+@njit(cache=CACHE, **_NJI)
+def _refined(T, J, X, XD, ns, a, e, j, refine, ya, hQ, hs, deriv):
+    """The ``refine - 1`` samples inside a step's part from ``a`` to ``e``
+    (MATLAB's ``Refine``), from the step's dense output (``ya``, ``hQ``, its
+    length ``hs``), stored from row ``ns`` of the buffers (grown as needed).
+    Returns ``(T, J, X, XD, ns)`` after them. ``deriv``: their flow derivative
+    from the dense output too (RK45; none for DOP853, as on the Python path)."""
+    for r in range(1, refine):
+        s = a + (e - a) * (r / refine)
+        if ns == T.shape[0]:
+            T, J, X, XD = _grown(T, J, X, XD, ns)
+        _store(_bare(T), _bare(J), _bare(X), _bare(XD), ns, s, j, _dense(ya, hQ, a, hs, s))
+        if deriv:
+            _dense_deriv_to(_bare(XD), ns, hQ, a, hs, s)
+        ns += 1
+    return T, J, X, XD, ns

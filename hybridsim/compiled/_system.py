@@ -1,0 +1,412 @@
+"""The compiled path's system: :class:`CompiledSystem` (maps of ``(x, t, j, p)``
+numba can compile, usable on the Python path too), its compiling, and the
+engine loaded where numba is installed (:func:`_load_kernel`).
+"""
+from __future__ import annotations
+
+import os
+import time
+import warnings
+
+import numpy as np
+
+from ..options import check_delay_times
+from ..system import HybridSystem
+
+_KIND_TEXT = {"vec": "an array of state_dim floats", "scalar": "a float"}
+
+
+_INSTALL = "pip install 'hybridsim[fast]'"
+_ROLES = (("flow", "vec"), ("jump", "vec"), ("jump_guard", "scalar"),
+          ("flow_guard", "scalar"), ("jump_set", "bool"), ("flow_set", "bool"))
+
+
+class CompileError(TypeError):
+    """A map of a :class:`CompiledSystem` could not be compiled by numba.
+
+    ``map_name`` names the map; ``__cause__`` is numba's error. The Python
+    path, ``hs.simulate(system, ...)``, runs the same system uncompiled.
+    """
+
+    def __init__(self, message, map_name=None):
+        super().__init__(message)
+        self.map_name = map_name
+
+
+_K = None
+
+
+def _load_kernel():
+    global _K
+    if _K is not None:
+        return _K
+    try:
+        from . import _cache as k
+    except ImportError as e:
+        if "numba" not in str(e).lower():
+            raise
+        raise ImportError(f"the compiled path needs numba: {_INSTALL} (or pip install "
+                          f"numba). Without it, run the same system on the Python path "
+                          f"with hs.simulate / hs.simulate_many.") from e
+    _K = k
+    return k
+
+
+def _refuse(what, why):
+    return TypeError(f"backend='compiled': {what} cannot run compiled: {why}. Run it on "
+                     f"the Python path (backend='python'), or see hybridsim.compiled's "
+                     f"notes on lowering")
+
+
+def _summarise(err):
+    """numba's error, shortened to the lines that say what failed."""
+    lines = [ln.rstrip() for ln in str(err).splitlines() if ln.strip()]
+    keep = []
+    for ln in lines:
+        s = ln.strip()
+        if s.startswith(("During:", "File \"", "<source", "^", "Failed in nopython",
+                         "- Resolution failure", "Rewrite", "This error may have")):
+            continue
+        keep.append(s)
+        if len(keep) >= 4:
+            break
+    return " | ".join(keep) if keep else type(err).__name__
+
+
+class _PyMap:
+    """A user map ``fn(x, t, j, p)`` seen by the Python path as ``(x, t, j)``."""
+
+    __slots__ = ("fn", "system")
+
+    def __init__(self, fn, system):
+        self.fn, self.system = fn, system
+
+    def __call__(self, x, t, j):
+        s = self.system
+        return self.fn(x, t, j, s._p_nan if s.delays else s.params)
+
+
+class _PyFlowPast(_PyMap):
+    """The flow map of a :class:`CompiledSystem` with ``delays`` on the Python
+    path: ``p`` is the parameters followed by x(t - tau_i) for each delay, read
+    from the run's :class:`hybridsim.History` (the kernel's convention)."""
+
+    __slots__ = ()
+
+    def __call__(self, x, t, j):
+        s = self.system
+        past = [s.history(t - d) for d in s.delays]
+        return self.fn(x, t, j, np.concatenate([s.params, *past]))
+
+    def __getstate__(self):
+        return (self.fn, self.system)
+
+    def __setstate__(self, s):
+        self.fn, self.system = s
+
+
+class CompiledSystem(HybridSystem):
+    r"""A hybrid system written for the compiled path (and usable on the Python path).
+
+    Each map is a plain function ``fn(x, t, j, p)``: ``x`` the state (a
+    float64 array of shape (n,)), ``t`` a float, ``j`` an int, ``p`` the
+    parameter array :attr:`params` (float64, 1-D). Write it with numpy on
+    scalars and small arrays, as numba compiles it in nopython mode: no
+    Python objects, no exceptions, no closures over mutable state.
+
+    Parameters
+    ----------
+    flow : callable
+        ``f(x, t, j, p)``: the flow map, a 1-D array of n floats (or a tuple).
+    jump : callable, optional
+        ``g(x, t, j, p)``: the jump map, receives the pre-jump j.
+    jump_guard, flow_guard : callable, optional
+        Continuous guards, a float (or a 1-D array: the set is where its
+        minimum is >= 0): D = {jump_guard >= 0}, C = {flow_guard >= 0} near
+        the events. Events are then located by root-finding on them.
+    jump_set, flow_set : callable, optional
+        Set indicators returning a bool. Where given, they decide membership
+        and the guards only locate crossings; where absent, the set is
+        derived from its guard (C defaults to everything, D to empty).
+    state_dim : int
+        n.
+    params : array_like, optional
+        Float parameters passed to every map as ``p`` (changing
+        ``system.params`` later is seen by the next run; nothing recompiles).
+    max_step : float, optional
+        A cap on the solver step (as :attr:`HybridSystem.max_step`); with
+        ``delays``, at most the smallest delay.
+    delays : tuple of float, optional
+        Delays tau_1, ..., tau_m > 0 read by the flow map (a delay equation
+        x' = f(x(t), x(t - tau_1), ..., x(t - tau_m))): the flow map's ``p``
+        is then ``params`` followed by the m past states, ``p[len(params) +
+        i n : len(params) + (i + 1) n] = x(t - tau_i)``, read as
+        :class:`hybridsim.History` reads the past (the RK45 dense output;
+        the post-jump value at a jump time; x0 before t0). The other maps see
+        NaN there (they must not read the past). Flows stop at the
+        breakpoints t_k + tau_i of the jumps t_k, on every path. Reading the
+        past, the compiled path takes no ``prehistory``.
+    specialize : bool
+        False (default): the maps reach the engine as first-class functions;
+        the engine is the one compiled kernel cached on disk, so a new system
+        costs only its maps' compilation (about 1 s, see the module notes).
+        True: the engine is compiled for this system with its maps inlined,
+        10-20% faster per run; about 15 s of CPU the first time on a machine
+        (and after a change of the maps), kept on disk and loaded in a
+        fraction of a second by later processes (maps reading objects other
+        than constants, arrays, modules and functions are compiled in each
+        process instead).
+    name : str, optional
+        For ``repr``.
+
+    Examples
+    --------
+    >>> import numpy as np, hybridsim as hs
+    >>> from hybridsim.compiled import CompiledSystem
+    >>> ball = CompiledSystem(
+    ...     flow=lambda x, t, j, p: np.array([x[1], -p[0]]),
+    ...     jump=lambda x, t, j, p: np.array([0.0, -p[1] * x[1]]),
+    ...     jump_guard=lambda x, t, j, p: -x[0], flow_guard=lambda x, t, j, p: x[0],
+    ...     jump_set=lambda x, t, j, p: x[0] <= 0.0 and x[1] <= 0.0,
+    ...     state_dim=2, params=[9.81, 0.8])
+    >>> arc = hs.simulate(ball, [1.0, 0.0], t_max=2.0, j_max=3)   # the Python path
+    >>> arc.jump_count
+    3
+
+    A delay equation x' = -x(t - 1), past x = 1: the flow map reads x(t - 1)
+    at ``p[len(params):]`` (method of steps: x(2) = -1/2).
+
+    >>> lag = CompiledSystem(flow=lambda x, t, j, p: -p[0:1], state_dim=1, delays=(1.0,))
+    >>> round(float(hs.simulate(lag, [1.0], t_max=2.0).x[-1, 0]), 9)
+    -0.5
+    """
+
+    def __init__(self, flow=None, jump=None, *, jump_guard=None, flow_guard=None,
+                 jump_set=None, flow_set=None, state_dim, params=(), max_step=None,
+                 delays=(), specialize=False, name=None):
+        HybridSystem.__init__(self)
+        if isinstance(state_dim, bool) or not isinstance(state_dim, (int, np.integer)) \
+                or state_dim < 1:
+            raise ValueError(f"state_dim must be a positive int, got {state_dim!r}")
+        self.state_dim = int(state_dim)
+        self.delays = check_delay_times(delays)
+        self.needs_history = bool(self.delays)
+        self.params = params
+        if self.delays:     # a step must not reach past the smallest delay (hs.History)
+            cap = min(self.delays)
+            max_step = cap if max_step is None else min(float(max_step), cap)
+        self.max_step = max_step
+        if not isinstance(specialize, (bool, np.bool_)):
+            raise TypeError(f"specialize must be True or False, got {specialize!r}")
+        self.specialize = bool(specialize)
+        self._name = name
+        self.maps = {}
+        for role, fn in (("flow", flow), ("jump", jump), ("jump_guard", jump_guard),
+                         ("flow_guard", flow_guard), ("jump_set", jump_set),
+                         ("flow_set", flow_set)):
+            if fn is None:
+                continue
+            if not callable(fn):
+                raise TypeError(f"{role} must be callable fn(x, t, j, p), got "
+                                f"{type(fn).__name__}")
+            self.maps[role] = fn
+        if flow is None:
+            raise TypeError("flow is required: a function flow(x, t, j, p) -> array of "
+                            "state_dim floats")
+        # the Python path sees the same maps through HybridSystem's attributes
+        attrs = {"flow": "flow_map", "jump": "jump_map", "jump_guard": "jump_guard",
+                 "flow_guard": "flow_guard", "jump_set": "jump_set", "flow_set": "flow_set"}
+        for role, fn in self.maps.items():
+            cls = _PyFlowPast if role == "flow" and self.delays else _PyMap
+            setattr(self, attrs[role], cls(fn, self))
+        self._nb = None
+
+    @property
+    def params(self):
+        """The parameter array ``p`` passed to every map (float64, 1-D)."""
+        return self._params
+
+    @params.setter
+    def params(self, value):
+        try:
+            p = np.array(value, dtype=np.float64).reshape(-1)
+        except (TypeError, ValueError) as e:
+            raise TypeError(f"params must be an array of floats, got "
+                            f"{type(value).__name__}") from e
+        self._params = np.ascontiguousarray(p)
+        # what maps other than the flow map see as p: the past's place is NaN
+        self._p_nan = np.concatenate([self._params, np.full(
+            len(getattr(self, "delays", ())) * self.state_dim, np.nan)])
+
+    def __getstate__(self):
+        state = HybridSystem.__getstate__(self)
+        state["_nb"] = None           # compiled functions are rebuilt after unpickling
+        state.pop("_batch_lengths", None)       # a batch's sizing memo (of this process)
+        return state
+
+    def compile(self):
+        """Compile the maps (once per system; later calls return at once), and
+        with ``specialize=True`` the system's own kernel, or load it from the
+        disk cache.
+
+        Returns
+        -------
+        float
+            Seconds spent compiling (0 when already compiled).
+
+        Raises
+        ------
+        ImportError
+            numba is not installed (``pip install 'hybridsim[fast]'``).
+        CompileError
+            A map numba cannot compile; the message names it and summarises
+            numba's error. ``hs.simulate(system, ...)`` runs it uncompiled.
+        """
+        if self._nb is not None:
+            return 0.0
+        k = _load_kernel()
+        t = time.perf_counter()
+        import numba
+        from numba.core.errors import NumbaExperimentalFeatureWarning
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", NumbaExperimentalFeatureWarning)
+            if self.specialize:
+                self._nb = self._compile_specialised(k, numba)
+            else:
+                # the cached kernels take the maps by address
+                out = self._compile_maps(k, numba)
+                out = {role: k.handle(d, self._kinds[role]) for role, d in out.items()}
+                absent = {"vec": k.handle(k.absent_vec, "vec"),
+                          "scalar": k.handle(k.absent_scalar, "scalar"),
+                          "false": k.handle(k.absent_false, "bool"),
+                          "true": k.handle(k.absent_true, "bool")}
+                nb = self._flags(out, absent)
+                six = tuple(nb[r] for r in ("f", "g", "hD", "hC", "D", "C"))
+                nb["args"] = (k.map_addresses(six),)
+                nb["one"] = None                # k.run_kernel(delays), once compiled
+                self._nb = nb
+        return time.perf_counter() - t
+
+    @staticmethod
+    def _flags(out, absent):
+        """The six maps (absent ones filled in) and what the kernel reads of them.
+
+        A set without its indicator is {guard >= 0}, read by the kernel from
+        the guard itself (a NaN guard is then the Python path's MapError)."""
+        return {
+            "f": out["flow"], "g": out.get("jump", absent["vec"]),
+            "hD": out.get("jump_guard", absent["scalar"]),
+            "hC": out.get("flow_guard", absent["scalar"]),
+            "D": out.get("jump_set", absent["false"]), "C": out.get("flow_set", absent["true"]),
+            "has_C": "flow_set" in out or "flow_guard" in out,
+            "has_D": "jump_set" in out or "jump_guard" in out,
+            "has_hC": "flow_guard" in out, "has_hD": "jump_guard" in out,
+            "C_from_guard": "flow_set" not in out and "flow_guard" in out,
+            "D_from_guard": "jump_set" not in out and "jump_guard" in out,
+            "memo": {},
+        }
+
+    def _compile_specialised(self, k, numba, method="RK45"):
+        """The run kernel specialised on this system's maps: a generated module
+        keyed by the maps' digest, cached on disk by numba (see
+        ``_cache.spec_module``); a new process with the kernel in its cache
+        compiles nothing. Maps whose digest cannot be taken (they read an object
+        that is not a constant, array, module or function) compile in memory.
+        ``method``: "RK45" (made by :meth:`compile`) or "DOP853" (made when a
+        run first asks for it)."""
+        entries = tuple((role, kind, self.maps.get(role)) for role, kind in _ROLES)
+        try:
+            delays = bool(self.delays)
+            mod = k.spec_module(k.spec_key(entries, delays, method), delays, method)
+        except k.Unkeyable:
+            mod = None
+        sig = k._signature_one()
+        if mod is not None and mod.one.overloads:       # compiled in this process
+            out = {role: None for role in self.maps}
+            one = mod.one
+        else:
+            cached = mod is not None and k.spec_in_cache(mod)
+            if cached:                   # loaded below: the maps are never compiled
+                out = {role: k.wrap_map(fn, kind, lazy=True) for role, kind in _ROLES
+                       if (fn := self.maps.get(role)) is not None}
+            else:
+                out = self._compile_maps(k, numba)      # names a map numba refuses
+                _notice(os.path.dirname(mod.__file__) if mod is not None else None,
+                        k.COMPILE_SECONDS[2],
+                        what="a kernel specialised on this system's maps")
+            absent = {"vec": k.absent_vec, "scalar": k.absent_scalar,
+                      "false": k.absent_false, "true": k.absent_true}
+            nb = self._flags(out, absent)
+            f, g, hD, hC, D, C = (nb[r] for r in ("f", "g", "hD", "hC", "D", "C"))
+            if mod is not None:
+                mod.f, mod.g, mod.hD, mod.hC, mod.D, mod.C = f, g, hD, hC, D, C
+                one = mod.one
+            else:
+                run = (k.run_one_spec_dop853 if method == "DOP853" else
+                       k.run_one_spec_delays if self.delays else k.run_one_spec)
+
+                def one_mem(maps, x0, p, fopt, iopt, atol, rngp, poll, stop):
+                    return run((f, g, hD, hC, D, C), x0, p, fopt, iopt, atol, rngp, poll, stop)
+                one = numba.njit(error_model="numpy")(one_mem)
+            one.compile(sig)
+            one.disable_compile()
+        nb = self._flags(out, {"vec": None, "scalar": None, "false": None, "true": None})
+        nb["one"] = one
+        nb["one_addr"] = k.jit_address(one)
+        nb["args"] = (_NO_MAPS,)
+        return nb
+
+    def _compile_maps(self, k, numba):
+        out = {}
+        self._kinds = {}
+        for role, kind in _ROLES:
+            fn = self.maps.get(role)
+            if fn is None:
+                continue
+            try:
+                out[role] = k.wrap_map(fn, kind)
+                self._kinds[role] = kind
+            except (numba.core.errors.NumbaError, TypeError, ValueError, NotImplementedError,
+                    AttributeError, KeyError) as e:
+                raise CompileError(
+                    f"CompiledSystem: numba could not compile the map {role!r} "
+                    f"({getattr(fn, '__qualname__', repr(fn))}): {_summarise(e)}. Write it "
+                    f"as a numpy function of (x, t, j, p) returning "
+                    f"{_KIND_TEXT.get(kind, 'a bool')}, "
+                    f"or run this system on the Python path with hs.simulate(system, ...) "
+                    f"(the fallback, same maps, no compiling)", role) from e
+        return out
+
+    def __repr__(self):
+        name = self._name or "CompiledSystem"
+        return f"<{name}: state_dim={self.state_dim}, maps={sorted(self.maps)}>"
+
+
+_NO_MAPS = np.zeros(6, np.int64)
+
+
+def _notice(cache_dir, seconds, what="the engine's kernels"):
+    """Say, once per kernel, that it is being compiled and kept (the first
+    compiled call on a machine is otherwise silent for seconds).
+
+    Written to stderr as one line, as pip or a compiler would: a notice, not a
+    warning (nothing is wrong, and ``-W error`` must not turn it into a
+    failure), and not only ``logging.info``, which nobody sees unless logging
+    is configured. Where the application has configured logging (a handler on
+    the ``hybridsim`` logger or the root), it goes there instead, at INFO.
+    """
+    import logging
+    import sys
+    where = (f"numba caches it in {cache_dir}" if cache_dir else
+             "not cached: compiled again in each process")
+    msg = (f"hybridsim.compiled: compiling {what}, once per machine (about {seconds:.0f} s "
+           f"of CPU); {where}")
+    log = logging.getLogger("hybridsim.compiled")
+    if log.hasHandlers():
+        log.info(msg)
+        return
+    try:
+        sys.stderr.write(msg + " ...\n")
+        sys.stderr.flush()
+    except (AttributeError, OSError, ValueError):   # no stderr (pythonw, closed)
+        pass
