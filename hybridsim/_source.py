@@ -47,6 +47,36 @@ import weakref
 
 import numpy as np
 
+_LEADING = ("t", "j", "u")
+
+
+def _arity(fn) -> int:
+    """How many of ``(x, t, j, u)`` ``fn`` takes (4 for ``*args``).
+
+    Read from the *required* positional parameters, so a defaulted parameter
+    (``lambda x, k=2.0: -k * x``, a common way to capture a loop variable)
+    never receives t. A defaulted parameter still counts when it is named as
+    the engine's argument at its position (``def f(self, x, t, j, u=None)``).
+    Builtins and numpy ufuncs (no signature, or ``out=`` defaulted) take x.
+    """
+    try:
+        sig = inspect.signature(fn)
+    except (TypeError, ValueError):  # builtins, numpy ufuncs
+        return 1
+    if isinstance(fn, np.ufunc):
+        return 1
+    n = 0
+    for p in sig.parameters.values():
+        if p.kind == p.VAR_POSITIONAL:
+            return 4
+        if p.kind not in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD):
+            break
+        if p.default is not p.empty and not (1 <= n <= 3 and p.name == _LEADING[n - 1]):
+            break
+        n += 1
+    return n
+
+
 __all__ = ["SourceRefusal", "derived_guard", "guard_refusal", "plan", "Layout"]
 
 P = "_hs_p"          # the parameter array of generated functions
@@ -835,7 +865,6 @@ ROLES = (("flow_map", "flow"), ("jump_map", "jump"), ("jump_guard", "jump_guard"
 def plan(system):
     """The :class:`Plan` of ``system``'s maps as functions of ``(x, t, j, p)``;
     a :class:`SourceRefusal` naming the method and line otherwise."""
-    from .system import _arity
     pl = _Planner()
     roles = {}
     cls = type(system).__name__

@@ -307,7 +307,6 @@ def _encode_choices(arc):
 
 def _decode_choices(text, n, bad):
     """An explore leaf's choices from their JSON form, strictly."""
-    from .explore import Choice
     try:
         raw = json.loads(text)
     except (ValueError, RecursionError):
@@ -350,6 +349,32 @@ def load(path, *, max_bytes: int = MAX_FILE_BYTES):
     ['jump to successor 0 at (t=1, j=0)']
     """
     return HybridArc.load(path, max_bytes=max_bytes)
+
+
+class Choice(NamedTuple):
+    """A choice taken at a branch point (t, j, x).
+
+    ``kind``: ``"jump"`` (to successor ``value`` of the jump map, 0 for a
+    single-valued one; None where j_max allows no more jumps: the solution
+    ends there, as :func:`hybridsim.simulate`'s), ``"flow"`` (flow on through C ∩ D) or ``"dwell"``
+    (jump after ``value`` time units in C ∩ D).
+    """
+
+    t: float
+    j: int
+    x: np.ndarray
+    kind: str
+    value: float | int | None
+
+    def __str__(self):
+        at = f"(t={self.t:.10g}, j={self.j})"
+        if self.kind == "jump" and self.value is None:
+            return f"jump, with no jump left (j_max), at {at}"
+        if self.kind == "jump":
+            return f"jump to successor {self.value} at {at}"
+        if self.kind == "flow":
+            return f"flow on at {at}"
+        return f"dwell {self.value:.10g} in C ∩ D from {at}"
 
 
 class HybridArc:

@@ -41,11 +41,10 @@ import math
 import time
 import warnings
 from dataclasses import dataclass, field
-from typing import NamedTuple
 
 import numpy as np
 
-from .arc import HybridArc
+from .arc import Choice, HybridArc
 from .options import check_count, check_map_value, check_real, check_x0
 from .rules import MapError, SimulationError, SimulationWarning, Termination, event_tolerance, warns
 from .run import simulate
@@ -69,32 +68,6 @@ class ExploreEnd(enum.Enum):
     @property
     def message(self) -> str:
         return self.value
-
-
-class Choice(NamedTuple):
-    """A choice taken at a branch point (t, j, x).
-
-    ``kind``: ``"jump"`` (to successor ``value`` of the jump map, 0 for a
-    single-valued one; None where j_max allows no more jumps: the solution
-    ends there, as :func:`hybridsim.simulate`'s), ``"flow"`` (flow on through C ∩ D) or ``"dwell"``
-    (jump after ``value`` time units in C ∩ D).
-    """
-
-    t: float
-    j: int
-    x: np.ndarray
-    kind: str
-    value: float | int | None
-
-    def __str__(self):
-        at = f"(t={self.t:.10g}, j={self.j})"
-        if self.kind == "jump" and self.value is None:
-            return f"jump, with no jump left (j_max), at {at}"
-        if self.kind == "jump":
-            return f"jump to successor {self.value} at {at}"
-        if self.kind == "flow":
-            return f"flow on at {at}"
-        return f"dwell {self.value:.10g} in C ∩ D from {at}"
 
 
 @dataclass

@@ -459,7 +459,8 @@ def _auto_backend(system, kwargs, executor):
     except (TypeError, ValueError):
         return "python"
     from .compiled._from_source import auto_choice
-    return auto_choice(system, compiled.lowerable(system))   # a plain model: compiled, or one warning
+    # a plain model: compiled, or one warning saying why not
+    return auto_choice(system, compiled.lowerable(system))
 
 
 def _batch_takes(system, kwargs):

@@ -1,10 +1,9 @@
 """Hybrid systems H = (C, f, D, g): the data the engine simulates."""
 from __future__ import annotations
 
-import inspect
-
 import numpy as np
 
+from ._source import _arity
 from .rules import MapError
 
 __all__ = ["HybridSystem", "as_map", "MapError"]
@@ -34,34 +33,6 @@ def guard_rows(v) -> np.ndarray:
     return v.min(axis=1) if v.ndim == 2 else v
 
 
-_LEADING = ("t", "j", "u")
-
-
-def _arity(fn) -> int:
-    """How many of ``(x, t, j, u)`` ``fn`` takes (4 for ``*args``).
-
-    Read from the *required* positional parameters, so a defaulted parameter
-    (``lambda x, k=2.0: -k * x``, a common way to capture a loop variable)
-    never receives t. A defaulted parameter still counts when it is named as
-    the engine's argument at its position (``def f(self, x, t, j, u=None)``).
-    Builtins and numpy ufuncs (no signature, or ``out=`` defaulted) take x.
-    """
-    try:
-        sig = inspect.signature(fn)
-    except (TypeError, ValueError):  # builtins, numpy ufuncs
-        return 1
-    if isinstance(fn, np.ufunc):
-        return 1
-    n = 0
-    for p in sig.parameters.values():
-        if p.kind == p.VAR_POSITIONAL:
-            return 4
-        if p.kind not in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD):
-            break
-        if p.default is not p.empty and not (1 <= n <= 3 and p.name == _LEADING[n - 1]):
-            break
-        n += 1
-    return n
 
 
 def _where(t, j):

@@ -23,11 +23,11 @@ PKG = Path(__file__).resolve().parents[1] / "hybridsim"
 #: the house's levels, top first (HOUSE.md): a module imports only its own
 #: level and those below it
 LEVELS = (
-    ("capabilities", {"explore", "falsification", "sensitivity", "testing", "plot"}),
+    ("capabilities", {"explore", "falsification", "sensitivity", "testing", "plot", "stl"}),
     ("front door", {"run", "batch"}),
     ("paths", {"solve", "batch_vectorized", "compiled"}),
     ("shared and data", {"rules", "options", "events", "_rk", "_progress", "_version",
-                         "system", "compose", "history", "arc", "library"}),
+                         "system", "compose", "history", "arc", "library", "_source"}),
 )
 
 
