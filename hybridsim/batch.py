@@ -513,7 +513,8 @@ def _auto_backend(system, kwargs, executor):
     import importlib.util
 
     from .compiled import lowerable
-    if executor is not None or importlib.util.find_spec("numba") is None:
+    if executor is not None or importlib.util.find_spec("numba") is None \
+            or getattr(system, "diffusion", None) is not None:      # SDE flows: Python only
         return "python"
     if any(kwargs.get(k, v[0]) not in v for k, v in _COMPILED_ONLY_AT.items()):
         return "python"

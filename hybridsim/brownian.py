@@ -91,12 +91,13 @@ def _key(seed, run):
 class _Component:
     """One component's tree: block sums, and the last descent (for reuse)."""
 
-    __slots__ = ("key", "S", "F", "path")
+    __slots__ = ("key", "S", "F", "H", "path")
 
     def __init__(self, key):
         self.key = key
         self.S = [0.0]       # W at block starts
         self.F = [0.0]       # ∫ W from t0 to block starts
+        self.H = []          # each block's Lévy area
         self.path = None     # the last descent: [(block, level, index, wl, wr, H, F_left)]
 
 
@@ -190,15 +191,14 @@ class BrownianPath:
             z0, z1 = self._node_normals(comp, k, 0, 0, 2)
             dw, H = math.sqrt(T) * z0, math.sqrt(T / 12.0) * z1
             s = comp.S[k]
+            comp.H.append(H)
             comp.S.append(s + dw)
             comp.F.append(comp.F[k] + T * (s + 0.5 * dw) + T * H)
         return comp.S[blk], comp.S[blk + 1]
 
     def _root(self, comp, blk):
         wl, wr = self._block_sums(comp, blk)
-        # the block's Lévy area: drawn with its increment (same node normals)
-        H = math.sqrt(self.block / 12.0) * self._node_normals(comp, blk, 0, 0, 2)[1]
-        return (blk, 0, 0, wl, wr, H, comp.F[blk])
+        return (blk, 0, 0, wl, wr, comp.H[blk], comp.F[blk])
 
     def _one(self, comp, t):
         """(W(t), ∫_{t0}^t W) for one component."""
@@ -253,6 +253,21 @@ class BrownianPath:
         F = np.empty(self.dim)
         for c, comp in enumerate(self._comp):
             w[c], F[c] = self._one(comp, t)
+        return w, F
+
+    def at_block(self, k: int):
+        """``(W, ∫_{t0} W)`` at the block end ``t0 + k * block`` (k >= 0), each (dim,).
+
+        The same values as at that time, without the float division that
+        places a time in its block (a stepper on the block grid uses it).
+        """
+        if k < 0:
+            raise ValueError(f"BrownianPath: block index must be >= 0, got {k}")
+        w = np.empty(self.dim)
+        F = np.empty(self.dim)
+        for c, comp in enumerate(self._comp):
+            self._block_sums(comp, k)
+            w[c], F[c] = comp.S[k], comp.F[k]
         return w, F
 
     # ------------------------------------------------------------------ public

@@ -19,6 +19,8 @@ from scipy.integrate import DOP853, RK23, RK45, OdeSolver
 from scipy.integrate._ivp.rk import RungeKutta
 
 from ._rk import LEAN
+from ._sde import is_stochastic
+from ._sde import prepare as prepare_sde
 from .arc import HybridArc
 from .events import find_interior_event, locate_event
 from .history import History
@@ -406,6 +408,12 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
     zeno_jumps, zeno_time, zeno_rtol = ro.zeno_jumps, ro.zeno_time, ro.zeno_rtol
     refine, max_steps, max_samples, throw, warn = (ro.refine, ro.max_steps, ro.max_samples,
                                                    ro.throw, ro.warn)
+    sde = None
+    if is_stochastic(system):            # an SDE flow: stepped by hybridsim._sde
+        sde = prepare_sde(system, method, max_step, seed, n, t0, maps, inputs=inputs,
+                          prehistory=prehistory, dense=dense, t_eval=t_eval, refine=refine,
+                          dwell=dwell)
+        method, seed = "RK45", sde.rng_seed(seed)
     Method = resolve_method(method)
     if int(system.input_dim or 0) > 0 and inputs is None:
         raise ValueError(f"inputs: the system has input_dim={system.input_dim}; pass "
@@ -431,6 +439,7 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
                     Method=Method, t_eval=t_eval, keep=keep, delays=delays, rng=rng,
                     dwell=dwell)
     run = _Run(system, maps, opts, inputs, history)
+    run.sde = sde
     run.pbar = _progress_bar(progress, t0, t_max, j_max)
     try:
         run.run(t0, j0, x)
@@ -498,6 +507,7 @@ class _Run:
         self.fun = self._fun()
         self.out_checked = False    # has the flow map been checked for a shared output array?
         self.stiff_check = opts.Method is RK45
+        self.sde = None         # an SDE flow's stepper (hybridsim._sde.SDEFlow)
 
     # ------------------------------------------------------------------ helpers
     def arc(self):
@@ -514,7 +524,9 @@ class _Run:
         return HybridArc._trusted(t, j, X, self.cause, self.message, self.exception,
                                   components=self.system.components,
                                   segments=self.history.segments if self.o.keep else None,
-                                  system=self.system, xdot=Xd, stats=self.stats.as_dict())
+                                  system=self.system, xdot=Xd,
+                                  stats=self.stats.as_dict() if self.sde is None else
+                                  {**self.stats.as_dict(), **self.sde.record()})
 
     def _stop(self, cause, kind=None, exc=None, **fields):
         """End the run with ``cause``; its message from :func:`hybridsim.rules.message`."""
@@ -788,6 +800,8 @@ class _Run:
 
     def _flow(self, st, in_D_start):
         """Integrate from (st.t, st.x) until an event, t_max or a failure."""
+        if self.sde is not None:
+            return self.sde.flow(self, st, in_D_start)
         o, maps, stats = self.o, self.maps, self.stats
         C, D = maps.C, maps.D
         has_C, watch_D = maps.has_C, self.watch_D

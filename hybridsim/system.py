@@ -253,6 +253,11 @@ class HybridSystem:
     jump_map_values = None
     #: names of the components of an interconnection: ``{name: slice}``
     components: dict | None = None
+    #: an SDE flow's diffusion ``(x, t, j) -> σ`` (dx = f dt + σ dW; see
+    #: :mod:`hybridsim._sde`), or None (an ODE flow)
+    diffusion = None
+    #: None: diagonal noise (σ of shape (n,)); an int m: general noise (σ (n, m))
+    noise_dim: int | None = None
 
     def flow_map(self, x, t, j, u):
         raise NotImplementedError(f"{type(self).__name__} defines no flow_map, "
@@ -356,7 +361,8 @@ class HybridSystem:
     def from_functions(cls, f=None, g=None, C=None, D=None, *, state_dim,
                        jump_guard=None, flow_guard=None, output=None,
                        input_dim=0, output_dim=None, vectorized=False,
-                       max_step=None, needs_history=False, name=None, g_values=None):
+                       max_step=None, needs_history=False, name=None, g_values=None,
+                       diffusion=None, noise_dim=None):
         """Build a hybrid system from plain functions.
 
         Parameters
@@ -376,6 +382,12 @@ class HybridSystem:
         g_values : callable, optional
             A set-valued jump map (rule 10 of the class): returns the
             successors, a sequence of (n,) arrays. Not with ``g``.
+        diffusion : callable, optional
+            An SDE flow's diffusion σ(x, t, j): dx = f dt + σ dW in C (run
+            with ``method="EM"``, ``"Milstein"`` or ``"SRA1"`` and a fixed
+            step ``max_step``; see :mod:`hybridsim._sde`).
+        noise_dim : int, optional
+            None: diagonal noise, σ of shape (n,); m: σ of shape (n, m).
 
         Examples
         --------
@@ -409,10 +421,12 @@ class HybridSystem:
         sysobj.max_step = max_step
         sysobj.needs_history = needs_history
         sysobj._name = name
+        sysobj.noise_dim = noise_dim
         for arg, attr, fn in (("f", "flow_map", f), ("g", "jump_map", g),
                               ("C", "flow_set", C), ("D", "jump_set", D),
                               ("output", "output", output),
-                              ("g_values", "jump_map_values", g_values)):
+                              ("g_values", "jump_map_values", g_values),
+                              ("diffusion", "diffusion", diffusion)):
             if fn is not None:
                 if not callable(fn):
                     raise TypeError(f"{arg} must be callable, got {type(fn).__name__}")
