@@ -326,8 +326,11 @@ class SDEFlow:
         else:
             grad = self._grad(y, xa, a, j, u)
             s2, v = self._noise(s, grad)
-            if not s2 > 0 or ya >= 0:
+            if ya >= 0:
                 return b, xb
+            if not s2 > 0:        # a guard without noise (a rate's clock): the chord's zero
+                th = ya / (ya - yb)
+                return a + th * (b - a), xa + th * (xb - xa)
         tau = bridge_first_passage(ya, yb, s2, b - a, stream)
         th = tau / (b - a)
         te = min(a + tau, b)

@@ -514,7 +514,8 @@ def _auto_backend(system, kwargs, executor):
 
     from .compiled import lowerable
     if executor is not None or importlib.util.find_spec("numba") is None \
-            or getattr(system, "diffusion", None) is not None:      # SDE flows: Python only
+            or any(getattr(system, k, None) is not None         # Python path only
+                   for k in ("diffusion", "jump_rate", "jump_law")):
         return "python"
     if any(kwargs.get(k, v[0]) not in v for k, v in _COMPILED_ONLY_AT.items()):
         return "python"

@@ -18,6 +18,7 @@ from numpy.typing import ArrayLike
 from scipy.integrate import DOP853, RK23, RK45, OdeSolver
 from scipy.integrate._ivp.rk import RungeKutta
 
+from ._random_jumps import is_random, simulate_random
 from ._rk import LEAN
 from ._sde import is_stochastic
 from ._sde import prepare as prepare_sde
@@ -376,6 +377,14 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
     """
     if not isinstance(system, HybridSystem):
         raise TypeError(f"system must be a hybridsim.HybridSystem, got {type(system).__name__}")
+    if is_random(system):      # jump_rate / jump_law: run with the clock's state added
+        kw = {k: v for k, v in locals().items() if k not in ("system", "x0")}
+        if kw["backend"] == "compiled":
+            raise ValueError(f"backend='compiled': {type(system).__name__} declares jump_rate "
+                             f"or jump_law (random jumps), which only the Python path runs "
+                             f"for now; use backend='python'")
+        kw["backend"] = "python"
+        return simulate_random(simulate, system, x0, kw)
     if backend == "auto" and (dwell is not None or system.set_valued):
         backend = "python"          # the compiled path has neither
     if backend == "auto":
