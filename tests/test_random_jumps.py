@@ -22,6 +22,7 @@ import pytest
 import hybridsim as hs
 from hybridsim._random_jumps import threshold
 from hybridsim.estimate import Stats, accumulate
+from hybridsim.library import AIMD, DriftedBrownian, RandomRestitutionBall, Telegraph
 
 
 def aimd(rate):
@@ -49,7 +50,7 @@ def time_moments(arc, ks, t_burn, batches=20):
 
 
 def test_aimd_stationary_moments():
-    arc = hs.simulate(aimd(lambda x: x[0]), [1.0], t_max=4000.0, seed=1)
+    arc = hs.simulate(AIMD(), [1.0], t_max=4000.0, seed=1)
     (m2, s2), (m4, s4) = time_moments(arc, [2, 4], t_burn=20.0)
     assert abs(m2 - 2.0) <= 3 * s2, (m2, s2)
     assert abs(m4 - 48 / 7) <= 3 * s4, (m4, s4)
@@ -60,7 +61,7 @@ def test_aimd_stationary_moments():
 
 
 def test_constant_rate_aimd_moments():
-    arc = hs.simulate(aimd(lambda x: 1.0), [1.0], t_max=8000.0, seed=2)
+    arc = hs.simulate(AIMD(constant_rate=True), [1.0], t_max=8000.0, seed=2)
     (m1, s1), (m2, s2) = time_moments(arc, [1, 2], t_burn=20.0)
     assert abs(m1 - 2.0) <= 3 * s1 and abs(m2 - 16 / 3) <= 3 * s2, (m1, s1, m2, s2)
 
@@ -75,16 +76,10 @@ def test_rate_jumps_are_located_exactly_and_replay():
     assert arc.state_dim == 1 and arc.system is not None
 
 
-def telegraph(lam, v):
-    return hs.HybridSystem.from_functions(
-        f=lambda x: np.array([v * x[1], 0.0]), g=lambda x: np.array([x[0], -x[1]]),
-        jump_rate=lambda x: lam, state_dim=2)
-
-
 def test_telegraph_second_moment():
     lam, v, t = 1.0, 1.0, 1.0
     exact = v * v * (2 * lam * t - 1 + math.exp(-2 * lam * t)) / (2 * lam * lam)
-    sysm = telegraph(lam, v)
+    sysm = Telegraph(lam, v)
     s = accumulate(lambda rng: hs.simulate(sysm, [0.0, 1.0], t_max=t, seed=rng),
                    Stats(t=[t], signal=lambda x: x[..., 0] ** 2), 1000, seed=3)
     assert abs(s.mean[0, 0] - exact) <= 3 * s.std_error[0, 0], (s.mean, s.std_error, exact)
@@ -92,9 +87,7 @@ def test_telegraph_second_moment():
 
 def test_brownian_hitting_time_with_drift():
     mu, sig, b = 1.0, 1.0, 2.0
-    bm = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([mu]), g=lambda x: x, jump_guard=lambda x: x[0] - b,
-        diffusion=lambda x: np.array([sig]), state_dim=1)
+    bm = DriftedBrownian(mu, sig, b)
     tau = np.array([hs.simulate(bm, [0.0], t_max=60.0, j_max=1, method="EM", max_step=0.1,
                                 seed=r).jump_times[0] for r in range(1000)])
     n = len(tau)
@@ -109,10 +102,7 @@ def test_brownian_hitting_time_with_drift():
 def test_ball_with_random_restitution():
     g, h0, lo, hi = 9.81, 1.0, 0.3, 0.7
     m = 0.5 * (lo + hi)
-    ball = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([x[1], -g]), jump_guard=lambda x: -x[0],
-        flow_guard=lambda x: x[0], D=lambda x: x[0] <= 0 and x[1] <= 0,
-        jump_law=lambda x, rng: np.array([0.0, -rng.uniform(lo, hi) * x[1]]), state_dim=2)
+    ball = RandomRestitutionBall(g, lo, hi)
     t1 = math.sqrt(2 * h0 / g)
     t_inf = t1 + 2 * g * t1 / g * m / (1 - m)
     # the J-th jump comes at t1 + (2 v1/g) sum_{k<J} prod_{i<=k} e_i: its mean is t1 +
