@@ -10,9 +10,14 @@ in hybrid time (:func:`plot_flows`, :func:`plot_jumps`, :func:`plot_hybrid`,
 :mod:`hybridsim.testing`; the search for counterexamples over a declared
 uncertainty space, :func:`falsify`, in :mod:`hybridsim.falsification`;
 derivatives through jumps, :func:`simulate_sensitivity`, in
-:mod:`hybridsim.sensitivity`.
+:mod:`hybridsim.sensitivity`. Monte Carlo answers with confidence
+(``estimate``, streaming ``Stats``, ``splitting`` for rare events) live in
+:mod:`hybridsim.estimate`; SDE flows (a system's
+``diffusion``), jumps at a rate (``jump_rate``) and random jump maps
+(``jump_law``) run on the Python path, driven by :class:`BrownianPath`.
 """
 from . import compiled as compiled
+from . import estimate as estimate
 from . import falsification as falsification
 from . import library as library
 from . import rules as rules
@@ -21,6 +26,7 @@ from ._version import __version__ as __version__
 from .arc import HybridArc, Termination
 from .batch import BatchError, BatchWarning, simulate_many, sweep
 from .batch_vectorized import simulate_vectorized
+from .brownian import BrownianPath
 from .compose import Interconnection, LinearInput, LinearPlant, connect, network
 from .explore import Choice, ExploreEnd, SolutionTree, explore
 from .falsification import falsify
@@ -46,5 +52,5 @@ __all__ = [
     "simulate_many", "sweep", "simulate_vectorized", "BatchError", "BatchWarning",
     "plot_flows", "plot_jumps", "plot_hybrid", "plot_phase", "plot_time_domain",
     "falsify", "simulate_sensitivity", "explore", "SolutionTree", "Choice", "ExploreEnd",
-    "plot_solutions",
+    "plot_solutions", "BrownianPath",
 ]
