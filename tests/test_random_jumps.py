@@ -143,3 +143,17 @@ def test_bad_laws_and_refusals():
     arcs = hs.simulate_many(aimd(lambda x: -x[0]), [[1.0]], t_max=1.0, warn=False)
     assert arcs[0].termination is hs.Termination.MAP_ERROR
     assert "jump_rate" in str(arcs[0].exception)
+
+
+def test_rate_on_an_sde_flow_is_located_on_the_clock():
+    # an SDE flow with a rate-1 clock: Lambda = t exactly (no noise on the clock), so the
+    # first jump is at the first threshold to round-off, whatever the Brownian path does
+    sysm = hs.HybridSystem.from_functions(
+        f=lambda x: np.array([0.0]), g=lambda x: np.zeros(1), jump_rate=lambda x: 1.0,
+        diffusion=lambda x: np.array([1.0]), state_dim=1)
+    arc = hs.simulate(sysm, [0.0], t_max=20.0, j_max=3, method="EM", max_step=0.1, seed=5)
+    key = arc.stats["jump_seed"]
+    assert arc.stats["noise_seed"] == key
+    assert arc.jump_times[0] == pytest.approx(threshold(key, 0), abs=1e-12)
+    assert arc.jump_times[1] - arc.jump_times[0] == pytest.approx(threshold(key, 1), abs=1e-12)
+    assert np.all(arc.x[arc.is_jump_end, 0] == 0.0)
