@@ -27,7 +27,7 @@ import numpy as np
 from scipy.stats import norm
 
 import hybridsim as hs
-from hybridsim.estimate import Stats, accumulate, estimate, splitting
+from hybridsim.estimate import Stats, accumulate, estimate, run_generator, splitting
 from hybridsim.library import AIMD, DriftedBrownian, RandomRestitutionBall, Telegraph
 
 ROWS = []
@@ -129,7 +129,7 @@ def main(argv=None):
     bm = DriftedBrownian(1.0, 1.0, 2.0)
     n = 1000 if q else 5000
     tau = np.array([hs.simulate(bm, [0.0], t_max=60.0, j_max=1, method="EM", max_step=0.1,
-                                seed=r).jump_times[0] for r in range(n)])
+                                seed=run_generator(4, r)).jump_times[0] for r in range(n)])
     dt_ = time.perf_counter() - t0
     mu4 = 15 * 2 ** 7 / 4 ** 3 + 3 * 2 ** 6 / 4 ** 2           # inverse Gaussian (2, 4)
     row("BM drift 1, sigma 1, barrier 2: E[tau]", 2.0, tau.mean(), math.sqrt(2 / n), dt_)
@@ -139,8 +139,8 @@ def main(argv=None):
     ball = RandomRestitutionBall(9.81, 0.3, 0.7)
     t1, J, m = math.sqrt(2 / 9.81), 8, 0.5
     n = 500 if q else 3000
-    tj = np.array([hs.simulate(ball, [1.0, 0.0], t_max=10.0, j_max=J, seed=r).jump_times[-1]
-                   for r in range(n)])
+    tj = np.array([hs.simulate(ball, [1.0, 0.0], t_max=10.0, j_max=J,
+                               seed=run_generator(5, r)).jump_times[-1] for r in range(n)])
     row("ball, restitution U(0.3, 0.7): E[t_8]", t1 + 2 * t1 * sum(m ** k for k in range(1, J)),
         tj.mean(), tj.std(ddof=1) / math.sqrt(n), time.perf_counter() - t0)
     for b, n_part, reps in ((3.0, 100, 10),) + (() if q else ((6.0, 2000, 4),)):
