@@ -476,6 +476,13 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
     N = len(X)
     if N == 0:
         return []
+    if kwargs.get("seed") is not None and any(
+            getattr(system, k, None) is not None for k in ("diffusion", "jump_rate", "jump_law")):
+        raise ValueError(f"seed: simulate_many passes one seed to every row, so every row of "
+                         f"{type(system).__name__} (it draws noise: diffusion, jump_rate or "
+                         f"jump_law) would draw the same; run seeded rows with "
+                         f"hybridsim.estimate.accumulate or estimate (a generator per run), or "
+                         f"hs.sweep over seeds")
     kwargs = dict(kwargs, t_max=t_max, j_max=j_max, progress=False)
     if kwargs.get("backend") == "auto":
         kwargs["backend"] = _auto_backend(system, kwargs, executor)

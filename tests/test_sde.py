@@ -157,8 +157,11 @@ def test_refusals_and_bad_input():
     with pytest.raises(ValueError, match="only the Python path steps"):
         hs.simulate_vectorized(vb, [[0.0]], t_max=1.0)
     arcs = hs.simulate_many(vb, [[0.0], [0.0]], t_max=1.0, j_max=1, method="EM",
-                            max_step=0.1, seed=3)   # simulate_many runs it row by row
+                            max_step=0.1)           # simulate_many runs it row by row
     assert [a.stats["sde_method"] for a in arcs] == ["EM", "EM"]
+    assert arcs[0].stats["noise_seed"] != arcs[1].stats["noise_seed"]     # fresh entropy
+    with pytest.raises(ValueError, match="every row .* would draw the same"):
+        hs.simulate_many(vb, [[0.0], [0.0]], t_max=1.0, method="EM", max_step=0.1, seed=3)
     bad = hs.HybridSystem.from_functions(f=lambda x: np.zeros(1), state_dim=1,
                                          diffusion=lambda x: np.ones(2))
     with pytest.raises(hs.MapError, match=r"diffusion must return an array of shape \(1,\)"):
