@@ -22,6 +22,7 @@ from hybridsim.estimate import (
     accumulate,
     clopper_pearson,
     estimate,
+    hybrid_segments,
     run_generator,
     splitting,
 )
@@ -292,6 +293,19 @@ def test_splitting_brownian_maximum_level_6():
                   replicates=4, seed=1)
     assert r.segments <= 10**6
     assert abs(r.p - p) <= 0.10 * p, (r.p, r.std_error)
+
+
+def test_splitting_on_engine_runs():
+    # the barrier 2 on [0, 1] as the engine's jump guard on an SDE flow (the Brownian-bridge
+    # correction locates crossings between steps): score W, and the target once the run
+    # jumped; P = 2 (1 - Phi(2)) = 0.0455, six replicates of 30 particles at 3 se
+    from hybridsim.library import DriftedBrownian
+    sim = hybrid_segments(DriftedBrownian(0.0, 1.0, 2.0), 1.0, j_max=1, method="EM",
+                          max_step=0.05)
+    r = splitting(sim, lambda p: np.where(p[:, 1] >= 1, 2.0, np.minimum(p[:, 2], 1.999999)),
+                  [0.0, 0.0, 0.0], 2.0, n=30, replicates=6, seed=4)
+    p = 2 * norm.sf(2.0)
+    assert abs(r.p - p) <= 3 * r.std_error, (r.p, r.std_error, p)
 
 
 def test_splitting_bad_input():
