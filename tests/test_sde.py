@@ -176,3 +176,6 @@ def test_refusals_and_bad_input():
         hs.simulate(gen, [0.0], t_max=1.0, method="Milstein", max_step=0.1)
     with pytest.raises(hs.MapError, match="SRA1' takes additive noise"):
         hs.simulate(gbm(), [1.0], t_max=1.0, method="SRA1", max_step=0.1)
+    with pytest.raises(ValueError, match=r"systems\['p'\] declares diffusion: an "
+                                         r"interconnection does not carry"):
+        hs.Interconnection({"p": gbm(), "q": gbm()})
