@@ -588,20 +588,21 @@ class Stats:
             out[a] = np.where(total[..., 0] > 0, v, np.nan)
         return out[0] if np.ndim(q) == 0 else out
 
-    def __getstate__(self):
-        return self.__dict__.copy()
+    def empty_like(self) -> Stats:
+        """A new accumulator with this one's grid, signal, thresholds and bins, no runs."""
+        out = Stats.__new__(Stats)
+        out.kind, out.grid, out.signal = self.kind, self.grid, self.signal
+        out.thresholds, out.edges = self.thresholds, self.edges
+        out.runs, out._d = 0, None
+        return out
 
     def __repr__(self):
         return f"Stats({self.kind} grid of {len(self.grid)}, {self.runs} runs)"
 
 
 def _reduce_chunk(run, stats, ss, start, count, batch):
-    """Runs start..start+count-1, reduced into a copy of ``stats``'s layout."""
-    import copy
-    out = copy.deepcopy(stats)
-    out.__init__(**{("t" if stats.kind == "t" else "j"): stats.grid, "signal": stats.signal,
-                    "thresholds": stats.thresholds,
-                    "bins": None if stats.edges is None else stats.edges})
+    """Runs start..start+count-1, reduced into a new accumulator of ``stats``'s layout."""
+    out = stats.empty_like()
     done = 0
     while done < count:
         b = min(batch, count - done)
