@@ -11,9 +11,14 @@ in hybrid time (:func:`plot_flows`, :func:`plot_jumps`, :func:`plot_hybrid`,
 uncertainty space, :func:`falsify`, in :mod:`hybridsim.falsification`;
 derivatives through jumps, :func:`simulate_sensitivity`, in
 :mod:`hybridsim.sensitivity`; signal temporal logic over arcs, with robustness as a
-margin, in :mod:`hybridsim.stl`.
+margin, in :mod:`hybridsim.stl`. Monte Carlo answers with confidence
+(``estimate``, streaming ``Stats``, ``splitting`` for rare events) live in
+:mod:`hybridsim.estimate`; SDE flows (a system's
+``diffusion``), jumps at a rate (``jump_rate``) and random jump maps
+(``jump_law``) run on the Python path, driven by :class:`BrownianPath`.
 """
 from . import compiled as compiled
+from . import estimate as estimate
 from . import falsification as falsification
 from . import library as library
 from . import rules as rules
@@ -22,6 +27,7 @@ from . import testing as testing
 from ._version import __version__ as __version__
 from .arc import HybridArc, Termination, load
 from .batch_vectorized import simulate_vectorized
+from .brownian import BrownianPath
 from .compose import Interconnection, LinearInput, LinearPlant, connect, network
 from .explore import Choice, ExploreEnd, SolutionTree, explore
 from .falsification import falsify
@@ -47,5 +53,5 @@ __all__ = [
     "simulate_many", "sweep", "simulate_vectorized", "BatchError", "BatchWarning",
     "plot_flows", "plot_jumps", "plot_hybrid", "plot_phase", "plot_time_domain",
     "falsify", "simulate_sensitivity", "explore", "SolutionTree", "Choice", "ExploreEnd",
-    "plot_solutions", "load",
+    "plot_solutions", "load", "BrownianPath",
 ]

@@ -459,6 +459,13 @@ class Interconnection(HybridSystem):
         for nm, s in self.systems.items():
             if not isinstance(s, HybridSystem):
                 raise TypeError(f"systems[{nm!r}] must be a HybridSystem, got {type(s).__name__}")
+            drawn = [k for k in ("diffusion", "jump_rate", "jump_law")
+                     if getattr(s, k, None) is not None]
+            if drawn:
+                raise ValueError(f"systems[{nm!r}] declares {', '.join(drawn)}: an "
+                                 f"interconnection does not carry SDE flows or random jumps "
+                                 f"yet (its noise would be dropped); simulate the component "
+                                 f"alone, or write the closed loop as one system")
             s._compile()
             self._slices[nm] = slice(k, k + int(s.state_dim))
             k += int(s.state_dim)

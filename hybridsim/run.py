@@ -36,6 +36,9 @@ from scipy.integrate import OdeSolver
 
 from . import compiled
 from ._progress import make_bar
+from ._random_jumps import is_random, simulate_random
+from ._sde import is_stochastic
+from ._sde import prepare as prepare_sde
 from .arc import HybridArc, _one_sample
 from .batch_vectorized import simulate_vectorized, takes_options
 from .compiled._lower import lower, rebind
@@ -224,6 +227,14 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
     """
     if not isinstance(system, HybridSystem):
         raise TypeError(f"system must be a hybridsim.HybridSystem, got {type(system).__name__}")
+    if is_random(system):      # jump_rate / jump_law: run with the clock's state added
+        kw = {k: v for k, v in locals().items() if k not in ("system", "x0")}
+        if kw["backend"] == "compiled":
+            raise ValueError(f"backend='compiled': {type(system).__name__} declares jump_rate "
+                             f"or jump_law (random jumps), which only the Python path runs "
+                             f"for now; use backend='python'")
+        kw["backend"] = "python"
+        return simulate_random(simulate, system, x0, kw)
     if backend == "auto" and (dwell is not None or system.set_valued):
         backend = "python"          # the compiled path has neither
     if backend == "auto":
@@ -255,6 +266,12 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
     zeno_jumps, zeno_time, zeno_rtol = ro.zeno_jumps, ro.zeno_time, ro.zeno_rtol
     refine, max_steps, max_samples, throw, warn = (ro.refine, ro.max_steps, ro.max_samples,
                                                    ro.throw, ro.warn)
+    sde = None
+    if is_stochastic(system):            # an SDE flow: stepped by hybridsim._sde
+        sde = prepare_sde(system, method, max_step, seed, n, t0, maps, inputs=inputs,
+                          prehistory=prehistory, dense=dense, t_eval=t_eval, refine=refine,
+                          dwell=dwell)
+        method, seed = "RK45", sde.rng_seed(seed)
     Method = resolve_method(method)
     if int(system.input_dim or 0) > 0 and inputs is None:
         raise ValueError(f"inputs: the system has input_dim={system.input_dim}; pass "
@@ -280,6 +297,7 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
                     Method=Method, t_eval=t_eval, keep=keep, delays=delays, rng=rng,
                     dwell=dwell)
     run = _Run(system, maps, opts, inputs, history)
+    run.sde = sde
     run.pbar = _progress_bar(progress, t0, t_max, j_max)
     try:
         run.run(t0, j0, x)
@@ -418,6 +436,13 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
     N = len(X)
     if N == 0:
         return []
+    if kwargs.get("seed") is not None and any(
+            getattr(system, k, None) is not None for k in ("diffusion", "jump_rate", "jump_law")):
+        raise ValueError(f"seed: simulate_many passes one seed to every row, so every row of "
+                         f"{type(system).__name__} (it draws noise: diffusion, jump_rate or "
+                         f"jump_law) would draw the same; run seeded rows with "
+                         f"hybridsim.estimate.accumulate or estimate (a generator per run), or "
+                         f"hs.sweep over seeds")
     kwargs = dict(kwargs, t_max=t_max, j_max=j_max, progress=False)
     if kwargs.get("backend") == "auto":
         kwargs["backend"] = _auto_backend(system, kwargs, executor)
@@ -450,7 +475,9 @@ def _auto_backend(system, kwargs, executor):
     compiled (:func:`hybridsim.compiled.lowerable`) and the options are the
     compiled path's; "python" otherwise (which integrates a vectorized
     system's batch together)."""
-    if executor is not None or importlib.util.find_spec("numba") is None:
+    if executor is not None or importlib.util.find_spec("numba") is None \
+            or any(getattr(system, k, None) is not None         # Python path only
+                   for k in ("diffusion", "jump_rate", "jump_law")):
         return "python"
     if any(kwargs.get(k, v[0]) not in v for k, v in _COMPILED_ONLY_AT.items()):
         return "python"

@@ -250,6 +250,7 @@ class _Run:
         self.fun = self._fun()
         self.out_checked = False    # has the flow map been checked for a shared output array?
         self.stiff_check = opts.Method is RK45
+        self.sde = None         # an SDE flow's stepper (hybridsim._sde.SDEFlow)
 
     # ------------------------------------------------------------------ helpers
     def arc(self):
@@ -266,7 +267,9 @@ class _Run:
         return HybridArc._trusted(t, j, X, self.cause, self.message, self.exception,
                                   components=self.system.components,
                                   segments=self.history.segments if self.o.keep else None,
-                                  system=self.system, xdot=Xd, stats=self.stats.as_dict())
+                                  system=self.system, xdot=Xd,
+                                  stats=self.stats.as_dict() if self.sde is None else
+                                  {**self.stats.as_dict(), **self.sde.record()})
 
     def _stop(self, cause, kind=None, exc=None, **fields):
         """End the run with ``cause``; its message from :func:`hybridsim.rules.message`."""
@@ -540,6 +543,8 @@ class _Run:
 
     def _flow(self, st, in_D_start):
         """Integrate from (st.t, st.x) until an event, t_max or a failure."""
+        if self.sde is not None:
+            return self.sde.flow(self, st, in_D_start)
         o, maps, stats = self.o, self.maps, self.stats
         C, D = maps.C, maps.D
         has_C, watch_D = maps.has_C, self.watch_D

@@ -245,6 +245,17 @@ class HybridSystem:
     jump_map_values = None
     #: names of the components of an interconnection: ``{name: slice}``
     components: dict | None = None
+    #: an SDE flow's diffusion ``(x, t, j) -> σ`` (dx = f dt + σ dW; see
+    #: :mod:`hybridsim._sde`), or None (an ODE flow)
+    diffusion = None
+    #: None: diagonal noise (σ of shape (n,)); an int m: general noise (σ (n, m))
+    noise_dim: int | None = None
+    #: a jump rate ``(x, t, j) -> float >= 0``: jumps also when its integral
+    #: reaches an Exp(1) threshold (see :mod:`hybridsim._random_jumps`), or None
+    jump_rate = None
+    #: a random jump map ``(x, rng) -> x+`` (or ``(x, t, rng)``, ``(x, t, j, rng)``),
+    #: drawn with a generator seeded per run and jump; replaces jump_map; or None
+    jump_law = None
 
     def flow_map(self, x, t, j, u):
         raise NotImplementedError(f"{type(self).__name__} defines no flow_map, "
@@ -349,7 +360,8 @@ class HybridSystem:
     def from_functions(cls, f=None, g=None, C=None, D=None, *, state_dim,
                        jump_guard=None, flow_guard=None, output=None,
                        input_dim=0, output_dim=None, vectorized=False,
-                       max_step=None, needs_history=False, name=None, g_values=None):
+                       max_step=None, needs_history=False, name=None, g_values=None,
+                       diffusion=None, noise_dim=None, jump_rate=None, jump_law=None):
         """Build a hybrid system from plain functions.
 
         Parameters
@@ -369,6 +381,18 @@ class HybridSystem:
         g_values : callable, optional
             A set-valued jump map (rule 10 of the class): returns the
             successors, a sequence of (n,) arrays. Not with ``g``.
+        diffusion : callable, optional
+            An SDE flow's diffusion σ(x, t, j): dx = f dt + σ dW in C (run
+            with ``method="EM"``, ``"Milstein"`` or ``"SRA1"`` and a fixed
+            step ``max_step``; see :mod:`hybridsim._sde`).
+        noise_dim : int, optional
+            None: diagonal noise, σ of shape (n,); m: σ of shape (n, m).
+        jump_rate : callable, optional
+            A jump rate (x, t, j) -> float >= 0: the state also jumps when
+            the rate's integral reaches an Exp(1) threshold.
+        jump_law : callable, optional
+            A random jump map (x, rng) -> x+ (or (x, t, rng), (x, t, j,
+            rng)), drawn with a generator seeded per run and jump.
 
         Examples
         --------
@@ -402,10 +426,14 @@ class HybridSystem:
         sysobj.max_step = max_step
         sysobj.needs_history = needs_history
         sysobj._name = name
+        sysobj.noise_dim = noise_dim
         for arg, attr, fn in (("f", "flow_map", f), ("g", "jump_map", g),
                               ("C", "flow_set", C), ("D", "jump_set", D),
                               ("output", "output", output),
-                              ("g_values", "jump_map_values", g_values)):
+                              ("g_values", "jump_map_values", g_values),
+                              ("diffusion", "diffusion", diffusion),
+                              ("jump_rate", "jump_rate", jump_rate),
+                              ("jump_law", "jump_law", jump_law)):
             if fn is not None:
                 if not callable(fn):
                     raise TypeError(f"{arg} must be callable, got {type(fn).__name__}")

@@ -23,11 +23,12 @@ PKG = Path(__file__).resolve().parents[1] / "hybridsim"
 #: the house's levels, top first (HOUSE.md): a module imports only its own
 #: level and those below it
 LEVELS = (
-    ("capabilities", {"explore", "falsification", "sensitivity", "testing", "plot", "stl"}),
+    ("capabilities", {"explore", "falsification", "sensitivity", "testing", "plot", "stl", "estimate"}),
     ("front door", {"run", "batch"}),
-    ("paths", {"solve", "batch_vectorized", "compiled"}),
+    ("paths", {"solve", "batch_vectorized", "compiled",
+               "_sde", "_random_jumps"}),
     ("shared and data", {"rules", "options", "events", "_rk", "_progress", "_version",
-                         "system", "compose", "history", "arc", "library", "_source"}),
+                         "system", "compose", "history", "arc", "library", "_source", "brownian"}),
 )
 
 
