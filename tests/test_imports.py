@@ -23,7 +23,8 @@ PKG = Path(__file__).resolve().parents[1] / "hybridsim"
 #: the house's levels, top first (HOUSE.md): a module imports only its own
 #: level and those below it
 LEVELS = (
-    ("capabilities", {"explore", "falsification", "sensitivity", "testing", "plot", "stl", "estimate"}),
+    ("capabilities", {"explore", "falsification", "sensitivity", "testing", "plot", "stl",
+                      "estimate"}),
     ("front door", {"run", "batch"}),
     ("paths", {"solve", "batch_vectorized", "compiled",
                "_sde", "_random_jumps"}),
