@@ -62,15 +62,16 @@ from .options import (
 )
 from .rules import (
     CAUSES,
+    CHATTER_RTOL,
     NO_CAUSE,
     Action,
     MapError,
     Priority,
     after_jump,
+    chatter_step,
     event_outcome,
     event_tolerance,
     is_jump_loop,
-    is_short_flow,
     is_sticking,
     jumps_now,
     message,
@@ -78,6 +79,7 @@ from .rules import (
     post_jump_probe,
     t_max_slack,
     time_scale,
+    zeno_short,
 )
 from .system import HybridSystem, as_map, guard_rows
 
@@ -675,8 +677,12 @@ class _BatchRun:
         self.inD_prev = np.zeros(N, dtype=bool)
         self.force = np.zeros(N, dtype=bool)        # an event asks for a jump
         self.short = np.zeros(N, dtype=np.int64)    # consecutive short flows (Zeno)
+        self.zref = np.zeros(N)                     # shrinking streak's reference (Zeno)
+        self.longest = np.zeros(N)                  # longest flow so far (chattering)
+        self.tiny = np.zeros(N, dtype=np.int64)     # consecutive tiny flows against it
         # consecutive jumps at one instant, each from a state in C (rules.is_jump_loop)
         self.loop = np.zeros(N, dtype=np.int64)
+        self.same = np.zeros(N, dtype=np.int64)     # ... from C or not
         # the bracket (lo, x_lo, x_hi) of a located event a row jumps from at hi
         # (pend), then the decision after that jump (post): rules.post_jump_probe
         self.pend = np.zeros(N, dtype=bool)
@@ -963,14 +969,21 @@ class _BatchRun:
             ok = self._reap(rows)
             if ok is not None:
                 rows, xn, t, j, from_C = rows[ok], xn[ok], t[ok], j[ok], from_C[ok]
-            # Zeno: consecutive jumps after flows too short to resolve
+            # Zeno (rules.zeno_short) and chattering (rules.chatter_step), row by row
             flow = t - self.t_last[rows]
-            tiny = is_short_flow(flow, t, time_scale(self.t0, t, self.t_max), self.zeno_time,
-                                 self.zeno_rtol)
-            self.short[rows] = np.where(tiny, self.short[rows] + 1, 0)
+            longest = self.longest[rows]
+            for i, r in enumerate(rows.tolist()):
+                fl = [v for v in self.flows3[r].tolist() if v != math.inf] + [float(flow[i])]
+                short, self.zref[r] = zeno_short(fl, len(fl), float(t[i]), float(self.zref[r]),
+                                                 self.zeno_time, self.zeno_rtol)
+                self.short[r] = self.short[r] + 1 if short else 0
+                self.longest[r], self.tiny[r] = chatter_step(float(flow[i]), float(longest[i]),
+                                                             int(self.tiny[r]))
             # a jump loop: consecutive jumps at one instant, each from a state in C
             self.loop[rows] = np.where(from_C & (flow == 0.0) & (self.jumps[rows] > 0),
                                        self.loop[rows] + 1, 0)
+            self.same[rows] = np.where((flow == 0.0) & (self.jumps[rows] > 0),
+                                       self.same[rows] + 1, 0)
             self.flows3[rows] = np.column_stack([self.flows3[rows][:, 1:], flow])
             self.t_last[rows] = t
             j = j + 1
@@ -1005,8 +1018,20 @@ class _BatchRun:
                     if cause is Termination.ZENO:
                         self._stop(rows[sel], cause, "zeno", count=self.short[rows[sel]],
                                    t=t[sel])
-                    else:
-                        self._stop(rows[sel], cause)
+                        continue
+                    same = self.same[rows]
+                    at = sel & is_jump_loop(same, self.zeno_jumps)
+                    if at.any():
+                        self._stop(rows[at], cause, "instant", count=same[at] + 1, t=t[at])
+                    sel &= ~at
+                    tiny = self.tiny[rows]
+                    ch = sel & is_jump_loop(tiny, self.zeno_jumps)
+                    if ch.any():
+                        self._stop(rows[ch], cause, "chatter", count=tiny[ch],
+                                   rtol=CHATTER_RTOL, longest=longest[ch], flow=flow[ch],
+                                   t=t[ch])
+                    if (sel & ~ch).any():
+                        self._stop(rows[sel & ~ch], cause)
             rows = rows[~end]
 
     def _start_flow(self, rows, inD):
