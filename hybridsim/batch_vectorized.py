@@ -210,6 +210,18 @@ class _SampleLog:
         self.count[rows] += 1
         self.last[rows] = np.arange(a, b)
 
+    def settle(self):
+        """``count`` and ``last`` recomputed from the stored rows: after an
+        interrupt, which may land inside :meth:`append` (between its slice
+        assignments), so that every row's arc and its message name the same
+        last sample. A sample counts once ``size`` covers it."""
+        k, N = self.size, len(self.count)
+        r = self.rows[:k]
+        self.count = np.bincount(r, minlength=N).astype(np.int64)
+        last = np.zeros(N, dtype=np.int64)
+        np.maximum.at(last, r, np.arange(k, dtype=np.int64))
+        self.last = last
+
     def set_last_xdot(self, rows, v):
         self.xd[self.last[rows]] = v
 
@@ -268,7 +280,8 @@ class _VMaps:
     # ---------------------------------------------------------------- checks
     def _check(self, kind, name, val, k):
         if np.iscomplexobj(val):
-            raise MapError(f"{name} returned complex values: the state is real", name)
+            raise MapError(f"{name} returned complex values: "
+                           f"{'a guard' if kind == 'guard' else 'the state'} is real", name)
         if kind == "state":
             arr = np.asarray(val, dtype=float)
             if arr.shape != (k, self.n):
@@ -323,9 +336,9 @@ class _VMaps:
             out = self._check(kind, name, fn(x, t, j, None), k)
         except (KeyboardInterrupt, SystemExit):
             raise
-        except MapError:
+        except MapError as e:
             if strict:
-                raise
+                raise _located(e, t[0], j[0]) from e.__cause__
         except Exception as e:
             if strict:          # at x0, as simulate: a MapError naming the map
                 raise MapError(f"{name} raised {type(e).__name__}: {e} (at the initial "
@@ -351,7 +364,7 @@ class _VMaps:
                                    float(t[i]), int(j[i]))
                     err.__cause__ = e
                     e = err
-                self._fail(rows[i], e)
+                self._fail(rows[i], _located(e, t[i], j[i]))
         return out if kind != "guard" else self._nan_guard(name, rows, out, t, j, strict)
 
     # ------------------------------------------------------------ the maps
@@ -413,6 +426,16 @@ class _VMaps:
         if self.C_from_guard:
             return self.guard_C(rows, x, t, j, strict) >= 0.0
         return self._call("set", "flow_set", self.C, rows, x, t, j, strict)
+
+
+def _located(e, t, j):
+    """A :class:`MapError` of a batch's value check, with the row's t and j
+    where it has none yet."""
+    if e.t is not None:
+        return e
+    err = MapError(f"{e} (at t={float(t):.10g}, j={int(j)})", e.map_name, float(t), int(j))
+    err.__cause__ = e.__cause__
+    return err
 
 
 def takes_options(kwargs, system=None):
@@ -762,6 +785,7 @@ class _BatchRun:
         """End every trajectory still running with ``CANCELED`` (after Ctrl-C)."""
         rows = np.flatnonzero(~self.done)
         log = self.log
+        log.settle()                # the interrupt may have landed inside an append
         last = log.last[rows]       # where each row stopped: its last stored sample
         self._stop(rows, Termination.CANCELED, t=log.t[last], j=log.j[last])
 
