@@ -424,3 +424,155 @@ def test_vectorized_canceled_names_each_arcs_own_last_sample(k):
         # (modulo 1: both samples of a jump, 1 and 0, are the phase 0)
         d = (arc.x[:, 0] - (arc.t + arc.x[0, 0])) % 1.0
         assert np.all(np.minimum(d, 1.0 - d) < 1e-9), (arc.t, arc.x[:, 0])
+
+
+# ------------------------------------------------------------------ interconnections
+def _sys(f=None, g=None, n=2, vec=False, inp=0, jg=None):
+    return hs.HybridSystem.from_functions(f=f or (lambda x: np.zeros_like(x)), g=g,
+                                          state_dim=n, vectorized=vec, input_dim=inp,
+                                          jump_guard=jg)
+
+
+@pytest.mark.parametrize("u, got", [(lambda t, y: np.ones(1), r"shape \(1,\)"),
+                                    (lambda t, y: np.ones(3), r"shape \(3,\)"),
+                                    (lambda t, y: 1.0, r"shape \(\)"),
+                                    (lambda t, y: np.ones((2, 1)), r"shape \(2, 1\)")])
+def test_a_wrong_shape_input_is_named_with_the_expected_shape(u, got):
+    """Was: B @ u broadcast or failed with numpy's words, naming no component."""
+    plant = hs.LinearPlant(np.zeros((2, 2)), B=np.eye(2))
+    ic = hs.Interconnection({"p": plant, "q": _sys()}, {"p": u})
+    with pytest.raises(hs.MapError, match=r"inputs\['p'\] must return the input of component "
+                                          r"'p', an array of shape \(2,\) \(its input_dim=2\), "
+                                          r"got " + got) as e:
+        hs.simulate(ic, np.zeros(4), t_max=1.0)
+    assert e.value.map_name == "inputs['p']"
+
+
+def test_a_wrong_shape_batch_input_is_named():
+    """(1, m) from a batch's input was broadcast over every row."""
+    plant = hs.LinearPlant(np.zeros((2, 2)), B=np.eye(2))
+    ic = hs.Interconnection({"p": plant, "q": _sys(vec=True)},
+                            {"p": lambda t, y: np.ones((1, 2))})
+    assert ic.vectorized
+    with pytest.raises(hs.MapError, match=r"inputs\['p'\] must return the input of component "
+                                          r"'p', an array of shape \(3, 2\) \(one row per "
+                                          r"trajectory\) \(its input_dim=2\), got shape "
+                                          r"\(1, 2\)") as e:
+        hs.simulate_many(ic, np.zeros((3, 4)), t_max=1.0, warn=False)
+    assert e.value.map_name == "inputs['p']"
+
+
+def test_an_input_that_raises_is_named():
+    plant = hs.LinearPlant(np.zeros((2, 2)), B=np.eye(2))
+    ic = hs.Interconnection({"p": plant, "q": _sys()}, {"p": lambda t, y: y["nobody"]})
+    with pytest.raises(hs.MapError, match=r"inputs\['p'\] raised KeyError: .*no component "
+                                          r"named 'nobody'"):
+        hs.simulate(ic, np.zeros(4), t_max=1.0)
+
+
+def test_a_components_bad_guard_names_the_component():
+    bad = _sys(g=lambda x: x, jg=lambda x: np.ones((2, 2)))
+    ic = hs.Interconnection({"a": bad, "b": _sys()})
+    with pytest.raises(hs.MapError, match=r"component 'a': jump_guard must return a real number "
+                                          r"or a non-empty 1-D array") as e:
+        hs.simulate(ic, np.zeros(4), t_max=1.0)
+    assert e.value.map_name == "a.jump_guard"
+
+
+def test_network_argument_errors_name_the_node():
+    import networkx as nx
+    G = nx.DiGraph([(0, 1), (1, 2)])
+    agents = {0: _sys(n=1), 1: _sys(n=1)}
+    with pytest.raises(ValueError, match=r"systems has no entry for node 2 of G"):
+        hs.network(G, agents, lambda v, t, r, e: 0.0)
+    with pytest.raises(TypeError, match=r"systems\(2\) must return a HybridSystem, got NoneType"):
+        hs.network(G, lambda v: None if v == 2 else _sys(n=1), lambda v, t, r, e: 0.0)
+    with pytest.raises(TypeError, match=r"systems must be a dict .* or a callable"):
+        hs.network(G, [_sys(n=1)] * 3, lambda v, t, r, e: 0.0)
+
+
+def test_connect_refuses_an_observer_without_input():
+    with pytest.raises(ValueError, match=r"observer .* has input_dim=0, so it would never read "
+                                         r"the plant's output"):
+        hs.connect(hs.LinearPlant(np.zeros((1, 1))), _sys(n=1))
+
+
+# ------------------------------------------------------------------ plots, evaluate
+@pytest.fixture(scope="module")
+def ball_arc():
+    return hs.simulate(hs.library.BouncingBall(), [1.0, 0.0], t_max=2.0)
+
+
+@pytest.mark.parametrize("kw, name", [(dict(jump_kw={"bogus": 1}), "jump_kw"),
+                                      (dict(flow_kw={"colour": "r"}), "flow_kw"),
+                                      (dict(bogus=1), r"\*\*line_kw")])
+def test_plot_flows_names_a_keyword_that_is_no_line_property(ball_arc, kw, name):
+    """Was: matplotlib's "Line2D.set() got an unexpected keyword argument" (AttributeError)."""
+    import matplotlib.pyplot as plt
+    with pytest.raises(TypeError, match=rf"plot_flows: {name} has '\w+', which is not a "
+                                        r"matplotlib Line2D property"):
+        hs.plot_flows(ball_arc, **kw)
+    plt.close("all")
+
+
+@pytest.mark.parametrize("fn, match", [
+    (lambda x: x[0], r"plot_phase: k=1 selects an output of fn, which returns 1 value per "
+                     r"sample: fn must return at least two"),
+    (lambda x, t, j, u, v: x, r"plot_phase: fn must take \(x\), \(x, t\)"),
+])
+def test_plot_phase_fn_errors_speak_of_fn(ball_arc, fn, match):
+    """Was: "component 1 out of range for a state of dimension 1" (fn's output is
+    no state), and the arity error without the function's name."""
+    import matplotlib.pyplot as plt
+    with pytest.raises((TypeError, ValueError), match=match):
+        hs.plot_phase(ball_arc, fn=fn)
+    with pytest.raises(ValueError, match=r"plot_phase: k=5 is out of range for fn's 2 outputs"):
+        hs.plot_phase(ball_arc, 0, 5, fn=lambda x: np.array([x[0], x[1]]))
+    plt.close("all")
+
+
+def test_evaluate_of_ragged_values_names_the_shapes(ball_arc):
+    """Was: numpy's "inhomogeneous shape after 1 dimensions"."""
+    with pytest.raises(ValueError, match=r"evaluate: fn must return values of one shape at "
+                                         r"every sample; sample 0 \(t=0.0, j=0\) gave shape "
+                                         r"\(1,\), sample \d+ \(t=[0-9.]+, j=1\) shape \(2,\)"):
+        ball_arc.evaluate(lambda x, t, j: np.zeros(1 + j % 2))
+
+
+# ------------------------------------------------------------------ observers' designs
+def test_li_sanfelice_design_with_equal_gains_says_so():
+    """Was: "delta=10 is too small ... choose a larger delta" (no delta exists)."""
+    from observers.li_sanfelice.design import Design, admissible_delta
+    A, H, L = np.array([[0, 1], [-1, 0.0]]), np.array([[1.0, 0.0]]), np.array([[2.0], [1.0]])
+    for call in (lambda: Design(A, H, L, L, 10.0), lambda: admissible_delta(A, H, L, L)):
+        with pytest.raises(ValueError, match=r"L1 == L2, so the two copies are one observer "
+                                             r"\(F1 = F2\).*no delta and no reset gain K2"):
+            call()
+
+
+@pytest.mark.parametrize("A, H, match", [
+    (np.zeros((0, 0)), np.zeros((0, 0)), r"A must be a non-empty n x n matrix"),
+    (np.array([[0, 1], [-1, 0.0]]), np.zeros((0, 2)), r"H must have at least one row"),
+])
+def test_li_sanfelice_design_names_an_empty_matrix(A, H, match):
+    """Was: numpy's "zero-size array to reduction operation maximum"."""
+    from observers.li_sanfelice.design import Design
+    n, p = A.shape[0], H.shape[0]
+    with pytest.raises(ValueError, match=match):
+        Design(A, H, np.zeros((n, p)), np.ones((n, p)), 1.0)
+
+
+@pytest.mark.parametrize("kind", ["finite-time", "linear"])
+@pytest.mark.parametrize("poles", [np.nan, [np.nan, -1.0]])
+def test_distributed_design_names_non_finite_poles(kind, poles):
+    """Was: numpy's LinAlgError "Array must not contain infs or NaNs"."""
+    import networkx as nx
+
+    from observers.distributed.design import design
+    A = np.array([[0, 1], [-1, 0.0]])
+    C = {0: np.array([[1.0, 0.0]]), 1: np.array([[0.0, 1.0]])}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)       # each node observes A alone
+        with pytest.raises(ValueError, match=r"poles for node 0 must be finite with negative "
+                                             r"real parts; got \[nan"):
+            design(A, C, nx.DiGraph([(0, 1), (1, 0)]), kind=kind, poles=poles)
