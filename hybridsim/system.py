@@ -147,11 +147,18 @@ def _guard_value(name, v, t, j):
 
 
 def _named_guard(fn, name):
-    """:func:`_named` for a guard: its value checked by :func:`_guard_value`."""
-    call = _named(fn, name)
+    """:func:`_named` for a guard, its value checked by :func:`_guard_value`
+    (one frame above the user's function, as :func:`_named`)."""
+    k = _check_map(fn, name)
 
     def guard(x, t, j, u):
-        v = call(x, t, j, u)
+        try:
+            v = fn(x) if k <= 1 else fn(x, t) if k == 2 else fn(x, t, j) if k == 3 \
+                else fn(x, t, j, u)
+        except MapError:
+            raise
+        except Exception as e:
+            raise _map_error(name, e, t, j) from e
         c = v.__class__
         if c is float or c is _F64:
             return v

@@ -202,7 +202,7 @@ def test_a_jump_loop_that_ends_j_max_warns_once_naming_the_loop(path):
     assert "jump_set" in str(rec[0].message)
 
 
-@pytest.mark.parametrize("path", paths_xfail_compiled(KERNEL_CHATTER))
+@pytest.mark.parametrize("path", paths_xfail_compiled(KERNEL_FINISH))
 def test_jumps_at_one_instant_not_from_c_warn_at_j_max(path):
     """Guards only and x+ = (h, -lam v) keeping the located height, which is a
     few ulp below the floor: not in C, so not a loop of rules.is_jump_loop,
@@ -213,6 +213,19 @@ def test_jumps_at_one_instant_not_from_c_warn_at_j_max(path):
     assert arc.termination is T.J_MAX
 
 
+@pytest.mark.parametrize("path", paths_xfail_compiled(KERNEL_CHATTER))
+def test_chattering_is_named_on_every_path(path):
+    """x' = 1 from 0, a jump at x >= 1 back to 1 - 1e-6: one flow of 1, then a
+    jump every 1e-6 (a reset too small to leave the jump set's edge)."""
+    from paths import Linear
+    case = Linear(np.zeros((1, 1)), np.ones((1, 1)), np.array([-1e-6]), np.ones(1), 1.0,
+                  k=np.ones(1))
+    with pytest.warns(hs.SimulationWarning, match=r"J_MAX.*chattering") as rec:
+        arc = run(path, case, [0.0], t_max=10.0, j_max=50)
+    assert len(rec) == 1 and arc.termination is T.J_MAX
+    np.testing.assert_allclose(np.diff(arc.jump_times), 1e-6, rtol=1e-6)
+
+
 @pytest.mark.parametrize("path", path_params(compiled_slow=True))
 def test_an_ordinary_j_max_is_quiet(path):
     arc = quiet(run, path, Ball(), [1.0, 0.0], t_max=10.0, j_max=5)
@@ -220,10 +233,6 @@ def test_an_ordinary_j_max_is_quiet(path):
 
 
 # ------------------------------------------------------------------ complex values, bools
-KERNEL_COMPLEX = ("the compiled kernel does not check a guard's value for a complex type "
-                  "(numba compiles the comparison of its real part or fails to type it): "
-                  "it needs MAP_ERROR naming the guard")
-
 #: complex guards as users write them: a real-valued complex scalar, a
 #: constant, a vector with one complex entry; each as (python, vectorized) maps
 COMPLEX_GUARDS = {
@@ -272,10 +281,12 @@ def test_a_complex_guard_mid_run_is_map_error_with_the_arc_so_far(path, kind):
     assert 0.5 <= arc.exception.t <= 0.6 and arc.tf <= 0.6
 
 
-@pytest.mark.parametrize("path", paths_xfail_compiled(KERNEL_COMPLEX))
-def test_a_complex_guard_is_a_map_error_on_every_path(path):
+@pytest.mark.parametrize("path", path_params(compiled_slow=True))
+def test_a_complex_guard_is_refused_naming_it_on_every_path(path):
+    """The compiled path types its maps: a complex guard is refused when it is
+    compiled (CompileError naming the guard and its type), before any run."""
     if path == "compiled":
-        from hybridsim.compiled import CompiledSystem, simulate_compiled
+        from hybridsim.compiled import CompiledSystem, CompileError, simulate_compiled
 
         def f(x, t, j, p):
             return np.ones(1)
@@ -286,7 +297,8 @@ def test_a_complex_guard_is_a_map_error_on_every_path(path):
         def h(x, t, j, p):
             return 1.0 - x[0] + 1j
         system = CompiledSystem(f, g, jump_guard=h, state_dim=1)
-        with pytest.raises(hs.MapError, match="jump_guard returned complex values"):
+        with pytest.raises(CompileError, match=r"could not compile the map 'jump_guard'.*"
+                                               r"complex128"):
             simulate_compiled(system, [0.0], t_max=3.0)
         return
     with pytest.raises(hs.MapError, match="jump_guard returned complex values"):
