@@ -463,9 +463,9 @@ def zeno_short(flows, m, t, ref, zeno_time, zeno_rtol):
       longest flow before the streak began (0: no streak).
 
     A run ends ``ZENO`` after ``zeno_jumps`` consecutive such flows
-    (:func:`after_jump`): the remaining flows of a geometric accumulation
-    then sum to about ``zeno_rtol`` times the streak's own length, so the
-    run stops at its accumulation time to that relative accuracy. Flows
+    (:func:`after_jump`): the flows a geometric accumulation of ratio r has
+    left then sum to about ``zeno_rtol * ref * r**zeno_jumps / (1 - r)``, so
+    the run stops at its accumulation time to that accuracy. Flows
     that shrink more slowly than :data:`ZENO_SHRINK` per window count only
     once below the absolute floor.
 
