@@ -1028,6 +1028,12 @@ class HybridArc:
 
         Returns an array of shape (N, ...) stacking the results.
 
+        Raises
+        ------
+        ValueError
+            fn's values have different shapes at different samples (naming
+            the first sample whose shape differs from the first one's).
+
         Examples
         --------
         >>> arc = HybridArc([0, 1], [0, 0], [[1.0], [2.0]], None)
@@ -1036,8 +1042,17 @@ class HybridArc:
         """
         from .system import as_map
         f = as_map(fn, "fn")
-        return np.array([np.asarray(f(x, t, j, None)) for x, t, j in
-                         zip(self.x, self.t, self.j)])
+        vals = [np.asarray(f(x, t, j, None)) for x, t, j in zip(self.x, self.t, self.j)]
+        if vals:
+            s0 = vals[0].shape
+            for k, v in enumerate(vals):
+                if v.shape != s0:
+                    raise ValueError(
+                        f"evaluate: fn must return values of one shape at every sample; "
+                        f"sample 0 (t={float(self.t[0])!r}, j={int(self.j[0])}) gave shape "
+                        f"{s0}, sample {k} (t={float(self.t[k])!r}, j={int(self.j[k])}) shape "
+                        f"{v.shape}")
+        return np.array(vals)
 
     def transform(self, fn):
         """A new arc with the state replaced by ``fn(x, t, j)`` at each sample.

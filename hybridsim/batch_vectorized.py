@@ -62,16 +62,17 @@ from .options import (
 )
 from .rules import (
     CAUSES,
+    CHATTER_RTOL,
     NO_CAUSE,
     Action,
     MapError,
     Priority,
     after_jump,
+    chatter_step,
     event_outcome,
     event_tolerance,
     finish_batch,
     is_jump_loop,
-    is_short_flow,
     is_sticking,
     jumps_now,
     message,
@@ -79,6 +80,7 @@ from .rules import (
     post_jump_probe,
     t_max_slack,
     time_scale,
+    zeno_short,
 )
 from .system import HybridSystem, as_map, guard_rows
 
@@ -209,6 +211,18 @@ class _SampleLog:
         self.count[rows] += 1
         self.last[rows] = np.arange(a, b)
 
+    def settle(self):
+        """``count`` and ``last`` recomputed from the stored rows: after an
+        interrupt, which may land inside :meth:`append` (between its slice
+        assignments), so that every row's arc and its message name the same
+        last sample. A sample counts once ``size`` covers it."""
+        k, N = self.size, len(self.count)
+        r = self.rows[:k]
+        self.count = np.bincount(r, minlength=N).astype(np.int64)
+        last = np.zeros(N, dtype=np.int64)
+        np.maximum.at(last, r, np.arange(k, dtype=np.int64))
+        self.last = last
+
     def set_last_xdot(self, rows, v):
         self.xd[self.last[rows]] = v
 
@@ -267,7 +281,8 @@ class _VMaps:
     # ---------------------------------------------------------------- checks
     def _check(self, kind, name, val, k):
         if np.iscomplexobj(val):
-            raise MapError(f"{name} returned complex values: the state is real", name)
+            raise MapError(f"{name} returned complex values: "
+                           f"{'a guard' if kind == 'guard' else 'the state'} is real", name)
         if kind == "state":
             arr = np.asarray(val, dtype=float)
             if arr.shape != (k, self.n):
@@ -322,9 +337,9 @@ class _VMaps:
             out = self._check(kind, name, fn(x, t, j, None), k)
         except (KeyboardInterrupt, SystemExit):
             raise
-        except MapError:
+        except MapError as e:
             if strict:
-                raise
+                raise _located(e, t[0], j[0]) from e.__cause__
         except Exception as e:
             if strict:          # at x0, as simulate: a MapError naming the map
                 raise MapError(f"{name} raised {type(e).__name__}: {e} (at the initial "
@@ -350,7 +365,7 @@ class _VMaps:
                                    float(t[i]), int(j[i]))
                     err.__cause__ = e
                     e = err
-                self._fail(rows[i], e)
+                self._fail(rows[i], _located(e, t[i], j[i]))
         return out if kind != "guard" else self._nan_guard(name, rows, out, t, j, strict)
 
     # ------------------------------------------------------------ the maps
@@ -412,6 +427,16 @@ class _VMaps:
         if self.C_from_guard:
             return self.guard_C(rows, x, t, j, strict) >= 0.0
         return self._call("set", "flow_set", self.C, rows, x, t, j, strict)
+
+
+def _located(e, t, j):
+    """A :class:`MapError` of a batch's value check, with the row's t and j
+    where it has none yet."""
+    if e.t is not None:
+        return e
+    err = MapError(f"{e} (at t={float(t):.10g}, j={int(j)})", e.map_name, float(t), int(j))
+    err.__cause__ = e.__cause__
+    return err
 
 
 def takes_options(kwargs, system=None):
@@ -676,8 +701,12 @@ class _BatchRun:
         self.inD_prev = np.zeros(N, dtype=bool)
         self.force = np.zeros(N, dtype=bool)        # an event asks for a jump
         self.short = np.zeros(N, dtype=np.int64)    # consecutive short flows (Zeno)
+        self.zref = np.zeros(N)                     # shrinking streak's reference (Zeno)
+        self.longest = np.zeros(N)                  # longest flow so far (chattering)
+        self.tiny = np.zeros(N, dtype=np.int64)     # consecutive tiny flows against it
         # consecutive jumps at one instant, each from a state in C (rules.is_jump_loop)
         self.loop = np.zeros(N, dtype=np.int64)
+        self.same = np.zeros(N, dtype=np.int64)     # ... from C or not
         # the bracket (lo, x_lo, x_hi) of a located event a row jumps from at hi
         # (pend), then the decision after that jump (post): rules.post_jump_probe
         self.pend = np.zeros(N, dtype=bool)
@@ -757,6 +786,7 @@ class _BatchRun:
         """End every trajectory still running with ``CANCELED`` (after Ctrl-C)."""
         rows = np.flatnonzero(~self.done)
         log = self.log
+        log.settle()                # the interrupt may have landed inside an append
         last = log.last[rows]       # where each row stopped: its last stored sample
         self._stop(rows, Termination.CANCELED, t=log.t[last], j=log.j[last])
 
@@ -964,14 +994,21 @@ class _BatchRun:
             ok = self._reap(rows)
             if ok is not None:
                 rows, xn, t, j, from_C = rows[ok], xn[ok], t[ok], j[ok], from_C[ok]
-            # Zeno: consecutive jumps after flows too short to resolve
+            # Zeno (rules.zeno_short) and chattering (rules.chatter_step), row by row
             flow = t - self.t_last[rows]
-            tiny = is_short_flow(flow, t, time_scale(self.t0, t, self.t_max), self.zeno_time,
-                                 self.zeno_rtol)
-            self.short[rows] = np.where(tiny, self.short[rows] + 1, 0)
+            longest = self.longest[rows]
+            for i, r in enumerate(rows.tolist()):
+                fl = [v for v in self.flows3[r].tolist() if v != math.inf] + [float(flow[i])]
+                short, self.zref[r] = zeno_short(fl, len(fl), float(t[i]), float(self.zref[r]),
+                                                 self.zeno_time, self.zeno_rtol)
+                self.short[r] = self.short[r] + 1 if short else 0
+                self.longest[r], self.tiny[r] = chatter_step(float(flow[i]), float(longest[i]),
+                                                             int(self.tiny[r]))
             # a jump loop: consecutive jumps at one instant, each from a state in C
             self.loop[rows] = np.where(from_C & (flow == 0.0) & (self.jumps[rows] > 0),
                                        self.loop[rows] + 1, 0)
+            self.same[rows] = np.where((flow == 0.0) & (self.jumps[rows] > 0),
+                                       self.same[rows] + 1, 0)
             self.flows3[rows] = np.column_stack([self.flows3[rows][:, 1:], flow])
             self.t_last[rows] = t
             j = j + 1
@@ -1006,8 +1043,20 @@ class _BatchRun:
                     if cause is Termination.ZENO:
                         self._stop(rows[sel], cause, "zeno", count=self.short[rows[sel]],
                                    t=t[sel])
-                    else:
-                        self._stop(rows[sel], cause)
+                        continue
+                    same = self.same[rows]
+                    at = sel & is_jump_loop(same, self.zeno_jumps)
+                    if at.any():
+                        self._stop(rows[at], cause, "instant", count=same[at] + 1, t=t[at])
+                    sel &= ~at
+                    tiny = self.tiny[rows]
+                    ch = sel & is_jump_loop(tiny, self.zeno_jumps)
+                    if ch.any():
+                        self._stop(rows[ch], cause, "chatter", count=tiny[ch],
+                                   rtol=CHATTER_RTOL, longest=longest[ch], flow=flow[ch],
+                                   t=t[ch])
+                    if (sel & ~ch).any():
+                        self._stop(rows[sel & ~ch], cause)
             rows = rows[~end]
 
     def _start_flow(self, rows, inD):

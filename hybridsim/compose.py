@@ -170,6 +170,42 @@ def _set_rows(nm, kind, v, k, t, j):
                              "trajectory)", t, j)
 
 
+def _in_component(nm, e):
+    """A component's MapError (raised inside its own maps) named by the component:
+    ``component 'a': jump_guard ...``, ``map_name="a.jump_guard"``."""
+    name = e.map_name or "map"
+    if (isinstance(name, str) and (name.startswith(f"{nm}.") or name.startswith("inputs[")))\
+            or str(e).startswith("component "):
+        return e
+    err = MapError(f"component {nm!r}: {e}", f"{nm}.{name}", e.t, e.j)
+    err.__cause__ = e
+    return err
+
+
+def _input_value(nm, u, m, k, t, j):
+    """A component's input from its ``inputs`` entry: shape (m,) (a batch of k
+    rows: (k, m)), or a scalar ((k,) over a batch) where m == 1; real and
+    finite. Returns u as it is, or raises a MapError naming ``inputs[nm]``."""
+    name = f"inputs[{nm!r}]"
+    sh = _real_shape(u)
+    ok = (sh == (m,) or (m == 1 and sh == ())) if k is None else \
+        (sh == (k, m) or (m == 1 and sh == (k,)))
+    tt, jj = _at(t, j)
+    where = "" if tt is None else f" (at t={tt:.10g}, j={jj})"
+    if not ok:
+        if np.iscomplexobj(u):
+            raise MapError(f"{name} returned complex values{where}: component {nm!r} takes a "
+                           f"real input", name, tt, jj)
+        want = f"({m},)" + (" or a scalar" if m == 1 else "") if k is None else \
+            f"({k}, {m})" + (f" or ({k},)" if m == 1 else "") + " (one row per trajectory)"
+        got = f"shape {sh}" if sh is not None else f"{type(u).__name__} {u!r}"
+        raise MapError(f"{name} must return the input of component {nm!r}, an array of shape "
+                       f"{want} (its input_dim={m}), got {got}{where}", name, tt, jj)
+    if not np.all(np.isfinite(u)):
+        raise MapError(f"{name} returned non-finite values {u}{where}", name, tt, jj)
+    return u
+
+
 class LinearPlant(HybridSystem):
     r"""A linear plant :math:`\dot x = Ax + Bu + d(t)`, :math:`y = Cx + Du + m(t)`.
 
@@ -498,7 +534,7 @@ class Interconnection(HybridSystem):
                                     for d in (s.delays or ())}))
         self._build()
 
-    _DERIVED = ("_f", "_g", "_C", "_D", "_Cv", "_Dv", "_h", "_h_u", "_hD", "_hC", "_items",
+    _DERIVED = ("_f", "_g", "_C", "_D", "_Cv", "_Dv", "_h", "_h_u", "_hD", "_hC", "_items", "_m",
                 "_hout", "_hp", "jump_guard",
                 "flow_guard", "_compiled_maps", "history", "_lowered")
 
@@ -518,6 +554,7 @@ class Interconnection(HybridSystem):
             self.jump_guard = self._jump_guard
         if self._C and all(h is not None for h in self._hC.values()):
             self.flow_guard = self._flow_guard
+        self._m = {nm: int(s.input_dim or 0) for nm, s in self.systems.items()}
         # (name, slice, flow map, input, (n_i,)): the flow's loop
         self._items = [(nm, self._slices[nm], self._f[nm], self.inputs.get(nm),
                         (self._slices[nm].stop - self._slices[nm].start,))
@@ -549,7 +586,28 @@ class Interconnection(HybridSystem):
         fn = self.inputs.get(name)
         if fn is None:
             return None
-        return fn(t, _Outputs(self, x, t, j) if y is None else y)
+        return self._input(name, fn, x, t, j, _Outputs(self, x, t, j) if y is None else y)
+
+    def _input(self, nm, fn, x, t, j, y):
+        """Component ``nm``'s input ``fn(t, y)``, checked against its input_dim
+        (:func:`_input_value`); its failure a MapError naming ``inputs[nm]``."""
+        try:
+            u = fn(t, y)
+        except MapError:
+            raise
+        except Exception as e:
+            tt, jj = _at(t, j)
+            where = "" if tt is None else f" (at t={tt:.10g}, j={jj})"
+            raise MapError(f"inputs[{nm!r}] raised {type(e).__name__}: {e}{where}",
+                           f"inputs[{nm!r}]", tt, jj) from e
+        m = self._m[nm]
+        if m:
+            k = len(x) if x.ndim == 2 else None
+            if not (u.__class__ is _ND and u.dtype.kind == "f"
+                    and u.shape == ((m,) if k is None else (k, m))
+                    and math.isfinite(u.sum())):
+                _input_value(nm, u, m, k, t, j)
+        return u
 
     def _input_of(self, name, x, t, j):
         return self._u(name, x, t, j)
@@ -574,21 +632,27 @@ class Interconnection(HybridSystem):
     def flow_map(self, x, t, j, u=None):
         y = _Outputs(self, x, t, j)
         out = np.empty(x.shape)
-        if x.ndim == 2:
-            k = len(x)
-            for nm, sl, f, ufn, (n,) in self._items:
-                v = f(x[:, sl], t, j, None if ufn is None else ufn(t, y))
-                if not (v.__class__ is _ND and v.shape == (k, n) and v.dtype.kind == "f"):
-                    v = _rows_value(nm, "flow_map", v, k, n, t, j)
-                out[:, sl] = v
-            if not math.isfinite(out.sum()):        # (or an overflow of the sum)
-                self._non_finite("flow_map", out, t, j)
-            return out
-        for nm, sl, f, ufn, shape in self._items:
-            v = f(x[sl], t, j, None if ufn is None else ufn(t, y))
-            if not (v.__class__ is _ND and v.shape == shape and v.dtype.kind == "f"):
-                v = _state_value(nm, "flow_map", v, shape[0], t, j)
-            out[sl] = v
+        nm = None
+        try:
+            if x.ndim == 2:
+                k = len(x)
+                for nm, sl, f, ufn, (n,) in self._items:
+                    v = f(x[:, sl], t, j, None if ufn is None else self._input(nm, ufn, x, t, j, y))
+                    if not (v.__class__ is _ND and v.shape == (k, n) and v.dtype.kind == "f"):
+                        v = _rows_value(nm, "flow_map", v, k, n, t, j)
+                    out[:, sl] = v
+                if not math.isfinite(out.sum()):        # (or an overflow of the sum)
+                    self._non_finite("flow_map", out, t, j)
+                return out
+            for nm, sl, f, ufn, shape in self._items:
+                v = f(x[sl], t, j, None if ufn is None else self._input(nm, ufn, x, t, j, y))
+                if not (v.__class__ is _ND and v.shape == shape and v.dtype.kind == "f"):
+                    v = _state_value(nm, "flow_map", v, shape[0], t, j)
+                out[sl] = v
+        except MapError as e:
+            if nm is None:
+                raise
+            raise _in_component(nm, e) from e.__cause__
         if not math.isfinite(out.dot(out)):         # (or an overflow of the product)
             self._non_finite("flow_map", out, t, j)
         return out
@@ -605,7 +669,11 @@ class Interconnection(HybridSystem):
 
     def _in(self, table, x, t, j, y):
         for nm, test in table.items():
-            yield nm, test(x[..., self._slices[nm]], t, j, self._u(nm, x, t, j, y))
+            try:
+                v = test(x[..., self._slices[nm]], t, j, self._u(nm, x, t, j, y))
+            except MapError as e:
+                raise _in_component(nm, e) from e.__cause__
+            yield nm, v
 
     def flow_set(self, x, t, j, u=None):
         y = _Outputs(self, x, t, j)
@@ -633,7 +701,10 @@ class Interconnection(HybridSystem):
         for nm, inD in list(self._in(self._D, x, t, j, y)):
             if inD:
                 sl = self._slices[nm]
-                v = self._g[nm](x[sl], t, j, self._u(nm, x, t, j, y))
+                try:
+                    v = self._g[nm](x[sl], t, j, self._u(nm, x, t, j, y))
+                except MapError as e:
+                    raise _in_component(nm, e) from e.__cause__
                 n = sl.stop - sl.start
                 if not (v.__class__ is _ND and v.shape == (n,) and v.dtype.kind == "f"
                         and math.isfinite(v.dot(v))):
@@ -653,7 +724,10 @@ class Interconnection(HybridSystem):
             if u is not None:
                 u = np.asarray(u, dtype=float)[rows]
             tr, jr = t[rows], j[rows]
-            v = self._g[nm](x[rows][:, sl], tr, jr, u)
+            try:
+                v = self._g[nm](x[rows][:, sl], tr, jr, u)
+            except MapError as e:
+                raise _in_component(nm, e) from e.__cause__
             k, n = len(tr), sl.stop - sl.start
             if not (v.__class__ is _ND and v.shape == (k, n) and v.dtype.kind == "f"
                     and math.isfinite(v.sum())):
@@ -824,6 +898,11 @@ def connect(plant, observer, names=("plant", "observer")):
         raise ValueError(f"plant has input_dim={plant.input_dim}: connect() wires only the "
                          "plant's output; use Interconnection with inputs for a feedback loop")
     m = int(observer.input_dim or 0)
+    if m <= 0:
+        raise ValueError(f"connect: the observer ({type(observer).__name__}) has "
+                         f"input_dim={observer.input_dim}, so it would never read the plant's "
+                         f"output; set its input_dim to the plant's output dimension "
+                         f"(the observer's maps take it as u)")
     q = _output_dim(plant)
     if m > 0 and q is not None and q != m:
         raise ValueError(f"connect: the plant's output has dimension {q} "
@@ -930,8 +1009,21 @@ def network(G, systems, inputs, *, nodelist=None, exogenous=None):
     if clash:
         raise ValueError(f"exogenous names clash with node names: {sorted(map(str, clash))}")
     comps = dict(exogenous)
+    factory = callable(systems) and not isinstance(systems, Mapping)
+    if not factory and not isinstance(systems, Mapping):
+        raise TypeError(f"systems must be a dict {{node: HybridSystem}} or a callable "
+                        f"node -> HybridSystem, got {type(systems).__name__}")
     for v in nodes:
-        s = systems(v) if callable(systems) and not isinstance(systems, Mapping) else systems[v]
+        if factory:
+            s = systems(v)
+            if not isinstance(s, HybridSystem):
+                raise TypeError(f"systems({v!r}) must return a HybridSystem, got "
+                                f"{type(s).__name__}")
+        else:
+            if v not in systems:
+                raise ValueError(f"systems has no entry for node {v!r} of G: it must map "
+                                 f"every node (nodes {nodes}, systems {list(systems)})")
+            s = systems[v]
         comps[v] = s
     exo_names = list(exogenous)
     if isinstance(inputs, Mapping):

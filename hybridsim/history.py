@@ -5,6 +5,8 @@ from bisect import bisect_right
 
 import numpy as np
 
+from .rules import MapError
+
 __all__ = ["History", "HistoryError", "BatchHistory"]
 
 # 5-point Gauss-Legendre: exact for polynomials of degree 9 (the dense output
@@ -78,7 +80,7 @@ class History:
                 return h(s)
             if h._pre is None:
                 return h._x0.copy()
-            return np.asarray(h._pre(s), dtype=float)
+            return h._prehistory(s)
         tol = 1e-12 * max(1.0, abs(s))
         if s >= self._cur_t and (not self._starts or self._starts[-1] < self._cur_t):
             # no step of the current flow is recorded yet: its start (post-jump value)
@@ -101,6 +103,35 @@ class History:
         return np.asarray(self._sols[k](s), dtype=float)
 
     state = __call__
+
+    def _prehistory(self, s):
+        """The user's ``prehistory(s)``, checked: a :class:`hybridsim.MapError`
+        naming ``prehistory`` where it raises or returns anything but a finite
+        real array of the state's shape."""
+        n = self._x0.shape[0]
+        where = f"(at s={s:.10g}, read by the maps through history before t0={self.t0:.10g})"
+        try:
+            v = self._pre(s)
+        except MapError:
+            raise
+        except Exception as e:
+            raise MapError(f"prehistory raised {type(e).__name__}: {e} {where}",
+                           "prehistory", s) from e
+        if np.iscomplexobj(v):
+            raise MapError(f"prehistory returned complex values {v!r} {where}: the state "
+                           f"is real", "prehistory", s)
+        try:
+            arr = np.asarray(v, dtype=float)
+        except (TypeError, ValueError) as e:
+            raise MapError(f"prehistory must return an array of {n} floats, got "
+                           f"{type(v).__name__} {where}", "prehistory", s) from e
+        if arr.shape != (n,):
+            raise MapError(f"prehistory must return an array of shape ({n},) (the state's), "
+                           f"got shape {arr.shape} {where}", "prehistory", s)
+        if not np.all(np.isfinite(arr)):
+            raise MapError(f"prehistory returned non-finite values {arr} {where}",
+                           "prehistory", s)
+        return arr
 
     def _holder(self, s):
         """The run of a chain of pasts (explore's branches) that recorded s, or the

@@ -78,9 +78,36 @@ def refuse(path, name, value):
                      f"{_WHERE.get(name, 'hs.simulate (the Python path)')}")
 
 
+def _has_bool(x0):
+    """Whether x0 is, or holds, a bool (numpy would read True as 1.0)."""
+    if isinstance(x0, (bool, np.bool_)):
+        return True
+    if isinstance(x0, np.ndarray):
+        return x0.dtype == np.bool_ or (x0.dtype == object
+                                        and any(_has_bool(v) for v in x0.ravel()))
+    if isinstance(x0, (list, tuple)):
+        return any(_has_bool(v) for v in x0)
+    return False
+
+
 def check_x0(x0, n):
+    """x0 as a float array of shape (n,): real, finite, no bools.
+
+    Examples
+    --------
+    >>> check_x0([1, 2.5], 2)
+    array([1. , 2.5])
+    >>> check_x0([True, 0.0], 2)
+    Traceback (most recent call last):
+    ...
+    TypeError: x0 must be an array of 2 real numbers, got booleans in [True, 0.0] ...
+    """
     if np.iscomplexobj(x0):
         raise TypeError(f"x0 must be real, got complex values {x0!r}")
+    if _has_bool(x0):
+        raise TypeError(f"x0 must be an array of {n} real numbers, got booleans in {x0!r} "
+                        f"(numpy would read True as 1.0): give floats, e.g. "
+                        f"np.asarray(x0, dtype=float)")
     try:
         x = np.array(x0, dtype=float)
     except (TypeError, ValueError) as e:

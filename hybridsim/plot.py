@@ -411,13 +411,23 @@ def _styles(flow_kw, jump_kw, start_kw, end_kw, line_kw, where):
     from matplotlib.cbook import normalize_kwargs
     from matplotlib.lines import Line2D
 
-    def norm(kw):      # matplotlib's aliases (ls, lw, c, ms...) to their full names
-        return normalize_kwargs(kw, Line2D)
-    flow_kw = norm(_check_kw("flow_kw", flow_kw, where))
-    jump_kw = norm(_check_kw("jump_kw", jump_kw, where))
-    start_kw = norm(_check_kw("start_kw", start_kw, where))
-    end_kw = norm(_check_kw("end_kw", end_kw, where))
-    line_kw.update(norm({k: line_kw.pop(k) for k in list(line_kw)}))
+    def norm(kw, name):
+        # matplotlib's aliases (ls, lw, c, ms...) to their full names; unknown
+        # properties named here, not by matplotlib at the first draw
+        kw = normalize_kwargs(kw, Line2D)
+        bad = [k for k in kw if k not in ("label", "labels")
+               and not callable(getattr(Line2D, f"set_{k}", None))]
+        if bad:
+            raise TypeError(f"{where}: {name} has {', '.join(map(repr, bad))}, which "
+                            f"{'is not a' if len(bad) == 1 else 'are not'} matplotlib Line2D "
+                            f"propert{'y' if len(bad) == 1 else 'ies'} (e.g. color, "
+                            f"linewidth, linestyle, marker, markersize, alpha)")
+        return kw
+    flow_kw = norm(_check_kw("flow_kw", flow_kw, where), "flow_kw")
+    jump_kw = norm(_check_kw("jump_kw", jump_kw, where), "jump_kw")
+    start_kw = norm(_check_kw("start_kw", start_kw, where), "start_kw")
+    end_kw = norm(_check_kw("end_kw", end_kw, where), "end_kw")
+    line_kw.update(norm({k: line_kw.pop(k) for k in list(line_kw)}, "**line_kw"))
     for bad in ("label", "labels"):
         if bad in line_kw:
             raise TypeError(f"{where}: use labels=[...] to name the plotted components, "
@@ -834,8 +844,24 @@ def plot_phase(arc, i=0, k=1, *, ax=None, labels=None, fn=None, filter=None, jum
                              f"i = k = {i} (plot_flows draws one component against t)")
         s = _sample(arc, [i, k], None, smooth, filter, where)
     else:
+        if callable(fn):
+            from .system import as_map
+            try:
+                as_map(fn, "fn")
+            except TypeError as e:
+                raise TypeError(f"{where}: {e}") from None
         s = _sample(arc, None, fn, smooth, filter, where)
-        i, k = _check_component(where, i, s.k), _check_component(where, k, s.k)
+        for name, c in (("i", i), ("k", k)):
+            if isinstance(c, (bool, np.bool_)) or not isinstance(c, (int, np.integer)):
+                raise TypeError(f"{where}: {name} must be an int index into fn's output, got "
+                                f"{c!r}")
+            if not -s.k <= c < s.k:
+                raise ValueError(f"{where}: {name}={c} selects an output of fn, which returns "
+                                 f"{s.k} value{'s' if s.k != 1 else ''} per sample: fn must "
+                                 f"return at least two (plot_phase draws output k against "
+                                 f"output i)" if s.k < 2 else
+                                 f"{where}: {name}={c} is out of range for fn's {s.k} outputs")
+        i, k = int(i) % s.k, int(k) % s.k
         if i == k:
             raise ValueError(f"{where}: i and k must be two different outputs of fn, got "
                              f"i = k = {i}")

@@ -21,7 +21,8 @@ __all__ = ["Termination", "Priority", "Action", "decide", "decide_at_event", "ev
            "jumps_now", "needs_coin", "dwell_outcome", "is_short_flow", "is_sticking",
            "sticking_message",
            "zeno_message", "time_scale", "t_max_slack", "event_tolerance", "PRIORITIES", "FAILURES",
-           "post_jump_probe", "LOOP_JUMPS", "is_jump_loop",
+           "post_jump_probe", "LOOP_JUMPS", "is_jump_loop", "zeno_short", "ZENO_SHRINK",
+           "ZENO_WINDOW", "CHATTER_RTOL", "chatter_step",
            "SimulationWarning", "SimulationError", "MapError"]
 
 _EPS = float(np.finfo(float).eps)
@@ -120,11 +121,17 @@ def raises(cause, throw):
     return bool(throw) and cause is Termination.MAP_ERROR
 
 
-def warns(cause, warn):
+def warns(cause, warn, message=None):
     """Whether a run that ended with ``cause`` issues a :class:`SimulationWarning`
-    (``warn=True``): the numerical failures and ``MAX_STEPS``."""
-    return bool(warn) and cause is not Termination.MAP_ERROR and (
-        cause in FAILURES or cause is Termination.MAX_STEPS)
+    (``warn=True``): the numerical failures and ``MAX_STEPS``; and ``J_MAX``
+    where its ``message`` carries a detail (a jump loop or chattering, kinds
+    ``"loop"`` and ``"chatter"`` of :data:`DETAILS`: the limit was reached,
+    but something is wrong)."""
+    if not warn or cause is Termination.MAP_ERROR:
+        return False
+    if cause is Termination.J_MAX:
+        return message is not None and message != cause.message
+    return cause in FAILURES or cause is Termination.MAX_STEPS
 
 
 def finish(arc, throw, warn, stacklevel=3):
@@ -145,7 +152,7 @@ def finish(arc, throw, warn, stacklevel=3):
             err = MapError(arc.message)
         err.arc = arc
         raise err
-    if warns(cause, warn):
+    if warns(cause, warn, arc.message):
         warnings.warn(f"{cause.name}: {arc.message} (last sample t={arc.t[-1]:.10g}, "
                       f"j={arc.j[-1]})", SimulationWarning, stacklevel=stacklevel)
     return arc
@@ -409,20 +416,123 @@ def _max(a, b):
 
 
 def is_short_flow(length, t, scale, zeno_time, zeno_rtol):
-    """A flow too short to count as time advancing (for Zeno detection).
+    """The horizon-relative short-flow test the compiled kernel still applies.
 
-    Short means at most ``zeno_time * max(1, |t|)`` (an absolute floor) or at
-    most ``zeno_rtol * scale``, where ``scale`` is the run's time scale
-    (:func:`time_scale`). Works on floats and on numpy arrays.
+    Short means at most ``zeno_time * max(1, |t|)`` or at most ``zeno_rtol *
+    scale`` (:func:`time_scale`). It calls a periodic timer Zeno when its
+    period is below ``zeno_rtol`` times the horizon; :func:`hybridsim.simulate`
+    and the vectorized batch decide Zeno by :func:`zeno_short` instead, and
+    the compiled kernel is to follow (it must pass its last flows to
+    :func:`zeno_short`). Works on floats and on numpy arrays.
 
     Examples
     --------
-    >>> bool(is_short_flow(2e-9, 0.5, 1.0, 1e-12, 1e-7))     # chattering
+    >>> bool(is_short_flow(2e-9, 0.5, 1.0, 1e-12, 1e-7))
     True
-    >>> bool(is_short_flow(1e-3, 0.5, 1.0, 1e-12, 1e-7))     # a 1 kHz sampler
+    >>> bool(is_short_flow(1e-3, 0.5, 1.0, 1e-12, 1e-7))
     False
     """
     return length <= _max(zeno_time * _max(1.0, abs(t)), zeno_rtol * scale)
+
+
+#: a flow at most this fraction of the longest of the :data:`ZENO_WINDOW`
+#: flows before it continues a shrinking streak (:func:`zeno_short`)
+ZENO_SHRINK = 0.9999
+#: how many flows before the current one a shrinking streak compares it with
+ZENO_WINDOW = 3
+
+
+def zeno_short(flows, m, t, ref, zeno_time, zeno_rtol):
+    """Whether the flow before a jump counts towards Zeno, and the streak's reference.
+
+    Zeno is an accumulation of jumps: flows that shrink, relative to the
+    run's own earlier flows, so that their sum converges. The test reads
+    only the run's flows, never its horizon: a timer jumping every 1 ms
+    for ever is no accumulation, whatever t_max is.
+
+    A flow (of length ``flows[m - 1]``, ending at t) counts (``short``) when
+
+    * it is at most ``zeno_time * max(1, |t|)``: too short to resolve in
+      floating point (a jump loop at one instant, chattering at round-off);
+      or
+    * it lies in a *shrinking streak* and has shrunk to at most
+      ``zeno_rtol`` times the streak's reference. A flow continues the
+      streak when it is at most :data:`ZENO_SHRINK` times the longest of
+      the (up to) :data:`ZENO_WINDOW` flows before it, so the flows
+      decrease geometrically (by at least that factor every few jumps,
+      which lets two or three modes alternate, as in the two-tank
+      system), and their sum converges; the reference ``ref`` is the
+      longest flow before the streak began (0: no streak).
+
+    A run ends ``ZENO`` after ``zeno_jumps`` consecutive such flows
+    (:func:`after_jump`): the flows a geometric accumulation of ratio r has
+    left then sum to about ``zeno_rtol * ref * r**zeno_jumps / (1 - r)``, so
+    the run stops at its accumulation time to that accuracy. Flows
+    that shrink more slowly than :data:`ZENO_SHRINK` per window count only
+    once below the absolute floor.
+
+    ``flows``: the run's last flow lengths, the current one at ``m - 1``
+    (the entries before it are read back to :data:`ZENO_WINDOW`); ``ref``:
+    the value this function returned at the previous jump (0.0 at the
+    first). Returns ``(short, ref)``. Plain floats and a plain loop, so
+    that a compiled path compiles it.
+
+    Examples
+    --------
+    >>> zeno_short([1e-3, 1e-3, 1e-3, 1e-3], 4, 1.0, 0.0, 1e-12, 1e-7)   # a 1 kHz timer
+    (False, 0.0)
+    >>> zeno_short([1.0, 0.5, 0.25, 2e-8], 4, 2.0, 1.0, 1e-12, 1e-7)     # shrunk 5e7-fold
+    (True, 1.0)
+    >>> zeno_short([1.0, 1.0, 1.0, 0.0], 4, 2.0, 0.0, 1e-12, 1e-7)[0]    # no flow at all
+    True
+    """
+    flow = flows[m - 1]
+    prev = 0.0
+    k = m - 1 - ZENO_WINDOW
+    if k < 0:
+        k = 0
+    for i in range(k, m - 1):
+        if flows[i] > prev:
+            prev = flows[i]
+    if prev > 0.0 and flow <= ZENO_SHRINK * prev:
+        if not ref > 0.0:
+            ref = prev              # the streak begins: its reference flow
+    else:
+        ref = 0.0
+    short = flow <= zeno_time * max(1.0, abs(t)) or (ref > 0.0 and flow <= zeno_rtol * ref)
+    return short, ref
+
+
+#: a flow at most this fraction of the run's longest earlier flow is tiny:
+#: consecutive tiny flows up to ``J_MAX`` are chattering (:func:`chatter_step`)
+CHATTER_RTOL = 1e-3
+
+
+def chatter_step(flow, longest, count):
+    """Update the chattering count after a jump: ``(longest, count)``.
+
+    ``count`` counts consecutive jumps after a flow at most
+    :data:`CHATTER_RTOL` times ``longest``, the longest flow of the run
+    before it (a ball that has come to rest on a floor, bouncing every
+    10 us after falls of a second). A run that reaches ``j_max`` with the
+    last :data:`LOOP_JUMPS` (or ``zeno_jumps``, if fewer) flows tiny is
+    chattering (:func:`is_jump_loop`'s threshold): it still ends ``J_MAX``,
+    with a message that says so (kind ``"chatter"`` of :data:`DETAILS`; kind
+    ``"instant"`` where those jumps were all at one instant but not from C,
+    so not a loop of :func:`is_jump_loop`) and one warning (:func:`finish`).
+    Plain floats, so that a compiled path compiles it.
+
+    Examples
+    --------
+    >>> chatter_step(9e-6, 0.45, 3)
+    (0.45, 4)
+    >>> chatter_step(0.3, 0.45, 4)
+    (0.45, 0)
+    """
+    count = count + 1 if (longest > 0.0 and flow <= CHATTER_RTOL * longest) else 0
+    if flow > longest:
+        longest = flow
+    return longest, count
 
 
 def is_sticking(last_flows, flow_now, jumps, scale):
@@ -481,6 +591,18 @@ DETAILS = {
                                   "Check jump_set: a jump_guard alone makes "
                                   "D = {{guard >= 0}}, which the state after the jump "
                                   "still satisfies on the guard's zero"),
+    (Termination.J_MAX, "chatter"): ("chattering: the last {count} flows were each shorter "
+                                     "than {rtol:g} times the run's longest flow "
+                                     "({longest:.3g}), the last {flow:.3g} at t={t:.10g}: "
+                                     "the solution sticks to the boundary of C or chatters "
+                                     "between the sets. Model the contact (a mode where it "
+                                     "persists, or a jump map that stops the motion below "
+                                     "a threshold), or add hysteresis to the sets"),
+    (Termination.J_MAX, "instant"): ("jumps at one instant: the last {count} jumps were all "
+                                     "at t={t:.10g}, the state after each still in D. "
+                                     "Check jump_set and jump_map: a jump_guard "
+                                     "alone makes D = {{guard >= 0}}, which a state left on "
+                                     "or just past the guard's zero still satisfies"),
     (Termination.ZENO, "loop"): ("a jump loop: the last {count} jumps were all at "
                                  "t={t:.10g}, each from a state in C and D (flowing was "
                                  "possible): the state after each jump is still in D. "
@@ -518,8 +640,9 @@ def message(cause, kind=None, **fields):
 
 def zeno_message(count, t):
     """What the Zeno test found (the same words on every integration path)."""
-    return (f"{count} consecutive jumps after flows shorter than "
-            f"max(zeno_time*max(1,|t|), zeno_rtol*time scale) near t={t:.10g}")
+    return (f"{count} consecutive jumps after flows that shrank geometrically to "
+            f"zeno_rtol times the run's earlier flows, or below zeno_time*max(1,|t|) "
+            f"(rules.zeno_short), near t={t:.10g}")
 
 
 def time_scale(t0, t, t_max):

@@ -97,7 +97,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .arc import Termination
-from .rules import SimulationError, SimulationWarning
+from .rules import MapError, SimulationError, SimulationWarning
 from .run import simulate
 from .system import HybridSystem, as_map
 
@@ -170,10 +170,20 @@ def _user_jac(system, name, shape_ok, what):
     call = as_map(fn, name)
 
     def jac(x, t, j):
-        v = np.asarray(call(x, t, j, None), dtype=float)
-        if not shape_ok(v.shape) or not np.all(np.isfinite(v)):
-            raise ValueError(f"{name} must return finite values of shape {what}, got "
-                             f"shape {v.shape} (at t={t:.10g}, j={j})")
+        # a MapError naming this map (the engine's wrappers pass it on as it is)
+        try:
+            v = call(x, t, j, None)
+        except Exception as e:
+            raise MapError(f"{name} raised {type(e).__name__}: {e} (at t={t:.10g}, j={j})",
+                           name, t, j) from e
+        try:
+            v = np.asarray(v, dtype=float) if not np.iscomplexobj(v) else None
+        except (TypeError, ValueError):
+            v = None
+        if v is None or not shape_ok(v.shape) or not np.all(np.isfinite(v)):
+            got = "complex or non-numeric values" if v is None else f"shape {v.shape}"
+            raise MapError(f"{name} must return finite real values of shape {what}, got "
+                           f"{got} (at t={t:.10g}, j={j})", name, t, j)
         return v
     return jac
 

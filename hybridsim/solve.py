@@ -26,6 +26,7 @@ from .options import (
 )
 from .rules import (
     CAUSES,
+    CHATTER_RTOL,
     NO_CAUSE,
     Action,
     MapError,
@@ -34,18 +35,19 @@ from .rules import (
     SimulationWarning,
     Termination,
     after_jump,
+    chatter_step,
     decide,
     dwell_outcome,
     event_outcome,
     event_tolerance,
     is_jump_loop,
-    is_short_flow,
     is_sticking,
     message,
     needs_coin,
     post_jump_probe,
     t_max_slack,
     time_scale,
+    zeno_short,
 )
 from .system import guard_min, successors
 
@@ -204,6 +206,10 @@ class _State:
     x: np.ndarray
     jumps: int = 0
     short: int = 0              # consecutive jumps after short flows (Zeno)
+    zref: float = 0.0           # the shrinking streak's reference flow (rules.zeno_short)
+    longest: float = 0.0        # the longest flow so far (rules.chatter_step)
+    tiny: int = 0               # consecutive flows tiny against it (chattering)
+    same: int = 0               # consecutive jumps at one instant, from C or not
     loop: int = 0               # consecutive jumps at one instant from C ∩ D (a loop)
     t_last_jump: float = 0.0
     flow_lengths: list = field(default_factory=list)   # the last few flows
@@ -311,7 +317,6 @@ class _Run:
         self.buf.append(t, j, x)
         if o.t_eval is not None:
             self._skip_t_eval(t)
-        scale0 = o.t0
         forced = False       # the last flow's event requires a jump
         flow_on = False      # random priority chose to flow on in C ∩ D
         post = None          # the event bracket the last jump was taken from
@@ -336,7 +341,7 @@ class _Run:
                         self._stop(Termination.J_MAX)
                         return
                     post, self.pending = self.pending, None
-                    if self._jump(st, g(x, t, j, self._u(t)), scale0, True):
+                    if self._jump(st, g(x, t, j, self._u(t)), True):
                         return
                     continue
                 else:
@@ -354,7 +359,7 @@ class _Run:
                         if st.jumps >= o.j_max:
                             self._stop(Termination.J_MAX)
                             return
-                        if self._jump(st, g(x, t, j, u), scale0, in_C):
+                        if self._jump(st, g(x, t, j, u), in_C):
                             return
                         continue
                     if action == Action.STOP:
@@ -408,7 +413,7 @@ class _Run:
         tp, xp = post_jump_probe(st.x, *post)
         return self.maps.C(xp, tp, st.j, self._u(tp))
 
-    def _jump(self, st, xn, scale0, from_C):
+    def _jump(self, st, xn, from_C):
         """Apply x+ = g(x) at the current point; True when the run stops.
 
         ``from_C``: the state jumped from is in C too (flowing was possible):
@@ -417,10 +422,12 @@ class _Run:
         t, j = st.t, st.j
         xn = check_map_value("jump_map", xn, o.n, t, j).copy()    # the user may reuse it
         flow = t - st.t_last_jump
-        st.flow_lengths = (st.flow_lengths + [flow])[-4:]
-        short = is_short_flow(flow, t, time_scale(scale0, t, o.t_max), o.zeno_time,
-                              o.zeno_rtol)
+        fl = st.flow_lengths = (st.flow_lengths + [flow])[-4:]
+        short, st.zref = zeno_short(fl, len(fl), t, st.zref, o.zeno_time, o.zeno_rtol)
         st.short = st.short + 1 if short else 0
+        longest = st.longest
+        st.longest, st.tiny = chatter_step(flow, longest, st.tiny)
+        st.same = st.same + 1 if (flow == 0.0 and st.jumps > 0) else 0
         st.loop = st.loop + 1 if (from_C and flow == 0.0 and st.jumps > 0) else 0
         st.t_last_jump = t
         st.dwelling, st.deadline = False, math.inf
@@ -446,6 +453,11 @@ class _Run:
             self._stop(cause, "loop", count=st.loop + 1, t=t)
         elif cause is Termination.ZENO:
             self._stop(cause, "zeno", count=st.short, t=t)
+        elif is_jump_loop(st.same, o.zeno_jumps):
+            self._stop(cause, "instant", count=st.same + 1, t=t)
+        elif is_jump_loop(st.tiny, o.zeno_jumps):
+            self._stop(cause, "chatter", count=st.tiny, rtol=CHATTER_RTOL, longest=longest,
+                       flow=flow, t=t)
         else:
             self._stop(cause)
         return True

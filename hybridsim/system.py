@@ -85,6 +85,58 @@ def _named(fn, name):
     return call
 
 
+_F64 = np.float64
+
+
+def _guard_value(name, v, t, j):
+    """A guard's value checked: a real number or a 1-D array of them.
+
+    Complex values are refused even with a zero imaginary part (as a flow
+    map's, :func:`hybridsim.options.check_map_value`): a guard is real, and
+    taking its real part would hide a mistake.
+    """
+    if isinstance(v, np.ndarray):
+        kind = v.dtype.kind
+        if kind == "f" and v.ndim <= 1:
+            return v
+        if kind in "iub" and v.ndim <= 1:
+            return v.astype(float)
+    elif isinstance(v, float):
+        return v
+    if np.iscomplexobj(v):
+        raise MapError(f"{name} returned complex values {v!r} (at {_where(t, j)}): a guard "
+                       f"is real", name, t, j)
+    try:
+        arr = np.asarray(v, dtype=float)
+    except (TypeError, ValueError) as e:
+        raise MapError(f"{name} must return a real number or a 1-D array of them, got "
+                       f"{type(v).__name__} {v!r} (at {_where(t, j)})", name, t, j) from e
+    if arr.ndim > 1 or arr.size == 0:
+        raise MapError(f"{name} must return a real number or a non-empty 1-D array of them, "
+                       f"got shape {arr.shape} (at {_where(t, j)})", name, t, j)
+    return arr if arr.ndim else float(arr)
+
+
+def _named_guard(fn, name):
+    """:func:`_named` for a guard, its value checked by :func:`_guard_value`
+    (one frame above the user's function, as :func:`_named`)."""
+    k = _check_map(fn, name)
+
+    def guard(x, t, j, u):
+        try:
+            v = fn(x) if k <= 1 else fn(x, t) if k == 2 else fn(x, t, j) if k == 3 \
+                else fn(x, t, j, u)
+        except MapError:
+            raise
+        except Exception as e:
+            raise _map_error(name, e, t, j) from e
+        c = v.__class__
+        if c is float or c is _F64:
+            return v
+        return _guard_value(name, v, t, j)
+    return guard
+
+
 def _as_bool(name, v, t, j):
     """A set indicator's value as a bool; anything else is a contract breach."""
     if v is True or v is False:
@@ -323,8 +375,8 @@ class HybridSystem:
         def named(fn, name):
             return None if fn is None else _named(fn, name)
 
-        hD = named(self.jump_guard, "jump_guard")
-        hC = named(self.flow_guard, "flow_guard")
+        hD = None if self.jump_guard is None else _named_guard(self.jump_guard, "jump_guard")
+        hC = None if self.flow_guard is None else _named_guard(self.flow_guard, "flow_guard")
         if self._overrides("jump_set") or hD is None:
             D = _indicator(named(self.jump_set, "jump_set"), "jump_set")
         else:

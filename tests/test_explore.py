@@ -85,7 +85,7 @@ def test_set_valued_jump_map_contract():
 
 
 def test_a_set_valued_component_of_an_interconnection_is_refused_by_name():
-    both = hs.connect(counter([1.0, 2.0]), window_timer(), names=("counter", "timer"))
+    both = hs.Interconnection({"counter": counter([1.0, 2.0]), "timer": window_timer()})
     with pytest.raises(ValueError, match="component 'counter' declares jump_map_values"):
         hs.simulate(both, [0.0, 0.0, 0.0], t_max=1.0)
     with pytest.raises(ValueError, match="component 'counter' declares jump_map_values"):

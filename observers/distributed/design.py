@@ -724,7 +724,14 @@ def design(A, C, G, nodelist=None, *, kind="finite-time", poles=-3.0, nu=-0.1,
         d = observability_decomposition(A, Ci, rtol)
         decomp.append(d)
         pol = poles[v] if isinstance(poles, Mapping) else poles
-        pol = np.atleast_1d(np.asarray(pol, dtype=complex))
+        try:
+            pol = np.atleast_1d(np.asarray(pol, dtype=complex))
+        except (TypeError, ValueError) as exc:
+            raise TypeError(f"poles for node {v!r} must be numbers (a scalar or a sequence); "
+                            f"got {pol!r}") from exc
+        if not np.all(np.isfinite(pol)) or not np.all(pol.real < 0):
+            raise ValueError(f"poles for node {v!r} must be finite with negative real parts; "
+                             f"got {pol}")
         if pol.size == 1:
             pol = np.repeat(pol, d.n_o)
         if pol.size != d.n_o:

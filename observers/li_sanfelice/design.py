@@ -82,8 +82,24 @@ def _check_plant(A, H):
     """(A, H) of plant (1): A square n x n, H p x n."""
     A = matrix("A", A, square=True, what=" (n x n)")
     n = A.shape[0]
+    if n == 0:
+        raise ValueError(f"A must be a non-empty n x n matrix (a state of n >= 1), got shape "
+                         f"{A.shape}")
     H = matrix("H", H, (None, n), what=" (p x n)")
+    if H.shape[0] == 0:
+        raise ValueError(f"H must have at least one row (p >= 1 measured outputs), got shape "
+                         f"{H.shape}")
     return A, H
+
+
+def _check_distinct_gains(L1, L2, where):
+    """L1 == L2 makes the two copies one observer: F1 = F2, so I - e^{F2 t} e^{-F1 t}
+    vanishes for every t and no delta and no K2 exist (refused by name)."""
+    if np.array_equal(L1, L2):
+        raise ValueError(f"{where}: L1 == L2, so the two copies are one observer (F1 = F2) and "
+                         f"I - exp(F2 t) exp(-F1 t) = 0 for every t: no delta and no reset "
+                         f"gain K2 exist whatever delta is. Choose L1 != L2 with different "
+                         f"spectra of F_i = A - L_i H (Lemma 4.2)")
 
 
 def _check_plant_gains(A, H, L1, L2):
@@ -420,6 +436,7 @@ def admissible_delta(A, H, L1, L2, *, t_max=20.0, num=2000, tol=1e-8):
     tol = scalar("tol", tol, positive=True)
     A, H, L1, L2 = _check_plant_gains(A, H, L1, L2)
     _check_observable(A, H, "admissible_delta")
+    _check_distinct_gains(L1, L2, "admissible_delta")
     F1, F2 = F_matrices(A, H, L1, L2)
     ts = np.linspace(t_max / num, t_max, num)
     p, s = _scan_p(F1, F2, ts)
@@ -571,6 +588,7 @@ class Design:
         if not math.isclose(a1 + a2, 1.0, rel_tol=0, abs_tol=1e-12):
             raise ValueError(f"a1 + a2 must equal 1 (footnote 2), got a1 + a2 = {a1 + a2:g}")
         _check_observable(A, H, "Design")
+        _check_distinct_gains(L1, L2, "Design")
         F1, F2 = F_matrices(A, H, L1, L2)
         try:
             K1, K2 = _K_from_F(F1, F2, delta)
