@@ -18,7 +18,7 @@ import numpy as np
 __all__ = ["Termination", "Priority", "Action", "decide", "decide_at_event", "event_outcome",
            "after_jump", "CAUSES", "CODES", "J_MAX_CODE", "ZENO_CODE", "NO_CAUSE",
            "raises", "warns", "finish", "DETAILS", "message",
-           "jumps_now", "needs_coin", "dwell_outcome", "is_short_flow", "is_sticking",
+           "jumps_now", "needs_coin", "dwell_outcome", "is_sticking",
            "sticking_message",
            "zeno_message", "time_scale", "t_max_slack", "event_tolerance", "PRIORITIES", "FAILURES",
            "post_jump_probe", "LOOP_JUMPS", "is_jump_loop", "zeno_short", "ZENO_SHRINK",
@@ -319,7 +319,7 @@ def after_jump(jumps, short, j_max, zeno_jumps):
     """The cause code a jump ends the run with, or :data:`NO_CAUSE`.
 
     ``jumps``: jumps taken so far (this one included); ``short``:
-    consecutive jumps after short flows (:func:`is_short_flow`). ``J_MAX``
+    consecutive jumps after short flows (:func:`zeno_short`). ``J_MAX``
     comes before ``ZENO``: the user's limit is the reason given.
     """
     if jumps >= j_max:
@@ -413,26 +413,6 @@ def t_max_slack(t_max: float, jumps: int = 0) -> float:
 def _max(a, b):
     """max(a, b) for floats and numpy arrays alike (to rounding)."""
     return 0.5 * (a + b + abs(a - b))
-
-
-def is_short_flow(length, t, scale, zeno_time, zeno_rtol):
-    """The horizon-relative short-flow test the compiled kernel still applies.
-
-    Short means at most ``zeno_time * max(1, |t|)`` or at most ``zeno_rtol *
-    scale`` (:func:`time_scale`). It calls a periodic timer Zeno when its
-    period is below ``zeno_rtol`` times the horizon; :func:`hybridsim.simulate`
-    and the vectorized batch decide Zeno by :func:`zeno_short` instead, and
-    the compiled kernel is to follow (it must pass its last flows to
-    :func:`zeno_short`). Works on floats and on numpy arrays.
-
-    Examples
-    --------
-    >>> bool(is_short_flow(2e-9, 0.5, 1.0, 1e-12, 1e-7))
-    True
-    >>> bool(is_short_flow(1e-3, 0.5, 1.0, 1e-12, 1e-7))
-    False
-    """
-    return length <= _max(zeno_time * _max(1.0, abs(t)), zeno_rtol * scale)
 
 
 #: a flow at most this fraction of the longest of the :data:`ZENO_WINDOW`

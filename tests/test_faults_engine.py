@@ -26,15 +26,8 @@ import hybridsim as hs
 from hybridsim import Termination as T
 from hybridsim import rules
 
-KERNEL_ZENO = ("the compiled kernel still calls rules.is_short_flow (the horizon rule): "
-               "it must pass its last flows and the streak's reference to rules.zeno_short")
 KERNEL_CHATTER = ("the compiled kernel keeps no rules.chatter_step count (nor the count of "
                   "jumps at one instant not from C): its J_MAX has no chatter/instant detail")
-
-KERNEL_FINISH = ("simulate_compiled returns a J_MAX arc without rules.finish (its fast path "
-                 "for the plain ends): a J_MAX whose detail is DETAIL_LOOP must go through "
-                 "rules.finish, which warns")
-
 
 def paths_xfail_compiled(reason):
     """The three paths; the compiled one slow and a strict xfail for ``reason``."""
@@ -87,7 +80,7 @@ def test_zeno_short_reads_the_runs_own_flows():
     assert not short and ref == 0.0
 
 
-@pytest.mark.parametrize("path", paths_xfail_compiled(KERNEL_ZENO))
+@pytest.mark.parametrize("path", path_params(compiled_slow=True))
 def test_a_1khz_timer_is_not_zeno_whatever_the_horizon(path):
     """Each 1 ms flow is below zeno_rtol (1e-7) times the horizon 1e6: today's
     rule ended ZENO after 50 jumps (t = 0.05). Jumps 1 ms apart are no
@@ -99,7 +92,7 @@ def test_a_1khz_timer_is_not_zeno_whatever_the_horizon(path):
     np.testing.assert_allclose(arc.jump_times, 1e-3 * np.arange(1, 2001), rtol=0, atol=1e-12)
 
 
-@pytest.mark.parametrize("path", paths_xfail_compiled(KERNEL_ZENO))
+@pytest.mark.parametrize("path", path_params(compiled_slow=True))
 def test_a_1khz_timer_runs_to_t_max(path):
     """zeno_rtol raised to 0.1 so that the horizon rule would call a run of
     500 jumps Zeno (1e-3 <= 0.1 * 0.5) at t = 0.05: it reaches t_max."""
@@ -193,7 +186,7 @@ def test_a_ball_sticking_on_a_slow_floor_warns_at_j_max():
     np.testing.assert_allclose(flows, 2 * 4.4e-5 / 9.81, rtol=1e-6)
 
 
-@pytest.mark.parametrize("path", paths_xfail_compiled(KERNEL_FINISH))
+@pytest.mark.parametrize("path", path_params(compiled_slow=True))
 def test_a_jump_loop_that_ends_j_max_warns_once_naming_the_loop(path):
     """Guards only: the ball's D = {-h >= 0} holds after the jump at height 0."""
     with pytest.warns(hs.SimulationWarning, match=r"J_MAX.*a jump loop") as rec:
@@ -202,7 +195,7 @@ def test_a_jump_loop_that_ends_j_max_warns_once_naming_the_loop(path):
     assert "jump_set" in str(rec[0].message)
 
 
-@pytest.mark.parametrize("path", paths_xfail_compiled(KERNEL_FINISH))
+@pytest.mark.parametrize("path", path_params(compiled_slow=True))
 def test_jumps_at_one_instant_not_from_c_warn_at_j_max(path):
     """Guards only and x+ = (h, -lam v) keeping the located height, which is a
     few ulp below the floor: not in C, so not a loop of rules.is_jump_loop,

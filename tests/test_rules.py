@@ -50,18 +50,6 @@ def test_decision_table():
     assert rules.decide(True, False, P.JUMPS, True) == A.FLOW
 
 
-def test_short_flow_scalar_and_array_agree():
-    L = np.array([1e-13, 1e-9, 1e-6, 1e-3])
-    t = np.array([0.0, 0.5, 10.0, 1e4])
-    for scale in (1.0, 100.0):
-        arr = rules.is_short_flow(L, t, scale, 1e-12, 1e-7)
-        for k in range(len(L)):
-            assert bool(arr[k]) == bool(rules.is_short_flow(float(L[k]), float(t[k]), scale,
-                                                            1e-12, 1e-7))
-            exact = L[k] <= max(1e-12 * max(1.0, abs(t[k])), 1e-7 * scale)
-            assert bool(arr[k]) == exact
-
-
 def test_t_max_slack_grows_with_jumps():
     eps = np.finfo(float).eps
     assert rules.t_max_slack(1.0) == 64 * eps

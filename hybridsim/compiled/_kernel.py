@@ -285,6 +285,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     x = x0.copy()
     jumps = 0
     short = 0
+    zref = 0.0                      # the Zeno streak's reference flow (rules.zeno_short)
     t_last_jump = t0
     flows_last = np.zeros(4)        # the last (up to) 4 flow lengths, oldest first
     n_flows_last = 0
@@ -403,8 +404,9 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 else:
                     flows_last[n_flows_last] = flow
                     n_flows_last += 1
-                if rules.is_short_flow(flow, t, rules.time_scale(t0, t, t_max), zeno_time,
-                                       zeno_rtol):
+                is_short, zref = rules.zeno_short(flows_last, n_flows_last, t, zref, zeno_time,
+                                                  zeno_rtol)
+                if is_short:
                     short += 1
                 else:
                     short = 0

@@ -403,7 +403,7 @@ def simulate_compiled(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priori
         *system._nb["args"], x, system.params, fopt, iopt, atol_a, rngp, k.POLL_GIL, _NO_STOP)
     del rng
     arc = _arc(system, k, T, J, X, XD, code, detail, info, stats, ro)
-    if code == k.T_MAX or code == k.J_MAX:      # neither raised nor warned (rules.finish)
+    if code == k.T_MAX or (code == k.J_MAX and detail != k.DETAIL_LOOP):   # rules.finish
         return arc
     if _at_x0(k, arc, detail):
         raise arc.exception
