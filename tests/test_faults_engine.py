@@ -10,9 +10,9 @@
 * The vectorized path's ``CANCELED`` message names the arc's own last sample,
   wherever the interrupt lands while a jump's samples are stored.
 
-The compiled kernel (``hybridsim/compiled``) does not pass its flows to
-``rules.zeno_short`` nor keep ``rules.chatter_step``'s count yet: its cases
-are strict xfails naming that piece (and slow: each compiles a kernel).
+The compiled kernel does not keep ``rules.chatter_step``'s count yet: that
+case is a strict xfail naming the piece (and slow, like every compiled case
+here: each compiles a kernel).
 """
 import math
 import sys
