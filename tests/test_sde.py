@@ -23,7 +23,9 @@ P_HIT = 2 * norm.sf(1.0)
 
 
 def barrier(guard=True):
-    kw = dict(jump_guard=lambda x: x[0] - 1.0) if guard else dict(D=lambda x: x[0] >= 1.0)
+    # without a guard: an indicator no guard is derived from (a call, bool(...)), so the
+    # crossing is seen only at the steps' ends
+    kw = dict(jump_guard=lambda x: x[0] - 1.0) if guard else dict(D=lambda x: bool(x[0] >= 1.0))
     return hs.HybridSystem.from_functions(
         f=lambda x: np.array([0.0]), g=lambda x: x, diffusion=lambda x: np.array([1.0]),
         state_dim=1, **kw)
