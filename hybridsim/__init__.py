@@ -10,12 +10,14 @@ in hybrid time (:func:`plot_flows`, :func:`plot_jumps`, :func:`plot_hybrid`,
 :mod:`hybridsim.testing`; the search for counterexamples over a declared
 uncertainty space, :func:`falsify`, in :mod:`hybridsim.falsification`;
 derivatives through jumps, :func:`simulate_sensitivity`, in
-:mod:`hybridsim.sensitivity`.
+:mod:`hybridsim.sensitivity`; signal temporal logic over arcs, with robustness as a
+margin, in :mod:`hybridsim.stl`.
 """
 from . import compiled as compiled
 from . import falsification as falsification
 from . import library as library
 from . import rules as rules
+from . import stl as stl
 from . import testing as testing
 from ._version import __version__ as __version__
 from .arc import HybridArc, Termination

@@ -1,0 +1,1398 @@
+r"""Signal temporal logic over hybrid arcs, with quantitative robustness.
+
+Signals are expressions evaluated along an arc: :func:`state` (a component
+of x), :func:`signal` / :func:`output` (a user function ``fn(x, t, j)``),
+:func:`time` and :func:`jumps` (the jump counter, for discrete modes),
+combined with ``+ - * /``, unary ``-`` and ``abs()``. Comparing a signal
+makes a predicate (``speed < 120``, ``rpm >= 3000``, ``equals(gear, 3)``);
+formulas are built with :func:`always` (:data:`G`), :func:`eventually`
+(:data:`F`), :func:`until` (:data:`U`), ``&``, ``|``, ``~``, :func:`implies`
+(``>>``). ``phi.robustness(arc)`` (or ``phi(arc)``) is a
+:class:`hybridsim.testing.Margin`, so a formula is directly a claim for
+:func:`hybridsim.falsify`, works over the solutions of
+:func:`hybridsim.explore` and with :func:`hybridsim.sensitivity.margin_gradient`.
+
+Semantics
+---------
+**Hybrid time.** A signal is a function on the arc's hybrid time domain
+E = ∪_j [t_j, t_{j+1}] × {j}: at a jump time both the pre- and the post-jump
+values belong to it (two instants (t, j) and (t, j + 1) at the same t).
+Time intervals [a, b] are in ordinary time t, and at an instant where the
+arc has several j **all** of its values are read: ``F[a,b] phi`` at t is the
+sup of phi over every (t', j') of E with t' in [t + a, t + b], ``G`` the inf.
+A temporal formula's value thus depends on t only; a predicate's on (t, j).
+A formula is evaluated at hybrid time (t, j) (default: the first j at t).
+
+**Robustness** is the Donzé–Maler space robustness: ``sig >= c`` and
+``sig > c`` have robustness sig - c, ``sig <= c`` and ``sig < c`` c - sig;
+and / or are min / max, ``~`` is negation, ``implies(phi, psi)`` is
+``~phi | psi``; ``F`` and ``G`` are sup and inf over their windows and
+``phi U[a,b] psi`` at t is sup over t' in [t+a, t+b] of
+min(psi(t'), inf over [t, t'] of phi). ``equals(sig, value, tol=0.5)`` has
+robustness tol - |sig - value|: on integer-valued signals (gears, modes,
+:func:`jumps`) +0.5 where equal and -(d - 0.5) at distance d >= 1 (a
+quantitative convention, not a ±1 indicator).
+
+**Dense time.** Each predicate is evaluated at its instants: the arc's
+samples, the zero crossings of its robustness on the arc's interpolant
+(:meth:`hybridsim.HybridArc.at`: the solver's dense output where the run
+kept one, else cubic Hermite from ``xdot``, else linear), root-found to
+4 ulp of t, and the instants where the windows' ends fall (t + a, t + b,
+propagated through nested operators), and the local maxima and minima of
+the predicate inside every step (``refine=4``, the default, reads the
+interpolant at 3 evenly spaced points per step and locates each extremum
+they reveal by golden-section search to 1e-6 of the step). Between its
+instants a predicate is taken linear (the piecewise-linear semantics of
+Breach), and from there the
+temporal operators are computed **exactly**: every breakpoint where a
+window's end meets an instant (t - a, t - b), every kink of a max or min of
+linear pieces, and the arc's jump times are instants of the result, and a
+result can differ at a point from its one-sided limits (a window closing on
+a jump time reads both of its values). Hence:
+
+- the *sign* of every predicate is exact at its crossings, and a jump
+  located by the engine is an exact instant: ``G[0, 2.5] (gear == 3)`` and
+  ``F[0.001, 0.1]`` are decided at the event time, not on a grid;
+- the *value* is exact for the piecewise-linear interpolation through the
+  predicates' instants; against the arc's own interpolant it errs by at most
+  the largest deviation of a predicate from its chord between two
+  consecutive instants (on a sampled arc without dense output or ``xdot``
+  the interpolant itself is linear, and the result is exact for it);
+- a predicate's excursion between two of its probes that leaves no sign in
+  them (narrower than a quarter step, by default) is missed: use a larger
+  ``refine`` or denser samples. ``refine=1`` gives the plain sampled
+  semantics with crossings (the samples, crossings and window ends only).
+
+Until is computed by the identity phi U[a,b] psi = G[0,a] phi ∧
+F[a,a] ((phi U psi) ∧ F[0,b-a] psi) (exact in the quantitative semantics);
+the untimed phi U psi is evaluated exactly at the instants of its operands
+(points, one-sided limits and mutual crossings) and taken linear between.
+
+**Horizon.** ``phi.horizon`` is how far past t the formula reads (b plus
+the operand's horizon; infinite for an unbounded window, which reads to the
+end of the arc). With ``strict=True`` (default) an arc ending before
+t + horizon (beyond the engine's time tolerance) raises ``ValueError``;
+``strict=False`` cuts every window at the arc's end (a window that starts
+after it is empty: ``F`` gives -inf, ``G`` +inf).
+
+A NaN value of a signal counts as -inf for its predicate (never holds).
+
+Examples
+--------
+>>> import hybridsim as hs
+>>> from hybridsim import stl
+>>> from hybridsim.library import BouncingBall
+>>> arc = hs.simulate(BouncingBall(), [1.0, 0.0], t_max=1.0)
+>>> h = stl.state(0, "h")
+>>> phi = stl.G(h <= 1.0) & stl.F(h <= 0.0, 0.0, 0.5)
+>>> str(phi)
+'(G(h <= 1) & F[0,0.5](h <= 0))'
+>>> m = phi(arc)
+>>> m.holds, m.where[1]
+(True, 0)
+>>> round(float(stl.F(h >= 0.5, 0.2, 0.3)(arc)), 4)      # h(0.2) - 0.5 = 0.5 - g 0.2**2 / 2
+0.3038
+"""
+from __future__ import annotations
+
+import math
+import numbers
+
+import numpy as np
+
+from .rules import event_tolerance
+from .system import as_map
+from .testing import Margin, _every, _is_arc
+
+__all__ = ["Signal", "Formula", "state", "signal", "output", "time", "jumps", "const",
+           "equals", "always", "eventually", "until", "implies", "G", "F", "U"]
+
+_INF = math.inf
+_EPS = np.finfo(float).eps
+
+
+def _num(v):
+    """A number as the formula's text prints it."""
+    v = float(v)
+    if math.isinf(v):
+        return "inf" if v > 0 else "-inf"
+    if v == int(v) and abs(v) < 1e15:
+        return str(int(v))
+    return format(v, ".15g")
+
+
+def _tol(x):
+    """The engine's event tolerance at x (4 ulp of max(1, |x|)), elementwise."""
+    return 4.0 * _EPS * np.maximum(1.0, np.abs(x))
+
+
+def _lerp(y0, y1, w):
+    """y0 + w (y1 - y0), the nearer end where an end is not finite."""
+    y0, y1, w = np.broadcast_arrays(np.asarray(y0, float), np.asarray(y1, float),
+                                    np.asarray(w, float))
+    fin = np.isfinite(y0) & np.isfinite(y1)
+    with np.errstate(invalid="ignore"):
+        out = y0 + w * (y1 - y0)
+    return np.where(fin, out, np.where(w < 0.5, y0, y1))
+
+
+# ------------------------------------------------------------------ signals --
+
+class Signal:
+    """An expression evaluated along an arc (a scalar at every hybrid instant).
+
+    Made by :func:`state`, :func:`signal`, :func:`output`, :func:`time`,
+    :func:`jumps`, :func:`const`; combined with ``+ - * /`` (with numbers or
+    signals), unary ``-`` and ``abs()``. Comparing it with ``<, <=, >, >=``
+    gives a predicate (a :class:`Formula`); for equality use :func:`equals`.
+
+    Examples
+    --------
+    >>> v = state(1, "v")
+    >>> str(abs(2 * v - 1) <= 0.5)
+    '|((2 * v) - 1)| <= 0.5'
+    """
+
+    def _values(self, T, J, X):  # pragma: no cover - every subclass defines it
+        raise NotImplementedError
+
+    def _bin(self, other, op, name, swap=False):
+        o = _as_signal(other, f"the operand of {name}")
+        a, b = (o, self) if swap else (self, o)
+        return _Bin(a, b, op, name)
+
+    def __add__(self, o):
+        return self._bin(o, np.add, "+")
+
+    def __radd__(self, o):
+        return self._bin(o, np.add, "+", swap=True)
+
+    def __sub__(self, o):
+        return self._bin(o, np.subtract, "-")
+
+    def __rsub__(self, o):
+        return self._bin(o, np.subtract, "-", swap=True)
+
+    def __mul__(self, o):
+        return self._bin(o, np.multiply, "*")
+
+    def __rmul__(self, o):
+        return self._bin(o, np.multiply, "*", swap=True)
+
+    def __truediv__(self, o):
+        return self._bin(o, np.divide, "/")
+
+    def __rtruediv__(self, o):
+        return self._bin(o, np.divide, "/", swap=True)
+
+    def __neg__(self):
+        return _Unary(self, np.negative, "-{}")
+
+    def __pos__(self):
+        return self
+
+    def __abs__(self):
+        return _Unary(self, np.abs, "|{}|")
+
+    def __lt__(self, o):
+        return _compare(self, "<", o)
+
+    def __le__(self, o):
+        return _compare(self, "<=", o)
+
+    def __gt__(self, o):
+        return _compare(self, ">", o)
+
+    def __ge__(self, o):
+        return _compare(self, ">=", o)
+
+    __hash__ = object.__hash__
+
+    def __bool__(self):
+        raise TypeError("a stl.Signal has no truth value: compare it (sig >= c) to make a "
+                        "predicate, and combine predicates with &, |, ~")
+
+    def __repr__(self):
+        return f"stl.Signal({self})"
+
+
+def _as_signal(v, what):
+    if isinstance(v, Signal):
+        return v
+    if isinstance(v, (numbers.Real, np.integer, np.floating)) and not isinstance(v, bool):
+        if math.isnan(float(v)):
+            raise ValueError(f"{what} must not be NaN")
+        return _Const(float(v))
+    raise TypeError(f"{what} must be a number or a stl.Signal, got {type(v).__name__}")
+
+
+class _Const(Signal):
+    def __init__(self, c):
+        self.c = float(c)
+
+    def _values(self, T, J, X):
+        return np.full(len(T), self.c)
+
+    def __str__(self):
+        return _num(self.c)
+
+
+class _State(Signal):
+    def __init__(self, i, name):
+        self.i, self.name = i, name
+
+    def _values(self, T, J, X):
+        if self.i >= X.shape[1] or self.i < -X.shape[1]:
+            raise IndexError(f"stl.state({self.i}): the arc's state has {X.shape[1]} "
+                             f"components")
+        return X[:, self.i]
+
+    def __str__(self):
+        return self.name if self.name is not None else f"x[{self.i}]"
+
+
+class _Time(Signal):
+    def _values(self, T, J, X):
+        return np.asarray(T, float)
+
+    def __str__(self):
+        return "t"
+
+
+class _Jumps(Signal):
+    def _values(self, T, J, X):
+        return np.asarray(J, float)
+
+    def __str__(self):
+        return "j"
+
+
+class _Fn(Signal):
+    """A user function fn(x, t, j) -> float, tried over all samples at once."""
+
+    def __init__(self, fn, name, what):
+        self.f = as_map(fn, what)
+        self.fn, self.what = fn, what
+        self.name = name if name is not None else getattr(fn, "__name__", "signal")
+        if self.name == "<lambda>":
+            self.name = "signal"
+
+    def _row(self, x, t, j):
+        y = np.asarray(self.f(x, float(t), int(j), None), dtype=float)
+        if y.size != 1:
+            raise ValueError(f"{self.what}: fn must return a scalar, got shape {y.shape} "
+                             f"at (t={float(t)!r}, j={int(j)})")
+        return float(y.reshape(()))
+
+    def _values(self, T, J, X):
+        m = len(T)
+        if m == 0:
+            return np.zeros(0)
+        if m > 1:
+            try:
+                with np.errstate(all="ignore"):
+                    y = np.asarray(self.f(X, T, J, None), dtype=float)
+            except Exception:  # noqa: BLE001 - a map of one state: row by row
+                y = None
+            if y is not None and y.shape == (m,):
+                probe = sorted({0, m // 2, m - 1})
+                ref = np.array([self._row(X[k], T[k], J[k]) for k in probe])
+                got = y[probe]
+                if np.all((got == ref) | (np.isnan(got) & np.isnan(ref))
+                          | np.isclose(got, ref, rtol=1e-12, atol=0.0)):
+                    return y
+        return np.array([self._row(x, t, j) for x, t, j in zip(X, T, J)])
+
+    def __str__(self):
+        return self.name
+
+
+class _Bin(Signal):
+    def __init__(self, a, b, op, name):
+        self.a, self.b, self.op, self.name = a, b, op, name
+
+    def _values(self, T, J, X):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return self.op(self.a._values(T, J, X), self.b._values(T, J, X))
+
+    def __str__(self):
+        return f"({self.a} {self.name} {self.b})"
+
+
+class _Unary(Signal):
+    def __init__(self, a, op, fmt):
+        self.a, self.op, self.fmt = a, op, fmt
+
+    def _values(self, T, J, X):
+        return self.op(self.a._values(T, J, X))
+
+    def __str__(self):
+        return self.fmt.format(self.a)
+
+
+def _index(i):
+    if isinstance(i, bool) or not isinstance(i, (numbers.Integral, np.integer)):
+        raise TypeError(f"stl.state: i must be an int (a component of x), got "
+                        f"{type(i).__name__}")
+    return int(i)
+
+
+def _name(name, where):
+    if name is not None and not isinstance(name, str):
+        raise TypeError(f"{where}: name must be a str or None, got {type(name).__name__}")
+    return name
+
+
+def state(i, name=None):
+    """Component ``i`` of the state x, as a signal.
+
+    Parameters
+    ----------
+    i : int
+        The component (negative counts from the end).
+    name : str, optional
+        How the formula prints it (default ``x[i]``).
+
+    Examples
+    --------
+    >>> str(state(0) >= 0), str(state(2, "gear") < 3)
+    ('x[0] >= 0', 'gear < 3')
+    """
+    return _State(_index(i), _name(name, "stl.state"))
+
+
+def signal(fn, name=None):
+    """A signal ``fn(x, t, j)`` (or ``fn(x)``, ``fn(x, t)``) returning a scalar.
+
+    It is first called once over all instants, with x of shape (m, n) and
+    t, j of shape (m,) (the engine's convention for vectorized maps: write
+    ``x[..., k]``); where that fails, returns another shape or disagrees
+    with single calls at three probe rows, it is called row by row with
+    x of shape (n,).
+
+    Parameters
+    ----------
+    fn : callable
+    name : str, optional
+        How the formula prints it (default: the function's name).
+
+    Examples
+    --------
+    >>> energy = signal(lambda x: 9.81 * x[..., 0] + x[..., 1] ** 2 / 2, "E")
+    >>> str(energy <= 10)
+    'E <= 10'
+    """
+    if isinstance(fn, Signal):
+        return fn
+    if not callable(fn):
+        raise TypeError(f"stl.signal: fn must be a callable fn(x, t, j), got "
+                        f"{type(fn).__name__}")
+    return _Fn(fn, _name(name, "stl.signal"), "stl.signal: fn")
+
+
+def output(fn, name=None):
+    """An output ``fn(x, t, j)`` of the system as a signal (:func:`signal`).
+
+    Examples
+    --------
+    >>> str(output(lambda x: x[..., 0] * 3.6, "kmh") > 100)
+    'kmh > 100'
+    """
+    if isinstance(fn, Signal):
+        return fn
+    if not callable(fn):
+        raise TypeError(f"stl.output: fn must be a callable fn(x, t, j), got "
+                        f"{type(fn).__name__}")
+    return _Fn(fn, _name(name, "stl.output"), "stl.output: fn")
+
+
+def time():
+    """Ordinary time t as a signal.
+
+    Examples
+    --------
+    >>> str(time() <= 5)
+    't <= 5'
+    """
+    return _Time()
+
+
+def jumps():
+    """The jump counter j as a signal (a discrete mode that counts jumps).
+
+    Examples
+    --------
+    >>> str(equals(jumps(), 2))
+    'j == 2'
+    """
+    return _Jumps()
+
+
+def const(c):
+    """A constant signal.
+
+    Examples
+    --------
+    >>> str(const(2.5) + time())
+    '(2.5 + t)'
+    """
+    return _as_signal(c, "stl.const: c")
+
+
+# ----------------------------------------------------------- signal values --
+
+class _Sig:
+    """A robustness signal on a hybrid time domain.
+
+    Instants (t, j) sorted in hybrid time; ``v`` the value at each, ``l``
+    and ``r`` its limits from the left and the right within the flow
+    (between two instants of the same j the signal is linear from ``r[k]``
+    to ``l[k + 1]``).
+    """
+
+    __slots__ = ("t", "j", "v", "l", "r")
+
+    def __init__(self, t, j, v, l=None, r=None):
+        self.t, self.j, self.v = t, j, v
+        self.l = v if l is None else l
+        self.r = v if r is None else r
+
+    def neg(self):
+        return _Sig(self.t, self.j, -self.v, -self.l, -self.r)
+
+    def succ(self):
+        """Mask: the instant has a later instant of the same flow."""
+        s = np.zeros(len(self.t), dtype=bool)
+        s[:-1] = self.j[1:] == self.j[:-1]
+        return s
+
+    def pred(self):
+        p = np.zeros(len(self.t), dtype=bool)
+        p[1:] = self.j[1:] == self.j[:-1]
+        return p
+
+
+def _sorted_points(T, J, *arrays):
+    order = np.lexsort((J, T))
+    return (T[order], J[order]) + tuple(a[order] for a in arrays)
+
+
+def _merge(s1, s2):
+    """Both signals on the union of their instants: T, J, (v, l, r) of each."""
+    n1 = len(s1.t)
+    T = np.concatenate((s1.t, s2.t))
+    J = np.concatenate((s1.j, s2.j))
+    order = np.lexsort((J, T))
+    Ts, Js = T[order], J[order]
+    new = np.ones(len(Ts), dtype=bool)
+    new[1:] = (Ts[1:] != Ts[:-1]) | (Js[1:] != Js[:-1])
+    uid = np.cumsum(new) - 1
+    Tu, Ju = Ts[new], Js[new]
+    out = [Tu, Ju]
+    for s, mine, shift in ((s1, order < n1, 0), (s2, order >= n1, n1)):
+        idx = np.full(len(Tu), -1)
+        idx[uid[mine]] = order[mine] - shift
+        out.append(_values_at(s, Tu, idx))
+    return out
+
+
+def _values_at(s, T, idx):
+    """(v, l, r) of ``s`` at instants T (sorted), ``idx`` its own instants' indices or -1."""
+    have = idx >= 0
+    v, l, r = np.empty(len(T)), np.empty(len(T)), np.empty(len(T))
+    v[have], l[have], r[have] = s.v[idx[have]], s.l[idx[have]], s.r[idx[have]]
+    miss = np.flatnonzero(~have)
+    if miss.size:
+        prev = np.maximum.accumulate(np.where(have, idx, -1))[miss]
+        n = len(s.t)
+        k0 = np.clip(prev, 0, max(n - 2, 0))
+        k1 = np.minimum(k0 + 1, n - 1)
+        h = s.t[k1] - s.t[k0]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            w = np.where(h > 0, (T[miss] - s.t[k0]) / np.where(h > 0, h, 1.0), 0.0)
+        w = np.clip(w, 0.0, 1.0)
+        val = _lerp(s.r[k0], s.l[k1], w)
+        v[miss] = l[miss] = r[miss] = val
+    return v, l, r
+
+
+def _combine(s1, s2, op):
+    """The pointwise ``op`` (np.minimum or np.maximum) of two signals, exactly."""
+    T, J, (v1, l1, r1), (v2, l2, r2) = _merge(s1, s2)
+    same = J[1:] == J[:-1]
+    d0 = r1[:-1] - r2[:-1]
+    d1 = l1[1:] - l2[1:]
+    with np.errstate(invalid="ignore"):
+        cross = same & np.isfinite(d0) & np.isfinite(d1) & (d0 * d1 < 0)
+    k = np.flatnonzero(cross)
+    v, l, r = op(v1, v2), op(l1, l2), op(r1, r2)
+    if k.size:
+        w = d0[k] / (d0[k] - d1[k])
+        tc = T[k] + w * (T[k + 1] - T[k])
+        vc = _lerp(r1[k], l1[k + 1], w)
+        T, J, v, l, r = _sorted_points(np.concatenate((T, tc)), np.concatenate((J, J[k])),
+                                       np.concatenate((v, vc)), np.concatenate((l, vc)),
+                                       np.concatenate((r, vc)))
+    return _Sig(T, J, v, l, r)
+
+
+class _RangeMax:
+    """Maxima of q over index ranges [i0, i1] (a sparse table, O(n log n))."""
+
+    def __init__(self, q):
+        self.levels = [np.asarray(q, float)]
+        k = 1
+        while 2 * k <= len(q):
+            p = self.levels[-1]
+            self.levels.append(np.maximum(p[:-k], p[k:]))
+            k *= 2
+
+    def query(self, i0, i1):
+        i0, i1 = np.broadcast_arrays(np.asarray(i0, np.int64), np.asarray(i1, np.int64))
+        out = np.full(i0.shape, -_INF)
+        n = i1 - i0 + 1
+        ok = n > 0
+        if not ok.any():
+            return out
+        lev = np.zeros(i0.shape, dtype=np.int64)
+        lev[ok] = np.floor(np.log2(n[ok])).astype(np.int64)
+        for L in np.unique(lev[ok]):
+            m = ok & (lev == L)
+            tab = self.levels[L]
+            out[m] = np.maximum(tab[i0[m]], tab[i1[m] - (1 << int(L)) + 1])
+        return out
+
+
+# --------------------------------------------------------- evaluation state --
+
+class _Context:
+    """One evaluation: the arc, its domain, the options, the computed signals."""
+
+    def __init__(self, arc, strict, refine):
+        self.arc = arc
+        self.t, self.j, self.x = (np.asarray(arc.t, float), np.asarray(arc.j, np.int64),
+                                  np.asarray(arc.x, float))
+        self.strict, self.refine = strict, refine
+        self.t0, self.tf = float(self.t[0]), float(self.t[-1])
+        self.jump_times = np.unique(self.t[1:][np.diff(self.j) > 0])
+        self.memo = {}
+
+    def domain(self, times):
+        """Every instant (t, j) of the arc at the given times (sorted): T, J and
+        masks of each time's first and last instant."""
+        times = np.asarray(times, float)
+        N = len(self.t)
+        i0 = np.clip(np.searchsorted(self.t, times, side="left"), 0, N - 1)
+        i1 = np.clip(np.searchsorted(self.t, times, side="right") - 1, 0, N - 1)
+        jlo, jhi = self.j[i0], self.j[i1]
+        jlo = np.minimum(jlo, jhi)
+        cnt = jhi - jlo + 1
+        T = np.repeat(times, cnt)
+        start = np.cumsum(cnt) - cnt
+        J = np.repeat(jlo, cnt) + (np.arange(len(T)) - np.repeat(start, cnt))
+        first = np.zeros(len(T), dtype=bool)
+        first[start] = True
+        last = np.zeros(len(T), dtype=bool)
+        last[start + cnt - 1] = True
+        return T, J, first, last, np.repeat(np.arange(len(times)), cnt)
+
+    def states(self, T, J):
+        """The arc's interpolant at the instants (T, J)."""
+        if len(T) == 0:
+            return np.zeros((0, self.x.shape[1]))
+        return np.asarray(self.arc.at(T, j=J), dtype=float).reshape(len(T), -1)
+
+
+def _real(v, what):
+    if isinstance(v, bool) or not isinstance(v, (numbers.Real, np.integer, np.floating)):
+        raise TypeError(f"{what} must be a real number, got {type(v).__name__}")
+    v = float(v)
+    if math.isnan(v):
+        raise ValueError(f"{what} must be a number, got NaN")
+    return v
+
+
+def _interval(a, b, where):
+    a = _real(a, f"{where}: a")
+    b = _real(b, f"{where}: b")
+    if not (0 <= a < _INF):
+        raise ValueError(f"{where}: a must be finite and >= 0 (the window [a, b] starts "
+                         f"a time units after t), got a = {a!r}")
+    if b < a:
+        raise ValueError(f"{where}: b must be >= a (the window [a, b]), got a = {a!r}, "
+                         f"b = {b!r}")
+    return a, b
+
+
+def _as_formula(phi, what):
+    if isinstance(phi, Formula):
+        return phi
+    if isinstance(phi, Signal):
+        raise TypeError(f"{what} must be a stl formula, got the signal {phi}: compare it "
+                        f"(sig >= c) to make a predicate")
+    raise TypeError(f"{what} must be a stl formula (a predicate such as state(0) >= 0, or "
+                    f"one built from them), got {type(phi).__name__}")
+
+
+# ----------------------------------------------------------------- formulas --
+
+class Formula:
+    """A signal temporal logic formula over hybrid arcs.
+
+    Build formulas from predicates (comparisons of :class:`Signal`) with
+    ``&``, ``|``, ``~``, ``>>`` (implies), :func:`always`,
+    :func:`eventually`, :func:`until`. ``str(phi)`` prints it in the usual
+    STL syntax; ``phi(arc)`` is :meth:`robustness`.
+
+    Attributes
+    ----------
+    horizon : float
+        How far past t the formula reads the arc (``inf``: to its end).
+
+    Examples
+    --------
+    >>> x = state(0)
+    >>> phi = always((x > 1) >> eventually(x < 0.5, 0, 2), 0, 10)
+    >>> str(phi), phi.horizon
+    ('G[0,10]((x[0] > 1) -> F[0,2](x[0] < 0.5))', 12.0)
+    """
+
+    horizon: float = 0.0
+
+    def __and__(self, other):
+        return _And(self, _as_formula(other, "the right operand of &"))
+
+    def __rand__(self, other):
+        return _And(_as_formula(other, "the left operand of &"), self)
+
+    def __or__(self, other):
+        return _Or(self, _as_formula(other, "the right operand of |"))
+
+    def __ror__(self, other):
+        return _Or(_as_formula(other, "the left operand of |"), self)
+
+    def __invert__(self):
+        return _Not(self)
+
+    def __rshift__(self, other):
+        return _Implies(self, _as_formula(other, "the right operand of >>"))
+
+    def __bool__(self):
+        raise TypeError("a stl formula has no truth value: combine formulas with &, |, ~ "
+                        "(not `and`, `or`, `not`, nor chained comparisons a < s < b); "
+                        "evaluate one with phi.robustness(arc)")
+
+    __hash__ = object.__hash__
+
+    def __repr__(self):
+        return f"stl.Formula({self})"
+
+    def __call__(self, arc, t=0.0, **kw):
+        return self.robustness(arc, t, **kw)
+
+    def robustness(self, arc, t=0.0, *, j=None, strict=True, refine=4):
+        """The robustness of the formula on ``arc`` at hybrid time (t, j).
+
+        Parameters
+        ----------
+        arc : HybridArc, SolutionTree or iterable of HybridArc
+            The solution, or every solution (the worst is returned, as by
+            the :mod:`hybridsim.testing` margins; a merged branch's prefix,
+            which ends where it merges, is read with ``strict=False``).
+        t : float
+            The time at which the formula is evaluated (in the arc's range).
+        j : int, optional
+            The jump count at t (default the first at t; matters only for a
+            formula that is a predicate or a Boolean combination of them).
+        strict : bool
+            Raise when the arc ends before ``t + horizon`` (beyond the
+            engine's time tolerance); False: cut windows at the arc's end.
+        refine : int
+            Evaluate every predicate at ``refine - 1`` evenly spaced
+            interpolant points inside each step of the arc and at the local
+            extrema they reveal (located by golden-section search), so that
+            its maxima and minima between samples are instants (default 4;
+            1: the samples, crossings and window ends only).
+
+        Returns
+        -------
+        Margin
+            The robustness, with ``where`` the instant (t, j) of the
+            predicate that decides it, ``what`` the formula's text, and for
+            a formula ``G[a,b] phi`` the ``series`` of phi's robustness over
+            the window (its minimum is the margin).
+
+        Raises
+        ------
+        TypeError, ValueError
+            A bad argument (named), an empty arc, t outside it, or an arc
+            shorter than t + horizon with ``strict=True``.
+
+        Examples
+        --------
+        >>> import hybridsim as hs
+        >>> arc = hs.HybridArc([0.0, 1.0, 2.0], [0, 0, 0], [[0.0], [2.0], [0.0]], None)
+        >>> m = always(state(0) <= 1.5, 0, 2).robustness(arc)
+        >>> float(m), m.where
+        (-0.5, (1.0, 0))
+        """
+        if not isinstance(strict, (bool, np.bool_)):
+            raise TypeError(f"robustness: strict must be a bool, got {type(strict).__name__}")
+        if isinstance(refine, bool) or not isinstance(refine, (numbers.Integral, np.integer)) \
+                or refine < 1:
+            raise ValueError(f"robustness: refine must be an int >= 1, got {refine!r}")
+        t = _real(t, "robustness: t")
+        if j is not None and (isinstance(j, bool)
+                              or not isinstance(j, (numbers.Integral, np.integer))):
+            raise TypeError(f"robustness: j must be an int or None, got {type(j).__name__}")
+        if not _is_arc(arc) and not hasattr(arc, "__iter__"):
+            raise TypeError(f"robustness: arc must be a HybridArc, a SolutionTree or an "
+                            f"iterable of HybridArc, got {type(arc).__name__}")
+        return _robustness(arc, self, t, j, bool(strict), int(refine))
+
+    # the evaluation: a signal on [lo, hi] (cached per node and range)
+    def _sig(self, ctx, lo, hi, probes):
+        key = (id(self), lo, hi)
+        got = ctx.memo.get(key)
+        if got is None:
+            got = self._compute(ctx, lo, hi, probes)
+            ctx.memo[key] = got
+        return got
+
+    def _compute(self, ctx, lo, hi, probes):  # pragma: no cover - every subclass defines it
+        raise NotImplementedError
+
+    def _decide(self, ctx, lo, hi, tau, j, target):
+        """The instant (t, j) of the predicate deciding the value at (tau, j)."""
+        return tau, j
+
+
+def _value(sig, tau, j):
+    """The value of a signal at the instant (tau, j), one-sided limits included."""
+    T = np.array([tau])
+    k = np.flatnonzero((sig.t == tau) & (sig.j == j))
+    if k.size:
+        return float(sig.v[k[0]])
+    k = np.flatnonzero(sig.t <= tau)
+    idx = np.full(1, -1)
+    if not k.size:
+        return float(sig.v[0])
+    v, _, _ = _values_at(sig, T, idx if sig.j[k[-1]] == j else np.array([k[-1]]))
+    return float(v[0])
+
+
+class _Predicate(Formula):
+    """A predicate: robustness ``rho`` (a signal) >= 0, printed as ``text``."""
+
+    def __init__(self, rho, text):
+        self.rho, self.text = rho, text
+
+    def __str__(self):
+        return self.text
+
+    def _compute(self, ctx, lo, hi, probes):
+        at, aj = ctx.t, ctx.j
+        a = int(np.searchsorted(at, lo, side="left"))
+        b = int(np.searchsorted(at, hi, side="right"))
+        Ts, Js, Xs = at[a:b], aj[a:b], ctx.x[a:b]
+        extra = [np.array([lo, hi])]
+        if len(probes):
+            p = np.asarray(sorted(probes), float)
+            extra.append(p[(p > lo) & (p < hi)])
+        e = np.unique(np.concatenate(extra))
+        pos = np.searchsorted(at, e)
+        stored = (pos < len(at)) & (at[np.minimum(pos, len(at) - 1)] == e)
+        e = e[~stored]
+        if e.size:
+            Te, Je, *_ = ctx.domain(e)
+            Xe = ctx.states(Te, Je)
+            T, J, X = _sorted_points(np.concatenate((Ts, Te)), np.concatenate((Js, Je)),
+                                     np.concatenate((Xs, Xe)))
+        else:
+            T, J, X = Ts, Js, Xs
+        v = self._rho(T, J, X)
+        if ctx.refine > 1 and len(T) > 1:
+            T, J, v = self._extrema(ctx, T, J, v)
+        # zero crossings inside each step, on the arc's interpolant
+        with np.errstate(invalid="ignore"):
+            k = np.flatnonzero((J[1:] == J[:-1]) & (v[:-1] * v[1:] < 0)
+                               & np.isfinite(v[:-1]) & np.isfinite(v[1:]))
+        if k.size:
+            tc = self._roots(ctx, T[k], T[k + 1], v[k], v[k + 1], J[k])
+            T, J, v = _sorted_points(np.concatenate((T, tc)), np.concatenate((J, J[k])),
+                                     np.concatenate((v, np.zeros(len(tc)))))
+        return _Sig(T, J, v)
+
+    def _rho(self, T, J, X):
+        v = np.asarray(self.rho._values(T, J, X), dtype=float).reshape(len(T))
+        return np.where(np.isnan(v), -_INF, v)
+
+    def _at(self, ctx, T, J):
+        return self._rho(T, J, ctx.states(T, J))
+
+    def _extrema(self, ctx, T, J, v):
+        """Add ``refine - 1`` interpolant values inside every step, and each
+        local extremum they reveal, located by golden-section search."""
+        k = np.flatnonzero(J[1:] == J[:-1])
+        if not k.size:
+            return T, J, v
+        m = ctx.refine - 1
+        w = np.arange(1, m + 1) / (m + 1)
+        h = T[k + 1] - T[k]
+        S = T[k][:, None] + w[None, :] * h[:, None]                 # (steps, m)
+        Js = np.repeat(J[k], m)
+        Vs = self._at(ctx, S.ravel(), Js).reshape(len(k), m)
+        tt = np.hstack((T[k][:, None], S, T[k + 1][:, None]))         # (steps, m + 2)
+        vv = np.hstack((v[k][:, None], Vs, v[k + 1][:, None]))
+        with np.errstate(invalid="ignore"):
+            d = np.diff(vv, axis=1)
+            peak = (d[:, :-1] > 0) & (d[:, 1:] < 0)
+            dip = (d[:, :-1] < 0) & (d[:, 1:] > 0)
+        ext_t, ext_j = [S.ravel()], [Js]
+        ext_v = [Vs.ravel()]
+        r, c = np.nonzero(peak | dip)
+        if r.size:
+            sgn = np.where(peak[r, c], -1.0, 1.0)          # minimise sgn * rho
+            jj = J[k][r]
+            x, fx = self._minimum(ctx, tt[r, c], tt[r, c + 1], tt[r, c + 2], sgn * vv[r, c],
+                                  sgn * vv[r, c + 1], sgn * vv[r, c + 2], sgn, jj, h[r])
+            ext_t.append(x)
+            ext_j.append(jj)
+            ext_v.append(sgn * fx)
+        return _sorted_points(np.concatenate([T] + ext_t), np.concatenate([J] + ext_j),
+                              np.concatenate([v] + ext_v))
+
+    def _minimum(self, ctx, lo, mid, hi, flo, fmid, fhi, sgn, J, h):
+        """Minima of ``sgn * rho`` in brackets (lo, mid, hi) with fmid below both
+        ends: successive parabolic interpolation, golden-section where a
+        vertex falls outside, to 1e-6 of the step."""
+        g = 0.5 * (3.0 - math.sqrt(5.0))
+        live = np.ones(len(lo), dtype=bool)
+        for _ in range(60):
+            live &= (hi - lo) > 1e-6 * h + _tol(hi)
+            if not live.any():
+                break
+            i = np.flatnonzero(live)
+            a, m, b, fa, fm, fb = lo[i], mid[i], hi[i], flo[i], fmid[i], fhi[i]
+            p = (m - a) ** 2 * (fm - fb) - (m - b) ** 2 * (fm - fa)
+            q = (m - a) * (fm - fb) - (m - b) * (fm - fa)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                x = m - 0.5 * p / q
+            gold = np.where(b - m > m - a, m + g * (b - m), m - g * (m - a))
+            near = np.abs(x - m) < 0.25 * (1e-6 * h[i] + _tol(m))
+            x = np.where(~np.isfinite(x) | (x <= a) | (x >= b) | near, gold, x)
+            fx = sgn[i] * self._at(ctx, x, J[i])
+            better = fx < fm
+            left = x < m
+            # the new bracket around the best point so far
+            lo[i] = np.where(better, np.where(left, a, m), np.where(left, x, a))
+            flo[i] = np.where(better, np.where(left, fa, fm), np.where(left, fx, fa))
+            hi[i] = np.where(better, np.where(left, m, b), np.where(left, b, x))
+            fhi[i] = np.where(better, np.where(left, fm, fb), np.where(left, fb, fx))
+            mid[i] = np.where(better, x, m)
+            fmid[i] = np.where(better, fx, fm)
+        return mid, fmid
+
+    def _roots(self, ctx, a, b, fa, fb, J):
+        """Where rho changes sign in (a, b) on the interpolant, to 4 ulp: the
+        engine's safeguarded secant (``events._secant``), vectorised: a secant
+        step from the last evaluation where it falls inside the bracket and is
+        shorter than half the step before last, else bisection; trials a
+        quarter tolerance inside the bracket so that it closes from both sides.
+        Returns each bracket's end past the crossing."""
+        sg = np.sign(fb)                         # F = sg * rho: F(lo) < 0 < F(hi)
+        lo, hi, flo, fhi = a.copy(), b.copy(), sg * fa, sg * fb
+        first = -flo < fhi
+        xl, fl = np.where(first, lo, hi), np.where(first, flo, fhi)
+        slope = (fhi - flo) / (hi - lo)
+        d1 = np.full(len(a), _INF)
+        d2 = d1.copy()
+        live = np.ones(len(a), dtype=bool)
+        for _ in range(200):
+            tol = _tol(hi)
+            live &= (hi - lo) > tol
+            if not live.any():
+                break
+            i = np.flatnonzero(live)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                s = xl[i] - fl[i] / slope[i]
+            ok = (lo[i] <= s) & (s <= hi[i]) & (np.abs(s - xl[i]) < 0.5 * d2[i])
+            s = np.where(ok, s, 0.5 * (lo[i] + hi[i]))
+            q = 0.25 * tol[i]
+            s = np.clip(s, lo[i] + q, hi[i] - q)
+            fs = sg[i] * self._at(ctx, s, J[i])
+            fs = np.where(np.isnan(fs), 0.0, fs)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                slope[i] = (fs - fl[i]) / (s - xl[i])
+            d2[i], d1[i] = d1[i], np.abs(s - xl[i])
+            xl[i], fl[i] = s, fs
+            up = fs >= 0
+            hi[i] = np.where(up, s, hi[i])
+            lo[i] = np.where(up, lo[i], s)
+        return hi
+
+
+def _wrap(phi):
+    """A formula's text as an operand: a predicate in parentheses."""
+    return f"({phi})" if isinstance(phi, _Predicate) else str(phi)
+
+
+def _compare(sig, op, other):
+    rhs = _as_signal(other, f"the right side of {op}")
+    text = f"{sig} {op} {rhs}"
+    rho = rhs - sig if op in ("<", "<=") else sig - rhs
+    return _Predicate(rho, text)
+
+
+def equals(sig, value, tol=0.5):
+    """The predicate ``sig == value``, with robustness ``tol - |sig - value|``.
+
+    For integer-valued signals (gears, modes, :func:`jumps`) the default
+    ``tol = 0.5`` gives +0.5 where equal and -(d - 0.5) at distance d >= 1:
+    the sign decides equality, the size says how far the mode is from it.
+
+    Parameters
+    ----------
+    sig : Signal or number
+    value : Signal or number
+    tol : float
+        >= 0: how close counts as equal.
+
+    Examples
+    --------
+    >>> import hybridsim as hs
+    >>> arc = hs.HybridArc([0.0, 1.0, 1.0, 2.0], [0, 0, 1, 1],
+    ...                    [[1.0], [1.0], [2.0], [2.0]], None)
+    >>> gear = state(0, "gear")
+    >>> float(always(equals(gear, 1), 0, 0.9)(arc)), float(always(equals(gear, 1), 0, 1)(arc))
+    (0.5, -0.5)
+    """
+    s = _as_signal(sig, "equals: sig")
+    v = _as_signal(value, "equals: value")
+    tol = _real(tol, "equals: tol")
+    if not (0 <= tol < _INF):
+        raise ValueError(f"equals: tol must be finite and >= 0, got {tol!r}")
+    text = f"{s} == {v}" if tol == 0.5 else f"|{s} - {v}| <= {_num(tol)}"
+    return _Predicate(tol - abs(s - v), text)
+
+
+class _Not(Formula):
+    def __init__(self, phi):
+        self.phi = phi
+        self.horizon = phi.horizon
+
+    def __str__(self):
+        return f"~{_wrap(self.phi)}"
+
+    def _compute(self, ctx, lo, hi, probes):
+        return self.phi._sig(ctx, lo, hi, probes).neg()
+
+    def _decide(self, ctx, lo, hi, tau, j, target):
+        return self.phi._decide(ctx, lo, hi, tau, j, -target)
+
+
+class _Binary(Formula):
+    op_text = "?"
+    op = staticmethod(np.minimum)
+
+    def __init__(self, phi, psi):
+        self.phi, self.psi = phi, psi
+        self.horizon = max(phi.horizon, psi.horizon)
+
+    def __str__(self):
+        return f"({_wrap(self.phi)} {self.op_text} {_wrap(self.psi)})"
+
+    def _parts(self, ctx, lo, hi, probes):
+        return self.phi._sig(ctx, lo, hi, probes), self.psi._sig(ctx, lo, hi, probes)
+
+    def _compute(self, ctx, lo, hi, probes):
+        s1, s2 = self._parts(ctx, lo, hi, probes)
+        return _combine(s1, s2, self.op)
+
+    def _decide(self, ctx, lo, hi, tau, j, target):
+        s1, s2 = self._parts(ctx, lo, hi, ())
+        v1, v2 = _value(s1, tau, j), _value(s2, tau, j)
+        sgn = -1.0 if isinstance(self, _Implies) else 1.0
+        if abs(sgn * v1 - target) <= abs(v2 - target):
+            return self.phi._decide(ctx, lo, hi, tau, j, sgn * target)
+        return self.psi._decide(ctx, lo, hi, tau, j, target)
+
+
+class _And(_Binary):
+    op_text = "&"
+    op = staticmethod(np.minimum)
+
+
+class _Or(_Binary):
+    op_text = "|"
+    op = staticmethod(np.maximum)
+
+
+class _Implies(_Binary):
+    op_text = "->"
+    op = staticmethod(np.maximum)
+
+    def _parts(self, ctx, lo, hi, probes):
+        return self.phi._sig(ctx, lo, hi, probes).neg(), self.psi._sig(ctx, lo, hi, probes)
+
+
+def implies(phi, psi):
+    """``phi -> psi``, i.e. ``~phi | psi`` (also written ``phi >> psi``).
+
+    Examples
+    --------
+    >>> x = state(0)
+    >>> str(implies(x > 1, x > 0))
+    '((x[0] > 1) -> (x[0] > 0))'
+    """
+    return _Implies(_as_formula(phi, "implies: phi"), _as_formula(psi, "implies: psi"))
+
+
+def _window_sup(ctx, s, a, b, lo, hi):
+    """sup of ``s`` over [tau + a, tau + b] (cut at the end of s), for tau in [lo, hi]."""
+    t, v, l, r = s.t, s.v, s.l, s.r
+    first = np.ones(len(t), dtype=bool)
+    first[1:] = t[1:] != t[:-1]
+    fi = np.flatnonzero(first)
+    la = np.concatenate((fi[1:] - 1, [len(t) - 1]))
+    u = t[fi]
+    M = len(u)
+    P = np.maximum.reduceat(v, fi)
+    L = np.where(s.pred()[fi], l[fi], -_INF)
+    R = np.where(s.succ()[la], r[la], -_INF)
+    Q = np.maximum(P, np.maximum(L, R))
+    E = u[-1]
+    rm = _RangeMax(Q)
+    du = np.diff(u)
+
+    def piece(p, x):
+        if M == 1:
+            return np.full(np.shape(x), P[0])
+        p = np.clip(p, 0, M - 2)
+        return _lerp(R[p], L[p + 1], (x - u[p]) / du[p])
+
+    def locate(x):
+        i = np.searchsorted(u, x)
+        ic = np.minimum(i, M - 1)
+        ip = np.maximum(i - 1, 0)
+        hit_i = (i < M) & (np.abs(u[ic] - x) <= _tol(x))
+        hit_p = ~hit_i & (i > 0) & (np.abs(x - u[ip]) <= _tol(x))
+        idx = np.where(hit_i, ic, np.where(hit_p, ip, np.clip(i - 1, 0, max(M - 2, 0))))
+        return idx, hit_i | hit_p
+
+    # the output's breakpoints
+    if hi <= lo:
+        taus = np.array([lo])
+    else:
+        cand = [np.array([lo, hi]), u - a, ctx.jump_times]
+        if math.isfinite(b):
+            cand.append(u - b)
+        c = np.concatenate(cand)
+        taus = np.unique(c[(c >= lo) & (c <= hi)])
+    alpha = taus + a
+    beta = np.minimum(taus + b, E)
+    empty = alpha > E + _tol(E)
+    ia, ea = locate(alpha)
+    ib, eb = locate(beta)
+    deg = ea & eb & (ia == ib) | (alpha >= beta)
+    val = np.where(ea, P[ia], piece(ia, alpha))
+    val = np.maximum(val, np.where(ea & ~deg, R[ia], -_INF))
+    val = np.maximum(val, np.where(eb, P[ib], piece(ib, beta)))
+    val = np.maximum(val, np.where(eb & ~deg, L[ib], -_INF))
+    val = np.maximum(val, rm.query(ia + 1, np.where(eb, ib - 1, ib)))
+    val[empty] = -_INF
+    # the open intervals between breakpoints: max of two lines and a constant
+    K = len(taus) - 1
+    vl, vr = val.copy(), val.copy()
+    kink_t = np.zeros(0)
+    kink_v = np.zeros(0)
+    if K > 0 and M > 1:
+        t0, t1 = taus[:-1], taus[1:]
+        mid = 0.5 * (t0 + t1)
+        p = np.clip(np.searchsorted(u, mid + a, side="right") - 1, 0, M - 2)
+        sA = (L[p + 1] - R[p]) / du[p]
+        A0 = piece(p, t0 + a)
+        bm = mid + b
+        at_end = bm >= E
+        q = np.clip(np.searchsorted(u, np.minimum(bm, E), side="right") - 1, 0, M - 2)
+        sB = np.where(at_end, 0.0, (L[q + 1] - R[q]) / du[q])
+        B0 = np.where(at_end, max(P[-1], L[-1]), piece(q, np.minimum(t0 + b, E)))
+        C = rm.query(p + 1, np.where(at_end, M - 2, q))
+        gone = mid + a > E
+        lines = [(A0, sA), (B0, sB), (C, np.zeros(K))]
+
+        def at(x):
+            out = np.full(K, -_INF)
+            for y0, sl in lines:
+                with np.errstate(invalid="ignore"):
+                    yy = np.where(sl == 0, y0, y0 + sl * (x - t0))
+                out = np.maximum(out, np.where(np.isnan(yy), -_INF, yy))
+            return np.where(gone, -_INF, out)
+
+        vr[:-1] = at(t0)
+        vl[1:] = at(t1)
+        ks, ts = [], []
+        for (y0, s0), (y1, s1) in ((lines[0], lines[1]), (lines[0], lines[2]),
+                                   (lines[1], lines[2])):
+            ds = s0 - s1
+            with np.errstate(invalid="ignore", divide="ignore"):
+                tk = t0 - (y0 - y1) / ds
+            ok = (ds != 0) & np.isfinite(tk) & (tk > t0) & (tk < t1) & ~gone
+            ks.append(np.flatnonzero(ok))
+            ts.append(tk[ok])
+        kk = np.concatenate(ks)
+        if kk.size:
+            kink_t = np.concatenate(ts)
+            kink_v = np.full(kk.size, -_INF)
+            for y0, sl in lines:
+                with np.errstate(invalid="ignore"):
+                    yy = y0[kk] + np.where(sl[kk] == 0, 0.0, sl[kk] * (kink_t - t0[kk]))
+                kink_v = np.maximum(kink_v, np.where(np.isnan(yy), -_INF, yy))
+    times = np.concatenate((taus, kink_t))
+    V = np.concatenate((val, kink_v))
+    Lv = np.concatenate((vl, kink_v))
+    Rv = np.concatenate((vr, kink_v))
+    order = np.argsort(times, kind="stable")
+    times, V, Lv, Rv = times[order], V[order], Lv[order], Rv[order]
+    T, J, fst, lst, src = ctx.domain(times)
+    Vd = V[src]
+    return _Sig(T, J, Vd, np.where(fst, Lv[src], Vd), np.where(lst, Rv[src], Vd))
+
+
+class _Window(Formula):
+    """F[a,b] (sup) or G[a,b] (inf) of a formula."""
+
+    def __init__(self, phi, a, b, sup):
+        self.phi, self.a, self.b, self.sup = phi, a, b, sup
+        self.horizon = b + phi.horizon
+
+    def __str__(self):
+        name = "F" if self.sup else "G"
+        win = "" if self.a == 0 and math.isinf(self.b) else f"[{_num(self.a)},{_num(self.b)}]"
+        inner = str(self.phi)
+        return f"{name}{win}{inner}" if isinstance(self.phi, (_Binary, _Until)) \
+            else f"{name}{win}({inner})"
+
+    def _range(self, ctx, lo, hi):
+        return lo + self.a, min(hi + self.b, ctx.tf)
+
+    def _compute(self, ctx, lo, hi, probes):
+        clo, chi = self._range(ctx, lo, hi)
+        if clo > ctx.tf:                        # (strict=False) every window is empty
+            T, J, *_ = ctx.domain(np.array([lo, hi]) if hi > lo else np.array([lo]))
+            return _Sig(T, J, np.full(len(T), -_INF if self.sup else _INF))
+        cp = sorted({p + d for p in probes for d in (self.a, self.b) if math.isfinite(p + d)})
+        s = self.phi._sig(ctx, clo, chi, cp[:256])
+        if self.sup:
+            return _window_sup(ctx, s, self.a, self.b, lo, hi)
+        return _window_sup(ctx, s.neg(), self.a, self.b, lo, hi).neg()
+
+    def _window_points(self, ctx, lo, hi, tau):
+        clo, chi = self._range(ctx, lo, hi)
+        s = self.phi._sig(ctx, clo, chi, ())
+        top = min(tau + self.b, chi)
+        m = (s.t >= tau + self.a - _tol(tau + self.a)) & (s.t <= top + _tol(top))
+        return s, m, clo, chi
+
+    def _decide(self, ctx, lo, hi, tau, j, target):
+        if lo + self.a > ctx.tf:
+            return tau, j
+        s, m, clo, chi = self._window_points(ctx, lo, hi, tau)
+        k = np.flatnonzero(m)
+        if not k.size:
+            return tau, j
+        cand = np.stack((s.v[k], s.l[k], s.r[k]))
+        err = np.min(np.abs(cand - target), axis=0)
+        best = k[int(np.argmin(err))]
+        return self.phi._decide(ctx, clo, chi, float(s.t[best]), int(s.j[best]), target)
+
+
+def _check_formula_args(phi, a, b, where):
+    phi = _as_formula(phi, f"{where}: phi")
+    a, b = _interval(a, b, where)
+    return phi, a, b
+
+
+def always(phi, a=0.0, b=_INF):
+    """``G[a,b] phi``: phi holds at every instant of [t + a, t + b] (inf over it).
+
+    Parameters
+    ----------
+    phi : Formula
+    a, b : float
+        The window, 0 <= a <= b (b may be ``inf``: to the end of the arc).
+
+    Examples
+    --------
+    >>> str(always(state(0) >= 0, 0, 2.5)), str(always(state(0) >= 0))
+    ('G[0,2.5](x[0] >= 0)', 'G(x[0] >= 0)')
+    """
+    phi, a, b = _check_formula_args(phi, a, b, "always")
+    return _Window(phi, a, b, sup=False)
+
+
+def eventually(phi, a=0.0, b=_INF):
+    """``F[a,b] phi``: phi holds at some instant of [t + a, t + b] (sup over it).
+
+    Parameters
+    ----------
+    phi : Formula
+    a, b : float
+        The window, 0 <= a <= b (b may be ``inf``).
+
+    Examples
+    --------
+    >>> str(eventually(state(0) < 1, 0.001, 0.1))
+    'F[0.001,0.1](x[0] < 1)'
+    """
+    phi, a, b = _check_formula_args(phi, a, b, "eventually")
+    return _Window(phi, a, b, sup=True)
+
+
+class _Until(Formula):
+    def __init__(self, phi, psi, a, b):
+        self.phi, self.psi, self.a, self.b = phi, psi, a, b
+        self.horizon = b + max(phi.horizon, psi.horizon)
+
+    def __str__(self):
+        win = "" if self.a == 0 and math.isinf(self.b) else f"[{_num(self.a)},{_num(self.b)}]"
+        return f"({_wrap(self.phi)} U{win} {_wrap(self.psi)})"
+
+    def _ranges(self, ctx, lo, hi):
+        end = min(hi + self.b, ctx.tf)
+        return (lo, end), (min(lo + self.a, end), end)
+
+    def _compute(self, ctx, lo, hi, probes):
+        a, b = self.a, self.b
+        (plo, phi_), (qlo, qhi) = self._ranges(ctx, lo, hi)
+        if lo + a > ctx.tf:
+            T, J, *_ = ctx.domain(np.array([lo, hi]) if hi > lo else np.array([lo]))
+            return _Sig(T, J, np.full(len(T), -_INF))
+        cp = sorted({p + d for p in probes for d in (0.0, a, b) if math.isfinite(p + d)})
+        sp = self.phi._sig(ctx, plo, phi_, cp[:256])
+        sq = self.psi._sig(ctx, qlo, qhi, cp[:256])
+        # untimed phi U psi on [qlo, qhi], at the instants of both
+        sp_q = _restrict(ctx, sp, qlo, qhi)
+        w = _untimed_until(sp_q, sq)
+        if math.isfinite(b) and b > a:
+            w = _combine(w, _window_sup(ctx, sq, 0.0, b - a, qlo, min(hi + a, qhi)), np.minimum)
+        out = _window_sup(ctx, w, a, a, lo, hi)
+        if a > 0:
+            g = _window_sup(ctx, sp.neg(), 0.0, a, lo, hi).neg()
+            out = _combine(out, g, np.minimum)
+        return out
+
+    def _decide(self, ctx, lo, hi, tau, j, target):
+        (plo, phi_), (qlo, qhi) = self._ranges(ctx, lo, hi)
+        best = None
+        for f, (flo, fhi) in ((self.phi, (plo, phi_)), (self.psi, (qlo, qhi))):
+            s = f._sig(ctx, flo, fhi, ())
+            m = (s.t >= tau - _tol(tau)) & (s.t <= min(tau + self.b, fhi) + _tol(fhi))
+            k = np.flatnonzero(m)
+            if not k.size:
+                continue
+            err = np.abs(s.v[k] - target)
+            i = int(np.argmin(err))
+            if best is None or err[i] < best[0]:
+                best = (err[i], f, flo, fhi, float(s.t[k[i]]), int(s.j[k[i]]))
+        if best is None:
+            return tau, j
+        _, f, flo, fhi, tb, jb = best
+        return f._decide(ctx, flo, fhi, tb, jb, target)
+
+
+def _restrict(ctx, s, lo, hi):
+    """``s`` on [lo, hi] (instants added at the ends where they fall inside a piece)."""
+    T, J, *_ = ctx.domain(np.array([lo, hi]) if hi > lo else np.array([lo]))
+    Tm, Jm, (v, l, r), _ = _merge(s, _Sig(T, J, np.zeros(len(T))))
+    m = (Tm >= lo) & (Tm <= hi)
+    return _Sig(Tm[m], Jm[m], v[m], l[m], r[m])
+
+
+def _untimed_until(sp, sq):
+    """phi U psi (untimed, to the end of the signals) at the instants of both."""
+    # both at the union of their instants, with the crossings of psi - phi
+    mn = _combine(sp, sq, np.minimum)           # adds the crossings
+    T, J, (pv, pl, pr), (qv, ql, qr) = _merge(_combine(sp, mn, np.minimum), sq)
+    # a sequence of atoms in hybrid time: each instant, then the open piece after it
+    n = len(T)
+    succ = np.zeros(n, dtype=bool)
+    succ[:-1] = J[1:] == J[:-1]
+    U = np.empty(n)
+    nxt = -_INF
+    for k in range(n - 1, -1, -1):
+        if succ[k]:
+            # the open piece (T[k], T[k+1]): phi and psi linear, their min too
+            piece = max(min(qr[k], pr[k]), min(ql[k + 1], pl[k + 1]),
+                        min(pr[k], pl[k + 1], nxt))
+            inf_piece = min(pr[k], pl[k + 1])
+            nxt = max(piece, min(inf_piece, nxt))
+        U[k] = max(min(qv[k], pv[k]), min(pv[k], nxt))
+        nxt = U[k]
+    return _Sig(T, J, U)
+
+
+def until(phi, psi, a=0.0, b=_INF):
+    """``phi U[a,b] psi``: psi holds at some t' in [t + a, t + b] and phi on [t, t'].
+
+    Robustness: sup over t' in the window of min(psi(t'), inf over [t, t'] of
+    phi) (every j at each instant).
+
+    Parameters
+    ----------
+    phi, psi : Formula
+    a, b : float
+        The window, 0 <= a <= b (b may be ``inf``).
+
+    Examples
+    --------
+    >>> x = state(0)
+    >>> str(until(x < 1, x > 2, 0, 5))
+    '((x[0] < 1) U[0,5] (x[0] > 2))'
+    """
+    phi = _as_formula(phi, "until: phi")
+    psi = _as_formula(psi, "until: psi")
+    a, b = _interval(a, b, "until")
+    return _Until(phi, psi, a, b)
+
+
+G = always
+F = eventually
+U = until
+
+
+# --------------------------------------------------------------- evaluation --
+
+@_every("margin")
+def _robustness(arc, formula, t, j, strict, refine):
+    if len(arc.t) == 0:
+        raise ValueError("robustness: the arc is empty (no samples)")
+    if getattr(arc, "merged_into", None) is not None:
+        strict = False                  # a merged branch's prefix ends where it merges
+    ctx = _Context(arc, strict, refine)
+    tol = event_tolerance(ctx.tf, ctx.tf)
+    if not (ctx.t0 - tol <= t <= ctx.tf + tol):
+        raise ValueError(f"robustness: t = {t!r} is outside the arc's time range "
+                         f"[{ctx.t0}, {ctx.tf}]")
+    t = min(max(t, ctx.t0), ctx.tf)
+    h = formula.horizon
+    if strict and math.isfinite(h) and t + h > ctx.tf + event_tolerance(t + h, ctx.tf):
+        raise ValueError(f"robustness: {formula} reads the arc up to t = {_num(t + h)} "
+                         f"(t = {_num(t)} plus its horizon {_num(h)}), but the arc ends at "
+                         f"t = {ctx.tf!r}; simulate longer, or pass strict=False to cut the "
+                         f"windows at the arc's end")
+    _, J, *_ = ctx.domain(np.array([t]))
+    if j is None:
+        j = int(J[0])
+    elif int(j) not in set(J.tolist()):
+        raise ValueError(f"robustness: (t={t!r}, j={j}) is not in the arc's hybrid time "
+                         f"domain (at t the arc has j in {sorted(set(J.tolist()))})")
+    s = formula._sig(ctx, t, t, (t,))
+    k = np.flatnonzero(s.j == j)
+    value = float(s.v[k[0]]) if k.size else float(s.v[0])
+    wt, wj = formula._decide(ctx, t, t, t, int(j), value)
+    series = None
+    if isinstance(formula, _Window) and not formula.sup and not (t + formula.a > ctx.tf):
+        c, m, _, _ = formula._window_points(ctx, t, t, t)
+        series = (c.t[m], c.j[m], c.v[m])
+    return Margin(value, wt, wj, str(formula), series=series)
