@@ -39,7 +39,7 @@ __all__ = ["run", "validate", "main", "BUDGET", "QUICK"]
 #: the competition's budget of simulations per trial
 BUDGET = 1500
 #: what ``--quick`` attempts (two trials each)
-QUICK = ("AT1", "AT2", "AT6a", "CC1", "CC3")
+QUICK = ("AT1", "AT2", "AT54", "AT6a", "CC1", "CC2", "CC3")
 TRIAL_COLUMNS = ("system", "property", "instance", "seed", "simulations", "time",
                  "robustness", "falsified", "input")
 SUMMARY_COLUMNS = ("requirement", "instance", "trials", "falsified", "mean_simulations",
