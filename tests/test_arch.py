@@ -64,6 +64,20 @@ def test_at_upshifts_two_samples_after_the_threshold_is_crossed():
     assert arc.x[-1, at.GEAR] == 4.0
 
 
+def test_at_kickdown_at_a_control_point_is_sampled_at_that_instant():
+    # 45 % to 15 s (fourth gear at 71 mph), then 100 %: the downshift threshold of
+    # fourth gear jumps to 80 mph at t = 15, itself a sample (15 / 0.04 = 375): that
+    # sample reads the new throttle and starts downshifting; third gear at 15.08
+    at = AutomaticTransmission(times=[0.0, 15.0])
+    arc = hs.simulate(at, at.initial_state([45.0, 100.0], 0.0), t_max=16.0)
+    g = arc.x[:, at.GEAR]
+    k = np.flatnonzero(np.diff(g) < 0)
+    assert len(k) == 1 and g[k[0]] == 4.0 and g[k[0] + 1] == 3.0
+    assert arc.t[k[0] + 1] == pytest.approx(15.0 + M.WAIT * M.SAMPLE, abs=1e-9)
+    start = np.flatnonzero(arc.is_jump_start & np.isclose(arc.t, 15.0, atol=1e-12))
+    assert arc.x[start[0] + 1, 3] == -1.0                     # downshifting from 15.0
+
+
 def test_at_engine_holds_at_idle_and_the_brake_stops_the_vehicle():
     at = AutomaticTransmission()
     arc = hs.simulate(at, at.initial_state(0.0, 325.0), t_max=10.0)

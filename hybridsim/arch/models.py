@@ -34,19 +34,35 @@ shift schedule ``UP_TABLE`` / ``DOWN_TABLE`` over throttle ``UP_TH`` /
 40 + 0.02 v^2, wheel radius 1 ft, the engine speed limits 600-6000 rpm and
 its initial 1000 rpm, the shift logic's 0.04 s sample time and its wait of
 2 samples) is the data of the competition's model file
-``Autotrans_shift.mdl`` (ARCH-COMP's benchmark repository, from Breach's
-``Ext/Models/Autotrans_shift.mdl``; its data are The MathWorks' example's,
-copyright The MathWorks, distributed with the competition's benchmark
-files for research use), read from that file and from the constants of
-code generated from it (the inertia gains 1/Iei = 45.472138452209627 and
-1/Iv = 0.082684618362373577, as Simulink evaluates them). Facts only: no
-code of either is used.
+``Autotrans_shift.mdl`` (ARCH-COMP's benchmark repository, taken from
+Breach's ``Ext/Models/Autotrans_shift.mdl``; its data are those of The
+MathWorks' example, copyright The MathWorks; the benchmark files state no
+licence of their own and are distributed for research use), read from that
+file and from the constants of code generated from it (the inertia gains
+1/Iei = 45.472138452209627 and 1/Iv = 0.082684618362373577, as Simulink
+evaluates them). Facts only: no code of either is used. The shift logic's
+semantics (sampled, the order of its checks, the wait counted in samples)
+are those of the model's Stateflow chart.
 
 CC: the dynamics and thresholds (leader v' = -throttle - brake v;
 followers' modes Chasing v' = 1, y' = -v / Keeping y' = v / Braking
 v' = -v, y' = -v with switches at gaps 5, 10, 15, 20; initial positions
-0, 10, 20, 30, 40) are those of the competition's ``cars.mdl`` (ARCH-COMP
-benchmark repository; FalCAuN-ARCH-COMP's copy, MIT licence), facts only.
+0, 10, 20, 30, 40) are those of the competition's ``cars.mdl`` (the ARCH
+2020 benchmark folder's, also in FalCAuN-ARCH-COMP, an MIT-licensed
+repository; the model file states no licence of its own), facts only.
+
+Differences from the Simulink models
+------------------------------------
+Simulink integrates AT with fixed-step ode5 (0.01 s) and clamps the engine
+speed at its limits at each step; here the flows are integrated to the
+engine's tolerances and the limits and the standstill are modes entered at
+located events. At v = 0 Simulink's sgn(0) = 0 makes the braked vehicle
+chatter about 0 (by about 0.03 mph); here it stays stopped while the drive
+torque is below the static load (Filippov's solution). CC's Stateflow charts
+are continuous-time, their transitions zero crossings, as the jumps here.
+Full throttle: speed at 20 s 120.21324 against Simulink's 120.21327, top
+engine speed 4768.2735 against 4768.2772 (ode5's own error, measured by
+halving its step, is of that size).
 
 Examples
 --------
