@@ -78,6 +78,22 @@ def test_at_kickdown_at_a_control_point_is_sampled_at_that_instant():
     assert arc.x[start[0] + 1, 3] == -1.0                     # downshifting from 15.0
 
 
+def test_at5_gear_stability_on_shifts_at_their_instants():
+    # full throttle: every gear is held for more than 2.5 s, AT51-AT54 hold (+0.5, the
+    # equals(gear, i) convention). 50 % to 4.4 s, then 100 %: third gear from 4.16 s,
+    # kicked down to second at 4.48 s (speed below 50 mph), AT53 alone fails, decided
+    # at the instant the shift into third happens
+    # (the gear is piecewise constant: refine=1, no extremum search inside steps)
+    at = AutomaticTransmission()
+    full = hs.simulate(at, at.initial_state(100.0, 0.0), t_max=33.0)
+    assert [float(REQUIREMENTS[f"AT5{i}"](full, 1)) for i in (1, 2, 3, 4)] == [0.5] * 4
+    at = AutomaticTransmission(times=[0.0, 4.4])
+    arc = hs.simulate(at, at.initial_state([50.0, 100.0], 0.0), t_max=33.0)
+    got = {i: REQUIREMENTS[f"AT5{i}"](arc, 1) for i in (1, 2, 3, 4)}
+    assert [float(m) for m in got.values()] == [0.5, 0.5, -0.5, 0.5]
+    assert got[3].where[0] == pytest.approx(4.16, abs=1e-9)
+
+
 def test_at_engine_holds_at_idle_and_the_brake_stops_the_vehicle():
     at = AutomaticTransmission()
     arc = hs.simulate(at, at.initial_state(0.0, 325.0), t_max=10.0)
