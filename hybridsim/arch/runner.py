@@ -120,8 +120,9 @@ def run(out, *, trials=10, only=None, instances=(1, 2), budget=BUDGET, quick=Fal
                 "mean_simulations": f"{statistics.fmean(sims):.1f}" if sims else "",
                 "median_simulations": f"{statistics.median(sims):g}" if sims else "",
                 "median_seconds_per_trial": f"{statistics.median(secs):.2f}"})
-    _write(os.path.join(out, "trials.csv"), TRIAL_COLUMNS, rows)
-    _write(os.path.join(out, "summary.csv"), SUMMARY_COLUMNS, summary)
+            # written after each requirement and instance: a long run's tables so far
+            _write(os.path.join(out, "trials.csv"), TRIAL_COLUMNS, rows)
+            _write(os.path.join(out, "summary.csv"), SUMMARY_COLUMNS, summary)
     return summary
 
 
