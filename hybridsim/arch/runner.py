@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import logging
 import os
 import statistics
 import sys
@@ -36,6 +37,7 @@ from .spaces import INSTANCES, MODELS, input_matrix, model, parse_input, problem
 
 __all__ = ["run", "validate", "main", "BUDGET", "QUICK"]
 
+_LOG = logging.getLogger("hybridsim.arch")
 #: the competition's budget of simulations per trial
 BUDGET = 1500
 #: what ``--quick`` attempts (two trials each)
@@ -59,7 +61,7 @@ def _names(only):
 
 
 def run(out, *, trials=10, only=None, instances=(1, 2), budget=BUDGET, quick=False,
-        backend="auto", log=print):
+        backend="auto", log=None):
     """Run the benchmarks and write ``out/trials.csv`` and ``out/summary.csv``.
 
     Parameters
@@ -80,8 +82,8 @@ def run(out, *, trials=10, only=None, instances=(1, 2), budget=BUDGET, quick=Fal
         How each population runs (:func:`hybridsim.falsification.batch_run`);
         the models' maps are compiled before the first trial, so the trials'
         times are the searches'.
-    log : callable
-        Where each trial's line goes.
+    log : callable, optional
+        Where each trial's line goes (default the ``hybridsim.arch`` logger).
 
     Returns
     -------
@@ -89,6 +91,7 @@ def run(out, *, trials=10, only=None, instances=(1, 2), budget=BUDGET, quick=Fal
         The summary rows.
     """
     names = _names(QUICK if quick and only is None else only)
+    log = log or _LOG.info
     os.makedirs(out, exist_ok=True)
     rows, summary = [], []
     for name in names:
@@ -153,8 +156,10 @@ def robustness_of(name, times, values, interpolation, **simulate_kwargs):
     return req(arc)
 
 
-def validate(folder, log=print):
+def validate(folder, log=None):
     """Simulate every falsifying input of ``folder/trials.csv`` again.
+
+    ``log``: where each input's line goes (default the ``hybridsim.arch`` logger).
 
     Returns
     -------
@@ -162,6 +167,7 @@ def validate(folder, log=print):
         One per falsified trial: property, instance, seed, the robustness
         recorded and the one found again, and ``ok`` (negative again).
     """
+    log = log or _LOG.info
     path = os.path.join(folder, "trials.csv")
     if not os.path.exists(path):
         raise FileNotFoundError(f"validate: no trials.csv in {folder!r} (run "
@@ -192,7 +198,7 @@ def main(argv=None):
                                     description="re-simulate every falsifying input")
         p.add_argument("folder")
         a = p.parse_args(argv[1:])
-        res = validate(a.folder)
+        res = validate(a.folder, log=print)
         bad = [r for r in res if not r["ok"]]
         print(f"{len(res) - len(bad)} of {len(res)} falsifying inputs confirmed")
         return 1 if bad else 0
@@ -209,7 +215,8 @@ def main(argv=None):
     if trials < 1:
         p.error(f"--trials must be >= 1, got {trials}")
     t0 = time.perf_counter()
-    summary = run(a.out, trials=trials, only=a.only, budget=a.budget, quick=a.quick)
+    summary = run(a.out, trials=trials, only=a.only, budget=a.budget, quick=a.quick,
+                  log=print)
     width = max(len(c) for c in SUMMARY_COLUMNS)
     print(" | ".join(c.ljust(min(width, 12)) for c in SUMMARY_COLUMNS))
     for s in summary:
