@@ -55,8 +55,8 @@ import numpy as np
 from .arc import HybridArc
 from .rules import Termination
 
-__all__ = ["Interval", "Box", "PiecewiseConstant", "Sinusoids", "Gaps", "Space", "Point",
-           "Finding", "FalsificationResult", "falsify", "batch_run"]
+__all__ = ["Interval", "Box", "PiecewiseConstant", "ControlPoints", "Sinusoids", "Gaps", "Space",
+           "Point", "Finding", "FalsificationResult", "falsify", "batch_run"]
 
 
 def _real(name, v):
@@ -223,6 +223,94 @@ class PiecewiseConstant(_Entry):
     def __repr__(self):
         return (f"PiecewiseConstant(bound={self.eps:g}, t_end={self.t_end:g}, "
                 f"pieces={self.pieces}, dim={self.dim})")
+
+
+class _ControlSignal(_Signal):
+    """A signal from control points: ``times`` (k,), ``values`` (k, dim), and
+    how it goes between them (``interpolation``)."""
+
+    def __init__(self, fn, times, values, interpolation, bound):
+        super().__init__(fn, values.shape[1], bound)
+        self.times, self.values, self.interpolation = times, values, interpolation
+
+    def __repr__(self):
+        return (f"<{self.interpolation} signal through {len(self.times)} control points "
+                f"on [0, {self.times[-1]:g}]>")
+
+
+class ControlPoints(_Entry):
+    """An input signal from control points, each component within its own range.
+
+    The coordinates are the values at the control points (``points * dim``
+    of them, point by point; component i in [lo_i, hi_i]). With
+    ``interpolation="previous"`` the signal is piecewise constant on
+    ``points`` equal pieces of [0, t_end] (each value from its piece's
+    start); with ``"linear"`` it is piecewise linear through ``points``
+    evenly spaced points from 0 to t_end. After the last point the last
+    value is held. The point's value is a callable ``u(t) -> ndarray
+    (dim,)`` with ``times`` (the control points' times), ``values``
+    (points, dim) and ``interpolation``, so a system that takes its inputs
+    as control points can be given them directly.
+
+    Parameters
+    ----------
+    lo, hi : float or array_like, shape (dim,)
+        The range of each component.
+    t_end : float
+        > 0: the horizon the points cover.
+    points : int
+        Number of control points (>= 2 for ``"linear"``).
+    interpolation : {"previous", "linear"}
+
+    Examples
+    --------
+    >>> s = ControlPoints([0.0, 0.0], [100.0, 325.0], 30.0, points=7, interpolation="linear")
+    >>> s.size, s.bounds()[1][:2].tolist()
+    (14, [100.0, 325.0])
+    >>> u = s.value(np.tile([50.0, 0.0], 7) + np.repeat(np.arange(7.0), 2))
+    >>> u.times.tolist()[:3], u(2.5).tolist()
+    ([0.0, 5.0, 10.0], [50.5, 0.5])
+    >>> steps = ControlPoints(0.0, 1.0, 10.0, points=2)
+    >>> steps.value(np.array([0.2, 0.9]))(7.0).tolist()
+    [0.9]
+    """
+
+    def __init__(self, lo, hi, t_end, points, interpolation="previous"):
+        self.lo, self.hi = self._check(lo, hi, "ControlPoints")
+        self.dim = self.lo.size
+        self.t_end = _real("ControlPoints t_end", t_end)
+        if self.t_end <= 0:
+            raise ValueError(f"ControlPoints t_end must be > 0, got {t_end}")
+        self.points = _count("ControlPoints points", points)
+        if interpolation not in ("previous", "linear"):
+            raise ValueError(f"ControlPoints interpolation must be 'previous' or 'linear', "
+                             f"got {interpolation!r}")
+        if interpolation == "linear" and self.points < 2:
+            raise ValueError("ControlPoints: a linear signal needs points >= 2, got "
+                             f"{self.points}")
+        self.interpolation = interpolation
+        self.times = (np.linspace(0.0, self.t_end, self.points) if interpolation == "linear"
+                      else self.t_end / self.points * np.arange(self.points))
+        self.size = self.points * self.dim
+
+    def bounds(self):
+        return np.tile(self.lo, self.points), np.tile(self.hi, self.points)
+
+    def value(self, z):
+        vals = np.array(z, dtype=float).reshape(self.points, self.dim)
+        times, linear = self.times, self.interpolation == "linear"
+
+        def u(t):
+            if linear:
+                return np.array([np.interp(t, times, vals[:, i]) for i in range(self.dim)])
+            k = int(np.searchsorted(times, t, side="right")) - 1
+            return vals[max(k, 0)].copy()
+        bound = float(max(np.max(np.abs(self.lo)), np.max(np.abs(self.hi))))
+        return _ControlSignal(u, times.copy(), vals, self.interpolation, bound)
+
+    def __repr__(self):
+        return (f"ControlPoints({self.lo.tolist()}, {self.hi.tolist()}, t_end={self.t_end:g}, "
+                f"points={self.points}, interpolation={self.interpolation!r})")
 
 
 class Sinusoids(_Entry):

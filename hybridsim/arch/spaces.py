@@ -1,0 +1,119 @@
+"""The competition's input spaces, and a requirement made a falsification problem.
+
+ARCH-COMP's two instances (the benchmark files' ``requirements.txt``):
+
+1. any piecewise continuous inputs within their ranges; each tool chooses
+   its parameterisation. Here: piecewise linear through control points
+   every 5 s (AT: 7 points on [0, 30]; CC: every 10 s, 11 points on
+   [0, 100]), each value free in its range.
+2. piecewise constant inputs whose discontinuities are at least 5 s apart:
+   here a value every 5 s (AT: 6 pieces on [0, 30]; CC: 20 pieces on
+   [0, 100]).
+
+Ranges: AT throttle [0, 100] %, brake [0, 325] lb ft; CC throttle and
+brake [0, 1]. After the grid's end (AT5x reads to 32.6 s) the last value
+is held.
+
+Examples
+--------
+>>> s = space("AT", 2)
+>>> s.dim, s.entries["u"].times.tolist()
+(12, [0.0, 5.0, 10.0, 15.0, 20.0, 25.0])
+>>> space("CC", 1).dim
+22
+"""
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from ..falsification import ControlPoints, Space, batch_run
+from .models import AutomaticTransmission, ChasingCars
+from .requirements import REQUIREMENTS
+
+__all__ = ["INSTANCES", "space", "model", "problem", "MODELS"]
+
+MODELS = {"AT": AutomaticTransmission, "CC": ChasingCars}
+#: (t_end, points, interpolation) of each model's instance 1 and 2
+INSTANCES = {
+    ("AT", 1): (30.0, 7, "linear"),
+    ("AT", 2): (30.0, 6, "previous"),
+    ("CC", 1): (100.0, 11, "linear"),
+    ("CC", 2): (100.0, 20, "previous"),
+}
+
+
+def _key(system, instance):
+    if (system, instance) not in INSTANCES:
+        raise ValueError(f"no instance {instance!r} of {system!r}: have "
+                         f"{sorted(INSTANCES)}")
+    return system, instance
+
+
+def space(system, instance):
+    """The input space of ``system`` ("AT" or "CC") in ``instance`` (1 or 2): one
+    entry ``u``, the two inputs (throttle, brake) as :class:`ControlPoints`."""
+    t_end, points, interp = INSTANCES[_key(system, instance)]
+    m = MODELS[system]
+    lo, hi = [m.THROTTLE[0], m.BRAKE[0]], [m.THROTTLE[1], m.BRAKE[1]]
+    return Space(u=ControlPoints(lo, hi, t_end, points, interp))
+
+
+@functools.cache
+def model(system, instance):
+    """The model whose inputs are ``instance``'s control points (one per process:
+    its compiled maps are reused by every requirement)."""
+    interp = INSTANCES[_key(system, instance)][2]
+    return MODELS[system](times=space(system, instance).entries["u"].times,
+                          interpolation=interp)
+
+
+def problem(name, instance, backend="auto"):
+    """(run, space, claim, t_max) of requirement ``name`` on ``instance``.
+
+    ``run`` is a population run (:func:`hybridsim.falsification.batch_run`:
+    compiled and parallel where numba is installed), each run as long as
+    the requirement's horizon; ``claim`` is the requirement's robustness on
+    the run's samples, crossings and window ends (``refine=1``: the search's
+    judge; :func:`hybridsim.arch.runner.validate` checks each counterexample
+    again in the dense semantics, ``refine=4``).
+
+    Examples
+    --------
+    >>> run, s, claim, t_max = problem("AT2", 2)
+    >>> t_max, s.dim, run.batch
+    (10.0, 12, True)
+    """
+    if name not in REQUIREMENTS:
+        raise ValueError(f"no requirement {name!r}: have {list(REQUIREMENTS)}")
+    req = REQUIREMENTS[name]
+    sys_ = model(req.system, instance)
+    sp = space(req.system, instance)
+
+    def x0_of(point):
+        vals = point["u"].values
+        return sys_.initial_state(vals[:, 0], vals[:, 1])
+    def claim(arc):
+        return req(arc, refine=1)
+    return batch_run(sys_, x0_of, req.horizon, backend=backend), sp, claim, req.horizon
+
+
+def input_matrix(point):
+    """The point's inputs in the competition's format ``[t a b; ...]``."""
+    u = point["u"]
+    return "[" + "; ".join(" ".join(repr(float(v)) for v in (t, *row))
+                           for t, row in zip(u.times, u.values)) + "]"
+
+
+def parse_input(text):
+    """``[t a b; ...]`` as (times (k,), values (k, 2)); the inverse of :func:`input_matrix`."""
+    rows = [r.split() for r in text.strip().strip("[]").split(";") if r.strip()]
+    try:
+        a = np.array([[float(v) for v in r] for r in rows])
+    except ValueError as e:
+        raise ValueError(f"input must read '[t a b; ...]', got {text[:60]!r}") from e
+    if a.ndim != 2 or a.shape[1] != 3:
+        raise ValueError(f"input must have rows of 3 numbers (t, throttle, brake), got "
+                         f"{text[:60]!r}")
+    return a[:, 0], a[:, 1:]
