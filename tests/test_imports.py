@@ -24,7 +24,7 @@ PKG = Path(__file__).resolve().parents[1] / "hybridsim"
 #: level and those below it
 LEVELS = (
     ("capabilities", {"explore", "falsification", "sensitivity", "testing", "plot", "stl",
-                      "estimate"}),
+                      "estimate", "arch"}),
     ("front door", {"run", "batch"}),
     ("paths", {"solve", "batch_vectorized", "compiled",
                "_sde", "_random_jumps"}),

@@ -31,7 +31,7 @@ import numpy as np
 
 from ..compiled import available
 from ..falsification import falsify
-from ..solve import simulate
+from ..run import simulate
 from .requirements import REQUIREMENTS
 from .spaces import INSTANCES, MODELS, input_matrix, model, parse_input, problem
 
