@@ -22,6 +22,8 @@ implement raise its refusal (see :mod:`hybridsim.options`).
 from __future__ import annotations
 
 import importlib.util
+import signal
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -369,3 +371,64 @@ def _ball_compiled(sets):
     if sets in ("both", "indicators"):
         kw.update(jump_set=D, flow_set=C)
     return CompiledSystem(f, g, state_dim=2, params=np.zeros(4), **kw)
+
+
+# ------------------------------------------------------------------ Ctrl-C
+#: (file, function) of the engine's run loops: a signal raised while the main
+#: thread is in one of them lands inside a run
+_LOOPS = {("solve.py", "_loop"), ("batch_vectorized.py", "run")}
+
+
+def _in_run(frame):
+    """Whether the main thread's ``frame`` is inside a run's loop: a Python
+    loop's frame, or a compiled kernel (the innermost frame a runner's, at the
+    same instruction twice: in the kernel, which lets threads run)."""
+    f = frame
+    while f is not None:
+        if (f.f_code.co_filename.rsplit("/", 1)[-1], f.f_code.co_name) in _LOOPS:
+            return True
+        f = f.f_back
+    return frame.f_code.co_filename.endswith("compiled/_run.py") and frame.f_code.co_name in (
+        "simulate_compiled", "_one_row", "_serial")
+
+
+class one_sigint_inside_the_run:
+    """Context: ONE SIGINT, raised by a helper thread once the main thread is
+    inside a run's loop (never on a clock), under the test's own SIGINT handler
+    (``signal.default_int_handler``, whatever the runner installed, SIG_IGN
+    included), restored after. ``sent`` says whether it was raised; the thread
+    gives up after ``limit`` seconds of wall time without seeing a run."""
+
+    def __init__(self, limit=120.0):
+        self.limit, self.sent = limit, False
+
+    def _watch(self):
+        import sys
+        import time
+        main = threading.main_thread().ident
+        end = time.monotonic() + self.limit
+        last = None
+        while not self._stop.is_set() and time.monotonic() < end:
+            frame = sys._current_frames().get(main)
+            if frame is not None and _in_run(frame):
+                here = (frame.f_code, frame.f_lasti)
+                python = not frame.f_code.co_filename.endswith("compiled/_run.py")
+                if python or here == last:
+                    self.sent = True
+                    signal.raise_signal(signal.SIGINT)
+                    return
+                last = here
+            self._stop.wait(0.01)
+
+    def __enter__(self):
+        self._old = signal.signal(signal.SIGINT, signal.default_int_handler)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._watch, daemon=True)
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self._stop.set()
+        self._thread.join(self.limit)
+        signal.signal(signal.SIGINT, self._old)
+        return False

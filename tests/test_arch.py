@@ -91,7 +91,10 @@ def test_at5_gear_stability_on_shifts_at_their_instants():
     arc = hs.simulate(at, at.initial_state([50.0, 100.0], 0.0), t_max=33.0)
     got = {i: REQUIREMENTS[f"AT5{i}"](arc, 1) for i in (1, 2, 3, 4)}
     assert [float(m) for m in got.values()] == [0.5, 0.5, -0.5, 0.5]
-    assert got[3].where[0] == pytest.approx(4.16, abs=1e-9)
+    # decided inside the premise's window before the shift into third at 4.16 s: the
+    # consequent F[0.001,0.1] G[0,2.5] gear == 3 fails there (third is left at 4.48 s);
+    # its deciding instant is one of the ties in [4.06, 4.16]
+    assert 4.06 - 1e-9 <= got[3].where[0] <= 4.16 + 1e-9
 
 
 def test_at_engine_holds_at_idle_and_the_brake_stops_the_vehicle():
