@@ -427,7 +427,7 @@ class Space:
 
     Parameters
     ----------
-    **entries : Interval, Box, PiecewiseConstant, Sinusoids or Gaps
+    **entries : Interval, Box, PiecewiseConstant, ControlPoints, Sinusoids or Gaps
         In order; the search runs over the product of their boxes.
 
     Raises
@@ -453,7 +453,8 @@ class Space:
         for name, e in entries.items():
             if not isinstance(e, _Entry):
                 raise TypeError(f"Space entry {name!r} must be an Interval, Box, "
-                                f"PiecewiseConstant, Sinusoids or Gaps, got {type(e).__name__}")
+                                f"PiecewiseConstant, ControlPoints, Sinusoids or Gaps, got "
+                                f"{type(e).__name__}")
         self.entries = dict(entries)
         self.names = tuple(entries)
         lo, hi, self._slices, k = [], [], {}, 0
