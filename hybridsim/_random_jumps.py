@@ -33,6 +33,7 @@ import math
 import numpy as np
 
 from .brownian import mix64
+from .options import check_map_value
 from .rules import MapError
 from .system import HybridSystem, _arity, _named, guard_min
 
@@ -78,21 +79,6 @@ def _law(fn):
     return call
 
 
-def _checked(name, v, n, t, j):
-    try:
-        arr = np.asarray(v, dtype=float)
-    except (TypeError, ValueError) as e:
-        raise MapError(f"{name} must return an array of {n} floats, got {type(v).__name__} "
-                       f"(at t={t:.10g}, j={j})", name, t, j) from e
-    if arr.shape != (n,):
-        raise MapError(f"{name} must return an array of shape ({n},), got shape {arr.shape} "
-                       f"(at t={t:.10g}, j={j})", name, t, j)
-    if not np.all(np.isfinite(arr)):
-        raise MapError(f"{name} returned non-finite values {arr} (at t={t:.10g}, j={j})",
-                       name, t, j)
-    return arr
-
-
 class _Augmented(HybridSystem):
     """``base`` with (Λ, E) appended (when it has a rate) and its random jump map."""
 
@@ -135,7 +121,7 @@ class _Augmented(HybridSystem):
             xs = x[:n]
             if law is not None:
                 rng = np.random.default_rng([key, int(j)])
-                xn = _checked("jump_law", law(xs, t, j, rng), n, t, j)
+                xn = check_map_value("jump_law", law(xs, t, j, rng), n, t, j)
             else:
                 xn = np.asarray(g(xs, t, j, u), dtype=float)
             if not self.has_rate:
