@@ -88,7 +88,7 @@ def _named(fn, name):
 _F64 = np.float64
 
 
-def _guard_value(name, v, t, j):
+def _guard_value(name, v, t, j, batch=False):
     """A guard's value checked: a real number or a 1-D array of them.
 
     Complex values are refused even with a zero imaginary part (as a flow
@@ -97,9 +97,9 @@ def _guard_value(name, v, t, j):
     """
     if isinstance(v, np.ndarray):
         kind = v.dtype.kind
-        if kind == "f" and v.ndim <= 1:
+        if kind == "f" and v.ndim <= 1 + batch:
             return v
-        if kind in "iub" and v.ndim <= 1:
+        if kind in "iub" and v.ndim <= 1 + batch:
             return v.astype(float)
     elif isinstance(v, float):
         return v
@@ -111,7 +111,7 @@ def _guard_value(name, v, t, j):
     except (TypeError, ValueError) as e:
         raise MapError(f"{name} must return a real number or a 1-D array of them, got "
                        f"{type(v).__name__} {v!r} (at {_where(t, j)})", name, t, j) from e
-    if arr.ndim > 1 or arr.size == 0:
+    if arr.ndim > 1 + batch or arr.size == 0:
         raise MapError(f"{name} must return a real number or a non-empty 1-D array of them, "
                        f"got shape {arr.shape} (at {_where(t, j)})", name, t, j)
     return arr if arr.ndim else float(arr)
@@ -133,7 +133,8 @@ def _named_guard(fn, name):
         c = v.__class__
         if c is float or c is _F64:
             return v
-        return _guard_value(name, v, t, j)
+        # a vectorized system's batch of states (N, n) gets a guard row per state
+        return _guard_value(name, v, t, j, batch=getattr(x, "ndim", 1) == 2)
     return guard
 
 

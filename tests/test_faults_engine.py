@@ -581,3 +581,37 @@ def test_distributed_design_names_non_finite_poles(kind, poles):
         with pytest.raises(ValueError, match=r"poles for node 0 must be finite with negative "
                                              r"real parts; got \[nan"):
             design(A, C, nx.DiGraph([(0, 1), (1, 0)]), kind=kind, poles=poles)
+
+
+def test_a_vectorized_components_vector_guard_takes_a_batch():
+    """A vectorized component's guard of several components returns (N, k) for a
+    batch of N states: a batch, not a contract breach (the check of a single
+    state's guard, 1-D, does not apply to it)."""
+
+    class Clock(hs.HybridSystem):
+        state_dim, vectorized = 1, True
+
+        def flow_map(self, x):
+            return np.ones_like(x)
+
+        def jump_map(self, x):
+            return np.zeros_like(x)
+
+        def jump_guard(self, x):
+            return np.stack([x[..., 0] - 1.0, x[..., 0] - 2.0], axis=-1)
+
+    class Still(hs.HybridSystem):
+        state_dim, vectorized = 1, True
+
+        def flow_map(self, x):
+            return np.zeros_like(x)
+
+        def jump_map(self, x):
+            return x
+
+    sysm = hs.Interconnection({"a": Clock(), "b": Still()})
+    # D = {min of the guard's components >= 0} = {x >= 2}: a jump to 0 at t = 2 - x0
+    arcs = hs.simulate_many(sysm, np.array([[0.0, 1.0], [0.5, 1.0]]), t_max=2.6)
+    for a, x0 in zip(arcs, (0.0, 0.5)):
+        assert a.termination is hs.Termination.T_MAX, a.message
+        np.testing.assert_allclose(a.jump_times, [2.0 - x0], rtol=0, atol=1e-9)
