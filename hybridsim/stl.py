@@ -678,6 +678,8 @@ class _Context:
         self.strict, self.refine = strict, refine
         self.t0, self.tf = float(self.t[0]), float(self.t[-1])
         self.jump_times = np.unique(self.t[1:][np.diff(self.j) > 0])
+        # keyed by id(node): every node memoised is kept alive with its value, so a
+        # node made during the evaluation (until's rewriting) cannot hand its id on
         self.memo = {}
 
     def domain(self, times):
@@ -856,11 +858,10 @@ class Formula:
     # the evaluation: a signal on [lo, hi] (cached per node and range)
     def _sig(self, ctx, lo, hi, probes):
         key = (id(self), lo, hi)
-        got = ctx.memo.get(key)
-        if got is None:
-            got = self._compute(ctx, lo, hi, probes)
-            ctx.memo[key] = got
-        return got
+        hit = ctx.memo.get(key)
+        if hit is None or hit[0] is not self:
+            hit = ctx.memo[key] = (self, self._compute(ctx, lo, hi, probes))
+        return hit[1]
 
     def _compute(self, ctx, lo, hi, probes):  # pragma: no cover - every subclass defines it
         raise NotImplementedError
@@ -921,7 +922,8 @@ class _Predicate(Formula):
         """The predicate at its instants over the whole arc (computed once per
         evaluation): the samples, the extrema inside the steps, the crossings."""
         key = ("instants", id(self))
-        got = ctx.memo.get(key)
+        hit = ctx.memo.get(key)
+        got = None if hit is None or hit[0] is not self else hit[1]
         if got is None:
             T, J = ctx.t, ctx.j
             v = self._rho(T, J, ctx.x)
@@ -929,7 +931,8 @@ class _Predicate(Formula):
                 dv = self._slopes(ctx)
                 if dv is not False:
                     T, J, v = self._extrema(ctx, T, J, v, dv)
-            got = ctx.memo[key] = self._crossings(ctx, T, J, v)
+            got = self._crossings(ctx, T, J, v)
+            ctx.memo[key] = (self, got)
         return _Sig(*got)
 
     def _crossings(self, ctx, T, J, v):

@@ -8,7 +8,6 @@ compile first (under a minute on two cores); afterwards the set takes seconds.
 The full comparison is tests/test_compiled.py (marked slow).
 """
 import math
-import os
 import re
 import threading
 import warnings
@@ -259,27 +258,19 @@ def test_batch_keeps_good_rows_like_the_python_path(ball_bad):
 
 
 # ------------------------------------------------------------------ Ctrl-C
-def _sigint_after(seconds):
-    """SIGINT from outside the process after ``seconds``, as a terminal's Ctrl-C.
-    (A ``threading.Timer`` cannot send it: a single run's kernel holds the GIL
-    the timer's thread would need.)"""
-    import subprocess
-    return subprocess.Popen(["sh", "-c", f"sleep {seconds}; kill -INT {os.getpid()}"])
-
-
-@pytest.mark.skipif(os.name != "posix" or
-                    threading.current_thread() is not threading.main_thread(),
-                    reason="POSIX signals, handled in the main thread")
+@pytest.mark.skipif(threading.current_thread() is not threading.main_thread(),
+                    reason="Python runs signal handlers in the main thread")
 def test_ctrl_c_ends_a_run_canceled_with_the_arc_so_far(timer):
-    simulate_compiled(timer, [0.0], t_max=10.0)               # compiled before the clock
-    th = _sigint_after(0.3)
-    try:
+    """One SIGINT, raised once the kernel is under way (paths.one_sigint_inside_the_run:
+    no clock, the test's own handler): CANCELED, the arc so far, its message."""
+    from paths import one_sigint_inside_the_run
+    simulate_compiled(timer, [0.0], t_max=10.0)               # compiled before the signal
+    with one_sigint_inside_the_run() as sig:
         a = simulate_compiled(timer, [0.0], t_max=math.inf, j_max=10**8, max_samples=10**9,
                               max_steps=10**9)
-    finally:
-        th.wait()
-    assert a.termination is T.CANCELED
-    assert 1.0 < a.t[-1] < 5e7 and a.jump_count > 0
+    assert sig.sent, "no run was seen under way"
+    assert a.termination is T.CANCELED, a.message
+    assert a.jump_count > 0 and a.t[-1] < 5e7
     assert a.message == hs.rules.message(T.CANCELED, t=a.t[-1], j=a.j[-1])
 
 

@@ -732,7 +732,7 @@ def lower(system, *, specialize=None):
         raise TypeError(f"system must be a hybridsim.HybridSystem, got {type(system).__name__}")
     if specialize is not None and not isinstance(specialize, (bool, np.bool_)):
         raise TypeError(f"specialize must be True, False or None, got {specialize!r}")
-    if _from_source.applies(system):        # a plain model: its maps rewritten
+    if _compiled_form(system) is None and _from_source.applies(system):   # a plain model
         why = _refusal(system, type(system).__name__)
         if why is not None:
             raise why
