@@ -303,13 +303,12 @@ def _fix_viewcode_backlinks(app, env):
         code, tags, used, refname = entry
         if not used:
             continue
-        prefixes = list(dict.fromkeys(p for p in (modname, refname) if p))
-        # the prefix under which most of them are documented (its own name on a tie);
-        # an object documented under neither keeps no [docs] link rather than a broken one
-        prefix = max(prefixes, key=lambda p: sum(f"{p}.{name}" in objects for name in used))
-        kept = {name: objects[f"{prefix}.{name}"].docname for name in used
-                if f"{prefix}.{name}" in objects}
-        modules[modname] = (code, tags, kept, prefix)
+        for prefix in dict.fromkeys(p for p in (modname, refname) if p):
+            if all(f"{prefix}.{name}" in objects for name in used):
+                for name in used:
+                    used[name] = objects[f"{prefix}.{name}"].docname
+                modules[modname] = (code, tags, used, prefix)
+                break
 
 
 def _check_links(app, exception):

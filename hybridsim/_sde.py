@@ -17,7 +17,7 @@ that starts between grid points, after a jump, first steps to the next one):
   1.5, from the increment and the iterated integral
   I_(1,0) = ∫ (W(s) - W(t)) ds of the run's Brownian path.
 
-The Brownian path is one :class:`hybridsim.brownian.BrownianPath` per run:
+The Brownian path is one :class:`hybridsim.BrownianPath` per run:
 ``seed`` an int (a Generator gives 63 random bits; None: fresh entropy)
 keys a path whose blocks are one step long (the grid's times are then block
 ends, each reached at once); ``seed`` a ``BrownianPath`` is used as it is

@@ -23,7 +23,8 @@ __all__ = ["Termination", "Priority", "Action", "decide", "decide_at_event", "ev
            "zeno_message", "time_scale", "t_max_slack", "event_tolerance", "PRIORITIES", "FAILURES",
            "post_jump_probe", "LOOP_JUMPS", "is_jump_loop", "zeno_short", "ZENO_SHRINK",
            "ZENO_WINDOW", "CHATTER_RTOL", "chatter_step",
-           "SimulationWarning", "SimulationError", "MapError"]
+           "SimulationWarning", "SimulationError", "MapError", "BatchWarning", "BatchError",
+           "finish_batch"]
 
 _EPS = float(np.finfo(float).eps)
 

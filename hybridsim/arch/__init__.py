@@ -13,3 +13,6 @@ from .spaces import problem, space
 
 __all__ = ["AutomaticTransmission", "ChasingCars", "REQUIREMENTS", "Requirement", "problem",
            "space"]
+
+# documented here, under the name users import it by
+Requirement.__module__ = __name__

@@ -77,6 +77,7 @@ from ._system import CompiledSystem, CompileError, _load_kernel, _notice
 
 # the public classes under the name users import them by (pickles, descriptions)
 CompiledSystem.__module__ = CompileError.__module__ = __name__
+FallbackWarning.__module__ = Lowerable.__module__ = __name__
 
 __all__ = ["CompiledSystem", "simulate_compiled", "simulate_many_compiled", "CompileError",
            "available", "compile_kernels", "Component", "lower", "lowerable", "matvec",
