@@ -381,15 +381,19 @@ _LOOPS = {("solve.py", "_loop"), ("batch_vectorized.py", "run")}
 
 def _in_run(frame):
     """Whether the main thread's ``frame`` is inside a run's loop: a Python
-    loop's frame, or a compiled kernel (the innermost frame a runner's, at the
-    same instruction twice: in the kernel, which lets threads run)."""
+    loop's frame, a compiled batch's wait for its workers, or a compiled kernel
+    (the innermost frame a runner's, at the same instruction twice: in the
+    kernel, which lets threads run)."""
     f = frame
     while f is not None:
         if (f.f_code.co_filename.rsplit("/", 1)[-1], f.f_code.co_name) in _LOOPS:
             return True
+        if f.f_code.co_filename.endswith("compiled/_run.py") and \
+                f.f_code.co_name == "_interruptible":
+            return True
         f = f.f_back
     return frame.f_code.co_filename.endswith("compiled/_run.py") and frame.f_code.co_name in (
-        "simulate_compiled", "_one_row", "_serial")
+        "simulate_compiled", "one")
 
 
 class one_sigint_inside_the_run:
@@ -399,25 +403,31 @@ class one_sigint_inside_the_run:
     included), restored after. ``sent`` says whether it was raised; the thread
     gives up after ``limit`` seconds of wall time without seeing a run."""
 
-    def __init__(self, limit=120.0):
-        self.limit, self.sent = limit, False
+    def __init__(self, limit=120.0, settle=0.0):
+        self.limit, self.settle, self.sent = limit, settle, False
 
     def _watch(self):
         import sys
         import time
         main = threading.main_thread().ident
         end = time.monotonic() + self.limit
-        last = None
+        last, since = None, None
         while not self._stop.is_set() and time.monotonic() < end:
             frame = sys._current_frames().get(main)
+            inside = False
             if frame is not None and _in_run(frame):
                 here = (frame.f_code, frame.f_lasti)
                 python = not frame.f_code.co_filename.endswith("compiled/_run.py")
-                if python or here == last:
-                    self.sent = True
-                    signal.raise_signal(signal.SIGINT)
-                    return
+                inside = python or here == last
                 last = here
+            if not inside:
+                since = None
+            elif since is None:
+                since = time.monotonic()
+            if inside and time.monotonic() - since >= self.settle:
+                self.sent = True
+                signal.raise_signal(signal.SIGINT)
+                return
             self._stop.wait(0.01)
 
     def __enter__(self):

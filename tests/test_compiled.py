@@ -802,42 +802,41 @@ def test_map_error_at_x0_carries_a_map_error_arc():
 
 
 # ------------------------------------------------------------------ Ctrl-C, fork
-def _sigint_after(seconds):
-    """SIGINT from outside the process (a terminal's Ctrl-C; a threading.Timer
-    cannot send it while a kernel holds the GIL)."""
-    import os
-    return subprocess.Popen(["sh", "-c", f"sleep {seconds}; kill -INT {os.getpid()}"])
+# One SIGINT, raised once the batch has been under way for 0.1 s (no clock before
+# it: paths.one_sigint_inside_the_run); max_samples bounds the memory of a run the
+# signal would not reach (each row ends MAX_SAMPLES then, and the test fails).
 
 
 def test_ctrl_c_during_a_parallel_batch_keeps_the_finished_rows(timer):
+    from paths import one_sigint_inside_the_run
     timer.params = [1e-3]
     try:
         simulate_many_compiled(timer, np.zeros((8, 1)), t_max=0.1)     # compiled first
         X = np.zeros((40, 1))
-        X[:4] = 0.0
-        th = _sigint_after(0.5)
-        with pytest.warns(hs.BatchWarning, match="interrupted"):
-            arcs = simulate_many_compiled(timer, X, t_max=math.inf, j_max=2 * 10**7,
-                                          max_samples=10**9, max_steps=10**9)
-        th.wait()
+        with one_sigint_inside_the_run(settle=0.1) as sig, \
+                pytest.warns(hs.BatchWarning, match="interrupted"):
+            arcs = simulate_many_compiled(timer, X, t_max=math.inf, j_max=10**9,
+                                          max_samples=2 * 10**6, max_steps=10**9)
     finally:
         timer.params = [1.0]
+    assert sig.sent, "no batch was seen under way"
     assert len(arcs) == 40
-    assert all(a.termination is T.CANCELED for a in arcs)
+    assert all(a.termination is T.CANCELED for a in arcs), {a.termination for a in arcs}
     assert any(a.jump_count > 0 for a in arcs)
 
 
 def test_ctrl_c_during_a_serial_batch(timer):
+    from paths import one_sigint_inside_the_run
     timer.params = [1e-3]
     try:
-        th = _sigint_after(0.5)
-        with pytest.warns(hs.BatchWarning, match="interrupted"):
+        with one_sigint_inside_the_run(settle=0.1) as sig, \
+                pytest.warns(hs.BatchWarning, match="interrupted"):
             arcs = simulate_many_compiled(timer, np.zeros((3, 1)), t_max=math.inf,
-                                          j_max=2 * 10**7, parallel=False,
-                                          max_samples=10**9, max_steps=10**9)
-        th.wait()
+                                          j_max=10**9, parallel=False,
+                                          max_samples=2 * 10**6, max_steps=10**9)
     finally:
         timer.params = [1.0]
+    assert sig.sent, "no batch was seen under way"
     assert arcs[0].termination is T.CANCELED and arcs[0].jump_count > 0
     assert arcs[1].termination is T.CANCELED and len(arcs[1].t) == 1
     assert "never started" in arcs[2].message
