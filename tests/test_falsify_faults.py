@@ -22,6 +22,7 @@ import types
 
 import numpy as np
 import pytest
+from test_falsify import BallE
 
 import hybridsim as hs
 from hybridsim import falsification
@@ -158,34 +159,15 @@ def test_ctrl_c_in_the_claim_keeps_the_counterexample_found_before(sigint):
     assert res.margin == min(res.history)
 
 
-class SignalBall(hs.HybridSystem):
-    """The ball with its restitution as a third state, vectorized; its flow
+class SignalBall(BallE):
+    """test_falsify's ball (its restitution a third state, vectorized) whose flow
     map calls ``hit`` (a population run in one numpy batch)."""
 
-    state_dim = 3
-    vectorized = True
     hit = staticmethod(lambda: None)
 
     def flow_map(self, x):
         self.hit()
-        return np.stack([x[..., 1], np.full(x[..., 0].shape, -9.81),
-                         np.zeros(x[..., 0].shape)], axis=-1)
-
-    def jump_map(self, x):
-        return np.stack([np.zeros(x[..., 0].shape), -x[..., 2] * x[..., 1], x[..., 2]],
-                        axis=-1)
-
-    def flow_set(self, x):
-        return x[..., 0] >= 0
-
-    def jump_set(self, x):
-        return (x[..., 0] <= 0) & (x[..., 1] <= 0)
-
-    def jump_guard(self, x):
-        return -x[..., 0]
-
-    def flow_guard(self, x):
-        return x[..., 0]
+        return super().flow_map(x)
 
 
 BALL = Space(h0=Interval(0.9, 1.1), e=Interval(0.7, 0.85))
