@@ -892,3 +892,102 @@ def test_ctrl_c_in_a_batch_ends_the_exploration_interrupted(batches, monkeypatch
     assert len(level) == 8 and [n.end for n in level[:3]] == ["forced"] * 3
     assert level[3] is canceled[0] and all(n.end == "pending" for n in level[4:])
     assert tree.pending == 4 + 6              # the rest of its level, the children of 3
+
+
+# ---------------------------------------------------------------- falsification populations
+class Ball(hs.HybridSystem):
+    """A plain model (its maps as written), its restitution an attribute."""
+
+    state_dim = 2
+
+    def __init__(self, e=0.8):
+        self.e = e
+
+    def flow_map(self, x):
+        return np.array([x[1], -9.81])
+
+    def jump_map(self, x):
+        return np.array([0.0, -self.e * x[1]])
+
+    def flow_set(self, x):
+        return x[0] >= 0.0
+
+    def jump_set(self, x):
+        return x[0] <= 0.0 and x[1] <= 0.0
+
+
+def _third_bounce_by(limit):
+    def claim(arc):
+        return limit - arc.jump_times[2]
+    return claim
+
+
+@pytest.fixture
+def paths(monkeypatch):
+    """Counts the rows each path ran: compiled batches, compiled single runs and
+    the Python loop (hybridsim.solve's runs)."""
+    pytest.importorskip("numba")
+    import hybridsim.compiled as hc
+    from hybridsim import solve
+    seen = {"batch": 0, "single": 0, "python": 0}
+    batch, single, loop = hc.simulate_many_compiled, hc.simulate_compiled, solve._Run.run
+
+    def counted_batch(cs, X, *a, **k):
+        seen["batch"] += len(X)
+        return batch(cs, X, *a, **k)
+
+    def counted_single(*a, **k):
+        seen["single"] += 1
+        return single(*a, **k)
+
+    def counted_loop(self, *a, **k):
+        seen["python"] += 1
+        return loop(self, *a, **k)
+    monkeypatch.setattr(hc, "simulate_many_compiled", counted_batch)
+    monkeypatch.setattr(hc, "simulate_compiled", counted_single)
+    monkeypatch.setattr(solve._Run, "run", counted_loop)
+    return seen
+
+
+def test_a_falsification_population_of_a_plain_model_runs_compiled(paths):
+    """falsify over a plain model's population (batch_run, backend "auto" by
+    default): every row runs in the compiled batches, none on the Python
+    loop, and the counterexample is the closed form's (the highest drop)."""
+    from hybridsim.falsification import Interval, Space, batch_run, falsify
+    from hybridsim.library import bouncing_ball_jump_times
+    run = batch_run(Ball(), lambda p: [p["h0"], 0.0], t_max=6.0, j_max=3)
+    res = falsify(run, Space(h0=Interval(0.5, 2.0)), _third_bounce_by(2.0), budget=40,
+                  seed=0, progress=False, stop=False)
+    assert paths["batch"] == res.evaluations == 40 and paths["python"] == 0
+    assert res.point["h0"] == pytest.approx(2.0, abs=1e-6)
+    exact = 2.0 - bouncing_ball_jump_times(2.0, 3)[2]
+    assert res.margin == pytest.approx(exact, abs=1e-6) and res.verdict == "counterexample"
+
+
+def test_a_population_over_a_plain_models_attributes_runs_compiled(paths):
+    """The uncertain number is the model's attribute (attributes_of): each row
+    runs compiled on the one system with the point's e (its maps read e at
+    each run), none on the Python loop; e is restored after; the margins are
+    the closed form's, and the Python path's to round-off."""
+    from hybridsim.falsification import Interval, Space, batch_run, falsify
+    from hybridsim.library import bouncing_ball_jump_times
+    ball = Ball(0.8)
+    kw = dict(t_max=6.0, j_max=3, attributes_of=lambda p: {"e": p["e"]})
+    space, claim = Space(e=Interval(0.5, 0.9)), _third_bounce_by(2.0)
+    res = falsify(batch_run(ball, lambda p: [1.0, 0.0], **kw), space, claim, budget=30,
+                  seed=0, progress=False, stop=False)
+    assert paths["single"] == res.evaluations == 30 and paths["python"] == 0
+    assert ball.e == 0.8
+    exact = 2.0 - bouncing_ball_jump_times(1.0, 3, restitution=res.point["e"])[2]
+    assert res.margin == pytest.approx(exact, abs=1e-6)
+    py = falsify(batch_run(ball, lambda p: [1.0, 0.0], backend="python", **kw), space, claim,
+                 budget=30, seed=0, progress=False, stop=False)
+    assert paths["python"] == 30 and paths["single"] == 30
+    assert py.margin == pytest.approx(res.margin, abs=1e-9)
+    (bad,) = batch_run(ball, lambda p: [1.0, 0.0], attributes_of=lambda p: 0.5,
+                       t_max=1.0)([{"e": 0.5}])            # a failed row, as in hs.sweep
+    assert bad.termination is hs.Termination.MAP_ERROR
+    assert "attributes_of must return a dict of the system's attributes" in bad.message
+    with pytest.raises(ValueError, match="attributes_of: .* without executor="):
+        batch_run(ball, lambda p: [1.0, 0.0], attributes_of=lambda p: {}, t_max=1.0,
+                  executor=object())
