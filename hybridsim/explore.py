@@ -386,11 +386,11 @@ def explore(system: HybridSystem, x0, t_max: float, j_max: float = math.inf, *,
         compiled (its reason), or options the compiled path does not take
         (``inputs``, ``prehistory``, ``dense``, ``t_eval``; a system that
         reads its history), are refused by name. ``"auto"`` (default):
-        compiled batches from the first level of at least
-        :data:`BATCH_LEVEL` (512) branches where numba is installed and the
-        system and options run compiled (its maps compile then, once per
-        machine: seconds), else ``"python"``. The tree is the same on every
-        backend; the samples agree to the integrator's round-off.
+        from the first level of at least :data:`BATCH_LEVEL` (512)
+        branches, compiled batches where numba is installed and the system
+        and options run compiled (its maps compile then, once per machine:
+        seconds), else ``"python"``. The tree is the same on every backend;
+        the samples agree to the integrator's round-off.
     **options
         Passed to :func:`hybridsim.simulate` for every branch (``method``,
         ``rtol``, ``atol``, ``max_step``, ``inputs``, ``max_norm``...);
@@ -761,25 +761,42 @@ class _Explorer:
 
 
 class _Batches:
-    """A level's branches as compiled batches (module docstring), or None of them.
+    """A level's branches as batches (module docstring), or none of them.
 
     ``backend="compiled"`` lowers the system at once (a refusal names why);
-    ``"auto"`` from the first level of :data:`BATCH_LEVEL` branches, where the
-    system and options run compiled (else, silently, the Python path as
-    before, but for a plain model's :class:`hybridsim.compiled.FallbackWarning`
-    naming the map that does not compile)."""
+    ``"auto"`` chooses from the first level of :data:`BATCH_LEVEL` branches:
+    compiled batches where the system and options run compiled, else
+    (silently, but for a plain model's :class:`hybridsim.compiled.FallbackWarning`
+    naming the map that does not compile) each branch alone, as before. Not
+    the numpy batch of a ``vectorized`` system: its event locations differ
+    from :func:`hybridsim.simulate`'s by round-off, and at a boundary of
+    C ∩ D that changes which points branch (the doubling tree written on the
+    last axis: 6 of its first 31 branch points)."""
 
     def __init__(self, system, options, past, backend):
         self.system, self.options, self.past = system, options, past
         self.proxy = self.ok = None
-        self.cs = None                  # the lowered system, once made
+        self.batch = None               # (X, t_max, t, j, priority) -> arcs, once chosen
         self.off = backend == "python"
         if backend == "compiled":
             why = self._refusal()
             if why is not None:
                 raise ValueError(f"explore(backend='compiled'): the branches of "
                                  f"{type(system).__name__} cannot run compiled: {why}")
-            self.cs = self._lower(auto=False)
+            self.batch = self._compiled(self._lower(auto=False))
+
+    def _common(self):
+        """Why no batch runs the branches, or None."""
+        if self.past:
+            return "it reads its history (each branch continues its parent's past)"
+        for k, ok in _COMPILED_ONLY_AT.items():
+            if self.options.get(k, ok[0]) not in ok:
+                return f"{k}= runs on the Python path only"
+        if any(getattr(self.system, k, None) is not None
+               for k in ("diffusion", "jump_rate", "jump_law")):
+            return "its noise (diffusion, jump_rate or jump_law) runs on the Python path only"
+        self.proxy = _proxy(self.system)
+        return None
 
     def _refusal(self):
         """Why the branches cannot run compiled, or None."""
@@ -789,19 +806,13 @@ class _Batches:
         from .options import method_on
         if importlib.util.find_spec("numba") is None:
             return "numba is not installed (pip install 'hybridsim[fast]')"
-        if self.past:
-            return "it reads its history (each branch continues its parent's past)"
-        for k, ok in _COMPILED_ONLY_AT.items():
-            if self.options.get(k, ok[0]) not in ok:
-                return f"{k}= runs on the Python path only"
-        if any(getattr(self.system, k, None) is not None
-               for k in ("diffusion", "jump_rate", "jump_law")):
-            return "its noise (diffusion, jump_rate or jump_law) runs on the Python path only"
+        why = self._common()
+        if why is not None:
+            return why
         try:
             method_on("compiled", self.options.get("method"), self.system)
         except (TypeError, ValueError) as e:
             return str(e)
-        self.proxy = _proxy(self.system)
         self.ok = lowerable(self.proxy)
         return None if self.ok else self.ok.reason
 
@@ -812,21 +823,40 @@ class _Batches:
             return None     # a plain model whose maps do not compile: a FallbackWarning
         return lower(self.proxy)
 
+    def _options(self):
+        return {k: v for k, v in self.options.items() if k not in _COMPILED_ONLY_AT}
+
+    def _compiled(self, cs):
+        from .compiled import simulate_many_compiled
+        opts = self._options()
+
+        def batch(X, t_max, t, j, priority):
+            return simulate_many_compiled(cs, X, t_max, 0, t0=t, j0=j, priority=priority,
+                                          throw=False, warn=False, **opts)
+        return batch
+
+    def _choose(self):
+        """backend="auto"'s batch: compiled, or None."""
+        try:
+            why = self._refusal()
+            # no refusal, or the model's own (auto_choice says why, once)
+            if why is None or self.ok is not None:
+                cs = self._lower(auto=True)
+                if cs is not None:
+                    return self._compiled(cs)
+        except (TypeError, ValueError, ImportError):     # CompileError: a TypeError
+            pass
+        return None
+
     def wanted(self, size):
         """Whether a level of ``size`` branches runs batched."""
         if self.off:
             return False
-        if self.cs is None:
+        if self.batch is None:
             if size < BATCH_LEVEL:
                 return False
-            try:
-                why = self._refusal()
-                # no refusal, or the model's own (auto_choice says why, once)
-                self.cs = self._lower(auto=True) if why is None or self.ok is not None \
-                    else None
-            except (TypeError, ValueError, ImportError):     # CompileError: a TypeError
-                self.cs = None
-            if self.cs is None:
+            self.batch = self._choose()
+            if self.batch is None:
                 self.off = True
                 return False
         return True
@@ -834,24 +864,28 @@ class _Batches:
     def run(self, todo, t_max, maps):
         """Run ``todo`` = [(node, "jumps" or "flows")] in batches of one (t, j):
         {node index: (arc, chose)} for the rows whose batch run is the node's
-        own run, False for the others (run them on the Python path), None
-        for rows Ctrl-C kept from running."""
-        from .compiled import simulate_many_compiled
+        own run, False for the others (run them alone, as before), None for
+        rows Ctrl-C kept from running."""
         from .compiled._lower import rebind
         groups = {}
         for node, kind in todo:
             t, j, _ = node.start
             groups.setdefault((kind, t, j), []).append(node)
         out = {}
-        opts = {k: v for k, v in self.options.items() if k not in _COMPILED_ONLY_AT}
         stopped = False
         for (kind, t, j), nodes in groups.items():
             if stopped:
                 out.update((node.index, None) for node in nodes)
                 continue
             X = np.array([node.start[2] for node in nodes], dtype=float)
-            arcs = simulate_many_compiled(self.cs, X, t_max, 0, t0=t, j0=j, priority=kind,
-                                          throw=False, warn=False, **opts)
+            try:
+                arcs = self.batch(X, t_max, t, j, kind)
+            except SimulationError as e:
+                if isinstance(e.__cause__, KeyboardInterrupt):
+                    raise KeyboardInterrupt from e
+                # a map failing in the batch: each branch alone says where, as before
+                out.update((node.index, False) for node in nodes)
+                continue
             for node, arc in zip(nodes, arcs, strict=True):
                 arc = rebind(arc, self.system)
                 if arc.termination is Termination.CANCELED:
