@@ -368,7 +368,8 @@ def explore(system: HybridSystem, x0, t_max: float, j_max: float = math.inf, *,
         At most this many branches (runs of the engine); then the
         exploration ends with ``tree.end = ExploreEnd.MAX_BRANCHES``.
     max_seconds : float
-        Wall-time budget; then ``ExploreEnd.MAX_SECONDS``. Ctrl-C
+        Wall-time budget, checked before each branch (before each level
+        where the levels run batched); then ``ExploreEnd.MAX_SECONDS``. Ctrl-C
         (KeyboardInterrupt) ends the exploration too, with what was explored
         (``ExploreEnd.INTERRUPTED``: the branch under way a leaf ending
         ``CANCELED``, the others pending).
