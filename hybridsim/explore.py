@@ -19,6 +19,20 @@ restarted at the branch point with ``t0``, ``j0`` and the random priority's
 dwell law, stopped at the next branch point by ``j_max=0``), so the events,
 rules and termination causes are those of ``simulate``.
 
+The branches of one level of the tree (those queued together) run as
+batches on the fastest path the system has (``backend``): a model that
+compiles (:func:`hybridsim.compiled.lower`, a plain model from its own maps)
+runs them with :func:`hybridsim.compiled.simulate_many_compiled`, one batch
+per branch-point time (t, j), each row restarted from its branch point. A
+batch row is the same run as the branch's own: a branch that starts with a
+jump (or the root) is the ``"jumps"`` priority's run to its first jump, its
+end a branch point where that point is in C as well (flowing was possible);
+a "flow on" branch whose flow leaves C at once (the ``"flows"`` priority's
+run ends at its start) is its sibling's. Every other branch, and every row
+whose batch run ended other than at t_max or at a jump (a failure, a map
+error, Ctrl-C), runs as before, with :func:`hybridsim.simulate` and the
+dwell law, so failures and Ctrl-C end the exploration as they always did.
+
 Branches reaching the same hybrid time and state are merged: two branch
 points (or two starts after a jump) merge when their j are equal and
 ``|t - t'| <= merge_tol`` and ``max_i |x_i - x'_i| <= merge_tol`` (absolute,
@@ -166,7 +180,8 @@ class SolutionTree:
     def leaves(self):
         """Every leaf as a HybridArc (built once, on first use)."""
         if self._leaves is None:
-            self._leaves = [self._leaf(n) for n in self.leaf_nodes]
+            memo = {}
+            self._leaves = [self._leaf(n, memo) for n in self.leaf_nodes]
         return self._leaves
 
     @property
@@ -178,33 +193,17 @@ class SolutionTree:
         ``merge_tol``): what :mod:`hybridsim.testing` checks, given a tree.
         ``arc.termination`` is None, ``arc.merged_into`` the other node.
         """
-        return [self._leaf(n) for n in self.nodes
+        memo = {}
+        return [self._leaf(n, memo) for n in self.nodes
                 if n.end == "merged" and n.merged_into != n.parent]
 
-    def _leaf(self, node):
+    def _leaf(self, node, memo=None):
+        """Node ``node``'s solution from x0, as a HybridArc. ``memo``: the parts
+        of nodes already read (a dict; the leaves share their prefixes)."""
         parts = self.path(node.index)
-        ts, js, xs, ds = [], [], [], []
-        stats = collections.Counter()
-        for p in parts:
-            a = p.arc
-            if a is None:           # merged at its start (after a jump): that sample
-                t, j, x = p.start
-                ts.append(np.array([t]))
-                js.append(np.array([j], dtype=np.int64))
-                xs.append(np.reshape(x, (1, -1)))
-                ds.append(np.full((1, len(x)), np.nan))
-                continue
-            # a branch that starts where its parent ends (flow on, dwell, no jump
-            # left) repeats the parent's last sample
-            k = 1 if (p.choice is not None and (p.choice.kind != "jump"
-                                                or p.choice.value is None)) else 0
-            ts.append(a.t[k:])
-            js.append(a.j[k:])
-            xs.append(a.x[k:])
-            ds.append(a.xdot[k:] if a.xdot is not None else np.full_like(a.x[k:], np.nan))
-            for key, v in (a.stats or {}).items():
-                if isinstance(v, (int, np.integer)):
-                    stats[key] += int(v)
+        memo = {} if memo is None else memo
+        cut = [self._part(p, memo) for p in parts]
+        stats = cut[-1][4]
         last = node.arc
         if node.end == "merged":
             cause, msg, exc = None, f"merged into branch {node.merged_into}", None
@@ -218,14 +217,43 @@ class SolutionTree:
             elif p.arc is not None and len(p.arc.t) > 1:
                 segs = None
                 break
-        arc = HybridArc._trusted(np.concatenate(ts), np.concatenate(js), np.concatenate(xs),
+        arc = HybridArc._trusted(np.concatenate([c[0] for c in cut]),
+                                 np.concatenate([c[1] for c in cut]),
+                                 np.concatenate([c[2] for c in cut]),
                                  cause, msg, exc, components=self.system.components,
                                  segments=segs or None, system=self.system,
-                                 xdot=np.concatenate(ds), stats=dict(stats))
+                                 xdot=np.concatenate([c[3] for c in cut]), stats=dict(stats))
         arc.choices = [p.choice for p in parts if p.choice is not None]
         arc.node = node.index
         arc.merged_into = node.merged_into
         return arc
+
+    def _part(self, p, memo):
+        """Node ``p``'s samples in its solution ``(t, j, x, xdot, stats)``,
+        ``stats`` the run statistics summed from the root to it."""
+        hit = memo.get(p.index)
+        if hit is not None:
+            return hit
+        # read root first (``_leaf``): the parent's part is known
+        stats = {} if p.parent is None else dict(memo[p.parent][4])
+        a = p.arc
+        if a is None:           # merged at its start (after a jump): that sample
+            t, j, x = p.start
+            out = (np.array([t]), np.array([j], dtype=np.int64), np.reshape(x, (1, -1)),
+                   np.full((1, len(x)), np.nan), stats)
+        else:
+            # a branch that starts where its parent ends (flow on, dwell, no jump
+            # left) repeats the parent's last sample
+            k = 1 if (p.choice is not None and (p.choice.kind != "jump"
+                                                or p.choice.value is None)) else 0
+            xk = a.x[k:]
+            out = (a.t[k:], a.j[k:], xk,
+                   a.xdot[k:] if a.xdot is not None else np.full_like(xk, np.nan), stats)
+            for key, v in (a.stats or {}).items():
+                if isinstance(v, (int, np.integer)):
+                    stats[key] = stats.get(key, 0) + int(v)
+        memo[p.index] = out
+        return out
 
     def __iter__(self):
         return iter(self.leaves)
@@ -284,19 +312,27 @@ _NOT_OPTIONS = {"priority": "explore follows every choice in C ∩ D",
                 "seed": "explore draws nothing",
                 "dense": "explore's leaves are joined from the branches' samples",
                 "progress": "explore runs the engine once per branch",
-                "backend": "explore runs the Python path (the others refuse "
-                           "set-valued jumps and dwell laws)",
                 "j0": "give j0 to explore itself", "t0": "give t0 to explore itself"}
 
 
 #: merge_tol's default: 1e-9, or None (never merge) for a system that reads its past
 _AUTO = "auto"
 
+_BACKENDS = ("auto", "compiled", "python")
+
+#: backend="auto" runs a level as compiled batches from this many branches on
+#: (a model's maps compile once per machine, in seconds: a batch of hundreds pays)
+BATCH_LEVEL = 512
+
+#: the options of simulate the compiled path runs at these values only
+_COMPILED_ONLY_AT = {"inputs": (None,), "prehistory": (None,), "dense": (False,),
+                     "t_eval": (None,)}
+
 
 def explore(system: HybridSystem, x0, t_max: float, j_max: float = math.inf, *,
             t0: float = 0.0, j0: int = 0, dwell_grid=(), merge_tol: float | str | None = _AUTO,
             max_branches: int = 100_000, max_seconds: float = 60.0, throw: bool = True,
-            warn: bool = True, **options) -> SolutionTree:
+            warn: bool = True, backend: str = "auto", **options) -> SolutionTree:
     r"""Every solution of a hybrid inclusion from x0, as a tree of arcs.
 
     At each entry into C ∩ D where flowing is possible the tree branches:
@@ -332,7 +368,8 @@ def explore(system: HybridSystem, x0, t_max: float, j_max: float = math.inf, *,
         At most this many branches (runs of the engine); then the
         exploration ends with ``tree.end = ExploreEnd.MAX_BRANCHES``.
     max_seconds : float
-        Wall-time budget; then ``ExploreEnd.MAX_SECONDS``. Ctrl-C
+        Wall-time budget, checked before each branch (before each level
+        where the levels run batched); then ``ExploreEnd.MAX_SECONDS``. Ctrl-C
         (KeyboardInterrupt) ends the exploration too, with what was explored
         (``ExploreEnd.INTERRUPTED``: the branch under way a leaf ending
         ``CANCELED``, the others pending).
@@ -343,6 +380,18 @@ def explore(system: HybridSystem, x0, t_max: float, j_max: float = math.inf, *,
     warn : bool
         One :class:`hybridsim.SimulationWarning` when leaves end on a
         numerical failure, or when the budget ends the exploration.
+    backend : {"auto", "compiled", "python"}
+        Where the branches run. ``"python"``: each its own run of
+        :func:`hybridsim.simulate`. ``"compiled"``: each level's branches as
+        compiled batches (module docstring); a system that cannot run
+        compiled (its reason), or options the compiled path does not take
+        (``inputs``, ``prehistory``, ``dense``, ``t_eval``; a system that
+        reads its history), are refused by name. ``"auto"`` (default):
+        from the first level of at least :data:`BATCH_LEVEL` (512)
+        branches, compiled batches where numba is installed and the system
+        and options run compiled (its maps compile then, once per machine:
+        seconds), else ``"python"``. The tree is the same on every backend;
+        the samples agree to the integrator's round-off.
     **options
         Passed to :func:`hybridsim.simulate` for every branch (``method``,
         ``rtol``, ``atol``, ``max_step``, ``inputs``, ``max_norm``...);
@@ -414,7 +463,11 @@ def explore(system: HybridSystem, x0, t_max: float, j_max: float = math.inf, *,
     for name, v in (("throw", throw), ("warn", warn)):
         if not isinstance(v, (bool, np.bool_)):
             raise TypeError(f"{name} must be True or False, got {v!r}")
+    if not isinstance(backend, str) or backend not in _BACKENDS:
+        raise ValueError(f"backend must be one of {', '.join(map(repr, _BACKENDS))}, "
+                         f"got {backend!r}")
     ex = _Explorer(system, n, t_max, j_max, j0, grid, merge_tol, options)
+    ex.batches = _Batches(system, options, past, backend)
     tree = ex.run(x0, t0, max_branches, max_seconds)
     _report(tree, throw, warn)
     return tree
@@ -475,6 +528,16 @@ class _Explorer:
             if time.perf_counter() - clock > max_seconds:
                 end = ExploreEnd.MAX_SECONDS
                 break
+            if self.batches.wanted(len(queue)):
+                level = [self.nodes[queue.popleft()]
+                         for _ in range(min(len(queue), max_branches - runs))]
+                runs += len(level)
+                children, stopped = self._level(level)
+                queue.extend(children)
+                if stopped:
+                    end = ExploreEnd.INTERRUPTED
+                    break
+                continue
             node = self.nodes[queue.popleft()]
             runs += 1
             count = len(self.nodes)
@@ -511,6 +574,60 @@ class _Explorer:
             node.arc.message = Termination.CANCELED.message
         node.end = "leaf"
 
+    # ------------------------------------------------------------------ a level
+    def _level(self, level):
+        """Run the nodes of a level in order, those a batch can run batched
+        (:class:`_Batches`): ``(children to run next, interrupted)``. The tree,
+        merges and Ctrl-C are those of running the nodes one by one."""
+        decided = {}                # node index -> its children, decided before running
+        todo = []
+        ran = {}
+        try:
+            for node in level:
+                done = self._start(node)
+                if done is not None:
+                    decided[node.index] = done
+                elif node.first is None:
+                    todo.append((node, "jumps"))
+                elif node.first == math.inf:
+                    todo.append((node, "flows"))
+            ran = self.batches.run(todo, self.t_max, self.maps)
+        except KeyboardInterrupt:
+            ran = {node.index: None for node, _ in todo}
+        out = []
+        for i, node in enumerate(level):
+            if node.index in decided:
+                out.extend(decided[node.index])
+                continue
+            count = len(self.nodes)
+            try:
+                got = ran.get(node.index, False)
+                if got is None:             # Ctrl-C before its batch ran
+                    raise KeyboardInterrupt
+                if got is False:            # not batched, or its batch row is not its run
+                    t, j, x = node.start
+                    got = self._simulate(x, t, j, node.first, self._past(node))
+                out.extend(self._finish(node, *got))
+            except (KeyboardInterrupt, SimulationError) as e:
+                if isinstance(e, SimulationError) and not isinstance(e.__cause__,
+                                                                     KeyboardInterrupt):
+                    raise
+                self._cancel(node, count)
+                self._pend(level[i + 1:], decided)
+                return out, True
+            if node.arc is not None and node.arc.termination is Termination.CANCELED:
+                self._pend(level[i + 1:], decided)
+                return out, True
+        return out, False
+
+    def _pend(self, nodes, decided):
+        """Nodes after the one Ctrl-C stopped: pending, as if never reached."""
+        for node in nodes:
+            if node.index in decided:
+                if node.end == "merged":
+                    self.merges -= 1
+                node.end, node.merged_into, node.arc = "pending", None, None
+
     # ------------------------------------------------------------------ one branch
     def _simulate(self, x, t, j, first, pre):
         """The engine from (t, j, x) to the next branch point; ``(arc, chose)``,
@@ -544,6 +661,15 @@ class _Explorer:
 
     def _expand(self, node):
         """Run a node; its children's indices to run next."""
+        done = self._start(node)
+        if done is not None:
+            return done
+        t, j, x = node.start
+        return self._finish(node, *self._simulate(x, t, j, node.first, self._past(node)))
+
+    def _start(self, node):
+        """What a node's start decides without running it (merged with another
+        start, or no jump left): its children ([]), or None (it must run)."""
         t, j, x = node.start
         if node.choice is not None and node.choice.kind == "jump":
             other = self.starts.find("start", t, j, x)
@@ -556,7 +682,12 @@ class _Explorer:
                 node.arc = self._leaf_arc(t, j, x, Termination.J_MAX)
                 node.end = "leaf"
                 return []
-        arc, chose = self._simulate(x, t, j, node.first, self._past(node))
+        return None
+
+    def _finish(self, node, arc, chose):
+        """A node's run ``arc`` (``chose``: it ended at an entry into C ∩ D with a
+        choice): its end, and its children's indices to run next."""
+        t, j, x = node.start
         node.arc = arc
         if self.past:
             node.history = self.system.history       # the past its children continue
@@ -628,3 +759,174 @@ class _Explorer:
                 out.append(self._new(node.index, Choice(tp, jp, xp, "dwell", d),
                                      (tp, jp, xp), d).index)
         return out
+
+
+class _Batches:
+    """A level's branches as batches (module docstring), or none of them.
+
+    ``backend="compiled"`` lowers the system at once (a refusal names why);
+    ``"auto"`` chooses from the first level of :data:`BATCH_LEVEL` branches:
+    compiled batches where the system and options run compiled, else
+    (silently, but for a plain model's :class:`hybridsim.compiled.FallbackWarning`
+    naming the map that does not compile) each branch alone, as before. Not
+    the numpy batch of a ``vectorized`` system: its event locations differ
+    from :func:`hybridsim.simulate`'s by round-off, and at a boundary of
+    C ∩ D that changes which points branch (the doubling tree written on the
+    last axis: 6 of its first 31 branch points)."""
+
+    def __init__(self, system, options, past, backend):
+        self.system, self.options, self.past = system, options, past
+        self.proxy = self.ok = None
+        self.batch = None               # (X, t_max, t, j, priority) -> arcs, once chosen
+        self.off = backend == "python"
+        if backend == "compiled":
+            why = self._refusal()
+            if why is not None:
+                raise ValueError(f"explore(backend='compiled'): the branches of "
+                                 f"{type(system).__name__} cannot run compiled: {why}")
+            self.batch = self._compiled(self._lower(auto=False))
+
+    def _common(self):
+        """Why no batch runs the branches, or None."""
+        if self.past:
+            return "it reads its history (each branch continues its parent's past)"
+        for k, ok in _COMPILED_ONLY_AT.items():
+            if self.options.get(k, ok[0]) not in ok:
+                return f"{k}= runs on the Python path only"
+        if any(getattr(self.system, k, None) is not None
+               for k in ("diffusion", "jump_rate", "jump_law")):
+            return "its noise (diffusion, jump_rate or jump_law) runs on the Python path only"
+        self.proxy = _proxy(self.system)
+        return None
+
+    def _refusal(self):
+        """Why the branches cannot run compiled, or None."""
+        import importlib.util
+
+        from .compiled import lowerable
+        from .options import method_on
+        if importlib.util.find_spec("numba") is None:
+            return "numba is not installed (pip install 'hybridsim[fast]')"
+        why = self._common()
+        if why is not None:
+            return why
+        try:
+            method_on("compiled", self.options.get("method"), self.system)
+        except (TypeError, ValueError) as e:
+            return str(e)
+        self.ok = lowerable(self.proxy)
+        return None if self.ok else self.ok.reason
+
+    def _lower(self, auto):
+        from .compiled import lower
+        from .compiled._from_source import auto_choice
+        if auto and auto_choice(self.proxy, self.ok) != "compiled":
+            return None     # a plain model whose maps do not compile: a FallbackWarning
+        return lower(self.proxy)
+
+    def _options(self):
+        return {k: v for k, v in self.options.items() if k not in _COMPILED_ONLY_AT}
+
+    def _compiled(self, cs):
+        from .compiled import simulate_many_compiled
+        opts = self._options()
+
+        def batch(X, t_max, t, j, priority):
+            return simulate_many_compiled(cs, X, t_max, 0, t0=t, j0=j, priority=priority,
+                                          throw=False, warn=False, **opts)
+        return batch
+
+    def _choose(self):
+        """backend="auto"'s batch: compiled, or None."""
+        try:
+            why = self._refusal()
+            # no refusal, or the model's own (auto_choice says why, once)
+            if why is None or self.ok is not None:
+                cs = self._lower(auto=True)
+                if cs is not None:
+                    return self._compiled(cs)
+        except (TypeError, ValueError, ImportError):     # CompileError: a TypeError
+            pass
+        return None
+
+    def wanted(self, size):
+        """Whether a level of ``size`` branches runs batched."""
+        if self.off:
+            return False
+        if self.batch is None:
+            if size < BATCH_LEVEL:
+                return False
+            self.batch = self._choose()
+            if self.batch is None:
+                self.off = True
+                return False
+        return True
+
+    def run(self, todo, t_max, maps):
+        """Run ``todo`` = [(node, "jumps" or "flows")] in batches of one (t, j):
+        {node index: (arc, chose)} for the rows whose batch run is the node's
+        own run, False for the others (run them alone, as before), None for
+        rows Ctrl-C kept from running."""
+        from .compiled._lower import rebind
+        groups = {}
+        for node, kind in todo:
+            t, j, _ = node.start
+            groups.setdefault((kind, t, j), []).append(node)
+        out = {}
+        stopped = False
+        for (kind, t, j), nodes in groups.items():
+            if stopped:
+                out.update((node.index, None) for node in nodes)
+                continue
+            X = np.array([node.start[2] for node in nodes], dtype=float)
+            try:
+                arcs = self.batch(X, t_max, t, j, kind)
+            except SimulationError as e:
+                if isinstance(e.__cause__, KeyboardInterrupt):
+                    raise KeyboardInterrupt from e
+                # a map failing in the batch: each branch alone says where, as before
+                out.update((node.index, False) for node in nodes)
+                continue
+            for node, arc in zip(nodes, arcs, strict=True):
+                arc = rebind(arc, self.system)
+                if arc.termination is Termination.CANCELED:
+                    stopped = True
+                    out[node.index] = (arc, False) if len(arc.t) > 1 or arc.stats else None
+                else:
+                    out[node.index] = _accept(arc, kind, t, j, maps)
+        return out
+
+
+def _accept(arc, kind, t, j, maps):
+    """``(arc, chose)`` where a batch row's run is the branch's own run (see
+    the module docstring), else False."""
+    cause = arc.termination
+    if kind == "flows":
+        # the flow leaves C at once: the "flow on" branch is its sibling's
+        if cause is Termination.J_MAX and arc.j[-1] == j and \
+                arc.t[-1] - t <= 64.0 * event_tolerance(t, t):
+            return arc, False
+        return False
+    if cause is Termination.T_MAX:
+        return arc, False
+    if cause is not Termination.J_MAX or len(arc.t) < 2:
+        # a failure or other end, or a stop at its start (where the run checks
+        # the jump map): the Python path's run, as before
+        return False
+    try:
+        chose = (not maps.has_C) or bool(maps.C(arc.x[-1], float(arc.t[-1]),
+                                                int(arc.j[-1]), None))
+    except MapError:
+        return False
+    return arc, chose
+
+
+def _proxy(system):
+    """The system a batch runs: itself, or for a set-valued jump map (which a
+    run to its first jump never applies) a copy without it."""
+    if not system.set_valued:
+        return system
+    import copy
+    proxy = copy.copy(system)
+    proxy.jump_map_values = None
+    return proxy

@@ -577,21 +577,36 @@ class FalsificationResult:
                 f"{self.evaluations} evaluations in {self.seconds:.2f} s, {self.method}{end})")
 
 
-def batch_run(system, x0_of, t_max, j_max=np.inf, **simulate_kwargs):
+#: an attribute the system did not have before a population set it
+_UNSET = object()
+
+
+def batch_run(system, x0_of, t_max, j_max=np.inf, *, attributes_of=None, **simulate_kwargs):
     """A population run: all points of a population in one :func:`hybridsim.simulate_many`.
 
     Parameters
     ----------
     system : HybridSystem
-        Preferably ``vectorized`` (the whole population is then one numpy
-        batch); the uncertain parameters and signals live in its state.
+        Any model: a plain class (its maps as written) runs compiled where
+        they compile (``backend="auto"``), a ``vectorized`` one otherwise as
+        one numpy batch.
     x0_of : callable
         ``x0_of(point) -> initial state`` (the point's parameters written
-        into the state).
+        into the state, or the same state for every point).
+    attributes_of : callable, optional
+        ``attributes_of(point) -> dict`` of the system's attributes (numbers
+        or arrays its maps read, such as ``{"e": point["e"]}``) for that
+        point: the parameters stay where the model keeps them. The
+        population's rows then run one after another on ``system`` with
+        those attributes set (restored after), through :func:`hybridsim.sweep`:
+        compiled under ``backend="auto"`` where the model compiles (its maps
+        read the attributes at each run, so nothing is compiled again); not
+        with ``executor=``.
     t_max, j_max, **simulate_kwargs
         As in :func:`hybridsim.simulate_many`; ``backend`` defaults to
         ``"auto"``: the compiled path where the system runs there (numba
-        installed, a system with a compiled form), else the numpy batch.
+        installed, a system with a compiled form or a plain model whose maps
+        compile), else the numpy batch or the Python path.
         ``executor=`` (and ``chunks=``) spreads each population over an
         executor: a ``concurrent.futures`` pool, or a dask cluster's
         ``client.get_executor()`` for several machines.
@@ -601,14 +616,50 @@ def batch_run(system, x0_of, t_max, j_max=np.inf, **simulate_kwargs):
     callable
         ``run(points) -> list of HybridArc``, with ``run.batch = True`` so
         :func:`falsify` passes it whole populations.
+
+    Examples
+    --------
+    >>> import hybridsim as hs
+    >>> from hybridsim.library import Timer
+    >>> run = batch_run(Timer(1.0), lambda p: [0.0], 2.0, 1, backend="python",
+    ...                 attributes_of=lambda p: {"period": p["period"]})
+    >>> [round(float(a.jump_times[0]), 6) for a in run([{"period": 0.5}, {"period": 1.5}])]
+    [0.5, 1.5]
     """
-    from .run import simulate_many
+    from .run import simulate_many, sweep
 
     simulate_kwargs.setdefault("backend", "auto")
+    if attributes_of is not None and not callable(attributes_of):
+        raise TypeError(f"attributes_of must be a callable point -> dict of the system's "
+                        f"attributes, got {type(attributes_of).__name__}")
+    if attributes_of is not None and simulate_kwargs.get("executor") is not None:
+        raise ValueError("attributes_of: the rows set the attributes of this process's "
+                         "system, one after another; without executor=, or put the "
+                         "parameters in the state (x0_of)")
 
     def run(points):
-        x0s = np.array([np.asarray(x0_of(p), dtype=float) for p in points])
-        return simulate_many(system, x0s, t_max, j_max, warn=False, **simulate_kwargs)
+        if attributes_of is None:
+            x0s = np.array([np.asarray(x0_of(p), dtype=float) for p in points])
+            return simulate_many(system, x0s, t_max, j_max, warn=False, **simulate_kwargs)
+        saved = {}                      # the attributes set, as they were
+
+        def at(point):
+            values = attributes_of(point)
+            if not isinstance(values, Mapping):
+                raise TypeError(f"attributes_of must return a dict of the system's "
+                                f"attributes, got {type(values).__name__}")
+            for name, v in values.items():
+                saved.setdefault(name, vars(system).get(name, _UNSET))
+                setattr(system, name, v)
+            return system
+        try:
+            return sweep(at, points, x0_of, t_max, j_max, warn=False, **simulate_kwargs)
+        finally:
+            for name, v in saved.items():
+                if v is _UNSET:
+                    delattr(system, name)
+                else:
+                    setattr(system, name, v)
     run.batch = True
     return run
 

@@ -703,3 +703,291 @@ def test_an_integral_of_the_past_is_read_across_branch_points():
     (leaf,) = tree.leaves
     np.testing.assert_allclose(leaf.jump_times, arc.jump_times, atol=1e-9)
     np.testing.assert_allclose(leaf.x[-1], arc.x[-1], atol=1e-7)
+
+
+# ---------------------------------------------------------------- levels as compiled batches
+class Doubling(hs.HybridSystem):
+    """The benchmark's tree (issue 42): x+ in {2x, 2x + 1} every ``period``."""
+
+    state_dim = 2
+
+    def __init__(self, period=0.1):
+        self.period = period
+
+    def flow_map(self, x):
+        return np.array([0.0, 1.0])
+
+    def jump_map_values(self, x):
+        return [np.array([2.0 * x[0], 0.0]), np.array([2.0 * x[0] + 1.0, 0.0])]
+
+    def flow_set(self, x):
+        return x[1] <= self.period
+
+    def jump_set(self, x):
+        return x[1] >= self.period
+
+
+class Window(hs.HybridSystem):
+    """(tau, z): tau' = 1, z' = rate; may reset in [T1, T2], must at T2, z+ in
+    {z + c : c in offs} (a choice at every entry into C ∩ D); ``fail_after``:
+    the jump map raises after that time."""
+
+    state_dim = 2
+
+    def __init__(self, T1=1.0, T2=2.0, rate=0.5, offs=(1.0, -0.5), fail_after=np.inf):
+        self.T1, self.T2, self.rate, self.offs = T1, T2, rate, offs
+        self.fail_after = fail_after
+
+    def flow_map(self, x):
+        return np.array([1.0, self.rate])
+
+    def jump_map_values(self, x, t):
+        if t > self.fail_after:
+            raise RuntimeError("broken reset")
+        return [np.array([0.0, x[1] + c]) for c in self.offs]
+
+    def flow_set(self, x):
+        return x[0] <= self.T2
+
+    def jump_set(self, x):
+        return x[0] >= self.T1
+
+
+def _shape(tree):
+    return [(n.parent, None if n.choice is None else (n.choice.kind, n.choice.value), n.end,
+             n.merged_into, n.children) for n in tree.nodes]
+
+
+@pytest.fixture
+def batches(monkeypatch):
+    """Counts the compiled batches explore runs and the branches it runs alone."""
+    pytest.importorskip("numba")
+    import hybridsim.compiled as hc
+    from hybridsim.explore import _Explorer
+    seen = {"batches": 0, "rows": 0, "alone": 0}
+    batch, alone = hc.simulate_many_compiled, _Explorer._simulate
+
+    def counted_batch(cs, X, *a, **k):
+        seen["batches"] += 1
+        seen["rows"] += len(X)
+        return batch(cs, X, *a, **k)
+
+    def counted_alone(self, *a, **k):
+        seen["alone"] += 1
+        return alone(self, *a, **k)
+    monkeypatch.setattr(hc, "simulate_many_compiled", counted_batch)
+    monkeypatch.setattr(_Explorer, "_simulate", counted_alone)
+    return seen
+
+
+@pytest.mark.parametrize("case", ["doubling", "window", "window merged"])
+def test_levels_run_as_compiled_batches_give_the_tree_of_single_runs(case, batches):
+    """backend="compiled" runs each level's branches as compiled batches
+    restarted at their branch points: the same nodes, ends, merges and
+    choices as backend="python" (every branch its own run of simulate), and
+    the same leaves to round-off. On the doubling tree every branch runs in
+    a batch; on the window, the dwells and the "flow on" branches that flow
+    run alone (with their dwell law), the others in batches."""
+    if case == "doubling":
+        system, x0, kw = Doubling(), [0.0, 0.0], dict(t_max=0.65, j_max=6, merge_tol=None)
+    else:
+        system, x0 = Window(), [0.0, 0.0]
+        kw = dict(t_max=5.0, j_max=3, dwell_grid=[0.5],
+                  merge_tol=None if case == "window" else 1e-9)
+    python = hs.explore(system, x0, backend="python", **kw)
+    assert batches["batches"] == 0
+    alone = batches["alone"]
+    compiled = hs.explore(system, x0, backend="compiled", **kw)
+    assert batches["batches"] >= kw["j_max"] and batches["rows"] > 0
+    assert _shape(compiled) == _shape(python) and compiled.merges == python.merges
+    assert compiled.complete and len(compiled) == len(python)
+    if case == "doubling":
+        # every branch that runs (the last jump's leaves do not: j_max) in a batch
+        assert batches["alone"] == alone and batches["rows"] == alone == 63
+        assert sorted(a.xf[0] for a in compiled) == list(range(64))
+    else:
+        assert 0 < batches["alone"] - alone < alone
+    for a, b in zip(compiled, python, strict=True):
+        assert a.termination is b.termination and list(map(str, a.choices)) == \
+            list(map(str, b.choices))
+        np.testing.assert_array_equal(a.j, b.j)
+        np.testing.assert_allclose(a.t, b.t, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(a.x, b.x, rtol=0, atol=1e-12)
+        a.validate()
+
+
+def test_auto_batches_levels_from_batch_level_branches(batches, monkeypatch):
+    """backend="auto" (the default) runs a small tree branch by branch, and
+    compiled batches from the first level of BATCH_LEVEL branches on."""
+    from hybridsim import explore as _  # noqa: F401
+    ex = sys.modules["hybridsim.explore"]
+    small = hs.explore(Doubling(), [0.0, 0.0], t_max=0.45, j_max=4, merge_tol=None)
+    assert batches["batches"] == 0 and batches["alone"] == 1 + 2 + 4 + 8
+    monkeypatch.setattr(ex, "BATCH_LEVEL", 4)
+    tree = hs.explore(Doubling(), [0.0, 0.0], t_max=0.45, j_max=4, merge_tol=None)
+    # the levels of 1 and 2 branches alone, those of 4 and 8 batched (the 16
+    # leaves after the last jump do not run)
+    assert batches["alone"] == 15 + 3 and batches["batches"] == 2
+    assert _shape(tree) == _shape(small)
+
+
+def test_compiled_explore_refusals_name_the_reason():
+    pytest.importorskip("numba")
+    with pytest.raises(ValueError, match="backend must be one of 'auto', 'compiled', 'python'"):
+        hs.explore(Doubling(), [0.0, 0.0], 1.0, 2, backend="fast")
+    with pytest.raises(ValueError, match=r"backend='compiled'.*inputs= runs on the Python"):
+        hs.explore(Doubling(), [0.0, 0.0], 1.0, 2, backend="compiled",
+                   inputs=lambda t: np.zeros(1))
+    with pytest.raises(ValueError, match=r"backend='compiled'.*reads its history"):
+        hs.explore(_DelayedSampler(1.0, 0.0, 1.0, 0.2, 0.1, 0.3), [1.0, 0.0], 1.0, 2,
+                   backend="compiled")
+    with pytest.raises(ValueError, match=r"backend='compiled'.*LSODA"):
+        hs.explore(Doubling(), [0.0, 0.0], 1.0, 2, backend="compiled", method="LSODA")
+
+
+def test_a_map_failing_on_a_batched_branch_names_the_branch(batches):
+    """The jump map raising on a branch run in a batch: the same MapError
+    naming the branch as branch by branch; throw=False, the same leaves."""
+    system = Window(fail_after=2.2)
+    kw = dict(t_max=5.0, j_max=3, dwell_grid=[0.5])
+    messages = []
+    for backend in ("python", "compiled"):
+        with pytest.raises(hs.MapError, match=r"broken reset.*on the branch: ") as e:
+            hs.explore(system, [0.0, 0.0], backend=backend, **kw)
+        messages.append(str(e.value))
+    assert messages[0] == messages[1] and batches["batches"] > 0
+    trees = [hs.explore(system, [0.0, 0.0], backend=b, throw=False, **kw)
+             for b in ("python", "compiled")]
+    assert _shape(trees[0]) == _shape(trees[1])
+    assert sorted(a.termination.name for a in trees[0]) == \
+        sorted(a.termination.name for a in trees[1])
+    assert "MAP_ERROR" in {a.termination.name for a in trees[1]}
+
+
+def test_ctrl_c_in_a_batch_ends_the_exploration_interrupted(batches, monkeypatch):
+    """A batch that Ctrl-C stopped (simulate_many_compiled's rows: those done,
+    the first under way CANCELED with its samples, the rest never started):
+    the branches before it are kept, it is the one CANCELED leaf, the others
+    are pending, and the tree says why."""
+    import hybridsim.compiled as hc
+    counted = hc.simulate_many_compiled
+
+    def stopped(cs, X, *a, **k):
+        arcs = counted(cs, X, *a, **k)
+        if batches["batches"] == 4:         # the level of 8 branches: Ctrl-C at row 3
+            arcs[3].termination = hs.Termination.CANCELED
+            for i in range(4, len(arcs)):
+                arcs[i] = hs.HybridArc(np.array([k["t0"]]), np.array([k["j0"]]),
+                                       X[i:i + 1], termination=hs.Termination.CANCELED)
+        return arcs
+    monkeypatch.setattr(hc, "simulate_many_compiled", stopped)
+    with pytest.warns(hs.SimulationWarning, match="INTERRUPTED"):
+        tree = hs.explore(Doubling(), [0.0, 0.0], t_max=0.65, j_max=6, merge_tol=None,
+                          backend="compiled")
+    assert tree.end is hs.ExploreEnd.INTERRUPTED and not tree.complete
+    canceled = [n for n in tree.nodes if n.arc is not None
+                and n.arc.termination is hs.Termination.CANCELED]
+    assert len(canceled) == 1 and len(canceled[0].arc.t) > 1
+    level = [n for n in tree.nodes if n.start[1] == 3]
+    assert len(level) == 8 and [n.end for n in level[:3]] == ["forced"] * 3
+    assert level[3] is canceled[0] and all(n.end == "pending" for n in level[4:])
+    assert tree.pending == 4 + 6              # the rest of its level, the children of 3
+
+
+# ---------------------------------------------------------------- falsification populations
+class Ball(hs.HybridSystem):
+    """A plain model (its maps as written), its restitution an attribute."""
+
+    state_dim = 2
+
+    def __init__(self, e=0.8):
+        self.e = e
+
+    def flow_map(self, x):
+        return np.array([x[1], -9.81])
+
+    def jump_map(self, x):
+        return np.array([0.0, -self.e * x[1]])
+
+    def flow_set(self, x):
+        return x[0] >= 0.0
+
+    def jump_set(self, x):
+        return x[0] <= 0.0 and x[1] <= 0.0
+
+
+def _third_bounce_by(limit):
+    def claim(arc):
+        return limit - arc.jump_times[2]
+    return claim
+
+
+@pytest.fixture
+def paths(monkeypatch):
+    """Counts the rows each path ran: compiled batches, compiled single runs and
+    the Python loop (hybridsim.solve's runs)."""
+    pytest.importorskip("numba")
+    import hybridsim.compiled as hc
+    from hybridsim import solve
+    seen = {"batch": 0, "single": 0, "python": 0}
+    batch, single, loop = hc.simulate_many_compiled, hc.simulate_compiled, solve._Run.run
+
+    def counted_batch(cs, X, *a, **k):
+        seen["batch"] += len(X)
+        return batch(cs, X, *a, **k)
+
+    def counted_single(*a, **k):
+        seen["single"] += 1
+        return single(*a, **k)
+
+    def counted_loop(self, *a, **k):
+        seen["python"] += 1
+        return loop(self, *a, **k)
+    monkeypatch.setattr(hc, "simulate_many_compiled", counted_batch)
+    monkeypatch.setattr(hc, "simulate_compiled", counted_single)
+    monkeypatch.setattr(solve._Run, "run", counted_loop)
+    return seen
+
+
+def test_a_falsification_population_of_a_plain_model_runs_compiled(paths):
+    """falsify over a plain model's population (batch_run, backend "auto" by
+    default): every row runs in the compiled batches, none on the Python
+    loop, and the counterexample is the closed form's (the highest drop)."""
+    from hybridsim.falsification import Interval, Space, batch_run, falsify
+    from hybridsim.library import bouncing_ball_jump_times
+    run = batch_run(Ball(), lambda p: [p["h0"], 0.0], t_max=6.0, j_max=3)
+    res = falsify(run, Space(h0=Interval(0.5, 2.0)), _third_bounce_by(2.0), budget=40,
+                  seed=0, progress=False, stop=False)
+    assert paths["batch"] == res.evaluations == 40 and paths["python"] == 0
+    assert res.point["h0"] == pytest.approx(2.0, abs=1e-6)
+    exact = 2.0 - bouncing_ball_jump_times(2.0, 3)[2]
+    assert res.margin == pytest.approx(exact, abs=1e-6) and res.verdict == "counterexample"
+
+
+def test_a_population_over_a_plain_models_attributes_runs_compiled(paths):
+    """The uncertain number is the model's attribute (attributes_of): each row
+    runs compiled on the one system with the point's e (its maps read e at
+    each run), none on the Python loop; e is restored after; the margins are
+    the closed form's, and the Python path's to round-off."""
+    from hybridsim.falsification import Interval, Space, batch_run, falsify
+    from hybridsim.library import bouncing_ball_jump_times
+    ball = Ball(0.8)
+    kw = dict(t_max=6.0, j_max=3, attributes_of=lambda p: {"e": p["e"]})
+    space, claim = Space(e=Interval(0.5, 0.9)), _third_bounce_by(2.0)
+    res = falsify(batch_run(ball, lambda p: [1.0, 0.0], **kw), space, claim, budget=30,
+                  seed=0, progress=False, stop=False)
+    assert paths["single"] == res.evaluations == 30 and paths["python"] == 0
+    assert ball.e == 0.8
+    exact = 2.0 - bouncing_ball_jump_times(1.0, 3, restitution=res.point["e"])[2]
+    assert res.margin == pytest.approx(exact, abs=1e-6)
+    py = falsify(batch_run(ball, lambda p: [1.0, 0.0], backend="python", **kw), space, claim,
+                 budget=30, seed=0, progress=False, stop=False)
+    assert paths["python"] == 30 and paths["single"] == 30
+    assert py.margin == pytest.approx(res.margin, abs=1e-9)
+    (bad,) = batch_run(ball, lambda p: [1.0, 0.0], attributes_of=lambda p: 0.5,
+                       t_max=1.0)([{"e": 0.5}])            # a failed row, as in hs.sweep
+    assert bad.termination is hs.Termination.MAP_ERROR
+    assert "attributes_of must return a dict of the system's attributes" in bad.message
+    with pytest.raises(ValueError, match="attributes_of: .* without executor="):
+        batch_run(ball, lambda p: [1.0, 0.0], attributes_of=lambda p: {}, t_max=1.0,
+                  executor=object())
