@@ -166,6 +166,10 @@ def _check_system(system):
         raise TypeError(f"system must be a hybridsim.compiled.CompiledSystem (maps of "
                         f"(x, t, j, p) numba can compile), got {type(system).__name__}; "
                         f"run other systems with hs.simulate (the Python path)")
+    if system.watch is not None:
+        raise TypeError(f"backend='compiled': {system!r} declares watch (functions watched "
+                        f"along the flows), whose crossings the compiled kernel does not "
+                        f"record yet; run it with hs.simulate(system, ...) (the Python path)")
 
 
 #: the options a path may refuse (:data:`hybridsim.options.SUPPORTS`); others are unknown
