@@ -165,7 +165,7 @@ class Crossings:
         self.direction = np.asarray(direction, dtype=np.int64).reshape(-1)
         k = len(self.t)
         x = np.asarray(x, dtype=float)
-        self.x = x.reshape(k, -1) if x.size or x.ndim == 2 else np.zeros((k, 0))
+        self.x = x.reshape(k, -1) if k else x.reshape(0, x.shape[-1] if x.ndim == 2 else 0)
         if not (len(self.j) == len(self.which) == len(self.direction) == len(self.x) == k):
             raise ValueError(f"Crossings: t, j, which, direction and x must have one row "
                              f"per crossing; got lengths {k}, {len(self.j)}, "

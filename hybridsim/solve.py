@@ -295,7 +295,7 @@ class _Run:
         """The watched functions at (s, y, j): (m,) floats, m fixed for the run."""
         v = self.W(y, s, j, self._u(s))
         if self.w_dir is None:
-            self.w_dir = watch_directions(self.system.watch_direction, len(v))
+            self.w_dir = watch_directions(self.maps.W_dir, len(v), s, j)
         elif len(v) != len(self.w_dir):
             raise MapError(f"watch must return the same number of values at every call: "
                            f"{len(self.w_dir)} before, {len(v)} at t={s:.10g}, j={j}",
@@ -375,6 +375,8 @@ class _Run:
             check_map_value("jump_map", g(x, t, j, u), o.n, t, j)
         elif in_D:
             successors(maps.G(x, t, j, u), o.n, t, j)
+        if self.W is not None:       # the watched functions and their directions
+            self._watch_values(t, x, j)
         try:
             while True:
                 t, j, x = st.t, st.j, st.x

@@ -166,22 +166,32 @@ def _named_watch(fn, name="watch"):
     return watch
 
 
-def watch_directions(direction, m):
-    """A system's ``watch_direction`` as an (m,) int array of -1, 0, 1 (scipy's
-    ``event.direction``: 1 records rising crossings only, -1 falling ones, 0
-    both); a ValueError naming ``watch_direction`` otherwise."""
+def check_watch_direction(direction):
+    """A system's ``watch_direction`` checked: -1, 0 or 1 (scipy's
+    ``event.direction``: 1 keeps rising crossings only, -1 falling ones, 0
+    both), or a 1-D sequence of them; a ValueError naming it otherwise."""
     try:
         d = np.array(direction)
     except (TypeError, ValueError):
         d = np.array(None)
-    ok = d.dtype.kind in "iuf" and d.ndim <= 1 and (d.ndim == 0 or d.size == m)
+    ok = d.dtype.kind in "iuf" and d.ndim <= 1 and d.size >= 1
     if ok:
         ok = bool(np.isin(d, (-1, 0, 1)).all())
     if not ok:
         raise ValueError(f"watch_direction must be -1, 0 or 1 (falling, both, rising), or "
-                         f"a sequence of them, one per watched function ({m}); got "
-                         f"{direction!r}")
-    return np.broadcast_to(d.astype(np.int64), (m,)).copy()
+                         f"a sequence of them, one per watched function; got {direction!r}")
+    return d.astype(np.int64)
+
+
+def watch_directions(direction, m, t=None, j=None):
+    """:func:`check_watch_direction` for m watched functions: an (m,) int array; a
+    :class:`MapError` naming ``watch`` where one value per function does not match."""
+    d = check_watch_direction(direction)
+    if d.ndim == 1 and d.size != m:
+        raise MapError(f"watch returned {m} values but watch_direction gives {d.size} "
+                       f"directions (one per watched function, or one for all)"
+                       + ("" if t is None else f" (at {_where(t, j)})"), "watch", t, j)
+    return np.broadcast_to(d, (m,)).copy()
 
 
 def _as_bool(name, v, t, j):
@@ -466,7 +476,8 @@ class HybridSystem:
             has_D=self.has_jumps, has_C=self.has_flow_boundary,
             h_u=_arity(self.output) >= 4,
             f_raw=self.flow_map, f_arity=_arity(self.flow_map),
-            W=None if self.watch is None else _named_watch(self.watch))
+            W=None if self.watch is None else _named_watch(self.watch),
+            W_dir=None if self.watch is None else check_watch_direction(self.watch_direction))
         self.__dict__["_compiled_maps"] = c
         return c
 
@@ -631,7 +642,7 @@ def successors(vals, n, t=None, j=None):
 
 class _Compiled:
     __slots__ = ("f", "g", "G", "C", "D", "hD", "hC", "h", "has_D", "has_C", "h_u",
-                 "f_raw", "f_arity", "W")
+                 "f_raw", "f_arity", "W", "W_dir")
 
     def __init__(self, **kw):
         for k, v in kw.items():
