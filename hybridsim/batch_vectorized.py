@@ -47,7 +47,7 @@ from scipy.integrate._ivp import dop853_coefficients as _dop
 
 from ._progress import make_bar
 from .arc import Crossings, HybridArc, Termination
-from .events import WATCH_SAMPLES, _maximize, _near_peak, watch_crossings
+from .events import WATCH_SAMPLES, _maximize, _near_peak, crossing_sides, watch_crossings
 from .history import BatchHistory
 from .options import (
     check_bool,
@@ -407,7 +407,7 @@ class _VMaps:
             return self._watch_rows(self.W(x, t, j, None), k, t, j)
         except (KeyboardInterrupt, SystemExit):
             raise
-        except Exception as e:  # noqa: BLE001 - row by row below
+        except Exception as e:
             if strict:
                 if isinstance(e, MapError):
                     raise _located(e, t[0], j[0]) from e.__cause__
@@ -951,10 +951,9 @@ class _BatchRun:
         vals.append(vb)
         d = self.w_dir
         hit = np.zeros(len(rows), dtype=bool)
-        for v0, v1 in zip(vals[:-1], vals[1:]):
-            with np.errstate(invalid="ignore"):
-                hit |= (((v0 < 0) & (v1 >= 0) & (d >= 0))
-                        | ((v0 > 0) & (v1 <= 0) & (d <= 0))).any(axis=1)
+        for v0, v1 in itertools.pairwise(vals):
+            up, down = crossing_sides(v0, v1, d)
+            hit |= (up | down).any(axis=1)
         hit &= ~self.bad[rows]
         for i in np.flatnonzero(hit).tolist():
             r, sl = int(rows[i]), slice(i, i + 1)

@@ -9,7 +9,8 @@ from scipy.integrate._ivp.rk import RkDenseOutput
 from .rules import event_tolerance
 
 __all__ = ["locate_event", "event_tolerance", "find_interior_event", "secant_trial",
-           "secant_slope", "root_off_zero", "near_peak", "watch_crossings", "sign_changes"]
+           "secant_slope", "root_off_zero", "near_peak", "watch_crossings", "sign_changes",
+           "crossing_sides"]
 
 _EPS = np.finfo(float).eps
 _INVPHI = (math.sqrt(5.0) - 1.0) / 2.0
@@ -431,10 +432,18 @@ def sign_changes(v0, v1, direction):
     >>> sign_changes(np.array([-1.0, 1.0]), np.array([0.0, -1.0]), np.array([-1, -1]))
     (array([1]), array([-1]))
     """
-    up = (v0 < 0.0) & (v1 >= 0.0) & (direction >= 0)
-    down = (v0 > 0.0) & (v1 <= 0.0) & (direction <= 0)
+    up, down = crossing_sides(v0, v1, direction)
     which = np.flatnonzero(up | down)
     return which, np.where(up[which], 1, -1)
+
+
+def crossing_sides(v0, v1, direction):
+    """Elementwise (rising, falling) crossings between values ``v0`` and ``v1``
+    (any shape that broadcasts with ``direction``; NaN crosses nothing), as
+    :func:`sign_changes` reads them."""
+    with np.errstate(invalid="ignore"):
+        return ((v0 < 0.0) & (v1 >= 0.0) & (direction >= 0),
+                (v0 > 0.0) & (v1 <= 0.0) & (direction <= 0))
 
 
 def watch_crossings(sol, a, b, ya, yb, wa, wb, W, direction, floor, samples=WATCH_SAMPLES):
