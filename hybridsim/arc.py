@@ -545,7 +545,9 @@ class HybridArc:
         The system's class (and components), kept when the object is not.
     crossings : Crossings or None
         The crossings of the system's watched functions (``watch``, rule 11
-        of :class:`hybridsim.HybridSystem`), or None where it watches nothing.
+        of :class:`hybridsim.HybridSystem`) along the run, or None where it
+        watches nothing (and on arcs made from a run's: windows, components,
+        transforms).
 
     Notes
     -----
