@@ -932,3 +932,12 @@ def test_a_map_that_raises_is_map_error_with_its_exception(role):
     for a in arcs[1::2]:
         assert a.termination is T.T_MAX and a.exception is None
     assert sys.unraisablehook is not hc._run._unraisable     # put back after each run
+
+
+def test_a_map_that_raises_at_x0_raises_at_once():
+    """As on the Python path: a flow map that raises at x0 is bad input, raised
+    whatever ``throw`` says, with the exception's text and a one-sample arc."""
+    sysm = CompiledSystem(state_dim=1, params=[-1.0], flow=raises_above)
+    with pytest.raises(hs.MapError, match="flow_map raised ValueError: x above its range") as e:
+        simulate_compiled(sysm, [0.0], t_max=1.0, throw=False)
+    assert e.value.arc.termination is T.MAP_ERROR and len(e.value.arc.t) == 1

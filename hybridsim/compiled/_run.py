@@ -515,8 +515,11 @@ def simulate_compiled(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priori
     del rng
     arc = _arc(system, k, T, J, X, XD, code, detail, info, stats, ro)
     if caught.raised is not None:
+        at_x0 = _at_x0(k, arc, detail)
         arc, exc = _raised_arc(system, arc, caught.raised)
         exc.arc = arc
+        if at_x0:                    # at x0: raised at once, as on the Python path
+            raise exc
         return finish(arc, ro.throw, ro.warn)
     if code == k.T_MAX or (code == k.J_MAX and detail != k.DETAIL_LOOP):   # rules.finish
         return arc
