@@ -47,7 +47,7 @@ from scipy.integrate._ivp import dop853_coefficients as _dop
 
 from ._progress import make_bar
 from .arc import Crossings, HybridArc, Termination
-from .events import WATCH_SAMPLES, _maximize, _near_peak, crossing_sides, watch_crossings
+from .events import WATCH_SAMPLES, _maximize, _near_peak, crossing_sides, starts_on_zero
 from .history import BatchHistory
 from .options import (
     check_bool,
@@ -938,37 +938,68 @@ class _BatchRun:
 
     def _watch_to(self, rows, a, ya, h, Q, b, yb, j):
         """The crossings of the watched functions on the steps from (a, ya) to
-        (b, yb) of ``rows`` (their dense outputs ``Q``): the values at the ends
-        and at the interior points of :func:`hybridsim.events.watch_crossings`
-        for every row at once; the rows where one changes sign located with it."""
+        (b, yb) of ``rows`` (their dense outputs ``Q``): the batch version of
+        :func:`hybridsim.events.watch_crossings` (the values at the ends and
+        at its interior points, every sign change bracketed to 4 ulp by this
+        path's :meth:`_secant`, all rows' crossings at once)."""
         m = self.maps
         va = self.w_v[rows]
         vb = m.watch(rows, yb, b, j)
-        vals = [va]
+        pts, ys, vals = [a], [ya], [va]
         for q in range(1, WATCH_SAMPLES + 1):
             s = a + (b - a) * (q / (WATCH_SAMPLES + 1.0))
-            vals.append(m.watch(rows, self._dense(a, h, ya, Q, s), s, j))
+            y = self._dense(a, h, ya, Q, s)
+            pts.append(s)
+            ys.append(y)
+            vals.append(m.watch(rows, y, s, j))
+        pts.append(b)
+        ys.append(yb)
         vals.append(vb)
-        d = self.w_dir
-        hit = np.zeros(len(rows), dtype=bool)
-        for v0, v1 in itertools.pairwise(vals):
-            up, down = crossing_sides(v0, v1, d)
-            hit |= (up | down).any(axis=1)
-        hit &= ~self.bad[rows]
-        for i in np.flatnonzero(hit).tolist():
-            r, sl = int(rows[i]), slice(i, i + 1)
-            ai, hi_, yai, Qi, ji = a[sl], h[sl], ya[sl], Q[sl], j[sl]
-            rr = rows[sl]
-
-            def sol(s, ai=ai, hi_=hi_, yai=yai, Qi=Qi):
-                return self._dense(ai, hi_, yai, Qi, np.array([s]))[0]
-
-            def W(s, y, rr=rr, ji=ji):
-                return m.watch(rr, y[None, :], np.array([s]), ji)[0]
-            for tc, k, sg, xc in watch_crossings(sol, float(a[i]), float(b[i]), ya[i], yb[i],
-                                                 va[i], vb[i], W, d, float(self.w_floor[r])):
-                self.cross[r].append((tc, int(j[i]), k, sg, xc))
         self.w_v[rows] = vb
+        d = self.w_dir
+        it, ik, isg, lo, hi, flo, fhi, ylo, yhi = ([] for _ in range(9))
+        for q in range(len(pts) - 1):
+            up, down = crossing_sides(vals[q], vals[q + 1], d)
+            i, k = np.nonzero(up | down)
+            if not i.size:
+                continue
+            sg = np.where(up[i, k], 1.0, -1.0)
+            it.append(i)
+            ik.append(k)
+            isg.append(sg)
+            lo.append(pts[q][i])
+            hi.append(pts[q + 1][i])
+            flo.append(sg * vals[q][i, k])
+            fhi.append(sg * vals[q + 1][i, k])
+            ylo.append(ys[q][i])
+            yhi.append(ys[q + 1][i])
+        if not it:
+            return
+        it, ik, isg, lo, hi, flo, fhi = (np.concatenate(v) for v in (it, ik, isg, lo, hi,
+                                                                     flo, fhi))
+        ylo, yhi = np.concatenate(ylo), np.concatenate(yhi)
+        keep = ~self.bad[rows[it]] & (b[it] > a[it])
+        it, ik, isg, lo, hi, flo, fhi, ylo, yhi = (v[keep] for v in (it, ik, isg, lo, hi, flo,
+                                                                     fhi, ylo, yhi))
+        if not it.size:
+            return
+        ri = rows[it]
+
+        def ev(ii, s):
+            r = it[ii]
+            return self._dense(a[r], h[r], ya[r], Q[r], s)
+
+        def phi(ii, s, y):
+            v = m.watch(ri[ii], y, s, j[it[ii]])
+            return isg[ii] * v[np.arange(len(ii)), ik[ii]]
+        nan = np.full(len(it), np.nan)
+        _, tc, _, xc = self._secant(ri, np.arange(len(it)), lo, hi, flo, fhi, ylo, yhi, nan,
+                                    nan, ev, phi)
+        floor = self.w_floor[ri]
+        ok = ~starts_on_zero(floor, tc, _tol(floor, tc)) & ~self.bad[ri]
+        for q in np.lexsort((ik, tc, ri))[ok[np.lexsort((ik, tc, ri))]].tolist():
+            self.cross[int(ri[q])].append((float(tc[q]), int(j[it[q]]), int(ik[q]),
+                                           int(isg[q]), xc[q].copy()))
 
     # ------------------------------------------------------------ main loop
     def run(self):

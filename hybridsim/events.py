@@ -10,7 +10,7 @@ from .rules import event_tolerance
 
 __all__ = ["locate_event", "event_tolerance", "find_interior_event", "secant_trial",
            "secant_slope", "root_off_zero", "near_peak", "watch_crossings", "sign_changes",
-           "crossing_sides"]
+           "crossing_sides", "starts_on_zero"]
 
 _EPS = np.finfo(float).eps
 _INVPHI = (math.sqrt(5.0) - 1.0) / 2.0
@@ -441,9 +441,21 @@ def crossing_sides(v0, v1, direction):
     """Elementwise (rising, falling) crossings between values ``v0`` and ``v1``
     (any shape that broadcasts with ``direction``; NaN crosses nothing), as
     :func:`sign_changes` reads them."""
-    with np.errstate(invalid="ignore"):
-        return ((v0 < 0.0) & (v1 >= 0.0) & (direction >= 0),
-                (v0 > 0.0) & (v1 <= 0.0) & (direction <= 0))
+    return ((v0 < 0.0) & (v1 >= 0.0) & (direction >= 0),
+            (v0 > 0.0) & (v1 <= 0.0) & (direction <= 0))
+
+
+def starts_on_zero(floor, t, tol):
+    """A crossing located at ``t`` is the zero its flow starts on (at ``floor``,
+    a jump's instant or x0): within two event tolerances ``tol`` of it
+    (floats or arrays).
+
+    Examples
+    --------
+    >>> starts_on_zero(1.0, 1.0 + 4e-16, 8.9e-16), starts_on_zero(1.0, 1.1, 8.9e-16)
+    (True, False)
+    """
+    return t - floor <= 2.0 * tol
 
 
 def watch_crossings(sol, a, b, ya, yb, wa, wb, W, direction, floor, samples=WATCH_SAMPLES):
@@ -500,6 +512,10 @@ def watch_crossings(sol, a, b, ya, yb, wa, wb, W, direction, floor, samples=WATC
     pts.append(b)
     ys.append(yb)
     vals.append(wb)
+    V = np.array(vals)
+    up, down = crossing_sides(V[:-1], V[1:], direction)
+    if not (up.any() or down.any()):
+        return []
     out = []
     for i in range(len(pts) - 1):
         which, signs = sign_changes(vals[i], vals[i + 1], direction)
@@ -508,8 +524,8 @@ def watch_crossings(sol, a, b, ya, yb, wa, wb, W, direction, floor, samples=WATC
                 return sg * float(W(s, y)[k])
             _, hi, _, yhi = _secant(F, pts[i], pts[i + 1], sg * float(vals[i][k]),
                                     sg * float(vals[i + 1][k]), ys[i], ys[i + 1], ev)
-            if hi - floor <= 2.0 * event_tolerance(floor, hi):
-                continue            # the zero the flow starts on
+            if starts_on_zero(floor, hi, event_tolerance(floor, hi)):
+                continue
             out.append((hi, k, sg, np.array(yhi, dtype=float)))
     out.sort(key=lambda c: (c[0], c[1]))
     return out
