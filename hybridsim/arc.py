@@ -156,7 +156,7 @@ class Crossings:
     (2, array([1.5]))
     """
 
-    __slots__ = ("t", "j", "which", "direction", "x")
+    _FIELDS = ("t", "j", "which", "direction", "x")
 
     def __init__(self, t, j, which, direction, x):
         self.t = np.asarray(t, dtype=float).reshape(-1)
@@ -183,16 +183,9 @@ class Crossings:
         if not isinstance(other, Crossings):
             return NotImplemented
         return all(np.array_equal(getattr(self, k), getattr(other, k))
-                   for k in self.__slots__)
+                   for k in self._FIELDS)
 
     __hash__ = None
-
-    def __getstate__(self):
-        return {k: getattr(self, k) for k in self.__slots__}
-
-    def __setstate__(self, state):
-        for k in self.__slots__:
-            setattr(self, k, state[k])
 
     def select(self, which=None, direction=None):
         """The crossings of function ``which`` and/or of one ``direction`` (1 or -1)."""
