@@ -227,6 +227,20 @@ def test_a_watch_failing_during_the_run_is_map_error_with_the_run_so_far(path):
         assert "watch must return the same number of values" in arc.message
 
 
+def test_random_jumps_keep_the_watched_crossings():
+    """A system with a jump rate runs with its clock added to the state: its
+    watched functions still read the user's state, and the crossings keep it."""
+    tick = hs.HybridSystem.from_functions(
+        f=lambda x: np.ones(1), g=lambda x: np.zeros(1), jump_rate=lambda x: 2.0,
+        state_dim=1, watch=lambda x: x[0] - 0.25, watch_direction=1)
+    arc = hs.simulate(tick, [0.0], 5.0, seed=3)
+    c = arc.crossings
+    assert len(c) >= 1 and c.x.shape == (len(c), 1)
+    np.testing.assert_allclose(c.x[:, 0], 0.25, rtol=0, atol=1e-12)
+    starts = np.r_[0.0, arc.jump_times]            # each flow from 0 crosses 0.25 once
+    np.testing.assert_allclose(c.t, starts[c.j] + 0.25, rtol=0, atol=1e-12)
+
+
 def test_watch_with_a_diffusion_is_refused_by_name():
     sde = hs.HybridSystem.from_functions(f=lambda x: -x, diffusion=lambda x: 0.1 + 0 * x,
                                          state_dim=1, watch=lambda x: x[0], max_step=0.01)
