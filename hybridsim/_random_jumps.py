@@ -155,6 +155,10 @@ class _Augmented(HybridSystem):
                 self.jump_guard = lambda x, t, j, u: hD(x[:n], t, j, u)
         out_map = maps.h
         self.output = lambda x, t, j: out_map(x[:n], t, j, None)
+        if maps.W is not None:         # the watched functions, of the user's state
+            W = maps.W
+            self.watch = lambda x, t, j, u: W(x[:n], t, j, u)
+            self.watch_direction = base.watch_direction
         if getattr(base, "diffusion", None) is not None:
             sig = _named(base.diffusion, "diffusion")
             self.noise_dim = base.noise_dim
@@ -186,7 +190,7 @@ def simulate_random(simulate, system, x0, kwargs):
     The thresholds' components are added to the state for the run and taken
     off its arc; ``arc.stats`` records ``jump_seed`` and ``thresholds``.
     """
-    from .arc import HybridArc
+    from .arc import Crossings, HybridArc
     key = run_key(kwargs.pop("seed", None))
     aug = _Augmented(system, key)
     n = aug.n
@@ -202,5 +206,9 @@ def simulate_random(simulate, system, x0, kwargs):
         E = arc.x[:, n + 1]
         stats["thresholds"] = [float(v) for k, v in enumerate(E) if k == 0 or v != E[k - 1]]
     xdot = None if arc.xdot is None else arc.xdot[:, :n]
-    return HybridArc(arc.t, arc.j, arc.x[:, :n], arc.termination, arc.message, arc.exception,
-                     components=system.components, system=system, xdot=xdot, stats=stats)
+    out = HybridArc(arc.t, arc.j, arc.x[:, :n], arc.termination, arc.message, arc.exception,
+                    components=system.components, system=system, xdot=xdot, stats=stats)
+    c = arc.crossings
+    if c is not None:
+        out.crossings = Crossings(c.t, c.j, c.which, c.direction, c.x[:, :n])
+    return out

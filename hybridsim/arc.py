@@ -27,13 +27,15 @@ import numpy as np
 from .rules import Termination  # one source of the causes
 
 __all__ = ["HybridArc", "Termination", "ArcValues", "ArcFileError", "FORMAT_VERSION", "load",
-           "MAX_FILE_BYTES"]
+           "MAX_FILE_BYTES", "Crossings"]
 
 #: Version of the ``.npz`` layout written by :meth:`HybridArc.save`.
 #: 1: t, j, x, termination, message, comp_names, comp_bounds (no version key).
 #: 2: adds format_version, components (JSON, any hashable names), xdot, stats,
 #:    system_description; choices (JSON, optional, like xdot: the choices of a
-#:    leaf of :func:`hybridsim.explore`).
+#:    leaf of :func:`hybridsim.explore`); crossings (optional: crossing_t,
+#:    crossing_j, crossing_which, crossing_direction, crossing_x, the crossings
+#:    of a system's watched functions, :class:`Crossings`).
 FORMAT_VERSION = 2
 #: What :meth:`HybridArc.load` reads at most by default: the file, and the
 #: arrays it declares once decompressed (16 GiB; ``max_bytes=`` for more)
@@ -124,6 +126,81 @@ def _decode_name(v, depth=0):
     raise ValueError(f"not a component name: {str(v)[:80]}")
 
 
+class Crossings:
+    """The crossings of a system's watched functions along a run's flows.
+
+    A system's ``watch`` (rule 11 of :class:`hybridsim.HybridSystem`)
+    returns m values; each time one of them crosses 0 during a flow the run
+    records it here, in hybrid-time order, without a jump and without
+    changing the solution.
+
+    Attributes
+    ----------
+    t : ndarray, shape (K,)
+        The crossing times, each located to 4 ulp on the step's dense
+        output: the first time, within that bracket, at which the function
+        has crossed (on or past 0).
+    j : ndarray of int, shape (K,)
+        The jump count of the flow it happened on.
+    which : ndarray of int, shape (K,)
+        The index of the function (0 for a scalar ``watch``).
+    direction : ndarray of int, shape (K,)
+        1 rising (from below 0 to 0 or above), -1 falling.
+    x : ndarray, shape (K, n)
+        The state at ``(t, j)``.
+
+    Examples
+    --------
+    >>> c = Crossings([0.5, 1.5], [0, 0], [0, 0], [1, -1], [[0.0], [0.0]])
+    >>> len(c), c.select(direction=-1).t
+    (2, array([1.5]))
+    """
+
+    _FIELDS = ("t", "j", "which", "direction", "x")
+
+    def __init__(self, t, j, which, direction, x):
+        self.t = np.asarray(t, dtype=float).reshape(-1)
+        self.j = np.asarray(j, dtype=np.int64).reshape(-1)
+        self.which = np.asarray(which, dtype=np.int64).reshape(-1)
+        self.direction = np.asarray(direction, dtype=np.int64).reshape(-1)
+        k = len(self.t)
+        x = np.asarray(x, dtype=float)
+        self.x = x.reshape(k, -1) if k else x.reshape(0, x.shape[-1] if x.ndim == 2 else 0)
+        if not (len(self.j) == len(self.which) == len(self.direction) == len(self.x) == k):
+            raise ValueError(f"Crossings: t, j, which, direction and x must have one row "
+                             f"per crossing; got lengths {k}, {len(self.j)}, "
+                             f"{len(self.which)}, {len(self.direction)}, {len(self.x)}")
+        if not np.isin(self.direction, (-1, 1)).all():
+            raise ValueError("Crossings: direction must be 1 (rising) or -1 (falling)")
+
+    def __len__(self):
+        return len(self.t)
+
+    def __repr__(self):
+        return f"<Crossings: {len(self)} crossings>"
+
+    def __eq__(self, other):
+        if not isinstance(other, Crossings):
+            return NotImplemented
+        return all(np.array_equal(getattr(self, k), getattr(other, k))
+                   for k in self._FIELDS)
+
+    __hash__ = None
+
+    def select(self, which=None, direction=None):
+        """The crossings of function ``which`` and/or of one ``direction`` (1 or -1)."""
+        keep = np.ones(len(self), bool)
+        if which is not None:
+            keep &= self.which == which
+        if direction is not None:
+            if direction not in (-1, 1):
+                raise ValueError(f"direction must be 1 (rising) or -1 (falling), got "
+                                 f"{direction!r}")
+            keep &= self.direction == direction
+        return Crossings(self.t[keep], self.j[keep], self.which[keep], self.direction[keep],
+                         self.x[keep])
+
+
 class ArcFileError(ValueError):
     """A file :meth:`HybridArc.load` cannot read as an arc: damaged, foreign or crafted.
 
@@ -140,7 +217,14 @@ _SPECS = {
     "xdot": (2, "iuf", "a float array of shape (N, n)"),
     "comp_names": (1, "USiu", "a 1-D array of names"),
     "comp_bounds": (2, "iu", "an integer array of shape (m, 2)"),
+    "crossing_t": (1, "iuf", "a 1-D float array"),
+    "crossing_j": (1, "iu", "a 1-D integer array"),
+    "crossing_which": (1, "iu", "a 1-D integer array"),
+    "crossing_direction": (1, "i", "a 1-D integer array"),
+    "crossing_x": (2, "iuf", "a float array of shape (K, n)"),
 }
+_CROSSING_KEYS = ("crossing_t", "crossing_j", "crossing_which", "crossing_direction",
+                  "crossing_x")
 _STRING = (0, "US", "a string")
 _SUPPORTED = (f"this hybridsim reads format versions 1 (files without format_version) "
               f"to {FORMAT_VERSION}")
@@ -257,6 +341,12 @@ def _read_npz(fh, bad, max_bytes=MAX_FILE_BYTES):
             want.append("xdot")
         if version > 1 and "choices" in members:
             want.append("choices")
+        if version > 1 and any(k in members for k in _CROSSING_KEYS):
+            want.extend(_CROSSING_KEYS)
+            missing = [k for k in _CROSSING_KEYS if k not in members]
+            if missing:
+                raise bad(f"missing {missing}: an arc's crossings are stored as all of "
+                          f"{list(_CROSSING_KEYS)}")
         declared = sum(members[k].file_size for k in want if k in members)
         if declared > max_bytes:
             raise bad(f"its arrays declare {declared} bytes once decompressed, more than "
@@ -329,6 +419,25 @@ def _decode_choices(text, n, bad):
                       f"{str(c)[:80]}")
         out.append(Choice(float(t), j, np.array(x, dtype=float), kind, value))
     return out
+
+
+def _decode_crossings(d, arc, bad):
+    """An arc's crossings from their arrays, checked against the arc."""
+    t, j, w, dr, x = (d[k] for k in _CROSSING_KEYS)
+    k, n = len(t), arc.x.shape[1]
+    if not (j.shape == w.shape == dr.shape == (k,)) or x.shape != (k, n):
+        raise bad(f"crossings must be {k} rows each (crossing_x of shape ({k}, {n})), got "
+                  f"shapes {[a.shape for a in (t, j, w, dr, x)]}")
+    if not (np.isfinite(t).all() and np.isfinite(x).all()):
+        raise bad("crossing_t and crossing_x must be finite")
+    if not np.isin(dr, (-1, 1)).all():
+        raise bad("crossing_direction must hold 1 (rising) or -1 (falling)")
+    if k and (int(j.min()) < 0 or int(w.min()) < 0):
+        raise bad("crossing_j and crossing_which must be non-negative")
+    if k and len(arc.t) and not (arc.t[0] <= t.min() and t.max() <= arc.t[-1]
+                                 and arc.j[0] <= j.min() and j.max() <= arc.j[-1]):
+        raise bad("crossings lie outside the arc's hybrid time domain")
+    return Crossings(t, j, w, dr, x)
 
 
 def load(path, *, max_bytes: int = MAX_FILE_BYTES):
@@ -427,6 +536,11 @@ class HybridArc:
         The system, where the arc still holds it.
     system_description : str or None
         The system's class (and components), kept when the object is not.
+    crossings : Crossings or None
+        The crossings of the system's watched functions (``watch``, rule 11
+        of :class:`hybridsim.HybridSystem`) along the run, or None where it
+        watches nothing (and on arcs made from a run's: windows, components,
+        transforms).
 
     Notes
     -----
@@ -445,6 +559,10 @@ class HybridArc:
     >>> arc.at(0.5), arc.at(1.0, j=0), arc.at(1.0)
     (array([0.5]), array([1.]), array([0.]))
     """
+
+    #: the crossings of the system's watched functions (:class:`Crossings`), or
+    #: None where the system watches nothing
+    crossings = None
 
     def __init__(self, t, j, x, termination, message=None, exception=None,
                  components=None, segments=None, system=None, *, xdot=None,
@@ -1480,9 +1598,10 @@ class HybridArc:
         -----
         Stores t, j, x, the termination and message, the components (any
         names of str, int, float or tuples of them), xdot and stats (as JSON)
-        when present, the system's description, and an explore leaf's
-        ``choices``. Not stored: the system, the dense outputs, the exception
-        (its text is in the message); an empty arc (a window with no
+        when present, the system's description, an explore leaf's
+        ``choices``, and the :attr:`crossings` of watched functions. Not
+        stored: the system, the dense outputs, the exception (its text is in
+        the message); an empty arc (a window with no
         samples) is stored without its termination cause.
 
         Examples
@@ -1516,6 +1635,10 @@ class HybridArc:
         choices = _encode_choices(self)
         if choices is not None:
             data["choices"] = np.array(choices)
+        c = self.crossings
+        if c is not None:
+            data.update(crossing_t=c.t, crossing_j=c.j, crossing_which=c.which,
+                        crossing_direction=c.direction, crossing_x=c.x)
         np.savez_compressed(target, **data)
         return target
 
@@ -1683,6 +1806,8 @@ class HybridArc:
             raise bad(str(e)[2:]) from None
         if "choices" in d:
             arc.choices = _decode_choices(scalar_str("choices"), n, bad)
+        if "crossing_t" in d:
+            arc.crossings = _decode_crossings(d, arc, bad)
         return arc
 
     def to_pandas(self, names=None):

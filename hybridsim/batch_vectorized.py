@@ -46,8 +46,8 @@ from scipy.integrate import DOP853, RK45
 from scipy.integrate._ivp import dop853_coefficients as _dop
 
 from ._progress import make_bar
-from .arc import HybridArc, Termination
-from .events import _maximize, _near_peak
+from .arc import Crossings, HybridArc, Termination
+from .events import WATCH_SAMPLES, _maximize, _near_peak, crossing_sides, starts_on_zero
 from .history import BatchHistory
 from .options import (
     check_bool,
@@ -82,7 +82,13 @@ from .rules import (
     time_scale,
     zeno_short,
 )
-from .system import HybridSystem, as_map, guard_rows
+from .system import (
+    HybridSystem,
+    as_map,
+    check_watch_direction,
+    guard_rows,
+    watch_directions,
+)
 
 __all__ = ["simulate_vectorized"]
 
@@ -275,6 +281,9 @@ class _VMaps:
         self.C = None if self.C_from_guard else as_map(system.flow_set, "flow_set")
         self.has_D = system.has_jumps
         self.has_C = system.has_flow_boundary
+        # watched functions (rule 11): (N, n) -> (N,) or (N, m); m fixed by the first call
+        self.W = as_map(system.watch, "watch") if system.watch is not None else None
+        self.m_watch = None
         self.run = None
         self.hist = None            # a BatchHistory where the maps read their past
 
@@ -367,6 +376,64 @@ class _VMaps:
                     e = err
                 self._fail(rows[i], _located(e, t[i], j[i]))
         return out if kind != "guard" else self._nan_guard(name, rows, out, t, j, strict)
+
+    def _watch_rows(self, v, k, t, j):
+        """A batch's watched values as (k, m) floats, checked."""
+        if np.iscomplexobj(v):
+            raise MapError("watch returned complex values: a watched function is real",
+                           "watch")
+        arr = np.asarray(v, dtype=float)
+        if arr.shape == (k,):
+            arr = arr[:, None]
+        m = self.m_watch
+        if arr.ndim != 2 or arr.shape[0] != k or arr.shape[1] < 1 or (
+                m is not None and arr.shape[1] != m):
+            raise MapError(f"watch must return an array of shape ({k},) or ({k}, "
+                           f"{m or 'm'}) (vectorized system: one row per trajectory), got "
+                           f"shape {arr.shape}", "watch")
+        if not np.isfinite(arr).all():
+            i = int(np.flatnonzero(~np.isfinite(arr).all(axis=1))[0])
+            raise MapError(f"watch returned non-finite values {arr[i]} (at "
+                           f"t={float(t[i]):.10g}, j={int(j[i])})", "watch",
+                           float(t[i]), int(j[i]))
+        self.m_watch = arr.shape[1]
+        return arr
+
+    def watch(self, rows, x, t, j, strict=False):
+        """The watched functions of ``rows``, (k, m); a row on which they fail is
+        recorded (``MAP_ERROR`` naming ``watch``) and gets NaN."""
+        k = len(rows)
+        try:
+            return self._watch_rows(self.W(x, t, j, None), k, t, j)
+        except (KeyboardInterrupt, SystemExit):
+            raise
+        except Exception as e:
+            if strict:
+                if isinstance(e, MapError):
+                    raise _located(e, t[0], j[0]) from e.__cause__
+                raise MapError(f"watch raised {type(e).__name__}: {e} (at the initial "
+                               f"states, t={t[0]:.10g})", "watch", float(t[0]),
+                               int(j[0])) from e
+        rows_v = [None] * k
+        for i in range(k):
+            try:
+                rows_v[i] = self._watch_rows(self.W(x[i:i + 1], t[i:i + 1], j[i:i + 1], None),
+                                             1, t[i:i + 1], j[i:i + 1])[0]
+            except (KeyboardInterrupt, SystemExit):
+                raise
+            except Exception as e:  # noqa: BLE001
+                if not isinstance(e, MapError):
+                    err = MapError(f"watch raised {type(e).__name__}: {e} (at "
+                                   f"t={float(t[i]):.10g}, j={int(j[i])})", "watch",
+                                   float(t[i]), int(j[i]))
+                    err.__cause__ = e
+                    e = err
+                self._fail(rows[i], _located(e, t[i], j[i]))
+        out = np.full((k, self.m_watch or 1), np.nan)
+        for i, v in enumerate(rows_v):
+            if v is not None:
+                out[i] = v
+        return out
 
     # ------------------------------------------------------------ the maps
     def flow(self, rows, x, t, j, strict=False):
@@ -756,6 +823,16 @@ class _BatchRun:
             m.hist = self.hist
         self.breaks = [sorted(t0 + d for d in self.delays) for _ in range(N)]
         self.bp = np.array([b[0] if b else np.inf for b in self.breaks])
+        # watched functions: their values where each row's recorded flow ends
+        # (``w_v``, at ``self.t``), the start of its flow after a jump or at x0
+        # (``w_floor``), the direction filter, and the crossings found per row
+        self.watching = m.W is not None
+        self.w_v = None
+        self.w_floor = np.full(N, -np.inf)
+        self.w_dir = None
+        self.w_direction = (None if system.watch is None
+                            else check_watch_direction(system.watch_direction))
+        self.cross = [[] for _ in range(N)] if self.watching else None
 
     # ------------------------------------------------------------ helpers
     def _stop(self, rows, cause, kind=None, **fields):
@@ -840,7 +917,89 @@ class _BatchRun:
             out.append(HybridArc._trusted(t, j, x, self.cause[i], self.message[i],
                                           self.exception[i], components=comps,
                                           system=system, xdot=xd, stats=stats))
+            if self.watching:
+                c = self.cross[i]
+                out[-1].crossings = Crossings(
+                    [e[0] for e in c], [e[1] for e in c], [e[2] for e in c],
+                    [e[3] for e in c], np.array([e[4] for e in c]).reshape(len(c), self.n))
         return out
+
+    # ------------------------------------------------------------ watched functions
+    def _watch_start(self, rows):
+        """Flows start at the rows' current states: the watched functions there."""
+        t, x, j = self.t[rows], self.x[rows], self.j[rows]
+        v = self.maps.watch(rows, x, t, j)
+        if self.w_v is None:
+            m = v.shape[1]
+            self.w_dir = watch_directions(self.w_direction, m)
+            self.w_v = np.full((self.N, m), np.nan)
+        self.w_v[rows] = v
+        self.w_floor[rows] = np.where(t == self.t_last[rows], t, -np.inf)
+
+    def _watch_to(self, rows, a, ya, h, Q, b, yb, j):
+        """The crossings of the watched functions on the steps from (a, ya) to
+        (b, yb) of ``rows`` (their dense outputs ``Q``): the batch version of
+        :func:`hybridsim.events.watch_crossings` (the values at the ends and
+        at its interior points, every sign change bracketed to 4 ulp by this
+        path's :meth:`_secant`, all rows' crossings at once)."""
+        m = self.maps
+        va = self.w_v[rows]
+        vb = m.watch(rows, yb, b, j)
+        pts, ys, vals = [a], [ya], [va]
+        for q in range(1, WATCH_SAMPLES + 1):
+            s = a + (b - a) * (q / (WATCH_SAMPLES + 1.0))
+            y = self._dense(a, h, ya, Q, s)
+            pts.append(s)
+            ys.append(y)
+            vals.append(m.watch(rows, y, s, j))
+        pts.append(b)
+        ys.append(yb)
+        vals.append(vb)
+        self.w_v[rows] = vb
+        d = self.w_dir
+        it, ik, isg, lo, hi, flo, fhi, ylo, yhi = ([] for _ in range(9))
+        for q in range(len(pts) - 1):
+            up, down = crossing_sides(vals[q], vals[q + 1], d)
+            i, k = np.nonzero(up | down)
+            if not i.size:
+                continue
+            sg = np.where(up[i, k], 1.0, -1.0)
+            it.append(i)
+            ik.append(k)
+            isg.append(sg)
+            lo.append(pts[q][i])
+            hi.append(pts[q + 1][i])
+            flo.append(sg * vals[q][i, k])
+            fhi.append(sg * vals[q + 1][i, k])
+            ylo.append(ys[q][i])
+            yhi.append(ys[q + 1][i])
+        if not it:
+            return
+        it, ik, isg, lo, hi, flo, fhi = (np.concatenate(v) for v in (it, ik, isg, lo, hi,
+                                                                     flo, fhi))
+        ylo, yhi = np.concatenate(ylo), np.concatenate(yhi)
+        keep = ~self.bad[rows[it]] & (b[it] > a[it])
+        it, ik, isg, lo, hi, flo, fhi, ylo, yhi = (v[keep] for v in (it, ik, isg, lo, hi, flo,
+                                                                     fhi, ylo, yhi))
+        if not it.size:
+            return
+        ri = rows[it]
+
+        def ev(ii, s):
+            r = it[ii]
+            return self._dense(a[r], h[r], ya[r], Q[r], s)
+
+        def phi(ii, s, y):
+            v = m.watch(ri[ii], y, s, j[it[ii]])
+            return isg[ii] * v[np.arange(len(ii)), ik[ii]]
+        nan = np.full(len(it), np.nan)
+        _, tc, _, xc = self._secant(ri, np.arange(len(it)), lo, hi, flo, fhi, ylo, yhi, nan,
+                                    nan, ev, phi)
+        floor = self.w_floor[ri]
+        ok = ~starts_on_zero(floor, tc, _tol(floor, tc)) & ~self.bad[ri]
+        for q in np.lexsort((ik, tc, ri))[ok[np.lexsort((ik, tc, ri))]].tolist():
+            self.cross[int(ri[q])].append((float(tc[q]), int(j[it[q]]), int(ik[q]),
+                                           int(isg[q]), xc[q].copy()))
 
     # ------------------------------------------------------------ main loop
     def run(self):
@@ -883,6 +1042,9 @@ class _BatchRun:
             m.guard_D(rows, x, t, j, strict=True)
         if m.hC is not None:
             m.guard_C(rows, x, t, j, strict=True)
+        if m.W is not None:          # the watched functions and their directions, at x0
+            watch_directions(self.w_direction, m.watch(rows, x, t, j, strict=True).shape[1],
+                             float(t[0]), int(j[0]))
         for name, call, inside in (("flow_map", m.flow, inC), ("jump_map", m.jump, inD)):
             if inside.any():
                 r = rows[inside]
@@ -1086,6 +1248,9 @@ class _BatchRun:
         self.inD_prev[rows] = inD
         self.t_flow0[rows] = self.t[rows]
         self.decide[rows] = False
+        if self.watching:
+            self._watch_start(rows)
+            self._reap(rows)
 
     def _bound(self, rows, t):
         """End of the rows' integration: t_max, or the next delay breakpoint (the
@@ -1319,13 +1484,21 @@ class _BatchRun:
                 return
         rows, b, yb, j = rows[calm], b[calm], yb[calm], j[calm]
         fb = K[self.ns][calm]
-        if self.hist is not None or self.refine > 1:
+        if self.hist is not None or self.refine > 1 or self.watching:
             # the steps' dense output
             Qc = self._dense_of(rows, a[calm], ya[calm], h[calm], yb, K[:, calm], j)
             if self.hist is not None:
                 self.hist._add(rows, a[calm], b, j, h[calm], ya[calm], Qc)
             if self.refine > 1:
                 self._refine(rows, a[calm], b, ya[calm], h[calm], Qc, j)
+            if self.watching:
+                self._watch_to(rows, a[calm], ya[calm], h[calm], Qc, b, yb, j)
+                bad = self.bad[rows]
+                if bad.any():           # watch failed on these rows: they end MAP_ERROR
+                    self._reap(rows)
+                    calm = calm.copy()
+                    calm[np.flatnonzero(calm)[bad]] = False
+                    rows, b, yb, j, fb = rows[~bad], b[~bad], yb[~bad], j[~bad], fb[~bad]
         self.t[rows] = b
         self.x[rows] = yb
         self.fx[rows] = fb
@@ -1718,6 +1891,16 @@ class _BatchRun:
             ts = np.minimum(ts, clamp)
         xs = np.where(at_hi[:, None], yhi, ylo)
         sample = ts > a
+        if self.watching and sample.any():
+            sr = np.flatnonzero(sample)
+            self._watch_to(rows[sr], a[sr], ya[sr], h[sr], Q[sr], ts[sr], xs[sr], j[sr])
+            ok = self._reap(rows)
+            if ok is not None:
+                rows, a, ya, h, Q, lo, hi, ylo, yhi, j, action, at_hi, ts, xs, sample = (
+                    rows[ok], a[ok], ya[ok], h[ok], Q[ok], lo[ok], hi[ok], ylo[ok], yhi[ok],
+                    j[ok], action[ok], at_hi[ok], ts[ok], xs[ok], sample[ok])
+                if not rows.size:
+                    return
         if sample.any():
             if self.hist is not None:       # the step up to the event
                 self.hist._add(rows[sample], a[sample], ts[sample], j[sample], h[sample],

@@ -18,8 +18,8 @@ from scipy.integrate import DOP853, RK23, RK45
 from scipy.integrate._ivp.rk import RungeKutta
 
 from ._rk import LEAN
-from .arc import HybridArc
-from .events import find_interior_event, locate_event
+from .arc import Crossings, HybridArc
+from .events import find_interior_event, locate_event, watch_crossings
 from .options import (
     RunOptions,
     check_map_value,
@@ -49,7 +49,7 @@ from .rules import (
     time_scale,
     zeno_short,
 )
-from .system import guard_min, successors
+from .system import guard_min, successors, watch_directions
 
 __all__ = ["MapError", "SimulationError", "SimulationWarning"]
 
@@ -257,6 +257,13 @@ class _Run:
         self.out_checked = False    # has the flow map been checked for a shared output array?
         self.stiff_check = opts.Method is RK45
         self.sde = None         # an SDE flow's stepper (hybridsim._sde.SDEFlow)
+        # watched functions (rule 11): their crossings, and their values where
+        # the flow's recorded part ends (w_t, w_x, w_v); w_floor: the flow's start
+        self.W = maps.W
+        self.w_dir = None
+        self.cross = []
+        self.w_t = self.w_x = self.w_v = None
+        self.w_floor = -math.inf
 
     # ------------------------------------------------------------------ helpers
     def arc(self):
@@ -270,12 +277,50 @@ class _Run:
         t, j, X, Xd = b.arrays()
         self._count(self.solver)
         self.solver = None
-        return HybridArc._trusted(t, j, X, self.cause, self.message, self.exception,
+        arc = HybridArc._trusted(t, j, X, self.cause, self.message, self.exception,
                                   components=self.system.components,
                                   segments=self.history.segments if self.o.keep else None,
                                   system=self.system, xdot=Xd,
                                   stats=self.stats.as_dict() if self.sde is None else
                                   {**self.stats.as_dict(), **self.sde.record()})
+        if self.W is not None:
+            c = self.cross
+            arc.crossings = Crossings([e[0] for e in c], [e[1] for e in c],
+                                      [e[2] for e in c], [e[3] for e in c],
+                                      np.array([e[4] for e in c]).reshape(len(c), self.o.n))
+        return arc
+
+    # ------------------------------------------------------------------ watched functions
+    def _watch_values(self, s, y, j):
+        """The watched functions at (s, y, j): (m,) floats, m fixed for the run."""
+        v = self.W(y, s, j, self._u(s))
+        if self.w_dir is None:
+            self.w_dir = watch_directions(self.maps.W_dir, len(v), s, j)
+        elif len(v) != len(self.w_dir):
+            raise MapError(f"watch must return the same number of values at every call: "
+                           f"{len(self.w_dir)} before, {len(v)} at t={s:.10g}, j={j}",
+                           "watch", s, j)
+        return v
+
+    def _watch_start(self, st):
+        """A flow starts at the current state: the watched functions' values there;
+        after a jump (or at x0) a zero there is where the flow starts, not a crossing."""
+        t, j, x = st.t, st.j, st.x
+        self.w_t, self.w_x, self.w_v = t, x, self._watch_values(t, x, j)
+        self.w_floor = t if t == st.t_last_jump else -math.inf
+
+    def _watch_to(self, sol, b, yb, j):
+        """Record the crossings of the watched functions on the flow up to (b, yb),
+        located on the step's dense output ``sol`` (the step itself is untouched)."""
+        if not b > self.w_t:
+            return
+        wb = self._watch_values(b, yb, j)
+        found = watch_crossings(sol, self.w_t, b, self.w_x, yb, self.w_v, wb,
+                                lambda s, y: self._watch_values(s, y, j), self.w_dir,
+                                self.w_floor)
+        for tc, k, sg, xc in found:
+            self.cross.append((tc, j, k, sg, xc))
+        self.w_t, self.w_x, self.w_v = b, yb, wb
 
     def _stop(self, cause, kind=None, exc=None, **fields):
         """End the run with ``cause``; its message from :func:`hybridsim.rules.message`."""
@@ -330,6 +375,8 @@ class _Run:
             check_map_value("jump_map", g(x, t, j, u), o.n, t, j)
         elif in_D:
             successors(maps.G(x, t, j, u), o.n, t, j)
+        if self.W is not None:       # the watched functions and their directions
+            self._watch_values(t, x, j)
         try:
             while True:
                 t, j, x = st.t, st.j, st.x
@@ -581,6 +628,9 @@ class _Run:
                 h = None
         solver = self._start_solver(t, x, t_bound, h)
         stats.flows += 1
+        W = self.W
+        if W is not None:
+            self._watch_start(st)
         # the flow's derivative at its first sample (the solver has it: FSAL)
         f0 = getattr(solver, "f", None)
         buf.set_last_xdot(f0 if f0 is not None else fun(t, x))
@@ -660,6 +710,10 @@ class _Run:
                             st.dwelling, st.deadline = False, math.inf
                 if stiff and (st.stiff_hits or k % 25 == 0):
                     self._check_stiff(st, solver, stats.steps + k)
+                if W is not None:
+                    if sol is None:
+                        sol = solver.dense_output()
+                    self._watch_to(sol, b, yb, j)
                 fin = solver.status == "finished"
                 if inner:
                     if sol is None:
@@ -705,6 +759,9 @@ class _Run:
         self.stats.flows += 1
         self.buf.set_last_xdot(f)
         xe = x + (t_end - t) * f
+        if self.W is not None:
+            self._watch_start(st)
+            self._watch_to(lambda s: x + (s - t) * f, t_end, xe, j)
         self.buf.append(t_end, j, xe, f)
         if self.pbar is not None and math.isfinite(o.t_max):
             self.pbar.update(t_end - t)
@@ -972,6 +1029,8 @@ class _Run:
         step's start) up to the event time te, and the event's sample."""
         o = self.o
         s = a if start is None else start
+        if self.W is not None:
+            self._watch_to(sol, te, xe, j)
         if o.keep and (start is None or te > s):
             self.history._add(s, te, j, sol)
         if te > s and (o.refine > 1 or o.t_eval is not None):

@@ -138,6 +138,62 @@ def _named_guard(fn, name):
     return guard
 
 
+def _named_watch(fn, name="watch"):
+    """:func:`_named` for the watched functions: a 1-D float array of their
+    values (a scalar is one function), finite; a :class:`MapError` naming
+    ``watch`` otherwise (one frame above the user's function)."""
+    k = _check_map(fn, name)
+
+    def watch(x, t, j, u):
+        try:
+            v = fn(x) if k <= 1 else fn(x, t) if k == 2 else fn(x, t, j) if k == 3 \
+                else fn(x, t, j, u)
+        except MapError:
+            raise
+        except Exception as e:
+            raise _map_error(name, e, t, j) from e
+        if v.__class__ is float or v.__class__ is _F64:
+            w = np.array((v,))
+        else:
+            w = _guard_value(name, v, t, j)
+            w = np.array((w,)) if w.__class__ is float else np.asarray(w, dtype=float)
+            if w.ndim == 0:
+                w = w.reshape(1)
+        if not np.isfinite(w).all():
+            raise MapError(f"{name} returned non-finite values {w} (at {_where(t, j)})",
+                           name, t, j)
+        return w
+    return watch
+
+
+def check_watch_direction(direction):
+    """A system's ``watch_direction`` checked: -1, 0 or 1 (scipy's
+    ``event.direction``: 1 keeps rising crossings only, -1 falling ones, 0
+    both), or a 1-D sequence of them; a ValueError naming it otherwise."""
+    try:
+        d = np.array(direction)
+    except (TypeError, ValueError):
+        d = np.array(None)
+    ok = d.dtype.kind in "iuf" and d.ndim <= 1 and d.size >= 1
+    if ok:
+        ok = bool(np.isin(d, (-1, 0, 1)).all())
+    if not ok:
+        raise ValueError(f"watch_direction must be -1, 0 or 1 (falling, both, rising), or "
+                         f"a sequence of them, one per watched function; got {direction!r}")
+    return d.astype(np.int64)
+
+
+def watch_directions(direction, m, t=None, j=None):
+    """:func:`check_watch_direction` for m watched functions: an (m,) int array; a
+    :class:`MapError` naming ``watch`` where one value per function does not match."""
+    d = check_watch_direction(direction)
+    if d.ndim == 1 and d.size != m:
+        raise MapError(f"watch returned {m} values but watch_direction gives {d.size} "
+                       f"directions (one per watched function, or one for all)"
+                       + ("" if t is None else f" (at {_where(t, j)})"), "watch", t, j)
+    return np.broadcast_to(d, (m,)).copy()
+
+
 def _as_bool(name, v, t, j):
     """A set indicator's value as a bool; anything else is a contract breach."""
     if v is True or v is False:
@@ -282,6 +338,17 @@ class HybridSystem:
         :func:`hybridsim.explore` follows every one. Its ``jump_map`` is then
         the first successor. Python path only.
 
+    11. ``watch(x, t, j, u)`` (any signature of rule 5) returns a float or a
+        1-D array of m floats: functions watched along the flows, whose
+        zeros are recorded without a jump (scipy's non-terminal events).
+        Each crossing is located to 4 ulp on the step's dense output, with
+        the guards' root finder, and stored in ``arc.crossings`` (time,
+        jump count, which function, direction, state). The solution is the
+        same as without them: no step is cut. ``watch_direction`` (-1, 0 or
+        1, or one per function) keeps falling crossings, both, or rising
+        ones; a rising crossing goes from below 0 to 0 or above. Sign
+        changes at jumps are not crossings, nor is a zero a flow starts on.
+
     State arrays are time-major everywhere: a run's samples are (N, n).
     """
 
@@ -309,6 +376,10 @@ class HybridSystem:
     #: a random jump map ``(x, rng) -> x+`` (or ``(x, t, rng)``, ``(x, t, j, rng)``),
     #: drawn with a generator seeded per run and jump; replaces jump_map; or None
     jump_law = None
+    #: functions watched along the flows (rule 11) ``(x, t, j, u) -> (m,)``, or None
+    watch = None
+    #: which crossings of ``watch`` are kept: -1 falling, 0 both, 1 rising (or one each)
+    watch_direction = 0
 
     def flow_map(self, x, t, j, u):
         raise NotImplementedError(f"{type(self).__name__} defines no flow_map, "
@@ -404,7 +475,9 @@ class HybridSystem:
             C=C, D=D, hD=hD, hC=hC, h=named(self.output, "output"),
             has_D=self.has_jumps, has_C=self.has_flow_boundary,
             h_u=_arity(self.output) >= 4,
-            f_raw=self.flow_map, f_arity=_arity(self.flow_map))
+            f_raw=self.flow_map, f_arity=_arity(self.flow_map),
+            W=None if self.watch is None else _named_watch(self.watch),
+            W_dir=None if self.watch is None else check_watch_direction(self.watch_direction))
         self.__dict__["_compiled_maps"] = c
         return c
 
@@ -414,7 +487,8 @@ class HybridSystem:
                        jump_guard=None, flow_guard=None, output=None,
                        input_dim=0, output_dim=None, vectorized=False,
                        max_step=None, needs_history=False, name=None, g_values=None,
-                       diffusion=None, noise_dim=None, jump_rate=None, jump_law=None):
+                       diffusion=None, noise_dim=None, jump_rate=None, jump_law=None,
+                       watch=None, watch_direction=0):
         """Build a hybrid system from plain functions.
 
         Parameters
@@ -446,6 +520,13 @@ class HybridSystem:
         jump_law : callable, optional
             A random jump map (x, rng) -> x+ (or (x, t, rng), (x, t, j,
             rng)), drawn with a generator seeded per run and jump.
+        watch : callable, optional
+            Functions watched along the flows (rule 11): a float or a 1-D
+            array; their crossings of 0 are recorded in ``arc.crossings``
+            without a jump.
+        watch_direction : int or sequence of int
+            -1, 0 (default) or 1: keep falling crossings, both, or rising
+            ones (one value for all the functions, or one each).
 
         Examples
         --------
@@ -467,6 +548,17 @@ class HybridSystem:
         ...     g_values=lambda x: [np.array([0.0]), np.array([0.5])], state_dim=1)
         >>> hs.simulate(coin, [0.0], t_max=3.0, j_max=1).xf    # the first successor
         array([0.])
+
+        The ball's apexes, watched (its velocity falling through 0):
+
+        >>> ball = hs.HybridSystem.from_functions(
+        ...     f=lambda x: np.array([x[1], -9.81]),
+        ...     g=lambda x: np.array([0.0, -0.8 * x[1]]),
+        ...     C=lambda x: x[0] >= 0, D=lambda x: x[0] <= 0 and x[1] <= 0,
+        ...     watch=lambda x: x[1], watch_direction=-1, state_dim=2)
+        >>> arc = hs.simulate(ball, [0.0, 9.81], t_max=3.0, j_max=5)
+        >>> arc.crossings.t[:2]                 # v0 / g, then 2 + 0.8 v0 / g
+        array([1. , 2.8])
         """
         if g is not None and g_values is not None:
             raise TypeError("g and g_values: give one (g_values for a set-valued jump map)")
@@ -491,7 +583,14 @@ class HybridSystem:
                 if not callable(fn):
                     raise TypeError(f"{arg} must be callable, got {type(fn).__name__}")
                 setattr(sysobj, attr, fn)
-        for attr, fn in (("jump_guard", jump_guard), ("flow_guard", flow_guard)):
+        if watch is not None or not (isinstance(watch_direction, (int, np.integer))
+                                     and watch_direction == 0):
+            if watch is None:
+                raise TypeError("watch_direction without watch: give the watched "
+                                "functions as watch=")
+            sysobj.watch_direction = watch_direction
+        for attr, fn in (("jump_guard", jump_guard), ("flow_guard", flow_guard),
+                         ("watch", watch)):
             if fn is not None:
                 if not callable(fn):
                     raise TypeError(f"{attr} must be callable, got {type(fn).__name__}")
@@ -543,7 +642,7 @@ def successors(vals, n, t=None, j=None):
 
 class _Compiled:
     __slots__ = ("f", "g", "G", "C", "D", "hD", "hC", "h", "has_D", "has_C", "h_u",
-                 "f_raw", "f_arity")
+                 "f_raw", "f_arity", "W", "W_dir")
 
     def __init__(self, **kw):
         for k, v in kw.items():

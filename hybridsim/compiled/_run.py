@@ -10,6 +10,7 @@ import gc
 import math
 import mmap
 import os
+import sys
 import threading
 import warnings
 
@@ -42,6 +43,110 @@ _NO_STOP = np.zeros(1, np.int64)
 _CHUNK = 4
 
 
+# ---------------------------------------------------------------- a map that raises
+# numba compiles ``raise`` in a map; the map's C wrapper, which the kernels call,
+# cannot pass the exception on: it reports it to ``sys.unraisablehook`` (with the
+# GIL) and returns an unspecified value. While a run is under way its thread's
+# reports are caught here: the first is kept and the run's stop flag is set, so
+# the run ends at its next step (kept so far) and is reported as the map's error.
+_RAISED = threading.local()
+_HOOK_LOCK = threading.Lock()
+_HOOK = {"depth": 0, "prev": None}
+#: the Python path's names of a CompiledSystem's maps
+_MAP_NAMES = {"flow": "flow_map", "jump": "jump_map", "jump_guard": "jump_guard",
+              "flow_guard": "flow_guard", "jump_set": "jump_set", "flow_set": "flow_set"}
+
+
+#: the boxes of parallel batches under way: their worker threads' reports
+_BATCHES = []
+
+
+def _unraisable(u):
+    box = getattr(_RAISED, "box", None)
+    if box is None and _BATCHES:
+        box = _BATCHES[-1]
+    if box is None or "numba" not in repr(u.object):
+        prev = _HOOK["prev"] or sys.__unraisablehook__
+        return prev(u)
+    if not box["exc"]:
+        box["exc"].append((u.exc_type, u.exc_value, u.exc_traceback))
+    if box["stop"] is not None:
+        box["stop"][0] = 1
+
+
+class _CatchRaised:
+    """While a kernel runs in this thread: a map's exception ends the run
+    (``stop[0] = 1``) and is kept in ``self.box["exc"]``. ``stop=None``: a
+    parallel batch's, which records the reports of its worker threads and
+    stops nothing (its rows are then run again one by one, each caught)."""
+
+    def __init__(self, stop):
+        self.box = {"exc": [], "stop": stop}
+
+    def __enter__(self):
+        if self.box["stop"] is None:
+            _BATCHES.append(self.box)
+        with _HOOK_LOCK:
+            if _HOOK["depth"] == 0 or sys.unraisablehook is not _unraisable:
+                if sys.unraisablehook is not _unraisable:
+                    _HOOK["prev"] = sys.unraisablehook
+                sys.unraisablehook = _unraisable
+            _HOOK["depth"] += 1
+        self.outer = getattr(_RAISED, "box", None)
+        if self.box["stop"] is not None:
+            _RAISED.box = self.box
+        return self
+
+    def __exit__(self, *exc):
+        if self.box["stop"] is None:
+            _BATCHES.remove(self.box)
+        _RAISED.box = self.outer
+        with _HOOK_LOCK:
+            _HOOK["depth"] -= 1
+            if _HOOK["depth"] == 0 and sys.unraisablehook is _unraisable:
+                sys.unraisablehook = _HOOK["prev"] or sys.__unraisablehook__
+                _HOOK["prev"] = None
+        return False
+
+    @property
+    def raised(self):
+        return self.box["exc"][0] if self.box["exc"] else None
+
+
+def _raising_map(system, tb):
+    """The Python path's name of the map whose code raised (by the traceback's
+    frames), or None."""
+    frames = []
+    while tb is not None:
+        frames.append((tb.tb_frame.f_code.co_filename, tb.tb_frame.f_code.co_name,
+                       tb.tb_lineno))
+        tb = tb.tb_next
+    for role, fn in system.maps.items():
+        code = getattr(getattr(fn, "py_func", fn), "__code__", None)
+        if code is None:
+            continue
+        lines = {ln for _, _, ln in code.co_lines() if ln is not None}
+        for fname, name, line in reversed(frames):
+            if fname == code.co_filename and name == code.co_name and line in lines:
+                return _MAP_NAMES.get(role, role)
+    return None
+
+
+def _raised_arc(system, arc, raised):
+    """A run whose map raised: ``MAP_ERROR`` with the map's exception, the arc so far."""
+    etype, evalue, tb = raised
+    name = _raising_map(system, tb)
+    t, j = float(arc.t[-1]), int(arc.j[-1])
+    text = (f"{name or 'a map'} raised {etype.__name__}: {evalue} (compiled: near t={t:.10g}, "
+            f"j={j}, the run's last sample; numba passes on no t)")
+    exc = MapError(text, name, t, j)
+    exc.__cause__ = evalue
+    return HybridArc._trusted(arc.t, arc.j, arc.x, Termination.MAP_ERROR,
+                              message(Termination.MAP_ERROR, error=text), exc,
+                              system=system, xdot=arc.xdot, stats=arc.stats,
+                              description=arc.system_description), exc
+
+
 def _x0(x0, n):
     """:func:`hybridsim.options.check_x0` (same errors), a list or tuple of n
     finite floats or a float64 array of shape (n,) taken without numpy's
@@ -61,6 +166,10 @@ def _check_system(system):
         raise TypeError(f"system must be a hybridsim.compiled.CompiledSystem (maps of "
                         f"(x, t, j, p) numba can compile), got {type(system).__name__}; "
                         f"run other systems with hs.simulate (the Python path)")
+    if system.watch is not None:
+        raise TypeError(f"backend='compiled': {system!r} declares watch (functions watched "
+                        f"along the flows), whose crossings the compiled kernel does not "
+                        f"record yet; run it with hs.simulate(system, ...) (the Python path)")
 
 
 #: the options a path may refuse (:data:`hybridsim.options.SUPPORTS`); others are unknown
@@ -399,10 +508,19 @@ def simulate_compiled(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priori
          zeno_jumps, zeno_time, zeno_rtol, refine, max_steps, max_samples, throw, warn))
     one, _ = _kernels(k, system, False, method_on("compiled", method))
     rng, rngp = _rng_for(k, ro.prio, seed)
-    T, J, X, XD, code, detail, info, stats = one(
-        *system._nb["args"], x, system.params, fopt, iopt, atol_a, rngp, k.POLL_GIL, _NO_STOP)
+    stop = np.zeros(1, np.int64)
+    with _CatchRaised(stop) as caught:
+        T, J, X, XD, code, detail, info, stats = one(
+            *system._nb["args"], x, system.params, fopt, iopt, atol_a, rngp, k.POLL_GIL, stop)
     del rng
     arc = _arc(system, k, T, J, X, XD, code, detail, info, stats, ro)
+    if caught.raised is not None:
+        at_x0 = _at_x0(k, arc, detail)
+        arc, exc = _raised_arc(system, arc, caught.raised)
+        exc.arc = arc
+        if at_x0:                    # at x0: raised at once, as on the Python path
+            raise exc
+        return finish(arc, ro.throw, ro.warn)
     if code == k.T_MAX or (code == k.J_MAX and detail != k.DETAIL_LOOP):   # rules.finish
         return arc
     if _at_x0(k, arc, detail):
@@ -611,9 +729,15 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
     canceled = k.CANCELED
 
     def one(i, rng):
-        T, J, X, XD, code, detail, info, stats = run(
-            *maps, X0[i], p, fopt, iopt, atol_a, rng[1], k.POLL_GIL, _NO_STOP)
+        stop = np.zeros(1, np.int64)
+        with _CatchRaised(stop) as caught:
+            T, J, X, XD, code, detail, info, stats = run(
+                *maps, X0[i], p, fopt, iopt, atol_a, rng[1], k.POLL_GIL, stop)
         arcs[i] = _arc(system, k, T, J, X, XD, code, detail, info, stats, ro)
+        if caught.raised is not None:
+            arcs[i] = _raised_arc(system, arcs[i], caught.raised)[0]
+            arcs[i].exception.arc = arcs[i]
+            return False, len(T)
         return code == canceled, len(T)
 
     stopped = False
@@ -683,11 +807,23 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
                 AT = np.full(B, -1, np.int64)         # -1: not in the pool (not run, no room)
                 NS, CA, DE = (np.zeros(B, np.int64) for _ in range(3))
                 INFO, ST = np.empty((B, 6)), np.zeros((B, 6), np.int64)
-                stopped = _interruptible(
-                    k.run_rows, (one_addr, *maps, X0[idx] if B < N else X0, p, fopt, iopt_rows,
-                                 atol_a, rng[1], k.POLL_NONE, stop, np.zeros(1, np.int64),
-                                 _CHUNK, TT, JJ, XX, XXD, fill, AT, NS, CA, DE, INFO, ST),
-                    stop, _threads(parallel, B))
+                with _CatchRaised(None) as caught:
+                    stopped = _interruptible(
+                        k.run_rows, (one_addr, *maps, X0[idx] if B < N else X0, p, fopt,
+                                     iopt_rows, atol_a, rng[1], k.POLL_NONE, stop,
+                                     np.zeros(1, np.int64), _CHUNK, TT, JJ, XX, XXD, fill, AT,
+                                     NS, CA, DE, INFO, ST),
+                        stop, _threads(parallel, B))
+                if caught.raised is not None and not stopped:
+                    # a map raised in some row: the chunk's rows run again one by
+                    # one, each run's own exception caught (the others' arcs are
+                    # the same: these runs draw no coins)
+                    for i in idx.tolist():
+                        stopped, _ = one(i, rng)
+                        if stopped:
+                            break
+                    c += B
+                    continue
                 used = int(fill[0])
                 pool = tuple(_cut(a, used) for a in (TT, JJ, XX, XXD))
                 fits = AT >= 0

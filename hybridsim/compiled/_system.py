@@ -156,6 +156,13 @@ class CompiledSystem(HybridSystem):
         fraction of a second by later processes (maps reading objects other
         than constants, arrays, modules and functions are compiled in each
         process instead).
+    watch : callable, optional
+        ``w(x, t, j, p)``: functions watched along the flows, a float or a
+        1-D array (rule 11 of :class:`hybridsim.HybridSystem`): their
+        crossings of 0 are recorded in ``arc.crossings``. The Python path
+        runs them; the compiled kernel refuses them by name for now.
+    watch_direction : int or sequence of int
+        -1, 0 (default) or 1 per watched function: falling, both, rising.
     name : str, optional
         For ``repr``.
 
@@ -183,7 +190,7 @@ class CompiledSystem(HybridSystem):
 
     def __init__(self, flow=None, jump=None, *, jump_guard=None, flow_guard=None,
                  jump_set=None, flow_set=None, state_dim, params=(), max_step=None,
-                 delays=(), specialize=False, name=None):
+                 delays=(), specialize=False, name=None, watch=None, watch_direction=0):
         HybridSystem.__init__(self)
         if isinstance(state_dim, bool) or not isinstance(state_dim, (int, np.integer)) \
                 or state_dim < 1:
@@ -219,6 +226,15 @@ class CompiledSystem(HybridSystem):
         for role, fn in self.maps.items():
             cls = _PyFlowPast if role == "flow" and self.delays else _PyMap
             setattr(self, attrs[role], cls(fn, self))
+        if watch is not None:
+            if not callable(watch):
+                raise TypeError(f"watch must be callable fn(x, t, j, p), got "
+                                f"{type(watch).__name__}")
+            self.watch = _PyMap(watch, self)
+            self.watch_direction = watch_direction
+        elif not (isinstance(watch_direction, (int, np.integer)) and watch_direction == 0):
+            raise TypeError("watch_direction without watch: give the watched functions as "
+                            "watch=")
         self._nb = None
 
     @property

@@ -888,3 +888,56 @@ def test_first_compile_says_so_once(tmp_path):
     assert runs[0].stderr.count("compiling the engine's kernels for flow maps with delays") == 1
     assert str(tmp_path) in runs[0].stderr
     assert "compiling" not in runs[1].stderr
+
+
+# ------------------------------------------------------------------ a map that raises
+def raises_above(x, t, j, p):
+    """A flow map numba compiles with its ``raise``: above p[0] it raises."""
+    if x[0] > p[0]:
+        raise ValueError("x above its range")
+    return np.array([1.0])
+
+
+def clock_jump_set_raises(x, t, j, p):
+    if x[0] > p[0]:
+        raise KeyError("no set there")
+    return x[0] >= 5.0
+
+
+@pytest.mark.parametrize("role", ["flow", "jump_set"])
+def test_a_map_that_raises_is_map_error_with_its_exception(role):
+    """A compiled map's ``raise`` ends the run ``MAP_ERROR`` naming the map, its
+    exception class and text, the run so far kept; a raising set indicator no
+    longer lets the run go on with the value numba's wrapper leaves."""
+    kw = {"flow": raises_above} if role == "flow" else {
+        "flow": lambda x, t, j, p: np.array([1.0]), "jump_set": clock_jump_set_raises,
+        "jump": lambda x, t, j, p: np.zeros(1)}
+    sysm = CompiledSystem(state_dim=1, params=[0.5], **kw)
+    name, exc, text = (("flow_map", "ValueError", "x above its range") if role == "flow"
+                       else ("jump_set", "KeyError", "'no set there'"))
+    arc = simulate_compiled(sysm, [0.0], t_max=2.0, max_step=0.1, throw=False)
+    assert arc.termination is T.MAP_ERROR
+    assert f"{name} raised {exc}: {text}" in arc.message and "non-finite" not in arc.message
+    assert arc.exception.map_name == name and type(arc.exception.__cause__).__name__ == exc
+    # the run so far: its samples up to where the map raised (x = t <= 0.5 + one step)
+    assert len(arc.t) > 3 and arc.t[-1] <= 0.6 + 1e-12 and arc.t[-2] <= 0.5 + 1e-12
+    np.testing.assert_allclose(arc.x[:, 0], arc.t, rtol=0, atol=1e-12)
+    with pytest.raises(hs.MapError, match=f"{name} raised {exc}"):
+        simulate_compiled(sysm, [0.0], t_max=2.0, max_step=0.1)
+    # a batch: the row whose map raises says so, the others run to t_max
+    arcs = simulate_many_compiled(sysm, [[0.45], [-30.0]] * 8, t_max=2.0, max_step=0.1,
+                                  warn=False)
+    for a in arcs[0::2]:
+        assert a.termination is T.MAP_ERROR and f"{name} raised {exc}" in a.message
+    for a in arcs[1::2]:
+        assert a.termination is T.T_MAX and a.exception is None
+    assert sys.unraisablehook is not hc._run._unraisable     # put back after each run
+
+
+def test_a_map_that_raises_at_x0_raises_at_once():
+    """As on the Python path: a flow map that raises at x0 is bad input, raised
+    whatever ``throw`` says, with the exception's text and a one-sample arc."""
+    sysm = CompiledSystem(state_dim=1, params=[-1.0], flow=raises_above)
+    with pytest.raises(hs.MapError, match="flow_map raised ValueError: x above its range") as e:
+        simulate_compiled(sysm, [0.0], t_max=1.0, throw=False)
+    assert e.value.arc.termination is T.MAP_ERROR and len(e.value.arc.t) == 1
