@@ -2,7 +2,7 @@
 
 Each system is written once over ``x[..., k]`` (so one set of maps serves a
 single state and a vectorized batch) and run on each path of
-:func:`paths.path_params`: ``"python"`` (:func:`hybridsim.simulate`),
+``tests/conftest.py``'s ``path``: ``"python"`` (:func:`hybridsim.simulate`),
 ``"vectorized"`` (:func:`hybridsim.simulate_vectorized`, one row) and
 ``"compiled"``, which refuses watched functions by name (its kernel does not
 record them yet). Crossing times are checked against closed forms to 4 ulp
@@ -13,7 +13,6 @@ import math
 
 import numpy as np
 import pytest
-from paths import path_params
 
 import hybridsim as hs
 from hybridsim.rules import event_tolerance
@@ -67,7 +66,6 @@ def apexes(v0, bounces):
 
 
 # ------------------------------------------------------------------ closed forms
-@pytest.mark.parametrize("path", path_params())
 def test_a_balls_apexes_to_4_ulp(path):
     """The velocity watched falling through 0: the apexes v0/G, then each bounce's
     time plus its rebound velocity over G; the bounces are the only jumps."""
@@ -90,7 +88,6 @@ def test_a_balls_apexes_to_4_ulp(path):
         assert abs(xc[1]) <= 8 * np.finfo(float).eps
 
 
-@pytest.mark.parametrize("path", path_params())
 def test_sine_zeros_to_4_ulp_in_both_directions(path):
     """sin(t) crosses 0 at k pi, falling at odd k and rising at even k; steps of
     at most 1 (so no two zeros share a quarter step)."""
@@ -104,7 +101,6 @@ def test_sine_zeros_to_4_ulp_in_both_directions(path):
 
 
 # ------------------------------------------------------------------ directions
-@pytest.mark.parametrize("path", path_params())
 @pytest.mark.parametrize("direction, k", [(1, [2, 4, 6]), (-1, [1, 3, 5]),
                                           ((1, -1), None)])
 def test_direction_keeps_rising_falling_or_one_each(path, direction, k):
@@ -131,7 +127,6 @@ def test_direction_keeps_rising_falling_or_one_each(path, direction, k):
 
 
 # ------------------------------------------------------------------ jumps
-@pytest.mark.parametrize("path", path_params())
 def test_a_zero_at_a_jump_is_recorded_once_before_it(path):
     """The height watched: it reaches 0 at each bounce, where the ball jumps. The
     falling crossing is recorded at the bounce (within the event's 4 ulp, on the
@@ -147,7 +142,6 @@ def test_a_zero_at_a_jump_is_recorded_once_before_it(path):
     np.testing.assert_allclose(jt, apexes(2.0, 6)[1], rtol=0, atol=1e-12)
 
 
-@pytest.mark.parametrize("path", path_params())
 def test_watching_changes_nothing_else(path):
     """The arc with watched functions is the arc without them, bit for bit:
     samples, derivatives and statistics (no step is cut)."""
@@ -248,7 +242,6 @@ def test_watch_with_a_diffusion_is_refused_by_name():
         hs.simulate(sde, [1.0], 0.1, method="EM", seed=1)
 
 
-@pytest.mark.parametrize("path", path_params())
 def test_compiled_path_refuses_by_name_and_auto_runs_python(path):
     """A CompiledSystem's watch runs on the Python path; simulate_compiled refuses
     it by name; backend='auto' chooses the Python path for a watching system."""
