@@ -12,10 +12,17 @@ case.
 
 ``repo``: the repository's root folder (a :class:`pathlib.Path`), for tests
 that read the README, the docs, the examples or the package's source.
+
+Budget: every test of the default suite takes at most 2 s on an idle core
+(longer ones are marked ``slow``). Wall times swing with the machine's load,
+so the session also prints the tests that took the most CPU time of their
+own process (setup, call and teardown; a process pool's workers not
+counted), the figure the budget is checked by, whatever else runs.
 """
 from __future__ import annotations
 
 import pathlib
+import time
 
 import pytest
 from paths import HAS_NUMBA, NO_NUMBA, PATHS
@@ -65,3 +72,24 @@ def pytest_generate_tests(metafunc):
 def repo() -> pathlib.Path:
     """The repository's root folder."""
     return ROOT
+
+
+_CPU = {}
+CPU_BUDGET = 2.0       # seconds of CPU per default-suite test
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    start = time.process_time()
+    yield
+    _CPU[item.nodeid] = time.process_time() - start
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config):
+    if not _CPU:
+        return
+    worst = sorted(_CPU.items(), key=lambda kv: -kv[1])[:15]
+    tr = terminalreporter
+    tr.section(f"most CPU time per test (budget {CPU_BUDGET:g} s outside the slow suite)")
+    for nodeid, cpu in worst:
+        tr.write_line(f"{cpu:7.2f}s cpu  {nodeid}")
