@@ -26,6 +26,7 @@ from . import stl as stl
 from . import testing as testing
 from ._version import __version__ as __version__
 from .arc import HybridArc, Termination, load
+from .arc_batch import ArcBatch
 from .batch_vectorized import simulate_vectorized
 from .brownian import BrownianPath
 from .compose import Interconnection, LinearInput, LinearPlant, connect, network
@@ -53,5 +54,5 @@ __all__ = [
     "simulate_many", "sweep", "simulate_vectorized", "BatchError", "BatchWarning",
     "plot_flows", "plot_jumps", "plot_hybrid", "plot_phase", "plot_time_domain",
     "falsify", "simulate_sensitivity", "explore", "SolutionTree", "Choice", "ExploreEnd",
-    "plot_solutions", "load", "BrownianPath",
+    "plot_solutions", "load", "BrownianPath", "ArcBatch",
 ]
