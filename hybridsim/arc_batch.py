@@ -153,8 +153,8 @@ class ArcBatch(list):
 def _mutating(name):
     base = getattr(list, name)
 
-    def method(self, *args):
-        out = base(self, *args)
+    def method(self, *args, **kwargs):
+        out = base(self, *args, **kwargs)
         self._changed()
         return out
     method.__name__ = name

@@ -268,6 +268,12 @@ def test_batch_is_the_list_it_was(path):
     del batch[0]
     batch.reverse()
     assert batch.jump_counts.tolist() == [a.jump_count for a in batch]
+    batch.sort(key=lambda a: a.tf)
+    assert batch.final_times.tolist() == sorted(a.tf for a in batch)
+    import copy
+    twin = copy.copy(batch)
+    assert isinstance(twin, hs.ArcBatch) and twin == batch
+    np.testing.assert_array_equal(twin.final_times, batch.final_times)
     assert (batch + arcs)[:6] == list(batch) + arcs[:1]
 
 
@@ -280,8 +286,8 @@ def test_batch_empty_mixed_and_bad():
                          hs.HybridArc([0.0], [0], [[1.0, 2.0]], None)])
     assert mixed.final_times.tolist() == [0.0, 0.0] and mixed.jump_counts.tolist() == [0, 0]
     with pytest.raises(ValueError, match="different dimensions"):
-        mixed.final_states
+        _ = mixed.final_states
     with pytest.raises(TypeError, match="row 1 is a str, not a HybridArc"):
-        hs.ArcBatch([mixed[0], "arc"]).final_times
+        _ = hs.ArcBatch([mixed[0], "arc"]).final_times
     with pytest.raises(ValueError, match="row 0's arc is empty"):
-        hs.ArcBatch([hs.HybridArc([], [], np.zeros((0, 1)), None)]).jump_counts
+        _ = hs.ArcBatch([hs.HybridArc([], [], np.zeros((0, 1)), None)]).jump_counts
