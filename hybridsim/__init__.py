@@ -3,7 +3,8 @@
 The public face: :class:`HybridSystem` (the data), :func:`simulate` (one run),
 :class:`HybridArc` (its solution on a hybrid time domain), interconnections
 (:func:`connect`, :class:`Interconnection`, :func:`network`,
-:class:`LinearPlant`), batches (:func:`simulate_many`, :func:`sweep`) and plots
+:class:`LinearPlant`), batches (:func:`simulate_many`, :func:`sweep`, returning an
+:class:`ArcBatch`: the list of arcs with their fields as arrays) and plots
 in hybrid time (:func:`plot_flows`, :func:`plot_jumps`, :func:`plot_hybrid`,
 :func:`plot_phase`, :func:`plot_time_domain`); every solution of a hybrid inclusion
 (:func:`explore`, drawn by :func:`plot_solutions`). Theorem-check helpers live in
