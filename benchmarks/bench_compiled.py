@@ -5,7 +5,9 @@ Workloads (rtol 1e-8, atol 1e-10 unless said):
 
 * 30-bounce ball, one run (guards, exact impact times known);
 * timer of period 1, 10,000 jumps;
-* 1,000 balls x 10 jumps, batch (rtol 1e-10, atol 1e-12 as bench_batch.py);
+* 1,000 balls x 10 jumps, batch (rtol 1e-10, atol 1e-12 as bench_batch.py), and the
+  time of reading every row's jump times (from the arcs, and from the batch's
+  ``jump_times`` array) against the integration's;
 * 100,000 balls x 10 jumps, batch, each kernel's first call in the process
   (fits and finishes; peak memory printed), then a second call split into
   the batch kernel's time and the Python side's.
@@ -543,6 +545,29 @@ def main(argv=None):
               f", {best_ours / med['diffrax']:.2f}x diffrax jit(vmap)'s time "
               f"({med['diffrax'] * 1e3:.1f} ms), {best_ours / med['hand']:.2f}x the hand-written"
               f" loop's")
+    # every row's jump times, as a study reads them: from the 1,000 arcs (each made from
+    # the pool and its jumps found) against the batch's arrays (read off the pool at once)
+    integ, from_arcs, from_batch = [], [], []
+    for _ in range(rounds):
+        for read, out in (((lambda b: [a.jump_times for a in b]), from_arcs),
+                          ((lambda b: b.jump_times), from_batch)):
+            t = time.perf_counter()
+            b = simulate_many_compiled(ball, x0s, t_max=1e9, j_max=K, **kwb)
+            t1 = time.perf_counter()
+            read(b)
+            out.append(time.perf_counter() - t1)
+            integ.append(t1 - t)
+    ti, ta, tb = (float(np.median(v)) for v in (integ, from_arcs, from_batch))
+    b = simulate_many_compiled(ball, x0s, t_max=1e9, j_max=K, **kwb)
+    same = np.array_equal(b.jump_times, np.array([a.jump_times for a in b]))
+    print(f"  1,000 balls, every row's jump times read: from the arcs {ta * 1e3:.2f} ms "
+          f"({ta / ti:.2f}x the batch's {ti * 1e3:.1f} ms), from batch.jump_times "
+          f"{tb * 1e3:.3f} ms ({tb / ti:.3f}x; {ta / tb:.0f}x faster; the same values: {same})")
+    print(f"RESULT 1,000-ball batch, reading every row's jump times / integrating: before "
+          f"(from the arcs) {ta / ti:.2f}x, after (batch.jump_times) {tb / ti:.3f}x "
+          f"(medians of {rounds} rounds)"
+          + (f"; batch + read / diffrax jit(vmap): {(ti + ta) / med['diffrax']:.2f}x before, "
+             f"{(ti + tb) / med['diffrax']:.2f}x after" if build is not None else ""))
     for name, system in (("generic", ball), ("specialize=True", ball_s)):
         tk = np.array([kernel_share(system, x0s, t_max=1e9, j_max=K, **kwb)
                        for _ in range(rounds)])

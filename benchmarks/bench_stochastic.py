@@ -6,8 +6,8 @@ Rows (each "ours" within 3 standard errors is marked ok):
    Maruyama with the Brownian-bridge correction at dt = 0.1 and 0.01, and end-of-step
    detection (no guard: biased) at dt = 0.1 and 0.01; through ``estimate`` (Clopper-Pearson).
 2. AIMD (x' = 1, x -> x/2 at rate x): stationary E[X^2] = 2, E[X^4] = 48/7; constant rate:
-   E[X] = 2, E[X^2] = 16/3 (time averages of one long run, exact on each flow; standard
-   errors from 20 batch means).
+   E[X] = 2, E[X^2] = 16/3 (``time_moments``: time averages of one long run, exact on each flow;
+   standard errors from 20 batch means).
 3. telegraph (v = lam = 1): E[X(1)^2] = (1 + e^-2)/2 (streaming ``Stats``).
 4. Brownian motion with drift 1, sigma 1, barrier 2: hitting time mean 2, variance 2.
 5. ball with restitution ~ U(0.3, 0.7): mean of the 8th impact time (-> Zeno time
@@ -27,7 +27,14 @@ import numpy as np
 from scipy.stats import norm
 
 import hybridsim as hs
-from hybridsim.estimate import Stats, accumulate, estimate, run_generator, splitting
+from hybridsim.estimate import (
+    Stats,
+    accumulate,
+    estimate,
+    run_generator,
+    splitting,
+    time_moments,
+)
 from hybridsim.library import AIMD, DriftedBrownian, RandomRestitutionBall, Telegraph
 
 ROWS = []
@@ -45,21 +52,6 @@ def barrier(guard):
     return hs.HybridSystem.from_functions(
         f=lambda x: np.array([0.0]), g=lambda x: x, diffusion=lambda x: np.array([1.0]),
         state_dim=1, **kw)
-
-
-def time_moments(arc, ks, t_burn, batches=20):
-    t, j, x = arc.t, arc.j, arc.x[:, 0]
-    same = (j[1:] == j[:-1]) & (t[:-1] >= t_burn)
-    a, b, ta = x[:-1][same], x[1:][same], t[:-1][same]
-    edges = np.linspace(t_burn, t[-1], batches + 1)
-    which = np.clip(np.searchsorted(edges, ta, side="right") - 1, 0, batches - 1)
-    dur = np.bincount(which, weights=b - a, minlength=batches)
-    out = []
-    for k in ks:
-        m = np.bincount(which, weights=(b ** (k + 1) - a ** (k + 1)) / (k + 1),
-                        minlength=batches) / dur
-        out.append((float(m.mean()), float(m.std(ddof=1) / math.sqrt(batches))))
-    return out
 
 
 def bm_chain(step):

@@ -3,7 +3,8 @@
 The public face: :class:`HybridSystem` (the data), :func:`simulate` (one run),
 :class:`HybridArc` (its solution on a hybrid time domain), interconnections
 (:func:`connect`, :class:`Interconnection`, :func:`network`,
-:class:`LinearPlant`), batches (:func:`simulate_many`, :func:`sweep`) and plots
+:class:`LinearPlant`), batches (:func:`simulate_many`, :func:`sweep`, returning an
+:class:`ArcBatch`: the list of arcs with their fields as arrays) and plots
 in hybrid time (:func:`plot_flows`, :func:`plot_jumps`, :func:`plot_hybrid`,
 :func:`plot_phase`, :func:`plot_time_domain`); every solution of a hybrid inclusion
 (:func:`explore`, drawn by :func:`plot_solutions`). Theorem-check helpers live in
@@ -26,6 +27,7 @@ from . import stl as stl
 from . import testing as testing
 from ._version import __version__ as __version__
 from .arc import Crossings, HybridArc, Termination, load
+from .arc_batch import ArcBatch
 from .batch_vectorized import simulate_vectorized
 from .brownian import BrownianPath
 from .compose import Interconnection, LinearInput, LinearPlant, connect, network
@@ -53,5 +55,5 @@ __all__ = [
     "simulate_many", "sweep", "simulate_vectorized", "BatchError", "BatchWarning",
     "plot_flows", "plot_jumps", "plot_hybrid", "plot_phase", "plot_time_domain",
     "falsify", "simulate_sensitivity", "explore", "SolutionTree", "Choice", "ExploreEnd",
-    "plot_solutions", "load", "BrownianPath", "Crossings",
+    "plot_solutions", "load", "BrownianPath", "Crossings", "ArcBatch",
 ]

@@ -47,6 +47,7 @@ from scipy.integrate._ivp import dop853_coefficients as _dop
 
 from ._progress import make_bar
 from .arc import Crossings, HybridArc, Termination
+from .arc_batch import ArcBatch
 from .events import WATCH_SAMPLES, _maximize, _near_peak, crossing_sides, starts_on_zero
 from .history import BatchHistory
 from .options import (
@@ -654,8 +655,9 @@ def simulate_vectorized(system, x0s, t_max, j_max=math.inf, *, priority="jumps",
 
     Returns
     -------
-    list of HybridArc
-        One arc per row of ``x0s``, in order, each with samples at every
+    hybridsim.ArcBatch
+        A list of one arc per row of ``x0s``, in order (their fields as
+        arrays: :class:`hybridsim.ArcBatch`), each with samples at every
         accepted step end and at every event (``t`` (M,), ``j`` (M,),
         ``x`` (M, n)), the flow map's value at each sample (``xdot``; NaN
         at a jump's sample that jumps again, where the state may be outside
@@ -732,7 +734,7 @@ def simulate_vectorized(system, x0s, t_max, j_max=math.inf, *, priority="jumps",
     finally:
         if run.pbar is not None:
             run.pbar.close()
-    return finish_batch("simulate_vectorized", run.arcs(system), ro.throw, ro.warn)
+    return finish_batch("simulate_vectorized", ArcBatch(run.arcs(system), n), ro.throw, ro.warn)
 
 
 class _BatchRun:

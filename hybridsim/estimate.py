@@ -14,6 +14,9 @@ Three tools, each keeping only what its answer needs (never the arcs):
   processes (:meth:`Stats.merge`, picklable); :func:`accumulate` drives it.
 - :func:`splitting`: rare-event probabilities by adaptive multilevel
   splitting on a score (a claim's negated margin is one).
+- :func:`time_moments`: time averages of a state's powers along one long
+  (ergodic) run, with batch-means standard errors: a stationary moment
+  from one arc.
 
 Runs are seeded: run ``i`` of a study gets the ``i``-th child of
 ``numpy.random.SeedSequence(seed)`` as its generator, whatever the batch
@@ -45,7 +48,7 @@ import numpy as np
 from .rules import FAILURES, Termination
 
 __all__ = ["estimate", "Estimate", "clopper_pearson", "run_generator", "Stats", "accumulate",
-           "splitting", "SplittingResult", "hybrid_segments"]
+           "splitting", "SplittingResult", "hybrid_segments", "time_moments"]
 
 _STOPPING = ("union", "plain")
 
@@ -854,3 +857,87 @@ def hybrid_segments(system, t_max: float, j_max: float = math.inf, **simulate_kw
                   seed=rng, **simulate_kwargs)
         return np.column_stack([arc.t, arc.j, arc.x])
     return simulate
+
+
+def time_moments(arc, powers: Sequence[int], t_burn: float = 0.0, *, batches: int = 20,
+                 component: int = 0) -> list[tuple[float, float]]:
+    r"""Time averages of :math:`x_c^k` over :math:`[t_{burn}, t_f]` of one arc, with
+    batch-means standard errors.
+
+    The stationary moment :math:`E[X^k]` of an ergodic process is the limit
+    of :math:`\frac{1}{T} \int_0^T x(t)^k \, dt`. The integral is taken on
+    the arc's flows (pieces between consecutive samples of equal j whose
+    start is at or after ``t_burn``), each piece along the straight line
+    between its samples: exact wherever the component moves at a constant
+    rate between samples (:math:`\dot x = 1` of TCP/AIMD, :math:`\pm v`
+    of a telegraph process), the piecewise-linear interpolant's integral
+    otherwise (keep the samples dense: ``max_step``). The pieces are put in
+    ``batches`` equal windows of time by their start; the estimate is the
+    mean of the window averages, its standard error their standard deviation
+    over :math:`\sqrt{batches}` (batch means: valid when a window is much
+    longer than the process's correlation time).
+
+    Parameters
+    ----------
+    arc : HybridArc
+        One long run.
+    powers : sequence of int
+        The non-negative integer powers k.
+    t_burn : float
+        Time discarded at the start (the transient).
+    batches : int
+        Number of windows, at least 2.
+    component : int
+        The state component c.
+
+    Returns
+    -------
+    list of (mean, std_error)
+        One pair of floats per power, in order.
+
+    Raises
+    ------
+    ValueError
+        A power that is not a non-negative int, ``batches < 2``, a component
+        out of range, or a window without flow after ``t_burn``.
+
+    Examples
+    --------
+    >>> import hybridsim as hs
+    >>> arc = hs.HybridArc([0.0, 1.0, 1.0, 2.0], [0, 0, 1, 1], [[0.0], [1.0], [0.0], [1.0]],
+    ...                    hs.Termination.T_MAX)             # x' = 1, reset to 0 at t = 1
+    >>> [(m, round(se, 12)) for m, se in time_moments(arc, [1, 2], batches=2)]
+    [(0.5, 0.0), (0.3333333333333333, 0.0)]
+    """
+    ks = []
+    for k in powers:
+        if isinstance(k, bool) or not isinstance(k, numbers.Integral) or k < 0:
+            raise ValueError(f"powers must be non-negative ints, got {k!r}")
+        ks.append(int(k))
+    if isinstance(batches, bool) or not isinstance(batches, numbers.Integral) or batches < 2:
+        raise ValueError(f"batches must be an int >= 2, got {batches!r}")
+    n = arc.x.shape[1]
+    if isinstance(component, bool) or not isinstance(component, numbers.Integral) \
+            or not -n <= component < n:
+        raise ValueError(f"component must be an int in [0, {n}) (the arc's state has {n} "
+                         f"components), got {component!r}")
+    t, j, x = arc.t, arc.j, arc.x[:, component]
+    same = (j[1:] == j[:-1]) & (t[:-1] >= t_burn)
+    a, b = x[:-1][same], x[1:][same]
+    ta, dt = t[:-1][same], np.diff(t)[same]
+    if len(ta) == 0 or t[-1] <= t_burn:
+        raise ValueError(f"time_moments: the arc has no flow after t_burn={t_burn!r} "
+                         f"(it ends at t={float(t[-1]) if len(t) else math.nan!r})")
+    edges = np.linspace(t_burn, t[-1], batches + 1)
+    which = np.clip(np.searchsorted(edges, ta, side="right") - 1, 0, batches - 1)
+    dur = np.bincount(which, weights=dt, minlength=batches)
+    if not np.all(dur > 0):
+        raise ValueError(f"time_moments: {int(np.sum(dur <= 0))} of the {batches} windows "
+                         f"hold no flow; take fewer batches or a longer run")
+    out = []
+    for k in ks:
+        # the mean of (a + (b - a) s)^k over s in [0, 1]: sum of a^i b^(k-i), over k + 1
+        mean_k = sum(a ** i * b ** (k - i) for i in range(k + 1)) / (k + 1)
+        m = np.bincount(which, weights=dt * mean_k, minlength=batches) / dur
+        out.append((float(m.mean()), float(m.std(ddof=1) / math.sqrt(batches))))
+    return out

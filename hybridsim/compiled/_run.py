@@ -17,6 +17,7 @@ import warnings
 import numpy as np
 
 from ..arc import HybridArc, _describe, _one_sample
+from ..arc_batch import ArcBatch
 from ..options import check_unsupported, check_x0, method_on, parse_run
 from ..rules import (
     CAUSES,
@@ -676,10 +677,12 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
 
     Returns
     -------
-    list of HybridArc
-        One per row of ``x0s``, in order. The arcs of runs ending at ``t_max``
-        or ``j_max`` take their samples and stats from the batch's compact
-        pool on first access (views of it, as every row's arrays are).
+    hybridsim.ArcBatch
+        A list of one arc per row of ``x0s``, in order. The arcs of runs
+        ending at ``t_max`` or ``j_max`` take their samples and stats from the
+        batch's compact pool on first access (views of it, as every row's
+        arrays are); the batch's array fields (final states, jump counts and
+        times...) are read off that pool without making them.
 
     Examples
     --------
@@ -872,4 +875,4 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
                 arcs[i] = _one_sample(X0[i], where, Termination.CANCELED,
                                       "never started (the batch was interrupted)", None,
                                       system)
-    return finish_batch("simulate_many_compiled", arcs, ro.throw, ro.warn)
+    return finish_batch("simulate_many_compiled", ArcBatch(arcs, n), ro.throw, ro.warn)

@@ -21,8 +21,11 @@ system: the plant (1) (and the DC motor (65) as one), the observer (7) with
 its estimate (13) in the two realisations of psi_2 (decision 8), and the
 sampled observer (39). ``example.py`` holds the paper's example, Section V's
 DC motor with its data, and how a run is made (``simulate``) and read
-(``errors``). ``figures.py`` computes and draws Figs. 1 and 2 and our study of
-the sampling period (``FIGURES``; Fig. 3 is not reproduced, decision 9), and
+(``errors``). ``monte_carlo.py`` restates Fig. 1's sampled observer under
+random sampling gaps as an estimate with a Clopper–Pearson interval.
+``figures.py`` computes and draws Figs. 1 and 2, our study of the sampling
+period and that estimate (``FIGURES``; Fig. 3 is not reproduced, decision
+9), and
 ``claims.py`` lists the paper's checkable statements (``CLAIMS``).
 
 :data:`PAPER`, :data:`ERRATA` and :data:`DECISIONS` (numbered; "decision 3"
@@ -50,12 +53,13 @@ References
 """
 from __future__ import annotations
 
-from . import claims, design, example, falsification, figures, systems
+from . import claims, design, example, falsification, figures, monte_carlo, systems
 from .claims import *
 from .design import *
 from .example import *
 from .falsification import *
 from .figures import *
+from .monte_carlo import *
 from .systems import *
 
 #: The paper.
@@ -131,4 +135,4 @@ DECISIONS = [
 ]
 
 __all__ = ["PAPER", "ERRATA", "DECISIONS", *design.__all__, *systems.__all__, *example.__all__,
-           *figures.__all__, *claims.__all__, *falsification.__all__]
+           *figures.__all__, *claims.__all__, *falsification.__all__, *monte_carlo.__all__]

@@ -22,9 +22,11 @@ Luenberger observer (2) and a bounded noise source for batches.
 ``example.py`` holds the paper's example data (Sections III, V.A, V.B) and
 how a run is made and read: ``simulate`` wires the engine's linear plant (1)
 to an observer, ``errors`` reads the estimation errors off the arc,
-``noise_batch`` sets up a Monte Carlo of noise realisations. ``figures.py``
-computes the numbers of Figs. 1-3 and draws them (``FIGURES``,
-``reproduce``), and ``claims.py`` lists every checkable statement of the
+``noise_batch`` sets up a Monte Carlo of noise realisations. ``monte_carlo.py``
+restates the paper's noise studies as estimates with Clopper–Pearson
+intervals (Theorem 4.10 and Fig. 2(b) under random bounded noise).
+``figures.py`` computes the numbers of Figs. 1-3 and of those studies and
+draws them (``FIGURES``, ``reproduce``), and ``claims.py`` lists every checkable statement of the
 paper (``CLAIMS``) with the sweeps behind Theorems 4.9 and 4.11.
 
 :data:`PAPER`, :data:`ERRATA` (what the paper gets wrong) and
@@ -49,12 +51,13 @@ References
 """
 from __future__ import annotations
 
-from . import claims, design, example, falsification, figures, systems
+from . import claims, design, example, falsification, figures, monte_carlo, systems
 from .claims import *
 from .design import *
 from .example import *
 from .falsification import *
 from .figures import *
+from .monte_carlo import *
 from .systems import *
 
 #: The paper.
@@ -134,4 +137,4 @@ DECISIONS = [
 ]
 
 __all__ = ["PAPER", "ERRATA", "DECISIONS", *design.__all__, *systems.__all__, *example.__all__,
-           *figures.__all__, *claims.__all__, *falsification.__all__]
+           *figures.__all__, *claims.__all__, *falsification.__all__, *monte_carlo.__all__]

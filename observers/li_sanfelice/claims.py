@@ -39,6 +39,7 @@ from .design import (
 )
 from .example import errors, example_VA, example_VB, simulate
 from .figures import fig2a_data, fig3_data
+from .monte_carlo import RANDOM_NOISE_RUNS, delta_noise_data, random_noise_data
 from .systems import (
     ConstantNoiseObserver,
     NominalObserver,
@@ -471,6 +472,17 @@ def _thm411_excess():
 # --------------------------------------------------------------------------
 # the registry
 # --------------------------------------------------------------------------
+def _all_runs_lower_bound():
+    """The 95% Clopper–Pearson lower bound of P(|ē(δ,1)| <= γ1(σ)) over the random-noise runs."""
+    return float(random_noise_data().lo[-1])
+
+
+def _sooner_larger_in_probability():
+    """P(|e(δ,1)| <= 0.25) at δ = 3 above δ = 1's, the 95% intervals apart."""
+    D = delta_noise_data()
+    return D.interval(3.0, 0.25)[1] > D.interval(1.0, 0.25)[2]
+
+
 def _VB_printed_gap(which):
     d, dr = example_VB(), example_VB(rounded=True)
     return float(np.max(np.abs(getattr(dr, which) - getattr(d, which))))
@@ -661,4 +673,21 @@ CLAIMS = [
                     "the jump, 0.086 just after it).",
           paper_value=None, compute=_thm411_excess, reference=0.0, tol=1e-9,
           tol_why=_INT + "; the ratio stays below 0.74, so any excess is a failure"),
+    Claim(id="002-thm4.10-random-noise", paper=_ID, where="Thm 4.10, Sec. V.B",
+          statement="Theorem 4.10 under random noise: every noise with |m|_inf <= sigma keeps "
+                    "|e1(delta, 1)| <= gamma1(sigma), so on example V.B the probability is 1 "
+                    "for random noise of that bound (monte_carlo.py's law, sigma = 0.3; ours: "
+                    "the 95% Clopper–Pearson lower bound of the probability over the runs).",
+          paper_value=1.0, relation=">=", compute=_all_runs_lower_bound,
+          tol=1.0 - 0.025 ** (1 / RANDOM_NOISE_RUNS) + 1e-12,
+          tol_why=f"all N = {RANDOM_NOISE_RUNS} runs within the bound give the lower bound "
+                  f"0.025^(1/N) = {0.025 ** (1 / RANDOM_NOISE_RUNS):.4f} (beta.ppf(0.025, N, 1)); "
+                  "one run above it would give less"),
+    Claim(id="002-VA-delta-random-noise", paper=_ID, where="Sec. V.A, Fig. 2(b)",
+          statement="The sooner H_n jumps, the larger the error after the jump, in "
+                    "probability: under random noise with |m|_inf <= 1 (monte_carlo.py's law) "
+                    "P(|e(delta, 1)| <= 0.25) is larger at delta = 3 than at delta = 1, the "
+                    "two 95% Clopper–Pearson intervals apart.",
+          paper_value=1.0, compute=_sooner_larger_in_probability, tol=0.0,
+          tol_why="a yes/no answer"),
 ]

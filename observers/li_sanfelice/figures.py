@@ -40,6 +40,14 @@ from .design import (
     theorem_4_10_bound,
 )
 from .example import errors, example_III, example_VA, example_VB, simulate
+from .monte_carlo import (
+    caption_delta_noise,
+    caption_random_noise,
+    delta_noise_data,
+    draw_delta_noise,
+    draw_random_noise,
+    random_noise_data,
+)
 from .systems import (
     ConstantNoiseObserver,
     LuenbergerObserver,
@@ -669,13 +677,18 @@ the switch at 2.5 ({msgs[1][2]:.1e}), from t = {msgs[2][1]:g} after the switch a
 # ---------------------------------------------------------------------------
 # the registry
 # ---------------------------------------------------------------------------
-#: Figs. 1(a), 1(b), 2(a), 2(b) and 3 of the paper, in this order.
+#: Figs. 1(a), 1(b), 2(a), 2(b) and 3 of the paper, in this order, then the two noise studies
+#: restated as estimates (:mod:`observers.li_sanfelice.monte_carlo`).
 FIGURES = [
     Figure("fig1a_error_vs_delta", "Fig. 1(a)", fig1a_data, draw_fig1a, fig1a_caption),
     Figure("fig1b_luenberger_comparison", "Fig. 1(b)", fig1b_data, draw_fig1b, fig1b_caption),
     Figure("fig2a_Hc_constant_noise", "Fig. 2(a)", fig2a_data, draw_fig2a, fig2a_caption),
     Figure("fig2b_error_after_jump_delta", "Fig. 2(b)", fig2b_data, draw_fig2b, fig2b_caption),
     Figure("fig3_Hpc_piecewise_noise", "Fig. 3", fig3_data, draw_fig3, fig3_caption),
+    Figure("mc_Hn_random_noise", "Theorem 4.10 under random noise: P(error after the jump "
+           "<= b)", random_noise_data, draw_random_noise, caption_random_noise),
+    Figure("mc_Hn_delta_random_noise", "Fig. 2(b) under random noise: P(error after the jump "
+           "<= b) against delta", delta_noise_data, draw_delta_noise, caption_delta_noise),
 ]
 
 #: Every figure of the paper is reproduced.

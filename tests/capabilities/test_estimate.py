@@ -25,6 +25,7 @@ from hybridsim.estimate import (
     hybrid_segments,
     run_generator,
     splitting,
+    time_moments,
 )
 from hybridsim.falsification import batch_run
 from hybridsim.library import Timer
@@ -227,6 +228,59 @@ def test_stats_on_jump_counts_and_runs_that_end_early():
     st.update(hs.simulate_many(Timer(1.0), [[0.0]], t_max=1.2))
     np.testing.assert_array_equal(st.count, [1, 0])
     assert np.isnan(st.mean[1, 0]) and np.isnan(st.variance[1, 0])
+
+
+# ------------------------------------------------------------------ time moments of one run
+def sawtooth(rate, top):
+    """x' = rate from 0 up to top (rate > 0) or from top down to 0 (rate < 0), then reset:
+    the time average of x^k is top^k / (k + 1)."""
+    up = rate > 0
+    return hs.HybridSystem.from_functions(
+        f=lambda x: np.array([rate]), g=lambda x: np.array([0.0 if up else top]),
+        jump_guard=(lambda x: x[0] - top) if up else (lambda x: -x[0]),
+        flow_guard=(lambda x: top - x[0]) if up else (lambda x: x[0]), state_dim=1)
+
+
+@pytest.mark.parametrize("rate, top, x0", [(1.0, 1.0, 0.0), (2.0, 1.5, 0.0), (-3.0, 3.0, 3.0)])
+def test_time_moments_exact_on_constant_rate_flows(rate, top, x0):
+    # 40 periods, windows of two periods each: every window's average is the period's
+    period = top / abs(rate)
+    arc = hs.simulate(sawtooth(rate, top), [x0], t_max=40 * period, rtol=1e-10, atol=1e-12)
+    out = time_moments(arc, [0, 1, 2, 4], batches=20)
+    for k, (m, se) in zip([0, 1, 2, 4], out):
+        assert m == pytest.approx(top ** k / (k + 1), rel=1e-9)
+        assert se <= 1e-9 * top ** k
+    # t_burn drops the transient: from halfway, the sawtooth is joined at the first jump
+    arc = hs.simulate(sawtooth(rate, top), [0.5 * top], t_max=40.5 * period, rtol=1e-10,
+                      atol=1e-12)
+    (m2, _), = time_moments(arc, [2], t_burn=arc.jump_times[0], batches=4)
+    assert m2 == pytest.approx(top ** 2 / 3, rel=1e-9)
+
+
+def test_time_moments_batch_means_error_covers_a_stationary_moment():
+    # AIMD at rate 1 (x' = 1, x -> x/2 at rate 1): E[X] = 2, within 3 batch-means errors,
+    # which shrink like 1/sqrt(T)
+    from hybridsim.library import AIMD
+    short = hs.simulate(AIMD(constant_rate=True), [1.0], t_max=1000.0, seed=4)
+    long = hs.simulate(AIMD(constant_rate=True), [1.0], t_max=4000.0, seed=4)
+    (m, se), = time_moments(long, [1], t_burn=20.0)
+    (_, se_short), = time_moments(short, [1], t_burn=20.0)
+    assert abs(m - 2.0) <= 3 * se
+    assert 1.2 < se_short / se < 3.5          # sqrt(4) = 2, up to the errors' own noise
+
+
+@pytest.mark.parametrize("kw, match", [
+    (dict(powers=[1.5]), "powers must be non-negative ints"),
+    (dict(powers=[-1]), "powers must be non-negative ints"),
+    (dict(powers=[1], batches=1), "batches must be an int >= 2"),
+    (dict(powers=[1], component=1), "component must be an int in"),
+    (dict(powers=[1], t_burn=5.0), "no flow after t_burn"),
+    (dict(powers=[1], batches=400), "windows hold no flow"),
+])
+def test_time_moments_bad_input(kw, match):
+    arc = hs.simulate(Timer(1.0), [0.0], t_max=3.0)
+    with pytest.raises(ValueError, match=match):
+        time_moments(arc, **kw)
 
 
 def test_stats_bad_input():

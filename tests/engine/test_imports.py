@@ -29,7 +29,8 @@ LEVELS = (
     ("paths", {"solve", "batch_vectorized", "compiled",
                "_sde", "_random_jumps"}),
     ("shared and data", {"rules", "options", "events", "_rk", "_progress", "_version",
-                         "system", "compose", "history", "arc", "library", "_source", "brownian"}),
+                         "system", "compose", "history", "arc", "arc_batch", "library", "_source",
+                         "brownian"}),
 )
 
 

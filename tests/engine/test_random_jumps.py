@@ -21,32 +21,13 @@ import pytest
 
 import hybridsim as hs
 from hybridsim._random_jumps import threshold
-from hybridsim.estimate import Stats, accumulate
+from hybridsim.estimate import Stats, accumulate, time_moments
 from hybridsim.library import AIMD, DriftedBrownian, RandomRestitutionBall, Telegraph
 
 
 def aimd(rate):
     return hs.HybridSystem.from_functions(f=lambda x: np.array([1.0]), g=lambda x: x / 2,
                                           jump_rate=rate, state_dim=1)
-
-
-def time_moments(arc, ks, t_burn, batches=20):
-    """Time averages of x^k after t_burn, exact on each flow (x' = 1: the integral of x^k over
-    a flow from xa to xb is (xb^(k+1) - xa^(k+1))/(k+1)); with their batch-means standard
-    errors (the run cut into equal time batches)."""
-    t, j, x = arc.t, arc.j, arc.x[:, 0]
-    same = (j[1:] == j[:-1]) & (t[:-1] >= t_burn)
-    a, b = x[:-1][same], x[1:][same]
-    ta = t[:-1][same]
-    edges = np.linspace(t_burn, t[-1], batches + 1)
-    which = np.clip(np.searchsorted(edges, ta, side="right") - 1, 0, batches - 1)
-    dur = np.bincount(which, weights=b - a, minlength=batches)
-    out = []
-    for k in ks:
-        m = np.bincount(which, weights=(b ** (k + 1) - a ** (k + 1)) / (k + 1),
-                        minlength=batches) / dur
-        out.append((float(m.mean()), float(m.std(ddof=1) / math.sqrt(batches))))
-    return out
 
 
 def test_aimd_stationary_moments():

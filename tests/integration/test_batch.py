@@ -187,3 +187,107 @@ def test_batches_draw_one_bar_over_runs(capsys):
     assert "2/2" in capsys.readouterr().err
     hs.simulate_many(Decay(), np.ones((3, 1)), t_max=0.1, progress=False)
     assert capsys.readouterr().err == ""
+
+
+# ------------------------------------------------------------------ the batch's arrays
+from paths import Ball, path_params  # noqa: E402
+
+
+def _batch(path, x0s, **kw):
+    """hs.simulate_many of a ball on ``path``: the looped Python path, the vectorized batch,
+    the compiled batch."""
+    system = Ball(sets="both").build(path)
+    backend = "compiled" if path == "compiled" else "python"
+    return hs.simulate_many(system, x0s, warn=False, backend=backend, **kw)
+
+
+def _fields_of_arcs(arcs):
+    """The batch's fields, each read from the arcs."""
+    jt = [a.jump_times for a in arcs]
+    K = max(map(len, jt))
+    pad = np.array([np.concatenate([t, np.full(K - len(t), np.nan)]) for t in jt])
+    return dict(final_states=np.array([a.xf for a in arcs]),
+                final_times=np.array([a.tf for a in arcs]),
+                final_jumps=np.array([a.jf for a in arcs]),
+                jump_counts=np.array([a.jump_count for a in arcs]),
+                success=np.array([a.success for a in arcs]),
+                jump_times=pad, jump_times_flat=np.concatenate(jt),
+                jump_offsets=np.concatenate([[0], np.cumsum(list(map(len, jt)))]))
+
+
+@pytest.mark.parametrize("path", path_params())
+def test_batch_fields_are_the_arcs_on_every_path(path, monkeypatch):
+    # rows ending at j_max and at t_max (different jump counts), and a failed row
+    import hybridsim.arc as arc_mod
+    monkeypatch.setattr(arc_mod, "CHECK_ARCS", False)     # (it makes every arc whole)
+    h0 = np.linspace(0.3, 2.0, 12)
+    x0s = np.column_stack([h0, np.zeros_like(h0)])
+    x0s[4, 0] = np.nan
+    batch = _batch(path, x0s, t_max=2.0, j_max=4, rtol=1e-8, atol=1e-10)
+    assert isinstance(batch, hs.ArcBatch) and isinstance(batch, list) and len(batch) == 12
+    # the fields first: the compiled path reads them off its pool, its arcs left as views
+    pooled = [i for i, a in enumerate(batch) if "_pool" in a.__dict__]
+    got = {k: getattr(batch, k) for k in ("final_states", "final_times", "final_jumps",
+                                           "jump_counts", "success", "jump_times",
+                                           "jump_times_flat", "jump_offsets")}
+    causes = batch.causes
+    assert pooled == [i for i, a in enumerate(batch) if "_pool" in a.__dict__]
+    assert (len(pooled) >= 7) == (path == "compiled")   # all but a few rows run alone first
+    want = _fields_of_arcs(batch)
+    for k, v in want.items():
+        np.testing.assert_array_equal(got[k], v, err_msg=k)
+    assert [c.name for c in causes] == [a.termination.name for a in batch]
+    assert causes[4] is hs.Termination.NON_FINITE and not batch.success[4]
+    assert set(batch.jump_counts[batch.causes == hs.Termination.J_MAX]) == {4}
+    assert (batch.causes == hs.Termination.T_MAX).sum() >= 1       # the highest drops
+    # row i's jump times, padded and ragged
+    o = batch.jump_offsets
+    for i, arc in enumerate(batch):
+        np.testing.assert_array_equal(batch.jump_times_flat[o[i]:o[i + 1]], arc.jump_times)
+        assert np.isnan(batch.jump_times[i, arc.jump_count:]).all()
+
+
+@pytest.mark.parametrize("path", path_params())
+def test_batch_is_the_list_it_was(path):
+    x0s = np.column_stack([np.linspace(0.5, 1.5, 5), np.zeros(5)])
+    batch = _batch(path, x0s, t_max=1.5, j_max=3)
+    arcs = list(batch)
+    assert batch == arcs and len(batch) == 5 and batch[-1] is arcs[-1]
+    part = batch[1:4]
+    assert isinstance(part, hs.ArcBatch) and part == arcs[1:4]
+    np.testing.assert_array_equal(part.final_times, batch.final_times[1:4])
+    assert [a.jump_count for a in batch] == batch.jump_counts.tolist()
+    import pickle
+    back = pickle.loads(pickle.dumps(batch))
+    assert isinstance(back, hs.ArcBatch) and len(back) == 5
+    np.testing.assert_array_equal(back.jump_times, batch.jump_times)
+    # a change to the list: the fields follow it
+    batch.append(batch[0])
+    batch[1] = batch[2]
+    assert batch.final_times.tolist() == [a.tf for a in batch]
+    del batch[0]
+    batch.reverse()
+    assert batch.jump_counts.tolist() == [a.jump_count for a in batch]
+    batch.sort(key=lambda a: a.tf)
+    assert batch.final_times.tolist() == sorted(a.tf for a in batch)
+    import copy
+    twin = copy.copy(batch)
+    assert isinstance(twin, hs.ArcBatch) and twin == batch
+    np.testing.assert_array_equal(twin.final_times, batch.final_times)
+    assert (batch + arcs)[:6] == list(batch) + arcs[:1]
+
+
+def test_batch_empty_mixed_and_bad():
+    empty = hs.simulate_many(Decay(), np.zeros((0, 1)), t_max=1.0)
+    assert empty == [] and empty.final_states.shape == (0, 1)
+    assert empty.jump_times.shape == (0, 0) and empty.jump_offsets.tolist() == [0]
+    assert hs.sweep(make_decay, [], [1.0], t_max=1.0).jump_counts.shape == (0,)
+    mixed = hs.ArcBatch([hs.HybridArc([0.0], [0], [[1.0]], None),
+                         hs.HybridArc([0.0], [0], [[1.0, 2.0]], None)])
+    assert mixed.final_times.tolist() == [0.0, 0.0] and mixed.jump_counts.tolist() == [0, 0]
+    with pytest.raises(ValueError, match="different dimensions"):
+        _ = mixed.final_states
+    with pytest.raises(TypeError, match="row 1 is a str, not a HybridArc"):
+        _ = hs.ArcBatch([mixed[0], "arc"]).final_times
+    with pytest.raises(ValueError, match="row 0's arc is empty"):
+        _ = hs.ArcBatch([hs.HybridArc([], [], np.zeros((0, 1)), None)]).jump_counts

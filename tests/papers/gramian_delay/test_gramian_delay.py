@@ -857,7 +857,8 @@ def test_fig3_is_listed_as_not_reproduced():
     for part in ("ref. [10]", "L = [-1, 3]^T", "104892", "decision 9"):
         assert part in why
     assert [f.name for f in gd.FIGURES] == ["gramian_delay_fig1", "gramian_delay_fig2",
-                                            "gramian_delay_periods"]
+                                            "gramian_delay_periods",
+                                            "gramian_delay_random_gaps"]
     assert {f.title for f in gd.FIGURES} >= {"Fig. 1", "Fig. 2"}
 
 
@@ -1007,3 +1008,26 @@ def test_parts_without_a_batch_form_run_row_by_row():
     assert gd.Plant(ex.M, ex.N).vectorized
     with pytest.raises(ValueError, match=r"x0s must have shape \(N, 3\)"):
         gd.population(ex.continuous_observer(), np.zeros((2, 4)))
+
+
+def test_random_gaps_study_draws_gaps_of_the_law_and_exact_intervals():
+    """monte_carlo: the gaps are T_min or T_bar (a coin at each entry of C ∩ D), the peaks are
+    the errors' maxima after 0.15 s, the intervals Clopper-Pearson's; the figure and caption."""
+    from matplotlib.figure import Figure as MplFigure
+
+    from hybridsim.estimate import clopper_pearson
+    from observers.gramian_delay import monte_carlo as mc
+    D = mc.random_gaps_data(runs=3, seed=1)
+    assert set(np.round(D.gaps, 9)) <= set(mc.GAPS) and len(set(np.round(D.gaps, 9))) == 2
+    for t, e, pk in zip(D.t, D.norm, D.peak):
+        assert t[-1] == mc.GAPS_T_MAX and pk == e[t >= mc.GAPS_AFTER].max()
+    assert D.bounds[-1] == 1.0 and D.k.tolist() == [int(np.sum(D.peak <= b)) for b in D.bounds]
+    for kk, lo, hi in zip(D.k, D.lo, D.hi):
+        assert (lo, hi) == clopper_pearson(int(kk), D.runs)
+    fig = mc.draw_random_gaps(D)
+    assert isinstance(fig, MplFigure)
+    for ax in fig.get_axes():
+        assert ax.get_xlabel() and ax.get_ylabel() and ax.get_legend() is not None
+    cap = mc.caption_random_gaps(D)
+    assert cap.startswith("Not in the paper") and "Clopper–Pearson" in cap
+    assert "0.05 or 0.1 s with probability 1/2" in cap and f"seeded with {D.seed}" in cap

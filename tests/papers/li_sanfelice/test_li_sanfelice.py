@@ -1020,7 +1020,7 @@ def test_figures_drawn_from_their_data():
     from matplotlib.figure import Figure as MplFigure
     before = plt.get_fignums()
     data, axes = {}, {}
-    for F in ls.FIGURES:
+    for F in ls.FIGURES[:5]:                        # the paper's (the studies: below)
         D = data[F.name] = F.data()
         fig = F.draw(D)
         assert isinstance(fig, MplFigure)
@@ -1031,7 +1031,8 @@ def test_figures_drawn_from_their_data():
     assert plt.get_fignums() == before                          # no pyplot figure was opened
     assert [F.name for F in ls.FIGURES] == [
         "fig1a_error_vs_delta", "fig1b_luenberger_comparison", "fig2a_Hc_constant_noise",
-        "fig2b_error_after_jump_delta", "fig3_Hpc_piecewise_noise"]
+        "fig2b_error_after_jump_delta", "fig3_Hpc_piecewise_noise", "mc_Hn_random_noise",
+        "mc_Hn_delta_random_noise"]
     # Fig. 1(a): the line is (6) on the grid, the circles the engine's values
     D, (ax,) = data["fig1a_error_vs_delta"], axes["fig1a_error_vs_delta"]
     assert ax.get_title() == "Fig. 1(a): error after the reset under a constant bias"
@@ -1169,3 +1170,54 @@ def test_windowed_Hpc_random_gaps_exact_within_two_jumps_of_each_switch():
             J = int(np.flatnonzero(arc.jump_times == t2)[0])
             m = ((arc.t > t2) | ((arc.t == t2) & (arc.j >= J + 1))) & (arc.t < b)
             assert m.any() and err[m].max() < 1e-8
+
+
+# ---------------------------------------------------------------- noise studies as estimates
+def test_random_noise_study_is_formula_15_with_exact_intervals():
+    from hybridsim.estimate import clopper_pearson, run_generator
+    from observers.li_sanfelice import monte_carlo as mc
+    D = mc.random_noise_data(runs=20, seed=3)
+    d = ls.example_VB()
+    gen = ls.BoundedNoiseGenerator(d.p, K=3)
+    # each run's error after the jump is (15) of its own realisation (run i: generator i)
+    for i in (0, 7, 19):
+        w = gen.random_states(1, mc.RANDOM_NOISE_SIGMA, seed=run_generator(3, i))[0]
+        assert gen.sup_bound(w) == pytest.approx(mc.RANDOM_NOISE_SIGMA)
+        e15 = np.linalg.norm(ls.error_after_jump(d, gen.callable(w)))
+        assert D.errors[i] == pytest.approx(e15, rel=1e-6)
+    # run i's noise does not depend on how many runs there are
+    np.testing.assert_array_equal(mc.random_noise_data(runs=10, seed=3).errors, D.errors[:10])
+    # counts below each bound, their Clopper-Pearson intervals; Theorem 4.10's holds in every run
+    assert D.bounds[-1] == D.theorem_bound == pytest.approx(
+        ls.theorem_4_10_bound(d, mc.RANDOM_NOISE_SIGMA))
+    assert D.k.tolist() == [int(np.sum(D.errors <= b)) for b in D.bounds]
+    assert np.all(np.diff(D.k) >= 0) and D.k[-1] == D.runs
+    for kk, lo, hi in zip(D.k, D.lo, D.hi):
+        assert (lo, hi) == clopper_pearson(int(kk), D.runs)
+    p, lo, hi = D.at(mc.RANDOM_NOISE_B)
+    assert lo <= p <= hi
+
+
+def test_delta_noise_study_and_the_figures_of_both():
+    from matplotlib.figure import Figure as MplFigure
+
+    from observers.li_sanfelice import monte_carlo as mc
+    D = mc.delta_noise_data(runs=8, seed=5)
+    assert D.errors.shape == (len(mc.DELTA_NOISE_DELTAS), 8)
+    assert D.k.shape == D.lo.shape == (len(D.deltas), len(D.bounds))
+    p, lo, hi = D.interval(3.0, 0.25)
+    assert p == np.mean(D.errors[D.deltas.index(3.0)] <= 0.25) and lo <= p <= hi
+    # the bound of Theorem 4.10 shrinks with delta and holds in every run
+    assert np.all(np.diff(D.theorem_bounds) < 0)
+    assert np.all(D.errors <= D.theorem_bounds[:, None])
+    for data, draw, caption in ((D, mc.draw_delta_noise, mc.caption_delta_noise),
+                                (mc.random_noise_data(runs=20, seed=3), mc.draw_random_noise,
+                                 mc.caption_random_noise)):
+        fig = draw(data)
+        assert isinstance(fig, MplFigure)
+        (ax,) = fig.get_axes()
+        assert ax.get_xlabel() and ax.get_ylabel() and ax.get_title()
+        assert len(_legend(ax)) >= 2
+        cap = caption(data)
+        assert cap.startswith("Not in the paper") and "Clopper–Pearson" in cap
+        assert "U(0, 5) rad/s" in cap and f"seed {data.seed}" in cap
