@@ -29,7 +29,6 @@ import threading
 from dataclasses import dataclass
 
 import numpy as np
-import pytest
 
 import hybridsim as hs
 

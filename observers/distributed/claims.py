@@ -4,8 +4,9 @@ Each entry is an :class:`observers.claims.Claim` (see its semantics): the
 paper's value where it prints or implies one, else a reference derived
 independently of this package (a closed form, an exact rank, the error
 equations integrated by scipy's ``solve_ivp``), with the tolerance and why.
-``tests/papers/test_claims.py`` pins them; ``tests/papers/distributed/test_distributed.py`` recomputes
-each reference independently.
+``tests/papers/test_claims.py`` pins them;
+``tests/papers/distributed/test_distributed.py`` recomputes each reference
+independently.
 
 Examples
 --------

@@ -190,7 +190,7 @@ def test_batches_draw_one_bar_over_runs(capsys):
 
 
 # ------------------------------------------------------------------ the batch's arrays
-from paths import Ball, path_params  # noqa: E402
+from paths import Ball  # noqa: E402
 
 
 def _batch(path, x0s, **kw):
@@ -215,7 +215,6 @@ def _fields_of_arcs(arcs):
                 jump_offsets=np.concatenate([[0], np.cumsum(list(map(len, jt)))]))
 
 
-@pytest.mark.parametrize("path", path_params())
 def test_batch_fields_are_the_arcs_on_every_path(path, monkeypatch):
     # rows ending at j_max and at t_max (different jump counts), and a failed row
     import hybridsim.arc as arc_mod
@@ -247,7 +246,6 @@ def test_batch_fields_are_the_arcs_on_every_path(path, monkeypatch):
         assert np.isnan(batch.jump_times[i, arc.jump_count:]).all()
 
 
-@pytest.mark.parametrize("path", path_params())
 def test_batch_is_the_list_it_was(path):
     x0s = np.column_stack([np.linspace(0.5, 1.5, 5), np.zeros(5)])
     batch = _batch(path, x0s, t_max=1.5, j_max=3)
