@@ -16,11 +16,14 @@ that read the README, the docs, the examples or the package's source.
 Budget: every test of the default suite takes at most 2 s on an idle core
 (longer ones are marked ``slow``). Wall times swing with the machine's load,
 so the session also prints the tests that took the most CPU time of their
-own process (setup, call and teardown; a process pool's workers not
-counted), the figure the budget is checked by, whatever else runs.
+own process (setup, call and teardown, every thread; a process pool's
+workers not counted), the figure the budget is checked by, whatever else
+runs; ``HYBRIDSIM_TEST_CPU=file.json`` writes every test's figure.
 """
 from __future__ import annotations
 
+import json
+import os
 import pathlib
 import time
 
@@ -76,13 +79,32 @@ def repo() -> pathlib.Path:
 
 _CPU = {}
 CPU_BUDGET = 2.0       # seconds of CPU per default-suite test
+_PHASE_CPU = pytest.StashKey[float]()
+
+
+def _timed(item):
+    start = time.process_time()
+    yield
+    item.stash[_PHASE_CPU] = time.process_time() - start
+
+
+pytest_runtest_setup = pytest.hookimpl(hookwrapper=True)(_timed)
+pytest_runtest_call = pytest.hookimpl(hookwrapper=True)(_timed)
+pytest_runtest_teardown = pytest.hookimpl(hookwrapper=True)(_timed)
 
 
 @pytest.hookimpl(hookwrapper=True)
-def pytest_runtest_protocol(item, nextitem):
-    start = time.process_time()
-    yield
-    _CPU[item.nodeid] = time.process_time() - start
+def pytest_runtest_makereport(item, call):
+    outcome = yield
+    report = outcome.get_result()       # its own list: the item's would add up the phases
+    report.user_properties = [*report.user_properties, ("cpu", item.stash.get(_PHASE_CPU, 0.0))]
+    item.stash[_PHASE_CPU] = 0.0
+
+
+def pytest_runtest_logreport(report):
+    # in the process that reports (pytest-xdist's controller included)
+    cpu = sum(v for k, v in report.user_properties if k == "cpu")
+    _CPU[report.nodeid] = _CPU.get(report.nodeid, 0.0) + cpu
 
 
 def pytest_terminal_summary(terminalreporter, exitstatus, config):
@@ -93,3 +115,7 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):
     tr.section(f"most CPU time per test (budget {CPU_BUDGET:g} s outside the slow suite)")
     for nodeid, cpu in worst:
         tr.write_line(f"{cpu:7.2f}s cpu  {nodeid}")
+    out = os.environ.get("HYBRIDSIM_TEST_CPU")
+    if out:                                   # every test's figure, for the budget's review
+        with open(out, "w", encoding="utf-8") as fh:
+            json.dump(_CPU, fh, indent=0, sort_keys=True)
