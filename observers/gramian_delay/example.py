@@ -50,7 +50,10 @@ def _example_u(t):
 
 def _example_delta1(t):
     t = np.asarray(t, dtype=float)
-    return np.stack([np.zeros_like(t), 0.5 * np.sin(5 * t), 0.5 * np.cos(3 * t)], axis=-1)
+    out = np.zeros(t.shape + (3,))
+    out[..., 1] = 0.5 * np.sin(5 * t)
+    out[..., 2] = 0.5 * np.cos(3 * t)
+    return out
 
 
 def _example_delta2(t):

@@ -90,13 +90,15 @@ def _signal(name, fn, dim):
                         f"got {type(fn).__name__}")
     elif getattr(fn, "batch", False):
         def signal(t):
-            return np.asarray(fn(t), dtype=float).reshape(np.shape(t) + (dim,))
+            t = np.asarray(t, dtype=float)
+            return np.asarray(fn(t), dtype=float).reshape(t.shape + (dim,))
     else:
         def signal(t):      # fn takes one time: a batch of times is read one by one
             if np.ndim(t) == 0:
                 return np.asarray(fn(t), dtype=float).reshape(dim)
+            t = np.asarray(t, dtype=float)
             return np.array([np.asarray(fn(float(s)), dtype=float).reshape(dim)
-                             for s in np.ravel(t)]).reshape(np.shape(t) + (dim,))
+                             for s in t.ravel()]).reshape(t.shape + (dim,))
     signal._signal_dim = dim
     signal.sinusoids = None if fn is None else getattr(fn, "sinusoids", None)
     return signal
