@@ -996,6 +996,10 @@ class SampledGramianObserver(_ObserverBase):
     def _xi_e(self, z, t, u):
         """xi_e of (13) during a run: one state, or a batch (N, r) read through the
         run's BatchHistory (:meth:`_xi_e_batch`)."""
+        # kept apart: a batch reads its past in one call of a BatchHistory and each
+        # row before t0 + tau has its own window h (one matrix exponential per row),
+        # while one state's estimate (_estimate) also serves the reset realisation
+        # and estimate_along on a finished arc
         return self._xi_e_batch(z, t, u) if np.ndim(z) == 2 else self._xi_e_now(z, t, u)
 
     def flow_map(self, z, t, j, u):
