@@ -332,7 +332,7 @@ def simulate_errors(observer, x0=None, xhat0=None, *, E0=None, t_max=10.0,
                        max_step=max_step, progress=False, **kw)
 
 
-def _error_rows(X, dsg, from_network):
+def _state_errors(X, dsg, from_network):
     """Per-node (e_o, e_u) lists from states X (K, dim) of either kind of arc."""
     if not from_network:
         return split_errors(dsg, X)
@@ -385,7 +385,7 @@ def errors(arc, observer):
         raise ValueError(f"arc has {X.shape[1]} state components, but a "
                          f"{'plant-observer' if from_network else 'error-system'} arc of "
                          f"this design has {width}: was it run with this observer?")
-    e_o, e_u = _error_rows(X, dsg, from_network)
+    e_o, e_u = _state_errors(X, dsg, from_network)
     Eo, Eu = np.hstack(e_o), np.hstack(e_u)
     allerr = np.hstack([Eo, Eu])
     return Errors(arc.t, arc.j, e=allerr, e_o=Eo, e_u=Eu,
@@ -449,7 +449,7 @@ def settling_time(arc, observer, threshold=1e-8, *, xtol=1e-12):
 
     def excess(s):
         X = np.asarray(arc.at(s, int(arc.j[k])), dtype=float)[None, :]
-        e_o, e_u = _error_rows(X, dsg, from_network)
+        e_o, e_u = _state_errors(X, dsg, from_network)
         return float(np.max(np.abs(np.hstack(e_o + e_u)))) - threshold
 
     a, b = float(t[k]), float(t[k + 1])

@@ -25,8 +25,8 @@ from .._common import Figure, reproduce_figures
 from .design import lmi11, proposition1_lyapunov
 from .example import (
     EXAMPLE_V0,
-    _error_rows,
     _settling,
+    _state_errors,
     band_limited_noise,
     errors,
     example_observer,
@@ -80,7 +80,7 @@ def _node_errors(arc, obs):
     t, X = _resample(arc)
     if "noise" in arc:
         X = np.delete(X, np.arange(X.shape[1])[arc.components["noise"]], axis=1)
-    e_o, e_u = _error_rows(X, obs.design, from_network=True)
+    e_o, e_u = _state_errors(X, obs.design, from_network=True)
     return t, e_o, e_u
 
 

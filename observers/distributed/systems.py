@@ -132,55 +132,46 @@ class _NodeData:
             self.N_pow = Nm
 
     def flow(self, z, u):
-        """The node's flow at its state ``z`` (n,) and input ``u = (y, x̃^{j_1}, ...)``."""
-        r = self.H @ np.concatenate((z, u))
+        """The node's flow at its state ``z`` (n,) and input ``u = (y, x̃^{j_1}, ...)``.
+
+        On the last axis: ``z`` (N, n) and ``u`` (N, m + |𝒩_i| n) give the
+        (N, n) flows of a batch.
+        """
+        r = np.concatenate((z, u), axis=-1) @ self.H.T
         if not self._powers:
             return r
-        q = r[self.n:]
-        return r[:self.n] - self.N_pow @ np.copysign(np.abs(q) ** self.kappa, q)
+        q = r[..., self.n:]
+        return r[..., :self.n] - np.copysign(np.abs(q) ** self.kappa, q) @ self.N_pow.T
 
     def rhs(self, z, y, xhat_nb):
         """Right-hand side of node ``k``: (7)-(8) or (4)-(5).
 
         Parameters
         ----------
-        z : (n_o + n_u,) array
-            ``(x̃_o, x̃_u)``.
-        y : (m,) array
+        z : (n_o + n_u,) or (N, n_o + n_u) array
+            ``(x̃_o, x̃_u)`` (one state or a batch, on the last axis).
+        y : (m,) or (N, m) array
             The node's measurement ``y^i``.
-        xhat_nb : (|𝒩_i|, n) array
+        xhat_nb : (|𝒩_i|, n) or (N, |𝒩_i|, n) array
             The in-neighbours' full estimates ``x̃^j``.
 
         Returns
         -------
-        (n,) ndarray
+        (n,) or (N, n) ndarray
             ``(dx̃_o, dx̃_u)``: ``dx̃_o = Ã_o x̃_o − Θ p y − L̃_o ⌈1 (C_o x̃_o − y)⌋^γ``
             (7) (or ``A_o x̃_o − L (C_o x̃_o − y)``, (4)) and ``dx̃_u = A_r x̃_o +
             A_u x̃_u − α s − ⌈s⌋^β`` (8) (without the power, (5)) with
             ``s = Σ_j (x̃_u − T_uᵀ x̃^j)``.
         """
-        u = np.concatenate([np.atleast_1d(np.asarray(y, dtype=float)),
-                            np.asarray(xhat_nb, dtype=float).ravel()])
-        return self.flow(np.asarray(z, dtype=float), u)
-
-    def rhs_rows(self, z, y, xhat_nb):
-        """:meth:`rhs` over a batch: z (N, n), y (N, m), xhat_nb (N, |𝒩_i|, n)."""
         z = np.asarray(z, dtype=float)
-        u = np.hstack([np.asarray(y, dtype=float).reshape(len(z), -1),
-                       np.asarray(xhat_nb, dtype=float).reshape(len(z), -1)])
-        return self.flow_rows(z, u)
-
-    def flow_rows(self, z, u):
-        """:meth:`flow` over a batch: z (N, n), u (N, m + |𝒩_i| n)."""
-        r = np.hstack([z, u]) @ self.H.T
-        if not self._powers:
-            return r
-        q = r[:, self.n:]
-        return r[:, :self.n] - np.copysign(np.abs(q) ** self.kappa, q) @ self.N_pow.T
+        lead = z.shape[:-1] + (-1,)
+        u = np.concatenate([np.asarray(y, dtype=float).reshape(lead),
+                            np.asarray(xhat_nb, dtype=float).reshape(lead)], axis=-1)
+        return self.flow(z, u)
 
     def estimate(self, z):
         """Full estimate ``x̃^i = T_o x̃_o + T_u x̃_u`` (z of shape (n,) or (N, n))."""
-        return self.T @ z if z.ndim == 1 else z @ self.T.T
+        return z @ self.T.T
 
 
 # --------------------------------------------------------------------------
@@ -218,10 +209,7 @@ class DistributedObserverNode(hs.HybridSystem):
         self.input_dim = self.data.m + len(self.data.neighbours) * dsg.n
 
     def flow_map(self, x, t, j, u):
-        u = np.asarray(u, dtype=float)
-        if u.ndim == 2:                                  # a batch
-            return self.data.flow_rows(np.asarray(x, dtype=float), u)
-        return self.data.flow(np.asarray(x, dtype=float), u)
+        return self.data.flow(np.asarray(x, dtype=float), np.asarray(u, dtype=float))
 
     def output(self, x, t, j):
         return self.data.estimate(np.asarray(x, dtype=float))

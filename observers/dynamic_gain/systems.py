@@ -113,77 +113,53 @@ class DynamicGainObserver(hs.HybridSystem):
 
     # -- pieces -------------------------------------------------------------
     def z(self, w, v, q=0.0):
-        """The dynamic gain z of (7) (|w| for the homogeneous observer), floored at z_min."""
+        """The dynamic gain z of (7) (|w| for the homogeneous observer), floored at z_min.
+
+        Elementwise over arrays ``w``, ``v``, ``q`` of one shape.
+        """
         if self.z_mode == "abs":
-            z = abs(w)
+            z = np.abs(w)
         else:
-            z = max(0.0 if q >= 0.5 else v, self.gamma2 * abs(w))     # (7)
-        return max(z, self.z_min)
+            z = np.maximum(np.where(np.asarray(q) >= 0.5, 0.0, v), self.gamma2 * np.abs(w))  # (7)
+        return np.maximum(z, self.z_min)
 
     def injection(self, w, v, q):
-        """``z^{-rbar_i} w`` for i = 0..n (with the floor of decision 1)."""
-        return self.z(w, v, q) ** (-self.rbar) * w
+        """``z^{-rbar_i} w`` for i = 0..n (with the floor of decision 1), on a new last axis."""
+        w = np.asarray(w, dtype=float)
+        return self.z(w, v, q)[..., None] ** (-self.rbar) * w[..., None]
 
     def flow_map(self, x, t, j, u):
         """(6) and (8); v held at its limit 0 in the settled mode (q = 1).
 
-        ``x`` of shape (N, n+3) (a batch of :func:`hybridsim.simulate_many`)
-        gives the (N, n+3) flows, row by row the same arithmetic.
+        On the last axis: ``x`` (n+3,) or a batch (N, n+3) with ``u`` (1+m,)
+        or (N, 1+m).
         """
-        if np.ndim(x) == 2:
-            return self._flow_rows(x, u)
         n, L = self.n, self.L
-        w, xh, v, q = x[0], x[1:n + 1], x[n + 1], x[n + 2]
-        y = u[0]
-        k = self.injection(w, v, q)
-        dx = np.empty(n + 3)
-        dw = y - xh[0] + L[0] * k[0]                                    # (6), w
-        dx[0] = dw
-        dx[1:n] = xh[1:]                                                # (6), x_hat
-        dx[n] = 0.0
-        if self.m:
-            dx[1:n + 1] += self.b @ np.asarray(u[1:], dtype=float)
-        dx[1:n + 1] -= L[1:] * k[1:]
-        if q >= 0.5:
-            dx[n + 1] = 0.0
-        else:
-            s = v - self.gamma2 * abs(w)                                # (8)
-            dx[n + 1] = self.gamma2 * abs(dw) - self.gamma1 * np.sign(s) * abs(s) ** (1 - self.mu)
-        dx[n + 2] = 0.0
-        return dx
-
-    def _flow_rows(self, x, u):
-        """:meth:`flow_map` over a batch x (N, n+3), u (N, 1+m)."""
-        n, L = self.n, self.L
-        w, xh, v, q = x[:, 0], x[:, 1:n + 1], x[:, n + 1], x[:, n + 2]
+        x = np.asarray(x, dtype=float)
         u = np.asarray(u, dtype=float)
-        settled = q >= 0.5
-        if self.z_mode == "abs":
-            z = np.abs(w)
-        else:
-            z = np.maximum(np.where(settled, 0.0, v), self.gamma2 * np.abs(w))     # (7)
-        z = np.maximum(z, self.z_min)
-        k = z[:, None] ** (-self.rbar) * w[:, None]
+        w, xh, v, q = x[..., 0], x[..., 1:n + 1], x[..., n + 1], x[..., n + 2]
+        k = self.injection(w, v, q)
         dx = np.empty(x.shape)
-        dw = u[:, 0] - xh[:, 0] + L[0] * k[:, 0]                                # (6), w
-        dx[:, 0] = dw
-        dx[:, 1:n] = xh[:, 1:]
-        dx[:, n] = 0.0
+        dw = u[..., 0] - xh[..., 0] + L[0] * k[..., 0]                          # (6), w
+        dx[..., 0] = dw
+        dx[..., 1:n] = xh[..., 1:]                                              # (6), x_hat
+        dx[..., n] = 0.0
         if self.m:
-            dx[:, 1:n + 1] += u[:, 1:] @ self.b.T
-        dx[:, 1:n + 1] -= L[1:] * k[:, 1:]
+            dx[..., 1:n + 1] += u[..., 1:] @ self.b.T
+        dx[..., 1:n + 1] -= L[1:] * k[..., 1:]
         s = v - self.gamma2 * np.abs(w)                                         # (8)
         dv = self.gamma2 * np.abs(dw) - self.gamma1 * np.sign(s) * np.abs(s) ** (1 - self.mu)
-        dx[:, n + 1] = np.where(settled, 0.0, dv)
-        dx[:, n + 2] = 0.0
+        dx[..., n + 1] = np.where(q >= 0.5, 0.0, dv)
+        dx[..., n + 2] = 0.0
         return dx
 
     def jump_guard(self, x, t, j, u):
-        """Jump when v reaches z_min with q = 0 (decision 1); (N, 2) over a batch."""
+        """Jump when v reaches z_min with q = 0 (decision 1); last axis of length 2."""
         n = self.n
-        if np.ndim(x) == 1:
-            return np.array([self.z_min - x[n + 1], 0.5 - x[n + 2]])
-        return np.stack([self.z_min - x[:, n + 1], 0.5 - x[:, n + 2]], axis=1)
+        g = np.empty(np.shape(x)[:-1] + (2,))
+        g[..., 0] = self.z_min - x[..., n + 1]
+        g[..., 1] = 0.5 - x[..., n + 2]
+        return g
 
     def jump_map(self, x, t, j, u):
         """Settle: v -> 0, q -> 1 (z stays continuous); row by row over a batch."""
@@ -446,31 +422,29 @@ class NoisyExamplePlant(hs.HybridSystem):
         return om
 
     def flow_map(self, x, t, j, u):
-        """``x' = (A + bK) x + b cos 10t + d_x(t)``; a and s constant."""
-        batch = np.ndim(x) == 2
-        x2 = x if batch else x[None, :]
-        t = np.asarray(t, dtype=float).reshape(-1)
+        """``x' = (A + bK) x + b cos 10t + d_x(t)``; a and s constant (on the last axis)."""
+        x = np.asarray(x, dtype=float)
+        t = np.asarray(t, dtype=float)
         n = self.n
-        a = x2[:, n]
-        om = self.omega(x2[:, n + 1], t)
-        dx = np.zeros(x2.shape)
-        dx[:, :n] = x2[:, :n] @ self.Acl.T
-        dx[:, 0] += a * np.sin(2 * t)
-        dx[:, 1:n - 1] += (a * om[:, 0])[:, None]
-        dx[:, n - 1] += a * (1.0 + np.cos(t)) + np.cos(10 * t)
-        return dx if batch else dx[0]
+        a = x[..., n]
+        om = self.omega(x[..., n + 1], t)
+        dx = np.zeros(x.shape)
+        dx[..., :n] = x[..., :n] @ self.Acl.T
+        dx[..., 0] += a * np.sin(2 * t)
+        dx[..., 1:n - 1] += (a * om[..., 0])[..., None]
+        dx[..., n - 1] += a * (1.0 + np.cos(t)) + np.cos(10 * t)
+        return dx
 
     def output(self, x, t, j):
-        """``(y, u) = (x_1 + a omega_y, Kx + cos 10t)``."""
-        batch = np.ndim(x) == 2
-        x2 = x if batch else x[None, :]
-        t = np.asarray(t, dtype=float).reshape(-1)
+        """``(y, u) = (x_1 + a omega_y, Kx + cos 10t)`` (on the last axis)."""
+        x = np.asarray(x, dtype=float)
+        t = np.asarray(t, dtype=float)
         n = self.n
-        om = self.omega(x2[:, n + 1], t)
-        y = np.empty((len(x2), 2))
-        y[:, 0] = x2[:, 0] + x2[:, n] * om[:, 1]
-        y[:, 1] = x2[:, :n] @ self.K + np.cos(10 * t)
-        return y if batch else y[0]
+        om = self.omega(x[..., n + 1], t)
+        y = np.empty(x.shape[:-1] + (2,))
+        y[..., 0] = x[..., 0] + x[..., n] * om[..., 1]
+        y[..., 1] = x[..., :n] @ self.K + np.cos(10 * t)
+        return y
 
 
 class ConsistentEuler(hs.HybridSystem):
@@ -701,29 +675,27 @@ class BoxDisturbedPlant(hs.HybridSystem):
         self.output_dim = 2
 
     def d(self, x, t):
-        """The disturbance ``(d_y, d_x)`` at t, rows (N, n+1)."""
-        x2 = np.atleast_2d(x)
-        t = np.broadcast_to(np.asarray(t, dtype=float).reshape(-1), (len(x2),))
-        k = np.clip((t // self.width).astype(int), 0, self.pieces - 1)
+        """The disturbance ``(d_y, d_x)`` at t, on the last axis: (n+1,) or rows (N, n+1)."""
+        x = np.asarray(x, dtype=float)
+        k = np.clip((np.asarray(t, dtype=float) // self.width).astype(int), 0, self.pieces - 1)
         n = self.n
-        vals = x2[:, n:].reshape(len(x2), self.pieces, n + 1)
-        return vals[np.arange(len(x2)), k]
+        vals = x[..., n:].reshape(x.shape[:-1] + (self.pieces, n + 1))
+        k = np.broadcast_to(k, x.shape[:-1])[..., None, None]
+        return np.take_along_axis(vals, k, axis=-2)[..., 0, :]
 
     def flow_map(self, x, t, j, u):
-        batch = np.ndim(x) == 2
-        x2 = x if batch else x[None, :]
+        """``x' = (A + bK) x + b cos 10t + d_x(t)`` (on the last axis)."""
+        x = np.asarray(x, dtype=float)
         n = self.n
-        t1 = np.asarray(t, dtype=float).reshape(-1)
-        dx = np.zeros(x2.shape)
-        dx[:, :n] = x2[:, :n] @ self.Acl.T + self.d(x2, t1)[:, 1:]
-        dx[:, n - 1] += np.cos(10 * t1)
-        return dx if batch else dx[0]
+        dx = np.zeros(x.shape)
+        dx[..., :n] = x[..., :n] @ self.Acl.T + self.d(x, t)[..., 1:]
+        dx[..., n - 1] += np.cos(10 * np.asarray(t, dtype=float))
+        return dx
 
     def output(self, x, t, j):
-        batch = np.ndim(x) == 2
-        x2 = x if batch else x[None, :]
-        t1 = np.asarray(t, dtype=float).reshape(-1)
-        y = np.empty((len(x2), 2))
-        y[:, 0] = x2[:, 0] + self.d(x2, t1)[:, 0]
-        y[:, 1] = x2[:, :self.n] @ self.K + np.cos(10 * t1)
-        return y if batch else y[0]
+        """``(y, u) = (x_1 + d_y(t), Kx + cos 10t)`` (on the last axis)."""
+        x = np.asarray(x, dtype=float)
+        y = np.empty(x.shape[:-1] + (2,))
+        y[..., 0] = x[..., 0] + self.d(x, t)[..., 0]
+        y[..., 1] = x[..., :self.n] @ self.K + np.cos(10 * np.asarray(t, dtype=float))
+        return y

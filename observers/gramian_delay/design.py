@@ -78,7 +78,9 @@ class ObserverForm:
     M_xi : (n, n) array
         ``T M T^{-1}``.
     Psi : callable or None
-        ``Psi(y, t) -> (n,)``, the nonlinearity of (1).
+        ``Psi(y, t) -> (n,)``, the nonlinearity of (1); with ``Psi.batch =
+        True`` it takes the last axis (``y`` (N, q), ``t`` (N,) -> (N, n)), and
+        so do F1, F2 and F12.
     """
 
     A1: np.ndarray
@@ -90,8 +92,6 @@ class ObserverForm:
     T_inv: np.ndarray
     M_xi: np.ndarray
     Psi: Callable | None = None
-    #: Psi over a batch, ``Psi_rows(Y (N, q), t (N,)) -> (N, n)`` (optional)
-    Psi_rows: Callable | None = None
 
     @property
     def n(self):
@@ -109,39 +109,27 @@ class ObserverForm:
 
     def F1(self, y, t):
         """F1 of (2) at measured value ``y`` (q,) and time ``t``."""
-        y = np.asarray(y, dtype=float)
-        out = self._linear[0] @ y
-        if self.Psi is not None:
-            out = out + self.P @ np.asarray(self.Psi(y, t), dtype=float)
-        return out
+        return self.F12(y, t)[0]
 
     def F2(self, y, t):
         """F2 of (2) at measured value ``y`` (q,) and time ``t``."""
-        y = np.asarray(y, dtype=float)
-        out = self._linear[1] @ y
-        if self.Psi is not None:
-            out = out + self.N @ np.asarray(self.Psi(y, t), dtype=float)
-        return out
+        return self.F12(y, t)[1]
 
     def F12(self, y, t):
         """``(F1(y, t), F2(y, t))`` with one evaluation of Psi (what the observers call).
 
-        ``y`` (N, q) with ``t`` (N,): a batch (needs ``Psi_rows``), (N, n-q) and (N, q).
+        On the last axis: ``y`` (N, q) with ``t`` (N,) gives (N, n-q) and
+        (N, q) (a Psi declaring ``Psi.batch = True``).
         """
         y = np.asarray(y, dtype=float)
         L1, L2 = self._linear
-        if y.ndim == 2:
-            if self.Psi is None:
-                return y @ L1.T, y @ L2.T
-            if self.Psi_rows is None:
-                raise ValueError("F12 over a batch needs the form's Psi_rows (Psi over "
-                                 "(N, q) outputs and (N,) times)")
-            ps = np.asarray(self.Psi_rows(y, t), dtype=float)
-            return y @ L1.T + ps @ self.P.T, y @ L2.T + ps @ self.N.T
         if self.Psi is None:
-            return L1 @ y, L2 @ y
+            return y @ L1.T, y @ L2.T
+        if y.ndim > 1 and not getattr(self.Psi, "batch", False):
+            raise ValueError("F12 over a batch needs a Psi written on the last axis "
+                             "(Psi.batch = True: (N, q) outputs and (N,) times)")
         ps = np.asarray(self.Psi(y, t), dtype=float)
-        return L1 @ y + self.P @ ps, L2 @ y + self.N @ ps
+        return y @ L1.T + ps @ self.P.T, y @ L2.T + ps @ self.N.T
 
     def to_xi(self, chi):
         """``xi = T chi``; ``chi`` is (n,) or time-major (N, n)."""
@@ -152,7 +140,7 @@ class ObserverForm:
         return np.asarray(xi, dtype=float) @ self.T_inv.T
 
 
-def observer_form(M, N, Psi=None, *, P=None, k=None, Psi_rows=None) -> ObserverForm:
+def observer_form(M, N, Psi=None, *, P=None, k=None) -> ObserverForm:
     r"""Change of coordinates of Section II from (1) to the form (2).
 
     Parameters
@@ -162,7 +150,9 @@ def observer_form(M, N, Psi=None, *, P=None, k=None, Psi_rows=None) -> ObserverF
         Full row rank, with (M, N) observable.
     Psi : callable, optional
         ``Psi(y, t) -> (n,)``, the nonlinearity of (1) (a function of the
-        measured ``y = N chi`` and t).
+        measured ``y = N chi`` and t). With ``Psi.batch = True`` it takes the
+        last axis (``(Y (N, q), t (N,)) -> (N, n)``): the observers' maps then
+        take batches (:func:`hybridsim.simulate_many`).
     P : (n-q, n) array_like, optional
         Rows completing N to an invertible ``T = [P; N]``. Default: an
         orthonormal basis of the null space of N (so ``P N^T = 0``).
@@ -170,9 +160,6 @@ def observer_form(M, N, Psi=None, *, P=None, k=None, Psi_rows=None) -> ObserverF
         The constant of (2). Default: the spectral radius of A1 plus 1,
         which makes ``A1 + k I`` invertible (the paper: "taking k larger
         than the spectral radius of A1").
-    Psi_rows : callable, optional
-        Psi over a batch, ``(Y (N, q), t (N,)) -> (N, n)``: the observers'
-        maps then take batches (:func:`hybridsim.simulate_many`).
 
     Returns
     -------
@@ -217,8 +204,7 @@ def observer_form(M, N, Psi=None, *, P=None, k=None, Psi_rows=None) -> ObserverF
         k = float(np.max(np.abs(np.linalg.eigvals(A1)))) + 1.0
     k = scalar("k", k, positive=True)
     _check_k(A1, k)
-    return ObserverForm(A1=A1, A2=A2, k=k, P=P, N=N, T=T, T_inv=T_inv, M_xi=M_xi, Psi=Psi,
-                        Psi_rows=Psi_rows)
+    return ObserverForm(A1=A1, A2=A2, k=k, P=P, N=N, T=T, T_inv=T_inv, M_xi=M_xi, Psi=Psi)
 
 
 def _check_k(A1, k):

@@ -43,22 +43,21 @@ __all__ = ["DC_PARAMS", "dc_motor", "CONTINUOUS_RUN", "SAMPLED_RUN", "simulate",
 DC_PARAMS = dict(b0=40.0, b1=15.0, a1=35.0, a2=1.0, a3=36.4, a4=200.0)
 
 
-# decision 7's signals; each takes a time or a batch of times (N,) (``batch``: rows (N, dim))
+# decision 7's signals, on the last axis: a time, or a batch of times (N,) -> rows (N, dim)
 def _example_u(t):
     return 2.0 * np.sin(2.0 * t)
 
 
 def _example_delta1(t):
-    if np.ndim(t):
-        t = np.asarray(t, dtype=float)
-        return np.column_stack([np.zeros_like(t), 0.5 * np.sin(5 * t), 0.5 * np.cos(3 * t)])
-    return np.array([0.0, 0.5 * np.sin(5 * t), 0.5 * np.cos(3 * t)])
+    t = np.asarray(t, dtype=float)
+    out = np.zeros(t.shape + (3,))
+    out[..., 1] = 0.5 * np.sin(5 * t)
+    out[..., 2] = 0.5 * np.cos(3 * t)
+    return out
 
 
 def _example_delta2(t):
-    if np.ndim(t):
-        return 1e-3 * np.sin(20 * np.asarray(t, dtype=float))[:, None]
-    return np.array([1e-3 * np.sin(20 * t)])
+    return 1e-3 * np.sin(20 * np.asarray(t, dtype=float))[..., None]
 
 
 _example_u.batch = _example_delta1.batch = _example_delta2.batch = True

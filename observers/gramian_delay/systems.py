@@ -75,36 +75,30 @@ REALISATIONS = ("literal", "reset")
 def _signal(name, fn, dim):
     """A callable t -> (dim,) array (None: zero); a signal made here is not wrapped again.
 
-    Its ``rows(t)`` takes a batch of times (N,) and returns (N, dim): in one
-    call where ``fn`` declares it takes arrays (``fn.batch = True``: the
-    signals of :func:`dc_motor` and :func:`smooth_noise`), else one call per
-    time.
+    On the last axis: times ``t`` of shape (N,) give (N, dim), in one call
+    where ``fn`` declares it takes arrays (``fn.batch = True``: the signals
+    of :func:`dc_motor` and :func:`smooth_noise`), else one call per time.
     """
     if getattr(fn, "_signal_dim", None) == dim:
         return fn
     if fn is None:
-        z = np.zeros(dim)
-
         def signal(t):
-            return z
-
-        def rows(t):
-            return np.zeros((np.size(t), dim))
+            return np.zeros(np.shape(t) + (dim,))
         signal._zero = True
     elif not callable(fn):
         raise TypeError(f"{name} must be callable t -> ({dim},) array or None, "
                         f"got {type(fn).__name__}")
-    else:
+    elif getattr(fn, "batch", False):
         def signal(t):
-            return np.asarray(fn(t), dtype=float).reshape(dim)
-
-        if getattr(fn, "batch", False):
-            def rows(t):
-                return np.asarray(fn(np.asarray(t, dtype=float)), dtype=float).reshape(-1, dim)
-        else:
-            def rows(t):
-                return np.array([signal(float(s)) for s in np.atleast_1d(t)]).reshape(-1, dim)
-    signal.rows = rows
+            t = np.asarray(t, dtype=float)
+            return np.asarray(fn(t), dtype=float).reshape(t.shape + (dim,))
+    else:
+        def signal(t):      # fn takes one time: a batch of times is read one by one
+            if np.ndim(t) == 0:
+                return np.asarray(fn(t), dtype=float).reshape(dim)
+            t = np.asarray(t, dtype=float)
+            return np.array([np.asarray(fn(float(s)), dtype=float).reshape(dim)
+                             for s in t.ravel()]).reshape(t.shape + (dim,))
     signal._signal_dim = dim
     signal.sinusoids = None if fn is None else getattr(fn, "sinusoids", None)
     return signal
@@ -244,11 +238,9 @@ def smooth_noise(sigma, dim=1, *, seed=None, n_modes=8, f_max=50.0):
     a *= sigma * np.sqrt(2.0) / np.maximum(np.linalg.norm(a, axis=0), 1e-300)
     ph = rng.uniform(0.0, 2 * np.pi, size=(n_modes, dim))
 
-    def noise(t):
-        if np.ndim(t):              # a batch of times (N,) -> (N, dim)
-            t = np.asarray(t, dtype=float)[:, None, None]
-            return np.sum(a * np.sin(2 * np.pi * f * t + ph), axis=1)
-        return np.sum(a * np.sin(2 * np.pi * f * t + ph), axis=0)
+    def noise(t):                   # on the last axis: times (N,) -> (N, dim)
+        t = np.asarray(t, dtype=float)[..., None, None]
+        return np.sum(a * np.sin(2 * np.pi * f * t + ph), axis=-2)
     noise.batch = True
     # its compiled form (Plant's notes): one row (component, a, 2 pi f, phase, sin) a mode
     w = 2 * np.pi * f
@@ -277,15 +269,16 @@ class Plant(hs.HybridSystem):
     delta2 : callable, optional
         ``t -> (q,)`` measurement disturbance.
     oracle : bool
-    Psi_rows : callable, optional
-        Psi over a batch, ``Psi_rows(Y, t) -> (N, n)`` for ``Y`` (N, q) and
-        ``t`` (N,). With it (or without Psi) the plant is ``vectorized``:
-        :func:`hybridsim.simulate_many` integrates a batch of plants at once
-        (the disturbances are read per time, in one call where they declare
-        ``batch = True``).
 
     Notes
     -----
+    A ``Psi`` that declares ``Psi.batch = True`` is written on the last axis
+    (``Psi(Y, t) -> (N, n)`` for ``Y`` (N, q) and ``t`` (N,), as well as one
+    ``(q,)``, t): with it (or without Psi) the plant is ``vectorized``, and
+    :func:`hybridsim.simulate_many` integrates a batch of plants at once
+    (the disturbances are read per time, in one call where they declare
+    ``batch = True``).
+
     The compiled path (``backend="compiled"``, :meth:`compiled_component`)
     takes the plant where every callable has a compiled form: ``Psi`` one
     in its attribute ``Psi.compiled = (fn, params)``, ``fn(y, t, p, o) ->
@@ -302,8 +295,7 @@ class Plant(hs.HybridSystem):
     Mazenc & Malisoff (2022), eq. (1).
     """
 
-    def __init__(self, M, N, Psi=None, *, delta1=None, delta2=None, oracle=False,
-                 Psi_rows=None):
+    def __init__(self, M, N, Psi=None, *, delta1=None, delta2=None, oracle=False):
         self.M = matrix("M", M)
         n = self.M.shape[0]
         if self.M.shape != (n, n):
@@ -323,25 +315,17 @@ class Plant(hs.HybridSystem):
         self.oracle = bool(oracle)
         self.state_dim = n
         self.output_dim = 2 * q if oracle else q
-        if Psi_rows is not None and not callable(Psi_rows):
-            raise TypeError(f"Psi_rows must be callable, got {type(Psi_rows).__name__}")
-        self.Psi_rows = Psi_rows
-        # maps over (N, n) batches where Psi has a batch form (or there is none)
-        self.vectorized = Psi is None or Psi_rows is not None
+        # maps over (N, n) batches where Psi takes the last axis (or there is none)
+        self.vectorized = Psi is None or bool(getattr(Psi, "batch", False))
 
     def flow_map(self, x, t):
-        if np.ndim(x) == 2:                             # a batch: x (N, n), t (N,)
-            dx = x @ self.M.T
-            if self._d1 is not None:
-                dx = dx + self.delta1.rows(t)
-            if self.Psi is not None:
-                dx = dx + np.asarray(self.Psi_rows(x @ self.N.T, t), dtype=float)
-            return dx
-        dx = self.M @ x
+        """chi' of (1), on the last axis (x (n,) or a batch (N, n) with t (N,))."""
+        x = np.asarray(x, dtype=float)
+        dx = x @ self.M.T
         if self._d1 is not None:
             dx = dx + self._d1(t)
         if self.Psi is not None:
-            dx = dx + np.asarray(self.Psi(self.N @ x, t), dtype=float)
+            dx = dx + np.asarray(self.Psi(x @ self.N.T, t), dtype=float)
         return dx
 
     def compiled_refusal(self):
@@ -387,13 +371,10 @@ class Plant(hs.HybridSystem):
                          params=params)
 
     def output(self, x, t, j):
-        if np.ndim(x) == 2:                             # a batch
-            y = x @ self.N.T
-            Y = y if self._d2 is None else y + self.delta2.rows(t)
-            return np.concatenate([Y, y], axis=1) if self.oracle else Y
-        y = self.N @ x
+        """Y = N chi + delta2(t) (then N chi with ``oracle``), on the last axis."""
+        y = np.asarray(x, dtype=float) @ self.N.T
         Y = y if self._d2 is None else y + self._d2(t)
-        return np.concatenate([Y, y]) if self.oracle else Y
+        return np.concatenate([Y, y], axis=-1) if self.oracle else Y
 
 
 class DCMotor(Plant):
@@ -458,17 +439,15 @@ class DCMotor(Plant):
         Nmat = np.array([[1.0, 0.0, 0.0]])
         a1, b0 = p["a1"], p["b0"]
 
-        def Psi(y, t):
-            return np.array([0.0, -a1 * np.sin(y[0]), b0 * float(u(t))])
+        u_t = _signal("u", u, 1)
 
-        def u_rows(t):
-            if getattr(u, "batch", False):
-                return np.asarray(u(t), dtype=float).reshape(-1)
-            return np.array([float(u(float(s))) for s in t])
-
-        def Psi_rows(Y, t):                             # Psi over a batch (N, 1), (N,)
-            t = np.broadcast_to(np.asarray(t, dtype=float), (len(Y),))
-            return np.column_stack([np.zeros(len(Y)), -a1 * np.sin(Y[:, 0]), b0 * u_rows(t)])
+        def Psi(y, t):                      # on the last axis: y (N, 1) with t (N,) too
+            y = np.asarray(y, dtype=float)
+            out = np.zeros(y.shape[:-1] + (3,))
+            out[..., 1] = -a1 * np.sin(y[..., 0])
+            out[..., 2] = b0 * u_t(t)[..., 0]
+            return out
+        Psi.batch = True
 
         u_sin = _sinusoid_params(u, 1, "u")
         if u_sin is not None:               # the compiled form of Psi (Plant's notes)
@@ -476,12 +455,10 @@ class DCMotor(Plant):
         else:
             self._psi_refusal = ("its control u is a Python callable of t without a "
                                  "compiled form (a 'sinusoids' table, see gramian_delay.Plant)")
-        super().__init__(M, Nmat, Psi, delta1=delta1, delta2=delta2, oracle=oracle,
-                         Psi_rows=Psi_rows)
+        super().__init__(M, Nmat, Psi, delta1=delta1, delta2=delta2, oracle=oracle)
         self.params = p
         self.u = u
-        self.form = observer_form(M, Nmat, Psi, P=[[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], k=k,
-                                  Psi_rows=Psi_rows)
+        self.form = observer_form(M, Nmat, Psi, P=[[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], k=k)
         self.design = gramian_design(self.form.A1, self.form.A2, self.form.k, tau)
         self.K1, self.K2 = p["a1"], float(self.form.k)
         self.chi0 = vector("chi0", chi0, 3)
@@ -675,9 +652,9 @@ class _ObserverBase(hs.HybridSystem):
                         np.asarray(F2(y, t), dtype=float).reshape(design.q))
             self._F12 = F12
         self.realisation = realisation
-        # maps over batches where F1, F2 are an ObserverForm's with a batch form of Psi
+        # maps over batches where F1, F2 are an ObserverForm's whose Psi takes the last axis
         self._batch = form is not None and hasattr(form, "F12") and (
-            form.Psi is None or getattr(form, "Psi_rows", None) is not None)
+            form.Psi is None or bool(getattr(form.Psi, "batch", False)))
         m, q = design.m, design.q
         # dimensions agree at construction, not as a broadcast error inside a run
         for name, F, dim in (("F1", F1, m), ("F2", F2, q)):
@@ -704,38 +681,21 @@ class _ObserverBase(hs.HybridSystem):
     def _extension_flow(self, z, t, y, out):
         """Flows of the extension (7) with measurement y (Y, or omega in (39)), into out.
 
-        Returns F2(y, t) (the flow of omega in (39) needs it too).
+        Returns F2(y, t) (the flow of omega in (39) needs it too). On the last
+        axis: z (N, r), y (N, q), t (N,) give a batch's flows.
         """
         d = self.design
-        if np.ndim(z) == 2:
-            return self._extension_flow_rows(z, t, y, out)
-        xi1, xi2 = z[self.sl_xi1], z[self.sl_xi2]
-        innov = d.H @ (y - xi2)
-        f1, f2 = self._F12(y, t)
-        out[self.sl_xi1] = d.A1 @ xi1 + f1                                          # (7) xi1_hat
-        out[self.sl_xi2] = d.A2 @ xi1 - d.k * xi2 + f2                              # (7) xi2_hat
-        out[self.sl_psi1] = -d.k * z[self.sl_psi1] + innov                          # (7) psi1
-        out[self.sl_psi2] = self._mA2 @ z[self.sl_psi2] + innov                     # (7) psi2 / p
-        if self.realisation == "reset":
-            out[self.sl_phi] = self._mA2 @ z[self.sl_phi]                           # phi
-            out[self.sl_P] = 0.0                                                    # P
-            out[self.i_rho] = 1.0                                                   # rho
-        return f2
-
-    def _extension_flow_rows(self, z, t, y, out):
-        """:meth:`_extension_flow` over a batch: z (N, r), y (N, q), t (N,)."""
-        d = self.design
-        xi1, xi2 = z[:, self.sl_xi1], z[:, self.sl_xi2]
+        xi1, xi2 = z[..., self.sl_xi1], z[..., self.sl_xi2]
         innov = (y - xi2) @ d.H.T
-        f1, f2 = self._F12(y, np.broadcast_to(np.asarray(t, dtype=float), (len(z),)))
-        out[:, self.sl_xi1] = xi1 @ d.A1.T + f1                                     # (7)
-        out[:, self.sl_xi2] = xi1 @ d.A2.T - d.k * xi2 + f2
-        out[:, self.sl_psi1] = -d.k * z[:, self.sl_psi1] + innov
-        out[:, self.sl_psi2] = z[:, self.sl_psi2] @ self._mA2.T + innov
+        f1, f2 = self._F12(y, t)
+        out[..., self.sl_xi1] = xi1 @ d.A1.T + f1                                   # (7) xi1_hat
+        out[..., self.sl_xi2] = xi1 @ d.A2.T - d.k * xi2 + f2                       # (7) xi2_hat
+        out[..., self.sl_psi1] = -d.k * z[..., self.sl_psi1] + innov                # (7) psi1
+        out[..., self.sl_psi2] = z[..., self.sl_psi2] @ self._mA2.T + innov         # (7) psi2 / p
         if self.realisation == "reset":
-            out[:, self.sl_phi] = z[:, self.sl_phi] @ self._mA2.T
-            out[:, self.sl_P] = 0.0
-            out[:, self.i_rho] = 1.0
+            out[..., self.sl_phi] = z[..., self.sl_phi] @ self._mA2.T               # phi
+            out[..., self.sl_P] = 0.0                                               # P
+            out[..., self.i_rho] = 1.0                                              # rho
         return f2
 
     def _reset_guard(self, z):
@@ -1016,7 +976,7 @@ class SampledGramianObserver(_ObserverBase):
         y = z[self.sl_omega] if self.estimate_source == "omega" else np.asarray(u)[self.design.q:]
         return self._estimate(z, t, y, self.history)
 
-    def _xi_e_rows(self, z, t, u):
+    def _xi_e_batch(self, z, t, u):
         """xi_e of (13) for a batch: z (N, r), t (N,), the rows' past from the run's
         BatchHistory (decision 3's window h = min(tau, t - t0) per row)."""
         d = self.design
@@ -1033,47 +993,36 @@ class SampledGramianObserver(_ObserverBase):
             out[i] = d.xi_e(*(a[i] for a in args), h=t[i] - self.t0)
         return out
 
+    def _xi_e(self, z, t, u):
+        """xi_e of (13) during a run: one state, or a batch (N, r) read through the
+        run's BatchHistory (:meth:`_xi_e_batch`)."""
+        # kept apart: a batch reads its past in one call of a BatchHistory and each
+        # row before t0 + tau has its own window h (one matrix exponential per row),
+        # while one state's estimate (_estimate) also serves the reset realisation
+        # and estimate_along on a finished arc
+        return self._xi_e_batch(z, t, u) if np.ndim(z) == 2 else self._xi_e_now(z, t, u)
+
     def flow_map(self, z, t, j, u):
+        """(39) between samples, on the last axis (z (r,) or a batch (N, r))."""
         d = self.design
-        if np.ndim(z) == 2:                                        # a batch (N, r)
-            w = z[:, self.sl_omega]
-            out = np.empty(np.shape(z))
-            f2 = self._extension_flow(z, t, w, out)
-            xe = self._xi_e_rows(z, t, u)
-            out[:, self.sl_omega] = xe @ d.A2.T - d.k * w + f2                 # (39)
-            out[:, self.i_sigma] = 1.0
-            out[:, self.i_kappa] = 0.0
-            return out
-        w = z[self.sl_omega]
-        out = np.empty(self.state_dim)
+        w = z[..., self.sl_omega]
+        out = np.empty(np.shape(z))
         f2 = self._extension_flow(z, t, w, out)                                     # F2(omega, t)
-        xe = self._xi_e_now(z, t, u)
-        out[self.sl_omega] = d.A2 @ xe - d.k * w + f2                               # (39)
-        out[self.i_sigma] = 1.0
-        out[self.i_kappa] = 0.0
+        xe = self._xi_e(z, t, u)
+        out[..., self.sl_omega] = xe @ d.A2.T - d.k * w + f2                        # (39)
+        out[..., self.i_sigma] = 1.0
+        out[..., self.i_kappa] = 0.0
         return out
 
     def _gap_flow_guard(self, z, t, j, u):
         return self.gaps[1] - z[..., self.i_sigma]
 
     def _sample_guard(self, z, t):
-        if np.ndim(z) == 2:                                        # a batch: (N,)
-            return self._sample_guard_rows(z, t)
         if self.period is not None:
-            return z[self.i_sigma] - self.period
+            return z[..., self.i_sigma] - self.period
         if self.gaps is not None:
-            return z[self.i_sigma] - self.gaps[0]
-        kap = round(float(z[self.i_kappa]))
-        if kap >= len(self.instants):
-            return -1.0
-        return t - self.instants[kap]
-
-    def _sample_guard_rows(self, z, t):
-        if self.period is not None:
-            return z[:, self.i_sigma] - self.period
-        if self.gaps is not None:
-            return z[:, self.i_sigma] - self.gaps[0]
-        kap = np.rint(z[:, self.i_kappa]).astype(np.int64)
+            return z[..., self.i_sigma] - self.gaps[0]
+        kap = np.rint(z[..., self.i_kappa]).astype(np.int64)
         ins = self.instants[np.minimum(kap, len(self.instants) - 1)]
         return np.where(kap >= len(self.instants), -1.0, t - ins)
 
@@ -1084,20 +1033,16 @@ class SampledGramianObserver(_ObserverBase):
         return g
 
     def jump_map(self, z, t, j, u):
-        if np.ndim(z) == 2:                   # a batch (literal realisation): every row samples
-            z = np.array(z, dtype=float)
-            z[:, self.sl_omega] = np.asarray(u, dtype=float)[:, :self.design.q]   # (39)
-            z[:, self.i_sigma] = 0.0
-            z[:, self.i_kappa] += 1.0
-            return z
+        """A sample (39), on the last axis; the reset realisation (one state only: it is
+        not vectorized) resets p first and samples only when the sample is due too."""
         z = np.array(z, dtype=float)
         if self.realisation == "reset" and self._reset_guard(z) >= 0:
             self._reset(z)
             if self._sample_guard(z, t) < 0:
                 return z
-        z[self.sl_omega] = np.asarray(u, dtype=float)[:self.design.q]  # (39): omega(t_j) = Y(t_j)
-        z[self.i_sigma] = 0.0
-        z[self.i_kappa] += 1.0
+        z[..., self.sl_omega] = np.asarray(u, dtype=float)[..., :self.design.q]  # omega(t_j) = Y
+        z[..., self.i_sigma] = 0.0
+        z[..., self.i_kappa] += 1.0
         return z
 
     def compiled_refusal(self):

@@ -79,7 +79,7 @@ class _TwoCopyObserver(hs.HybridSystem):
 
     _has_xi = False
     _has_q = True
-    vectorized = True       # the maps take batches too (the *_rows methods)
+    vectorized = True       # the maps are written on the last axis: one state or a batch
 
     def __init__(self, A, H=None, L1=None, L2=None, delta=None, *, a1=0.5, a2=None):
         d = _design_from_args(A, H, L1, L2, delta, a1, a2)
@@ -102,18 +102,12 @@ class _TwoCopyObserver(hs.HybridSystem):
 
     # -- sets -----------------------------------------------------------
     def jump_guard(self, x, t, j, u):
-        if np.ndim(x) == 2:
-            h = x[:, self._tau] - self.design.delta
-            return np.where(x[:, self._q] > 0.5, -1.0, h) if self._has_q else h
-        if self._has_q and x[self._q] > 0.5:
-            return -1.0
-        return x[self._tau] - self.design.delta
+        h = x[..., self._tau] - self.design.delta
+        return np.where(x[..., self._q] > 0.5, -1.0, h) if self._has_q else h
 
     def jump_set(self, x, t, j, u):
-        if np.ndim(x) == 2:
-            inD = x[:, self._tau] >= self.design.delta
-            return inD & (x[:, self._q] < 0.5) if self._has_q else inD
-        return bool(x[self._tau] >= self.design.delta and (not self._has_q or x[self._q] < 0.5))
+        inD = x[..., self._tau] >= self.design.delta
+        return inD & (x[..., self._q] < 0.5) if self._has_q else inD
 
     def output(self, x, t, j):
         d = self.design
@@ -136,7 +130,7 @@ class _TwoCopyObserver(hs.HybridSystem):
 
     # -- helpers --------------------------------------------------------
     def _jump_gains(self, x):
-        """(K1, K2) of the jump from the state x (one state): the design's (12)."""
+        """(K1, K2) of the jump from the state x (one state or a batch): the design's (12)."""
         return self.design.K1, self.design.K2
 
     def split(self, X):
@@ -189,25 +183,18 @@ class NominalObserver(_TwoCopyObserver):
 
     def flow_map(self, x, t, j, u):
         d, n = self.design, self.design.n
-        if np.ndim(x) == 2:                                   # a batch (N, r)
-            dx = np.zeros_like(x)
-            dx[:, :n] = x[:, :n] @ d.F1.T + u @ d.L1.T
-            dx[:, n:2 * n] = x[:, n:2 * n] @ d.F2.T + u @ d.L2.T
-            dx[:, self._tau] = 1.0 - x[:, self._q]
-            return dx
-        dx = np.zeros(self.state_dim)
-        dx[:n] = d.F1 @ x[:n] + d.L1 @ u                      # (11)
-        dx[n:2 * n] = d.F2 @ x[n:2 * n] + d.L2 @ u
-        dx[self._tau] = 1.0 - x[self._q]
+        x = np.asarray(x, dtype=float)
+        u = np.asarray(u, dtype=float)
+        dx = np.zeros(x.shape)
+        dx[..., :n] = x[..., :n] @ d.F1.T + u @ d.L1.T                  # (11)
+        dx[..., n:2 * n] = x[..., n:2 * n] @ d.F2.T + u @ d.L2.T
+        dx[..., self._tau] = 1.0 - x[..., self._q]
         return dx
 
     def jump_map(self, x, t, j, u):
-        d, n = self.design, self.design.n
-        if np.ndim(x) == 2:
-            R = x[..., :n] @ d.K1.T + x[..., n:2 * n] @ d.K2.T
-        else:
-            K1, K2 = self._jump_gains(x)
-            R = K1 @ x[:n] + K2 @ x[n:2 * n]                  # (12)
+        n = self.design.n
+        K1, K2 = self._jump_gains(x)
+        R = x[..., :n] @ K1.T + x[..., n:2 * n] @ K2.T                  # (12)
         xn = np.empty(np.shape(x))
         xn[..., :n] = R
         xn[..., n:2 * n] = R
@@ -302,65 +289,35 @@ class _NoiseCompensating(_TwoCopyObserver):
     def flow_map(self, x, t, j, u):
         d, n, p = self.design, self.design.n, self.design.p
         s = self.slices
-        if np.ndim(x) == 2:
-            return self._flow_rows(x, u)
-        mh = x[s["mhat"]]
-        dx = np.zeros(self.state_dim)
-        dx[:n] = d.A @ x[:n] + d.L1 @ (u - d.H @ x[:n] - mh)
-        dx[n:2 * n] = d.A @ x[n:2 * n] + d.L2 @ (u - d.H @ x[n:2 * n] - mh)
+        x = np.asarray(x, dtype=float)
+        u, mh = np.asarray(u, dtype=float), x[..., s["mhat"]]
+        dx = np.zeros(x.shape)
+        for xh, L in ((slice(0, n), d.L1), (slice(n, 2 * n), d.L2)):       # (17)
+            dx[..., xh] = x[..., xh] @ d.A.T + (u - x[..., xh] @ d.H.T - mh) @ L.T
         # diag_p(F_i) xi_i + L_tilde_i: each n-piece is driven by a column of L_i
-        dx[s["xi1"]] = (d.F1 @ Xi_matrix(x[s["xi1"]], n, p)).reshape(-1, order="F") + self._Lt1
-        dx[s["xi2"]] = (d.F2 @ Xi_matrix(x[s["xi2"]], n, p)).reshape(-1, order="F") + self._Lt2
-        dx[self._tau] = 1.0 - x[self._q] if self._has_q else 1.0
+        for xi, F, Lt in ((s["xi1"], d.F1, self._Lt1), (s["xi2"], d.F2, self._Lt2)):
+            FX = F @ Xi_matrix(x[..., xi], n, p)                            # (..., n, p)
+            dx[..., xi] = FX.swapaxes(-1, -2).reshape(x.shape[:-1] + (n * p,)) + Lt
+        dx[..., self._tau] = 1.0 - x[..., self._q] if self._has_q else 1.0
         return dx
 
     def jump_map(self, x, t, j, u):
         d, n, p = self.design, self.design.n, self.design.p
         s = self.slices
-        if np.ndim(x) == 2:
-            return self._jump_rows(x, u)
-        mh = x[s["mhat"]]
+        x = np.asarray(x, dtype=float)
+        mh = x[..., s["mhat"]]
         K1, K2 = self._jump_gains(x)
-        R = K1 @ x[:n] + K2 @ x[n:2 * n]
-        T = K1 @ Xi_matrix(x[s["xi1"]], n, p) + K2 @ Xi_matrix(x[s["xi2"]], n, p)
+        R = x[..., :n] @ K1.T + x[..., n:2 * n] @ K2.T                      # (18)
+        T = K1 @ Xi_matrix(x[..., s["xi1"]], n, p) + K2 @ Xi_matrix(x[..., s["xi2"]], n, p)
         # (H T - I)^{-1}(H R - (y - m̂))
-        w = np.linalg.solve(d.H @ T - np.eye(p), d.H @ R - (u - mh))
-        xn = np.zeros(self.state_dim)
-        xn[:n] = R - T @ w
-        xn[n:2 * n] = R - T @ w
-        xn[s["mhat"]] = mh + w
+        rhs = R @ d.H.T - (np.asarray(u, dtype=float) - mh)
+        w = np.linalg.solve(d.H @ T - np.eye(p), rhs[..., None])[..., 0]
+        xn = np.zeros(x.shape)
+        xn[..., :n] = xn[..., n:2 * n] = R - (T @ w[..., None])[..., 0]
+        xn[..., s["mhat"]] = mh + w
         # xi1 = xi2 = 0, tau = 0
         if self._has_q:
-            xn[self._q] = 1.0 - x[self._q]
-        return xn
-
-    # the same maps over a batch: x (N, r), u (N, p)
-    def _flow_rows(self, x, u):
-        d, n, p = self.design, self.design.n, self.design.p
-        s = self.slices
-        e = u - x[:, s["mhat"]]                                       # y - m̂
-        dx = np.zeros_like(x)
-        for xh, L in ((slice(0, n), d.L1), (slice(n, 2 * n), d.L2)):   # (17)
-            dx[:, xh] = x[:, xh] @ d.A.T + (e - x[:, xh] @ d.H.T) @ L.T
-        for xi, F, Lt in ((s["xi1"], d.F1, self._Lt1), (s["xi2"], d.F2, self._Lt2)):
-            FX = F @ Xi_matrix(x[:, xi], n, p)                         # (N, n, p)
-            dx[:, xi] = FX.swapaxes(1, 2).reshape(len(x), n * p) + Lt
-        dx[:, self._tau] = 1.0 - x[:, self._q] if self._has_q else 1.0
-        return dx
-
-    def _jump_rows(self, x, u):
-        d, n, p = self.design, self.design.n, self.design.p
-        s = self.slices
-        mh = x[:, s["mhat"]]
-        R = x[:, :n] @ d.K1.T + x[:, n:2 * n] @ d.K2.T                # (18)
-        T = d.K1 @ Xi_matrix(x[:, s["xi1"]], n, p) + d.K2 @ Xi_matrix(x[:, s["xi2"]], n, p)
-        rhs = R @ d.H.T - (u - mh)
-        w = np.linalg.solve(d.H @ T - np.eye(p), rhs[..., None])[..., 0]
-        xn = np.zeros_like(x)
-        xn[:, :n] = xn[:, n:2 * n] = R - (T @ w[..., None])[..., 0]
-        xn[:, s["mhat"]] = mh + w
-        if self._has_q:
-            xn[:, self._q] = 1.0 - x[:, self._q]
+            xn[..., self._q] = 1.0 - x[..., self._q]
         return xn
 
 

@@ -331,7 +331,7 @@ def _dist_design(name, kind="finite-time"):
 
 
 def _power_rounding_tol(nd, M):
-    """Bound on |rhs_rows - rhs| on a row where C_o x_o = y and the estimates agree.
+    """Bound on |rhs (batch) - rhs (row)| on a row where C_o x_o = y and the estimates agree.
 
     Both orders round C_o x_o - y and s (true value 0) by at most
     ``d = 4 (n + |𝒩| + 1) eps M`` (M bounds the terms summed); for 0 < γ <= 1,
@@ -349,8 +349,8 @@ def _power_rounding_tol(nd, M):
 
 @pytest.mark.parametrize("kind", ["finite-time", "linear"])
 @pytest.mark.parametrize("name", ["example", "ring", "random"])
-def test_node_rhs_rows_equals_rhs(name, kind):
-    """_NodeData.rhs_rows (batch) equals rhs row by row, for (7)-(8) and (4)-(5).
+def test_node_rhs_batch_equals_rhs(name, kind):
+    """_NodeData.rhs over a batch equals rhs row by row, for (7)-(8) and (4)-(5).
 
     Random rows: 1e-12 relative (rounding). Rows at zero output error and
     consensus term (every estimate agreeing), where the powers of (7)-(8)
@@ -366,14 +366,14 @@ def test_node_rhs_rows_equals_rhs(name, kind):
         z = rng.normal(size=(N, nd.n_o + nd.n_u))
         y = rng.normal(size=(N, nd.m))
         xnb = rng.normal(size=(N, nb, dsg.n))
-        B = nd.rhs_rows(z, y, xnb)
+        B = nd.rhs(z, y, xnb)
         assert B.shape == z.shape
         _assert_rows(B, [nd.rhs(z[i], y[i], xnb[i]) for i in range(N)], f"node {nd.node}")
         # rows at agreement: y = C_o x_o, every neighbour's estimate x̃ = T z
         y0 = z[:, :nd.n_o] @ nd.C_o[:1].T if nd.n_o else y
         x_agree = z @ nd.T.T
         xnb0 = np.repeat(x_agree[:, None, :], nb, axis=1)
-        B0 = nd.rhs_rows(z, y0, xnb0)
+        B0 = nd.rhs(z, y0, xnb0)
         S0 = np.array([nd.rhs(z[i], y0[i], xnb0[i]) for i in range(N)])
         M = max(1.0, float(np.abs(np.c_[z, y0, x_agree]).max())) * nd.n
         np.testing.assert_allclose(B0, S0, rtol=0, atol=_power_rounding_tol(nd, M),

@@ -882,7 +882,7 @@ def test_contract_run_returns_errors(obs):
 
 @pytest.mark.parametrize("kind", ["finite-time", "linear"])
 def test_node_flow_batch_rows_equal_single(kind, example):
-    # the vectorized path (rows) and the single-state flow are the same formula:
+    # the vectorized path (rows) and the single-state flow are the same method:
     # away from zero error (no power amplifies rounding) they agree to 1e-13
     d = example if kind == "finite-time" else design(example.A, example.C, example.G,
                                                      [1, 2, 3, 4], kind="linear")
@@ -891,8 +891,8 @@ def test_node_flow_batch_rows_equal_single(kind, example):
         nd = _NodeData(d, k)
         Z = rng.standard_normal((5, 6))
         U = rng.standard_normal((5, 1 + 6 * len(nd.neighbours)))
-        rows = nd.flow_rows(Z, U)
-        np.testing.assert_array_equal(nd.rhs_rows(Z, U[:, :1], U[:, 1:].reshape(5, -1, 6)), rows)
+        rows = nd.flow(Z, U)
+        np.testing.assert_array_equal(nd.rhs(Z, U[:, :1], U[:, 1:].reshape(5, -1, 6)), rows)
         for r in range(5):
             np.testing.assert_allclose(rows[r], nd.flow(Z[r], U[r]), rtol=1e-13, atol=1e-13)
             np.testing.assert_allclose(nd.rhs(Z[r], U[r, :1], U[r, 1:].reshape(-1, 6)),

@@ -999,8 +999,9 @@ def test_a_population_is_the_runs_one_by_one(kind, kw):
 
 
 def test_parts_without_a_batch_form_run_row_by_row():
-    """A user's Psi without Psi_rows (or the reset realisation of (39)): not vectorized,
-    so simulate_many runs the rows through simulate (same results, no error)."""
+    """A user's Psi not on the last axis (no ``Psi.batch``; or the reset realisation of
+    (39)): not vectorized, so simulate_many runs the rows through simulate (same results,
+    no error)."""
     ex = gd.dc_motor(100.0, 0.1)
     assert not ex.sampled_observer(period=0.01, realisation="reset").vectorized
     plant = gd.Plant(ex.M, ex.N, lambda y, t: np.zeros(3))
