@@ -181,8 +181,60 @@ class SolutionTree:
         return [self._leaf(n) for n in self.nodes
                 if n.end == "merged" and n.merged_into != n.parent]
 
+    def solutions(self):
+        """Every solution explored, each a HybridArc from x0 to its end.
+
+        A leaf is one; a merged branch is continued by every solution of the
+        branch it met (its future), so there are at least as many solutions
+        as leaves: 2^k choices that meet again make few leaves and many
+        solutions. Branches left pending by a budget end where they stop.
+
+        Returns
+        -------
+        list of HybridArc
+            ``arc.choices`` the choices of each, ``arc.node`` the node it ends on.
+
+        Examples
+        --------
+        >>> import hybridsim as hs
+        >>> from hybridsim.library import BouncingBall
+        >>> tree = hs.explore(BouncingBall(), [1.0, 0.0], 1.0, 1)
+        >>> len(tree.solutions()) >= len(tree)
+        True
+        """
+        nodes = self.nodes
+
+        def paths(k):
+            n = nodes[k]
+            if n.end == "merged":
+                if n.merged_into == n.parent:   # its sibling's branch, not a solution
+                    return []
+                o = nodes[n.merged_into]
+                if n.arc is None:               # met at its start: o's future, after
+                    return [[("from", o.parent), *p] for p in paths(o.index)]  # o's parent's end
+                # met at o's end: o's children, from o's end sample (within merge_tol)
+                return [[(k, o.index), *p] for c in o.children for p in paths(c)]
+            if n.end in ("branch", "forced") and n.children:
+                return [[(k, p[0][1]), *p[1:]] if isinstance(p[0], tuple) and p[0][0] == "from"
+                        else [k, *p] for c in n.children for p in paths(c)]
+            return [[k]]
+        out = []
+        for p in paths(0):
+            tails = dict(i for i in p if isinstance(i, tuple))
+            parts = [nodes[i[0] if isinstance(i, tuple) else i] for i in p]
+            arc = self._arc_of(parts, parts[-1], tails)
+            arc.node = parts[-1].index
+            out.append(arc)
+        return out
+
     def _leaf(self, node):
-        parts = self.path(node.index)
+        return self._arc_of(self.path(node.index), node)
+
+    def _arc_of(self, parts, node, tails=None):
+        """The arc through the nodes ``parts`` (from the root), ending as ``node``;
+        ``tails[i] = o``: node i's last sample at node o's end time (they met there,
+        within ``merge_tol``, and the arc goes on from o's)."""
+        tails = tails or {}
         ts, js, xs, ds = [], [], [], []
         stats = collections.Counter()
         for p in parts:
@@ -198,10 +250,14 @@ class SolutionTree:
             # left) repeats the parent's last sample
             k = 1 if (p.choice is not None and (p.choice.kind != "jump"
                                                 or p.choice.value is None)) else 0
-            ts.append(a.t[k:])
-            js.append(a.j[k:])
-            xs.append(a.x[k:])
-            ds.append(a.xdot[k:] if a.xdot is not None else np.full_like(a.x[k:], np.nan))
+            t_, j_, x_ = a.t[k:], a.j[k:], a.x[k:]
+            d_ = a.xdot[k:] if a.xdot is not None else np.full_like(a.x[k:], np.nan)
+            if p.index in tails and len(t_):     # its end at the other's time (a jump keeps t)
+                t_ = np.concatenate([t_[:-1], self.nodes[tails[p.index]].arc.t[-1:]])
+            ts.append(t_)
+            js.append(j_)
+            xs.append(x_)
+            ds.append(d_)
             for key, v in (a.stats or {}).items():
                 if isinstance(v, (int, np.integer)):
                     stats[key] += int(v)
