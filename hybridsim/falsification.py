@@ -1183,8 +1183,8 @@ def _de(ev, space, popsize, seed, budget, rnd=0):
     u = np.vstack([ue, u[:nv], faces, u[nv + nf:]])[:npop]
     init = lo + u * (hi - lo)
     n0 = ev.n
-    for k, label in ((0, "a seeded extreme member of an entry (a constant signal at "
-                         "±bound...)"), (ne, "a seeded vertex of the box"),
+    for k, label in ((0, "a seeded extreme member of an entry (its extremes())"),
+                     (ne, "a seeded vertex of the box"),
                      (ne + nv, "a seeded point on a face or an edge of the box"),
                      (ne + nv + nf, "the first population's Latin hypercube")):
         ev.stages.append((n0 + k, label))
