@@ -25,7 +25,7 @@ import pytest
 
 def pytest_collection_modifyitems(config, items):
     """The compiled path's doctests compile numba kernels (tens of seconds on a
-    fresh machine): slow, like tests/test_compiled.py."""
+    fresh machine): slow, like tests/integration/test_compiled.py."""
     for item in items:
         if "hybridsim/compiled" in str(item.fspath).replace("\\", "/"):
             item.add_marker(pytest.mark.slow)

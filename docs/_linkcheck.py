@@ -8,7 +8,7 @@ network). The theme's template fragments under ``_static/`` are not pages
 and are not checked.
 
 ``conf.py`` runs it at the end of every HTML build (a broken link is a
-warning, so an error under ``-W``); ``tests/test_docs.py`` runs it on a fresh
+warning, so an error under ``-W``); ``tests/docs/test_docs.py`` runs it on a fresh
 build. By hand::
 
     python docs/_linkcheck.py docs/_build/html

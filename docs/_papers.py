@@ -7,7 +7,7 @@ claim of :func:`observers.claims.collect_claims` with its place in the paper,
 statement, paper value, tolerance and why, expected verdict and reason. The
 claims' ``compute`` is never called (evaluating them takes minutes; the main
 job does, into ``results/index.html``). Kept out of ``conf.py`` so that
-``tests/test_docs.py`` can check the text without a Sphinx build.
+``tests/docs/test_docs.py`` can check the text without a Sphinx build.
 """
 from __future__ import annotations
 

@@ -4,7 +4,7 @@
 with one method replaced: ``_step_impl`` performs the same floating-point
 operations in the same order as scipy's ``RungeKutta._step_impl``,
 ``rk_step`` and the classes' error norms, so every step, rejection and
-dense output is bit for bit scipy's (``tests/test_rk.py`` checks it against
+dense output is bit for bit scipy's (``tests/engine/test_rk.py`` checks it against
 the installed scipy on random systems). What it saves, about 15% of a step
 of a small system: the views ``K[:s].T`` of the stage array made once per
 solver rather than once per stage, the minimum step from ``math.nextafter``

@@ -14,7 +14,7 @@ The contract
 Every paper is a package ``observers/<name>/`` of the same shape, so that
 learning one teaches the others; the contract is written in code in
 :mod:`observers._common` (:data:`~observers._common.CONTRACT`) and checked
-for all five by ``tests/test_contract.py``::
+for all five by ``tests/papers/test_contract.py``::
 
     __init__.py   PAPER, ERRATA, DECISIONS; __all__ gathered from the files' __all__
     design.py     the paper's formulas, design computations and bounds (numpy/scipy)

@@ -2,7 +2,7 @@
 
 * **The contract** every paper package keeps (:data:`CONTRACT`,
   :func:`contract_problems`, checked for all five by
-  ``tests/test_contract.py``): ``simulate(observer, x0, xhat0=None, *, t_max,
+  ``tests/papers/test_contract.py``): ``simulate(observer, x0, xhat0=None, *, t_max,
   noise=None, seed=None, **simulate_kwargs)`` returns the interconnection's
   :class:`hybridsim.HybridArc`; ``errors(arc, observer)`` returns an
   :class:`Errors`; ``FIGURES`` lists each figure as a :class:`Figure` (its

@@ -5,7 +5,7 @@ equation, figure, theorem or section), what it says, the value the paper
 prints (or None when it prints none), a zero-argument ``compute`` that
 returns our value, and the tolerance under which the two count as the same,
 with the reason for that tolerance. Each paper package lists its claims in
-``CLAIMS``; the tests pin every one (``tests/test_claims.py``) and the main
+``CLAIMS``; the tests pin every one (``tests/papers/test_claims.py``) and the main
 job writes them all to ``claims.csv`` and ``index.html``.
 
 Semantics

@@ -17,7 +17,9 @@ guards locate crossings) or ``"indicators"`` (indicators only: events found
 by bisection of the indicators).
 
 ``run(path, case, x0, **options)`` returns the arc; options a path does not
-implement raise its refusal (see :mod:`hybridsim.options`).
+implement raise its refusal (see :mod:`hybridsim.options`). A test that takes
+an argument ``path`` runs on every path (``conftest.py`` parametrizes it;
+``@pytest.mark.paths(...)`` narrows it).
 """
 from __future__ import annotations
 
@@ -35,16 +37,6 @@ PATHS = ("python", "vectorized", "compiled")
 HAS_NUMBA = importlib.util.find_spec("numba") is not None
 NO_NUMBA = "the compiled path needs numba (pip install 'hybridsim[fast]')"
 SETS = ("guards", "both", "indicators")
-
-
-def path_params(compiled_slow=False):
-    """``pytest.mark.parametrize`` values for the paths: compiled skipped
-    without numba (and marked slow where ``compiled_slow``)."""
-    marks = [pytest.mark.skipif(not HAS_NUMBA, reason=NO_NUMBA)]
-    if compiled_slow:
-        marks.append(pytest.mark.slow)
-    return [pytest.param("python", id="python"), pytest.param("vectorized", id="vectorized"),
-            pytest.param("compiled", id="compiled", marks=marks)]
 
 
 @dataclass

@@ -110,7 +110,7 @@ from .example import *
 from .falsification import *
 from .figures import *
 from .systems import *
-from .systems import _NodeData as _NodeData  # used by tests/test_observer_batches.py
+from .systems import _NodeData as _NodeData  # used by tests/papers/test_observer_batches.py
 
 PAPER = {
     "id": "003",

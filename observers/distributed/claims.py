@@ -4,7 +4,7 @@ Each entry is an :class:`observers.claims.Claim` (see its semantics): the
 paper's value where it prints or implies one, else a reference derived
 independently of this package (a closed form, an exact rank, the error
 equations integrated by scipy's ``solve_ivp``), with the tolerance and why.
-``tests/test_claims.py`` pins them; ``tests/test_distributed.py`` recomputes
+``tests/papers/test_claims.py`` pins them; ``tests/papers/distributed/test_distributed.py`` recomputes
 each reference independently.
 
 Examples
@@ -31,7 +31,7 @@ __all__ = ["CLAIMS", "SETTLE_REFERENCE"]
 #: The last 1e-8 crossing of max |E| on the example, from the per-node error
 #: equations of Sec. 2.2 with (7) and (8) integrated by scipy's solve_ivp
 #: (DOP853, rtol 1e-12, atol 1e-16), root by brentq on its dense output:
-#: recomputed by tests/test_distributed.py::test_settling_time_independent.
+#: recomputed by tests/papers/distributed/test_distributed.py::test_settling_time_independent.
 SETTLE_REFERENCE = 6.655500693769588
 
 

@@ -63,7 +63,7 @@ The problems
     subspace grows like e^(19 t): the whole box violates the statement.
     The margin is in decades (``log10(1e-8) − log10 max_{t >= T} |E|``),
     so that the violation is a finite number the closed form predicts
-    (tests/test_distributed_falsification.py).
+    (tests/papers/distributed/test_distributed_falsification.py).
 
 ``003-rem2-delay-bounded`` (Remark 2, delays; expected ``"none"``)
     Remark 2 says the observer is robust against delays ("homogeneous
@@ -157,7 +157,7 @@ _RTOL, _ATOL = 1e-8, 1e-10
 DELAY_MIN, DELAY_MAX = 0.01, 0.1
 #: The delayed runs' horizon (s) and tolerances (RK45 on the Python path,
 #: max_step = the smallest delay): the late error agrees with an rtol 1e-8,
-#: atol 1e-10 run to 2e-3 of the level (tests/test_distributed_falsification.py).
+#: atol 1e-10 run to 2e-3 of the level (tests/papers/distributed/test_distributed_falsification.py).
 _DELAY_T_MAX = 10.0
 _DELAY_RTOL, _DELAY_ATOL = 1e-6, 1e-9
 #: max|E(t)| over t in [T, 10] s (T = 6.6555 + 1.5 s, the window of

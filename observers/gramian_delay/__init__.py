@@ -27,7 +27,7 @@ the sampling period (``FIGURES``; Fig. 3 is not reproduced, decision 9), and
 
 :data:`PAPER`, :data:`ERRATA` and :data:`DECISIONS` (numbered; "decision 3"
 in a docstring is ``DECISIONS[2]``) are defined here; each decision is tested
-in ``tests/test_gramian_delay.py``.
+in ``tests/papers/gramian_delay/test_gramian_delay.py``.
 
 Examples
 --------

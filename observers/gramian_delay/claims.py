@@ -375,7 +375,7 @@ CLAIMS = [
           tol_why="a column count", expected="differs",
           reason="erratum: A2 has n - q = 2 columns, so (39)'s A2 xi_hat2 cannot be "
                  "evaluated; it must read A2 xi_hat1 as in (7) and (18) (decision 1; the "
-                 "implemented flow is tested in tests/test_gramian_delay.py)",
+                 "implemented flow is tested in tests/papers/gramian_delay/test_gramian_delay.py)",
           reference=2.0),
 ]
 

@@ -52,7 +52,7 @@ of every sampling period and of every piece of the disturbance signals):
   discontinuity.
 
 The accuracy is checked against the package's adaptive runs
-(``tests/test_gramian_delay_falsification.py``): after tau the errors of
+(``tests/papers/gramian_delay/test_gramian_delay_falsification.py``): after tau the errors of
 (13) agree to 2e-6 (omega, T = 0.01) and 7e-4 (xi_2, T = 0.1), while the
 margins are decided at the scale of 1 (the errors below 1) or of the bound
 (15) (which exceeds the error by ~17 decades).

@@ -29,7 +29,7 @@ paper (``CLAIMS``) with the sweeps behind Theorems 4.9 and 4.11.
 
 :data:`PAPER`, :data:`ERRATA` (what the paper gets wrong) and
 :data:`DECISIONS` (numbered; "decision 5" in a docstring is ``DECISIONS[4]``)
-are defined here; every decision is tested in ``tests/test_li_sanfelice.py``.
+are defined here; every decision is tested in ``tests/papers/li_sanfelice/test_li_sanfelice.py``.
 
 Examples
 --------

@@ -39,7 +39,7 @@ True
 Conventions and decisions (a careful reading of the paper)
 ----------------------------------------------------------
 See :data:`DECISIONS` and :data:`ERRATA`; each is tested in
-``tests/test_time_varying.py`` and pinned in :data:`CLAIMS` where it has a
+``tests/papers/time_varying/test_time_varying.py`` and pinned in :data:`CLAIMS` where it has a
 number.
 
 References

@@ -15,7 +15,7 @@ import pytest
 
 from observers.claims import PAPER_MODULES, collect_claims, evaluate
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
+ROOT = pathlib.Path(__file__).resolve().parents[2]
 README = (ROOT / "README.md").read_text()
 OBSERVERS = (ROOT / "docs" / "observers.rst").read_text()
 

@@ -151,7 +151,7 @@ def _apex(guard):
 @pytest.mark.parametrize("method", ["RK45", "DOP853"])
 @pytest.mark.parametrize("rtol", [1e-3, 1e-6, 1e-10])
 def test_the_apex_1e6_above_the_guard_is_found_with_indicators_only(method, rtol):
-    # README: "with guards, an apex 1e-6 above the guard is found" (tests/test_faults.py);
+    # README: "with guards, an apex 1e-6 above the guard is found" (tests/engine/test_faults.py);
     # here the system gives D = {x >= 1} alone and its guard x - 1 is derived
     for d in (0.3, 1e-3, 1e-6):
         v0 = math.sqrt(2.0 * (1.0 + d))
@@ -168,7 +168,7 @@ def test_sensitivities_of_an_indicator_only_ball(rtol):
     """d t_k / d h0 = t_k / (2 h0) (t_k is proportional to sqrt(h0)) for 10
     bounces, to 1e-9 relative: RK45 integrates the parabolas exactly, so what
     is left is event location and the central differences on affine maps
-    (see tests/test_sensitivity.py's closed forms)."""
+    (see tests/capabilities/test_sensitivity.py's closed forms)."""
     h0, k = 1.0, 10
     tk = bouncing_ball_jump_times(h0, k + 1, G, E)
     sarc = hs.simulate_sensitivity(ReadmeBall(), [h0, 0.0], t_max=0.5 * (tk[k - 1] + tk[k]),

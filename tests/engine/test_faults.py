@@ -23,8 +23,8 @@ What this file tries, and what each gets (183 runs in 71 tests):
   the arc so far, one warning where the computation failed.
 * t_eval: samples at the given times, both samples of a jump at a jump time.
 
-Batches under faults are in tests/test_batch_faults.py; random systems in
-tests/test_fuzz.py.
+Batches under faults are in tests/integration/test_batch_faults.py; random systems in
+tests/integration/test_fuzz.py.
 """
 import math
 import warnings

@@ -26,7 +26,7 @@ from hybridsim.sensitivity import (
     simulate_sensitivity,
 )
 
-EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 G, E, H0, K = 9.81, 0.8, 1.0, 30
 
 
@@ -343,7 +343,7 @@ def test_a_zeno_ball_is_zeno_not_grazing():
 
 def test_indicator_without_guard_is_named():
     # a set no guard is derived from (a call: hybridsim._source); the same ball's
-    # D written as comparisons gets one (tests/test_derived_guards.py)
+    # D written as comparisons gets one (tests/engine/test_derived_guards.py)
     b = hs.HybridSystem.from_functions(
         f=lambda x: np.array([x[1], -G]), g=lambda x: np.array([0.0, -E * x[1]]),
         C=lambda x: x[0] >= 0, D=lambda x: bool(x[0] <= 0 and x[1] <= 0), state_dim=2)

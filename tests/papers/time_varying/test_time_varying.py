@@ -924,7 +924,7 @@ def test_gallery_example_runs():
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    script = pathlib.Path(__file__).resolve().parents[1] / "examples" / "time_varying_example.py"
+    script = pathlib.Path(__file__).resolve().parents[3] / "examples" / "time_varying_example.py"
     plt.close("all")
     with contextlib.redirect_stdout(io.StringIO()) as out:
         runpy.run_path(str(script), run_name="__main__")

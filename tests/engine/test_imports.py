@@ -18,7 +18,7 @@ from pathlib import Path
 import networkx as nx
 import pytest
 
-PKG = Path(__file__).resolve().parents[1] / "hybridsim"
+PKG = Path(__file__).resolve().parents[2] / "hybridsim"
 
 #: the house's levels, top first (HOUSE.md): a module imports only its own
 #: level and those below it

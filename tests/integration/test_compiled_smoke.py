@@ -5,7 +5,7 @@ closed forms: the docs' example (the ball, run as docs/compiled.rst prints it), 
 with a jump at t_max, NaN guards and overflow, a batch with bad rows, Ctrl-C,
 and the arcs' stats and xdot. On a fresh numba cache the engine's kernels
 compile first (under a minute on two cores); afterwards the set takes seconds.
-The full comparison is tests/test_compiled.py (marked slow).
+The full comparison is tests/integration/test_compiled.py (marked slow).
 """
 import math
 import re
@@ -24,7 +24,7 @@ from hybridsim.compiled import CompiledSystem, simulate_compiled, simulate_many_
 from hybridsim.library import bouncing_ball_jump_times  # noqa: E402
 
 T = hs.Termination
-PAGE = Path(__file__).resolve().parents[1] / "docs" / "compiled.rst"
+PAGE = Path(__file__).resolve().parents[2] / "docs" / "compiled.rst"
 
 
 def readme_example():

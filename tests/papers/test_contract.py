@@ -13,7 +13,7 @@ from observers._common import CONTRACT, Errors, Figure, contract_problems
 from observers.claims import PAPER_MODULES
 
 PACKAGES = sorted(PAPER_MODULES)
-ROOT = pathlib.Path(__file__).resolve().parents[1] / "observers"
+ROOT = pathlib.Path(__file__).resolve().parents[2] / "observers"
 
 
 @pytest.mark.parametrize("name", PACKAGES)

@@ -20,7 +20,7 @@ import warnings
 
 import numpy as np
 import pytest
-from paths import Ball, path_params, run, timer
+from paths import Ball, run, timer
 
 import hybridsim as hs
 from hybridsim import Termination as T
@@ -28,17 +28,6 @@ from hybridsim import rules
 
 KERNEL_CHATTER = ("the compiled kernel keeps no rules.chatter_step count (nor the count of "
                   "jumps at one instant not from C): its J_MAX has no chatter/instant detail")
-
-def paths_xfail_compiled(reason):
-    """The three paths; the compiled one slow and a strict xfail for ``reason``."""
-    out = []
-    for p in path_params(compiled_slow=True):
-        if p.values[0] == "compiled":
-            p = pytest.param("compiled", id="compiled",
-                             marks=[*p.marks, pytest.mark.xfail(strict=True, reason=reason)])
-        out.append(p)
-    return out
-
 
 def quiet(fn, *args, **kw):
     """``fn(*args, **kw)`` where any warning is an error."""
@@ -80,7 +69,7 @@ def test_zeno_short_reads_the_runs_own_flows():
     assert not short and ref == 0.0
 
 
-@pytest.mark.parametrize("path", path_params(compiled_slow=True))
+@pytest.mark.paths(compiled_slow=True)
 def test_a_1khz_timer_is_not_zeno_whatever_the_horizon(path):
     """Each 1 ms flow is below zeno_rtol (1e-7) times the horizon 1e6: today's
     rule ended ZENO after 50 jumps (t = 0.05). Jumps 1 ms apart are no
@@ -92,7 +81,7 @@ def test_a_1khz_timer_is_not_zeno_whatever_the_horizon(path):
     np.testing.assert_allclose(arc.jump_times, 1e-3 * np.arange(1, 2001), rtol=0, atol=1e-12)
 
 
-@pytest.mark.parametrize("path", path_params(compiled_slow=True))
+@pytest.mark.paths(compiled_slow=True)
 def test_a_1khz_timer_runs_to_t_max(path):
     """zeno_rtol raised to 0.1 so that the horizon rule would call a run of
     500 jumps Zeno (1e-3 <= 0.1 * 0.5) at t = 0.05: it reaches t_max."""
@@ -101,7 +90,7 @@ def test_a_1khz_timer_runs_to_t_max(path):
     assert arc.jump_count in (499, 500)     # the jump at t_max is taken up to round-off
 
 
-@pytest.mark.parametrize("path", path_params(compiled_slow=True))
+@pytest.mark.paths(compiled_slow=True)
 @pytest.mark.parametrize("lam", [0.5, 0.8])
 def test_the_zeno_ball_still_ends_zeno_at_its_accumulation_time(path, lam):
     """From rest at 1 m the bounces accumulate at sqrt(2/g) (1 + 2 lam/(1 - lam)).
@@ -186,7 +175,7 @@ def test_a_ball_sticking_on_a_slow_floor_warns_at_j_max():
     np.testing.assert_allclose(flows, 2 * 4.4e-5 / 9.81, rtol=1e-6)
 
 
-@pytest.mark.parametrize("path", path_params(compiled_slow=True))
+@pytest.mark.paths(compiled_slow=True)
 def test_a_jump_loop_that_ends_j_max_warns_once_naming_the_loop(path):
     """Guards only: the ball's D = {-h >= 0} holds after the jump at height 0."""
     with pytest.warns(hs.SimulationWarning, match=r"J_MAX.*a jump loop") as rec:
@@ -195,7 +184,7 @@ def test_a_jump_loop_that_ends_j_max_warns_once_naming_the_loop(path):
     assert "jump_set" in str(rec[0].message)
 
 
-@pytest.mark.parametrize("path", path_params(compiled_slow=True))
+@pytest.mark.paths(compiled_slow=True)
 def test_jumps_at_one_instant_not_from_c_warn_at_j_max(path):
     """Guards only and x+ = (h, -lam v) keeping the located height, which is a
     few ulp below the floor: not in C, so not a loop of rules.is_jump_loop,
@@ -206,7 +195,7 @@ def test_jumps_at_one_instant_not_from_c_warn_at_j_max(path):
     assert arc.termination is T.J_MAX
 
 
-@pytest.mark.parametrize("path", paths_xfail_compiled(KERNEL_CHATTER))
+@pytest.mark.paths(compiled_slow=True, xfail_compiled=KERNEL_CHATTER)
 def test_chattering_is_named_on_every_path(path):
     """x' = 1 from 0, a jump at x >= 1 back to 1 - 1e-6: one flow of 1, then a
     jump every 1e-6 (a reset too small to leave the jump set's edge)."""
@@ -219,7 +208,7 @@ def test_chattering_is_named_on_every_path(path):
     np.testing.assert_allclose(np.diff(arc.jump_times), 1e-6, rtol=1e-6)
 
 
-@pytest.mark.parametrize("path", path_params(compiled_slow=True))
+@pytest.mark.paths(compiled_slow=True)
 def test_an_ordinary_j_max_is_quiet(path):
     arc = quiet(run, path, Ball(), [1.0, 0.0], t_max=10.0, j_max=5)
     assert arc.termination is T.J_MAX and arc.message == T.J_MAX.message
@@ -274,7 +263,7 @@ def test_a_complex_guard_mid_run_is_map_error_with_the_arc_so_far(path, kind):
     assert 0.5 <= arc.exception.t <= 0.6 and arc.tf <= 0.6
 
 
-@pytest.mark.parametrize("path", path_params(compiled_slow=True))
+@pytest.mark.paths(compiled_slow=True)
 def test_a_complex_guard_is_refused_naming_it_on_every_path(path):
     """The compiled path types its maps: a complex guard is refused when it is
     compiled (CompileError naming the guard and its type), before any run."""

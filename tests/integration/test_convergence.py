@@ -17,7 +17,7 @@ possibly in another order (round-off of 1e-16 per step over 64 steps).
 """
 import numpy as np
 import pytest
-from paths import Linear, path_params, run
+from paths import Linear, run
 
 T_END = 4.0
 STEPS = (0.5, 0.25, 0.125, 0.0625)     # exact in binary: no sliver of a last step
@@ -44,7 +44,6 @@ def errors(path):
     return np.array(out)
 
 
-@pytest.mark.parametrize("path", path_params())
 def test_dormand_prince_converges_with_order_five(path):
     err = errors(path)
     slope = np.polyfit(np.log(STEPS), np.log(err), 1)[0]
@@ -52,6 +51,6 @@ def test_dormand_prince_converges_with_order_five(path):
     assert np.all(np.diff(err) < 0)
 
 
-@pytest.mark.parametrize("path", [p for p in path_params() if p.values[0] != "python"])
+@pytest.mark.paths(only=("vectorized", "compiled"))
 def test_every_stepper_is_the_same_method(path):
     np.testing.assert_allclose(errors(path), errors("python"), rtol=0, atol=1e-14)

@@ -25,7 +25,7 @@ import hybridsim as hs
 from hybridsim import testing as ht
 
 TOL = 1e-9      # see the module docstring
-EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "explore_thermostat.py"
+EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "explore_thermostat.py"
 
 
 @pytest.fixture(autouse=True)

@@ -10,12 +10,12 @@ Tolerances: the paths take the same Dormand-Prince steps in exact
 arithmetic; in floating point the error estimate (a difference of two
 nearly equal solutions) magnifies round-off, so the step sizes part by about
 1e-10 relative and runs at rtol 1e-10 agree to 1e-8 (the integrator's
-tolerance over the horizon), as in ``tests/test_paths.py``.
+tolerance over the horizon), as in ``tests/integration/test_paths.py``.
 """
 import networkx as nx
 import numpy as np
 import pytest
-from paths import HAS_NUMBA, NO_NUMBA, path_params
+from paths import HAS_NUMBA, NO_NUMBA
 
 import hybridsim as hs
 from hybridsim.compiled import CompiledSystem, Component, lower, lowerable
@@ -43,7 +43,6 @@ def _run(path, system, x0, **kw):
     return hs.simulate(system, x0, backend="compiled", **kw)
 
 
-@pytest.mark.parametrize("path", path_params())
 def test_a_cascade_runs_on_every_path_and_agrees(path):
     """Luenberger observer of a damped oscillator: the error e = xhat - x obeys
     e' = (A - L C) e on every path (checked against expm to 1e-8)."""
@@ -99,7 +98,6 @@ class Sampler(hs.HybridSystem):
                          jump_guard=_sampler_guard, params=[self.period])
 
 
-@pytest.mark.parametrize("path", path_params())
 def test_a_component_with_jumps_samples_a_linear_combination(path):
     """plant x' = A x; a sampler holding u = 2 x1 - x2 (a LinearInput matrix)
     every 0.3 s: jumps at k 0.3, the held value equal to u at the jump."""
@@ -138,7 +136,6 @@ class Agent(hs.HybridSystem):
         return Component(state_dim=1, input_dim=1, flow=_agent_flow, params=[self.deg])
 
 
-@pytest.mark.parametrize("path", path_params())
 def test_a_network_over_a_graph_reaches_consensus_on_every_path(path):
     """Directed ring of 5 agents, x_i' = x_{i-1} - x_i: the average is kept
     (the Laplacian of a ring is balanced) and every agent reaches it."""
@@ -412,7 +409,6 @@ def _random_loop(seed):
     return sys, x0
 
 
-@pytest.mark.parametrize("path", path_params())
 @pytest.mark.parametrize("seed", range(4))
 def test_random_feedback_loops_agree_with_the_python_path(path, seed):
     """Seeded random feedback loops of linear plants with a sampler: jump times

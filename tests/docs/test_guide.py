@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-GUIDE = Path(__file__).resolve().parents[1] / "docs" / "guide"
+GUIDE = Path(__file__).resolve().parents[2] / "docs" / "guide"
 ORDER = ["define", "simulate", "plot", "check", "batch", "fast", "explore", "falsify",
          "sensitivities"]
 SLOW = {"fast"}

@@ -14,7 +14,7 @@ import pytest
 import hybridsim as hs
 from hybridsim.arc import ArcFileError
 
-HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+HERE = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
 def fields(t=(0.0, 1.0, 1.0, 2.0), j=(0, 0, 1, 1), x=None, termination="T_MAX"):

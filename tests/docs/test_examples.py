@@ -20,7 +20,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 
-EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
 FIGURES = {
     "bouncing_ball.py": {"bouncing_ball_flows.png", "bouncing_ball_jumps.png",

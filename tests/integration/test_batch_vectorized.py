@@ -696,7 +696,7 @@ def _both_paths(make, x0s, **kw):
 
 def _floor_ball(vectorized, kind, restitution=0.8, jump_map=None):
     """A ball on a floor y_f(t) = 0.1 sin(2t) whose jump map keeps the located
-    position and reflects the relative velocity (tests/test_faults.py's)."""
+    position and reflects the relative velocity (tests/engine/test_faults.py's)."""
     def yf(t):
         return 0.1 * np.sin(2.0 * t)
 
@@ -761,7 +761,7 @@ def test_post_jump_state_genuinely_outside_C_still_leaves_the_sets():
 
 
 def _free_ball(vectorized, **guards):
-    """A ball landing at height 0 (tests/test_faults.py's)."""
+    """A ball landing at height 0 (tests/engine/test_faults.py's)."""
     if vectorized:
         f = lambda x: np.column_stack([x[:, 1], np.full(len(x), -9.81)])  # noqa: E731
         g = lambda x: np.column_stack([np.zeros(len(x)), -0.8 * x[:, 1]])  # noqa: E731

@@ -24,7 +24,7 @@ from hybridsim.compiled import _cache as k  # noqa: E402
 from hybridsim.compiled._private import private_folder, unsafe  # noqa: E402
 
 posix = pytest.mark.skipif(not hasattr(os, "getuid"), reason="POSIX owners and modes")
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
 def _key(c):
