@@ -180,8 +180,7 @@ class SolutionTree:
     def leaves(self):
         """Every leaf as a HybridArc (built once, on first use)."""
         if self._leaves is None:
-            memo = {}
-            self._leaves = [self._leaf(n, memo) for n in self.leaf_nodes]
+            self._leaves = [self._leaf(n) for n in self.leaf_nodes]
         return self._leaves
 
     @property
@@ -193,17 +192,89 @@ class SolutionTree:
         ``merge_tol``): what :mod:`hybridsim.testing` checks, given a tree.
         ``arc.termination`` is None, ``arc.merged_into`` the other node.
         """
-        memo = {}
-        return [self._leaf(n, memo) for n in self.nodes
+        return [self._leaf(n) for n in self.nodes
                 if n.end == "merged" and n.merged_into != n.parent]
 
-    def _leaf(self, node, memo=None):
-        """Node ``node``'s solution from x0, as a HybridArc. ``memo``: the parts
-        of nodes already read (a dict; the leaves share their prefixes)."""
-        parts = self.path(node.index)
-        memo = {} if memo is None else memo
-        cut = [self._part(p, memo) for p in parts]
-        stats = cut[-1][4]
+    def solutions(self):
+        """Every solution explored, each a HybridArc from x0 to its end.
+
+        A leaf is one; a merged branch is continued by every solution of the
+        branch it met (its future), so there are at least as many solutions
+        as leaves: 2^k choices that meet again make few leaves and many
+        solutions. Branches left pending by a budget end where they stop.
+
+        Returns
+        -------
+        list of HybridArc
+            ``arc.choices`` the choices of each, ``arc.node`` the node it ends on.
+
+        Examples
+        --------
+        >>> import hybridsim as hs
+        >>> from hybridsim.library import BouncingBall
+        >>> tree = hs.explore(BouncingBall(), [1.0, 0.0], 1.0, 1)
+        >>> len(tree.solutions()) >= len(tree)
+        True
+        """
+        nodes = self.nodes
+
+        def paths(k):
+            n = nodes[k]
+            if n.end == "merged":
+                if n.merged_into == n.parent:   # its sibling's branch, not a solution
+                    return []
+                o = nodes[n.merged_into]
+                if n.arc is None:               # met at its start: o's future, after
+                    return [[("from", o.parent), *p] for p in paths(o.index)]  # o's parent's end
+                # met at o's end: o's children, from o's end sample (within merge_tol)
+                return [[(k, o.index), *p] for c in o.children for p in paths(c)]
+            if n.end in ("branch", "forced") and n.children:
+                return [[(k, p[0][1]), *p[1:]] if isinstance(p[0], tuple) and p[0][0] == "from"
+                        else [k, *p] for c in n.children for p in paths(c)]
+            return [[k]]
+        out = []
+        for p in paths(0):
+            tails = dict(i for i in p if isinstance(i, tuple))
+            parts = [nodes[i[0] if isinstance(i, tuple) else i] for i in p]
+            arc = self._arc_of(parts, parts[-1], tails)
+            arc.node = parts[-1].index
+            out.append(arc)
+        return out
+
+    def _leaf(self, node):
+        return self._arc_of(self.path(node.index), node)
+
+    def _arc_of(self, parts, node, tails=None):
+        """The arc through the nodes ``parts`` (from the root), ending as ``node``;
+        ``tails[i] = o``: node i's last sample at node o's end time (they met there,
+        within ``merge_tol``, and the arc goes on from o's)."""
+        tails = tails or {}
+        ts, js, xs, ds = [], [], [], []
+        stats = collections.Counter()
+        for p in parts:
+            a = p.arc
+            if a is None:           # merged at its start (after a jump): that sample
+                t, j, x = p.start
+                ts.append(np.array([t]))
+                js.append(np.array([j], dtype=np.int64))
+                xs.append(np.reshape(x, (1, -1)))
+                ds.append(np.full((1, len(x)), np.nan))
+                continue
+            # a branch that starts where its parent ends (flow on, dwell, no jump
+            # left) repeats the parent's last sample
+            k = 1 if (p.choice is not None and (p.choice.kind != "jump"
+                                                or p.choice.value is None)) else 0
+            t_, j_, x_ = a.t[k:], a.j[k:], a.x[k:]
+            d_ = a.xdot[k:] if a.xdot is not None else np.full_like(a.x[k:], np.nan)
+            if p.index in tails and len(t_):     # its end at the other's time (a jump keeps t)
+                t_ = np.concatenate([t_[:-1], self.nodes[tails[p.index]].arc.t[-1:]])
+            ts.append(t_)
+            js.append(j_)
+            xs.append(x_)
+            ds.append(d_)
+            for key, v in (a.stats or {}).items():
+                if isinstance(v, (int, np.integer)):
+                    stats[key] += int(v)
         last = node.arc
         if node.end == "merged":
             cause, msg, exc = None, f"merged into branch {node.merged_into}", None
@@ -217,43 +288,14 @@ class SolutionTree:
             elif p.arc is not None and len(p.arc.t) > 1:
                 segs = None
                 break
-        arc = HybridArc._trusted(np.concatenate([c[0] for c in cut]),
-                                 np.concatenate([c[1] for c in cut]),
-                                 np.concatenate([c[2] for c in cut]),
+        arc = HybridArc._trusted(np.concatenate(ts), np.concatenate(js), np.concatenate(xs),
                                  cause, msg, exc, components=self.system.components,
                                  segments=segs or None, system=self.system,
-                                 xdot=np.concatenate([c[3] for c in cut]), stats=dict(stats))
+                                 xdot=np.concatenate(ds), stats=dict(stats))
         arc.choices = [p.choice for p in parts if p.choice is not None]
         arc.node = node.index
         arc.merged_into = node.merged_into
         return arc
-
-    def _part(self, p, memo):
-        """Node ``p``'s samples in its solution ``(t, j, x, xdot, stats)``,
-        ``stats`` the run statistics summed from the root to it."""
-        hit = memo.get(p.index)
-        if hit is not None:
-            return hit
-        # read root first (``_leaf``): the parent's part is known
-        stats = {} if p.parent is None else dict(memo[p.parent][4])
-        a = p.arc
-        if a is None:           # merged at its start (after a jump): that sample
-            t, j, x = p.start
-            out = (np.array([t]), np.array([j], dtype=np.int64), np.reshape(x, (1, -1)),
-                   np.full((1, len(x)), np.nan), stats)
-        else:
-            # a branch that starts where its parent ends (flow on, dwell, no jump
-            # left) repeats the parent's last sample
-            k = 1 if (p.choice is not None and (p.choice.kind != "jump"
-                                                or p.choice.value is None)) else 0
-            xk = a.x[k:]
-            out = (a.t[k:], a.j[k:], xk,
-                   a.xdot[k:] if a.xdot is not None else np.full_like(xk, np.nan), stats)
-            for key, v in (a.stats or {}).items():
-                if isinstance(v, (int, np.integer)):
-                    stats[key] = stats.get(key, 0) + int(v)
-        memo[p.index] = out
-        return out
 
     def __iter__(self):
         return iter(self.leaves)

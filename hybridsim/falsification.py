@@ -68,6 +68,13 @@ def _real(name, v):
     return v
 
 
+def _signs(dim, cap=64):
+    """The sign vectors of {-1, 1}^dim, (min(2^dim, cap), dim): all of them, or
+    the first ``cap`` in binary order."""
+    k = min(2 ** min(dim, 20), cap)
+    return np.where((np.arange(k)[:, None] >> np.arange(dim)) & 1, 1.0, -1.0)
+
+
 def _count(name, v):
     if isinstance(v, bool) or not isinstance(v, (numbers.Integral, np.integer)) or v < 1:
         raise ValueError(f"{name} must be a positive integer, got {v!r}")
@@ -84,6 +91,12 @@ class _Entry:
 
     def value(self, z):                     # the user's value from its coordinates
         raise NotImplementedError
+
+    def extremes(self):
+        """Coordinates of the entry's extreme members that are not vertices of
+        its box, shape (k, size) (none by default: an Interval's, a Box's and
+        Gaps' extremes are the box's vertices)."""
+        return np.zeros((0, self.size))
 
     def _check(self, lo, hi, what):
         lo, hi = np.atleast_1d(np.asarray(lo, float)), np.atleast_1d(np.asarray(hi, float))
@@ -211,6 +224,11 @@ class PiecewiseConstant(_Entry):
     def bounds(self):
         return np.full(self.size, -self.eps), np.full(self.size, self.eps)
 
+    def extremes(self):
+        """The constant signals m_i = ±bound (vertices of the box, listed so
+        that they are tried first), one per sign vector (at most 64)."""
+        return np.tile(self.eps * _signs(self.dim), self.pieces)
+
     def value(self, z):
         vals = np.array(z, dtype=float).reshape(self.pieces, self.dim)
         width = self.t_end / self.pieces
@@ -296,6 +314,12 @@ class ControlPoints(_Entry):
     def bounds(self):
         return np.tile(self.lo, self.points), np.tile(self.hi, self.points)
 
+    def extremes(self):
+        """The constant inputs at a bound of each component (vertices of the
+        box, listed so that they are tried first), at most 64."""
+        s = _signs(self.dim) > 0
+        return np.tile(np.where(s, self.hi, self.lo), self.points)
+
     def value(self, z):
         vals = np.array(z, dtype=float).reshape(self.points, self.dim)
         times, linear = self.times, self.interpolation == "linear"
@@ -341,6 +365,18 @@ class Sinusoids(_Entry):
         self.terms = _count("Sinusoids terms", terms)
         self.dim = _count("Sinusoids dim", dim)
         self.size = 3 * self.terms * self.dim
+
+    def extremes(self):
+        """The class's bang-bang members: m_i = ±bound at every t (a = ±1,
+        f = 0, φ = π/2: on the face f = 0 of the box, not at a vertex, where
+        sin φ = 0), one per sign vector (at most 64); then the same signs at
+        full amplitude at the band edge (f = bandwidth, every term in phase)."""
+        s = _signs(self.dim)
+        a = np.repeat(s, self.terms, axis=1)             # (k, dim * terms), as value reads
+        ph = np.full_like(a, np.pi / 2)
+        const = np.hstack([a, np.zeros_like(a), ph])
+        edge = np.hstack([a, np.full_like(a, self.bandwidth), ph])
+        return np.vstack([const, edge])
 
     def bounds(self):
         k = self.terms * self.dim
@@ -480,6 +516,31 @@ class Space:
         """The point of coordinates ``z``, already checked and in the box."""
         return Point({n: e.value(z[self._slices[n]]) for n, e in self.entries.items()}, z)
 
+    def extremes(self, n, rng) -> np.ndarray:
+        """Up to ``n`` coordinate vectors made of the entries' extreme members
+        (:meth:`Sinusoids.extremes`...), the entries without any at a random
+        vertex of their box, shape (k, dim); empty when no entry has extremes.
+        Every combination when there are at most ``n``, else ``n`` of them
+        drawn at random (the first of each entry's list first)."""
+        ext = {name: e.extremes() for name, e in self.entries.items()}
+        lists = [len(x) for x in ext.values() if len(x)]
+        if not lists or n < 1:
+            return np.zeros((0, self.dim))
+        total = math.prod(lists)
+        if total <= n:
+            combos = itertools.product(*[range(len(x)) for x in ext.values() if len(x)])
+            picks = np.array(list(combos), dtype=np.int64)
+        else:
+            picks = np.column_stack([rng.integers(0, k, n) for k in lists])
+            picks[0] = 0
+        out = self.lo + (self.hi - self.lo) * rng.integers(0, 2, (len(picks), self.dim))
+        c = 0
+        for name, x in ext.items():
+            if len(x):
+                out[:, self._slices[name]] = x[picks[:, c]]
+                c += 1
+        return out
+
     def sample(self, n, seed=None) -> np.ndarray:
         """``n`` coordinate vectors drawn uniformly from the box, shape (n, dim)."""
         rng = np.random.default_rng(seed)
@@ -548,6 +609,11 @@ class FalsificationResult:
         With ``stopped == "error"``: the failure that ended the search (its
         point, cause, message and exception); not counted in ``findings``
         when ``on_error="stop"``.
+    found_by : str
+        How the worst run was found, and which run it was: ``"a seeded
+        vertex of the box, run 3 of 40"``, ``"differential evolution, run
+        812 of 2000"``, ``"the compass search from the worst point, ..."``,
+        ``"random sampling, ..."`` (empty when nothing ran).
     """
 
     verdict: str
@@ -563,6 +629,7 @@ class FalsificationResult:
     seed: int | None
     stopped: str = "budget"
     error: Finding | None = None
+    found_by: str = ""
 
     @property
     def interrupted(self) -> bool:
@@ -714,6 +781,7 @@ class _Evaluator:
         self.failure = None                 # the Finding that stopped the search
         self.interrupted = False
         self._rate, self._last = None, 0    # seconds a run, size of the last chunk
+        self.stages = []                    # (first run, what ran from there), in order
         from tqdm.auto import tqdm
         self.bar = tqdm(total=budget, unit="run", disable=None if progress is None
                         else not progress, leave=False)
@@ -934,12 +1002,19 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
     method : {"de", "random"}
         ``"de"``: differential evolution (scipy, ``vectorized=True``: each
         generation is one population evaluated at once, deferred updating;
-        the first population a Latin hypercube with a quarter of it on
-        vertices of the box, where worst cases under bounded uncertainty
-        often lie, run first), then a compass search from the worst point
-        with what is left of the budget (``refine``: a fifth of it is kept
-        for this; each of its iterations, a step along every coordinate both
-        ways, is one population too). When DE converges before the budget is
+        the first population is run first in this order: the entries'
+        extreme members that are not vertices of the box (up to an eighth
+        of it: :meth:`Sinusoids.extremes`, the constant signals at ±bound,
+        lie on the face f = 0), vertices of the box (a quarter), points on
+        its faces and edges (an eighth: each coordinate at a bound with
+        probability 1/2), then a Latin hypercube; worst cases under bounded
+        uncertainty often lie on the boundary), then a compass search from
+        the worst point with what is left of the budget (``refine``: a
+        fifth of it is kept for this; each of its iterations, a step along
+        every coordinate both ways, and while that does best, every
+        coordinate to each of its bounds, is one population too).
+        ``FalsificationResult.found_by`` says which of these found the
+        worst run. When DE converges before the budget is
         spent (its population collapsed on one point), it restarts with a
         new seed on what is left, so a search that finds nothing has used
         its budget. The first population is run before scipy's solver is
@@ -1047,19 +1122,23 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
     fixed = not np.any(space.hi > space.lo)          # a space of one point: one run
     try:
         if fixed:
+            ev.stages.append((0, "the space's one point"))
             ev(space.lo[None, :])
         elif method == "random":
+            ev.stages.append((0, "random sampling"))
             rng = np.random.default_rng(seed)
             while not ev.done:
                 n = min(popsize, budget - ev.n)
                 ev(space.lo + (space.hi - space.lo) * rng.random((n, space.dim)))
         else:
             seeds = np.random.SeedSequence(seed)
-            round_seed = seed
+            round_seed, rounds = seed, 0
             while not ev.done:              # restarts while DE converges early
                 before = ev.n
                 left = budget - before
-                _de(ev, space, popsize, round_seed, left - (left // 5 if refine else 0))
+                _de(ev, space, popsize, round_seed, left - (left // 5 if refine else 0),
+                    rnd=rounds)
+                rounds += 1
                 if refine and not ev.done and ev.best_z is not None:
                     if refine == "gradient":
                         _refine_gradient(ev, space, run.sensitivity)
@@ -1084,6 +1163,11 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
         if not isinstance(arc, HybridArc):
             arc = None
     found = ev.best < 0
+    found_by = ""
+    if ev.n:
+        k = int(np.argmin(ev.history))
+        what = [label for first_run, label in ev.stages if first_run <= k]
+        found_by = f"{what[-1] if what else method}, run {k + 1} of {ev.n}"
     if ev.interrupted:
         stopped = "interrupted"
     elif ev.failure is not None:
@@ -1101,10 +1185,10 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
         point=point, arc=arc, where=ev.best_where, history=ev.history.copy(),
         evaluations=ev.n, seconds=time.perf_counter() - t0,
         findings=list(ev.findings), method=method, seed=seed, stopped=stopped,
-        error=ev.failure)
+        error=ev.failure, found_by=found_by)
 
 
-def _de(ev, space, popsize, seed, budget):
+def _de(ev, space, popsize, seed, budget, rnd=0):
     from scipy.optimize import differential_evolution
     free = space.hi > space.lo
     if not np.any(free):                     # a single point
@@ -1134,13 +1218,34 @@ def _de(ev, space, popsize, seed, budget):
         u[:nv] = (corners[:, None] >> np.arange(nfree)) & 1
     else:
         u[:nv] = rng.integers(0, 2, (nv, nfree))
+    # before the vertices, the entries' extreme members that are not vertices
+    # (a Sinusoids' constant ±bound signals lie on its face f = 0, with
+    # sin φ = 1); after them, points on faces and edges of the box: each
+    # coordinate at one of its bounds with probability 1/2, else its Latin
+    # hypercube value (a worst case with some parameters at their bounds and
+    # the others inside)
+    ext = space.extremes(npop // 8, rng)
+    ue = (ext[:, free] - lo) / (hi - lo)
+    ne = len(ue)
+    nf = max(0, min(npop // 8, npop - ne - nv)) if nfree > 1 else 0
+    faces = u[nv:nv + nf].copy()
+    at = rng.random(faces.shape) < 0.5
+    faces[at] = rng.integers(0, 2, int(at.sum()))
+    u = np.vstack([ue, u[:nv], faces, u[nv + nf:]])[:npop]
     init = lo + u * (hi - lo)
+    n0 = ev.n
+    for k, label in ((0, "a seeded extreme member of an entry (its extremes())"),
+                     (ne, "a seeded vertex of the box"),
+                     (ne + nv, "a seeded point on a face or an edge of the box"),
+                     (ne + nv + nf, "the first population's Latin hypercube")):
+        ev.stages.append((n0 + k, label))
     # the first population is run before scipy's solver is built (a claim the
     # first runs refute costs no solver setup); the solver's first call, on
     # this population, is answered from it
     first = [ev(full(init))]
     if ev.done:
         return
+    ev.stages.append((ev.n, "differential evolution" + (f" (restart {rnd})" if rnd else "")))
 
     def f(Zt):                               # scipy passes (n_free, k)
         if first:
@@ -1157,24 +1262,36 @@ def _refine(ev, space):
     """A compass (pattern) search from the worst point: each iteration tries a
     step of +h and -h along every free coordinate as one population, moves to
     the best if it improves, else halves h; steps are clipped into the box, so
-    a worst case on a face or a vertex is reached exactly."""
+    a worst case on a face or a vertex is reached exactly. While moves to a
+    bound do best, each iteration also tries every free coordinate at each of
+    its bounds (the edges from the point to the faces of the box)."""
     free = np.flatnonzero(space.hi > space.lo)
     if not free.size:                        # every coordinate fixed: nothing to move
         return
     width = space.hi - space.lo
     z, best = ev.best_z.copy(), ev.best
+    ev.stages.append((ev.n, "the compass search from the worst point"))
     h = 0.1
+    snap = True                              # also each coordinate to each bound
+    rows = np.arange(free.size)
     while not ev.done and h > 1e-6:
-        cand = np.repeat(z[None, :], 2 * free.size, axis=0)
-        rows = np.arange(free.size)
+        cand = np.repeat(z[None, :], (4 if snap else 2) * free.size, axis=0)
         cand[rows, free] += h * width[free]
         cand[free.size + rows, free] -= h * width[free]
+        if snap:
+            cand[2 * free.size + rows, free] = space.lo[free]
+            cand[3 * free.size + rows, free] = space.hi[free]
         cand = np.clip(cand, space.lo, space.hi)
-        vals = ev(cand)
-        k = int(np.argmin(vals))
-        if vals[k] < best:
+        moved = np.any(cand != z, axis=1)    # a coordinate at its bound already: no run
+        cand = cand[moved]
+        is_snap = (np.arange(len(moved)) >= 2 * free.size)[moved]
+        vals = ev(cand) if len(cand) else np.zeros(0)
+        k = int(np.argmin(vals)) if len(vals) else -1
+        if k >= 0 and vals[k] < best:
             z, best = cand[k], vals[k]
+            snap = snap and bool(is_snap[k])  # snapping stops once a step does better
         else:
+            snap = False
             h /= 2
 
 
@@ -1231,6 +1348,7 @@ def _refine_gradient(ev, space, sensitivity):
         return value, g
 
     u0 = np.clip((z0[free] - lo) / width, 0.0, 1.0)
+    ev.stages.append((ev.n, "gradient descent from the worst point"))
     try:
         minimize(fun, u0, jac=True, method="L-BFGS-B", bounds=[(0.0, 1.0)] * free.size,
                  options={"maxfun": max(1, ev.budget - ev.n), "ftol": 0.0, "gtol": 0.0})

@@ -79,7 +79,9 @@ t = 1 and stored a rounding step early is in ``G[1, 2]``. Hence:
   samples, the window ends and the crossings only.
 
 Until is computed by the identity phi U[a,b] psi = G[0,a] phi ∧
-F[a,a] ((phi U psi) ∧ F[0,b-a] psi), exact in the quantitative semantics;
+F[a,a] ((phi U psi) ∧ F[0,b-a] psi), exact in the quantitative semantics
+(for b = a too: F[0,0] psi keeps the untimed until from reading psi past
+t + a, so a value does not depend on the range it is computed over);
 the untimed phi U psi is exact at the instants of its operands (their
 points, one-sided limits and mutual crossings) and taken linear between.
 
@@ -1455,7 +1457,9 @@ class _Until(Formula):
         # untimed phi U psi on [qlo, qhi], at the instants of both
         sp_q = _restrict(ctx, sp, qlo, qhi)
         w = _untimed_until(sp_q, sq)
-        if math.isfinite(b) and b > a:
+        if math.isfinite(b):
+            # F[0, b - a] psi bounds the witness to the window (for b = a, psi itself:
+            # the untimed until alone would read to the end of the range, qhi)
             w = _combine(w, _window_sup(ctx, sq, 0.0, b - a, qlo, min(hi + a, qhi)), np.minimum)
         out = _window_sup(ctx, w, a, a, lo, hi)
         if a > 0:

@@ -145,6 +145,7 @@ class ProblemResult:
                 "reason": p.reason, "found": self.found, "passed": self.passed,
                 "margin": s.margin, "where_tj": list(s.where) if s.where else None,
                 "point": repr(s.point), "evaluations": s.evaluations, "seconds": s.seconds,
+                "found_by": s.found_by, "baseline_found_by": b.found_by,
                 "findings": [f"{f.cause}: {f.message}" for f in s.findings[:5]],
                 "baseline_margin": b.margin, "baseline_evaluations": b.evaluations,
                 "baseline_seconds": b.seconds}

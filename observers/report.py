@@ -483,9 +483,11 @@ def _falsification(outdir: pathlib.Path, part: Part) -> list[str]:
                  f'<td class="verdict {cls}">{_e(found)}</td>'
                  f'<td class="num">{_e(_num(r.get("margin")))}<br><span class="meta">'
                  f'{_e(r.get("evaluations", ""))} runs, {_e(_secs(r.get("seconds")))}'
+                 f'{"; found by " + _e(r["found_by"]) if r.get("found_by") else ""}'
                  f'</span></td>'
                  f'<td class="num">{_e(_num(r.get("baseline_margin")))}<br>'
-                 f'<span class="meta">{_e(_secs(r.get("baseline_seconds")))}</span></td>'
+                 f'<span class="meta">{_e(r.get("baseline_evaluations", ""))} runs, '
+                 f'{_e(_secs(r.get("baseline_seconds")))}</span></td>'
                  f"<td>{check}</td></tr>")
         if r.get("figure"):
             figures.append(r["figure"])

@@ -474,8 +474,10 @@ def run_falsification(name: str, out, *, scale: float = 1.0, seed: int = 0,
             fig = draw_worst(res)
             png = save_figure(fig, d, f"falsify_{prob.id}", (
                 f"{prob.id} ({prob.where}): {prob.statement} Counterexample found by "
-                f"differential evolution in {res.search.evaluations} runs: margin "
-                f"{res.margin:.4g} at {res.search.point}. Left: the worst margin so far "
+                f"{res.search.found_by} (the search ran {res.search.evaluations} runs): "
+                f"margin {res.margin:.4g} at {res.search.point}; random sampling of the "
+                f"same budget: margin {res.baseline.margin:.4g} after "
+                f"{res.baseline.evaluations} runs. Left: the worst margin so far "
                 "against the number of runs, for the search (circles) and random sampling "
                 "of the same budget (squares); below 0 the statement is violated. Right: "
                 "where the worst run lies in the space, each coordinate scaled to its bounds "

@@ -8,7 +8,9 @@ gaps in [a, T_bar] (36)) for the least robust run:
 ``004-sec5-thm2-below1-omega-T0.1``
     The implementable observer (39) (omega(t) in (13), decision 2) at the
     paper's period T_bar = 0.1 on the DC motor: "the errors stay below 1
-    after 0.15 s" (Section V, Fig. 1 right). Expected: a counterexample
+    after 0.15 s" (Section V, Fig. 1 right). The reading is decision 2's,
+    not the printed one: (13) as printed feeds the unmeasured xi_2(t), which
+    ``004-sec5-thm2-below1-xi2-T0.1`` searches. Expected: a counterexample
     (ERRATA 2, claims 004-sec5-thm2-below1-omega and 004-eq40-holds: (40)
     fails by 20 orders of magnitude and the observer diverges at T = 0.1).
 ``004-sec5-thm2-below1-omega-T0.01``
@@ -484,7 +486,9 @@ _GAPS_COUNT = 10        # gaps searched, repeated cyclically over the horizon
 PROBLEMS = [
     Problem(
         id="004-sec5-thm2-below1-omega-T0.1", paper="004", where="Thm 2, (39)-(43), Sec. V",
-        statement="As printed, with the implementable (39) (omega(t) in (13), decision 2): on "
+        statement="Reading of decision 2 (not the printed one): the implementable (39), "
+                  "omega(t) in (13) where the printed (13) has the unmeasured xi_2(t) "
+                  "(004-sec5-thm2-below1-xi2-T0.1); with the paper's parameters on "
                   "the DC motor (66), k = 100, tau = 0.1, periodic samples every T_bar = 0.1 "
                   "(Section V), the errors |xi_1 - xi_e| stay below 1 after 0.15 s, for every "
                   "chi(0) in the box.",

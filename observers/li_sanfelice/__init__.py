@@ -73,7 +73,9 @@ ERRATA = [
     "Theorem 4.7: the constant sqrt(c2/c1) is short by a factor sqrt(3). The Lyapunov argument "
     "bounds |(e1, e2)|, and |z|_A <= |(e1, e2)| <= sqrt(3) |z|_A; errors that rotate apart "
     "(F1 = -I + J, F2 = -I - J, P_i = I/2) reach sqrt(3) times the printed bound at t = pi/2 "
-    "(claim 002-thm4.7-constant, decision 9).",
+    "(claim 002-thm4.7-constant, decision 9). This is the reading with P fixed (the "
+    "constants of the P one solved for); read as printed, \"for some P\", the bound holds, "
+    "another P trading the factor for a slower rate (problem 002-thm4.7-printed-some-P).",
     "Theorems 4.10-4.11: the hypothesis mu_bar(F2) < mu_(F1) makes sym((L2 - L1) H) positive "
     "definite, hence rank H = n: the bounds apply only when there are at least as many outputs "
     "as states (p >= n), which the theorems do not say (decision 8).",

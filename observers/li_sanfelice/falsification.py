@@ -7,8 +7,9 @@ a run of H_n (10)-(12) with plant (1) that breaks a bound of the paper:
 ==============================  ==========================================  ==============
 id                              statement                                   expected
 ==============================  ==========================================  ==============
-002-thm4.7-printed              Thm 4.7 with the printed sqrt(c2/c1)        counterexample
-002-thm4.7-corrected            Thm 4.7 with sqrt(3 c2/c1) (decision 9)     none
+002-thm4.7-printed-some-P       Thm 4.7 as printed, for some P (witness)    none
+002-thm4.7-printed-fixed-P      Thm 4.7 printed, P_i = I/(2 k_i) fixed      counterexample
+002-thm4.7-corrected            Thm 4.7 with sqrt(3 c2/c1), P fixed (d. 9)  none
 002-thm4.9-pwc, -sin            Thm 4.9, distance <= C |m|_inf (dec. 12)    none
 002-thm4.11-pwc, -sin           Thm 4.11, bound (16)                        none
 ==============================  ==========================================  ==============
@@ -52,6 +53,26 @@ set of the family, the corrected one sqrt(3 c2/c1) (decision 9,
 own examples never violate it: their copies rotate together (w1 = w2 for
 V.B; n = 1 for III and V.A), where the ratio is at most sqrt(k1/k2) < 1.
 
+Which P: the two readings
+-------------------------
+Theorem 4.7 prints its constants "for some P_1 = P_1^T > 0, P_2 = P_2^T > 0
+such that P > 0": existential over P. Read so, the statement is
+"there are P_i for which the bound holds on every solution", which a search
+over solutions checks with a witness, not refutes run by run (a run that
+violates one P's bound says nothing of another's). In the family it holds:
+P* = (3 I, I) is admissible (-He(F_1, 3I) = 6 k1 I, -He(F_2, I) = 2 k2 I),
+c1 = 1, c2 = 3, lambda_min(P*) = min(6 k1, 2 k2), so the bound is
+sqrt(3) |z(0, 0)|_A e^{-min(k1, k2/3) t}, and |z(t, 0)|_A / |z(0, 0)|_A =
+e^{-k1 t} sqrt(1 + s^2 - s cos((w1 - w2) t)) <= sqrt(3) e^{-k1 t}: problem
+``002-thm4.7-printed-some-P`` searches for a solution above P*'s bound
+(expected: none). In general too: any admissible P gives the Lyapunov bound
+on |(e1, e2)|, sqrt(3) times too small for |z|_A, and (P_1, kappa P_2) with
+kappa large trades that sqrt(3) for a slower rate. The erratum is in the
+reading with P fixed, where the constants are those of the P one solved
+for: ``002-thm4.7-printed-fixed-P`` takes P_i = I / (2 k_i), the solution of
+F_i^T P_i + P_i F_i = -I (:func:`~observers.li_sanfelice.design.theorem_4_7_bound`), and
+``002-thm4.7-corrected`` the same P with sqrt(3 c2/c1).
+
 Noise
 -----
 The noise classes are :class:`hybridsim.falsification.PiecewiseConstant`
@@ -68,8 +89,8 @@ batch, as with :class:`~observers.li_sanfelice.systems.BoundedNoiseGenerator`.
 Examples
 --------
 >>> from observers.li_sanfelice.falsification import PROBLEMS, thm47_ratio
->>> [p.id for p in PROBLEMS][:2]
-['002-thm4.7-printed', '002-thm4.7-corrected']
+>>> [p.id for p in PROBLEMS][:3]
+['002-thm4.7-printed-some-P', '002-thm4.7-printed-fixed-P', '002-thm4.7-corrected']
 >>> round(thm47_ratio(1.0, 1.0, 1.0, -1.0, np.pi / 2), 6)    # copies rotating apart
 1.732051
 """
@@ -157,8 +178,17 @@ def _coeffs(p):
 # -----------------------------------------------------------------------------
 # margins (arc -> float: positive holds, negative violated)
 # -----------------------------------------------------------------------------
-def _thm47_margin(factor):
-    """Theorem 4.7 on an arc: 1 - |z|_A / (factor sqrt(c2/c1) |z0|_A e^{-k1 t}) while j = 0,
+#: Theorem 4.7's bound C |z(0, 0)|_A e^{-r t} of a member (k1, k2): (C, r) by the P used.
+_THM47_P = {
+    "fixed": lambda k1, k2: (math.sqrt(k2 / k1), k1),                  # P_i = I / (2 k_i)
+    "witness": lambda k1, k2: (math.sqrt(3.0), min(k1, k2 / 3.0)),      # P* = (3 I, I)
+}
+
+
+def _thm47_margin(factor, which="fixed"):
+    """Theorem 4.7 on an arc: 1 - |z|_A / (factor C |z0|_A e^{-r t}) while j = 0, (C, r)
+    those of P_i = I / (2 k_i) (``"fixed"``: sqrt(c2/c1) = sqrt(k2/k1), r = k1) or of the
+    witness P* = (3 I, I) (``"witness"``: sqrt(3), min(k1, k2/3)),
     and exactness after the jump: 1 - |z|_A / tol, tol = 1e-7 (1 + |K1| + |K2|) (|x(0)| +
     |e(0)|). RK45 at rtol 1e-8 leaves |z|_A <= 1.5e-9 (1 + |K1| + |K2|) (|x(0)| + |e(0)|)
     after the jump on 400 random members of the family (the integration error scales
@@ -171,7 +201,8 @@ def _thm47_margin(factor):
         z = dist_to_A(X[:, _X], X[:, _XH1], X[:, _XH2])
         z0 = float(z[0])
         pre = arc.j == 0
-        bound = factor * math.sqrt(k2 / k1) * z0 * np.exp(-k1 * arc.t[pre])
+        C, rate = _THM47_P[which](k1, k2)
+        bound = factor * C * z0 * np.exp(-rate * arc.t[pre])
         r = z[pre] / bound
         i = int(np.argmax(r))
         m_pre = Margin(1.0 - r[i], arc.t[pre][i], 0, "Thm 4.7, j = 0",
@@ -274,11 +305,29 @@ _NOISY = {
 }
 
 
-def _thm47_problem(printed):
+def _thm47_problem(printed, some_P=False):
     system = RotatingFamily("none")
     space = Space(**_state_entries(away_from_A=True), **_design_entries())
     factor = 1.0 if printed else math.sqrt(3.0)
-    which = "as printed, sqrt(c2/c1)" if printed else "corrected, sqrt(3 c2/c1) (decision 9)"
+    if some_P:
+        return Problem(
+            id="002-thm4.7-printed-some-P", paper=_ID, where="Thm 4.7",
+            statement="Theorem 4.7 as printed, in its reading: for some P_1, P_2 > 0 with "
+                      "P > 0 every solution of H_n and plant (1) from S_n without noise has "
+                      "|z(t, j)|_A <= (1 - j) sqrt(c2/c1) |z(0, 0)|_A exp(-lambda_min(P) t / "
+                      "(2 c2)); checked with the witness P* = (3 I, I) (c2/c1 = 3, "
+                      "lambda_min(P*) = min(6 k1, 2 k2)), over the designs F_i = -k_i I + w_i J "
+                      "of V.B's plant (0 < k1 < k2, any delta) and z(0, 0) (margin: 1 - |z|_A / "
+                      "P*'s bound while j = 0; after the jump |z|_A within the integration "
+                      "tolerance).",
+            space=space, run=_run(system), margin=_thm47_margin(1.0, "witness"),
+            budget=2000, expect="none",
+            reason="existential over P, the statement is true: P*'s bound sqrt(3) |z0|_A "
+                   "e^{-min(k1, k2/3) t} covers |z|_A <= sqrt(3) |z0|_A e^{-k1 t} (module "
+                   "docstring); the erratum is in the reading with P fixed "
+                   "(002-thm4.7-printed-fixed-P)")
+    which = ("as printed with P fixed (P_i = I/(2 k_i)), sqrt(c2/c1)" if printed
+             else "corrected, sqrt(3 c2/c1) (decision 9), P fixed (P_i = I/(2 k_i))")
     reason = ("erratum (claim 002-thm4.7-constant): the Lyapunov argument bounds |(e1, e2)| "
               "and |z|_A <= |(e1, e2)| <= sqrt(3) |z|_A; copies rotating apart (w1 != w2) "
               "with close rates (k2/k1 < 3) exceed the printed bound by up to sqrt(3)"
@@ -287,7 +336,7 @@ def _thm47_problem(printed):
               "family the ratio to the printed bound is at most sqrt(k1/k2 (1 + s + s^2)) "
               "< sqrt(3) (k2 - k1 >= 0.1)")
     return Problem(
-        id="002-thm4.7-" + ("printed" if printed else "corrected"), paper=_ID,
+        id="002-thm4.7-" + ("printed-fixed-P" if printed else "corrected"), paper=_ID,
         where="Thm 4.7",
         statement=f"Theorem 4.7 {which}: every solution of H_n and plant (1) from S_n without "
                   "noise has |z(t, j)|_A <= (1 - j) C |z(0, 0)|_A exp(-lambda_min(P) t / (2 c2)), "
@@ -339,6 +388,7 @@ def _thm49_problem(kind):
 
 #: The problems of this paper (observers.falsification.Problem).
 PROBLEMS = [
+    _thm47_problem(printed=True, some_P=True),
     _thm47_problem(printed=True),
     _thm47_problem(printed=False),
     _thm49_problem("pwc"),

@@ -193,6 +193,32 @@ def test_k_successors_give_k_to_the_J_leaves_and_merge_by_their_sums(k, J):
     assert len(merged.merged) == merged.merges - len(flow_on)
 
 
+@pytest.mark.parametrize("J", [1, 2])
+def test_solutions_of_a_merged_tree_are_the_unmerged_trees_leaves(J):
+    """Merged, the window timer's tree has 4J + 1 leaves but still 5^J solutions:
+    each merged branch continued by the solutions of the branch it met, each whole
+    (from x0, through its own prefix, to a leaf's end) and the unmerged tree's leaf
+    with its gaps: the same jump times and states."""
+    sys_, grid = window_timer(), [0.25, 0.5, 0.75]
+    full = hs.explore(sys_, [0.0], t_max=math.inf, j_max=J, dwell_grid=grid, merge_tol=None)
+    merged = hs.explore(sys_, [0.0], t_max=math.inf, j_max=J, dwell_grid=grid)
+    sols = merged.solutions()
+    assert len(merged) == 4 * J + 1 and len(sols) == len(full) == 5 ** J
+
+    def key(arc):
+        return tuple(np.round(np.diff(np.concatenate([[0.0], arc.jump_times])), 6))
+    by_gaps = {key(a): a for a in full}
+    assert sorted(by_gaps) == sorted(key(a) for a in sols)
+    for arc in sols:
+        ref = by_gaps[key(arc)]
+        assert arc.termination is hs.Termination.J_MAX and arc.jump_count == J
+        assert arc.t[0] == 0.0 and np.all(np.diff(arc.t) >= 0)
+        np.testing.assert_allclose(arc.xf, ref.xf, atol=TOL)
+        np.testing.assert_allclose(arc.jump_times, ref.jump_times, rtol=0, atol=TOL)
+        for jj in range(J):                  # each flow's end, as the unmerged leaf's
+            np.testing.assert_allclose(arc.x[arc.j == jj][-1], ref.x[ref.j == jj][-1], atol=TOL)
+
+
 def test_coinciding_successors_merge():
     """G(z) = {z + 1, z + 1, z + 2}: 3^J branches, J + 1 distinct ends."""
     sys_ = counter([1.0, 1.0, 2.0])

@@ -103,6 +103,54 @@ def test_worst_margin_at_least_as_bad_as_random_and_at_the_sup():
     assert de.margin >= exact - TOL               # and no run beats the closed form
 
 
+def _point_arc(p):
+    """An arc whose state is the point's coordinates (a claim on the space itself)."""
+    return hs.HybridArc([0.0, 1.0], [0, 0], np.tile(p.z, (2, 1)), hs.Termination.T_MAX)
+
+
+def test_a_worst_case_on_a_face_with_an_inner_coordinate_is_found():
+    """Violated only where z0 = z1 = z2 = 0 (to 1e-3: a face, flat elsewhere) and z3
+    is near 0.5 (inside): no vertex is a counterexample, random sampling almost
+    never comes close (each of z0, z1, z2 below 1e-3: 1e-9), and steps of the
+    compass search see a plateau; moving coordinates to their bounds reaches the
+    face, stepping the inner one the counterexample, for every seed."""
+    space = Space(z=Box(np.zeros(6), np.ones(6)))
+
+    def claim(arc):
+        z = arc.x[0]
+        return -0.01 + sum(0.0 if z[i] <= 1e-3 else 0.2 for i in range(3)) \
+            + 0.1 * abs(z[3] - 0.5)
+
+    for seed in range(6):
+        res = falsify(_point_arc, space, claim, budget=400, seed=seed, progress=False)
+        assert res.verdict == "counterexample", seed
+        assert np.all(res.point["z"][:3] <= 1e-3)
+        assert res.found_by.startswith(("a seeded point on a face", "the compass search",
+                                        "differential evolution"))
+    rnd = falsify(_point_arc, space, claim, budget=400, seed=0, method="random",
+                  progress=False)
+    assert rnd.verdict == "none found" and rnd.found_by.startswith("random sampling, run ")
+
+
+def test_the_constant_bang_bang_member_of_a_sinusoid_class_is_seeded():
+    """A Sinusoids class's constant ±bound members (f = 0, phase pi/2: a face of
+    its box, not a vertex, where sin(phase) = 0) are among the first runs."""
+    s = Sinusoids(0.5, bandwidth=5.0, terms=3, dim=2)
+    ext = s.extremes()
+    assert ext.shape == (2 * 4, s.size)
+    consts = [s.value(z)(1.7).tolist() for z in ext[:4]]
+    assert sorted(consts) == [[-0.5, -0.5], [-0.5, 0.5], [0.5, -0.5], [0.5, 0.5]]
+    space = Space(m=s)
+
+    def claim(arc):                          # violated where m0 - m1 nears 1: (0.5, -0.5)
+        m = space.point(arc.x[0])["m"]
+        return 0.9 - max(m(t)[0] - m(t)[1] for t in np.linspace(0.0, 2.0, 9))
+
+    res = falsify(_point_arc, space, claim, budget=200, seed=0, progress=False)
+    assert res.verdict == "counterexample" and res.evaluations <= 4
+    assert res.found_by.startswith("a seeded extreme member of an entry")
+
+
 def test_populations_in_one_batch_agree_with_single_runs():
     calls = []
 

@@ -380,11 +380,6 @@ def test_robustness_against_a_fine_grid(arc, phi, a):
         assert np.sign(ours) == np.sign(ref)
 
 
-@pytest.mark.xfail(strict=False, reason=(
-    "open defect: with the literal constants Hypothesis draws from the modules a full suite "
-    "imports, it finds F[0.3,0.7] p != F[0.3,0.5] p | F[0.5,0.7] p for p an until with a "
-    "degenerate window, (x[1] <= -0.5) U[0.2,0.2] (x[0] <= -0.5), on a piecewise-linear arc "
-    "with jumps (-0.833 against -1.0): the until's value depends on the range it is read on"))
 @settings(max_examples=60, deadline=None, derandomize=True)
 @given(arc=pl_arcs(), p=formulas(1), q=formulas(1), w=WIN)
 def test_duality_and_distribution(arc, p, q, w):
@@ -404,6 +399,27 @@ def test_duality_and_distribution(arc, p, q, w):
                                                    abs=1e-12)
     # the until at [0, b] against F: phi U psi <= F psi
     assert r(stl.U(p, q, a, b)(arc)) <= r(stl.F(q, a, b)(arc)) + 1e-12
+
+
+def test_an_until_with_a_degenerate_window_does_not_depend_on_its_range():
+    """phi U[a,a] psi is min(G[0,a] phi, psi at t + a): read over the range [lo, hi]
+    its value at t must not look at psi past t + a (it looked to hi + a, so that
+    F[0.3,0.7] p read -0.833 where F[0.3,0.5] p | F[0.5,0.7] p and the grid read -1)."""
+    x0, x1 = stl.state(0), stl.state(1)
+    arc = hs.HybridArc([0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.6, 0.7, 0.8, 0.9],
+                       [0, 0, 0, 0, 0, 0, 0, 1, 1, 1, 1],
+                       [[-1.0, 1.0], [-0.5, 0.0], [-1.0, -0.5], [-0.5, 0.0], [1.0, 1.0],
+                        [-0.5, 0.0], [0.5, 0.0], [0.0, -1.0], [1.0, -1.0], [0.5, 0.5],
+                        [1.0, 0.5]], hs.Termination.T_MAX)
+    p = stl.until(x1 <= -0.5, x0 <= -0.5, 0.2, 0.2)
+    whole = stl.F(p, 0.3, 0.7)(arc)
+    assert float(whole) == pytest.approx(-1.0, abs=1e-12) and whole.where == (0.8, 1)
+    split = stl.F(p, 0.3, 0.5) | stl.F(p, 0.5, 0.7)
+    assert float(split(arc)) == pytest.approx(-1.0, abs=1e-12)
+    assert brute(stl.F(p, 0.3, 0.7), arc, 0.0, 1e-3) == pytest.approx(-1.0, abs=1e-12)
+    # pointwise, p at t is min(x0 <= -0.5 at t + 0.2, x1 <= -0.5 on [t, t + 0.2])
+    assert float(p(arc, t=0.45)) == pytest.approx(-1.0, abs=1e-12)
+    assert float(p(arc, t=0.3)) == pytest.approx(-1.5, abs=1e-12)
 
 
 # ----------------------------------------------------------- as a claim ---

@@ -45,7 +45,8 @@ def _sup_ratio(params):
 
 def test_problems_are_valid():
     probs = validate_problems(F.PROBLEMS, paper="002")
-    assert [p.id for p in probs] == ["002-thm4.7-printed", "002-thm4.7-corrected",
+    assert [p.id for p in probs] == ["002-thm4.7-printed-some-P", "002-thm4.7-printed-fixed-P",
+                                     "002-thm4.7-corrected",
                                      "002-thm4.9-pwc", "002-thm4.9-sin",
                                      "002-thm4.11-pwc", "002-thm4.11-sin"]
     assert BY_ID["002-thm4.7-corrected"].budget >= 2000
@@ -87,7 +88,7 @@ def test_printed_thm47_falsified():
     """The search finds a counterexample to the printed constant from the statement alone;
     the point is in the region the closed form predicts (k2/k1 < 3, w1 != w2, ratio > 1)
     and the margin is the closed form's at the (t, j) it names."""
-    r = run_problem(BY_ID["002-thm4.7-printed"], seed=0)
+    r = run_problem(BY_ID["002-thm4.7-printed-fixed-P"], seed=0)
     assert r.found == "counterexample" and r.passed
     assert r.search.margin < 0 and r.search.evaluations <= 2000
     params = _params(r.search.point)
@@ -99,6 +100,19 @@ def test_printed_thm47_falsified():
     assert sup > 1.0 and k2 / k1 < 3.0 and w1 != w2
     # ... and the corrected constant holds at that very point
     assert sup < math.sqrt(3)
+
+
+def test_printed_thm47_for_some_P_holds_with_its_witness():
+    """Read as printed ("for some P"), the theorem holds in the family: with the witness
+    P* = (3 I, I) a quarter of the budget finds no solution above its bound, and the
+    worst margin is the closed form's, 1 - e^{-(k1 - r) t} sqrt((1 + s^2 - s cos) / 3)."""
+    r = run_problem(BY_ID["002-thm4.7-printed-some-P"], seed=0, scale=0.25)
+    assert r.found == "none" and r.passed
+    k1, k2, w1, w2, d = _params(r.search.point)
+    t, j = r.search.where
+    rate = min(k1, k2 / 3)
+    closed = F.thm47_ratio(k1, k2, w1, w2, t) * math.sqrt(k2 / k1) * math.exp(-(k1 - rate) * t)
+    assert j == 0 and r.search.margin == pytest.approx(1 - closed / math.sqrt(3), abs=1e-6)
 
 
 def test_corrected_thm47_quick():
