@@ -142,8 +142,30 @@ def _same_code(lam, code):
     return bool(code.co_freevars) or mine.co_code == code.co_code
 
 
+#: code object -> its FunctionDef (a copy is handed out): a file's tree is walked once
+#: per function, not once per system
+_NODES = {}
+
+
 def _node_of(func, qualname):
     """The FunctionDef of ``func`` in its file (a lambda as one)."""
+    code = func.__code__
+    hit = _NODES.get(code)
+    if hit is not None and hit[0] == _file_key(code.co_filename, func):
+        return copy.deepcopy(hit[1])
+    node = _find_node(func, qualname)
+    if len(_NODES) > 4096:
+        _NODES.clear()
+    _NODES[code] = (_file_key(code.co_filename, func), node)
+    return copy.deepcopy(node)
+
+
+def _file_key(file, func):
+    lines = linecache.getlines(file, func.__globals__)
+    return (len(lines), hash(tuple(lines))) if lines else None
+
+
+def _find_node(func, qualname):
     code = func.__code__
     tree = _tree(code.co_filename, func)
     where = f"{code.co_filename}:{code.co_firstlineno}"
@@ -764,6 +786,25 @@ def _fn_of_plain(v, caller, node):
                                   f"{e.why}") from None
 
 
+#: roles whose value is one number: their returns pass through ``_hs_scalar``
+#: (bound by the compiler), which makes a 0-d array (``np.where`` of scalars,
+#: ``x[..., k]`` on a single state under numba) the number it holds
+_SCALAR_ROLES = ("jump_guard", "flow_guard", "jump_set", "flow_set")
+
+
+class _Scalar(ast.NodeTransformer):
+    def visit_FunctionDef(self, node):       # nested functions keep their returns
+        return node
+
+    visit_Lambda = visit_FunctionDef
+
+    def visit_Return(self, node):
+        if node.value is None:
+            return node
+        return ast.copy_location(ast.Return(value=ast.copy_location(
+            _call("_hs_scalar", [node.value], node.value), node.value)), node)
+
+
 class _Planner:
     def __init__(self):
         self.layout = Layout()
@@ -829,6 +870,8 @@ class _Planner:
             defaults = node.args.defaults
         body = _Rewrite(self, fn)
         node.body = [body.visit(s) for s in node.body]
+        if role in _SCALAR_ROLES:
+            node.body = [_Scalar().visit(s) for s in node.body]
         node.body = pre + node.body
         node.args = ast.arguments(posonlyargs=[], args=new_args, kwonlyargs=[],
                                   kw_defaults=[], defaults=defaults)

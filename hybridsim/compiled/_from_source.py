@@ -190,6 +190,7 @@ def _module(plan):
     # the text generated here (compared with the file's), compiled under the file's name
     exec(compile(src, mod.__file__, "exec"), mod.__dict__)
     mod.__dict__.update(plan.dispatchers)
+    mod.__dict__["_hs_scalar"] = _scalar_fn()
     if path is not None:
         sys.modules[name] = mod
     for fname in plan.qualnames:
@@ -197,6 +198,28 @@ def _module(plan):
                                          error_model="numpy")(mod.__dict__[fname])
     _MODULES[digest] = mod
     return mod, digest
+
+
+_SCALAR = []
+
+
+def _scalar_fn():
+    """``_hs_scalar``: a guard's or a set's value as a number (a 0-d array's
+    element, anything else as it is), for numba's typing of generated maps."""
+    if not _SCALAR:
+        from numba.core import types as nt
+        from numba.extending import overload
+
+        def _hs_scalar(v):
+            return v
+
+        @overload(_hs_scalar)
+        def _typed(v):
+            if isinstance(v, nt.Array) and v.ndim == 0:
+                return lambda v: v[()]
+            return lambda v: v
+        _SCALAR.append(_hs_scalar)
+    return _SCALAR[0]
 
 
 # ------------------------------------------------------------------ lowering
