@@ -286,24 +286,21 @@ class LinearPlant(HybridSystem):
         """True when the plant has no callables of t (see Notes)."""
         return self.u is None and self.noise is None and self.disturbance is None
 
+    # one form on the last axis: x (n,) or a batch (N, n) (u (m,) or (N, m)); the
+    # callables of t make the plant single-state (not vectorized)
     def flow_map(self, x, t, j, u):
-        if np.ndim(x) == 2:                      # a batch (N, n): no callables (vectorized)
-            dx = x @ self.A.T
-            return dx if self.B is None else dx + np.asarray(u, dtype=float) @ self.B.T
-        dx = self.A @ x
+        dx = x @ self.A.T
         if self.B is not None:
             uu = self.u(t) if self.u is not None else u
-            dx = dx + self.B @ np.atleast_1d(uu)
+            dx = dx + np.atleast_1d(np.asarray(uu, dtype=float)) @ self.B.T
         if self.disturbance is not None:
             dx = dx + self.disturbance(t)
         return dx
 
     def output(self, x, t, j):
-        if np.ndim(x) == 2:
-            return x @ self.C.T
-        y = self.C @ x
+        y = x @ self.C.T
         if self.u is not None and self.B is not None:
-            y = y + self.D @ np.atleast_1d(self.u(t))
+            y = y + np.atleast_1d(np.asarray(self.u(t), dtype=float)) @ self.D.T
         if self.noise is not None:
             y = y + self.noise(t)
         return y
