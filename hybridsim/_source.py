@@ -473,6 +473,12 @@ class Layout:
 
     def __init__(self):
         self.slots, self.readers, self.size, self._index = [], [], 0, {}
+        self.checks = {}            # key -> (reader, whether the value was None)
+
+    def require(self, key, reader, is_none):
+        """Record that the rewrite folded ``reader() is None`` to ``is_none``
+        (a branch taken): :meth:`read` asks for a rewrite where it changes."""
+        self.checks.setdefault(key, (reader, is_none))
 
     def add(self, key, name, value, reader):
         hit = self._index.get(key)
@@ -490,6 +496,12 @@ class Layout:
     def read(self):
         """``p`` now, or None where a value changed kind or shape (the maps must
         be rewritten)."""
+        for rd, is_none in self.checks.values():
+            try:
+                if (rd() is None) != is_none:
+                    return None
+            except Exception:  # noqa: BLE001 - an attribute deleted since: rewrite
+                return None
         p = np.empty(self.size)
         for (_, kind, shape, off, size), rd in zip(self.slots, self.readers):
             try:
@@ -552,6 +564,22 @@ _MISSING = _Unresolved()
 
 
 _DTYPES = {"float": "float64", "int": "int64", "bool": "bool_", "complex": "complex128"}
+
+
+def _known(t):
+    """The truth of a test the rewrite folded (constants, not, and, or), or None."""
+    if isinstance(t, ast.Constant) and isinstance(t.value, bool):
+        return t.value
+    if isinstance(t, ast.UnaryOp) and isinstance(t.op, ast.Not):
+        v = _known(t.operand)
+        return None if v is None else not v
+    if isinstance(t, ast.BoolOp):
+        vs = [_known(v) for v in t.values]
+        stop = isinstance(t.op, ast.Or)             # or: a True decides; and: a False
+        if stop in vs:
+            return stop
+        return None if None in vs else not stop
+    return None
 
 
 class _Rewrite(ast.NodeTransformer):
@@ -641,6 +669,63 @@ class _Rewrite(ast.NodeTransformer):
 
     def visit_AnnAssign(self, node):
         self._check_store(node.target)
+        return self.generic_visit(node)
+
+    # -- structure: `self.a is None` is known when the maps are rewritten
+    def visit_Compare(self, node):
+        fn = self.fn
+        if len(node.ops) == 1 and isinstance(node.ops[0], (ast.Is, ast.IsNot)):
+            a, b = node.left, node.comparators[0]
+            if isinstance(a, ast.Constant) and a.value is None:
+                a, b = b, a
+            if isinstance(b, ast.Constant) and b.value is None and \
+                    isinstance(a, ast.Attribute) and isinstance(a.value, ast.Name) and \
+                    a.value.id == fn.self_name and fn.self_name is not None:
+                obj, attr = fn.obj, a.attr
+                try:
+                    v = getattr(obj, attr)
+                except AttributeError:
+                    raise fn.refuse(a, f"self.{attr} does not exist") from None
+                self.pl.layout.require(("none", id(obj), attr),
+                                       lambda o=obj, n=attr: getattr(o, n), v is None)
+                known = (v is None) == isinstance(node.ops[0], ast.Is)
+                return ast.copy_location(ast.Constant(known), node)
+        return self.generic_visit(node)
+
+    def _test(self, test):
+        """The visited test and its value where the rewrite knows it (else None)."""
+        t = self.visit(test)
+        return t, _known(t)
+
+    def stmts(self, body):
+        """The statements of ``body`` visited (a pruned ``if`` gives its branch's)."""
+        out = []
+        for st in body:
+            v = self.visit(st)
+            out.extend(v if isinstance(v, list) else [v])
+        return out
+
+    def visit_If(self, node):
+        test, known = self._test(node.test)
+        if known is None:
+            node.test = test
+            node.body = self.stmts(node.body) or [ast.copy_location(ast.Pass(), node)]
+            node.orelse = self.stmts(node.orelse)
+            return node
+        taken = node.body if known else node.orelse      # the other branch is never read
+        return self.stmts(taken) or [ast.copy_location(ast.Pass(), node)]
+
+    def visit_IfExp(self, node):
+        test, known = self._test(node.test)
+        if known is None:
+            node.test = test
+            node.body, node.orelse = self.visit(node.body), self.visit(node.orelse)
+            return node
+        return self.visit(node.body if known else node.orelse)
+
+    def visit_BinOp(self, node):
+        if isinstance(node.op, ast.MatMult):     # small products as loops (_hs_matmul)
+            return _call("_hs_matmul", [self.visit(node.left), self.visit(node.right)], node)
         return self.generic_visit(node)
 
     # -- reads
@@ -812,6 +897,7 @@ class _Planner:
         self._names = {}             # id(func), id(obj) -> generated name
         self.modules = {"numpy": "_hs_m_numpy"}     # module name -> generated name
         self.dispatchers = {}        # id -> (generated name, dispatcher)
+        self.inputs = False          # a component's maps: (x, u, t, j, p)
         self.lines = {}
 
     def module(self, m):
@@ -857,7 +943,9 @@ class _Planner:
                                       value=_slot_expr(slot, node)))
             own = args[:k]
             sig = [own[i] if i < len(own) else f"_hs_{'xtj'[i]}" for i in range(3)] + [P]
-            if k >= 4:                  # u: no input on this path
+            if self.inputs and role != "output":        # a component's (x, u, t, j, p)
+                sig.insert(1, own[3] if k >= 4 else "_hs_u")
+            elif k >= 4:                # u: no input on this path
                 pre.append(ast.Assign(targets=[ast.Name(id=own[3], ctx=ast.Store())],
                                       value=ast.Constant(None)))
             new_args = [ast.arg(arg=a) for a in sig]
@@ -869,7 +957,7 @@ class _Planner:
             new_args = [ast.arg(arg=P)] + [ast.arg(arg=a) for a in args]
             defaults = node.args.defaults
         body = _Rewrite(self, fn)
-        node.body = [body.visit(s) for s in node.body]
+        node.body = body.stmts(node.body)
         if role in _SCALAR_ROLES:
             node.body = [_Scalar().visit(s) for s in node.body]
         node.body = pre + node.body
@@ -905,18 +993,23 @@ ROLES = (("flow_map", "flow"), ("jump_map", "jump"), ("jump_guard", "jump_guard"
          ("flow_guard", "flow_guard"), ("jump_set", "jump_set"), ("flow_set", "flow_set"))
 
 
-def plan(system):
-    """The :class:`Plan` of ``system``'s maps as functions of ``(x, t, j, p)``;
-    a :class:`SourceRefusal` naming the method and line otherwise."""
+def plan(system, component=False):
+    """The :class:`Plan` of ``system``'s maps as functions of ``(x, t, j, p)``
+    (``component``: of ``(x, u, t, j, p)``, and its output of ``(x, t, j,
+    p)``, for a part of an interconnection); a :class:`SourceRefusal` naming
+    the method and line otherwise."""
     pl = _Planner()
+    pl.inputs = bool(component)
     roles = {}
     cls = type(system).__name__
-    for attr, role in ROLES:
+    todo = ROLES + ((("output", "output"),) if component and system._overrides("output")
+                    else ())
+    for attr, role in todo:
         if attr in ("jump_guard", "flow_guard"):
             fn = getattr(system, attr)
             if fn is None:
                 continue
-        elif attr in ("flow_map", "jump_map"):
+        elif attr in ("flow_map", "jump_map", "output"):
             if not system._overrides(attr):
                 continue
             fn = getattr(system, attr)
@@ -925,7 +1018,8 @@ def plan(system):
                 continue
             fn = getattr(system, attr)
         f = _fn_of(fn, f"{cls}.{attr}")
-        roles[role] = pl.follow(f, role=role, form=max(1, min(_arity(fn), 4)))
+        form = max(1, min(_arity(fn), 3 if role == "output" else 4))
+        roles[role] = pl.follow(f, role=role, form=form)
     if "flow" not in roles:
         raise SourceRefusal(f"{cls}.flow_map", "-", "the system defines no flow_map")
     lines = [f"# hybridsim: the maps of {cls}, rewritten as functions of (x, t, j, p)",

@@ -186,9 +186,45 @@ class NoForm(hs.HybridSystem):
         return -x
 
 
+class Labelled(NoForm):
+    """A plain part whose map reads a string: not rewritable for numba."""
+    label = "decay"
+
+    def flow_map(self, x):
+        return -x if self.label == "decay" else x
+
+
+@pytest.mark.parametrize("path", path_params())
+def test_a_plain_part_runs_compiled_from_its_own_maps(path):
+    """A plain model with an input (no compiled form) wired in an interconnection
+    beside a LinearPlant: its maps and the plant's are rewritten as functions of
+    (x, u, t, j, p) on the compiled path; the Python path's solution."""
+    class Follower(hs.HybridSystem):
+        state_dim, input_dim, vectorized = 1, 1, True
+
+        def __init__(self, k):
+            self.k = k
+
+        def flow_map(self, x, t, j, u):
+            return self.k * (u - x)
+
+    class Decay(NoForm):
+        vectorized = True
+    sys = hs.Interconnection({"a": hs.LinearPlant([[-1.0]]), "b": Decay(),
+                              "f": Follower(2.0)}, inputs={"f": hs.LinearInput({"a": None})})
+    assert lowerable(sys)
+    x0 = np.array([1.0, 1.0, 0.0])
+    arc = _run(path, sys, x0, t_max=2.0)
+    # f' = 2 (e^-t - f), f(0) = 0: f = 2 (e^-t - e^-2t)
+    exact = [np.exp(-2.0), np.exp(-2.0), 2 * (np.exp(-2.0) - np.exp(-4.0))]
+    np.testing.assert_allclose(arc.xf, exact, rtol=1e-8)
+
+
 @pytest.mark.parametrize("make, match", [
-    (lambda: hs.Interconnection({"a": hs.LinearPlant([[-1.0]]), "b": NoForm()}),
-     r"component 'b' \(NoForm\) cannot run compiled: NoForm has no compiled form"),
+    (lambda: hs.Interconnection({"a": hs.LinearPlant([[-1.0]]), "b": Labelled()}),
+     r"component 'b' \(Labelled\) cannot run compiled: Labelled has no compiled form and "
+     r"its maps cannot be rewritten for numba: Labelled.flow_map \(.*test_lowering.py:\d+\): "
+     r"it reads self.label, a str"),
     (lambda: hs.Interconnection({"plant": hs.LinearPlant([[-1.0]]), "observer": Agent(1.0)},
                                 inputs={"observer": lambda t, y: y["plant"]}),
      r"the input of component 'observer' cannot run compiled: it is a Python callable"),

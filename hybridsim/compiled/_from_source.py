@@ -62,17 +62,20 @@ def applies(system):
     return hit and "compiled_component" not in system.__dict__
 
 
-def _plan(system):
-    """The system's plan (cached on the system while its maps are the same)."""
+def _plan(system, component=False):
+    """The system's plan (cached on the system while its maps are the same);
+    ``component``: its maps of ``(x, u, t, j, p)`` as a part of an
+    interconnection."""
     key = _identity(system)
-    hit = system.__dict__.get("_source_plan")
+    slot = "_source_component" if component else "_source_plan"
+    hit = system.__dict__.get(slot)
     if hit is not None and hit[0] == key:
         return hit[1]
     try:
-        pl = _source.plan(system)
+        pl = _source.plan(system, component=component)
     except _source.SourceRefusal as e:
         pl = e
-    system.__dict__["_source_plan"] = (key, pl)
+    system.__dict__[slot] = (key, pl)
     return pl
 
 
@@ -190,7 +193,7 @@ def _module(plan):
     # the text generated here (compared with the file's), compiled under the file's name
     exec(compile(src, mod.__file__, "exec"), mod.__dict__)
     mod.__dict__.update(plan.dispatchers)
-    mod.__dict__["_hs_scalar"] = _scalar_fn()
+    mod.__dict__["_hs_scalar"], mod.__dict__["_hs_matmul"] = _scalar_fn()
     if path is not None:
         sys.modules[name] = mod
     for fname in plan.qualnames:
@@ -204,8 +207,11 @@ _SCALAR = []
 
 
 def _scalar_fn():
-    """``_hs_scalar``: a guard's or a set's value as a number (a 0-d array's
-    element, anything else as it is), for numba's typing of generated maps."""
+    """``(_hs_scalar, _hs_matmul)`` for generated maps: a guard's or a set's
+    value as a number (a 0-d array's element, anything else as it is), and
+    ``a @ b`` of vectors and matrices as loops summing in index order (no
+    BLAS call per product of a small matrix; the sums of
+    :func:`hybridsim.compiled.matvec`)."""
     if not _SCALAR:
         from numba.core import types as nt
         from numba.extending import overload
@@ -218,8 +224,100 @@ def _scalar_fn():
             if isinstance(v, nt.Array) and v.ndim == 0:
                 return lambda v: v[()]
             return lambda v: v
-        _SCALAR.append(_hs_scalar)
+
+        def _hs_matmul(a, b):
+            return a @ b
+
+        @overload(_hs_matmul)
+        def _typed_matmul(a, b):
+            if not (isinstance(a, nt.Array) and isinstance(b, nt.Array)) \
+                    or a.ndim not in (1, 2) or b.ndim not in (1, 2):
+                return lambda a, b: a @ b
+            if a.ndim == 1 and b.ndim == 1:
+                def dot(a, b):
+                    if a.shape[0] != b.shape[0]:
+                        raise ValueError("matmul: the shapes do not match")
+                    s = 0.0
+                    for k in range(a.shape[0]):
+                        s += a[k] * b[k]
+                    return s
+                return dot
+            if a.ndim == 2 and b.ndim == 1:
+                def mv(a, b):
+                    r, c = a.shape
+                    if c != b.shape[0]:
+                        raise ValueError("matmul: the shapes do not match")
+                    out = np.empty(r)
+                    for i in range(r):
+                        s = 0.0
+                        for k in range(c):
+                            s += a[i, k] * b[k]
+                        out[i] = s
+                    return out
+                return mv
+            if a.ndim == 1 and b.ndim == 2:
+                def vm(a, b):
+                    r, c = b.shape
+                    if a.shape[0] != r:
+                        raise ValueError("matmul: the shapes do not match")
+                    out = np.empty(c)
+                    for i in range(c):
+                        s = 0.0
+                        for k in range(r):
+                            s += a[k] * b[k, i]
+                        out[i] = s
+                    return out
+                return vm
+
+            def mm(a, b):
+                r, q = a.shape
+                c = b.shape[1]
+                if b.shape[0] != q:
+                    raise ValueError("matmul: the shapes do not match")
+                out = np.empty((r, c))
+                for i in range(r):
+                    for m in range(c):
+                        s = 0.0
+                        for k in range(q):
+                            s += a[i, k] * b[k, m]
+                        out[i, m] = s
+                return out
+            return mm
+        _SCALAR.append((_hs_scalar, _hs_matmul))
     return _SCALAR[0]
+
+
+def component_maps(system):
+    """A plain component's maps as functions of ``(x, u, t, j, p)`` (its
+    output of ``(x, t, j, p)``), compiled, and ``p`` read now:
+    ``(maps, output or None, params)`` for a :class:`~hybridsim.compiled.Component`.
+
+    Raises
+    ------
+    TypeError
+        The maps cannot be rewritten (naming the method and line).
+    """
+    from ._system import _refuse
+    pl = _plan(system, component=True)
+    p = None if isinstance(pl, _source.SourceRefusal) else pl.layout.read()
+    if p is None and not isinstance(pl, _source.SourceRefusal):
+        system.__dict__.pop("_source_component", None)      # a value changed kind
+        pl = _plan(system, component=True)
+        p = None if isinstance(pl, _source.SourceRefusal) else pl.layout.read()
+    if isinstance(pl, _source.SourceRefusal):
+        err = _refuse(type(system).__name__, _text(system, pl))
+        err.method, err.line, err.why = pl.method, pl.line, pl.why
+        raise err
+    mod, _ = _module(pl)
+    maps = {role: getattr(mod, name) for role, name in pl.roles.items() if role != "output"}
+    out = pl.roles.get("output")
+    return maps, (None if out is None else getattr(mod, out)), p
+
+
+def component_refusal(system):
+    """Why a plain component's maps cannot be rewritten (a :class:`SourceRefusal`), or None."""
+    pl = _plan(system, component=True)
+    return pl if isinstance(pl, _source.SourceRefusal) else None
 
 
 # ------------------------------------------------------------------ lowering
