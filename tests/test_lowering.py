@@ -59,21 +59,10 @@ def test_a_cascade_runs_on_every_path_and_agrees(path):
     assert arc.system is sys and list(arc.components) == ["plant", "observer"]
 
 
-# a compiled component with jumps: a sampler that holds its input every period
-def _sampler_flow(x, u, t, j, p):
-    return np.array([0.0, 1.0])
-
-
-def _sampler_jump(x, u, t, j, p):
-    return np.array([u[0], 0.0])
-
-
-def _sampler_guard(x, u, t, j, p):
-    return x[1] - p[0]
-
-
+# a component with jumps: a sampler that holds its input every period
 class Sampler(hs.HybridSystem):
-    """z = (held value, timer): z+ = (u, 0) when the timer reaches the period."""
+    """z = (held value, timer): z+ = (u, 0) when the timer reaches the period
+    (one definition: the compiled path rewrites these maps)."""
 
     state_dim, input_dim = 2, 1
     vectorized = True               # the maps take batches (N, 2) too
@@ -94,10 +83,6 @@ class Sampler(hs.HybridSystem):
         out[..., 0] = u[..., 0]
         return out
 
-    def compiled_component(self):
-        return Component(state_dim=2, input_dim=1, flow=_sampler_flow, jump=_sampler_jump,
-                         jump_guard=_sampler_guard, params=[self.period])
-
 
 @pytest.mark.parametrize("path", path_params())
 def test_a_component_with_jumps_samples_a_linear_combination(path):
@@ -117,12 +102,8 @@ def test_a_component_with_jumps_samples_a_linear_combination(path):
     np.testing.assert_allclose(arc.xf, ref.xf, rtol=0, atol=1e-8)
 
 
-def _agent_flow(x, u, t, j, p):
-    return u - p[0] * x
-
-
 class Agent(hs.HybridSystem):
-    """x' = sum of received - deg x (consensus), with a compiled form."""
+    """x' = sum of received - deg x (consensus; its maps rewritten on the compiled path)."""
 
     state_dim = 1
     vectorized = True
@@ -133,9 +114,6 @@ class Agent(hs.HybridSystem):
 
     def flow_map(self, x, t, j, u):
         return u - self.deg * x
-
-    def compiled_component(self):
-        return Component(state_dim=1, input_dim=1, flow=_agent_flow, params=[self.deg])
 
 
 @pytest.mark.parametrize("path", path_params())
@@ -270,6 +248,8 @@ def test_a_system_reading_its_history_is_refused_by_name():
 
 
 def test_components_and_lowering_check_their_arguments():
+    def _agent_flow(x, u, t, j, p):
+        return u - p[0] * x
     with pytest.raises(ValueError, match="params must be finite"):
         Component(state_dim=1, flow=_agent_flow, params=[np.nan])
     with pytest.raises(TypeError, match="params must be an array of floats"):
