@@ -626,6 +626,16 @@ class Interconnection(HybridSystem):
     # finite, of shape (n_i,) (a batch: (N, n_i)); else a MapError names the
     # component ("plant.flow_map"), t and j. The fast path is a few attribute
     # tests and a dot product (a sum over a batch) per component.
+    #
+    # Why two forms here (the batch branches, _jump_rows, _rows_set with
+    # _guard_rows/_set_rows): a single state reads each component's engine
+    # maps (its sets derived from its guards, the single-state checks), which
+    # every component has, vectorized or not; a batch reads the components'
+    # own batch maps with checks naming the row, and jumps each component on
+    # its rows only (masks; t, j and u per row), where a single state jumps
+    # the components in D one by one, computing only their inputs. The
+    # compiled path runs none of this: it generates the stacked maps from
+    # the parts' Components (hybridsim.compiled._lower).
     def flow_map(self, x, t, j, u=None):
         y = _Outputs(self, x, t, j)
         out = np.empty(x.shape)
