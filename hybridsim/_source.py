@@ -24,7 +24,15 @@ function's own node in its file, so every message names the file and line):
   global becomes a slot of ``p`` (:class:`Layout`, read again before every
   run: changing ``ball.e`` changes the next run), ``self.helper(...)`` and
   calls of plain functions are followed (rewritten the same way), modules
-  are imported by name. What cannot be rewritten is refused by a
+  are imported by name. ``self.a is None`` (``is not None``) is known when
+  the maps are rewritten: the test becomes a constant and the branch not
+  taken is dropped (the plan is made again where it changes). A product
+  ``a @ b`` compiles as loops summing in index order (``_hs_matmul``), and
+  one with a matrix the map reads from ``self`` (``self.M @ v``, ``v @
+  self.M.T``, ``y += v @ self.M.T``) reads it in place from ``p``
+  (:func:`hybridsim.compiled.matvec`). For a part of an interconnection
+  (``plan(system, component=True)``) the maps take ``(x, u, t, j, p)``
+  and its output ``(x, t, j, p)``. What cannot be rewritten is refused by a
   :class:`SourceRefusal` naming the method and its line: ``self`` passed or
   written, global state, random draws, an object numba cannot type.
 
@@ -665,6 +673,14 @@ class _Rewrite(ast.NodeTransformer):
 
     def visit_AugAssign(self, node):
         self._check_store(node.target)
+        v = node.value
+        if isinstance(node.op, ast.Add) and isinstance(node.target, ast.Name) and \
+                isinstance(v, ast.BinOp) and isinstance(v.op, ast.MatMult):
+            hit = self._product(v)
+            if hit is not None:                 # y += M @ v: accumulated in y
+                target = ast.Name(id=node.target.id, ctx=ast.Load())
+                call = self._pmv("_hs_pmv_add", *hit, v, target)
+                return ast.copy_location(ast.Expr(value=call), node)
         return self.generic_visit(node)
 
     def visit_AnnAssign(self, node):
@@ -723,8 +739,42 @@ class _Rewrite(ast.NodeTransformer):
             return node
         return self.visit(node.body if known else node.orelse)
 
+    def _matrix_slot(self, e):
+        """The slot of ``self.M`` (a 2-D array of floats), or None."""
+        fn = self.fn
+        if not (isinstance(e, ast.Attribute) and isinstance(e.value, ast.Name)
+                and e.value.id == fn.self_name and fn.self_name is not None):
+            return None
+        v = getattr(fn.obj, e.attr, None)
+        if not (isinstance(v, np.ndarray) and v.ndim == 2 and v.dtype.kind == "f"):
+            return None
+        self.visit(e)                           # its slot (and checks)
+        return self.pl.layout.add(("self", id(fn.obj), e.attr), e.attr, v,
+                                  lambda o=fn.obj, a=e.attr: getattr(o, a))
+
+    def _product(self, node):
+        """``M @ v`` (``self.M @ v`` or ``v @ self.M.T``) as ``(slot, v)``, or None."""
+        left, right = node.left, node.right
+        if isinstance(right, ast.Attribute) and right.attr == "T":
+            slot = self._matrix_slot(right.value)
+            if slot is not None:
+                return slot, left
+        slot = self._matrix_slot(left)
+        if slot is not None:
+            return slot, right
+        return None
+
+    def _pmv(self, name, slot, v, like, *extra):
+        _, _, (r, c), off, _ = slot
+        args = [ast.Name(id=P, ctx=ast.Load()), ast.Constant(off), ast.Constant(r),
+                ast.Constant(c), self.visit(v), *extra]
+        return _call(name, args, like)
+
     def visit_BinOp(self, node):
-        if isinstance(node.op, ast.MatMult):     # small products as loops (_hs_matmul)
+        if isinstance(node.op, ast.MatMult):     # small products as loops, in index order
+            hit = self._product(node)
+            if hit is not None:                 # a matrix of p read in place
+                return self._pmv("_hs_pmv", *hit, node)
             return _call("_hs_matmul", [self.visit(node.left), self.visit(node.right)], node)
         return self.generic_visit(node)
 

@@ -292,7 +292,7 @@ class LinearPlant(HybridSystem):
         dx = x @ self.A.T
         if self.B is not None:
             uu = self.u(t) if self.u is not None else u
-            dx = dx + np.atleast_1d(np.asarray(uu, dtype=float)) @ self.B.T
+            dx += np.atleast_1d(np.asarray(uu, dtype=float)) @ self.B.T
         if self.disturbance is not None:
             dx = dx + self.disturbance(t)
         return dx

@@ -193,7 +193,8 @@ def _module(plan):
     # the text generated here (compared with the file's), compiled under the file's name
     exec(compile(src, mod.__file__, "exec"), mod.__dict__)
     mod.__dict__.update(plan.dispatchers)
-    mod.__dict__["_hs_scalar"], mod.__dict__["_hs_matmul"] = _scalar_fn()
+    (mod.__dict__["_hs_scalar"], mod.__dict__["_hs_matmul"], mod.__dict__["_hs_pmv"],
+     mod.__dict__["_hs_pmv_add"]) = _scalar_fn()
     if path is not None:
         sys.modules[name] = mod
     for fname in plan.qualnames:
@@ -283,7 +284,35 @@ def _scalar_fn():
                         out[i, m] = s
                 return out
             return mm
-        _SCALAR.append((_hs_scalar, _hs_matmul))
+
+        # M @ v with M (r, c) row-major in p from off: hybridsim.compiled.matvec
+        # (v a vector), else the product of the matrix
+        from ._lower import _helpers
+        h = _helpers()
+        matvec, matvec_add = h["matvec"], h["matvec_add"]
+
+        def _hs_pmv(p, off, r, c, v):
+            return v @ p[off:off + r * c].reshape((r, c)).T
+
+        @overload(_hs_pmv)
+        def _typed_pmv(p, off, r, c, v):
+            if isinstance(v, nt.Array) and v.ndim == 1:
+                return lambda p, off, r, c, v: matvec(p, off, r, c, v)
+            return lambda p, off, r, c, v: _hs_matmul(v, p[off:off + r * c].reshape((r, c)).T)
+
+        def _hs_pmv_add(p, off, r, c, v, y):
+            y += v @ p[off:off + r * c].reshape((r, c)).T
+
+        @overload(_hs_pmv_add)
+        def _typed_pmv_add(p, off, r, c, v, y):
+            if isinstance(v, nt.Array) and v.ndim == 1 and isinstance(y, nt.Array) \
+                    and y.ndim == 1:
+                return lambda p, off, r, c, v, y: matvec_add(p, off, r, c, v, y)
+
+            def add(p, off, r, c, v, y):
+                y += _hs_matmul(v, p[off:off + r * c].reshape((r, c)).T)
+            return add
+        _SCALAR.append((_hs_scalar, _hs_matmul, _hs_pmv, _hs_pmv_add))
     return _SCALAR[0]
 
 
