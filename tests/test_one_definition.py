@@ -264,6 +264,12 @@ def test_what_numba_cannot_compile_is_named_by_method_and_line():
     with pytest.warns(FallbackWarning, match="numba could not compile Untyped.flow_map"):
         arc = hs.simulate(Untyped(), [1.0], t_max=0.1, backend="auto")
     assert arc.t[-1] == 0.1
+    # as a part of an interconnection: auto says so once and runs the Python path
+    ic = hs.Interconnection({"plant": hs.LinearPlant([[-1.0]]), "u": Untyped()})
+    with pytest.warns(FallbackWarning, match=r"runs Interconnection on the Python path: .*"
+                                             r"numba could not compile Untyped.flow_map"):
+        arc = hs.simulate(ic, [1.0, 1.0], t_max=0.1, backend="auto")
+    assert arc.t[-1] == 0.1
 
 
 def test_the_rewritten_source_is_kept_on_disk_and_verified():

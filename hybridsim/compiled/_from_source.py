@@ -446,7 +446,15 @@ def auto_choice(system, ok):
     per class and reason says why and the Python path runs it (other reasons,
     such as reading the history, are ``lowerable(system).reason``)."""
     if not applies(system):
-        return "compiled" if ok else "python"
+        from ..compose import Interconnection
+        if not ok or not isinstance(system, Interconnection):
+            return "compiled" if ok else "python"
+        try:                # its plain parts' maps are rewritten: numba may refuse one
+            from ._lower import lower
+            lower(system)
+        except TypeError as e:
+            return _fall_back(system, str(e))
+        return "compiled"
     why = None if ok else getattr(ok, "reason", None)
     if ok:
         try:
@@ -459,9 +467,13 @@ def auto_choice(system, ok):
         # history, inputs...; or a vectorized system, whose batches integrate
         # together in numpy: lowerable(system).reason says why
         return "python"
+    return _fall_back(system, why)
+
+
+def _fall_back(system, why):
     key = (type(system), why)
     if key not in _WARNED:
         _WARNED.add(key)
         warnings.warn(f"backend='auto' runs {type(system).__name__} on the Python path: "
-                      f"{why}", FallbackWarning, stacklevel=4)
+                      f"{why}", FallbackWarning, stacklevel=5)
     return "python"

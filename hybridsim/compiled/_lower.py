@@ -738,11 +738,33 @@ def lower(system, *, specialize=None):
         return cached
     parts, n, pvec, delays = _parts_of(system)
     _check_shapes(parts, pvec)
-    cs = _build(parts, n, pvec, type(system).__name__, bool(specialize), delays)
+    try:
+        cs = _build(parts, n, pvec, type(system).__name__, bool(specialize), delays)
+    except TypeError as e:          # numba's refusal of a rewritten part: its method and line
+        err = _source_error(system, e)
+        if err is None:
+            raise
+        raise err from e
     if system.max_step is not None:      # with delays, at most the smallest (CompiledSystem)
         cs.max_step = min([float(system.max_step), *delays])
     system.__dict__["_lowered"] = cs
     return cs
+
+
+def _source_error(system, e):
+    """The CompileError naming a part's own method and line, where numba's
+    refusal ``e`` lies in a part rewritten from source; else None."""
+    subs = system.systems.values() if isinstance(system, Interconnection) else (system,)
+    for s in subs:
+        hit = s.__dict__.get("_source_component")
+        if hit is not None and not isinstance(hit[1], _from_source._source.SourceRefusal):
+            cause = e.__cause__ if e.__cause__ is not None else e
+            if f"hybridsim_src_{_from_source._digest(hit[1])}" not in str(cause):
+                continue            # another part's module
+            err = _from_source._compile_error(s, hit[1], e)
+            if err.where is not None:
+                return err
+    return None
 
 
 def _check_shapes(parts, pvec):
