@@ -208,7 +208,8 @@ def test_a_plain_part_runs_compiled_from_its_own_maps(path):
      r"the input of component 'observer' cannot run compiled: it is a Python callable"),
     (lambda: hs.LinearPlant([[-1.0]], noise=lambda t: np.zeros(1)),
      r"LinearPlant cannot run compiled: its noise is a Python callable of t"),
-    (lambda: Agent(1.0), r"Agent cannot run compiled: it has an input"),
+    (lambda: Agent(1.0), r"Agent cannot run compiled: Agent has no compiled form .*: it "
+                         r"has an input \(input_dim=1\); connect it in an Interconnection"),
 ])
 def test_what_cannot_be_lowered_is_refused_by_name(make, match):
     system = make()

@@ -312,8 +312,9 @@ def _refusal(system, what, wired=None):
         if wired is None and _from_source.applies(system):
             # a plain model: its own maps, rewritten (hybridsim.compiled._from_source)
             if int(system.input_dim or 0):
-                return _refuse(what, f"it has an input (input_dim={system.input_dim}); "
-                                     f"connect it in an Interconnection with a LinearInput")
+                return _refuse(what, _from_source._text(
+                    system, f"it has an input (input_dim={system.input_dim}); connect it "
+                            f"in an Interconnection with a LinearInput"))
             why = _from_source.refusal(system)
             return None if why is None else _refuse(what, _from_source._text(system, why))
         return _refuse(what, f"{type(system).__name__} has no compiled form (a "
