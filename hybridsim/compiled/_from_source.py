@@ -25,6 +25,7 @@ is never run (the module is then compiled in memory).
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import re
@@ -204,6 +205,63 @@ def _module(plan):
     return mod, digest
 
 
+def _numba():
+    try:
+        import numba
+    except ImportError as e:
+        raise ImportError("the compiled path needs numba: pip install 'hybridsim[fast]'; "
+                          "run the system on the Python path (backend='python') "
+                          "without it") from e
+    return numba
+
+
+@functools.cache
+def _helpers():
+    numba = _numba()
+    nj = numba.njit(error_model="numpy")
+
+    @nj
+    def matvec(p, off, rows, cols, v):
+        """``M @ v`` with M (rows, cols) stored row-major in ``p`` from ``off``."""
+        out = np.zeros(rows)
+        for i in range(rows):
+            s = 0.0
+            b = off + i * cols
+            for k in range(cols):
+                s += p[b + k] * v[k]
+            out[i] = s
+        return out
+
+    @nj
+    def matvec_add(p, off, rows, cols, v, out):
+        """``out += M @ v`` (M as in :func:`matvec`)."""
+        for i in range(rows):
+            s = 0.0
+            b = off + i * cols
+            for k in range(cols):
+                s += p[b + k] * v[k]
+            out[i] += s
+
+    @nj
+    def put(out, a, b, v):
+        """``out[a:b] = v`` as a loop (numba's slice assignment compiles the
+        formatting of its shape error: seconds of the first compile)."""
+        if v.shape[0] != b - a:
+            raise ValueError("a component's map returned an array of another length")
+        for q in range(b - a):
+            out[a + q] = v[q]
+
+    @nj
+    def add_into(u, v):
+        """``u += v`` as a loop (see ``put``)."""
+        if v.shape[0] != u.shape[0]:
+            raise ValueError("a component's output has another length than the input it feeds")
+        for q in range(u.shape[0]):
+            u[q] += v[q]
+
+    return {"matvec": matvec, "matvec_add": matvec_add, "put": put, "add_into": add_into}
+
+
 _SCALAR = []
 
 
@@ -287,7 +345,6 @@ def _scalar_fn():
 
         # M @ v with M (r, c) row-major in p from off: hybridsim.compiled.matvec
         # (v a vector), else the product of the matrix
-        from ._lower import _helpers
         h = _helpers()
         matvec, matvec_add = h["matvec"], h["matvec_add"]
 
@@ -446,15 +503,7 @@ def auto_choice(system, ok):
     per class and reason says why and the Python path runs it (other reasons,
     such as reading the history, are ``lowerable(system).reason``)."""
     if not applies(system):
-        from ..compose import Interconnection
-        if not ok or not isinstance(system, Interconnection):
-            return "compiled" if ok else "python"
-        try:                # its plain parts' maps are rewritten: numba may refuse one
-            from ._lower import lower
-            lower(system)
-        except TypeError as e:
-            return _fall_back(system, str(e))
-        return "compiled"
+        return "compiled" if ok else "python"
     why = None if ok else getattr(ok, "reason", None)
     if ok:
         try:
@@ -467,13 +516,15 @@ def auto_choice(system, ok):
         # history, inputs...; or a vectorized system, whose batches integrate
         # together in numpy: lowerable(system).reason says why
         return "python"
-    return _fall_back(system, why)
+    return _fall_back(system, why, 6)
 
 
-def _fall_back(system, why):
+def _fall_back(system, why, stacklevel):
+    """One :class:`FallbackWarning` per class and reason (``stacklevel`` from here
+    to the user's call of simulate); "python"."""
     key = (type(system), why)
     if key not in _WARNED:
         _WARNED.add(key)
         warnings.warn(f"backend='auto' runs {type(system).__name__} on the Python path: "
-                      f"{why}", FallbackWarning, stacklevel=5)
+                      f"{why}", FallbackWarning, stacklevel=stacklevel)
     return "python"

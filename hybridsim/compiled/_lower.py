@@ -58,6 +58,7 @@ from ..compose import Interconnection, LinearInput, LinearPlant
 from ..options import check_delay_times
 from ..system import HybridSystem
 from . import _from_source
+from ._from_source import _helpers, _numba
 from ._system import CompiledSystem, _load_kernel, _refuse
 
 __all__ = ["Component", "Lowerable", "lower", "lowerable", "matvec", "rebind"]
@@ -158,63 +159,6 @@ class Component:
 
 
 # ------------------------------------------------------------------ compiled helpers
-def _numba():
-    try:
-        import numba
-    except ImportError as e:
-        raise ImportError("the compiled path needs numba: pip install 'hybridsim[fast]'; "
-                          "run the system on the Python path (backend='python') "
-                          "without it") from e
-    return numba
-
-
-@functools.cache
-def _helpers():
-    numba = _numba()
-    nj = numba.njit(error_model="numpy")
-
-    @nj
-    def matvec(p, off, rows, cols, v):
-        """``M @ v`` with M (rows, cols) stored row-major in ``p`` from ``off``."""
-        out = np.zeros(rows)
-        for i in range(rows):
-            s = 0.0
-            b = off + i * cols
-            for k in range(cols):
-                s += p[b + k] * v[k]
-            out[i] = s
-        return out
-
-    @nj
-    def matvec_add(p, off, rows, cols, v, out):
-        """``out += M @ v`` (M as in :func:`matvec`)."""
-        for i in range(rows):
-            s = 0.0
-            b = off + i * cols
-            for k in range(cols):
-                s += p[b + k] * v[k]
-            out[i] += s
-
-    @nj
-    def put(out, a, b, v):
-        """``out[a:b] = v`` as a loop (numba's slice assignment compiles the
-        formatting of its shape error: seconds of the first compile)."""
-        if v.shape[0] != b - a:
-            raise ValueError("a component's map returned an array of another length")
-        for q in range(b - a):
-            out[a + q] = v[q]
-
-    @nj
-    def add_into(u, v):
-        """``u += v`` as a loop (see ``put``)."""
-        if v.shape[0] != u.shape[0]:
-            raise ValueError("a component's output has another length than the input it feeds")
-        for q in range(u.shape[0]):
-            u[q] += v[q]
-
-    return {"matvec": matvec, "matvec_add": matvec_add, "put": put, "add_into": add_into}
-
-
 def matvec(p, off, rows, cols, v):
     """``M @ v`` with M (rows, cols) stored row-major in the flat array ``p``
     from index ``off``: the matrix product of compiled maps that read their
@@ -877,3 +821,17 @@ def lowerable(system):
         return Lowerable()
     why = _refusal(system, type(system).__name__)
     return Lowerable(None if why is None else str(why))
+
+
+def auto_choice(system, ok):
+    """``backend="auto"``'s choice (:func:`hybridsim.compiled._from_source.auto_choice`);
+    an interconnection :func:`lowerable` accepts is lowered here, so that numba's
+    refusal of a part rewritten from source falls back with one warning naming
+    the part's method and line."""
+    if ok and isinstance(system, Interconnection):
+        try:
+            lower(system)
+        except TypeError as e:
+            return _from_source._fall_back(system, str(e), 5)
+        return "compiled"
+    return _from_source.auto_choice(system, ok)
