@@ -714,11 +714,14 @@ class _Rewrite(ast.NodeTransformer):
         return t, _known(t)
 
     def stmts(self, body):
-        """The statements of ``body`` visited (a pruned ``if`` gives its branch's)."""
+        """The statements of ``body`` visited (a pruned ``if`` gives its branch's;
+        what follows a return is never run, and never read)."""
         out = []
         for st in body:
             v = self.visit(st)
             out.extend(v if isinstance(v, list) else [v])
+            if out and isinstance(out[-1], (ast.Return, ast.Raise)):
+                break
         return out
 
     def visit_If(self, node):

@@ -346,3 +346,26 @@ def test_an_interconnection_of_plain_models_runs_compiled():
     expect = np.sort(np.concatenate([bouncing_ball_jump_times(1.0, 12),
                                      bouncing_ball_jump_times(2.0, 12, 4.0, 0.5)]))[:12]
     np.testing.assert_allclose(fast.jump_times, expect, rtol=1e-11)
+
+
+def test_an_attribute_tested_against_none_is_decided_when_the_maps_are_rewritten():
+    """``self.bias is None`` is folded (the branch not taken, which numba could
+    not type, is dropped); setting the attribute rewrites the maps."""
+    class Biased(hs.HybridSystem):
+        state_dim = 1
+
+        def __init__(self):
+            self.bias = None
+
+        def flow_map(self, x):
+            if self.bias is None:
+                return -x
+            return -x + self.bias
+    s = Biased()
+    kw = dict(t_max=1.0, backend="compiled", **TIGHT)
+    a = hs.simulate(s, [1.0], **kw)
+    s.bias = 1.0
+    b = hs.simulate(s, [1.0], **kw)
+    np.testing.assert_allclose(a.xf, [np.exp(-1.0)], rtol=1e-9)
+    np.testing.assert_allclose(b.xf, [1.0], rtol=1e-9)       # x' = 1 - x from 1
+    assert set(lower(s).layout.names()) == {"bias"}
