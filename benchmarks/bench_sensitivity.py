@@ -11,7 +11,7 @@
 2. Covariance through jumps: x0 ~ N((1, 0), diag(0.005^2, 0.01^2)) to a
    quarter into the flight after the 5th bounce: the linearised S P0 S^T
    (one sensitivity run) against a Monte Carlo of 1,000 runs (one vectorized
-   ``simulate_many`` batch of ``BouncingBallBatch``), with their difference in
+   ``simulate_many`` batch of ``BouncingBall(vectorized=True)``), with their difference in
    units of the Monte Carlo's standard error.
 3. ``hs.falsify(..., refine="gradient")`` (L-BFGS-B on the margin's gradient
    from the sensitivities) against the compass search (``refine=True``), the
@@ -31,7 +31,7 @@ import time
 import numpy as np
 
 import hybridsim as hs
-from hybridsim.library import BouncingBall, BouncingBallBatch, bouncing_ball_jump_times
+from hybridsim.library import BouncingBall, bouncing_ball_jump_times
 
 G, E, H0, K = 9.81, 0.8, 1.0, 30
 
@@ -144,7 +144,7 @@ def covariance_row(repeat, N=1000):
     x0s = rng.multivariate_normal([H0, 0.0], P0, size=N)
 
     def monte_carlo():
-        arcs = hs.simulate_many(BouncingBallBatch(), x0s, t_max=T, progress=False)
+        arcs = hs.simulate_many(BouncingBall(vectorized=True), x0s, t_max=T, progress=False)
         return np.cov(np.array([a.xf for a in arcs]).T)
 
     t_lin, P = best(linear, repeat)

@@ -24,7 +24,15 @@ function's own node in its file, so every message names the file and line):
   global becomes a slot of ``p`` (:class:`Layout`, read again before every
   run: changing ``ball.e`` changes the next run), ``self.helper(...)`` and
   calls of plain functions are followed (rewritten the same way), modules
-  are imported by name. What cannot be rewritten is refused by a
+  are imported by name. ``self.a is None`` (``is not None``) is known when
+  the maps are rewritten: the test becomes a constant and the branch not
+  taken is dropped (the plan is made again where it changes). A product
+  ``a @ b`` compiles as loops summing in index order (``_hs_matmul``), and
+  one with a matrix the map reads from ``self`` (``self.M @ v``, ``v @
+  self.M.T``, ``y += v @ self.M.T``) reads it in place from ``p``
+  (:func:`hybridsim.compiled.matvec`). For a part of an interconnection
+  (``plan(system, component=True)``) the maps take ``(x, u, t, j, p)``
+  and its output ``(x, t, j, p)``. What cannot be rewritten is refused by a
   :class:`SourceRefusal` naming the method and its line: ``self`` passed or
   written, global state, random draws, an object numba cannot type.
 
@@ -142,8 +150,30 @@ def _same_code(lam, code):
     return bool(code.co_freevars) or mine.co_code == code.co_code
 
 
+#: code object -> its FunctionDef (a copy is handed out): a file's tree is walked once
+#: per function, not once per system
+_NODES = {}
+
+
 def _node_of(func, qualname):
     """The FunctionDef of ``func`` in its file (a lambda as one)."""
+    code = func.__code__
+    hit = _NODES.get(code)
+    if hit is not None and hit[0] == _file_key(code.co_filename, func):
+        return copy.deepcopy(hit[1])
+    node = _find_node(func, qualname)
+    if len(_NODES) > 4096:
+        _NODES.clear()
+    _NODES[code] = (_file_key(code.co_filename, func), node)
+    return copy.deepcopy(node)
+
+
+def _file_key(file, func):
+    lines = linecache.getlines(file, func.__globals__)
+    return (len(lines), hash(tuple(lines))) if lines else None
+
+
+def _find_node(func, qualname):
     code = func.__code__
     tree = _tree(code.co_filename, func)
     where = f"{code.co_filename}:{code.co_firstlineno}"
@@ -451,6 +481,12 @@ class Layout:
 
     def __init__(self):
         self.slots, self.readers, self.size, self._index = [], [], 0, {}
+        self.checks = {}            # key -> (reader, whether the value was None)
+
+    def require(self, key, reader, is_none):
+        """Record that the rewrite folded ``reader() is None`` to ``is_none``
+        (a branch taken): :meth:`read` asks for a rewrite where it changes."""
+        self.checks.setdefault(key, (reader, is_none))
 
     def add(self, key, name, value, reader):
         hit = self._index.get(key)
@@ -468,6 +504,12 @@ class Layout:
     def read(self):
         """``p`` now, or None where a value changed kind or shape (the maps must
         be rewritten)."""
+        for rd, is_none in self.checks.values():
+            try:
+                if (rd() is None) != is_none:
+                    return None
+            except Exception:  # noqa: BLE001 - an attribute deleted since: rewrite
+                return None
         p = np.empty(self.size)
         for (_, kind, shape, off, size), rd in zip(self.slots, self.readers):
             try:
@@ -530,6 +572,22 @@ _MISSING = _Unresolved()
 
 
 _DTYPES = {"float": "float64", "int": "int64", "bool": "bool_", "complex": "complex128"}
+
+
+def _known(t):
+    """The truth of a test the rewrite folded (constants, not, and, or), or None."""
+    if isinstance(t, ast.Constant) and isinstance(t.value, bool):
+        return t.value
+    if isinstance(t, ast.UnaryOp) and isinstance(t.op, ast.Not):
+        v = _known(t.operand)
+        return None if v is None else not v
+    if isinstance(t, ast.BoolOp):
+        vs = [_known(v) for v in t.values]
+        stop = isinstance(t.op, ast.Or)             # or: a True decides; and: a False
+        if stop in vs:
+            return stop
+        return None if None in vs else not stop
+    return None
 
 
 class _Rewrite(ast.NodeTransformer):
@@ -615,10 +673,112 @@ class _Rewrite(ast.NodeTransformer):
 
     def visit_AugAssign(self, node):
         self._check_store(node.target)
+        v = node.value
+        if isinstance(node.op, ast.Add) and isinstance(node.target, ast.Name) and \
+                isinstance(v, ast.BinOp) and isinstance(v.op, ast.MatMult):
+            hit = self._product(v)
+            if hit is not None:                 # y += M @ v: accumulated in y
+                target = ast.Name(id=node.target.id, ctx=ast.Load())
+                call = self._pmv("_hs_pmv_add", *hit, v, target)
+                return ast.copy_location(ast.Expr(value=call), node)
         return self.generic_visit(node)
 
     def visit_AnnAssign(self, node):
         self._check_store(node.target)
+        return self.generic_visit(node)
+
+    # -- structure: `self.a is None` is known when the maps are rewritten
+    def visit_Compare(self, node):
+        fn = self.fn
+        if len(node.ops) == 1 and isinstance(node.ops[0], (ast.Is, ast.IsNot)):
+            a, b = node.left, node.comparators[0]
+            if isinstance(a, ast.Constant) and a.value is None:
+                a, b = b, a
+            if isinstance(b, ast.Constant) and b.value is None and \
+                    isinstance(a, ast.Attribute) and isinstance(a.value, ast.Name) and \
+                    a.value.id == fn.self_name and fn.self_name is not None:
+                obj, attr = fn.obj, a.attr
+                try:
+                    v = getattr(obj, attr)
+                except AttributeError:
+                    raise fn.refuse(a, f"self.{attr} does not exist") from None
+                self.pl.layout.require(("none", id(obj), attr),
+                                       lambda o=obj, n=attr: getattr(o, n), v is None)
+                known = (v is None) == isinstance(node.ops[0], ast.Is)
+                return ast.copy_location(ast.Constant(known), node)
+        return self.generic_visit(node)
+
+    def _test(self, test):
+        """The visited test and its value where the rewrite knows it (else None)."""
+        t = self.visit(test)
+        return t, _known(t)
+
+    def stmts(self, body):
+        """The statements of ``body`` visited (a pruned ``if`` gives its branch's;
+        what follows a return is never run, and never read)."""
+        out = []
+        for st in body:
+            v = self.visit(st)
+            out.extend(v if isinstance(v, list) else [v])
+            if out and isinstance(out[-1], (ast.Return, ast.Raise)):
+                break
+        return out
+
+    def visit_If(self, node):
+        test, known = self._test(node.test)
+        if known is None:
+            node.test = test
+            node.body = self.stmts(node.body) or [ast.copy_location(ast.Pass(), node)]
+            node.orelse = self.stmts(node.orelse)
+            return node
+        taken = node.body if known else node.orelse      # the other branch is never read
+        return self.stmts(taken) or [ast.copy_location(ast.Pass(), node)]
+
+    def visit_IfExp(self, node):
+        test, known = self._test(node.test)
+        if known is None:
+            node.test = test
+            node.body, node.orelse = self.visit(node.body), self.visit(node.orelse)
+            return node
+        return self.visit(node.body if known else node.orelse)
+
+    def _matrix_slot(self, e):
+        """The slot of ``self.M`` (a 2-D array of floats), or None."""
+        fn = self.fn
+        if not (isinstance(e, ast.Attribute) and isinstance(e.value, ast.Name)
+                and e.value.id == fn.self_name and fn.self_name is not None):
+            return None
+        v = getattr(fn.obj, e.attr, None)
+        if not (isinstance(v, np.ndarray) and v.ndim == 2 and v.dtype.kind == "f"):
+            return None
+        self.visit(e)                           # its slot (and checks)
+        return self.pl.layout.add(("self", id(fn.obj), e.attr), e.attr, v,
+                                  lambda o=fn.obj, a=e.attr: getattr(o, a))
+
+    def _product(self, node):
+        """``M @ v`` (``self.M @ v`` or ``v @ self.M.T``) as ``(slot, v)``, or None."""
+        left, right = node.left, node.right
+        if isinstance(right, ast.Attribute) and right.attr == "T":
+            slot = self._matrix_slot(right.value)
+            if slot is not None:
+                return slot, left
+        slot = self._matrix_slot(left)
+        if slot is not None:
+            return slot, right
+        return None
+
+    def _pmv(self, name, slot, v, like, *extra):
+        _, _, (r, c), off, _ = slot
+        args = [ast.Name(id=P, ctx=ast.Load()), ast.Constant(off), ast.Constant(r),
+                ast.Constant(c), self.visit(v), *extra]
+        return _call(name, args, like)
+
+    def visit_BinOp(self, node):
+        if isinstance(node.op, ast.MatMult):     # small products as loops, in index order
+            hit = self._product(node)
+            if hit is not None:                 # a matrix of p read in place
+                return self._pmv("_hs_pmv", *hit, node)
+            return _call("_hs_matmul", [self.visit(node.left), self.visit(node.right)], node)
         return self.generic_visit(node)
 
     # -- reads
@@ -764,6 +924,25 @@ def _fn_of_plain(v, caller, node):
                                   f"{e.why}") from None
 
 
+#: roles whose value is one number: their returns pass through ``_hs_scalar``
+#: (bound by the compiler), which makes a 0-d array (``np.where`` of scalars,
+#: ``x[..., k]`` on a single state under numba) the number it holds
+_SCALAR_ROLES = ("jump_guard", "flow_guard", "jump_set", "flow_set")
+
+
+class _Scalar(ast.NodeTransformer):
+    def visit_FunctionDef(self, node):       # nested functions keep their returns
+        return node
+
+    visit_Lambda = visit_FunctionDef
+
+    def visit_Return(self, node):
+        if node.value is None:
+            return node
+        return ast.copy_location(ast.Return(value=ast.copy_location(
+            _call("_hs_scalar", [node.value], node.value), node.value)), node)
+
+
 class _Planner:
     def __init__(self):
         self.layout = Layout()
@@ -771,6 +950,7 @@ class _Planner:
         self._names = {}             # id(func), id(obj) -> generated name
         self.modules = {"numpy": "_hs_m_numpy"}     # module name -> generated name
         self.dispatchers = {}        # id -> (generated name, dispatcher)
+        self.inputs = False          # a component's maps: (x, u, t, j, p)
         self.lines = {}
 
     def module(self, m):
@@ -816,7 +996,9 @@ class _Planner:
                                       value=_slot_expr(slot, node)))
             own = args[:k]
             sig = [own[i] if i < len(own) else f"_hs_{'xtj'[i]}" for i in range(3)] + [P]
-            if k >= 4:                  # u: no input on this path
+            if self.inputs and role != "output":        # a component's (x, u, t, j, p)
+                sig.insert(1, own[3] if k >= 4 else "_hs_u")
+            elif k >= 4:                # u: no input on this path
                 pre.append(ast.Assign(targets=[ast.Name(id=own[3], ctx=ast.Store())],
                                       value=ast.Constant(None)))
             new_args = [ast.arg(arg=a) for a in sig]
@@ -828,7 +1010,9 @@ class _Planner:
             new_args = [ast.arg(arg=P)] + [ast.arg(arg=a) for a in args]
             defaults = node.args.defaults
         body = _Rewrite(self, fn)
-        node.body = [body.visit(s) for s in node.body]
+        node.body = body.stmts(node.body)
+        if role in _SCALAR_ROLES:
+            node.body = [_Scalar().visit(s) for s in node.body]
         node.body = pre + node.body
         node.args = ast.arguments(posonlyargs=[], args=new_args, kwonlyargs=[],
                                   kw_defaults=[], defaults=defaults)
@@ -862,18 +1046,23 @@ ROLES = (("flow_map", "flow"), ("jump_map", "jump"), ("jump_guard", "jump_guard"
          ("flow_guard", "flow_guard"), ("jump_set", "jump_set"), ("flow_set", "flow_set"))
 
 
-def plan(system):
-    """The :class:`Plan` of ``system``'s maps as functions of ``(x, t, j, p)``;
-    a :class:`SourceRefusal` naming the method and line otherwise."""
+def plan(system, component=False):
+    """The :class:`Plan` of ``system``'s maps as functions of ``(x, t, j, p)``
+    (``component``: of ``(x, u, t, j, p)``, and its output of ``(x, t, j,
+    p)``, for a part of an interconnection); a :class:`SourceRefusal` naming
+    the method and line otherwise."""
     pl = _Planner()
+    pl.inputs = bool(component)
     roles = {}
     cls = type(system).__name__
-    for attr, role in ROLES:
+    todo = ROLES + ((("output", "output"),) if component and system._overrides("output")
+                    else ())
+    for attr, role in todo:
         if attr in ("jump_guard", "flow_guard"):
             fn = getattr(system, attr)
             if fn is None:
                 continue
-        elif attr in ("flow_map", "jump_map"):
+        elif attr in ("flow_map", "jump_map", "output"):
             if not system._overrides(attr):
                 continue
             fn = getattr(system, attr)
@@ -882,7 +1071,8 @@ def plan(system):
                 continue
             fn = getattr(system, attr)
         f = _fn_of(fn, f"{cls}.{attr}")
-        roles[role] = pl.follow(f, role=role, form=max(1, min(_arity(fn), 4)))
+        form = max(1, min(_arity(fn), 3 if role == "output" else 4))
+        roles[role] = pl.follow(f, role=role, form=form)
     if "flow" not in roles:
         raise SourceRefusal(f"{cls}.flow_map", "-", "the system defines no flow_map")
     lines = [f"# hybridsim: the maps of {cls}, rewritten as functions of (x, t, j, p)",

@@ -286,24 +286,21 @@ class LinearPlant(HybridSystem):
         """True when the plant has no callables of t (see Notes)."""
         return self.u is None and self.noise is None and self.disturbance is None
 
+    # one form on the last axis: x (n,) or a batch (N, n) (u (m,) or (N, m)); the
+    # callables of t make the plant single-state (not vectorized)
     def flow_map(self, x, t, j, u):
-        if np.ndim(x) == 2:                      # a batch (N, n): no callables (vectorized)
-            dx = x @ self.A.T
-            return dx if self.B is None else dx + np.asarray(u, dtype=float) @ self.B.T
-        dx = self.A @ x
+        dx = x @ self.A.T
         if self.B is not None:
             uu = self.u(t) if self.u is not None else u
-            dx = dx + self.B @ np.atleast_1d(uu)
+            dx += np.atleast_1d(np.asarray(uu, dtype=float)) @ self.B.T
         if self.disturbance is not None:
             dx = dx + self.disturbance(t)
         return dx
 
     def output(self, x, t, j):
-        if np.ndim(x) == 2:
-            return x @ self.C.T
-        y = self.C @ x
+        y = x @ self.C.T
         if self.u is not None and self.B is not None:
-            y = y + self.D @ np.atleast_1d(self.u(t))
+            y = y + np.atleast_1d(np.asarray(self.u(t), dtype=float)) @ self.D.T
         if self.noise is not None:
             y = y + self.noise(t)
         return y
@@ -629,6 +626,16 @@ class Interconnection(HybridSystem):
     # finite, of shape (n_i,) (a batch: (N, n_i)); else a MapError names the
     # component ("plant.flow_map"), t and j. The fast path is a few attribute
     # tests and a dot product (a sum over a batch) per component.
+    #
+    # Why two forms here (the batch branches, _jump_rows, _rows_set with
+    # _guard_rows/_set_rows): a single state reads each component's engine
+    # maps (its sets derived from its guards, the single-state checks), which
+    # every component has, vectorized or not; a batch reads the components'
+    # own batch maps with checks naming the row, and jumps each component on
+    # its rows only (masks; t, j and u per row), where a single state jumps
+    # the components in D one by one, computing only their inputs. The
+    # compiled path runs none of this: it generates the stacked maps from
+    # the parts' Components (hybridsim.compiled._lower).
     def flow_map(self, x, t, j, u=None):
         y = _Outputs(self, x, t, j)
         out = np.empty(x.shape)

@@ -26,55 +26,76 @@ class BouncingBall(HybridSystem):
     With guards (h = -x_1 for D, c = x_1 for C) the impacts are located by
     root-finding. Its exact impact times are
     :func:`bouncing_ball_jump_times`; from rest it is Zeno.
+
+    The maps are written once, on the last axis (``x[..., k]``): one state
+    (the Python path), a batch of states (N, 2) (``vectorized=True``: the
+    vectorized path) and the compiled path (the maps rewritten as functions
+    of (x, t, j, p), g and e read into p) all run these methods.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> ball = BouncingBall(vectorized=True)
+    >>> ball.flow_map(np.array([1.0, 0.5]))
+    array([ 0.5 , -9.81])
+    >>> ball.jump_set(np.array([[0.0, -1.0], [1.0, -1.0]]))
+    array([ True, False])
     """
 
     state_dim = 2
 
-    def __init__(self, gravity=9.81, restitution=0.8):
+    def __init__(self, gravity=9.81, restitution=0.8, vectorized=False):
         self.g, self.e = _check_ball(gravity, restitution)
+        if not isinstance(vectorized, (bool, np.bool_)):
+            raise TypeError(f"vectorized must be a bool, got {vectorized!r}")
+        if vectorized:
+            self.vectorized = True
 
     def flow_map(self, x):
-        return np.array([x[1], -self.g])
+        dx = np.empty_like(x)
+        dx[..., 0] = x[..., 1]
+        dx[..., 1] = -self.g
+        return dx
 
     def jump_map(self, x):
-        return np.array([0.0, -self.e * x[1]])
+        xn = np.empty_like(x)
+        xn[..., 0] = 0.0
+        xn[..., 1] = -self.e * x[..., 1]
+        return xn
 
     def flow_set(self, x):
-        return x[0] >= 0
+        return x[..., 0] >= 0
 
     def jump_set(self, x):
-        return x[0] <= 0 and x[1] <= 0
+        return (x[..., 0] <= 0) & (x[..., 1] <= 0)
 
     def jump_guard(self, x):
-        return -x[0]
+        return -x[..., 0]
 
     def flow_guard(self, x):
-        return x[0]
+        return x[..., 0]
 
 
 class BouncingBallBatch(BouncingBall):
-    """:class:`BouncingBall` written over batches (``vectorized = True``):
-    x has shape (N, 2), one ball per row."""
+    """Deprecated: ``BouncingBall(gravity, restitution, vectorized=True)``
+    (the same maps; this name is kept for old scripts).
+
+    Examples
+    --------
+    >>> import warnings
+    >>> with warnings.catch_warnings():
+    ...     warnings.simplefilter("ignore", DeprecationWarning)
+    ...     BouncingBallBatch().vectorized
+    True
+    """
 
     vectorized = True
 
-    def flow_map(self, x):
-        return np.stack([x[:, 1], np.full(len(x), -self.g)], axis=1)
-
-    def jump_map(self, x):
-        return np.stack([np.zeros(len(x)), -self.e * x[:, 1]], axis=1)
-
-    def flow_set(self, x):
-        return x[:, 0] >= 0
-
-    def jump_set(self, x):
-        return (x[:, 0] <= 0) & (x[:, 1] <= 0)
-
-    def jump_guard(self, x):
-        return -x[:, 0]
-
-    def flow_guard(self, x):
-        return x[:, 0]
+    def __init__(self, gravity=9.81, restitution=0.8):
+        import warnings
+        warnings.warn("BouncingBallBatch is deprecated: use BouncingBall(gravity, restitution, "
+                      "vectorized=True)", DeprecationWarning, stacklevel=2)
+        super().__init__(gravity, restitution)
 
 
 def bouncing_ball_jump_times(h0, k, gravity=9.81, restitution=0.8):

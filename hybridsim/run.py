@@ -504,7 +504,7 @@ def _auto_backend(system, kwargs, executor):
         method_on("compiled", kwargs.get("method"), system)
     except (TypeError, ValueError):
         return "python"
-    from .compiled._from_source import auto_choice
+    from .compiled._lower import auto_choice
     # a plain model: compiled, or one warning saying why not
     return auto_choice(system, compiled.lowerable(system))
 

@@ -410,6 +410,7 @@ class HybridSystem:
         state.pop("history", None)
         state.pop("_lowered", None)         # the compiled path's generated maps
         state.pop("_source_plan", None)     # its rewrite of the maps (hybridsim._source)
+        state.pop("_source_component", None)    # the same, as a part of an interconnection
         return state
 
     def _bind_history(self, history):

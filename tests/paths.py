@@ -1,20 +1,22 @@
 """The three integration paths behind one interface, for tests that must hold on all.
 
 A :class:`Linear` case (x' = A x, x+ = G x + c, D = {a.x - b >= 0}, and C =
-{e.x - d >= 0} or everything) is built on each path from the same numbers:
+{e.x - d >= 0} or everything) or a :class:`Ball` is one plain model (a
+``HybridSystem`` subclass whose maps read the case's numbers from its
+attributes, written on the last axis), and every path runs that model:
 
-* ``"python"``: :func:`hybridsim.simulate` on a plain ``HybridSystem``;
-* ``"vectorized"``: :func:`hybridsim.simulate_vectorized` on the same maps
-  written over (N, n) batches (one row);
-* ``"compiled"``: :func:`hybridsim.compiled.simulate_compiled` on a
-  ``CompiledSystem`` whose maps read the case's numbers from ``params``
-  (the maps are compiled once per state dimension and kind of sets, and
-  reused by every case: new numbers recompile nothing).
+* ``"python"``: :func:`hybridsim.simulate`, one state at a time;
+* ``"vectorized"``: :func:`hybridsim.simulate_vectorized`, the same maps
+  called on (N, n) batches (one row; ``vectorized = True``);
+* ``"compiled"``: :func:`hybridsim.compiled.simulate_compiled` on the
+  model's own maps lowered from source (:func:`hybridsim.compiled.lower`:
+  the numbers are slots of ``params``, compiled once per state dimension
+  and kind of sets and reused by every case: new numbers recompile nothing).
 
 ``sets`` says how the sets are given: ``"guards"`` (continuous guards only:
 the sets derived from them), ``"both"`` (indicators decide membership, the
-guards locate crossings) or ``"indicators"`` (indicators only: events found
-by bisection of the indicators).
+guards locate crossings) or ``"indicators"`` (indicators only, no guard:
+events found by bisection of the indicators).
 
 ``run(path, case, x0, **options)`` returns the arc; options a path does not
 implement raise its refusal (see :mod:`hybridsim.options`). A test that takes
@@ -68,56 +70,14 @@ class Linear:
         return np.inf if self.e is None else float(self.e @ x - self.d)
 
     def build(self, path):
-        return {"python": self.python, "vectorized": self.vectorized,
-                "compiled": self.compiled}[path]()
+        """The case's model on ``path`` (a ``CompiledSystem`` lowered from it
+        for ``"compiled"``)."""
+        sC = (self.sets_C or self.sets) if self.with_C else None
+        model = _model(_LinearModel, self.sets, sC)(self, vectorized=path == "vectorized")
+        return _on(path, model)
 
-    # -------------------------------------------------------------- the paths
     def python(self):
-        A, G, c, a, b, e, d = self.A, self.G, self.c, self.a, self.b, self.e, self.d
-        kw = {}
-        sD, sC = self.sets, self.sets_C or self.sets
-        if sD in ("guards", "both"):
-            kw["jump_guard"] = lambda x: a @ x - b
-        if sD in ("both", "indicators"):
-            kw["D"] = lambda x: a @ x - b >= 0
-        if e is not None and sC in ("guards", "both"):
-            kw["flow_guard"] = lambda x: e @ x - d
-        if e is not None and sC in ("both", "indicators"):
-            kw["C"] = lambda x: e @ x - d >= 0
-        k = np.zeros(self.n) if self.k is None else self.k
-        return hs.HybridSystem.from_functions(f=lambda x: A @ x + k, g=lambda x: G @ x + c,
-                                              state_dim=self.n, **kw)
-
-    def vectorized(self):
-        A, G, c, a, b, e, d = self.A, self.G, self.c, self.a, self.b, self.e, self.d
-        kw = {}
-        sD, sC = self.sets, self.sets_C or self.sets
-        if sD in ("guards", "both"):
-            kw["jump_guard"] = lambda X: X @ a - b
-        if sD in ("both", "indicators"):
-            kw["D"] = lambda X: X @ a - b >= 0
-        if e is not None and sC in ("guards", "both"):
-            kw["flow_guard"] = lambda X: X @ e - d
-        if e is not None and sC in ("both", "indicators"):
-            kw["C"] = lambda X: X @ e - d >= 0
-        k = np.zeros(self.n) if self.k is None else self.k
-        return hs.HybridSystem.from_functions(f=lambda X: X @ A.T + k, g=lambda X: X @ G.T + c,
-                                              state_dim=self.n, vectorized=True, **kw)
-
-    def params(self):
-        n = self.n
-        e = np.zeros(n) if self.e is None else self.e
-        k = np.zeros(n) if self.k is None else self.k
-        return np.concatenate([[n], self.A.ravel(), self.G.ravel(), self.c, self.a, [self.b],
-                               e, [self.d], k]).astype(float)
-
-    def compiled(self):
-        key = (self.n, self.with_C, self.sets, self.sets_C or self.sets)
-        system = _COMPILED.get(key)
-        if system is None:
-            system = _COMPILED[key] = _compiled_system(*key)
-        system.params = self.params()
-        return system
+        return self.build("python")
 
 
 def run(path, case, x0, **options):
@@ -139,84 +99,105 @@ def run(path, case, x0, **options):
     return simulate_compiled(system, x0, **options)
 
 
-# ------------------------------------------------------------------ compiled maps
-# the case's numbers are read from p: [n, A (n*n), G (n*n), c (n), a (n), b, e (n), d, k (n)]
-_COMPILED = {}
-_MAPS = None
+# ------------------------------------------------------------------ the models
+def _on(path, model):
+    if path == "compiled":
+        from hybridsim.compiled import lower
+        return lower(model)
+    if path not in PATHS:
+        raise ValueError(f"path must be one of {PATHS}, got {path!r}")
+    return model
 
 
-def _maps():
-    global _MAPS
-    if _MAPS is not None:
-        return _MAPS
-    from numba import njit
+class _LinearModel(hs.HybridSystem):
+    """x' = A x + k, x+ = G x + c; the guards a.x - b (D) and e.x - d (C)."""
 
-    @njit(cache=False)
-    def lin_f(x, t, j, p):
-        n = x.shape[0]
-        o = 3 + 2 * n * n + 3 * n
-        out = np.zeros(n)
-        for r in range(n):
-            out[r] = p[o + r]
-            for k in range(n):
-                out[r] += p[1 + r * n + k] * x[k]
-        return out
+    def __init__(self, case, vectorized=False):
+        n = case.n
+        self.state_dim = n
+        self.A, self.G = np.asarray(case.A, float), np.asarray(case.G, float)
+        self.c, self.a = np.asarray(case.c, float), np.asarray(case.a, float)
+        self.b, self.d = float(case.b), float(case.d)
+        self.e = np.zeros(n) if case.e is None else np.asarray(case.e, float)
+        self.k = np.zeros(n) if case.k is None else np.asarray(case.k, float)
+        self.vectorized = vectorized
 
-    @njit(cache=False)
-    def lin_g(x, t, j, p):
-        n = x.shape[0]
-        o = 1 + n * n
-        out = np.zeros(n)
-        for r in range(n):
-            out[r] = p[o + n * n + r]
-            for k in range(n):
-                out[r] += p[o + r * n + k] * x[k]
-        return out
+    def flow_map(self, x):
+        return x @ self.A.T + self.k
 
-    @njit(cache=False)
-    def lin_hD(x, t, j, p):
-        n = x.shape[0]
-        o = 1 + 2 * n * n + n
-        s = -p[o + n]
-        for k in range(n):
-            s += p[o + k] * x[k]
-        return s
+    def jump_map(self, x):
+        return x @ self.G.T + self.c
 
-    @njit(cache=False)
-    def lin_hC(x, t, j, p):
-        n = x.shape[0]
-        o = 1 + 2 * n * n + 2 * n + 1
-        s = -p[o + n]
-        for k in range(n):
-            s += p[o + k] * x[k]
-        return s
+    def hD(self, x):
+        return x @ self.a - self.b
 
-    @njit(cache=False)
-    def lin_D(x, t, j, p):
-        return lin_hD(x, t, j, p) >= 0.0
+    def hC(self, x):
+        return x @ self.e - self.d
 
-    @njit(cache=False)
-    def lin_C(x, t, j, p):
-        return lin_hC(x, t, j, p) >= 0.0
+    def D(self, x):
+        return x @ self.a - self.b >= 0
 
-    _MAPS = dict(flow=lin_f, jump=lin_g, jump_guard=lin_hD, flow_guard=lin_hC,
-                 jump_set=lin_D, flow_set=lin_C)
-    return _MAPS
+    def C(self, x):
+        return x @ self.e - self.d >= 0
 
 
-def _compiled_system(n, with_C, sets, sets_C):
-    from hybridsim.compiled import CompiledSystem
-    m = _maps()
-    kw = dict(flow=m["flow"], jump=m["jump"])
-    if sets in ("guards", "both"):
-        kw["jump_guard"] = m["jump_guard"]
-    if sets in ("both", "indicators"):
-        kw["jump_set"] = m["jump_set"]
-    if with_C and sets_C in ("guards", "both"):
-        kw["flow_guard"] = m["flow_guard"]
-    if with_C and sets_C in ("both", "indicators"):
-        kw["flow_set"] = m["flow_set"]
-    return CompiledSystem(state_dim=n, params=np.zeros(3 + 2 * n * n + 4 * n), **kw)
+class _BallModel(hs.HybridSystem):
+    """x' = (v, -gravity), x+ = (keep h, -lam v); hD NaN below ``nan_below``."""
+
+    state_dim = 2
+
+    def __init__(self, case, vectorized=False):
+        self.gravity, self.lam = float(case.gravity), float(case.lam)
+        self.keep, self.nan_below = bool(case.keep), float(case.nan_below)
+        self.vectorized = vectorized
+
+    def flow_map(self, x):
+        dx = np.empty_like(x)
+        dx[..., 0] = x[..., 1]
+        dx[..., 1] = -self.gravity
+        return dx
+
+    def jump_map(self, x):
+        xn = np.empty_like(x)
+        xn[..., 0] = x[..., 0] * self.keep
+        xn[..., 1] = -self.lam * x[..., 1]
+        return xn
+
+    def hD(self, x):
+        return np.where(x[..., 0] < self.nan_below, np.nan, -x[..., 0])
+
+    def hC(self, x):
+        return x[..., 0]
+
+    def D(self, x):
+        return (x[..., 0] <= 0.0) & (x[..., 1] <= 0.0)
+
+    def C(self, x):
+        return x[..., 0] >= 0.0
+
+
+_MODELS = {}
+
+
+def _model(base, sD, sC):
+    """``base`` with D given as ``sD`` and C as ``sC`` (None: C is everything):
+    its hD/hC as guards, D/C as indicators (no guard where ``"indicators"``:
+    none is derived). A module-level class (picklable)."""
+    key = (base, sD, sC)
+    cls = _MODELS.get(key)
+    if cls is None:
+        if sD not in SETS or sC not in (None, *SETS):
+            raise ValueError(f"sets must be one of {SETS}, got {sD!r}, {sC!r}")
+        body = {"jump_guard": base.hD if sD in ("guards", "both") else None,
+                "flow_guard": base.hC if sC in ("guards", "both") else None}
+        if sD in ("both", "indicators"):
+            body["jump_set"] = base.D
+        if sC in ("both", "indicators"):
+            body["flow_set"] = base.C
+        name = f"{base.__name__}_{sD}_{sC}"
+        body.update(__module__=__name__, __qualname__=name)
+        cls = _MODELS[key] = globals()[name] = type(name, (base,), body)
+    return cls
 
 
 # ------------------------------------------------------------------ random cases
@@ -273,95 +254,11 @@ class Ball:
     keep: bool = False
     nan_below: float = -np.inf
 
-    def params(self):
-        return np.array([self.gravity, self.lam, float(self.keep), self.nan_below])
-
     def build(self, path):
-        p = self.params()
-        if path == "compiled":
-            key = ("ball", self.sets)
-            system = _COMPILED.get(key)
-            if system is None:
-                system = _COMPILED[key] = _ball_compiled(self.sets)
-            system.params = p
-            return system
-        m = _ball_maps(vectorized=path == "vectorized")
-        kw = {}
-        if self.sets in ("guards", "both"):
-            kw.update(jump_guard=lambda x: m["hD"](x, p), flow_guard=lambda x: m["hC"](x, p))
-        if self.sets in ("both", "indicators"):
-            kw.update(D=lambda x: m["D"](x, p), C=lambda x: m["C"](x, p))
-        return hs.HybridSystem.from_functions(f=lambda x: m["f"](x, p),
-                                              g=lambda x: m["g"](x, p), state_dim=2,
-                                              vectorized=path == "vectorized", **kw)
-
-
-def _ball_maps(vectorized):
-    if vectorized:
-        def f(X, p):
-            return np.column_stack([X[:, 1], np.full(len(X), -p[0])])
-
-        def g(X, p):
-            return np.column_stack([X[:, 0] * p[2], -p[1] * X[:, 1]])
-
-        def hD(X, p):
-            return np.where(X[:, 0] < p[3], np.nan, -X[:, 0])
-
-        def hC(X, p):
-            return X[:, 0]
-
-        def D(X, p):
-            return (X[:, 0] <= 0.0) & (X[:, 1] <= 0.0)
-
-        def C(X, p):
-            return X[:, 0] >= 0.0
-    else:
-        def f(x, p):
-            return np.array([x[1], -p[0]])
-
-        def g(x, p):
-            return np.array([x[0] * p[2], -p[1] * x[1]])
-
-        def hD(x, p):
-            return np.nan if x[0] < p[3] else -x[0]
-
-        def hC(x, p):
-            return x[0]
-
-        def D(x, p):
-            return x[0] <= 0.0 and x[1] <= 0.0
-
-        def C(x, p):
-            return x[0] >= 0.0
-    return dict(f=f, g=g, hD=hD, hC=hC, D=D, C=C)
-
-
-def _ball_compiled(sets):
-    from hybridsim.compiled import CompiledSystem
-
-    def f(x, t, j, p):
-        return np.array([x[1], -p[0]])
-
-    def g(x, t, j, p):
-        return np.array([x[0] * p[2], -p[1] * x[1]])
-
-    def hD(x, t, j, p):
-        return np.nan if x[0] < p[3] else -x[0]
-
-    def hC(x, t, j, p):
-        return x[0]
-
-    def D(x, t, j, p):
-        return x[0] <= 0.0 and x[1] <= 0.0
-
-    def C(x, t, j, p):
-        return x[0] >= 0.0
-    kw = {}
-    if sets in ("guards", "both"):
-        kw.update(jump_guard=hD, flow_guard=hC)
-    if sets in ("both", "indicators"):
-        kw.update(jump_set=D, flow_set=C)
-    return CompiledSystem(f, g, state_dim=2, params=np.zeros(4), **kw)
+        """The ball's model on ``path`` (lowered for ``"compiled"``)."""
+        sC = self.sets
+        model = _model(_BallModel, self.sets, sC)(self, vectorized=path == "vectorized")
+        return _on(path, model)
 
 
 # ------------------------------------------------------------------ Ctrl-C

@@ -25,6 +25,7 @@ is never run (the module is then compiled in memory).
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import re
@@ -62,17 +63,20 @@ def applies(system):
     return hit and "compiled_component" not in system.__dict__
 
 
-def _plan(system):
-    """The system's plan (cached on the system while its maps are the same)."""
+def _plan(system, component=False):
+    """The system's plan (cached on the system while its maps are the same);
+    ``component``: its maps of ``(x, u, t, j, p)`` as a part of an
+    interconnection."""
     key = _identity(system)
-    hit = system.__dict__.get("_source_plan")
+    slot = "_source_component" if component else "_source_plan"
+    hit = system.__dict__.get(slot)
     if hit is not None and hit[0] == key:
         return hit[1]
     try:
-        pl = _source.plan(system)
+        pl = _source.plan(system, component=component)
     except _source.SourceRefusal as e:
         pl = e
-    system.__dict__["_source_plan"] = (key, pl)
+    system.__dict__[slot] = (key, pl)
     return pl
 
 
@@ -190,6 +194,8 @@ def _module(plan):
     # the text generated here (compared with the file's), compiled under the file's name
     exec(compile(src, mod.__file__, "exec"), mod.__dict__)
     mod.__dict__.update(plan.dispatchers)
+    (mod.__dict__["_hs_scalar"], mod.__dict__["_hs_matmul"], mod.__dict__["_hs_pmv"],
+     mod.__dict__["_hs_pmv_add"]) = _scalar_fn()
     if path is not None:
         sys.modules[name] = mod
     for fname in plan.qualnames:
@@ -197,6 +203,207 @@ def _module(plan):
                                          error_model="numpy")(mod.__dict__[fname])
     _MODULES[digest] = mod
     return mod, digest
+
+
+def _numba():
+    try:
+        import numba
+    except ImportError as e:
+        raise ImportError("the compiled path needs numba: pip install 'hybridsim[fast]'; "
+                          "run the system on the Python path (backend='python') "
+                          "without it") from e
+    return numba
+
+
+@functools.cache
+def _helpers():
+    numba = _numba()
+    nj = numba.njit(error_model="numpy")
+
+    @nj
+    def matvec(p, off, rows, cols, v):
+        """``M @ v`` with M (rows, cols) stored row-major in ``p`` from ``off``."""
+        out = np.zeros(rows)
+        for i in range(rows):
+            s = 0.0
+            b = off + i * cols
+            for k in range(cols):
+                s += p[b + k] * v[k]
+            out[i] = s
+        return out
+
+    @nj
+    def matvec_add(p, off, rows, cols, v, out):
+        """``out += M @ v`` (M as in :func:`matvec`)."""
+        for i in range(rows):
+            s = 0.0
+            b = off + i * cols
+            for k in range(cols):
+                s += p[b + k] * v[k]
+            out[i] += s
+
+    @nj
+    def put(out, a, b, v):
+        """``out[a:b] = v`` as a loop (numba's slice assignment compiles the
+        formatting of its shape error: seconds of the first compile)."""
+        if v.shape[0] != b - a:
+            raise ValueError("a component's map returned an array of another length")
+        for q in range(b - a):
+            out[a + q] = v[q]
+
+    @nj
+    def add_into(u, v):
+        """``u += v`` as a loop (see ``put``)."""
+        if v.shape[0] != u.shape[0]:
+            raise ValueError("a component's output has another length than the input it feeds")
+        for q in range(u.shape[0]):
+            u[q] += v[q]
+
+    return {"matvec": matvec, "matvec_add": matvec_add, "put": put, "add_into": add_into}
+
+
+_SCALAR = []
+
+
+def _scalar_fn():
+    """``(_hs_scalar, _hs_matmul)`` for generated maps: a guard's or a set's
+    value as a number (a 0-d array's element, anything else as it is), and
+    ``a @ b`` of vectors and matrices as loops summing in index order (no
+    BLAS call per product of a small matrix; the sums of
+    :func:`hybridsim.compiled.matvec`)."""
+    if not _SCALAR:
+        from numba.core import types as nt
+        from numba.extending import overload
+
+        def _hs_scalar(v):
+            return v
+
+        @overload(_hs_scalar)
+        def _typed(v):
+            if isinstance(v, nt.Array) and v.ndim == 0:
+                return lambda v: v[()]
+            return lambda v: v
+
+        def _hs_matmul(a, b):
+            return a @ b
+
+        @overload(_hs_matmul)
+        def _typed_matmul(a, b):
+            if not (isinstance(a, nt.Array) and isinstance(b, nt.Array)) \
+                    or a.ndim not in (1, 2) or b.ndim not in (1, 2):
+                return lambda a, b: a @ b
+            if a.ndim == 1 and b.ndim == 1:
+                def dot(a, b):
+                    if a.shape[0] != b.shape[0]:
+                        raise ValueError("matmul: the shapes do not match")
+                    s = 0.0
+                    for k in range(a.shape[0]):
+                        s += a[k] * b[k]
+                    return s
+                return dot
+            if a.ndim == 2 and b.ndim == 1:
+                def mv(a, b):
+                    r, c = a.shape
+                    if c != b.shape[0]:
+                        raise ValueError("matmul: the shapes do not match")
+                    out = np.empty(r)
+                    for i in range(r):
+                        s = 0.0
+                        for k in range(c):
+                            s += a[i, k] * b[k]
+                        out[i] = s
+                    return out
+                return mv
+            if a.ndim == 1 and b.ndim == 2:
+                def vm(a, b):
+                    r, c = b.shape
+                    if a.shape[0] != r:
+                        raise ValueError("matmul: the shapes do not match")
+                    out = np.empty(c)
+                    for i in range(c):
+                        s = 0.0
+                        for k in range(r):
+                            s += a[k] * b[k, i]
+                        out[i] = s
+                    return out
+                return vm
+
+            def mm(a, b):
+                r, q = a.shape
+                c = b.shape[1]
+                if b.shape[0] != q:
+                    raise ValueError("matmul: the shapes do not match")
+                out = np.empty((r, c))
+                for i in range(r):
+                    for m in range(c):
+                        s = 0.0
+                        for k in range(q):
+                            s += a[i, k] * b[k, m]
+                        out[i, m] = s
+                return out
+            return mm
+
+        # M @ v with M (r, c) row-major in p from off: hybridsim.compiled.matvec
+        # (v a vector), else the product of the matrix
+        h = _helpers()
+        matvec, matvec_add = h["matvec"], h["matvec_add"]
+
+        def _hs_pmv(p, off, r, c, v):
+            return v @ p[off:off + r * c].reshape((r, c)).T
+
+        @overload(_hs_pmv)
+        def _typed_pmv(p, off, r, c, v):
+            if isinstance(v, nt.Array) and v.ndim == 1:
+                return lambda p, off, r, c, v: matvec(p, off, r, c, v)
+            return lambda p, off, r, c, v: _hs_matmul(v, p[off:off + r * c].reshape((r, c)).T)
+
+        def _hs_pmv_add(p, off, r, c, v, y):
+            y += v @ p[off:off + r * c].reshape((r, c)).T
+
+        @overload(_hs_pmv_add)
+        def _typed_pmv_add(p, off, r, c, v, y):
+            if isinstance(v, nt.Array) and v.ndim == 1 and isinstance(y, nt.Array) \
+                    and y.ndim == 1:
+                return lambda p, off, r, c, v, y: matvec_add(p, off, r, c, v, y)
+
+            def add(p, off, r, c, v, y):
+                y += _hs_matmul(v, p[off:off + r * c].reshape((r, c)).T)
+            return add
+        _SCALAR.append((_hs_scalar, _hs_matmul, _hs_pmv, _hs_pmv_add))
+    return _SCALAR[0]
+
+
+def component_maps(system):
+    """A plain component's maps as functions of ``(x, u, t, j, p)`` (its
+    output of ``(x, t, j, p)``), compiled, and ``p`` read now:
+    ``(maps, output or None, params)`` for a :class:`~hybridsim.compiled.Component`.
+
+    Raises
+    ------
+    TypeError
+        The maps cannot be rewritten (naming the method and line).
+    """
+    from ._system import _refuse
+    pl = _plan(system, component=True)
+    p = None if isinstance(pl, _source.SourceRefusal) else pl.layout.read()
+    if p is None and not isinstance(pl, _source.SourceRefusal):
+        system.__dict__.pop("_source_component", None)      # a value changed kind
+        pl = _plan(system, component=True)
+        p = None if isinstance(pl, _source.SourceRefusal) else pl.layout.read()
+    if isinstance(pl, _source.SourceRefusal):
+        err = _refuse(type(system).__name__, _text(system, pl))
+        err.method, err.line, err.why = pl.method, pl.line, pl.why
+        raise err
+    mod, _ = _module(pl)
+    maps = {role: getattr(mod, name) for role, name in pl.roles.items() if role != "output"}
+    out = pl.roles.get("output")
+    return maps, (None if out is None else getattr(mod, out)), p
+
+
+def component_refusal(system):
+    """Why a plain component's maps cannot be rewritten (a :class:`SourceRefusal`), or None."""
+    pl = _plan(system, component=True)
+    return pl if isinstance(pl, _source.SourceRefusal) else None
 
 
 # ------------------------------------------------------------------ lowering
@@ -309,9 +516,15 @@ def auto_choice(system, ok):
         # history, inputs...; or a vectorized system, whose batches integrate
         # together in numpy: lowerable(system).reason says why
         return "python"
+    return _fall_back(system, why, 6)
+
+
+def _fall_back(system, why, stacklevel):
+    """One :class:`FallbackWarning` per class and reason (``stacklevel`` from here
+    to the user's call of simulate); "python"."""
     key = (type(system), why)
     if key not in _WARNED:
         _WARNED.add(key)
         warnings.warn(f"backend='auto' runs {type(system).__name__} on the Python path: "
-                      f"{why}", FallbackWarning, stacklevel=4)
+                      f"{why}", FallbackWarning, stacklevel=stacklevel)
     return "python"

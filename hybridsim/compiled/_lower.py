@@ -6,9 +6,9 @@
 
 * a system with a ``compiled_component()`` method (a
   :class:`Component`: its maps written for numba as functions of
-  ``(x, u, t, j, p)``, its output of ``(x, t, j, p)``) —
-  :class:`hybridsim.LinearPlant` has one, and so do the observers of the
-  papers that run compiled;
+  ``(x, u, t, j, p)``, its output of ``(x, t, j, p)``), as the observers
+  of the papers that run compiled have; a :class:`hybridsim.LinearPlant`
+  and a plain part have theirs rewritten from their own maps;
 * a :class:`~hybridsim.compiled.CompiledSystem` (maps of ``(x, t, j, p)``);
 * an :class:`hybridsim.Interconnection` (a cascade from :func:`hybridsim.connect`,
   a network from :func:`hybridsim.network`) of such parts whose inputs are
@@ -36,8 +36,10 @@ A plain model (a single system with no compiled form: README's
 ``BouncingBall`` class, a ``from_functions`` system) is lowered from its
 own maps, rewritten from their source as functions of ``(x, t, j, p)``
 (:mod:`hybridsim.compiled._from_source`; its ``p`` is read again before
-every run). As a component of an interconnection it still needs a
-compiled form.
+every run). As a part of an interconnection (and a
+:class:`hybridsim.LinearPlant` always) its maps are rewritten the same way
+as functions of ``(x, u, t, j, p)``, its output of ``(x, t, j, p)``: its
+:class:`Component` (:func:`source_component`).
 
 What cannot be lowered is refused by name: a part without a compiled form,
 an input given as a Python callable, a part reading its history without a
@@ -56,6 +58,7 @@ from ..compose import Interconnection, LinearInput, LinearPlant
 from ..options import check_delay_times
 from ..system import HybridSystem
 from . import _from_source
+from ._from_source import _helpers, _numba
 from ._system import CompiledSystem, _load_kernel, _refuse
 
 __all__ = ["Component", "Lowerable", "lower", "lowerable", "matvec", "rebind"]
@@ -156,63 +159,6 @@ class Component:
 
 
 # ------------------------------------------------------------------ compiled helpers
-def _numba():
-    try:
-        import numba
-    except ImportError as e:
-        raise ImportError("the compiled path needs numba: pip install 'hybridsim[fast]'; "
-                          "run the system on the Python path (backend='python') "
-                          "without it") from e
-    return numba
-
-
-@functools.cache
-def _helpers():
-    numba = _numba()
-    nj = numba.njit(error_model="numpy")
-
-    @nj
-    def matvec(p, off, rows, cols, v):
-        """``M @ v`` with M (rows, cols) stored row-major in ``p`` from ``off``."""
-        out = np.zeros(rows)
-        for i in range(rows):
-            s = 0.0
-            b = off + i * cols
-            for k in range(cols):
-                s += p[b + k] * v[k]
-            out[i] = s
-        return out
-
-    @nj
-    def matvec_add(p, off, rows, cols, v, out):
-        """``out += M @ v`` (M as in :func:`matvec`)."""
-        for i in range(rows):
-            s = 0.0
-            b = off + i * cols
-            for k in range(cols):
-                s += p[b + k] * v[k]
-            out[i] += s
-
-    @nj
-    def put(out, a, b, v):
-        """``out[a:b] = v`` as a loop (numba's slice assignment compiles the
-        formatting of its shape error: seconds of the first compile)."""
-        if v.shape[0] != b - a:
-            raise ValueError("a component's map returned an array of another length")
-        for q in range(b - a):
-            out[a + q] = v[q]
-
-    @nj
-    def add_into(u, v):
-        """``u += v`` as a loop (see ``put``)."""
-        if v.shape[0] != u.shape[0]:
-            raise ValueError("a component's output has another length than the input it feeds")
-        for q in range(u.shape[0]):
-            u[q] += v[q]
-
-    return {"matvec": matvec, "matvec_add": matvec_add, "put": put, "add_into": add_into}
-
-
 def matvec(p, off, rows, cols, v):
     """``M @ v`` with M (rows, cols) stored row-major in the flat array ``p``
     from index ``off``: the matrix product of compiled maps that read their
@@ -291,7 +237,9 @@ def _refusal(system, what, wired=None):
     a component of an interconnection, ``(its name, its input's wiring)``."""
     if isinstance(system, CompiledSystem):
         return None
-    if _reads_history(system) and _compiled_form(system) is None:
+    form = _compiled_form(system, wired is not None)
+    source = getattr(form, "func", None) is source_component    # its own maps, rewritten
+    if _reads_history(system) and (form is None or source):
         return _refuse(what, f"it reads its history (x(t - tau)) and {type(system).__name__} "
                              f"has no compiled form declaring the delays it reads (a "
                              f"compiled_component() returning a Component(delays=...))")
@@ -302,7 +250,9 @@ def _refusal(system, what, wired=None):
         return _refuse(what, "its output reads its input (direct feedthrough, "
                              "output(x, t, j, u)); a compiled output is a function of "
                              "(x, t, j, p)")
-    if _compiled_form(system) is None:
+    if isinstance(system, LinearPlant) and not system.vectorized:
+        return _plant_refusal(system, what)
+    if form is None:
         if wired is None and _from_source.applies(system):
             # a plain model: its own maps, rewritten (hybridsim.compiled._from_source)
             if int(system.input_dim or 0):
@@ -314,8 +264,10 @@ def _refusal(system, what, wired=None):
         return _refuse(what, f"{type(system).__name__} has no compiled form (a "
                              f"compiled_component() method returning a "
                              f"hybridsim.compiled.Component)")
-    if isinstance(system, LinearPlant) and not system.vectorized:
-        return _plant_refusal(system, what)
+    if source:
+        why = _from_source.component_refusal(system)
+        if why is not None:
+            return _refuse(what, _from_source._text(system, why))
     why = getattr(system, "compiled_refusal", None)
     why = why() if callable(why) else None
     if why:                 # the system's own reason (a callable of t without a compiled form)
@@ -332,15 +284,33 @@ def _refusal(system, what, wired=None):
     return None
 
 
-def _compiled_form(system):
+def _compiled_form(system, wired=False):
     """The system's ``compiled_component`` (a callable returning its
-    :class:`Component`), or None. A :class:`hybridsim.LinearPlant`'s is
-    :func:`linear_plant_component`: the lowering knows the plant, the plant
-    does not know the lowering."""
+    :class:`Component`), or None. A :class:`hybridsim.LinearPlant` (and a
+    plain model that is a part of an interconnection, ``wired``) has its own maps
+    rewritten from source (:func:`source_component`)."""
     form = getattr(system, "compiled_component", None)
-    if form is None and isinstance(system, LinearPlant):
-        return functools.partial(linear_plant_component, system)
+    if form is None and (isinstance(system, LinearPlant) or (
+            wired and _from_source.applies(system))):
+        form = functools.partial(source_component, system)
     return form
+
+
+def source_component(system):
+    """The :class:`Component` of a plain system (a :class:`hybridsim.LinearPlant`,
+    or a plain part of an interconnection): its own maps rewritten as
+    functions of ``(x, u, t, j, p)`` (:mod:`hybridsim.compiled._from_source`),
+    the numbers they read in ``p``."""
+    if isinstance(system, LinearPlant) and not system.vectorized:
+        raise _plant_refusal(system, "LinearPlant")
+    maps, output, p = _from_source.component_maps(system)
+    n, m = int(system.state_dim), int(system.input_dim or 0)
+    q = None
+    if output is not None:
+        from ..compose import _output_dim
+        q = _output_dim(system)
+    return Component(state_dim=n, input_dim=m, output=output, output_dim=q, params=p,
+                     **maps)
 
 
 def _reads_history(system):
@@ -361,7 +331,7 @@ def _component_of(system, what, wired=None):
         raise refusal
     if isinstance(system, CompiledSystem):
         return _from_compiled_system(system)
-    comp = _compiled_form(system)()
+    comp = _compiled_form(system, wired is not None)()
     if not isinstance(comp, Component):
         raise TypeError(f"{what}: compiled_component() must return a "
                         f"hybridsim.compiled.Component, got {type(comp).__name__}")
@@ -384,35 +354,6 @@ def _adapter(fn):
         return f(x, t, j, p)
     a._adapted = True
     return a
-
-
-@functools.cache
-def _linear_maps(n, m, q):
-    """The maps of x' = A x + B u, y = C x with (A, B, C) flattened in p."""
-    mv, mv_add = compiled_matvec(), _helpers()["matvec_add"]
-    ob, oc = n * n, n * n + n * m
-
-    def flow(x, u, t, j, p):
-        dx = mv(p, 0, n, n, x)
-        if m:
-            mv_add(p, ob, n, m, u, dx)      # += B u, no second array
-        return dx
-
-    def output(x, t, j, p):
-        return mv(p, oc, q, n, x)
-    return flow, output
-
-
-def linear_plant_component(plant):
-    """The :class:`Component` of a :class:`hybridsim.LinearPlant` (no callables of t)."""
-    if not plant.vectorized:                # called directly: the same refusal as lower's
-        raise _plant_refusal(plant, "LinearPlant")
-    n, q = plant.A.shape[0], plant.C.shape[0]
-    m = int(plant.input_dim)
-    flow, output = _linear_maps(n, m, q)
-    B = np.zeros((n, 0)) if m == 0 else plant.B
-    return Component(state_dim=n, input_dim=m, flow=flow, output=output, output_dim=q,
-                     params=np.concatenate([plant.A.ravel(), B.ravel(), plant.C.ravel()]))
 
 
 def _from_compiled_system(cs):
@@ -742,11 +683,33 @@ def lower(system, *, specialize=None):
         return cached
     parts, n, pvec, delays = _parts_of(system)
     _check_shapes(parts, pvec)
-    cs = _build(parts, n, pvec, type(system).__name__, bool(specialize), delays)
+    try:
+        cs = _build(parts, n, pvec, type(system).__name__, bool(specialize), delays)
+    except TypeError as e:          # numba's refusal of a rewritten part: its method and line
+        err = _source_error(system, e)
+        if err is None:
+            raise
+        raise err from e
     if system.max_step is not None:      # with delays, at most the smallest (CompiledSystem)
         cs.max_step = min([float(system.max_step), *delays])
     system.__dict__["_lowered"] = cs
     return cs
+
+
+def _source_error(system, e):
+    """The CompileError naming a part's own method and line, where numba's
+    refusal ``e`` lies in a part rewritten from source; else None."""
+    subs = system.systems.values() if isinstance(system, Interconnection) else (system,)
+    for s in subs:
+        hit = s.__dict__.get("_source_component")
+        if hit is not None and not isinstance(hit[1], _from_source._source.SourceRefusal):
+            cause = e.__cause__ if e.__cause__ is not None else e
+            if f"hybridsim_src_{_from_source._digest(hit[1])}" not in str(cause):
+                continue            # another part's module
+            err = _from_source._compile_error(s, hit[1], e)
+            if err.where is not None:
+                return err
+    return None
 
 
 def _check_shapes(parts, pvec):
@@ -858,3 +821,17 @@ def lowerable(system):
         return Lowerable()
     why = _refusal(system, type(system).__name__)
     return Lowerable(None if why is None else str(why))
+
+
+def auto_choice(system, ok):
+    """``backend="auto"``'s choice (:func:`hybridsim.compiled._from_source.auto_choice`);
+    an interconnection :func:`lowerable` accepts is lowered here, so that numba's
+    refusal of a part rewritten from source falls back with one warning naming
+    the part's method and line."""
+    if ok and isinstance(system, Interconnection):
+        try:
+            lower(system)
+        except TypeError as e:
+            return _from_source._fall_back(system, str(e), 5)
+        return "compiled"
+    return _from_source.auto_choice(system, ok)

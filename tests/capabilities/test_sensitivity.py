@@ -18,7 +18,7 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 import hybridsim as hs
-from hybridsim.library import BouncingBall, BouncingBallBatch, bouncing_ball_jump_times
+from hybridsim.library import BouncingBall, bouncing_ball_jump_times
 from hybridsim.sensitivity import (
     SensitivityError,
     SensitivityWarning,
@@ -277,7 +277,7 @@ def test_covariance_through_jumps_matches_monte_carlo():
     P = sarc.covariance(P0, T)
     rng = np.random.default_rng(26)
     x0s = rng.multivariate_normal([H0, 0.0], P0, size=N)
-    arcs = hs.simulate_many(BouncingBallBatch(), x0s, t_max=T)
+    arcs = hs.simulate_many(BouncingBall(vectorized=True), x0s, t_max=T)
     xT = np.array([a.xf for a in arcs])
     assert all(a.j[-1] == 5 for a in arcs)
     Pmc = np.cov(xT.T)
@@ -386,7 +386,7 @@ def test_paths_other_than_python_refuse_by_name():
     with pytest.raises(ValueError, match="sensitivities are computed on the Python path only"):
         simulate_sensitivity(BouncingBall(), [H0, 0.0], t_max=1.0, backend="compiled")
     with pytest.raises(ValueError, match="sensitivities are computed on the Python path only"):
-        simulate_sensitivity(BouncingBallBatch(), [H0, 0.0], t_max=1.0)
+        simulate_sensitivity(BouncingBall(vectorized=True), [H0, 0.0], t_max=1.0)
 
 
 @pytest.mark.parametrize("kwargs, exc, match", [

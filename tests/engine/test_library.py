@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 import hybridsim as hs
-from hybridsim.library import BouncingBall, BouncingBallBatch, Timer, bouncing_ball_jump_times
+from hybridsim.library import BouncingBall, Timer, bouncing_ball_jump_times
 
 
 def test_ball_and_its_batch_version_match_the_closed_form():
@@ -11,7 +11,7 @@ def test_ball_and_its_batch_version_match_the_closed_form():
     arc = hs.simulate(BouncingBall(9.81, 0.7), [1.3, 0.0], t_max=np.inf, j_max=12,
                       rtol=1e-10, atol=1e-12)
     np.testing.assert_allclose(arc.jump_times, exact, atol=1e-12)
-    arcs = hs.simulate_many(BouncingBallBatch(9.81, 0.7), [[1.3, 0.0], [0.5, 0.0]],
+    arcs = hs.simulate_many(BouncingBall(9.81, 0.7, vectorized=True), [[1.3, 0.0], [0.5, 0.0]],
                             t_max=np.inf, j_max=12, rtol=1e-10, atol=1e-12)
     np.testing.assert_allclose(arcs[0].jump_times, exact, atol=1e-12)
     np.testing.assert_allclose(arcs[1].jump_times, bouncing_ball_jump_times(0.5, 12, 9.81, 0.7),

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 
 import hybridsim as hs
 from hybridsim import rules
-from hybridsim.library import BouncingBall, BouncingBallBatch
+from hybridsim.library import BouncingBall
 
 FAST = settings(max_examples=10, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
@@ -103,8 +103,8 @@ def assert_same(single, batch, tol):
        e=st.floats(0.3, 0.9), g=st.floats(2.0, 20.0))
 def test_single_runs_and_batches_agree_on_balls(h0, e, g):
     x0s = np.column_stack([h0, np.zeros(len(h0))])
-    batch = hs.simulate_vectorized(BouncingBallBatch(g, e), x0s, t_max=math.inf, j_max=8,
-                                   rtol=1e-10, atol=1e-12)
+    batch = hs.simulate_vectorized(BouncingBall(g, e, vectorized=True), x0s, t_max=math.inf,
+                                   j_max=8, rtol=1e-10, atol=1e-12)
     for x0, arc in zip(x0s, batch):
         single = hs.simulate(BouncingBall(g, e), x0, t_max=math.inf, j_max=8, rtol=1e-10,
                              atol=1e-12)

@@ -8,13 +8,16 @@ import pytest
 import hybridsim as hs
 from hybridsim import Termination
 from hybridsim.batch_vectorized import simulate_vectorized
-from hybridsim.library import BouncingBall, BouncingBallBatch, bouncing_ball_jump_times
+from hybridsim.library import BouncingBall, bouncing_ball_jump_times
 
 G, E = 9.81, 0.8
 
 
 # ---------------------------------------------------------------- systems
-VBall = BouncingBallBatch          # balls over a batch (rows), picklable
+class VBall(BouncingBall):         # the same ball over a batch (rows), picklable
+    vectorized = True
+
+
 Ball = BouncingBall                # the same ball, one state at a time
 
 

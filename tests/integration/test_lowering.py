@@ -58,21 +58,10 @@ def test_a_cascade_runs_on_every_path_and_agrees(path):
     assert arc.system is sys and list(arc.components) == ["plant", "observer"]
 
 
-# a compiled component with jumps: a sampler that holds its input every period
-def _sampler_flow(x, u, t, j, p):
-    return np.array([0.0, 1.0])
-
-
-def _sampler_jump(x, u, t, j, p):
-    return np.array([u[0], 0.0])
-
-
-def _sampler_guard(x, u, t, j, p):
-    return x[1] - p[0]
-
-
+# a component with jumps: a sampler that holds its input every period
 class Sampler(hs.HybridSystem):
-    """z = (held value, timer): z+ = (u, 0) when the timer reaches the period."""
+    """z = (held value, timer): z+ = (u, 0) when the timer reaches the period
+    (one definition: the compiled path rewrites these maps)."""
 
     state_dim, input_dim = 2, 1
     vectorized = True               # the maps take batches (N, 2) too
@@ -93,10 +82,6 @@ class Sampler(hs.HybridSystem):
         out[..., 0] = u[..., 0]
         return out
 
-    def compiled_component(self):
-        return Component(state_dim=2, input_dim=1, flow=_sampler_flow, jump=_sampler_jump,
-                         jump_guard=_sampler_guard, params=[self.period])
-
 
 def test_a_component_with_jumps_samples_a_linear_combination(path):
     """plant x' = A x; a sampler holding u = 2 x1 - x2 (a LinearInput matrix)
@@ -115,12 +100,8 @@ def test_a_component_with_jumps_samples_a_linear_combination(path):
     np.testing.assert_allclose(arc.xf, ref.xf, rtol=0, atol=1e-8)
 
 
-def _agent_flow(x, u, t, j, p):
-    return u - p[0] * x
-
-
 class Agent(hs.HybridSystem):
-    """x' = sum of received - deg x (consensus), with a compiled form."""
+    """x' = sum of received - deg x (consensus; its maps rewritten on the compiled path)."""
 
     state_dim = 1
     vectorized = True
@@ -131,9 +112,6 @@ class Agent(hs.HybridSystem):
 
     def flow_map(self, x, t, j, u):
         return u - self.deg * x
-
-    def compiled_component(self):
-        return Component(state_dim=1, input_dim=1, flow=_agent_flow, params=[self.deg])
 
 
 def test_a_network_over_a_graph_reaches_consensus_on_every_path(path):
@@ -183,15 +161,52 @@ class NoForm(hs.HybridSystem):
         return -x
 
 
+class Labelled(NoForm):
+    """A plain part whose map reads a string: not rewritable for numba."""
+    label = "decay"
+
+    def flow_map(self, x):
+        return -x if self.label == "decay" else x
+
+
+@pytest.mark.parametrize("path", path_params())
+def test_a_plain_part_runs_compiled_from_its_own_maps(path):
+    """A plain model with an input (no compiled form) wired in an interconnection
+    beside a LinearPlant: its maps and the plant's are rewritten as functions of
+    (x, u, t, j, p) on the compiled path; the Python path's solution."""
+    class Follower(hs.HybridSystem):
+        state_dim, input_dim, vectorized = 1, 1, True
+
+        def __init__(self, k):
+            self.k = k
+
+        def flow_map(self, x, t, j, u):
+            return self.k * (u - x)
+
+    class Decay(NoForm):
+        vectorized = True
+    sys = hs.Interconnection({"a": hs.LinearPlant([[-1.0]]), "b": Decay(),
+                              "f": Follower(2.0)}, inputs={"f": hs.LinearInput({"a": None})})
+    assert lowerable(sys)
+    x0 = np.array([1.0, 1.0, 0.0])
+    arc = _run(path, sys, x0, t_max=2.0)
+    # f' = 2 (e^-t - f), f(0) = 0: f = 2 (e^-t - e^-2t)
+    exact = [np.exp(-2.0), np.exp(-2.0), 2 * (np.exp(-2.0) - np.exp(-4.0))]
+    np.testing.assert_allclose(arc.xf, exact, rtol=1e-8)
+
+
 @pytest.mark.parametrize("make, match", [
-    (lambda: hs.Interconnection({"a": hs.LinearPlant([[-1.0]]), "b": NoForm()}),
-     r"component 'b' \(NoForm\) cannot run compiled: NoForm has no compiled form"),
+    (lambda: hs.Interconnection({"a": hs.LinearPlant([[-1.0]]), "b": Labelled()}),
+     r"component 'b' \(Labelled\) cannot run compiled: Labelled has no compiled form and "
+     r"its maps cannot be rewritten for numba: Labelled.flow_map \(.*test_lowering.py:\d+\): "
+     r"it reads self.label, a str"),
     (lambda: hs.Interconnection({"plant": hs.LinearPlant([[-1.0]]), "observer": Agent(1.0)},
                                 inputs={"observer": lambda t, y: y["plant"]}),
      r"the input of component 'observer' cannot run compiled: it is a Python callable"),
     (lambda: hs.LinearPlant([[-1.0]], noise=lambda t: np.zeros(1)),
      r"LinearPlant cannot run compiled: its noise is a Python callable of t"),
-    (lambda: Agent(1.0), r"Agent cannot run compiled: it has an input"),
+    (lambda: Agent(1.0), r"Agent cannot run compiled: Agent has no compiled form .*: it "
+                         r"has an input \(input_dim=1\); connect it in an Interconnection"),
 ])
 def test_what_cannot_be_lowered_is_refused_by_name(make, match):
     system = make()
@@ -231,6 +246,8 @@ def test_a_system_reading_its_history_is_refused_by_name():
 
 
 def test_components_and_lowering_check_their_arguments():
+    def _agent_flow(x, u, t, j, p):
+        return u - p[0] * x
     with pytest.raises(ValueError, match="params must be finite"):
         Component(state_dim=1, flow=_agent_flow, params=[np.nan])
     with pytest.raises(TypeError, match="params must be an array of floats"):

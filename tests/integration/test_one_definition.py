@@ -264,6 +264,12 @@ def test_what_numba_cannot_compile_is_named_by_method_and_line():
     with pytest.warns(FallbackWarning, match="numba could not compile Untyped.flow_map"):
         arc = hs.simulate(Untyped(), [1.0], t_max=0.1, backend="auto")
     assert arc.t[-1] == 0.1
+    # as a part of an interconnection: auto says so once and runs the Python path
+    ic = hs.Interconnection({"plant": hs.LinearPlant([[-1.0]]), "u": Untyped()})
+    with pytest.warns(FallbackWarning, match=r"runs Interconnection on the Python path: .*"
+                                             r"numba could not compile Untyped.flow_map"):
+        arc = hs.simulate(ic, [1.0, 1.0], t_max=0.1, backend="auto")
+    assert arc.t[-1] == 0.1
 
 
 def test_the_rewritten_source_is_kept_on_disk_and_verified():
@@ -329,7 +335,37 @@ def test_module_globals_and_followed_functions_are_read_per_run():
             GRAVITY = 9.81
 
 
-def test_an_interconnection_of_plain_models_is_refused_with_its_reason():
-    ic = hs.Interconnection({"a": BouncingBall(), "b": BouncingBall()})
-    why = lowerable(ic)
-    assert not why and "component 'a'" in why.reason and "has no compiled form" in why.reason
+def test_an_interconnection_of_plain_models_runs_compiled():
+    """Each part's own maps rewritten (as functions of (x, u, t, j, p)): two
+    README balls side by side, each with its own impacts, on both paths."""
+    ic = hs.Interconnection({"a": BouncingBall(), "b": Ball(g=4.0, e=0.5)})
+    assert lowerable(ic)
+    kw = dict(x0=[1.0, 0.0, 2.0, 0.0], t_max=3.0, j_max=12, **TIGHT)
+    fast, slow = hs.simulate(ic, backend="compiled", **kw), hs.simulate(ic, **kw)
+    _same_arcs(fast, slow)
+    expect = np.sort(np.concatenate([bouncing_ball_jump_times(1.0, 12),
+                                     bouncing_ball_jump_times(2.0, 12, 4.0, 0.5)]))[:12]
+    np.testing.assert_allclose(fast.jump_times, expect, rtol=1e-11)
+
+
+def test_an_attribute_tested_against_none_is_decided_when_the_maps_are_rewritten():
+    """``self.bias is None`` is folded (the branch not taken, which numba could
+    not type, is dropped); setting the attribute rewrites the maps."""
+    class Biased(hs.HybridSystem):
+        state_dim = 1
+
+        def __init__(self):
+            self.bias = None
+
+        def flow_map(self, x):
+            if self.bias is None:
+                return -x
+            return -x + self.bias
+    s = Biased()
+    kw = dict(t_max=1.0, backend="compiled", **TIGHT)
+    a = hs.simulate(s, [1.0], **kw)
+    s.bias = 1.0
+    b = hs.simulate(s, [1.0], **kw)
+    np.testing.assert_allclose(a.xf, [np.exp(-1.0)], rtol=1e-9)
+    np.testing.assert_allclose(b.xf, [1.0], rtol=1e-9)       # x' = 1 - x from 1
+    assert set(lower(s).layout.names()) == {"bias"}
