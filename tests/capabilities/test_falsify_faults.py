@@ -330,24 +330,57 @@ def test_a_population_run_that_raises_fails_its_chunk_only():
 
 
 class DyingBall(SignalBall):
-    """Kills the process that runs it (a pool worker dying mid-chunk)."""
+    """test_falsify's ball with a fourth state, a mark: the run of a marked
+    point kills the process that runs it (a pool worker dying mid-chunk)."""
 
+    state_dim = 4
     vectorized = False
 
     def flow_map(self, x):
-        os._exit(3)
+        if x[3] == 1.0:
+            os._exit(3)
+        return np.append(super().flow_map(x[:3]), 0.0)
+
+    def jump_map(self, x):
+        return np.append(super().jump_map(x[:3]), x[3])
 
 
 @pytest.mark.skipif(sys.platform == "win32", reason="fork start method")
-def test_a_dead_pool_worker_ends_the_search_with_the_results_so_far():
-    """The worker running the second population dies: the executor is broken
-    (BrokenProcessPool), that population's points are findings (not re-run:
-    the pool runs nothing more) and the search ends with the first one's."""
+def test_a_dead_pool_worker_loses_only_its_chunk():
+    """The 9th point of the search (in the second population) kills the pool's
+    worker: that population's points are WORKER_DIED findings, the first
+    population's margins are kept, and the search goes on to its budget on a
+    fresh pool (the user's pool stays broken, left to its owner)."""
+    marks = iter(range(10 ** 6))
+
+    def x0_of(p):
+        return [p["h0"], 0.0, p["e"], 1.0 if next(marks) == 8 else 0.0]
+    with concurrent.futures.ProcessPoolExecutor(1) as ex:
+        run = batch_run(DyingBall(), x0_of, t_max=3.0, j_max=1, backend="python",
+                        executor=ex, chunks=1)
+        res = falsify(run, BALL, _holds, budget=24, seed=0, method="random", popsize=6,
+                      stop=False, progress=False)
+        with pytest.raises(concurrent.futures.BrokenExecutor):
+            ex.submit(int).result()
+    assert res.stopped == "budget" and res.evaluations == 24 and res.error is None
+    assert np.all(res.history[:6] == 1.0) and np.all(res.history[6:12] == -math.inf)
+    assert np.all(res.history[12:] == 1.0)
+    assert len(res.findings) == 6 and {f.cause for f in res.findings} == {"WORKER_DIED"}
+    assert all("BrokenProcessPool" in f.message and "chunk of 6 points" in f.message
+               for f in res.findings)
+    assert res.verdict == "counterexample" and res.point == res.findings[0].point
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="fork start method")
+def test_a_dead_worker_of_a_run_that_cannot_renew_its_pool_ends_the_search():
+    """A population run of the user's own, with no ``renew``: the chunk is
+    lost and, the pool being broken for good, the search ends there with the
+    populations before it."""
     pops = [0]
     with concurrent.futures.ProcessPoolExecutor(1) as ex:
         good = batch_run(SignalBall(), _x0, t_max=3.0, j_max=1, backend="python")
-        dying = batch_run(DyingBall(), _x0, t_max=3.0, j_max=1, backend="python",
-                          executor=ex, chunks=1)
+        dying = batch_run(DyingBall(), lambda p: [*_x0(p), 1.0], t_max=3.0, j_max=1,
+                          backend="python", executor=ex, chunks=1)
 
         def run(points):
             pops[0] += 1
@@ -356,7 +389,8 @@ def test_a_dead_pool_worker_ends_the_search_with_the_results_so_far():
         res = falsify(run, BALL, _holds, budget=40, seed=0, method="random", popsize=6,
                       stop=False, progress=False)
     assert res.stopped == "error" and res.evaluations == 12
-    assert np.all(res.history[:6] == 1.0)
+    assert np.all(res.history[:6] == 1.0) and np.all(res.history[6:] == -math.inf)
+    assert res.error.cause == "WORKER_DIED" and "could not be renewed" in res.error.message
     assert isinstance(res.error.exception, concurrent.futures.BrokenExecutor)
     assert len(res.findings) == 6 and res.verdict == "counterexample"
 
