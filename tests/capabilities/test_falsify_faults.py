@@ -22,6 +22,7 @@ import types
 
 import numpy as np
 import pytest
+from paths import one_sigint_inside_the_run
 from test_falsify import BallE
 
 import hybridsim as hs
@@ -239,10 +240,12 @@ def test_ctrl_c_during_explore_ends_it_interrupted(sigint, monkeypatch, at):
     assert len(canceled) == 1 and tree.pending > 0
 
 
-def test_ctrl_c_during_sensitivities_returns_the_arc_so_far(sigint):
-    """simulate_sensitivity: one SIGINT in the 30th flow evaluation ends the
-    run CANCELED with the sensitivities so far (finite), and says so."""
-    hit = CtrlCAt(30)
+@pytest.mark.parametrize("at", [1, 30])
+def test_ctrl_c_during_sensitivities_returns_the_arc_so_far(sigint, at):
+    """simulate_sensitivity: one SIGINT in the first flow evaluation (the
+    run's check of its maps at x0) or the 30th ends the run CANCELED with the
+    sensitivities so far (finite), and says so (it raised SimulationError at x0)."""
+    hit = CtrlCAt(at)
 
     class Ball(BouncingBall):
         def flow_map(self, x):
@@ -250,7 +253,33 @@ def test_ctrl_c_during_sensitivities_returns_the_arc_so_far(sigint):
             return super().flow_map(x)
     sarc = hs.simulate_sensitivity(Ball(), [1.0, 0.0], t_max=10.0)
     assert sarc.termination is hs.Termination.CANCELED and "interrupted" in sarc.arc.message
+    assert f"t={sarc.t[-1]:.10g}, j={sarc.arc.j[-1]}" in sarc.arc.message
     assert np.all(np.isfinite(sarc.S)) and sarc.t[-1] < 10.0
+    np.testing.assert_array_equal(sarc.S[0], np.eye(2))
+    if at == 1:                            # x0 alone
+        assert sarc.t.tolist() == [0.0]
+
+
+@pytest.mark.skipif(threading.current_thread() is not threading.main_thread(),
+                    reason="Python runs signal handlers in the main thread")
+def test_one_sigint_inside_a_sensitivity_run_ends_it_canceled():
+    """One SIGINT from a helper thread once the run is under way
+    (paths.one_sigint_inside_the_run, no clock) on a timer with no horizon:
+    CANCELED, the arc and sensitivities so far (every jump 1 s earlier per
+    unit of x0), the message naming its last sample."""
+    timer = hs.HybridSystem.from_functions(
+        f=lambda x: np.array([1.0]), g=lambda x: np.array([0.0]),
+        jump_guard=lambda x: x[0] - 0.01, state_dim=1)
+    with one_sigint_inside_the_run() as sig:
+        sarc = hs.simulate_sensitivity(timer, [0.0], t_max=math.inf, max_samples=1_000_000,
+                                       max_steps=math.inf, zeno_jumps=10 ** 9)
+    assert sig.sent, "no run was seen under way"
+    assert sarc.termination is hs.Termination.CANCELED, sarc.arc.message
+    sarc.arc.validate()
+    assert f"t={sarc.t[-1]:.10g}" in sarc.arc.message
+    assert np.all(np.isfinite(sarc.S))
+    if sarc.arc.jump_count:
+        np.testing.assert_allclose(sarc.dtj_dx0[:, 0], -1.0, rtol=0, atol=1e-6)
 
 
 # --------------------------------------------------------------- failing user code
