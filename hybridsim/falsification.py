@@ -48,6 +48,7 @@ import math
 import numbers
 import time
 import traceback
+import weakref
 from collections.abc import Callable, Mapping
 
 import numpy as np
@@ -556,8 +557,10 @@ class Finding:
     counterexample, margin -inf).
 
     ``cause`` is the run's termination cause (``"BLOWUP"``, ``"MAP_ERROR"``...,
-    any not in ``allow``), ``"RAISED"`` (the run raised), ``"NOT_AN_ARC"``
-    (the run returned something else) or ``"CLAIM_RAISED"`` (the claim
+    any not in ``allow``), ``"RAISED"`` (the run raised), ``"WORKER_DIED"``
+    (a worker of a population run's executor died: its chunk was lost, not
+    run), ``"NOT_AN_ARC"`` (the run returned something else) or
+    ``"CLAIM_RAISED"`` (the claim
     raised on the run's arc); ``message`` says why (the run's message, or
     the exception's type, text and where it was raised); ``exception`` is
     the exception that was raised (without its traceback, so that findings
@@ -682,7 +685,11 @@ def batch_run(system, x0_of, t_max, j_max=np.inf, *, attributes_of=None, **simul
     -------
     callable
         ``run(points) -> list of HybridArc``, with ``run.batch = True`` so
-        :func:`falsify` passes it whole populations.
+        :func:`falsify` passes it whole populations, and ``run.renew()``,
+        which :func:`falsify` calls when a worker of the executor died: a
+        process pool, broken for good, is replaced by a fresh one of the same
+        settings (shut down with the run; the user's own pool is left to its
+        owner), so the search loses only the chunk the worker was running.
 
     Examples
     --------
@@ -703,6 +710,7 @@ def batch_run(system, x0_of, t_max, j_max=np.inf, *, attributes_of=None, **simul
         raise ValueError("attributes_of: the rows set the attributes of this process's "
                          "system, one after another; without executor=, or put the "
                          "parameters in the state (x0_of)")
+    pools = _Pools(simulate_kwargs)
 
     def run(points):
         if attributes_of is None:
@@ -728,7 +736,34 @@ def batch_run(system, x0_of, t_max, j_max=np.inf, *, attributes_of=None, **simul
                 else:
                     setattr(system, name, v)
     run.batch = True
+    run.renew = pools.renew
+    weakref.finalize(run, pools.close)
     return run
+
+
+class _Pools:
+    """The executor of a :func:`batch_run`, renewed when a process pool breaks."""
+
+    def __init__(self, kwargs):
+        self.kwargs, self.owned = kwargs, None
+
+    def renew(self):
+        """A fresh process pool in place of a broken one; False when the
+        executor is not a process pool (a dask cluster recovers by itself)."""
+        ex = self.kwargs.get("executor")
+        if not isinstance(ex, concurrent.futures.ProcessPoolExecutor):
+            return False
+        fresh = concurrent.futures.ProcessPoolExecutor(
+            ex._max_workers, mp_context=ex._mp_context, initializer=ex._initializer,
+            initargs=ex._initargs, max_tasks_per_child=ex._max_tasks_per_child)
+        self.close()
+        self.kwargs["executor"] = self.owned = fresh
+        return True
+
+    def close(self):
+        if self.owned is not None:
+            self.owned.shutdown(wait=False, cancel_futures=True)
+            self.owned = None
 
 
 def _where(exc):
@@ -847,15 +882,15 @@ class _Evaluator:
             return None, None
         return value, where
 
-    def _record(self, p, arc, message=None):
+    def _record(self, p, arc, message=None, cause="RAISED"):
         """Judge one run (an arc, or the exception its run raised, ``message``
-        saying so): its margin, or None when the search must stop."""
+        and ``cause`` saying so): its margin, or None when the search must stop."""
         if isinstance(arc, BaseException) and isinstance(arc.__cause__, KeyboardInterrupt):
             self.interrupted = True         # Ctrl-C as the run started (the engine's
             return None                     # SimulationError from KeyboardInterrupt)
         if isinstance(arc, BaseException):
             message = message or f"{type(arc).__name__}: {arc}{_where(arc)}"
-            value, where = self._fail(p, "RAISED", arc, message), None
+            value, where = self._fail(p, cause, arc, message), None
         else:
             value, where = self._margin(arc, p)
         if value is None:
@@ -905,6 +940,30 @@ class _Evaluator:
         self._last = len(chunk)
         return arcs
 
+    @staticmethod
+    def _lost(exc, size):
+        """(message, cause) of the points of a population run's chunk that raised."""
+        if isinstance(exc, concurrent.futures.BrokenExecutor):
+            return (f"a worker of the population run's executor died ({type(exc).__name__}: "
+                    f"{exc}) on the chunk of {size} points this one was in: not run",
+                    "WORKER_DIED")
+        return (f"the population run raised {type(exc).__name__}: {exc}{_where(exc)} on "
+                f"the chunk of {size} points this one was in", "RAISED")
+
+    def _renew(self, p, exc):
+        """After a dead worker: a fresh executor from the run (``run.renew()``),
+        or the end of the search (False) when it has none."""
+        renew = getattr(self.run, "renew", None)
+        try:
+            if callable(renew) and renew():
+                return True
+        except Exception as e:  # noqa: BLE001 - no fresh pool: the search ends below
+            exc = e
+        self.failure = Finding(p, "WORKER_DIED", f"the population run's executor broke "
+                               f"and could not be renewed: {type(exc).__name__}: {exc}",
+                               exc.with_traceback(None))
+        return False
+
     def __call__(self, Z):
         """Margins of the rows of Z (n, dim); +inf for rows not run (past the
         budget, the deadline, or after a counterexample when stopping at the
@@ -926,31 +985,32 @@ class _Evaluator:
                     c = a + self._fit(b - a)
                     chunk = [point(z) for z in rows[a:c]]
                     arcs = self._run_batch(chunk)
+                    broken = None           # the BrokenExecutor of a dead worker
                     if isinstance(arcs, BaseException):
                         exc = arcs
-                        msg = (f"the population run raised {type(exc).__name__}: {exc}"
-                               f"{_where(exc)} on the chunk of {len(chunk)} points this "
-                               f"one was in")
+                        if isinstance(exc, concurrent.futures.BrokenExecutor):
+                            broken = exc
                         for k, p in enumerate(chunk):
-                            value = self._record(p, exc, msg)
+                            value = self._record(p, exc, *self._lost(exc, len(chunk)))
                             if value is None:
                                 return out
                             out[a + k] = value
-                        if isinstance(exc, concurrent.futures.BrokenExecutor):
-                            # the executor cannot run anything more: the search ends
-                            self.failure = Finding(chunk[0], "RAISED", f"the population "
-                                                   f"run's executor broke: "
-                                                   f"{type(exc).__name__}: {exc}", exc)
-                            return out
                     else:
                         for k, (p, arc) in enumerate(zip(chunk, arcs)):
                             if getattr(arc, "termination", None) is Termination.CANCELED:
                                 self.interrupted = True     # the finished rows still count
                                 continue
-                            value = self._record(p, arc)
+                            exc = getattr(arc, "exception", None)
+                            if isinstance(exc, concurrent.futures.BrokenExecutor):
+                                broken = exc            # a row the dead worker lost
+                                value = self._record(p, exc, *self._lost(exc, len(chunk)))
+                            else:
+                                value = self._record(p, arc)
                             if value is None:
                                 return out
                             out[a + k] = value
+                    if broken is not None and not self._renew(chunk[0], broken):
+                        return out
                     a = c
                 if self.done:
                     break
@@ -1053,10 +1113,14 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
         counted as margin -inf. ``"stop"``: the search ends there with the
         results so far (``stopped == "error"``, the failure in ``error``).
         ``"raise"``: the exception propagates at once, a note naming the
-        point. A population run's executor that breaks
-        (:class:`concurrent.futures.BrokenExecutor`, e.g. a process-pool
-        worker that died) fails its chunk's points (not re-run: the executor
-        runs nothing more) and ends the search (``stopped == "error"``).
+        point. A worker of a population run's executor that dies
+        (:class:`concurrent.futures.BrokenExecutor`: a process-pool worker
+        killed, out of memory...) loses its chunk's points (cause
+        ``"WORKER_DIED"``, not re-run: a point that kills its worker would
+        kill the next one too); the search goes on with the history and the
+        worst point so far, on a fresh pool from ``run.renew()``
+        (:func:`batch_run`'s runs have one), or ends there
+        (``stopped == "error"``) when the run cannot renew its executor.
     progress : bool, optional
         A progress bar over the runs (default: when stderr is a terminal).
 

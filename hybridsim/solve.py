@@ -365,18 +365,23 @@ class _Run:
         forced = False       # the last flow's event requires a jump
         flow_on = False      # random priority chose to flow on in C ∩ D
         post = None          # the event bracket the last jump was taken from
-        # at x0: shapes and contracts, raised at once (a programming error)
-        u = self._u(t)
-        in_D = has_D and D(x, t, j, u)
-        in_C = (not has_C) or C(x, t, j, u)
-        if in_C:
-            check_map_value("flow_map", maps.f(x, t, j, u), o.n, t, j)
-        if in_D and maps.G is None:
-            check_map_value("jump_map", g(x, t, j, u), o.n, t, j)
-        elif in_D:
-            successors(maps.G(x, t, j, u), o.n, t, j)
-        if self.W is not None:       # the watched functions and their directions
-            self._watch_values(t, x, j)
+        # at x0: shapes and contracts, raised at once (a programming error);
+        # Ctrl-C there ends the run CANCELED with x0, as anywhere in the loop
+        try:
+            u = self._u(t)
+            in_D = has_D and D(x, t, j, u)
+            in_C = (not has_C) or C(x, t, j, u)
+            if in_C:
+                check_map_value("flow_map", maps.f(x, t, j, u), o.n, t, j)
+            if in_D and maps.G is None:
+                check_map_value("jump_map", g(x, t, j, u), o.n, t, j)
+            elif in_D:
+                successors(maps.G(x, t, j, u), o.n, t, j)
+            if self.W is not None:   # the watched functions and their directions
+                self._watch_values(t, x, j)
+        except KeyboardInterrupt:
+            self._stop(Termination.CANCELED, t=t, j=j)
+            return
         try:
             while True:
                 t, j, x = st.t, st.j, st.x

@@ -37,6 +37,8 @@ from ._private import private_folder
 from ._types import (
     CANCELED,
     CAUSES,
+    DETAIL_CHATTER,
+    DETAIL_INSTANT,
     DETAIL_LOOP,
     J_MAX,
     MAP_FLOW_X0,
@@ -66,8 +68,9 @@ from ._types import (
 
 #: what the runners (:mod:`._system`, :mod:`._run`, :mod:`._lower`) read of the engine
 __all__ = [
-    "CANCELED", "CAUSES", "DETAIL_LOOP", "J_MAX", "MAP_FLOW_X0", "MAP_GUARD", "MAP_HISTORY",
-    "MAP_JUMP_SHAPE", "MAP_JUMP_VALUE", "MAP_JUMP_X0", "POLL_GIL", "POLL_NONE", "T_MAX",
+    "CANCELED", "CAUSES", "DETAIL_CHATTER", "DETAIL_INSTANT", "DETAIL_LOOP", "J_MAX",
+    "MAP_FLOW_X0", "MAP_GUARD", "MAP_HISTORY", "MAP_JUMP_SHAPE", "MAP_JUMP_VALUE",
+    "MAP_JUMP_X0", "POLL_GIL", "POLL_NONE", "T_MAX",
     "absent_false", "absent_scalar", "absent_true", "absent_vec", "as_bool", "as_scalar",
     "as_vec", "handle", "map_addresses", "rng_pointers", "wrap_map", "jit_address",
     "run_one", "run_one_delays", "run_one_dop853", "run_one_spec", "run_one_spec_delays",

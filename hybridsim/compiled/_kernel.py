@@ -127,6 +127,8 @@ from ._types import (
     BLOWUP,
     CACHE,
     CANCELED,
+    DETAIL_CHATTER,
+    DETAIL_INSTANT,
     DETAIL_LOOP,
     J_MAX,
     LEFT_SETS,
@@ -327,6 +329,9 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     in_D = False
     in_C = True
     loop = 0                         # consecutive jumps at one instant from C and D
+    same = 0                         # consecutive jumps at one instant, from C or not
+    longest = 0.0                    # the longest flow so far (rules.chatter_step)
+    tiny = 0                         # consecutive flows tiny against it (chattering)
     # the bracket's lo of the located event the last flow ends with, a jump from
     # its hi (``pend``), and of the jump just taken (``post``): rules.post_jump_probe.
     # Scalars only per jump (copying x_lo, x_hi at every jump cost ~10% of a
@@ -410,6 +415,12 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                     short += 1
                 else:
                     short = 0
+                longest_before = longest
+                longest, tiny = rules.chatter_step(flow, longest, tiny)
+                if flow == 0.0 and jumps > 0:
+                    same += 1
+                else:
+                    same = 0
                 if from_C and flow == 0.0 and jumps > 0:
                     loop += 1
                 else:
@@ -441,6 +452,14 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                         # the jumps of the loop and the one that started it, all at t
                         detail = DETAIL_LOOP
                         info[2] = loop + 1
+                    elif c == J_MAX and rules.is_jump_loop(same, zeno_jumps):
+                        detail = DETAIL_INSTANT      # jumps at t, not all from C
+                        info[2] = same + 1
+                    elif c == J_MAX and rules.is_jump_loop(tiny, zeno_jumps):
+                        detail = DETAIL_CHATTER      # info: t, longest, count, _, flow
+                        info[1] = longest_before
+                        info[2] = tiny
+                        info[4] = flow
                     break
                 continue
             if action == _A_STOP:

@@ -21,6 +21,7 @@ from ..arc_batch import ArcBatch
 from ..options import check_unsupported, check_x0, method_on, parse_run
 from ..rules import (
     CAUSES,
+    CHATTER_RTOL,
     DETAILS,
     MapError,
     Priority,
@@ -332,15 +333,29 @@ _PLAIN_END = {CAUSES.index(c): (c, c.message, None) for c in (Termination.T_MAX,
                                                               Termination.J_MAX)}
 
 
+def _plain(k, code, detail):
+    """Whether a kernel's end is a plain t_max or j_max (its message the
+    cause's sentence alone: no jump loop, jumps at one instant or chattering)."""
+    return code == k.T_MAX or (code == k.J_MAX and detail not in (
+        k.DETAIL_LOOP, k.DETAIL_INSTANT, k.DETAIL_CHATTER))
+
+
 def _message(system, k, code, detail, info, T, J, X, stats, ro):
     """``(cause, message, exception)`` of a kernel's result: the words of
     :data:`hybridsim.rules.DETAILS` (:func:`hybridsim.rules.message`)."""
-    if (code == k.T_MAX or code == k.J_MAX) and detail != k.DETAIL_LOOP:
+    if _plain(k, code, detail):
         return _PLAIN_END[code]
     cause = CAUSES[code]
     if (cause is Termination.J_MAX or cause is Termination.ZENO) and detail == k.DETAIL_LOOP:
         # a jump loop (rules.is_jump_loop): its jumps, all at one instant
         return cause, message(cause, "loop", count=int(info[2]), t=float(info[0])), None
+    if cause is Termination.J_MAX and detail == k.DETAIL_INSTANT:
+        return cause, message(cause, "instant", count=int(info[2]), t=float(info[0])), None
+    if cause is Termination.J_MAX and detail == k.DETAIL_CHATTER:
+        # rules.chatter_step's count, the longest flow before the last one, the last
+        return cause, message(cause, "chatter", count=int(info[2]), rtol=CHATTER_RTOL,
+                              longest=float(info[1]), flow=float(info[4]),
+                              t=float(info[0])), None
     if cause is Termination.T_MAX or cause is Termination.J_MAX:
         return cause, cause.message, None
     t = float(info[0]) if info[0] == info[0] else float(T[-1])
@@ -522,7 +537,7 @@ def simulate_compiled(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priori
         if at_x0:                    # at x0: raised at once, as on the Python path
             raise exc
         return finish(arc, ro.throw, ro.warn)
-    if code == k.T_MAX or (code == k.J_MAX and detail != k.DETAIL_LOOP):   # rules.finish
+    if _plain(k, code, detail):             # rules.finish: nothing to raise or warn
         return arc
     if _at_x0(k, arc, detail):
         raise arc.exception
@@ -789,7 +804,7 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
             # their message the cause's own (as _arc would)
             plain = {c: (t, t.message) for c, t in ((k.T_MAX, Termination.T_MAX),
                                                      (k.J_MAX, Termination.J_MAX))}
-            loop = k.DETAIL_LOOP
+            named = (k.DETAIL_LOOP, k.DETAIL_INSTANT, k.DETAIL_CHATTER)
             retry = []              # runs that found no room: the next round's rows
             while not stopped:
                 if c >= len(rows):
@@ -832,7 +847,7 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
                 fits = AT >= 0
                 starts = np.where(fits, AT, 0)
                 ends = starts + np.where(fits, NS, 0)
-                easy = fits & (NS > 0) & (DE != loop)
+                easy = fits & (NS > 0) & ~np.isin(DE, named)
                 done = np.zeros(B, bool)
                 for code, (term, msg) in plain.items():
                     sel = np.flatnonzero(easy & (CA == code))

@@ -90,6 +90,11 @@ MAP_JUMP_SHAPE, MAP_JUMP_VALUE, MAP_FLOW_SHAPE, MAP_FLOW_X0, MAP_JUMP_X0, MAP_GU
 #: the detail code of a J_MAX or ZENO end after a jump loop (``rules.is_jump_loop``;
 #: ZENO's others: 0 the Zeno test, 1 sticking, 2 flows too short to resolve)
 DETAIL_LOOP = 3
+#: the detail codes of a J_MAX end after jumps at one instant not all from C
+#: (``rules.is_jump_loop`` on their count) and after chattering
+#: (``rules.chatter_step``'s count of tiny flows)
+DETAIL_INSTANT = 4
+DETAIL_CHATTER = 5
 
 # flow outcomes
 _O_TMAX, _O_JUMP, _O_FLOW_ON, _O_STOP, _O_BREAK = 0, 1, 2, 3, 4

@@ -22,6 +22,7 @@ import types
 
 import numpy as np
 import pytest
+from paths import one_sigint_inside_the_run
 from test_falsify import BallE
 
 import hybridsim as hs
@@ -239,10 +240,12 @@ def test_ctrl_c_during_explore_ends_it_interrupted(sigint, monkeypatch, at):
     assert len(canceled) == 1 and tree.pending > 0
 
 
-def test_ctrl_c_during_sensitivities_returns_the_arc_so_far(sigint):
-    """simulate_sensitivity: one SIGINT in the 30th flow evaluation ends the
-    run CANCELED with the sensitivities so far (finite), and says so."""
-    hit = CtrlCAt(30)
+@pytest.mark.parametrize("at", [1, 30])
+def test_ctrl_c_during_sensitivities_returns_the_arc_so_far(sigint, at):
+    """simulate_sensitivity: one SIGINT in the first flow evaluation (the
+    run's check of its maps at x0) or the 30th ends the run CANCELED with the
+    sensitivities so far (finite), and says so (it raised SimulationError at x0)."""
+    hit = CtrlCAt(at)
 
     class Ball(BouncingBall):
         def flow_map(self, x):
@@ -250,7 +253,33 @@ def test_ctrl_c_during_sensitivities_returns_the_arc_so_far(sigint):
             return super().flow_map(x)
     sarc = hs.simulate_sensitivity(Ball(), [1.0, 0.0], t_max=10.0)
     assert sarc.termination is hs.Termination.CANCELED and "interrupted" in sarc.arc.message
+    assert f"t={sarc.t[-1]:.10g}, j={sarc.arc.j[-1]}" in sarc.arc.message
     assert np.all(np.isfinite(sarc.S)) and sarc.t[-1] < 10.0
+    np.testing.assert_array_equal(sarc.S[0], np.eye(2))
+    if at == 1:                            # x0 alone
+        assert sarc.t.tolist() == [0.0]
+
+
+@pytest.mark.skipif(threading.current_thread() is not threading.main_thread(),
+                    reason="Python runs signal handlers in the main thread")
+def test_one_sigint_inside_a_sensitivity_run_ends_it_canceled():
+    """One SIGINT from a helper thread once the run is under way
+    (paths.one_sigint_inside_the_run, no clock) on a timer with no horizon:
+    CANCELED, the arc and sensitivities so far (every jump 1 s earlier per
+    unit of x0), the message naming its last sample."""
+    timer = hs.HybridSystem.from_functions(
+        f=lambda x: np.array([1.0]), g=lambda x: np.array([0.0]),
+        jump_guard=lambda x: x[0] - 0.01, state_dim=1)
+    with one_sigint_inside_the_run() as sig:
+        sarc = hs.simulate_sensitivity(timer, [0.0], t_max=math.inf, max_samples=1_000_000,
+                                       max_steps=math.inf, zeno_jumps=10 ** 9)
+    assert sig.sent, "no run was seen under way"
+    assert sarc.termination is hs.Termination.CANCELED, sarc.arc.message
+    sarc.arc.validate()
+    assert f"t={sarc.t[-1]:.10g}" in sarc.arc.message
+    assert np.all(np.isfinite(sarc.S))
+    if sarc.arc.jump_count:
+        np.testing.assert_allclose(sarc.dtj_dx0[:, 0], -1.0, rtol=0, atol=1e-6)
 
 
 # --------------------------------------------------------------- failing user code
@@ -330,24 +359,57 @@ def test_a_population_run_that_raises_fails_its_chunk_only():
 
 
 class DyingBall(SignalBall):
-    """Kills the process that runs it (a pool worker dying mid-chunk)."""
+    """test_falsify's ball with a fourth state, a mark: the run of a marked
+    point kills the process that runs it (a pool worker dying mid-chunk)."""
 
+    state_dim = 4
     vectorized = False
 
     def flow_map(self, x):
-        os._exit(3)
+        if x[3] == 1.0:
+            os._exit(3)
+        return np.append(super().flow_map(x[:3]), 0.0)
+
+    def jump_map(self, x):
+        return np.append(super().jump_map(x[:3]), x[3])
 
 
 @pytest.mark.skipif(sys.platform == "win32", reason="fork start method")
-def test_a_dead_pool_worker_ends_the_search_with_the_results_so_far():
-    """The worker running the second population dies: the executor is broken
-    (BrokenProcessPool), that population's points are findings (not re-run:
-    the pool runs nothing more) and the search ends with the first one's."""
+def test_a_dead_pool_worker_loses_only_its_chunk():
+    """The 9th point of the search (in the second population) kills the pool's
+    worker: that population's points are WORKER_DIED findings, the first
+    population's margins are kept, and the search goes on to its budget on a
+    fresh pool (the user's pool stays broken, left to its owner)."""
+    marks = iter(range(10 ** 6))
+
+    def x0_of(p):
+        return [p["h0"], 0.0, p["e"], 1.0 if next(marks) == 8 else 0.0]
+    with concurrent.futures.ProcessPoolExecutor(1) as ex:
+        run = batch_run(DyingBall(), x0_of, t_max=3.0, j_max=1, backend="python",
+                        executor=ex, chunks=1)
+        res = falsify(run, BALL, _holds, budget=24, seed=0, method="random", popsize=6,
+                      stop=False, progress=False)
+        with pytest.raises(concurrent.futures.BrokenExecutor):
+            ex.submit(int).result()
+    assert res.stopped == "budget" and res.evaluations == 24 and res.error is None
+    assert np.all(res.history[:6] == 1.0) and np.all(res.history[6:12] == -math.inf)
+    assert np.all(res.history[12:] == 1.0)
+    assert len(res.findings) == 6 and {f.cause for f in res.findings} == {"WORKER_DIED"}
+    assert all("BrokenProcessPool" in f.message and "chunk of 6 points" in f.message
+               for f in res.findings)
+    assert res.verdict == "counterexample" and res.point == res.findings[0].point
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="fork start method")
+def test_a_dead_worker_of_a_run_that_cannot_renew_its_pool_ends_the_search():
+    """A population run of the user's own, with no ``renew``: the chunk is
+    lost and, the pool being broken for good, the search ends there with the
+    populations before it."""
     pops = [0]
     with concurrent.futures.ProcessPoolExecutor(1) as ex:
         good = batch_run(SignalBall(), _x0, t_max=3.0, j_max=1, backend="python")
-        dying = batch_run(DyingBall(), _x0, t_max=3.0, j_max=1, backend="python",
-                          executor=ex, chunks=1)
+        dying = batch_run(DyingBall(), lambda p: [*_x0(p), 1.0], t_max=3.0, j_max=1,
+                          backend="python", executor=ex, chunks=1)
 
         def run(points):
             pops[0] += 1
@@ -356,7 +418,8 @@ def test_a_dead_pool_worker_ends_the_search_with_the_results_so_far():
         res = falsify(run, BALL, _holds, budget=40, seed=0, method="random", popsize=6,
                       stop=False, progress=False)
     assert res.stopped == "error" and res.evaluations == 12
-    assert np.all(res.history[:6] == 1.0)
+    assert np.all(res.history[:6] == 1.0) and np.all(res.history[6:] == -math.inf)
+    assert res.error.cause == "WORKER_DIED" and "could not be renewed" in res.error.message
     assert isinstance(res.error.exception, concurrent.futures.BrokenExecutor)
     assert len(res.findings) == 6 and res.verdict == "counterexample"
 

@@ -26,8 +26,6 @@ import hybridsim as hs
 from hybridsim import Termination as T
 from hybridsim import rules
 
-KERNEL_CHATTER = ("the compiled kernel keeps no rules.chatter_step count (nor the count of "
-                  "jumps at one instant not from C): its J_MAX has no chatter/instant detail")
 
 def quiet(fn, *args, **kw):
     """``fn(*args, **kw)`` where any warning is an error."""
@@ -195,7 +193,7 @@ def test_jumps_at_one_instant_not_from_c_warn_at_j_max(path):
     assert arc.termination is T.J_MAX
 
 
-@pytest.mark.paths(compiled_slow=True, xfail_compiled=KERNEL_CHATTER)
+@pytest.mark.paths(compiled_slow=True)
 def test_chattering_is_named_on_every_path(path):
     """x' = 1 from 0, a jump at x >= 1 back to 1 - 1e-6: one flow of 1, then a
     jump every 1e-6 (a reset too small to leave the jump set's edge)."""
@@ -205,7 +203,27 @@ def test_chattering_is_named_on_every_path(path):
     with pytest.warns(hs.SimulationWarning, match=r"J_MAX.*chattering") as rec:
         arc = run(path, case, [0.0], t_max=10.0, j_max=50)
     assert len(rec) == 1 and arc.termination is T.J_MAX
-    np.testing.assert_allclose(np.diff(arc.jump_times), 1e-6, rtol=1e-6)
+    flows = np.diff(arc.jump_times)
+    np.testing.assert_allclose(flows, 1e-6, rtol=1e-6)
+    # the 49 flows after the first, tiny against it (rules.chatter_step)
+    assert arc.message == rules.message(T.J_MAX, "chatter", count=49, rtol=rules.CHATTER_RTOL,
+                                        longest=arc.jump_times[0], flow=flows[-1],
+                                        t=arc.jump_times[-1])
+
+
+@pytest.mark.paths(compiled_slow=True)
+def test_jumps_at_one_instant_not_from_c_are_named_on_every_path(path):
+    """x+ = x + 1 in D = {x >= 0}, C = {x <= -1} never entered: every jump at
+    t = 0, none from C (no jump loop of rules.is_jump_loop); J_MAX warns once
+    and names them, in the same words on every path."""
+    from paths import Linear
+    case = Linear(np.zeros((1, 1)), np.ones((1, 1)), np.ones(1), np.ones(1), 0.0,
+                  e=-np.ones(1), d=1.0)
+    with pytest.warns(hs.SimulationWarning, match=r"J_MAX.*jumps at one instant") as rec:
+        arc = run(path, case, [0.0], t_max=10.0, j_max=20)
+    assert len(rec) == 1 and arc.termination is T.J_MAX
+    assert arc.message == rules.message(T.J_MAX, "instant", count=20, t=0.0)
+    assert arc.jump_count == 20 and arc.xf.tolist() == [20.0] and arc.tf == 0.0
 
 
 @pytest.mark.paths(compiled_slow=True)
