@@ -73,7 +73,15 @@ Design
   composite guard is a scalar (the max over its components), so two
   components jumping at once are not detected as simultaneous there.
 * ``max_norm`` bounds the norm of the whole augmented state (x, S, ...).
-* **Python path only**: the vectorized and compiled paths refuse by name.
+* **Paths** (``backend``, as for :func:`hybridsim.simulate`): ``"python"``
+  runs :class:`SensitivitySystem`; ``"compiled"`` runs the same variational
+  system compiled (:mod:`hybridsim._variational`: its maps call the system's
+  own compiled maps, the saltation update inside the kernel, Jacobians by
+  the same central differences), the same results to rounding;
+  ``"auto"`` takes the compiled path where it can and the Python path
+  otherwise (an interconnection, Jacobians given by the system, a model
+  that does not compile, options the compiled path does not take). A
+  vectorized system is refused by name (give its single-state form).
 
 Examples
 --------
@@ -123,6 +131,7 @@ REASONS = {
               "a jump map, on the guard): whether it jumps depends on the side of "
               "the guard a perturbation takes",
 }
+_CODES = (_GRAZING, _NO_GUARD, _SIMULTANEOUS, _NO_FLOW)
 
 
 class SensitivityError(SimulationError, ValueError):
@@ -511,8 +520,8 @@ def sensitivity_system(system, *, params: ArrayLike | None = None, wrt=None,
         raise ValueError("system: sensitivities of systems with delays (needs_history, "
                          "delays) are not supported")
     if system.vectorized:
-        raise ValueError("system: sensitivities are computed on the Python path only; "
-                         "give the single-state (not vectorized) system")
+        raise ValueError("system: a vectorized system's batches do not carry the "
+                         "variational system; give the single-state (not vectorized) system")
     return SensitivitySystem(system, p, wrt, fd_step, graze_tol, make_system)
 
 
@@ -688,8 +697,12 @@ def simulate_sensitivity(system, x0: ArrayLike, t_max: float, j_max: float = mat
         :class:`SensitivityError`, or warn (:class:`SensitivityWarning`)
         and return NaN sensitivities from that jump on. A Zeno accumulation
         always warns (the values up to the last jump are defined).
-    backend : {"python"}
-        Sensitivities are computed on the Python path only.
+    backend : {"python", "compiled", "auto"}
+        ``"compiled"`` runs the variational system compiled (the module's
+        notes), refused by name where the system cannot (an interconnection,
+        Jacobians given by the system, a model that does not lower);
+        ``"auto"`` takes the compiled path where numba is installed, the
+        system and the options allow it, else the Python path.
     **options
         Any option of :func:`hybridsim.simulate` (``rtol``, ``atol``,
         ``method``, ``priority``, ``dense``, ``refine``, ``t_eval``...).
@@ -715,10 +728,8 @@ def simulate_sensitivity(system, x0: ArrayLike, t_max: float, j_max: float = mat
     >>> sarc.S_at(2.0)[0, 0]        # x(t) = t - t_j and t_j moves with x0: dx/dx0 = 1
     1.0
     """
-    if backend != "python":
-        raise ValueError(f"backend={backend!r}: sensitivities are computed on the Python path "
-                         "only; use backend='python' (the vectorized and compiled paths "
-                         "do not integrate the variational system)")
+    if backend not in ("python", "compiled", "auto"):
+        raise ValueError(f"backend must be 'python', 'compiled' or 'auto', got {backend!r}")
     if undefined not in ("raise", "warn"):
         raise ValueError(f"undefined must be 'raise' or 'warn', got {undefined!r}")
     if "inputs" in options or "prehistory" in options:
@@ -740,7 +751,12 @@ def simulate_sensitivity(system, x0: ArrayLike, t_max: float, j_max: float = mat
         raise ValueError(f"sens_atol must be a positive float, got {sens_atol!r}")
     atol_aug = np.concatenate([atol_x, np.full(n * m, float(s_atol)), np.ones(m + 2)])
     t0 = float(options.get("t0", 0.0))
-    aug = simulate(ssys, ssys.initial_state(x0, t0), t_max, j_max, atol=atol_aug, **options)
+    target = _on_path(ssys, backend, options)
+    aug = simulate(target, ssys.initial_state(x0, t0), t_max, j_max, atol=atol_aug,
+                   backend="python" if target is ssys else "compiled", **options)
+    if target is not ssys:
+        from .compiled._lower import rebind
+        rebind(aug, ssys)
     # the first jump whose sensitivity is undefined
     flags = aug.x[:, -1]
     bad = None
@@ -763,6 +779,35 @@ def simulate_sensitivity(system, x0: ArrayLike, t_max: float, j_max: float = mat
                       "those of the jumps taken, and are not defined at the accumulation "
                       "point or beyond", SensitivityWarning, stacklevel=2)
     return sarc
+
+
+def _on_path(ssys, backend, options):
+    """What runs the variational system: ``ssys`` (the Python path) or its
+    compiled form (``backend`` "compiled", or "auto" where it can)."""
+    if backend == "python":
+        return ssys
+    from . import _variational
+    from .compiled import available
+    if backend == "auto":
+        from .run import _COMPILED_ONLY_AT
+        if not available() or _variational.refusal(ssys) is not None or any(
+                options.get(k, v[0]) not in v for k, v in _COMPILED_ONLY_AT.items()) \
+                or not _method_compiles(options.get("method", "RK45")):
+            return ssys
+        try:
+            return _variational.compiled_variational(ssys, _CODES)
+        except TypeError:
+            return ssys
+    return _variational.compiled_variational(ssys, _CODES)
+
+
+def _method_compiles(method):
+    from .options import method_on
+    try:
+        method_on("compiled", method)
+    except (TypeError, ValueError):
+        return False
+    return True
 
 
 def _explain(ssys, aug, k, code):
