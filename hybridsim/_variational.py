@@ -48,9 +48,14 @@ other maps than at p (a structure that depends on p).
 """
 from __future__ import annotations
 
+import inspect
 import math
+import types
 
 import numpy as np
+
+from . import _source
+from .system import _DerivedGuard
 
 __all__ = ["refusal", "compiled_variational", "JACOBIANS"]
 
@@ -79,6 +84,8 @@ def refusal(ssys):
         return (f"{name} gives {', '.join(given)}, used on the Python path only (the "
                 f"compiled variational system differences the maps centrally); drop "
                 f"{'it' if len(given) == 1 else 'them'} or use backend='python'")
+    if _known(base):
+        return None
     ok = lowerable(base)
     if not ok:
         return ok.reason
@@ -86,8 +93,141 @@ def refusal(ssys):
 
 
 def _lowered(system):
-    from .compiled import lower
-    return lower(system)
+    """``(maps, p)`` of ``system`` lowered: read through the plan of an earlier
+    system of the same structure where there is one (:func:`_reread`), else
+    by :func:`hybridsim.compiled.lower` (the structure then kept)."""
+    from .compiled import CompiledSystem, lower
+    from .compiled._from_source import applies
+    plain = applies(system)
+    key = _structure(system) if plain else None
+    hit = _STRUCTURES.get(key) if key is not None else None
+    if hit is not None:
+        p = _reread(hit[0], hit[1].layout, system)
+        if p is not None:
+            return hit[1].maps, p
+    cs = lower(system)
+    if key is not None and isinstance(cs, CompiledSystem) and getattr(cs, "layout", None) \
+            is not None:
+        if len(_STRUCTURES) > 64:
+            _STRUCTURES.clear()
+        _STRUCTURES[key] = (system, cs)
+    return cs.maps, cs.params
+
+
+#: a plain model's structure -> (the first system of it lowered, its compiled form)
+_STRUCTURES = {}
+
+
+def _known(system):
+    """Whether a plain model of ``system``'s structure was lowered before."""
+    from .compiled._from_source import applies
+    return applies(system) and _STRUCTURES.get(_structure(system)) is not None
+
+
+def _unwrap(fn):
+    if isinstance(fn, types.MethodType):
+        return fn.__func__, fn.__self__
+    return (fn, None) if isinstance(fn, types.FunctionType) else (None, None)
+
+
+def _given(system, attr):
+    """The map ``attr`` as the system gives it: None for a guard derived from
+    its set (that set's code decides the guard), or one not given."""
+    if attr in ("jump_guard", "flow_guard") and attr not in vars(system) and isinstance(
+            inspect.getattr_static(type(system), attr, None), _DerivedGuard):
+        return None
+    return getattr(system, attr, None)
+
+
+def _structure(system):
+    """What a plain model's plan depends on besides the values it reads (the
+    class, the code of its maps and what the lowering checks), or None."""
+    parts = [type(system), system.needs_history, system.delays, system.input_dim]
+    for attr, _ in _source.ROLES:
+        fn = _given(system, attr)
+        if fn is None:
+            parts.append(None)
+            continue
+        func, obj = _unwrap(fn)
+        if func is None:
+            return None
+        parts.append((func.__code__, id(func.__globals__), obj is system,
+                      None if obj is None else type(obj)))
+    return tuple(parts)
+
+
+def _reread(s0, layout, s1):
+    """``p`` of ``s1`` read through the plan ``layout`` made for ``s0``, a system
+    of the same structure (:func:`_structure`): each slot read from the object
+    of ``s1`` that corresponds to the one of ``s0`` it was read from (the
+    system, its maps' closure cells and defaults). None where a slot has no
+    counterpart or changed kind or shape, or where something the plan
+    followed without reading it (a function in a cell, on the instance)
+    differs: then ``s1`` is lowered itself."""
+    corr = {}
+    for attr, _ in _source.ROLES:
+        f0, f1 = _given(s0, attr), _given(s1, attr)
+        if f0 is None:
+            continue
+        u0, u1 = _unwrap(f0)[0], _unwrap(f1)[0]
+        if u0.__code__ is not u1.__code__:
+            return None
+        corr[("default", id(u0))] = u1
+        for c0, c1 in zip(u0.__closure__ or (), u1.__closure__ or ()):
+            corr[("cell", id(c0))] = c1
+    slots = {}
+    for key, i in layout._index.items():
+        slots[key] = i
+    for k, c1 in corr.items():                    # cells read without a slot: the same
+        if k[0] == "cell" and k not in slots:
+            c0 = next(c for c in _cells(s0) if id(c) == k[1])
+            try:
+                if c0.cell_contents is not c1.cell_contents:
+                    return None
+            except ValueError:
+                return None
+    fns = (types.FunctionType, types.MethodType)
+    own0, own1 = s0.__dict__, s1.__dict__         # functions on the instance: the same
+    for name in set(own0) | set(own1):
+        v0, v1 = own0.get(name), own1.get(name)
+        if (isinstance(v0, fns) or isinstance(v1, fns)) and name not in _ROLE_ATTRS \
+                and v0 is not v1:
+            return None
+    readers = [None] * len(layout.slots)
+    for key, i in slots.items():
+        if key[0] == "self" and key[1] == id(s0):
+            readers[i] = (lambda a: lambda: getattr(s1, a))(key[2])
+        elif key[0] == "cell" and key in corr:
+            readers[i] = (lambda c: lambda: c.cell_contents)(corr[key])
+        elif key[0] == "global":
+            readers[i] = layout.readers[i]
+        elif key[0] == "default" and ("default", key[1]) in corr:
+            readers[i] = _default(corr[("default", key[1])], key[2])
+        else:
+            return None
+    lay = object.__new__(type(layout))
+    lay.slots, lay.readers, lay.size = layout.slots, readers, layout.size
+    return lay.read()
+
+
+_ROLE_ATTRS = {attr for attr, _ in _source.ROLES}
+
+
+def _cells(system):
+    for attr, _ in _source.ROLES:
+        fn = _given(system, attr)
+        if fn is not None:
+            yield from (_unwrap(fn)[0].__closure__ or ())
+
+
+def _default(func, name):
+    code = func.__code__
+    names = code.co_varnames[:code.co_argcount]
+
+    def read():
+        d = func.__defaults__
+        return d[names.index(name) - (len(names) - len(d))]
+    return read
 
 
 def _same_map(a, b):
@@ -123,22 +263,22 @@ def compiled_variational(ssys, codes):
     if why is not None:
         raise TypeError(f"backend='compiled': the sensitivities of {type(ssys.base).__name__} "
                         f"cannot run compiled: {why}")
-    cs = _lowered(ssys.base)
-    maps = {r: cs.maps[r] for r in _ROLES if r in cs.maps}
-    blocks = [np.asarray(cs.params, dtype=float)]
+    cmaps, p0 = _lowered(ssys.base)
+    maps = {r: cmaps[r] for r in _ROLES if r in cmaps}
+    blocks = [np.asarray(p0, dtype=float)]
     L = blocks[0].size
     steps = []
     for k, (a, b, d) in enumerate(ssys._pm_sys):
         for s in (a, b):
-            c = _lowered(s)
-            if set(c.maps) != set(maps) or not all(_same_map(c.maps[r], maps[r])
-                                                   for r in maps) or c.params.size != L:
+            cm, cp = _lowered(s)
+            if set(cm) != set(maps) or not all(_same_map(cm[r], maps[r])
+                                               for r in maps) or cp.size != L:
                 raise TypeError(
                     f"backend='compiled': the sensitivities of {type(ssys.base).__name__} "
                     f"cannot run compiled: make_system(p) at params[{k}] "
                     f"{'+' if s is a else '-'} {d / 2:.3g} lowers to other compiled maps "
                     f"than at p (its structure depends on p); use backend='python'")
-            blocks.append(np.asarray(c.params, dtype=float))
+            blocks.append(np.asarray(cp, dtype=float))
         steps.append(d)
     key = (tuple((r, id(maps[r])) for r in sorted(maps)), tuple(codes))
     proto = _PROTOS.get(key)

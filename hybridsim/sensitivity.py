@@ -238,8 +238,7 @@ class SensitivitySystem(HybridSystem):
         self.max_step = system.max_step
         self._maps = system._compile()
         # the systems at p ± δ e_k, built once: derivatives in p by central differences
-        self._pm = []
-        self._pm_sys = []          # the same systems (an interconnection's jump is frozen)
+        self._pm_sys = []          # (system at p + δ, at p - δ, 2δ); their maps: _pm
         for k in range(self.np_):
             d = self.fd_step * max(1.0, abs(params[k]))
             pp, pm = params.copy(), params.copy()
@@ -257,9 +256,8 @@ class SensitivitySystem(HybridSystem):
                 if not isinstance(s, HybridSystem) or s.state_dim != n:
                     raise TypeError("make_system(p) must return a HybridSystem of the "
                                     f"same state_dim ({n}), got {s!r}")
-                pair.append(s._compile())
-            self._pm.append((pair[0], pair[1], pp[k] - pm[k]))
-            self._pm_sys.append((make_system(pp), make_system(pm), pp[k] - pm[k]))
+                pair.append(s)
+            self._pm_sys.append((pair[0], pair[1], pp[k] - pm[k]))
         self._Jf = _user_jac(system, "flow_jacobian", lambda s: s == (n, n), f"({n}, {n})")
         self._Jg = _user_jac(system, "jump_jacobian", lambda s: s == (n, n), f"({n}, {n})")
         self._Jh = _user_jac(system, "jump_guard_gradient",
@@ -280,6 +278,15 @@ class SensitivitySystem(HybridSystem):
         if mp.hC is not None:
             self.flow_guard = lambda y, t, j: mp.hC(y[:n], t, j, None)
         self._name = f"sensitivities of {type(system).__name__}"
+
+    @property
+    def _pm(self):
+        """The maps of the systems at p ± δ e_k (made on the Python path's first use)."""
+        pm = self.__dict__.get("_pm_maps")
+        if pm is None:
+            pm = self.__dict__["_pm_maps"] = [(a._compile(), b._compile(), d)
+                                              for a, b, d in self._pm_sys]
+        return pm
 
     def initial_state(self, x0, t0=0.0):
         """The augmented initial state: x0, S0 = [I | 0], no jump yet at t0."""
