@@ -236,7 +236,6 @@ class SensitivitySystem(HybridSystem):
         m = self.m = self.nx0 + self.np_
         self.state_dim = n + n * m + m + 2
         self.max_step = system.max_step
-        self._maps = system._compile()
         # the systems at p ± δ e_k, built once: derivatives in p by central differences
         self._pm_sys = []          # (system at p + δ, at p - δ, 2δ); their maps: _pm
         for k in range(self.np_):
@@ -263,21 +262,34 @@ class SensitivitySystem(HybridSystem):
         self._Jh = _user_jac(system, "jump_guard_gradient",
                              lambda s: s == (n,) or (len(s) == 2 and s[1] == n),
                              f"({n},) or (m, {n})")
-        mp = self._maps
         self.components = {"x": slice(0, n), "S": slice(n, n + n * m),
                            "dt": slice(n + n * m, n + n * m + m),
                            "t_last": slice(n + n * m + m, n + n * m + m + 1),
                            "flag": slice(n + n * m + m + 1, n + n * m + m + 2)}
-        # mirror the sets and guards of the system, on x only
+        # mirror the sets and guards of the system, on x only (its maps are made
+        # on the Python path's first use: the compiled path needs none of them)
         if system.has_jumps:
-            self.jump_set = lambda y, t, j: mp.D(y[:n], t, j, None)
+            self.jump_set = lambda y, t, j: self._maps.D(y[:n], t, j, None)
         if system.has_flow_boundary:
-            self.flow_set = lambda y, t, j: mp.C(y[:n], t, j, None)
-        if mp.hD is not None:
-            self.jump_guard = lambda y, t, j: mp.hD(y[:n], t, j, None)
-        if mp.hC is not None:
-            self.flow_guard = lambda y, t, j: mp.hC(y[:n], t, j, None)
+            self.flow_set = lambda y, t, j: self._maps.C(y[:n], t, j, None)
         self._name = f"sensitivities of {type(system).__name__}"
+
+    @property
+    def _maps(self):
+        """The system's maps (``HybridSystem._compile``)."""
+        return self.base._compile()
+
+    def _mirror(self, which):
+        h = getattr(self._maps, which)
+        if h is None:
+            return None
+        n = self.n
+        return lambda y, t, j: h(y[:n], t, j, None)
+
+    jump_guard = property(lambda self: self._mirror("hD"),
+                          doc="The system's jump guard, on x (None where it has none).")
+    flow_guard = property(lambda self: self._mirror("hC"),
+                          doc="The system's flow guard, on x (None where it has none).")
 
     @property
     def _pm(self):
