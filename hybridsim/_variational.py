@@ -57,7 +57,7 @@ import numpy as np
 from . import _source
 from .system import _DerivedGuard
 
-__all__ = ["refusal", "compiled_variational", "JACOBIANS"]
+__all__ = ["refusal", "auto", "compiled_variational", "JACOBIANS"]
 
 #: the Jacobians a system may give (used on the Python path only)
 JACOBIANS = ("flow_jacobian", "jump_jacobian", "jump_guard_gradient")
@@ -72,8 +72,19 @@ def refusal(ssys):
     installed); :func:`compiled_variational` raises the rest (a map numba
     refuses, a factory whose structure depends on p)."""
     from .compiled import lowerable
-    from .compose import Interconnection
     base = ssys.base
+    why = _kind_refusal(base)
+    if why is not None or _known(base):
+        return why
+    ok = lowerable(base)
+    if not ok:
+        return ok.reason
+    return None
+
+
+def _kind_refusal(base):
+    """Why a system of this kind has no compiled variational system, or None."""
+    from .compose import Interconnection
     name = type(base).__name__
     if isinstance(base, Interconnection):
         return (f"{name} is an interconnection: its jump at an event is frozen to the "
@@ -84,12 +95,41 @@ def refusal(ssys):
         return (f"{name} gives {', '.join(given)}, used on the Python path only (the "
                 f"compiled variational system differences the maps centrally); drop "
                 f"{'it' if len(given) == 1 else 'them'} or use backend='python'")
-    if _known(base):
-        return None
-    ok = lowerable(base)
-    if not ok:
-        return ok.reason
     return None
+
+
+_WARNED = set()
+
+
+def auto(ssys, codes):
+    """``backend="auto"``'s choice: the compiled form of ``ssys``, or None (the
+    Python path). A plain model whose maps cannot run compiled warns once per
+    class and reason, as :func:`hybridsim.simulate` does
+    (:class:`~hybridsim.compiled.FallbackWarning`), and so does a factory
+    whose maps depend on p; an interconnection or a system giving its
+    Jacobians takes the Python path silently (:func:`refusal` says why)."""
+    import warnings
+
+    from .compiled import lowerable
+    from .compiled._from_source import FallbackWarning, applies, auto_choice
+    base = ssys.base
+    if _kind_refusal(base) is not None:
+        return None
+    if not _known(base):
+        if applies(base):
+            if auto_choice(base, lowerable(base)) != "compiled":
+                return None
+        elif not lowerable(base):
+            return None
+    try:
+        return compiled_variational(ssys, codes)
+    except TypeError as e:
+        key = (type(base), str(e))
+        if key not in _WARNED:
+            _WARNED.add(key)
+            warnings.warn(f"backend='auto' runs the sensitivities of {type(base).__name__} "
+                          f"on the Python path: {e}", FallbackWarning, stacklevel=4)
+        return None
 
 
 def _lowered(system):

@@ -809,14 +809,12 @@ def _on_path(ssys, backend, options):
     from .compiled import available
     if backend == "auto":
         from .run import _COMPILED_ONLY_AT
-        if not available() or _variational.refusal(ssys) is not None or any(
-                options.get(k, v[0]) not in v for k, v in _COMPILED_ONLY_AT.items()) \
+        if not available() or any(options.get(k, v[0]) not in v
+                                  for k, v in _COMPILED_ONLY_AT.items()) \
                 or not _method_compiles(options.get("method", "RK45")):
             return ssys
-        try:
-            return _variational.compiled_variational(ssys, _CODES)
-        except TypeError:
-            return ssys
+        cs = _variational.auto(ssys, _CODES)
+        return ssys if cs is None else cs
     return _variational.compiled_variational(ssys, _CODES)
 
 

@@ -8,6 +8,7 @@ on every case where a derivative does not exist.
 """
 from __future__ import annotations
 
+import random
 import runpy
 import warnings
 from pathlib import Path
@@ -395,6 +396,16 @@ def test_paths_that_cannot_run_it_refuse_by_name():
     a = simulate_sensitivity(BallJ(), [H0, 0.0], t_max=1.0, backend="auto")
     b = simulate_sensitivity(BallJ(), [H0, 0.0], t_max=1.0)
     np.testing.assert_array_equal(a.S, b.S)
+    if available():          # auto: a map that cannot run compiled says why, once
+        from hybridsim.compiled import FallbackWarning
+
+        class Drawn(IndicatorBall):
+            def flow_map(self, x):
+                return np.array([x[1], -G + 0.0 * random.random()])
+        with pytest.warns(FallbackWarning, match=r"Drawn\.flow_map .*random"):
+            a = simulate_sensitivity(Drawn(), [H0, 0.0], t_max=1.0, backend="auto")
+        np.testing.assert_array_equal(
+            a.S, simulate_sensitivity(Drawn(), [H0, 0.0], t_max=1.0).S)
     ic = hs.Interconnection({"ball": BouncingBall()})
     with pytest.raises(TypeError, match="Interconnection is an interconnection: its jump"):
         simulate_sensitivity(ic, [H0, 0.0], t_max=1.0, backend="compiled")
