@@ -70,7 +70,17 @@ def refusal(ssys):
 
     Checks what can be checked without compiling (numba need not be
     installed); :func:`compiled_variational` raises the rest (a map numba
-    refuses, a factory whose structure depends on p)."""
+    refuses, a factory whose structure depends on p).
+
+    Examples
+    --------
+    >>> import hybridsim as hs
+    >>> from hybridsim.library import BouncingBall
+    >>> from hybridsim.sensitivity import sensitivity_system
+    >>> ic = hs.Interconnection({"ball": BouncingBall()})
+    >>> print(refusal(sensitivity_system(ic)))       # doctest: +ELLIPSIS
+    Interconnection is an interconnection: its jump at an event is frozen ...
+    """
     from .compiled import lowerable
     base = ssys.base
     why = _kind_refusal(base)
