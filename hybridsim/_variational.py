@@ -236,12 +236,10 @@ def _reread(s0, layout, s1):
                     return None
             except ValueError:
                 return None
-    fns = (types.FunctionType, types.MethodType)
-    own0, own1 = s0.__dict__, s1.__dict__         # functions on the instance: the same
+    own0, own1 = s0.__dict__, s1.__dict__         # callables on the instance: the same
     for name in set(own0) | set(own1):
         v0, v1 = own0.get(name), own1.get(name)
-        if (isinstance(v0, fns) or isinstance(v1, fns)) and name not in _ROLE_ATTRS \
-                and v0 is not v1:
+        if (_callable(v0) or _callable(v1)) and name not in _ROLE_ATTRS and v0 is not v1:
             return None
     readers = [None] * len(layout.slots)
     for key, i in slots.items():
@@ -261,6 +259,10 @@ def _reread(s0, layout, s1):
 
 
 _ROLE_ATTRS = {attr for attr, _ in _source.ROLES}
+
+
+def _callable(v):
+    return callable(v) and not isinstance(v, type)
 
 
 def _cells(system):
