@@ -33,8 +33,8 @@ parameter steps
 at the nominal parameters and at :math:`p \pm \delta_k e_k` (each built by
 the factory, the derivatives in p their central differences, as on the
 Python path). The compiled maps depend only on the user's compiled maps (the sizes
-are read from ``p``): they are compiled once per process and system (about
-10 s of CPU on a shared machine: they are closures over the user's maps, so
+are read from ``p``): they are compiled once per process and system (6-8 s
+of CPU measured on a shared two-core machine: they are closures over the user's maps, so
 numba cannot keep them on disk); a new run, at any parameters and with
 any ``wrt``, only reads ``p``.
 
