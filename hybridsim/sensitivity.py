@@ -73,7 +73,15 @@ Design
   composite guard is a scalar (the max over its components), so two
   components jumping at once are not detected as simultaneous there.
 * ``max_norm`` bounds the norm of the whole augmented state (x, S, ...).
-* **Python path only**: the vectorized and compiled paths refuse by name.
+* **Paths** (``backend``, as for :func:`hybridsim.simulate`): ``"python"``
+  runs :class:`SensitivitySystem`; ``"compiled"`` runs the same variational
+  system compiled (:mod:`hybridsim._variational`: its maps call the system's
+  own compiled maps, the saltation update inside the kernel, Jacobians by
+  the same central differences), the same results to rounding;
+  ``"auto"`` takes the compiled path where it can and the Python path
+  otherwise (an interconnection, Jacobians given by the system, a model
+  that does not compile, options the compiled path does not take). A
+  vectorized system is refused by name (give its single-state form).
 
 Examples
 --------
@@ -123,6 +131,7 @@ REASONS = {
               "a jump map, on the guard): whether it jumps depends on the side of "
               "the guard a perturbation takes",
 }
+_CODES = (_GRAZING, _NO_GUARD, _SIMULTANEOUS, _NO_FLOW)
 
 
 class SensitivityError(SimulationError, ValueError):
@@ -227,10 +236,8 @@ class SensitivitySystem(HybridSystem):
         m = self.m = self.nx0 + self.np_
         self.state_dim = n + n * m + m + 2
         self.max_step = system.max_step
-        self._maps = system._compile()
         # the systems at p ± δ e_k, built once: derivatives in p by central differences
-        self._pm = []
-        self._pm_sys = []          # the same systems (an interconnection's jump is frozen)
+        self._pm_sys = []          # (system at p + δ, at p - δ, 2δ); their maps: _pm
         for k in range(self.np_):
             d = self.fd_step * max(1.0, abs(params[k]))
             pp, pm = params.copy(), params.copy()
@@ -248,29 +255,50 @@ class SensitivitySystem(HybridSystem):
                 if not isinstance(s, HybridSystem) or s.state_dim != n:
                     raise TypeError("make_system(p) must return a HybridSystem of the "
                                     f"same state_dim ({n}), got {s!r}")
-                pair.append(s._compile())
-            self._pm.append((pair[0], pair[1], pp[k] - pm[k]))
-            self._pm_sys.append((make_system(pp), make_system(pm), pp[k] - pm[k]))
+                pair.append(s)
+            self._pm_sys.append((pair[0], pair[1], pp[k] - pm[k]))
         self._Jf = _user_jac(system, "flow_jacobian", lambda s: s == (n, n), f"({n}, {n})")
         self._Jg = _user_jac(system, "jump_jacobian", lambda s: s == (n, n), f"({n}, {n})")
         self._Jh = _user_jac(system, "jump_guard_gradient",
                              lambda s: s == (n,) or (len(s) == 2 and s[1] == n),
                              f"({n},) or (m, {n})")
-        mp = self._maps
         self.components = {"x": slice(0, n), "S": slice(n, n + n * m),
                            "dt": slice(n + n * m, n + n * m + m),
                            "t_last": slice(n + n * m + m, n + n * m + m + 1),
                            "flag": slice(n + n * m + m + 1, n + n * m + m + 2)}
-        # mirror the sets and guards of the system, on x only
+        # mirror the sets and guards of the system, on x only (its maps are made
+        # on the Python path's first use: the compiled path needs none of them)
         if system.has_jumps:
-            self.jump_set = lambda y, t, j: mp.D(y[:n], t, j, None)
+            self.jump_set = lambda y, t, j: self._maps.D(y[:n], t, j, None)
         if system.has_flow_boundary:
-            self.flow_set = lambda y, t, j: mp.C(y[:n], t, j, None)
-        if mp.hD is not None:
-            self.jump_guard = lambda y, t, j: mp.hD(y[:n], t, j, None)
-        if mp.hC is not None:
-            self.flow_guard = lambda y, t, j: mp.hC(y[:n], t, j, None)
+            self.flow_set = lambda y, t, j: self._maps.C(y[:n], t, j, None)
         self._name = f"sensitivities of {type(system).__name__}"
+
+    @property
+    def _maps(self):
+        """The system's maps (``HybridSystem._compile``)."""
+        return self.base._compile()
+
+    def _mirror(self, which):
+        h = getattr(self._maps, which)
+        if h is None:
+            return None
+        n = self.n
+        return lambda y, t, j: h(y[:n], t, j, None)
+
+    jump_guard = property(lambda self: self._mirror("hD"),
+                          doc="The system's jump guard, on x (None where it has none).")
+    flow_guard = property(lambda self: self._mirror("hC"),
+                          doc="The system's flow guard, on x (None where it has none).")
+
+    @property
+    def _pm(self):
+        """The maps of the systems at p ± δ e_k (made on the Python path's first use)."""
+        pm = self.__dict__.get("_pm_maps")
+        if pm is None:
+            pm = self.__dict__["_pm_maps"] = [(a._compile(), b._compile(), d)
+                                              for a, b, d in self._pm_sys]
+        return pm
 
     def initial_state(self, x0, t0=0.0):
         """The augmented initial state: x0, S0 = [I | 0], no jump yet at t0."""
@@ -511,8 +539,8 @@ def sensitivity_system(system, *, params: ArrayLike | None = None, wrt=None,
         raise ValueError("system: sensitivities of systems with delays (needs_history, "
                          "delays) are not supported")
     if system.vectorized:
-        raise ValueError("system: sensitivities are computed on the Python path only; "
-                         "give the single-state (not vectorized) system")
+        raise ValueError("system: a vectorized system's batches do not carry the "
+                         "variational system; give the single-state (not vectorized) system")
     return SensitivitySystem(system, p, wrt, fd_step, graze_tol, make_system)
 
 
@@ -688,8 +716,12 @@ def simulate_sensitivity(system, x0: ArrayLike, t_max: float, j_max: float = mat
         :class:`SensitivityError`, or warn (:class:`SensitivityWarning`)
         and return NaN sensitivities from that jump on. A Zeno accumulation
         always warns (the values up to the last jump are defined).
-    backend : {"python"}
-        Sensitivities are computed on the Python path only.
+    backend : {"python", "compiled", "auto"}
+        ``"compiled"`` runs the variational system compiled (the module's
+        notes), refused by name where the system cannot (an interconnection,
+        Jacobians given by the system, a model that does not lower);
+        ``"auto"`` takes the compiled path where numba is installed, the
+        system and the options allow it, else the Python path.
     **options
         Any option of :func:`hybridsim.simulate` (``rtol``, ``atol``,
         ``method``, ``priority``, ``dense``, ``refine``, ``t_eval``...).
@@ -715,10 +747,8 @@ def simulate_sensitivity(system, x0: ArrayLike, t_max: float, j_max: float = mat
     >>> sarc.S_at(2.0)[0, 0]        # x(t) = t - t_j and t_j moves with x0: dx/dx0 = 1
     1.0
     """
-    if backend != "python":
-        raise ValueError(f"backend={backend!r}: sensitivities are computed on the Python path "
-                         "only; use backend='python' (the vectorized and compiled paths "
-                         "do not integrate the variational system)")
+    if backend not in ("python", "compiled", "auto"):
+        raise ValueError(f"backend must be 'python', 'compiled' or 'auto', got {backend!r}")
     if undefined not in ("raise", "warn"):
         raise ValueError(f"undefined must be 'raise' or 'warn', got {undefined!r}")
     if "inputs" in options or "prehistory" in options:
@@ -740,7 +770,12 @@ def simulate_sensitivity(system, x0: ArrayLike, t_max: float, j_max: float = mat
         raise ValueError(f"sens_atol must be a positive float, got {sens_atol!r}")
     atol_aug = np.concatenate([atol_x, np.full(n * m, float(s_atol)), np.ones(m + 2)])
     t0 = float(options.get("t0", 0.0))
-    aug = simulate(ssys, ssys.initial_state(x0, t0), t_max, j_max, atol=atol_aug, **options)
+    target = _on_path(ssys, backend, options)
+    aug = simulate(target, ssys.initial_state(x0, t0), t_max, j_max, atol=atol_aug,
+                   backend="python" if target is ssys else "compiled", **options)
+    if target is not ssys:
+        from .compiled._lower import rebind
+        rebind(aug, ssys)
     # the first jump whose sensitivity is undefined
     flags = aug.x[:, -1]
     bad = None
@@ -763,6 +798,33 @@ def simulate_sensitivity(system, x0: ArrayLike, t_max: float, j_max: float = mat
                       "those of the jumps taken, and are not defined at the accumulation "
                       "point or beyond", SensitivityWarning, stacklevel=2)
     return sarc
+
+
+def _on_path(ssys, backend, options):
+    """What runs the variational system: ``ssys`` (the Python path) or its
+    compiled form (``backend`` "compiled", or "auto" where it can)."""
+    if backend == "python":
+        return ssys
+    from . import _variational
+    from .compiled import available
+    if backend == "auto":
+        from .run import _COMPILED_ONLY_AT
+        if not available() or any(options.get(k, v[0]) not in v
+                                  for k, v in _COMPILED_ONLY_AT.items()) \
+                or not _method_compiles(options.get("method", "RK45")):
+            return ssys
+        cs = _variational.auto(ssys, _CODES)
+        return ssys if cs is None else cs
+    return _variational.compiled_variational(ssys, _CODES)
+
+
+def _method_compiles(method):
+    from .options import method_on
+    try:
+        method_on("compiled", method)
+    except (TypeError, ValueError):
+        return False
+    return True
 
 
 def _explain(ssys, aug, k, code):

@@ -8,6 +8,7 @@ on every case where a derivative does not exist.
 """
 from __future__ import annotations
 
+import random
 import runpy
 import warnings
 from pathlib import Path
@@ -18,6 +19,7 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 import hybridsim as hs
+from hybridsim.compiled import available
 from hybridsim.library import BouncingBall, bouncing_ball_jump_times
 from hybridsim.sensitivity import (
     SensitivityError,
@@ -382,11 +384,151 @@ def test_zeno_accumulation_warns_with_the_last_jump():
 
 
 # ----------------------------------------------------------------------- bad input
-def test_paths_other_than_python_refuse_by_name():
-    with pytest.raises(ValueError, match="sensitivities are computed on the Python path only"):
-        simulate_sensitivity(BouncingBall(), [H0, 0.0], t_max=1.0, backend="compiled")
-    with pytest.raises(ValueError, match="sensitivities are computed on the Python path only"):
+def test_paths_that_cannot_run_it_refuse_by_name():
+    with pytest.raises(ValueError, match="backend must be 'python', 'compiled' or 'auto'"):
+        simulate_sensitivity(BouncingBall(), [H0, 0.0], t_max=1.0, backend="vectorized")
+    with pytest.raises(ValueError, match="vectorized system's batches do not carry"):
         simulate_sensitivity(BouncingBall(vectorized=True), [H0, 0.0], t_max=1.0)
+    # Jacobians given are used on the Python path only: compiled refuses, auto
+    # runs the Python path (nothing is compiled to decide either)
+    with pytest.raises(TypeError, match="BallJ gives flow_jacobian.*backend='python'"):
+        simulate_sensitivity(BallJ(), [H0, 0.0], t_max=1.0, backend="compiled")
+    a = simulate_sensitivity(BallJ(), [H0, 0.0], t_max=1.0, backend="auto")
+    b = simulate_sensitivity(BallJ(), [H0, 0.0], t_max=1.0)
+    np.testing.assert_array_equal(a.S, b.S)
+    if available():          # auto: a map that cannot run compiled says why, once
+        from hybridsim.compiled import FallbackWarning
+
+        class Drawn(IndicatorBall):
+            def flow_map(self, x):
+                return np.array([x[1], -G + 0.0 * random.random()])
+        with pytest.warns(FallbackWarning, match=r"Drawn\.flow_map .*random"):
+            a = simulate_sensitivity(Drawn(), [H0, 0.0], t_max=1.0, backend="auto")
+        np.testing.assert_array_equal(
+            a.S, simulate_sensitivity(Drawn(), [H0, 0.0], t_max=1.0).S)
+    ic = hs.Interconnection({"ball": BouncingBall()})
+    with pytest.raises(TypeError, match="Interconnection is an interconnection: its jump"):
+        simulate_sensitivity(ic, [H0, 0.0], t_max=1.0, backend="compiled")
+
+
+class BallJ(BouncingBall):
+    """The library's ball with its Jacobians written out."""
+
+    def flow_jacobian(self, x):
+        return np.array([[0.0, 1.0], [0.0, 0.0]])
+
+    def jump_jacobian(self, x):
+        return np.array([[0.0, 0.0], [0.0, -self.e]])
+
+    def jump_guard_gradient(self, x):
+        return np.array([-1.0, 0.0])
+
+
+# ----------------------------------------------------------------------- compiled path
+class IndicatorBall(hs.HybridSystem):
+    """The ball given by its sets only: no guard written (derived from the sets)."""
+
+    state_dim = 2
+
+    def __init__(self, e=E):
+        self.e = e
+
+    def flow_map(self, x):
+        return np.array([x[1], -G])
+
+    def jump_map(self, x):
+        return np.array([0.0, -self.e * x[1]])
+
+    def flow_set(self, x):
+        return x[0] >= 0
+
+    def jump_set(self, x):
+        return x[0] <= 0 and x[1] <= 0
+
+
+def _indicator_ball(p):
+    return IndicatorBall(p[0])
+
+
+COMPILED = pytest.param("compiled", marks=[
+    pytest.mark.slow,    # the variational maps compile once per process (~8 s of CPU)
+    pytest.mark.skipif(not available(), reason="needs numba")])
+
+
+@pytest.mark.parametrize("backend", ["python", COMPILED])
+@pytest.mark.parametrize("rtol", [1e-6, 1e-8, 1e-10])
+def test_indicator_only_ball_10_bounces_closed_form(rtol, backend):
+    # issue 42's figure: no guard given, the guards derived from the sets;
+    # d t_k / d h0 and d t_k / d e for 10 bounces equal the closed form to
+    # 1e-9 relative at every rtol (RK45 is exact on the parabolas; what is
+    # left is event location and the central differences, ~1e-11)
+    assert IndicatorBall().jump_guard is not None
+    tk, dt_dh0, dt_de = ball_closed_forms(10)
+    sarc = simulate_sensitivity(_indicator_ball, [H0, 0.0], t_max=tk[-1] + 0.1, j_max=10,
+                                params=[E], rtol=rtol, backend=backend)
+    assert sarc.arc.jump_count == 10 and sarc.undefined is None
+    np.testing.assert_allclose(sarc.jump_times, tk, rtol=1e-12)
+    np.testing.assert_allclose(sarc.dtj_dx0[:, 0], dt_dh0, rtol=1e-9)
+    assert sarc.dtj_dp[0, 0] == pytest.approx(0.0, abs=1e-12)
+    np.testing.assert_allclose(sarc.dtj_dp[1:, 0], dt_de[1:], rtol=1e-9)
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not available(), reason="needs numba")
+def test_compiled_path_equals_the_python_path():
+    """The same variational system on both paths: the same samples (the same
+    solver steps) and sensitivities to rounding, 1e-9 relative to the
+    largest entry (central differences over rounding-level differences of
+    the states); the flags of undefined jumps alike."""
+    def same(a, b):
+        assert a.arc.jump_count == b.arc.jump_count and a.t.shape == b.t.shape
+        np.testing.assert_allclose(a.t, b.t, rtol=1e-12, atol=1e-12)
+        for u, v in ((a.S, b.S), (a.dtj_dtheta, b.dtj_dtheta)):
+            scale = max(1.0, float(np.nanmax(np.abs(v))))
+            np.testing.assert_allclose(u, v, rtol=1e-9, atol=1e-9 * scale)
+    kw = dict(t_max=9.0, j_max=30, params=[E])
+    same(simulate_sensitivity(ball, [H0, 0.0], backend="compiled", **kw),
+         simulate_sensitivity(ball, [H0, 0.0], **kw))
+    # a parameter in the guard, a time-dependent jump, an explicit D
+
+    def make(p):
+        return hs.HybridSystem.from_functions(
+            f=lambda x: np.array([1.0]), g=lambda x, t: np.array([x[0] + t]),
+            jump_guard=lambda x: x[0] - p[0],
+            D=lambda x: p[0] <= x[0] < p[0] + 0.5, state_dim=1)
+    a = simulate_sensitivity(make, [0.0], t_max=1.5, params=[1.0], backend="compiled")
+    same(a, simulate_sensitivity(make, [0.0], t_max=1.5, params=[1.0]))
+    np.testing.assert_allclose(a.dtj_dtheta[0], [-1.0, 1.0], rtol=1e-9)
+    # auto takes the compiled path here, and the same numbers
+    same(simulate_sensitivity(make, [0.0], t_max=1.5, params=[1.0], backend="auto"), a)
+    # an undefined jump is named the same way on both paths
+    corner = hs.HybridSystem.from_functions(
+        f=lambda x: np.array([1.0, 1.0]), g=lambda x: np.zeros(2),
+        jump_guard=lambda x: np.array([x[0] - 1.0, x[1] - 1.0]), state_dim=2)
+    for backend in ("python", "compiled"):
+        with pytest.raises(SensitivityError, match=r"simultaneous guards: components \[0, 1\]"):
+            simulate_sensitivity(corner, [0.0, 0.0], t_max=1.5, backend=backend)
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not available(), reason="needs numba")
+def test_a_factorys_systems_are_read_through_one_plan():
+    # the systems make_system(p) builds share their first one's plan: each
+    # one's p read through it equals that system lowered on its own
+    from hybridsim import _variational
+    from hybridsim.compiled import lower
+    _variational._lowered(IndicatorBall(0.7))
+    for e in (0.3, 0.9):
+        maps, p = _variational._lowered(IndicatorBall(e))
+        own = lower(IndicatorBall(e))
+        np.testing.assert_array_equal(p, own.params)
+        assert maps is _variational._STRUCTURES[_variational._structure(IndicatorBall())][1].maps
+    # a system with a helper function on the instance is lowered itself
+    b = IndicatorBall(0.5)
+    b.helper = lambda v: v
+    s0 = IndicatorBall(0.7)
+    assert _variational._reread(s0, lower(s0).layout, b) is None
+    assert _variational._reread(s0, lower(s0).layout, IndicatorBall(0.5)) is not None
 
 
 @pytest.mark.parametrize("kwargs, exc, match", [

@@ -27,7 +27,7 @@ LEVELS = (
                       "estimate", "arch"}),
     ("front door", {"run", "batch"}),
     ("paths", {"solve", "batch_vectorized", "compiled",
-               "_sde", "_random_jumps"}),
+               "_sde", "_random_jumps", "_variational"}),
     ("shared and data", {"rules", "options", "events", "_rk", "_progress", "_version",
                          "system", "compose", "history", "arc", "arc_batch", "library", "_source",
                          "brownian"}),
