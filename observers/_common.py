@@ -374,13 +374,19 @@ def _signature_problems(name, fn, positional, keyword_only, var_keyword):
     return problems
 
 
+#: submodules a paper package may add to the six of the layout
+#: (``monte_carlo``: its noise and gap studies as estimates with confidence)
+OPTIONAL_SUBMODULES = ("monte_carlo",)
+
+
 def contract_problems(package):
     """What a paper package does not keep of :data:`CONTRACT` (empty: it keeps all).
 
     Checks that every contract name is exported (in ``__all__``) and defined
     in its file (``simulate``/``errors`` in ``example.py``, ``FIGURES``,
     ``NOT_REPRODUCED`` and ``reproduce`` in ``figures.py``, ``CLAIMS`` in
-    ``claims.py``, ``PROBLEMS`` in ``falsification.py``), the signatures of
+    ``claims.py``, ``PROBLEMS`` in ``falsification.py``; a package may add
+    the submodules of :data:`OPTIONAL_SUBMODULES`), the signatures of
     ``simulate``, ``errors`` and ``reproduce``, the types of the registries,
     that ``__all__`` is the union of the submodules' ``__all__``, that no
     object is exported under two names (no aliases), and that every
@@ -415,6 +421,11 @@ def contract_problems(package):
             subs[sub] = importlib.import_module(f"{name}.{sub}")
         except ImportError as exc:
             problems.append(f"{name}.{sub} cannot be imported: {exc}")
+    for sub in OPTIONAL_SUBMODULES:
+        try:
+            subs[sub] = importlib.import_module(f"{name}.{sub}")
+        except ModuleNotFoundError:
+            pass
     union = {"PAPER", "ERRATA", "DECISIONS"}
     for sub, mod in subs.items():
         if not hasattr(mod, "__all__"):

@@ -139,4 +139,4 @@ DECISIONS = [
 ]
 
 __all__ = ["PAPER", "ERRATA", "DECISIONS", *design.__all__, *systems.__all__, *example.__all__,
-           *figures.__all__, *claims.__all__, *falsification.__all__, *monte_carlo.__all__]
+           *figures.__all__, *claims.__all__, *monte_carlo.__all__, *falsification.__all__]
