@@ -23,6 +23,12 @@ import numpy as np
 import pytest
 
 
+def pytest_xdist_auto_num_workers(config):
+    """``-n auto``: one worker per core, at most 4 (each holds its own
+    compiled kernels, about 1 GB with the papers' packages loaded)."""
+    return max(1, min(os.cpu_count() or 1, 4))
+
+
 def pytest_collection_modifyitems(config, items):
     """The compiled path's doctests compile numba kernels (tens of seconds on a
     fresh machine): slow, like tests/integration/test_compiled.py."""

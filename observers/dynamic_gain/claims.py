@@ -124,7 +124,7 @@ CLAIMS = [
           paper_value=5.0, compute=_T_prescribed, tol=1e-4,
           tol_why=f"{_RADAU}: v carries an absolute error ~1e-15..1e-14 near v = z_min "
                   "= 1e-12, i.e. ~1e-6..1e-5 s at |v'| = gamma1 v^(1-mu); 1e-4 as in "
-                  "tests/papers/dynamic_gain/test_dynamic_gain.py"),
+                  "tests/papers/dynamic_gain/test_dynamic_gain.py", slow=True),
     Claim(id="000-fig1a-exact-after-T", paper="000", where="Prop. 4, (18)",
           statement="For gamma2 = 0 the error is exactly zero from T = 5 on: max |e_i(t)| "
                     "over t >= T.",

@@ -316,7 +316,7 @@ CLAIMS = [
           reason="expected blow-ups: psi_2 of (7) grows like e^(47 t) at k = 75 (ERRATA 3), "
                  "so both literal runs stop at t ~ 0.56-0.57 s; the reset realisation "
                  "(decision 8) reaches the horizon (claim 004-thm1-exact-k75)",
-          reference=1.0),
+          reference=1.0, slow=True),
     Claim(id="004-eq15-bound", paper="004", where="Thm 1, (15)",
           statement="Under disturbances |xi_1 - xi_e| <= the right side of (15) "
                     "(k = 100, t = 0.1 ... 0.4 s): 1 if it holds.",
@@ -362,7 +362,7 @@ CLAIMS = [
                     "errors stay below 1 after 0.15 s: max over the solutions of max "
                     "|xi_1 - xi_e| from 0.15 s to the fifth sample.",
           paper_value=1.0, relation="<=", compute=_every_gap_sequence_error, tol=0.0,
-          tol_why="a one-sided bound; the worst solution measures 0.056, far below 1"),
+          tol_why="a one-sided bound; the worst solution measures 0.056, far below 1", slow=True),
     Claim(id="004-thm2-gap-tree-size", paper="004", where="Thm 2, (36)",
           statement="The tree of the every-sequence claim has one solution per sequence of "
                     "four gaps from {0.05, 0.075, 0.1}: 3^4 (never merged: equal states with "

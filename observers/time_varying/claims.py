@@ -483,7 +483,7 @@ CLAIMS = [
                     "recorded v2 and xi3) at t = 2 pi + 1 and t = 15.",
           paper_value=None, reference=0.0, compute=_loop_residual, tol=1e-8,
           tol_why="quadrature at epsrel 1e-10 on the dense output (rtol 1e-10), integrands up "
-                  "to e^{4 pi} divided by e^{4 pi} - 1"),
+                  "to e^{4 pi} divided by e^{4 pi} - 1", slow=True),
     Claim(id="001-eq58-exact", paper=_ID, where="(50), (58)",
           statement="Inside the loop (v2 from (58)) the estimate of xi2 is exact for "
                     "t >= 2 pi + sqrt|x1(0)|.",

@@ -104,6 +104,7 @@ def test_union_stopping_covers_under_optional_stopping():
     assert hits >= 100 * 0.95 - 3 * math.sqrt(100 * 0.95 * 0.05)
 
 
+@pytest.mark.slow
 def test_estimate_through_simulate_many_with_a_claim():
     # P(the timer's period < 1) = 1/2 with the period uniform in [0.5, 1.5]: a claim whose
     # margin is the first jump time minus 1, run as one simulate_many a batch

@@ -102,6 +102,7 @@ def test_a_constant_dwell_is_a_priority(dwell, priority):
     assert a.jump_count == (7 if dwell == 0 else 3)
 
 
+@pytest.mark.slow
 def test_dwell_law_passes_kolmogorov_smirnov_at_three_step_sizes():
     """The time spent in C ∩ D = [1, 10] before each reset is the declared law,
     Exp(mean 0.5) (P(> 9) = e^-18: never cut by leaving C), whatever max_step:
@@ -298,6 +299,7 @@ def _same_sets(a, b):
     return covered(sa, sb) and covered(sb, sa)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", range(6))
 def test_leaves_are_the_solutions_of_every_choice_sequence(seed):
     """Seeded random cases: a window [T1, T2] in C for tau, a drift on z, k in
@@ -673,6 +675,7 @@ def test_a_past_is_continued_not_restarted():
     np.testing.assert_allclose(flows[0].x[-1, 0], 1 - t + (t - 1) ** 2 / 2, atol=1e-9)
 
 
+@pytest.mark.slow
 def test_a_past_read_across_a_thousand_branch_points():
     """A forced reset every 0.01 (each jump a new branch of the tree) and a delay of
     11: x(t - 11) is read back through ~1,100 parents' pasts, a chain deeper than
@@ -702,6 +705,7 @@ def test_a_past_read_across_a_thousand_branch_points():
     np.testing.assert_allclose(leaf.x[-1, 2], t_end ** 2 / 2 - 10 * t_end, atol=1e-8)
 
 
+@pytest.mark.slow
 def test_an_integral_of_the_past_is_read_across_branch_points():
     """x0' = 1 - int_{t-1.5}^{t-0.5} x0(s) cos s ds with a prehistory sin s and a forced
     reset of a timer every 0.1: the window reaches back over up to 15 branch points

@@ -261,6 +261,7 @@ def test_signal_classes_hold_their_bound():
     assert np.allclose(Gaps.times(g, 1.0), [1.05, 1.15, 1.22, 1.32])
 
 
+@pytest.mark.slow
 def test_noise_counterexample_through_a_signal_entry():
     """A first-order filter x' = -x + m(t), |m| <= 0.5: |x(2)| <= 0.4 holds
     for constant noise of size below 0.4 / (1 - e^-2) ~ 0.46 only, so the

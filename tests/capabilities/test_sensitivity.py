@@ -586,6 +586,7 @@ def test_ball_sensitivity_example(tmp_path):
     plt.close(fig)
 
 
+@pytest.mark.slow
 def test_observer_gain_tuning_example(tmp_path):
     import matplotlib.pyplot as plt
 
@@ -683,6 +684,7 @@ def _ls_example():
     return runpy.run_path(str(EXAMPLES / "li_sanfelice_gain_tuning.py"), run_name="example")
 
 
+@pytest.mark.slow
 def test_a_paper_observer_in_an_interconnection_matches_differences():
     """Li & Sanfelice's H_n wired to its plant and a cost integrator
     (examples/li_sanfelice_gain_tuning.py): dJ/dk, with the gains (12) and so

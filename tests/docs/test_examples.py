@@ -168,6 +168,7 @@ def test_timer(tmp_path):
     assert arc.x[:, 0].min() >= 0 and arc.x[:, 0].max() <= 1 + 1e-14
 
 
+@pytest.mark.slow
 def test_falsify_overshoot_finds_the_half_degree_claim_false(capsys):
     """The worked falsification example: with |m| <= 1 the temperature reaches
     z_max + 1 (or z_min - 1) exactly, so "within 0.5" fails by 0.5 and

@@ -61,6 +61,7 @@ def _signs_agree(S, h, x):
     return (inside or v <= 0.0) and (not inside or v >= 0.0)
 
 
+@pytest.mark.slow
 @settings(max_examples=300, deadline=None)
 @given(st.lists(st.floats(-5.0, 5.0, allow_nan=False, width=64), min_size=2, max_size=2),
        st.sampled_from(range(len(SETS))))

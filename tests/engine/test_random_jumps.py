@@ -66,6 +66,7 @@ def test_telegraph_second_moment():
     assert abs(s.mean[0, 0] - exact) <= 3 * s.std_error[0, 0], (s.mean, s.std_error, exact)
 
 
+@pytest.mark.slow
 def test_brownian_hitting_time_with_drift():
     mu, sig, b = 1.0, 1.0, 2.0
     bm = DriftedBrownian(mu, sig, b)
@@ -80,6 +81,7 @@ def test_brownian_hitting_time_with_drift():
     assert abs(tau.var(ddof=1) - var) <= 3 * math.sqrt((mu4 - var ** 2) / n)
 
 
+@pytest.mark.slow
 def test_ball_with_random_restitution():
     g, h0, lo, hi = 9.81, 1.0, 0.3, 0.7
     m = 0.5 * (lo + hi)

@@ -40,6 +40,7 @@ def hits(system, dt, runs, seed0=0):
     return np.array(times)
 
 
+@pytest.mark.slow
 def test_barrier_probability_with_the_bridge_correction_and_the_bias_without():
     # 2000 paths at dt = 0.1: se 0.0104
     N, dt = 2000, 0.1
@@ -79,6 +80,7 @@ def strong_error(method, h, runs=100, mu=0.5, s=0.8):
     return float(np.mean(err))
 
 
+@pytest.mark.slow
 def test_strong_orders_on_the_same_paths():
     # one path per run whatever the step (a BrownianPath as the seed): EM's error falls
     # by about 2^(1/2) per halving, Milstein's by about 2; over 4 halvings (16x smaller h):
@@ -101,6 +103,7 @@ def ou_error(method, h, runs=40):
     return float(np.mean(err))
 
 
+@pytest.mark.slow
 def test_sra1_is_strong_order_1_5_on_additive_noise():
     # Ornstein-Uhlenbeck dX = -X dt + 0.5 dW against SRA1 at h = 2^-9 on the same path:
     # SRA1's error falls by 2^1.5 = 2.8 per halving (8 over two), EM's (order 1 for additive

@@ -233,6 +233,7 @@ def test_the_kernels_compile_at_their_own_optimisation_level_and_restore_numbas(
         cfg.OPT = before
 
 
+@pytest.mark.slow
 def test_systems_with_and_without_delays_take_their_own_kernel():
     from hybridsim.compiled import CompiledSystem, simulate_compiled
     plain = CompiledSystem(flow=lambda x, t, j, p: -x, state_dim=1)

@@ -189,6 +189,7 @@ def test_a_large_batchs_pool_is_mapped_memory_and_its_arcs_are_the_single_runs(r
 
 
 # ------------------------------------------------------------------ a timer
+@pytest.mark.slow
 def test_timer_jump_at_t_max_refined_samples_stored_once(timer):
     a = simulate_compiled(timer, [0.0], t_max=1.0, refine=2)
     b = hs.simulate(timer, [0.0], t_max=1.0, refine=2)

@@ -59,6 +59,7 @@ def test_each_row_reads_its_own_delay_as_the_python_path_does():
         np.testing.assert_allclose(b.x[early, 0], 1.0 - K * b.t[early], atol=1e-9)
 
 
+@pytest.mark.slow
 def test_falsify_finds_the_delay_margin_and_nothing_below_it():
     """Over tau in [0.2, 1.3] the search finds a counterexample past the delay margin
     pi / (2 K) = 1.047 (each population one batch); over [0.2, 0.9] (k tau <= 1.35 <

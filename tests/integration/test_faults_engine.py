@@ -67,6 +67,7 @@ def test_zeno_short_reads_the_runs_own_flows():
     assert not short and ref == 0.0
 
 
+@pytest.mark.slow
 @pytest.mark.paths(compiled_slow=True)
 def test_a_1khz_timer_is_not_zeno_whatever_the_horizon(path):
     """Each 1 ms flow is below zeno_rtol (1e-7) times the horizon 1e6: today's

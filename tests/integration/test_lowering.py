@@ -43,6 +43,7 @@ def _run(path, system, x0, **kw):
     return hs.simulate(system, x0, backend="compiled", **kw)
 
 
+@pytest.mark.paths(compiled_slow=True)
 def test_a_cascade_runs_on_every_path_and_agrees(path):
     """Luenberger observer of a damped oscillator: the error e = xhat - x obeys
     e' = (A - L C) e on every path (checked against expm to 1e-8)."""
@@ -83,6 +84,7 @@ class Sampler(hs.HybridSystem):
         return out
 
 
+@pytest.mark.paths(compiled_slow=True)
 def test_a_component_with_jumps_samples_a_linear_combination(path):
     """plant x' = A x; a sampler holding u = 2 x1 - x2 (a LinearInput matrix)
     every 0.3 s: jumps at k 0.3, the held value equal to u at the jump."""
@@ -114,6 +116,7 @@ class Agent(hs.HybridSystem):
         return u - self.deg * x
 
 
+@pytest.mark.paths(compiled_slow=True)
 def test_a_network_over_a_graph_reaches_consensus_on_every_path(path):
     """Directed ring of 5 agents, x_i' = x_{i-1} - x_i: the average is kept
     (the Laplacian of a ring is balanced) and every agent reaches it."""
@@ -140,6 +143,7 @@ def test_a_second_system_of_the_same_structure_compiles_nothing():
     assert lower(s1) is c1                       # cached on the system
 
 
+@pytest.mark.slow
 @needs_numba
 def test_a_compiled_system_is_a_component_too():
     """A CompiledSystem (maps of (x, t, j, p)) stacks with a LinearPlant."""
@@ -290,6 +294,7 @@ def test_a_component_of_the_wrong_size_is_named_before_compiling():
         lower(Bad())
 
 
+@pytest.mark.slow
 @needs_numba
 def test_auto_picks_compiled_where_the_system_allows_it(monkeypatch):
     """backend="auto": compiled for a lowerable system at RK45 or DOP853, the
@@ -425,6 +430,7 @@ def _random_loop(seed):
     return sys, x0
 
 
+@pytest.mark.paths(compiled_slow=True)
 @pytest.mark.parametrize("seed", range(4))
 def test_random_feedback_loops_agree_with_the_python_path(path, seed):
     """Seeded random feedback loops of linear plants with a sampler: jump times

@@ -138,6 +138,7 @@ def test_an_attribute_that_changes_shape_rewrites_the_maps():
     np.testing.assert_allclose(b.xf, np.exp([-1.0, -2.0]), rtol=1e-9)
 
 
+@pytest.mark.slow
 def test_from_functions_with_closures_and_defaults_over_numbers():
     def make(rate):
         return hs.HybridSystem.from_functions(
@@ -161,6 +162,7 @@ def test_from_functions_with_closures_and_defaults_over_numbers():
         np.testing.assert_allclose(a.jump_times, b.jump_times, rtol=1e-8)
 
 
+@pytest.mark.slow
 def test_a_matrix_attribute_and_module_functions():
     class Osc(hs.HybridSystem):
         state_dim = 2
@@ -311,6 +313,7 @@ def _fall(x):
     return np.array([x[1], -GRAVITY])
 
 
+@pytest.mark.slow
 def test_module_globals_and_followed_functions_are_read_per_run():
     global GRAVITY
     scale = 1.0

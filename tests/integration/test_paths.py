@@ -77,6 +77,7 @@ def assert_invariants(arc, case, priority, t_max, j_max):
     assert arc.stats is not None and {"steps", "nfev", "events", "flows"} <= set(arc.stats)
 
 
+@pytest.mark.slow
 @FUZZ
 @given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 3), with_C=st.booleans(),
        sets=st.sampled_from(SETS), priority=st.sampled_from(["jumps", "flows"]),
@@ -117,7 +118,7 @@ def test_every_path_gives_the_python_paths_samples(path, seed, n, with_C, sets, 
             np.testing.assert_allclose(arc.at(t, j), ref.at(t, j), rtol=1e-6, atol=1e-7)
 
 
-@pytest.mark.paths(only=("vectorized", "compiled"))
+@pytest.mark.paths(compiled_slow=True, only=("vectorized", "compiled"))
 @FUZZ
 @given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 3), with_C=st.booleans(),
        sets=st.sampled_from(SETS), priority=st.sampled_from(["jumps", "flows"]),
@@ -479,6 +480,7 @@ def test_dop853_with_delays_is_the_python_paths_and_refused_by_name_elsewhere(pa
         _run_lag(path, _Lag(), [1.0, 0.0], **kw)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", range(4))
 def test_delay_systems_with_jumps_agree_on_the_python_and_vectorized_paths(seed):
     """Seeded random delays, gains, resets and forcing: a batch of 6 rows on the
@@ -628,6 +630,7 @@ class _Window(_Lag):
         return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", range(2))
 def test_an_integral_of_the_past_agrees_on_the_python_and_vectorized_paths(seed):
     """Each row's window integral on the vectorized path (Gauss-Legendre on its own

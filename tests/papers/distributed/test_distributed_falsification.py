@@ -233,6 +233,7 @@ def test_delays_break_the_finite_time_at_the_first_run():
     assert r.search.arc is not None and r.search.arc.t[-1] == pytest.approx(10.0)
 
 
+@pytest.mark.slow
 def test_delay_bounded_holds_on_a_small_budget():
     """A fiftieth of the budget (4 runs each for the search and the
     baseline, ~3 s): no counterexample; the worst margin is positive."""

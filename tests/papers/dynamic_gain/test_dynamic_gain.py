@@ -228,12 +228,14 @@ def _check_prescribed(arc, obs, e0, v0, L, mu, g1):
     assert ts == pytest.approx(_closed_form_settle(e0, v0, L, mu, g1), abs=0.01)
 
 
+@pytest.mark.slow
 def test_prescribed_time_example_settles_at_T_equal_5():
     d = dg.fig1_data()                    # Fig. 1's run (to t = 10), shared with the claims
     obs, arc = d.observers["prescribed-time"], d.arcs["prescribed-time"]
     _check_prescribed(arc, obs, E0_EX, 1.0, L_PAPER, MU, G1)
 
 
+@pytest.mark.slow
 def test_prescribed_time_v0_not_1_uses_18_not_section_vi():
     """v(0) = 2: T = 2^0.2/0.2 = 5.74 by (18); Section VI's v(0)/(mu gamma1) = 10 is wrong."""
     obs = prescribed_time_observer(L_PAPER, MU, G1, b=B3)
@@ -242,6 +244,7 @@ def test_prescribed_time_v0_not_1_uses_18_not_section_vi():
     assert arc.jump_times[0] < 6.0 < 2.0 / (MU * G1)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [3, 4])
 def test_prescribed_time_random_cases(seed):
     rng = np.random.default_rng(seed)
@@ -302,6 +305,7 @@ def test_proposed_example_settles_within_bounds(P_paper):
     assert T <= 8.0          # Section VI: "not later than 8 seconds" (Fig. 1a), one-sided
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_proposed_random_cases(seed):
     rng = np.random.default_rng(seed)
@@ -521,6 +525,7 @@ def test_paper_metadata():
 
 
 # ---------------------------------------------------------------- referee items (issue 23)
+@pytest.mark.slow
 def test_1e_6_crossing_is_located_between_samples():
     """Referee 1: the crossing was the last sample above 1e-6 (5 ms early for gamma2 = 0).
     Now it lies between that sample and the next, where max|e| = 1e-6 on the arc's

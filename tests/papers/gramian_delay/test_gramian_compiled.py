@@ -112,6 +112,7 @@ def pair_system(tau=1.0, taus=(0.5, 1.0)):
     return hs.connect(Lag(1.0, tau), Pair(0.5, taus), names=("lag", "pair"))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("taus", [(1.0, (0.5, 1.0)), (0.8, (0.3, 0.6))])
 def test_parts_reading_their_past_lower_with_their_own_slices(taus):
     """Two parts, delays (1.0) and (0.5, 1.0) (then (0.8) and (0.3, 0.6)): the
@@ -211,6 +212,7 @@ def motor():
 
 # period in the default suite; instants and gaps (their own compiled maps, 8-14 s
 # each to compile) with the slow tests
+@pytest.mark.slow
 @pytest.mark.parametrize("case", [pytest.param(c, marks=() if c == "period" else
                                                pytest.mark.slow) for c in sorted(CASES)])
 def test_39_lowered_agrees_with_its_python_path(motor, case):

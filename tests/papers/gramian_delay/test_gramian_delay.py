@@ -564,6 +564,7 @@ def _theorem2_case(seed, estimate, disturbed, q, m, use_instants):
     return arc, obs, c, m, sup_dist
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed,estimate,disturbed,q,m,use_instants", [
     (40, "omega", False, 1, 1, True),
     (41, "xi2", False, 1, 1, False),
@@ -862,6 +863,7 @@ def test_fig3_is_listed_as_not_reproduced():
     assert {f.title for f in gd.FIGURES} >= {"Fig. 1", "Fig. 2"}
 
 
+@pytest.mark.slow
 def test_expected_blowups_are_logged_not_warned(caplog):
     """Referee: the literal k = 75 runs end by BLOWUP (expected) without a warning, with a
     log line saying it is expected; the claim 004-fig2-k75-literal-blowup records it."""
@@ -924,6 +926,7 @@ def test_fig2_data_and_drawing():
     assert "Theorem 1 at t = 0.57 s, Theorem 2 at t = 0.56 s" in cap
 
 
+@pytest.mark.slow
 def test_periods_data_small_grid_and_drawing():
     """The periods study on a small grid: omega converges at T = 0.01 and diverges at
     0.0175 (the main job's bracket is 0.0169-0.0172), xi_2 converges at both."""
@@ -968,6 +971,7 @@ def test_gap_window_is_the_inclusion_of_36():
 
 
 # ---------------------------------------------------------------- batches (simulate_many)
+@pytest.mark.slow
 @pytest.mark.parametrize("kind, kw", [
     ("sampled", dict(period=0.01)),
     ("sampled", dict(period=0.1, estimate="xi2")),

@@ -1014,6 +1014,7 @@ def _legend(ax):
     return [t.get_text() for t in ax.get_legend().get_texts()]
 
 
+@pytest.mark.slow
 def test_figures_drawn_from_their_data():
     # every figure drawn once (on matplotlib.figure.Figure, not pyplot), its artists read back
     import matplotlib.pyplot as plt

@@ -84,6 +84,7 @@ def test_closed_form_is_the_packages_bound():
     assert _sup_ratio(F.VB_PARAMS)[0] <= 1.0
 
 
+@pytest.mark.slow
 def test_printed_thm47_falsified():
     """The search finds a counterexample to the printed constant from the statement alone;
     the point is in the region the closed form predicts (k2/k1 < 3, w1 != w2, ratio > 1)
