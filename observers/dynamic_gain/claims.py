@@ -129,7 +129,7 @@ CLAIMS = [
           statement="For gamma2 = 0 the error is exactly zero from T = 5 on: max |e_i(t)| "
                     "over t >= T.",
           paper_value=None, reference=0.0, compute=_exact_after_T, tol=1e-7,
-          tol_why=f"{_RADAU} on states of size ~10 (e = x - x_hat is a difference)"),
+          tol_why=f"{_RADAU} on states of size ~10 (e = x - x_hat is a difference)", slow=True),
     Claim(id="000-secVI-T-formula", paper="000", where="Sec. VI vs (18)",
           statement="Section VI writes T = v(0)/(mu gamma1); with v(0) = 2 this gives 10 s. "
                     "Ours: the simulated settling time of the gamma2 = 0 observer from "
@@ -140,7 +140,7 @@ CLAIMS = [
           reason="erratum: Section VI's T = v(0)/(mu gamma1) should read v(0)^mu/(mu gamma1) "
                  "as in (18) and Remark 1 (v' = -gamma1 v^(1-mu)); the two agree only for "
                  "v(0) = 1. Reference: 2^0.2/0.2.",
-          reference=2 ** 0.2 / 0.2),
+          reference=2 ** 0.2 / 0.2, slow=True),
     Claim(id="000-fig1a-settling-gamma2-1", paper="000", where="Fig. 1a, Sec. VI",
           statement="With gamma2 = 1 the norm ||xi||_r reaches the origin 'not later than in 8 "
                     "seconds'. Settling time := Proposition 4's T(e(0), v(0)), the time v "

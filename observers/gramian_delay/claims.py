@@ -368,7 +368,7 @@ CLAIMS = [
                     "four gaps from {0.05, 0.075, 0.1}: 3^4 (never merged: equal states with "
                     "different pasts are different solutions of the delay equation).",
           paper_value=None, compute=lambda: float(len(_gap_tree()[0])), reference=81.0,
-          tol=0.0, tol_why="a count"),
+          tol=0.0, tol_why="a count", slow=True),
     Claim(id="004-eq39-A2-typo", paper="004", where="(39), (45)",
           statement="The xi_hat2 flow of (39) is A2 xi_hat2 - k xi_hat2 + F2: A2 (q x (n-q)) "
                     "times xi_hat2 (q) needs A2 to have q = 1 columns on the DC motor.",
@@ -387,6 +387,6 @@ CLAIMS = [
           tol=1.0 - 0.025 ** (1 / GAPS_RUNS) + 1e-12,
           tol_why=f"all N = {GAPS_RUNS} runs below 1 give the lower bound 0.025^(1/N) = "
                   f"{0.025 ** (1 / GAPS_RUNS):.4f} (beta.ppf(0.025, N, 1)); one run above it "
-                  "would give less"),
+                  "would give less", slow=True),
 ]
 

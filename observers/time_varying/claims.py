@@ -488,7 +488,7 @@ CLAIMS = [
           statement="Inside the loop (v2 from (58)) the estimate of xi2 is exact for "
                     "t >= 2 pi + sqrt|x1(0)|.",
           paper_value=None, reference=0.0, compute=_loop_exact, tol=1e-8,
-          tol_why="as 001-eq50-exact (measured 3e-10)"),
+          tol_why="as 001-eq50-exact (measured 3e-10)", slow=True),
     Claim(id="001-eq55-nu", paper=_ID, where="(53)-(55)",
           statement="nu = |zeta|^2 / 2 is non-increasing under (57) (largest increase between "
                     "samples once the estimate is exact).",

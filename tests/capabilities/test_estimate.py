@@ -94,6 +94,7 @@ def test_union_stopping_is_wider_than_plain():
     assert (u.lo, u.hi) == clopper_pearson(u.k, u.n, 1 - 0.05 / 12)
 
 
+@pytest.mark.slow
 def test_union_stopping_covers_under_optional_stopping():
     # 100 studies of p = 0.05 stopping at half-width 0.03: the union intervals cover in
     # at least 95% of them (conservative: observed coverage near 1); binomial slack 3 sd
@@ -188,6 +189,7 @@ def test_stats_match_numpy_and_merge_equals_whole():
     np.testing.assert_array_equal(a.hist, s.hist)
 
 
+@pytest.mark.slow
 def test_stats_state_size_is_independent_of_runs():
     # bounded memory by design: the pickled state after 10 and after 5000 runs is the same size
     small = accumulate(const_arc, Stats(t=np.linspace(0, 1, 11), thresholds=[0.5],

@@ -574,6 +574,7 @@ def test_explore_thermostat_example(tmp_path, monkeypatch, capsys):
     assert "solutions" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_explore_jittery_sampling_example(tmp_path, monkeypatch, capsys):
     """The gallery's jittery sampling: 3^5 gap sequences merged at their distinct ends
     (the loop is linear and time-invariant: the gaps' order does not change the end),

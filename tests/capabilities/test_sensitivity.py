@@ -221,6 +221,7 @@ def _run(make, x0, p):
     return arc, np.concatenate([arc.xf, arc.jump_times])
 
 
+@pytest.mark.slow
 @settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.data())
 def test_random_affine_systems_match_finite_differences(data):

@@ -363,6 +363,7 @@ def brute(phi, arc, t, dt):
     return float(rho(phi)[k])
 
 
+@pytest.mark.slow
 @settings(max_examples=60, deadline=None, derandomize=True)
 @given(arc=pl_arcs(), phi=formulas(), a=st.sampled_from([0.0, 0.1, 0.3]))
 def test_robustness_against_a_fine_grid(arc, phi, a):
@@ -380,6 +381,7 @@ def test_robustness_against_a_fine_grid(arc, phi, a):
         assert np.sign(ours) == np.sign(ref)
 
 
+@pytest.mark.slow
 @settings(max_examples=60, deadline=None, derandomize=True)
 @given(arc=pl_arcs(), p=formulas(1), q=formulas(1), w=WIN)
 def test_duality_and_distribution(arc, p, q, w):

@@ -28,6 +28,7 @@ def moments(h, s=0.3):
     return d, m, integ
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("h", [0.125, 0.1])        # a dyadic step, and one that is not
 def test_increments_bridge_and_integral_moments(h):
     d, m, integ = moments(h)

@@ -41,6 +41,7 @@ def test_aimd_stationary_moments():
     assert th[:3] == [threshold(arc.stats["jump_seed"], k) for k in range(3)]
 
 
+@pytest.mark.slow
 def test_constant_rate_aimd_moments():
     arc = hs.simulate(AIMD(constant_rate=True), [1.0], t_max=8000.0, seed=2)
     (m1, s1), (m2, s2) = time_moments(arc, [1, 2], t_burn=20.0)
@@ -57,6 +58,7 @@ def test_rate_jumps_are_located_exactly_and_replay():
     assert arc.state_dim == 1 and arc.system is not None
 
 
+@pytest.mark.slow
 def test_telegraph_second_moment():
     lam, v, t = 1.0, 1.0, 1.0
     exact = v * v * (2 * lam * t - 1 + math.exp(-2 * lam * t)) / (2 * lam * lam)

@@ -123,6 +123,7 @@ def test_single_runs_and_batches_agree_on_timers(period, x0, n):
         assert_same(single, arc, 1e-12 * max(1.0, t_max))
 
 
+@pytest.mark.slow
 @FAST
 @given(lo=st.floats(15.0, 19.0), gap=st.floats(0.5, 5.0), a=st.floats(0.1, 2.0),
        T0=st.lists(st.floats(16.0, 25.0), min_size=1, max_size=3))

@@ -215,6 +215,7 @@ def _fields_of_arcs(arcs):
                 jump_offsets=np.concatenate([[0], np.cumsum(list(map(len, jt)))]))
 
 
+@pytest.mark.paths(compiled_slow=True)
 def test_batch_fields_are_the_arcs_on_every_path(path, monkeypatch):
     # rows ending at j_max and at t_max (different jump counts), and a failed row
     import hybridsim.arc as arc_mod

@@ -101,6 +101,7 @@ def ball_bad():
 
 
 # ------------------------------------------------------------------ the page's example
+@pytest.mark.slow
 def test_readme_example_runs_and_bounces_right(readme):
     arc, arcs, x0s = readme["arc"], readme["arcs"], readme["x0s"]
     assert arc.termination is T.J_MAX and arc.jump_count == 30
@@ -157,6 +158,7 @@ def test_batch_arcs_made_on_first_access_are_whole_arcs(readme, monkeypatch):
     assert "_pool" in arcs[r[4]].__dict__       # a missing name does not unpool
 
 
+@pytest.mark.slow
 def test_a_large_batchs_pool_is_mapped_memory_and_its_arcs_are_the_single_runs(readme):
     """A pool of 4 MiB or more is on fresh pages without numpy's huge-page
     advice (``_untouched``: an anonymous private map; the pages the batch never
@@ -205,6 +207,7 @@ def test_timer_jump_at_t_max_refined_samples_stored_once(timer):
 
 
 # ------------------------------------------------------------------ non-finite values
+@pytest.mark.slow
 def test_nan_guard_is_the_python_paths_failure_not_out_of_the_set():
     bad = CompiledSystem(one, zero, jump_guard=nan_near_jump, state_dim=1)
     a = simulate_compiled(bad, [0.0], t_max=3.0, throw=False)
@@ -230,6 +233,7 @@ def test_overflow_is_non_finite_not_outside_the_sets(readme):
     assert a.termination is not T.NOT_IN_SETS
 
 
+@pytest.mark.slow
 def test_map_error_at_x0_raises_with_a_map_error_arc(ball_bad):
     with pytest.raises(hs.MapError, match="flow_map") as e:
         simulate_compiled(ball_bad, [6.0, 0.0], t_max=1.0, throw=False)
@@ -304,6 +308,7 @@ def test_one_sigint_from_a_timer_thread_ends_a_single_run(timer):
 
 
 # ------------------------------------------------------------------ jump loops
+@pytest.mark.slow
 @pytest.mark.parametrize("kw", [dict(j_max=30), dict(j_max=math.inf, zeno_jumps=12)])
 def test_a_jump_loop_is_named_in_the_python_paths_words(kw):
     """Guards only: the ball at the floor stays in D = {-h >= 0} after each jump;

@@ -25,6 +25,7 @@ import math
 import pickle
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from paths import random_linear
@@ -57,6 +58,7 @@ def run(sysm, x0, priority, t_max, j_max):
                        atol=1e-11, dense=True, max_norm=1e6, max_steps=20_000, warn=False)
 
 
+@pytest.mark.slow
 @FUZZ
 @given(case=hybrid_systems())
 def test_arcs_of_random_hybrid_systems_keep_their_invariants(case, tmp_path_factory):

@@ -173,6 +173,7 @@ class Labelled(NoForm):
         return -x if self.label == "decay" else x
 
 
+@pytest.mark.paths(compiled_slow=True)
 def test_a_plain_part_runs_compiled_from_its_own_maps(path):
     """A plain model with an input (no compiled form) wired in an interconnection
     beside a LinearPlant: its maps and the plant's are rewritten as functions of

@@ -231,6 +231,7 @@ class PyRandom(hs.HybridSystem):
         return -x * random.random()              # the random module: refused
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("cls, words", [
     (Table, f"Table.flow_map \\(.*test_one_definition.py:{_LINE}\\): it reads self.table, "
             f"a dict \\(not a number or an array of numbers\\)"),
@@ -338,6 +339,7 @@ def test_module_globals_and_followed_functions_are_read_per_run():
             GRAVITY = 9.81
 
 
+@pytest.mark.slow
 def test_an_interconnection_of_plain_models_runs_compiled():
     """Each part's own maps rewritten (as functions of (x, u, t, j, p)): two
     README balls side by side, each with its own impacts, on both paths."""

@@ -91,6 +91,7 @@ def test_random_systems_keep_the_invariants_on_every_path(path, seed, n, with_C,
     assert_invariants(arc, case, priority, t_max, j_max)
 
 
+@pytest.mark.slow
 @pytest.mark.paths(only=("vectorized", "compiled"))
 @FUZZ
 @given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 3), with_C=st.booleans(),
@@ -502,7 +503,7 @@ def test_delay_systems_with_jumps_agree_on_the_python_and_vectorized_paths(seed)
         np.testing.assert_allclose(b.x[b.j > 0][:1], a.x[a.j > 0][:1], atol=1e-7)
 
 
-@pytest.mark.paths(only=("compiled",))
+@pytest.mark.paths(compiled_slow=True, only=("compiled",))
 @pytest.mark.parametrize("seed", range(4))
 def test_delay_systems_with_jumps_agree_on_the_python_and_compiled_paths(path, seed):
     """The seeded systems above as CompiledSystem twins: compiled single runs and

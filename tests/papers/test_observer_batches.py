@@ -189,6 +189,7 @@ def _hc_runs(design_name):
     return d, obs, sysm, x0s, arcs, loop, dop
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("design_name", ["random", "VB"])
 def test_hc_simulate_many_equals_simulate_loop(design_name):
     """simulate_many's batch integrator on H_c equals a loop of simulate (RK45) row by row.

@@ -441,6 +441,7 @@ def _timer_problem(pid, level, expect):
                    reason=f"periods reach 1.2 {EVIL}")
 
 
+@pytest.mark.slow
 def test_falsify_command_records_problems_and_the_report_shows_them(tmp_path, monkeypatch,
                                                                     capsys):
     mod = _fake("li_sanfelice", reproduce=_good)

@@ -223,6 +223,7 @@ def test_delay_level_is_the_recorded_reference():
     assert float(m) == pytest.approx(F.DELAY_LEVEL - ref, rel=1e-9)
 
 
+@pytest.mark.slow
 def test_delays_break_the_finite_time_at_the_first_run():
     """003-rem2-delay-finite-time: the first run is a counterexample (the
     errors follow the plant's decay, 1e-5-1e-3 at T, not 1e-8)."""

@@ -261,6 +261,7 @@ def test_prescribed_time_random_cases(seed):
     _check_prescribed(arc, obs, np.r_[0.0, x0 - xh0], v0, L, mu, g1)
 
 
+@pytest.mark.slow
 def test_prescribed_time_at_mu_boundary_section_iv():
     """mu = 1/(n+1) (Section IV's closed interval, outside Theorem 3): LMI (10) is still
     solvable (H > 0) and the prescribed-time observer still settles exactly at
@@ -298,6 +299,7 @@ def _check_proposed(arc, obs, e0, v0, L, mu, g1, g2, P):
     return T
 
 
+@pytest.mark.slow
 def test_proposed_example_settles_within_bounds(P_paper):
     d = dg.fig1_data()                    # Fig. 1's run (to t = 10), shared with the claims
     obs, arc = d.observers["proposed"], d.arcs["proposed"]
@@ -354,6 +356,7 @@ def test_luenberger_special_case_remark_1():
     assert np.abs(e - ref).max() <= 1e-7      # rtol 1e-8 on states of size ~10
 
 
+@pytest.mark.slow
 def test_homogeneous_observer_converges_in_finite_time():
     obs = homogeneous_observer(L_PAPER, MU, G1, b=B3)
     arc = simulate(obs, t_max=5.0)
@@ -503,6 +506,7 @@ def test_simulate_and_errors_follow_the_contract():
         dg.simulate(proposed_observer(L_PAPER, MU, G1, 1.0), None, None, t_max=0.1)
 
 
+@pytest.mark.slow
 def test_settling_time_is_the_gain_reaching_zero_not_the_1e_6_crossing():
     """Proposition 4's settling time (v and e reach 0 together) versus the last 1e-6
     crossing of the error: for gamma2 = 0 the first is T = 5 of (18) (1e-4: the located
@@ -631,6 +635,7 @@ def test_figures_registry():
     assert dg.FIGURES[0].data is dg.FIGURES[1].data is dg.fig1_data
 
 
+@pytest.mark.slow
 def test_fig1_data_numbers_and_drawing():
     """Fig. 1's runs: T = 5 for gamma2 = 0 (1e-4 as above), 7.81 s for gamma2 = 1 and its
     crossing 7.2756 s (Radau rtol 1e-8: 1e-3); the drawing's lines are labelled by

@@ -36,6 +36,7 @@ def test_alpha_is_the_claims():
     assert abs(lmi_alpha()[0] - 18.0) < 0.01          # claim 000-eq17-bound: 18.00
 
 
+@pytest.mark.slow
 def test_auxiliary_system_settles_as_the_observer():
     aux = AuxiliarySystem(EXAMPLE["L"], EXAMPLE["mu"], EXAMPLE["gamma1"], 1.0)
     e0, v0 = np.array([0.3, 4.0, -2.0, 1.0]), 1.2

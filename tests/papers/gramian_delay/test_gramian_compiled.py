@@ -135,6 +135,7 @@ def test_parts_reading_their_past_lower_with_their_own_slices(taus):
         np.testing.assert_allclose(arc.x[:, 0], exact, rtol=0, atol=1e-9)
 
 
+@pytest.mark.slow
 def test_a_structure_serves_other_delays_and_a_compiled_system_is_a_part():
     """The maps lowered for delays (1.0; 0.5, 1.0) serve (0.8; 0.4, 0.8) (same
     places in the union: nothing recompiles), run at the new delays; a
@@ -243,6 +244,7 @@ def test_39_with_the_oracle_and_smooth_noise_agrees(motor):
         assert_same_run(hs.simulate(sysc, x0, t_max=T_MAX, backend="compiled", **RUN), ref)
 
 
+@pytest.mark.slow
 def test_39_compiled_batch_equals_its_single_runs(motor):
     """``simulate_many(..., backend="compiled")`` over five motors: each row equal
     to its single compiled run to the bit (the same kernel, the same arithmetic),

@@ -698,6 +698,7 @@ def test_constructors_reject_mismatch_and_unobservable():
 # ---------------------------------------------------------------------------
 # Decision 8: the reset realisation of psi_2 (issue 14, Fig. 2 at k = 75)
 # ---------------------------------------------------------------------------
+@pytest.mark.slow
 def test_k75_reset_realisation_exact_over_whole_horizon():
     """k = 75: with psi_2 reset every tau, xi_e = xi_1 for all t in [tau, 2] s.
 
@@ -904,6 +905,7 @@ def test_fig1_data_and_drawing():
     assert "Fig. 1 (Mazenc & Malisoff 2022)" in gd.FIGURES[0].caption(d)
 
 
+@pytest.mark.slow
 def test_fig2_data_and_drawing():
     """Fig. 2: the literal k = 75 runs stop at ~0.57 / 0.56 s, the others reach 1 s."""
     d = gd.fig2_data()
@@ -943,6 +945,7 @@ def test_periods_data_small_grid_and_drawing():
         gd.FIGURES[2].caption(d)
 
 
+@pytest.mark.slow
 def test_gap_window_is_the_inclusion_of_36():
     """gaps=(T_low, T_bar): simulate samples every T_low (priority "jumps"), or every
     T_bar (priority "flows": C ends there, the sample is forced). Every explored solution

@@ -72,6 +72,7 @@ def test_printed_statement_falsified_from_the_statement():
     assert ref > 5 and abs(np.log(growth / ref)) < 0.05
 
 
+@pytest.mark.slow
 def test_corrected_statement_survives_quick():
     """A quarter of the budget in the default suite (the full one is slow)."""
     r = run_problem(BY_ID[CORRECTED], seed=0, scale=0.25)

@@ -103,6 +103,7 @@ def test_printed_thm47_falsified():
     assert sup < math.sqrt(3)
 
 
+@pytest.mark.slow
 def test_printed_thm47_for_some_P_holds_with_its_witness():
     """Read as printed ("for some P"), the theorem holds in the family: with the witness
     P* = (3 I, I) a quarter of the budget finds no solution above its bound, and the

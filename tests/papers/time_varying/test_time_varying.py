@@ -197,6 +197,7 @@ def test_remark3_bound_random_lti(seed):
     tv.check_assumption1(expm_Phi(rc.A2), expm_Phi(H), tau, [0.0, 1.0])
 
 
+@pytest.mark.slow
 def test_noise_bound_28_example():
     """(28): |x*_r - x_r| <= l_a |eps|_inf on the example,
     eps = 0.01 sin(5t) + 0.02 sign(cos 7t)."""

@@ -41,6 +41,7 @@ def test_problems_are_valid_and_exported():
         tv.falsification.__all__
 
 
+@pytest.mark.slow
 def test_population_run_is_exact_from_the_corrected_start_and_agrees_with_quadrature():
     """Every run of a small population (the nominal point among them) is
     exact from 2 pi + sqrt|x1(0)| on, and from max{2 pi, sqrt|x1(0)|} (the
