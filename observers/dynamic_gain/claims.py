@@ -150,7 +150,7 @@ CLAIMS = [
           tol_why="a one-sided statement ('not later than 8 s'): ours must not exceed 8 s. "
                   f"Reference: {_EULER} 7.8353 s; ref_tol 0.05: Euler's first-order error, "
                   "0.026 s on the switch of the gamma2 = 0 run where T = 5 is exact",
-          reference=7.8353, ref_tol=0.05),
+          reference=7.8353, ref_tol=0.05, slow=True),
     Claim(id="000-fig1a-1e-6-crossing-gamma2-1", paper="000", where="Fig. 1a",
           statement="With gamma2 = 1, the last time max_i |e_i(t)| > 1e-6 (the 1e-6 crossing "
                     "of the error; NOT the settling time: e ~ v^(r_i) falls below 1e-6 "
@@ -161,7 +161,7 @@ CLAIMS = [
                   "interpolant and on the Euler sequence (linear between steps). Ours "
                   f"({_RADAU}) differs by Euler's "
                   "first-order error: on gamma2 = 0, where T = 5 is exact, Euler's switch "
-                  "is 0.026 s off; 0.05 is about twice that"),
+                  "is 0.026 s off; 0.05 is about twice that", slow=True),
     Claim(id="000-fig1b-v-above-w", paper="000", where="Fig. 1b",
           statement="For the proposed observer v(t) is an upper bound for |w(t)| for all t "
                     "(v(0) = 1 > |w(0)| = 0). Ours: the largest violation min(0, v - |w|) "

@@ -494,7 +494,7 @@ CLAIMS = [
                     "samples once the estimate is exact).",
           paper_value=None, reference=0.0, compute=_loop_nu_increase, tol=1e-9,
           tol_why="nu' = -s sigma(s) <= 0 exactly; the estimate's 3e-10 error and rtol 1e-10 "
-                  "on nu ~1 allow 1e-9"),
+                  "on nu ~1 allow 1e-9", slow=True),
     Claim(id="001-eq57-bounded", paper=_ID, where="(54), (57)",
           statement="The feedback (57)-(58) is bounded by 1 (sigma(s) = s / sqrt(1 + s^2)): "
                     "max over the run of Fig. 1 of |sigma(s_k)|, s_k the argument of sigma in "

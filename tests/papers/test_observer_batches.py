@@ -221,6 +221,7 @@ def test_hc_simulate_many_equals_simulate_loop(design_name):
         np.testing.assert_allclose(a.x, shifted, rtol=0, atol=1e-10 * scale)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("design_name", ["random", "VB"])
 def test_hc_batch_error_after_jump_agrees_with_dop853(design_name):
     """H_c's error and m̂ after the jump: batch (RK45) against single DOP853 runs.

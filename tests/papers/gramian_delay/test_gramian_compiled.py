@@ -154,6 +154,7 @@ def test_a_structure_serves_other_delays_and_a_compiled_system_is_a_part():
     assert_same_run(hs.simulate(mixed, x0, t_max=3.0, backend="compiled", **RUN), ref)
 
 
+@pytest.mark.slow
 def test_systems_lowered_from_one_structure_run_at_their_own_delays():
     """Unions (0.5, 1.0) and (0.5, 1.2) share the lowered maps and the smallest
     delay (the max_step): the second run, with the same options, reads its past

@@ -52,6 +52,7 @@ def test_population_run_matches_the_package_run(T, est):
     assert _ref_error(E, t, x[0], j[0]) < 2e-3
 
 
+@pytest.mark.slow
 def test_printed_statement_falsified_from_the_statement():
     """(39) with omega at T_bar = 0.1: the search finds a diverging run at once; the
     counterexample grows by the per-period factor of the package's own run."""

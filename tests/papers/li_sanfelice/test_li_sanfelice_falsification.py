@@ -117,6 +117,7 @@ def test_printed_thm47_for_some_P_holds_with_its_witness():
     assert j == 0 and r.search.margin == pytest.approx(1 - closed / math.sqrt(3), abs=1e-6)
 
 
+@pytest.mark.slow
 def test_corrected_thm47_quick():
     """A quarter of the budget: no counterexample, and the worst margin is the closed form's."""
     r = run_problem(BY_ID["002-thm4.7-corrected"], seed=0, scale=0.25)

@@ -821,6 +821,7 @@ def test_fig1_draw_from_data(fig1_short):
     np.testing.assert_allclose(np.nanmax(y), np.maximum(d.err, 1e-16).max())
 
 
+@pytest.mark.slow
 def test_lti_data_and_draw():
     """The LTI figure's numbers: exact after tau, under l_a |eps| with noise; drawn from them."""
     d = tv.figures.lti_data()
