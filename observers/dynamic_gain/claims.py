@@ -167,7 +167,7 @@ CLAIMS = [
                     "(v(0) = 1 > |w(0)| = 0). Ours: the largest violation min(0, v - |w|) "
                     "before the settled switch.",
           paper_value=None, reference=0.0, compute=_gain_above_w, tol=1e-9,
-          tol_why="the solver's atol 1e-10 on v and w where v - |w| comes close to 0"),
+          tol_why="the solver's atol 1e-10 on v and w where v - |w| comes close to 0", slow=True),
     Claim(id="000-eq17-bound", paper="000", where="(17), proof of Thm 3",
           statement="Bound (17) on the gamma2 = 1 settling time for Section VI's data, as "
                     "ln(bound): with beta as printed (alpha = 18.00 of the least-conditioned "

@@ -501,5 +501,5 @@ CLAIMS = [
                     "(58) at each sample (= max |v2|), is at most 1.",
           paper_value=None, compute=_loop_v2_max, **_BOUND,
           tol_why="|sigma| < 1 is a bound: max |v2| must not exceed 1 (relation <=, no slack; "
-                  "a saturation reaching above 1, e.g. 2 sigma, fails it)"),
+                  "a saturation reaching above 1, e.g. 2 sigma, fails it)", slow=True),
 ]
