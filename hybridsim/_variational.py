@@ -253,8 +253,14 @@ def _reread(s0, layout, s1):
             readers[i] = _default(corr[("default", key[1])], key[2])
         else:
             return None
+    checks = {}                                   # None-tests the rewrite folded
+    for key, (_, is_none) in layout.checks.items():
+        if key[0] != "none" or key[1] != id(s0):
+            return None
+        checks[key] = ((lambda a: lambda: getattr(s1, a))(key[2]), is_none)
     lay = object.__new__(type(layout))
     lay.slots, lay.readers, lay.size = layout.slots, readers, layout.size
+    lay.checks = checks
     return lay.read()
 
 

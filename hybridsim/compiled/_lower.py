@@ -244,8 +244,9 @@ def _refusal(system, what, wired=None):
                              f"has no compiled form declaring the delays it reads (a "
                              f"compiled_component() returning a Component(delays=...))")
     if getattr(system, "set_valued", False):
-        return _refuse(what, "its jump map is set-valued (jump_map_values); its solutions "
-                             "are explored on the Python path (hs.explore)")
+        return _refuse(what, "its jump map is set-valued (jump_map_values): a run takes one "
+                             "successor; hs.explore follows every one (its levels run as "
+                             "compiled batches)")
     if system._compile().h_u:
         return _refuse(what, "its output reads its input (direct feedthrough, "
                              "output(x, t, j, u)); a compiled output is a function of "
