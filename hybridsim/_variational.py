@@ -429,8 +429,8 @@ def _build(maps, codes):
         return as_vec(f_u(x, t, j, P))
 
     @nj
-    def jac_f(x, t, j, P, step):
-        """(n, n) central differences of f in x (``_fd_jac``)."""
+    def jac(fn, x, t, j, P, step):
+        """(n, n) central differences in x of the map ``fn`` (``_fd_jac``)."""
         n = x.shape[0]
         J = np.empty((n, n))
         for i in range(n):
@@ -438,7 +438,7 @@ def _build(maps, codes):
             xp, xm = x.copy(), x.copy()
             xp[i] += d
             xm[i] -= d
-            a, b = f(xp, t, j, P), f(xm, t, j, P)
+            a, b = fn(xp, t, j, P), fn(xm, t, j, P)
             den = xp[i] - xm[i]
             for r in range(n):
                 J[r, i] = (a[r] - b[r]) / den
@@ -457,7 +457,7 @@ def _build(maps, codes):
         for r in range(n):
             out[r] = fx[r]
         if y[N - 1] == 0.0 and m > 0:
-            J = jac_f(x, t, j, P0, p[0])
+            J = jac(f, x, t, j, P0, p[0])
             for r in range(n):
                 for c in range(m):
                     s = 0.0
@@ -489,21 +489,6 @@ def _build(maps, codes):
     @nj
     def g(x, t, j, P):
         return as_vec(g_u(x, t, j, P))
-
-    @nj
-    def jac_g(x, t, j, P, step):
-        n = x.shape[0]
-        J = np.empty((n, n))
-        for i in range(n):
-            d = step * max(1.0, abs(x[i]))
-            xp, xm = x.copy(), x.copy()
-            xp[i] += d
-            xm[i] -= d
-            a, b = g(xp, t, j, P), g(xm, t, j, P)
-            den = xp[i] - xm[i]
-            for r in range(n):
-                J[r, i] = (a[r] - b[r]) / den
-        return J
 
     @nj
     def g_t(x, s, j, P, step):
@@ -633,7 +618,7 @@ def _build(maps, codes):
                 out[q] = y[q]
             out[N - 1] = code
             return out
-        Dg = jac_g(x, t, j, P0, step)
+        Dg = jac(g, x, t, j, P0, step)
         gt = g_t(x, t, j, P0, step)
         f_plus = f(xp, t, j + 1, P0)
         for r in range(n):
