@@ -429,10 +429,11 @@ def _build(maps, codes):
         return as_vec(f_u(x, t, j, P))
 
     @nj
-    def jac(fn, x, t, j, P, step):
-        """(n, n) central differences in x of the map ``fn`` (``_fd_jac``)."""
+    def jac(fn, x, t, j, P, step, k):
+        """(k, n) central differences in x of ``fn``, a map of k values
+        (the flow or jump map, k = n; the guards) (``_fd_jac``)."""
         n = x.shape[0]
-        J = np.empty((n, n))
+        J = np.empty((k, n))
         for i in range(n):
             d = step * max(1.0, abs(x[i]))
             xp, xm = x.copy(), x.copy()
@@ -440,7 +441,7 @@ def _build(maps, codes):
             xm[i] -= d
             a, b = fn(xp, t, j, P), fn(xm, t, j, P)
             den = xp[i] - xm[i]
-            for r in range(n):
+            for r in range(k):
                 J[r, i] = (a[r] - b[r]) / den
         return J
 
@@ -457,7 +458,7 @@ def _build(maps, codes):
         for r in range(n):
             out[r] = fx[r]
         if y[N - 1] == 0.0 and m > 0:
-            J = jac(f, x, t, j, P0, p[0])
+            J = jac(f, x, t, j, P0, p[0], n)
             for r in range(n):
                 for c in range(m):
                     s = 0.0
@@ -505,22 +506,6 @@ def _build(maps, codes):
         @nj
         def h(x, t, j, P):
             return _as_1d(h_u(x, t, j, P))
-
-    @nj
-    def grad_h(x, t, j, P, step, k):
-        """(k, n) central differences of the guard in x."""
-        n = x.shape[0]
-        J = np.empty((k, n))
-        for i in range(n):
-            d = step * max(1.0, abs(x[i]))
-            xp, xm = x.copy(), x.copy()
-            xp[i] += d
-            xm[i] -= d
-            a, b = h(xp, t, j, P), h(xm, t, j, P)
-            den = xp[i] - xm[i]
-            for r in range(k):
-                J[r, i] = (a[r] - b[r]) / den
-        return J
 
     @nj
     def h_t(x, s, j, P, step):
@@ -575,7 +560,7 @@ def _build(maps, codes):
         else:
             hv = h(x, t, j, P0)
             k = hv.shape[0]
-            grad = grad_h(x, t, j, P0, step, k)
+            grad = jac(h, x, t, j, P0, step, k)
             ht = h_t(x, t, j, P0, step)
             i, nzero, zero_i = 0, 0, False
             for c in range(k):
@@ -618,7 +603,7 @@ def _build(maps, codes):
                 out[q] = y[q]
             out[N - 1] = code
             return out
-        Dg = jac(g, x, t, j, P0, step)
+        Dg = jac(g, x, t, j, P0, step, x.shape[0])
         gt = g_t(x, t, j, P0, step)
         f_plus = f(xp, t, j + 1, P0)
         for r in range(n):
