@@ -491,13 +491,6 @@ def _build(maps, codes):
     def g(x, t, j, P):
         return as_vec(g_u(x, t, j, P))
 
-    @nj
-    def g_t(x, s, j, P, step):
-        """Central difference of g in t (``_fd_scalar``)."""
-        d = step * max(1.0, abs(s))
-        sp, sm = s + d, s - d
-        return (g(x, sp, j, P) - g(x, sm, j, P)) / (sp - sm)
-
     if h_u is None:
         @nj
         def h(x, t, j, P):
@@ -508,10 +501,12 @@ def _build(maps, codes):
             return _as_1d(h_u(x, t, j, P))
 
     @nj
-    def h_t(x, s, j, P, step):
+    def d_dt(fn, x, s, j, P, step):
+        """Central difference in t of the map ``fn`` (the jump map, the
+        guards) (``_fd_scalar``)."""
         d = step * max(1.0, abs(s))
         sp, sm = s + d, s - d
-        return (h(x, sp, j, P) - h(x, sm, j, P)) / (sp - sm)
+        return (fn(x, sp, j, P) - fn(x, sm, j, P)) / (sp - sm)
 
     @nj
     def rate(z, s, j, P, d, i):         # dh/dt along the flow at (z, s)
@@ -561,7 +556,7 @@ def _build(maps, codes):
             hv = h(x, t, j, P0)
             k = hv.shape[0]
             grad = jac(h, x, t, j, P0, step, k)
-            ht = h_t(x, t, j, P0, step)
+            ht = d_dt(h, x, t, j, P0, step)
             i, nzero, zero_i = 0, 0, False
             for c in range(k):
                 if hv[c] < hv[i]:
@@ -604,7 +599,7 @@ def _build(maps, codes):
             out[N - 1] = code
             return out
         Dg = jac(g, x, t, j, P0, step, x.shape[0])
-        gt = g_t(x, t, j, P0, step)
+        gt = d_dt(g, x, t, j, P0, step)
         f_plus = f(xp, t, j + 1, P0)
         for r in range(n):
             v = gt[r] - f_plus[r]

@@ -141,24 +141,14 @@ def _named_guard(fn, name):
 def _named_watch(fn, name="watch"):
     """:func:`_named` for the watched functions: a 1-D float array of their
     values (a scalar is one function), finite; a :class:`MapError` naming
-    ``watch`` otherwise (one frame above the user's function)."""
-    k = _check_map(fn, name)
+    ``watch`` otherwise. Called and checked as a guard is
+    (:func:`_named_guard`)."""
+    values = _named_guard(fn, name)
 
     def watch(x, t, j, u):
-        try:
-            v = fn(x) if k <= 1 else fn(x, t) if k == 2 else fn(x, t, j) if k == 3 \
-                else fn(x, t, j, u)
-        except MapError:
-            raise
-        except Exception as e:
-            raise _map_error(name, e, t, j) from e
-        if v.__class__ is float or v.__class__ is _F64:
-            w = np.array((v,))
-        else:
-            w = _guard_value(name, v, t, j)
-            w = np.array((w,)) if w.__class__ is float else np.asarray(w, dtype=float)
-            if w.ndim == 0:
-                w = w.reshape(1)
+        v = values(x, t, j, u)
+        w = np.array((v,)) if v.__class__ is float or v.__class__ is _F64 \
+            else np.asarray(v, dtype=float).reshape(-1)
         if not np.isfinite(w).all():
             raise MapError(f"{name} returned non-finite values {w} (at {_where(t, j)})",
                            name, t, j)
