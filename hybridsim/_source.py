@@ -305,12 +305,17 @@ def _guard_expr(e):
                       f"of comparisons")
 
 
-class _Returns(ast.NodeTransformer):
-    def visit_FunctionDef(self, node):       # nested functions keep their returns
+class _OwnReturns(ast.NodeTransformer):
+    """Rewrites a function's own ``return`` statements (``visit_Return``);
+    nested functions and lambdas keep theirs."""
+
+    def visit_FunctionDef(self, node):
         return node
 
     visit_Lambda = visit_FunctionDef
 
+
+class _Returns(_OwnReturns):
     def visit_Return(self, node):
         if node.value is None:
             raise _NoGuard(node, "a bare return")
@@ -930,12 +935,7 @@ def _fn_of_plain(v, caller, node):
 _SCALAR_ROLES = ("jump_guard", "flow_guard", "jump_set", "flow_set")
 
 
-class _Scalar(ast.NodeTransformer):
-    def visit_FunctionDef(self, node):       # nested functions keep their returns
-        return node
-
-    visit_Lambda = visit_FunctionDef
-
+class _Scalar(_OwnReturns):
     def visit_Return(self, node):
         if node.value is None:
             return node
