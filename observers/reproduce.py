@@ -64,6 +64,11 @@ __all__ = ["ENGINE_FIGURES", "PAPERS", "main", "run_part"]
 PAPERS = ["engine", *PAPER_MODULES]
 
 
+
+def _runs(n):
+    """``n`` runs, in words: "1 run", "16 runs"."""
+    return f"{n} run" if n == 1 else f"{n} runs"
+
 def _ball_data():
     """The bouncing ball's run and its jump-time error against the closed form."""
     import numpy as np
@@ -474,10 +479,10 @@ def run_falsification(name: str, out, *, scale: float = 1.0, seed: int = 0,
             fig = draw_worst(res)
             png = save_figure(fig, d, f"falsify_{prob.id}", (
                 f"{prob.id} ({prob.where}): {prob.statement} Counterexample found by "
-                f"{res.search.found_by} (the search ran {res.search.evaluations} runs): "
+                f"{res.search.found_by} (the search ran {_runs(res.search.evaluations)}): "
                 f"margin {res.margin:.4g} at {res.search.point}; random sampling of the "
                 f"same budget: margin {res.baseline.margin:.4g} after "
-                f"{res.baseline.evaluations} runs. Left: the worst margin so far "
+                f"{_runs(res.baseline.evaluations)}. Left: the worst margin so far "
                 "against the number of runs, for the search (circles) and random sampling "
                 "of the same budget (squares); below 0 the statement is violated. Right: "
                 "where the worst run lies in the space, each coordinate scaled to its bounds "
@@ -486,7 +491,7 @@ def run_falsification(name: str, out, *, scale: float = 1.0, seed: int = 0,
         rows.append(row)
         mark = "as expected" if res.passed else "NOT AS EXPECTED"
         echo(f"  {mark:<16} {prob.id:<34} {res.found}: margin {res.margin:.4g} "
-             f"(random: {res.baseline.margin:.4g}), {res.search.evaluations} runs, "
+             f"(random: {res.baseline.margin:.4g}), {_runs(res.search.evaluations)}, "
              f"{res.search.seconds:.1f} s")
     (d / "falsification.json").write_text(json.dumps(rows, indent=1, default=str),
                                          encoding="utf-8")
