@@ -29,7 +29,8 @@ LEVELS = (
     ("paths", {"solve", "batch_vectorized", "compiled",
                "_sde", "_random_jumps", "_variational"}),
     ("shared and data", {"rules", "options", "events", "_rk", "_progress", "_version",
-                         "system", "compose", "history", "arc", "arc_batch", "library", "_source",
+                         "system", "compose", "history", "arc", "_arc_access", "_arc_checks",
+                         "_arc_io", "_arc_records", "arc_batch", "library", "_source",
                          "brownian"}),
 )
 
