@@ -1,0 +1,730 @@
+"""The robustness computation of :mod:`hybridsim.stl` (its Semantics
+section): the piecewise-linear signals on a hybrid time domain (``_Sig``),
+their exact pointwise min and max, the sup over sliding windows, the
+untimed until, one evaluation's context, and the dense-time evaluation of
+a predicate (its instants: samples, extrema, crossings), of a window
+``F``/``G`` and of until, as the bases of those formulas' nodes.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .rules import event_tolerance
+from .testing import Margin, _every
+
+_INF = math.inf
+_EPS = np.finfo(float).eps
+
+
+def _num(v):
+    """A number as the formula's text prints it."""
+    v = float(v)
+    if math.isinf(v):
+        return "inf" if v > 0 else "-inf"
+    if v == int(v) and abs(v) < 1e15:
+        return str(int(v))
+    return format(v, ".15g")
+
+
+def _tol(x):
+    """The engine's event tolerance at x (4 ulp of max(1, |x|)), elementwise."""
+    return 4.0 * _EPS * np.maximum(1.0, np.abs(x))
+
+
+def _lerp(y0, y1, w):
+    """y0 + w (y1 - y0), the nearer end where an end is not finite."""
+    with np.errstate(invalid="ignore"):
+        out = y0 + w * (y1 - y0)
+    bad = ~np.isfinite(out)
+    if np.any(bad):
+        y0, y1, w = np.broadcast_arrays(np.asarray(y0, float), np.asarray(y1, float),
+                                        np.asarray(w, float))
+        fin = np.isfinite(y0) & np.isfinite(y1)
+        out = np.where(fin, out, np.where(w < 0.5, y0, y1))
+    return out
+
+
+# ----------------------------------------------------------- signal values --
+
+class _Sig:
+    """A robustness signal on a hybrid time domain.
+
+    Instants (t, j) sorted in hybrid time; ``v`` the value at each, ``l``
+    and ``r`` its limits from the left and the right within the flow
+    (between two instants of the same j the signal is linear from ``r[k]``
+    to ``l[k + 1]``).
+    """
+
+    __slots__ = ("t", "j", "v", "l", "r")
+
+    def __init__(self, t, j, v, l=None, r=None):
+        self.t, self.j, self.v = t, j, v
+        self.l = v if l is None else l
+        self.r = v if r is None else r
+
+    def neg(self):
+        return _Sig(self.t, self.j, -self.v, -self.l, -self.r)
+
+    def succ(self):
+        """Mask: the instant has a later instant of the same flow."""
+        s = np.zeros(len(self.t), dtype=bool)
+        s[:-1] = self.j[1:] == self.j[:-1]
+        return s
+
+    def pred(self):
+        p = np.zeros(len(self.t), dtype=bool)
+        p[1:] = self.j[1:] == self.j[:-1]
+        return p
+
+
+def _sorted_points(T, J, *arrays):
+    order = np.lexsort((J, T))
+    return (T[order], J[order]) + tuple(a[order] for a in arrays)
+
+
+def _merge(s1, s2):
+    """Both signals on the union of their instants: T, J, (v, l, r) of each."""
+    n1 = len(s1.t)
+    T = np.concatenate((s1.t, s2.t))
+    J = np.concatenate((s1.j, s2.j))
+    order = np.lexsort((J, T))
+    Ts, Js = T[order], J[order]
+    new = np.ones(len(Ts), dtype=bool)
+    new[1:] = (Ts[1:] != Ts[:-1]) | (Js[1:] != Js[:-1])
+    uid = np.cumsum(new) - 1
+    Tu, Ju = Ts[new], Js[new]
+    out = [Tu, Ju]
+    for s, mine, shift in ((s1, order < n1, 0), (s2, order >= n1, n1)):
+        idx = np.full(len(Tu), -1)
+        idx[uid[mine]] = order[mine] - shift
+        out.append(_values_at(s, Tu, idx))
+    return out
+
+
+def _values_at(s, T, idx):
+    """(v, l, r) of ``s`` at instants T (sorted), ``idx`` its own instants' indices or -1."""
+    have = idx >= 0
+    v, l, r = np.empty(len(T)), np.empty(len(T)), np.empty(len(T))
+    v[have], l[have], r[have] = s.v[idx[have]], s.l[idx[have]], s.r[idx[have]]
+    miss = np.flatnonzero(~have)
+    if miss.size:
+        prev = np.maximum.accumulate(np.where(have, idx, -1))[miss]
+        n = len(s.t)
+        k0 = np.clip(prev, 0, max(n - 2, 0))
+        k1 = np.minimum(k0 + 1, n - 1)
+        h = s.t[k1] - s.t[k0]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            w = np.where(h > 0, (T[miss] - s.t[k0]) / np.where(h > 0, h, 1.0), 0.0)
+        w = np.clip(w, 0.0, 1.0)
+        val = _lerp(s.r[k0], s.l[k1], w)
+        v[miss] = l[miss] = r[miss] = val
+    return v, l, r
+
+
+def _combine(s1, s2, op):
+    """The pointwise ``op`` (np.minimum or np.maximum) of two signals, exactly."""
+    T, J, (v1, l1, r1), (v2, l2, r2) = _merge(s1, s2)
+    same = J[1:] == J[:-1]
+    d0 = r1[:-1] - r2[:-1]
+    d1 = l1[1:] - l2[1:]
+    with np.errstate(invalid="ignore"):
+        cross = same & np.isfinite(d0) & np.isfinite(d1) & (d0 * d1 < 0)
+    k = np.flatnonzero(cross)
+    v, l, r = op(v1, v2), op(l1, l2), op(r1, r2)
+    if k.size:
+        w = d0[k] / (d0[k] - d1[k])
+        tc = T[k] + w * (T[k + 1] - T[k])
+        inside = (tc > T[k]) & (tc < T[k + 1])      # a crossing at an instant is one already
+        k, w, tc = k[inside], w[inside], tc[inside]
+        vc = _lerp(r1[k], l1[k + 1], w)
+        T, J, v, l, r = _sorted_points(np.concatenate((T, tc)), np.concatenate((J, J[k])),
+                                       np.concatenate((v, vc)), np.concatenate((l, vc)),
+                                       np.concatenate((r, vc)))
+    return _Sig(T, J, v, l, r)
+
+
+class _RangeMax:
+    """Maxima of q over index ranges [i0, i1] (a sparse table, O(n log n))."""
+
+    def __init__(self, q):
+        self.levels = [np.asarray(q, float)]
+        k = 1
+        while 2 * k <= len(q):
+            p = self.levels[-1]
+            self.levels.append(np.maximum(p[:-k], p[k:]))
+            k *= 2
+
+    def query(self, i0, i1):
+        i0, i1 = np.broadcast_arrays(np.asarray(i0, np.int64), np.asarray(i1, np.int64))
+        out = np.full(i0.shape, -_INF)
+        n = i1 - i0 + 1
+        ok = n > 0
+        if not ok.any():
+            return out
+        lev = np.zeros(i0.shape, dtype=np.int64)
+        lev[ok] = np.floor(np.log2(n[ok])).astype(np.int64)
+        for L in np.unique(lev[ok]):
+            m = ok & (lev == L)
+            tab = self.levels[L]
+            out[m] = np.maximum(tab[i0[m]], tab[i1[m] - (1 << int(L)) + 1])
+        return out
+
+
+# --------------------------------------------------------- evaluation state --
+
+class _Context:
+    """One evaluation: the arc, its domain, the options, the computed signals."""
+
+    def __init__(self, arc, strict, refine):
+        self.arc = arc
+        self.t, self.j, self.x = (np.asarray(arc.t, float), np.asarray(arc.j, np.int64),
+                                  np.asarray(arc.x, float))
+        self.strict, self.refine = strict, refine
+        self.t0, self.tf = float(self.t[0]), float(self.t[-1])
+        self.jump_times = np.unique(self.t[1:][np.diff(self.j) > 0])
+        # keyed by id(node): every node memoised is kept alive with its value, so a
+        # node made during the evaluation (until's rewriting) cannot hand its id on
+        self.memo = {}
+
+    def domain(self, times):
+        """Every instant (t, j) of the arc at the given times (sorted): T, J and
+        masks of each time's first and last instant."""
+        times = np.asarray(times, float)
+        N = len(self.t)
+        i0 = np.clip(np.searchsorted(self.t, times, side="left"), 0, N - 1)
+        i1 = np.clip(np.searchsorted(self.t, times, side="right") - 1, 0, N - 1)
+        jlo, jhi = self.j[i0], self.j[i1]
+        jlo = np.minimum(jlo, jhi)
+        cnt = jhi - jlo + 1
+        T = np.repeat(times, cnt)
+        start = np.cumsum(cnt) - cnt
+        J = np.repeat(jlo, cnt) + (np.arange(len(T)) - np.repeat(start, cnt))
+        first = np.zeros(len(T), dtype=bool)
+        first[start] = True
+        last = np.zeros(len(T), dtype=bool)
+        last[start + cnt - 1] = True
+        return T, J, first, last, np.repeat(np.arange(len(times)), cnt)
+
+    def states(self, T, J):
+        """The arc's interpolant at the instants (T, J) (:meth:`HybridArc.at`)."""
+        if len(T) == 0:
+            return np.zeros((0, self.x.shape[1]))
+        return np.asarray(self.arc.at(T, j=J), dtype=float).reshape(len(T), -1)
+
+
+def _value(sig, tau, j):
+    """The value of a signal at the instant (tau, j)."""
+    k = np.flatnonzero((sig.t == tau) & (sig.j == j))
+    if k.size:
+        return float(sig.v[k[0]])
+    m = np.flatnonzero((sig.j == j) & (sig.t < tau))
+    if not m.size:
+        return float(sig.v[int(np.argmin(np.abs(sig.t - tau)))])
+    k0 = int(m[-1])
+    if k0 + 1 < len(sig.t) and sig.j[k0 + 1] == j:
+        w = (tau - sig.t[k0]) / (sig.t[k0 + 1] - sig.t[k0])
+        return float(_lerp(sig.r[k0], sig.l[k0 + 1], min(max(w, 0.0), 1.0)))
+    return float(sig.v[k0])
+
+
+def _window_sup(ctx, s, a, b, lo, hi):
+    """sup of ``s`` over [tau + a, tau + b] (cut at the end of s), for tau in [lo, hi]."""
+    t, v, l, r = s.t, s.v, s.l, s.r
+    first = np.ones(len(t), dtype=bool)
+    first[1:] = t[1:] != t[:-1]
+    fi = np.flatnonzero(first)
+    la = np.concatenate((fi[1:] - 1, [len(t) - 1]))
+    u = t[fi]
+    M = len(u)
+    P = np.maximum.reduceat(v, fi)
+    L = np.where(s.pred()[fi], l[fi], -_INF)
+    R = np.where(s.succ()[la], r[la], -_INF)
+    Q = np.maximum(P, np.maximum(L, R))
+    E = u[-1]
+    rm = _RangeMax(Q)
+    du = np.diff(u)
+
+    def piece(p, x):
+        if M == 1:
+            return np.full(np.shape(x), P[0])
+        p = np.clip(p, 0, M - 2)
+        return _lerp(R[p], L[p + 1], (x - u[p]) / du[p])
+
+    def locate(x, first):
+        """The instant within the engine's tolerance of x (the first such for a
+        window's start, the last for its end), else the piece x lies in."""
+        tx = _tol(x)
+        if first:
+            i = np.minimum(np.searchsorted(u, x - tx, side="left"), M - 1)
+            hit = np.abs(u[i] - x) <= tx
+            return np.where(hit, i, np.clip(i - 1, 0, max(M - 2, 0))), hit
+        i = np.maximum(np.searchsorted(u, x + tx, side="right") - 1, 0)
+        hit = np.abs(u[i] - x) <= tx
+        return np.where(hit, i, np.clip(i, 0, max(M - 2, 0))), hit
+
+    # the output's breakpoints
+    if hi <= lo:
+        taus = np.array([lo])
+    else:
+        cand = [np.array([lo, hi]), u - a, ctx.jump_times]
+        if math.isfinite(b):
+            cand.append(u - b)
+        c = np.concatenate(cand)
+        taus = np.unique(c[(c >= lo) & (c <= hi)])
+    alpha = taus + a
+    beta = np.minimum(taus + b, E)
+    empty = alpha > E + _tol(E)
+    ia, ea = locate(alpha, True)
+    ib, eb = locate(beta, False)
+    deg = ea & eb & (ia == ib) | (alpha >= beta)
+    # the window's start (its instants, or the piece it falls in), and the rest
+    Pa = np.where(ea, P[ia], piece(ia, alpha))
+    rest = np.where(ea & ~deg, R[ia], -_INF)
+    rest = np.maximum(rest, np.where(deg, -_INF, np.where(eb, P[ib], piece(ib, beta))))
+    rest = np.maximum(rest, np.where(eb & ~deg, L[ib], -_INF))
+    rest = np.maximum(rest, rm.query(ia + 1, np.where(eb, ib - 1, ib)))
+    Pa[empty] = rest[empty] = -_INF
+    val = np.maximum(Pa, rest)
+    # the open intervals between breakpoints: max of two lines and a constant
+    K = len(taus) - 1
+    vl, vr = val.copy(), val.copy()
+    kink_t = np.zeros(0)
+    kink_v = np.zeros(0)
+    if K > 0 and M > 1:
+        t0, t1 = taus[:-1], taus[1:]
+        mid = 0.5 * (t0 + t1)
+        p = np.clip(np.searchsorted(u, mid + a, side="right") - 1, 0, M - 2)
+        sA = (L[p + 1] - R[p]) / du[p]
+        A0 = piece(p, t0 + a)
+        bm = mid + b
+        at_end = bm >= E
+        q = np.clip(np.searchsorted(u, np.minimum(bm, E), side="right") - 1, 0, M - 2)
+        sB = np.where(at_end, 0.0, (L[q + 1] - R[q]) / du[q])
+        B0 = np.where(at_end, max(P[-1], L[-1]), piece(q, np.minimum(t0 + b, E)))
+        C = rm.query(p + 1, np.where(at_end, M - 2, q))
+        gone = mid + a > E
+        lines = [(A0, sA), (B0, sB), (C, np.zeros(K))]
+
+        def at(x):
+            out = np.full(K, -_INF)
+            for y0, sl in lines:
+                with np.errstate(invalid="ignore"):
+                    yy = np.where(sl == 0, y0, y0 + sl * (x - t0))
+                out = np.maximum(out, np.where(np.isnan(yy), -_INF, yy))
+            return np.where(gone, -_INF, out)
+
+        vr[:-1] = at(t0)
+        vl[1:] = at(t1)
+        ks, ts = [], []
+        for (y0, s0), (y1, s1) in ((lines[0], lines[1]), (lines[0], lines[2]),
+                                   (lines[1], lines[2])):
+            ds = s0 - s1
+            with np.errstate(invalid="ignore", divide="ignore"):
+                tk = t0 - (y0 - y1) / ds
+            ok = (ds != 0) & np.isfinite(tk) & (tk > t0) & (tk < t1) & ~gone
+            ks.append(np.flatnonzero(ok))
+            ts.append(tk[ok])
+        kk = np.concatenate(ks)
+        if kk.size:
+            kink_t = np.concatenate(ts)
+            kink_v = np.full(kk.size, -_INF)
+            for y0, sl in lines:
+                with np.errstate(invalid="ignore"):
+                    yy = y0[kk] + np.where(sl[kk] == 0, 0.0, sl[kk] * (kink_t - t0[kk]))
+                kink_v = np.maximum(kink_v, np.where(np.isnan(yy), -_INF, yy))
+    nk = len(kink_t)
+    times = np.concatenate((taus, kink_t))
+    V = np.concatenate((val, kink_v))
+    Lv = np.concatenate((vl, kink_v))
+    Rv = np.concatenate((vr, kink_v))
+    Re = np.concatenate((rest, kink_v))
+    own = np.concatenate((ea & (a == 0.0), np.zeros(nk, dtype=bool)))
+    Ia = np.concatenate((ia, np.zeros(nk, dtype=np.int64)))
+    order = np.argsort(times, kind="stable")
+    times, V, Lv, Rv, Re, own, Ia = (z[order] for z in (times, V, Lv, Rv, Re, own, Ia))
+    T, J, fst, lst, src = ctx.domain(times)
+    Vd = V[src]
+    # a window starting at the evaluation instant (tau, j) itself reads the
+    # instants of tau from j on, not those before it in hybrid time
+    sp = own[src] & ~(fst & lst)
+    if sp.any():
+        vs = v.copy()                       # max of v over the later instants of its time
+        gid = np.cumsum(first) - 1
+        for off in range(1, int(np.max(np.diff(np.append(fi, len(t))))) if M else 1):
+            same = np.zeros(len(t), dtype=bool)
+            same[:-off] = gid[off:] == gid[:-off]
+            vs[same] = np.maximum(vs[same], vs[np.flatnonzero(same) + off])
+        g = Ia[src][sp]
+        c = np.clip(fi[g] + (J[sp] - s.j[fi[g]]), fi[g], la[g])
+        Vd[sp] = np.maximum(Re[src][sp], vs[c])
+    return _Sig(T, J, Vd, np.where(fst, Lv[src], Vd), np.where(lst, Rv[src], Vd))
+
+
+def _restrict(ctx, s, lo, hi):
+    """``s`` on [lo, hi] (instants added at the ends where they fall inside a piece)."""
+    T, J, *_ = ctx.domain(np.array([lo, hi]) if hi > lo else np.array([lo]))
+    Tm, Jm, (v, l, r), _ = _merge(s, _Sig(T, J, np.zeros(len(T))))
+    m = (Tm >= lo) & (Tm <= hi)
+    return _Sig(Tm[m], Jm[m], v[m], l[m], r[m])
+
+
+def _untimed_until(sp, sq):
+    """phi U psi (untimed, to the end of the signals) at the instants of both.
+
+    At the union of the instants and the crossings of phi and psi, both and
+    m = min(phi, psi) are linear on every open piece, where
+    U(T_k+) = max(min(max(m(T_k+), m(T_k+1 -)), phi(T_k+)),
+    min(phi(T_k+), phi(T_k+1 -), U(T_k+1))) and at each instant
+    U(T_k) = max(m(T_k), min(phi(T_k), U(T_k+))): each a map
+    x -> max(a, min(b, x)), a family closed under composition
+    ((a1, b1) after (a2, b2) is (max(a1, min(b1, a2)), min(b1, b2))), so the
+    backward recursion is a suffix scan, O(n log n) in numpy.
+    """
+    mn = _combine(sp, sq, np.minimum)           # every instant of both, and their crossings
+    T, J = mn.t, mn.j
+    _, _, (pv, pl, pr), _ = _merge(sp, mn)
+    n = len(T)
+    succ = np.zeros(n, dtype=bool)
+    succ[:-1] = J[1:] == J[:-1]
+    A = np.full(2 * n, -_INF)
+    B = np.full(2 * n, _INF)
+    A[0::2], B[0::2] = mn.v, pv                 # the instant T_k
+    k = np.flatnonzero(succ)                    # the open piece after it
+    A[2 * k + 1] = np.minimum(np.maximum(mn.r[k], mn.l[k + 1]), pr[k])
+    B[2 * k + 1] = np.minimum(pr[k], pl[k + 1])
+    s = 1
+    while s < 2 * n:
+        a2 = np.concatenate((A[s:], np.full(s, -_INF)))
+        b2 = np.concatenate((B[s:], np.full(s, _INF)))
+        A, B = np.maximum(A, np.minimum(B, a2)), np.minimum(B, b2)
+        s *= 2
+    U = A[0::2]
+    right = np.where(succ, A[1::2], U)
+    left = np.empty(n)
+    left[0] = U[0]
+    # U(T_k -) from the piece before: max(m(T_k -), min(phi(T_k -), U(T_k)))
+    left[1:] = np.where(succ[:-1], np.maximum(mn.l[1:], np.minimum(pl[1:], U[1:])), U[1:])
+    return _Sig(T, J, U, left, right)
+
+
+# ------------------------------------------------------ evaluation of nodes --
+
+class _PredicateEval:
+    """A predicate's robustness at its instants (a base of ``stl._Predicate``)."""
+
+    def _compute(self, ctx, lo, hi, probes):
+        lo, hi = max(lo, ctx.t0), min(hi, ctx.tf)
+        if hi <= lo:                            # one time: its instants' values
+            T, J, *_ = ctx.domain(np.array([lo]))
+            return _Sig(T, J, self._at(ctx, T, J))
+        base = self._intrinsic(ctx)
+        # the instants within the engine's tolerance of the range count as in it
+        a = int(np.searchsorted(base.t, lo - _tol(lo), side="left"))
+        b = int(np.searchsorted(base.t, hi + _tol(hi), side="right"))
+        T, J, v = base.t[a:b], base.j[a:b], base.v[a:b]
+        e = np.array([lo, hi])
+        if len(probes):
+            p = np.asarray(sorted(probes), float)
+            e = np.concatenate((e, p[(p > lo) & (p < hi)]))
+        e = np.unique(e)
+        e = e[~np.isin(e, T)]
+        if e.size:
+            Te, Je, *_ = ctx.domain(e)
+            T, J, v = _sorted_points(np.concatenate((T, Te)), np.concatenate((J, Je)),
+                                     np.concatenate((v, self._at(ctx, Te, Je))))
+            T, J, v = self._crossings(ctx, T, J, v)
+        return _Sig(T, J, v)
+
+    def _intrinsic(self, ctx):
+        """The predicate at its instants over the whole arc (computed once per
+        evaluation): the samples, the extrema inside the steps, the crossings."""
+        key = ("instants", id(self))
+        hit = ctx.memo.get(key)
+        got = None if hit is None or hit[0] is not self else hit[1]
+        if got is None:
+            T, J = ctx.t, ctx.j
+            v = self._rho(T, J, ctx.x)
+            if ctx.refine > 1 and len(T) > 1:
+                dv = self._slopes(ctx)
+                if dv is not False:
+                    T, J, v = self._extrema(ctx, T, J, v, dv)
+            got = self._crossings(ctx, T, J, v)
+            ctx.memo[key] = (self, got)
+        return _Sig(*got)
+
+    def _crossings(self, ctx, T, J, v):
+        """Add the zeros of rho inside the steps where it changes sign (value 0)."""
+        with np.errstate(invalid="ignore"):
+            k = np.flatnonzero((J[1:] == J[:-1]) & (v[:-1] * v[1:] < 0)
+                               & np.isfinite(v[:-1]) & np.isfinite(v[1:]))
+        if k.size:
+            tc = self._roots(ctx, T[k], T[k + 1], v[k], v[k + 1], J[k])
+            inside = (tc > T[k]) & (tc < T[k + 1])  # else within 4 ulp of an instant
+            k, tc = k[inside], tc[inside]
+            T, J, v = _sorted_points(np.concatenate((T, tc)), np.concatenate((J, J[k])),
+                                     np.concatenate((v, np.zeros(len(tc)))))
+        return T, J, v
+
+    def _rho(self, T, J, X):
+        v = np.asarray(self.rho._values(T, J, X), dtype=float).reshape(len(T))
+        return np.where(np.isnan(v), -_INF, v)
+
+    def _at(self, ctx, T, J):
+        return self._rho(T, J, ctx.states(T, J))
+
+    def _slopes(self, ctx):
+        """d rho / dt at the arc's samples by the chain rule from ``xdot`` (NaN
+        where xdot is); None where unknown (a user function, or no xdot);
+        False when rho is affine in (x, t) on an arc interpolated linearly (it
+        has no extremum inside a step)."""
+        arc = ctx.arc
+        if arc.xdot is None:
+            linear = not getattr(arc, "_segments", None)
+            return False if linear and self.rho._affine() is not None else None
+        XD = np.asarray(arc.xdot, dtype=float)
+        with np.errstate(invalid="ignore"):
+            d = self.rho._dt(ctx.t, ctx.j, ctx.x, XD)
+        return None if d is None else np.asarray(d, dtype=float).reshape(len(ctx.t))
+
+    def _extrema(self, ctx, T, J, v, dv=None):
+        """Probe ``refine - 1`` interpolant values inside every step and add each
+        local extremum they reveal, located by parabolic interpolation. With
+        the slopes ``dv`` at the instants known, only the steps where the
+        slope changes sign (or is unknown at an end) are probed."""
+        k = np.flatnonzero(J[1:] == J[:-1])
+        if dv is not None and k.size:
+            with np.errstate(invalid="ignore"):
+                k = k[~(dv[k] * dv[k + 1] > 0)]
+        if not k.size:
+            return T, J, v
+        m = ctx.refine - 1
+        w = np.arange(1, m + 1) / (m + 1)
+        h = T[k + 1] - T[k]
+        S = T[k][:, None] + w[None, :] * h[:, None]                 # (steps, m)
+        Js = np.repeat(J[k], m)
+        Vs = self._at(ctx, S.ravel(), Js).reshape(len(k), m)
+        tt = np.hstack((T[k][:, None], S, T[k + 1][:, None]))         # (steps, m + 2)
+        vv = np.hstack((v[k][:, None], Vs, v[k + 1][:, None]))
+        with np.errstate(invalid="ignore"):
+            d = np.diff(vv, axis=1)
+            peak = (d[:, :-1] > 0) & (d[:, 1:] < 0)
+            dip = (d[:, :-1] < 0) & (d[:, 1:] > 0)
+        # the extrema become instants (the probes only reveal them: an excursion
+        # of the sign between samples shows in its extremum, and so its crossings)
+        ext_t, ext_j, ext_v = [], [], []
+        r, c = np.nonzero(peak | dip)
+        if r.size:
+            sgn = np.where(peak[r, c], -1.0, 1.0)          # minimise sgn * rho
+            jj = J[k][r]
+            x, fx = self._minimum(ctx, tt[r, c], tt[r, c + 1], tt[r, c + 2], sgn * vv[r, c],
+                                  sgn * vv[r, c + 1], sgn * vv[r, c + 2], sgn, jj, h[r])
+            ext_t.append(x)
+            ext_j.append(jj)
+            ext_v.append(sgn * fx)
+        return _sorted_points(np.concatenate([T] + ext_t), np.concatenate([J] + ext_j),
+                              np.concatenate([v] + ext_v))
+
+    def _minimum(self, ctx, lo, mid, hi, flo, fmid, fhi, sgn, J, h):
+        """Minima of ``sgn * rho`` in brackets (lo, mid, hi) with fmid below both
+        ends: successive parabolic interpolation, golden-section where a
+        vertex falls outside, until a step or the bracket is below 1e-5 or
+        1e-6 of the arc's step."""
+        g = 0.5 * (3.0 - math.sqrt(5.0))
+        live = np.ones(len(lo), dtype=bool)
+        for _ in range(60):
+            live &= (hi - lo) > 1e-6 * h + _tol(hi)
+            if not live.any():
+                break
+            i = np.flatnonzero(live)
+            a, m, b, fa, fm, fb = lo[i], mid[i], hi[i], flo[i], fmid[i], fhi[i]
+            p = (m - a) ** 2 * (fm - fb) - (m - b) ** 2 * (fm - fa)
+            q = (m - a) * (fm - fb) - (m - b) * (fm - fa)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                x = m - 0.5 * p / q
+            gold = np.where(b - m > m - a, m + g * (b - m), m - g * (m - a))
+            usable = np.isfinite(x) & (x > a) & (x < b)
+            # converged: a parabolic step this short moves the value by O(step^2)
+            conv = usable & (np.abs(x - m) <= 1e-5 * h[i])
+            if conv.any():
+                live[i[conv]] = False
+                keep = ~conv
+                i, a, m, b, fa, fm, fb = (y[keep] for y in (i, a, m, b, fa, fm, fb))
+                x, gold, usable = x[keep], gold[keep], usable[keep]
+                if not i.size:
+                    break
+            x = np.where(usable, x, gold)
+            fx = sgn[i] * self._at(ctx, x, J[i])
+            better = fx < fm
+            left = x < m
+            # the new bracket around the best point so far
+            lo[i] = np.where(better, np.where(left, a, m), np.where(left, x, a))
+            flo[i] = np.where(better, np.where(left, fa, fm), np.where(left, fx, fa))
+            hi[i] = np.where(better, np.where(left, m, b), np.where(left, b, x))
+            fhi[i] = np.where(better, np.where(left, fm, fb), np.where(left, fb, fx))
+            mid[i] = np.where(better, x, m)
+            fmid[i] = np.where(better, fx, fm)
+        return mid, fmid
+
+    def _roots(self, ctx, a, b, fa, fb, J):
+        """Where rho changes sign in (a, b) on the interpolant, to 4 ulp: the
+        engine's safeguarded secant (``events._secant``), vectorised: a secant
+        step from the last evaluation where it falls inside the bracket and is
+        shorter than half the step before last, else bisection; trials a
+        quarter tolerance inside the bracket so that it closes from both sides.
+        Returns each bracket's end past the crossing."""
+        sg = np.sign(fb)                         # F = sg * rho: F(lo) < 0 < F(hi)
+        lo, hi, flo, fhi = a.copy(), b.copy(), sg * fa, sg * fb
+        first = -flo < fhi
+        xl, fl = np.where(first, lo, hi), np.where(first, flo, fhi)
+        slope = (fhi - flo) / (hi - lo)
+        d1 = np.full(len(a), _INF)
+        d2 = d1.copy()
+        live = np.ones(len(a), dtype=bool)
+        for _ in range(200):
+            tol = _tol(hi)
+            live &= (hi - lo) > tol
+            if not live.any():
+                break
+            i = np.flatnonzero(live)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                s = xl[i] - fl[i] / slope[i]
+            ok = (lo[i] <= s) & (s <= hi[i]) & (np.abs(s - xl[i]) < 0.5 * d2[i])
+            s = np.where(ok, s, 0.5 * (lo[i] + hi[i]))
+            q = 0.25 * tol[i]
+            s = np.clip(s, lo[i] + q, hi[i] - q)
+            fs = sg[i] * self._at(ctx, s, J[i])
+            fs = np.where(np.isnan(fs), 0.0, fs)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                slope[i] = (fs - fl[i]) / (s - xl[i])
+            d2[i], d1[i] = d1[i], np.abs(s - xl[i])
+            xl[i], fl[i] = s, fs
+            up = fs >= 0
+            hi[i] = np.where(up, s, hi[i])
+            lo[i] = np.where(up & (fs != 0), lo[i], s)     # an exact zero: found
+        return hi
+
+
+class _WindowEval:
+    """``F[a,b]`` / ``G[a,b]`` of a formula, computed (a base of ``stl._Window``)."""
+
+    def _range(self, ctx, lo, hi):
+        return max(lo + self.a, ctx.t0), min(hi + self.b, ctx.tf)
+
+    def _compute(self, ctx, lo, hi, probes):
+        clo, chi = self._range(ctx, lo, hi)
+        if clo > ctx.tf:                        # (strict=False) every window is empty
+            T, J, *_ = ctx.domain(np.array([lo, hi]) if hi > lo else np.array([lo]))
+            return _Sig(T, J, np.full(len(T), -_INF if self.sup else _INF))
+        cp = sorted({p + d for p in probes for d in (self.a, self.b) if math.isfinite(p + d)})
+        s = self.phi._sig(ctx, clo, chi, cp[:256])
+        if self.sup:
+            return _window_sup(ctx, s, self.a, self.b, lo, hi)
+        return _window_sup(ctx, s.neg(), self.a, self.b, lo, hi).neg()
+
+    def _window_points(self, ctx, lo, hi, tau):
+        clo, chi = self._range(ctx, lo, hi)
+        s = self.phi._sig(ctx, clo, chi, ())
+        top = min(tau + self.b, chi)
+        m = (s.t >= tau + self.a - _tol(tau + self.a)) & (s.t <= top + _tol(top))
+        return s, m, clo, chi
+
+    def _decide(self, ctx, lo, hi, tau, j, target):
+        if lo + self.a > ctx.tf:
+            return tau, j
+        s, m, clo, chi = self._window_points(ctx, lo, hi, tau)
+        if self.a == 0:                         # not before (tau, j) in hybrid time
+            m &= ~((np.abs(s.t - tau) <= _tol(tau)) & (s.j < j))
+        k = np.flatnonzero(m)
+        if not k.size:
+            return tau, j
+        cand = np.stack((s.v[k], s.l[k], s.r[k]))
+        err = np.min(np.abs(cand - target), axis=0)
+        best = k[int(np.argmin(err))]
+        return self.phi._decide(ctx, clo, chi, float(s.t[best]), int(s.j[best]), target)
+
+
+class _UntilEval:
+    """``phi U[a,b] psi``, computed (a base of ``stl._Until``)."""
+
+    def _ranges(self, ctx, lo, hi):
+        end = min(hi + self.b, ctx.tf)
+        return (lo, end), (min(lo + self.a, end), end)
+
+    def _compute(self, ctx, lo, hi, probes):
+        a, b = self.a, self.b
+        (plo, phi_), (qlo, qhi) = self._ranges(ctx, lo, hi)
+        if lo + a > ctx.tf:
+            T, J, *_ = ctx.domain(np.array([lo, hi]) if hi > lo else np.array([lo]))
+            return _Sig(T, J, np.full(len(T), -_INF))
+        cp = sorted({p + d for p in probes for d in (0.0, a, b) if math.isfinite(p + d)})
+        sp = self.phi._sig(ctx, plo, phi_, cp[:256])
+        sq = self.psi._sig(ctx, qlo, qhi, cp[:256])
+        # untimed phi U psi on [qlo, qhi], at the instants of both
+        sp_q = _restrict(ctx, sp, qlo, qhi)
+        w = _untimed_until(sp_q, sq)
+        if math.isfinite(b):
+            # F[0, b - a] psi bounds the witness to the window (for b = a, psi itself:
+            # the untimed until alone would read to the end of the range, qhi)
+            w = _combine(w, _window_sup(ctx, sq, 0.0, b - a, qlo, min(hi + a, qhi)), np.minimum)
+        out = _window_sup(ctx, w, a, a, lo, hi)
+        if a > 0:
+            g = _window_sup(ctx, sp.neg(), 0.0, a, lo, hi).neg()
+            out = _combine(out, g, np.minimum)
+        return out
+
+    def _decide(self, ctx, lo, hi, tau, j, target):
+        (plo, phi_), (qlo, qhi) = self._ranges(ctx, lo, hi)
+        best = None
+        for f, (flo, fhi) in ((self.phi, (plo, phi_)), (self.psi, (qlo, qhi))):
+            s = f._sig(ctx, flo, fhi, ())
+            m = (s.t >= tau - _tol(tau)) & (s.t <= min(tau + self.b, fhi) + _tol(fhi))
+            k = np.flatnonzero(m)
+            if not k.size:
+                continue
+            err = np.abs(s.v[k] - target)
+            i = int(np.argmin(err))
+            if best is None or err[i] < best[0]:
+                best = (err[i], f, flo, fhi, float(s.t[k[i]]), int(s.j[k[i]]))
+        if best is None:
+            return tau, j
+        _, f, flo, fhi, tb, jb = best
+        return f._decide(ctx, flo, fhi, tb, jb, target)
+
+
+# --------------------------------------------------------------- evaluation --
+
+@_every("margin")
+def _robustness(arc, formula, t, j, strict, refine):
+    if len(arc.t) == 0:
+        raise ValueError("robustness: the arc is empty (no samples)")
+    if getattr(arc, "merged_into", None) is not None:
+        strict = False                  # a merged branch's prefix ends where it merges
+    ctx = _Context(arc, strict, refine)
+    tol = event_tolerance(ctx.tf, ctx.tf)
+    if not (ctx.t0 - tol <= t <= ctx.tf + tol):
+        raise ValueError(f"robustness: t = {t!r} is outside the arc's time range "
+                         f"[{ctx.t0}, {ctx.tf}]")
+    t = min(max(t, ctx.t0), ctx.tf)
+    h = formula.horizon
+    if strict and math.isfinite(h) and t + h > ctx.tf + event_tolerance(t + h, ctx.tf):
+        raise ValueError(f"robustness: {formula} reads the arc up to t = {_num(t + h)} "
+                         f"(t = {_num(t)} plus its horizon {_num(h)}), but the arc ends at "
+                         f"t = {ctx.tf!r}; simulate longer, or pass strict=False to cut the "
+                         f"windows at the arc's end")
+    _, J, *_ = ctx.domain(np.array([t]))
+    if j is None:
+        j = int(J[0])
+    elif int(j) not in set(J.tolist()):
+        raise ValueError(f"robustness: (t={t!r}, j={j}) is not in the arc's hybrid time "
+                         f"domain (at t the arc has j in {sorted(set(J.tolist()))})")
+    s = formula._sig(ctx, t, t, (t,))
+    k = np.flatnonzero(s.j == j)
+    value = float(s.v[k[0]]) if k.size else float(s.v[0])
+    wt, wj = formula._decide(ctx, t, t, t, int(j), value)
+    series = None
+    if isinstance(formula, _WindowEval) and not formula.sup and not (t + formula.a > ctx.tf):
+        c, m, _, _ = formula._window_points(ctx, t, t, t)
+        series = (c.t[m], c.j[m], c.v[m])
+    return Margin(value, wt, wj, str(formula), series=series)
