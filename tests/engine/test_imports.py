@@ -24,7 +24,7 @@ PKG = Path(__file__).resolve().parents[2] / "hybridsim"
 #: level and those below it
 LEVELS = (
     ("capabilities", {"explore", "falsification", "sensitivity", "testing", "plot", "stl",
-                      "estimate", "arch", "_stl_eval"}),
+                      "estimate", "arch", "_stl_eval", "_plot_sample"}),
     ("front door", {"run", "batch"}),
     ("paths", {"solve", "batch_vectorized", "compiled",
                "_sde", "_random_jumps", "_variational"}),
