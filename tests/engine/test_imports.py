@@ -24,7 +24,8 @@ PKG = Path(__file__).resolve().parents[2] / "hybridsim"
 #: level and those below it
 LEVELS = (
     ("capabilities", {"explore", "falsification", "sensitivity", "testing", "plot", "stl",
-                      "estimate", "arch", "_stl_eval", "_plot_sample"}),
+                      "estimate", "arch", "_stl_eval", "_plot_sample",
+                      "_explore_tree"}),
     ("front door", {"run", "batch"}),
     ("paths", {"solve", "batch_vectorized", "compiled",
                "_sde", "_random_jumps", "_variational"}),
