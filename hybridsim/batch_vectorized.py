@@ -46,6 +46,7 @@ from scipy.integrate import DOP853, RK45
 from scipy.integrate._ivp import dop853_coefficients as _dop
 
 from ._progress import make_bar
+from ._rk import MAX_FACTOR, MIN_FACTOR, SAFETY
 from .arc import Crossings, HybridArc, Termination
 from .arc_batch import ArcBatch
 from .events import WATCH_SAMPLES, _maximize, _near_peak, crossing_sides, starts_on_zero
@@ -104,7 +105,8 @@ _DOP = {"A": DOP853.A, "B": DOP853.B, "C": DOP853.C, "E3": DOP853.E3, "E5": DOP8
         "D": DOP853.D, "AX": _dop.A, "CX": _dop.C, "ns": DOP853.n_stages,
         "exp": -1.0 / (DOP853.error_estimator_order + 1),
         "order": DOP853.error_estimator_order}
-_SAFETY, _MIN_FACTOR, _MAX_FACTOR = 0.9, 0.2, 10.0
+# scipy's step-size controller constants, as the other paths take them (hybridsim._rk)
+_SAFETY, _MIN_FACTOR, _MAX_FACTOR = SAFETY, MIN_FACTOR, MAX_FACTOR
 _TOO_SMALL = "Required step size is less than spacing between numbers."
 # options of simulate() the batch integrator does not implement (refused by
 # options.check_unsupported unless at their do-nothing value)
@@ -1271,7 +1273,10 @@ class _BatchRun:
 
     def _initial_step(self, rows, y0, t0, j, f0, span):
         """scipy's ``select_initial_step`` (the method's error order), row by row
-        in one go."""
+        in one go. The batch form of the kernel's ``_steps._initial_guess`` and
+        ``_initial_step`` (the Python path takes scipy's own): every row's norms
+        and branch in one array expression, which a per-row scalar rule would
+        turn into a Python loop over the rows."""
         rtol, atol = self.rtol, self.atol
         scale = atol + np.abs(y0) * rtol
         d0 = _rms(y0 / scale)
