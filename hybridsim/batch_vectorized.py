@@ -701,7 +701,7 @@ def simulate_vectorized(system, x0s, t_max, j_max=math.inf, *, priority="jumps",
     --------
     >>> import numpy as np, hybridsim as hs
     >>> timer = hs.HybridSystem.from_functions(
-    ...     f=lambda x: np.ones_like(x), g=lambda x: np.zeros_like(x),
+    ...     flow_map=lambda x: np.ones_like(x), jump_map=lambda x: np.zeros_like(x),
     ...     jump_guard=lambda x: x[:, 0] - 1.0, flow_guard=lambda x: 1.0 - x[:, 0],
     ...     state_dim=1, vectorized=True)
     >>> arcs = simulate_vectorized(timer, [[0.0], [0.5]], t_max=2.2)

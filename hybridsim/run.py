@@ -219,7 +219,7 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
     --------
     >>> import numpy as np, hybridsim as hs
     >>> timer = hs.HybridSystem.from_functions(
-    ...     f=lambda x: np.array([1.0]), g=lambda x: np.array([0.0]),
+    ...     flow_map=lambda x: np.array([1.0]), jump_map=lambda x: np.array([0.0]),
     ...     jump_guard=lambda x: x[0] - 1.0, flow_guard=lambda x: 1.0 - x[0],
     ...     state_dim=1)
     >>> arc = hs.simulate(timer, [0.0], t_max=3.0)
@@ -423,7 +423,7 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
     Examples
     --------
     >>> import numpy as np, hybridsim as hs
-    >>> decay = hs.HybridSystem.from_functions(f=lambda x: -x, state_dim=1)
+    >>> decay = hs.HybridSystem.from_functions(flow_map=lambda x: -x, state_dim=1)
     >>> arcs = hs.simulate_many(decay, [[1.0], [2.0]], t_max=1.0, rtol=1e-10, atol=1e-12)
     >>> [round(float(a.xf[0]), 6) for a in arcs]
     [0.367879, 0.735759]
@@ -604,7 +604,7 @@ def sweep(make_system: Callable[[Any], HybridSystem], params: Iterable, x0: Arra
     Examples
     --------
     >>> import numpy as np, hybridsim as hs
-    >>> make = lambda a: hs.HybridSystem.from_functions(f=lambda x: -a * x, state_dim=1)
+    >>> make = lambda a: hs.HybridSystem.from_functions(flow_map=lambda x: -a * x, state_dim=1)
     >>> arcs = hs.sweep(make, [1.0, 2.0], [1.0], t_max=1.0, rtol=1e-10, atol=1e-12)
     >>> [round(float(a.xf[0]), 6) for a in arcs]
     [0.367879, 0.135335]

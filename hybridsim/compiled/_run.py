@@ -498,8 +498,8 @@ def simulate_compiled(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priori
     --------
     >>> import numpy as np
     >>> from hybridsim.compiled import CompiledSystem, simulate_compiled
-    >>> timer = CompiledSystem(flow=lambda x, t, j, p: np.ones(1),
-    ...                        jump=lambda x, t, j, p: np.zeros(1),
+    >>> timer = CompiledSystem(flow_map=lambda x, t, j, p: np.ones(1),
+    ...                        jump_map=lambda x, t, j, p: np.zeros(1),
     ...                        jump_guard=lambda x, t, j, p: x[0] - p[0],
     ...                        flow_guard=lambda x, t, j, p: p[0] - x[0],
     ...                        state_dim=1, params=[1.0])
@@ -703,8 +703,8 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
     --------
     >>> import numpy as np
     >>> from hybridsim.compiled import CompiledSystem, simulate_many_compiled
-    >>> timer = CompiledSystem(flow=lambda x, t, j, p: np.ones(1),
-    ...                        jump=lambda x, t, j, p: np.zeros(1),
+    >>> timer = CompiledSystem(flow_map=lambda x, t, j, p: np.ones(1),
+    ...                        jump_map=lambda x, t, j, p: np.zeros(1),
     ...                        jump_guard=lambda x, t, j, p: x[0] - p[0],
     ...                        state_dim=1, params=[1.0])
     >>> arcs = simulate_many_compiled(timer, [[0.0], [0.5]], t_max=2.0)

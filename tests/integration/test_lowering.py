@@ -147,8 +147,8 @@ def test_a_second_system_of_the_same_structure_compiles_nothing():
 @needs_numba
 def test_a_compiled_system_is_a_component_too():
     """A CompiledSystem (maps of (x, t, j, p)) stacks with a LinearPlant."""
-    timer = CompiledSystem(flow=lambda x, t, j, p: np.ones(1),
-                           jump=lambda x, t, j, p: np.zeros(1),
+    timer = CompiledSystem(flow_map=lambda x, t, j, p: np.ones(1),
+                           jump_map=lambda x, t, j, p: np.zeros(1),
                            jump_guard=lambda x, t, j, p: x[0] - p[0], state_dim=1,
                            params=[0.25])
     sys = hs.Interconnection({"timer": timer, "plant": hs.LinearPlant([[-1.0]])})
@@ -253,13 +253,13 @@ def test_components_and_lowering_check_their_arguments():
     def _agent_flow(x, u, t, j, p):
         return u - p[0] * x
     with pytest.raises(ValueError, match="params must be finite"):
-        Component(state_dim=1, flow=_agent_flow, params=[np.nan])
+        Component(state_dim=1, flow_map=_agent_flow, params=[np.nan])
     with pytest.raises(TypeError, match="params must be an array of floats"):
-        Component(state_dim=1, flow=_agent_flow, params=object())
+        Component(state_dim=1, flow_map=_agent_flow, params=object())
     with pytest.raises(ValueError, match="state_dim must be a positive int"):
-        Component(state_dim=0, flow=_agent_flow)
-    with pytest.raises(TypeError, match="flow must be callable"):
-        Component(state_dim=1, flow=3.0)
+        Component(state_dim=0, flow_map=_agent_flow)
+    with pytest.raises(TypeError, match="flow_map must be callable"):
+        Component(state_dim=1, flow_map=3.0)
     with pytest.raises(TypeError, match="system must be a hybridsim.HybridSystem"):
         lowerable(5)
     with pytest.raises(TypeError, match="system must be a hybridsim.HybridSystem"):
@@ -289,7 +289,7 @@ def test_a_component_of_the_wrong_size_is_named_before_compiling():
             return -x
 
         def compiled_component(self):
-            return Component(state_dim=2, flow=lambda x, u, t, j, p: np.zeros(3))
+            return Component(state_dim=2, flow_map=lambda x, u, t, j, p: np.zeros(3))
     with pytest.raises(ValueError, match=r"the system: its compiled flow map returns shape "
                                          r"\(3,\), expected \(2,\)"):
         lower(Bad())

@@ -421,7 +421,7 @@ def test_consistent_euler_matches_theory():
 def test_consistent_euler_is_the_euler_recursion():
     """ConsistentEuler reproduces x_{k+1} = x_k + h_k f(x_k, t_k), h_k = dt0 min(1, |x_k|)^mu,
     computed by hand (x' = -x + cos t), to rounding (event times to a few ulp)."""
-    sys = hs.HybridSystem.from_functions(f=lambda x, t: -x + np.cos(t), state_dim=1)
+    sys = hs.HybridSystem.from_functions(flow_map=lambda x, t: -x + np.cos(t), state_dim=1)
     eul = ConsistentEuler(sys, lambda x: abs(x[0]), 0.5, dt0=0.1, h_min=1e-3)
     arc = hs.simulate(eul, eul.initial_state([2.0]), t_max=1.0)
     post = arc.x[arc.jump_index]

@@ -87,7 +87,7 @@ class Lag(hs.HybridSystem):
         return np.array([-self.a * self.history(t - self.tau)[0]])
 
     def compiled_component(self):
-        return Component(state_dim=1, flow=_lag_flow, params=[self.a], delays=(self.tau,))
+        return Component(state_dim=1, flow_map=_lag_flow, params=[self.a], delays=(self.tau,))
 
 
 class Pair(hs.HybridSystem):
@@ -104,7 +104,7 @@ class Pair(hs.HybridSystem):
         return np.array([-self.a * pa[0] + u[0], pb[0] - x[1]])
 
     def compiled_component(self):
-        return Component(state_dim=2, input_dim=1, flow=_pair_flow, params=[self.a],
+        return Component(state_dim=2, input_dim=1, flow_map=_pair_flow, params=[self.a],
                          delays=self.taus)
 
 
@@ -171,7 +171,7 @@ def test_systems_lowered_from_one_structure_run_at_their_own_delays():
 def test_a_history_reader_without_declared_delays_is_refused_by_name():
     class Undeclared(Lag):
         def compiled_component(self):
-            return Component(state_dim=1, flow=_lag_flow, params=[self.a])
+            return Component(state_dim=1, flow_map=_lag_flow, params=[self.a])
 
     class NoForm(Lag):
         compiled_component = None
@@ -184,7 +184,7 @@ def test_a_history_reader_without_declared_delays_is_refused_by_name():
     for bad, err, msg in (((0.0,), ValueError, "positive"), ((0.1, 0.1), ValueError, "distinct"),
                           ("x", TypeError, "sequence")):
         with pytest.raises(err, match=msg):
-            Component(state_dim=1, flow=_lag_flow, delays=bad)
+            Component(state_dim=1, flow_map=_lag_flow, delays=bad)
     with pytest.raises(ValueError, match="needs flow"):
         Component(state_dim=1, delays=(0.1,))
 

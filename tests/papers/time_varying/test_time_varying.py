@@ -405,7 +405,8 @@ def test_time_varying_nonlinear_numeric_phi(seed):
     tv.check_assumption1(PA, PH, tau, grid, rcond_min=1e-6)
     obs = tv.ReducedOrderObserver(tau, A1, A2, L, PA, PH, delta1=d1, delta2=d2, p=1, m=2)
     plant = hs.HybridSystem.from_functions(
-        f=lambda x, t: np.concatenate([A1(t) @ x[1:] + d1(t, x[:1]), A2(t) @ x[1:] + d2(t, x[:1])]),
+        flow_map=lambda x, t: np.concatenate([A1(t) @ x[1:] + d1(t, x[:1]),
+                                              A2(t) @ x[1:] + d2(t, x[:1])]),
         state_dim=3, output=lambda x: x[:1], output_dim=1)
     sys = hs.connect(plant, obs)
     arc = hs.simulate(sys, sys.stack(plant=rng.normal(size=3), observer=obs.initial_state()),
