@@ -13,8 +13,11 @@ import os
 import sys
 import threading
 import warnings
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
+from scipy.integrate import OdeSolver
 
 from ..arc import HybridArc, _describe, _one_sample
 from ..arc_batch import ArcBatch
@@ -442,11 +445,18 @@ def _rng_for(k, prio, seed):
     return _DUMMY_RNG
 
 
-def simulate_compiled(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priority="jumps",
-                      rtol=1e-6, atol=1e-9, max_step=math.inf, first_step=None,
-                      max_steps=1_000_000, max_samples=10_000_000, zeno_jumps=50,
-                      zeno_time=1e-12, zeno_rtol=1e-7, max_norm=math.inf, seed=None,
-                      refine=1, throw=True, warn=True, method="RK45", **unsupported):
+def simulate_compiled(system: CompiledSystem, x0: ArrayLike, t_max: float,
+                      j_max: float = math.inf, *, t0: float = 0.0, j0: int = 0,
+                      priority: str = "jumps", rtol: float = 1e-6,
+                      atol: float | ArrayLike = 1e-9, max_step: float = math.inf,
+                      first_step: float | None = None, max_steps: float = 1_000_000,
+                      max_samples: float = 10_000_000, zeno_jumps: int = 50,
+                      zeno_time: float = 1e-12, zeno_rtol: float = 1e-7,
+                      max_norm: float = math.inf,
+                      seed: int | np.random.Generator | None = None, refine: int = 1,
+                      throw: bool = True, warn: bool = True,
+                      method: str | type[OdeSolver] = "RK45",
+                      **unsupported: Any) -> HybridArc:
     """Simulate a :class:`CompiledSystem` entirely in compiled code.
 
     The same run as ``hs.simulate(system, x0, t_max, j_max, method=method,
@@ -640,12 +650,19 @@ def _interruptible(fn, args, stop, threads=1):
     return interrupted
 
 
-def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
-                           chunk_bytes=64 * 2**20, t0=0.0, j0=0, priority="jumps",
-                           rtol=1e-6, atol=1e-9, max_step=math.inf, first_step=None,
-                           max_steps=1_000_000, max_samples=10_000_000, zeno_jumps=50,
-                           zeno_time=1e-12, zeno_rtol=1e-7, max_norm=math.inf, seed=None,
-                           refine=1, throw=False, warn=True, method="RK45", **unsupported):
+def simulate_many_compiled(system: CompiledSystem, x0s: ArrayLike, t_max: float,
+                           j_max: float = math.inf, *, parallel: bool = True,
+                           chunk_bytes: int = 64 * 2**20, t0: float = 0.0, j0: int = 0,
+                           priority: str = "jumps", rtol: float = 1e-6,
+                           atol: float | ArrayLike = 1e-9, max_step: float = math.inf,
+                           first_step: float | None = None, max_steps: float = 1_000_000,
+                           max_samples: float = 10_000_000, zeno_jumps: int = 50,
+                           zeno_time: float = 1e-12, zeno_rtol: float = 1e-7,
+                           max_norm: float = math.inf,
+                           seed: int | np.random.Generator | None = None, refine: int = 1,
+                           throw: bool = False, warn: bool = True,
+                           method: str | type[OdeSolver] = "RK45",
+                           **unsupported: Any) -> ArcBatch:
     """Simulate a :class:`CompiledSystem` from many initial states, compiled and in parallel.
 
     Each run is exactly :func:`simulate_compiled`'s (same steps, events and

@@ -86,9 +86,89 @@ def test_compiled_system_old_keywords_warn_and_build_the_same_system():
 def test_component_old_keywords_warn_and_build_the_same_component():
     flow = lambda x, u, t, j, p: -p[0] * x + u                   # noqa: E731
     jump = lambda x, u, t, j, p: 0.0 * x                         # noqa: E731
-    with pytest.warns(DeprecationWarning, match="Component: the keyword flow= is deprecated, "
-                                                "use flow_map="):
+    with pytest.warns(DeprecationWarning) as record:
         was = Component(state_dim=1, input_dim=1, flow=flow, jump=jump, params=[2.0])
+    assert sorted(str(w.message) for w in record) == [
+        "Component: the keyword flow= is deprecated, use flow_map=",
+        "Component: the keyword jump= is deprecated, use jump_map="]
+    assert all(w.filename == __file__ for w in record)      # the caller's line
     now = Component(state_dim=1, input_dim=1, flow_map=flow, jump_map=jump, params=[2.0])
     assert was.maps == now.maps
     np.testing.assert_array_equal(was.params, now.params)
+
+
+# ------------------------------------------------------------------ the runners
+def _runners():
+    from hybridsim.batch_vectorized import simulate_vectorized
+    from hybridsim.compiled import simulate_compiled, simulate_many_compiled
+    from hybridsim.falsification import falsify
+    return {f.__name__: f for f in (
+        hs.simulate, hs.simulate_many, hs.sweep, hs.explore, hs.simulate_sensitivity,
+        falsify, simulate_vectorized, simulate_compiled, simulate_many_compiled)}
+
+
+#: what a runner's leading positional parameters are called, by what it runs
+_HEAD = {"simulate": ("system", "x0", "t_max", "j_max"),
+         "simulate_many": ("system", "x0s", "t_max", "j_max"),
+         "sweep": ("make_system", "params", "x0", "t_max", "j_max"),
+         "explore": ("system", "x0", "t_max", "j_max"),
+         "simulate_sensitivity": ("system", "x0", "t_max", "j_max"),
+         "falsify": ("run", "space", "claim"),
+         "simulate_vectorized": ("system", "x0s", "t_max", "j_max"),
+         "simulate_compiled": ("system", "x0", "t_max", "j_max"),
+         "simulate_many_compiled": ("system", "x0s", "t_max", "j_max")}
+
+#: names other libraries use for a concept these runners name otherwise
+_SYNONYMS = {"x_0": "x0", "x_init": "x0", "y0": "x0", "initial_state": "x0",
+             "x0_batch": "x0s", "tmax": "t_max", "t_end": "t_max", "t_final": "t_max",
+             "T": "t_max", "jmax": "j_max", "max_jumps": "j_max", "n_jumps": "j_max",
+             "tmin": "t0", "t_start": "t0", "reltol": "rtol", "abstol": "atol",
+             "rel_tol": "rtol", "abs_tol": "atol", "solver": "method",
+             "integrator": "method", "engine": "backend", "path": "backend",
+             "rng": "seed", "random_state": "seed", "raise_on_error": "throw",
+             "raises": "throw", "verbose": "progress", "show_progress": "progress",
+             "hmax": "max_step", "dt_max": "max_step", "h0": "first_step",
+             "kwargs": "options", "kw": "options"}
+
+#: a name shared with another meaning, on purpose: falsify's search
+#: (method "de"/"random", refine the worst point, seed of the search)
+_OTHER_MEANING = {("falsify", "method"), ("falsify", "refine"), ("falsify", "seed")}
+
+
+def test_the_runners_share_one_parameter_vocabulary():
+    import inspect
+    runners = _runners()
+    sigs = {name: inspect.signature(f) for name, f in runners.items()}
+    for name, sig in sigs.items():
+        params = list(sig.parameters.values())
+        assert tuple(p.name for p in params[:len(_HEAD[name])]) == _HEAD[name], name
+        assert sig.return_annotation is not inspect.Signature.empty, name
+        for p in params:
+            assert p.annotation is not inspect.Parameter.empty, f"{name}({p.name}) unannotated"
+            assert p.name not in _SYNONYMS, \
+                f"{name}({p.name}): this vocabulary's name is {_SYNONYMS[p.name]}"
+            if p.kind is p.VAR_KEYWORD:    # forwarded to simulate, or refused by name
+                assert p.name in ("options", "unsupported"), (name, p.name)
+    # one name, one meaning: the same annotation everywhere, the same default
+    # where the default is not the runner's own (a batch keeps going: throw=False)
+    seen = {}
+    for name, sig in sigs.items():
+        for p in sig.parameters.values():
+            if (name, p.name) not in _OTHER_MEANING and p.kind is p.KEYWORD_ONLY:
+                seen.setdefault(p.name, []).append((name, p))
+    shared = {k: v for k, v in seen.items() if len(v) > 1}
+    assert {"t0", "j0", "rtol", "atol", "method", "seed", "backend", "priority", "max_step",
+            "throw", "warn", "progress"} <= set(shared)
+    for pname, where in shared.items():
+        notes = {str(p.annotation) for _, p in where}
+        assert len(notes) == 1, (pname, [(n, str(p.annotation)) for n, p in where])
+        if pname not in ("throw", "progress", "backend"):
+            defaults = {repr(p.default) for _, p in where}
+            assert len(defaults) == 1, (pname, [(n, p.default) for n, p in where])
+    # the simulation runners' options are simulate's (or forwarded to it)
+    front = sigs["simulate"].parameters
+    for name in ("simulate_vectorized", "simulate_compiled", "simulate_many_compiled"):
+        for p in sigs[name].parameters.values():
+            if p.kind is p.KEYWORD_ONLY and p.name not in ("parallel", "chunk_bytes"):
+                assert p.name in front, (name, p.name)
+                assert str(p.annotation) == str(front[p.name].annotation), (name, p.name)
