@@ -31,6 +31,9 @@ import numpy as np
 import pytest
 
 import hybridsim as hs
+from observers.gramian_delay.design import sampling_instants
+from observers.gramian_delay.example import DC_PARAMS, population
+from observers.gramian_delay.systems import DCMotor, smooth_noise
 
 numba = pytest.importorskip("numba")
 
@@ -202,7 +205,7 @@ def _loop(obs, x0=None, **kw):
 CASES = {
     "period": lambda ex: ex.sampled_observer(period=0.01),
     "instants": lambda ex: ex.sampled_observer(
-        instants=gd.sampling_instants(0.005, 0.02, T_MAX, seed=1)),
+        instants=sampling_instants(0.005, 0.02, T_MAX, seed=1)),
     "gaps": lambda ex: ex.sampled_observer(gaps=(0.01, 0.02)),
 }
 
@@ -239,7 +242,7 @@ def test_39_with_the_oracle_and_smooth_noise_agrees(motor):
     second half), and a measurement noise of smooth_noise (its compiled form)."""
     ex = gd.dc_motor(100.0, 0.1, oracle=True)
     for obs, noise in ((ex.sampled_observer(period=0.01, estimate="xi2"), None),
-                       (motor.sampled_observer(period=0.01), gd.smooth_noise(1e-3, seed=3))):
+                       (motor.sampled_observer(period=0.01), smooth_noise(1e-3, seed=3))):
         sysc, x0 = gd.example._loop(obs, obs.plant.chi0, None, noise, None, None)
         ref = hs.simulate(sysc, x0, t_max=T_MAX, **RUN)
         assert_same_run(hs.simulate(sysc, x0, t_max=T_MAX, backend="compiled", **RUN), ref)
@@ -252,7 +255,7 @@ def test_39_compiled_batch_equals_its_single_runs(motor):
     and the estimates of (13) read from the arcs agree with the Python path's."""
     obs = motor.sampled_observer(period=0.01)
     X = motor.chi0 + np.random.default_rng(0).uniform(-0.3, 0.3, (5, 3))
-    sysc, rows = gd.population(obs, X)
+    sysc, rows = population(obs, X)
     batch = hs.simulate_many(sysc, rows, t_max=T_MAX, backend="compiled", **RUN)
     for arc, row in zip(batch, rows):
         one = hs.simulate(sysc, row, t_max=T_MAX, backend="compiled", **RUN)
@@ -284,7 +287,7 @@ def test_what_has_no_compiled_form_is_refused_by_name(motor):
     reset = motor.sampled_observer(period=0.01, realisation="reset")
     with pytest.raises(TypeError, match="realisation='reset' has no compiled form"):
         lower(_loop(reset)[0])
-    sine = gd.DCMotor(gd.DC_PARAMS, 100.0, 0.1, u=np.sin, chi0=motor.chi0)
+    sine = DCMotor(DC_PARAMS, 100.0, 0.1, u=np.sin, chi0=motor.chi0)
     with pytest.raises(TypeError, match="its control u is a Python callable"):
         lower(sine)
     with pytest.raises(TypeError, match="the Psi of its form is a Python callable"):
