@@ -81,7 +81,8 @@ all, so Theorem 1's settling time is measured there to 1e-8 and below.
 Examples
 --------
 >>> from observers.distributed import (DistributedObserver, design, errors, example_system,
-...                                    lmi11, simulate)
+...                                    simulate)
+>>> from observers.distributed.design import lmi11
 >>> A, C, G = example_system()
 >>> dsg = design(A, C, G, nodelist=[1, 2, 3, 4], nu=-0.1, alpha=10.0, beta=0.7)
 >>> dsg.n_o, bool(lmi11(dsg).feasible)

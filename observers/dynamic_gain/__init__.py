@@ -50,6 +50,7 @@ located on the run's interpolant: :func:`settle_time` (4.79 s and 7.28 s).
 Examples
 --------
 >>> from observers.dynamic_gain import EXAMPLE, prescribed_time_observer, simulate, errors
+>>> from observers.dynamic_gain.example import gain_settling_time
 >>> obs = prescribed_time_observer(EXAMPLE["L"], EXAMPLE["mu"], EXAMPLE["gamma1"],
 ...                                b=EXAMPLE["b"])
 >>> arc = simulate(obs, EXAMPLE["x0"], [0.0, 0.0, 0.0], t_max=5.2)
