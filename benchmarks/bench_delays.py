@@ -23,6 +23,7 @@ import time
 import numpy as np
 
 import hybridsim as hs
+from observers.gramian_delay.example import population
 
 
 class Lag(hs.HybridSystem):
@@ -91,7 +92,7 @@ def gramian(quick):
     ex = gd.dc_motor(100.0, 0.1)
     obs = ex.sampled_observer(period=0.01)
     X = ex.chi0 + np.random.default_rng(1).uniform(-0.3, 0.3, (P, 3))
-    system, rows = gd.population(obs, X)
+    system, rows = population(obs, X)
     kw = dict(t_max=0.3, rtol=1e-8, atol=1e-10)
     (v, batch), (lp, loop) = _interleaved(
         lambda: hs.simulate_many(system, rows, **kw),

@@ -14,7 +14,8 @@ import warnings
 import numpy as np
 
 import observers.distributed as dist
-from observers.distributed.example import _settling
+from observers.distributed.design import choose_alpha
+from observers.distributed.example import _settling, random_system, stable_initial_state
 
 
 def main(t_max=10.0):
@@ -23,15 +24,15 @@ def main(t_max=10.0):
     for N in range(3, 9):
         for graph in ("ring", "random"):
             seed = 100 * N + (graph == "random")
-            A, C, G = dist.random_system(N, seed, graph=graph)
+            A, C, G = random_system(N, seed, graph=graph)
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 d0 = dist.design(A, C, G, nodelist=range(N))
-                alpha, _ = dist.choose_alpha(d0)
+                alpha, _ = choose_alpha(d0)
                 d = dist.design(A, C, G, nodelist=range(N), alpha=alpha)
                 dl = dist.design(A, C, G, nodelist=range(N), alpha=alpha, kind="linear")
             rng = np.random.default_rng(seed)
-            x0 = dist.stable_initial_state(A, rng.standard_normal(d.n))
+            x0 = stable_initial_state(A, rng.standard_normal(d.n))
             xh = rng.standard_normal((N, d.n))
             obs, lin = dist.DistributedObserver(d), dist.DistributedObserver(dl)
             t0 = time.perf_counter()

@@ -23,15 +23,18 @@ import numpy as np
 
 import hybridsim as hs
 from observers import li_sanfelice as ls
+from observers.li_sanfelice.design import error_after_jump, theorem_4_10_bound
+from observers.li_sanfelice.example import example_VA, noise_batch
+from observers.li_sanfelice.systems import BoundedNoiseGenerator
 
 
 def run(design, kind, N, m_max, seed, K=3, w_max=5.0):
     obs = ls.NominalObserver(design) if kind == "H_n" else ls.ConstantNoiseObserver(design)
-    gen = ls.BoundedNoiseGenerator(design.p, K)
+    gen = BoundedNoiseGenerator(design.p, K)
     S = gen.random_states(N, m_max, w_max=w_max, seed=seed)
     rng = np.random.default_rng(seed + 1)
     x0, xh0 = rng.normal(size=design.n), np.zeros(design.n)
-    sys, x0s = ls.noise_batch(obs, x0, xh0, S, gen)
+    sys, x0s = noise_batch(obs, x0, xh0, S, gen)
     t0 = time.perf_counter()
     arcs = hs.simulate_many(sys, x0s, t_max=1.01 * design.delta, method="DOP853",
                             rtol=1e-10, atol=1e-12)
@@ -44,7 +47,7 @@ def run(design, kind, N, m_max, seed, K=3, w_max=5.0):
         e = z[k, :design.n] - x[k]
         errs.append(np.linalg.norm(e))
         if kind == "H_n" and len(dev15) < 20:       # (15) by quadrature on a subset (slow)
-            dev15.append(np.linalg.norm(e - ls.error_after_jump(design, gen.callable(w))))
+            dev15.append(np.linalg.norm(e - error_after_jump(design, gen.callable(w))))
     return np.array(errs), (max(dev15) if dev15 else None), wall
 
 
@@ -54,12 +57,12 @@ def main():
     ap.add_argument("--m-max", type=float, default=0.3)
     ap.add_argument("--seed", type=int, default=0)
     a = ap.parse_args()
-    cases = [("V.A delta=1", ls.example_VA(delta=1.0)), ("V.A delta=3", ls.example_VA(delta=3.0)),
+    cases = [("V.A delta=1", example_VA(delta=1.0)), ("V.A delta=3", example_VA(delta=3.0)),
              ("V.B delta=1", ls.example_VB())]
     print(f"{'design':<13} {'obs':<4} {'N':>4} {'median':>9} {'p95':>9} {'max':>9} {'Thm4.10':>9} "
           f"{'max/bnd':>8} {'|(15)-sim|':>10} {'wall s':>7}")
     for name, d in cases:
-        bound = ls.theorem_4_10_bound(d, a.m_max)
+        bound = theorem_4_10_bound(d, a.m_max)
         for kind in ("H_n", "H_c"):
             e, dev, wall = run(d, kind, a.N, a.m_max, a.seed)
             devs = f"{dev:10.1e}" if dev is not None else f"{'-':>10}"

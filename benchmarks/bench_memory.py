@@ -33,7 +33,7 @@ import hybridsim as hs
 
 def timer_system():
     return hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0]), g=lambda x: np.array([0.0]),
+        flow_map=lambda x: np.array([1.0]), jump_map=lambda x: np.array([0.0]),
         jump_guard=lambda x: x[0] - 1.0, flow_guard=lambda x: 1.0 - x[0], state_dim=1)
 
 

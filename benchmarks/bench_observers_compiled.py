@@ -40,6 +40,12 @@ import numpy as np
 import hybridsim as hs
 from observers import distributed as dist
 from observers import li_sanfelice as ls
+from observers.distributed.example import noise_batch as dist_noise_batch
+from observers.distributed.example import random_system
+from observers.gramian_delay.example import population
+from observers.li_sanfelice.design import random_design
+from observers.li_sanfelice.example import noise_batch as ls_noise_batch
+from observers.li_sanfelice.systems import BoundedNoiseGenerator
 
 
 def _timed(fn):
@@ -49,12 +55,12 @@ def _timed(fn):
 
 
 def hc_study(N):
-    design = ls.random_design(0, 4, 2)
+    design = random_design(0, 4, 2)
     obs = ls.ConstantNoiseObserver(design)
-    gen = ls.BoundedNoiseGenerator(design.p, 3)
+    gen = BoundedNoiseGenerator(design.p, 3)
     S = gen.random_states(N, 0.1, w_max=5.0, seed=0)
     rng = np.random.default_rng(1)
-    sysm, x0s = ls.noise_batch(obs, rng.normal(size=4), np.zeros(4), S, gen)
+    sysm, x0s = ls_noise_batch(obs, rng.normal(size=4), np.zeros(4), S, gen)
     kw = dict(t_max=1.5 * design.delta, rtol=1e-10, atol=1e-12)
 
     def result(arcs):
@@ -63,11 +69,11 @@ def hc_study(N):
 
 
 def ring_study(R, N=8, t_sim=1.0):
-    A, C, G = dist.random_system(N, seed=1, graph="ring")
+    A, C, G = random_system(N, seed=1, graph="ring")
     dsg = dist.design(A, C, G, warn=False)
     x0 = np.random.default_rng(0).normal(size=A.shape[0])
     obs = dist.DistributedObserver(dsg)
-    sysm, X = dist.noise_batch(obs, x0, power=1e-4, seeds=range(R), t_max=t_sim)
+    sysm, X = dist_noise_batch(obs, x0, power=1e-4, seeds=range(R), t_max=t_sim)
     kw = dict(t_max=t_sim, rtol=1e-8, atol=1e-10)
 
     def result(arcs):
@@ -80,7 +86,7 @@ def gramian_study(P=20):
     ex = gd.dc_motor(100.0, 0.1)
     obs = ex.sampled_observer(period=0.01)
     X = ex.chi0 + np.random.default_rng(1).uniform(-0.3, 0.3, (P, 3))
-    sysm, rows = gd.population(obs, X)
+    sysm, rows = population(obs, X)
     kw = dict(t_max=0.3, rtol=1e-8, atol=1e-10)
 
     def result(arcs):            # xi_1 - xi_e of (13) at the end of each run

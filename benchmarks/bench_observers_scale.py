@@ -30,6 +30,12 @@ import numpy as np
 import hybridsim as hs
 from observers import distributed as dist
 from observers import li_sanfelice as ls
+from observers.distributed.example import band_limited_noise, random_system
+from observers.distributed.example import noise_batch as dist_noise_batch
+from observers.distributed.systems import initial_state, observer_network
+from observers.li_sanfelice.design import random_design
+from observers.li_sanfelice.example import noise_batch as ls_noise_batch
+from observers.li_sanfelice.systems import BoundedNoiseGenerator
 
 
 def _traced(fn, *args, **kw):
@@ -53,14 +59,14 @@ def hc_monte_carlo(N, seed=0, n_slow=50):
     """H_c and H_n over N noise realisations: the vectorized batch (one numpy integration of
     all rows, RK45) against the per-run path (DOP853, rtol 1e-10, on the first n_slow rows,
     the path the study used before), same seeds; errors after the jump compared row by row."""
-    design = ls.random_design(seed, 4, 2)
+    design = random_design(seed, 4, 2)
     rows = []
     for name, Obs in (("H_c", ls.ConstantNoiseObserver), ("H_n", ls.NominalObserver)):
         obs = Obs(design)
-        gen = ls.BoundedNoiseGenerator(design.p, 3)
+        gen = BoundedNoiseGenerator(design.p, 3)
         S = gen.random_states(N, 0.1, w_max=5.0, seed=seed)
         rng = np.random.default_rng(seed + 1)
-        sysm, x0s = ls.noise_batch(obs, rng.normal(size=4), np.zeros(4), S, gen)
+        sysm, x0s = ls_noise_batch(obs, rng.normal(size=4), np.zeros(4), S, gen)
         kw = dict(t_max=1.5 * design.delta, rtol=1e-10, atol=1e-12)
 
         def err(arcs):
@@ -109,20 +115,20 @@ def distributed_monte_carlo(R, N=8, t_sim=1.0):
     """R noise realisations of the N-node ring observer: noise_batch through simulate_many
     (vectorized) against hs.sweep over per-seed networks with a callable noise (the per-run
     path), same seeds; final errors compared row by row."""
-    A, C, G = dist.random_system(N, seed=1, graph="ring")
+    A, C, G = random_system(N, seed=1, graph="ring")
     dsg = dist.design(A, C, G, warn=False)
     x0 = np.random.default_rng(0).normal(size=A.shape[0])
     p = sum(np.atleast_2d(c).shape[0] for c in C.values())
     kw = dict(t_max=t_sim, rtol=1e-8, atol=1e-10)
-    sysm, X = dist.noise_batch(dist.DistributedObserver(dsg), x0, power=1e-4, seeds=range(R),
+    sysm, X = dist_noise_batch(dist.DistributedObserver(dsg), x0, power=1e-4, seeds=range(R),
                                t_max=t_sim)
 
     def make(seed):
-        return dist.observer_network(dsg, noise=dist.band_limited_noise(1e-4, 0.1, t_sim, p, seed))
+        return observer_network(dsg, noise=band_limited_noise(1e-4, 0.1, t_sim, p, seed))
 
     fast, wall = _timed(hs.simulate_many, sysm, X, **kw)
     _, peak = _traced(hs.simulate_many, sysm, X, **kw)
-    slow, wall_slow = _timed(hs.sweep, make, range(R), dist.initial_state(dsg, x0), **kw)
+    slow, wall_slow = _timed(hs.sweep, make, range(R), initial_state(dsg, x0), **kw)
     obs = dist.DistributedObserver(dsg)
     f_fast = np.array([dist.errors(a, obs)["norm"][-1] for a in fast])
     f_slow = np.array([dist.errors(a, obs)["norm"][-1] for a in slow])
@@ -146,7 +152,7 @@ def distributed_scaling(sizes, t_sim=1.0):
     per_node = []
     for graph in ("ring", "random"):
         for N in sizes:
-            A, C, G = dist.random_system(N, seed=1, graph=graph, p_edge=0.3)
+            A, C, G = random_system(N, seed=1, graph=graph, p_edge=0.3)
             dsg = dist.design(A, C, G, warn=False)
             x0 = np.random.default_rng(0).normal(size=A.shape[0])
             t0 = time.perf_counter()

@@ -52,8 +52,8 @@ class BouncingBall(hs.HybridSystem):             # README's ten lines, as writte
 def hand_written():
     """The same model, written by hand for the compiled path."""
     return CompiledSystem(
-        flow=lambda x, t, j, p: np.array([x[1], -9.81]),
-        jump=lambda x, t, j, p: np.array([0.0, -0.8 * x[1]]),
+        flow_map=lambda x, t, j, p: np.array([x[1], -9.81]),
+        jump_map=lambda x, t, j, p: np.array([0.0, -0.8 * x[1]]),
         jump_guard=lambda x, t, j, p: min(-x[0], -x[1]),
         flow_guard=lambda x, t, j, p: x[0],
         jump_set=lambda x, t, j, p: x[0] <= 0 and x[1] <= 0,

@@ -171,7 +171,7 @@ def covariance_row(repeat, N=1000):
 
 def _rate_reset(p):
     return hs.HybridSystem.from_functions(
-        f=lambda x: np.array([p[0]]), g=lambda x: np.array([p[1]]),
+        flow_map=lambda x: np.array([p[0]]), jump_map=lambda x: np.array([p[1]]),
         jump_guard=lambda x: x[0] - 1.0, state_dim=1)
 
 

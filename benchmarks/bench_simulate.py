@@ -61,13 +61,13 @@ def g_ball(x):
 
 
 BALL_GUARDS = hs.HybridSystem.from_functions(
-    f=f_ball, g=g_ball, state_dim=2, name="ball (guards)",
+    flow_map=f_ball, jump_map=g_ball, state_dim=2, name="ball (guards)",
     jump_guard=lambda x: np.array([-x[0], -x[1]]),    # D = {x0 <= 0, x1 <= 0}
     flow_guard=lambda x: x[0])                        # C = {x0 >= 0}
 
 BALL_SETS = hs.HybridSystem.from_functions(
-    f=f_ball, g=g_ball, state_dim=2, name="ball (set indicators)",
-    C=lambda x: x[0] >= 0, D=lambda x: x[0] <= 0 and x[1] <= 0)
+    flow_map=f_ball, jump_map=g_ball, state_dim=2, name="ball (set indicators)",
+    flow_set=lambda x: x[0] >= 0, jump_set=lambda x: x[0] <= 0 and x[1] <= 0)
 
 # smooth linear system: two lightly damped oscillators, xdot = A x
 A_LIN = np.array([[0.0, 1.0, 0.0, 0.0],
@@ -75,7 +75,7 @@ A_LIN = np.array([[0.0, 1.0, 0.0, 0.0],
                   [0.0, 0.0, 0.0, 1.0],
                   [0.3, 0.0, -9.0, -0.2]])
 X0_LIN = np.array([1.0, 0.0, -0.5, 0.2])
-LINEAR = hs.HybridSystem.from_functions(f=lambda x: A_LIN @ x, state_dim=4, name="linear")
+LINEAR = hs.HybridSystem.from_functions(flow_map=lambda x: A_LIN @ x, state_dim=4, name="linear")
 
 
 def analytic_jump_times(n):

@@ -48,9 +48,10 @@ def row(name, value, ours, se, seconds):
 
 
 def barrier(guard):
-    kw = dict(jump_guard=lambda x: x[0] - 1.0) if guard else dict(D=lambda x: x[0] >= 1.0)
+    kw = dict(jump_guard=lambda x: x[0] - 1.0) if guard else dict(jump_set=lambda x: x[0] >= 1.0)
     return hs.HybridSystem.from_functions(
-        f=lambda x: np.array([0.0]), g=lambda x: x, diffusion=lambda x: np.array([1.0]),
+        flow_map=lambda x: np.array([0.0]), jump_map=lambda x: x,
+        diffusion=lambda x: np.array([1.0]),
         state_dim=1, **kw)
 
 

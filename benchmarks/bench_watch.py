@@ -24,7 +24,7 @@ RTOL, ATOL = 1e-8, 1e-10
 
 def pendulum(watch):
     return hs.HybridSystem.from_functions(
-        f=lambda x: np.stack([x[..., 1], -np.sin(x[..., 0])], axis=-1), state_dim=2,
+        flow_map=lambda x: np.stack([x[..., 1], -np.sin(x[..., 0])], axis=-1), state_dim=2,
         watch=(lambda x: np.stack([x[..., 1], x[..., 0]], axis=-1)) if watch else None,
         vectorized=True)
 

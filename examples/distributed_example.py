@@ -22,19 +22,9 @@ signed powers make the flow stiff near convergence, so the horizon is 8 s).
 import matplotlib.pyplot as plt
 import numpy as np
 
-from observers.distributed import (
-    DistributedObserver,
-    choose_alpha,
-    design,
-    errors,
-    example_system,
-    lmi11,
-    proposition1_lyapunov,
-    settling_time,
-    simulate,
-    simulate_errors,
-    stable_initial_state,
-)
+from observers.distributed import DistributedObserver, design, errors, example_system, simulate
+from observers.distributed.design import choose_alpha, lmi11, proposition1_lyapunov
+from observers.distributed.example import settling_time, simulate_errors, stable_initial_state
 
 A, C, G = example_system()                 # Section 4; graph 1->2->3->4->1 (our choice)
 dsg = design(A, C, G, nodelist=[1, 2, 3, 4], poles=-3.0, nu=-0.1, alpha=10.0, beta=0.7)

@@ -18,14 +18,12 @@ import hybridsim as hs
 from observers.dynamic_gain import (
     EXAMPLE,
     errors,
-    example_norm,
-    gain_settling_time,
     prescribed_time_observer,
     proposed_observer,
-    settle_time,
-    settling_time,
     simulate,
 )
+from observers.dynamic_gain.design import settling_time
+from observers.dynamic_gain.example import example_norm, gain_settling_time, settle_time
 from observers.lmi import check_gain_lmi10, solve_lmi10
 
 mu, gamma1 = EXAMPLE["mu"], EXAMPLE["gamma1"]

@@ -25,6 +25,7 @@ import numpy as np
 
 import hybridsim as hs
 from observers import gramian_delay as gd
+from observers.gramian_delay.design import sampling_instants, theorem2_constants
 
 # the motor (65) without disturbances, k = 100, tau = 0.1 (Section V)
 ex = gd.dc_motor(k=100.0, tau=0.1, disturbed=False)
@@ -51,13 +52,13 @@ print(f"k = 75, reset realisation: {arc75.jump_count} resets, max |xi1 - xi_e| f
       f"t >= tau: {E75.norm()[arc75.t >= 0.1].max():.2e}")
 
 # Theorem 2: samples at random instants 5-10 ms apart, omega in (13)
-ins = gd.sampling_instants(0.005, 0.01, 1.0, seed=1)
+ins = sampling_instants(0.005, 0.01, 1.0, seed=1)
 obs_s = ex.sampled_observer(instants=ins)
 arc_s = gd.simulate(obs_s, ex.chi0, None, t_max=1.0)
 E_s = gd.errors(arc_s, obs_s)
 print(f"Theorem 2: {arc_s.jump_count} samples; |xi1 - xi_e| at t = 0.2, 0.5, 1:",
       [f"{E_s.norm()[np.searchsorted(arc_s.t, s) - 1]:.2e}" for s in (0.2, 0.5, 1.0)])
-c = gd.theorem2_constants(d, ex.K1, ex.K2, 0.01)
+c = theorem2_constants(d, ex.K1, ex.K2, 0.01)
 print(f"Theorem 2's condition (40): T_bar mu = {c.T_bar_mu:.3g} (needs < 1)")
 
 # %%

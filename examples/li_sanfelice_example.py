@@ -22,14 +22,21 @@ import numpy as np
 
 import hybridsim as hs
 from observers import li_sanfelice as ls
+from observers.li_sanfelice.design import (
+    PiecewiseConstantNoise,
+    admissible_delta,
+    error_after_jump,
+    lemma_4_2_condition,
+    theorem_4_10_bound,
+)
 
 A = np.array([[0.0, 1.0], [-1.0, 0.0]])
 H = np.array([[1.0, 2.0], [2.0, 1.0]])
 L1, L2 = 5 * np.linalg.inv(H), 8 * np.linalg.inv(H)      # F1 = A - 5I, F2 = A - 8I
 
 # design checks: Assumption 4.1 / Remark 4.4, Lemma 4.2, K1, K2, H T - I
-print("first zero of det(I - e^{F2 t} e^{-F1 t}) up to t=20:", ls.admissible_delta(A, H, L1, L2))
-print("Lemma 4.2 condition:", ls.lemma_4_2_condition(A, H, L1, L2))
+print("first zero of det(I - e^{F2 t} e^{-F1 t}) up to t=20:", admissible_delta(A, H, L1, L2))
+print("Lemma 4.2 condition:", lemma_4_2_condition(A, H, L1, L2))
 d = ls.Design(A=A, H=H, L1=L1, L2=L2, delta=1.0)
 print("K2 =\n", d.K2, "\ncond(HT - I) =", round(d.HT_cond, 3),
       " |(HT - I)^-1| =", round(d.HT_inv_norm, 3))
@@ -48,8 +55,8 @@ m = np.array([0.3, 0.2])
 arc_nm = ls.simulate(obs, x0, noise=m, t_max=3.0)
 E = ls.errors(arc_nm, obs)
 print("H_n, m = (0.3, 0.2): e(delta,1) =", E["e1"][arc_nm.j == 1][0],
-      " (15):", ls.error_after_jump(d, m),
-      " Thm 4.10 bound:", round(ls.theorem_4_10_bound(d, np.linalg.norm(m)), 4))
+      " (15):", error_after_jump(d, m),
+      " Thm 4.10 bound:", round(theorem_4_10_bound(d, np.linalg.norm(m)), 4))
 
 # H_c compensates the bias after one jump (Theorem 4.13) and estimates it
 obs_c = ls.ConstantNoiseObserver(d)
@@ -58,7 +65,7 @@ E = ls.errors(arc_c, obs_c)
 print("H_c: max |e| after the jump:", np.abs(E.e[arc_c.j == 1]).max(), " m̂ =", E["mhat"][-1])
 
 # H_pc tracks a piecewise-constant noise, exact within 2 delta of each switch (Theorem 4.14)
-noise = ls.PiecewiseConstantNoise([2.5, 4.5], [[0.3, 0.2], [0.4, 0.4], [0.2, 0.3]])
+noise = PiecewiseConstantNoise([2.5, 4.5], [[0.3, 0.2], [0.4, 0.4], [0.2, 0.3]])
 obs_pc = ls.PiecewiseConstantNoiseObserver(d)
 arc_pc = ls.simulate(obs_pc, x0, noise=noise, t_max=8.0)
 E = ls.errors(arc_pc, obs_pc)

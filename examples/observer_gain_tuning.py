@@ -62,7 +62,7 @@ def make_observer(p):
         return out
 
     return hs.HybridSystem.from_functions(
-        f=flow, g=jump, jump_guard=lambda z: z[4] - TS, state_dim=6,
+        flow_map=flow, jump_map=jump, jump_guard=lambda z: z[4] - TS, state_dim=6,
         name="sampled-data observer")
 
 

@@ -20,6 +20,13 @@ import numpy as np
 
 import hybridsim as hs
 from observers import time_varying as tv
+from observers.time_varying.design import Lambda, M_tau, example_data, example_gain_sup, residual_58
+from observers.time_varying.example import (
+    estimates,
+    loop_functions,
+    loop_signals,
+    tracking_initial_state,
+)
 
 # --- Section II: design (4)-(6) and the observer (15) -------------------------
 A = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [-1.0, -2.0, -1.5]])
@@ -33,31 +40,31 @@ def delta(t):
 
 obs, rc = tv.lti_observer(A, C, tau=0.5, delta=delta)        # L placed, M_tau (6) checked
 print("A1 =", rc.A1, " A2 =\n", rc.A2, "\nL =", obs.L(0).ravel(), " rcond(M_tau) =",
-      1 / np.linalg.cond(tv.M_tau(rc.A2, rc.A1, obs.L(0), 0.5)))
+      1 / np.linalg.cond(M_tau(rc.A2, rc.A1, obs.L(0), 0.5)))
 arc = tv.simulate(obs, [1.0, -1.0, 0.5], t_max=2.0)        # plant (2)-(3) from lti_observer
 E = tv.errors(arc, obs)                                    # an Errors: xhat_r - x_r under "e"
 err = E.norm()
 # t >= tau after the observer's jump at tau (j >= 1): the sample before the jump still holds xr_init
 print("max |xhat_r - x_r| before tau:", err[arc.j == 0].max(), " after:", err[arc.j >= 1].max())
-xhat = rc.x_from(arc.outputs("plant")[-1], tv.estimates(arc, obs)[-1])
+xhat = rc.x_from(arc.outputs("plant")[-1], estimates(arc, obs)[-1])
 print("full state estimate at t = 2:", xhat, " true:", arc["plant"].x[-1])
 
 # --- Section IV: tracking with the observer in the loop ------------------------
-ex = tv.example_data()
-print("Lambda =", tv.Lambda(ex["Phi_A2"], ex["Phi_H"], 1.0, ex["tau"]).item(), "= 1 - e^{4 pi}")
-gain = tv.example_gain_sup(2 ** 14)
+ex = example_data()
+print("Lambda =", Lambda(ex["Phi_A2"], ex["Phi_H"], 1.0, ex["tau"]).item(), "= 1 - e^{4 pi}")
+gain = example_gain_sup(2 ** 14)
 print(f"l_a of (28) on the example: in [{gain.lower:.5f}, {gain.upper:.5f}] (certified)")
 loop, v2 = tv.tracking_loop()
-arc_l = hs.simulate(loop, tv.tracking_initial_state(loop, xi4=1.0, xi3=-1.0, xi2=0.5, x1=0.5),
+arc_l = hs.simulate(loop, tracking_initial_state(loop, xi4=1.0, xi3=-1.0, xi2=0.5, x1=0.5),
                     t_max=14.0, rtol=1e-10, atol=1e-12, dense=True)
-S = tv.loop_signals(arc_l, loop, v2)
+S = loop_signals(arc_l, loop, v2)
 T0 = 2 * np.pi + np.sqrt(0.5)
 print("jumps (x1 reaches 0, window filled):", arc_l.jump_times)
 err2 = np.abs(S["xhat2"] - S["xi"][:, 1])
 print("max |xhat2 - xi2| for t >= 2 pi + 1/sqrt2:", err2[S["t"] >= T0].max())
 print("|zeta| at t = 0, 14:", np.linalg.norm(S["zeta"][0]), np.linalg.norm(S["zeta"][-1]))
 print("(58) residual at t = 10:",
-      tv.residual_58(10.0, *tv.loop_functions(arc_l, loop, v2), points=arc_l.jump_times))
+      residual_58(10.0, *loop_functions(arc_l, loop, v2), points=arc_l.jump_times))
 
 # %%
 # The estimation errors in hybrid time: flows solid, each jump a dotted

@@ -34,8 +34,8 @@ import hybridsim as hs
 PERIOD = 1.0
 
 timer = hs.HybridSystem.from_functions(
-    f=lambda x: np.array([1.0]),
-    g=lambda x: np.array([0.0]),
+    flow_map=lambda x: np.array([1.0]),
+    jump_map=lambda x: np.array([0.0]),
     jump_guard=lambda x: x[0] - PERIOD,
     flow_guard=lambda x: PERIOD - x[0],
     state_dim=1, name="timer")

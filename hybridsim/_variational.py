@@ -342,9 +342,9 @@ def compiled_variational(ssys, codes):
     proto = _PROTOS.get(key)
     if proto is None:
         from .compiled import CompiledSystem
-        from .compiled._system import _load_kernel
+        from .compiled._system import _load_kernel, keywords
         _load_kernel()
-        proto = CompiledSystem(**_build(maps, codes), state_dim=ssys.state_dim,
+        proto = CompiledSystem(**keywords(_build(maps, codes)), state_dim=ssys.state_dim,
                                name=f"sensitivities of {type(ssys.base).__name__} (compiled)")
         proto.compile()
         proto.__dict__["_keep"] = maps          # the ids of the key stay valid

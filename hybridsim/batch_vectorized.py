@@ -40,9 +40,11 @@ import bisect
 import inspect
 import itertools
 import math
+from typing import Any
 
 import numpy as np
-from scipy.integrate import DOP853, RK45
+from numpy.typing import ArrayLike
+from scipy.integrate import DOP853, RK45, OdeSolver
 from scipy.integrate._ivp import dop853_coefficients as _dop
 
 from ._progress import make_bar
@@ -572,12 +574,17 @@ def _parse(system, x0s, t_max, j_max, kw, method, progress, seed, extra):
     return n, X, ro, progress, rng, method
 
 
-def simulate_vectorized(system, x0s, t_max, j_max=math.inf, *, priority="jumps",
-                        rtol=1e-6, atol=1e-9, max_step=math.inf, first_step=None,
-                        zeno_jumps=50, zeno_time=1e-12, zeno_rtol=1e-7, progress=False,
-                        method="RK45", t0=0.0, j0=0, max_norm=math.inf, seed=None,
-                        throw=False, warn=True, refine=1, max_steps=1_000_000,
-                        max_samples=10_000_000, **unsupported):
+def simulate_vectorized(system: HybridSystem, x0s: ArrayLike, t_max: float,
+                        j_max: float = math.inf, *, priority: str = "jumps",
+                        rtol: float = 1e-6, atol: float | ArrayLike = 1e-9,
+                        max_step: float = math.inf, first_step: float | None = None,
+                        zeno_jumps: int = 50, zeno_time: float = 1e-12,
+                        zeno_rtol: float = 1e-7, progress: bool | None = False,
+                        method: str | type[OdeSolver] = "RK45", t0: float = 0.0, j0: int = 0,
+                        max_norm: float = math.inf,
+                        seed: int | np.random.Generator | None = None, throw: bool = False,
+                        warn: bool = True, refine: int = 1, max_steps: float = 1_000_000,
+                        max_samples: float = 10_000_000, **unsupported: Any) -> ArcBatch:
     r"""Simulate a vectorized hybrid system from many initial states at once.
 
     The whole batch is integrated together in numpy by an embedded
@@ -703,7 +710,7 @@ def simulate_vectorized(system, x0s, t_max, j_max=math.inf, *, priority="jumps",
     --------
     >>> import numpy as np, hybridsim as hs
     >>> timer = hs.HybridSystem.from_functions(
-    ...     f=lambda x: np.ones_like(x), g=lambda x: np.zeros_like(x),
+    ...     flow_map=lambda x: np.ones_like(x), jump_map=lambda x: np.zeros_like(x),
     ...     jump_guard=lambda x: x[:, 0] - 1.0, flow_guard=lambda x: 1.0 - x[:, 0],
     ...     state_dim=1, vectorized=True)
     >>> arcs = simulate_vectorized(timer, [[0.0], [0.5]], t_max=2.2)

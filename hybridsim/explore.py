@@ -53,8 +53,11 @@ import collections
 import math
 import time
 import warnings
+from collections.abc import Iterable
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ._explore_tree import ExploreEnd, Node, SolutionTree, _Merger
 from .arc import Choice, HybridArc
@@ -93,10 +96,11 @@ _COMPILED_ONLY_AT = {"inputs": (None,), "prehistory": (None,), "dense": (False,)
                      "t_eval": (None,)}
 
 
-def explore(system: HybridSystem, x0, t_max: float, j_max: float = math.inf, *,
-            t0: float = 0.0, j0: int = 0, dwell_grid=(), merge_tol: float | str | None = _AUTO,
-            max_branches: int = 100_000, max_seconds: float = 60.0, throw: bool = True,
-            warn: bool = True, backend: str = "auto", **options) -> SolutionTree:
+def explore(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = math.inf, *,
+            t0: float = 0.0, j0: int = 0, dwell_grid: Iterable[float] = (),
+            merge_tol: float | str | None = _AUTO, max_branches: int = 100_000,
+            max_seconds: float = 60.0, throw: bool = True, warn: bool = True,
+            backend: str = "auto", **options: Any) -> SolutionTree:
     r"""Every solution of a hybrid inclusion from x0, as a tree of arcs.
 
     At each entry into C ∩ D where flowing is possible the tree branches:

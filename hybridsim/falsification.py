@@ -49,7 +49,7 @@ import numbers
 import time
 import traceback
 import weakref
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 
 import numpy as np
 
@@ -1033,8 +1033,8 @@ class _Evaluator:
 def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
             budget: int = 1000, seconds: float = math.inf, seed: int | None = None,
             method: str = "de", popsize: int | None = None, refine: bool | str = True,
-            allow=("T_MAX", "J_MAX"), stop: bool = True, on_error: str = "finding",
-            progress: bool | None = None) -> FalsificationResult:
+            allow: Iterable[str] = ("T_MAX", "J_MAX"), stop: bool = True,
+            on_error: str = "finding", progress: bool | None = None) -> FalsificationResult:
     """Search ``space`` for a run on which ``claim``'s margin is negative.
 
     Parameters

@@ -93,7 +93,7 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
              t_eval: ArrayLike | None = None, max_steps: float = 1_000_000,
              max_samples: float = 10_000_000, zeno_jumps: int = 50,
              zeno_time: float = 1e-12, zeno_rtol: float = 1e-7,
-             backend: str = "python", dwell=None) -> HybridArc:
+             backend: str = "python", dwell: Any = None) -> HybridArc:
     r"""Simulate a hybrid system from x0 until t_max or j_max.
 
     Flows by :math:`\dot x = f(x)` with a scipy ODE solver while x is in C,
@@ -219,7 +219,7 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
     --------
     >>> import numpy as np, hybridsim as hs
     >>> timer = hs.HybridSystem.from_functions(
-    ...     f=lambda x: np.array([1.0]), g=lambda x: np.array([0.0]),
+    ...     flow_map=lambda x: np.array([1.0]), jump_map=lambda x: np.array([0.0]),
     ...     jump_guard=lambda x: x[0] - 1.0, flow_guard=lambda x: 1.0 - x[0],
     ...     state_dim=1)
     >>> arc = hs.simulate(timer, [0.0], t_max=3.0)
@@ -339,7 +339,7 @@ def _compiled_run(system, x0, t_max, j_max, opts, python_only):
 def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
                   j_max: float = np.inf, *, executor: concurrent.futures.Executor | None = None,
                   chunks: int | None = None, progress: bool | None = None,
-                  throw: bool = False, warn: bool = True, **kwargs) -> list[HybridArc]:
+                  throw: bool = False, warn: bool = True, **options: Any) -> ArcBatch:
     """Simulate one system from many initial states.
 
     Parameters
@@ -381,7 +381,7 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
     warn : bool
         Issue the summary warning (default True). Single runs never warn on
         their own inside a batch.
-    **kwargs
+    **options
         Passed to :func:`hybridsim.simulate` (``priority``, ``rtol``...).
         Argument errors (the same for every row) raise at once.
         ``backend="compiled"`` (no executor) runs the batch compiled and
@@ -423,7 +423,7 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
     Examples
     --------
     >>> import numpy as np, hybridsim as hs
-    >>> decay = hs.HybridSystem.from_functions(f=lambda x: -x, state_dim=1)
+    >>> decay = hs.HybridSystem.from_functions(flow_map=lambda x: -x, state_dim=1)
     >>> arcs = hs.simulate_many(decay, [[1.0], [2.0]], t_max=1.0, rtol=1e-10, atol=1e-12)
     >>> [round(float(a.xf[0]), 6) for a in arcs]
     [0.367879, 0.735759]
@@ -445,32 +445,32 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
     N = len(X)
     if N == 0:
         return ArcBatch((), n)
-    if kwargs.get("seed") is not None and any(
+    if options.get("seed") is not None and any(
             getattr(system, k, None) is not None for k in ("diffusion", "jump_rate", "jump_law")):
         raise ValueError(f"seed: simulate_many passes one seed to every row, so every row of "
                          f"{type(system).__name__} (it draws noise: diffusion, jump_rate or "
                          f"jump_law) would draw the same; run seeded rows with "
                          f"hybridsim.estimate.accumulate or estimate (a generator per run), or "
                          f"hs.sweep over seeds")
-    kwargs = dict(kwargs, t_max=t_max, j_max=j_max, progress=False)
-    if kwargs.get("backend") == "auto":
-        kwargs["backend"] = _auto_backend(system, kwargs, executor)
-    if kwargs.get("backend") == "python":
-        del kwargs["backend"]               # the default: the batch integrator may take it
-    if kwargs.get("backend", "python") == "compiled" and executor is None:
-        kw = {k: v for k, v in kwargs.items() if k not in ("backend", "progress")}
+    options = dict(options, t_max=t_max, j_max=j_max, progress=False)
+    if options.get("backend") == "auto":
+        options["backend"] = _auto_backend(system, options, executor)
+    if options.get("backend") == "python":
+        del options["backend"]               # the default: the batch integrator may take it
+    if options.get("backend", "python") == "compiled" and executor is None:
+        kw = {k: v for k, v in options.items() if k not in ("backend", "progress")}
         _no_watch_compiled(system)
         out = compiled.simulate_many_compiled(lower(system), X, throw=False, warn=False, **kw)
         out = ArcBatch([rebind(a, system) for a in out], n)
         return finish_batch("simulate_many", out, throw, warn)
-    if system.vectorized and executor is None and _batch_takes(system, kwargs):
-        out = ArcBatch(_many_vectorized(system, X, kwargs, progress), n)
+    if system.vectorized and executor is None and _batch_takes(system, options):
+        out = ArcBatch(_many_vectorized(system, X, options, progress), n)
         return finish_batch("simulate_many", out, throw, warn)
     else:
-        kwargs.update(throw=False, warn=False)
+        options.update(throw=False, warn=False)
         items = [(None, x0) for x0 in X]
         bar = make_bar(progress, total=N, desc="simulate_many", unit="run", leave=True)
-        out = _execute(_Batch(system, None, items, kwargs, throw, bar), executor, chunks, bar)
+        out = _execute(_Batch(system, None, items, options, throw, bar), executor, chunks, bar)
     return _warned("simulate_many", ArcBatch(out, n), warn)
 
 
@@ -564,7 +564,7 @@ def sweep(make_system: Callable[[Any], HybridSystem], params: Iterable, x0: Arra
           t_max: float, j_max: float = np.inf, *,
           executor: concurrent.futures.Executor | None = None, chunks: int | None = None,
           progress: bool | None = None, throw: bool = False, warn: bool = True,
-          **kwargs) -> list[HybridArc]:
+          **options: Any) -> ArcBatch:
     """Simulate ``make_system(p)`` from x0 for every parameter value p.
 
     Noise realisations go through the same door: let ``p`` be a seed and
@@ -585,7 +585,7 @@ def sweep(make_system: Callable[[Any], HybridSystem], params: Iterable, x0: Arra
     executor, chunks, progress, throw, warn
         As in :func:`simulate_many`. A failure of ``make_system(p)`` or
         ``x0(p)`` is a failed row (cause ``MAP_ERROR``) like a map raising.
-    **kwargs
+    **options
         Passed to :func:`hybridsim.simulate`.
 
     Returns
@@ -604,7 +604,7 @@ def sweep(make_system: Callable[[Any], HybridSystem], params: Iterable, x0: Arra
     Examples
     --------
     >>> import numpy as np, hybridsim as hs
-    >>> make = lambda a: hs.HybridSystem.from_functions(f=lambda x: -a * x, state_dim=1)
+    >>> make = lambda a: hs.HybridSystem.from_functions(flow_map=lambda x: -a * x, state_dim=1)
     >>> arcs = hs.sweep(make, [1.0, 2.0], [1.0], t_max=1.0, rtol=1e-10, atol=1e-12)
     >>> [round(float(a.xf[0]), 6) for a in arcs]
     [0.367879, 0.135335]
@@ -617,7 +617,7 @@ def sweep(make_system: Callable[[Any], HybridSystem], params: Iterable, x0: Arra
     chunks = check_chunks(chunks)
     throw = check_bool("throw", throw)
     warn = check_bool("warn", warn)
-    kwargs = dict(kwargs, t_max=t_max, j_max=j_max, progress=False, throw=False, warn=False)
+    options = dict(options, t_max=t_max, j_max=j_max, progress=False, throw=False, warn=False)
     N = len(params)
     if N == 0:
         return ArcBatch()
@@ -631,7 +631,7 @@ def sweep(make_system: Callable[[Any], HybridSystem], params: Iterable, x0: Arra
                             f"function); {type(e).__name__}: {e}. Or pass an array") from e
     items = [(p, x0) for p in params]
     bar = make_bar(progress, total=N, desc="sweep", unit="run", leave=True)
-    out = _execute(_Batch(None, make_system, items, kwargs, throw, bar), executor, chunks, bar)
+    out = _execute(_Batch(None, make_system, items, options, throw, bar), executor, chunks, bar)
     return _warned("sweep", ArcBatch(out), warn)
 
 

@@ -100,6 +100,8 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -583,11 +585,13 @@ class SensitivityArc:
 
 
 # --------------------------------------------------------------------------- the run
-def simulate_sensitivity(system, x0: ArrayLike, t_max: float, j_max: float = math.inf, *,
-                         params: ArrayLike | None = None, wrt=None,
+def simulate_sensitivity(system: HybridSystem | Callable[..., HybridSystem], x0: ArrayLike,
+                         t_max: float, j_max: float = math.inf, *,
+                         params: ArrayLike | None = None,
+                         wrt: str | tuple[str, ...] | None = None,
                          sens_atol: float | None = None, fd_step: float = FD_STEP,
                          graze_tol: float = 1e-6, undefined: str = "raise",
-                         backend: str = "python", **options) -> SensitivityArc:
+                         backend: str = "python", **options: Any) -> SensitivityArc:
     """Simulate a hybrid system with its forward sensitivities through jumps.
 
     Parameters

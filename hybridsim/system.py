@@ -1,6 +1,8 @@
 """Hybrid systems H = (C, f, D, g): the data the engine simulates."""
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from ._source import _arity
@@ -33,6 +35,44 @@ def guard_rows(v) -> np.ndarray:
     return v.min(axis=1) if v.ndim == 2 else v
 
 
+
+
+def renamed_keywords(where: str, old: dict, renames: dict, given: dict) -> dict:
+    """The maps given under their deprecated keyword names, under the new ones.
+
+    Parameters
+    ----------
+    where : str
+        The callable's name, for the messages (``"HybridSystem.from_functions"``).
+    old : dict
+        The keywords received under names outside the signature.
+    renames : dict
+        ``{old name: new name}``.
+    given : dict
+        The new names' values as received (None: not given).
+
+    Returns
+    -------
+    dict
+        ``given`` updated with the values received under the old names, each
+        with a ``DeprecationWarning`` naming the new name; a TypeError for a
+        name that is neither, or a map given under both names.
+    """
+    for name, value in old.items():
+        new = renames.get(name)
+        if new is None:
+            raise TypeError(f"{where}() got an unexpected keyword argument {name!r}")
+        if given.get(new) is not None:
+            raise TypeError(f"{where}: {name}= is the deprecated name of {new}=; give one")
+        warnings.warn(f"{where}: the keyword {name}= is deprecated, use {new}=",
+                      DeprecationWarning, stacklevel=3)
+        given[new] = value
+    return given
+
+
+#: from_functions' deprecated keywords, ``{old: new}`` (the methods' names)
+_FROM_FUNCTIONS_RENAMES = {"f": "flow_map", "g": "jump_map", "C": "flow_set",
+                           "D": "jump_set", "g_values": "jump_map_values"}
 
 
 def _where(t, j):
@@ -474,31 +514,34 @@ class HybridSystem:
 
     # ------------------------------------------------------------------
     @classmethod
-    def from_functions(cls, f=None, g=None, C=None, D=None, *, state_dim,
-                       jump_guard=None, flow_guard=None, output=None,
+    def from_functions(cls, flow_map=None, jump_map=None, flow_set=None, jump_set=None, *,
+                       state_dim, jump_guard=None, flow_guard=None, output=None,
                        input_dim=0, output_dim=None, vectorized=False,
-                       max_step=None, needs_history=False, name=None, g_values=None,
+                       max_step=None, needs_history=False, name=None, jump_map_values=None,
                        diffusion=None, noise_dim=None, jump_rate=None, jump_law=None,
-                       watch=None, watch_direction=0):
+                       watch=None, watch_direction=0, **deprecated):
         """Build a hybrid system from plain functions.
+
+        The keywords are the names of the methods they stand for (a subclass
+        defines ``flow_map``, ``jump_map``, ``flow_set``, ``jump_set``...).
 
         Parameters
         ----------
-        f, g : callable, optional
-            Flow and jump maps, each ``(x)``, ``(x, t)``, ``(x, t, j)`` or
-            ``(x, t, j, u)`` returning an (n,) array.
-        C, D : callable, optional
-            Set indicators returning bool. Defaults: C everything, D empty
-            (or derived from the guards).
+        flow_map, jump_map : callable, optional
+            The flow map f and the jump map g, each ``(x)``, ``(x, t)``,
+            ``(x, t, j)`` or ``(x, t, j, u)`` returning an (n,) array.
+        flow_set, jump_set : callable, optional
+            The indicators of C and D, returning bool. Defaults: C everything,
+            D empty (or derived from the guards).
         state_dim : int
             The state dimension n.
         jump_guard, flow_guard : callable, optional
             Continuous guards (see the class docstring, rule 6).
         output : callable, optional
             Output map ``(x, t, j)``; default the state.
-        g_values : callable, optional
+        jump_map_values : callable, optional
             A set-valued jump map (rule 10 of the class): returns the
-            successors, a sequence of (n,) arrays. Not with ``g``.
+            successors, a sequence of (n,) arrays. Not with ``jump_map``.
         diffusion : callable, optional
             An SDE flow's diffusion σ(x, t, j): dx = f dt + σ dW in C (run
             with ``method="EM"``, ``"Milstein"`` or ``"SRA1"`` and a fixed
@@ -518,14 +561,18 @@ class HybridSystem:
         watch_direction : int or sequence of int
             -1, 0 (default) or 1: keep falling crossings, both, or rising
             ones (one value for all the functions, or one each).
+        **deprecated
+            The former names ``f``, ``g``, ``C``, ``D`` and ``g_values`` of
+            ``flow_map``, ``jump_map``, ``flow_set``, ``jump_set`` and
+            ``jump_map_values``: accepted with a ``DeprecationWarning``.
 
         Examples
         --------
         >>> import numpy as np, hybridsim as hs
         >>> ball = hs.HybridSystem.from_functions(
-        ...     f=lambda x: np.array([x[1], -9.81]),
-        ...     g=lambda x: np.array([0.0, -0.8 * x[1]]),
-        ...     C=lambda x: x[0] >= 0, D=lambda x: x[0] <= 0 and x[1] <= 0,
+        ...     flow_map=lambda x: np.array([x[1], -9.81]),
+        ...     jump_map=lambda x: np.array([0.0, -0.8 * x[1]]),
+        ...     flow_set=lambda x: x[0] >= 0, jump_set=lambda x: x[0] <= 0 and x[1] <= 0,
         ...     state_dim=2)
         >>> arc = hs.simulate(ball, [1.0, 0.0], t_max=3.0, j_max=5)
         >>> arc.jump_count
@@ -534,25 +581,34 @@ class HybridSystem:
         A jump map with two successors (:func:`hybridsim.explore` follows both):
 
         >>> coin = hs.HybridSystem.from_functions(
-        ...     f=lambda x: np.array([1.0]), D=lambda x: x[0] >= 1.0,
-        ...     C=lambda x: x[0] <= 1.0,
-        ...     g_values=lambda x: [np.array([0.0]), np.array([0.5])], state_dim=1)
+        ...     flow_map=lambda x: np.array([1.0]), jump_set=lambda x: x[0] >= 1.0,
+        ...     flow_set=lambda x: x[0] <= 1.0,
+        ...     jump_map_values=lambda x: [np.array([0.0]), np.array([0.5])], state_dim=1)
         >>> hs.simulate(coin, [0.0], t_max=3.0, j_max=1).xf    # the first successor
         array([0.])
 
         The ball's apexes, watched (its velocity falling through 0):
 
         >>> ball = hs.HybridSystem.from_functions(
-        ...     f=lambda x: np.array([x[1], -9.81]),
-        ...     g=lambda x: np.array([0.0, -0.8 * x[1]]),
-        ...     C=lambda x: x[0] >= 0, D=lambda x: x[0] <= 0 and x[1] <= 0,
+        ...     flow_map=lambda x: np.array([x[1], -9.81]),
+        ...     jump_map=lambda x: np.array([0.0, -0.8 * x[1]]),
+        ...     flow_set=lambda x: x[0] >= 0, jump_set=lambda x: x[0] <= 0 and x[1] <= 0,
         ...     watch=lambda x: x[1], watch_direction=-1, state_dim=2)
         >>> arc = hs.simulate(ball, [0.0, 9.81], t_max=3.0, j_max=5)
         >>> arc.crossings.t[:2]                 # v0 / g, then 2 + 0.8 v0 / g
         array([1. , 2.8])
         """
-        if g is not None and g_values is not None:
-            raise TypeError("g and g_values: give one (g_values for a set-valued jump map)")
+        if deprecated:
+            given = renamed_keywords(
+                "HybridSystem.from_functions", deprecated, _FROM_FUNCTIONS_RENAMES,
+                {"flow_map": flow_map, "jump_map": jump_map, "flow_set": flow_set,
+                 "jump_set": jump_set, "jump_map_values": jump_map_values})
+            flow_map, jump_map, flow_set, jump_set, jump_map_values = (
+                given[k] for k in ("flow_map", "jump_map", "flow_set", "jump_set",
+                                   "jump_map_values"))
+        if jump_map is not None and jump_map_values is not None:
+            raise TypeError("jump_map and jump_map_values: give one (jump_map_values for a "
+                            "set-valued jump map)")
         sysobj = cls.__new__(cls)
         HybridSystem.__init__(sysobj)
         sysobj.state_dim = state_dim
@@ -563,16 +619,14 @@ class HybridSystem:
         sysobj.needs_history = needs_history
         sysobj._name = name
         sysobj.noise_dim = noise_dim
-        for arg, attr, fn in (("f", "flow_map", f), ("g", "jump_map", g),
-                              ("C", "flow_set", C), ("D", "jump_set", D),
-                              ("output", "output", output),
-                              ("g_values", "jump_map_values", g_values),
-                              ("diffusion", "diffusion", diffusion),
-                              ("jump_rate", "jump_rate", jump_rate),
-                              ("jump_law", "jump_law", jump_law)):
+        for attr, fn in (("flow_map", flow_map), ("jump_map", jump_map),
+                         ("flow_set", flow_set), ("jump_set", jump_set),
+                         ("output", output), ("jump_map_values", jump_map_values),
+                         ("diffusion", diffusion), ("jump_rate", jump_rate),
+                         ("jump_law", jump_law)):
             if fn is not None:
                 if not callable(fn):
-                    raise TypeError(f"{arg} must be callable, got {type(fn).__name__}")
+                    raise TypeError(f"{attr} must be callable, got {type(fn).__name__}")
                 setattr(sysobj, attr, fn)
         if watch is not None or not (isinstance(watch_direction, (int, np.integer))
                                      and watch_direction == 0):

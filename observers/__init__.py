@@ -16,7 +16,9 @@ learning one teaches the others; the contract is written in code in
 :mod:`observers._common` (:data:`~observers._common.CONTRACT`) and checked
 for all five by ``tests/papers/test_contract.py``::
 
-    __init__.py   PAPER, ERRATA, DECISIONS; __all__ gathered from the files' __all__
+    __init__.py   PAPER, ERRATA, DECISIONS; __all__ the public surface (at most 15 names:
+                  the contract's, the paper's observer and design); the rest is
+                  imported from its file, whose __all__ lists it
     design.py     the paper's formulas, design computations and bounds (numpy/scipy)
     systems.py    every hybrid system: observer(s) and plant(s) as hs.HybridSystem
     example.py    the paper's example data, simulate() and errors()

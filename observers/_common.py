@@ -374,6 +374,10 @@ def _signature_problems(name, fn, positional, keyword_only, var_keyword):
     return problems
 
 
+#: the most names a paper package's ``__all__`` lists: the contract's ten and
+#: the paper's observer and design (the rest are imported from their files)
+PUBLIC_MAX = 15
+
 #: submodules a paper package may add to the six of the layout
 #: (``monte_carlo``: its noise and gap studies as estimates with confidence)
 OPTIONAL_SUBMODULES = ("monte_carlo",)
@@ -387,10 +391,15 @@ def contract_problems(package):
     ``NOT_REPRODUCED`` and ``reproduce`` in ``figures.py``, ``CLAIMS`` in
     ``claims.py``, ``PROBLEMS`` in ``falsification.py``; a package may add
     the submodules of :data:`OPTIONAL_SUBMODULES`), the signatures of
-    ``simulate``, ``errors`` and ``reproduce``, the types of the registries,
-    that ``__all__`` is the union of the submodules' ``__all__``, that no
-    object is exported under two names (no aliases), and that every
-    :class:`hybridsim.HybridSystem` it exports is defined in ``systems.py``.
+    ``simulate``, ``errors`` and ``reproduce``, the types of the registries;
+    that the package's ``__all__`` is its small public surface (at most
+    :data:`PUBLIC_MAX` names: the contract's and the paper's observer and
+    design, each one a file's export, the observer a class of
+    ``systems.py``), every other name
+    being imported from its file (whose ``__all__`` lists it); that no
+    object is exported under two names (no aliases); and that every
+    :class:`hybridsim.HybridSystem` the files export is defined in
+    ``systems.py``.
 
     Parameters
     ----------
@@ -426,31 +435,46 @@ def contract_problems(package):
             subs[sub] = importlib.import_module(f"{name}.{sub}")
         except ModuleNotFoundError:
             pass
-    union = {"PAPER", "ERRATA", "DECISIONS"}
+    home = {key: package for key in ("PAPER", "ERRATA", "DECISIONS")}
     for sub, mod in subs.items():
         if not hasattr(mod, "__all__"):
             problems.append(f"{name}.{sub} has no __all__")
             continue
-        union |= set(mod.__all__)
-    if set(exported) != union:
-        problems.append(f"{name}.__all__ must be PAPER, ERRATA, DECISIONS and the submodules' "
-                        f"__all__; extra {sorted(set(exported) - union)}, missing "
-                        f"{sorted(union - set(exported))}")
+        for key in mod.__all__:
+            if key in home:
+                problems.append(f"{name}.{sub} exports {key!r}, as {home[key].__name__} does")
+            home[key] = mod
+    if len(exported) > PUBLIC_MAX:
+        problems.append(f"{name}.__all__ has {len(exported)} names: at most {PUBLIC_MAX} (the "
+                        f"contract's and the paper's observer and design; the rest are "
+                        f"imported from their files)")
+    for key in exported:
+        if key not in home:
+            problems.append(f"{name}.__all__ lists {key!r}, which no file of the package "
+                            f"exports")
+        elif home[key] is not package and getattr(package, key, None) is not getattr(
+                home[key], key, None):
+            problems.append(f"{name}.{key} is not {home[key].__name__}.{key}")
+    systems = f"{name}.systems"
+    if "systems" in subs and not any(inspect.isclass(getattr(package, key, None))
+                                     and getattr(package, key).__module__ == systems
+                                     for key in exported):
+        problems.append(f"{name}.__all__ names no observer (a class of systems.py)")
     for key, sub in _HOME.items():
         mod = subs.get(sub)
         if mod is not None and key not in getattr(mod, "__all__", ()):
             problems.append(f"{key} must be defined in {name}.{sub}")
     seen = {}
-    for key in exported:
-        obj = getattr(package, key, None)
+    for key, mod in home.items():
+        obj = getattr(mod, key, None)
         if callable(obj) or inspect.isclass(obj):
             if id(obj) in seen:
-                problems.append(f"{name}.{key} is an alias of {name}.{seen[id(obj)]}")
-            seen.setdefault(id(obj), key)
+                problems.append(f"{mod.__name__}.{key} is an alias of {seen[id(obj)]}")
+            seen.setdefault(id(obj), f"{mod.__name__}.{key}")
         if (inspect.isclass(obj) and issubclass(obj, hs.HybridSystem)
-                and obj.__module__ != f"{name}.systems"):
-            problems.append(f"{name}.{key} is a HybridSystem defined in {obj.__module__}, "
-                            "not in systems.py")
+                and obj.__module__ != systems):
+            problems.append(f"{mod.__name__}.{key} is a HybridSystem defined in "
+                            f"{obj.__module__}, not in systems.py")
     if callable(getattr(package, "simulate", None)):
         problems += _signature_problems(
             f"{name}.simulate", package.simulate, [("observer", E), ("x0", E), ("xhat0", None)],

@@ -498,7 +498,7 @@ class AutomaticTransmission(_InputGrid, CompiledSystem):
 
     def __init__(self, times=None, interpolation="previous"):
         p = self._grid(times, interpolation)
-        CompiledSystem.__init__(self, flow=at_flow, jump=at_jump, jump_guard=at_guard,
+        CompiledSystem.__init__(self, flow_map=at_flow, jump_map=at_jump, jump_guard=at_guard,
                                 jump_set=at_jump_set,
                                 state_dim=_AT_BASE + 2 * self.times.size, params=p,
                                 name="AutomaticTransmission")
@@ -622,7 +622,7 @@ class ChasingCars(_InputGrid, CompiledSystem):
 
     def __init__(self, times=None, interpolation="previous"):
         p = self._grid(times, interpolation)
-        CompiledSystem.__init__(self, flow=cc_flow, jump=cc_jump, jump_guard=cc_guard,
+        CompiledSystem.__init__(self, flow_map=cc_flow, jump_map=cc_jump, jump_guard=cc_guard,
                                 jump_set=cc_jump_set,
                                 state_dim=_CC_BASE + 2 * self.times.size, params=p,
                                 name="ChasingCars")

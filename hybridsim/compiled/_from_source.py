@@ -415,16 +415,16 @@ _LINE = re.compile(r'hybridsim_src_[0-9a-f]+\.py"?, line (\d+)')
 
 def _compile_error(system, plan, e):
     """numba's failure, named by the user's method and line."""
-    from ._system import CompileError, _summarise
+    from ._system import KEYWORDS, CompileError, _summarise
     cause = e.__cause__ if e.__cause__ is not None else e
     where = None
     for m in _LINE.finditer(str(cause)):
         where = plan.where(int(m.group(1)))
         if where is not None:
             break
-    role = getattr(e, "map_name", None)
-    at = (f"{where[0]} ({where[1]})" if where is not None else
-          plan.qualnames.get(plan.roles.get(role, ""), role))
+    role = getattr(e, "map_name", None)       # a keyword: flow_map, jump_map...
+    at = (f"{where[0]} ({where[1]})" if where is not None else plan.qualnames.get(
+        plan.roles.get({k: r for r, k in KEYWORDS.items()}.get(role, ""), ""), role))
     err = CompileError(f"backend='compiled': {type(system).__name__} cannot run compiled: "
                        f"numba could not compile {at}: {_summarise(cause)}. Run it on the "
                        f"Python path (backend='python')", role)
@@ -447,7 +447,7 @@ def lower_source(system, specialize=None):
     hit = cached(system)
     if hit is not None and (specialize is None or hit.specialize == bool(specialize)):
         return hit
-    from ._system import CompiledSystem, _refuse
+    from ._system import CompiledSystem, _refuse, keywords
     pl = _plan(system)
     if isinstance(pl, _source.SourceRefusal):
         err = _refuse(type(system).__name__, _text(system, pl))
@@ -472,7 +472,7 @@ def lower_source(system, specialize=None):
     proto = _PROTOS.get((digest, spec))
     if proto is None:
         maps = {role: getattr(mod, name) for role, name in pl.roles.items()}
-        proto = CompiledSystem(**maps, state_dim=int(system.state_dim), params=p,
+        proto = CompiledSystem(**keywords(maps), state_dim=int(system.state_dim), params=p,
                                specialize=spec, name=f"{type(system).__name__} (compiled)")
         try:
             proto.compile()

@@ -56,10 +56,10 @@ import numpy as np
 
 from ..compose import Interconnection, LinearInput, LinearPlant
 from ..options import check_delay_times
-from ..system import HybridSystem
+from ..system import HybridSystem, renamed_keywords
 from . import _from_source
 from ._from_source import _helpers, _numba
-from ._system import CompiledSystem, _load_kernel, _refuse
+from ._system import KEYWORDS, RENAMES, CompiledSystem, _load_kernel, _refuse, keywords
 
 __all__ = ["Component", "Lowerable", "lower", "lowerable", "matvec", "rebind"]
 
@@ -80,10 +80,10 @@ class Component:
     Parameters
     ----------
     state_dim, input_dim : int
-    flow : callable, optional
+    flow_map : callable, optional
         Absent: the state is constant (x' = 0), as in a noise generator
         whose state is its realisation.
-    jump, jump_guard, flow_guard, jump_set, flow_set, output : callable, optional
+    jump_map, jump_guard, flow_guard, jump_set, flow_set, output : callable, optional
     output_dim : int, optional
         Required with ``output``.
     params : array_like
@@ -98,6 +98,15 @@ class Component:
         value at a jump time), the convention of
         :class:`~hybridsim.compiled.CompiledSystem`'s ``delays``. The other
         maps receive ``params`` alone: they must not read the past.
+    **deprecated
+        The former names ``flow`` and ``jump`` of ``flow_map`` and
+        ``jump_map``: accepted with a ``DeprecationWarning``.
+
+    Attributes
+    ----------
+    maps : dict
+        The maps given, by role (``"flow"``, ``"jump"``, ``"jump_guard"``...,
+        as :attr:`CompiledSystem.maps`).
 
     Examples
     --------
@@ -105,7 +114,7 @@ class Component:
     >>> from hybridsim.compiled import Component
     >>> def flow(x, u, t, j, p):                 # x' = -p0 x + u
     ...     return -p[0] * x + u
-    >>> c = Component(state_dim=1, input_dim=1, flow=flow, params=[2.0])
+    >>> c = Component(state_dim=1, input_dim=1, flow_map=flow, params=[2.0])
     >>> c.maps["flow"](np.ones(1), np.zeros(1), 0.0, 0, c.params)
     array([-2.])
     """
@@ -113,9 +122,13 @@ class Component:
     __slots__ = ("state_dim", "input_dim", "output_dim", "maps", "output", "params",
                  "delays")
 
-    def __init__(self, *, state_dim, flow=None, input_dim=0, jump=None, jump_guard=None,
-                 flow_guard=None, jump_set=None, flow_set=None, output=None,
-                 output_dim=None, params=(), delays=()):
+    def __init__(self, *, state_dim, flow_map=None, input_dim=0, jump_map=None,
+                 jump_guard=None, flow_guard=None, jump_set=None, flow_set=None, output=None,
+                 output_dim=None, params=(), delays=(), **deprecated):
+        if deprecated:
+            given = renamed_keywords("Component", deprecated, RENAMES,
+                                     {"flow_map": flow_map, "jump_map": jump_map})
+            flow_map, jump_map = given["flow_map"], given["jump_map"]
         for name, v in (("state_dim", state_dim), ("input_dim", input_dim)):
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 0:
                 raise ValueError(f"{name} must be an int >= 0, got {v!r}")
@@ -123,11 +136,12 @@ class Component:
             raise ValueError(f"state_dim must be a positive int, got {state_dim!r}")
         self.state_dim, self.input_dim = int(state_dim), int(input_dim)
         self.maps = {}
-        for role, fn in zip(_ROLES, (flow, jump, jump_guard, flow_guard, jump_set, flow_set)):
+        for role, fn in zip(_ROLES, (flow_map, jump_map, jump_guard, flow_guard, jump_set,
+                                     flow_set)):
             if fn is None:
                 continue
             if not callable(fn):
-                raise TypeError(f"{role} must be callable fn(x, u, t, j, p), got "
+                raise TypeError(f"{KEYWORDS[role]} must be callable fn(x, u, t, j, p), got "
                                 f"{type(fn).__name__}")
             self.maps[role] = fn
         if output is not None and not callable(output):
@@ -147,7 +161,7 @@ class Component:
         self.delays = check_delay_times(delays)
         if self.delays and "flow" not in self.maps:
             raise ValueError("delays are read by the flow map: a component with delays "
-                             "needs flow")
+                             "needs flow_map")
 
     @property
     def has_D(self):
@@ -311,7 +325,7 @@ def source_component(system):
         from ..compose import _output_dim
         q = _output_dim(system)
     return Component(state_dim=n, input_dim=m, output=output, output_dim=q, params=p,
-                     **maps)
+                     **keywords(maps))
 
 
 def _reads_history(system):
@@ -361,7 +375,7 @@ def _from_compiled_system(cs):
     # a CompiledSystem's flow reads its past as a Component's does: params, then x(t - tau_i)
     return Component(state_dim=cs.state_dim, params=cs.params,
                      delays=tuple(getattr(cs, "delays", None) or ()),
-                     **{r: _adapter(fn) for r, fn in cs.maps.items()})
+                     **keywords({r: _adapter(fn) for r, fn in cs.maps.items()}))
 
 
 # ------------------------------------------------------------------ code generation
@@ -545,7 +559,8 @@ def _build(parts, n, pvec, name, specialize, delays=()):
         exec(compile(src, f"<lowered {name}>", "exec"), ns)
         maps = {r: ns[r] for r in roles}
         past = {"delays": delays} if delays else {}
-        proto = CompiledSystem(**maps, state_dim=n, params=pvec, name=f"lowered {name}",
+        proto = CompiledSystem(**keywords(maps), state_dim=n, params=pvec,
+                               name=f"lowered {name}",
                                specialize=specialize, **past)
         proto._source = src
         proto.compile()

@@ -13,8 +13,11 @@ import os
 import sys
 import threading
 import warnings
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
+from scipy.integrate import OdeSolver
 
 from ..arc import HybridArc, _describe, _one_sample
 from ..arc_batch import ArcBatch
@@ -442,11 +445,18 @@ def _rng_for(k, prio, seed):
     return _DUMMY_RNG
 
 
-def simulate_compiled(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priority="jumps",
-                      rtol=1e-6, atol=1e-9, max_step=math.inf, first_step=None,
-                      max_steps=1_000_000, max_samples=10_000_000, zeno_jumps=50,
-                      zeno_time=1e-12, zeno_rtol=1e-7, max_norm=math.inf, seed=None,
-                      refine=1, throw=True, warn=True, method="RK45", **unsupported):
+def simulate_compiled(system: CompiledSystem, x0: ArrayLike, t_max: float,
+                      j_max: float = math.inf, *, t0: float = 0.0, j0: int = 0,
+                      priority: str = "jumps", rtol: float = 1e-6,
+                      atol: float | ArrayLike = 1e-9, max_step: float = math.inf,
+                      first_step: float | None = None, max_steps: float = 1_000_000,
+                      max_samples: float = 10_000_000, zeno_jumps: int = 50,
+                      zeno_time: float = 1e-12, zeno_rtol: float = 1e-7,
+                      max_norm: float = math.inf,
+                      seed: int | np.random.Generator | None = None, refine: int = 1,
+                      throw: bool = True, warn: bool = True,
+                      method: str | type[OdeSolver] = "RK45",
+                      **unsupported: Any) -> HybridArc:
     """Simulate a :class:`CompiledSystem` entirely in compiled code.
 
     The same run as ``hs.simulate(system, x0, t_max, j_max, method=method,
@@ -498,8 +508,8 @@ def simulate_compiled(system, x0, t_max, j_max=math.inf, *, t0=0.0, j0=0, priori
     --------
     >>> import numpy as np
     >>> from hybridsim.compiled import CompiledSystem, simulate_compiled
-    >>> timer = CompiledSystem(flow=lambda x, t, j, p: np.ones(1),
-    ...                        jump=lambda x, t, j, p: np.zeros(1),
+    >>> timer = CompiledSystem(flow_map=lambda x, t, j, p: np.ones(1),
+    ...                        jump_map=lambda x, t, j, p: np.zeros(1),
     ...                        jump_guard=lambda x, t, j, p: x[0] - p[0],
     ...                        flow_guard=lambda x, t, j, p: p[0] - x[0],
     ...                        state_dim=1, params=[1.0])
@@ -640,12 +650,19 @@ def _interruptible(fn, args, stop, threads=1):
     return interrupted
 
 
-def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
-                           chunk_bytes=64 * 2**20, t0=0.0, j0=0, priority="jumps",
-                           rtol=1e-6, atol=1e-9, max_step=math.inf, first_step=None,
-                           max_steps=1_000_000, max_samples=10_000_000, zeno_jumps=50,
-                           zeno_time=1e-12, zeno_rtol=1e-7, max_norm=math.inf, seed=None,
-                           refine=1, throw=False, warn=True, method="RK45", **unsupported):
+def simulate_many_compiled(system: CompiledSystem, x0s: ArrayLike, t_max: float,
+                           j_max: float = math.inf, *, parallel: bool = True,
+                           chunk_bytes: int = 64 * 2**20, t0: float = 0.0, j0: int = 0,
+                           priority: str = "jumps", rtol: float = 1e-6,
+                           atol: float | ArrayLike = 1e-9, max_step: float = math.inf,
+                           first_step: float | None = None, max_steps: float = 1_000_000,
+                           max_samples: float = 10_000_000, zeno_jumps: int = 50,
+                           zeno_time: float = 1e-12, zeno_rtol: float = 1e-7,
+                           max_norm: float = math.inf,
+                           seed: int | np.random.Generator | None = None, refine: int = 1,
+                           throw: bool = False, warn: bool = True,
+                           method: str | type[OdeSolver] = "RK45",
+                           **unsupported: Any) -> ArcBatch:
     """Simulate a :class:`CompiledSystem` from many initial states, compiled and in parallel.
 
     Each run is exactly :func:`simulate_compiled`'s (same steps, events and
@@ -703,8 +720,8 @@ def simulate_many_compiled(system, x0s, t_max, j_max=math.inf, *, parallel=True,
     --------
     >>> import numpy as np
     >>> from hybridsim.compiled import CompiledSystem, simulate_many_compiled
-    >>> timer = CompiledSystem(flow=lambda x, t, j, p: np.ones(1),
-    ...                        jump=lambda x, t, j, p: np.zeros(1),
+    >>> timer = CompiledSystem(flow_map=lambda x, t, j, p: np.ones(1),
+    ...                        jump_map=lambda x, t, j, p: np.zeros(1),
     ...                        jump_guard=lambda x, t, j, p: x[0] - p[0],
     ...                        state_dim=1, params=[1.0])
     >>> arcs = simulate_many_compiled(timer, [[0.0], [0.5]], t_max=2.0)

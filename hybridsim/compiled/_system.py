@@ -11,7 +11,7 @@ import warnings
 import numpy as np
 
 from ..options import check_delay_times
-from ..system import HybridSystem
+from ..system import HybridSystem, renamed_keywords
 
 _KIND_TEXT = {"vec": "an array of state_dim floats", "scalar": "a float"}
 
@@ -19,6 +19,17 @@ _KIND_TEXT = {"vec": "an array of state_dim floats", "scalar": "a float"}
 _INSTALL = "pip install 'hybridsim[fast]'"
 _ROLES = (("flow", "vec"), ("jump", "vec"), ("jump_guard", "scalar"),
           ("flow_guard", "scalar"), ("jump_set", "bool"), ("flow_set", "bool"))
+#: the keyword (and HybridSystem method) of each role of ``maps``
+KEYWORDS = {"flow": "flow_map", "jump": "jump_map", "jump_guard": "jump_guard",
+            "flow_guard": "flow_guard", "jump_set": "jump_set", "flow_set": "flow_set"}
+#: the deprecated keywords of CompiledSystem and Component, ``{old: new}``
+RENAMES = {"flow": "flow_map", "jump": "jump_map"}
+
+
+def keywords(maps):
+    """Maps keyed by role (``maps``' keys) as the keywords of
+    :class:`CompiledSystem` and :class:`Component`."""
+    return {KEYWORDS[role]: fn for role, fn in maps.items()}
 
 
 class CompileError(TypeError):
@@ -116,9 +127,9 @@ class CompiledSystem(HybridSystem):
 
     Parameters
     ----------
-    flow : callable
+    flow_map : callable
         ``f(x, t, j, p)``: the flow map, a 1-D array of n floats (or a tuple).
-    jump : callable, optional
+    jump_map : callable, optional
         ``g(x, t, j, p)``: the jump map, receives the pre-jump j.
     jump_guard, flow_guard : callable, optional
         Continuous guards, a float (or a 1-D array: the set is where its
@@ -165,14 +176,24 @@ class CompiledSystem(HybridSystem):
         -1, 0 (default) or 1 per watched function: falling, both, rising.
     name : str, optional
         For ``repr``.
+    **deprecated
+        The former names ``flow`` and ``jump`` of ``flow_map`` and
+        ``jump_map``: accepted with a ``DeprecationWarning``.
+
+    Attributes
+    ----------
+    maps : dict
+        The maps given, by role: ``"flow"``, ``"jump"``, ``"jump_guard"``,
+        ``"flow_guard"``, ``"jump_set"``, ``"flow_set"`` (``KEYWORDS`` gives
+        each role's keyword).
 
     Examples
     --------
     >>> import numpy as np, hybridsim as hs
     >>> from hybridsim.compiled import CompiledSystem
     >>> ball = CompiledSystem(
-    ...     flow=lambda x, t, j, p: np.array([x[1], -p[0]]),
-    ...     jump=lambda x, t, j, p: np.array([0.0, -p[1] * x[1]]),
+    ...     flow_map=lambda x, t, j, p: np.array([x[1], -p[0]]),
+    ...     jump_map=lambda x, t, j, p: np.array([0.0, -p[1] * x[1]]),
     ...     jump_guard=lambda x, t, j, p: -x[0], flow_guard=lambda x, t, j, p: x[0],
     ...     jump_set=lambda x, t, j, p: x[0] <= 0.0 and x[1] <= 0.0,
     ...     state_dim=2, params=[9.81, 0.8])
@@ -183,15 +204,21 @@ class CompiledSystem(HybridSystem):
     A delay equation x' = -x(t - 1), past x = 1: the flow map reads x(t - 1)
     at ``p[len(params):]`` (method of steps: x(2) = -1/2).
 
-    >>> lag = CompiledSystem(flow=lambda x, t, j, p: -p[0:1], state_dim=1, delays=(1.0,))
+    >>> lag = CompiledSystem(flow_map=lambda x, t, j, p: -p[0:1], state_dim=1,
+    ...                      delays=(1.0,))
     >>> round(float(hs.simulate(lag, [1.0], t_max=2.0).x[-1, 0]), 9)
     -0.5
     """
 
-    def __init__(self, flow=None, jump=None, *, jump_guard=None, flow_guard=None,
+    def __init__(self, flow_map=None, jump_map=None, *, jump_guard=None, flow_guard=None,
                  jump_set=None, flow_set=None, state_dim, params=(), max_step=None,
-                 delays=(), specialize=False, name=None, watch=None, watch_direction=0):
+                 delays=(), specialize=False, name=None, watch=None, watch_direction=0,
+                 **deprecated):
         HybridSystem.__init__(self)
+        if deprecated:
+            given = renamed_keywords("CompiledSystem", deprecated, RENAMES,
+                                     {"flow_map": flow_map, "jump_map": jump_map})
+            flow_map, jump_map = given["flow_map"], given["jump_map"]
         if isinstance(state_dim, bool) or not isinstance(state_dim, (int, np.integer)) \
                 or state_dim < 1:
             raise ValueError(f"state_dim must be a positive int, got {state_dim!r}")
@@ -208,24 +235,22 @@ class CompiledSystem(HybridSystem):
         self.specialize = bool(specialize)
         self._name = name
         self.maps = {}
-        for role, fn in (("flow", flow), ("jump", jump), ("jump_guard", jump_guard),
+        for role, fn in (("flow", flow_map), ("jump", jump_map), ("jump_guard", jump_guard),
                          ("flow_guard", flow_guard), ("jump_set", jump_set),
                          ("flow_set", flow_set)):
             if fn is None:
                 continue
             if not callable(fn):
-                raise TypeError(f"{role} must be callable fn(x, t, j, p), got "
+                raise TypeError(f"{KEYWORDS[role]} must be callable fn(x, t, j, p), got "
                                 f"{type(fn).__name__}")
             self.maps[role] = fn
-        if flow is None:
-            raise TypeError("flow is required: a function flow(x, t, j, p) -> array of "
-                            "state_dim floats")
+        if flow_map is None:
+            raise TypeError("flow_map is required: a function flow_map(x, t, j, p) -> array "
+                            "of state_dim floats")
         # the Python path sees the same maps through HybridSystem's attributes
-        attrs = {"flow": "flow_map", "jump": "jump_map", "jump_guard": "jump_guard",
-                 "flow_guard": "flow_guard", "jump_set": "jump_set", "flow_set": "flow_set"}
         for role, fn in self.maps.items():
             cls = _PyFlowPast if role == "flow" and self.delays else _PyMap
-            setattr(self, attrs[role], cls(fn, self))
+            setattr(self, KEYWORDS[role], cls(fn, self))
         if watch is not None:
             if not callable(watch):
                 raise TypeError(f"watch must be callable fn(x, t, j, p), got "
@@ -385,12 +410,12 @@ class CompiledSystem(HybridSystem):
             except (numba.core.errors.NumbaError, TypeError, ValueError, NotImplementedError,
                     AttributeError, KeyError) as e:
                 raise CompileError(
-                    f"CompiledSystem: numba could not compile the map {role!r} "
+                    f"CompiledSystem: numba could not compile the map {KEYWORDS[role]!r} "
                     f"({getattr(fn, '__qualname__', repr(fn))}): {_summarise(e)}. Write it "
                     f"as a numpy function of (x, t, j, p) returning "
                     f"{_KIND_TEXT.get(kind, 'a bool')}, "
                     f"or run this system on the Python path with hs.simulate(system, ...) "
-                    f"(the fallback, same maps, no compiling)", role) from e
+                    f"(the fallback, same maps, no compiling)", KEYWORDS[role]) from e
         return out
 
     def __repr__(self):

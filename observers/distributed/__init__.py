@@ -81,7 +81,8 @@ all, so Theorem 1's settling time is measured there to 1e-8 and below.
 Examples
 --------
 >>> from observers.distributed import (DistributedObserver, design, errors, example_system,
-...                                    lmi11, simulate)
+...                                    simulate)
+>>> from observers.distributed.design import lmi11
 >>> A, C, G = example_system()
 >>> dsg = design(A, C, G, nodelist=[1, 2, 3, 4], nu=-0.1, alpha=10.0, beta=0.7)
 >>> dsg.n_o, bool(lmi11(dsg).feasible)
@@ -96,21 +97,20 @@ References
 .. [1] H. Silm et al., Systems & Control Letters 141 (2020) 104707,
        eqs. (1)-(11), Propositions 1-2, Lemma 1, Theorem 1, Remarks 1-2.
 """
-# the submodules under private names: ``from .design import *`` rebinds ``design``
-# to the function of that name
-from . import claims as _claims
-from . import design as _design
-from . import example as _example
-from . import falsification
-from . import figures as _figures
-from . import systems as _systems
+# every file's names are importable from here, as before; __all__ (below) is the
+# public surface. ``design`` is the function: the module is observers.distributed.design
 from .claims import *
+from .claims import CLAIMS
 from .design import *
+from .design import DistributedDesign, design
 from .example import *
+from .example import errors, example_system, simulate
 from .falsification import *
+from .falsification import PROBLEMS
 from .figures import *
+from .figures import FIGURES, NOT_REPRODUCED, reproduce
 from .systems import *
-from .systems import _NodeData as _NodeData  # used by tests/papers/test_observer_batches.py
+from .systems import DistributedObserver
 
 PAPER = {
     "id": "003",
@@ -153,6 +153,8 @@ DECISIONS = [
     "same equations integrated by scipy's solve_ivp.",
 ]
 
-__all__ = ["PAPER", "ERRATA", "DECISIONS", *_design.__all__, *_systems.__all__,
-           *_example.__all__, *_figures.__all__, *_claims.__all__,
-           *falsification.__all__]
+# the public surface: the contract's names and the paper's observer and design; the
+# rest are imported from their files (observers.distributed.design, .systems...)
+__all__ = ["PAPER", "ERRATA", "DECISIONS", "simulate", "errors", "FIGURES", "NOT_REPRODUCED",
+           "reproduce", "CLAIMS", "PROBLEMS", "design", "DistributedDesign", "DistributedObserver",
+           "example_system"]

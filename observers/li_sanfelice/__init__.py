@@ -51,14 +51,21 @@ References
 """
 from __future__ import annotations
 
-from . import claims, design, example, falsification, figures, monte_carlo, systems
+# every file's names are importable from here, as before; __all__ (below) is the
+# public surface
 from .claims import *
+from .claims import CLAIMS
 from .design import *
+from .design import Design
 from .example import *
+from .example import errors, example_VB, simulate
 from .falsification import *
+from .falsification import PROBLEMS
 from .figures import *
+from .figures import FIGURES, NOT_REPRODUCED, reproduce
 from .monte_carlo import *
 from .systems import *
+from .systems import ConstantNoiseObserver, NominalObserver, PiecewiseConstantNoiseObserver
 
 #: The paper.
 PAPER = {
@@ -138,5 +145,8 @@ DECISIONS = [
     "(claims.theorem_4_11_ratios).",
 ]
 
-__all__ = ["PAPER", "ERRATA", "DECISIONS", *design.__all__, *systems.__all__, *example.__all__,
-           *figures.__all__, *claims.__all__, *monte_carlo.__all__, *falsification.__all__]
+# the public surface: the contract's names and the paper's observer and design; the
+# rest are imported from their files (observers.li_sanfelice.design, .systems...)
+__all__ = ["PAPER", "ERRATA", "DECISIONS", "simulate", "errors", "FIGURES", "NOT_REPRODUCED",
+           "reproduce", "CLAIMS", "PROBLEMS", "Design", "NominalObserver", "ConstantNoiseObserver",
+           "PiecewiseConstantNoiseObserver", "example_VB"]

@@ -47,13 +47,25 @@ References
 .. [1] F. Mazenc, S. Ahmed, M. Malisoff, "Reduced order finite time observers
    for time-varying nonlinear systems", 57th IEEE CDC, 2018, eqs. (1)-(59).
 """
-from . import claims, design, example, falsification, figures, systems
+# every file's names are importable from here, as before; __all__ (below) is the
+# public surface
 from .claims import *
+from .claims import CLAIMS
 from .design import *
 from .example import *
+from .example import errors, simulate
 from .falsification import *
+from .falsification import PROBLEMS
 from .figures import *
+from .figures import FIGURES, NOT_REPRODUCED, reproduce
 from .systems import *
+from .systems import (
+    ReducedOrderObserver,
+    TimeVaryingPlant,
+    chained_form_observer,
+    lti_observer,
+    tracking_loop,
+)
 
 PAPER = {
     "id": "001",
@@ -103,5 +115,8 @@ DECISIONS = [
     "gives only x1(0) = 0.5), the horizon 60 of Fig. 1, and xr_init = 0.",
 ]
 
-__all__ = ["PAPER", "ERRATA", "DECISIONS", *design.__all__, *systems.__all__, *example.__all__,
-           *figures.__all__, *claims.__all__, *falsification.__all__]
+# the public surface: the contract's names and the paper's observer and design; the
+# rest are imported from their files (observers.time_varying.design, .systems...)
+__all__ = ["PAPER", "ERRATA", "DECISIONS", "simulate", "errors", "FIGURES", "NOT_REPRODUCED",
+           "reproduce", "CLAIMS", "PROBLEMS", "ReducedOrderObserver", "TimeVaryingPlant",
+           "lti_observer", "chained_form_observer", "tracking_loop"]

@@ -239,7 +239,7 @@ def sawtooth(rate, top):
     the time average of x^k is top^k / (k + 1)."""
     up = rate > 0
     return hs.HybridSystem.from_functions(
-        f=lambda x: np.array([rate]), g=lambda x: np.array([0.0 if up else top]),
+        flow_map=lambda x: np.array([rate]), jump_map=lambda x: np.array([0.0 if up else top]),
         jump_guard=(lambda x: x[0] - top) if up else (lambda x: -x[0]),
         flow_guard=(lambda x: top - x[0]) if up else (lambda x: x[0]), state_dim=1)
 

@@ -37,17 +37,17 @@ def _close_figures():
 def window_timer(T1=1.0, T2=2.0):
     """x' = 1; may reset to 0 anywhere in [T1, T2], must at T2."""
     return hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0]), g=lambda x: np.array([0.0]),
-        C=lambda x: x[0] <= T2, D=lambda x: x[0] >= T1, state_dim=1)
+        flow_map=lambda x: np.array([1.0]), jump_map=lambda x: np.array([0.0]),
+        flow_set=lambda x: x[0] <= T2, jump_set=lambda x: x[0] >= T1, state_dim=1)
 
 
 def counter(offsets, period=1.0, rate=0.0):
     """(tau, z): tau' = 1, z' = rate; at tau = period z+ in {z + c : c in offsets}."""
     offs = [float(c) for c in offsets]
     return hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0, rate]), C=lambda x: x[0] <= period,
-        D=lambda x: x[0] >= period,
-        g_values=lambda x: [np.array([0.0, x[1] + c]) for c in offs], state_dim=2)
+        flow_map=lambda x: np.array([1.0, rate]), flow_set=lambda x: x[0] <= period,
+        jump_set=lambda x: x[0] >= period,
+        jump_map_values=lambda x: [np.array([0.0, x[1] + c]) for c in offs], state_dim=2)
 
 
 # ---------------------------------------------------------------- the data
@@ -65,12 +65,14 @@ def test_set_valued_jump_map_simulate_takes_the_first_or_a_seeded_draw():
 
 def test_set_valued_jump_map_contract():
     bad = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0]), D=lambda x: x[0] >= 1.0, C=lambda x: x[0] <= 1.0,
-        g_values=lambda x: [], state_dim=1)
+        flow_map=lambda x: np.array([1.0]), jump_set=lambda x: x[0] >= 1.0,
+        flow_set=lambda x: x[0] <= 1.0,
+        jump_map_values=lambda x: [], state_dim=1)
     with pytest.raises(hs.MapError, match=r"jump_map_values must return k >= 1 successors"):
         hs.simulate(bad, [0.0], t_max=3.0)
-    with pytest.raises(TypeError, match="g and g_values"):
-        hs.HybridSystem.from_functions(g=lambda x: x, g_values=lambda x: [x], state_dim=1)
+    with pytest.raises(TypeError, match="jump_map and jump_map_values"):
+        hs.HybridSystem.from_functions(jump_map=lambda x: x, jump_map_values=lambda x: [x],
+                                       state_dim=1)
 
     class Both(hs.HybridSystem):
         state_dim = 1
@@ -129,8 +131,8 @@ def test_dwell_that_outlasts_C_jumps_where_C_ends_and_one_that_outlasts_D_flows_
     assert abs(t2.jump_times[0] - 2.0) <= TOL                # cut short at the end of C
     # D = [1, 1.5] inside C = [0, 3]: a dwell of 5 leaves D and never jumps
     sys_ = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0]), g=lambda x: np.array([0.0]),
-        C=lambda x: x[0] <= 3.0, D=lambda x: 1.0 <= x[0] <= 1.5, state_dim=1)
+        flow_map=lambda x: np.array([1.0]), jump_map=lambda x: np.array([0.0]),
+        flow_set=lambda x: x[0] <= 3.0, jump_set=lambda x: 1.0 <= x[0] <= 1.5, state_dim=1)
     arc = hs.simulate(sys_, [0.0], t_max=2.8, priority="random", dwell=lambda rng: 5.0)
     assert arc.jump_count == 0 and arc.termination is hs.Termination.T_MAX
 
@@ -235,9 +237,9 @@ def test_one_dimensional_overlaps_enumerated_by_hand():
     It ends at x = 10 + (8 - t_jump). A flow that leaves D (at 2, at 4) does
     not jump there, and at 5 "flow on" is impossible (C ends)."""
     sys_ = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0]), g=lambda x: np.array([10.0]),
-        C=lambda x: x[0] <= 5.0 or x[0] >= 10.0,
-        D=lambda x: 1 <= x[0] <= 2 or 3 <= x[0] <= 4 or 5 <= x[0] <= 6, state_dim=1)
+        flow_map=lambda x: np.array([1.0]), jump_map=lambda x: np.array([10.0]),
+        flow_set=lambda x: x[0] <= 5.0 or x[0] >= 10.0,
+        jump_set=lambda x: 1 <= x[0] <= 2 or 3 <= x[0] <= 4 or 5 <= x[0] <= 6, state_dim=1)
     for grid, jumps in (((), [1.0, 3.0, 5.0]), ((0.5,), [1.0, 1.5, 3.0, 3.5, 5.0])):
         tree = hs.explore(sys_, [0.0], t_max=8.0, j_max=5, dwell_grid=grid, merge_tol=None)
         got = sorted(float(a.jump_times[0]) for a in tree)
@@ -320,8 +322,8 @@ def test_leaves_are_the_solutions_of_every_choice_sequence(seed):
     def G(x):
         return [np.array([0.0, x[1] + c]) for c in offs]
     system = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0, rate]), C=lambda x: x[0] <= T2,
-        D=lambda x: x[0] >= T1, g_values=G, state_dim=2)
+        flow_map=lambda x: np.array([1.0, rate]), flow_set=lambda x: x[0] <= T2,
+        jump_set=lambda x: x[0] >= T1, jump_map_values=G, state_dim=2)
     tree = hs.explore(system, [0.0, 0.0], t_max, j_max, dwell_grid=grid, merge_tol=None)
     runs = _replay(system, np.array([0.0, 0.0]), t_max, j_max, grid, k)
     assert tree.complete and _same_sets(tree.leaves, runs)
@@ -352,8 +354,9 @@ def test_inputs_reach_every_branch():
     """u(t) = t read by the jump map (x+ = u / 4): a reset at time s lands on
     s / 4 on every branch (the successors are computed with the input too)."""
     sys_ = hs.HybridSystem.from_functions(
-        f=lambda x, t, j, u: np.array([1.0]), g=lambda x, t, j, u: np.array([u[0] / 4]),
-        C=lambda x: x[0] <= 2.0, D=lambda x: x[0] >= 1.0, state_dim=1, input_dim=1)
+        flow_map=lambda x, t, j, u: np.array([1.0]),
+        jump_map=lambda x, t, j, u: np.array([u[0] / 4]),
+        flow_set=lambda x: x[0] <= 2.0, jump_set=lambda x: x[0] >= 1.0, state_dim=1, input_dim=1)
     tree = hs.explore(sys_, [0.0], t_max=2.5, j_max=1, dwell_grid=[0.5],
                       inputs=lambda t: np.array([t]))
     assert sorted(round(float(a.jump_times[0]), 9) for a in tree) == [1.0, 1.5, 2.0]
@@ -404,7 +407,7 @@ def test_explore_bad_input_is_named():
         hs.explore(sys_, [0.0], 3.0, 2, merge_tol=-1.0)
     with pytest.raises(TypeError, match="system must be a hybridsim.HybridSystem"):
         hs.explore(object(), [0.0], 3.0, 2)
-    delayed = hs.HybridSystem.from_functions(f=lambda x: -x, state_dim=1,
+    delayed = hs.HybridSystem.from_functions(flow_map=lambda x: -x, state_dim=1,
                                              needs_history=True)
     with pytest.raises(ValueError, match="merge_tol must be None .* reads its history"):
         hs.explore(delayed, [1.0], 1.0, 1, merge_tol=1e-9)
@@ -416,8 +419,8 @@ def test_a_failing_map_names_the_branch():
             raise RuntimeError("broken reset")
         return np.array([0.0])
     sys_ = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0]), g=g, C=lambda x: x[0] <= 2.0,
-        D=lambda x: x[0] >= 1.0, state_dim=1)
+        flow_map=lambda x: np.array([1.0]), jump_map=g, flow_set=lambda x: x[0] <= 2.0,
+        jump_set=lambda x: x[0] >= 1.0, state_dim=1)
     with pytest.raises(hs.MapError, match=r"broken reset.*on the branch: flow on at"):
         hs.explore(sys_, [0.0], 5.0, 1)
     tree = hs.explore(sys_, [0.0], 5.0, 1, throw=False)
@@ -470,9 +473,9 @@ def test_jittery_sampling_every_gap_sequence_contracts():
     of the factors (order-free), so merged the tree ends at the C(7, 2) = 21
     multisets of five gaps."""
     jittery = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([x[0] + x[1], 0.0, 1.0]),
-        g=lambda x: np.array([x[0], -2.0 * x[0], 0.0]),
-        C=lambda x: x[2] <= 0.3, D=lambda x: x[2] >= 0.1, state_dim=3)
+        flow_map=lambda x: np.array([x[0] + x[1], 0.0, 1.0]),
+        jump_map=lambda x: np.array([x[0], -2.0 * x[0], 0.0]),
+        flow_set=lambda x: x[2] <= 0.3, jump_set=lambda x: x[2] >= 0.1, state_dim=3)
     tree = hs.explore(jittery, [1.0, -2.0, 0.0], t_max=2.0, j_max=5, dwell_grid=[0.1])
     assert len(tree) == 21 and tree.complete
     # rtol 1e-6: the solver's (rtol 1e-6) error on x, relative to the bound

@@ -268,7 +268,7 @@ def test_one_sigint_inside_a_sensitivity_run_ends_it_canceled():
     CANCELED, the arc and sensitivities so far (every jump 1 s earlier per
     unit of x0), the message naming its last sample."""
     timer = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0]), g=lambda x: np.array([0.0]),
+        flow_map=lambda x: np.array([1.0]), jump_map=lambda x: np.array([0.0]),
         jump_guard=lambda x: x[0] - 0.01, state_dim=1)
     with one_sigint_inside_the_run() as sig:
         sarc = hs.simulate_sensitivity(timer, [0.0], t_max=math.inf, max_samples=1_000_000,

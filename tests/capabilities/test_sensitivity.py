@@ -88,7 +88,7 @@ def test_error_follows_the_tolerance_on_a_non_polynomial_flow():
     # global error of a few rtol on these smooth flows.
     def make(p):
         return hs.HybridSystem.from_functions(
-            f=lambda x: -p[0] * x, g=lambda x: np.array([1.0]),
+            flow_map=lambda x: -p[0] * x, jump_map=lambda x: np.array([1.0]),
             jump_guard=lambda x: 0.5 - x[0], state_dim=1)
     p, x0 = 1.3, 0.9
     errors = []
@@ -156,7 +156,7 @@ def test_interpolation_between_samples_matches_a_stored_sample():
 
 def test_jump_inside_D_at_t0_and_a_timer():
     timer = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0]), g=lambda x: np.array([0.0]),
+        flow_map=lambda x: np.array([1.0]), jump_map=lambda x: np.array([0.0]),
         jump_guard=lambda x: x[0] - 1.0, state_dim=1)
     # x0 = 1.5 is strictly inside D: the jump at t0 happens whatever x0 near it,
     # then x(t) = t - t0 does not depend on x0; exact arithmetic (affine maps)
@@ -176,9 +176,9 @@ def test_parameter_in_guard_and_time_dependent_jump():
     # keeps x+ out of D.
     def make(p):
         return hs.HybridSystem.from_functions(
-            f=lambda x: np.array([1.0]), g=lambda x, t: np.array([x[0] + t]),
+            flow_map=lambda x: np.array([1.0]), jump_map=lambda x, t: np.array([x[0] + t]),
             jump_guard=lambda x: x[0] - p[0],
-            D=lambda x: p[0] <= x[0] < p[0] + 0.5, state_dim=1)
+            jump_set=lambda x: p[0] <= x[0] < p[0] + 0.5, state_dim=1)
     sarc = simulate_sensitivity(make, [0.0], t_max=1.5, params=[1.0])
     assert sarc.arc.jump_count == 1
     assert sarc.x[-1, 0] == pytest.approx(2.5, rel=1e-12)
@@ -207,8 +207,8 @@ def _linear_case(data):
     def make(p):
         # f = p0 A x + b, g = G x + d + p1 e_1, guard x0 - 1 + c . x[1:]
         return hs.HybridSystem.from_functions(
-            f=lambda x: p[0] * (A @ x) + b,
-            g=lambda x: Gm @ x + d + p[1] * np.eye(n)[1],
+            flow_map=lambda x: p[0] * (A @ x) + b,
+            jump_map=lambda x: Gm @ x + d + p[1] * np.eye(n)[1],
             jump_guard=lambda x: x[0] - 1.0 + c @ x[1:], state_dim=n)
     return make, x0, np.array([1.0, 0.1])
 
@@ -301,7 +301,7 @@ def test_grazing_jump_is_named():
     # tangency (h' = 2 EPS, h'' = -2): grazing; t_j = 1 - x1(0) - sqrt(x2(0))
     eps = 1e-7
     sys_ = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0, 0.0]), g=lambda x: np.array([x[0], -1.0]),
+        flow_map=lambda x: np.array([1.0, 0.0]), jump_map=lambda x: np.array([x[0], -1.0]),
         jump_guard=lambda x: x[1] - (x[0] - 1.0) ** 2, state_dim=2)
     x0 = [0.0, eps ** 2]
     with pytest.raises(SensitivityError, match=r"t=0\.9999999\d* \(j=0 -> 1\).*grazing") as ei:
@@ -323,7 +323,7 @@ def test_a_slow_transversal_crossing_is_not_grazing():
     # h = x2 along x2' = 1e-9: the rate is small against |f| (1, the other
     # component) but never changes sign: dt_j/dx2(0) = -1e9 exactly
     sys_ = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0, 1e-9]), g=lambda x: np.array([x[0], -1.0]),
+        flow_map=lambda x: np.array([1.0, 1e-9]), jump_map=lambda x: np.array([x[0], -1.0]),
         jump_guard=lambda x: x[1], state_dim=2)
     sarc = simulate_sensitivity(sys_, [0.0, -1e-9], t_max=1.5)
     assert sarc.dtj_dx0[0, 1] == pytest.approx(-1e9, rel=1e-6)
@@ -348,8 +348,8 @@ def test_indicator_without_guard_is_named():
     # a set no guard is derived from (a call: hybridsim._source); the same ball's
     # D written as comparisons gets one (tests/engine/test_derived_guards.py)
     b = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([x[1], -G]), g=lambda x: np.array([0.0, -E * x[1]]),
-        C=lambda x: x[0] >= 0, D=lambda x: bool(x[0] <= 0 and x[1] <= 0), state_dim=2)
+        flow_map=lambda x: np.array([x[1], -G]), jump_map=lambda x: np.array([0.0, -E * x[1]]),
+        flow_set=lambda x: x[0] >= 0, jump_set=lambda x: bool(x[0] <= 0 and x[1] <= 0), state_dim=2)
     with pytest.raises(SensitivityError, match=r"\(j=0 -> 1\).*no jump_guard") as ei:
         simulate_sensitivity(b, [H0, 0.0], t_max=1.0)
     assert ei.value.t == pytest.approx(np.sqrt(2 * H0 / G), rel=1e-9)
@@ -357,7 +357,7 @@ def test_indicator_without_guard_is_named():
 
 def test_simultaneous_guards_are_named():
     corner = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0, 1.0]), g=lambda x: np.zeros(2),
+        flow_map=lambda x: np.array([1.0, 1.0]), jump_map=lambda x: np.zeros(2),
         jump_guard=lambda x: np.array([x[0] - 1.0, x[1] - 1.0]), state_dim=2)
     with pytest.raises(SensitivityError, match=r"simultaneous guards: components \[0, 1\]"):
         simulate_sensitivity(corner, [0.0, 0.0], t_max=1.5)
@@ -368,7 +368,7 @@ def test_simultaneous_guards_are_named():
 
 def test_jump_from_the_guards_zero_without_flow_is_named():
     timer = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0]), g=lambda x: np.array([0.0]),
+        flow_map=lambda x: np.array([1.0]), jump_map=lambda x: np.array([0.0]),
         jump_guard=lambda x: x[0] - 1.0, state_dim=1)
     with pytest.raises(SensitivityError, match=r"t=0 \(j=0 -> 1\).*without a flow"):
         simulate_sensitivity(timer, [1.0], t_max=0.5)
@@ -494,9 +494,9 @@ def test_compiled_path_equals_the_python_path():
 
     def make(p):
         return hs.HybridSystem.from_functions(
-            f=lambda x: np.array([1.0]), g=lambda x, t: np.array([x[0] + t]),
+            flow_map=lambda x: np.array([1.0]), jump_map=lambda x, t: np.array([x[0] + t]),
             jump_guard=lambda x: x[0] - p[0],
-            D=lambda x: p[0] <= x[0] < p[0] + 0.5, state_dim=1)
+            jump_set=lambda x: p[0] <= x[0] < p[0] + 0.5, state_dim=1)
     a = simulate_sensitivity(make, [0.0], t_max=1.5, params=[1.0], backend="compiled")
     same(a, simulate_sensitivity(make, [0.0], t_max=1.5, params=[1.0]))
     np.testing.assert_allclose(a.dtj_dtheta[0], [-1.0, 1.0], rtol=1e-9)
@@ -504,7 +504,7 @@ def test_compiled_path_equals_the_python_path():
     same(simulate_sensitivity(make, [0.0], t_max=1.5, params=[1.0], backend="auto"), a)
     # an undefined jump is named the same way on both paths
     corner = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0, 1.0]), g=lambda x: np.zeros(2),
+        flow_map=lambda x: np.array([1.0, 1.0]), jump_map=lambda x: np.zeros(2),
         jump_guard=lambda x: np.array([x[0] - 1.0, x[1] - 1.0]), state_dim=2)
     for backend in ("python", "compiled"):
         with pytest.raises(SensitivityError, match=r"simultaneous guards: components \[0, 1\]"):
@@ -617,7 +617,7 @@ def test_observer_gain_tuning_example(tmp_path):
 def _rate_reset(p):
     """x' = a from 0, reset to b at x = 1: t_2 = (2 - b) / a (p = (a, b))."""
     return hs.HybridSystem.from_functions(
-        f=lambda x: np.array([p[0]]), g=lambda x: np.array([p[1]]),
+        flow_map=lambda x: np.array([p[0]]), jump_map=lambda x: np.array([p[1]]),
         jump_guard=lambda x: x[0] - 1.0, state_dim=1)
 
 
@@ -658,8 +658,8 @@ def test_falsify_gradient_falls_back_and_checks_its_input():
     def no_guard(p):         # the jump set alone: no gradient (SensitivityError)
         # (bool(...): a set no guard is derived from, hybridsim._source)
         return hs.HybridSystem.from_functions(
-            f=lambda x: np.array([p[0]]), g=lambda x: np.array([p[1]]),
-            D=lambda x: bool(x[0] >= 1.0), state_dim=1)
+            flow_map=lambda x: np.array([p[0]]), jump_map=lambda x: np.array([p[1]]),
+            jump_set=lambda x: bool(x[0] >= 1.0), state_dim=1)
 
     def run(pt):
         return hs.simulate(_rate_reset(pt.z), [0.0], t_max=5.0, j_max=2)

@@ -28,7 +28,7 @@ def ball():
 def gear_box(t_shift):
     """(clock, gear): clock' = 1; at clock = t_shift the gear goes up, the clock to 0."""
     return hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0, 0.0]), g=lambda x: np.array([0.0, x[1] + 1.0]),
+        flow_map=lambda x: np.array([1.0, 0.0]), jump_map=lambda x: np.array([0.0, x[1] + 1.0]),
         jump_guard=lambda x: x[0] - t_shift, flow_guard=lambda x: t_shift - x[0],
         state_dim=2)
 
@@ -440,8 +440,9 @@ def test_a_formula_is_a_claim_for_falsify():
 
 def test_over_every_solution_of_an_exploration():
     counter = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0, 0.0]), C=lambda x: x[0] <= 1.0, D=lambda x: x[0] >= 1.0,
-        g_values=lambda x: [np.array([0.0, x[1] + c]) for c in (1.0, 2.0)], state_dim=2)
+        flow_map=lambda x: np.array([1.0, 0.0]), flow_set=lambda x: x[0] <= 1.0,
+        jump_set=lambda x: x[0] >= 1.0,
+        jump_map_values=lambda x: [np.array([0.0, x[1] + c]) for c in (1.0, 2.0)], state_dim=2)
     tree = hs.explore(counter, [0.0, 0.0], t_max=3.5, j_max=4)
     m = stl.G(stl.state(1) <= 5, 0, 3.5)(tree)
     assert float(m) == -1.0 and m.where == (pytest.approx(3.0), 3)   # z = 6 after 2 + 2 + 2

@@ -11,9 +11,9 @@ from hybridsim.rules import event_tolerance
 def arc():
     # x' = -x until t = 1, then a jump to 0 (a "finite-time observer error")
     sysm = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([-x[0], 1.0]), g=lambda x: np.array([0.0, x[1]]),
+        flow_map=lambda x: np.array([-x[0], 1.0]), jump_map=lambda x: np.array([0.0, x[1]]),
         jump_guard=lambda x: x[1] - 1.0, flow_guard=lambda x: 1.0 - x[1],
-        D=lambda x: x[1] >= 1.0 and x[0] != 0.0, state_dim=2)
+        jump_set=lambda x: x[1] >= 1.0 and x[0] != 0.0, state_dim=2)
     return hs.simulate(sysm, [1.0, 0.0], t_max=2.0, refine=4)
 
 

@@ -7,8 +7,8 @@ import hybridsim as hs
 
 def ball():
     return hs.HybridSystem.from_functions(
-        f=lambda x: np.array([x[1], -9.81]), g=lambda x: np.array([0.0, -0.8 * x[1]]),
-        C=lambda x: x[0] >= 0, D=lambda x: x[0] <= 0 and x[1] <= 0, state_dim=2)
+        flow_map=lambda x: np.array([x[1], -9.81]), jump_map=lambda x: np.array([0.0, -0.8 * x[1]]),
+        flow_set=lambda x: x[0] >= 0, jump_set=lambda x: x[0] <= 0 and x[1] <= 0, state_dim=2)
 
 
 @pytest.fixture(scope="module")

@@ -14,8 +14,8 @@ from hybridsim.library import BouncingBall, Timer
 
 def lambda_system():
     return hs.HybridSystem.from_functions(
-        f=lambda x: np.array([x[1], -9.81]), g=lambda x: np.array([0.0, -0.8 * x[1]]),
-        C=lambda x: x[0] >= 0, D=lambda x: x[0] <= 0 and x[1] <= 0, state_dim=2)
+        flow_map=lambda x: np.array([x[1], -9.81]), jump_map=lambda x: np.array([0.0, -0.8 * x[1]]),
+        flow_set=lambda x: x[0] >= 0, jump_set=lambda x: x[0] <= 0 and x[1] <= 0, state_dim=2)
 
 
 def with_extras(a):
@@ -267,9 +267,9 @@ def test_invalid_content_is_named(ball, tmp_path, change, message):
 def make_lambda_ball(restitution):
     """Module-level (picklable) factory of a system that holds lambdas."""
     return hs.HybridSystem.from_functions(
-        f=lambda x: np.array([x[1], -9.81]),
-        g=lambda x: np.array([0.0, -restitution * x[1]]),
-        C=lambda x: x[0] >= 0, D=lambda x: x[0] <= 0 and x[1] <= 0, state_dim=2)
+        flow_map=lambda x: np.array([x[1], -9.81]),
+        jump_map=lambda x: np.array([0.0, -restitution * x[1]]),
+        flow_set=lambda x: x[0] >= 0, jump_set=lambda x: x[0] <= 0 and x[1] <= 0, state_dim=2)
 
 
 def test_sweep_over_a_process_pool_returns_every_arc():

@@ -129,8 +129,8 @@ def test_save_writes_only_what_load_reads(tmp_path):
 
 def _chooser():
     return hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0]), g=lambda x: np.array([0.0]),
-        C=lambda x: x[0] <= 2.0, D=lambda x: x[0] >= 1.0, state_dim=1)
+        flow_map=lambda x: np.array([1.0]), jump_map=lambda x: np.array([0.0]),
+        flow_set=lambda x: x[0] <= 2.0, jump_set=lambda x: x[0] >= 1.0, state_dim=1)
 
 
 def test_an_explore_leaf_keeps_its_choices(tmp_path):

@@ -86,7 +86,7 @@ def test_linear_plant_bad_input(kw, match):
 
 def timer(period):
     return hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0]), g=lambda x: np.array([0.0]),
+        flow_map=lambda x: np.array([1.0]), jump_map=lambda x: np.array([0.0]),
         jump_guard=lambda x: x[0] - period, flow_guard=lambda x: period - x[0], state_dim=1)
 
 
@@ -215,7 +215,7 @@ def test_direct_feedthrough_outputs_and_algebraic_loops():
         def output(self, x, t, j, u):
             return x + u
 
-    src = hs.HybridSystem.from_functions(f=lambda x: np.zeros(1), state_dim=1)
+    src = hs.HybridSystem.from_functions(flow_map=lambda x: np.zeros(1), state_dim=1)
     sysm = hs.Interconnection({"src": src, "g1": Gain(), "g2": Gain()},
                               inputs={"g1": lambda t, y: y["src"], "g2": lambda t, y: y["g1"]})
     y = sysm.outputs(np.array([1.0, 2.0, 3.0]))
@@ -294,7 +294,7 @@ def test_connect_checks_plant_output_against_observer_input():
 
     with pytest.raises(ValueError, match="output has dimension 3"):
         hs.connect(Measured(), Luenberger())
-    bare = hs.HybridSystem.from_functions(f=lambda x: A @ x, state_dim=2)   # y = x: 2
+    bare = hs.HybridSystem.from_functions(flow_map=lambda x: A @ x, state_dim=2)   # y = x: 2
     with pytest.raises(ValueError, match="output has dimension 2"):
         hs.connect(bare, Luenberger())
     with pytest.raises(TypeError, match="observer must be a HybridSystem"):
@@ -405,7 +405,7 @@ def test_vectorized_interconnection_maps_over_rows():
 
 
 def test_vectorized_only_when_every_component_is():
-    plain = hs.HybridSystem.from_functions(f=lambda x, t, j, u: u - x, state_dim=1,
+    plain = hs.HybridSystem.from_functions(flow_map=lambda x, t, j, u: u - x, state_dim=1,
                                            input_dim=1)
     plant = hs.LinearPlant([[0.0]], C=[[1.0]])
     assert plant.vectorized and not hs.LinearPlant([[0.0]], noise=lambda t: [0.0]).vectorized

@@ -65,7 +65,7 @@ def _component(kind, bad, *, vectorized=False, when="x0"):
     else:
         f, g = _good, bad
     return hs.HybridSystem.from_functions(
-        f=f, g=g, jump_guard=(None if g is None else lambda x: x[..., 0] - T_BAD),
+        flow_map=f, jump_map=g, jump_guard=(None if g is None else lambda x: x[..., 0] - T_BAD),
         flow_guard=(None if g is None else lambda x: T_BAD - x[..., 0]),
         state_dim=2, vectorized=vectorized)
 
@@ -86,7 +86,7 @@ def _assert_names(e, kind, words, t=None):
 
 
 def test_issue_22_scalar_flow_no_longer_stretched():
-    comp = hs.HybridSystem.from_functions(f=lambda x: -1.0, state_dim=2)
+    comp = hs.HybridSystem.from_functions(flow_map=lambda x: -1.0, state_dim=2)
     with pytest.raises(hs.MapError):
         hs.simulate(comp, [1.0, 1.0], t_max=1.0)                   # alone
     with pytest.raises(hs.MapError) as ei:
@@ -192,9 +192,9 @@ def test_vectorized_path_during_the_run(kind, bad):
 
 # ------------------------------------------------------------ outputs, guards, sets
 def test_outputs_of_a_declared_dimension_are_checked():
-    bad = hs.HybridSystem.from_functions(f=lambda x: -x, output=lambda x: x, output_dim=1,
+    bad = hs.HybridSystem.from_functions(flow_map=lambda x: -x, output=lambda x: x, output_dim=1,
                                          state_dim=2)
-    obs = hs.HybridSystem.from_functions(f=lambda x, t, j, u: u - x, state_dim=1,
+    obs = hs.HybridSystem.from_functions(flow_map=lambda x, t, j, u: u - x, state_dim=1,
                                          input_dim=1)
     ic = hs.connect(bad, obs)
     with pytest.raises(hs.MapError) as ei:
@@ -202,13 +202,13 @@ def test_outputs_of_a_declared_dimension_are_checked():
     assert ei.value.map_name == "plant.output"
     assert "component 'plant': output must return an array of shape (1,) or a scalar " \
            "(output_dim=1), got shape (2,)" in str(ei.value)
-    cplx = hs.HybridSystem.from_functions(f=lambda x: -x, output=lambda x: x[:1] * 1j,
+    cplx = hs.HybridSystem.from_functions(flow_map=lambda x: -x, output=lambda x: x[:1] * 1j,
                                           output_dim=1, state_dim=2)
     with pytest.raises(hs.MapError, match="component 'plant': output returned complex"):
         hs.simulate(hs.connect(cplx, obs), [1.0, 2.0, 0.0], t_max=1.0)
     # a scalar output of dimension 1, and an undeclared 1-D output, are fine
     for out, dim in ((lambda x: x[0], 1), (lambda x: x[:1], None)):
-        fine = hs.HybridSystem.from_functions(f=lambda x: -x, output=out, output_dim=dim,
+        fine = hs.HybridSystem.from_functions(flow_map=lambda x: -x, output=out, output_dim=dim,
                                               state_dim=2)
         arc = hs.simulate(hs.connect(fine, obs), [1.0, 2.0, 0.0], t_max=1.0)
         assert arc.termination is Termination.T_MAX
@@ -220,13 +220,13 @@ def test_batch_outputs_guards_and_sets_are_checked():
     obs = hs.LinearPlant([[0.0]], B=[[1.0]])               # vectorized, with an input
     X = np.zeros((4, 3))
     cases = [
-        (vec(f=_good, output=lambda x: x, output_dim=1), "plant.output",
+        (vec(flow_map=_good, output=lambda x: x, output_dim=1), "plant.output",
          "output must return an array of shape (4, 1) or (4,)"),
-        (vec(f=_good, g=_good, jump_guard=lambda x: -1.0), "plant.jump_guard",
+        (vec(flow_map=_good, jump_map=_good, jump_guard=lambda x: -1.0), "plant.jump_guard",
          "jump_guard must return an array of shape (4,) or (4, m)"),
-        (vec(f=_good, g=_good, D=lambda x: False), "plant.jump_set",
+        (vec(flow_map=_good, jump_map=_good, jump_set=lambda x: False), "plant.jump_set",
          "jump_set must return a boolean array of shape (4,)"),
-        (vec(f=_good, C=lambda x: np.ones((len(x), 2), bool)), "plant.flow_set",
+        (vec(flow_map=_good, flow_set=lambda x: np.ones((len(x), 2), bool)), "plant.flow_set",
          "flow_set must return a boolean array of shape (4,)"),
     ]
     for comp, name, words in cases:
@@ -243,6 +243,6 @@ def test_good_values_of_other_kinds_pass():
     """Int arrays and lists (converted, as simulate converts them) and float32 pass."""
     for f in (lambda x: [1, 0], lambda x: np.array([1, 0]),
               lambda x: np.array([1.0, 0.0], dtype=np.float32)):
-        comp = hs.HybridSystem.from_functions(f=f, state_dim=2)
+        comp = hs.HybridSystem.from_functions(flow_map=f, state_dim=2)
         arc = hs.simulate(_ic(comp), [1.0, 0.0, 0.0], t_max=1.0)
         np.testing.assert_allclose(arc.xf[1:], [1.0, 0.0], atol=1e-9)

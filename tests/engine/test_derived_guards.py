@@ -66,7 +66,8 @@ def _signs_agree(S, h, x):
 @given(st.lists(st.floats(-5.0, 5.0, allow_nan=False, width=64), min_size=2, max_size=2),
        st.sampled_from(range(len(SETS))))
 def test_a_derived_guard_agrees_with_its_set_on_random_states(x, k):
-    system = hs.HybridSystem.from_functions(f=lambda x: -x, D=SETS[k], C=SETS[k], state_dim=2)
+    system = hs.HybridSystem.from_functions(flow_map=lambda x: -x, jump_set=SETS[k],
+                                            flow_set=SETS[k], state_dim=2)
     x = np.array(x)
     for h, S in ((system.jump_guard, SETS[k]), (system.flow_guard, SETS[k])):
         assert h is not None
@@ -79,7 +80,7 @@ def test_a_derived_guard_agrees_with_its_set_on_random_states(x, k):
 @settings(max_examples=100, deadline=None)
 @given(st.floats(-3.0, 3.0, allow_nan=False), st.floats(-3.0, 3.0, allow_nan=False))
 def test_the_guard_is_zero_exactly_where_a_comparison_is_an_equality(a, b):
-    system = hs.HybridSystem.from_functions(f=lambda x: -x, D=lambda x: x[0] >= x[1],
+    system = hs.HybridSystem.from_functions(flow_map=lambda x: -x, jump_set=lambda x: x[0] >= x[1],
                                             state_dim=2)
     v = system.jump_guard(np.array([a, b]))
     assert (v == 0.0) == (a == b) and (v > 0.0) == (a > b)
@@ -87,7 +88,7 @@ def test_the_guard_is_zero_exactly_where_a_comparison_is_an_equality(a, b):
 
 def test_a_vectorized_set_gets_a_vectorized_guard():
     system = hs.HybridSystem.from_functions(
-        f=lambda x: -x, D=lambda x: (x[..., 0] >= 0) & (x[..., 1] <= 1), state_dim=2,
+        flow_map=lambda x: -x, jump_set=lambda x: (x[..., 0] >= 0) & (x[..., 1] <= 1), state_dim=2,
         vectorized=True)
     X = np.array([[1.0, 0.0], [-1.0, 0.0], [1.0, 3.0]])
     np.testing.assert_array_equal(system.jump_guard(X), [1.0, -1.0, -2.0])
@@ -100,7 +101,7 @@ def test_sets_that_cannot_be_guards_are_named_and_keep_the_indicator():
     def all_positive(x):
         return np.all(x >= 0)
     for D, words in ((odd_j, "Eq"), (all_positive, "is not a comparison")):
-        system = hs.HybridSystem.from_functions(f=lambda x: -x, D=D, state_dim=1)
+        system = hs.HybridSystem.from_functions(flow_map=lambda x: -x, jump_set=D, state_dim=1)
         assert system.jump_guard is None
         why = guard_refusal(system, "jump_guard")
         assert words in why and f"test_derived_guards.py:{D.__code__.co_firstlineno + 1}" in why
@@ -114,7 +115,8 @@ def test_a_given_guard_or_none_replaces_the_derived_one():
     assert Opt().jump_guard is None and Opt().flow_guard is not None
     assert HandBall().jump_guard(np.array([0.5, -1.0])) == -0.5
     # a set replaced on the instance gets its own guard
-    s = hs.HybridSystem.from_functions(f=lambda x: -x, D=lambda x: x[0] >= 1.0, state_dim=1)
+    s = hs.HybridSystem.from_functions(flow_map=lambda x: -x, jump_set=lambda x: x[0] >= 1.0,
+                                       state_dim=1)
     assert s.jump_guard(np.array([3.0])) == 2.0
     s.jump_set = lambda x: x[0] >= 2.0
     assert s.jump_guard(np.array([3.0])) == 1.0
@@ -143,9 +145,9 @@ def test_event_times_equal_the_hand_guarded_ball_to_4_ulp(rtol):
 
 
 def _apex(guard):
-    kw = {"jump_guard": lambda x: x[0] - 1.0} if guard else {"D": lambda x: x[0] >= 1.0}
+    kw = {"jump_guard": lambda x: x[0] - 1.0} if guard else {"jump_set": lambda x: x[0] >= 1.0}
     return hs.HybridSystem.from_functions(
-        f=lambda x: np.array([x[1], -1.0]), g=lambda x: np.array([x[0], -abs(x[1])]),
+        flow_map=lambda x: np.array([x[1], -1.0]), jump_map=lambda x: np.array([x[0], -abs(x[1])]),
         state_dim=2, **kw)
 
 
@@ -181,8 +183,8 @@ def test_sensitivities_of_an_indicator_only_ball(rtol):
 
 def test_sensitivities_still_refuse_a_set_without_a_guard():
     system = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0]), g=lambda x: np.array([0.0]),
-        D=lambda x: bool(np.all(x >= 1.0)), state_dim=1)
+        flow_map=lambda x: np.array([1.0]), jump_map=lambda x: np.array([0.0]),
+        jump_set=lambda x: bool(np.all(x >= 1.0)), state_dim=1)
     from hybridsim.sensitivity import SensitivityError
     with pytest.raises(SensitivityError, match="without a guard|no jump_guard"):
         hs.simulate_sensitivity(system, [0.0], t_max=1.5)

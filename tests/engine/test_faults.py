@@ -46,11 +46,11 @@ def apex_system(guard=True, priority_flows=False):
         if priority_flows:
             kw["flow_guard"] = lambda x: 1.0 - x[0]
     else:
-        kw["D"] = lambda x: x[0] >= 1.0
+        kw["jump_set"] = lambda x: x[0] >= 1.0
         if priority_flows:
-            kw["C"] = lambda x: x[0] <= 1.0
+            kw["flow_set"] = lambda x: x[0] <= 1.0
     return hs.HybridSystem.from_functions(
-        f=lambda x: np.array([x[1], -1.0]), g=lambda x: np.array([x[0], -abs(x[1])]),
+        flow_map=lambda x: np.array([x[1], -1.0]), jump_map=lambda x: np.array([x[0], -abs(x[1])]),
         state_dim=2, **kw)
 
 
@@ -100,8 +100,9 @@ def test_jump_at_t_max_is_taken_despite_round_off(period, t_max, guard):
     if guard:
         kw = dict(jump_guard=lambda x: x[0] - period, flow_guard=lambda x: period - x[0])
     else:
-        kw = dict(D=lambda x: x[0] >= period, C=lambda x: x[0] <= period)
-    timer = hs.HybridSystem.from_functions(f=lambda x: np.ones(1), g=lambda x: np.zeros(1),
+        kw = dict(jump_set=lambda x: x[0] >= period, flow_set=lambda x: x[0] <= period)
+    timer = hs.HybridSystem.from_functions(flow_map=lambda x: np.ones(1),
+                                           jump_map=lambda x: np.zeros(1),
                                            state_dim=1, **kw)
     arc = hs.simulate(timer, [0.0], t_max=t_max)
     assert arc.jump_count == round(t_max / period)
@@ -119,7 +120,7 @@ def test_jump_a_few_ulp_before_t_max_ends_at_t_max(method, ulps):
     tj = t_max - ulps * np.spacing(t_max)
     # x = (clock, mode): one jump, at t = tj, sets the mode to 1
     clock = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0, 0.0]), g=lambda x: np.array([x[0], 1.0]),
+        flow_map=lambda x: np.array([1.0, 0.0]), jump_map=lambda x: np.array([x[0], 1.0]),
         jump_guard=lambda x, t: np.array([t - tj, 0.5 - x[1]]), state_dim=2)
     arc = hs.simulate(clock, [0.0, 0.0], t_max=t_max, method=method)
     assert arc.termination is Termination.T_MAX, arc.message
@@ -132,7 +133,7 @@ def test_jump_a_few_ulp_before_t_max_ends_at_t_max(method, ulps):
 
 # ----------------------------------------------------------- bad arguments
 def decay():
-    return hs.HybridSystem.from_functions(f=lambda x: -x, state_dim=1)
+    return hs.HybridSystem.from_functions(flow_map=lambda x: -x, state_dim=1)
 
 
 @pytest.mark.parametrize("kw, err, match", [
@@ -172,13 +173,13 @@ def test_complex_x0_is_refused():
 # -------------------------------------------------------------- broken maps
 def test_defaulted_parameter_never_receives_t():
     # capturing a value with a default is common Python: k must stay 2
-    sysm = hs.HybridSystem.from_functions(f=lambda x, k=2.0: -k * x, state_dim=1)
+    sysm = hs.HybridSystem.from_functions(flow_map=lambda x, k=2.0: -k * x, state_dim=1)
     arc = hs.simulate(sysm, [1.0], t_max=1.0, rtol=1e-10, atol=1e-12)
     assert abs(arc.xf[0] - math.exp(-2.0)) < 1e-9
 
 
 def test_ufunc_as_flow_map_takes_x_only():
-    arc = hs.simulate(hs.HybridSystem.from_functions(f=np.negative, state_dim=1), [1.0],
+    arc = hs.simulate(hs.HybridSystem.from_functions(flow_map=np.negative, state_dim=1), [1.0],
                       t_max=1.0, rtol=1e-10, atol=1e-12)
     assert abs(arc.xf[0] - math.exp(-1.0)) < 1e-9
 
@@ -194,14 +195,15 @@ def test_defaulted_engine_arguments_still_count():
 
 
 @pytest.mark.parametrize("maps, match", [
-    (dict(f=lambda x: np.array([1j])), r"flow_map returned complex values .* \(at t=0, j=0\)"),
-    (dict(f=lambda x: -x, D=lambda x: "False", g=lambda x: x),
+    (dict(flow_map=lambda x: np.array([1j])),
+     r"flow_map returned complex values .* \(at t=0, j=0\)"),
+    (dict(flow_map=lambda x: -x, jump_set=lambda x: "False", jump_map=lambda x: x),
      "jump_set must return a bool .* got str 'False'"),
-    (dict(f=lambda x: -x, D=lambda x: float("nan"), g=lambda x: x),
+    (dict(flow_map=lambda x: -x, jump_set=lambda x: float("nan"), jump_map=lambda x: x),
      "jump_set must return a bool .* got float nan"),
-    (dict(f=lambda x: -x, D=lambda x: np.array([True, False]), g=lambda x: x),
+    (dict(flow_map=lambda x: -x, jump_set=lambda x: np.array([True, False]), jump_map=lambda x: x),
      "jump_set must return a bool"),
-    (dict(f=lambda x: -x, jump_guard=lambda x: np.nan, g=lambda x: x),
+    (dict(flow_map=lambda x: -x, jump_guard=lambda x: np.nan, jump_map=lambda x: x),
      "jump_guard returned NaN"),
 ])
 def test_contract_breaches_at_x0_raise_naming_the_map(maps, match):
@@ -211,7 +213,7 @@ def test_contract_breaches_at_x0_raise_naming_the_map(maps, match):
 
 def test_flow_map_of_wrong_shape_mid_run_names_flow_map():
     sysm = hs.HybridSystem.from_functions(
-        f=lambda x, t: np.zeros(2) if t > 0.5 else -x, state_dim=1)
+        flow_map=lambda x, t: np.zeros(2) if t > 0.5 else -x, state_dim=1)
     with pytest.raises(hs.MapError, match=r"flow_map must return an array of shape \(1,\), "
                                           r"got shape \(2,\) \(at t=0\.5"):
         hs.simulate(sysm, [1.0], t_max=1.0)
@@ -219,7 +221,7 @@ def test_flow_map_of_wrong_shape_mid_run_names_flow_map():
 
 def test_complex_flow_mid_run_is_a_map_error_not_a_cast():
     sysm = hs.HybridSystem.from_functions(
-        f=lambda x, t: np.array([1j]) if t > 0.5 else -x, state_dim=1)
+        flow_map=lambda x, t: np.array([1j]) if t > 0.5 else -x, state_dim=1)
     arc = hs.simulate(sysm, [1.0], t_max=1.0, throw=False)
     assert arc.termination is Termination.MAP_ERROR and "complex" in arc.message
     assert arc.tf <= 0.5 + 1e-12
@@ -228,7 +230,7 @@ def test_complex_flow_mid_run_is_a_map_error_not_a_cast():
 def test_jump_map_raising_at_first_jump_raises_with_the_arc():
     def g(x):
         raise ZeroDivisionError("bad reset")
-    sysm = hs.HybridSystem.from_functions(f=lambda x: np.ones(1), g=g,
+    sysm = hs.HybridSystem.from_functions(flow_map=lambda x: np.ones(1), jump_map=g,
                                           jump_guard=lambda x: x[0] - 1.0, state_dim=1)
     with pytest.raises(hs.MapError, match=r"jump_map raised ZeroDivisionError: bad reset "
                                           r"\(at t=1, j=0\)") as info:
@@ -242,7 +244,7 @@ def test_jump_map_raising_at_first_jump_raises_with_the_arc():
 # ------------------------------------------------- failures and runaways
 def test_nan_from_the_flow_map_mid_run_is_non_finite_with_one_warning():
     sysm = hs.HybridSystem.from_functions(
-        f=lambda x, t: np.array([np.nan]) if t > 0.5 else -x, state_dim=1)
+        flow_map=lambda x, t: np.array([np.nan]) if t > 0.5 else -x, state_dim=1)
     with warnings.catch_warnings(record=True) as w:
         warnings.simplefilter("always")
         arc = hs.simulate(sysm, [1.0], t_max=1.0)
@@ -253,7 +255,7 @@ def test_nan_from_the_flow_map_mid_run_is_non_finite_with_one_warning():
 
 
 def test_warn_false_is_silent_but_keeps_the_cause():
-    sysm = hs.HybridSystem.from_functions(f=lambda x: x ** 2, state_dim=1)
+    sysm = hs.HybridSystem.from_functions(flow_map=lambda x: x ** 2, state_dim=1)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         arc = hs.simulate(sysm, [1.0], t_max=2.0, max_norm=1e3, warn=False)
@@ -287,9 +289,9 @@ def test_chattering_with_a_tiny_hysteresis_is_named_at_j_max():
     j_max, which names the chattering in its message and one warning."""
     eps = 1e-9
     chat = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0 if x[1] > 0 else -1.0, 0.0]),
-        g=lambda x: np.array([x[0], -x[1]]),
-        D=lambda x: (x[1] > 0 and x[0] >= eps) or (x[1] < 0 and x[0] <= -eps), state_dim=2)
+        flow_map=lambda x: np.array([1.0 if x[1] > 0 else -1.0, 0.0]),
+        jump_map=lambda x: np.array([x[0], -x[1]]),
+        jump_set=lambda x: (x[1] > 0 and x[0] >= eps) or (x[1] < 0 and x[0] <= -eps), state_dim=2)
     with pytest.warns(hs.SimulationWarning, match="chattering"):
         arc = hs.simulate(chat, [-0.5, 1.0], t_max=1.0, j_max=50)
     assert arc.termination is Termination.J_MAX and "chattering" in arc.message
@@ -297,7 +299,8 @@ def test_chattering_with_a_tiny_hysteresis_is_named_at_j_max():
 
 
 def test_stiff_flow_under_rk45_warns_naming_implicit_methods():
-    stiff = hs.HybridSystem.from_functions(f=lambda x, t: -1e6 * (x - np.cos(t)), state_dim=1)
+    stiff = hs.HybridSystem.from_functions(flow_map=lambda x, t: -1e6 * (x - np.cos(t)),
+                                           state_dim=1)
     with pytest.warns(hs.SimulationWarning, match="looks stiff.*Radau"):
         hs.simulate(stiff, [0.0], t_max=0.01)
     with warnings.catch_warnings():
@@ -307,7 +310,7 @@ def test_stiff_flow_under_rk45_warns_naming_implicit_methods():
 
 
 def test_non_stiff_flow_gives_no_stiffness_warning():
-    osc = hs.HybridSystem.from_functions(f=lambda x: np.array([x[1], -x[0]]), state_dim=2)
+    osc = hs.HybridSystem.from_functions(flow_map=lambda x: np.array([x[1], -x[0]]), state_dim=2)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert hs.simulate(osc, [1.0, 0.0], t_max=50.0).success
@@ -322,10 +325,10 @@ def test_ball_sticking_to_a_moving_floor_is_not_left_sets():
     def dfloor(t):
         return A * w * np.cos(w * t)
     ball = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([x[1], -9.81]),
-        g=lambda x, t: np.array([floor(t), dfloor(t) - 0.5 * (x[1] - dfloor(t))]),
-        C=lambda x, t: x[0] >= floor(t),
-        D=lambda x, t: x[0] <= floor(t) and x[1] <= dfloor(t), state_dim=2)
+        flow_map=lambda x: np.array([x[1], -9.81]),
+        jump_map=lambda x, t: np.array([floor(t), dfloor(t) - 0.5 * (x[1] - dfloor(t))]),
+        flow_set=lambda x, t: x[0] >= floor(t),
+        jump_set=lambda x, t: x[0] <= floor(t) and x[1] <= dfloor(t), state_dim=2)
     arc = hs.simulate(ball, [1.0, 0.0], t_max=10.0, j_max=10_000)
     assert arc.termination is Termination.ZENO
     assert "sticks to the boundary of C" in arc.message
@@ -336,7 +339,7 @@ def test_ctrl_c_ends_the_run_with_canceled_and_keeps_the_arc():
         if t > 0.5:
             raise KeyboardInterrupt
         return -x
-    arc = hs.simulate(hs.HybridSystem.from_functions(f=f, state_dim=1), [1.0], t_max=1.0,
+    arc = hs.simulate(hs.HybridSystem.from_functions(flow_map=f, state_dim=1), [1.0], t_max=1.0,
                       max_step=0.01)
     assert arc.termination is Termination.CANCELED
     assert 0.48 < arc.tf <= 0.5 and np.all(np.diff(arc.t) >= 0)
@@ -370,7 +373,7 @@ def test_flow_map_reusing_its_output_array_gives_right_samples_and_derivatives()
         out[0] = -x[0]
         return out
 
-    arc = hs.simulate(hs.HybridSystem.from_functions(f=f, state_dim=1), [1.0], t_max=2.0,
+    arc = hs.simulate(hs.HybridSystem.from_functions(flow_map=f, state_dim=1), [1.0], t_max=2.0,
                       rtol=1e-10, atol=1e-12)
     np.testing.assert_allclose(arc.x[:, 0], np.exp(-arc.t), rtol=1e-8)
     np.testing.assert_allclose(arc.xdot[:, 0], -arc.x[:, 0], rtol=1e-12)
@@ -391,15 +394,15 @@ def test_max_samples_is_an_exact_cap_on_stored_samples(cap):
 # ------------------------------------------------------- issue 22 (faults)
 def _free_ball(**sets):
     return hs.HybridSystem.from_functions(
-        f=lambda x: np.array([x[1], -9.81]), g=lambda x: np.array([0.0, -0.8 * x[1]]),
+        flow_map=lambda x: np.array([x[1], -9.81]), jump_map=lambda x: np.array([0.0, -0.8 * x[1]]),
         state_dim=2, **sets)
 
 
 @pytest.mark.parametrize("ball", [
     hs.library.BouncingBall(),
     _free_ball(flow_guard=lambda x: x[0], jump_guard=lambda x: np.array([-x[0], -x[1]])),
-    _free_ball(C=lambda x: x[0] >= 0, D=lambda x: x[0] <= 0 and x[1] <= 0),
-    _free_ball(C=lambda x: x[0] >= 0, jump_guard=lambda x: -x[0])])
+    _free_ball(flow_set=lambda x: x[0] >= 0, jump_set=lambda x: x[0] <= 0 and x[1] <= 0),
+    _free_ball(flow_set=lambda x: x[0] >= 0, jump_guard=lambda x: -x[0])])
 def test_overflow_inside_the_first_step_is_non_finite_not_a_set_exit(ball):
     # the step's ends are finite, its dense output is NaN: not "x0 outside C"
     with warnings.catch_warnings(record=True) as w, np.errstate(over="ignore",
@@ -414,7 +417,8 @@ def test_overflow_inside_the_first_step_is_non_finite_not_a_set_exit(ball):
 
 def test_nan_guard_beside_an_indicator_is_a_map_error_naming_the_guard():
     sysm = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0]), g=lambda x: np.array([0.0]), D=lambda x: x[0] >= 1.0,
+        flow_map=lambda x: np.array([1.0]), jump_map=lambda x: np.array([0.0]),
+        jump_set=lambda x: x[0] >= 1.0,
         jump_guard=lambda x: x[0] - 1.0 if x[0] < 0.5 else math.nan, state_dim=1)
     arc = hs.simulate(sysm, [0.0], t_max=2.0, throw=False)
     assert arc.termination is Termination.MAP_ERROR and "jump_guard returned NaN" in arc.message
@@ -424,10 +428,10 @@ def test_nan_guard_beside_an_indicator_is_a_map_error_naming_the_guard():
 def test_a_jump_guard_is_used_beside_an_indicator_for_C(flow_side):
     # the apex is 1e-6 above the guard's zero: the in-step search needs the guard
     v0 = math.sqrt(2.0 * 9.81 * (1.0 + 1e-6))
-    kw = {"C": lambda x: x[0] >= -1e-9} if flow_side == "C" else \
+    kw = {"flow_set": lambda x: x[0] >= -1e-9} if flow_side == "C" else \
         {"flow_guard": lambda x: x[0] + 1e-9}
     flight = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([x[1], -9.81]), g=lambda x: np.array([x[0], -abs(x[1])]),
+        flow_map=lambda x: np.array([x[1], -9.81]), jump_map=lambda x: np.array([x[0], -abs(x[1])]),
         jump_guard=lambda x: x[0] - 1.0, state_dim=2, **kw)
     arc = hs.simulate(flight, [0.0, v0], t_max=2.0 * v0 / 9.81, j_max=1)
     assert arc.jump_count == 1
@@ -446,13 +450,13 @@ def _floor_ball(kind, restitution=0.8, jump_map=None):
 
     def g(x, t):
         return np.array([x[0], dyf(t) - restitution * (x[1] - dyf(t))])
-    kw = dict(D=lambda x, t: x[0] - yf(t) <= 0 and x[1] - dyf(t) <= 0)
+    kw = dict(jump_set=lambda x, t: x[0] - yf(t) <= 0 and x[1] - dyf(t) <= 0)
     if kind in ("guard", "both"):
         kw["flow_guard"] = lambda x, t: x[0] - yf(t)
     if kind in ("indicator", "both"):
-        kw["C"] = lambda x, t: x[0] - yf(t) >= 0
-    return hs.HybridSystem.from_functions(f=lambda x: np.array([x[1], -9.81]),
-                                          g=jump_map or g, state_dim=2, **kw)
+        kw["flow_set"] = lambda x, t: x[0] - yf(t) >= 0
+    return hs.HybridSystem.from_functions(flow_map=lambda x: np.array([x[1], -9.81]),
+                                          jump_map=jump_map or g, state_dim=2, **kw)
 
 
 @pytest.mark.parametrize("kind", ["guard", "indicator", "both"])
@@ -490,16 +494,16 @@ def test_jump_loop_of_a_guard_alone_says_what_is_wrong():
 
 @pytest.mark.parametrize("j_max, cause", [(30, Termination.J_MAX), (100, Termination.ZENO)])
 def test_purely_discrete_systems_are_not_jump_loops(j_max, cause):
-    count = hs.HybridSystem.from_functions(g=lambda x: x + 1.0, D=lambda x: True,
-                                           C=lambda x: False, state_dim=1)
+    count = hs.HybridSystem.from_functions(jump_map=lambda x: x + 1.0, jump_set=lambda x: True,
+                                           flow_set=lambda x: False, state_dim=1)
     arc = hs.simulate(count, [0.0], t_max=1.0, j_max=j_max)
     assert arc.termination is cause and "loop" not in arc.message
     assert arc.jump_count == min(j_max, 50) and arc.xf[0] == arc.jump_count
 
 
 def test_map_error_at_x0_carries_an_arc_ending_with_map_error():
-    sysm = hs.HybridSystem.from_functions(f=lambda x: -x, g=lambda x: 1 / 0,
-                                          D=lambda x: True, state_dim=1)
+    sysm = hs.HybridSystem.from_functions(flow_map=lambda x: -x, jump_map=lambda x: 1 / 0,
+                                          jump_set=lambda x: True, state_dim=1)
     with pytest.raises(hs.MapError) as info:
         hs.simulate(sysm, [1.0], t_max=1.0)
     arc = info.value.arc
@@ -508,7 +512,8 @@ def test_map_error_at_x0_carries_an_arc_ending_with_map_error():
 
 
 def test_stiffness_warning_points_at_the_caller():
-    stiff = hs.HybridSystem.from_functions(f=lambda x, t: -1e6 * (x - np.cos(t)), state_dim=1)
+    stiff = hs.HybridSystem.from_functions(flow_map=lambda x, t: -1e6 * (x - np.cos(t)),
+                                           state_dim=1)
     with warnings.catch_warnings(record=True) as w:
         warnings.simplefilter("always")
         hs.simulate(stiff, [0.0], t_max=0.01)

@@ -112,7 +112,7 @@ def test_history_output_and_input_of_a_component():
         def flow_map(self, z, t, j, u):
             return np.atleast_1d(self.history.input(t - 0.5))
 
-    plant = hs.HybridSystem.from_functions(f=lambda x: np.array([1.0]), state_dim=1)
+    plant = hs.HybridSystem.from_functions(flow_map=lambda x: np.array([1.0]), state_dim=1)
     sysm = hs.connect(plant, Delay())
     arc = hs.simulate(sysm, [0.0, 0.0], t_max=2.0, rtol=1e-10, atol=1e-12, dense=True)
     # y(s) = s for s >= 0, constant x0 = 0 before: z(2) = (2 - 0.5)^2 / 2

@@ -128,7 +128,7 @@ import hybridsim, hybridsim.compiled
 assert not hybridsim.compiled.available()
 import numpy as np
 arc = hybridsim.simulate(hybridsim.HybridSystem.from_functions(
-    f=lambda x: -x, state_dim=1), [1.0], t_max=1.0, backend="auto")
+    flow_map=lambda x: -x, state_dim=1), [1.0], t_max=1.0, backend="auto")
 assert arc.termination.name == "T_MAX"
 try:
     hybridsim.compiled.compile_kernels()

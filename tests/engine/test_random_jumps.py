@@ -26,7 +26,8 @@ from hybridsim.library import AIMD, DriftedBrownian, RandomRestitutionBall, Tele
 
 
 def aimd(rate):
-    return hs.HybridSystem.from_functions(f=lambda x: np.array([1.0]), g=lambda x: x / 2,
+    return hs.HybridSystem.from_functions(flow_map=lambda x: np.array([1.0]),
+                                          jump_map=lambda x: x / 2,
                                           jump_rate=rate, state_dim=1)
 
 
@@ -113,12 +114,12 @@ def test_bad_rates(rate, match):
 
 def test_bad_laws_and_refusals():
     nan_law = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0]), jump_guard=lambda x: x[0] - 1, state_dim=1,
+        flow_map=lambda x: np.array([1.0]), jump_guard=lambda x: x[0] - 1, state_dim=1,
         jump_law=lambda x, rng: np.array([math.nan]))
     with pytest.raises(hs.MapError, match="jump_law returned non-finite values"):
         hs.simulate(nan_law, [0.0], t_max=2.0, seed=0)
     shape = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0]), jump_guard=lambda x: x[0] - 1, state_dim=1,
+        flow_map=lambda x: np.array([1.0]), jump_guard=lambda x: x[0] - 1, state_dim=1,
         jump_law=lambda x, rng: np.zeros(3))
     with pytest.raises(hs.MapError, match=r"jump_law must return an array of shape \(1,\)"):
         hs.simulate(shape, [0.0], t_max=2.0, seed=0)
@@ -134,7 +135,7 @@ def test_rate_on_an_sde_flow_is_located_on_the_clock():
     # an SDE flow with a rate-1 clock: Lambda = t exactly (no noise on the clock), so the
     # first jump is at the first threshold to round-off, whatever the Brownian path does
     sysm = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([0.0]), g=lambda x: np.zeros(1), jump_rate=lambda x: 1.0,
+        flow_map=lambda x: np.array([0.0]), jump_map=lambda x: np.zeros(1), jump_rate=lambda x: 1.0,
         diffusion=lambda x: np.array([1.0]), state_dim=1)
     arc = hs.simulate(sysm, [0.0], t_max=20.0, j_max=3, method="EM", max_step=0.1, seed=5)
     key = arc.stats["jump_seed"]

@@ -73,7 +73,7 @@ def test_lean_step_rejects_and_fails_as_scipy_does(Base):
 
 def test_simulate_samples_exactly_solve_ivps_steps():
     A = np.array([[0.0, 1.0], [-4.0, -0.3]])
-    sysm = hs.HybridSystem.from_functions(f=lambda x: A @ x, state_dim=2)
+    sysm = hs.HybridSystem.from_functions(flow_map=lambda x: A @ x, state_dim=2)
     arc = hs.simulate(sysm, [1.0, 0.0], t_max=5.0, rtol=1e-9, atol=1e-12)
     ref = solve_ivp(lambda t, x: A @ x, (0.0, 5.0), [1.0, 0.0], rtol=1e-9, atol=1e-12)
     np.testing.assert_array_equal(arc.t, ref.t)
@@ -82,7 +82,7 @@ def test_simulate_samples_exactly_solve_ivps_steps():
 
 def test_simulate_with_dop853_samples_exactly_solve_ivps_steps():
     A = np.array([[0.0, 1.0], [-4.0, -0.3]])
-    sysm = hs.HybridSystem.from_functions(f=lambda x: A @ x, state_dim=2)
+    sysm = hs.HybridSystem.from_functions(flow_map=lambda x: A @ x, state_dim=2)
     arc = hs.simulate(sysm, [1.0, 0.0], t_max=5.0, rtol=1e-10, atol=1e-12, method="DOP853")
     ref = solve_ivp(lambda t, x: A @ x, (0.0, 5.0), [1.0, 0.0], method="DOP853", rtol=1e-10,
                     atol=1e-12)

@@ -66,14 +66,14 @@ def test_failure_flags():
 # ------------------------------------------------- single runs against batches
 def vtimer(period):
     return hs.HybridSystem.from_functions(
-        f=lambda x: np.ones_like(x), g=lambda x: np.zeros_like(x),
+        flow_map=lambda x: np.ones_like(x), jump_map=lambda x: np.zeros_like(x),
         jump_guard=lambda x: x[:, 0] - period, flow_guard=lambda x: period - x[:, 0],
         state_dim=1, vectorized=True)
 
 
 def stimer(period):
     return hs.HybridSystem.from_functions(
-        f=lambda x: np.ones(1), g=lambda x: np.zeros(1),
+        flow_map=lambda x: np.ones(1), jump_map=lambda x: np.zeros(1),
         jump_guard=lambda x: x[0] - period, flow_guard=lambda x: period - x[0], state_dim=1)
 
 
@@ -81,13 +81,13 @@ def thermostat(vectorized, lo, hi, a):
     """Heating (q = 1) towards 30 until T >= hi, cooling towards 0 until T <= lo."""
     if vectorized:
         return hs.HybridSystem.from_functions(
-            f=lambda x: np.stack([-a * x[:, 0] + a * 30 * x[:, 1], 0 * x[:, 1]], axis=1),
-            g=lambda x: np.stack([x[:, 0], 1 - x[:, 1]], axis=1),
+            flow_map=lambda x: np.stack([-a * x[:, 0] + a * 30 * x[:, 1], 0 * x[:, 1]], axis=1),
+            jump_map=lambda x: np.stack([x[:, 0], 1 - x[:, 1]], axis=1),
             jump_guard=lambda x: np.where(x[:, 1] > 0.5, x[:, 0] - hi, lo - x[:, 0]),
             state_dim=2, vectorized=True)
     return hs.HybridSystem.from_functions(
-        f=lambda x: np.array([-a * x[0] + a * 30 * x[1], 0.0]),
-        g=lambda x: np.array([x[0], 1 - x[1]]),
+        flow_map=lambda x: np.array([-a * x[0] + a * 30 * x[1], 0.0]),
+        jump_map=lambda x: np.array([x[0], 1 - x[1]]),
         jump_guard=lambda x: x[0] - hi if x[1] > 0.5 else lo - x[0], state_dim=2)
 
 
@@ -141,8 +141,8 @@ def test_single_runs_and_batches_agree_on_thermostats(lo, gap, a, T0):
 @pytest.mark.parametrize("d", [0.3, 1e-3, 1e-6])
 def test_batches_find_a_jump_set_entered_and_left_within_one_step(d):
     sysv = hs.HybridSystem.from_functions(
-        f=lambda x: np.stack([x[:, 1], -np.ones(len(x))], axis=1),
-        g=lambda x: np.stack([x[:, 0], -np.abs(x[:, 1])], axis=1),
+        flow_map=lambda x: np.stack([x[:, 1], -np.ones(len(x))], axis=1),
+        jump_map=lambda x: np.stack([x[:, 0], -np.abs(x[:, 1])], axis=1),
         jump_guard=lambda x: x[:, 0] - 1.0, state_dim=2, vectorized=True)
     v0 = math.sqrt(2.0 * (1.0 + d))
     arc, = hs.simulate_vectorized(sysv, [[0.0, v0]], t_max=1.5 * v0, j_max=1)

@@ -30,14 +30,14 @@ def assert_stored_once(arc):
 
 def timer(kind, period=0.5):
     """x' = 1, D = {x >= period}, g(x) = 0; as a set indicator or as a guard."""
-    kw = (dict(D=lambda x: x[0] >= period) if kind == "set"
+    kw = (dict(jump_set=lambda x: x[0] >= period) if kind == "set"
           else dict(jump_guard=lambda x: x[0] - period))
-    return hs.HybridSystem.from_functions(f=lambda x: np.array([1.0]),
-                                          g=lambda x: np.array([0.0]), state_dim=1, **kw)
+    return hs.HybridSystem.from_functions(flow_map=lambda x: np.array([1.0]),
+                                          jump_map=lambda x: np.array([0.0]), state_dim=1, **kw)
 
 
 def decay():
-    return hs.HybridSystem.from_functions(f=lambda x: -x, state_dim=1)
+    return hs.HybridSystem.from_functions(flow_map=lambda x: -x, state_dim=1)
 
 
 # ------------------------------------------------- refine, a jump at t_max
@@ -107,7 +107,7 @@ def test_t_eval_with_a_jump_at_t_max(kind):
 def test_t_eval_run_ending_mid_flow_keeps_its_final_sample():
     # the run ends between t_eval times (BLOWUP, MAX_STEPS): the state it stopped
     # at is the final sample, stored once
-    quad = hs.HybridSystem.from_functions(f=lambda x: x ** 2, state_dim=1)
+    quad = hs.HybridSystem.from_functions(flow_map=lambda x: x ** 2, state_dim=1)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", hs.SimulationWarning)
         arc = hs.simulate(quad, [1.0], t_max=2.0, max_norm=1e3, t_eval=[0.0, 0.5])
@@ -161,8 +161,8 @@ def test_ctrl_c_inside_a_step_stores_each_sample_once_and_says_where(opts):
         if t > 0.5:
             raise KeyboardInterrupt
         return np.array([1.0])
-    sysm = hs.HybridSystem.from_functions(f=f, g=lambda x: np.array([0.0]),
-                                          D=lambda x: x[0] >= 0.2, state_dim=1)
+    sysm = hs.HybridSystem.from_functions(flow_map=f, jump_map=lambda x: np.array([0.0]),
+                                          jump_set=lambda x: x[0] >= 0.2, state_dim=1)
     arc = hs.simulate(sysm, [0.0], t_max=1.0, max_step=0.01, **opts)
     assert arc.termination is Termination.CANCELED
     assert_stored_once(arc)
@@ -173,8 +173,8 @@ def test_ctrl_c_inside_a_step_stores_each_sample_once_and_says_where(opts):
 
 def test_events_leaving_the_sets_mid_step_store_each_sample_once():
     # the flow leaves C outside D inside a refined step: the exit sample once
-    sysm = hs.HybridSystem.from_functions(f=lambda x: np.array([1.0]),
-                                          C=lambda x: x[0] <= 0.7, state_dim=1)
+    sysm = hs.HybridSystem.from_functions(flow_map=lambda x: np.array([1.0]),
+                                          flow_set=lambda x: x[0] <= 0.7, state_dim=1)
     for opts in (dict(refine=5), dict(t_eval=[0.0, 0.7, 0.9]), dict(dense=True)):
         arc = hs.simulate(sysm, [0.0], t_max=1.0, **opts)
         assert arc.termination is Termination.LEFT_SETS

@@ -25,9 +25,11 @@ P_HIT = 2 * norm.sf(1.0)
 def barrier(guard=True):
     # without a guard: an indicator no guard is derived from (a call, bool(...)), so the
     # crossing is seen only at the steps' ends
-    kw = dict(jump_guard=lambda x: x[0] - 1.0) if guard else dict(D=lambda x: bool(x[0] >= 1.0))
+    kw = (dict(jump_guard=lambda x: x[0] - 1.0) if guard
+          else dict(jump_set=lambda x: bool(x[0] >= 1.0)))
     return hs.HybridSystem.from_functions(
-        f=lambda x: np.array([0.0]), g=lambda x: x, diffusion=lambda x: np.array([1.0]),
+        flow_map=lambda x: np.array([0.0]), jump_map=lambda x: x,
+        diffusion=lambda x: np.array([1.0]),
         state_dim=1, **kw)
 
 
@@ -66,7 +68,7 @@ def test_barrier_probability_slow(dt, N):
 
 
 def gbm(mu=0.5, s=0.8):
-    return hs.HybridSystem.from_functions(f=lambda x: mu * x, diffusion=lambda x: s * x,
+    return hs.HybridSystem.from_functions(flow_map=lambda x: mu * x, diffusion=lambda x: s * x,
                                           state_dim=1)
 
 
@@ -92,7 +94,7 @@ def test_strong_orders_on_the_same_paths():
 
 
 def ou_error(method, h, runs=40):
-    ou = hs.HybridSystem.from_functions(f=lambda x: -x, diffusion=lambda x: np.array([0.5]),
+    ou = hs.HybridSystem.from_functions(flow_map=lambda x: -x, diffusion=lambda x: np.array([0.5]),
                                         state_dim=1)
     err = []
     for r in range(runs):
@@ -133,13 +135,13 @@ def test_general_noise_and_flow_guard():
     # 2-D Brownian motion driven by 3 noises: sigma (2, 3), variance of x_i(1) = |row_i|^2;
     # a flow guard stops the run where x leaves the disc of radius 2
     S = np.array([[1.0, 0.5, 0.0], [0.0, 0.3, 0.4]])
-    sysm = hs.HybridSystem.from_functions(f=lambda x: np.zeros(2), diffusion=lambda x: S,
+    sysm = hs.HybridSystem.from_functions(flow_map=lambda x: np.zeros(2), diffusion=lambda x: S,
                                           noise_dim=3, state_dim=2)
     xs = np.array([hs.simulate(sysm, [0.0, 0.0], t_max=1.0, method="EM", max_step=0.25,
                                seed=r).xf for r in range(1500)])
     v = xs.var(axis=0) / (S ** 2).sum(axis=1)
     assert np.all(np.abs(v - 1) < 4.5 * math.sqrt(2 / 1500)), v
-    disc = hs.HybridSystem.from_functions(f=lambda x: np.zeros(2), diffusion=lambda x: S,
+    disc = hs.HybridSystem.from_functions(flow_map=lambda x: np.zeros(2), diffusion=lambda x: S,
                                           noise_dim=3, state_dim=2,
                                           flow_guard=lambda x: 0.5 - x @ x)
     a = hs.simulate(disc, [0.0, 0.0], t_max=50.0, method="EM", max_step=0.05, seed=1,
@@ -157,8 +159,8 @@ def test_refusals_and_bad_input():
     with pytest.raises(ValueError, match="t_eval"):
         hs.simulate(b, [0.0], t_max=1.0, method="EM", max_step=0.1, t_eval=[0.5])
     vb = hs.HybridSystem.from_functions(
-        f=lambda x: 0 * x, diffusion=lambda x: 1 + 0 * x, jump_guard=lambda x: x[..., 0] - 1,
-        g=lambda x: x, state_dim=1, vectorized=True)
+        flow_map=lambda x: 0 * x, diffusion=lambda x: 1 + 0 * x, jump_guard=lambda x: x[..., 0] - 1,
+        jump_map=lambda x: x, state_dim=1, vectorized=True)
     with pytest.raises(ValueError, match="only the Python path steps"):
         hs.simulate_vectorized(vb, [[0.0]], t_max=1.0)
     arcs = hs.simulate_many(vb, [[0.0], [0.0]], t_max=1.0, j_max=1, method="EM",
@@ -167,15 +169,15 @@ def test_refusals_and_bad_input():
     assert arcs[0].stats["noise_seed"] != arcs[1].stats["noise_seed"]     # fresh entropy
     with pytest.raises(ValueError, match="every row .* would draw the same"):
         hs.simulate_many(vb, [[0.0], [0.0]], t_max=1.0, method="EM", max_step=0.1, seed=3)
-    bad = hs.HybridSystem.from_functions(f=lambda x: np.zeros(1), state_dim=1,
+    bad = hs.HybridSystem.from_functions(flow_map=lambda x: np.zeros(1), state_dim=1,
                                          diffusion=lambda x: np.ones(2))
     with pytest.raises(hs.MapError, match=r"diffusion must return an array of shape \(1,\)"):
         hs.simulate(bad, [0.0], t_max=1.0, method="EM", max_step=0.1)
-    raises = hs.HybridSystem.from_functions(f=lambda x: np.zeros(1), state_dim=1,
+    raises = hs.HybridSystem.from_functions(flow_map=lambda x: np.zeros(1), state_dim=1,
                                             diffusion=lambda x: 1 / 0)
     with pytest.raises(hs.MapError, match="diffusion raised ZeroDivisionError"):
         hs.simulate(raises, [0.0], t_max=1.0, method="EM", max_step=0.1)
-    gen = hs.HybridSystem.from_functions(f=lambda x: np.zeros(1), state_dim=1, noise_dim=2,
+    gen = hs.HybridSystem.from_functions(flow_map=lambda x: np.zeros(1), state_dim=1, noise_dim=2,
                                          diffusion=lambda x: np.ones((1, 2)))
     with pytest.raises(ValueError, match="Milstein' takes diagonal noise"):
         hs.simulate(gen, [0.0], t_max=1.0, method="Milstein", max_step=0.1)

@@ -53,9 +53,9 @@ def zeno_time(h0):
 
 def timer(period=1.0, guards=True):
     kw = dict(jump_guard=lambda x: x[0] - period, flow_guard=lambda x: period - x[0]) \
-        if guards else dict(C=lambda x: x[0] <= period, D=lambda x: x[0] >= period)
-    return hs.HybridSystem.from_functions(f=lambda x: np.array([1.0]),
-                                          g=lambda x: np.array([0.0]), state_dim=1, **kw)
+        if guards else dict(flow_set=lambda x: x[0] <= period, jump_set=lambda x: x[0] >= period)
+    return hs.HybridSystem.from_functions(flow_map=lambda x: np.array([1.0]),
+                                          jump_map=lambda x: np.array([0.0]), state_dim=1, **kw)
 
 
 # --------------------------------------------------------------------- accuracy
@@ -113,8 +113,8 @@ def test_all_scipy_methods_locate_the_same_jumps():
 def overlap_system():
     """C = {x <= 2}, D = {x >= 1}: C ∩ D = [1, 2]. Flow x' = 1, jump x+ = 0."""
     return hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0]), g=lambda x: np.array([0.0]),
-        C=lambda x: x[0] <= 2.0, D=lambda x: x[0] >= 1.0, state_dim=1)
+        flow_map=lambda x: np.array([1.0]), jump_map=lambda x: np.array([0.0]),
+        flow_set=lambda x: x[0] <= 2.0, jump_set=lambda x: x[0] >= 1.0, state_dim=1)
 
 
 def test_priority_jumps_jumps_on_entering_D():
@@ -157,8 +157,8 @@ def test_priority_random_is_seeded_and_mixes():
 # ---------------------------------------------------------------- termination
 def test_x0_in_neither_set_returns_one_sample():
     sysm = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0]), g=lambda x: np.array([0.0]),
-        C=lambda x: x[0] <= 2.0, D=lambda x: 1.0 <= x[0] <= 3.0, state_dim=1)
+        flow_map=lambda x: np.array([1.0]), jump_map=lambda x: np.array([0.0]),
+        flow_set=lambda x: x[0] <= 2.0, jump_set=lambda x: 1.0 <= x[0] <= 3.0, state_dim=1)
     arc = hs.simulate(sysm, [5.0], t_max=1.0)
     assert arc.termination is Termination.NOT_IN_SETS
     assert len(arc) == 1 and arc.xf[0] == 5.0
@@ -167,7 +167,7 @@ def test_x0_in_neither_set_returns_one_sample():
 
 def test_leaving_C_outside_D_stops_at_exit_time():
     sysm = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0]), C=lambda x: x[0] <= 1.0, state_dim=1)
+        flow_map=lambda x: np.array([1.0]), flow_set=lambda x: x[0] <= 1.0, state_dim=1)
     arc = hs.simulate(sysm, [0.0], t_max=5.0)
     assert arc.termination is Termination.LEFT_SETS
     assert abs(arc.tf - 1.0) < 1e-12 and arc.xf[0] <= 1.0
@@ -197,15 +197,15 @@ def test_zeno_ball_stops_quickly_not_past_zeno_time():
 
 
 def test_instant_jump_loop_is_zeno():
-    sysm = hs.HybridSystem.from_functions(f=lambda x: np.zeros(1), g=lambda x: x,
-                                          D=lambda x: True, state_dim=1)
+    sysm = hs.HybridSystem.from_functions(flow_map=lambda x: np.zeros(1), jump_map=lambda x: x,
+                                          jump_set=lambda x: True, state_dim=1)
     arc = hs.simulate(sysm, [1.0], t_max=1.0, j_max=10**6, zeno_jumps=20)
     assert arc.termination is Termination.ZENO and arc.jump_count == 20 and arc.tf == 0.0
 
 
 def test_non_finite_state_stops_with_cause():
     sysm = hs.HybridSystem.from_functions(
-        f=lambda x, t: np.array([np.nan if t > 0.5 else 1.0]), state_dim=1)
+        flow_map=lambda x, t: np.array([np.nan if t > 0.5 else 1.0]), state_dim=1)
     with pytest.warns(hs.SimulationWarning, match=r"NON_FINITE.*flow_map returned non-finite"):
         arc = hs.simulate(sysm, [0.0], t_max=2.0, max_step=0.1)
     assert arc.termination is Termination.NON_FINITE     # not a solver failure
@@ -214,7 +214,7 @@ def test_non_finite_state_stops_with_cause():
 
 def test_blowup_with_max_norm():
     # x' = x^2 from 1 escapes at t = 1
-    sysm = hs.HybridSystem.from_functions(f=lambda x: x ** 2, state_dim=1)
+    sysm = hs.HybridSystem.from_functions(flow_map=lambda x: x ** 2, state_dim=1)
     with pytest.warns(hs.SimulationWarning, match=r"BLOWUP.*last sample t=0\.99"):
         arc = hs.simulate(sysm, [1.0], t_max=2.0, max_norm=1e6)
     assert arc.termination is Termination.BLOWUP
@@ -222,7 +222,7 @@ def test_blowup_with_max_norm():
 
 
 def test_finite_escape_without_max_norm_ends_cleanly():
-    sysm = hs.HybridSystem.from_functions(f=lambda x: x ** 2, state_dim=1)
+    sysm = hs.HybridSystem.from_functions(flow_map=lambda x: x ** 2, state_dim=1)
     with pytest.warns(hs.SimulationWarning, match="SOLVER_FAILED|NON_FINITE"):
         arc = hs.simulate(sysm, [1.0], t_max=2.0)
     assert arc.termination in (Termination.SOLVER_FAILED, Termination.NON_FINITE)
@@ -234,7 +234,7 @@ def test_exception_in_user_map_keeps_the_arc():
         if t > 1.0:
             raise RuntimeError("sensor failed")
         return np.array([1.0])
-    sysm = hs.HybridSystem.from_functions(f=f, state_dim=1)
+    sysm = hs.HybridSystem.from_functions(flow_map=f, state_dim=1)
     arc = hs.simulate(sysm, [0.0], t_max=5.0, max_step=0.1, throw=False)
     assert arc.termination is Termination.MAP_ERROR
     assert isinstance(arc.exception, hs.MapError) and "sensor failed" in arc.message
@@ -252,7 +252,7 @@ def test_exception_in_user_map_keeps_the_arc():
 
 def test_jump_map_wrong_shape_mid_run_is_map_error():
     sysm = hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0]), g=lambda x: np.zeros(3),
+        flow_map=lambda x: np.array([1.0]), jump_map=lambda x: np.zeros(3),
         jump_guard=lambda x: x[0] - 1, flow_guard=lambda x: 1 - x[0], state_dim=1)
     arc = hs.simulate(sysm, [0.0], t_max=5.0, throw=False)
     assert arc.termination is Termination.MAP_ERROR
@@ -295,15 +295,15 @@ def test_unknown_keyword_is_a_type_error():
 
 
 def test_maps_returning_wrong_shape_or_nonfinite_at_x0():
-    bad_f = hs.HybridSystem.from_functions(f=lambda x: np.zeros(3), state_dim=2)
+    bad_f = hs.HybridSystem.from_functions(flow_map=lambda x: np.zeros(3), state_dim=2)
     with pytest.raises(ValueError, match=r"flow_map must return an array of shape \(2,\), "
                                          r"got shape \(3,\)"):
         hs.simulate(bad_f, [0.0, 0.0], t_max=1.0)
-    nan_f = hs.HybridSystem.from_functions(f=lambda x: np.array([np.nan, 0.0]), state_dim=2)
+    nan_f = hs.HybridSystem.from_functions(flow_map=lambda x: np.array([np.nan, 0.0]), state_dim=2)
     with pytest.raises(ValueError, match="flow_map returned non-finite"):
         hs.simulate(nan_f, [0.0, 0.0], t_max=1.0)
-    bad_g = hs.HybridSystem.from_functions(f=lambda x: x, g=lambda x: [1.0],
-                                           D=lambda x: True, state_dim=2)
+    bad_g = hs.HybridSystem.from_functions(flow_map=lambda x: x, jump_map=lambda x: [1.0],
+                                           jump_set=lambda x: True, state_dim=2)
     with pytest.raises(ValueError, match=r"jump_map must return an array of shape \(2,\)"):
         hs.simulate(bad_g, [0.0, 0.0], t_max=1.0)
 
@@ -311,8 +311,8 @@ def test_maps_returning_wrong_shape_or_nonfinite_at_x0():
 def test_bad_system_definitions():
     with pytest.raises(TypeError, match="system must be a hybridsim.HybridSystem"):
         hs.simulate(lambda x: x, [0.0], t_max=1.0)
-    with pytest.raises(TypeError, match="f must be callable"):
-        hs.HybridSystem.from_functions(f=3, state_dim=1)
+    with pytest.raises(TypeError, match="flow_map must be callable"):
+        hs.HybridSystem.from_functions(flow_map=3, state_dim=1)
 
     class NoDim(hs.HybridSystem):
         pass
@@ -329,7 +329,7 @@ def test_bad_system_definitions():
 
 
 def test_input_system_needs_inputs():
-    sysm = hs.HybridSystem.from_functions(f=lambda x, t, j, u: u, state_dim=1, input_dim=1)
+    sysm = hs.HybridSystem.from_functions(flow_map=lambda x, t, j, u: u, state_dim=1, input_dim=1)
     with pytest.raises(ValueError, match="inputs: the system has input_dim=1"):
         hs.simulate(sysm, [0.0], t_max=1.0)
     arc = hs.simulate(sysm, [0.0], t_max=2.0, inputs=lambda t: np.array([2 * t]),
@@ -340,8 +340,8 @@ def test_input_system_needs_inputs():
 def test_maps_may_read_t_and_j():
     # x' = j between jumps; jumps every unit of time via a timer component
     sysm = hs.HybridSystem.from_functions(
-        f=lambda x, t, j: np.array([1.0, float(j)]),
-        g=lambda x, t, j: np.array([0.0, x[1]]),
+        flow_map=lambda x, t, j: np.array([1.0, float(j)]),
+        jump_map=lambda x, t, j: np.array([0.0, x[1]]),
         jump_guard=lambda x: x[0] - 1.0, flow_guard=lambda x: 1.0 - x[0], state_dim=2)
     arc = hs.simulate(sysm, [0.0, 0.0], t_max=3.0)
     # integral of j over [0, 3] with j = 0, 1, 2 on unit intervals

@@ -28,14 +28,14 @@ def ball_jump_times(h0, k, e=E):
 def vtimer(**kw):
     """x' = 1 on C = {x <= 1}, x+ = 0 on D = {x >= 1}, with guards."""
     return hs.HybridSystem.from_functions(
-        f=lambda x: np.ones_like(x), g=lambda x: np.zeros_like(x),
+        flow_map=lambda x: np.ones_like(x), jump_map=lambda x: np.zeros_like(x),
         jump_guard=lambda x: x[:, 0] - 1.0, flow_guard=lambda x: 1.0 - x[:, 0],
         state_dim=1, vectorized=True, **kw)
 
 
 def timer():
     return hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0]), g=lambda x: np.array([0.0]),
+        flow_map=lambda x: np.array([1.0]), jump_map=lambda x: np.array([0.0]),
         jump_guard=lambda x: x[0] - 1.0, flow_guard=lambda x: 1.0 - x[0], state_dim=1)
 
 
@@ -98,13 +98,13 @@ def test_agrees_with_simulate_on_a_nonlinear_flow():
         return np.stack([x[:, 1], mu * (1 - x[:, 0] ** 2) * x[:, 1] - x[:, 0]], axis=1)
 
     vdp = hs.HybridSystem.from_functions(
-        f=f, g=lambda x: np.stack([x[:, 0], -0.5 * x[:, 1]], axis=1),
-        D=lambda x: (x[:, 0] >= 1.5) & (x[:, 1] > 0),
+        flow_map=f, jump_map=lambda x: np.stack([x[:, 0], -0.5 * x[:, 1]], axis=1),
+        jump_set=lambda x: (x[:, 0] >= 1.5) & (x[:, 1] > 0),
         jump_guard=lambda x: np.stack([x[:, 0] - 1.5, x[:, 1]], axis=1),
         state_dim=2, vectorized=True)
     scalar = hs.HybridSystem.from_functions(
-        f=lambda x: f(x[None])[0], g=lambda x: np.array([x[0], -0.5 * x[1]]),
-        D=lambda x: x[0] >= 1.5 and x[1] > 0,
+        flow_map=lambda x: f(x[None])[0], jump_map=lambda x: np.array([x[0], -0.5 * x[1]]),
+        jump_set=lambda x: x[0] >= 1.5 and x[1] > 0,
         jump_guard=lambda x: np.array([x[0] - 1.5, x[1]]), state_dim=2)
     x0s = np.random.default_rng(3).uniform(-2, 2, (3, 2))
     for kw in (dict(t_max=10.0), dict(t_max=10.0, priority="flows")):
@@ -138,8 +138,8 @@ def test_timer_jumps_at_exact_multiples():
 def test_maps_with_t_and_j_and_multi_guards():
     # x' = 1 + j, jump when x >= 1 (guard of two columns: the min decides)
     sysv = hs.HybridSystem.from_functions(
-        f=lambda x, t, j: np.ones_like(x) * (1 + j)[:, None],
-        g=lambda x, t, j: np.zeros_like(x),
+        flow_map=lambda x, t, j: np.ones_like(x) * (1 + j)[:, None],
+        jump_map=lambda x, t, j: np.zeros_like(x),
         jump_guard=lambda x: np.column_stack([x[:, 0] - 1.0, np.full(len(x), 5.0)]),
         flow_guard=lambda x: 1.0 - x[:, 0], state_dim=1, vectorized=True)
     arc, = simulate_vectorized(sysv, [[0.0]], t_max=np.inf, j_max=3)
@@ -157,8 +157,8 @@ def test_j_max_and_zero_jumps():
 def overlap():
     """C = {x <= 2}, D = {x >= 1}: C ∩ D = [1, 2]."""
     return hs.HybridSystem.from_functions(
-        f=lambda x: np.ones_like(x), g=lambda x: np.zeros_like(x),
-        C=lambda x: x[:, 0] <= 2.0, D=lambda x: x[:, 0] >= 1.0,
+        flow_map=lambda x: np.ones_like(x), jump_map=lambda x: np.zeros_like(x),
+        flow_set=lambda x: x[:, 0] <= 2.0, jump_set=lambda x: x[:, 0] >= 1.0,
         state_dim=1, vectorized=True)
 
 
@@ -187,7 +187,8 @@ def test_priority_random_is_seeded():
 
 def test_leaving_C_union_D():
     leave = hs.HybridSystem.from_functions(
-        f=lambda x: np.ones_like(x), C=lambda x: x[:, 0] <= 1.0, state_dim=1, vectorized=True)
+        flow_map=lambda x: np.ones_like(x), flow_set=lambda x: x[:, 0] <= 1.0, state_dim=1,
+        vectorized=True)
     arcs = simulate_vectorized(leave, [[0.0], [0.5], [2.0]], t_max=7.0)
     assert arcs[0].termination is Termination.LEFT_SETS
     assert abs(arcs[0].tf - 1.0) <= 8 * np.finfo(float).eps
@@ -198,11 +199,12 @@ def test_leaving_C_union_D():
 
 def test_zeno():
     zeno = hs.HybridSystem.from_functions(
-        f=lambda x: -np.ones_like(x), g=lambda x: np.zeros_like(x),
-        C=lambda x: x[:, 0] >= 0, D=lambda x: x[:, 0] <= 0, state_dim=1, vectorized=True)
+        flow_map=lambda x: -np.ones_like(x), jump_map=lambda x: np.zeros_like(x),
+        flow_set=lambda x: x[:, 0] >= 0, jump_set=lambda x: x[:, 0] <= 0, state_dim=1,
+        vectorized=True)
     ref = hs.HybridSystem.from_functions(
-        f=lambda x: -np.ones_like(x), g=lambda x: np.zeros_like(x),
-        C=lambda x: x[0] >= 0, D=lambda x: x[0] <= 0, state_dim=1)
+        flow_map=lambda x: -np.ones_like(x), jump_map=lambda x: np.zeros_like(x),
+        flow_set=lambda x: x[0] >= 0, jump_set=lambda x: x[0] <= 0, state_dim=1)
     arcs = simulate_vectorized(zeno, [[1.0], [0.0]], t_max=5.0, zeno_jumps=20)
     for arc, t in zip(arcs, [1.0, 0.0]):
         assert arc.termination is Termination.ZENO
@@ -234,7 +236,7 @@ def test_reentry_into_D_within_one_step_after_a_jump():
 
 
 def test_max_norm_and_t0_j0():
-    grow = hs.HybridSystem.from_functions(f=lambda x: x, state_dim=1, vectorized=True)
+    grow = hs.HybridSystem.from_functions(flow_map=lambda x: x, state_dim=1, vectorized=True)
     arcs = simulate_vectorized(grow, [[1.0], [-2.0]], t_max=30.0, max_norm=1e3)
     assert all(a.termination is Termination.BLOWUP for a in arcs)
     arcs = simulate_vectorized(vtimer(), [[0.0]], t_max=3.5, t0=1.0, j0=4)
@@ -246,14 +248,14 @@ def test_non_finite_solver_failure_and_bad_jump_values():
     def vec(**kw):
         return hs.HybridSystem.from_functions(state_dim=1, vectorized=True, **kw)
     # an overflowing step is accepted (scale inf) and ends NON_FINITE
-    over = vec(f=lambda x: np.full_like(x, 1e308))
+    over = vec(flow_map=lambda x: np.full_like(x, 1e308))
     arcs = simulate_vectorized(over, [[1.7e308], [0.0]], t_max=10.0, first_step=1.0)
     assert [a.termination for a in arcs] == [Termination.NON_FINITE] * 2
     assert arcs[1].tf == 1.0 and np.isfinite(arcs[1].x).all()
     # a NaN flow is rejected down to the smallest step: NON_FINITE naming flow_map;
     # a finite escape likewise, but with finite stages: SOLVER_FAILED
-    nan = vec(f=lambda x: np.where(x < 1, 1.0, np.nan))
-    escape = vec(f=lambda x: x ** 2)
+    nan = vec(flow_map=lambda x: np.where(x < 1, 1.0, np.nan))
+    escape = vec(flow_map=lambda x: x ** 2)
     for sysv, cause in ((nan, Termination.NON_FINITE), (escape, Termination.SOLVER_FAILED)):
         arc, = simulate_vectorized(sysv, [[0.0 if sysv is nan else 1.0]], t_max=3.0)
         assert arc.termination is cause
@@ -261,21 +263,21 @@ def test_non_finite_solver_failure_and_bad_jump_values():
         if sysv is nan:
             assert "flow_map returned non-finite values near t=1 (j=0)" in arc.message
     # a jump map returning inf: MAP_ERROR naming it, the run kept so far
-    bad = vec(f=lambda x: np.ones_like(x), g=lambda x: np.full_like(x, np.inf),
-              D=lambda x: x[:, 0] >= 1.0)
+    bad = vec(flow_map=lambda x: np.ones_like(x), jump_map=lambda x: np.full_like(x, np.inf),
+              jump_set=lambda x: x[:, 0] >= 1.0)
     arc, = simulate_vectorized(bad, [[0.0]], t_max=3.0)
     assert arc.termination is Termination.MAP_ERROR
     assert "jump_map returned non-finite values" in arc.message
     assert abs(arc.tf - 1.0) < 1e-12
     # the same causes and samples as simulate
     refs = {
-        "over": hs.HybridSystem.from_functions(f=lambda x: np.array([1e308]), state_dim=1),
-        "nan": hs.HybridSystem.from_functions(f=lambda x: np.where(x < 1, 1.0, np.nan),
+        "over": hs.HybridSystem.from_functions(flow_map=lambda x: np.array([1e308]), state_dim=1),
+        "nan": hs.HybridSystem.from_functions(flow_map=lambda x: np.where(x < 1, 1.0, np.nan),
                                               state_dim=1),
-        "escape": hs.HybridSystem.from_functions(f=lambda x: x ** 2, state_dim=1),
-        "bad": hs.HybridSystem.from_functions(f=lambda x: np.ones(1),
-                                              g=lambda x: np.full(1, np.inf),
-                                              D=lambda x: x[0] >= 1.0, state_dim=1)}
+        "escape": hs.HybridSystem.from_functions(flow_map=lambda x: x ** 2, state_dim=1),
+        "bad": hs.HybridSystem.from_functions(flow_map=lambda x: np.ones(1),
+                                              jump_map=lambda x: np.full(1, np.inf),
+                                              jump_set=lambda x: x[0] >= 1.0, state_dim=1)}
     for name, sysv, x0, kw in (("over", over, 1.7e308, dict(t_max=10.0, first_step=1.0)),
                                ("nan", nan, 0.0, dict(t_max=3.0)),
                                ("escape", escape, 1.0, dict(t_max=3.0)),
@@ -295,7 +297,7 @@ def test_map_error_stops_only_the_failing_row():
             raise RuntimeError("boom")
         return np.ones_like(x)
     sysv = hs.HybridSystem.from_functions(
-        f=f, g=lambda x: np.zeros_like(x), jump_guard=lambda x: x[:, 0] - 1.0,
+        flow_map=f, jump_map=lambda x: np.zeros_like(x), jump_guard=lambda x: x[:, 0] - 1.0,
         flow_guard=lambda x: 1.0 - x[:, 0], state_dim=1, vectorized=True)
     arcs = simulate_vectorized(sysv, [[0.0], [0.7], [0.8]], t_max=0.55, max_step=0.01)
     assert arcs[0].termination is Termination.MAP_ERROR
@@ -359,23 +361,23 @@ def test_maps_returning_wrong_shapes():
     x0s = [[0.0], [0.5]]
 
     def make(**kw):
-        base = dict(f=lambda x: np.ones_like(x), g=lambda x: np.zeros_like(x),
-                    C=lambda x: x[:, 0] <= 1.0, D=lambda x: x[:, 0] >= 1.0)
+        base = dict(flow_map=lambda x: np.ones_like(x), jump_map=lambda x: np.zeros_like(x),
+                    flow_set=lambda x: x[:, 0] <= 1.0, jump_set=lambda x: x[:, 0] >= 1.0)
         base.update(kw)
         return hs.HybridSystem.from_functions(state_dim=1, vectorized=True, **base)
 
     with pytest.raises(hs.MapError, match=r"flow_map must return an array of shape \(2, 1\)"
                                           r".*got shape \(1,\)"):
-        simulate_vectorized(make(f=lambda x: np.ones(1)), x0s, t_max=1.0)
+        simulate_vectorized(make(flow_map=lambda x: np.ones(1)), x0s, t_max=1.0)
     with pytest.raises(hs.MapError, match=r"jump_map must return an array of shape \(1, 1\)"
                                           r".*got shape \(\)"):
-        simulate_vectorized(make(g=lambda x: 0.0), [[1.0]], t_max=1.0)
+        simulate_vectorized(make(jump_map=lambda x: 0.0), [[1.0]], t_max=1.0)
     with pytest.raises(hs.MapError, match=r"flow_set must return a boolean array of shape "
                                           r"\(2,\).*got shape \(\)"):
-        simulate_vectorized(make(C=lambda x: True), x0s, t_max=1.0)
+        simulate_vectorized(make(flow_set=lambda x: True), x0s, t_max=1.0)
     with pytest.raises(hs.MapError, match=r"jump_set must return a boolean array of shape "
                                           r"\(2,\).*got shape \(2, 1\)"):
-        simulate_vectorized(make(D=lambda x: x >= 1.0), x0s, t_max=1.0)
+        simulate_vectorized(make(jump_set=lambda x: x >= 1.0), x0s, t_max=1.0)
     with pytest.raises(hs.MapError, match=r"jump_guard must return an array of shape \(2,\) "
                                           r"or \(2, m\)"):
         simulate_vectorized(make(jump_guard=lambda x: np.zeros(3)), x0s, t_max=1.0)
@@ -421,7 +423,7 @@ def test_simulate_many_dask_local_cluster():
 
 def test_progress_bar_over_trajectories(capsys):
     timer = hs.HybridSystem.from_functions(
-        f=lambda x: np.ones_like(x), g=lambda x: np.zeros_like(x),
+        flow_map=lambda x: np.ones_like(x), jump_map=lambda x: np.zeros_like(x),
         jump_guard=lambda x: x[:, 0] - 1.0, flow_guard=lambda x: 1.0 - x[:, 0],
         state_dim=1, vectorized=True)
     quiet = simulate_vectorized(timer, [[0.0], [0.5]], t_max=2.2)
@@ -454,8 +456,9 @@ def test_coin_drawn_only_where_the_rules_need_it():
     code drew one per D entry)."""
     rng = np.random.default_rng(3)
     open_timer = hs.HybridSystem.from_functions(
-        f=lambda x: np.ones_like(x), g=lambda x: np.zeros_like(x),
-        C=lambda x: x[:, 0] < 1.0, D=lambda x: x[:, 0] >= 1.0, state_dim=1, vectorized=True)
+        flow_map=lambda x: np.ones_like(x), jump_map=lambda x: np.zeros_like(x),
+        flow_set=lambda x: x[:, 0] < 1.0, jump_set=lambda x: x[:, 0] >= 1.0, state_dim=1,
+        vectorized=True)
     arcs = simulate_vectorized(open_timer, np.zeros((5, 1)), t_max=4.5, priority="random",
                                seed=rng)
     assert all(a.jump_count == 4 for a in arcs)
@@ -574,7 +577,7 @@ def _fragile():
         if np.any(x[:, 0] > 1.5):
             raise ZeroDivisionError("too far")
         return np.ones_like(x)
-    return hs.HybridSystem.from_functions(f=f, state_dim=1, vectorized=True)
+    return hs.HybridSystem.from_functions(flow_map=f, state_dim=1, vectorized=True)
 
 
 def test_throw_and_warn_are_the_batch_policy():
@@ -620,19 +623,21 @@ def test_arcs_have_xdot_and_stats_as_simulate():
     # a post-jump state that jumps again has NaN xdot only where simulate has it
     arcs = simulate_vectorized(overlap(), [[1.5]], t_max=2.5)
     ref = hs.simulate(hs.HybridSystem.from_functions(
-        f=lambda x: np.ones(1), g=lambda x: np.zeros(1), C=lambda x: x[0] <= 2.0,
-        D=lambda x: x[0] >= 1.0, state_dim=1), [1.5], t_max=2.5)
+        flow_map=lambda x: np.ones(1), jump_map=lambda x: np.zeros(1),
+        flow_set=lambda x: x[0] <= 2.0,
+        jump_set=lambda x: x[0] >= 1.0, state_dim=1), [1.5], t_max=2.5)
     np.testing.assert_array_equal(np.isnan(arcs[0].xdot), np.isnan(ref.xdot))
     assert arcs[0].stats["flows"] == ref.stats["flows"]
 
 
 def test_refine_with_a_jump_at_t_max_stores_each_sample_once():
     vt = hs.HybridSystem.from_functions(
-        f=lambda x: np.ones_like(x), g=lambda x: np.zeros_like(x),
+        flow_map=lambda x: np.ones_like(x), jump_map=lambda x: np.zeros_like(x),
         jump_guard=lambda x: x[:, 0] - 0.5, flow_guard=lambda x: 0.5 - x[:, 0],
         state_dim=1, vectorized=True)
     st = hs.HybridSystem.from_functions(
-        f=lambda x: np.ones(1), g=lambda x: np.zeros(1), jump_guard=lambda x: x[0] - 0.5,
+        flow_map=lambda x: np.ones(1), jump_map=lambda x: np.zeros(1),
+        jump_guard=lambda x: x[0] - 0.5,
         flow_guard=lambda x: 0.5 - x[0], state_dim=1)
     arcs = simulate_vectorized(vt, [[0.0], [0.25]], t_max=1.0, refine=2)
     for x0, arc in zip([0.0, 0.25], arcs):
@@ -673,11 +678,12 @@ def test_non_finite_state_or_guard_is_never_a_set_exit():
 def test_messages_come_from_the_rules_table():
     from hybridsim.rules import message
     leave = hs.HybridSystem.from_functions(
-        f=lambda x: np.ones_like(x), C=lambda x: x[:, 0] <= 1.0, state_dim=1, vectorized=True)
+        flow_map=lambda x: np.ones_like(x), flow_set=lambda x: x[:, 0] <= 1.0, state_dim=1,
+        vectorized=True)
     a, b = simulate_vectorized(leave, [[0.0], [2.0]], t_max=7.0)
     assert a.message == message(Termination.LEFT_SETS, "left", t=a.tf, j=0, x=a.x[-1])
     assert b.message == message(Termination.NOT_IN_SETS, x=b.x[0], t=0.0, j=0)
-    grow = hs.HybridSystem.from_functions(f=lambda x: x, state_dim=1, vectorized=True)
+    grow = hs.HybridSystem.from_functions(flow_map=lambda x: x, state_dim=1, vectorized=True)
     c, = simulate_vectorized(grow, [[1.0]], t_max=30.0, max_norm=1e3, warn=False)
     assert c.message == message(Termination.BLOWUP, norm=np.linalg.norm(c.x[-1]),
                                 max_norm=1e3, t=c.tf, j=0)
@@ -708,26 +714,26 @@ def _floor_ball(vectorized, kind, restitution=0.8, jump_map=None):
     if vectorized:
         def g(x, t):
             return np.column_stack([x[:, 0], dyf(t) - restitution * (x[:, 1] - dyf(t))])
-        kw = dict(D=lambda x, t: (x[:, 0] - yf(t) <= 0) & (x[:, 1] - dyf(t) <= 0))
+        kw = dict(jump_set=lambda x, t: (x[:, 0] - yf(t) <= 0) & (x[:, 1] - dyf(t) <= 0))
         if kind in ("guard", "both"):
             kw["flow_guard"] = lambda x, t: x[:, 0] - yf(t)
         if kind in ("indicator", "both"):
-            kw["C"] = lambda x, t: x[:, 0] - yf(t) >= 0
+            kw["flow_set"] = lambda x, t: x[:, 0] - yf(t) >= 0
 
         def f(x):
             return np.column_stack([x[:, 1], np.full(len(x), -9.81)])
     else:
         def g(x, t):
             return np.array([x[0], dyf(t) - restitution * (x[1] - dyf(t))])
-        kw = dict(D=lambda x, t: x[0] - yf(t) <= 0 and x[1] - dyf(t) <= 0)
+        kw = dict(jump_set=lambda x, t: x[0] - yf(t) <= 0 and x[1] - dyf(t) <= 0)
         if kind in ("guard", "both"):
             kw["flow_guard"] = lambda x, t: x[0] - yf(t)
         if kind in ("indicator", "both"):
-            kw["C"] = lambda x, t: x[0] - yf(t) >= 0
+            kw["flow_set"] = lambda x, t: x[0] - yf(t) >= 0
 
         def f(x):
             return np.array([x[1], -9.81])
-    return hs.HybridSystem.from_functions(f=f, g=jump_map or g, state_dim=2,
+    return hs.HybridSystem.from_functions(flow_map=f, jump_map=jump_map or g, state_dim=2,
                                           vectorized=vectorized, **kw)
 
 
@@ -771,7 +777,8 @@ def _free_ball(vectorized, **guards):
     else:
         f = lambda x: np.array([x[1], -9.81])                              # noqa: E731
         g = lambda x: np.array([0.0, -0.8 * x[1]])                         # noqa: E731
-    return hs.HybridSystem.from_functions(f=f, g=g, state_dim=2, vectorized=vectorized,
+    return hs.HybridSystem.from_functions(flow_map=f, jump_map=g, state_dim=2,
+                                          vectorized=vectorized,
                                           **guards)
 
 
@@ -797,8 +804,9 @@ def test_a_jump_loop_is_named_as_on_the_python_path(j_max, cause):
 def test_loops_only_where_the_jumps_are_from_C():
     """A purely discrete system (C empty) and an ordinary ball keep their plain
     messages; a loop row beside an ordinary row is named alone."""
-    count = hs.HybridSystem.from_functions(g=lambda x: x + 1.0, D=lambda x: np.ones(len(x), bool),
-                                           C=lambda x: np.zeros(len(x), bool), state_dim=1,
+    count = hs.HybridSystem.from_functions(jump_map=lambda x: x + 1.0,
+                                           jump_set=lambda x: np.ones(len(x), bool),
+                                           flow_set=lambda x: np.zeros(len(x), bool), state_dim=1,
                                            vectorized=True)
     for j_max, cause in ((30, Termination.J_MAX), (100, Termination.ZENO)):
         arc, = simulate_vectorized(count, [[0.0]], t_max=1.0, j_max=j_max, warn=False)
@@ -808,10 +816,10 @@ def test_loops_only_where_the_jumps_are_from_C():
     assert arcs[0].message == Termination.J_MAX.message
     # h >= 0 is D on the first row's side only: its jumps loop, the other's do not
     mixed = hs.HybridSystem.from_functions(
-        f=lambda x: np.column_stack([x[:, 1], np.full(len(x), -9.81), np.zeros(len(x))]),
-        g=lambda x: np.column_stack([np.zeros(len(x)), -0.8 * x[:, 1], x[:, 2]]),
+        flow_map=lambda x: np.column_stack([x[:, 1], np.full(len(x), -9.81), np.zeros(len(x))]),
+        jump_map=lambda x: np.column_stack([np.zeros(len(x)), -0.8 * x[:, 1], x[:, 2]]),
         flow_guard=lambda x: x[:, 0],
-        D=lambda x: (x[:, 0] <= 0) & ((x[:, 1] <= 0) | (x[:, 2] > 0)),
+        jump_set=lambda x: (x[:, 0] <= 0) & ((x[:, 1] <= 0) | (x[:, 2] > 0)),
         state_dim=3, vectorized=True)
     a, b = simulate_vectorized(mixed, [[1.0, 0.0, 1.0], [1.0, 0.0, 0.0]], t_max=10.0,
                                j_max=12, warn=False)
@@ -829,7 +837,7 @@ def test_a_jump_guard_is_used_beside_an_indicator_for_C(flow_side):
 
     def make(v):
         col = (lambda x: x[:, 0]) if v else (lambda x: x[0])
-        kw = ({"C": lambda x: col(x) >= -1e-9} if flow_side == "C"
+        kw = ({"flow_set": lambda x: col(x) >= -1e-9} if flow_side == "C"
               else {"flow_guard": lambda x: col(x) + 1e-9})
         return _free_ball(v, jump_guard=lambda x: col(x) - 1.0, **kw)
     arcs, refs = _both_paths(make, [[0.0, v0], [0.0, v0]], t_max=2.0 * v0 / 9.81, j_max=1)
@@ -847,7 +855,7 @@ def test_a_guard_peak_between_a_step_end_and_its_nearest_sample_is_found(apex):
     def make(v):
         col = (lambda x: x[:, 0]) if v else (lambda x: x[0])
         return hs.HybridSystem.from_functions(
-            f=lambda x: np.ones_like(x), g=lambda x: x + 1.0,
+            flow_map=lambda x: np.ones_like(x), jump_map=lambda x: x + 1.0,
             jump_guard=lambda x: 1e-4 - (col(x) - apex) ** 2, state_dim=1, vectorized=v)
     arcs, refs = _both_paths(make, [[0.0]], t_max=1.0, first_step=1.0, max_step=1.0)
     for arc, ref in zip(arcs, refs):
@@ -864,10 +872,10 @@ def test_jumps_landing_on_t_max_up_to_round_off_store_each_sample_once(period, r
     inner samples are stored once; simulate's samples, sample for sample."""
     def make(v):
         col = (lambda x: x[:, 0]) if v else (lambda x: x[0])
-        kw = (dict(D=lambda x: col(x) >= period) if kind == "set"
+        kw = (dict(jump_set=lambda x: col(x) >= period) if kind == "set"
               else dict(jump_guard=lambda x: col(x) - period))
-        return hs.HybridSystem.from_functions(f=lambda x: np.ones_like(x),
-                                              g=lambda x: np.zeros_like(x), state_dim=1,
+        return hs.HybridSystem.from_functions(flow_map=lambda x: np.ones_like(x),
+                                              jump_map=lambda x: np.zeros_like(x), state_dim=1,
                                               vectorized=v, **kw)
     arcs, refs = _both_paths(make, [[0.0]], t_max=2.0, refine=refine)
     for arc, ref in zip(arcs, refs):
@@ -903,7 +911,7 @@ def test_ctrl_c_names_each_rows_last_stored_sample():
             raise KeyboardInterrupt
         return np.ones_like(x)
     sysm = hs.HybridSystem.from_functions(
-        f=f, g=lambda x: np.zeros_like(x), jump_guard=lambda x: x[:, 0] - 0.1,
+        flow_map=f, jump_map=lambda x: np.zeros_like(x), jump_guard=lambda x: x[:, 0] - 0.1,
         state_dim=1, vectorized=True)
     arcs = simulate_vectorized(sysm, [[0.0], [0.05], [0.09]], t_max=100.0, refine=3,
                                warn=False)

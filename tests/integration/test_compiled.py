@@ -469,8 +469,8 @@ def test_batch_runs_without_room_in_the_pool_run_again_in_parallel(monkeypatch):
     # and 60 2,000 times, far more samples than the pool holds; those rows run
     # again in a second round of the batch kernel, and every arc is its single
     # run's, bit for bit
-    timer = CompiledSystem(flow=lambda x, t, j, p: np.array([1.0, 0.0]),
-                           jump=lambda x, t, j, p: np.array([0.0, x[1]]),
+    timer = CompiledSystem(flow_map=lambda x, t, j, p: np.array([1.0, 0.0]),
+                           jump_map=lambda x, t, j, p: np.array([0.0, x[1]]),
                            jump_guard=lambda x, t, j, p: x[0] - x[1], state_dim=2)
     period = np.full(70, 1.0)
     period[[40, 50, 60]] = 1e-3
@@ -588,7 +588,7 @@ def test_bad_arguments_name_themselves(ball):
     with pytest.raises(TypeError, match="CompiledSystem"):
         simulate_compiled(BouncingBall(), [1.0, 0.0], t_max=1.0)
     with pytest.raises(TypeError, match="flow"):
-        CompiledSystem(jump=zero, state_dim=1)
+        CompiledSystem(jump_map=zero, state_dim=1)
 
 
 def test_options_parsed_once_still_refuse_an_equal_value_of_another_type(ball):
@@ -620,7 +620,7 @@ def test_uncompilable_map_names_itself_and_the_fallback():
     with pytest.raises(CompileError) as e:
         simulate_compiled(sysobj, [0.0], t_max=1.0)
     msg = str(e.value)
-    assert "'flow'" in msg and "hs.simulate" in msg and e.value.map_name == "flow"
+    assert "'flow_map'" in msg and "hs.simulate" in msg and e.value.map_name == "flow_map"
     assert isinstance(e.value.__cause__, numba.core.errors.NumbaError)
     arc = hs.simulate(sysobj, [0.0], t_max=1.0)      # the Python path runs it
     assert arc.termination is T.T_MAX
@@ -937,7 +937,7 @@ def test_a_map_that_raises_is_map_error_with_its_exception(role):
 def test_a_map_that_raises_at_x0_raises_at_once():
     """As on the Python path: a flow map that raises at x0 is bad input, raised
     whatever ``throw`` says, with the exception's text and a one-sample arc."""
-    sysm = CompiledSystem(state_dim=1, params=[-1.0], flow=raises_above)
+    sysm = CompiledSystem(state_dim=1, params=[-1.0], flow_map=raises_above)
     with pytest.raises(hs.MapError, match="flow_map raised ValueError: x above its range") as e:
         simulate_compiled(sysm, [0.0], t_max=1.0, throw=False)
     assert e.value.arc.termination is T.MAP_ERROR and len(e.value.arc.t) == 1

@@ -236,8 +236,8 @@ def test_the_kernels_compile_at_their_own_optimisation_level_and_restore_numbas(
 @pytest.mark.slow
 def test_systems_with_and_without_delays_take_their_own_kernel():
     from hybridsim.compiled import CompiledSystem, simulate_compiled
-    plain = CompiledSystem(flow=lambda x, t, j, p: -x, state_dim=1)
-    lag = CompiledSystem(flow=lambda x, t, j, p: -p[0:1], state_dim=1, delays=(1.0,))
+    plain = CompiledSystem(flow_map=lambda x, t, j, p: -x, state_dim=1)
+    lag = CompiledSystem(flow_map=lambda x, t, j, p: -p[0:1], state_dim=1, delays=(1.0,))
     a = simulate_compiled(plain, [1.0], t_max=1.0)
     b = simulate_compiled(lag, [1.0], t_max=2.0, rtol=1e-10, atol=1e-12)
     assert plain._nb["one"] is k.run_one and lag._nb["one"] is k.run_one_delays
@@ -401,8 +401,8 @@ def test_a_specialised_dop853_kernel_equals_the_generic_one():
     from hybridsim.compiled import CompiledSystem, simulate_compiled
 
     def osc(specialize):
-        return CompiledSystem(flow=lambda x, t, j, p: np.array([x[1], -p[0] * x[0]]),
-                              jump=lambda x, t, j, p: np.array([x[0], -0.5 * x[1]]),
+        return CompiledSystem(flow_map=lambda x, t, j, p: np.array([x[1], -p[0] * x[0]]),
+                              jump_map=lambda x, t, j, p: np.array([x[0], -0.5 * x[1]]),
                               jump_guard=lambda x, t, j, p: -x[0],
                               jump_set=lambda x, t, j, p: x[0] <= 0.0 and x[1] < 0.0,
                               state_dim=2, params=[4.0], specialize=specialize)
@@ -425,8 +425,8 @@ def test_a_specialised_kernel_with_delays_equals_the_generic_one():
 
     def lag(specialize):
         # a timer whose rate reads its own value 0.4 ago (p[2:4] after the params)
-        return CompiledSystem(flow=lambda x, t, j, p: np.array([1.0 + p[1] * p[2], x[0]]),
-                              jump=lambda x, t, j, p: np.array([0.0, x[1]]),
+        return CompiledSystem(flow_map=lambda x, t, j, p: np.array([1.0 + p[1] * p[2], x[0]]),
+                              jump_map=lambda x, t, j, p: np.array([0.0, x[1]]),
                               jump_guard=lambda x, t, j, p: x[0] - p[0],
                               state_dim=2, params=[0.7, 0.5], delays=(0.4,),
                               specialize=specialize)

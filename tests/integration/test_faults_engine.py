@@ -116,14 +116,15 @@ def _relay(vectorized, eps=1e-9):
     one flow of 0.5 s, then a switch every 2e-9 s (chattering)."""
     if vectorized:
         return hs.HybridSystem.from_functions(
-            f=lambda X: np.column_stack([np.where(X[:, 1] > 0, 1.0, -1.0), 0 * X[:, 1]]),
-            g=lambda X: np.column_stack([X[:, 0], -X[:, 1]]),
-            D=lambda X: ((X[:, 1] > 0) & (X[:, 0] >= eps)) | ((X[:, 1] < 0) & (X[:, 0] <= -eps)),
+            flow_map=lambda X: np.column_stack([np.where(X[:, 1] > 0, 1.0, -1.0), 0 * X[:, 1]]),
+            jump_map=lambda X: np.column_stack([X[:, 0], -X[:, 1]]),
+            jump_set=lambda X: (((X[:, 1] > 0) & (X[:, 0] >= eps))
+                                | ((X[:, 1] < 0) & (X[:, 0] <= -eps))),
             state_dim=2, vectorized=True)
     return hs.HybridSystem.from_functions(
-        f=lambda x: np.array([1.0 if x[1] > 0 else -1.0, 0.0]),
-        g=lambda x: np.array([x[0], -x[1]]),
-        D=lambda x: (x[1] > 0 and x[0] >= eps) or (x[1] < 0 and x[0] <= -eps), state_dim=2)
+        flow_map=lambda x: np.array([1.0 if x[1] > 0 else -1.0, 0.0]),
+        jump_map=lambda x: np.array([x[0], -x[1]]),
+        jump_set=lambda x: (x[1] > 0 and x[0] >= eps) or (x[1] < 0 and x[0] <= -eps), state_dim=2)
 
 
 def _single(path, system, x0, **kw):
@@ -160,8 +161,9 @@ def _floor_ball(min_bounce=4.4e-5):
         vf = 0.05
         return np.array([vf * t, vf + max(-0.5 * (x[1] - vf), min_bounce)])
     return hs.HybridSystem.from_functions(
-        f=lambda x: np.array([x[1], -9.81]), g=g,
-        C=lambda x, t: x[0] >= 0.05 * t, D=lambda x, t: x[0] <= 0.05 * t and x[1] <= 0.05,
+        flow_map=lambda x: np.array([x[1], -9.81]), jump_map=g,
+        flow_set=lambda x, t: x[0] >= 0.05 * t,
+        jump_set=lambda x, t: x[0] <= 0.05 * t and x[1] <= 0.05,
         state_dim=2)
 
 
@@ -250,11 +252,12 @@ def _guarded(path, guard, late=False):
     py, vec = guard
     if path == "python":
         h = (lambda x, t: py(x) if t > 0.5 else -1.0) if late else py
-        return hs.HybridSystem.from_functions(f=lambda x: np.ones(1), g=lambda x: np.zeros(1),
+        return hs.HybridSystem.from_functions(flow_map=lambda x: np.ones(1),
+                                              jump_map=lambda x: np.zeros(1),
                                               jump_guard=h, state_dim=1)
     h = (lambda X, t: vec(X) if (t > 0.5).any() else -np.ones(len(X))) if late else vec
-    return hs.HybridSystem.from_functions(f=lambda X: np.ones_like(X),
-                                          g=lambda X: np.zeros_like(X), jump_guard=h,
+    return hs.HybridSystem.from_functions(flow_map=lambda X: np.ones_like(X),
+                                          jump_map=lambda X: np.zeros_like(X), jump_guard=h,
                                           state_dim=1, vectorized=True)
 
 
@@ -421,7 +424,7 @@ def test_vectorized_canceled_names_each_arcs_own_last_sample(k):
             sys.settrace(tracer)
         return np.zeros_like(X)
     timer2 = hs.HybridSystem.from_functions(
-        f=lambda X: np.ones_like(X), g=g, jump_guard=lambda X: X[:, 0] - 1.0,
+        flow_map=lambda X: np.ones_like(X), jump_map=g, jump_guard=lambda X: X[:, 0] - 1.0,
         flow_guard=lambda X: 1.0 - X[:, 0], state_dim=1, vectorized=True)
     try:
         arcs = hs.simulate_vectorized(timer2, [[0.0], [0.5]], t_max=10.0, warn=False)
@@ -441,7 +444,7 @@ def test_vectorized_canceled_names_each_arcs_own_last_sample(k):
 
 # ------------------------------------------------------------------ interconnections
 def _sys(f=None, g=None, n=2, vec=False, inp=0, jg=None):
-    return hs.HybridSystem.from_functions(f=f or (lambda x: np.zeros_like(x)), g=g,
+    return hs.HybridSystem.from_functions(flow_map=f or (lambda x: np.zeros_like(x)), jump_map=g,
                                           state_dim=n, vectorized=vec, input_dim=inp,
                                           jump_guard=jg)
 

@@ -19,6 +19,11 @@ from paths import HAS_NUMBA, NO_NUMBA
 
 import hybridsim as hs
 from hybridsim.compiled import CompiledSystem, Component, lower, lowerable
+from observers.distributed.example import EXAMPLE_V0, example_observer, stable_initial_state
+from observers.distributed.example import noise_batch as dist_noise_batch
+from observers.distributed.systems import initial_state
+from observers.li_sanfelice.example import noise_batch as ls_noise_batch
+from observers.li_sanfelice.systems import BoundedNoiseGenerator
 
 needs_numba = pytest.mark.skipif(not HAS_NUMBA, reason=NO_NUMBA)
 RTOL, ATOL = 1e-10, 1e-12
@@ -147,8 +152,8 @@ def test_a_second_system_of_the_same_structure_compiles_nothing():
 @needs_numba
 def test_a_compiled_system_is_a_component_too():
     """A CompiledSystem (maps of (x, t, j, p)) stacks with a LinearPlant."""
-    timer = CompiledSystem(flow=lambda x, t, j, p: np.ones(1),
-                           jump=lambda x, t, j, p: np.zeros(1),
+    timer = CompiledSystem(flow_map=lambda x, t, j, p: np.ones(1),
+                           jump_map=lambda x, t, j, p: np.zeros(1),
                            jump_guard=lambda x, t, j, p: x[0] - p[0], state_dim=1,
                            params=[0.25])
     sys = hs.Interconnection({"timer": timer, "plant": hs.LinearPlant([[-1.0]])})
@@ -253,13 +258,13 @@ def test_components_and_lowering_check_their_arguments():
     def _agent_flow(x, u, t, j, p):
         return u - p[0] * x
     with pytest.raises(ValueError, match="params must be finite"):
-        Component(state_dim=1, flow=_agent_flow, params=[np.nan])
+        Component(state_dim=1, flow_map=_agent_flow, params=[np.nan])
     with pytest.raises(TypeError, match="params must be an array of floats"):
-        Component(state_dim=1, flow=_agent_flow, params=object())
+        Component(state_dim=1, flow_map=_agent_flow, params=object())
     with pytest.raises(ValueError, match="state_dim must be a positive int"):
-        Component(state_dim=0, flow=_agent_flow)
-    with pytest.raises(TypeError, match="flow must be callable"):
-        Component(state_dim=1, flow=3.0)
+        Component(state_dim=0, flow_map=_agent_flow)
+    with pytest.raises(TypeError, match="flow_map must be callable"):
+        Component(state_dim=1, flow_map=3.0)
     with pytest.raises(TypeError, match="system must be a hybridsim.HybridSystem"):
         lowerable(5)
     with pytest.raises(TypeError, match="system must be a hybridsim.HybridSystem"):
@@ -289,7 +294,7 @@ def test_a_component_of_the_wrong_size_is_named_before_compiling():
             return -x
 
         def compiled_component(self):
-            return Component(state_dim=2, flow=lambda x, u, t, j, p: np.zeros(3))
+            return Component(state_dim=2, flow_map=lambda x, u, t, j, p: np.zeros(3))
     with pytest.raises(ValueError, match=r"the system: its compiled flow map returns shape "
                                          r"\(3,\), expected \(2,\)"):
         lower(Bad())
@@ -327,8 +332,8 @@ def _ls_batch(kind, noise_states):
     d = ls.example_VB()
     obs = {"H_n": ls.NominalObserver, "H_c": ls.ConstantNoiseObserver,
            "H_pc": ls.PiecewiseConstantNoiseObserver}[kind](d)
-    gen = ls.BoundedNoiseGenerator(d.p, 1)
-    sysm, x0s = ls.noise_batch(obs, [1.0, -0.5], np.zeros(d.n), noise_states, gen)
+    gen = BoundedNoiseGenerator(d.p, 1)
+    sysm, x0s = ls_noise_batch(obs, [1.0, -0.5], np.zeros(d.n), noise_states, gen)
     return d, obs, sysm, x0s
 
 
@@ -371,9 +376,9 @@ def test_a_noise_monte_carlo_of_hc_agrees_between_the_batch_paths():
     (both RK45 at rtol 1e-10), and each arc is the interconnection's."""
     from observers import li_sanfelice as ls
     d = ls.example_VB()
-    gen = ls.BoundedNoiseGenerator(d.p, 3)
+    gen = BoundedNoiseGenerator(d.p, 3)
     obs = ls.ConstantNoiseObserver(d)
-    sysm, x0s = ls.noise_batch(obs, [1.0, -0.5], np.zeros(d.n),
+    sysm, x0s = ls_noise_batch(obs, [1.0, -0.5], np.zeros(d.n),
                                gen.random_states(200, 0.3, seed=3), gen)
     kw = dict(t_max=1.2 * d.delta, rtol=RTOL, atol=ATOL)
     vec = hs.simulate_many(sysm, x0s, **kw)
@@ -395,16 +400,16 @@ def test_the_distributed_observer_runs_compiled_with_band_limited_noise():
     without noise the compiled run settles (Theorem 1: every node's error
     below 1e-6 by t = 8)."""
     from observers import distributed as dist
-    obs = dist.example_observer()
+    obs = example_observer()
     dsg = obs.design
-    x0 = dist.stable_initial_state(dsg.A, dist.EXAMPLE_V0)
-    sysm, X = dist.noise_batch(obs, x0, power=1e-4, seeds=[0], t_max=4.0)
+    x0 = stable_initial_state(dsg.A, EXAMPLE_V0)
+    sysm, X = dist_noise_batch(obs, x0, power=1e-4, seeds=[0], t_max=4.0)
     kw = dict(t_max=4.0, rtol=1e-8, atol=1e-10)
     py = hs.simulate(sysm, X[0], **kw)
     cc = hs.simulate(sysm, X[0], backend="compiled", **kw)
     scale = np.abs(py.x).max()
     np.testing.assert_allclose(cc.xf, py.xf, rtol=0, atol=1e-5 * scale)
-    clean = hs.simulate(obs.interconnection(), dist.initial_state(dsg, x0), t_max=8.0,
+    clean = hs.simulate(obs.interconnection(), initial_state(dsg, x0), t_max=8.0,
                         rtol=1e-10, atol=1e-12, backend="compiled")
     E = dist.errors(clean, obs)
     assert E["norm"][-1] < 1e-6

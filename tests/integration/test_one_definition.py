@@ -142,14 +142,14 @@ def test_an_attribute_that_changes_shape_rewrites_the_maps():
 def test_from_functions_with_closures_and_defaults_over_numbers():
     def make(rate):
         return hs.HybridSystem.from_functions(
-            f=lambda x: -rate * x,
-            g=lambda x, floor=0.25: np.array([x[0] + floor]),
-            D=lambda x: x[0] <= 0.5, state_dim=1)
+            flow_map=lambda x: -rate * x,
+            jump_map=lambda x, floor=0.25: np.array([x[0] + floor]),
+            jump_set=lambda x: x[0] <= 0.5, state_dim=1)
     from hybridsim.compiled import CompiledSystem
     for rate in (1.0, 2.0):
         s = make(rate)
-        hand = CompiledSystem(flow=lambda x, t, j, p: -p[0] * x,
-                              jump=lambda x, t, j, p: np.array([x[0] + p[1]]),
+        hand = CompiledSystem(flow_map=lambda x, t, j, p: -p[0] * x,
+                              jump_map=lambda x, t, j, p: np.array([x[0] + p[1]]),
                               jump_guard=lambda x, t, j, p: 0.5 - x[0],
                               jump_set=lambda x, t, j, p: x[0] <= 0.5,
                               state_dim=1, params=[rate, 0.25])
@@ -323,12 +323,14 @@ def test_module_globals_and_followed_functions_are_read_per_run():
         return -scale * GRAVITY + 0.0 * v
     kw = dict(x0=[1.0, 0.0], t_max=10.0, j_max=4, backend="compiled", **TIGHT)
     for make in (lambda: hs.HybridSystem.from_functions(
-                     f=_fall, g=lambda x: np.array([0.0, -0.8 * x[1]]),
-                     C=lambda x: x[0] >= 0, D=lambda x: x[0] <= 0 and x[1] <= 0, state_dim=2),
+                     flow_map=_fall, jump_map=lambda x: np.array([0.0, -0.8 * x[1]]),
+                     flow_set=lambda x: x[0] >= 0, jump_set=lambda x: x[0] <= 0 and x[1] <= 0,
+                     state_dim=2),
                  lambda: hs.HybridSystem.from_functions(
-                     f=lambda x: np.array([x[1], accel(x[1])]),
-                     g=lambda x: np.array([0.0, -0.8 * x[1]]),
-                     C=lambda x: x[0] >= 0, D=lambda x: x[0] <= 0 and x[1] <= 0, state_dim=2)):
+                     flow_map=lambda x: np.array([x[1], accel(x[1])]),
+                     jump_map=lambda x: np.array([0.0, -0.8 * x[1]]),
+                     flow_set=lambda x: x[0] >= 0, jump_set=lambda x: x[0] <= 0 and x[1] <= 0,
+                     state_dim=2)):
         s = make()
         try:
             for g in (9.81, 4.0):

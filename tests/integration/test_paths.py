@@ -366,7 +366,8 @@ def test_a_set_valued_jump_map_is_the_python_paths(path):
     successors = lambda x: [np.zeros(1), np.full(1, 0.25)]  # noqa: E731
     if path == "python":
         system = hs.HybridSystem.from_functions(
-            f=lambda x: np.ones(1), jump_guard=lambda x: x[0] - 0.5, g_values=successors,
+            flow_map=lambda x: np.ones(1), jump_guard=lambda x: x[0] - 0.5,
+            jump_map_values=successors,
             state_dim=1)
         arc = hs.simulate(system, [0.0], t_max=1.0)
         np.testing.assert_allclose(arc.jump_times, [0.5, 1.0], rtol=0, atol=TOL_EVENT)
@@ -426,7 +427,7 @@ def _compiled_lag(system):
     """``_Lag`` as a CompiledSystem: the flow map reads x(t - tau) from ``p``."""
     from hybridsim.compiled import CompiledSystem
     s = system
-    cs = CompiledSystem(flow=_lag_flow, jump=_lag_jump, jump_guard=_lag_guard, state_dim=2,
+    cs = CompiledSystem(flow_map=_lag_flow, jump_map=_lag_jump, jump_guard=_lag_guard, state_dim=2,
                         params=[s.a, s.b, s.c, s.tau, s.s], delays=(s.tau,))
     cs.max_step = s.max_step        # None: uncapped (the constructor caps it at tau)
     return cs
@@ -545,7 +546,7 @@ def test_maps_other_than_the_flow_map_see_no_past(path):
     ``p``: NaN there on both paths that run it (a CompiledSystem has no batch
     form), so the run ends MAP_ERROR naming the guard (never a stale value)."""
     from hybridsim.compiled import CompiledSystem
-    twin = CompiledSystem(flow=_lag_flow, jump=_lag_jump,
+    twin = CompiledSystem(flow_map=_lag_flow, jump_map=_lag_jump,
                           jump_guard=lambda x, t, j, p: x[1] - p[4] + 0.0 * p[5],
                           state_dim=2, params=[1.0, 0.0, 0.5, 0.5, 0.3], delays=(0.5,))
     with pytest.raises(hs.MapError, match="jump_guard returned NaN") as info:
@@ -558,10 +559,10 @@ def test_compiled_system_delays_are_checked_and_cap_the_step():
     from hybridsim.compiled import CompiledSystem
     for bad in [(-1.0,), (float("nan"),), (0.0,)]:
         with pytest.raises(ValueError, match="delays must be positive finite floats"):
-            CompiledSystem(flow=_lag_flow, state_dim=2, delays=bad)
+            CompiledSystem(flow_map=_lag_flow, state_dim=2, delays=bad)
     with pytest.raises(TypeError, match="delays must be a sequence"):
-        CompiledSystem(flow=_lag_flow, state_dim=2, delays="a")
-    cs = CompiledSystem(flow=_lag_flow, state_dim=2, delays=(0.5, 0.2), max_step=1.0)
+        CompiledSystem(flow_map=_lag_flow, state_dim=2, delays="a")
+    cs = CompiledSystem(flow_map=_lag_flow, state_dim=2, delays=(0.5, 0.2), max_step=1.0)
     assert cs.max_step == 0.2 and cs.needs_history and cs.delays == (0.5, 0.2)
 
 

@@ -27,9 +27,10 @@ def ulp4(t):
 def ball(watch=None, direction=0, vectorized=False):
     """A ball on a floor, x = (height, velocity): x' = (v, -G), v+ = -E v on the floor."""
     return hs.HybridSystem.from_functions(
-        f=lambda x: np.stack([x[..., 1], -G + 0.0 * x[..., 0]], axis=-1),
-        g=lambda x: np.stack([0.0 * x[..., 0], -E * x[..., 1]], axis=-1),
-        C=lambda x: x[..., 0] >= 0.0, D=lambda x: (x[..., 0] <= 0.0) & (x[..., 1] <= 0.0),
+        flow_map=lambda x: np.stack([x[..., 1], -G + 0.0 * x[..., 0]], axis=-1),
+        jump_map=lambda x: np.stack([0.0 * x[..., 0], -E * x[..., 1]], axis=-1),
+        flow_set=lambda x: x[..., 0] >= 0.0,
+        jump_set=lambda x: (x[..., 0] <= 0.0) & (x[..., 1] <= 0.0),
         jump_guard=lambda x: -x[..., 0], state_dim=2, watch=watch,
         watch_direction=direction, vectorized=vectorized)
 
@@ -37,7 +38,7 @@ def ball(watch=None, direction=0, vectorized=False):
 def clock(watch, direction=0, vectorized=False):
     """x' = 1 (x = t from x0 = 0): its watched functions are functions of time."""
     return hs.HybridSystem.from_functions(
-        f=lambda x: np.ones_like(x), state_dim=1, watch=watch, watch_direction=direction,
+        flow_map=lambda x: np.ones_like(x), state_dim=1, watch=watch, watch_direction=direction,
         vectorized=vectorized)
 
 
@@ -183,7 +184,7 @@ def test_bad_watch_arguments_are_named():
     with pytest.raises(TypeError, match="watch must be callable"):
         clock(3.0)
     with pytest.raises(TypeError, match="watch_direction without watch"):
-        hs.HybridSystem.from_functions(f=lambda x: x, state_dim=1, watch_direction=1)
+        hs.HybridSystem.from_functions(flow_map=lambda x: x, state_dim=1, watch_direction=1)
     with pytest.raises(ValueError, match=r"watch_direction must be -1, 0 or 1.*got 2"):
         hs.simulate(clock(lambda x: x[0], direction=2), [0.0], 1.0)
     with pytest.raises(hs.MapError, match=r"watch returned 2 values but watch_direction "
@@ -225,7 +226,7 @@ def test_random_jumps_keep_the_watched_crossings():
     """A system with a jump rate runs with its clock added to the state: its
     watched functions still read the user's state, and the crossings keep it."""
     tick = hs.HybridSystem.from_functions(
-        f=lambda x: np.ones(1), g=lambda x: np.zeros(1), jump_rate=lambda x: 2.0,
+        flow_map=lambda x: np.ones(1), jump_map=lambda x: np.zeros(1), jump_rate=lambda x: 2.0,
         state_dim=1, watch=lambda x: x[0] - 0.25, watch_direction=1)
     arc = hs.simulate(tick, [0.0], 5.0, seed=3)
     c = arc.crossings
@@ -236,7 +237,7 @@ def test_random_jumps_keep_the_watched_crossings():
 
 
 def test_watch_with_a_diffusion_is_refused_by_name():
-    sde = hs.HybridSystem.from_functions(f=lambda x: -x, diffusion=lambda x: 0.1 + 0 * x,
+    sde = hs.HybridSystem.from_functions(flow_map=lambda x: -x, diffusion=lambda x: 0.1 + 0 * x,
                                          state_dim=1, watch=lambda x: x[0], max_step=0.01)
     with pytest.raises(ValueError, match="declares watch.*and a diffusion"):
         hs.simulate(sde, [1.0], 0.1, method="EM", seed=1)
@@ -246,7 +247,7 @@ def test_compiled_path_refuses_by_name_and_auto_runs_python(path):
     """A CompiledSystem's watch runs on the Python path; simulate_compiled refuses
     it by name; backend='auto' chooses the Python path for a watching system."""
     from hybridsim.compiled import CompiledSystem
-    cs = CompiledSystem(flow=lambda x, t, j, p: np.ones(1), state_dim=1,
+    cs = CompiledSystem(flow_map=lambda x, t, j, p: np.ones(1), state_dim=1,
                         watch=lambda x, t, j, p: math.sin(x[0]), watch_direction=1)
     arc = hs.simulate(cs, [0.0], 7.0, max_step=1.0)
     np.testing.assert_allclose(arc.crossings.t, [2 * np.pi], rtol=0, atol=1e-14)

@@ -103,3 +103,27 @@ def test_figure_renders_data_then_drawing(tmp_path):
     path = f.render(tmp_path)
     assert path.name == "demo.png" and path.with_suffix(".txt").read_text() == "5 points\n"
     assert calls == ["data"]
+
+
+@pytest.mark.parametrize("name", PACKAGES)
+def test_the_package_all_is_a_small_public_surface(name):
+    """``__all__`` is the contract's names and the paper's observer and design;
+    every other name of the files is imported from its file (and stays an
+    attribute of the package)."""
+    import types
+
+    from observers._common import PUBLIC_MAX
+    pkg = importlib.import_module(f"observers.{name}")
+    assert set(CONTRACT) <= set(pkg.__all__) and len(pkg.__all__) <= PUBLIC_MAX
+    design = importlib.import_module(f"observers.{name}.design")
+    private = [k for k in design.__all__ if k not in pkg.__all__]
+    assert private and all(getattr(pkg, k) is getattr(design, k) for k in private)
+    fake = types.ModuleType(pkg.__name__)
+    vars(fake).update({k: v for k, v in vars(pkg).items() if k != "__all__"})
+    fake.__all__ = [*pkg.__all__, *private, "nowhere"]
+    fake.nowhere = object()
+    problems = "\n".join(contract_problems(fake))
+    assert f"has {len(fake.__all__)} names: at most {PUBLIC_MAX}" in problems
+    assert "lists 'nowhere', which no file of the package exports" in problems
+    fake.__all__ = [k for k in pkg.__all__ if not inspect.isclass(getattr(pkg, k))]
+    assert "names no observer" in "\n".join(contract_problems(fake))

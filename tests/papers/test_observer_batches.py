@@ -37,6 +37,17 @@ import pytest
 import hybridsim as hs
 from observers import distributed as dist
 from observers import li_sanfelice as ls
+from observers.distributed.example import band_limited_noise, random_system
+from observers.distributed.example import noise_batch as dist_noise_batch
+from observers.distributed.systems import (
+    BandLimitedNoise,
+    _NodeData,
+    initial_state,
+    observer_network,
+)
+from observers.li_sanfelice.design import random_design
+from observers.li_sanfelice.example import noise_batch as ls_noise_batch
+from observers.li_sanfelice.systems import BoundedNoiseGenerator
 
 EPS = np.finfo(float).eps
 MAP_RTOL = 1e-12
@@ -45,7 +56,7 @@ OBSERVERS = [ls.NominalObserver, ls.ConstantNoiseObserver, ls.PiecewiseConstantN
 
 @functools.cache
 def _ls_design(name):
-    return ls.random_design(0, 4, 2) if name == "random" else ls.example_VB()
+    return random_design(0, 4, 2) if name == "random" else ls.example_VB()
 
 
 def _assert_rows(batch, single, what, rtol=MAP_RTOL):
@@ -109,7 +120,7 @@ def test_bounded_noise_generator_batch_output_equals_single():
 
     sin of the same arguments summed over K terms: 1e-12 relative (rounding).
     """
-    gen = ls.BoundedNoiseGenerator(3, K=4)
+    gen = BoundedNoiseGenerator(3, K=4)
     assert gen.vectorized
     N = 8
     W = gen.random_states(N, 0.3, seed=11)
@@ -136,9 +147,9 @@ def test_ls_interconnection_batch_maps_and_partial_jumps(cls, design_name):
     """
     d = _ls_design(design_name)
     obs = cls(d)
-    gen = ls.BoundedNoiseGenerator(d.p, K=2)
+    gen = BoundedNoiseGenerator(d.p, K=2)
     S = gen.random_states(10, 0.3, seed=3)
-    sysm, x0s = ls.noise_batch(obs, np.ones(d.n), np.zeros(d.n), S, gen)
+    sysm, x0s = ls_noise_batch(obs, np.ones(d.n), np.zeros(d.n), S, gen)
     assert sysm.vectorized
     rng = np.random.default_rng(5)
     N = len(x0s)
@@ -178,10 +189,10 @@ def _hc_runs(design_name):
     simulate (RK45) and single DOP853 runs, all to t_max = 1.5 δ."""
     d = _ls_design(design_name)
     obs = ls.ConstantNoiseObserver(d)
-    gen = ls.BoundedNoiseGenerator(d.p, K=2)
+    gen = BoundedNoiseGenerator(d.p, K=2)
     S = gen.random_states(6, 0.3, seed=4)
     x0 = np.random.default_rng(2).normal(size=d.n)
-    sysm, x0s = ls.noise_batch(obs, x0, np.zeros(d.n), S, gen)
+    sysm, x0s = ls_noise_batch(obs, x0, np.zeros(d.n), S, gen)
     t_max = 1.5 * d.delta
     arcs = hs.simulate_many(sysm, x0s, t_max=t_max, **HC_KW)
     loop = [hs.simulate(sysm, x, t_max=t_max, **HC_KW) for x in x0s]
@@ -290,7 +301,7 @@ def test_band_limited_noise_generator_equals_callable():
     (N,), each row is its own realisation at its own t.
     """
     ts, t_max, dim, power = 0.1, 1.0, 3, 0.2
-    gen = dist.BandLimitedNoise(ts, t_max, dim)
+    gen = BandLimitedNoise(ts, t_max, dim)
     assert gen.vectorized and gen.output_dim == dim
     assert gen.state_dim == gen.grid.size * dim and gen.grid[-1] >= t_max
     grid = gen.grid
@@ -299,7 +310,7 @@ def test_band_limited_noise_generator_equals_callable():
     seeds = [0, 5]
     for seed in seeds:
         w = gen.realisation(power, seed)
-        m = dist.band_limited_noise(power, ts, t_max, dim, seed)
+        m = band_limited_noise(power, ts, t_max, dim, seed)
         for t in tt:
             np.testing.assert_allclose(gen.output(w, t, 0), m(t), rtol=1e-15, atol=0,
                                        err_msg=f"t={t}")
@@ -309,14 +320,14 @@ def test_band_limited_noise_generator_equals_callable():
     W = np.array([gen.realisation(power, s) for s in range(N)])
     B = gen.output(W, tt, np.zeros(N, dtype=int))
     assert B.shape == (N, dim)
-    ref = np.array([dist.band_limited_noise(power, ts, t_max, dim, s)(t)
+    ref = np.array([band_limited_noise(power, ts, t_max, dim, s)(t)
                     for s, t in zip(range(N), tt)])
     np.testing.assert_allclose(B, ref, rtol=1e-15, atol=0)
     np.testing.assert_allclose(B, [gen.output(W[i], tt[i], 0) for i in range(N)], rtol=1e-15,
                                atol=0)
     np.testing.assert_array_equal(gen.flow_map(W, tt, 0, None), np.zeros_like(W))
     # the realisation's samples have variance power / ts
-    big = dist.BandLimitedNoise(ts, 400.0, 2).realisation(power, 1)
+    big = BandLimitedNoise(ts, 400.0, 2).realisation(power, 1)
     assert np.var(big) == pytest.approx(power / ts, rel=0.1)
 
 
@@ -326,9 +337,9 @@ def _dist_design(name, kind="finite-time"):
         A, C, G = dist.example_system()
         return dist.design(A, C, G, nodelist=[1, 2, 3, 4], kind=kind)
     if name == "ring":
-        A, C, G = dist.random_system(5, 3, graph="ring")
+        A, C, G = random_system(5, 3, graph="ring")
     else:                                                  # several in-neighbours per node
-        A, C, G = dist.random_system(6, 1, graph="random")
+        A, C, G = random_system(6, 1, graph="random")
     return dist.design(A, C, G, kind=kind, warn=False)
 
 
@@ -363,7 +374,7 @@ def test_node_rhs_batch_equals_rhs(name, kind):
     rng = np.random.default_rng(3)
     N = 7
     for k in range(dsg.N):
-        nd = dist._NodeData(dsg, k)
+        nd = _NodeData(dsg, k)
         nb = len(nd.neighbours)
         z = rng.normal(size=(N, nd.n_o + nd.n_u))
         y = rng.normal(size=(N, nd.m))
@@ -392,8 +403,8 @@ def test_network_with_generator_batch_flow_equals_single(name):
     """
     dsg = _dist_design(name)
     p = sum(Ci.shape[0] for Ci in dsg.C)
-    gen = dist.BandLimitedNoise(0.1, 0.5, p)
-    net = dist.observer_network(dsg, noise=gen)
+    gen = BandLimitedNoise(0.1, 0.5, p)
+    net = observer_network(dsg, noise=gen)
     assert net.vectorized and list(net.systems)[:2] == ["plant", "noise"]
     rng = np.random.default_rng(9)
     N = 6
@@ -417,7 +428,7 @@ def _dist_runs(name):
     on the same system, and dist.simulate with the callable noise."""
     dsg = _dist_design(name)
     x0 = np.random.default_rng(1).normal(size=dsg.n)
-    sysm, X = dist.noise_batch(DObs(dsg), x0, power=DIST_POWER, seeds=DIST_SEEDS, t_max=DIST_T_MAX)
+    sysm, X = dist_noise_batch(DObs(dsg), x0, power=DIST_POWER, seeds=DIST_SEEDS, t_max=DIST_T_MAX)
     arcs = hs.simulate_many(sysm, X, t_max=DIST_T_MAX, **DIST_KW)
     loop = [hs.simulate(sysm, x, t_max=DIST_T_MAX, **DIST_KW) for x in X]
     refs = [dist.simulate(DObs(dsg), x0, noise=DIST_POWER, seed=s, t_max=DIST_T_MAX, **DIST_KW)
@@ -433,7 +444,7 @@ def test_noise_batch_rows_are_the_realisations(name):
     dsg, x0, sysm, X, arcs, _, refs = _dist_runs(name)
     assert sysm.vectorized and X.shape == (len(DIST_SEEDS), sysm.state_dim)
     gen = sysm.systems["noise"]
-    z0 = dist.initial_state(dsg, x0)
+    z0 = initial_state(dsg, x0)
     keep = np.delete(np.arange(sysm.state_dim), np.arange(sysm.state_dim)[
         sysm.components["noise"]])
     for row, s, arc in zip(X, DIST_SEEDS, arcs):
@@ -443,7 +454,7 @@ def test_noise_batch_rows_are_the_realisations(name):
         assert arc.termination == hs.Termination.T_MAX and arc.tf == DIST_T_MAX
         W = arc["noise"].x
         np.testing.assert_array_equal(W, np.broadcast_to(W[0], W.shape))
-        m = dist.band_limited_noise(DIST_POWER, 0.1, DIST_T_MAX, gen.output_dim, s)
+        m = band_limited_noise(DIST_POWER, 0.1, DIST_T_MAX, gen.output_dim, s)
         np.testing.assert_allclose(gen.output(W, arc.t, arc.j), [m(t) for t in arc.t],
                                    rtol=1e-15, atol=0)
     # errors() leaves the generator's columns out
@@ -510,37 +521,37 @@ def test_band_limited_noise_and_noise_batch_bad_input():
     """BandLimitedNoise, noise_batch and observer_network reject bad arguments by name."""
     for ts in (0.0, -0.1, np.inf, np.nan):
         with pytest.raises(ValueError, match="ts must be a positive finite float"):
-            dist.BandLimitedNoise(ts, 1.0, 2)
+            BandLimitedNoise(ts, 1.0, 2)
     for dim in (0, -1, 1.5, True):
         with pytest.raises(ValueError, match="dim must be a positive int"):
-            dist.BandLimitedNoise(0.1, 1.0, dim)
+            BandLimitedNoise(0.1, 1.0, dim)
     with pytest.raises(ValueError, match="t_max must be a finite float >= 0"):
-        dist.BandLimitedNoise(0.1, -1.0, 2)
-    gen = dist.BandLimitedNoise(0.1, 1.0, 2)
+        BandLimitedNoise(0.1, -1.0, 2)
+    gen = BandLimitedNoise(0.1, 1.0, 2)
     for power in (-1e-3, np.nan, np.inf):
         with pytest.raises(ValueError, match="power must be a finite float >= 0"):
             gen.realisation(power, 0)
     dsg = _dist_design("example")
     with pytest.raises(ValueError, match="seeds must name at least one realisation"):
-        dist.noise_batch(DObs(dsg), np.zeros(6), power=1e-3, seeds=[], t_max=0.3)
+        dist_noise_batch(DObs(dsg), np.zeros(6), power=1e-3, seeds=[], t_max=0.3)
     with pytest.raises(ValueError, match="power must be >= 0"):
-        dist.noise_batch(DObs(dsg), np.zeros(6), power=-1e-3, seeds=[0], t_max=0.3)
+        dist_noise_batch(DObs(dsg), np.zeros(6), power=-1e-3, seeds=[0], t_max=0.3)
     with pytest.raises(ValueError, match="ts must be a positive"):
-        dist.noise_batch(DObs(dsg), np.zeros(6), power=1e-3, seeds=[0], t_max=0.3, noise_ts=0.0)
-    for wrong in (dist.BandLimitedNoise(0.1, 1.0, 3), ls.BoundedNoiseGenerator(2)):
+        dist_noise_batch(DObs(dsg), np.zeros(6), power=1e-3, seeds=[0], t_max=0.3, noise_ts=0.0)
+    for wrong in (BandLimitedNoise(0.1, 1.0, 3), BoundedNoiseGenerator(2)):
         with pytest.raises(ValueError, match=r"noise: the generator's output_dim must be .* = 4, "
                                              rf"got {wrong.output_dim}"):
-            dist.observer_network(dsg, noise=wrong)
+            observer_network(dsg, noise=wrong)
 
 
 def test_band_limited_noise_generator_before_the_grid_and_scalar_t_over_a_batch():
     """Before t = 0 the generator holds the first sample, as numpy.interp (and so the
     callable) does; a batch of realisations at one scalar t gives each row its value
     (what ``Interconnection.outputs(X)`` asks, t defaulting to 0.0)."""
-    gen = dist.BandLimitedNoise(0.1, 1.0, 2)
+    gen = BandLimitedNoise(0.1, 1.0, 2)
     W = np.array([gen.realisation(0.2, s) for s in range(3)])
     for s, w in enumerate(W):
-        f = dist.band_limited_noise(0.2, 0.1, 1.0, 2, seed=s)
+        f = band_limited_noise(0.2, 0.1, 1.0, 2, seed=s)
         for t in (-1.0, -1e-300, 0.0):
             np.testing.assert_array_equal(gen.output(w, t, 0), f(t))
     Y = gen.output(W, 0.35, 0)
@@ -548,6 +559,6 @@ def test_band_limited_noise_generator_before_the_grid_and_scalar_t_over_a_batch(
     for s, w in enumerate(W):
         np.testing.assert_array_equal(Y[s], gen.output(w, 0.35, 0))
     A, C, G = dist.example_system()
-    sysm, X = dist.noise_batch(DObs(dist.design(A, C, G)), [1.0] * 6, power=1e-4, seeds=[0, 1],
+    sysm, X = dist_noise_batch(DObs(dist.design(A, C, G)), [1.0] * 6, power=1e-4, seeds=[0, 1],
                                t_max=0.5)
     assert sysm.outputs(X)["noise"].shape == (2, 4)

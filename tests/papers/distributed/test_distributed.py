@@ -8,12 +8,11 @@ import scipy.linalg as sla
 from hybridsim import testing as hst
 from observers import distributed as dist
 from observers._common import Errors
-from observers.distributed import (
-    DistributedObserver,
+from observers.distributed import DistributedObserver, design, example_system
+from observers.distributed.claims import SETTLE_REFERENCE
+from observers.distributed.design import (
     check_network,
     choose_alpha,
-    design,
-    example_system,
     graph_matrices,
     hurwitz_coefficients,
     lmi11,
@@ -22,12 +21,39 @@ from observers.distributed import (
     observer_canonical_form,
     proposition1_lyapunov,
     proposition2_bound,
-    random_system,
     signed_power,
     split_vector_outputs,
 )
-from observers.distributed.example import _settling
-from observers.distributed.systems import _NodeData
+from observers.distributed.example import (
+    EXAMPLE_V0,
+    _settling,
+    band_limited_noise,
+    random_system,
+    settling_time,
+    simulate_errors,
+    stable_initial_state,
+)
+from observers.distributed.figures import (
+    SETTLE_THRESHOLD,
+    Fig2Data,
+    Fig3Data,
+    caption_fig2,
+    caption_fig3,
+    draw_fig2,
+    draw_fig3,
+    error_system_settling,
+    fig2_data,
+    fig3_data,
+)
+from observers.distributed.systems import (
+    DistributedObserverNode,
+    _NodeData,
+    error_initial_state,
+    error_system,
+    initial_state,
+    observer_network,
+    split_errors,
+)
 
 SEEDS = [0, 1, 2, 3]
 
@@ -420,7 +446,7 @@ def example_designs():
 def example_runs(example_designs):
     # ~8 s: only the slow Theorem 1 check uses the full runs
     ft, lin = example_designs
-    x0 = dist.stable_initial_state(ft.A, dist.EXAMPLE_V0)
+    x0 = stable_initial_state(ft.A, EXAMPLE_V0)
     arc = dist.simulate(DistributedObserver(ft), x0, t_max=9.0)
     arcl = dist.simulate(DistributedObserver(lin), x0, t_max=9.0)
     return ft, lin, arc, arcl
@@ -429,9 +455,9 @@ def example_runs(example_designs):
 def test_network_structure(example_designs):
     ft, _ = example_designs
     # the structure of the stacked state does not depend on the horizon
-    arc = dist.simulate(DistributedObserver(ft), dist.stable_initial_state(ft.A, dist.EXAMPLE_V0),
+    arc = dist.simulate(DistributedObserver(ft), stable_initial_state(ft.A, EXAMPLE_V0),
                                 t_max=0.05)
-    sys_ = dist.observer_network(ft)
+    sys_ = observer_network(ft)
     assert list(sys_.systems) == ["plant", 1, 2, 3, 4]
     node = sys_.systems[3]
     assert node.input_dim == 1 + 6 and node.output_dim == 6   # y^3 and x_hat^2 (edge 2 -> 3)
@@ -439,11 +465,11 @@ def test_network_structure(example_designs):
     assert arc.x.shape[1] == 6 + 4 * 6
     np.testing.assert_array_equal(arc[1].x[0], 0)   # x_hat^1(0) = 0
     with pytest.raises(ValueError, match=r"x0 must have shape \(6,\), got \(5,\)"):
-        dist.initial_state(ft, np.zeros(5))
+        initial_state(ft, np.zeros(5))
     with pytest.raises(ValueError, match=r"xhat0 must have shape \(6,\) or \(4, 6\)"):
-        dist.initial_state(ft, np.zeros(6), np.zeros((3, 6)))
+        initial_state(ft, np.zeros(6), np.zeros((3, 6)))
     with pytest.raises(ValueError, match="node must be a node of the design's graph"):
-        dist.DistributedObserverNode(ft, 7)
+        DistributedObserverNode(ft, 7)
 
 
 def test_consensus_term_zero_at_agreement(example_designs):
@@ -502,7 +528,7 @@ def test_theorem1_random_finite_time(N, seed, graph):
     alpha, res = choose_alpha(d0)
     d = design(A, C, G, nodelist=range(N), warn=False, alpha=alpha)
     rng = np.random.default_rng(seed)
-    x0 = dist.stable_initial_state(A, rng.standard_normal(d.n))
+    x0 = stable_initial_state(A, rng.standard_normal(d.n))
     xh = rng.standard_normal((N, d.n))
     obs = DistributedObserver(d)
     arc = dist.simulate(obs, x0, xh, t_max=8.0)
@@ -519,10 +545,10 @@ def test_remark2_noise_bounded():
     # with the noise (ISS-like); loose tolerances, the noise dominates.
     A, C, G = example_system()
     ft = design(A, C, G, nodelist=[1, 2, 3, 4])
-    x0 = dist.stable_initial_state(A, dist.EXAMPLE_V0)
+    x0 = stable_initial_state(A, EXAMPLE_V0)
     peaks = []
     for power in (1e-2, 1e-6):
-        noise = dist.band_limited_noise(power, 0.1, 6.0, 4, seed=1)
+        noise = band_limited_noise(power, 0.1, 6.0, 4, seed=1)
         arc = dist.simulate(DistributedObserver(ft), x0, t_max=6.0, noise=noise, rtol=1e-7,
                             atol=1e-9,
                                     max_step=0.05)
@@ -532,18 +558,18 @@ def test_remark2_noise_bounded():
     assert np.isfinite(peaks[0]) and peaks[0] < 50.0
     assert peaks[1] < peaks[0]
     with pytest.raises(ValueError, match="power must be >= 0 and ts > 0"):
-        dist.band_limited_noise(1.0, 0.0, 1.0, 1)
+        band_limited_noise(1.0, 0.0, 1.0, 1)
 
 
 def _fake_fig_data():
     t = np.linspace(0.0, 1.0, 11)
     ones = np.ones((11, 4))
-    d2 = dist.Fig2Data(nodes=[1, 2, 3, 4], t=t, eo_norm=ones, eu_norm=ones * 1e-3,
+    d2 = Fig2Data(nodes=[1, 2, 3, 4], t=t, eo_norm=ones, eu_norm=ones * 1e-3,
                        t_lin=t, eu_norm_lin=ones * 1e-2, settle=0.5, final=1e-13,
                        final_lin=1e-8, settle_errors=6.65551234, settle_network=6.6555)
     e_o = [np.ones((11, k)) for k in (2, 2, 5, 5)]
     e_u = [np.ones((11, k)) for k in (4, 4, 1, 1)]
-    d3 = dist.Fig3Data(nodes=[1, 2, 3, 4], t=t, e_o=e_o, e_u=e_u, peak_late=1.0)
+    d3 = Fig3Data(nodes=[1, 2, 3, 4], t=t, e_o=e_o, e_u=e_u, peak_late=1.0)
     return d2, d3
 
 
@@ -551,7 +577,7 @@ def test_figures_draw_what_their_data_hold():
     # draw() computes nothing: every line is a column of the data, with the labels
     # and scales of Figs. 2-3; captions carry the data's numbers
     d2, d3 = _fake_fig_data()
-    fig = dist.draw_fig2(d2)
+    fig = draw_fig2(d2)
     ax0, ax1 = fig.axes
     assert ax0.get_yscale() == ax1.get_yscale() == "log"
     assert ax0.get_ylabel() == r"$\|e_o^i\|$" and ax1.get_xlabel() == r"$t$ (s)"
@@ -562,14 +588,14 @@ def test_figures_draw_what_their_data_hold():
     np.testing.assert_array_equal(ax1.get_lines()[4].get_ydata(), d2.eu_norm_lin[:, 0])
     assert [t.get_text() for t in ax1.get_legend().get_texts()][-2:] == [
         "linear observer (3)", "finite-time (7)-(8)"]
-    assert "t >= 0.50" in dist.caption_fig2(d2) and "t = 6.6555 s" in dist.caption_fig2(d2)
-    fig = dist.draw_fig3(d3)
+    assert "t >= 0.50" in caption_fig2(d2) and "t = 6.6555 s" in caption_fig2(d2)
+    fig = draw_fig3(d3)
     ax0, ax1 = fig.axes
     assert len(ax0.get_lines()) == 14 and len(ax1.get_lines()) == 10    # sum n_i, sum n - n_i
     assert [t.get_text() for t in ax0.get_legend().get_texts()] == [
         f"node {v}" for v in (1, 2, 3, 4)]
     assert ax0.get_ylabel() == r"$e_o^i$ (components)" and ax0.get_yscale() == "linear"
-    assert "power 1e-2" in dist.caption_fig3(d3)
+    assert "power 1e-2" in caption_fig3(d3)
     assert [f.name for f in dist.FIGURES] == ["distributed_fig2", "distributed_fig3"]
     assert set(dist.NOT_REPRODUCED) == {"Fig. 1"}
 
@@ -599,18 +625,18 @@ def test_figure_data_numbers():
     # Fig. 2: the finite-time errors fall below 1e-10 at ~6.69 s and stay at the
     # rounding floor (~1e-13); the linear observer's are still ~1.7e-8 at 20 s
     # (rate ~1.01 per s); Fig. 3: bounded errors under noise (Remark 2)
-    d2 = dist.fig2_data()
+    d2 = fig2_data()
     K = d2.t.size
     assert d2.eo_norm.shape == d2.eu_norm.shape == (K, 4) and d2.t[-1] == 20.0
     assert np.all(d2.eo_norm >= 1e-18) and np.all(np.diff(d2.t) >= 0)
     assert 6.6 < d2.settle < 6.8 and d2.final < 1e-11
     assert d2.final_lin == pytest.approx(1.73e-8, rel=0.05)
-    assert d2.settle_errors == dist.error_system_settling()
-    assert d2.settle_network == pytest.approx(dist.SETTLE_REFERENCE, abs=1e-5)
+    assert d2.settle_errors == error_system_settling()
+    assert d2.settle_network == pytest.approx(SETTLE_REFERENCE, abs=1e-5)
     # the plotted norms are those of errors() at the arc's samples (the curves
     # only add interpolant points inside steps: none here, 30 000 samples)
     assert np.max(d2.eo_norm[-1]) < 1e-11 and np.max(d2.eu_norm[0]) > 0.1
-    d3 = dist.fig3_data()
+    d3 = fig3_data()
     assert [e.shape[1] for e in d3.e_o] == [2, 2, 5, 5] and d3.t[-1] == 10.0
     assert 0.1 < d3.peak_late < 50.0
 
@@ -626,7 +652,7 @@ def test_remark1_source_component_finite_time():
     assert res.feasible
     d = design(A, C, H, nodelist=[1, 2, 3, 4], alpha=alpha)
     obs = DistributedObserver(d)
-    arc = dist.simulate(obs, dist.stable_initial_state(A, dist.EXAMPLE_V0), t_max=8.0)
+    arc = dist.simulate(obs, stable_initial_state(A, EXAMPLE_V0), t_max=8.0)
     E = dist.errors(arc, obs)
     ts = _settle(E)
     assert ts < 7.5, ts                                # measured ~5.6 s (alpha = 5)
@@ -646,11 +672,11 @@ def test_constructors_reject_mismatch_and_unobservable():
         dist.design(A, C, G, poles={v: -3.0 * np.ones(7) for v in C})
     dsg = dist.design(A, C, G)
     with pytest.raises(ValueError, match="node must be a node of the design's graph; got 9"):
-        dist.DistributedObserverNode(dsg, 9)
+        DistributedObserverNode(dsg, 9)
     with pytest.raises(ValueError, match=r"x0 must have shape \(6,\), got \(5,\)"):
-        dist.initial_state(dsg, np.zeros(5))
+        initial_state(dsg, np.zeros(5))
     with pytest.raises(ValueError, match=r"xhat0 must have shape \(6,\) or \(4, 6\); got \(4, 5\)"):
-        dist.initial_state(dsg, np.zeros(6), np.zeros((4, 5)))
+        initial_state(dsg, np.zeros(6), np.zeros((4, 5)))
 
 
 # --------------------------------------------------------------------------
@@ -694,14 +720,14 @@ def test_error_system_flow_is_the_network_error(seed, example):
     # Theta's inverse, cond(Theta) ~ 1e3: 1e-9), and the linear kind is (6) exactly
     d = example if seed is None else _random_design(seed)
     rng = np.random.default_rng(0 if seed is None else seed)
-    es = dist.error_system(d)
+    es = error_system(d)
     E = rng.standard_normal(es.state_dim)
     np.testing.assert_allclose(es.flow_map(E), _independent_error_rhs(d)(0.0, E),
                                rtol=1e-9, atol=1e-9)
     np.testing.assert_array_equal(es.flow_map(np.zeros(es.state_dim)), 0.0)
     lin = _random_design(seed, kind="linear") if seed is not None else design(
         d.A, d.C, d.G, d.nodelist, kind="linear")
-    np.testing.assert_allclose(dist.error_system(lin).flow_map(E), lin.error_matrix() @ E,
+    np.testing.assert_allclose(error_system(lin).flow_map(E), lin.error_matrix() @ E,
                                atol=1e-12)
 
 
@@ -709,17 +735,17 @@ def test_error_system_matches_plant_observer_flow(example):
     # d/dt (x_hat - x) from the network's flow, mapped to (E_o, E_u), equals the error
     # system's flow at the same error: x drops out (1e-9: the power terms of (7) at
     # gamma_5 = 0.5 amplify the rounding of C_o x_o - y, cf. the consensus test)
-    net = dist.observer_network(example)
+    net = observer_network(example)
     rng = np.random.default_rng(3)
     x, xh = rng.standard_normal(6), rng.standard_normal((4, 6))
-    z = dist.initial_state(example, x, xh)
+    z = initial_state(example, x, xh)
     dz = net.flow_map(z, 0.0, 0)
     n = example.n
     de = [dz[n * (k + 1):n * (k + 2)] - d.T.T @ dz[:n] for k, d in enumerate(example.decomp)]
     dE = np.concatenate([e[:d.n_o] for e, d in zip(de, example.decomp)]
                         + [e[d.n_o:] for e, d in zip(de, example.decomp)])
-    E0 = dist.error_initial_state(example, x, xh)
-    np.testing.assert_allclose(dist.error_system(example).flow_map(E0), dE, rtol=1e-9,
+    E0 = error_initial_state(example, x, xh)
+    np.testing.assert_allclose(error_system(example).flow_map(E0), dE, rtol=1e-9,
                                atol=1e-9)
 
 
@@ -728,34 +754,34 @@ def test_simulate_errors_linear_is_expm(example):
     # over 2 s with |F| ~ 50: 1e-8 relative
     A, C, G = example_system()
     lin = design(A, C, G, nodelist=[1, 2, 3, 4], kind="linear")
-    x0 = dist.stable_initial_state(A, dist.EXAMPLE_V0)
-    arc = dist.simulate_errors(DistributedObserver(lin), x0, t_max=2.0)
-    E0 = dist.error_initial_state(lin, x0)
+    x0 = stable_initial_state(A, EXAMPLE_V0)
+    arc = simulate_errors(DistributedObserver(lin), x0, t_max=2.0)
+    E0 = error_initial_state(lin, x0)
     np.testing.assert_allclose(arc.x[-1], sla.expm(2.0 * lin.error_matrix()) @ E0,
                                rtol=1e-8, atol=1e-10)
     E = dist.errors(arc, DistributedObserver(lin))
     assert E["e"].shape == (len(arc.t), 24) and E["e_u"].shape == (len(arc.t), 10)
-    assert [e.shape[1] for e in dist.split_errors(lin, E.e)[1]] == [4, 4, 1, 1]
+    assert [e.shape[1] for e in split_errors(lin, E.e)[1]] == [4, 4, 1, 1]
 
 
 def test_simulate_errors_bad_input(example, obs):
     with pytest.raises(ValueError, match="give either E0 or x0"):
-        dist.simulate_errors(obs, np.zeros(6), E0=np.zeros(24), t_max=1.0)
+        simulate_errors(obs, np.zeros(6), E0=np.zeros(24), t_max=1.0)
     with pytest.raises(ValueError, match="x0 .* or E0 is required"):
-        dist.simulate_errors(obs, t_max=1.0)
+        simulate_errors(obs, t_max=1.0)
     with pytest.raises(ValueError, match=r"E0 must have shape \(24,\), got \(23,\)"):
-        dist.simulate_errors(obs, E0=np.zeros(23), t_max=1.0)
+        simulate_errors(obs, E0=np.zeros(23), t_max=1.0)
     with pytest.raises(TypeError, match="dsg must be a DistributedDesign"):
-        dist.error_system("design")
+        error_system("design")
     with pytest.raises(ValueError, match="threshold must be > 0"):
-        dist.settling_time(dist.simulate_errors(obs, E0=np.ones(24), t_max=0.01), obs, 0.0)
+        settling_time(simulate_errors(obs, E0=np.ones(24), t_max=0.01), obs, 0.0)
     with pytest.raises(ValueError, match="arc has 24 state components, but a plant-observer"):
-        arc = dist.simulate_errors(obs, E0=np.ones(24), t_max=0.01)
+        arc = simulate_errors(obs, E0=np.ones(24), t_max=0.01)
         arc.components = {"plant": slice(0, 6)}
         dist.errors(arc, obs)
     # the contract's observer is the DistributedObserver, and only it
     with pytest.raises(TypeError, match=r"observer must be a DistributedObserver, got str"):
-        dist.simulate_errors("obs", E0=np.ones(24), t_max=0.01)
+        simulate_errors("obs", E0=np.ones(24), t_max=0.01)
     with pytest.raises(TypeError, match=r"got its design: pass DistributedObserver\(design\)"):
         dist.simulate(example, np.zeros(6), t_max=0.01)
     with pytest.raises(TypeError, match="dsg must be a DistributedDesign"):
@@ -771,9 +797,8 @@ def test_settling_time_independent(example, obs):
     from scipy.integrate import solve_ivp
     from scipy.optimize import brentq
 
-    from observers.distributed import SETTLE_REFERENCE, SETTLE_THRESHOLD
-    x0 = dist.stable_initial_state(example.A, dist.EXAMPLE_V0)
-    E0 = dist.error_initial_state(example, x0)
+    x0 = stable_initial_state(example.A, EXAMPLE_V0)
+    E0 = error_initial_state(example, x0)
     sol = solve_ivp(_independent_error_rhs(example), (0.0, 6.75), E0, method="DOP853",
                     rtol=1e-12, atol=1e-16, dense_output=True)
     norm = np.max(np.abs(sol.y), axis=0)
@@ -781,13 +806,13 @@ def test_settling_time_independent(example, obs):
     t_ref = brentq(lambda s: np.max(np.abs(sol.sol(s))) - SETTLE_THRESHOLD,
                    sol.t[k], sol.t[k + 1], xtol=1e-13)
     assert t_ref == pytest.approx(SETTLE_REFERENCE, abs=1e-9)   # the claim's literal
-    arc = dist.simulate_errors(obs, x0, t_max=6.8)
-    assert dist.settling_time(arc, obs, SETTLE_THRESHOLD) == pytest.approx(t_ref, abs=1e-6)
+    arc = simulate_errors(obs, x0, t_max=6.8)
+    assert settling_time(arc, obs, SETTLE_THRESHOLD) == pytest.approx(t_ref, abs=1e-6)
     # finite, not exponential: four more decades take 0.04 s (measured), where the
     # linear observer's rate |max Re eig (6)| ~ 1.01 would need ln(1e4)/1.01 ~ 9 s
-    arc12 = dist.simulate_errors(obs, x0, t_max=6.8, atol=1e-16)
-    spread = (dist.settling_time(arc12, obs, 1e-12)
-              - dist.settling_time(arc12, obs, SETTLE_THRESHOLD))
+    arc12 = simulate_errors(obs, x0, t_max=6.8, atol=1e-16)
+    spread = (settling_time(arc12, obs, 1e-12)
+              - settling_time(arc12, obs, SETTLE_THRESHOLD))
     assert 0 < spread < 0.1, spread
 
 
@@ -796,12 +821,11 @@ def test_settling_time_network_agrees_with_error_system(example, obs):
     # the plant-observer run's errors cross 1e-8 where the error system's do
     # (rounding ~1e-13 of x_hat - x at |x| ~ 1: ~1e-7 s, measured 3e-7 s); a run to
     # 6.8 s takes the steps of Fig. 2's run to 20 s (the claim reads that one)
-    from observers.distributed import SETTLE_REFERENCE, SETTLE_THRESHOLD
-    x0 = dist.stable_initial_state(example.A, dist.EXAMPLE_V0)
+    x0 = stable_initial_state(example.A, EXAMPLE_V0)
     arc = dist.simulate(obs, x0, t_max=6.8)
-    ts = dist.settling_time(arc, obs, SETTLE_THRESHOLD)
+    ts = settling_time(arc, obs, SETTLE_THRESHOLD)
     assert ts == pytest.approx(SETTLE_REFERENCE, abs=1e-5)
-    assert ts == dist.fig2_data().settle_network
+    assert ts == fig2_data().settle_network
 
 
 def test_claim_references_independent():
@@ -865,7 +889,7 @@ def test_laplacian_claim_paper_value_is_its_statement():
 def test_contract_run_returns_errors(obs):
     # the observer contract: simulate(observer, x0, xhat0=None, *, t_max, ...) and
     # errors(arc, observer) -> Errors with one row per sample
-    x0 = dist.stable_initial_state(obs.design.A, dist.EXAMPLE_V0)
+    x0 = stable_initial_state(obs.design.A, EXAMPLE_V0)
     arc = dist.simulate(obs, x0, t_max=0.05)
     E = dist.errors(arc, obs)
     assert isinstance(E, Errors) and E.e.shape == (arc.t.size, 24)
@@ -874,7 +898,7 @@ def test_contract_run_returns_errors(obs):
     np.testing.assert_array_equal(E.e, np.hstack([E["e_o"], E["e_u"]]))
     np.testing.assert_array_equal(E["norm"], np.max(np.abs(E.e), axis=1))
     # e^i = T^iT (x_hat^i - x) at t = 0 with x_hat^i(0) = 0: the stacked -T^iT x(0)
-    np.testing.assert_allclose(E.e[0], dist.error_initial_state(obs.design, x0), atol=1e-15)
+    np.testing.assert_allclose(E.e[0], error_initial_state(obs.design, x0), atol=1e-15)
     arcn = dist.simulate(obs, x0, np.ones(6), t_max=0.05, noise=1e-2, seed=3)
     assert dist.errors(arcn, obs).e.shape[0] == arcn.t.size
     assert repr(obs).startswith("DistributedObserver(finite-time, N=4")

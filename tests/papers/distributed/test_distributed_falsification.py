@@ -21,6 +21,8 @@ import hybridsim as hs
 from observers import distributed as dist
 from observers.distributed import falsification as F
 from observers.distributed.claims import SETTLE_REFERENCE
+from observers.distributed.example import EXAMPLE_V0, example_observer, stable_initial_state
+from observers.distributed.systems import PopulationErrorSystem, error_system, split_errors
 from observers.falsification import run_problem, validate_problems
 
 PROBS = {p.id: p for p in F.PROBLEMS}
@@ -43,8 +45,8 @@ def test_problems_are_valid_and_exported():
 
 def test_population_error_system_is_the_error_system():
     """Without noise, rows of the batch flow are ErrorSystem's flow (6)-(9)."""
-    obs = dist.example_observer()
-    pes = dist.PopulationErrorSystem(obs.design)
+    obs = example_observer()
+    pes = PopulationErrorSystem(obs.design)
     E = np.random.default_rng(0).standard_normal((6, 24))
     got = pes.flow_map(E, np.zeros(6))
     want = np.array([obs.error_system().flow_map(e) for e in E])
@@ -57,12 +59,12 @@ def test_noisy_population_run_matches_the_plant_observer_network():
     (1) and nodes (7)-(8) over hs.network) with the same noise, to the
     integrators' tolerance (rtol 1e-9 both; errors of size ~1, agreement
     1e-6)."""
-    obs = dist.example_observer()
+    obs = example_observer()
     space = PROBS["003-rem2-noise-band-limited"].space
     z = space.sample(1, seed=4)[0]
     point = space.point(z)
-    pes = dist.PopulationErrorSystem(obs.design, terms=3, bound=F.NOISE_BOUND)
-    x0 = dist.stable_initial_state(obs.design.A, dist.EXAMPLE_V0)
+    pes = PopulationErrorSystem(obs.design, terms=3, bound=F.NOISE_BOUND)
+    x0 = stable_initial_state(obs.design.A, EXAMPLE_V0)
     E0 = F.example_initial_error()
     arc = hs.simulate_many(pes, np.concatenate([E0, point.z])[None, :], 1.0, j_max=0,
                            rtol=1e-9, atol=1e-12, warn=False)[0]
@@ -152,7 +154,7 @@ def test_delayed_flow_is_the_nodes_flow_with_late_estimates():
     six entries are the plant (1). Checked against the nodes' own maps
     (systems._NodeData.rhs) at random states and random pasts."""
     from observers.distributed.systems import _NodeData
-    dsg = dist.example_observer().design
+    dsg = example_observer().design
     taus = [0.01, 0.1, 0.1, 0.03]
     sysd = F.DelayedErrorSystem(dsg, taus)
     assert sysd.delays == (0.01, 0.03, 0.1) and sysd.max_step == 0.01 and sysd.needs_history
@@ -163,13 +165,13 @@ def test_delayed_flow_is_the_nodes_flow_with_late_estimates():
     sysd.history = lambda s: past[min(past, key=lambda tau: abs(t - tau - s))]
     got = sysd.flow_map(z, t)
     E, x = z[:24], z[24:]
-    e_o, e_u = dist.split_errors(dsg, E)
+    e_o, e_u = split_errors(dsg, E)
     want_o, want_u = [], []
     for k, d in enumerate(dsg.decomp):
         node = _NodeData(dsg, k)
         zk = np.concatenate([e_o[k], e_u[k]]) + d.T.T @ x           # x~^i in node coords
         h = past[taus[k]]
-        po, pu = dist.split_errors(dsg, h[:24])
+        po, pu = split_errors(dsg, h[:24])
         nb = [dsg.nodelist.index(v) for v in node.neighbours]
         xhat_nb = [h[24:] + dsg.decomp[q].T @ np.concatenate([po[q], pu[q]]) for q in nb]
         de = node.rhs(zk, dsg.C[k] @ x, np.array(xhat_nb)) - d.T.T @ dsg.A @ x
@@ -183,8 +185,8 @@ def test_delayed_system_tends_to_the_error_system():
     """As tau -> 0 the delayed errors tend to (9)'s, at first order: at
     t = 1 s they differ from ErrorSystem's run by ~4 tau (errors of size
     ~1.75), halving with tau."""
-    dsg = dist.example_observer().design
-    ref = hs.simulate(dist.error_system(dsg), F.example_initial_error(), 1.0, rtol=1e-10,
+    dsg = example_observer().design
+    ref = hs.simulate(error_system(dsg), F.example_initial_error(), 1.0, rtol=1e-10,
                       atol=1e-12)
     diffs = []
     for tau in (2e-3, 1e-3):
@@ -198,16 +200,16 @@ def test_the_delayed_system_is_refused_by_name_where_it_cannot_run():
     """Its maps take one state (not batches): simulate_vectorized refuses it by name,
     simulate_many runs its rows one by one, and the compiled path refuses a system
     that reads its history by name."""
-    sysd = F.DelayedErrorSystem(dist.example_observer().design, 0.05)
+    sysd = F.DelayedErrorSystem(example_observer().design, 0.05)
     z0 = np.zeros((2, 30))
     with pytest.raises(ValueError, match="vectorized = True"):
         hs.simulate_vectorized(sysd, z0, 1.0)
     with pytest.raises(TypeError, match="history"):
         hs.simulate_many(sysd, z0, 1.0, backend="compiled")
     with pytest.raises(ValueError, match="taus"):
-        F.DelayedErrorSystem(dist.example_observer().design, [0.1, 0.0, 0.1, 0.1])
+        F.DelayedErrorSystem(example_observer().design, [0.1, 0.0, 0.1, 0.1])
     with pytest.raises(ValueError, match="taus"):
-        F.DelayedErrorSystem(dist.example_observer().design, [0.1, 0.1])
+        F.DelayedErrorSystem(example_observer().design, [0.1, 0.1])
 
 
 def test_delay_level_is_the_recorded_reference():

@@ -7,15 +7,30 @@ import numpy as np
 import pytest
 
 from observers import dynamic_gain as dg
-from observers.dynamic_gain import (
-    EXAMPLE,
-    DynamicGainObserver,
+from observers.dynamic_gain import EXAMPLE, DynamicGainObserver
+from observers.dynamic_gain.design import (
+    gain_margin,
     homogeneous_norm,
+    iss_exponent,
     prescribed_error,
     prescribed_v,
     settling_time,
     settling_time_bound,
     weights,
+)
+from observers.dynamic_gain.example import (
+    example_norm,
+    gain_settling_time,
+    settle_time,
+    switch_time,
+)
+from observers.dynamic_gain.figures import fig1_data, fig2_data, iss_data
+from observers.dynamic_gain.systems import (
+    ConsistentEuler,
+    NoisyExamplePlant,
+    example_plant,
+    luenberger_observer,
+    uniform_noise,
 )
 from observers.lmi import lmi10_matrices
 
@@ -48,7 +63,7 @@ def test_prescribed_error_solves_error_system():
     mu, g1, v0 = 0.2, 1.0, 1.7
     A, C, H = lmi10_matrices(3, mu)
     T = settling_time(v0, mu, g1)
-    rbar = dg.rbar(3, mu)
+    rbar = dg.design.rbar(3, mu)
     for t in [0.3, 1.1, 2.9, 0.9 * T]:
         h = 1e-6
         e = prescribed_error([t], E0, v0, L_PAPER, mu, g1)[0]
@@ -171,19 +186,11 @@ def test_observer_bad_inputs():
 hs = pytest.importorskip("hybridsim")
 from observers._common import Errors  # noqa: E402
 from observers.dynamic_gain import (  # noqa: E402
-    ConsistentEuler,
     errors,
-    example_norm,
-    example_plant,
-    gain_settling_time,
     homogeneous_observer,
-    luenberger_observer,
     prescribed_time_observer,
     proposed_observer,
-    settle_time,
     simulate,
-    switch_time,
-    uniform_noise,
 )
 from observers.lmi import solve_lmi10  # noqa: E402
 
@@ -230,7 +237,7 @@ def _check_prescribed(arc, obs, e0, v0, L, mu, g1):
 
 @pytest.mark.slow
 def test_prescribed_time_example_settles_at_T_equal_5():
-    d = dg.fig1_data()                    # Fig. 1's run (to t = 10), shared with the claims
+    d = fig1_data()                    # Fig. 1's run (to t = 10), shared with the claims
     obs, arc = d.observers["prescribed-time"], d.arcs["prescribed-time"]
     _check_prescribed(arc, obs, E0_EX, 1.0, L_PAPER, MU, G1)
 
@@ -301,7 +308,7 @@ def _check_proposed(arc, obs, e0, v0, L, mu, g1, g2, P):
 
 @pytest.mark.slow
 def test_proposed_example_settles_within_bounds(P_paper):
-    d = dg.fig1_data()                    # Fig. 1's run (to t = 10), shared with the claims
+    d = fig1_data()                    # Fig. 1's run (to t = 10), shared with the claims
     obs, arc = d.observers["proposed"], d.arcs["proposed"]
     T = _check_proposed(arc, obs, E0_EX, 1.0, L_PAPER, MU, G1, 1.0, P_paper)
     assert T <= 8.0          # Section VI: "not later than 8 seconds" (Fig. 1a), one-sided
@@ -335,7 +342,7 @@ def test_zeta_reaches_zero_but_z_stays_v():
     arc = simulate(obs, None, np.array([-90.0, 0.0, 0.0]), t_max=0.4, w0=0.99,
                    v0=0.99 + 1e-8)
     e, v, _ = _evq(arc, obs)
-    margin = dg.gain_margin(e[:, 0], v, 1.0)
+    margin = gain_margin(e[:, 0], v, 1.0)
     assert margin.min() >= -1e-9
     sliding = (arc.t > 0.13) & (arc.t < 0.3)
     assert sliding.sum() > 10 and np.abs(margin[sliding]).max() <= 1e-9
@@ -350,7 +357,7 @@ def test_luenberger_special_case_remark_1():
     arc = simulate(obs, t_max=3.0, v0=v0)
     e, v, _ = _evq(arc, obs)
     A, C, _ = lmi10_matrices(3, MU)
-    F = A + np.outer(v0 ** -dg.rbar(3, MU) * L_PAPER, C[0])
+    F = A + np.outer(v0 ** -dg.design.rbar(3, MU) * L_PAPER, C[0])
     ref = np.array([expm(F * t) @ E0_EX for t in arc.t])
     assert np.allclose(v, v0)
     assert np.abs(e - ref).max() <= 1e-7      # rtol 1e-8 on states of size ~10
@@ -421,7 +428,7 @@ def test_consistent_euler_matches_theory():
 def test_consistent_euler_is_the_euler_recursion():
     """ConsistentEuler reproduces x_{k+1} = x_k + h_k f(x_k, t_k), h_k = dt0 min(1, |x_k|)^mu,
     computed by hand (x' = -x + cos t), to rounding (event times to a few ulp)."""
-    sys = hs.HybridSystem.from_functions(f=lambda x, t: -x + np.cos(t), state_dim=1)
+    sys = hs.HybridSystem.from_functions(flow_map=lambda x, t: -x + np.cos(t), state_dim=1)
     eul = ConsistentEuler(sys, lambda x: abs(x[0]), 0.5, dt0=0.1, h_min=1e-3)
     arc = hs.simulate(eul, eul.initial_state([2.0]), t_max=1.0)
     post = arc.x[arc.jump_index]
@@ -513,12 +520,12 @@ def test_settling_time_is_the_gain_reaching_zero_not_the_1e_6_crossing():
     switch, as in _check_prescribed) while the second is earlier (e ~ v^r_i)."""
     obs = prescribed_time_observer(L_PAPER, MU, G1, b=B3)
     arc = dg.simulate(obs, None, None, t_max=5.2)
-    T = dg.gain_settling_time(arc, obs)
+    T = gain_settling_time(arc, obs)
     assert T == pytest.approx(settling_time(1.0, MU, G1), abs=1e-4)
     assert settle_time(arc, obs) < T - 0.1
     # not switched yet: no settling time
     short = dg.simulate(obs, None, None, t_max=1.0)
-    assert np.isnan(dg.gain_settling_time(short, obs))
+    assert np.isnan(gain_settling_time(short, obs))
 
 
 def test_paper_metadata():
@@ -534,7 +541,7 @@ def test_1e_6_crossing_is_located_between_samples():
     """Referee 1: the crossing was the last sample above 1e-6 (5 ms early for gamma2 = 0).
     Now it lies between that sample and the next, where max|e| = 1e-6 on the arc's
     interpolant, and agrees with the run's exact dense output (dense=True) to 1e-6 s."""
-    d = dg.fig1_data()
+    d = fig1_data()
     obs, arc = d.observers["prescribed-time"], d.arcs["prescribed-time"]
     tc = settle_time(arc, obs)
     m = np.abs(errors(arc, obs).e).max(axis=1)
@@ -562,7 +569,7 @@ def test_noisy_plant_batch_is_the_example_plant():
     """NoisyExamplePlant with a = 0.1 and seed s has the flow and output of
     example_plant(noise=True, seed=s), row by row (rounding: 1e-14)."""
     seeds = [0, 7]
-    batch = dg.NoisyExamplePlant(seeds, 2.0)
+    batch = NoisyExamplePlant(seeds, 2.0)
     rng = np.random.default_rng(5)
     X = np.column_stack([rng.normal(size=(4, 3)), np.full(4, 0.1), [0, 1, 1, 0]])
     t = np.array([0.0, 0.337, 1.2, 1.999])
@@ -598,10 +605,10 @@ def test_observer_batch_maps_equal_single_maps(z_mode, g2):
 def test_iss_exponent_of_homogeneity():
     """(1 - n mu)/(1 - mu): 0.5 for Section VI; 0 at mu = 1/n would be no decay
     (iISS side of Proposition 5 is at mu = 1/(n+1), exponent 1/n)."""
-    assert dg.iss_exponent(3, 0.2) == pytest.approx(0.5)
-    assert dg.iss_exponent(3, 0.25) == pytest.approx(0.25 / 0.75)
+    assert iss_exponent(3, 0.2) == pytest.approx(0.5)
+    assert iss_exponent(3, 0.25) == pytest.approx(0.25 / 0.75)
     with pytest.raises(ValueError, match=r"mu must lie in \(0, 0.25\]"):
-        dg.iss_exponent(3, 0.3)
+        iss_exponent(3, 0.3)
 
 
 @pytest.mark.slow
@@ -611,7 +618,7 @@ def test_prop5_iss_over_amplitudes_and_seeds():
     falling at least as fast as homogeneity's bound a^(1/2) (fitted slope >= 0.5; the
     measured 0.70 is below 1: sublinear, as the small-a exponent predicts). The a = 0.1,
     seed 0 run is Fig. 2's run (0.3066 with RK45 rtol 1e-6; 2%: rtol 1e-4 and the batch)."""
-    d = dg.iss_data()
+    d = iss_data()
     assert d.bounded.all() and d.monotone
     assert d.predicted <= d.slope < 1.0
     k = d.amplitudes.index(0.1)
@@ -632,7 +639,7 @@ def test_figures_registry():
     assert [f.name for f in dg.FIGURES] == ["fig1a", "fig1b", "fig2a", "fig2b",
                                             "euler_vs_radau", "prop5_iss"]
     assert dg.NOT_REPRODUCED == {}
-    assert dg.FIGURES[0].data is dg.FIGURES[1].data is dg.fig1_data
+    assert dg.FIGURES[0].data is dg.FIGURES[1].data is fig1_data
 
 
 @pytest.mark.slow
@@ -640,7 +647,7 @@ def test_fig1_data_numbers_and_drawing():
     """Fig. 1's runs: T = 5 for gamma2 = 0 (1e-4 as above), 7.81 s for gamma2 = 1 and its
     crossing 7.2756 s (Radau rtol 1e-8: 1e-3); the drawing's lines are labelled by
     observer (one flow line per observer plus its jump markers)."""
-    d = dg.fig1_data()
+    d = fig1_data()
     assert d.settling["prescribed-time"] == pytest.approx(5.0, abs=1e-4)
     assert d.settling["proposed"] == pytest.approx(7.81, abs=5e-3)
     assert d.crossing["proposed"] == pytest.approx(7.2756, abs=1e-3)
@@ -659,10 +666,10 @@ def test_fig2_blowup_is_an_expected_outcome_without_warning():
     """The prescribed-time observer's escape under noise is an expected outcome: a claim
     and a log line, no warning."""
     import warnings
-    dg.fig2_data.cache_clear()
+    fig2_data.cache_clear()
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        d = dg.fig2_data()
+        d = fig2_data()
     assert d.end["prescribed-time"][0] == "BLOWUP"
     c = next(c for c in dg.CLAIMS if c.id == "000-fig2-blowup-expected")
     assert c.compute() is True

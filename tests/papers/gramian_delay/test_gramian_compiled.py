@@ -31,6 +31,9 @@ import numpy as np
 import pytest
 
 import hybridsim as hs
+from observers.gramian_delay.design import sampling_instants
+from observers.gramian_delay.example import DC_PARAMS, population
+from observers.gramian_delay.systems import DCMotor, smooth_noise
 
 numba = pytest.importorskip("numba")
 
@@ -87,7 +90,7 @@ class Lag(hs.HybridSystem):
         return np.array([-self.a * self.history(t - self.tau)[0]])
 
     def compiled_component(self):
-        return Component(state_dim=1, flow=_lag_flow, params=[self.a], delays=(self.tau,))
+        return Component(state_dim=1, flow_map=_lag_flow, params=[self.a], delays=(self.tau,))
 
 
 class Pair(hs.HybridSystem):
@@ -104,7 +107,7 @@ class Pair(hs.HybridSystem):
         return np.array([-self.a * pa[0] + u[0], pb[0] - x[1]])
 
     def compiled_component(self):
-        return Component(state_dim=2, input_dim=1, flow=_pair_flow, params=[self.a],
+        return Component(state_dim=2, input_dim=1, flow_map=_pair_flow, params=[self.a],
                          delays=self.taus)
 
 
@@ -171,7 +174,7 @@ def test_systems_lowered_from_one_structure_run_at_their_own_delays():
 def test_a_history_reader_without_declared_delays_is_refused_by_name():
     class Undeclared(Lag):
         def compiled_component(self):
-            return Component(state_dim=1, flow=_lag_flow, params=[self.a])
+            return Component(state_dim=1, flow_map=_lag_flow, params=[self.a])
 
     class NoForm(Lag):
         compiled_component = None
@@ -184,7 +187,7 @@ def test_a_history_reader_without_declared_delays_is_refused_by_name():
     for bad, err, msg in (((0.0,), ValueError, "positive"), ((0.1, 0.1), ValueError, "distinct"),
                           ("x", TypeError, "sequence")):
         with pytest.raises(err, match=msg):
-            Component(state_dim=1, flow=_lag_flow, delays=bad)
+            Component(state_dim=1, flow_map=_lag_flow, delays=bad)
     with pytest.raises(ValueError, match="needs flow"):
         Component(state_dim=1, delays=(0.1,))
 
@@ -202,7 +205,7 @@ def _loop(obs, x0=None, **kw):
 CASES = {
     "period": lambda ex: ex.sampled_observer(period=0.01),
     "instants": lambda ex: ex.sampled_observer(
-        instants=gd.sampling_instants(0.005, 0.02, T_MAX, seed=1)),
+        instants=sampling_instants(0.005, 0.02, T_MAX, seed=1)),
     "gaps": lambda ex: ex.sampled_observer(gaps=(0.01, 0.02)),
 }
 
@@ -239,7 +242,7 @@ def test_39_with_the_oracle_and_smooth_noise_agrees(motor):
     second half), and a measurement noise of smooth_noise (its compiled form)."""
     ex = gd.dc_motor(100.0, 0.1, oracle=True)
     for obs, noise in ((ex.sampled_observer(period=0.01, estimate="xi2"), None),
-                       (motor.sampled_observer(period=0.01), gd.smooth_noise(1e-3, seed=3))):
+                       (motor.sampled_observer(period=0.01), smooth_noise(1e-3, seed=3))):
         sysc, x0 = gd.example._loop(obs, obs.plant.chi0, None, noise, None, None)
         ref = hs.simulate(sysc, x0, t_max=T_MAX, **RUN)
         assert_same_run(hs.simulate(sysc, x0, t_max=T_MAX, backend="compiled", **RUN), ref)
@@ -252,7 +255,7 @@ def test_39_compiled_batch_equals_its_single_runs(motor):
     and the estimates of (13) read from the arcs agree with the Python path's."""
     obs = motor.sampled_observer(period=0.01)
     X = motor.chi0 + np.random.default_rng(0).uniform(-0.3, 0.3, (5, 3))
-    sysc, rows = gd.population(obs, X)
+    sysc, rows = population(obs, X)
     batch = hs.simulate_many(sysc, rows, t_max=T_MAX, backend="compiled", **RUN)
     for arc, row in zip(batch, rows):
         one = hs.simulate(sysc, row, t_max=T_MAX, backend="compiled", **RUN)
@@ -284,7 +287,7 @@ def test_what_has_no_compiled_form_is_refused_by_name(motor):
     reset = motor.sampled_observer(period=0.01, realisation="reset")
     with pytest.raises(TypeError, match="realisation='reset' has no compiled form"):
         lower(_loop(reset)[0])
-    sine = gd.DCMotor(gd.DC_PARAMS, 100.0, 0.1, u=np.sin, chi0=motor.chi0)
+    sine = DCMotor(DC_PARAMS, 100.0, 0.1, u=np.sin, chi0=motor.chi0)
     with pytest.raises(TypeError, match="its control u is a Python callable"):
         lower(sine)
     with pytest.raises(TypeError, match="the Psi of its form is a Python callable"):

@@ -8,6 +8,24 @@ import scipy.integrate
 import scipy.linalg
 
 from observers import gramian_delay as gd
+from observers.gramian_delay.design import (
+    c_Delta,
+    lam,
+    observer_form,
+    sampling_instants,
+    theorem1_bound,
+    theorem2_constants,
+)
+from observers.gramian_delay.example import DC_PARAMS, explore_samples, population
+from observers.gramian_delay.figures import (
+    draw_fig1,
+    draw_fig2,
+    draw_periods,
+    fig1_data,
+    fig2_data,
+    periods_data,
+)
+from observers.gramian_delay.systems import REALISATIONS, DCMotor, estimate_along, smooth_noise
 
 # DC motor (65)-(67) parameters, "as in [6]"
 a1, a2, a3, a4, b0, b1 = 35.0, 1.0, 36.4, 200.0, 40.0, 15.0
@@ -40,7 +58,7 @@ def test_observer_form_reproduces_67():
     u = np.sin
     Psi = lambda y, t: np.array([0.0, -a1 * np.sin(y[0]), b0 * u(t)])  # noqa: E731
     P = np.array([[0, 1.0, 0], [0, 0, 1.0]])
-    form = gd.observer_form(M, N, Psi, P=P, k=100.0)
+    form = observer_form(M, N, Psi, P=P, k=100.0)
     np.testing.assert_allclose(form.A1, A1_DC, atol=1e-12)
     np.testing.assert_allclose(form.A2, A2_DC, atol=1e-12)
     y, t = np.array([0.7]), 0.3
@@ -58,7 +76,7 @@ def test_observer_form_random_vector_field(seed, n, q):
     M, N = rng.normal(size=(n, n)), rng.normal(size=(q, n))
     W = rng.normal(size=(n, q))
     Psi = lambda y, t: W @ np.tanh(y) * np.cos(t)  # noqa: E731
-    form = gd.observer_form(M, N, Psi)
+    form = observer_form(M, N, Psi)
     m = n - q
     # default P: orthonormal rows orthogonal to N; default k: spectral radius + 1
     np.testing.assert_allclose(form.P @ N.T, 0, atol=1e-12)
@@ -78,31 +96,31 @@ def test_observer_form_random_vector_field(seed, n, q):
 def test_observer_form_bad_input():
     M, N = dc_M_N()
     with pytest.raises(ValueError, match="M must be square"):
-        gd.observer_form(np.ones((3, 2)), N)
+        observer_form(np.ones((3, 2)), N)
     with pytest.raises(ValueError, match=r"N must have shape \(\*, 3\), got \(1, 2\)"):
-        gd.observer_form(M, [[1.0, 0.0]])
+        observer_form(M, [[1.0, 0.0]])
     with pytest.raises(ValueError, match="N must have full row rank 2"):
-        gd.observer_form(M, [[1.0, 0, 0], [2.0, 0, 0]])
+        observer_form(M, [[1.0, 0, 0], [2.0, 0, 0]])
     with pytest.raises(ValueError, match="N must have between 1 and n-1"):
-        gd.observer_form(M, np.eye(3))
+        observer_form(M, np.eye(3))
     with pytest.raises(ValueError, match=r"\(M, N\) must be observable"):
-        gd.observer_form(np.diag([1.0, 2.0, 3.0]), [[1.0, 0, 0]])
+        observer_form(np.diag([1.0, 2.0, 3.0]), [[1.0, 0, 0]])
     with pytest.raises(ValueError, match="M must be finite"):
-        gd.observer_form(M * np.nan, N)
+        observer_form(M * np.nan, N)
     with pytest.raises(TypeError, match="Psi must be callable"):
-        gd.observer_form(M, N, Psi=3)
+        observer_form(M, N, Psi=3)
     with pytest.raises(ValueError, match="P must complete N"):
-        gd.observer_form(M, N, P=[[1.0, 0, 0], [0, 1.0, 0]])
+        observer_form(M, N, P=[[1.0, 0, 0], [0, 1.0, 0]])
     with pytest.raises(ValueError, match=r"P must have shape \(2, 3\)"):
-        gd.observer_form(M, N, P=[[0, 1.0, 0]])
+        observer_form(M, N, P=[[0, 1.0, 0]])
     with pytest.raises(ValueError, match="k must be > 0"):
-        gd.observer_form(M, N, k=-1.0)
+        observer_form(M, N, k=-1.0)
     with pytest.raises(TypeError, match="k must be a real number"):
-        gd.observer_form(M, N, k="1")
+        observer_form(M, N, k="1")
     # k^2 - 201 k + 746 = 0 makes A1 + kI singular (Section V)
     k_bad = (201 - np.sqrt(201**2 - 4 * 746)) / 2
     with pytest.raises(ValueError, match="k must make A1 \\+ k I invertible"):
-        gd.observer_form(M, N, P=[[0, 1.0, 0], [0, 0, 1.0]], k=k_bad)
+        observer_form(M, N, P=[[0, 1.0, 0], [0, 0, 1.0]], k=k_bad)
 
 
 # ---------------------------------------------------------------------------
@@ -112,13 +130,13 @@ def test_lambda_properties_appendix():
     """lambda(0) = 0 and lambda^{(j)}(0) = -A2 (A1 + kI)^{j-1} (appendix)."""
     k = 100.0
     B = A1_DC + k * np.eye(2)
-    np.testing.assert_allclose(gd.lam(0.0, A1_DC, A2_DC, k), 0, atol=1e-14)
+    np.testing.assert_allclose(lam(0.0, A1_DC, A2_DC, k), 0, atol=1e-14)
     # analytic derivative: lambda'(r) = -A2 e^{B r}; check by central differences
     h = 1e-6
-    d1 = (gd.lam(h, A1_DC, A2_DC, k) - gd.lam(-h, A1_DC, A2_DC, k)) / (2 * h)
+    d1 = (lam(h, A1_DC, A2_DC, k) - lam(-h, A1_DC, A2_DC, k)) / (2 * h)
     np.testing.assert_allclose(d1, -A2_DC, rtol=1e-6, atol=1e-8)
     h = 1e-4   # second derivative -A2 (A1 + kI); truncation error ~ h^2 |A2 B^3| / 12
-    d2 = (gd.lam(h, A1_DC, A2_DC, k) + gd.lam(-h, A1_DC, A2_DC, k)) / h**2
+    d2 = (lam(h, A1_DC, A2_DC, k) + lam(-h, A1_DC, A2_DC, k)) / h**2
     np.testing.assert_allclose(d2, -A2_DC @ B, rtol=1e-4)
     # identity after (23): lambda(s - t) = H^T Delta_*(t - s) e^{A1 (s - t)}
     d = gd.gramian_design(A1_DC, A2_DC, k, 0.1)
@@ -126,7 +144,7 @@ def test_lambda_properties_appendix():
         Dstar = scipy.linalg.expm(-A1_DC * r) - np.exp(k * r) * np.eye(2)
         np.testing.assert_allclose(d.lam(r), d.H.T @ Dstar @ scipy.linalg.expm(A1_DC * r),
                                    rtol=1e-9, atol=1e-12)
-    assert gd.lam([-0.1, 0.0], A1_DC, A2_DC, k).shape == (2, 1, 2)
+    assert lam([-0.1, 0.0], A1_DC, A2_DC, k).shape == (2, 1, 2)
     np.testing.assert_allclose(d.H, np.linalg.inv(B).T @ A2_DC.T)
 
 
@@ -200,7 +218,7 @@ def test_gramian_design_bad_input():
         # observable but with e^{(A1+kI) r} ~ 1 + O(1e-9): S ~ 1e-20
         gd.gramian_design([[-1.0]], [[1.0]], 1.0 + 1e-6, 1e-3)
     with pytest.raises(ValueError, match="r must be finite"):
-        gd.lam(np.nan, A1_DC, A2_DC, 100.0)
+        lam(np.nan, A1_DC, A2_DC, 100.0)
 
 
 # ---------------------------------------------------------------------------
@@ -208,36 +226,36 @@ def test_gramian_design_bad_input():
 # ---------------------------------------------------------------------------
 def test_theorem1_bound_scaling_and_errors():
     d = gd.gramian_design(A1_DC, A2_DC, 100.0, 0.1)
-    assert gd.theorem1_bound(d, 0.5) == 0.0
+    assert theorem1_bound(d, 0.5) == 0.0
     e1 = lambda t: np.array([np.sin(t), 1.0])  # noqa: E731
     d2 = lambda t: np.array([0.01 * np.cos(3 * t)])  # noqa: E731
-    b = gd.theorem1_bound(d, 0.5, eps1=e1, delta2=d2, K1=a1, K2=100.0)
-    b2 = gd.theorem1_bound(d, 0.5, eps1=lambda t: 2 * e1(t), delta2=lambda t: 2 * d2(t),
+    b = theorem1_bound(d, 0.5, eps1=e1, delta2=d2, K1=a1, K2=100.0)
+    b2 = theorem1_bound(d, 0.5, eps1=lambda t: 2 * e1(t), delta2=lambda t: 2 * d2(t),
                            K1=a1, K2=100.0)
     assert b > 0 and b2 == pytest.approx(2 * b, rel=1e-12)         # positively homogeneous
     # constant eps1 = c: first term is c_Delta * c * int_0^tau |lambda(-r)| r dr
     c = 0.3
-    b3 = gd.theorem1_bound(d, 0.5, eps1=lambda t: np.array([c, 0.0]), n_grid=1001)
+    b3 = theorem1_bound(d, 0.5, eps1=lambda t: np.array([c, 0.0]), n_grid=1001)
     r = np.linspace(0, 0.1, 2001)
-    ref = gd.c_Delta(d) * c * scipy.integrate.simpson(
+    ref = c_Delta(d) * c * scipy.integrate.simpson(
         [np.linalg.norm(d.lam(-ri), 2) * ri for ri in r], x=r)
     assert b3 == pytest.approx(ref, rel=1e-5)   # trapezoid inner + Simpson outer on 1001 nodes
     with pytest.raises(ValueError, match="t must be >= tau"):
-        gd.theorem1_bound(d, 0.05)
+        theorem1_bound(d, 0.05)
     with pytest.raises(ValueError, match="n_grid must be an odd int"):
-        gd.theorem1_bound(d, 0.5, n_grid=10)
+        theorem1_bound(d, 0.5, n_grid=10)
     with pytest.raises(ValueError, match=r"eps1\(t\) must have shape \(2,\), got \(3,\)"):
-        gd.theorem1_bound(d, 0.5, eps1=lambda t: np.zeros(3))
+        theorem1_bound(d, 0.5, eps1=lambda t: np.zeros(3))
     with pytest.raises(TypeError, match="delta2 must be callable"):
-        gd.theorem1_bound(d, 0.5, delta2=0.1)
+        theorem1_bound(d, 0.5, delta2=0.1)
     with pytest.raises(ValueError, match="K1 must be >= 0"):
-        gd.theorem1_bound(d, 0.5, K1=-1.0)
+        theorem1_bound(d, 0.5, K1=-1.0)
 
 
 def test_theorem2_constants_relations():
     d = gd.gramian_design(A1_DC, A2_DC, 100.0, 0.1)
-    cx = gd.theorem2_constants(d, a1, 100.0, 0.1, estimate="xi2")
-    co = gd.theorem2_constants(d, a1, 100.0, 0.1, estimate="omega")
+    cx = theorem2_constants(d, a1, 100.0, 0.1, estimate="xi2")
+    co = theorem2_constants(d, a1, 100.0, 0.1, estimate="omega")
     # (41)
     assert cx.q1 == pytest.approx((cx.varsigma[0] + cx.varsigma[2]) * a1
                                   + cx.varsigma[1] * 100.0 + cx.varsigma[3], rel=1e-12)
@@ -249,7 +267,7 @@ def test_theorem2_constants_relations():
     assert not cx.holds and cx.rate > 0 and cx.T_bar_mu > 1e15
     assert np.all(cx.varsigma > 0)
     # (40) holds below 1/mu and the rate (43) is then negative; a1 of Remark 4
-    c_ok = gd.theorem2_constants(d, a1, 100.0, 0.5 * cx.T_bar_max, estimate="xi2")
+    c_ok = theorem2_constants(d, a1, 100.0, 0.5 * cx.T_bar_max, estimate="xi2")
     assert c_ok.holds and c_ok.rate < 0
     assert c_ok.a1 == pytest.approx(c_ok.q1 * np.exp(-c_ok.rate * 0.1))
     # varsigma_2 by hand for a scalar case: (1/k) S_bar int |lambda(s)| (1 - e^{ks}) ds
@@ -257,26 +275,26 @@ def test_theorem2_constants_relations():
     s = np.linspace(-0.5, 0, 200001)
     lam_s = (1 - np.exp(2.0 * s)) / 2.0
     v2 = ds.S_bar / 3.0 * np.trapezoid(np.abs(lam_s) * (1 - np.exp(3.0 * s)), s)
-    assert gd.theorem2_constants(ds, 0.0, 0.0, 0.01).varsigma[1] == pytest.approx(v2, rel=1e-8)
+    assert theorem2_constants(ds, 0.0, 0.0, 0.01).varsigma[1] == pytest.approx(v2, rel=1e-8)
     with pytest.raises(ValueError, match="estimate must be 'omega' or 'xi2'"):
-        gd.theorem2_constants(d, a1, 100.0, 0.1, estimate="Y")
+        theorem2_constants(d, a1, 100.0, 0.1, estimate="Y")
     with pytest.raises(ValueError, match="T_bar must be > 0"):
-        gd.theorem2_constants(d, a1, 100.0, 0.0)
+        theorem2_constants(d, a1, 100.0, 0.0)
 
 
 def test_sampling_instants():
-    ts = gd.sampling_instants(0.01, 0.03, 1.0, seed=4)
+    ts = sampling_instants(0.01, 0.03, 1.0, seed=4)
     h = np.diff(ts)
     assert ts[0] == 0.0 and ts[-1] >= 1.0 and ts[-2] < 1.0
     assert np.all(h >= 0.01) and np.all(h <= 0.03) and h.std() > 0
-    np.testing.assert_array_equal(ts, gd.sampling_instants(0.01, 0.03, 1.0, seed=4))
-    np.testing.assert_allclose(np.diff(gd.sampling_instants(0.1, 0.1, 0.5)), 0.1)
+    np.testing.assert_array_equal(ts, sampling_instants(0.01, 0.03, 1.0, seed=4))
+    np.testing.assert_allclose(np.diff(sampling_instants(0.1, 0.1, 0.5)), 0.1)
     with pytest.raises(ValueError, match="T_max must be >= T_min"):
-        gd.sampling_instants(0.1, 0.05, 1.0)
+        sampling_instants(0.1, 0.05, 1.0)
     with pytest.raises(ValueError, match="T_min must be > 0"):
-        gd.sampling_instants(0.0, 0.05, 1.0)
+        sampling_instants(0.0, 0.05, 1.0)
     with pytest.raises(ValueError, match="t_end must be finite and >= t0"):
-        gd.sampling_instants(0.1, 0.2, -1.0)
+        sampling_instants(0.1, 0.2, -1.0)
 
 
 # ---------------------------------------------------------------------------
@@ -341,7 +359,7 @@ def test_theorem1_exact_random(seed, n, q):
     N = rng.normal(size=(q, n))
     W, b = rng.normal(size=(n, q)), rng.normal(size=n)
     Psi = lambda y, t: W @ np.sin(y) + b * np.cos(2 * t)  # noqa: E731
-    form = gd.observer_form(M, N, Psi)
+    form = observer_form(M, N, Psi)
     tau = 0.5
     d = gd.gramian_design(form.A1, form.A2, form.k, tau)
     obs = gd.GramianObserver(d, form.F1, form.F2)
@@ -406,7 +424,7 @@ def _bound_check(form, d, plant, obs, chi0, t_max, eps1, eps2, delta2, K1, K2, t
     for t in ts:
         i = min(int(np.searchsorted(arc.t, t)), len(arc.t) - 1)     # first sample >= t
         e = np.linalg.norm(xi[i, :m] - xe[i])
-        b = gd.theorem1_bound(d, arc.t[i], eps1=eps1, eps2=eps2, delta2=delta2, K1=K1, K2=K2)
+        b = theorem1_bound(d, arc.t[i], eps1=eps1, eps2=eps2, delta2=delta2, K1=K1, K2=K2)
         assert e <= b, f"(15) violated at t={arc.t[i]}: |xi1 - xi_e| = {e} > {b}"
         ratios.append(e / b)
     return max(ratios)
@@ -429,7 +447,7 @@ def test_theorem1_bound_15_random(seed):
     N = np.array([[1.0, 0.0]])
     w = rng.normal(size=2)
     Psi = lambda y, t: w * np.sin(y[0])  # noqa: E731
-    form = gd.observer_form(M, N, Psi, P=[[0.0, 1.0]], k=1.5)
+    form = observer_form(M, N, Psi, P=[[0.0, 1.0]], k=1.5)
     K1, K2 = abs(w[1]) + abs(form.M_xi[0, 1]), abs(w[0]) + abs(form.M_xi[1, 1] + 1.5)
     d = gd.gramian_design(form.A1, form.A2, form.k, 1.0)
     c1, c2 = rng.uniform(0.1, 0.5, size=2)
@@ -459,7 +477,7 @@ def run_sampled(plant, obs, x_plant0, t_max, **kw):
 def test_sampled_resets_omega_at_given_instants():
     """omega jumps to Y(t_k) exactly at the instants (T_min <= t_{k+1} - t_k <= T_max)."""
     ex = gd.dc_motor(100.0, 0.1)
-    ins = gd.sampling_instants(0.004, 0.01, 0.3, seed=5)
+    ins = sampling_instants(0.004, 0.01, 0.3, seed=5)
     obs = ex.sampled_observer(instants=ins)
     arc = run_sampled(ex, obs, ex.chi0, 0.3)
     assert arc.termination is hs.Termination.T_MAX
@@ -548,12 +566,12 @@ def _theorem2_case(seed, estimate, disturbed, q, m, use_instants):
     plant = gd.Plant(M, N, lambda y, t: np.concatenate([F1(y, t), F2(y, t)]),
                      delta1=eps, delta2=delta2, oracle=(estimate == "xi2"))
     d = gd.gramian_design(A1, A2, k, tau)
-    T_bar = 0.5 * gd.theorem2_constants(d, K1, K2, 1.0, estimate=estimate).T_bar_max
-    c = gd.theorem2_constants(d, K1, K2, T_bar, estimate=estimate)
+    T_bar = 0.5 * theorem2_constants(d, K1, K2, 1.0, estimate=estimate).T_bar_max
+    c = theorem2_constants(d, K1, K2, T_bar, estimate=estimate)
     t_max = 5.0
     if use_instants:
         obs = gd.SampledGramianObserver(
-            d, F1, F2, instants=gd.sampling_instants(0.5 * T_bar, T_bar, t_max, seed=seed),
+            d, F1, F2, instants=sampling_instants(0.5 * T_bar, T_bar, t_max, seed=seed),
             estimate=estimate)
     else:
         obs = gd.SampledGramianObserver(d, F1, F2, period=T_bar, estimate=estimate)
@@ -617,9 +635,9 @@ def test_observer_bad_input():
     with pytest.raises(ValueError, match=r"gaps must be a pair \(T_low, T_bar\)"):
         gd.SampledGramianObserver(d, F1, F2, gaps=0.1)
     with pytest.raises(TypeError, match="built with gaps"):
-        gd.explore_samples(ex.sampled_observer(period=0.1), ex.chi0, samples=2, dwell_grid=())
+        explore_samples(ex.sampled_observer(period=0.1), ex.chi0, samples=2, dwell_grid=())
     with pytest.raises(ValueError, match="samples must be a positive int"):
-        gd.explore_samples(ex.sampled_observer(gaps=(0.05, 0.1)), ex.chi0, samples=0,
+        explore_samples(ex.sampled_observer(gaps=(0.05, 0.1)), ex.chi0, samples=0,
                            dwell_grid=())
     with pytest.raises(ValueError, match="instants must be strictly increasing"):
         gd.SampledGramianObserver(d, F1, F2, instants=[0.0, 0.2, 0.1])
@@ -644,7 +662,7 @@ def test_observer_bad_input():
     with pytest.raises(ValueError, match="arc must hold the observer's state of length 7"):
         obs.estimate(arc, arc.outputs("plant"))
     with pytest.raises(TypeError, match="observer must be a Gramian observer"):
-        gd.estimate_along(object(), arc, arc.outputs("plant"))
+        estimate_along(object(), arc, arc.outputs("plant"))
     so = gd.SampledGramianObserver(d, F1, F2, period=0.1, estimate="xi2")
     with pytest.raises(ValueError, match="y must be given"):
         so.estimate(arc)
@@ -668,7 +686,7 @@ def test_constructors_reject_mismatch_and_unobservable():
                                          r"the observability matrix has rank 1 < 2"):
         gd.gramian_design(np.diag([-1.0, -2.0]), [[1.0, 0.0]], 5.0, 0.1)
     with pytest.raises(ValueError, match=r"\(M, N\) must be observable"):
-        gd.observer_form(np.diag([-1.0, -2.0, -3.0]), [[1.0, 0.0, 0.0]])
+        observer_form(np.diag([-1.0, -2.0, -3.0]), [[1.0, 0.0, 0.0]])
     d = gd.gramian_design(A1_DC, A2_DC, 100.0, 0.1)          # m = 2 unmeasured, q = 1 output
     zero1 = lambda y, t: np.zeros(1)                          # noqa: E731
     zero2 = lambda y, t: np.zeros(2)                          # noqa: E731
@@ -740,7 +758,7 @@ def test_reset_realisation_equals_literal(k):
     ex = gd.dc_motor(k, 0.1)
     grid = np.linspace(0.105, 0.495, 40)             # samples in both runs, off the resets
     out = []
-    for real in gd.REALISATIONS:
+    for real in REALISATIONS:
         obs = ex.continuous_observer(realisation=real)
         arc = gd.simulate(obs, ex.chi0, None, t_max=0.5, t_eval=grid)
         e = gd.errors(arc, obs).e
@@ -755,7 +773,7 @@ def test_reset_realisation_equals_literal(k):
 def test_sampled_reset_realisation_k75():
     """(39) at k = 75, T = 0.1, xi_2 in (13): literal blows up at ~0.56 s, reset converges."""
     res = {}
-    for real in gd.REALISATIONS:
+    for real in REALISATIONS:
         # the literal run by RK45, as in Fig. 2 (LSODA crawls there; it blows up either way)
         arc, E = gd.example._run_dc(75.0, sampled=True, T=0.1, estimate="xi2", t_max=1.0,
                                     disturbed=False, realisation=real,
@@ -804,7 +822,7 @@ def test_contract_run_returns_errors():
     # a float noise is an RMS for smooth_noise (systems.py), seeded
     arc_n = gd.simulate(obs, ex.chi0, None, t_max=0.05, noise=1e-3, seed=3)
     Yn = arc_n.outputs("plant")[:, 0] - arc_n["plant"].x[:, 0]
-    np.testing.assert_allclose(Yn, [gd.smooth_noise(1e-3, 1, seed=3)(t)[0] for t in arc_n.t],
+    np.testing.assert_allclose(Yn, [smooth_noise(1e-3, 1, seed=3)(t)[0] for t in arc_n.t],
                                atol=1e-15)
 
 
@@ -814,17 +832,17 @@ def test_dc_motor_is_the_plant_in_systems():
     ex = gd.dc_motor(100.0, 0.1)
     assert isinstance(ex, gd.Plant) and isinstance(ex, hs.HybridSystem)
     assert type(ex).__module__ == "observers.gramian_delay.systems"
-    assert gd.smooth_noise.__module__ == "observers.gramian_delay.systems"
-    assert ex.params == gd.DC_PARAMS and ex.K1 == 35.0 and ex.K2 == 100.0
+    assert smooth_noise.__module__ == "observers.gramian_delay.systems"
+    assert ex.params == DC_PARAMS and ex.K1 == 35.0 and ex.K2 == 100.0
     np.testing.assert_allclose(ex.chi0, [0.5, -1.0, 0.2])
     np.testing.assert_allclose(ex.flow_map(ex.chi0, 0.3),
                                ex.M @ ex.chi0 + ex.delta1(0.3)
                                + [0.0, -35.0 * np.sin(0.5), 40.0 * 2 * np.sin(0.6)])
     assert ex.continuous_observer().plant is ex
     with pytest.raises(ValueError, match=r"params lacks \['a4'\]"):
-        gd.DCMotor({k: v for k, v in gd.DC_PARAMS.items() if k != "a4"}, 100.0, 0.1, u=np.sin)
+        DCMotor({k: v for k, v in DC_PARAMS.items() if k != "a4"}, 100.0, 0.1, u=np.sin)
     for name in ("CONTINUOUS_RUN", "SAMPLED_RUN"):
-        assert name in gd.example.__all__ and name in gd.__all__
+        assert name in gd.example.__all__ and name not in gd.__all__      # from its file
 
 
 def test_fast_decay_lam_and_F12_match_the_formulas():
@@ -840,7 +858,7 @@ def test_fast_decay_lam_and_F12_match_the_formulas():
             E2 = scipy.linalg.expm(-d.A_psi2 * h)
             np.testing.assert_allclose(d.decay(h)[1], E2, rtol=0, atol=1e-13 * np.abs(E2).max())
         r = np.linspace(-0.1, 0.0, 41)
-        ref = gd.lam(r, d.A1, d.A2, d.k)
+        ref = lam(r, d.A1, d.A2, d.k)
         np.testing.assert_allclose(d.lam(r), ref, rtol=0, atol=1e-12 * np.abs(ref).max())
         assert d.lam(-0.05).shape == (1, 2)
         y, t = np.array([0.4]), 0.7
@@ -886,7 +904,7 @@ def test_expected_blowups_are_logged_not_warned(caplog):
 
 def test_fig1_data_and_drawing():
     """Fig. 1's numbers (errors at a few times, as logged) and its artists."""
-    d = gd.fig1_data()
+    d = fig1_data()
     c, s = d.runs["c"], d.runs["s"]
     for run in (c, s):
         assert run.arc.termination is hs.Termination.T_MAX and run.k == 100.0
@@ -895,7 +913,7 @@ def test_fig1_data_and_drawing():
     assert s.norm[s.arc.t >= 0.15].max() < 0.1
     # Theorem 1 under delta_2 (Y in (13)): errors of a few 1e-2 after tau (logged 0.0203 at 0.5)
     assert c.norm[np.searchsorted(c.arc.t, 0.5)] == pytest.approx(0.0203, abs=1e-4)
-    fig = gd.draw_fig1(d)
+    fig = draw_fig1(d)
     axs = fig.axes
     assert len(axs) == 4
     assert axs[0].get_title() == "Theorem 1: observer (7), continuous $Y$, $k$ = 100"
@@ -908,7 +926,7 @@ def test_fig1_data_and_drawing():
 @pytest.mark.slow
 def test_fig2_data_and_drawing():
     """Fig. 2: the literal k = 75 runs stop at ~0.57 / 0.56 s, the others reach 1 s."""
-    d = gd.fig2_data()
+    d = fig2_data()
     assert d.stops["c"] == pytest.approx(0.566, abs=0.005)
     assert d.stops["s"] == pytest.approx(0.56, abs=0.005)
     for runs in (d.reset, d.k150):
@@ -918,7 +936,7 @@ def test_fig2_data_and_drawing():
     # tau (logged 0.0214 and 0.00118 at t = 0.5)
     assert d.reset["c"].arc.jump_count == 10
     assert d.reset["s"].norm[d.reset["s"].arc.t >= 0.15].max() < 0.1
-    fig = gd.draw_fig2(d)
+    fig = draw_fig2(d)
     labels = [t.get_text() for t in fig.axes[3].get_legend().get_texts()]
     assert r"$k$ = 75, $\psi_2$ literal (7)" in labels
     orange = [ln for ln in fig.axes[3].get_lines() if ln.get_color() == "tab:orange"]
@@ -932,12 +950,12 @@ def test_fig2_data_and_drawing():
 def test_periods_data_small_grid_and_drawing():
     """The periods study on a small grid: omega converges at T = 0.01 and diverges at
     0.0175 (the main job's bracket is 0.0169-0.0172), xi_2 converges at both."""
-    d = gd.periods_data(periods=(0.01, 0.0175), bisections=0)
+    d = periods_data(periods=(0.01, 0.0175), bisections=0)
     assert d.final["omega"][0] < 1e-9 and d.final["omega"][1] > 1e-3
     assert max(d.final["xi2"]) < 1e-9
     assert (d.lo, d.hi) == (0.01, 0.0175)
     assert d.T_bar_max == pytest.approx(2.5e-21, rel=0.02)
-    fig = gd.draw_periods(d)
+    fig = draw_periods(d)
     ax = fig.axes[0]
     assert [t.get_text() for t in ax.get_legend().get_texts()] == [
         r"$\omega(t)$ in (13) (implementable)", r"$\xi_2(t)$ in (13) (as printed)"]
@@ -962,7 +980,7 @@ def test_gap_window_is_the_inclusion_of_36():
         np.testing.assert_allclose(arc.jump_times, ref.jump_times, atol=1e-9)
         np.testing.assert_allclose(arc.x[-1], ref.x[-1], rtol=1e-6, atol=1e-8)
     obs = ex.sampled_observer(gaps=(lo, hi), estimate="xi2")
-    tree = gd.explore_samples(obs, ex.chi0, samples=3, dwell_grid=(), t_max=0.5)
+    tree = explore_samples(obs, ex.chi0, samples=3, dwell_grid=(), t_max=0.5)
     assert tree.complete and len(tree) == 4
     for leaf in tree:
         ins = ex.sampled_observer(instants=leaf.jump_times, estimate="xi2")
@@ -993,7 +1011,7 @@ def test_a_population_is_the_runs_one_by_one(kind, kw):
     obs = ex.sampled_observer(**kw) if kind == "sampled" else ex.continuous_observer(**kw)
     rng = np.random.default_rng(0)
     X = ex.chi0 + rng.uniform(-0.3, 0.3, (4, 3))
-    system, rows = gd.population(obs, X)
+    system, rows = population(obs, X)
     assert system.vectorized
     opts = dict(t_max=0.25, rtol=1e-10, atol=1e-12)
     arcs = hs.simulate_many(system, rows, **opts)
@@ -1015,7 +1033,7 @@ def test_parts_without_a_batch_form_run_row_by_row():
     assert not plant.vectorized
     assert gd.Plant(ex.M, ex.N).vectorized
     with pytest.raises(ValueError, match=r"x0s must have shape \(N, 3\)"):
-        gd.population(ex.continuous_observer(), np.zeros((2, 4)))
+        population(ex.continuous_observer(), np.zeros((2, 4)))
 
 
 def test_random_gaps_study_draws_gaps_of_the_law_and_exact_intervals():

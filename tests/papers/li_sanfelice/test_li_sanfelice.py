@@ -19,6 +19,34 @@ from scipy.linalg import expm
 
 from hybridsim import testing as hst
 from observers import li_sanfelice as ls
+from observers.li_sanfelice.design import (
+    L_tilde,
+    PiecewiseConstantNoise,
+    Xi_matrix,
+    Xi_of_t,
+    admissible_delta,
+    alpha_max,
+    dist_to_A,
+    error_after_jump,
+    gains_K,
+    lemma_4_2_condition,
+    mu_max,
+    p_det,
+    random_design,
+    scalar_error_after_jump,
+    switch_jump_error,
+    theorem_4_7_bound,
+    theorem_4_10_bound,
+    theorem_4_11_bound,
+)
+from observers.li_sanfelice.example import example_III, example_VA, noise_batch
+from observers.li_sanfelice.figures import fig1a_data, fig1b_data, fig2a_data, fig2b_data, fig3_data
+from observers.li_sanfelice.systems import (
+    BoundedNoiseGenerator,
+    LuenbergerObserver,
+    WindowedNominalObserver,
+    WindowedPiecewiseConstantNoiseObserver,
+)
 
 SEEDS = [0, 1, 2]
 SHAPES = [(1, 1), (2, 1), (3, 1), (3, 2), (4, 2), (2, 2)]
@@ -33,13 +61,13 @@ def _tol(d, scale=1.0, noise_comp=False):
 
 
 def _examples():
-    return {"III": ls.example_III(), "VA": ls.example_VA(), "VB": ls.example_VB(),
+    return {"III": example_III(), "VA": example_VA(), "VB": ls.example_VB(),
             "VB_rounded": ls.example_VB(rounded=True)}
 
 
 @functools.cache
 def _random_cases():
-    return tuple(ls.random_design(s, n, p) for s in SEEDS[:2] for (n, p) in SHAPES)
+    return tuple(random_design(s, n, p) for s in SEEDS[:2] for (n, p) in SHAPES)
 
 
 # ---------------------------------------------------------------------------
@@ -52,7 +80,7 @@ def test_K_gains_reset_equal_errors_to_zero(d):
     assert np.allclose(d.K1 + d.K2, I, atol=1e-12)
     Z = d.K1 @ expm(d.F1 * d.delta) + d.K2 @ expm(d.F2 * d.delta)
     assert np.linalg.norm(Z) <= 1e-11 * (1 + np.linalg.norm(d.K2))
-    K1, K2 = ls.gains_K(d.A, d.H, d.L1, d.L2, d.delta)
+    K1, K2 = gains_K(d.A, d.H, d.L1, d.L2, d.delta)
     assert np.allclose(K1, d.K1) and np.allclose(K2, d.K2)
 
 
@@ -62,9 +90,9 @@ def test_formula_6_equals_formula_15_scalar(a, L1, L2):
     m = 0.2
     for delta in [0.1, 0.5, 1.0, 2.0, 3.0, 10.0]:
         d = ls.Design(A=[[a]], H=[[1.0]], L1=[[L1]], L2=[[L2]], delta=delta)
-        e6 = ls.scalar_error_after_jump(a, L1, L2, delta, m)
-        e15 = ls.error_after_jump(d, [m])[0]
-        e15q = ls.error_after_jump(d, lambda s: [m])[0]
+        e6 = scalar_error_after_jump(a, L1, L2, delta, m)
+        e15 = error_after_jump(d, [m])[0]
+        e15q = error_after_jump(d, lambda s: [m])[0]
         assert e6 == pytest.approx(e15, rel=1e-9)
         assert e15q == pytest.approx(e15, rel=1e-8)
 
@@ -72,7 +100,7 @@ def test_formula_6_equals_formula_15_scalar(a, L1, L2):
 def test_fig1a_tradeoff_error_decreases_with_delta():
     # Section III's claim behind Fig. 1(a): the sooner the jump, the larger the error after it
     deltas = np.linspace(0.5, 60, 200)
-    e = np.abs(ls.scalar_error_after_jump(-0.05, 0.01, 0.02, deltas, 0.2))
+    e = np.abs(scalar_error_after_jump(-0.05, 0.01, 0.02, deltas, 0.2))
     assert np.all(np.diff(e) < 0)
 
 
@@ -82,16 +110,16 @@ def test_footnote7_Xi_and_L_tilde(n, p):
     F = rng.normal(size=(n, n)) - 3 * np.eye(n)
     L = rng.normal(size=(n, p))
     # L_tilde stacks the columns; Xi_matrix puts the k-th n-piece in column k
-    Lt = ls.L_tilde(L)
-    assert np.array_equal(ls.Xi_matrix(Lt, n, p), L)
+    Lt = L_tilde(L)
+    assert np.array_equal(Xi_matrix(Lt, n, p), L)
     # Xi(t) = int_0^t e^{F(t-s)} ds L, checked by quadrature
     t = 0.7
     ref, _ = scipy.integrate.quad_vec(lambda s: expm(F * (t - s)) @ L, 0, t, epsabs=1e-13)
-    X = ls.Xi_of_t(F, L, t)
+    X = Xi_of_t(F, L, t)
     assert np.allclose(X, ref, atol=1e-11)
     # and it solves the xi flow of (17) piecewise: d/dt Xi = F Xi + L
     h = 1e-6
-    dX = (ls.Xi_of_t(F, L, t + h) - ls.Xi_of_t(F, L, t - h)) / (2 * h)
+    dX = (Xi_of_t(F, L, t + h) - Xi_of_t(F, L, t - h)) / (2 * h)
     assert np.allclose(dX, F @ X + L, atol=1e-7)
 
 
@@ -101,8 +129,8 @@ def test_example_VB_printed_gains_are_rounded_exact_ones():
     assert np.max(np.abs(dr.L1 - d.L1)) <= 0.005 and np.max(np.abs(dr.L2 - d.L2)) <= 0.005
     assert np.allclose(d.F1, d.A - 5 * np.eye(2)) and np.allclose(d.F2, d.A - 8 * np.eye(2))
     for des in (d, dr):
-        assert ls.lemma_4_2_condition(des.A, des.H, des.L1, des.L2)
-        assert ls.admissible_delta(des.A, des.H, des.L1, des.L2, t_max=5.0, num=300) is None
+        assert lemma_4_2_condition(des.A, des.H, des.L1, des.L2)
+        assert admissible_delta(des.A, des.H, des.L1, des.L2, t_max=5.0, num=300) is None
         assert des.HT_cond < 20
 
 
@@ -113,14 +141,14 @@ def test_admissible_delta_touching_zero_rotation():
     J = np.array([[0.0, 1.0], [-1.0, 0.0]])
     A, H = np.zeros((2, 2)), np.eye(2)
     L1, L2 = A - (-np.eye(2) + th * J), A - (-np.eye(2) - th * J)
-    tz = ls.admissible_delta(A, H, L1, L2, t_max=5.0, num=500)
+    tz = admissible_delta(A, H, L1, L2, t_max=5.0, num=500)
     assert tz == pytest.approx(math.pi / th, abs=1e-9)
     with pytest.raises(ValueError, match="K2 is undefined"):
-        ls.gains_K(A, H, L1, L2, math.pi / th)
-    ls.gains_K(A, H, L1, L2, 0.9 * tz)
+        gains_K(A, H, L1, L2, math.pi / th)
+    gains_K(A, H, L1, L2, 0.9 * tz)
     # a faster F2 removes the zero
     L2b = A - (-2 * np.eye(2) - th * J)
-    assert ls.admissible_delta(A, H, L1, L2b, t_max=5.0, num=500) is None
+    assert admissible_delta(A, H, L1, L2b, t_max=5.0, num=500) is None
 
 
 def test_admissible_delta_sign_change_random():
@@ -130,17 +158,17 @@ def test_admissible_delta_sign_change_random():
     for _ in range(60):
         F1 = rng.normal(size=(2, 2)) - 2 * np.eye(2)
         F2 = rng.normal(size=(2, 2)) - 2 * np.eye(2)
-        if ls.alpha_max(F1) >= 0 or ls.alpha_max(F2) >= 0:
+        if alpha_max(F1) >= 0 or alpha_max(F2) >= 0:
             continue
-        tz = ls.admissible_delta(A, H, -F1, -F2, t_max=5.0, num=300)
+        tz = admissible_delta(A, H, -F1, -F2, t_max=5.0, num=300)
         if tz is None:
             continue
         found += 1
         # p(t*) = 0 and p keeps one sign on (0, t*)
         scale = np.linalg.norm(expm(F2 * tz) @ expm(-F1 * tz), 2) ** 2
-        assert abs(ls.p_det(F1, F2, tz)) <= 1e-9 * max(1.0, scale)
+        assert abs(p_det(F1, F2, tz)) <= 1e-9 * max(1.0, scale)
         ts = np.linspace(tz / 300, tz * (1 - 1e-6), 300)
-        pv = ls.p_det(F1, F2, ts)
+        pv = p_det(F1, F2, ts)
         assert np.all(pv > 0) or np.all(pv < 0)
         if found == 2:
             break
@@ -149,12 +177,12 @@ def test_admissible_delta_sign_change_random():
 
 def test_lemma_4_2_condition_false_when_spectra_interlace():
     A, H = np.zeros((1, 1)), np.eye(1)
-    assert not ls.lemma_4_2_condition(A, H, [[2.0]], [[1.0]])   # alpha(F2) = -1 > alpha(F1) = -2
-    assert ls.lemma_4_2_condition(A, H, [[1.0]], [[2.0]])
+    assert not lemma_4_2_condition(A, H, [[2.0]], [[1.0]])   # alpha(F2) = -1 > alpha(F1) = -2
+    assert lemma_4_2_condition(A, H, [[1.0]], [[2.0]])
 
 
 def test_HT_conditioning_reported():
-    d = ls.example_VA()
+    d = example_VA()
     # scalar: cond is always 1; the amplification of the m̂ update is 1/|T - 1|
     assert d.HT_cond == pytest.approx(1.0)
     assert d.HT_inv_norm == pytest.approx(1 / abs(d.T[0, 0] - 1.0))
@@ -166,31 +194,31 @@ def test_HT_conditioning_reported():
 # bounds: Theorem 4.10 (formula) and the sqrt(3) decision for Theorem 4.7
 # ---------------------------------------------------------------------------
 def _bound_designs():
-    return [ls.example_III(), ls.example_VA(), ls.example_VA(delta=1.0), ls.example_VA(delta=3.0),
+    return [example_III(), example_VA(), example_VA(delta=1.0), example_VA(delta=3.0),
             ls.example_VB(), ls.example_VB(rounded=True)] + \
-        [ls.random_design(s, n, n, normal=True) for s in SEEDS for n in (1, 2)]
+        [random_design(s, n, n, normal=True) for s in SEEDS for n in (1, 2)]
 
 
 @pytest.mark.parametrize("d", _bound_designs())
 def test_theorem_4_10_bound_on_formula_15(d):
     rng = np.random.default_rng(7)
-    b = ls.theorem_4_10_bound(d, 1.0)
+    b = theorem_4_10_bound(d, 1.0)
     for _ in range(20):   # constant noise on the unit sphere
         m = rng.normal(size=d.p)
         m /= np.linalg.norm(m)
-        assert np.linalg.norm(ls.error_after_jump(d, m)) <= b
+        assert np.linalg.norm(error_after_jump(d, m)) <= b
     # a time-varying noise with |m|_inf <= 1
     w = rng.uniform(0.5, 5, size=d.p)
     mfun = lambda s: np.cos(w * s) / math.sqrt(d.p)  # noqa: E731
-    assert np.linalg.norm(ls.error_after_jump(d, mfun)) <= b
+    assert np.linalg.norm(error_after_jump(d, mfun)) <= b
 
 
 def test_theorem_4_10_hypotheses_need_full_rank_H():
-    d = ls.random_design(0, 3, 1)
+    d = random_design(0, 3, 1)
     with pytest.raises(ValueError, match=r"Theorem 4.10 needs .*rank H < n"):
-        ls.theorem_4_10_bound(d, 1.0)
+        theorem_4_10_bound(d, 1.0)
     with pytest.raises(ValueError, match=r"Theorem 4.11 needs"):
-        ls.theorem_4_11_bound(d, 1.0, 0.1, 0.1, 0.5, 0)
+        theorem_4_11_bound(d, 1.0, 0.1, 0.1, 0.5, 0)
 
 
 def test_theorem_4_7_needs_sqrt3_for_rotating_errors():
@@ -203,12 +231,12 @@ def test_theorem_4_7_needs_sqrt3_for_rotating_errors():
     d = ls.Design(A=A, H=H, L1=A - F1, L2=A - F2, delta=2.0)
     e0 = np.array([1.0, 0.0])
     x = np.zeros(2)
-    z0 = ls.dist_to_A(x, e0, e0)
+    z0 = dist_to_A(x, e0, e0)
     t = math.pi / 2
     e1, e2 = expm(F1 * t) @ e0, expm(F2 * t) @ e0
-    zt = ls.dist_to_A(x, e1, e2)
+    zt = dist_to_A(x, e1, e2)
     P = np.eye(2) / 2
-    b = ls.theorem_4_7_bound(d, z0, t, 0, P1=P, P2=P)
+    b = theorem_4_7_bound(d, z0, t, 0, P1=P, P2=P)
     assert zt > b / math.sqrt(3) * 1.5          # the bound without sqrt(3) fails
     assert zt <= b * (1 + 1e-12)                 # with it, it holds (here with equality)
     assert zt == pytest.approx(b, rel=1e-12)
@@ -242,7 +270,7 @@ def test_bad_shapes_and_types():
     with pytest.raises(TypeError, match=r"a1 must be a real number"):
         ls.Design(A=A, H=H, L1=H, L2=2 * H, delta=1.0, a1="x")
     with pytest.raises(ValueError, match=r"num must be an integer >= 3"):
-        ls.admissible_delta(A, H, H, 2 * H, num=2)
+        admissible_delta(A, H, H, 2 * H, num=2)
 
 
 def test_not_hurwitz_names_the_gain():
@@ -250,7 +278,7 @@ def test_not_hurwitz_names_the_gain():
     with pytest.raises(ValueError, match=r"F1 = A - L1 H is not Hurwitz"):
         ls.Design(A=A, H=H, L1=-H, L2=2 * H, delta=1.0)
     with pytest.raises(ValueError, match=r"F2 = A - L2 H is not Hurwitz"):
-        ls.gains_K(A, H, H, 0 * H, 1.0)
+        gains_K(A, H, H, 0 * H, 1.0)
 
 
 def test_HT_singular_is_refused_before_a_run():
@@ -276,22 +304,22 @@ def test_HT_singular_is_refused_before_a_run():
 
 def test_bad_noise_and_misc_input():
     with pytest.raises(ValueError, match=r"c must have len\(d\) \+ 1 = 3 rows"):
-        ls.PiecewiseConstantNoise([1.0, 2.0], [[0.1], [0.2]])
+        PiecewiseConstantNoise([1.0, 2.0], [[0.1], [0.2]])
     with pytest.raises(ValueError, match=r"d must be positive and strictly increasing"):
-        ls.PiecewiseConstantNoise([2.0, 1.0], [[0.1], [0.2], [0.3]])
+        PiecewiseConstantNoise([2.0, 1.0], [[0.1], [0.2], [0.3]])
     with pytest.raises(ValueError, match=r"side must be 'right' or 'left'"):
-        ls.PiecewiseConstantNoise([1.0], [[0.1], [0.2]], side="middle")
+        PiecewiseConstantNoise([1.0], [[0.1], [0.2]], side="middle")
     d = ls.example_VB()
     with pytest.raises(ValueError, match=r"m must have shape \(2,\), got \(3,\)"):
-        ls.error_after_jump(d, [0.1, 0.2, 0.3])
+        error_after_jump(d, [0.1, 0.2, 0.3])
     with pytest.raises(TypeError, match=r"design must be a Design"):
-        ls.error_after_jump("VB", [0.1, 0.2])
+        error_after_jump("VB", [0.1, 0.2])
     with pytest.raises(ValueError, match=r"m_inf must be >= 0, got -1.0"):
-        ls.theorem_4_10_bound(d, -1.0)
+        theorem_4_10_bound(d, -1.0)
     with pytest.raises(ValueError, match=r"j must be 0 or 1"):
-        ls.theorem_4_11_bound(d, 1.0, 0.1, 0.1, 2.0, 2)
+        theorem_4_11_bound(d, 1.0, 0.1, 0.1, 2.0, 2)
     with pytest.raises(ValueError, match=r"formula \(6\) needs"):
-        ls.scalar_error_after_jump(0.0, 0.0, 0.1, 1.0, 0.2)
+        scalar_error_after_jump(0.0, 0.0, 0.1, 1.0, 0.2)
     with pytest.raises(TypeError, match=r"pass either a Design or"):
         ls.NominalObserver(d, d.H)
     with pytest.raises(TypeError, match=r"delta is required"):
@@ -301,7 +329,7 @@ def test_bad_noise_and_misc_input():
     with pytest.raises(ValueError, match=r"xhat0 must have shape \(2,\), got \(3,\)"):
         ls.simulate(ls.NominalObserver(d), [0, 0], [0, 0, 0])
     with pytest.raises(ValueError, match=r"L0 must have shape \(2, 2\)"):
-        ls.LuenbergerObserver(d.A, d.H, np.ones((2, 1)))
+        LuenbergerObserver(d.A, d.H, np.ones((2, 1)))
     with pytest.raises(ValueError, match=r"noise must have shape \(2,\)"):
         ls.simulate(ls.NominalObserver(d), [0, 0], [0, 0], noise=[0.1])
 
@@ -313,13 +341,13 @@ def test_bad_noise_and_misc_input():
 def _sim_cases(p_eq_n=False):
     """The paper's examples and seeded random observable (A, H),
     n <= 4, p <= 2 (each shape once)."""
-    cases = [("III", ls.example_III()), ("VA", ls.example_VA()), ("VB", ls.example_VB()),
+    cases = [("III", example_III()), ("VA", example_VA()), ("VB", ls.example_VB()),
              ("VB_rounded", ls.example_VB(rounded=True))]
     if p_eq_n:
-        cases += [(f"rand{s}_{n}x{n}", ls.random_design(s, n, n, normal=True))
+        cases += [(f"rand{s}_{n}x{n}", random_design(s, n, n, normal=True))
                   for s in SEEDS for n in (1, 2)]
     else:
-        cases += [(f"rand{s}_{n}x{p}", ls.random_design(s, n, p))
+        cases += [(f"rand{s}_{n}x{p}", random_design(s, n, p))
                   for s, (n, p) in enumerate(SHAPES)]
     return tuple(cases)
 
@@ -343,8 +371,8 @@ def test_theorem_4_7_Hn_exact_after_its_jump(name, d):
     hst.assert_exact_after(arc, E["e2"], t=d.delta, j=1, atol=tol)
     assert np.linalg.norm(E["ebar"][arc.j == 0][-1]) > 10 * tol   # it was not exact before the jump
     # Theorem 4.7's bound (with the sqrt(3) of decision 9) along the flow j = 0
-    z = ls.dist_to_A(E["x"], E["x"] + E["e1"], E["x"] + E["e2"])
-    b = ls.theorem_4_7_bound(d, z[0], arc.t, arc.j)
+    z = dist_to_A(E["x"], E["x"] + E["e1"], E["x"] + E["e2"])
+    b = theorem_4_7_bound(d, z[0], arc.t, arc.j)
     assert np.all(z <= b * (1 + 1e-6) + tol)
 
 
@@ -370,7 +398,7 @@ def test_theorem_4_13_Hc_exact_after_one_jump_under_constant_noise(name, d):
 
 def test_section_III_scalar_observer_7_9():
     # the motivating observer (7)-(9) is H_c for n = p = 1: Fig. 1 parameters, m = 0.2, delta = 2
-    d = ls.example_III()
+    d = example_III()
     obs = ls.ConstantNoiseObserver(d)
     assert obs.state_dim == 7        # (x̂1, x̂2, xi1, xi2, m̂, tau, q)
     arc = ls.simulate(obs, [1.0], [0.0], noise=[0.2], t_max=6.0)
@@ -381,7 +409,7 @@ def test_section_III_scalar_observer_7_9():
     # and observer (3) (= H_n) leaves the error (6) after its jump
     arc3 = ls.simulate(ls.NominalObserver(d), [1.0], [0.0], noise=[0.2], t_max=3.0)
     e3 = arc3.x[arc3.j == 1][0, 1] - arc3.x[arc3.j == 1][0, 0]
-    assert e3 == pytest.approx(ls.scalar_error_after_jump(-0.05, 0.01, 0.02, 2.0, 0.2), abs=tol)
+    assert e3 == pytest.approx(scalar_error_after_jump(-0.05, 0.01, 0.02, 2.0, 0.2), abs=tol)
 
 
 def _check_pc_run(d, noise, arc, obs, tol):
@@ -415,7 +443,7 @@ def test_theorem_4_14_example_VB():
     # decision 6)
     # (the run of Fig. 3, shared with the figure and the claims)
     d = ls.example_VB()
-    D = ls.fig3_data()
+    D = fig3_data()
     noise, obs, arc = D.noise, D.obs, D.arc
     assert np.array_equal(noise.c, [[0.3, 0.2], [0.4, 0.4], [0.2, 0.3]])
     assert np.array_equal(noise.d, [2.5, 4.5]) and arc.t[-1] == 8.0
@@ -431,12 +459,12 @@ def test_theorem_4_14_example_VB():
 
 @pytest.mark.parametrize("seed,n,p", [(0, 2, 1), (1, 3, 2), (2, 4, 2)])
 def test_theorem_4_14_random(seed, n, p):
-    d = ls.random_design(seed, n, p)
+    d = random_design(seed, n, p)
     rng = np.random.default_rng(seed)
     # switches more than 2 delta apart, off the jump grid
     gaps = rng.uniform(2.2, 3.0, size=3) * d.delta
     sw = np.cumsum(gaps)
-    noise = ls.PiecewiseConstantNoise(sw[:2], rng.uniform(-0.5, 0.5, size=(3, p)))
+    noise = PiecewiseConstantNoise(sw[:2], rng.uniform(-0.5, 0.5, size=(3, p)))
     obs = ls.PiecewiseConstantNoiseObserver(d)
     x0, xh0 = _x0s(d, seed)
     arc = ls.simulate(obs, x0, xh0, noise=noise, t_max=float(sw[2]))
@@ -452,7 +480,7 @@ def test_switch_exactly_at_a_jump(side):
     # that jump exact
     d = ls.example_VB()
     c = np.array([[0.3, 0.2], [0.4, 0.4]])
-    noise = ls.PiecewiseConstantNoise([2.0], c, side=side)
+    noise = PiecewiseConstantNoise([2.0], c, side=side)
     obs = ls.PiecewiseConstantNoiseObserver(d)
     arc = ls.simulate(obs, [0.3, 0.4], [0.0, 0.0], noise=noise, t_max=3.5)
     E = ls.errors(arc, obs)
@@ -461,7 +489,7 @@ def test_switch_exactly_at_a_jump(side):
     k1 = k2 - 1                                  # the sample just before it
     assert arc.t[k2] == pytest.approx(2.0, abs=1e-11)
     assert np.linalg.norm(E["e1"][k1]) <= tol     # exact before (old noise all along the flow)
-    e_plus, m_plus = ls.switch_jump_error(d, c[0], c[1])
+    e_plus, m_plus = switch_jump_error(d, c[0], c[1])
     if side == "right":
         assert np.allclose(E["e1"][k2], e_plus, atol=tol) and np.linalg.norm(e_plus) > 1e-3
         assert np.allclose(E["mhat"][k2], m_plus, atol=tol)
@@ -477,7 +505,7 @@ def test_switch_exactly_at_a_jump(side):
 def test_switch_just_before_or_after_a_jump(eps):
     d = ls.example_VB()
     c = np.array([[0.3, 0.2], [0.4, 0.4]])
-    noise = ls.PiecewiseConstantNoise([2.0 + eps], c)
+    noise = PiecewiseConstantNoise([2.0 + eps], c)
     obs = ls.PiecewiseConstantNoiseObserver(d)
     arc = ls.simulate(obs, [0.3, 0.4], [0.0, 0.0], noise=noise, t_max=4.5)
     E = ls.errors(arc, obs)
@@ -506,24 +534,24 @@ def test_formula_15_and_theorems_4_10_4_11_along_Hn_under_noise(name, d):
     E = ls.errors(arc, obs)
     tol = _tol(d, np.max(np.abs(arc.x[:, :d.n])) + np.linalg.norm(x0 - xh0) + m_inf)
     k = np.flatnonzero(arc.j == 1)[0]
-    e15 = ls.error_after_jump(d, mfun)
+    e15 = error_after_jump(d, mfun)
     assert np.allclose(E["e1"][k], e15, atol=tol) and np.allclose(E["e2"][k], e15, atol=tol)
-    assert np.linalg.norm(E["e1"][k]) <= ls.theorem_4_10_bound(d, m_inf)
+    assert np.linalg.norm(E["e1"][k]) <= theorem_4_10_bound(d, m_inf)
     # (16) along the whole run; the sup of |m| over [0, delta] is taken on a fine grid (an
     # under-estimate by at most amp * |w| * grid step, added to the tolerance)
     grid = np.linspace(0, d.delta, 4001)
     m_delta = (max(np.linalg.norm(mfun(s)) for s in grid)
                + amp * np.max(w) * d.delta / 4000 * math.sqrt(d.p))
-    b = ls.theorem_4_11_bound(d, np.linalg.norm(E["ebar"][0]), m_delta, m_inf, arc.t, arc.j)
+    b = theorem_4_11_bound(d, np.linalg.norm(E["ebar"][0]), m_delta, m_inf, arc.t, arc.j)
     assert np.all(np.linalg.norm(E["ebar"], axis=1) <= b + tol)
 
 
 def test_theorem_4_11_noise_free_reduces_to_remark_4_12():
     # Remark 4.12: with m = 0, (16) is the KL bound before the jump and 0 after it
     d = ls.example_VB()
-    b = ls.theorem_4_11_bound(d, 2.0, 0.0, 0.0, np.array([0.0, 0.5, 1.0, 1.0, 3.0]),
+    b = theorem_4_11_bound(d, 2.0, 0.0, 0.0, np.array([0.0, 0.5, 1.0, 1.0, 3.0]),
                               np.array([0, 0, 0, 1, 1]))
-    mu1 = ls.mu_max(d.F1)
+    mu1 = mu_max(d.F1)
     assert np.allclose(b, [2.0, 2.0 * math.exp(mu1 * 0.5), 2.0 * math.exp(mu1), 0.0, 0.0])
 
 
@@ -546,7 +574,7 @@ def test_luenberger_observer_2_steady_state_bias():
     # (2) under a bias m: e' = (a - L0) e + L0 m, so e -> L0 m / (L0 - a); Fig. 1(b)'s comparison
     # observer
     a, L0, m = -0.05, 0.02, 0.2
-    obs = ls.LuenbergerObserver([[a]], [[1.0]], [[L0]])
+    obs = LuenbergerObserver([[a]], [[1.0]], [[L0]])
     arc = ls.simulate(obs, [0.0], [1.0], noise=[m], t_max=40.0)
     E = ls.errors(arc, obs)
     t = arc.t
@@ -560,21 +588,21 @@ def test_noise_batch_through_simulate_many_matches_formula_15():
     # bound
     import hybridsim as hs
     d = ls.example_VB()
-    gen = ls.BoundedNoiseGenerator(d.p, K=2)
+    gen = BoundedNoiseGenerator(d.p, K=2)
     S = gen.random_states(3, 0.3, seed=4)
     obs = ls.NominalObserver(d)
-    sys, x0s = ls.noise_batch(obs, [0.3, 0.4], [0.0, 0.0], S, gen)
+    sys, x0s = noise_batch(obs, [0.3, 0.4], [0.0, 0.0], S, gen)
     arcs = hs.simulate_many(sys, x0s, t_max=1.01, method="DOP853", rtol=1e-10, atol=1e-12)
     tol = _tol(d, 1.0)
-    b = ls.theorem_4_10_bound(d, 0.3)
+    b = theorem_4_10_bound(d, 0.3)
     for arc, w in zip(arcs, S):
         assert gen.sup_bound(w) == pytest.approx(0.3)
         k = np.flatnonzero(arc.j == 1)[0]
         e = arc.component("observer").x[k, :2] - arc.component("plant").x[k]
-        assert np.allclose(e, ls.error_after_jump(d, gen.callable(w)), atol=tol)
+        assert np.allclose(e, error_after_jump(d, gen.callable(w)), atol=tol)
         assert np.linalg.norm(e) <= b
     with pytest.raises(ValueError, match=r"noise_states must have shape \(N, 12\)"):
-        ls.noise_batch(obs, [0.3, 0.4], [0.0, 0.0], S[:, :5], gen)
+        noise_batch(obs, [0.3, 0.4], [0.0, 0.0], S[:, :5], gen)
 
 
 @pytest.mark.slow
@@ -599,7 +627,7 @@ def test_reproduce_writes_figures_with_captions(tmp_path):
 def test_maps_follow_17_18_and_q_decision():
     # the implemented flow/jump maps against (17)-(18) written out with kron (footnote 7) for n = 3,
     # p = 2
-    d = ls.random_design(1, 3, 2)
+    d = random_design(1, 3, 2)
     n, p = d.n, d.p
     obs = ls.ConstantNoiseObserver(d)
     assert obs.state_dim == 2 * n + (2 * n + 1) * p + 2        # r + 2, r = 2n + (2n+1)p
@@ -644,17 +672,17 @@ def test_ill_conditioned_HT_warns():
 def test_formula_15_piecewise_noise_and_bad_P():
     # (15) with a switch inside (0, delta) equals the sum of the two constant pieces
     d = ls.example_VB()
-    noise = ls.PiecewiseConstantNoise([0.4], [[0.3, 0.2], [0.4, 0.4]])
-    ref = sum(Ki @ (ls.Xi_of_t(Fi, Li, d.delta)
-                    - expm(Fi * (d.delta - 0.4)) @ ls.Xi_of_t(Fi, Li, 0.4)) @ [0.4, 0.4]
-              + Ki @ expm(Fi * (d.delta - 0.4)) @ ls.Xi_of_t(Fi, Li, 0.4) @ [0.3, 0.2]
+    noise = PiecewiseConstantNoise([0.4], [[0.3, 0.2], [0.4, 0.4]])
+    ref = sum(Ki @ (Xi_of_t(Fi, Li, d.delta)
+                    - expm(Fi * (d.delta - 0.4)) @ Xi_of_t(Fi, Li, 0.4)) @ [0.4, 0.4]
+              + Ki @ expm(Fi * (d.delta - 0.4)) @ Xi_of_t(Fi, Li, 0.4) @ [0.3, 0.2]
               for Ki, Fi, Li in ((d.K1, d.F1, d.L1), (d.K2, d.F2, d.L2)))
-    assert np.allclose(ls.error_after_jump(d, noise), ref, atol=1e-12)
+    assert np.allclose(error_after_jump(d, noise), ref, atol=1e-12)
     with pytest.raises(ValueError, match=r"P1 must be symmetric positive definite"):
-        ls.theorem_4_7_bound(d, 1.0, 0.0, 0, P1=-np.eye(2))
+        theorem_4_7_bound(d, 1.0, 0.0, 0, P1=-np.eye(2))
     with pytest.raises(ValueError, match=r"-He\(F2, P2\) must be positive definite"):
         # F2 = A - 8I is not P2-dissipative
-        ls.theorem_4_7_bound(d, 1.0, 0.0, 0, P2=np.diag([1.0, 1e-6]))
+        theorem_4_7_bound(d, 1.0, 0.0, 0, P2=np.diag([1.0, 1e-6]))
 
 
 @pytest.mark.parametrize("a1", [0.8, 1.5])
@@ -668,7 +696,7 @@ def test_theorem_4_11_with_weights(a1):
     E = ls.errors(arc, obs)
     m_bound = 0.2   # |m(t)| <= 0.2 for all t
     hst.assert_bounded(arc, E["ebar"],
-                       lambda t, j: ls.theorem_4_11_bound(d, np.linalg.norm(E["ebar"][0]), m_bound,
+                       lambda t, j: theorem_4_11_bound(d, np.linalg.norm(E["ebar"][0]), m_bound,
                                                           m_bound, t, j), atol=_tol(d))
 
 
@@ -728,14 +756,14 @@ def test_admissible_delta_simple_zero_after_long_flat_stretch():
     assert np.sum(np.sign(naive) != np.sign(exact)) >= 3
     assert all(p_exact(t) < 0 for t in np.linspace(1e-3, t_star - 1e-6, 500))
     assert p_exact(t_star - 1e-6) < 0 < p_exact(t_star + 1e-6)
-    tz = ls.admissible_delta(A, H, L1, L2, t_max=t_max, num=num)
+    tz = admissible_delta(A, H, L1, L2, t_max=t_max, num=num)
     assert tz == pytest.approx(t_star, abs=1e-9)
     # the old scan's brentq sign error is gone for every grid and horizon
     for t_max2, num2 in ((7.0, 700), (10.0, 3000), (20.0, 2000)):
-        assert ls.admissible_delta(A, H, L1, L2, t_max=t_max2,
+        assert admissible_delta(A, H, L1, L2, t_max=t_max2,
                                    num=num2) == pytest.approx(t_star, abs=1e-9)
     # past the zero the (exact) sign of p has flipped: the design is not admissible there
-    assert ls.admissible_delta(A, H, L1, L2, t_max=6.0, num=num) is None
+    assert admissible_delta(A, H, L1, L2, t_max=6.0, num=num) is None
 
 
 def test_admissible_delta_flat_curve_is_not_refined(monkeypatch):
@@ -746,12 +774,12 @@ def test_admissible_delta_flat_curve_is_not_refined(monkeypatch):
     real = ls.design._s_X
     monkeypatch.setattr(ls.design, "_s_X", lambda *a: calls.append(a) or real(*a))
     for f2 in (3.0, 10.0, 40.0):
-        assert ls.admissible_delta(A, H, np.eye(2), f2 * np.eye(2)) is None
+        assert admissible_delta(A, H, np.eye(2), f2 * np.eye(2)) is None
     assert calls == []
     # a genuine touching zero still is (test_admissible_delta_touching_zero_rotation pins its value)
     th = 2.0
     J = np.array([[0.0, 1.0], [-1.0, 0.0]])
-    tz = ls.admissible_delta(A, H, np.eye(2) - th * J, np.eye(2) + th * J, t_max=5.0, num=500)
+    tz = admissible_delta(A, H, np.eye(2) - th * J, np.eye(2) + th * J, t_max=5.0, num=500)
     assert tz == pytest.approx(math.pi / th, abs=1e-9) and 0 < len(calls) < 200
 
 
@@ -759,7 +787,7 @@ def test_admissible_delta_all_singular_says_why():
     # F1 and F2 equal up to 1e-13 in one mode: X(t) is singular to working precision everywhere
     A, H, L1, L2, _ = _flat_then_zero_case(d=1e-13)
     with pytest.raises(ValueError, match=r"numerically singular on all of \(0, t_max=8\]"):
-        ls.admissible_delta(A, H, L1, L2, t_max=8.0)
+        admissible_delta(A, H, L1, L2, t_max=8.0)
 
 
 @pytest.mark.parametrize("n,p", [pytest.param(n, p, marks=[pytest.mark.slow] if n >= 4 else [])
@@ -771,9 +799,9 @@ def test_random_design_total_over_seeds(n, p):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)      # place_poles' convergence notes
         for seed in range(50):
-            d = ls.random_design(seed, n, p)
+            d = random_design(seed, n, p)
             assert (d.n, d.p) == (n, p)
-            assert ls.alpha_max(d.F1) < 0 and ls.alpha_max(d.F2) < 0
+            assert alpha_max(d.F1) < 0 and alpha_max(d.F2) < 0
             assert np.linalg.norm(d.K2, 2) <= 1e3 and d.HT_inv_norm <= 1e3
             assert np.allclose(d.K1 @ expm(d.F1 * d.delta) + d.K2 @ expm(d.F2 * d.delta), 0,
                                atol=1e-8 * (1 + np.linalg.norm(d.K2, 2)))
@@ -781,16 +809,16 @@ def test_random_design_total_over_seeds(n, p):
 
 def test_random_design_bad_arguments():
     with pytest.raises(ValueError, match=r"n must be an integer >= 1, got 0"):
-        ls.random_design(0, 0, 1)
+        random_design(0, 0, 1)
     with pytest.raises(ValueError, match=r"p must be an integer >= 1, got 1.5"):
-        ls.random_design(0, 2, 1.5)
+        random_design(0, 2, 1.5)
     with pytest.raises(ValueError, match=r"normal=True needs p == n"):
-        ls.random_design(0, 3, 1, normal=True)
+        random_design(0, 3, 1, normal=True)
     with pytest.raises(ValueError, match=r"delta must be > 0, got -1.0"):
-        ls.random_design(0, 2, 1, delta=-1.0)
+        random_design(0, 2, 1, delta=-1.0)
     with pytest.raises(RuntimeError, match=r"no random design found for seed=0, n=2, p=1, "
                                            r"delta=1e-06.*rejections"):
-        ls.random_design(0, 2, 1, delta=1e-6)
+        random_design(0, 2, 1, delta=1e-6)
 
 
 def test_constructors_reject_unobservable_and_mismatched():
@@ -799,7 +827,7 @@ def test_constructors_reject_unobservable_and_mismatched():
     L1, L2 = np.array([[1.0], [0.0]]), np.array([[3.0], [0.0]])
     for call in (lambda: ls.Design(A=A, H=H, L1=L1, L2=L2, delta=1.0),
                  lambda: ls.NominalObserver(A, H, L1, L2, 1.0),
-                 lambda: ls.admissible_delta(A, H, L1, L2)):
+                 lambda: admissible_delta(A, H, L1, L2)):
         with pytest.raises(ValueError, match=r"\(A, H\) is not observable: "
                                              r"the eigenvalue -2 of A .* no delta"):
             call()
@@ -808,16 +836,16 @@ def test_constructors_reject_unobservable_and_mismatched():
     with pytest.raises(ValueError, match=r"not observable: the eigenvalue -2 "):
         ls.Design(A=Q @ A @ Q.T, H=H @ Q.T, L1=Q @ L1, L2=Q @ L2, delta=1.0)
     # a delta inside the numerically singular stretch near 0 says so (a larger delta works)
-    d = ls.random_design(0, 4, 1)
+    d = random_design(0, 4, 1)
     with pytest.raises(ValueError, match=r"delta=0.01 is too small: .* choose a larger delta"):
         ls.Design(A=d.A, H=d.H, L1=d.L1, L2=d.L2, delta=0.01)
     # Luenberger (2) needs only detectability: a stable hidden mode is fine, an unstable one is
     # named
-    ls.LuenbergerObserver(A, H, [[1.0], [0.0]])
+    LuenbergerObserver(A, H, [[1.0], [0.0]])
     with pytest.raises(ValueError, match=r"\(A, H\) is not detectable: the eigenvalue 1"):
-        ls.LuenbergerObserver(np.diag([-1.0, 1.0]), H, [[1.0], [0.0]])
+        LuenbergerObserver(np.diag([-1.0, 1.0]), H, [[1.0], [0.0]])
     with pytest.raises(ValueError, match=r"A - L0 H is not Hurwitz"):
-        ls.LuenbergerObserver(A, H, [[-5.0], [0.0]])
+        LuenbergerObserver(A, H, [[-5.0], [0.0]])
     # dimensions: gains, plant state and estimates against n = 2, p = 1, at construction or before
     # the run
     with pytest.raises(ValueError, match=r"L2 must have shape \(2, 1\) \(n x p\), got \(2, 2\)"):
@@ -839,9 +867,9 @@ def test_theorem_4_9_closeness_proportional_to_noise():
     from observers.li_sanfelice.claims import closeness_sweep
     s = closeness_sweep()
     d = ls.example_VB()
-    g1 = ls.theorem_4_10_bound(d, 1.0)
-    g = max(np.linalg.norm(d.L1, 2) / abs(ls.mu_max(d.F1)),
-            np.linalg.norm(d.L2, 2) / abs(ls.mu_max(d.F2)))
+    g1 = theorem_4_10_bound(d, 1.0)
+    g = max(np.linalg.norm(d.L1, 2) / abs(mu_max(d.F1)),
+            np.linalg.norm(d.L2, 2) / abs(mu_max(d.F2)))
     assert s["C"] == pytest.approx(math.sqrt(2) * (g1 + g), rel=1e-14)
     print("Thm 4.9: sigma", s["sigma"], "distance / (C sigma)", s["ratio"])
     # the constant of the paper's expression holds
@@ -877,11 +905,11 @@ def test_theorem_4_11_bound_tight_at_jump_and_between():
     # (beta at t = delta)
     d = ls.example_VB()
     assert 0.1645676 < r["m_delta"] < 0.1645676 + 5e-6         # an upper bound of the sup, tight
-    g1 = ls.theorem_4_10_bound(d, r["m_delta"])
+    g1 = theorem_4_10_bound(d, r["m_delta"])
     k = int(np.flatnonzero(r["j"] == 1)[0])
     assert r["bound"][k] == pytest.approx(
-        g1 + 0.2 * max(np.linalg.norm(d.L1, 2) / abs(ls.mu_max(d.F1)),
-                       np.linalg.norm(d.L2, 2) / abs(ls.mu_max(d.F2))),
+        g1 + 0.2 * max(np.linalg.norm(d.L1, 2) / abs(mu_max(d.F1)),
+                       np.linalg.norm(d.L2, 2) / abs(mu_max(d.F2))),
         rel=1e-12)
 
 
@@ -895,8 +923,9 @@ def test_package_keeps_the_contract_without_aliases():
     for gone in ("simulate_with_plant", "observer_errors", "MotivatingObserver"):
         assert not hasattr(ls, gone) and gone not in ls.__all__
     assert "Section III" in ls.NominalObserver.__doc__
-    # the sweeps of the claims are exported (they were missing from the package's __all__)
-    assert {"closeness_sweep", "closeness_random", "theorem_4_11_ratios"} <= set(ls.__all__)
+    # the sweeps of the claims are exported by their file
+    assert {"closeness_sweep", "closeness_random", "theorem_4_11_ratios"} <= set(
+        ls.claims.__all__)
     assert ls.NOT_REPRODUCED == {}
 
 
@@ -906,7 +935,7 @@ def test_contract_run_gives_errors(kind):
     d = ls.example_VB()
     obs = {"H_n": ls.NominalObserver(d), "H_c": ls.ConstantNoiseObserver(d),
            "H_pc": ls.PiecewiseConstantNoiseObserver(d),
-           "Luenberger": ls.LuenbergerObserver(d.A, d.H, d.L1)}[kind]
+           "Luenberger": LuenbergerObserver(d.A, d.H, d.L1)}[kind]
     arc = ls.simulate(obs, [0.3, 0.4], t_max=2.5, noise=[0.1, -0.2])
     E = ls.errors(arc, obs)
     assert isinstance(E, Errors) and E.e.shape == (arc.t.size, d.n)
@@ -926,9 +955,9 @@ def test_noise_batch_arcs_read_by_errors():
     # errors() reads the arcs of noise_batch too (components "plant" and "observer")
     import hybridsim as hs
     d = ls.example_VB()
-    gen = ls.BoundedNoiseGenerator(d.p, K=1)
+    gen = BoundedNoiseGenerator(d.p, K=1)
     obs = ls.NominalObserver(d)
-    sys, x0s = ls.noise_batch(obs, [0.3, 0.4], [0.0, 0.0], gen.random_states(2, 0.1, seed=1), gen)
+    sys, x0s = noise_batch(obs, [0.3, 0.4], [0.0, 0.0], gen.random_states(2, 0.1, seed=1), gen)
     for arc in hs.simulate_many(sys, x0s, t_max=1.01, method="DOP853", rtol=1e-10, atol=1e-12):
         E = ls.errors(arc, obs)
         assert E.e.shape == (arc.t.size, 2) and np.array_equal(E["x"], arc.component("plant").x)
@@ -940,7 +969,7 @@ def _formula_6(a, L1, L2, delta, m):
 
 
 def test_fig1a_data_is_formula_6_and_engine():
-    D = ls.fig1a_data()
+    D = fig1a_data()
     assert D.deltas.shape == D.e6.shape == (400,) and (D.deltas[0], D.deltas[-1]) == (0.25, 60.0)
     assert np.all(np.diff(D.e6) < 0)                             # Fig. 1(a): decreasing
     # (6) on the grid: closed form written out in claims.py (rel 1e-12: double-precision exp)
@@ -954,7 +983,7 @@ def test_fig1a_data_is_formula_6_and_engine():
 
 
 def test_fig1b_data_against_6_and_luenberger_closed_form():
-    D = ls.fig1b_data()
+    D = fig1b_data()
     # x = 0, so x̄ right after the jump is the error (6) at delta = 2 (integrator tol as above)
     assert abs(D.xbar_after_jump) == pytest.approx(_formula_6(-0.05, 0.01, 0.02, 2.0, 0.2),
                                                    abs=1e-9)
@@ -972,8 +1001,8 @@ def test_fig1b_data_against_6_and_luenberger_closed_form():
 
 
 def test_fig2a_data_Hc_exact_Hn_not():
-    D = ls.fig2a_data()
-    d = ls.example_VA(delta=2.0)
+    D = fig2a_data()
+    d = example_VA(delta=2.0)
     tol = _tol(d, 1.0, True)          # integrator x the reset and m̂-update amplification
     assert D.err_c <= tol and abs(D.mhat - 0.2) <= tol and D.m == 0.2
     # H_n keeps (15), which for the scalar plant is (6)
@@ -983,7 +1012,7 @@ def test_fig2a_data_Hc_exact_Hn_not():
 
 def test_fig2b_data_is_15_and_theorem_4_10():
     from observers.li_sanfelice.claims import _gamma1_scalar
-    D = ls.fig2b_data()
+    D = fig2b_data()
     assert D.ms.shape == (101,) and D.omegas.shape == (150,)
     assert [c.delta for c in D.curves] == [1.0, 3.0]
     for c in D.curves:
@@ -1003,7 +1032,7 @@ def test_fig2b_data_is_15_and_theorem_4_10():
 
 
 def test_fig3_data_exact_after_the_second_jump():
-    D = ls.fig3_data()
+    D = fig3_data()
     d = ls.example_VB()
     # switch times exactly, jump times to the engine's location of tau = delta (1e-12)
     assert [dk for dk, _, _ in D.exact_from] == [0.0, 2.5, 4.5]
@@ -1113,7 +1142,7 @@ def test_theorem_4_9_on_random_designs_p_below_n(seed, n, p):
     # constant K and sigma* = eps / K makes the solutions (T, J, eps)-close: checked by a run at
     # sigma* for eps = 1e-3 (T = 3 delta, J = 1, the same hybrid time domain)
     from observers.li_sanfelice.claims import closeness_sweep
-    d = ls.random_design(seed, n, p)
+    d = random_design(seed, n, p)
     rng = np.random.default_rng(seed)
     x0, xh0 = tuple(rng.normal(size=n)), tuple(rng.normal(size=n))
     s = closeness_sweep((1e-1, 1e-3, 1e-5), d, x0, xh0)
@@ -1127,14 +1156,14 @@ def test_theorem_4_9_on_random_designs_p_below_n(seed, n, p):
 
 # ---------------------------------------------------------------- jump windows (issue 25)
 @pytest.mark.parametrize("windowed, plain", [
-    (ls.WindowedNominalObserver, ls.NominalObserver),
-    (ls.WindowedPiecewiseConstantNoiseObserver, ls.PiecewiseConstantNoiseObserver)])
+    (WindowedNominalObserver, ls.NominalObserver),
+    (WindowedPiecewiseConstantNoiseObserver, ls.PiecewiseConstantNoiseObserver)])
 def test_a_window_that_closes_at_delta_is_the_paper_observer(windowed, plain):
     """delta_lo = delta: C ∩ D is the point tau = delta, so the windowed observer is the
     paper's (same jump times and states to the integrator's rtol 1e-10 on states of
     size ~1); its gains at tau = delta are the design's (12)."""
     d = ls.example_VB()
-    noise = ls.PiecewiseConstantNoise([2.5], [[0.3, 0.2], [0.4, 0.4]])
+    noise = PiecewiseConstantNoise([2.5], [[0.3, 0.2], [0.4, 0.4]])
     w, p = windowed(d, d.delta), plain(d)
     for K, K_d in zip(w.gains(d.delta), (d.K1, d.K2)):
         np.testing.assert_allclose(K, K_d, rtol=1e-12, atol=1e-12)
@@ -1144,8 +1173,8 @@ def test_a_window_that_closes_at_delta_is_the_paper_observer(windowed, plain):
     np.testing.assert_allclose(a.x[-1], b.x[-1], rtol=1e-8, atol=1e-9)
 
 
-@pytest.mark.parametrize("windowed", [ls.WindowedNominalObserver,
-                                      ls.WindowedPiecewiseConstantNoiseObserver])
+@pytest.mark.parametrize("windowed", [WindowedNominalObserver,
+                                      WindowedPiecewiseConstantNoiseObserver])
 def test_windowed_observers_are_refused_by_the_compiled_path_by_name(windowed):
     """The lowered H_n / H_pc jump at delta with fixed gains: a windowed one has no
     compiled form, so backend='auto' keeps it on the Python path."""
@@ -1165,8 +1194,8 @@ def test_windowed_Hpc_random_gaps_exact_within_two_jumps_of_each_switch():
     switch (tolerance: the integrator's 1e-10 times the reset amplification ~ 50)."""
     from scipy import stats
     d = ls.example_VB()
-    noise = ls.PiecewiseConstantNoise([2.5, 4.5], [[0.3, 0.2], [0.4, 0.4], [0.2, 0.3]])
-    w = ls.WindowedPiecewiseConstantNoiseObserver(d, 0.6)
+    noise = PiecewiseConstantNoise([2.5, 4.5], [[0.3, 0.2], [0.4, 0.4], [0.2, 0.3]])
+    w = WindowedPiecewiseConstantNoiseObserver(d, 0.6)
     for seed in range(3):
         arc = ls.simulate(w, [0.3, 0.4], [0.0, 0.0], noise=noise, t_max=7.0,
                           priority="random", dwell=stats.uniform(0.0, 0.4), seed=seed)
@@ -1186,18 +1215,18 @@ def test_random_noise_study_is_formula_15_with_exact_intervals():
     from observers.li_sanfelice import monte_carlo as mc
     D = mc.random_noise_data(runs=20, seed=3)
     d = ls.example_VB()
-    gen = ls.BoundedNoiseGenerator(d.p, K=3)
+    gen = BoundedNoiseGenerator(d.p, K=3)
     # each run's error after the jump is (15) of its own realisation (run i: generator i)
     for i in (0, 7, 19):
         w = gen.random_states(1, mc.RANDOM_NOISE_SIGMA, seed=run_generator(3, i))[0]
         assert gen.sup_bound(w) == pytest.approx(mc.RANDOM_NOISE_SIGMA)
-        e15 = np.linalg.norm(ls.error_after_jump(d, gen.callable(w)))
+        e15 = np.linalg.norm(error_after_jump(d, gen.callable(w)))
         assert D.errors[i] == pytest.approx(e15, rel=1e-6)
     # run i's noise does not depend on how many runs there are
     np.testing.assert_array_equal(mc.random_noise_data(runs=10, seed=3).errors, D.errors[:10])
     # counts below each bound, their Clopper-Pearson intervals; Theorem 4.10's holds in every run
     assert D.bounds[-1] == D.theorem_bound == pytest.approx(
-        ls.theorem_4_10_bound(d, mc.RANDOM_NOISE_SIGMA))
+        theorem_4_10_bound(d, mc.RANDOM_NOISE_SIGMA))
     assert D.k.tolist() == [int(np.sum(D.errors <= b)) for b in D.bounds]
     assert np.all(np.diff(D.k) >= 0) and D.k[-1] == D.runs
     for kk, lo, hi in zip(D.k, D.lo, D.hi):

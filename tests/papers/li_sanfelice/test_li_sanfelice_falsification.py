@@ -19,13 +19,9 @@ import pytest
 
 import hybridsim as hs
 from observers.falsification import run_problem, validate_problems
-from observers.li_sanfelice import (
-    NominalObserver,
-    example_VB,
-    simulate,
-    theorem_4_7_bound,
-)
+from observers.li_sanfelice import NominalObserver, example_VB, simulate
 from observers.li_sanfelice import falsification as F
+from observers.li_sanfelice.design import theorem_4_7_bound
 
 BY_ID = {p.id: p for p in F.PROBLEMS}
 

@@ -19,6 +19,34 @@ import hybridsim as hs
 import observers.time_varying as tv
 from hybridsim import testing as hst
 from observers._common import Errors
+from observers.time_varying.design import (
+    D_of,
+    Lambda,
+    M_tau,
+    check_assumption1,
+    choose_L_tau,
+    estimate_15,
+    estimate_23,
+    estimate_49,
+    example_data,
+    example_gain_sup,
+    fundamental_matrix,
+    is_observable,
+    noise_gain,
+    phi_scalar,
+    reduced_coordinates,
+    remark3,
+    residual_58,
+    sigma,
+)
+from observers.time_varying.example import (
+    bounded_noise,
+    estimates,
+    loop_functions,
+    loop_signals,
+    tracking_initial_state,
+)
+from observers.time_varying.systems import ChainedFormPlant
 
 SEEDS = [0, 1, 2]
 
@@ -67,7 +95,7 @@ def expm_Phi(Om):
 @pytest.mark.parametrize("seed", SEEDS)
 def test_reduced_coordinates_blocks(seed):
     A, C, _ = random_lti(seed)
-    rc = tv.reduced_coordinates(A, C)
+    rc = reduced_coordinates(A, C)
     AT = rc.C_T @ A @ rc.C_T_inv
     p = C.shape[0]
     np.testing.assert_allclose(AT[:p, p:], rc.A1, atol=1e-12)
@@ -77,16 +105,16 @@ def test_reduced_coordinates_blocks(seed):
     x = np.arange(1.0, 5.0)
     np.testing.assert_allclose(rc.x_from(C @ x, rc.x_r(x)), x, atol=1e-12)
     # (A2, A1) inherits observability ([6, pp. 304-306])
-    assert tv.is_observable(rc.A2, rc.A1)
+    assert is_observable(rc.A2, rc.A1)
 
 
 @pytest.mark.parametrize("seed", SEEDS)
 def test_choose_L_tau_gives_invertible_M(seed):
     A, C, _ = random_lti(seed)
-    rc = tv.reduced_coordinates(A, C)
-    L, tau, M = tv.choose_L_tau(rc.A2, rc.A1, tau=0.8)
+    rc = reduced_coordinates(A, C)
+    L, tau, M = choose_L_tau(rc.A2, rc.A1, tau=0.8)
     assert tau == 0.8
-    np.testing.assert_allclose(M, tv.M_tau(rc.A2, rc.A1, L, tau))
+    np.testing.assert_allclose(M, M_tau(rc.A2, rc.A1, L, tau))
     assert 1 / np.linalg.cond(M) >= 1e-8
     # the placed poles: H = A2 + L A1 Hurwitz
     assert np.max(np.linalg.eigvals(rc.A2 + L @ rc.A1).real) < 0
@@ -101,13 +129,13 @@ def test_estimate_15_exact_random_lti(seed):
     def delta(t):
         return b * np.sin(2.0 * t)
     x = lti_solution(A, b, 2.0, x0)
-    rc = tv.reduced_coordinates(A, C)
-    L, tau, _ = tv.choose_L_tau(rc.A2, rc.A1, tau=1.0)
+    rc = reduced_coordinates(A, C)
+    L, tau, _ = choose_L_tau(rc.A2, rc.A1, tau=1.0)
     def y(s):
         return C @ x(s)
     for t in (tau, 1.6, 2.5):
         xr = rc.x_r(x(t))
-        est = tv.estimate_15(t, y, rc.A2, rc.A1, L, tau, rc.delta1(delta), rc.delta2(delta))
+        est = estimate_15(t, y, rc.A2, rc.A1, L, tau, rc.delta1(delta), rc.delta2(delta))
         np.testing.assert_allclose(est, xr, rtol=1e-8, atol=1e-8)
 
 
@@ -116,19 +144,19 @@ def test_estimate_23_reduces_to_15(seed):
     """(23) with constant matrices and Phi(t, s) = e^{-Omega (t - s)} is (15)."""
     A, C, rng = random_lti(seed)
     x0 = rng.normal(size=4)
-    rc = tv.reduced_coordinates(A, C)
-    L, tau, _ = tv.choose_L_tau(rc.A2, rc.A1, tau=1.0)
+    rc = reduced_coordinates(A, C)
+    L, tau, _ = choose_L_tau(rc.A2, rc.A1, tau=1.0)
     def y(s):
         return C @ linalg.expm(A * s) @ x0
     H = rc.A2 + L @ rc.A1
     t = 1.4
-    e15 = tv.estimate_15(t, y, rc.A2, rc.A1, L, tau, rc.delta1(), rc.delta2())
-    e23 = tv.estimate_23(t, y, tau, rc.A1, rc.A2, L, expm_Phi(rc.A2), expm_Phi(H),
+    e15 = estimate_15(t, y, rc.A2, rc.A1, L, tau, rc.delta1(), rc.delta2())
+    e23 = estimate_23(t, y, tau, rc.A1, rc.A2, L, expm_Phi(rc.A2), expm_Phi(H),
                          delta1=rc.delta1(), delta2=rc.delta2())
     np.testing.assert_allclose(e23, e15, rtol=1e-9, atol=1e-9)
     # and the Lambda of (20) is M_tau of (6)
-    np.testing.assert_allclose(tv.Lambda(expm_Phi(rc.A2), expm_Phi(H), t, tau),
-                               tv.M_tau(rc.A2, rc.A1, L, tau), atol=1e-12)
+    np.testing.assert_allclose(Lambda(expm_Phi(rc.A2), expm_Phi(H), t, tau),
+                               M_tau(rc.A2, rc.A1, L, tau), atol=1e-12)
 
 
 # ---------------------------------------------------------------------------
@@ -137,32 +165,32 @@ def test_estimate_23_reduces_to_15(seed):
 def test_phi_convention_and_Lambda_example():
     """(1) is the inverse fundamental matrix: dPhi/dt = -Phi H;
     Lambda = 1 - e^{4 pi} (after (48))."""
-    ex = tv.example_data()
+    ex = example_data()
     h = 1e-5
     for t, s in [(0.3, -1.0), (2.0, 0.5), (7.0, 1.0)]:
         dPhi = (ex["Phi_H"](t + h, s) - ex["Phi_H"](t - h, s)) / (2 * h)
         np.testing.assert_allclose(dPhi, -ex["Phi_H"](t, s) @ ex["H"](t), rtol=1e-8)
-        np.testing.assert_allclose(tv.Lambda(ex["Phi_A2"], ex["Phi_H"], t, ex["tau"]),
+        np.testing.assert_allclose(Lambda(ex["Phi_A2"], ex["Phi_H"], t, ex["tau"]),
                                    [[1 - np.exp(4 * np.pi)]], rtol=1e-12)
     # D of (22) from its definition agrees with the closed form used in (49)
     A1, A2, L, Ld = ex["A1"], ex["A2"], ex["L"], ex["Ldot"]
     for t in (0.1, 1.3, 4.0):
-        np.testing.assert_allclose(tv.D_of(t, A1, A2, L, Ld), ex["D"](t), atol=1e-12)
+        np.testing.assert_allclose(D_of(t, A1, A2, L, Ld), ex["D"](t), atol=1e-12)
 
 
 def test_estimate_49_equals_23_and_exact():
     """(49) as printed = (23) with the data (47)-(48), = xi2(t) on the exact solution of (45)."""
-    ex = tv.example_data()
+    ex = example_data()
     xi2, xi3, v2 = example_open_loop()
     for t in (2 * np.pi, 8.0, 11.3):
-        e49 = tv.estimate_49(t, xi3, v2)
-        e23 = tv.estimate_23(t, lambda s: np.array([xi3(s)]), ex["tau"], ex["A1"], ex["A2"],
+        e49 = estimate_49(t, xi3, v2)
+        e23 = estimate_23(t, lambda s: np.array([xi3(s)]), ex["tau"], ex["A1"], ex["A2"],
                              ex["L"], ex["Phi_A2"], ex["Phi_H"], Ldot=ex["Ldot"],
                              delta2=lambda s, z: np.array([v2(s)]), p=1, m=1)
         assert abs(e49 - xi2(t)) < 1e-8
         assert abs(e23[0] - e49) < 1e-8
     # Ldot by finite differences (Ldot=None with a callable L) gives the same estimate
-    e_fd = tv.estimate_23(9.0, lambda s: np.array([xi3(s)]), ex["tau"], ex["A1"], ex["A2"],
+    e_fd = estimate_23(9.0, lambda s: np.array([xi3(s)]), ex["tau"], ex["A1"], ex["A2"],
                           ex["L"], ex["Phi_A2"], ex["Phi_H"],
                           delta2=lambda s, z: np.array([v2(s)]), p=1, m=1)
     assert abs(e_fd[0] - xi2(9.0)) < 1e-7
@@ -170,12 +198,12 @@ def test_estimate_49_equals_23_and_exact():
 
 def test_remark3_example():
     """Remark 3 as printed fails on the example (varpi = e^{4 pi}); the swapped form holds."""
-    ex = tv.example_data()
+    ex = example_data()
     grid = np.linspace(0.0, 2 * np.pi, 13)
-    r = tv.remark3(ex["Phi_A2"], ex["Phi_H"], ex["tau"], grid)
+    r = remark3(ex["Phi_A2"], ex["Phi_H"], ex["tau"], grid)
     assert not r.holds and r.varpi == pytest.approx(np.exp(4 * np.pi), rel=1e-12)
     assert r.Lambda_inv_bound == np.inf
-    rs = tv.remark3(ex["Phi_A2"], ex["Phi_H"], ex["tau"], grid, swapped=True)
+    rs = remark3(ex["Phi_A2"], ex["Phi_H"], ex["tau"], grid, swapped=True)
     assert rs.holds and rs.varpi == pytest.approx(np.exp(-4 * np.pi), rel=1e-12)
     # the bound (26) is a bound: |Lambda^{-1}| <= Lambda_inv_bound
     assert 1 / abs(ex["Lambda"]) <= rs.Lambda_inv_bound * (1 + 1e-12)
@@ -185,23 +213,23 @@ def test_remark3_example():
 def test_remark3_bound_random_lti(seed):
     """When varpi < 1, |Lambda(t)^{-1}| <= |Phi_A2^{-1}| / (1 - varpi) (26)."""
     A, C, _ = random_lti(seed, n=3, p=1)
-    rc = tv.reduced_coordinates(A, C)
+    rc = reduced_coordinates(A, C)
     # H strongly unstable backwards-in-time makes Phi_H small: poles at +3 (Phi_H = e^{-H tau})
     L = tv.design._place_L(rc.A2, rc.A1, np.array([3.0, 3.5]))
     H = rc.A2 + L @ rc.A1
     tau = 1.5
-    r = tv.remark3(expm_Phi(rc.A2), expm_Phi(H), tau, [0.0])
+    r = remark3(expm_Phi(rc.A2), expm_Phi(H), tau, [0.0])
     assert r.holds and r.varpi < 1            # (checked for these seeds: varpi in 0.3 .. 0.93)
-    Li = np.linalg.inv(tv.Lambda(expm_Phi(rc.A2), expm_Phi(H), 0.0, tau))
+    Li = np.linalg.inv(Lambda(expm_Phi(rc.A2), expm_Phi(H), 0.0, tau))
     assert np.linalg.norm(Li, 2) <= r.Lambda_inv_bound * (1 + 1e-12)
-    tv.check_assumption1(expm_Phi(rc.A2), expm_Phi(H), tau, [0.0, 1.0])
+    check_assumption1(expm_Phi(rc.A2), expm_Phi(H), tau, [0.0, 1.0])
 
 
 @pytest.mark.slow
 def test_noise_bound_28_example():
     """(28): |x*_r - x_r| <= l_a |eps|_inf on the example,
     eps = 0.01 sin(5t) + 0.02 sign(cos 7t)."""
-    ex = tv.example_data()
+    ex = example_data()
     xi2, xi3, v2 = example_open_loop()
     def eps(s):
         return np.array([0.01 * np.sin(5 * s) + 0.02 * np.sign(np.cos(7 * s))])
@@ -211,11 +239,11 @@ def test_noise_bound_28_example():
     def d2(s, z):
         return np.array([v2(s)])
     # the certified l_a's lower end (a value l(t) takes): the check is no looser than (28)
-    l_a = tv.example_gain_sup(2 ** 14).lower
+    l_a = example_gain_sup(2 ** 14).lower
     for t in (2 * np.pi + 0.4, 10.7):
-        est = tv.estimate_23(t, y, ex["tau"], ex["A1"], ex["A2"], ex["L"], ex["Phi_A2"],
+        est = estimate_23(t, y, ex["tau"], ex["A1"], ex["A2"], ex["L"], ex["Phi_A2"],
                              ex["Phi_H"], Ldot=ex["Ldot"], delta2=d2, eps=eps, p=1, m=1)
-        approx = tv.estimate_23(t, y, ex["tau"], ex["A1"], ex["A2"], ex["L"], ex["Phi_A2"],
+        approx = estimate_23(t, y, ex["tau"], ex["A1"], ex["A2"], ex["L"], ex["Phi_A2"],
                                 ex["Phi_H"], Ldot=ex["Ldot"], delta2=d2, p=1, m=1)
         # quadrature of a discontinuous eps: 1e-7 slack
         assert abs(est[0] - xi2(t)) < 1e-7                     # (23) with the known eps is exact
@@ -228,8 +256,8 @@ def test_noise_bound_28_random_lti(seed):
     """(28) on random LTI cases: l_a with lip1 = |A11|, lip2 = |A21| (delta linear in y)."""
     A, C, rng = random_lti(seed)
     x0 = rng.normal(size=4)
-    rc = tv.reduced_coordinates(A, C)
-    L, tau, _ = tv.choose_L_tau(rc.A2, rc.A1, tau=1.0)
+    rc = reduced_coordinates(A, C)
+    L, tau, _ = choose_L_tau(rc.A2, rc.A1, tau=1.0)
     H = rc.A2 + L @ rc.A1
     w = rng.uniform(3, 8, size=2)
     def eps(s):
@@ -237,13 +265,13 @@ def test_noise_bound_28_random_lti(seed):
     def y(s):
         return C @ linalg.expm(A * s) @ x0 + eps(s)
     PA, PH = expm_Phi(rc.A2), expm_Phi(H)
-    l_a = tv.noise_gain(tau, tau, rc.A1, rc.A2, L, PA, PH, lip1=np.linalg.norm(rc.A11, 2),
+    l_a = noise_gain(tau, tau, rc.A1, rc.A2, L, PA, PH, lip1=np.linalg.norm(rc.A11, 2),
                         lip2=np.linalg.norm(rc.A21, 2))      # time-invariant: l(t) constant
     for t in (1.0, 1.9):
         xr = rc.x_r(linalg.expm(A * t) @ x0)
-        approx = tv.estimate_23(t, y, tau, rc.A1, rc.A2, L, PA, PH, delta1=rc.delta1(),
+        approx = estimate_23(t, y, tau, rc.A1, rc.A2, L, PA, PH, delta1=rc.delta1(),
                                 delta2=rc.delta2())
-        exact = tv.estimate_23(t, y, tau, rc.A1, rc.A2, L, PA, PH, delta1=rc.delta1(),
+        exact = estimate_23(t, y, tau, rc.A1, rc.A2, L, PA, PH, delta1=rc.delta1(),
                                delta2=rc.delta2(), eps=eps)
         np.testing.assert_allclose(exact, xr, rtol=1e-8, atol=1e-8)
         assert np.linalg.norm(approx - xr) <= l_a * 0.01 + 1e-8
@@ -255,61 +283,61 @@ def test_noise_bound_28_random_lti(seed):
 def test_bad_inputs_section2():
     A, C, _ = random_lti(0)
     with pytest.raises(ValueError, match="A must be square"):
-        tv.reduced_coordinates(np.ones((2, 3)), C)
+        reduced_coordinates(np.ones((2, 3)), C)
     with pytest.raises(ValueError, match=r"C must have shape \(\*, 4\), got \(2, 3\)"):
-        tv.reduced_coordinates(A, np.ones((2, 3)))
+        reduced_coordinates(A, np.ones((2, 3)))
     with pytest.raises(ValueError, match="fewer rows than n=4"):
-        tv.reduced_coordinates(A, np.eye(4))
+        reduced_coordinates(A, np.eye(4))
     with pytest.raises(ValueError, match="full row rank p=2, got rank 1"):
-        tv.reduced_coordinates(A, np.ones((2, 4)))
+        reduced_coordinates(A, np.ones((2, 4)))
     with pytest.raises(ValueError, match="must be observable"):
-        tv.reduced_coordinates(np.diag([1.0, 2.0, 3.0]), np.array([[1.0, 1.0, 0.0]]))
+        reduced_coordinates(np.diag([1.0, 2.0, 3.0]), np.array([[1.0, 1.0, 0.0]]))
     with pytest.raises(ValueError, match=r"N must have shape \(2, 4\)"):
-        tv.reduced_coordinates(A, C, N=np.ones((1, 4)))
+        reduced_coordinates(A, C, N=np.ones((1, 4)))
     with pytest.raises(ValueError, match="C_T = \\[C; N\\] must be invertible"):
-        tv.reduced_coordinates(A, C, N=C.copy())
+        reduced_coordinates(A, C, N=C.copy())
     with pytest.raises(TypeError, match="A must be a real array, got function"):
-        tv.reduced_coordinates(lambda t: A, C)
-    rc = tv.reduced_coordinates(A, C)
+        reduced_coordinates(lambda t: A, C)
+    rc = reduced_coordinates(A, C)
     with pytest.raises(ValueError, match="tau must be > 0, got -1.0"):
-        tv.M_tau(rc.A2, rc.A1, np.zeros((2, 2)), -1.0)
+        M_tau(rc.A2, rc.A1, np.zeros((2, 2)), -1.0)
     with pytest.raises(TypeError, match="tau must be a real number"):
-        tv.M_tau(rc.A2, rc.A1, np.zeros((2, 2)), "1")
+        M_tau(rc.A2, rc.A1, np.zeros((2, 2)), "1")
     with pytest.raises(ValueError, match=r"L must have shape \(2, 2\)"):
-        tv.M_tau(rc.A2, rc.A1, np.zeros((2, 3)), 1.0)
+        M_tau(rc.A2, rc.A1, np.zeros((2, 3)), 1.0)
     with pytest.raises(ValueError, match=r"M_tau \(6\) must be invertible: rcond = 0"):
-        tv.choose_L_tau(rc.A2, rc.A1, L=np.zeros((2, 2)), tau=1.0)   # L = 0: H = A2, M = 0
+        choose_L_tau(rc.A2, rc.A1, L=np.zeros((2, 2)), tau=1.0)   # L = 0: H = A2, M = 0
     with pytest.raises(ValueError, match="poles must have 2 entries, got 3"):
-        tv.choose_L_tau(rc.A2, rc.A1, poles=[-1, -2, -3])
+        choose_L_tau(rc.A2, rc.A1, poles=[-1, -2, -3])
     with pytest.raises(ValueError, match=r"\(A2, A1\) must be observable"):
-        tv.choose_L_tau(np.diag([1.0, 2.0]), np.array([[1.0, 0.0]]))
+        choose_L_tau(np.diag([1.0, 2.0]), np.array([[1.0, 0.0]]))
     with pytest.raises(ValueError, match=r"t must be >= tau = 1.0 .* got 0.5"):
-        tv.estimate_15(0.5, lambda s: C @ np.ones(4), rc.A2, rc.A1, np.zeros((2, 2)), 1.0)
+        estimate_15(0.5, lambda s: C @ np.ones(4), rc.A2, rc.A1, np.zeros((2, 2)), 1.0)
     with pytest.raises(TypeError, match="y must be a callable"):
-        tv.estimate_15(1.5, np.ones(2), rc.A2, rc.A1, np.zeros((2, 2)), 1.0)
+        estimate_15(1.5, np.ones(2), rc.A2, rc.A1, np.zeros((2, 2)), 1.0)
 
 
 def test_bad_inputs_section3():
-    ex = tv.example_data()
+    ex = example_data()
     with pytest.raises(ValueError, match=r"Lambda\(t\) \(20\) is singular at t=0"):
-        tv.check_assumption1(ex["Phi_A2"], ex["Phi_A2"], 1.0, [0.0, 1.0])   # L = 0: H = A2
+        check_assumption1(ex["Phi_A2"], ex["Phi_A2"], 1.0, [0.0, 1.0])   # L = 0: H = A2
     with pytest.raises(ValueError, match="t_grid must be a non-empty 1-D array"):
-        tv.check_assumption1(ex["Phi_A2"], ex["Phi_H"], 1.0, [])
+        check_assumption1(ex["Phi_A2"], ex["Phi_H"], 1.0, [])
     with pytest.raises(ValueError, match="t_grid must be a non-empty 1-D array"):
-        tv.remark3(ex["Phi_A2"], ex["Phi_H"], 1.0, np.ones((2, 2)))
+        remark3(ex["Phi_A2"], ex["Phi_H"], 1.0, np.ones((2, 2)))
     with pytest.raises(ValueError, match="p and m must be given"):
-        tv.estimate_23(7.0, lambda s: np.ones(1), ex["tau"], ex["A1"], ex["A2"], ex["L"],
+        estimate_23(7.0, lambda s: np.ones(1), ex["tau"], ex["A1"], ex["A2"], ex["L"],
                        ex["Phi_A2"], ex["Phi_H"])
     with pytest.raises(ValueError, match=r"t must be >= tau"):
-        tv.estimate_23(1.0, lambda s: np.ones(1), ex["tau"], ex["A1"], ex["A2"], ex["L"],
+        estimate_23(1.0, lambda s: np.ones(1), ex["tau"], ex["A1"], ex["A2"], ex["L"],
                        ex["Phi_A2"], ex["Phi_H"], p=1, m=1)
     with pytest.raises(ValueError, match="lip1 must be a finite number >= 0, got -1"):
-        tv.noise_gain(7.0, ex["tau"], ex["A1"], ex["A2"], ex["L"], ex["Phi_A2"], ex["Phi_H"],
+        noise_gain(7.0, ex["tau"], ex["A1"], ex["A2"], ex["L"], ex["Phi_A2"], ex["Phi_H"],
                       lip1=-1, p=1, m=1)
     with pytest.raises(ValueError, match=r"t must be >= 2 pi"):
-        tv.estimate_49(1.0, np.sin, np.cos)
+        estimate_49(1.0, np.sin, np.cos)
     with pytest.raises(TypeError, match="xi3 and v2 must be callables"):
-        tv.estimate_49(7.0, 1.0, np.cos)
+        estimate_49(7.0, 1.0, np.cos)
 
 
 # ---------------------------------------------------------------------------
@@ -348,7 +376,7 @@ def test_lti_observer_exact_after_tau(seed):
     # the simulated estimate agrees with the literal formula (15) on the recorded y
     def y(s):
         return C @ arc.at(s)[:4]
-    e15 = tv.estimate_15(2.5, y, rc.A2, rc.A1, obs.L(0.0), 1.0, rc.delta1(sys.delta),
+    e15 = estimate_15(2.5, y, rc.A2, rc.A1, obs.L(0.0), 1.0, rc.delta1(sys.delta),
                          rc.delta2(sys.delta))
     np.testing.assert_allclose(e15, rc.x_r(arc.at(2.5)[:4]), atol=1e-7)
 
@@ -364,7 +392,7 @@ def test_lti_noise_bound_28_engine(seed):
     sys_a, obs_a, rc, A, C, x0 = _lti_loop(seed, noise=eps, known=False)
     sys_e, obs_e, _, _, _, _ = _lti_loop(seed, noise=eps, known=True)
     H = rc.A2 + obs_a.L(0.0) @ rc.A1
-    l_a = tv.noise_gain(1.0, 1.0, rc.A1, rc.A2, obs_a.L(0.0), expm_Phi(rc.A2), expm_Phi(H),
+    l_a = noise_gain(1.0, 1.0, rc.A1, rc.A2, obs_a.L(0.0), expm_Phi(rc.A2), expm_Phi(H),
                         lip1=np.linalg.norm(rc.A11, 2), lip2=np.linalg.norm(rc.A21, 2))
     for sys, obs, exact in ((sys_a, obs_a, False), (sys_e, obs_e, True)):
         arc = hs.simulate(sys, x0, t_max=2.5, **RUN)
@@ -399,13 +427,14 @@ def test_time_varying_nonlinear_numeric_phi(seed):
     def H(t):
         return A2(t) + L @ A1(t)
     tau, T = 1.0, 2.6
-    PA = tv.fundamental_matrix(A2, 2, (0.0, T), h=0.5)
-    PH = tv.fundamental_matrix(H, 2, (0.0, T), h=0.5)
+    PA = fundamental_matrix(A2, 2, (0.0, T), h=0.5)
+    PH = fundamental_matrix(H, 2, (0.0, T), h=0.5)
     grid = np.linspace(tau, T, 9)
-    tv.check_assumption1(PA, PH, tau, grid, rcond_min=1e-6)
+    check_assumption1(PA, PH, tau, grid, rcond_min=1e-6)
     obs = tv.ReducedOrderObserver(tau, A1, A2, L, PA, PH, delta1=d1, delta2=d2, p=1, m=2)
     plant = hs.HybridSystem.from_functions(
-        f=lambda x, t: np.concatenate([A1(t) @ x[1:] + d1(t, x[:1]), A2(t) @ x[1:] + d2(t, x[:1])]),
+        flow_map=lambda x, t: np.concatenate([A1(t) @ x[1:] + d1(t, x[:1]),
+                                              A2(t) @ x[1:] + d2(t, x[:1])]),
         state_dim=3, output=lambda x: x[:1], output_dim=1)
     sys = hs.connect(plant, obs)
     arc = hs.simulate(sys, sys.stack(plant=rng.normal(size=3), observer=obs.initial_state()),
@@ -416,7 +445,7 @@ def test_time_varying_nonlinear_numeric_phi(seed):
     hst.assert_exact_after(arc, err, t=tau, j=1, atol=1e-6)
     # literal (23) by quadrature on the recorded output agrees with the run
     t = 2.2
-    e23 = tv.estimate_23(t, lambda s: arc.at(s)[:1], tau, A1, A2, L, PA, PH, delta1=d1, delta2=d2,
+    e23 = estimate_23(t, lambda s: arc.at(s)[:1], tau, A1, A2, L, PA, PH, delta1=d1, delta2=d2,
                          p=1, m=2)
     np.testing.assert_allclose(e23, arc.at(t)[1:3], atol=1e-6)
 
@@ -425,27 +454,27 @@ def test_fundamental_matrix_convention():
     """Phi of (1) is the inverse fundamental matrix: e^{-Omega (t - s)};
     on (48): Lambda = 1 - e^{4 pi}."""
     Om = np.random.default_rng(1).normal(size=(2, 2))
-    F = tv.fundamental_matrix(Om, 2, (0.0, 6.0), h=2.0)
+    F = fundamental_matrix(Om, 2, (0.0, 6.0), h=2.0)
     for t, s in [(3.0, 1.0), (5.5, 0.2), (1.0, 4.7), (2.0, 2.0)]:
         E = linalg.expm(-Om * (t - s))
         np.testing.assert_allclose(F(t, s), E, rtol=1e-8, atol=1e-8 * np.linalg.norm(E))
-    ex = tv.example_data()
-    F = tv.fundamental_matrix(ex["H"], 1, (0.0, 10.0))
+    ex = example_data()
+    F = fundamental_matrix(ex["H"], 1, (0.0, 10.0))
     for t in (2 * np.pi, 8.0, 10.0):
-        np.testing.assert_allclose(tv.Lambda(ex["Phi_A2"], F, t, ex["tau"]), [[ex["Lambda"]]],
+        np.testing.assert_allclose(Lambda(ex["Phi_A2"], F, t, ex["tau"]), [[ex["Lambda"]]],
                                    rtol=1e-8)
     with pytest.raises(ValueError, match=r"t must lie in the computed range \[0.0, 10.0\], got 11"):
         F(11.0, 1.0)
     with pytest.raises(ValueError, match="t_span must be"):
-        tv.fundamental_matrix(Om, 2, (1.0, 1.0))
+        fundamental_matrix(Om, 2, (1.0, 1.0))
     with pytest.raises(ValueError, match="m must be a positive int"):
-        tv.fundamental_matrix(Om, 0, (0.0, 1.0))
+        fundamental_matrix(Om, 0, (0.0, 1.0))
     with pytest.raises(ValueError, match=r"Omega must have shape \(3, 3\)"):
-        tv.fundamental_matrix(Om, 3, (0.0, 1.0))
+        fundamental_matrix(Om, 3, (0.0, 1.0))
 
 
 def _open_loop_example(x1_0, v2, noise=None):
-    plant = tv.ChainedFormPlant()
+    plant = ChainedFormPlant()
     obs = tv.chained_form_observer()
     e = (lambda t: 0.0) if noise is None else noise
     sys = hs.Interconnection({"plant": plant, "observer": obs},
@@ -490,7 +519,7 @@ def test_example_noise_bound_28():
         return 0.01 * np.sin(5 * t)
     sys, obs, x0 = _open_loop_example(0.0, v2, noise=eps)
     arc = hs.simulate(sys, x0, t_max=2 * np.pi + 2.5, **RUN)
-    l_a = tv.example_gain_sup(2 ** 14).lower     # certified sup's lower end (a value l takes)
+    l_a = example_gain_sup(2 ** 14).lower     # certified sup's lower end (a value l takes)
     P = arc["plant"].x
     y = P[:, 1:2] + np.array([eps(t) for t in arc.t])[:, None]
     after = (arc.t >= 2 * np.pi) & ~(arc.is_jump_start & (np.abs(arc.t - 2 * np.pi) < 1e-9))
@@ -501,7 +530,7 @@ def test_example_noise_bound_28():
 
 def _closed_loop(T, **kw):
     loop, v2 = tv.tracking_loop(**kw)
-    x0 = tv.tracking_initial_state(loop)      # xi4, xi3, xi2, x1 = 1, -1, 0.5, 0.5
+    x0 = tracking_initial_state(loop)      # xi4, xi3, xi2, x1 = 1, -1, 0.5, 0.5
     arc = hs.simulate(loop, x0, t_max=T, dense=True, **RUN)
     return loop, v2, arc
 
@@ -512,7 +541,7 @@ def test_tracking_loop_58():
     nu non-increasing once xhat2 is exact."""
     loop, v2, arc = _closed_loop(24.0)
     assert arc.success
-    S = tv.loop_signals(arc, loop, v2)
+    S = loop_signals(arc, loop, v2)
     T0 = 2 * np.pi + np.sqrt(0.5)
     after = S["t"] >= T0
     # estimate exact after the window lies in x1 = 0 (xi2 driven by the feedback itself)
@@ -528,16 +557,16 @@ def test_tracking_loop_58():
     # |v2| <= 1 (the bounded feedback)
     assert np.max(np.abs(S["v2"])) < 1.0
     # the run solves (58) evaluated literally (quadrature on the recorded v2, xi3)
-    funs = tv.loop_functions(arc, loop, v2)
+    funs = loop_functions(arc, loop, v2)
     for t in (2 * np.pi + 1.0, 15.0):
-        assert abs(tv.residual_58(t, *funs, points=arc.jump_times)) < 1e-8
+        assert abs(residual_58(t, *funs, points=arc.jump_times)) < 1e-8
 
 
 def test_bounded_feedback_not_exponential():
     """(57) gives asymptotic, not exponential, stability:
     |zeta3(t)| >= |zeta3(0)| - t since |v2| <= 1."""
     loop, v2 = tv.tracking_loop(feedback="state")
-    x0 = loop.stack(plant=tv.ChainedFormPlant.initial_state(0.0, 0.0, 40.0, 0.0),
+    x0 = loop.stack(plant=ChainedFormPlant.initial_state(0.0, 0.0, 40.0, 0.0),
                     observer=loop.systems["observer"].initial_state())
     arc = hs.simulate(loop, x0, t_max=5.0, **RUN)
     xi2 = arc["plant"].x[:, 2]
@@ -546,7 +575,7 @@ def test_bounded_feedback_not_exponential():
 
 
 def test_observer_bad_inputs():
-    ex = tv.example_data()
+    ex = example_data()
     with pytest.raises(TypeError, match="Phi_A2 and Phi_H must be callables"):
         tv.ReducedOrderObserver(1.0, ex["A1"], ex["A2"], ex["L"], None, ex["Phi_H"], p=1, m=1)
     with pytest.raises(TypeError, match="delta2 must be callable, got float"):
@@ -568,7 +597,7 @@ def test_observer_bad_inputs():
     with pytest.raises(ValueError, match="feedback must be 'estimate' or 'state'"):
         tv.tracking_loop(feedback="x")
     with pytest.raises(ValueError, match=r"eta must be a number in \(0, 1e-2\)"):
-        tv.ChainedFormPlant(eta=0.0)
+        ChainedFormPlant(eta=0.0)
     # Lambda singular along a run (L = 0: H = A2, Lambda = 0): a MAP_ERROR naming t
     bad = tv.ReducedOrderObserver(0.5, [[1.0]], [[0.0]], [[0.0]], lambda t, s: np.eye(1),
                                   lambda t, s: np.eye(1))
@@ -584,16 +613,16 @@ def test_observer_bad_inputs():
     with pytest.raises(ValueError, match=r"Lambda\(t\) \(20\) is singular at t=0.5"):
         bad.output(arc.x[-1], 0.5, 1)
     with pytest.raises(TypeError, match="Omega must be a callable"):
-        tv.phi_scalar(1.0)
+        phi_scalar(1.0)
 
 
 def test_phi_scalar_remark2():
     """Remark 2's scalar formula by quadrature reproduces (48) and Lambda = 1 - e^{4 pi}."""
-    ex = tv.example_data()
-    PH = tv.phi_scalar(ex["H"])
+    ex = example_data()
+    PH = phi_scalar(ex["H"])
     for t, s in [(1.0, 0.0), (9.0, 9.0 - 2 * np.pi), (3.0, 5.0)]:
         np.testing.assert_allclose(PH(t, s), ex["Phi_H"](t, s), rtol=1e-10)
-    np.testing.assert_allclose(tv.Lambda(tv.phi_scalar(ex["A2"]), PH, 4.0, ex["tau"]),
+    np.testing.assert_allclose(Lambda(phi_scalar(ex["A2"]), PH, 4.0, ex["tau"]),
                                [[ex["Lambda"]]], rtol=1e-10)
 
 
@@ -610,9 +639,9 @@ def test_constructors_reject_mismatch_and_unobservable():
                                          r".* M_tau \(6\) is singular"):
         tv.lti_observer(A, C)
     with pytest.raises(ValueError, match=r"\(A2, A1\) must be observable: .*rank 1 < n = 2"):
-        tv.choose_L_tau(np.diag([-1.0, -2.0]), np.array([[1.0, 0.0]]), tau=1.0)
+        choose_L_tau(np.diag([-1.0, -2.0]), np.array([[1.0, 0.0]]), tau=1.0)
     # mismatched dimensions: arrays and callables are checked at construction, naming the argument
-    ex = tv.example_data()
+    ex = example_data()
     with pytest.raises(ValueError, match=r"A2 must have shape \(1, 1\), got \(2, 2\)"):
         tv.ReducedOrderObserver(1.0, ex["A1"], np.eye(2), ex["L"], ex["Phi_A2"], ex["Phi_H"],
                                 p=1, m=1)
@@ -655,7 +684,7 @@ def test_simulate_errors_lti_equal_the_hand_wired_run(seed):
     np.testing.assert_allclose(arc.t, arc_hand.t, rtol=0, atol=1e-12)
     np.testing.assert_allclose(e, e_hand, rtol=0, atol=1e-9)
     hst.assert_exact_after(arc, e, t=1.0, j=1, atol=1e-7)
-    np.testing.assert_allclose(tv.estimates(arc, obs) - e, rc.x_r(arc["plant"].x), atol=1e-12)
+    np.testing.assert_allclose(estimates(arc, obs) - e, rc.x_r(arc["plant"].x), atol=1e-12)
 
 
 def test_simulate_default_plant_16_and_seeded_noise():
@@ -676,12 +705,12 @@ def test_simulate_default_plant_16_and_seeded_noise():
     a1_, a2_ = (tv.simulate(obs, x0, t_max=1.5, noise=0.01, seed=7) for _ in range(2))
     np.testing.assert_array_equal(tv.errors(a1_, obs).e, tv.errors(a2_, obs).e)
     assert np.abs(tv.errors(a1_, obs).e[a1_.j >= 1]).max() > 1e-6
-    eps = tv.bounded_noise(0.01, 3, seed=1)
+    eps = bounded_noise(0.01, 3, seed=1)
     assert max(np.linalg.norm(eps(t)) for t in np.linspace(0, 20, 2001)) <= 0.01
     with pytest.raises(TypeError, match="noise given as an amplitude needs seed="):
         tv.simulate(obs, x0, t_max=1.0, noise=0.01)
     with pytest.raises(TypeError, match="seed must be an int or a numpy Generator"):
-        tv.bounded_noise(0.01, 1, seed=None)
+        bounded_noise(0.01, 1, seed=None)
 
 
 def test_simulate_chained_form_and_errors_on_the_loop():
@@ -695,7 +724,7 @@ def test_simulate_chained_form_and_errors_on_the_loop():
     # (50), corrected range
     hst.assert_exact_after(arc, e[:, None], t=2 * np.pi + np.sqrt(0.5), atol=1e-8)
     loop, v2l, arc_l = _closed_loop(8.0)
-    S = tv.loop_signals(arc_l, loop, v2l)
+    S = loop_signals(arc_l, loop, v2l)
     np.testing.assert_allclose(tv.errors(arc_l, loop.systems["observer"]).e[:, 0],
                                S["xhat2"] - S["xi"][:, 1], rtol=0, atol=1e-14)
 
@@ -845,12 +874,12 @@ def test_lti_data_and_draw():
 def test_l_a_is_a_certified_supremum():
     """Referee item 2: l_a of (28) on the example is the supremum of gain(t) (4.0922), not the
     maximum of a 25-point grid (4.0750); the certificate brackets it."""
-    ex = tv.example_data()
+    ex = example_data()
 
     def gain(t):
-        return tv.noise_gain(t, ex["tau"], ex["A1"], ex["A2"], ex["L"], ex["Phi_A2"],
+        return noise_gain(t, ex["tau"], ex["A1"], ex["A2"], ex["L"], ex["Phi_A2"],
                              ex["Phi_H"], Ldot=ex["Ldot"], p=1, m=1)
-    b = tv.example_gain_sup(2 ** 16)
+    b = example_gain_sup(2 ** 16)
     assert b.lower <= b.upper < b.lower + 1e-3           # bracket ~14 h = 6.7e-4
     # the grid of the old l_a (25 points of [2 pi, 4 pi]; l has period pi: its first 13)
     grid = np.linspace(2 * np.pi, 4 * np.pi, 25)[:13]
@@ -864,15 +893,15 @@ def test_l_a_is_a_certified_supremum():
         assert gain(t) == pytest.approx(gain(t + np.pi), abs=1e-7)
         assert gain(t) <= b.upper
     # brackets of two grids are consistent (each contains the sup)
-    c = tv.example_gain_sup(2 ** 10)
+    c = example_gain_sup(2 ** 10)
     assert max(b.lower, c.lower) <= min(b.upper, c.upper)
     # the claim prints the bracket of its default grid
     claim = next(c for c in tv.CLAIMS if c.id == "001-eq28-la-example")
-    bd = tv.example_gain_sup()
+    bd = example_gain_sup()
     assert f"[{bd.lower:.5f}, {bd.upper:.5f}]" in claim.statement
     assert f"[{bd.lower:.5f}, {bd.upper:.5f}]" in " ".join(tv.DECISIONS)
     with pytest.raises(ValueError, match="n must be an int >= 16"):
-        tv.example_gain_sup(4)
+        example_gain_sup(4)
 
 
 def test_sigma_bound_claim_can_fail(fig1_short):
@@ -883,23 +912,23 @@ def test_sigma_bound_claim_can_fail(fig1_short):
     from observers.claims import evaluate
     from observers.time_varying import claims as tvc
     s = np.concatenate([-np.logspace(-8, 8, 2001)[::-1], [0.0], np.logspace(-8, 8, 2001)])
-    sg = tv.sigma(s)
+    sg = sigma(s)
     # |sigma| < 1 (= 1 in floating point only beyond |s| ~ 1e8), odd, s sigma(s) >= 0 (54)
     assert np.all(np.abs(sg) <= 1) and np.all(np.abs(sg[np.abs(s) <= 1e7]) < 1)
-    assert np.all(sg * s >= 0) and np.all(tv.sigma(-s) == -sg)
+    assert np.all(sg * s >= 0) and np.all(sigma(-s) == -sg)
     d, _ = fig1_short
     S = d.signals
-    np.testing.assert_allclose(tv.sigma(S["v2_arg"]), S["v2"], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(sigma(S["v2_arg"]), S["v2"], rtol=0, atol=1e-15)
     claim = next(c for c in tv.CLAIMS if c.id == "001-eq57-bounded")
     assert (claim.relation, claim.reference, claim.tol) == ("<=", 1.0, 0.0)
 
     def with_sat(sat):
         return evaluate(dataclasses.replace(
             claim, compute=lambda: tvc._loop_v2_max(sat=sat, signals=S)))
-    ok = with_sat(tv.sigma)
+    ok = with_sat(sigma)
     assert ok.passed and ok.verdict == "reproduced"
     assert ok.value == np.abs(S["v2"]).max()   # 0.94 on [0, 8]; 0.966 on Fig. 1's [0, 60]
-    for wrong in (lambda x: 2 * tv.sigma(x), lambda x: x, lambda x: 1.1 * tv.sigma(x)):
+    for wrong in (lambda x: 2 * sigma(x), lambda x: x, lambda x: 1.1 * sigma(x)):
         r = with_sat(wrong)
         assert r.verdict == "differs" and not r.passed
     assert with_sat(np.tanh).passed            # another saturation bounded by 1 passes
