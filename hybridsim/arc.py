@@ -64,8 +64,8 @@ def load(path, *, max_bytes: int = MAX_FILE_BYTES):
     --------
     >>> import os, tempfile, hybridsim as hs
     >>> tree = hs.explore(hs.HybridSystem.from_functions(
-    ...     f=lambda x: np.array([1.0]), g=lambda x: np.array([0.0]),
-    ...     C=lambda x: x[0] <= 2.0, D=lambda x: x[0] >= 1.0, state_dim=1),
+    ...     flow_map=lambda x: np.array([1.0]), jump_map=lambda x: np.array([0.0]),
+    ...     flow_set=lambda x: x[0] <= 2.0, jump_set=lambda x: x[0] >= 1.0, state_dim=1),
     ...     [0.0], t_max=3.0, j_max=1)
     >>> path = tree.leaves[0].save(os.path.join(tempfile.mkdtemp(), "leaf"))
     >>> [str(c) for c in hs.load(path).choices]

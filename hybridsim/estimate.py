@@ -314,7 +314,7 @@ class Stats:
     Examples
     --------
     >>> import numpy as np, hybridsim as hs
-    >>> decay = hs.HybridSystem.from_functions(f=lambda x: -x, state_dim=1)
+    >>> decay = hs.HybridSystem.from_functions(flow_map=lambda x: -x, state_dim=1)
     >>> s = Stats(t=[0.0, 1.0], signal=0, thresholds=[1.0], bins=(0, 4, 40))
     >>> s.update(hs.simulate_many(decay, [[1.0], [2.0], [3.0]], t_max=1.0, rtol=1e-10))
     >>> s.mean[:, 0].round(4), s.exceed[:, 0, 0]      # 3/e > 1

@@ -186,8 +186,8 @@ def explore(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = ma
 
     >>> import numpy as np, hybridsim as hs
     >>> timer = hs.HybridSystem.from_functions(
-    ...     f=lambda x: np.array([1.0]), g=lambda x: np.array([0.0]),
-    ...     C=lambda x: x[0] <= 2.0, D=lambda x: x[0] >= 1.0, state_dim=1)
+    ...     flow_map=lambda x: np.array([1.0]), jump_map=lambda x: np.array([0.0]),
+    ...     flow_set=lambda x: x[0] <= 2.0, jump_set=lambda x: x[0] >= 1.0, state_dim=1)
     >>> tree = hs.explore(timer, [0.0], t_max=10.0, j_max=2, dwell_grid=[0.5],
     ...                   merge_tol=None)
     >>> len(tree), tree.complete

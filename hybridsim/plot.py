@@ -672,8 +672,8 @@ def plot_solutions(tree, idx=0, *, view="flows", fn=None, ax=None, label=None, c
     --------
     >>> import numpy as np, hybridsim as hs
     >>> timer = hs.HybridSystem.from_functions(
-    ...     f=lambda x: np.array([1.0]), g=lambda x: np.array([0.0]),
-    ...     C=lambda x: x[0] <= 2.0, D=lambda x: x[0] >= 1.0, state_dim=1)
+    ...     flow_map=lambda x: np.array([1.0]), jump_map=lambda x: np.array([0.0]),
+    ...     flow_set=lambda x: x[0] <= 2.0, jump_set=lambda x: x[0] >= 1.0, state_dim=1)
     >>> tree = hs.explore(timer, [0.0], t_max=5.0, j_max=2, merge_tol=None)
     >>> ax = hs.plot_solutions(tree)
     >>> ax.get_legend().get_texts()[0].get_text(), ax.get_ylabel()

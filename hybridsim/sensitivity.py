@@ -650,7 +650,7 @@ def simulate_sensitivity(system: HybridSystem | Callable[..., HybridSystem], x0:
     Examples
     --------
     >>> timer = hs.HybridSystem.from_functions(
-    ...     f=lambda x: np.array([1.0]), g=lambda x: np.array([0.0]),
+    ...     flow_map=lambda x: np.array([1.0]), jump_map=lambda x: np.array([0.0]),
     ...     jump_guard=lambda x: x[0] - 1.0, state_dim=1)
     >>> sarc = hs.simulate_sensitivity(timer, [0.25], t_max=2.0)
     >>> sarc.dtj_dx0[:, 0]                  # every jump comes 1 s earlier per unit of x0

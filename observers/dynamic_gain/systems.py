@@ -481,7 +481,7 @@ class ConsistentEuler(hs.HybridSystem):
     Examples
     --------
     >>> import numpy as np, hybridsim as hs
-    >>> decay = hs.HybridSystem.from_functions(f=lambda x: -x, state_dim=1)
+    >>> decay = hs.HybridSystem.from_functions(flow_map=lambda x: -x, state_dim=1)
     >>> euler = ConsistentEuler(decay, lambda x: abs(x[0]), 0.5, dt0=0.1)
     >>> arc = hs.simulate(euler, euler.initial_state([1.0]), t_max=0.25)
     >>> arc.jump_times.round(12).tolist(), round(float(arc.xf[0]), 12)    # 1 - 0.1, 0.9 - 0.09...
