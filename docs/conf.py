@@ -292,8 +292,10 @@ def _fix_viewcode_backlinks(app, env):
     (on the module's page). The source page then linked the module's page
     with the other prefix, ``hybridsim.rules.html#hybridsim.SimulationError``:
     anchors that do not exist. Here each module gets the prefix under which
-    all its linked objects are documented (its own name first), and each
-    object the page that documents it under that prefix.
+    most of its linked objects are documented (its own name first on a tie),
+    each object the page that documents it under that prefix, and an object
+    documented only under another prefix no [docs] link (one prefix per
+    module is all viewcode can write).
     """
     modules = getattr(env, "_viewcode_modules", {})
     objects = env.get_domain("py").objects
@@ -303,12 +305,11 @@ def _fix_viewcode_backlinks(app, env):
         code, tags, used, refname = entry
         if not used:
             continue
-        for prefix in dict.fromkeys(p for p in (modname, refname) if p):
-            if all(f"{prefix}.{name}" in objects for name in used):
-                for name in used:
-                    used[name] = objects[f"{prefix}.{name}"].docname
-                modules[modname] = (code, tags, used, prefix)
-                break
+        prefixes = list(dict.fromkeys(p for p in (modname, refname) if p))
+        best = max(prefixes, key=lambda p: sum(f"{p}.{n}" in objects for n in used))
+        linked = {name: objects[f"{best}.{name}"].docname
+                  for name in used if f"{best}.{name}" in objects}
+        modules[modname] = (code, tags, linked, best)
 
 
 def _check_links(app, exception):
