@@ -281,6 +281,13 @@ def _check_api_coverage(app):
             ", ".join(missing))
 
 
+def _anchored(objects, name):
+    """``name`` is documented with an anchor of its own (autodoc's ``:canonical:``
+    names are registered as aliases of the documented name, without one)."""
+    entry = objects.get(name)
+    return entry is not None and not getattr(entry, "aliased", False)
+
+
 def _fix_viewcode_backlinks(app, env):
     """Point each highlighted source page's [docs] links at anchors that exist.
 
@@ -294,8 +301,9 @@ def _fix_viewcode_backlinks(app, env):
     anchors that do not exist. Here each module gets the prefix under which
     most of its linked objects are documented (its own name first on a tie),
     each object the page that documents it under that prefix, and an object
-    documented only under another prefix no [docs] link (one prefix per
-    module is all viewcode can write).
+    documented only under another prefix (or only as another name's
+    canonical alias) no [docs] link: one prefix per module is all viewcode
+    can write.
     """
     modules = getattr(env, "_viewcode_modules", {})
     objects = env.get_domain("py").objects
@@ -306,9 +314,9 @@ def _fix_viewcode_backlinks(app, env):
         if not used:
             continue
         prefixes = list(dict.fromkeys(p for p in (modname, refname) if p))
-        best = max(prefixes, key=lambda p: sum(f"{p}.{n}" in objects for n in used))
+        best = max(prefixes, key=lambda p: sum(_anchored(objects, f"{p}.{n}") for n in used))
         linked = {name: objects[f"{best}.{name}"].docname
-                  for name in used if f"{best}.{name}" in objects}
+                  for name in used if _anchored(objects, f"{best}.{name}")}
         modules[modname] = (code, tags, linked, best)
 
 
