@@ -448,14 +448,18 @@ def crossing_sides(v0, v1, direction):
 def starts_on_zero(floor, t, tol):
     """A crossing located at ``t`` is the zero its flow starts on (at ``floor``,
     a jump's instant or x0): within two event tolerances ``tol`` of it
-    (floats or arrays).
+    (floats or arrays). ``floor = -inf`` marks a flow that starts on no zero
+    (restarted without a jump): none of its crossings is, whatever ``tol``
+    (the tolerance of -inf's scale is inf).
 
     Examples
     --------
     >>> starts_on_zero(1.0, 1.0 + 4e-16, 8.9e-16), starts_on_zero(1.0, 1.1, 8.9e-16)
     (True, False)
+    >>> starts_on_zero(-math.inf, 2.0, math.inf)
+    False
     """
-    return t - floor <= 2.0 * tol
+    return (floor > -math.inf) & (t - floor <= 2.0 * tol)
 
 
 def watch_crossings(sol, a, b, ya, yb, wa, wb, W, direction, floor, samples=WATCH_SAMPLES):

@@ -143,6 +143,55 @@ def test_a_zero_at_a_jump_is_recorded_once_before_it(path):
     np.testing.assert_allclose(jt, apexes(2.0, 6)[1], rtol=0, atol=1e-12)
 
 
+class DelayedClock(hs.HybridSystem):
+    """x' = 1 with a declared delay of 1: every path stops the flow at t0 + 1 (a
+    delay breakpoint) and starts it again there, without a jump."""
+    state_dim = 1
+    delays = (1.0,)
+
+    def flow_map(self, x):
+        return np.ones_like(x)
+
+    def watch(self, x):
+        return np.stack([x[..., 0] - 0.5, x[..., 0] - 1.5], axis=-1)
+
+
+def delayed_clock(vectorized=False):
+    s = DelayedClock()
+    s.vectorized = vectorized
+    return s
+
+
+def coin_clock(vectorized=False):
+    """x' = 1 in C = {x <= 2}, x+ = 0 in D = {x >= 1}: under priority="random" a
+    coin at t = 1 may flow on in C ∩ D (a flow restarted without a jump) until
+    C ends at t = 2. Watched: x - 1.5, rising."""
+    return hs.HybridSystem.from_functions(
+        flow_map=lambda x: np.ones_like(x), jump_map=lambda x: 0.0 * x,
+        flow_set=lambda x: x[..., 0] <= 2.0, jump_set=lambda x: x[..., 0] >= 1.0,
+        state_dim=1, watch=lambda x: x[..., 0] - 1.5, watch_direction=1,
+        vectorized=vectorized)
+
+
+@pytest.mark.parametrize("restart", ["delay breakpoint", "coin flows on"])
+def test_a_flow_restarted_without_a_jump_keeps_its_crossings(path, restart):
+    """A flow that starts again where no jump happened (a delay breakpoint; the
+    random priority's coin flowing on in C ∩ D) starts on no zero: its
+    crossings are recorded at their closed-form times (seed 0's coin flows on
+    at t = 1, so the only jump is at t = 2)."""
+    if restart == "delay breakpoint":
+        arc = run(path, delayed_clock, [0.0], 3.0)
+        want, which = [0.5, 1.5], [0, 1]
+    else:
+        arc = run(path, coin_clock, [0.0], 2.5, priority="random", seed=0)
+        assert len(arc.jump_times) == 1 and abs(arc.jump_times[0] - 2.0) <= ulp4(2.0)
+        want, which = [1.5], [0]
+    c = arc.crossings
+    assert len(c) == len(want) and (c.direction == 1).all() and (c.j == 0).all()
+    np.testing.assert_array_equal(c.which, which)
+    assert np.all(np.abs(c.t - want) <= [ulp4(t) for t in want]), c.t - want
+
+
 def test_watching_changes_nothing_else(path):
     """The arc with watched functions is the arc without them, bit for bit:
     samples, derivatives and statistics (no step is cut)."""
