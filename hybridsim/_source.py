@@ -684,7 +684,7 @@ class _Rewrite(ast.NodeTransformer):
             hit = self._product(v)
             if hit is not None:                 # y += M @ v: accumulated in y
                 target = ast.Name(id=node.target.id, ctx=ast.Load())
-                call = self._pmv("_hs_pmv_add", *hit, v, target)
+                call = self._pmv(*hit, v, target)
                 return ast.copy_location(ast.Expr(value=call), node)
         return self.generic_visit(node)
 
@@ -761,28 +761,30 @@ class _Rewrite(ast.NodeTransformer):
                                   lambda o=fn.obj, a=e.attr: getattr(o, a))
 
     def _product(self, node):
-        """``M @ v`` (``self.M @ v`` or ``v @ self.M.T``) as ``(slot, v)``, or None."""
+        """A product with a matrix of ``self`` as ``(slot, v, side)``: ``v @
+        self.M.T`` (side ``"_hs_pmv"``: Mᵀ on the right) or ``self.M @ v``
+        (``"_hs_mpv"``: M on the left; the same for a vector v), or None."""
         left, right = node.left, node.right
         if isinstance(right, ast.Attribute) and right.attr == "T":
             slot = self._matrix_slot(right.value)
             if slot is not None:
-                return slot, left
+                return slot, left, "_hs_pmv"
         slot = self._matrix_slot(left)
         if slot is not None:
-            return slot, right
+            return slot, right, "_hs_mpv"
         return None
 
-    def _pmv(self, name, slot, v, like, *extra):
+    def _pmv(self, slot, v, side, like, *extra):
         _, _, (r, c), off, _ = slot
         args = [ast.Name(id=P, ctx=ast.Load()), ast.Constant(off), ast.Constant(r),
                 ast.Constant(c), self.visit(v), *extra]
-        return _call(name, args, like)
+        return _call(side + ("_add" if extra else ""), args, like)
 
     def visit_BinOp(self, node):
         if isinstance(node.op, ast.MatMult):     # small products as loops, in index order
             hit = self._product(node)
             if hit is not None:                 # a matrix of p read in place
-                return self._pmv("_hs_pmv", *hit, node)
+                return self._pmv(*hit, node)
             return _call("_hs_matmul", [self.visit(node.left), self.visit(node.right)], node)
         return self.generic_visit(node)
 

@@ -125,10 +125,21 @@ def _text(system, e):
 _MODULES = {}
 
 
+@functools.cache
+def _helpers_text():
+    """The source of the helpers generated maps call (numba's cache of a map
+    holds them inlined: a changed helper must name a new module)."""
+    import inspect
+    try:
+        return inspect.getsource(_scalar_fn) + inspect.getsource(_helpers)
+    except OSError:                 # no source shipped: the bytecode
+        return repr([f.__code__.co_code for f in (_scalar_fn, _helpers)])
+
+
 def _digest(plan):
     import numba
     h = hashlib.sha256()
-    for part in (plan.source, numba.__version__, sys.version, "hybridsim-source-1"):
+    for part in (plan.source, numba.__version__, sys.version, _helpers_text()):
         h.update(part.encode())
         h.update(b"\0")
     for name, d in sorted(plan.dispatchers.items()):
@@ -194,8 +205,7 @@ def _module(plan):
     # the text generated here (compared with the file's), compiled under the file's name
     exec(compile(src, mod.__file__, "exec"), mod.__dict__)
     mod.__dict__.update(plan.dispatchers)
-    (mod.__dict__["_hs_scalar"], mod.__dict__["_hs_matmul"], mod.__dict__["_hs_pmv"],
-     mod.__dict__["_hs_pmv_add"]) = _scalar_fn()
+    mod.__dict__.update(_scalar_fn())
     if path is not None:
         sys.modules[name] = mod
     for fname in plan.qualnames:
@@ -266,11 +276,13 @@ _SCALAR = []
 
 
 def _scalar_fn():
-    """``(_hs_scalar, _hs_matmul)`` for generated maps: a guard's or a set's
-    value as a number (a 0-d array's element, anything else as it is), and
-    ``a @ b`` of vectors and matrices as loops summing in index order (no
-    BLAS call per product of a small matrix; the sums of
-    :func:`hybridsim.compiled.matvec`)."""
+    """The helpers of generated maps by name: ``_hs_scalar``, a guard's or a set's
+    value as a number (a 0-d array's element, anything else as it is),
+    ``_hs_matmul``, ``a @ b`` of vectors and matrices as loops summing in
+    index order (no BLAS call per product of a small matrix; the sums of
+    :func:`hybridsim.compiled.matvec`), and the products with a matrix read
+    in place from ``p``: ``_hs_pmv`` (``v @ M.T``), ``_hs_mpv`` (``M @ v``)
+    and their ``_add`` forms (``y += ...``)."""
     if not _SCALAR:
         from numba.core import types as nt
         from numba.extending import overload
@@ -369,7 +381,32 @@ def _scalar_fn():
             def add(p, off, r, c, v, y):
                 y += _hs_matmul(v, p[off:off + r * c].reshape((r, c)).T)
             return add
-        _SCALAR.append((_hs_scalar, _hs_matmul, _hs_pmv, _hs_pmv_add))
+
+        # M @ v with M on the left: the same as _hs_pmv for a vector v, M V for a matrix
+        def _hs_mpv(p, off, r, c, v):
+            return p[off:off + r * c].reshape((r, c)) @ v
+
+        @overload(_hs_mpv)
+        def _typed_mpv(p, off, r, c, v):
+            if isinstance(v, nt.Array) and v.ndim == 1:
+                return lambda p, off, r, c, v: matvec(p, off, r, c, v)
+            return lambda p, off, r, c, v: _hs_matmul(p[off:off + r * c].reshape((r, c)), v)
+
+        def _hs_mpv_add(p, off, r, c, v, y):
+            y += p[off:off + r * c].reshape((r, c)) @ v
+
+        @overload(_hs_mpv_add)
+        def _typed_mpv_add(p, off, r, c, v, y):
+            if isinstance(v, nt.Array) and v.ndim == 1 and isinstance(y, nt.Array) \
+                    and y.ndim == 1:
+                return lambda p, off, r, c, v, y: matvec_add(p, off, r, c, v, y)
+
+            def add(p, off, r, c, v, y):
+                y += _hs_matmul(p[off:off + r * c].reshape((r, c)), v)
+            return add
+        _SCALAR.append({"_hs_scalar": _hs_scalar, "_hs_matmul": _hs_matmul,
+                        "_hs_pmv": _hs_pmv, "_hs_pmv_add": _hs_pmv_add,
+                        "_hs_mpv": _hs_mpv, "_hs_mpv_add": _hs_mpv_add})
     return _SCALAR[0]
 
 

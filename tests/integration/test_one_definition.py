@@ -376,3 +376,22 @@ def test_an_attribute_tested_against_none_is_decided_when_the_maps_are_rewritten
     np.testing.assert_allclose(a.xf, [np.exp(-1.0)], rtol=1e-9)
     np.testing.assert_allclose(b.xf, [1.0], rtol=1e-9)       # x' = 1 - x from 1
     assert set(lower(s).layout.names()) == {"bias"}
+
+
+def test_a_matrix_attribute_times_a_matrix_is_that_product():
+    """``self.M @ X`` with X a matrix is M X (and ``X @ self.M.T`` is X Mᵀ), as
+    numpy computes them, also where it accumulates (``Y += self.M @ X``)."""
+    class Products(hs.HybridSystem):
+        state_dim = 4
+
+        def __init__(self):
+            self.M = np.array([[1.0, 2.0], [3.0, 4.0]])
+
+        def flow_map(self, x):
+            X = x.reshape((2, 2))
+            Y = X @ self.M.T
+            Y += self.M @ X
+            return (self.M @ X + Y).reshape(4)
+    s = Products()
+    x = np.array([1.0, -2.0, 0.5, 3.0])
+    np.testing.assert_allclose(lower(s).flow_map(x, 0.0, 0), s.flow_map(x), rtol=1e-15)
