@@ -267,6 +267,10 @@ def _refusal(system, what, wired=None):
                              "(x, t, j, p)")
     if isinstance(system, LinearPlant) and not system.vectorized:
         return _plant_refusal(system, what)
+    why = getattr(system, "compiled_refusal", None)
+    why = why() if callable(why) else None
+    if why:                 # the system's own reason (a callable of t it cannot compile)
+        return _refuse(what, why)
     if form is None:
         if wired is None and _from_source.applies(system):
             # a plain model: its own maps, rewritten (hybridsim.compiled._from_source)
@@ -283,10 +287,6 @@ def _refusal(system, what, wired=None):
         why = _from_source.component_refusal(system)
         if why is not None:
             return _refuse(what, _from_source._text(system, why))
-    why = getattr(system, "compiled_refusal", None)
-    why = why() if callable(why) else None
-    if why:                 # the system's own reason (a callable of t without a compiled form)
-        return _refuse(what, why)
     if int(system.input_dim or 0):
         if wired is None:
             return _refuse(what, f"it has an input (input_dim={system.input_dim}); connect "

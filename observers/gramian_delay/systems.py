@@ -35,12 +35,13 @@ Two realisations of psi_2 of (7) (``realisation=``):
     exactness are unchanged.
 
 On the compiled path (``backend="compiled"``, :func:`hybridsim.compiled.lower`)
-the plant (1) runs where Psi, delta1 and delta2 have compiled forms (the DC
-motor's Psi with a control u given as sinusoids, and the disturbances of
-:func:`~observers.gramian_delay.dc_motor` and :func:`smooth_noise`: a
-``sinusoids`` table, see :class:`Plant`), and (39) in the literal
-realisation: its compiled flow reads psi(t - tau) from the past state the
-engine hands it (``Component(delays=(tau,))``).
+the plant (1) runs its own maps, rewritten from source with the callables
+they call (Psi, delta1, delta2 written on the last axis, ``batch = True``:
+those of :func:`~observers.gramian_delay.dc_motor` and :func:`smooth_noise`),
+and (39) in the literal realisation runs its compiled form (reasons beside
+:meth:`SampledGramianObserver.compiled_component`): its compiled flow reads
+psi(t - tau) from the past state the engine hands it
+(``Component(delays=(tau,))``).
 
 Examples
 --------
@@ -100,12 +101,14 @@ def _signal(name, fn, dim):
             return np.array([np.asarray(fn(float(s)), dtype=float).reshape(dim)
                              for s in t.ravel()]).reshape(t.shape + (dim,))
     signal._signal_dim = dim
-    signal.sinusoids = None if fn is None else getattr(fn, "sinusoids", None)
+    signal._one_time = fn is not None and not getattr(fn, "batch", False)
     return signal
 
 
 def _sinusoid_params(fn, dim, name):
-    r"""The compiled form of a signal ``fn``: ``[K, rows...]`` from its ``sinusoids``.
+    r"""The numbers of a control ``fn`` for the compiled Psi of (39)'s form
+    (:meth:`SampledGramianObserver.compiled_component`): ``[K, rows...]`` from
+    its ``sinusoids``.
 
     ``fn.sinusoids`` is a (K, 5) table of rows (component i, amplitude a,
     angular frequency w, phase phi, cos flag): component i of the signal is
@@ -161,40 +164,6 @@ def _no_psi(n):
     return psi
 
 
-@functools.cache
-def _plant_maps(n, q, psi, has_d1, has_d2, oracle):
-    """Compiled flow and output of the plant (1), reading M, N and the offsets of
-    delta1, delta2 and Psi's parameters from ``p`` (:meth:`Plant.compiled_component`)."""
-    from hybridsim.compiled import compiled_matvec
-    signal, mv = _signal_map(), compiled_matvec()
-    oN, oo = n * n, n * n + q * n
-    has_psi = psi is not None
-    psi = psi if has_psi else _no_psi(n)
-
-    def flow(x, u, t, j, p):
-        dx = mv(p, 0, n, n, x)                                      # M chi
-        if has_d1:
-            d1 = signal(t, p, int(p[oo]), n)                        # + delta1(t)
-            for i in range(n):
-                dx[i] = dx[i] + d1[i]
-        if has_psi:
-            ps = psi(mv(p, oN, q, n, x), t, p, int(p[oo + 2]))      # + Psi(N chi, t)
-            for i in range(n):
-                dx[i] = dx[i] + ps[i]
-        return dx
-
-    def output(x, t, j, p):
-        y = mv(p, oN, q, n, x)
-        out = np.empty(2 * q if oracle else q)
-        d2 = signal(t, p, int(p[oo + 1]), q) if has_d2 else np.zeros(q)
-        for i in range(q):
-            out[i] = y[i] + d2[i] if has_d2 else y[i]               # Y = N chi + delta2(t)
-            if oracle:
-                out[q + i] = y[i]
-        return out
-    return flow, output
-
-
 def smooth_noise(sigma, dim=1, *, seed=None, n_modes=8, f_max=50.0):
     r"""A seeded smooth random signal t -> (dim,) of RMS about ``sigma``.
 
@@ -217,8 +186,8 @@ def smooth_noise(sigma, dim=1, *, seed=None, n_modes=8, f_max=50.0):
     Returns
     -------
     callable
-        ``t -> (dim,)`` array; its ``sinusoids`` table (one row a mode) is
-        its compiled form (:class:`Plant`'s notes).
+        ``t -> (dim,)`` array, on the last axis (``batch = True``): it runs
+        compiled as written (:class:`Plant`'s notes).
 
     Examples
     --------
@@ -242,11 +211,6 @@ def smooth_noise(sigma, dim=1, *, seed=None, n_modes=8, f_max=50.0):
         t = np.asarray(t, dtype=float)[..., None, None]
         return np.sum(a * np.sin(2 * np.pi * f * t + ph), axis=-2)
     noise.batch = True
-    # its compiled form (Plant's notes): one row (component, a, 2 pi f, phase, sin) a mode
-    w = 2 * np.pi * f
-    comp = np.broadcast_to(np.arange(dim), (n_modes, dim))
-    noise.sinusoids = np.column_stack([comp.ravel(), a.ravel(), w.ravel(), ph.ravel(),
-                                       np.zeros(n_modes * dim)])
     return noise
 
 
@@ -279,16 +243,13 @@ class Plant(hs.HybridSystem):
     (the disturbances are read per time, in one call where they declare
     ``batch = True``).
 
-    The compiled path (``backend="compiled"``, :meth:`compiled_component`)
-    takes the plant where every callable has a compiled form: ``Psi`` one
-    in its attribute ``Psi.compiled = (fn, params)``, ``fn(y, t, p, o) ->
-    (n,)`` a numba-compilable function reading its numbers from ``p[o:]``
-    (``params``, as :class:`DCMotor` sets it); ``delta1`` and ``delta2`` a
-    ``sinusoids`` table, rows (component, amplitude, angular frequency,
-    phase, cos flag) summed as ``a sin(w t + phi)`` (or ``a cos``), as the
-    disturbances of :func:`~observers.gramian_delay.dc_motor` and
-    :func:`smooth_noise` carry. Others are refused by name
-    (:meth:`compiled_refusal`).
+    The compiled path (``backend="compiled"``) runs these maps as written:
+    their source, with the code of ``Psi``, ``delta1`` and ``delta2``, is
+    rewritten for numba (:func:`hybridsim.compiled.lower`; M, N and the
+    numbers the callables read become parameters). A callable of one time
+    only (no ``batch = True``) is refused by name (:meth:`compiled_refusal`),
+    and one whose code numba cannot compile by numba's message naming its
+    line.
 
     References
     ----------
@@ -323,58 +284,28 @@ class Plant(hs.HybridSystem):
         x = np.asarray(x, dtype=float)
         dx = x @ self.M.T
         if self._d1 is not None:
-            dx = dx + self._d1(t)
+            dx += self._d1(t)
         if self.Psi is not None:
-            dx = dx + np.asarray(self.Psi(x @ self.N.T, t), dtype=float)
+            dx += np.asarray(self.Psi(x @ self.N.T, t), dtype=float)
         return dx
 
     def compiled_refusal(self):
-        """Why the plant has no compiled form (a sentence naming the callable), or None."""
-        if self.Psi is not None and getattr(self.Psi, "compiled", None) is None:
-            return getattr(self, "_psi_refusal", None) or (
-                "its Psi is a Python callable without a compiled form (Psi.compiled = "
-                "(fn(y, t, p, o), params), see gramian_delay.Plant)")
+        """Why the plant's maps do not run compiled (a sentence naming the callable), or None."""
+        why = getattr(self, "_psi_refusal", None)
+        if self.Psi is not None and not getattr(self.Psi, "batch", False):
+            why = why or ("its Psi is a Python callable without a batch form (Psi.batch = True, "
+                          "on the last axis; see gramian_delay.Plant)")
         for name, sig in (("delta1", self._d1), ("delta2", self._d2)):
-            if sig is not None and sig.sinusoids is None:
-                return (f"its {name} is a Python callable of t without a compiled form (a "
-                        f"'sinusoids' table, see gramian_delay.Plant)")
-        return None
-
-    def compiled_component(self):
-        r"""The plant (1) in compiled form (``backend="compiled"``): the same
-        chi' = M chi + delta1(t) + Psi(N chi, t) and Y = N chi + delta2(t)
-        (with N chi after Y when ``oracle``), M and N and the signals'
-        numbers in the parameters.
-
-        Raises
-        ------
-        TypeError
-            A callable without a compiled form (:meth:`compiled_refusal`).
-        """
-        from hybridsim.compiled import Component
-        why = self.compiled_refusal()
-        if why:
-            raise TypeError(f"backend='compiled': {type(self).__name__} cannot run "
-                            f"compiled: {why}")
-        n, q = self.state_dim, self.N.shape[0]
-        d1 = None if self._d1 is None else _sinusoid_params(self._d1, n, "delta1")
-        d2 = None if self._d2 is None else _sinusoid_params(self._d2, q, "delta2")
-        fn, pp = (None, ()) if self.Psi is None else self.Psi.compiled
-        head = np.concatenate([self.M.ravel(), self.N.ravel()])
-        o1 = head.size + 3                         # delta1, delta2, Psi after the offsets
-        o2 = o1 + (0 if d1 is None else d1.size)
-        o3 = o2 + (0 if d2 is None else d2.size)
-        params = np.concatenate([head, [o1, o2, o3]] + [v for v in (d1, d2) if v is not None]
-                                + [np.asarray(pp, dtype=float).reshape(-1)])
-        flow, output = _plant_maps(n, q, fn, d1 is not None, d2 is not None, self.oracle)
-        return Component(state_dim=n, flow=flow, output=output, output_dim=self.output_dim,
-                         params=params)
+            if why is None and sig is not None and sig._one_time:
+                why = (f"its {name} is a Python callable of t without a batch form "
+                       f"(batch = True, on the last axis; see gramian_delay.Plant)")
+        return why
 
     def output(self, x, t, j):
         """Y = N chi + delta2(t) (then N chi with ``oracle``), on the last axis."""
         y = np.asarray(x, dtype=float) @ self.N.T
         Y = y if self._d2 is None else y + self._d2(t)
-        return np.concatenate([Y, y], axis=-1) if self.oracle else Y
+        return np.concatenate((Y, y), axis=-1) if self.oracle else Y
 
 
 class DCMotor(Plant):
@@ -403,9 +334,10 @@ class DCMotor(Plant):
     k, tau : float
         The constant of (2) and the delay.
     u : callable
-        The control ``t -> float``; with a ``sinusoids`` table (:class:`Plant`'s
-        notes; :func:`~observers.gramian_delay.dc_motor`'s has one) Psi has a
-        compiled form.
+        The control ``t -> float`` (on the last axis with ``u.batch = True``:
+        the plant then runs compiled, :class:`Plant`'s notes); with a
+        ``sinusoids`` table (:func:`~observers.gramian_delay.dc_motor`'s has
+        one) the observer (39) runs compiled too.
     delta1, delta2 : callable, optional
         ``t -> (3,)``, ``t -> (1,)``; None means zero.
     chi0 : (3,) array_like
@@ -450,11 +382,12 @@ class DCMotor(Plant):
         Psi.batch = True
 
         u_sin = _sinusoid_params(u, 1, "u")
-        if u_sin is not None:               # the compiled form of Psi (Plant's notes)
+        if u_sin is not None:               # Psi for the compiled form of (39)
             Psi.compiled = (_dc_psi(), np.concatenate([[a1, b0], u_sin]))
-        else:
-            self._psi_refusal = ("its control u is a Python callable of t without a "
-                                 "compiled form (a 'sinusoids' table, see gramian_delay.Plant)")
+        if not getattr(u, "batch", False):
+            self._psi_refusal = ("its control u is a Python callable of t without a batch "
+                                 "form (u.batch = True, on the last axis; see "
+                                 "gramian_delay.Plant)")
         super().__init__(M, Nmat, Psi, delta1=delta1, delta2=delta2, oracle=oracle)
         self.params = p
         self.u = u
@@ -1118,8 +1051,8 @@ class SampledGramianObserver(_ObserverBase):
                                 + ([self.instants] if sampling == "instants" else []))
         flow, jump, guard, fguard = _sampled_maps(m, q, n, fn, sampling,
                                                   self.estimate_source == "xi2")
-        return Component(state_dim=self.state_dim, input_dim=self.input_dim, flow=flow,
-                         jump=jump, jump_guard=guard, flow_guard=fguard, params=params,
+        return Component(state_dim=self.state_dim, input_dim=self.input_dim, flow_map=flow,
+                         jump_map=jump, jump_guard=guard, flow_guard=fguard, params=params,
                          delays=(d.tau,))
 
     def estimate(self, arc, *, y=None, name=None):
