@@ -996,6 +996,22 @@ class SampledGramianObserver(_ObserverBase):
                     "ill conditioned for this design (cond > 1e6)")
         return None
 
+    # A compiled twin of flow_map, jump_map and jump_guard, kept (issue 42's named
+    # exception): the rewrite from source cannot take (39)'s maps as written, because
+    # 1. they read their numbers through other objects: the design's matrices (a
+    #    local d = self.design) and F1, F2 through the ObserverForm's bound F12,
+    #    whose Psi closes over the plant's control u;
+    # 2. (13) reads the past through self._estimate(z, t, y, self.history), the
+    #    history passed as a value (to _delayed), where the rewrite takes calls
+    #    self.history(t - tau) in the flow map only;
+    # 3. before t0 + tau, (13) reads psi(t0), a fixed time, not t - tau (on the
+    #    kernel that is the prehistory x0, right for runs that start at t0);
+    # 4. the early window's e^{-(A1^T + 2kI) h} is GramianDesign.decay: complex
+    #    eigenmodes, or scipy's expm where they are ill conditioned;
+    # 5. flow_map has a batch branch (_xi_e: rows read from a BatchHistory, each
+    #    row before t0 + tau with its own window) for the vectorized path.
+    # Rewriting them for numba would move the Python path's arithmetic, and with
+    # it the pinned claims ((13) multiplies an ulp of omega's flow by |S^-1| ~ 1e5).
     def compiled_component(self):
         r"""(39) in compiled form (``backend="compiled"``, realisation "literal").
 
