@@ -1150,8 +1150,14 @@ def plan(system, component=False):
         roles[role] = pl.follow(f, role=role, form=form)
     if "flow" not in roles:
         raise SourceRefusal(f"{cls}.flow_map", "-", "the system defines no flow_map")
-    lines = [f"# hybridsim: the maps of {cls}, rewritten as functions of (x, t, j, p)",
- ]
+    out = _assemble(pl, roles, f"the maps of {cls}, rewritten as functions of (x, t, j, p)")
+    out.reads_past = pl.reads_past         # its flow reads x(t - tau_i): delays on the kernel
+    return out
+
+
+def _assemble(pl, roles, title):
+    """The :class:`Plan` of the planner's functions: one module's text."""
+    lines = [f"# hybridsim: {title}"]
     lines += [f"import {m} as {n}" for m, n in sorted(pl.modules.items())]
     lines.append("")
     where = {}
@@ -1168,6 +1174,21 @@ def plan(system, component=False):
         lines += text.splitlines()
         lines.append("")
     src = "\n".join(lines) + "\n"
-    out = Plan(src, roles, pl.layout, {n: d for n, d in pl.dispatchers.values()}, where, qual)
-    out.reads_past = pl.reads_past         # its flow reads x(t - tau_i): delays on the kernel
+    return Plan(src, roles, pl.layout, {n: d for n, d in pl.dispatchers.values()}, where, qual)
+
+
+# ------------------------------------------------------------------ one plain function
+def plan_function(fn):
+    """The :class:`Plan` of one plain function ``fn(*args)`` (a module's
+    function or a closure) rewritten as ``f(p, *args)`` (role ``"function"``),
+    the numbers and arrays it reads slots of ``p``; a :class:`SourceRefusal`
+    naming its line otherwise. For a compiled form that calls a user's
+    function (:func:`hybridsim.compiled._from_source.compiled_function`)."""
+    pl = _Planner()
+    f = _fn_of(fn, getattr(fn, "__qualname__", type(fn).__name__))
+    if f.obj is not None:
+        raise f.refuse(f.node, "it is a bound method (a plain function is rewritten here)")
+    out = _assemble(pl, {"function": pl.follow(f)},
+                    f"{f.qualname}, rewritten as a function of (p, ...)")
+    out.reads_past = False
     return out

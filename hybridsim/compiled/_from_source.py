@@ -39,7 +39,8 @@ from .. import _source
 from ..system import HybridSystem
 from ._private import private_folder
 
-__all__ = ["FallbackWarning", "applies", "refusal", "lower_source", "auto_choice"]
+__all__ = ["FallbackWarning", "applies", "refusal", "lower_source", "auto_choice",
+           "compiled_function"]
 
 
 class FallbackWarning(UserWarning):
@@ -431,6 +432,23 @@ def component_maps(system):
     maps = {role: getattr(mod, name) for role, name in pl.roles.items() if role != "output"}
     out = pl.roles.get("output")
     return maps, (None if out is None else getattr(mod, out)), p, _delays(system, pl)
+
+
+def compiled_function(fn):
+    """A plain function ``fn(*args)`` compiled from its source as ``f(p, *args)``
+    (its numbers and arrays read into ``p`` now): ``(f, p)``, ``f`` a numba
+    dispatcher shared by every function of the same rewritten source.
+
+    Raises
+    ------
+    TypeError
+        Its source cannot be rewritten (a :class:`~hybridsim._source.SourceRefusal`
+        naming the line).
+    """
+    pl = _source.plan_function(fn)
+    p = pl.layout.read()
+    mod, _ = _module(pl)
+    return getattr(mod, pl.roles["function"]), p
 
 
 def component_refusal(system):

@@ -64,9 +64,6 @@ def _example_delta2(t):
 
 
 _example_u.batch = _example_delta1.batch = _example_delta2.batch = True
-# u for the compiled form of (39) (SampledGramianObserver.compiled_component): rows
-# (component, amplitude, angular frequency, phase, cos flag), summed as a sin(w t + phi)
-_example_u.sinusoids = np.array([[0, 2.0, 2.0, 0.0, 0]])
 
 
 def dc_motor(k=100.0, tau=0.1, *, disturbed=True, u=None, delta1=None, delta2=None,

@@ -105,63 +105,20 @@ def _signal(name, fn, dim):
     return signal
 
 
-def _sinusoid_params(fn, dim, name):
-    r"""The numbers of a control ``fn`` for the compiled Psi of (39)'s form
-    (:meth:`SampledGramianObserver.compiled_component`): ``[K, rows...]`` from
-    its ``sinusoids``.
-
-    ``fn.sinusoids`` is a (K, 5) table of rows (component i, amplitude a,
-    angular frequency w, phase phi, cos flag): component i of the signal is
-    the sum of its rows' ``a sin(w t + phi)`` (``a cos(w t + phi)`` with
-    the flag 1), in the rows' order. Returns None when ``fn`` has none.
-    """
-    tab = getattr(fn, "sinusoids", None)
-    if tab is None:
-        return None
-    tab = np.asarray(tab, dtype=float).reshape(-1, 5)
-    comp = tab[:, 0]
-    if not np.all(np.isfinite(tab)) or np.any((comp < 0) | (comp >= dim)) or np.any(
-            comp != np.round(comp)) or not np.all(np.isin(tab[:, 4], (0.0, 1.0))):
-        raise ValueError(f"{name}.sinusoids must be rows (component in [0, {dim}), amplitude, "
-                         f"angular frequency, phase, cos flag 0 or 1) of finite floats")
-    return np.concatenate([[float(len(tab))], tab.ravel()])
-
-
-@functools.cache
-def _signal_map():
-    """Compiled evaluation of a signal's ``sinusoids`` table stored at ``p[o:]``
-    (:func:`_sinusoid_params`): ``signal(t, p, o, dim) -> (dim,)``."""
-    def signal(t, p, o, dim):
-        out = np.zeros(dim)
-        for r in range(int(p[o])):
-            b = o + 1 + 5 * r
-            arg = p[b + 2] * t + p[b + 3]
-            v = p[b + 1] * (math.cos(arg) if p[b + 4] > 0.5 else math.sin(arg))
-            i = int(p[b])
-            out[i] = out[i] + v
-        return out
-    return signal
-
-
-@functools.cache
-def _dc_psi():
-    """Compiled Psi of the DC motor (65): ``psi(y, t, p, o)`` = (0, -a1 sin y, b0 u(t))
-    with a1, b0 and u's sinusoids at ``p[o:]``."""
-    signal = _signal_map()
-
-    def psi(y, t, p, o):
-        out = np.zeros(3)
-        out[1] = -p[o] * math.sin(y[0])
-        out[2] = p[o + 1] * signal(t, p, o + 2, 1)[0]
-        return out
-    return psi
-
-
 @functools.cache
 def _no_psi(n):
-    def psi(y, t, p, o):          # Psi = 0 (never called: the branch is constant)
+    def psi(p, y, t):             # Psi = 0 (never called: the branch is constant)
         return np.zeros(n)
     return psi
+
+
+def _psi_refusal(Psi):
+    """Why a Psi's own code does not run compiled (a sentence naming it), or None."""
+    why = getattr(Psi, "refusal", None)
+    if why is None and not getattr(Psi, "batch", False):
+        why = ("its Psi is a Python callable without a batch form (Psi.batch = True, on the "
+               "last axis; see gramian_delay.Plant)")
+    return why
 
 
 def smooth_noise(sigma, dim=1, *, seed=None, n_modes=8, f_max=50.0):
@@ -291,10 +248,7 @@ class Plant(hs.HybridSystem):
 
     def compiled_refusal(self):
         """Why the plant's maps do not run compiled (a sentence naming the callable), or None."""
-        why = getattr(self, "_psi_refusal", None)
-        if self.Psi is not None and not getattr(self.Psi, "batch", False):
-            why = why or ("its Psi is a Python callable without a batch form (Psi.batch = True, "
-                          "on the last axis; see gramian_delay.Plant)")
+        why = None if self.Psi is None else _psi_refusal(self.Psi)
         for name, sig in (("delta1", self._d1), ("delta2", self._d2)):
             if why is None and sig is not None and sig._one_time:
                 why = (f"its {name} is a Python callable of t without a batch form "
@@ -334,10 +288,9 @@ class DCMotor(Plant):
     k, tau : float
         The constant of (2) and the delay.
     u : callable
-        The control ``t -> float`` (on the last axis with ``u.batch = True``:
-        the plant then runs compiled, :class:`Plant`'s notes); with a
-        ``sinusoids`` table (:func:`~observers.gramian_delay.dc_motor`'s has
-        one) the observer (39) runs compiled too.
+        The control ``t -> float``; on the last axis with ``u.batch = True``
+        (:func:`~observers.gramian_delay.dc_motor`'s), the plant and the
+        observer (39) run compiled (:class:`Plant`'s notes).
     delta1, delta2 : callable, optional
         ``t -> (3,)``, ``t -> (1,)``; None means zero.
     chi0 : (3,) array_like
@@ -381,13 +334,9 @@ class DCMotor(Plant):
             return out
         Psi.batch = True
 
-        u_sin = _sinusoid_params(u, 1, "u")
-        if u_sin is not None:               # Psi for the compiled form of (39)
-            Psi.compiled = (_dc_psi(), np.concatenate([[a1, b0], u_sin]))
         if not getattr(u, "batch", False):
-            self._psi_refusal = ("its control u is a Python callable of t without a batch "
-                                 "form (u.batch = True, on the last axis; see "
-                                 "gramian_delay.Plant)")
+            Psi.refusal = ("its control u is a Python callable of t without a batch form "
+                           "(u.batch = True, on the last axis; see gramian_delay.Plant)")
         super().__init__(M, Nmat, Psi, delta1=delta1, delta2=delta2, oracle=oracle)
         self.params = p
         self.u = u
@@ -425,8 +374,9 @@ def _sampled_maps(m, q, n, psi, sampling, xi2):
 
     State ``(xi1_hat, xi2_hat, psi1, psi2, omega, sigma, kappa)``; parameters
     in the order of :meth:`SampledGramianObserver.compiled_component`, then
-    (the flow only) the state at t - tau. ``psi`` is the compiled Psi of the
-    form (None: Psi = 0); ``sampling`` "period", "instants" or "gaps";
+    (the flow only) the state at t - tau. ``psi`` is the form's Psi compiled
+    from its own source, ``psi(p', y, t)`` with its numbers ``p'`` in ``p``
+    (None: Psi = 0); ``sampling`` "period", "instants" or "gaps";
     ``xi2``: (13) reads xi_2 from the input's second half, else omega.
     """
     from hybridsim.compiled import compiled_matvec
@@ -457,7 +407,7 @@ def _sampled_maps(m, q, n, psi, sampling, xi2):
     oP = oL2 + q * q
     oN = oP + m * n
     os_ = oN + q * n               # period | (T_low, T_bar) | (K, offset of the instants)
-    opsi = os_ + 2                 # offset of Psi's parameters
+    opsi = os_ + 2                 # (offset, size) of Psi's parameters
     has_psi = psi is not None
     psi = psi if has_psi else _no_psi(n)
 
@@ -485,7 +435,8 @@ def _sampled_maps(m, q, n, psi, sampling, xi2):
         f1 = mv(p, oL1, m, q, w)                                    # F1(omega, t), F2 of (2)
         f2 = mv(p, oL2, q, q, w)
         if has_psi:
-            pv = psi(w, t, p, int(p[opsi]))
+            o = int(p[opsi])
+            pv = psi(p[o:o + int(p[opsi + 1])], w, t)
             f1 = f1 + mv(p, oP, m, n, pv)
             f2 = f2 + mv(p, oN, q, n, pv)
         innov = mv(p, oH, m, q, w - xi2)                            # H (omega - xi2_hat)
@@ -987,9 +938,9 @@ class SampledGramianObserver(_ObserverBase):
         if not isinstance(form, ObserverForm) or getattr(self.F2, "__self__", None) is not form:
             return ("its F1, F2 are not an ObserverForm's (the compiled form reads F1, F2 of "
                     "(2) from the form's matrices and its Psi's compiled form)")
-        if form.Psi is not None and getattr(form.Psi, "compiled", None) is None:
-            return ("the Psi of its form is a Python callable without a compiled form "
-                    "(Psi.compiled = (fn(y, t, p, o), params), see gramian_delay.Plant)")
+        why = None if form.Psi is None else _psi_refusal(form.Psi)
+        if why:
+            return f"the Psi of its form is a Python callable that does not run compiled: {why}"
         if self.design._psi2_modes is None:
             return ("the early window of (13) (decision 3) needs e^{-(A1^T + 2kI) h} for "
                     "h < tau, computed from the eigen-decomposition of A1^T + 2kI, which is "
@@ -1012,6 +963,8 @@ class SampledGramianObserver(_ObserverBase):
     #    row before t0 + tau with its own window) for the vectorized path.
     # Rewriting them for numba would move the Python path's arithmetic, and with
     # it the pinned claims ((13) multiplies an ulp of omega's flow by |S^-1| ~ 1e5).
+    # The twin calls the form's Psi (and the control u in it) as written, rewritten
+    # from source (compiled_function): only (7), (13) and (39) are written twice.
     def compiled_component(self):
         r"""(39) in compiled form (``backend="compiled"``, realisation "literal").
 
@@ -1054,16 +1007,19 @@ class SampledGramianObserver(_ObserverBase):
                 d.R.ravel(), d.S_inv.ravel(), [d.E1], d.E2.ravel(), [d.tau, self.t0],
                 *re_im(V), *re_im(w), *re_im(Vi), L1.ravel(), L2.ravel(), form.P.ravel(),
                 form.N.ravel()]
-        size = sum(np.size(a) for a in head) + 3
-        fn, pp = (None, np.zeros(0)) if form.Psi is None else form.Psi.compiled
-        pp = np.asarray(pp, dtype=float).reshape(-1)
+        size = sum(np.size(a) for a in head) + 4
+        fn, pp = None, np.zeros(0)
+        if form.Psi is not None:        # Psi's own code, rewritten (its numbers in pp)
+            from hybridsim.compiled._from_source import compiled_function
+            fn, pp = compiled_function(form.Psi)
         if self.period is not None:
             sampling, samp = "period", [self.period, 0.0]
         elif self.gaps is not None:
             sampling, samp = "gaps", list(self.gaps)
         else:
             sampling, samp = "instants", [len(self.instants), size + pp.size]
-        params = np.concatenate([np.concatenate([np.ravel(a) for a in head]), samp, [size], pp]
+        params = np.concatenate([np.concatenate([np.ravel(a) for a in head]), samp,
+                                 [size, pp.size], pp]
                                 + ([self.instants] if sampling == "instants" else []))
         flow, jump, guard, fguard = _sampled_maps(m, q, n, fn, sampling,
                                                   self.estimate_source == "xi2")
