@@ -939,6 +939,12 @@ class SampledGramianObserver(_ObserverBase):
             return ("its F1, F2 are not an ObserverForm's (the compiled form reads F1, F2 of "
                     "(2) from the form's matrices and its Psi's compiled form)")
         why = None if form.Psi is None else _psi_refusal(form.Psi)
+        if form.Psi is not None and not why:
+            from hybridsim._source import SourceRefusal, plan_function
+            try:
+                plan_function(form.Psi)             # its code, rewritten (no numba)
+            except SourceRefusal as e:
+                why = f"its code cannot be rewritten for numba: {e}"
         if why:
             return f"the Psi of its form is a Python callable that does not run compiled: {why}"
         if self.design._psi2_modes is None:
