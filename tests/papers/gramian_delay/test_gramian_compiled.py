@@ -39,6 +39,7 @@ from observers.gramian_delay.systems import DCMotor, smooth_noise
 numba = pytest.importorskip("numba")
 
 from hybridsim.compiled import CompiledSystem, Component, lower, lowerable  # noqa: E402
+from hybridsim.compiled._system import keywords  # noqa: E402
 from observers import gramian_delay as gd  # noqa: E402
 
 RUN = dict(method="RK45", rtol=1e-10, atol=1e-12)
@@ -49,7 +50,7 @@ STATE_RTOL = 1e-11       # of each component's largest size over the run (module
 def python_path(cs):
     """The lowered system on the Python engine: its maps compiled by numba, called
     from ``hs.simulate`` (which fills the flow's past from ``hs.History``)."""
-    return CompiledSystem(**{r: numba.njit(f) for r, f in cs.maps.items()},
+    return CompiledSystem(**keywords({r: numba.njit(f) for r, f in cs.maps.items()}),
                           state_dim=cs.state_dim, params=cs.params, delays=cs.delays,
                           max_step=cs.max_step)
 
