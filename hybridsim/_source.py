@@ -36,6 +36,10 @@ function's own node in its file, so every message names the file and line):
   :class:`SourceRefusal` naming the method and its line: ``self`` passed or
   written, global state, random draws, an object numba cannot type.
 
+A flow map reading its past as ``self.history(t - tau)`` (the lags declared
+in ``self.delays``) reads it from the past the compiled kernel writes after
+the parameters (:func:`_past_call`); ``plan(...).reads_past`` says so.
+
 Reading source (rather than tracing calls) keeps every branch of a map,
 whatever state a trial call would take, and sees every read of ``self``.
 Nothing here needs numba (:mod:`hybridsim.compiled._from_source` compiles
@@ -808,8 +812,8 @@ class _Rewrite(ast.NodeTransformer):
                 inspect.ismethod(getattr(obj, attr, None)):
             raise fn.refuse(node, f"it reads the method self.{attr} without calling it")
         if attr in ("history",):
-            raise fn.refuse(node, "it reads self.history (the run's past); declare the "
-                                  "delays in a CompiledSystem(delays=...)")
+            raise fn.refuse(node, "it uses self.history other than to call it at t - tau "
+                                  "(a delay of self.delays): self.history(t - tau)")
         try:
             v = getattr(obj, attr)
         except AttributeError:
@@ -864,6 +868,9 @@ class _Rewrite(ast.NodeTransformer):
     def visit_Call(self, node):
         fn = self.fn
         f = node.func
+        past = _past_call(self, node)           # self.history(t - tau): the run's past
+        if past is not None:
+            return past
         self._check_random(f)
         args = [self.visit(a) for a in node.args]
         kws = [ast.keyword(arg=k.arg, value=self._dtype(k.value) if k.arg == "dtype"
@@ -913,6 +920,47 @@ class _Rewrite(ast.NodeTransformer):
                            f"be followed")
 
 
+# ------------------------------------------------------------------ the past: self.history
+def _past_call(rw, node):
+    """``self.history(t - tau)`` in a flow map as a read of the past the compiled
+    path hands the flow after its parameters (``_hs_past``), or None where
+    ``node`` is not a call of ``self.history``.
+
+    The delays are the system's (``self.delays``, a slot of ``p``: other
+    delays share the compiled maps); the lag ``tau`` is matched to one of them
+    when the map runs. Refused by name: a read outside the flow map (the other
+    maps see no past on the compiled path), a system without delays, an
+    argument not of the form ``t - tau``.
+    """
+    fn, pl = rw.fn, rw.pl
+    f = node.func
+    if not (isinstance(f, ast.Attribute) and f.attr == "history" and fn.self_name is not None
+            and isinstance(f.value, ast.Name) and f.value.id == fn.self_name):
+        return None
+    system = pl.system
+    if fn.obj is not system:
+        raise fn.refuse(node, "it reads the history of another object than the system")
+    if pl.root != "flow":
+        raise fn.refuse(node, "it reads self.history outside the flow map (on the compiled "
+                              "path only the flow map reads the past)")
+    delays = tuple(float(d) for d in (getattr(system, "delays", None) or ()))
+    if not delays:
+        raise fn.refuse(node, "it reads self.history(...) but the system declares no delays "
+                              "(self.delays = (tau, ...), the lags it reads)")
+    arg = node.args[0] if len(node.args) == 1 and not node.keywords else None
+    if not (isinstance(arg, ast.BinOp) and isinstance(arg.op, ast.Sub)
+            and isinstance(arg.left, ast.Name) and arg.left.id in fn.params):
+        raise fn.refuse(node, "self.history is read at t - tau only (t the map's time, tau "
+                              "one of self.delays)")
+    slot = pl.layout.add(("delays", id(system)), "delays", np.asarray(delays, dtype=float),
+                         lambda s=system: np.asarray(tuple(s.delays), dtype=float))
+    pl.reads_past = rw.reads_past = True
+    n = int(system.state_dim)
+    return _call("_hs_past", [ast.Name(id=P, ctx=ast.Load()), rw.visit(arg.right),
+                              ast.Constant(slot[3]), ast.Constant(len(delays)),
+                              ast.Constant(n)], node)
+
+
 def _default_reader(func, params, name):
     """Reads the current default of parameter ``name`` of ``func``."""
     i = params.index(name)
@@ -954,6 +1002,10 @@ class _Planner:
         self.dispatchers = {}        # id -> (generated name, dispatcher)
         self.inputs = False          # a component's maps: (x, u, t, j, p)
         self.lines = {}
+        # the past (self.history): the system, the role being followed, the
+        # generated functions that read it, the rewrites under way
+        self.system, self.root, self.reads_past = None, None, False
+        self.past_fns, self.stack = set(), []
 
     def module(self, m):
         name = self.modules.get(m.__name__)
@@ -974,7 +1026,7 @@ class _Planner:
         key = (id(fn.func), id(fn.obj))
         name = self._names.get(key)
         if name is not None:
-            return name
+            return self._past_from(name, fn)
         name = f"_hs_{role}" if role else f"_hs_f{len(self._names)}_{fn.func.__name__}"
         self._names[key] = name
         node = copy.deepcopy(fn.node)
@@ -1012,7 +1064,15 @@ class _Planner:
             new_args = [ast.arg(arg=P)] + [ast.arg(arg=a) for a in args]
             defaults = node.args.defaults
         body = _Rewrite(self, fn)
-        node.body = body.stmts(node.body)
+        body.reads_past = False
+        self.stack.append(body)
+        try:
+            node.body = body.stmts(node.body)
+        finally:
+            self.stack.pop()
+        if body.reads_past:
+            self.past_fns.add(name)
+            self._past_from(name, fn)
         if role in _SCALAR_ROLES:
             node.body = [_Scalar().visit(s) for s in node.body]
         node.body = pre + node.body
@@ -1026,6 +1086,19 @@ class _Planner:
                 a.annotation = None
         ast.fix_missing_locations(node)
         self.functions.append((name, node, fn))
+        return name
+
+
+    def _past_from(self, name, fn):
+        """``name``, a function already followed: one that reads the past marks
+        its caller, and is refused outside the flow map."""
+        if name in self.past_fns:
+            if self.root != "flow":
+                raise fn.refuse(fn.node, "it reads self.history and is called outside the "
+                                         "flow map (on the compiled path only the flow map "
+                                         "reads the past)")
+            if self.stack:
+                self.stack[-1].reads_past = True
         return name
 
 
@@ -1055,6 +1128,7 @@ def plan(system, component=False):
     the method and line otherwise."""
     pl = _Planner()
     pl.inputs = bool(component)
+    pl.system = system
     roles = {}
     cls = type(system).__name__
     todo = ROLES + ((("output", "output"),) if component and system._overrides("output")
@@ -1074,11 +1148,18 @@ def plan(system, component=False):
             fn = getattr(system, attr)
         f = _fn_of(fn, f"{cls}.{attr}")
         form = max(1, min(_arity(fn), 3 if role == "output" else 4))
+        pl.root = role
         roles[role] = pl.follow(f, role=role, form=form)
     if "flow" not in roles:
         raise SourceRefusal(f"{cls}.flow_map", "-", "the system defines no flow_map")
-    lines = [f"# hybridsim: the maps of {cls}, rewritten as functions of (x, t, j, p)",
- ]
+    out = _assemble(pl, roles, f"the maps of {cls}, rewritten as functions of (x, t, j, p)")
+    out.reads_past = pl.reads_past         # its flow reads x(t - tau_i): delays on the kernel
+    return out
+
+
+def _assemble(pl, roles, title):
+    """The :class:`Plan` of the planner's functions: one module's text."""
+    lines = [f"# hybridsim: {title}"]
     lines += [f"import {m} as {n}" for m, n in sorted(pl.modules.items())]
     lines.append("")
     where = {}
@@ -1096,3 +1177,20 @@ def plan(system, component=False):
         lines.append("")
     src = "\n".join(lines) + "\n"
     return Plan(src, roles, pl.layout, {n: d for n, d in pl.dispatchers.values()}, where, qual)
+
+
+# ------------------------------------------------------------------ one plain function
+def plan_function(fn):
+    """The :class:`Plan` of one plain function ``fn(*args)`` (a module's
+    function or a closure) rewritten as ``f(p, *args)`` (role ``"function"``),
+    the numbers and arrays it reads slots of ``p``; a :class:`SourceRefusal`
+    naming its line otherwise. For a compiled form that calls a user's
+    function (:func:`hybridsim.compiled._from_source.compiled_function`)."""
+    pl = _Planner()
+    f = _fn_of(fn, getattr(fn, "__qualname__", type(fn).__name__))
+    if f.obj is not None:
+        raise f.refuse(f.node, "it is a bound method (a plain function is rewritten here)")
+    out = _assemble(pl, {"function": pl.follow(f)},
+                    f"{f.qualname}, rewritten as a function of (p, ...)")
+    out.reads_past = False
+    return out

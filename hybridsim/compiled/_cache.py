@@ -255,7 +255,8 @@ def _digest_value(v, h, seen, depth=0):
     into the hash ``h``; raise :class:`Unkeyable` for anything else."""
     if depth > 50:
         raise Unkeyable("too deeply nested")
-    if v is None or isinstance(v, (bool, int, float, complex, str, bytes, np.generic)):
+    if v is None or v is Ellipsis or isinstance(v, (bool, int, float, complex, str, bytes,
+                                                    np.generic)):
         h.update(f"{type(v).__name__}:{v!r};".encode())
     elif isinstance(v, np.ndarray):
         h.update(f"nd:{v.dtype.str}:{v.shape};".encode())

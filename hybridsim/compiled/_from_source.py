@@ -39,7 +39,8 @@ from .. import _source
 from ..system import HybridSystem
 from ._private import private_folder
 
-__all__ = ["FallbackWarning", "applies", "refusal", "lower_source", "auto_choice"]
+__all__ = ["FallbackWarning", "applies", "refusal", "lower_source", "auto_choice",
+           "compiled_function"]
 
 
 class FallbackWarning(UserWarning):
@@ -104,8 +105,26 @@ def cached(system):
         return None
     if p.size and not np.array_equal(hit.params, p):
         hit.params = p
-    hit.max_step = system.max_step
+    hit.max_step = _max_step(system, hit.delays)
     return hit
+
+
+def _delays(system, plan):
+    """The delays the compiled flow reads: the system's (its rewritten flow map
+    reads ``self.history(t - tau)`` at them)."""
+    from ..options import check_delay_times
+    if getattr(plan, "reads_past", False) or tuple(system.delays or ()):
+        return check_delay_times(system.delays)
+    return ()
+
+
+def _max_step(system, delays):
+    """The system's ``max_step``, no larger than its smallest delay (as
+    :class:`~hybridsim.compiled.CompiledSystem` caps it)."""
+    if not delays:
+        return system.max_step
+    cap = min(delays)
+    return cap if system.max_step is None else min(float(system.max_step), cap)
 
 
 def refusal(system):
@@ -206,6 +225,7 @@ def _module(plan):
     exec(compile(src, mod.__file__, "exec"), mod.__dict__)
     mod.__dict__.update(plan.dispatchers)
     mod.__dict__.update(_scalar_fn())
+    mod.__dict__["_hs_past"] = _helpers()["past"]
     if path is not None:
         sys.modules[name] = mod
     for fname in plan.qualnames:
@@ -269,7 +289,21 @@ def _helpers():
         for q in range(u.shape[0]):
             u[q] += v[q]
 
-    return {"matvec": matvec, "matvec_add": matvec_add, "put": put, "add_into": add_into}
+    @nj
+    def past(p, lag, off, nd, n):
+        """``self.history(t - lag)`` in a rewritten flow map: the state at the delay
+        ``p[off + i]`` equal to ``lag``, from the past the engine writes after the
+        parameters (``CompiledSystem(delays=)``), as a new array."""
+        b = p.shape[0] - nd * n
+        for i in range(nd):
+            d = p[off + i]
+            if abs(lag - d) <= 1e-12 * max(1.0, abs(d)):
+                return p[b + i * n:b + (i + 1) * n].copy()
+        raise ValueError("self.history(t - tau) is read at a tau that is not one of the "
+                         "system's delays (self.delays)")
+
+    return {"matvec": matvec, "matvec_add": matvec_add, "put": put, "add_into": add_into,
+            "past": past}
 
 
 _SCALAR = []
@@ -434,7 +468,24 @@ def component_maps(system):
     mod, _ = _module(pl)
     maps = {role: getattr(mod, name) for role, name in pl.roles.items() if role != "output"}
     out = pl.roles.get("output")
-    return maps, (None if out is None else getattr(mod, out)), p
+    return maps, (None if out is None else getattr(mod, out)), p, _delays(system, pl)
+
+
+def compiled_function(fn):
+    """A plain function ``fn(*args)`` compiled from its source as ``f(p, *args)``
+    (its numbers and arrays read into ``p`` now): ``(f, p)``, ``f`` a numba
+    dispatcher shared by every function of the same rewritten source.
+
+    Raises
+    ------
+    TypeError
+        Its source cannot be rewritten (a :class:`~hybridsim._source.SourceRefusal`
+        naming the line).
+    """
+    pl = _source.plan_function(fn)
+    p = pl.layout.read()
+    mod, _ = _module(pl)
+    return getattr(mod, pl.roles["function"]), p
 
 
 def component_refusal(system):
@@ -502,15 +553,17 @@ def lower_source(system, specialize=None):
             specialize is None or prev.specialize == bool(specialize)):
         if not np.array_equal(prev.params, p):
             prev.params = p
-        prev.max_step = system.max_step
+        prev.max_step = _max_step(system, prev.delays)
         return prev
     spec = bool(specialize) if specialize is not None else False
     mod, digest = _module(pl)
+    past = _delays(system, pl)
     proto = _PROTOS.get((digest, spec))
     if proto is None:
         maps = {role: getattr(mod, name) for role, name in pl.roles.items()}
         proto = CompiledSystem(**keywords(maps), state_dim=int(system.state_dim), params=p,
-                               specialize=spec, name=f"{type(system).__name__} (compiled)")
+                               specialize=spec, name=f"{type(system).__name__} (compiled)",
+                               delays=past)
         try:
             proto.compile()
         except TypeError as e:          # CompileError: named by the user's method and line
@@ -519,7 +572,8 @@ def lower_source(system, specialize=None):
     cs = object.__new__(CompiledSystem)
     cs.__dict__.update(proto.__dict__)
     cs.params = p
-    cs.max_step = system.max_step
+    cs.delays, cs.needs_history = past, bool(past)
+    cs.max_step = _max_step(system, past)
     for attr in ("flow_map", "jump_map", "jump_guard", "flow_guard", "jump_set", "flow_set"):
         m = cs.__dict__.get(attr)
         if m is not None:

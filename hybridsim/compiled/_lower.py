@@ -30,7 +30,9 @@ the Gramian observer (39) of Mazenc-Malisoff) declares its delays in its
 followed by its own state at t - tau_i for each of them, and the lowered
 system reads its past through :class:`~hybridsim.compiled.CompiledSystem`'s
 ``delays`` (the sorted union of the parts'; see there for the rules of the
-past).
+past). A plain part reading ``self.history(t - tau)`` in its flow map, its
+lags declared in ``self.delays``, has those reads rewritten into the same
+reads of its past (:mod:`hybridsim.compiled._from_source`).
 
 A plain model (a single system with no compiled form: README's
 ``BouncingBall`` class, a ``from_functions`` system) is lowered from its
@@ -42,9 +44,9 @@ as functions of ``(x, u, t, j, p)``, its output of ``(x, t, j, p)``: its
 :class:`Component` (:func:`source_component`).
 
 What cannot be lowered is refused by name: a part without a compiled form,
-an input given as a Python callable, a part reading its history without a
-compiled form that declares the delays it reads, a plain model's map that
-cannot be rewritten (the method and its line).
+an input given as a Python callable, a part reading its history without
+declaring the delays it reads, a plain model's map that cannot be rewritten
+(the method and its line).
 """
 from __future__ import annotations
 
@@ -253,9 +255,13 @@ def _refusal(system, what, wired=None):
         return None
     form = _compiled_form(system, wired is not None)
     source = getattr(form, "func", None) is source_component    # its own maps, rewritten
-    if _reads_history(system) and (form is None or source):
+    # a plain model's self.history(t - tau) is rewritten, at the delays it declares
+    plain = source or (form is None and wired is None and _from_source.applies(system))
+    if _reads_history(system) and (form is None or source) and not (
+            plain and tuple(system.delays or ())):
         return _refuse(what, f"it reads its history (x(t - tau)) and {type(system).__name__} "
-                             f"has no compiled form declaring the delays it reads (a "
+                             f"has no compiled form declaring the delays it reads "
+                             f"(self.delays for its flow map's self.history(t - tau), or a "
                              f"compiled_component() returning a Component(delays=...))")
     if getattr(system, "set_valued", False):
         return _refuse(what, "its jump map is set-valued (jump_map_values): a run takes one "
@@ -267,6 +273,10 @@ def _refusal(system, what, wired=None):
                              "(x, t, j, p)")
     if isinstance(system, LinearPlant) and not system.vectorized:
         return _plant_refusal(system, what)
+    why = getattr(system, "compiled_refusal", None)
+    why = why() if callable(why) else None
+    if why:                 # the system's own reason (a callable of t it cannot compile)
+        return _refuse(what, why)
     if form is None:
         if wired is None and _from_source.applies(system):
             # a plain model: its own maps, rewritten (hybridsim.compiled._from_source)
@@ -283,10 +293,6 @@ def _refusal(system, what, wired=None):
         why = _from_source.component_refusal(system)
         if why is not None:
             return _refuse(what, _from_source._text(system, why))
-    why = getattr(system, "compiled_refusal", None)
-    why = why() if callable(why) else None
-    if why:                 # the system's own reason (a callable of t without a compiled form)
-        return _refuse(what, why)
     if int(system.input_dim or 0):
         if wired is None:
             return _refuse(what, f"it has an input (input_dim={system.input_dim}); connect "
@@ -318,14 +324,14 @@ def source_component(system):
     the numbers they read in ``p``."""
     if isinstance(system, LinearPlant) and not system.vectorized:
         raise _plant_refusal(system, "LinearPlant")
-    maps, output, p = _from_source.component_maps(system)
+    maps, output, p, delays = _from_source.component_maps(system)
     n, m = int(system.state_dim), int(system.input_dim or 0)
     q = None
     if output is not None:
         from ..compose import _output_dim
         q = _output_dim(system)
     return Component(state_dim=n, input_dim=m, output=output, output_dim=q, params=p,
-                     **keywords(maps))
+                     delays=delays, **keywords(maps))
 
 
 def _reads_history(system):

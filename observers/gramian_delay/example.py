@@ -57,15 +57,13 @@ def _example_delta1(t):
 
 
 def _example_delta2(t):
-    return 1e-3 * np.sin(20 * np.asarray(t, dtype=float))[..., None]
+    t = np.asarray(t, dtype=float)
+    out = np.zeros(t.shape + (1,))
+    out[..., 0] = 1e-3 * np.sin(20 * t)
+    return out
 
 
 _example_u.batch = _example_delta1.batch = _example_delta2.batch = True
-# their compiled forms (Plant's notes): rows (component, amplitude, angular frequency,
-# phase, cos flag), summed as a sin(w t + phi) or a cos(w t + phi)
-_example_u.sinusoids = np.array([[0, 2.0, 2.0, 0.0, 0]])
-_example_delta1.sinusoids = np.array([[1, 0.5, 5.0, 0.0, 0], [2, 0.5, 3.0, 0.0, 1]])
-_example_delta2.sinusoids = np.array([[0, 1e-3, 20.0, 0.0, 0]])
 
 
 def dc_motor(k=100.0, tau=0.1, *, disturbed=True, u=None, delta1=None, delta2=None,

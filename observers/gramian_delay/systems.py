@@ -35,12 +35,13 @@ Two realisations of psi_2 of (7) (``realisation=``):
     exactness are unchanged.
 
 On the compiled path (``backend="compiled"``, :func:`hybridsim.compiled.lower`)
-the plant (1) runs where Psi, delta1 and delta2 have compiled forms (the DC
-motor's Psi with a control u given as sinusoids, and the disturbances of
-:func:`~observers.gramian_delay.dc_motor` and :func:`smooth_noise`: a
-``sinusoids`` table, see :class:`Plant`), and (39) in the literal
-realisation: its compiled flow reads psi(t - tau) from the past state the
-engine hands it (``Component(delays=(tau,))``).
+the plant (1) runs its own maps, rewritten from source with the callables
+they call (Psi, delta1, delta2 written on the last axis, ``batch = True``:
+those of :func:`~observers.gramian_delay.dc_motor` and :func:`smooth_noise`),
+and (39) in the literal realisation runs its compiled form (reasons beside
+:meth:`SampledGramianObserver.compiled_component`): its compiled flow reads
+psi(t - tau) from the past state the engine hands it
+(``Component(delays=(tau,))``).
 
 Examples
 --------
@@ -100,99 +101,24 @@ def _signal(name, fn, dim):
             return np.array([np.asarray(fn(float(s)), dtype=float).reshape(dim)
                              for s in t.ravel()]).reshape(t.shape + (dim,))
     signal._signal_dim = dim
-    signal.sinusoids = None if fn is None else getattr(fn, "sinusoids", None)
+    signal._one_time = fn is not None and not getattr(fn, "batch", False)
     return signal
-
-
-def _sinusoid_params(fn, dim, name):
-    r"""The compiled form of a signal ``fn``: ``[K, rows...]`` from its ``sinusoids``.
-
-    ``fn.sinusoids`` is a (K, 5) table of rows (component i, amplitude a,
-    angular frequency w, phase phi, cos flag): component i of the signal is
-    the sum of its rows' ``a sin(w t + phi)`` (``a cos(w t + phi)`` with
-    the flag 1), in the rows' order. Returns None when ``fn`` has none.
-    """
-    tab = getattr(fn, "sinusoids", None)
-    if tab is None:
-        return None
-    tab = np.asarray(tab, dtype=float).reshape(-1, 5)
-    comp = tab[:, 0]
-    if not np.all(np.isfinite(tab)) or np.any((comp < 0) | (comp >= dim)) or np.any(
-            comp != np.round(comp)) or not np.all(np.isin(tab[:, 4], (0.0, 1.0))):
-        raise ValueError(f"{name}.sinusoids must be rows (component in [0, {dim}), amplitude, "
-                         f"angular frequency, phase, cos flag 0 or 1) of finite floats")
-    return np.concatenate([[float(len(tab))], tab.ravel()])
-
-
-@functools.cache
-def _signal_map():
-    """Compiled evaluation of a signal's ``sinusoids`` table stored at ``p[o:]``
-    (:func:`_sinusoid_params`): ``signal(t, p, o, dim) -> (dim,)``."""
-    def signal(t, p, o, dim):
-        out = np.zeros(dim)
-        for r in range(int(p[o])):
-            b = o + 1 + 5 * r
-            arg = p[b + 2] * t + p[b + 3]
-            v = p[b + 1] * (math.cos(arg) if p[b + 4] > 0.5 else math.sin(arg))
-            i = int(p[b])
-            out[i] = out[i] + v
-        return out
-    return signal
-
-
-@functools.cache
-def _dc_psi():
-    """Compiled Psi of the DC motor (65): ``psi(y, t, p, o)`` = (0, -a1 sin y, b0 u(t))
-    with a1, b0 and u's sinusoids at ``p[o:]``."""
-    signal = _signal_map()
-
-    def psi(y, t, p, o):
-        out = np.zeros(3)
-        out[1] = -p[o] * math.sin(y[0])
-        out[2] = p[o + 1] * signal(t, p, o + 2, 1)[0]
-        return out
-    return psi
 
 
 @functools.cache
 def _no_psi(n):
-    def psi(y, t, p, o):          # Psi = 0 (never called: the branch is constant)
+    def psi(p, y, t):             # Psi = 0 (never called: the branch is constant)
         return np.zeros(n)
     return psi
 
 
-@functools.cache
-def _plant_maps(n, q, psi, has_d1, has_d2, oracle):
-    """Compiled flow and output of the plant (1), reading M, N and the offsets of
-    delta1, delta2 and Psi's parameters from ``p`` (:meth:`Plant.compiled_component`)."""
-    from hybridsim.compiled import compiled_matvec
-    signal, mv = _signal_map(), compiled_matvec()
-    oN, oo = n * n, n * n + q * n
-    has_psi = psi is not None
-    psi = psi if has_psi else _no_psi(n)
-
-    def flow(x, u, t, j, p):
-        dx = mv(p, 0, n, n, x)                                      # M chi
-        if has_d1:
-            d1 = signal(t, p, int(p[oo]), n)                        # + delta1(t)
-            for i in range(n):
-                dx[i] = dx[i] + d1[i]
-        if has_psi:
-            ps = psi(mv(p, oN, q, n, x), t, p, int(p[oo + 2]))      # + Psi(N chi, t)
-            for i in range(n):
-                dx[i] = dx[i] + ps[i]
-        return dx
-
-    def output(x, t, j, p):
-        y = mv(p, oN, q, n, x)
-        out = np.empty(2 * q if oracle else q)
-        d2 = signal(t, p, int(p[oo + 1]), q) if has_d2 else np.zeros(q)
-        for i in range(q):
-            out[i] = y[i] + d2[i] if has_d2 else y[i]               # Y = N chi + delta2(t)
-            if oracle:
-                out[q + i] = y[i]
-        return out
-    return flow, output
+def _psi_refusal(Psi):
+    """Why a Psi's own code does not run compiled (a sentence naming it), or None."""
+    why = getattr(Psi, "refusal", None)
+    if why is None and not getattr(Psi, "batch", False):
+        why = ("its Psi is a Python callable without a batch form (Psi.batch = True, on the "
+               "last axis; see gramian_delay.Plant)")
+    return why
 
 
 def smooth_noise(sigma, dim=1, *, seed=None, n_modes=8, f_max=50.0):
@@ -217,8 +143,8 @@ def smooth_noise(sigma, dim=1, *, seed=None, n_modes=8, f_max=50.0):
     Returns
     -------
     callable
-        ``t -> (dim,)`` array; its ``sinusoids`` table (one row a mode) is
-        its compiled form (:class:`Plant`'s notes).
+        ``t -> (dim,)`` array, on the last axis (``batch = True``): it runs
+        compiled as written (:class:`Plant`'s notes).
 
     Examples
     --------
@@ -242,11 +168,6 @@ def smooth_noise(sigma, dim=1, *, seed=None, n_modes=8, f_max=50.0):
         t = np.asarray(t, dtype=float)[..., None, None]
         return np.sum(a * np.sin(2 * np.pi * f * t + ph), axis=-2)
     noise.batch = True
-    # its compiled form (Plant's notes): one row (component, a, 2 pi f, phase, sin) a mode
-    w = 2 * np.pi * f
-    comp = np.broadcast_to(np.arange(dim), (n_modes, dim))
-    noise.sinusoids = np.column_stack([comp.ravel(), a.ravel(), w.ravel(), ph.ravel(),
-                                       np.zeros(n_modes * dim)])
     return noise
 
 
@@ -279,16 +200,13 @@ class Plant(hs.HybridSystem):
     (the disturbances are read per time, in one call where they declare
     ``batch = True``).
 
-    The compiled path (``backend="compiled"``, :meth:`compiled_component`)
-    takes the plant where every callable has a compiled form: ``Psi`` one
-    in its attribute ``Psi.compiled = (fn, params)``, ``fn(y, t, p, o) ->
-    (n,)`` a numba-compilable function reading its numbers from ``p[o:]``
-    (``params``, as :class:`DCMotor` sets it); ``delta1`` and ``delta2`` a
-    ``sinusoids`` table, rows (component, amplitude, angular frequency,
-    phase, cos flag) summed as ``a sin(w t + phi)`` (or ``a cos``), as the
-    disturbances of :func:`~observers.gramian_delay.dc_motor` and
-    :func:`smooth_noise` carry. Others are refused by name
-    (:meth:`compiled_refusal`).
+    The compiled path (``backend="compiled"``) runs these maps as written:
+    their source, with the code of ``Psi``, ``delta1`` and ``delta2``, is
+    rewritten for numba (:func:`hybridsim.compiled.lower`; M, N and the
+    numbers the callables read become parameters). A callable of one time
+    only (no ``batch = True``) is refused by name (:meth:`compiled_refusal`),
+    and one whose code numba cannot compile by numba's message naming its
+    line.
 
     References
     ----------
@@ -323,58 +241,25 @@ class Plant(hs.HybridSystem):
         x = np.asarray(x, dtype=float)
         dx = x @ self.M.T
         if self._d1 is not None:
-            dx = dx + self._d1(t)
+            dx += self._d1(t)
         if self.Psi is not None:
-            dx = dx + np.asarray(self.Psi(x @ self.N.T, t), dtype=float)
+            dx += np.asarray(self.Psi(x @ self.N.T, t), dtype=float)
         return dx
 
     def compiled_refusal(self):
-        """Why the plant has no compiled form (a sentence naming the callable), or None."""
-        if self.Psi is not None and getattr(self.Psi, "compiled", None) is None:
-            return getattr(self, "_psi_refusal", None) or (
-                "its Psi is a Python callable without a compiled form (Psi.compiled = "
-                "(fn(y, t, p, o), params), see gramian_delay.Plant)")
+        """Why the plant's maps do not run compiled (a sentence naming the callable), or None."""
+        why = None if self.Psi is None else _psi_refusal(self.Psi)
         for name, sig in (("delta1", self._d1), ("delta2", self._d2)):
-            if sig is not None and sig.sinusoids is None:
-                return (f"its {name} is a Python callable of t without a compiled form (a "
-                        f"'sinusoids' table, see gramian_delay.Plant)")
-        return None
-
-    def compiled_component(self):
-        r"""The plant (1) in compiled form (``backend="compiled"``): the same
-        chi' = M chi + delta1(t) + Psi(N chi, t) and Y = N chi + delta2(t)
-        (with N chi after Y when ``oracle``), M and N and the signals'
-        numbers in the parameters.
-
-        Raises
-        ------
-        TypeError
-            A callable without a compiled form (:meth:`compiled_refusal`).
-        """
-        from hybridsim.compiled import Component
-        why = self.compiled_refusal()
-        if why:
-            raise TypeError(f"backend='compiled': {type(self).__name__} cannot run "
-                            f"compiled: {why}")
-        n, q = self.state_dim, self.N.shape[0]
-        d1 = None if self._d1 is None else _sinusoid_params(self._d1, n, "delta1")
-        d2 = None if self._d2 is None else _sinusoid_params(self._d2, q, "delta2")
-        fn, pp = (None, ()) if self.Psi is None else self.Psi.compiled
-        head = np.concatenate([self.M.ravel(), self.N.ravel()])
-        o1 = head.size + 3                         # delta1, delta2, Psi after the offsets
-        o2 = o1 + (0 if d1 is None else d1.size)
-        o3 = o2 + (0 if d2 is None else d2.size)
-        params = np.concatenate([head, [o1, o2, o3]] + [v for v in (d1, d2) if v is not None]
-                                + [np.asarray(pp, dtype=float).reshape(-1)])
-        flow, output = _plant_maps(n, q, fn, d1 is not None, d2 is not None, self.oracle)
-        return Component(state_dim=n, flow=flow, output=output, output_dim=self.output_dim,
-                         params=params)
+            if why is None and sig is not None and sig._one_time:
+                why = (f"its {name} is a Python callable of t without a batch form "
+                       f"(batch = True, on the last axis; see gramian_delay.Plant)")
+        return why
 
     def output(self, x, t, j):
         """Y = N chi + delta2(t) (then N chi with ``oracle``), on the last axis."""
         y = np.asarray(x, dtype=float) @ self.N.T
         Y = y if self._d2 is None else y + self._d2(t)
-        return np.concatenate([Y, y], axis=-1) if self.oracle else Y
+        return np.concatenate((Y, y), axis=-1) if self.oracle else Y
 
 
 class DCMotor(Plant):
@@ -403,9 +288,9 @@ class DCMotor(Plant):
     k, tau : float
         The constant of (2) and the delay.
     u : callable
-        The control ``t -> float``; with a ``sinusoids`` table (:class:`Plant`'s
-        notes; :func:`~observers.gramian_delay.dc_motor`'s has one) Psi has a
-        compiled form.
+        The control ``t -> float``; on the last axis with ``u.batch = True``
+        (:func:`~observers.gramian_delay.dc_motor`'s), the plant and the
+        observer (39) run compiled (:class:`Plant`'s notes).
     delta1, delta2 : callable, optional
         ``t -> (3,)``, ``t -> (1,)``; None means zero.
     chi0 : (3,) array_like
@@ -449,12 +334,9 @@ class DCMotor(Plant):
             return out
         Psi.batch = True
 
-        u_sin = _sinusoid_params(u, 1, "u")
-        if u_sin is not None:               # the compiled form of Psi (Plant's notes)
-            Psi.compiled = (_dc_psi(), np.concatenate([[a1, b0], u_sin]))
-        else:
-            self._psi_refusal = ("its control u is a Python callable of t without a "
-                                 "compiled form (a 'sinusoids' table, see gramian_delay.Plant)")
+        if not getattr(u, "batch", False):
+            Psi.refusal = ("its control u is a Python callable of t without a batch form "
+                           "(u.batch = True, on the last axis; see gramian_delay.Plant)")
         super().__init__(M, Nmat, Psi, delta1=delta1, delta2=delta2, oracle=oracle)
         self.params = p
         self.u = u
@@ -492,8 +374,9 @@ def _sampled_maps(m, q, n, psi, sampling, xi2):
 
     State ``(xi1_hat, xi2_hat, psi1, psi2, omega, sigma, kappa)``; parameters
     in the order of :meth:`SampledGramianObserver.compiled_component`, then
-    (the flow only) the state at t - tau. ``psi`` is the compiled Psi of the
-    form (None: Psi = 0); ``sampling`` "period", "instants" or "gaps";
+    (the flow only) the state at t - tau. ``psi`` is the form's Psi compiled
+    from its own source, ``psi(p', y, t)`` with its numbers ``p'`` in ``p``
+    (None: Psi = 0); ``sampling`` "period", "instants" or "gaps";
     ``xi2``: (13) reads xi_2 from the input's second half, else omega.
     """
     from hybridsim.compiled import compiled_matvec
@@ -524,7 +407,7 @@ def _sampled_maps(m, q, n, psi, sampling, xi2):
     oP = oL2 + q * q
     oN = oP + m * n
     os_ = oN + q * n               # period | (T_low, T_bar) | (K, offset of the instants)
-    opsi = os_ + 2                 # offset of Psi's parameters
+    opsi = os_ + 2                 # (offset, size) of Psi's parameters
     has_psi = psi is not None
     psi = psi if has_psi else _no_psi(n)
 
@@ -552,7 +435,8 @@ def _sampled_maps(m, q, n, psi, sampling, xi2):
         f1 = mv(p, oL1, m, q, w)                                    # F1(omega, t), F2 of (2)
         f2 = mv(p, oL2, q, q, w)
         if has_psi:
-            pv = psi(w, t, p, int(p[opsi]))
+            o = int(p[opsi])
+            pv = psi(p[o:o + int(p[opsi + 1])], w, t)
             f1 = f1 + mv(p, oP, m, n, pv)
             f2 = f2 + mv(p, oN, q, n, pv)
         innov = mv(p, oH, m, q, w - xi2)                            # H (omega - xi2_hat)
@@ -1054,15 +938,39 @@ class SampledGramianObserver(_ObserverBase):
         if not isinstance(form, ObserverForm) or getattr(self.F2, "__self__", None) is not form:
             return ("its F1, F2 are not an ObserverForm's (the compiled form reads F1, F2 of "
                     "(2) from the form's matrices and its Psi's compiled form)")
-        if form.Psi is not None and getattr(form.Psi, "compiled", None) is None:
-            return ("the Psi of its form is a Python callable without a compiled form "
-                    "(Psi.compiled = (fn(y, t, p, o), params), see gramian_delay.Plant)")
+        why = None if form.Psi is None else _psi_refusal(form.Psi)
+        if form.Psi is not None and not why:
+            from hybridsim._source import SourceRefusal, plan_function
+            try:
+                plan_function(form.Psi)             # its code, rewritten (no numba)
+            except SourceRefusal as e:
+                why = f"its code cannot be rewritten for numba: {e}"
+        if why:
+            return f"the Psi of its form is a Python callable that does not run compiled: {why}"
         if self.design._psi2_modes is None:
             return ("the early window of (13) (decision 3) needs e^{-(A1^T + 2kI) h} for "
                     "h < tau, computed from the eigen-decomposition of A1^T + 2kI, which is "
                     "ill conditioned for this design (cond > 1e6)")
         return None
 
+    # A compiled twin of flow_map, jump_map and jump_guard, kept (issue 42's named
+    # exception): the rewrite from source cannot take (39)'s maps as written, because
+    # 1. they read their numbers through other objects: the design's matrices (a
+    #    local d = self.design) and F1, F2 through the ObserverForm's bound F12,
+    #    whose Psi closes over the plant's control u;
+    # 2. (13) reads the past through self._estimate(z, t, y, self.history), the
+    #    history passed as a value (to _delayed), where the rewrite takes calls
+    #    self.history(t - tau) in the flow map only;
+    # 3. before t0 + tau, (13) reads psi(t0), a fixed time, not t - tau (on the
+    #    kernel that is the prehistory x0, right for runs that start at t0);
+    # 4. the early window's e^{-(A1^T + 2kI) h} is GramianDesign.decay: complex
+    #    eigenmodes, or scipy's expm where they are ill conditioned;
+    # 5. flow_map has a batch branch (_xi_e: rows read from a BatchHistory, each
+    #    row before t0 + tau with its own window) for the vectorized path.
+    # Rewriting them for numba would move the Python path's arithmetic, and with
+    # it the pinned claims ((13) multiplies an ulp of omega's flow by |S^-1| ~ 1e5).
+    # The twin calls the form's Psi (and the control u in it) as written, rewritten
+    # from source (compiled_function): only (7), (13) and (39) are written twice.
     def compiled_component(self):
         r"""(39) in compiled form (``backend="compiled"``, realisation "literal").
 
@@ -1105,21 +1013,24 @@ class SampledGramianObserver(_ObserverBase):
                 d.R.ravel(), d.S_inv.ravel(), [d.E1], d.E2.ravel(), [d.tau, self.t0],
                 *re_im(V), *re_im(w), *re_im(Vi), L1.ravel(), L2.ravel(), form.P.ravel(),
                 form.N.ravel()]
-        size = sum(np.size(a) for a in head) + 3
-        fn, pp = (None, np.zeros(0)) if form.Psi is None else form.Psi.compiled
-        pp = np.asarray(pp, dtype=float).reshape(-1)
+        size = sum(np.size(a) for a in head) + 4
+        fn, pp = None, np.zeros(0)
+        if form.Psi is not None:        # Psi's own code, rewritten (its numbers in pp)
+            from hybridsim.compiled._from_source import compiled_function
+            fn, pp = compiled_function(form.Psi)
         if self.period is not None:
             sampling, samp = "period", [self.period, 0.0]
         elif self.gaps is not None:
             sampling, samp = "gaps", list(self.gaps)
         else:
             sampling, samp = "instants", [len(self.instants), size + pp.size]
-        params = np.concatenate([np.concatenate([np.ravel(a) for a in head]), samp, [size], pp]
+        params = np.concatenate([np.concatenate([np.ravel(a) for a in head]), samp,
+                                 [size, pp.size], pp]
                                 + ([self.instants] if sampling == "instants" else []))
         flow, jump, guard, fguard = _sampled_maps(m, q, n, fn, sampling,
                                                   self.estimate_source == "xi2")
-        return Component(state_dim=self.state_dim, input_dim=self.input_dim, flow=flow,
-                         jump=jump, jump_guard=guard, flow_guard=fguard, params=params,
+        return Component(state_dim=self.state_dim, input_dim=self.input_dim, flow_map=flow,
+                         jump_map=jump, jump_guard=guard, flow_guard=fguard, params=params,
                          delays=(d.tau,))
 
     def estimate(self, arc, *, y=None, name=None):

@@ -1,8 +1,9 @@
 """Delay equations lowered onto the compiled path (issue 27, deliverable 4).
 
-A part whose flow reads its own past declares its delays in its compiled
-form (``Component(delays=...)``); :func:`hybridsim.compiled.lower` hands it
-its slice of x(t - tau_i) after its parameters and the lowered
+A part whose flow reads its own past declares its delays (``self.delays``
+for a plain model, whose ``self.history(t - tau)`` is rewritten; or its
+compiled form's ``Component(delays=...)``); :func:`hybridsim.compiled.lower`
+hands it its slice of x(t - tau_i) after its parameters and the lowered
 ``CompiledSystem`` reads its past with ``delays`` (the union of the parts').
 The case that needs it: Mazenc-Malisoff's sampled observer (39) with the DC
 motor (65) (``observers.gramian_delay``), whose flow reads psi(t - tau) in
@@ -38,6 +39,7 @@ from observers.gramian_delay.systems import DCMotor, smooth_noise
 numba = pytest.importorskip("numba")
 
 from hybridsim.compiled import CompiledSystem, Component, lower, lowerable  # noqa: E402
+from hybridsim.compiled._system import keywords  # noqa: E402
 from observers import gramian_delay as gd  # noqa: E402
 
 RUN = dict(method="RK45", rtol=1e-10, atol=1e-12)
@@ -48,7 +50,7 @@ STATE_RTOL = 1e-11       # of each component's largest size over the run (module
 def python_path(cs):
     """The lowered system on the Python engine: its maps compiled by numba, called
     from ``hs.simulate`` (which fills the flow's past from ``hs.History``)."""
-    return CompiledSystem(**{r: numba.njit(f) for r, f in cs.maps.items()},
+    return CompiledSystem(**keywords({r: numba.njit(f) for r, f in cs.maps.items()}),
                           state_dim=cs.state_dim, params=cs.params, delays=cs.delays,
                           max_step=cs.max_step)
 
@@ -68,15 +70,7 @@ def assert_same_run(arc, ref):
 
 
 # ---------------------------------------------------------------- a generic delay pair
-def _lag_flow(x, u, t, j, p):               # x' = -p0 x(t - tau): the past after p0
-    return np.array([-p[0] * p[1]])
-
-
-def _pair_flow(x, u, t, j, p):
-    # y0' = -p0 y0(t - tau_a) + u, y1' = y0(t - tau_b) - y1: past (2 states) per delay
-    return np.array([-p[0] * p[1] + u[0], p[3] - x[1]])
-
-
+# plain models: their self.history(t - tau) reads run compiled as written
 class Lag(hs.HybridSystem):
     """x' = -a x(t - tau), output x."""
 
@@ -89,9 +83,6 @@ class Lag(hs.HybridSystem):
     def flow_map(self, x, t, j, u):
         return np.array([-self.a * self.history(t - self.tau)[0]])
 
-    def compiled_component(self):
-        return Component(state_dim=1, flow_map=_lag_flow, params=[self.a], delays=(self.tau,))
-
 
 class Pair(hs.HybridSystem):
     """y0' = -a y0(t - tau_a) + u, y1' = y0(t - tau_b) - y1: two delays, an input."""
@@ -103,12 +94,9 @@ class Pair(hs.HybridSystem):
         self.delays, self.max_step = taus, min(taus)
 
     def flow_map(self, x, t, j, u):
-        pa, pb = (self.history(t - d) for d in self.taus)
+        pa = self.history(t - self.taus[0])
+        pb = self.history(t - self.taus[1])
         return np.array([-self.a * pa[0] + u[0], pb[0] - x[1]])
-
-    def compiled_component(self):
-        return Component(state_dim=2, input_dim=1, flow_map=_pair_flow, params=[self.a],
-                         delays=self.taus)
 
 
 def pair_system(tau=1.0, taus=(0.5, 1.0)):
@@ -171,19 +159,44 @@ def test_systems_lowered_from_one_structure_run_at_their_own_delays():
     assert_same_run(arc, hs.simulate(second, x0, t_max=3.0, **RUN))
 
 
+def _lag_flow(x, u, t, j, p):               # x' = -p0 x(t - tau): the past after p0
+    return np.array([-p[0] * p[1]])
+
+
 def test_a_history_reader_without_declared_delays_is_refused_by_name():
     class Undeclared(Lag):
         def compiled_component(self):
             return Component(state_dim=1, flow_map=_lag_flow, params=[self.a])
 
-    class NoForm(Lag):
-        compiled_component = None
+    class NoDelays(Lag):
+        def __init__(self):
+            super().__init__()
+            self.delays = ()
+
+    class Elsewhere(Lag):               # the past read by a jump map (NaN on the kernel)
+        def jump_map(self, x, t, j, u):
+            return self.history(t - self.tau)
+
+        def jump_set(self, x, t, j, u):
+            return x[0] > 2.0
+
+    class Anywhen(Lag):
+        def flow_map(self, x, t, j, u):
+            return -self.history(0.5 * t)
 
     with pytest.raises(TypeError, match="reads its history .* declares no delays"):
         lower(Undeclared())
-    with pytest.raises(TypeError, match="reads its history .* NoForm has no compiled form"):
-        lower(NoForm())
-    assert not lowerable(NoForm())
+    with pytest.raises(TypeError, match="reads its history .* NoDelays has no compiled form "
+                                        "declaring the delays it reads"):
+        lower(NoDelays())
+    for cls, why in ((Elsewhere, r"Elsewhere.jump_map \(.*\): it reads self.history "
+                                 r"outside the flow map"),
+                     (Anywhen, r"Anywhen.flow_map \(.*\): self.history is read at t - tau "
+                               r"only")):
+        with pytest.raises(TypeError, match=why):
+            lower(cls())
+        assert not lowerable(cls())
+    assert not lowerable(NoDelays()) and lowerable(Lag())
     for bad, err, msg in (((0.0,), ValueError, "positive"), ((0.1, 0.1), ValueError, "distinct"),
                           ("x", TypeError, "sequence")):
         with pytest.raises(err, match=msg):
