@@ -234,8 +234,10 @@ def test_batch_fields_are_the_arcs_on_every_path(path, monkeypatch):
     assert pooled == [i for i, a in enumerate(batch) if "_pool" in a.__dict__]
     assert (len(pooled) >= 7) == (path == "compiled")   # all but a few rows run alone first
     want = _fields_of_arcs(batch)
+    again = hs.ArcBatch(list(batch))         # the same arcs, no record of the engine's
     for k, v in want.items():
         np.testing.assert_array_equal(got[k], v, err_msg=k)
+        np.testing.assert_array_equal(getattr(again, k), v, err_msg=k)
     assert [c.name for c in causes] == [a.termination.name for a in batch]
     assert causes[4] is hs.Termination.NON_FINITE and not batch.success[4]
     assert set(batch.jump_counts[batch.causes == hs.Termination.J_MAX]) == {4}
