@@ -37,6 +37,7 @@ import warnings
 import numpy as np
 
 import hybridsim as hs
+from hybridsim.compiled import lower
 from hybridsim.library import BouncingBall, bouncing_ball_jump_times
 
 G, E = 9.81, 0.8
@@ -113,6 +114,14 @@ def main(argv=None):
     print(f"hybridsim simulate_many + every row's jump times: {w * 1e3:.2f} ms wall, "
           f"{c * 1e3:.2f} ms CPU (the call {wc * 1e3:.2f} ms; reading the jump times "
           f"{wr * 1e3:.3f} ms wall, {wr / wc:.3f}x the call)")
+    from bench_compiled import kernel_share
+    split = np.array([kernel_share(lower(ball), x0s, **{k: v for k, v in kw.items()
+                                                        if k != "backend"})
+                      for _ in range(args.rounds)])
+    tot, ker = np.median(split, axis=0)
+    print(f"  of which the batch kernel {ker * 1e3:.2f} ms wall, the Python side (options, "
+          f"pools, {N:,} arcs made on first access) {(tot - ker) * 1e3:.2f} ms (a "
+          f"simulate_many_compiled call, medians of {args.rounds})")
     if build is not None:
         dw, dc = med["diffrax"]
         print(f"diffrax jit(vmap): {dw * 1e3:.2f} ms wall, {dc * 1e3:.2f} ms CPU")
