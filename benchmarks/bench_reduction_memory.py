@@ -72,7 +72,7 @@ def main(argv=None):
           f"{v.min():.5f}..{v.max():.5f} (exact 1/12 = {1 / 12:.5f}); median "
           f"{np.median(stats.quantile(0.5)[:, 0]):.3f}; P(x > 0.9) "
           f"{stats.exceedance()[:, 0, 1].mean():.4f} (exact 0.1)")
-    grow = f"{peaks[-1] - peaks[-2]:+.0f} MB over the last decade" if len(peaks) > 1 else ""
+    grow = f"{peaks[-1] - peaks[-2]:+.0f} MB since the checkpoint before" if len(peaks) > 1 else ""
     print(f"RESULT {done:,} runs of a streaming reduction: peak RSS {peak_mb():.0f} MB "
           f"({grow}), {time.perf_counter() - t0:.0f} s wall")
 
