@@ -23,7 +23,7 @@ in wall time and in CPU time of this process (the CPU time does not move
 when other work shares the machine; hybridsim's kernels run in numba's
 thread count, diffrax's in one). Both answers are checked against the exact
 impact times. Run: ``python benchmarks/bench_peers_batch.py [--n 1000]
-[--jumps 10] [--rounds 15]``.
+[--jumps 10] [--rounds 15] [--quick]``.
 """
 from __future__ import annotations
 
@@ -63,7 +63,10 @@ def main(argv=None):
     ap.add_argument("--n", type=int, default=1000, help="balls (default 1000)")
     ap.add_argument("--jumps", type=int, default=10, help="bounces each (default 10)")
     ap.add_argument("--rounds", type=int, default=15, help="interleaved rounds (default 15)")
+    ap.add_argument("--quick", action="store_true", help="7 rounds")
     args = ap.parse_args(argv)
+    if args.quick:
+        args.rounds = 7
     import numba
     N, K = args.n, args.jumps
     h0 = np.random.default_rng(0).uniform(0.5, 2.0, N)

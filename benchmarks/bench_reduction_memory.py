@@ -12,10 +12,11 @@ Printed: the peak resident memory of the process (``resource.getrusage``,
 ``ru_maxrss``) and the wall time after each checkpoint (10^3, 10^4, ... runs up
 to ``--runs``), so that the memory's flatness in the number of runs shows.
 Run: ``python benchmarks/bench_reduction_memory.py [--runs 10000000] [--batch
-10000]``. Here (2 cores shared with other jobs, load average ~10) 10^6 runs
-took 171 s at 235 MB peak (206 MB after 10^3 runs, 229 at 10^4, 234 at 10^5):
-flat once the first batch is held, so 10^7 runs (~30 min here; the seeding,
-two ``SeedSequence`` hashes per run, is most of a run's cost) stay there.
+10000] [--quick]`` (``--quick``: 10^5 runs). Here (2 cores shared with other
+jobs, load average ~10) 10^6 runs took 171 s at 235 MB peak (206 MB after 10^3
+runs, 229 at 10^4, 234 at 10^5): flat once the first batch is held, so 10^7
+runs (~30 min here; the seeding, two ``SeedSequence`` hashes per run, is most
+of a run's cost) stay there.
 """
 from __future__ import annotations
 
@@ -40,11 +41,12 @@ def peak_mb():
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--runs", type=float, default=1e7, help="runs in all (default 1e7)")
+    ap.add_argument("--runs", type=float, default=None, help="runs in all (default 1e7)")
     ap.add_argument("--batch", type=int, default=10_000,
                     help="runs simulated and reduced at once (default 10,000)")
+    ap.add_argument("--quick", action="store_true", help="10^5 runs (unless --runs is given)")
     args = ap.parse_args(argv)
-    runs = int(args.runs)
+    runs = int(1e5 if args.quick and args.runs is None else args.runs or 1e7)
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, load average "
           f"{os.getloadavg()[0]:.1f}, Python {platform.python_version()}, numpy "
           f"{np.__version__}")
