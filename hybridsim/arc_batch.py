@@ -25,7 +25,10 @@ class ArcBatch(list):
     fields are computed together on the first access to one of them and
     kept until the list changes: from the batch's pools of samples where the
     arcs are still views of one (the compiled path's arcs that ended at
-    ``t_max`` or ``j_max``), from the arcs otherwise.
+    ``t_max`` or ``j_max``; a batch as the compiled path returns it reads
+    them without visiting those arcs at all), from the arcs otherwise.
+    :meth:`hybridsim.estimate.Stats.update` reads such a batch's rows off the
+    pools too.
 
     Parameters
     ----------
