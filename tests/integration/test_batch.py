@@ -292,3 +292,18 @@ def test_batch_empty_mixed_and_bad():
         _ = hs.ArcBatch([mixed[0], "arc"]).final_times
     with pytest.raises(ValueError, match="row 0's arc is empty"):
         _ = hs.ArcBatch([hs.HybridArc([], [], np.zeros((0, 1)), None)]).jump_counts
+
+
+def test_a_plain_model_run_compiled_gets_its_arcs_back():
+    # the lowered model's arcs are given back to the model in place: the batch keeps its
+    # record of the pooled rows (its fields read off the pools) and every arc names the model
+    pytest.importorskip("numba")
+    from hybridsim.library import BouncingBall
+    ball = BouncingBall()
+    h0 = np.linspace(0.5, 2.0, 7)
+    batch = hs.simulate_many(ball, np.column_stack([h0, 0 * h0]), 1e9, 3, backend="compiled")
+    assert isinstance(batch, hs.ArcBatch)
+    assert all(a.system is ball and "BouncingBall" in a.system_description for a in batch)
+    np.testing.assert_allclose(batch.jump_times,
+                               hs.library.bouncing_ball_jump_times(h0, 3), atol=1e-7)
+    assert batch.jump_counts.tolist() == [3] * 7 and batch.success.all()
