@@ -70,7 +70,11 @@ def main(argv=None):
     args = ap.parse_args(argv)
     if args.quick:
         args.rounds = 7
-    import numba
+    try:
+        import numba
+    except ImportError as e:
+        print(f"skipped: the compiled path needs numba ({e}); pip install numba")
+        return
     N, K = args.n, args.jumps
     h0 = np.random.default_rng(0).uniform(0.5, 2.0, N)
     x0s = np.column_stack([h0, np.zeros(N)])
