@@ -278,7 +278,7 @@ def kernel_share(system, x0s, **kw):
     Python side: options, the sample pools, building one arc per row).
     ``kernel`` is NaN where the batch runs no kernel threads (or the private
     helper timed here is gone)."""
-    import hybridsim.compiled as hc
+    import hybridsim.compiled._run as hc
     orig = getattr(hc, "_interruptible", None)
     spent = [0.0] if orig is not None else [math.nan]
 

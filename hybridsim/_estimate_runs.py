@@ -65,7 +65,9 @@ def _outcome(value, event, claim, failures, where):
 
 def _run_batch(run, gens, start):
     if getattr(run, "batch", False):
-        out = list(run(gens))
+        out = run(gens)
+        if not isinstance(out, list):         # (a batch, ArcBatch, is kept as it is)
+            out = list(out)
         if len(out) != len(gens):
             raise ValueError(f"a batch run must return one result per generator: got "
                              f"{len(out)} for {len(gens)}")

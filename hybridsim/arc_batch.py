@@ -25,7 +25,10 @@ class ArcBatch(list):
     fields are computed together on the first access to one of them and
     kept until the list changes: from the batch's pools of samples where the
     arcs are still views of one (the compiled path's arcs that ended at
-    ``t_max`` or ``j_max``), from the arcs otherwise.
+    ``t_max`` or ``j_max``; a batch as the compiled path returns it reads
+    them without visiting those arcs at all), from the arcs otherwise.
+    :meth:`hybridsim.estimate.Stats.update` reads such a batch's rows off the
+    pools too.
 
     Parameters
     ----------
@@ -57,6 +60,18 @@ class ArcBatch(list):
         super().__init__(arcs)
         self._state_dim = None if state_dim is None else int(state_dim)
         self._fields = None
+        self._runs = None
+
+    @classmethod
+    def _of_pools(cls, arcs, state_dim, runs):
+        """A batch whose rows ``runs`` (a list of ``(pool, rows, starts, ends,
+        termination)``: row ``rows[k]``'s samples are rows ``starts[k]:ends[k]``
+        of ``pool = (t, j, x, xdot)``, its cause ``termination``) are the
+        engine's own record of them: the fields read the pools for those rows
+        without visiting their arcs (kept until the list changes)."""
+        out = cls(arcs, state_dim)
+        out._runs = runs
+        return out
 
     # ------------------------------------------------------------------ the list
     def __getitem__(self, key):
@@ -70,9 +85,11 @@ class ArcBatch(list):
     def __setstate__(self, state):
         self.__dict__.update(state)
         self._fields = None
+        self._runs = None
 
     def _changed(self):
         self.__dict__["_fields"] = None
+        self.__dict__["_runs"] = None
 
     # ------------------------------------------------------------------ the fields
     @property
@@ -146,7 +163,7 @@ class ArcBatch(list):
     def _computed(self):
         f = self._fields
         if f is None:
-            self._fields = f = _fields(self, self._state_dim)
+            self._fields = f = _fields(self, self._state_dim, self.__dict__.get("_runs"))
         return f
 
 
@@ -168,14 +185,17 @@ for _name in ("__setitem__", "__delitem__", "__iadd__", "__imul__", "append", "e
 del _name
 
 
-def _fields(arcs, state_dim):
+def _fields(arcs, state_dim, runs=None):
     """Every field of :class:`ArcBatch` for ``arcs``: read from the pools of the
-    arcs that are still views of one (:meth:`HybridArc._pooled`), from the arcs
-    otherwise."""
+    rows the engine recorded (``runs``, see :meth:`ArcBatch._of_pools`) and of
+    the arcs that are still views of one (:meth:`HybridArc._pooled`), from the
+    arcs otherwise."""
     N = len(arcs)
+    causes = np.empty(N, dtype=object)
+    if runs is not None:
+        return _fields_of_runs(arcs, state_dim, runs, causes)
     groups = {}            # id(pool record) -> (record, rows, rows in the pool)
     others = []
-    causes = np.empty(N, dtype=object)
     for i, arc in enumerate(arcs):
         if not isinstance(arc, HybridArc):
             raise TypeError(f"ArcBatch: row {i} is a {type(arc).__name__}, not a HybridArc")
@@ -190,7 +210,42 @@ def _fields(arcs, state_dim):
             g[2].append(r)
         else:
             others.append(i)
-    dims = {rec[0][2].shape[1] for rec, _, _ in groups.values()}
+    pooled = []            # (pool, rows, starts, ends)
+    for (pool, starts, ends, _), rows, rs in groups.values():
+        rs = np.array(rs, np.int64)
+        pooled.append((pool, np.array(rows, np.int64), np.asarray(starts, np.int64)[rs],
+                       np.asarray(ends, np.int64)[rs]))
+    return _assemble(arcs, state_dim, pooled, others, causes)
+
+
+def _fields_of_runs(arcs, state_dim, runs, causes):
+    """:func:`_fields` from the engine's record ``runs``; the other rows' arcs read."""
+    N = len(arcs)
+    mine = np.zeros(N, bool)
+    success = np.zeros(N, bool)
+    pooled = []
+    for pool, rows, starts, ends, term in runs:
+        rows = np.asarray(rows, np.int64)
+        mine[rows] = True
+        causes[rows] = term
+        success[rows] = term.success
+        pooled.append((pool, rows, np.asarray(starts, np.int64), np.asarray(ends, np.int64)))
+    others = np.flatnonzero(~mine).tolist()
+    for i in others:
+        arc = arcs[i]
+        if not isinstance(arc, HybridArc):
+            raise TypeError(f"ArcBatch: row {i} is a {type(arc).__name__}, not a HybridArc")
+        c = causes[i] = arc.termination
+        success[i] = c is not None and c.success
+    return _assemble(arcs, state_dim, pooled, others, causes, success)
+
+
+def _assemble(arcs, state_dim, pooled, others, causes, success=None):
+    """The fields: rows ``pooled`` (``(pool, rows, starts, ends)``) read off their
+    pools at once, rows ``others`` off their arcs; ``causes`` filled (and
+    ``success``, or None: read off ``causes``)."""
+    N = len(arcs)
+    dims = {pool[2].shape[1] for pool, _, _, _ in pooled}
     dims |= {arcs[i].x.shape[1] for i in others}
     if len(dims) > 1:
         n = None
@@ -200,11 +255,8 @@ def _fields(arcs, state_dim):
     tf = np.empty(N)
     jf, j0, counts = (np.empty(N, np.int64) for _ in range(3))
     pieces = []            # (rows, counts, the jump times in row order)
-    for (pool, starts, ends, _), rows, rs in groups.values():
+    for pool, rows, S, E in pooled:
         T, J, X = pool[0], pool[1], pool[2]
-        rows = np.array(rows, np.int64)
-        rs = np.array(rs, np.int64)
-        S, E = np.asarray(starts, np.int64)[rs], np.asarray(ends, np.int64)[rs]
         last = E - 1
         if xf is not None:
             xf[rows] = X[last]
@@ -232,7 +284,8 @@ def _fields(arcs, state_dim):
     for rows, cnt, values in pieces:
         within = np.arange(len(values)) - np.repeat(np.cumsum(cnt) - cnt, cnt)
         flat[np.repeat(offsets[rows], cnt) + within] = values
-    success = np.array([c is not None and c.success for c in causes], dtype=bool)
+    if success is None:
+        success = np.array([c is not None and c.success for c in causes], dtype=bool)
     return {"xf": xf, "dims": dims, "tf": tf, "jf": jf,
             "count": jf - j0, "causes": causes, "success": success, "offsets": offsets,
             "flat": flat, "padded": None}

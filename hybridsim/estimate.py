@@ -46,6 +46,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from ._estimate_runs import _ams, _in_open_unit, _outcome, _positive_int, _run_batch, _seed_sequence
+from .arc_batch import ArcBatch
 
 __all__ = ["estimate", "Estimate", "clopper_pearson", "run_generator", "Stats", "accumulate",
            "splitting", "SplittingResult", "hybrid_segments", "time_moments"]
@@ -394,19 +395,7 @@ class Stats:
             ok[ok] &= arc.j[first[ok]] == self.grid[ok]
             x = np.full((len(self.grid), arc.state_dim), np.nan)
             x[ok] = arc.x[first[ok]]
-        if self.signal is None:
-            v = x
-        elif callable(self.signal):
-            v = np.asarray(self.signal(x), dtype=float)
-            if v.ndim == 1:
-                v = v[:, None]
-            if v.shape[0] != len(self.grid):
-                raise ValueError(f"Stats: signal(x) on {len(self.grid)} rows must return "
-                                 f"{len(self.grid)} rows (write it with x[..., k]), got shape "
-                                 f"{v.shape}")
-        else:
-            v = x[:, [self.signal]]
-        v = np.where(ok[:, None], v, np.nan)
+        v = np.where(ok[:, None], self._signal_of(x, len(self.grid)), np.nan)
         return v.reshape(len(self.grid), -1)
 
     def add_values(self, values):
@@ -458,10 +447,78 @@ class Stats:
         self.add_values(self._values(arc)[None])
 
     def update(self, arcs):
-        """Add many runs' arcs."""
-        vals = [self._values(a) for a in arcs]
-        if vals:
-            self.add_values(np.stack(vals))
+        """Add many runs' arcs (a batch of :func:`hybridsim.simulate_many`'s compiled
+        path is read off its pools of samples at once, its arcs not made)."""
+        runs = getattr(arcs, "_runs", None) if isinstance(arcs, ArcBatch) else None
+        if runs is None:
+            vals = [self._values(a) for a in arcs]
+            if vals:
+                self.add_values(np.stack(vals))
+            return
+        if len(arcs):
+            self.add_values(self._batch_values(arcs, runs))
+
+    def _batch_values(self, arcs, runs):
+        """:meth:`_values` of every row of the batch ``arcs``, shape (N, m, d): the rows
+        of the engine's record ``runs`` (:meth:`hybridsim.ArcBatch._of_pools`) read
+        off their pools together (the same values as from their arcs), the others
+        from their arcs."""
+        N, m = len(arcs), len(self.grid)
+        xs, oks, rows_all = [], [], []
+        for pool, rows, S, E, _ in runs:
+            T, J, X, XD = pool
+            S, E = np.asarray(S, np.int64), np.asarray(E, np.int64)
+            x = np.full((len(rows), m, X.shape[1]), np.nan)
+            ok = np.zeros((len(rows), m), bool)
+            for q, g in enumerate(self.grid):
+                if self.kind == "t":
+                    # k: the run's last sample with t <= g (its samples are in order)
+                    c = np.concatenate([[0], np.cumsum(T <= g)])
+                    k = S + (c[E] - c[S]) - 1
+                    ok[:, q] = have = (T[S] <= g) & (g <= T[E - 1])
+                    k, r = k[have], np.flatnonzero(have)
+                    x[r, q] = _between(T, X, XD, k, g)
+                else:
+                    # the run's first sample with j >= g, where j == g
+                    c = np.concatenate([[0], np.cumsum(J < g)])
+                    first = S + (c[E] - c[S])
+                    have = first < E
+                    have[have] &= J[first[have]] == g
+                    ok[:, q] = have
+                    x[have, q] = X[first[have]]
+            xs.append(x)
+            oks.append(ok)
+            rows_all.append(np.asarray(rows, np.int64))
+        n = xs[0].shape[2] if xs else arcs[0].state_dim
+        X_all = np.full((N, m, n), np.nan)
+        ok_all = np.zeros((N, m), bool)
+        mine = np.zeros(N, bool)
+        for rows, x, ok in zip(rows_all, xs, oks):
+            X_all[rows], ok_all[rows], mine[rows] = x, ok, True
+        V = self._signal_of(X_all.reshape(N * m, n), N * m).reshape(N, m, -1)
+        V = np.where(ok_all[..., None], V, np.nan)
+        others = np.flatnonzero(~mine)
+        if len(others):
+            W = np.stack([self._values(arcs[i]) for i in others.tolist()])
+            if W.shape[2] != V.shape[2]:
+                raise ValueError(f"Stats: the signal has width {V.shape[2]} on some rows, "
+                                 f"{W.shape[2]} on others")
+            V[others] = W
+        return V
+
+    def _signal_of(self, x, rows):
+        """The signal of the states ``x`` (rows, n), shape (rows, d)."""
+        if self.signal is None:
+            return x
+        if callable(self.signal):
+            v = np.asarray(self.signal(x), dtype=float)
+            if v.ndim == 1:
+                v = v[:, None]
+            if v.shape[0] != rows:
+                raise ValueError(f"Stats: signal(x) on {rows} rows must return {rows} rows "
+                                 f"(write it with x[..., k]), got shape {v.shape}")
+            return v
+        return x[:, [self.signal]]
 
     def _same_layout(self, other):
         if not isinstance(other, Stats):
@@ -540,6 +597,32 @@ class Stats:
 
     def __repr__(self):
         return f"Stats({self.kind} grid of {len(self.grid)}, {self.runs} runs)"
+
+
+def _between(T, X, XD, k, g):
+    """The state at time ``g`` from samples ``k`` (``T[k] <= g``, and ``g < T[k + 1]``
+    at the same j where ``T[k] < g``), as :meth:`hybridsim.HybridArc.interpolate`
+    makes it from an arc without dense output: the sample itself at its own
+    time, cubic Hermite where both neighbours' xdot are finite, else linear."""
+    out = X[k].copy()
+    rest = np.flatnonzero(T[k] != g)
+    if rest.size == 0:
+        return out
+    k0 = k[rest]
+    t0, t1 = T[k0], T[k0 + 1]
+    x0, x1 = X[k0], X[k0 + 1]
+    h = (t1 - t0)[:, None]
+    s = ((g - t0) / (t1 - t0))[:, None]
+    val = (1 - s) * x0 + s * x1
+    m0, m1 = XD[k0], XD[k0 + 1]
+    herm = np.all(np.isfinite(m0), axis=1) & np.all(np.isfinite(m1), axis=1)
+    if herm.any():
+        s2 = s * s
+        hv = (x0 + s2 * (3 - 2 * s) * (x1 - x0)
+              + s * (1 - s) ** 2 * h * m0 + s2 * (s - 1) * h * m1)
+        val[herm] = hv[herm]
+    out[rest] = val
+    return out
 
 
 def _reduce_chunk(run, stats, ss, start, count, batch):

@@ -42,7 +42,7 @@ from ._sde import prepare as prepare_sde
 from .arc import HybridArc, _one_sample
 from .arc_batch import ArcBatch
 from .batch_vectorized import simulate_vectorized, takes_options
-from .compiled._lower import lower, rebind
+from .compiled._lower import lower, rebind, rebind_all
 from .history import History
 from .options import (
     RunOptions,
@@ -461,8 +461,7 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
         kw = {k: v for k, v in options.items() if k not in ("backend", "progress")}
         _no_watch_compiled(system)
         out = compiled.simulate_many_compiled(lower(system), X, throw=False, warn=False, **kw)
-        out = ArcBatch([rebind(a, system) for a in out], n)
-        return finish_batch("simulate_many", out, throw, warn)
+        return finish_batch("simulate_many", rebind_all(out, system), throw, warn)
     if system.vectorized and executor is None and _batch_takes(system, options):
         out = ArcBatch(_many_vectorized(system, X, options, progress), n)
         return finish_batch("simulate_many", out, throw, warn)

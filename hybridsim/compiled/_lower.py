@@ -63,7 +63,7 @@ from . import _from_source
 from ._from_source import _helpers, _numba
 from ._system import KEYWORDS, RENAMES, CompiledSystem, _load_kernel, _refuse, keywords
 
-__all__ = ["Component", "Lowerable", "lower", "lowerable", "matvec", "rebind"]
+__all__ = ["Component", "Lowerable", "lower", "lowerable", "matvec", "rebind", "rebind_all"]
 
 _ROLES = ("flow", "jump", "jump_guard", "flow_guard", "jump_set", "flow_set")
 
@@ -783,6 +783,22 @@ def rebind(arc, system):
     if arc.exception is not None and getattr(arc.exception, "arc", None) is not None:
         arc.exception.arc = arc
     return arc
+
+
+def rebind_all(arcs, system):
+    """:func:`rebind` every arc of ``arcs`` (a list, changed in place and returned)
+    to ``system``: the description read once for all."""
+    from ..arc import _describe
+    desc, comps = _describe(system), system.components
+    for arc in arcs:
+        if arc.system is system:
+            continue
+        d = arc.__dict__
+        d["system"], d["system_description"], d["components"] = system, desc, comps
+        exc = d.get("exception")
+        if exc is not None and getattr(exc, "arc", None) is not None:
+            exc.arc = arc
+    return arcs
 
 
 class Lowerable:

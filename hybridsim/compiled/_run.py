@@ -776,6 +776,7 @@ def simulate_many_compiled(system: CompiledSystem, x0s: ArrayLike, t_max: float,
         return code == canceled, len(T)
 
     stopped = False
+    runs = []               # the pooled rows' record, for the batch's fields (ArcBatch)
     # no cyclic garbage collection while the arcs are built (a 100,000-row batch
     # makes 300,000 objects and triggered 400 collections, 6% of its time)
     gc_on = gc.isenabled()
@@ -875,6 +876,7 @@ def simulate_many_compiled(system: CompiledSystem, x0s: ArrayLike, t_max: float,
                         for i, arc in zip(idx[sel].tolist(), made):
                             arcs[i] = arc
                         done[sel] = True
+                        runs.append((pool, idx[sel], starts[sel], ends[sel], term))
                 Tf, Jf, Xf, XDf = pool
                 for r in np.flatnonzero(~done).tolist():
                     i = int(idx[r])
@@ -907,4 +909,5 @@ def simulate_many_compiled(system: CompiledSystem, x0s: ArrayLike, t_max: float,
                 arcs[i] = _one_sample(X0[i], where, Termination.CANCELED,
                                       "never started (the batch was interrupted)", None,
                                       system)
-    return finish_batch("simulate_many_compiled", ArcBatch(arcs, n), ro.throw, ro.warn)
+    return finish_batch("simulate_many_compiled", ArcBatch._of_pools(arcs, n, runs), ro.throw,
+                        ro.warn)

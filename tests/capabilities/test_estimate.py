@@ -233,6 +233,39 @@ def test_stats_on_jump_counts_and_runs_that_end_early():
     assert np.isnan(st.mean[1, 0]) and np.isnan(st.variance[1, 0])
 
 
+def _ball():
+    from hybridsim.library import BouncingBall
+    h0 = np.linspace(0.5, 2.0, 9)
+    return (BouncingBall(), np.column_stack([h0, 0 * h0]), 1.7,
+            lambda x: x[..., 0] * x[..., 1] + 1.0)
+
+
+@pytest.mark.parametrize("case", [
+    pytest.param(lambda: (Timer(1.0), np.r_[np.linspace(0, 0.9, 8), np.nan][:, None], 2.5, 0),
+                 id="timer"),
+    pytest.param(_ball, id="ball", marks=pytest.mark.slow)])
+def test_stats_of_a_compiled_batch_read_off_its_pools_equal_the_arcs(case):
+    # the compiled batch's rows are read off its pools together; a failed row (NaN x0), a
+    # grid time at a jump, between samples and past the end; timers, and balls whose
+    # signal reads both components (Hermite between samples)
+    pytest.importorskip("numba")
+    system, x0s, t_max, signal = case()
+    batch = hs.simulate_many(system, x0s, t_max, backend="compiled", warn=False)
+    for grid in (dict(t=np.r_[np.linspace(0, t_max + 0.3, 23), 1.0]),
+                 dict(j=[0, 1, 2, 3, 7])):
+        grid = {k: np.sort(v) for k, v in grid.items()}
+        fast, slow = (Stats(signal=signal, thresholds=[0.5], bins=(-3, 3, 30), **grid)
+                      for _ in range(2))
+        fast.update(batch)
+        slow.update(list(batch))              # a plain list: arc by arc
+        for k in ("count", "_mean", "_m2", "min", "max", "exceed", "hist"):
+            np.testing.assert_array_equal(getattr(fast, k), getattr(slow, k), err_msg=k)
+        assert fast.runs == slow.runs == len(x0s)
+        assert fast.count.max() == np.isfinite(x0s).all(axis=1).sum()  # a NaN row: none
+    with pytest.raises(ValueError, match="signal"):
+        Stats(t=[0.5], signal=lambda x: x[:1]).update(batch)
+
+
 # ------------------------------------------------------------------ time moments of one run
 def sawtooth(rate, top):
     """x' = rate from 0 up to top (rate > 0) or from top down to 0 (rate < 0), then reset:

@@ -234,8 +234,10 @@ def test_batch_fields_are_the_arcs_on_every_path(path, monkeypatch):
     assert pooled == [i for i, a in enumerate(batch) if "_pool" in a.__dict__]
     assert (len(pooled) >= 7) == (path == "compiled")   # all but a few rows run alone first
     want = _fields_of_arcs(batch)
+    again = hs.ArcBatch(list(batch))         # the same arcs, no record of the engine's
     for k, v in want.items():
         np.testing.assert_array_equal(got[k], v, err_msg=k)
+        np.testing.assert_array_equal(getattr(again, k), v, err_msg=k)
     assert [c.name for c in causes] == [a.termination.name for a in batch]
     assert causes[4] is hs.Termination.NON_FINITE and not batch.success[4]
     assert set(batch.jump_counts[batch.causes == hs.Termination.J_MAX]) == {4}
@@ -290,3 +292,18 @@ def test_batch_empty_mixed_and_bad():
         _ = hs.ArcBatch([mixed[0], "arc"]).final_times
     with pytest.raises(ValueError, match="row 0's arc is empty"):
         _ = hs.ArcBatch([hs.HybridArc([], [], np.zeros((0, 1)), None)]).jump_counts
+
+
+def test_a_plain_model_run_compiled_gets_its_arcs_back():
+    # the lowered model's arcs are given back to the model in place: the batch keeps its
+    # record of the pooled rows (its fields read off the pools) and every arc names the model
+    pytest.importorskip("numba")
+    from hybridsim.library import BouncingBall
+    ball = BouncingBall()
+    h0 = np.linspace(0.5, 2.0, 7)
+    batch = hs.simulate_many(ball, np.column_stack([h0, 0 * h0]), 1e9, 3, backend="compiled")
+    assert isinstance(batch, hs.ArcBatch)
+    assert all(a.system is ball and "BouncingBall" in a.system_description for a in batch)
+    np.testing.assert_allclose(batch.jump_times,
+                               hs.library.bouncing_ball_jump_times(h0, 3), atol=1e-7)
+    assert batch.jump_counts.tolist() == [3] * 7 and batch.success.all()
