@@ -31,8 +31,8 @@ LEVELS = (
                "_sde", "_random_jumps", "_variational"}),
     ("shared and data", {"rules", "options", "events", "_rk", "_progress", "_version",
                          "system", "compose", "history", "arc", "_arc_access", "_arc_checks",
-                         "_arc_io", "_arc_records", "arc_batch", "library", "_source",
-                         "brownian"}),
+                         "_arc_io", "_arc_records", "_compose_checks", "arc_batch", "library",
+                         "_source", "brownian"}),
 )
 
 
