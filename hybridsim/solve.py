@@ -2,28 +2,35 @@
 
 The rules (priority, causes, the jump-or-flow decision, Zeno and t_max
 tolerances) come from :mod:`hybridsim.rules`; this module runs them with a
-scipy ODE solver.
+scipy ODE solver. The run's records (options, state, statistics, samples) are
+in :mod:`hybridsim._solve_state`; the solver's set-up, counters, failures and
+stiffness test in :mod:`hybridsim._solve_solver`.
 """
 from __future__ import annotations
 
 import bisect
-import enum
 import math
-import warnings
-from collections.abc import Callable
-from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.integrate import DOP853, RK23, RK45
 from scipy.integrate._ivp.rk import RungeKutta
 
-from ._rk import LEAN
+from ._solve_solver import _RunSolver
+from ._solve_state import (  # noqa: F401 - run.py imports _Options, _progress_bar here
+    _Buffer,
+    _dense_derivative,
+    _dense_finite,
+    _Hermite,
+    _Options,
+    _Outcome,
+    _progress_bar,
+    _SampleCap,
+    _State,
+    _Stats,
+)
 from .arc import Crossings, HybridArc
 from .events import find_interior_event, locate_event, watch_crossings
-from .options import (
-    RunOptions,
-    check_map_value,
-)
+from .options import check_map_value
 from .rules import (
     CAUSES,
     CHATTER_RTOL,
@@ -56,173 +63,8 @@ __all__ = ["MapError", "SimulationError", "SimulationWarning"]
 _EXPLICIT = (RK23, RK45, DOP853)
 
 
-class _Outcome(enum.Enum):
-    """How a flow ended (returned by ``_Run._flow``)."""
 
-    T_MAX = 0       # reached t_max (a jump there is still decided by the loop)
-    BREAK = 1       # a delay breakpoint: flow on
-    JUMP = 2        # an event that must jump
-    FLOW_ON = 3     # random priority chose to flow on in C ∩ D
-    STOP = 4        # the run ends; the cause is recorded
-
-
-# Hairer's stiffness test for RK45 (Dormand-Prince): rows giving (y7 - y6) / h
-# and k7 - k6 from the seven stages K
-_STIFF_W = np.zeros((2, RK45.n_stages + 1))
-_STIFF_W[0, :RK45.n_stages] = RK45.B
-_STIFF_W[0, :RK45.n_stages - 1] -= RK45.A[RK45.n_stages - 1]
-_STIFF_W[1, -2:] = (-1.0, 1.0)
-
-
-class _Buffer:
-    """Sample store (t, j, x, xdot).
-
-    Each sample is copied straight into a row of numpy arrays that double
-    when full (capped at ``max_samples``): amortised O(1) appends, no
-    quadratic copies, 16 + 16n bytes a sample, and no reference kept to the
-    solver's arrays, so their memory is reused.
-    """
-
-    __slots__ = ("t", "j", "x", "xdot", "m", "dim", "cap", "room")
-
-    def __init__(self, dim, cap=256, max_samples=math.inf):
-        self.cap = max_samples
-        self.dim = dim
-        self.room = int(min(cap, max_samples))
-        self.t = np.empty(self.room)
-        self.j = np.empty(self.room, dtype=np.int64)
-        self.x = np.empty((self.room, dim))
-        self.xdot = np.empty((self.room, dim))
-        self.m = 0
-
-    @property
-    def n(self):
-        return self.m
-
-    def _reserve(self, need):
-        if need > self.cap:
-            raise _SampleCap()
-        m = self.m
-        self.room = int(min(max(2 * self.room, need, 16), self.cap))
-        for name in ("t", "j", "x", "xdot"):
-            old = getattr(self, name)
-            new = np.empty((self.room,) + old.shape[1:], dtype=old.dtype)
-            new[:m] = old[:m]
-            setattr(self, name, new)
-
-    def append(self, t, j, x, xdot=None):
-        m = self.m
-        if m >= self.room:
-            self._reserve(m + 1)
-        self.t[m] = t
-        self.j[m] = j
-        self.x[m] = x
-        self.xdot[m] = np.nan if xdot is None else xdot
-        self.m = m + 1
-
-    def last(self):
-        """(t, j, x, xdot) of the last sample."""
-        k = self.m - 1
-        return float(self.t[k]), int(self.j[k]), self.x[k], self.xdot[k]
-
-    def set_last_xdot(self, v):
-        self.xdot[self.m - 1] = v
-
-    def pop(self):
-        self.m -= 1
-
-    def extend(self, t, j, X, Xd=None):
-        """Append many samples of one j at once."""
-        m, k = self.m, len(t)
-        if m + k > self.room:
-            self._reserve(m + k)
-        self.t[m:m + k] = t
-        self.j[m:m + k] = j
-        self.x[m:m + k] = X
-        self.xdot[m:m + k] = np.nan if Xd is None else Xd
-        self.m = m + k
-
-    def arrays(self):
-        """The samples, shrunk in place (no copy); the buffer is done after this."""
-        k = self.m
-        self.t.resize(k, refcheck=False)
-        self.j.resize(k, refcheck=False)
-        self.x.resize((k, self.dim), refcheck=False)
-        self.xdot.resize((k, self.dim), refcheck=False)
-        return self.t, self.j, self.x, self.xdot
-
-
-def _progress_bar(progress, t0, t_max, j_max):
-    """A bar over t (with j shown) or over jumps; None when progress is off."""
-    from ._progress import make_bar
-    if math.isfinite(t_max):
-        return make_bar(progress, total=t_max - t0, desc="simulate", unit="t",
-                        postfix="j=0",
-                        bar_format="{l_bar}{bar}| t={n:.4g}/{total:.4g}{postfix} "
-                                   "[{elapsed}<{remaining}]")
-    return make_bar(progress, total=None if not math.isfinite(j_max) else j_max,
-                    desc="simulate", unit="jump")
-
-
-@dataclass(frozen=True)
-class _Options(RunOptions):
-    """Everything that is fixed during a run: the options every path shares
-    (:class:`hybridsim.options.RunOptions`) and the Python path's own."""
-
-    n: int
-    Method: type
-    t_eval: np.ndarray | None
-    keep: bool
-    delays: tuple
-    rng: np.random.Generator | None     # None unless the priority is random
-    dwell: Callable | None = None       # the dwell law in C ∩ D (random priority)
-
-
-@dataclass
-class _Stats:
-    """Run statistics, returned as ``arc.stats`` (a dict)."""
-
-    steps: int = 0          # accepted solver steps
-    attempts: int = 0       # step attempts, accepted or rejected (RK23, RK45)
-    nfev: int = 0           # flow-map evaluations by the solver
-    njev: int = 0           # Jacobian evaluations (implicit methods)
-    nlu: int = 0            # LU decompositions (implicit methods)
-    events: int = 0         # events located (jumps, exits from C)
-    flows: int = 0          # flows started (solver restarts)
-
-    def as_dict(self):
-        d = dict(self.__dict__)
-        a = d.pop("attempts")
-        d["rejected"] = max(a - self.steps, 0) if a else None
-        return d
-
-
-@dataclass
-class _State:
-    """The run's mutable state between flows."""
-
-    t: float
-    j: int
-    x: np.ndarray
-    jumps: int = 0
-    short: int = 0              # consecutive jumps after short flows (Zeno)
-    zref: float = 0.0           # the shrinking streak's reference flow (rules.zeno_short)
-    longest: float = 0.0        # the longest flow so far (rules.chatter_step)
-    tiny: int = 0               # consecutive flows tiny against it (chattering)
-    same: int = 0               # consecutive jumps at one instant, from C or not
-    loop: int = 0               # consecutive jumps at one instant from C ∩ D (a loop)
-    t_last_jump: float = 0.0
-    flow_lengths: list = field(default_factory=list)   # the last few flows
-    h_hint: float | None = None
-    breaks: list = field(default_factory=list)          # delay breakpoints
-    dwelling: bool = False      # in C ∩ D since an entry whose dwell time was drawn
-    deadline: float = math.inf  # ... and the time it jumps at (entry + dwell)
-    stiff_hits: int = 0         # Hairer's stiffness counter (DOPRI5's IASTI)
-    calm: int = 0               # ... and its reset counter (NONSTI)
-    warned_stiff: bool = False
-
-
-class _Run:
+class _Run(_RunSolver):
     """One run: the decision loop between flows, and the flows."""
 
     def __init__(self, system, maps, opts, ufun, history):
@@ -535,76 +377,6 @@ class _Run:
         return min(br[0], self.o.t_max) if br else self.o.t_max
 
     # ------------------------------------------------------------------ a flow
-    def _fun(self):
-        """The solver's right-hand side: the user's flow map called directly
-        (one Python frame), its failures named and its value's contract checked.
-
-        It reads the flow's j from ``self.jcell``, so one solver object serves
-        every flow of the run, and counts its calls in ``self.calls`` (the
-        explicit Runge-Kutta solvers call it without scipy's two wrappers).
-        """
-        maps, ufun, n, jcell, calls = self.maps, self.ufun, self.o.n, self.jcell, self.calls
-        fn, k = maps.f_raw, maps.f_arity
-        shape = (n,)
-        nd, f64 = np.ndarray, np.dtype(float)
-
-        def fail(e, s):
-            if isinstance(e, MapError):
-                raise e
-            raise MapError(f"flow_map raised {type(e).__name__}: {e} (at t={s:.10g}, "
-                           f"j={jcell[0]})", "flow_map", s, jcell[0]) from e
-
-        def checked(v, s):
-            if isinstance(v, np.ndarray) and v.shape == shape and v.dtype.kind in "iub":
-                return v.astype(float)
-            return check_map_value("flow_map", v, n, s, jcell[0])
-
-        if k <= 1 and ufun is None:
-            def fun(s, y):
-                calls[0] += 1
-                try:
-                    v = fn(y)
-                except Exception as e:  # noqa: BLE001 - named and re-raised
-                    fail(e, s)
-                if v.__class__ is nd and v.dtype is f64 and v.shape == shape:
-                    return v
-                return checked(v, s)
-        elif k == 2 and ufun is None:
-            def fun(s, y):
-                calls[0] += 1
-                try:
-                    v = fn(y, s)
-                except Exception as e:  # noqa: BLE001
-                    fail(e, s)
-                if v.__class__ is nd and v.dtype is f64 and v.shape == shape:
-                    return v
-                return checked(v, s)
-        else:
-            f = maps.f
-
-            def fun(s, y):
-                calls[0] += 1
-                v = f(y, s, jcell[0], ufun(s) if ufun is not None else None)
-                if v.__class__ is nd and v.dtype is f64 and v.shape == shape:
-                    return v
-                return checked(v, s)
-        return fun
-
-    def _check_shared_output(self, t, j, x):
-        """A flow map that returns one array, overwritten on every call (a
-        preallocated ``out``), would leave the solver's stored derivative
-        stale: two calls at the first flow's start tell, and its values are
-        then copied as they come."""
-        self.out_checked = True
-        u = self._u(t)
-        v = self.maps.f(x, t, j, u)
-        if isinstance(v, np.ndarray) and self.maps.f(x, t, j, u) is v:
-            raw = self.fun
-
-            def fun(s, y):
-                return raw(s, y).copy()
-            self.fun = fun
-
     def _flow(self, st, in_D_start):
         """Integrate from (st.t, st.x) until an event, t_max or a failure."""
         if self.sde is not None:
@@ -773,100 +545,9 @@ class _Run:
         st.h_hint = None
         return self._end(st, t_end, xe, _Outcome.T_MAX)
 
-    def _start_solver(self, t, x, t_bound, h):
-        """The solver for a flow from (t, x): the run's Runge-Kutta solver reset
-        in place where it can be (its set-up is a third of a short flow's
-        cost), else a new one."""
-        s = self.solver
-        if s is not None and h is not None and self.reuse:
-            # the solver never writes into its y: the run's own float state serves
-            s.t, s.t_bound = t, t_bound
-            s.y = x if type(x) is np.ndarray and x.dtype == np.float64 else np.array(x, float)
-            s.status, s.t_old, s.y_old, s.h_previous = "running", None, None, None
-            s.h_abs = h
-            s.f = s.fun(t, s.y)
-            self.restarts += 1
-            return s
-        self._count(self.solver)
-        # RK45 and RK23 step without scipy's per-step overheads (bit for bit the same)
-        Method = LEAN.get(self.o.Method, self.o.Method) if self.reuse else self.o.Method
-        s = Method(self.fun, t, x, t_bound, rtol=self.o.rtol, atol=self.o.atol,
-                   max_step=self.o.max_step, first_step=h)
-        if self.reuse:
-            # self.fun already returns float arrays of shape (n,): scipy's two
-            # wrappers (asarray, call count) are bypassed; self.calls counts
-            s.fun = self.fun
-            self.calls0 = self.calls[0]
-        self.solver = s
-        return s
-
-    def _count(self, solver):
-        """Add a retired solver's evaluation counters to the run's statistics."""
-        if solver is not None:
-            st = self.stats
-            nfev = solver.nfev
-            if solver.fun is self.fun:
-                nfev += self.calls[0] - self.calls0
-            st.nfev += nfev
-            ns = getattr(solver, "n_stages", None)
-            if isinstance(solver, (RK23, RK45)):
-                # each attempt costs n_stages evaluations, each (re)start one
-                st.attempts += (nfev - 1 - self.restarts) // ns
-                self.restarts = 0
-            st.njev += getattr(solver, "njev", 0)
-            st.nlu += getattr(solver, "nlu", 0)
-
     def _end(self, st, t, x, outcome):
         st.t, st.x = t, x
         return outcome
-
-    def _solver_failed(self, st, solver, msg, a, ya, j):
-        """A failed step: a non-finite flow map is NON_FINITE; short flows ZENO."""
-        K = getattr(solver, "K", None)
-        bad = K is not None and not np.isfinite(K).all()
-        if not bad:
-            try:
-                bad = not np.isfinite(self.maps.f(ya, a, j, self._u(a))).all()
-            except MapError:
-                bad = True
-        if bad:
-            self._stop(Termination.NON_FINITE, "flow", t=a, j=j)
-        elif st.short > 0:
-            self._stop(Termination.ZENO, "short", t=a)
-        else:
-            self._stop(Termination.SOLVER_FAILED, reason=msg, t=a, j=j)
-        return self._end(st, a, ya, _Outcome.STOP)
-
-    def _non_finite(self, st, a, ya, b, j):
-        """The step from a to b overflowed inside (its dense output is not
-        finite although its ends may be): NON_FINITE, the run ends at a."""
-        self._stop(Termination.NON_FINITE, "dense", t=a, t2=b, j=j)
-        return self._end(st, a, ya, _Outcome.STOP)
-
-    def _check_stiff(self, st, solver, steps):
-        """Hairer's stiffness test for Dormand-Prince: h·ρ > 3.25 on 15 steps.
-
-        ρ = |k7 - k6| / |y7 - y6| estimates the Jacobian's dominant eigenvalue
-        from the two stages at t + h (Hairer & Wanner, Solving ODEs II, IV.2).
-        """
-        if st.warned_stiff:
-            return
-        # rows of W @ K: (y7 - y6) / h = (b - a6) . K and k7 - k6, in one product
-        dy, dk = _STIFF_W @ solver.K
-        den = float(dy @ dy)
-        if den > 0 and float(dk @ dk) > 3.25 * 3.25 * den:
-            st.stiff_hits += 1
-            st.calm = 0
-        else:
-            st.calm += 1
-            if st.calm >= 6:         # as Hairer's DOPRI5: six calm steps reset the count
-                st.stiff_hits = 0
-        if st.stiff_hits >= 15 and steps >= 500:     # a short run is not worth a warning
-            st.warned_stiff = True
-            warnings.warn(f"the flow looks stiff near t={solver.t:.6g} (j={st.j}): "
-                          f"{self.o.Method.__name__}'s step size is limited by stability, "
-                          f"not accuracy. Use method='Radau', 'BDF' or 'LSODA'",
-                          SimulationWarning, stacklevel=6)  # _flow, _loop, run, simulate
 
     def _pred(self, j, d_active):
         """The event indicator of a flow: it left C, or (d_active) it entered D."""
@@ -1091,46 +772,3 @@ class _Run:
             self.t_eval_k = k
 
 
-class _Hermite:
-    """The cubic Hermite interpolant of a step from its ends' states and slopes."""
-
-    __slots__ = ("a", "h", "ya", "yb", "ma", "mb")
-
-    def __init__(self, a, ya, fa, b, yb, fb):
-        self.a, self.h = a, b - a
-        self.ya, self.yb = ya, yb
-        self.ma, self.mb = self.h * fa, self.h * fb
-
-    def __call__(self, t):
-        s = (t - self.a) / self.h
-        s2 = s * s
-        return (self.ya + s2 * (3.0 - 2.0 * s) * (self.yb - self.ya)
-                + s * (1.0 - s) ** 2 * self.ma + s2 * (s - 1.0) * self.mb)
-
-
-class _SampleCap(Exception):
-    """Internal: the sample cap was reached."""
-
-
-def _dense_finite(sol):
-    """Whether a step's dense output is finite (an overflow inside the step,
-    between finite ends, leaves NaN or inf in its coefficients)."""
-    Q = getattr(sol, "Q", None)
-    if Q is not None:
-        return bool(np.isfinite(Q).all())
-    try:
-        ts = np.linspace(sol.t_min, sol.t_max, 5)
-        return bool(np.isfinite(np.asarray(sol(ts), dtype=float)).all())
-    except Exception:  # noqa: BLE001 - an unknown dense output: take it as finite
-        return True
-
-
-def _dense_derivative(sol, ts):
-    """d/dt of a Runge-Kutta dense output at times ts, shape (len(ts), n); None otherwise."""
-    Q = getattr(sol, "Q", None)
-    if Q is None or not hasattr(sol, "h") or not hasattr(sol, "t_old"):
-        return None
-    s = (np.asarray(ts) - sol.t_old) / sol.h
-    k = np.arange(Q.shape[1])
-    P = (k + 1) * s[:, None] ** k        # d/ds of s^(k+1), times 1/h cancels h in y
-    return P @ Q.T

@@ -28,11 +28,12 @@ LEVELS = (
                       "_explore_tree", "_estimate_runs", "_sensitivity_maps"}),
     ("front door", {"run", "batch"}),
     ("paths", {"solve", "batch_vectorized", "compiled",
-               "_sde", "_random_jumps", "_variational"}),
+               "_sde", "_random_jumps", "_variational", "_solve_state", "_solve_solver",
+               "_batch_maps", "_batch_samples", "_batch_steps", "_batch_events"}),
     ("shared and data", {"rules", "options", "events", "_rk", "_progress", "_version",
                          "system", "compose", "history", "arc", "_arc_access", "_arc_checks",
-                         "_arc_io", "_arc_records", "arc_batch", "library", "_source",
-                         "brownian"}),
+                         "_arc_io", "_arc_records", "_compose_checks", "arc_batch", "library",
+                         "_source", "brownian"}),
 )
 
 
