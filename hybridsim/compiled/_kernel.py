@@ -155,8 +155,10 @@ from ._types import (
     _let_threads_run,
     _occ_at,
     _one_at,
+    _vec_at,
     maps_of,
 )
+from ._watch import watch_fault, watch_step, watch_values, with_crossings
 
 #: a constant of the run core: its method is DOP853 (False: RK45). True in
 #: :data:`run_one_dop853` (:func:`_variant`), whose steps, error norm and dense
@@ -168,6 +170,11 @@ DOP853_GLOBALS = {"_DOP": True}
 #: False in :data:`run_one` (numba prunes every branch on it: no code for the
 #: past, a smaller kernel to compile), True in :data:`run_one_delays`
 _DELAYS = False
+#: a constant of the run core: whether the system watches functions along its
+#: flows (:mod:`._watch`). True only in :data:`run_one_watch`
+_WATCH = False
+
+
 def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     """One run, entirely compiled.
 
@@ -224,6 +231,14 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     useC = has_C and has_hC
 
     n = x0.shape[0]
+    if _WATCH:      # the watched functions, their directions, and the crossings found
+        W = _vec_at(maps[6])
+        wdir = fopt[F_DELAYS + nd:]
+        CR = np.empty((8, 4 + n))
+        nc = 0
+        wv = np.empty(0)
+        wt = t0
+        wfloor = t0
     # with delays: the run's own p, the past's place after the parameters (NaN
     # but while the flow map runs), and the record of the steps (``_past``)
     # (``_DELAYS``: a constant of the kernel, False in :data:`run_one`, whose
@@ -519,6 +534,13 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             cause, detail = _past_missing(info, HM, j)
             break
         stats[4] += 1
+        if _WATCH:       # ``_Run._watch_start``: a zero at a jump (or x0) is no crossing
+            wv, wok = watch_values(W, x, t, j, p, wdir.shape[0])
+            if not wok:
+                cause, detail = watch_fault(info, t, j)
+                break
+            wt = t
+            wfloor = t if t == t_last_jump else -np.inf
         for q in range(n):
             XD[ns - 1, q] = fa[q]
         a = t
@@ -793,6 +815,14 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 for q in range(n):
                     XD[ns, q] = fb[q]
                 ns += 1
+                if _WATCH:
+                    CR, nc, wv, wok = watch_step(W, wdir, ya, hQ, a, hs, wt, ya, wv, b, yb, j,
+                                                 p, wfloor, CR, nc)
+                    wt = b
+                    if not wok:
+                        cause, detail = watch_fault(info, b, j)
+                        t, x = b, yb.copy()
+                        break
                 if max_norm < np.inf:
                     nb = _norm(yb)
                     if nb > max_norm:
@@ -855,6 +885,13 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             # ``_commit``
             if _DELAYS and not past and te > a:
                 _record(HL, HM, a, te, hs, ya, hQ)
+            if _WATCH and te > wt:          # ``_commit``: the flow up to the event
+                CR, nc, wv, wok = watch_step(W, wdir, ya, hQ, a, hs, wt, ya if wt == a else yb,
+                                             wv, te, xe, j, p, wfloor, CR, nc)
+                if not wok:
+                    cause, detail = watch_fault(info, te, j)
+                    t, x = a, ya
+                    break
             if te > a:
                 if refine > 1:
                     if ns + refine - 1 > max_samples:
@@ -938,6 +975,8 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
         if fl.shape[0] == n:
             _put(XD, ns - 1, fl)
     stats[5] = jumps
+    if _WATCH:
+        info = with_crossings(info, CR, nc)
     if work[0] != work[0]:           # (keeps the scratch's owner alive to here)
         stats[5] = jumps
     if iopt[I_ROW] != 0:
@@ -991,6 +1030,10 @@ run_one_dop853 = njit(cache=CACHE, **_NJ)(_variant(_run_core, "_dop853", **DOP85
 
 #: :data:`run_one_spec` stepping with DOP853
 run_one_spec_dop853 = njit(**_NJI)(_variant(_run_core, "_dop853", **DOP853_GLOBALS))
+
+#: :data:`run_one` recording the crossings of watched functions (:mod:`._watch`):
+#: compiled (and cached) when a watching system first runs
+run_one_watch = njit(cache=CACHE, **_NJ)(_variant(_run_core, "_watch", _WATCH=True))
 
 
 @njit(cache=CACHE, nogil=True, **_NJ)
