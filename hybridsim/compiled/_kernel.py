@@ -158,7 +158,7 @@ from ._types import (
     _vec_at,
     maps_of,
 )
-from ._watch import watch_fault, watch_step, watch_values, with_crossings
+from ._watch import scratch, watch_fault, watch_step, watch_values, with_crossings
 
 #: a constant of the run core: its method is DOP853 (False: RK45). True in
 #: :data:`run_one_dop853` (:func:`_variant`), whose steps, error norm and dense
@@ -236,6 +236,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
         wdir = fopt[F_DELAYS + nd:]
         CR = np.empty((8, 4 + n))
         nc = 0
+        WP, WY, WV = scratch(n, wdir.shape[0])
         wv = np.empty(0)
         wt = t0
         wfloor = t0
@@ -817,7 +818,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 ns += 1
                 if _WATCH:
                     CR, nc, wv, wok = watch_step(W, wdir, ya, hQ, a, hs, wt, ya, wv, b, yb, j,
-                                                 p, wfloor, CR, nc)
+                                                 p, wfloor, CR, nc, WP, WY, WV)
                     wt = b
                     if not wok:
                         cause, detail = watch_fault(info, b, j)
@@ -887,7 +888,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 _record(HL, HM, a, te, hs, ya, hQ)
             if _WATCH and te > wt:          # ``_commit``: the flow up to the event
                 CR, nc, wv, wok = watch_step(W, wdir, ya, hQ, a, hs, wt, ya if wt == a else yb,
-                                             wv, te, xe, j, p, wfloor, CR, nc)
+                                             wv, te, xe, j, p, wfloor, CR, nc, WP, WY, WV)
                 if not wok:
                     cause, detail = watch_fault(info, te, j)
                     t, x = a, ya

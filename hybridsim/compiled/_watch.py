@@ -27,7 +27,7 @@ from numba import njit, types
 from numba.extending import overload, register_jitable
 
 from .. import events, rules
-from ._steps import _dense
+from ._steps import _dense, _dense_to
 from ._types import _NJ, _NJL, CACHE, MAP_ERROR, VEC_SIG, as_vec
 
 for _fn in (events.crossing_sides, events.starts_on_zero):
@@ -115,35 +115,31 @@ def watch_values(W, x, t, j, p, m):
 
 
 @njit(cache=CACHE, **_NJ)
-def watch_step(W, dirs, yold, hQ, told, h, a, ya, wa, b, yb, j, p, floor, CR, nc):
+def watch_step(W, dirs, yold, hQ, told, h, a, ya, wa, b, yb, j, p, floor, CR, nc, P, Y, V):
     """The crossings of the watched functions on the flow from ``(a, ya)``
     (values ``wa``) to ``(b, yb)`` along one step's dense output (``yold``,
     ``hQ``, ``told``, ``h``): :func:`hybridsim.events.watch_crossings`,
     appended to the records ``CR`` (rows ``nc:``, grown as needed; each step's
-    in time order, then by function).
+    in time order, then by function). ``P``, ``Y``, ``V``: the run's scratch
+    for the samples' times, states and values (:func:`scratch`).
 
     Returns ``(CR, nc, wb, ok)``: ``wb`` the values at b; ``ok`` false where a
     value is not finite or their number changed (the run's MAP_ERROR)."""
     m = wa.shape[0]
-    n = ya.shape[0]
     wb, ok = watch_values(W, yb, b, j, p, m)
     if not ok or not b > a:
         return CR, nc, wb, ok
-    P = np.empty(_SAMPLES + 2)
-    Y = np.empty((_SAMPLES + 2, n))
-    V = np.empty((_SAMPLES + 2, m))
     P[0] = a
     Y[0] = ya
     V[0] = wa
     hh = b - a
     for i in range(1, _SAMPLES + 1):
         s = a + hh * (i / (_SAMPLES + 1.0))
-        y = _dense(yold, hQ, told, h, s)
-        v, ok = watch_values(W, y, s, j, p, m)
+        _dense_to(Y[i], yold, hQ, told, h, s)
+        v, ok = watch_values(W, Y[i], s, j, p, m)
         if not ok:
             return CR, nc, wb, False
         P[i] = s
-        Y[i] = y
         V[i] = v
     P[_SAMPLES + 1] = b
     Y[_SAMPLES + 1] = yb
@@ -179,6 +175,12 @@ def watch_step(W, dirs, yold, hQ, told, h, a, ya, wa, b, yb, j, p, floor, CR, nc
             CR[q - 1] = row
             q -= 1
     return CR, nc, wb, True
+
+
+@njit(cache=CACHE, **_NJ)
+def scratch(n, m):
+    """``(P, Y, V)``: a run's scratch for :func:`watch_step` (n states, m functions)."""
+    return np.empty(_SAMPLES + 2), np.empty((_SAMPLES + 2, n)), np.empty((_SAMPLES + 2, m))
 
 
 @njit(cache=CACHE, **_NJL)
