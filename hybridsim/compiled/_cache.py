@@ -22,7 +22,8 @@ from numba.core import errors as nb_errors
 from numba.extending import intrinsic
 
 from .. import events, rules
-from . import _events, _kernel, _layout, _past, _steps, _types, _watch
+from . import _batch, _events, _kernel, _layout, _past, _steps, _types, _watch
+from ._batch import run_rows
 from ._kernel import (
     _run_core,
     run_one,
@@ -32,7 +33,6 @@ from ._kernel import (
     run_one_spec_delays,
     run_one_spec_dop853,
     run_one_watch,
-    run_rows,
 )
 from ._private import private_folder
 from ._types import (
@@ -82,7 +82,7 @@ __all__ = [
 
 #: the modules of compiled code, in the order they import each other: their
 #: dispatchers are the engine's cached kernels, their text part of its digest
-_ENGINE = (_types, _steps, _events, _past, _watch, _kernel)
+_ENGINE = (_types, _steps, _events, _past, _watch, _kernel, _batch)
 
 
 def _dispatchers():

@@ -105,6 +105,8 @@ def cached(system):
     if p.size and not np.array_equal(hit.params, p):
         hit.params = p
     hit.max_step = system.max_step
+    if hit.watch is not None:
+        hit.watch_direction = system.watch_direction
     return hit
 
 
@@ -466,6 +468,8 @@ def lower_source(system, specialize=None):
         if not np.array_equal(prev.params, p):
             prev.params = p
         prev.max_step = system.max_step
+        if prev.watch is not None:
+            prev.watch_direction = system.watch_direction
         return prev
     spec = bool(specialize) if specialize is not None else False
     mod, digest = _module(pl)

@@ -271,7 +271,7 @@ def _kernels(k, system, batch, method="RK45"):
     """``(run, address)``: the system's run kernel for ``method`` ("RK45" or
     "DOP853"; the cached generic one, maps passed by address, or its
     specialised one) and that kernel's code address for
-    :func:`_kernel.run_rows` (compiled when ``batch``)."""
+    :func:`_batch.run_rows` (compiled when ``batch``)."""
     nb = system._nb
     # (one structure lowered with other delays shares ``nb``: with delays or not)
     delays = bool(system.delays)

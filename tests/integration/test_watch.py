@@ -277,7 +277,6 @@ def test_a_bad_watch_value_at_x0_raises_naming_watch(w, match):
     assert e.value.map_name == "watch"
 
 
-@pytest.mark.parametrize("path", ["python", "vectorized"])
 def test_a_watch_failing_during_the_run_is_map_error_with_the_run_so_far(path):
     """NaN after t = 0.5, then a changing length: MAP_ERROR naming watch, the
     samples so far kept."""
@@ -292,6 +291,18 @@ def test_a_watch_failing_during_the_run_is_map_error_with_the_run_so_far(path):
         grow = clock(lambda x: np.zeros(1 + int(x[0] > 0.5)))
         arc = hs.simulate(grow, [0.0], 2.0, max_step=0.1, throw=False)
         assert "watch must return the same number of values" in arc.message
+
+
+@pytest.mark.paths(only=("compiled",))
+def test_a_changed_watch_direction_is_seen_by_the_next_compiled_run(path):
+    """The direction is read at each run (a plain class's rewritten maps are kept)."""
+    s = clock(lambda x: np.sin(x[..., 0]), 1)
+    a = hs.simulate(s, [0.0], 7.0, max_step=1.0, backend="compiled")
+    s.watch_direction = -1
+    b = hs.simulate(s, [0.0], 7.0, max_step=1.0, backend="compiled")
+    assert a.crossings.direction.tolist() == [1] and b.crossings.direction.tolist() == [-1]
+    np.testing.assert_allclose([a.crossings.t[0], b.crossings.t[0]], [2 * np.pi, np.pi],
+                               rtol=0, atol=1e-14)
 
 
 def test_random_jumps_keep_the_watched_crossings():
