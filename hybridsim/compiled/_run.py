@@ -39,8 +39,6 @@ from ._system import CompiledSystem, _load_kernel, _notice
 __all__ = ["simulate_compiled", "simulate_many_compiled"]
 
 _I64_MAX = np.iinfo(np.int64).max
-#: the MAP_ERROR detail of watched functions (``_watch.MAP_WATCH``)
-_MAP_WATCH = 7
 _RANDOM = Priority.RANDOM
 #: the Generator of runs that draw no coins, and its addresses (built once)
 _DUMMY_RNG = None
@@ -317,7 +315,8 @@ def _map_error(system, k, detail, info, x, t, j):
     if detail == k.MAP_GUARD:
         name = "jump_guard" if info[2] == 1.0 else "flow_guard"
         return f"{name} returned NaN (at t={t:.10g}, j={j})", name
-    if detail == _MAP_WATCH:
+    from ._watch import MAP_WATCH
+    if detail == MAP_WATCH:
         return f"watch returned non-finite values (at t={t:.10g}, j={j})", "watch"
     if detail == k.MAP_HISTORY:         # the Python path's HistoryError, in its words
         return (f"flow_map raised HistoryError: history: x({info[1]}) lies in the solver step "
