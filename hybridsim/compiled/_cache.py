@@ -535,7 +535,7 @@ def compile_kernels(batch=True, notice=None, one=True, delays=False, method="RK4
 #: CPU seconds to compile run_one, run_rows, a specialised run kernel,
 #: run_one_delays, run_one_dop853 and run_one_watch with an empty cache
 #: (measured on the project's machine, issue 27; the notice quotes them)
-COMPILE_SECONDS = (15, 1, 15, 20, 15, 17)
+COMPILE_SECONDS = (15, 1, 15, 20, 15, 20)
 #: the run kernels' code addresses (:func:`jit_address`), once compiled
 _ONE_ADDR = {}
 

@@ -174,7 +174,7 @@ class CompiledSystem(HybridSystem):
         crossings of 0 are recorded in ``arc.crossings``, on the Python path
         and compiled (with RK45, without ``delays`` or ``specialize``): the
         compiled path then runs the engine's watching kernel, compiled
-        (about 17 s of CPU, once per machine) when a watching system first
+        (about 20 s of CPU, once per machine) when a watching system first
         runs; systems without watch never compile it.
     watch_direction : int or sequence of int
         -1, 0 (default) or 1 per watched function: falling, both, rising.
