@@ -1,11 +1,14 @@
 """Watched functions: what recording crossings costs, against the same run without.
 
 A pendulum x'' = -sin x (rtol 1e-8) watched for its velocity's zeros (the
-turning points) and its angle's, on the Python path and on the vectorized
-one (100 rows); and scipy's ``solve_ivp`` with the same two functions as
-non-terminal events, for reference. Prints wall times, the ratio with/without
-watches (measured in the same run) and the largest difference of the
-turning points between hybridsim and solve_ivp.
+turning points) and its angle's, on the Python path, on the vectorized
+one (100 rows) and on the compiled one (the same definition, rewritten;
+one run and ``simulate_many`` of the 100 rows); and scipy's ``solve_ivp``
+with the same two functions as non-terminal events, for reference. Prints
+wall times, the ratios with/without watches and compiled/Python (measured
+in the same run; the compiled kernels compiled before timing), and the
+largest difference of the turning points between hybridsim and solve_ivp
+and between the compiled and Python paths.
 
 Run: ``python benchmarks/bench_watch.py [--t-max 200] [--rows 100]``
 """
@@ -22,10 +25,23 @@ import hybridsim as hs
 RTOL, ATOL = 1e-8, 1e-10
 
 
+def swing(x):
+    dx = np.empty_like(x)
+    dx[..., 0] = x[..., 1]
+    dx[..., 1] = -np.sin(x[..., 0])
+    return dx
+
+
+def turn_and_angle(x):
+    w = np.empty_like(x)
+    w[..., 0] = x[..., 1]
+    w[..., 1] = x[..., 0]
+    return w
+
+
 def pendulum(watch):
     return hs.HybridSystem.from_functions(
-        flow_map=lambda x: np.stack([x[..., 1], -np.sin(x[..., 0])], axis=-1), state_dim=2,
-        watch=(lambda x: np.stack([x[..., 1], x[..., 0]], axis=-1)) if watch else None,
+        flow_map=swing, state_dim=2, watch=turn_and_angle if watch else None,
         vectorized=True)
 
 
@@ -57,6 +73,23 @@ def main():
                                                    atol=ATOL), 1)
     print(f"vectorized path, {a.rows} rows: {v0:.2f} s without watches, {v1:.2f} s with: "
           f"ratio {v1 / v0:.2f} ({sum(len(c.crossings) for c in arcs)} crossings)")
+    kw = dict(rtol=RTOL, atol=ATOL, backend="compiled")
+    sw, sp = pendulum(True), pendulum(False)
+    hs.simulate(sw, x0, 1.0, **kw)           # the kernels compiled (or loaded) first
+    hs.simulate(sp, x0, 1.0, **kw)
+    cplain, c0 = best(lambda: hs.simulate(sp, x0, a.t_max, **kw), 5)
+    cw, c1 = best(lambda: hs.simulate(sw, x0, a.t_max, **kw), 5)
+    assert np.array_equal(cplain.x, cw.x) and len(cw.crossings) == len(watched.crossings)
+    dt = np.max(np.abs(cw.crossings.t - watched.crossings.t))
+    print(f"compiled path, one run: {c0 * 1e3:.2f} ms without watches, {c1 * 1e3:.2f} ms "
+          f"with: ratio {c1 / c0:.2f}; against the Python path with watches: "
+          f"{t1 / c1:.0f}x faster; crossings' largest difference {dt:.1e}")
+    _, m0 = best(lambda: hs.simulate_many(sp, X, a.t_max, **kw), 1)
+    many, m1 = best(lambda: hs.simulate_many(sw, X, a.t_max, **kw), 1)
+    print(f"compiled simulate_many, {a.rows} rows: {m0:.3f} s without watches (parallel), "
+          f"{m1:.3f} s with (rows in turn): ratio {m1 / m0:.2f}; against the vectorized "
+          f"path with watches: {v1 / m1:.0f}x faster "
+          f"({sum(len(c.crossings) for c in many)} crossings)")
 
     def turn(t, y):
         return y[1]

@@ -1132,13 +1132,14 @@ def plan(system, component=False):
     roles = {}
     cls = type(system).__name__
     todo = ROLES + ((("output", "output"),) if component and system._overrides("output")
-                    else ())
+                    else ()) + ((("watch", "watch"),) if not component and
+                                system.watch is not None else ())
     for attr, role in todo:
         if attr in ("jump_guard", "flow_guard"):
             fn = getattr(system, attr)
             if fn is None:
                 continue
-        elif attr in ("flow_map", "jump_map", "output"):
+        elif attr in ("flow_map", "jump_map", "output", "watch"):
             if not system._overrides(attr):
                 continue
             fn = getattr(system, attr)

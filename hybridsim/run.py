@@ -325,7 +325,6 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
 def _compiled_run(system, x0, t_max, j_max, opts, python_only):
     """``simulate(..., backend="compiled")``: the compiled path, or a clear refusal."""
     check_unsupported("compiled", python_only)
-    _no_watch_compiled(system)
     cs = lower(system)        # the system itself, or its lowered form (named refusals)
     try:
         return rebind(compiled.simulate_compiled(cs, x0, t_max, j_max, **opts), system)
@@ -459,7 +458,6 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
         del options["backend"]               # the default: the batch integrator may take it
     if options.get("backend", "python") == "compiled" and executor is None:
         kw = {k: v for k, v in options.items() if k not in ("backend", "progress")}
-        _no_watch_compiled(system)
         out = compiled.simulate_many_compiled(lower(system), X, throw=False, warn=False, **kw)
         return finish_batch("simulate_many", rebind_all(out, system), throw, warn)
     if system.vectorized and executor is None and _batch_takes(system, options):
@@ -479,15 +477,6 @@ _COMPILED_ONLY_AT = {"inputs": (None,), "prehistory": (None,),
                      "dense": (False,), "t_eval": (None,), "dwell": (None,)}
 
 
-def _no_watch_compiled(system):
-    """The compiled path locates no watched functions' crossings: refused by name."""
-    if getattr(system, "watch", None) is not None:
-        raise TypeError(f"backend='compiled': {type(system).__name__} declares watch "
-                        f"(functions watched along the flows), whose crossings the compiled "
-                        f"kernel does not record yet; run it with backend='python' (or "
-                        f"'auto', which then chooses it)")
-
-
 def _auto_backend(system, kwargs, executor):
     """``backend="auto"``: "compiled" where numba is installed, the system runs
     compiled (:func:`hybridsim.compiled.lowerable`) and the options are the
@@ -495,8 +484,11 @@ def _auto_backend(system, kwargs, executor):
     system's batch together)."""
     if executor is not None or importlib.util.find_spec("numba") is None \
             or any(getattr(system, k, None) is not None         # Python path only
-                   for k in ("diffusion", "jump_rate", "jump_law", "watch")):
+                   for k in ("diffusion", "jump_rate", "jump_law")):
         return "python"
+    if getattr(system, "watch", None) is not None and (
+            getattr(system, "delays", ()) or kwargs.get("method") not in (None, "RK45")):
+        return "python"         # watched with RK45 and without delays only, compiled
     if any(kwargs.get(k, v[0]) not in v for k, v in _COMPILED_ONLY_AT.items()):
         return "python"
     try:

@@ -22,7 +22,8 @@ from numba.core import errors as nb_errors
 from numba.extending import intrinsic
 
 from .. import events, rules
-from . import _events, _kernel, _layout, _past, _steps, _types
+from . import _batch, _events, _kernel, _layout, _past, _steps, _types, _watch
+from ._batch import run_rows
 from ._kernel import (
     _run_core,
     run_one,
@@ -31,7 +32,7 @@ from ._kernel import (
     run_one_spec,
     run_one_spec_delays,
     run_one_spec_dop853,
-    run_rows,
+    run_one_watch,
 )
 from ._private import private_folder
 from ._types import (
@@ -74,14 +75,14 @@ __all__ = [
     "absent_false", "absent_scalar", "absent_true", "absent_vec", "as_bool", "as_scalar",
     "as_vec", "handle", "map_addresses", "rng_pointers", "wrap_map", "jit_address",
     "run_one", "run_one_delays", "run_one_dop853", "run_one_spec", "run_one_spec_delays",
-    "run_one_spec_dop853", "run_rows", "COMPILE_SECONDS", "Unkeyable", "compile_kernels",
-    "one_address", "run_kernel", "spec_in_cache", "spec_key", "spec_module", "cache_dir",
-    "remove_stale", "kernel_opt", "KERNEL_OPT", "STALE_AGE",
+    "run_one_spec_dop853", "run_one_watch", "run_rows", "COMPILE_SECONDS", "Unkeyable",
+    "compile_kernels", "one_address", "run_kernel", "spec_in_cache", "spec_key", "spec_module",
+    "cache_dir", "remove_stale", "kernel_opt", "KERNEL_OPT", "STALE_AGE",
 ]
 
 #: the modules of compiled code, in the order they import each other: their
 #: dispatchers are the engine's cached kernels, their text part of its digest
-_ENGINE = (_types, _steps, _events, _past, _kernel)
+_ENGINE = (_types, _steps, _events, _past, _watch, _kernel, _batch)
 
 
 def _dispatchers():
@@ -467,7 +468,12 @@ def _in_cache(disp, sig):
         return False
 
 
-def _tag(delays, method):
+def _tag(delays, method, watch=False):
+    if watch:
+        if delays or method == "DOP853":
+            raise ValueError("the compiled path records watched functions with RK45 and "
+                             "without delays only")
+        return "one_watch"
     if method == "DOP853":
         if delays:
             raise ValueError("the compiled path steps a flow map with delays with RK45 only")
@@ -475,15 +481,17 @@ def _tag(delays, method):
     return "one_delays" if delays else "one"
 
 
-def run_kernel(delays=False, method="RK45"):
+def run_kernel(delays=False, method="RK45", watch=False):
     """The cached run kernel of systems whose maps are passed by address:
     :data:`run_one`, :data:`run_one_delays` for a flow map that reads the
-    past, :data:`run_one_dop853` for ``method="DOP853"``."""
-    return {"one": run_one, "one_delays": run_one_delays,
-            "one_dop853": run_one_dop853}[_tag(delays, method)]
+    past, :data:`run_one_dop853` for ``method="DOP853"``,
+    :data:`run_one_watch` for a system that watches functions."""
+    return {"one": run_one, "one_delays": run_one_delays, "one_dop853": run_one_dop853,
+            "one_watch": run_one_watch}[_tag(delays, method, watch)]
 
 
-def compile_kernels(batch=True, notice=None, one=True, delays=False, method="RK45"):
+def compile_kernels(batch=True, notice=None, one=True, delays=False, method="RK45",
+                    watch=False):
     """Compile (or load from numba's on-disk cache) the kernels for the
     first-class map signatures: the run kernel (:func:`run_kernel` of
     ``delays`` and ``method``; unless not ``one``: a specialised system's
@@ -493,23 +501,25 @@ def compile_kernels(batch=True, notice=None, one=True, delays=False, method="RK4
     before it is compiled (not in the disk cache; ``seconds``: about how
     long, the batch kernel's included where it is compiled with it). The
     batch kernel alone (about a second) is compiled without one."""
-    tag = _tag(delays, method)
+    tag = _tag(delays, method, watch)
     want_one = one and tag not in _READY
     want_batch = batch and "batch" not in _READY
     if not (want_one or want_batch):
         return          # every call of simulate_compiled asks: answer cheaply
     sig = _signature_one()
-    run = run_kernel(delays, method)
+    run = run_kernel(delays, method, watch)
     if notice is not None and want_one and ("noticed", tag) not in _READY \
             and not _in_cache(run, sig):
         _READY.add(("noticed", tag))
-        seconds = COMPILE_SECONDS[{"one": 0, "one_delays": 3, "one_dop853": 4}[tag]]
+        seconds = COMPILE_SECONDS[{"one": 0, "one_delays": 3, "one_dop853": 4,
+                                   "one_watch": 5}[tag]]
         if want_batch and not _in_cache(run_rows, _batch_signature(sig)):
             seconds += COMPILE_SECONDS[1]
         notice(cache_dir(), seconds,
                what={"one": "the engine's kernels",
                      "one_delays": "the engine's kernels for flow maps with delays",
-                     "one_dop853": "the engine's DOP853 kernel"}[tag])
+                     "one_dop853": "the engine's DOP853 kernel",
+                     "one_watch": "the engine's kernel for watched functions"}[tag])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", nb_errors.NumbaExperimentalFeatureWarning)
         # compiled for the first-class map signatures only: a call with a
@@ -524,17 +534,17 @@ def compile_kernels(batch=True, notice=None, one=True, delays=False, method="RK4
 
 
 #: CPU seconds to compile run_one, run_rows, a specialised run kernel,
-#: run_one_delays and run_one_dop853 with an empty cache (measured on the
-#: project's machine, issue 27; the notice quotes them)
-COMPILE_SECONDS = (15, 1, 15, 20, 15)
+#: run_one_delays, run_one_dop853 and run_one_watch with an empty cache
+#: (measured on the project's machine, issue 27; the notice quotes them)
+COMPILE_SECONDS = (15, 1, 15, 20, 15, 20)
 #: the run kernels' code addresses (:func:`jit_address`), once compiled
 _ONE_ADDR = {}
 
 
-def one_address(delays=False, method="RK45"):
+def one_address(delays=False, method="RK45", watch=False):
     """:func:`run_kernel`'s code address (the ``one`` of :func:`run_rows`)."""
-    compile_kernels(batch=False, delays=delays, method=method)
-    return _ONE_ADDR[_tag(delays, method)]
+    compile_kernels(batch=False, delays=delays, method=method, watch=watch)
+    return _ONE_ADDR[_tag(delays, method, watch)]
 
 
 #: LLVM's optimisation level for the engine's cached kernels (``run_one``,

@@ -88,7 +88,7 @@ def _identity(system):
     g = system.__dict__.get
     return (type(system), system.needs_history, system.delays, system.input_dim,
             id(g("flow_map")), id(g("jump_map")), id(g("jump_guard")), id(g("flow_guard")),
-            id(g("jump_set")), id(g("flow_set")))
+            id(g("jump_set")), id(g("flow_set")), id(g("watch")))
 
 
 def cached(system):
@@ -106,6 +106,8 @@ def cached(system):
     if p.size and not np.array_equal(hit.params, p):
         hit.params = p
     hit.max_step = _max_step(system, hit.delays)
+    if hit.watch is not None:
+        hit.watch_direction = system.watch_direction
     return hit
 
 
@@ -554,6 +556,8 @@ def lower_source(system, specialize=None):
         if not np.array_equal(prev.params, p):
             prev.params = p
         prev.max_step = _max_step(system, prev.delays)
+        if prev.watch is not None:
+            prev.watch_direction = system.watch_direction
         return prev
     spec = bool(specialize) if specialize is not None else False
     mod, digest = _module(pl)
@@ -574,7 +578,10 @@ def lower_source(system, specialize=None):
     cs.params = p
     cs.delays, cs.needs_history = past, bool(past)
     cs.max_step = _max_step(system, past)
-    for attr in ("flow_map", "jump_map", "jump_guard", "flow_guard", "jump_set", "flow_set"):
+    if cs.watch is not None:
+        cs.watch_direction = system.watch_direction
+    for attr in ("flow_map", "jump_map", "jump_guard", "flow_guard", "jump_set", "flow_set",
+                 "watch"):
         m = cs.__dict__.get(attr)
         if m is not None:
             cs.__dict__[attr] = type(m)(m.fn, cs)

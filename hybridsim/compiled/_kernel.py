@@ -11,17 +11,18 @@ Generator: numba's unboxing of a first-class function or Generator argument
 costs microseconds per call.
 
 Two kernels are compiled and cached: :data:`run_one` (one run) and
-:func:`run_rows` (a batch's rows, in GIL-free Python threads), which calls a
-run kernel by its code address instead of compiling it in (numba links and
+:func:`._batch.run_rows` (a batch's rows, in GIL-free Python threads), which
+calls a run kernel by its code address instead of compiling it in (numba links and
 re-optimises a callee's code into every caller: the batch kernel used to
 cost as much to compile as the engine). A flow map that reads the past
 (delays) runs in a third, :data:`run_one_delays`, compiled when such a
 system first runs: the same run core with the record of the steps, which
 :data:`run_one` leaves out (a quarter of its compile time); ``method="DOP853"``
 in a fourth. Each is the one run core with its constants ``_DELAYS`` and
-``_DOP`` set (:func:`_variant`); a system with ``specialize=True`` gets its
-own copy in a generated module (:mod:`._cache`), whose globals are this
-module's.
+``_DOP`` set (:func:`_variant`), and a system's watched functions in a fifth
+(:data:`run_one_watch`, ``_WATCH``, :mod:`._watch`); a system with
+``specialize=True`` gets its own copy in a generated module (:mod:`._cache`),
+whose globals are this module's.
 
 The run core's options arrive in two arrays, ``fopt`` and ``iopt``, packed
 and read by the names of :mod:`._layout`. The rules (priorities, the
@@ -148,15 +149,14 @@ from ._types import (
     _bare,
     _Cc,
     _check_at,
-    _claim,
-    _claim_within,
     _clear_at,
     _coin,
     _let_threads_run,
     _occ_at,
-    _one_at,
+    _vec_at,
     maps_of,
 )
+from ._watch import scratch, watch_fault, watch_step, watch_values, with_crossings
 
 #: a constant of the run core: its method is DOP853 (False: RK45). True in
 #: :data:`run_one_dop853` (:func:`_variant`), whose steps, error norm and dense
@@ -168,6 +168,11 @@ DOP853_GLOBALS = {"_DOP": True}
 #: False in :data:`run_one` (numba prunes every branch on it: no code for the
 #: past, a smaller kernel to compile), True in :data:`run_one_delays`
 _DELAYS = False
+#: a constant of the run core: whether the system watches functions along its
+#: flows (:mod:`._watch`). True only in :data:`run_one_watch`
+_WATCH = False
+
+
 def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     """One run, entirely compiled.
 
@@ -224,6 +229,15 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     useC = has_C and has_hC
 
     n = x0.shape[0]
+    if _WATCH:      # the watched functions, their directions, and the crossings found
+        W = _vec_at(maps[6])
+        wdir = fopt[F_DELAYS + nd:]
+        CR = np.empty((8, 4 + n))
+        nc = 0
+        WP, WY, WV = scratch(n, wdir.shape[0])
+        wv = np.empty(0)
+        wt = t0
+        wfloor = t0
     # with delays: the run's own p, the past's place after the parameters (NaN
     # but while the flow map runs), and the record of the steps (``_past``)
     # (``_DELAYS``: a constant of the kernel, False in :data:`run_one`, whose
@@ -519,6 +533,13 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             cause, detail = _past_missing(info, HM, j)
             break
         stats[4] += 1
+        if _WATCH:       # ``_Run._watch_start``: a zero at a jump (or x0) is no crossing
+            wv, wok = watch_values(W, x, t, j, p, wdir.shape[0])
+            if not wok:
+                cause, detail = watch_fault(info, t, j)
+                break
+            wt = t
+            wfloor = t if t == t_last_jump else -np.inf
         for q in range(n):
             XD[ns - 1, q] = fa[q]
         a = t
@@ -771,6 +792,14 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 t, x = a, ya
                 break
             if not hit:
+                if _WATCH:                   # ``_Run._watch_to``, before the step's samples
+                    CR, nc, wv, wok = watch_step(W, wdir, ya, hQ, a, hs, wt, ya, wv, b, yb, j,
+                                                 p, wfloor, CR, nc, WP, WY, WV)
+                    wt = b
+                    if not wok:
+                        cause, detail = watch_fault(info, b, j)
+                        t, x = a, ya
+                        break
                 if _DELAYS:                  # ``History._add``
                     _record(HL, HM, a, b, hs, ya, hQ)
                 ns_step = ns             # this step's samples start here
@@ -855,6 +884,13 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             # ``_commit``
             if _DELAYS and not past and te > a:
                 _record(HL, HM, a, te, hs, ya, hQ)
+            if _WATCH and te > wt:          # ``_commit``: the flow up to the event
+                CR, nc, wv, wok = watch_step(W, wdir, ya, hQ, a, hs, wt, ya if wt == a else yb,
+                                             wv, te, xe, j, p, wfloor, CR, nc, WP, WY, WV)
+                if not wok:
+                    cause, detail = watch_fault(info, te, j)
+                    t, x = a, ya
+                    break
             if te > a:
                 if refine > 1:
                     if ns + refine - 1 > max_samples:
@@ -938,6 +974,8 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
         if fl.shape[0] == n:
             _put(XD, ns - 1, fl)
     stats[5] = jumps
+    if _WATCH:
+        info = with_crossings(info, CR, nc)
     if work[0] != work[0]:           # (keeps the scratch's owner alive to here)
         stats[5] = jumps
     if iopt[I_ROW] != 0:
@@ -992,47 +1030,6 @@ run_one_dop853 = njit(cache=CACHE, **_NJ)(_variant(_run_core, "_dop853", **DOP85
 #: :data:`run_one_spec` stepping with DOP853
 run_one_spec_dop853 = njit(**_NJI)(_variant(_run_core, "_dop853", **DOP853_GLOBALS))
 
-
-@njit(cache=CACHE, nogil=True, **_NJ)
-def run_rows(one, maps, X0, p, fopt, iopt, atol, rngp, poll, stop, next_row, chunk,
-             TT, JJ, XX, XXD, fill, AT, NS, CA, DE, INFO, ST):
-    """Runs of a batch, taken ``chunk`` rows at a time from the shared counter
-    ``next_row`` until none is left, each run's samples written one after
-    another into the batch's compact pool (``TT``, ``JJ``, ``XX``, ``XXD``):
-    at rows ``AT[i]:AT[i] + NS[i]``, claimed from the shared ``fill`` counter
-    when the run ends. A run that does not fit in the pool keeps only its
-    counts (``AT[i] = -1``) and is re-run by the caller.
-
-    Released from the GIL: the caller runs it in as many threads as it wants
-    cores (dynamic scheduling: a thread slowed by other work on the machine
-    takes fewer chunks), all on one pool. ``one``: the address of the run
-    kernel (:func:`jit_address`: ``run_one`` for the maps at ``maps``, or a
-    system's specialised kernel), called, not compiled in: this kernel is
-    compiled once, small, and serves every system. The pool needs no
-    compaction afterwards: every arc is a view of its rows."""
-    N = X0.shape[0]
-    size = TT.shape[0]
-    while True:
-        i0 = _claim(next_row, chunk)
-        if i0 >= N:
-            break
-        for i in range(i0, min(i0 + chunk, N)):
-            T, J, X, XD, cause, detail, info, stats = _one_at(one)(
-                maps, np.ascontiguousarray(X0[i]), p, fopt, iopt, atol, rngp, poll, stop)
-            m = T.shape[0]
-            NS[i] = m
-            CA[i] = cause
-            DE[i] = detail
-            _put(INFO, i, info)
-            for q in range(stats.shape[0]):     # (not _put: a second version for int64)
-                ST[i, q] = stats[q]
-            o = _claim_within(fill, m, size)
-            AT[i] = o
-            if o >= 0:
-                for r in range(m):
-                    TT[o + r] = T[r]
-                    JJ[o + r] = J[r]
-                    for q in range(X.shape[1]):
-                        XX[o + r, q] = X[r, q]
-                        XXD[o + r, q] = XD[r, q]
-    return 0
+#: :data:`run_one` recording the crossings of watched functions (:mod:`._watch`):
+#: compiled (and cached) when a watching system first runs
+run_one_watch = njit(cache=CACHE, **_NJ)(_variant(_run_core, "_watch", _WATCH=True))

@@ -171,10 +171,11 @@ def _check_system(system):
         raise TypeError(f"system must be a hybridsim.compiled.CompiledSystem (maps of "
                         f"(x, t, j, p) numba can compile), got {type(system).__name__}; "
                         f"run other systems with hs.simulate (the Python path)")
-    if system.watch is not None:
+    if system.watch is not None and (system.delays or system.specialize):
         raise TypeError(f"backend='compiled': {system!r} declares watch (functions watched "
-                        f"along the flows), whose crossings the compiled kernel does not "
-                        f"record yet; run it with hs.simulate(system, ...) (the Python path)")
+                        f"along the flows) with {'delays' if system.delays else 'specialize'}"
+                        f", which the compiled kernel does not combine; run it with "
+                        f"hs.simulate(system, ...) (the Python path)")
 
 
 #: the options a path may refuse (:data:`hybridsim.options.SUPPORTS`); others are unknown
@@ -268,10 +269,15 @@ def _kernels(k, system, batch, method="RK45"):
     """``(run, address)``: the system's run kernel for ``method`` ("RK45" or
     "DOP853"; the cached generic one, maps passed by address, or its
     specialised one) and that kernel's code address for
-    :func:`_kernel.run_rows` (compiled when ``batch``)."""
+    :func:`_batch.run_rows` (compiled when ``batch``)."""
     nb = system._nb
     # (one structure lowered with other delays shares ``nb``: with delays or not)
     delays = bool(system.delays)
+    watch = system.watch is not None
+    if watch and method != "RK45":
+        raise TypeError(f"backend='compiled': {system!r} declares watch (functions watched "
+                        f"along the flows), which the compiled kernel records with RK45 "
+                        f"only, not {method}; run it with hs.simulate(system, ...)")
     tag = "" if method == "RK45" else "_" + method
     one = nb.get("one" + tag)
     if one is None and system.specialize:
@@ -283,12 +289,14 @@ def _kernels(k, system, batch, method="RK45"):
             sub = system._compile_specialised(k, numba, method)
         nb["one" + tag], nb["one_addr" + tag] = one, _ = sub["one"], sub["one_addr"]
     if one is None:
-        k.compile_kernels(batch=batch, notice=_notice, delays=delays, method=method)
-        nb["one" + tag] = one = k.run_kernel(delays, method)
-        nb["one_addr" + tag] = k.one_address(delays, method)
+        k.compile_kernels(batch=batch, notice=_notice, delays=delays, method=method,
+                          watch=watch)
+        nb["one" + tag] = one = k.run_kernel(delays, method, watch)
+        nb["one_addr" + tag] = k.one_address(delays, method, watch)
     elif batch:
-        k.compile_kernels(batch=True, notice=_notice, one=one is k.run_kernel(delays, method),
-                          delays=delays, method=method)
+        k.compile_kernels(batch=True, notice=_notice,
+                          one=one is k.run_kernel(delays, method, watch), delays=delays,
+                          method=method, watch=watch)
     return one, nb["one_addr" + tag]
 
 
@@ -307,6 +315,9 @@ def _map_error(system, k, detail, info, x, t, j):
     if detail == k.MAP_GUARD:
         name = "jump_guard" if info[2] == 1.0 else "flow_guard"
         return f"{name} returned NaN (at t={t:.10g}, j={j})", name
+    from ._watch import MAP_WATCH
+    if detail == MAP_WATCH:
+        return f"watch returned non-finite values (at t={t:.10g}, j={j})", "watch"
     if detail == k.MAP_HISTORY:         # the Python path's HistoryError, in its words
         return (f"flow_map raised HistoryError: history: x({info[1]}) lies in the solver step "
                 f"under way (recorded up to t={info[2]}); cap the step with max_step <= the "
@@ -419,6 +430,9 @@ def _arc(system, k, T, J, X, XD, code, detail, info, stats, ro):
         system._nb["description"] = desc = _describe(system)
     arc = HybridArc._trusted(T, J, X, cause, msg, exc, system=system, xdot=XD, stats=st,
                              description=desc)
+    if system.watch is not None:
+        from ._watch import crossings_of
+        arc.crossings = crossings_of(info, system.state_dim)
     if exc is not None:
         exc.arc = arc
     return arc
@@ -533,6 +547,9 @@ def simulate_compiled(system: CompiledSystem, x0: ArrayLike, t_max: float,
         (t0, j0, t_max, j_max, priority, rtol, atol, max_step, first_step, max_norm,
          zeno_jumps, zeno_time, zeno_rtol, refine, max_steps, max_samples, throw, warn))
     one, _ = _kernels(k, system, False, method_on("compiled", method))
+    if system.watch is not None:
+        from ._watch import watch_options
+        fopt = watch_options(system, x, ro.t0, ro.j0, fopt)
     rng, rngp = _rng_for(k, ro.prio, seed)
     stop = np.zeros(1, np.int64)
     with _CatchRaised(stop) as caught:
@@ -762,12 +779,23 @@ def simulate_many_compiled(system: CompiledSystem, x0s: ArrayLike, t_max: float,
                               ValueError(f"x0 must be finite, got {X0[i]}"), system)
     rows = np.flatnonzero(good)
     canceled = k.CANCELED
+    # watching: the rows one after another (their crossings come back with each run)
+    watching = system.watch is not None
+    if watching:
+        from ._watch import watch_options
 
     def one(i, rng):
         stop = np.zeros(1, np.int64)
+        fo = fopt
+        if watching:
+            try:
+                fo = watch_options(system, X0[i], ro.t0, ro.j0, fopt)
+            except MapError as e:       # at x0: the row's own arc
+                arcs[i] = _one_sample(X0[i], where, Termination.MAP_ERROR, str(e), e, system)
+                return False, 1
         with _CatchRaised(stop) as caught:
             T, J, X, XD, code, detail, info, stats = run(
-                *maps, X0[i], p, fopt, iopt, atol_a, rng[1], k.POLL_GIL, stop)
+                *maps, X0[i], p, fo, iopt, atol_a, rng[1], k.POLL_GIL, stop)
         arcs[i] = _arc(system, k, T, J, X, XD, code, detail, info, stats, ro)
         if caught.raised is not None:
             arcs[i] = _raised_arc(system, arcs[i], caught.raised)[0]
@@ -782,7 +810,7 @@ def simulate_many_compiled(system: CompiledSystem, x0s: ArrayLike, t_max: float,
     gc_on = gc.isenabled()
     gc.disable()
     try:
-        if ro.prio == Priority.RANDOM or not parallel:
+        if ro.prio == Priority.RANDOM or not parallel or watching:
             for i in rows.tolist():
                 stopped, _ = one(i, _rng_for(k, ro.prio, seed))
                 if stopped:

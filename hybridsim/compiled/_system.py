@@ -21,7 +21,8 @@ _ROLES = (("flow", "vec"), ("jump", "vec"), ("jump_guard", "scalar"),
           ("flow_guard", "scalar"), ("jump_set", "bool"), ("flow_set", "bool"))
 #: the keyword (and HybridSystem method) of each role of ``maps``
 KEYWORDS = {"flow": "flow_map", "jump": "jump_map", "jump_guard": "jump_guard",
-            "flow_guard": "flow_guard", "jump_set": "jump_set", "flow_set": "flow_set"}
+            "flow_guard": "flow_guard", "jump_set": "jump_set", "flow_set": "flow_set",
+            "watch": "watch"}
 #: the deprecated keywords of CompiledSystem and Component, ``{old: new}``
 RENAMES = {"flow": "flow_map", "jump": "jump_map"}
 
@@ -170,8 +171,11 @@ class CompiledSystem(HybridSystem):
     watch : callable, optional
         ``w(x, t, j, p)``: functions watched along the flows, a float or a
         1-D array (rule 11 of :class:`hybridsim.HybridSystem`): their
-        crossings of 0 are recorded in ``arc.crossings``. The Python path
-        runs them; the compiled kernel refuses them by name for now.
+        crossings of 0 are recorded in ``arc.crossings``, on the Python path
+        and compiled (with RK45, without ``delays`` or ``specialize``): the
+        compiled path then runs the engine's watching kernel, compiled
+        (about 20 s of CPU, once per machine) when a watching system first
+        runs; systems without watch never compile it.
     watch_direction : int or sequence of int
         -1, 0 (default) or 1 per watched function: falling, both, rising.
     name : str, optional
@@ -323,6 +327,9 @@ class CompiledSystem(HybridSystem):
                           "true": k.handle(k.absent_true, "bool")}
                 nb = self._flags(out, absent)
                 six = tuple(nb[r] for r in ("f", "g", "hD", "hC", "D", "C"))
+                if self.watch is not None:      # the seventh: the watched functions
+                    nb["W"] = k.handle(self._compile_watch(k, numba), "vec")
+                    six += (nb["W"],)
                 nb["args"] = (k.map_addresses(six),)
                 nb["one"] = None                # k.run_kernel(delays), once compiled
                 self._nb = nb
@@ -417,6 +424,22 @@ class CompiledSystem(HybridSystem):
                     f"or run this system on the Python path with hs.simulate(system, ...) "
                     f"(the fallback, same maps, no compiling)", KEYWORDS[role]) from e
         return out
+
+    def _compile_watch(self, k, numba):
+        """The watched functions compiled to the kernel's vector signature (a
+        float becomes one value; :func:`._watch.wrap_watch`)."""
+        from ._watch import wrap_watch
+        fn = self.watch.fn
+        try:
+            return wrap_watch(fn)
+        except (numba.core.errors.NumbaError, TypeError, ValueError, NotImplementedError,
+                AttributeError, KeyError) as e:
+            raise CompileError(
+                f"CompiledSystem: numba could not compile the map 'watch' "
+                f"({getattr(fn, '__qualname__', repr(fn))}): {_summarise(e)}. Write it as a "
+                f"numpy function of (x, t, j, p) returning a float or a 1-D array of floats, "
+                f"or run this system on the Python path with hs.simulate(system, ...)",
+                "watch") from e
 
     def __repr__(self):
         name = self._name or "CompiledSystem"

@@ -4,8 +4,8 @@ Each system is written once over ``x[..., k]`` (so one set of maps serves a
 single state and a vectorized batch) and run on each path of
 ``tests/conftest.py``'s ``path``: ``"python"`` (:func:`hybridsim.simulate`),
 ``"vectorized"`` (:func:`hybridsim.simulate_vectorized`, one row) and
-``"compiled"``, which refuses watched functions by name (its kernel does not
-record them yet). Crossing times are checked against closed forms to 4 ulp
+``"compiled"`` (``backend="compiled"``: the maps rewritten from the same
+definition, the engine's watching kernel). Crossing times are checked against closed forms to 4 ulp
 (:func:`hybridsim.rules.event_tolerance`), which RK45 allows where it
 integrates the flow exactly (a clock, a ball's parabola).
 """
@@ -24,11 +24,31 @@ def ulp4(t):
     return event_tolerance(t, t)
 
 
+def _fall(x):
+    dx = np.empty_like(x)
+    dx[..., 0] = x[..., 1]
+    dx[..., 1] = -G
+    return dx
+
+
+def _bounce(x):
+    xn = np.zeros_like(x)
+    xn[..., 1] = -E * x[..., 1]
+    return xn
+
+
+def height_and_speed(x):
+    """Two watched functions of the ball: its height above 0.3, its velocity."""
+    w = np.empty_like(x)
+    w[..., 0] = x[..., 0] - 0.3
+    w[..., 1] = x[..., 1]
+    return w
+
+
 def ball(watch=None, direction=0, vectorized=False):
     """A ball on a floor, x = (height, velocity): x' = (v, -G), v+ = -E v on the floor."""
     return hs.HybridSystem.from_functions(
-        flow_map=lambda x: np.stack([x[..., 1], -G + 0.0 * x[..., 0]], axis=-1),
-        jump_map=lambda x: np.stack([0.0 * x[..., 0], -E * x[..., 1]], axis=-1),
+        flow_map=_fall, jump_map=_bounce,
         flow_set=lambda x: x[..., 0] >= 0.0,
         jump_set=lambda x: (x[..., 0] <= 0.0) & (x[..., 1] <= 0.0),
         jump_guard=lambda x: -x[..., 0], state_dim=2, watch=watch,
@@ -43,12 +63,9 @@ def clock(watch, direction=0, vectorized=False):
 
 
 def run(path, make, x0, t_max, **kw):
-    """The arc of ``make(vectorized=...)`` from x0 on ``path``; the compiled path's
-    refusal, by name, is checked and the test skipped there."""
+    """The arc of ``make(vectorized=...)`` from x0 on ``path``."""
     if path == "compiled":
-        with pytest.raises(TypeError, match=r"backend='compiled'.*declares watch"):
-            hs.simulate(make(vectorized=False), x0, t_max, backend="compiled", **kw)
-        pytest.skip("the compiled path refuses watched functions (checked above)")
+        return hs.simulate(make(vectorized=False), x0, t_max, backend="compiled", **kw)
     if path == "python":
         return hs.simulate(make(vectorized=False), x0, t_max, **kw)
     return hs.simulate_vectorized(make(vectorized=True), [x0], t_max, **kw)[0]
@@ -108,9 +125,12 @@ def test_direction_keeps_rising_falling_or_one_each(path, direction, k):
     """scipy's ``event.direction``: 1 keeps the rising crossings, -1 the falling;
     one per function for several. With (1, -1) on (sin t, cos t): sin's rising
     zeros 2 pi, 4 pi, 6 pi and cos's falling ones pi/2 + 2 pi i."""
-    def w(x):
-        s = np.sin(x[..., 0])
-        return s if not isinstance(direction, tuple) else np.stack([s, np.cos(x[..., 0])], -1)
+    def sin(x):
+        return np.sin(x[..., 0])
+
+    def sin_cos(x):
+        return np.concatenate((np.sin(x), np.cos(x)), axis=-1)
+    w = sin_cos if isinstance(direction, tuple) else sin
     arc = run(path, lambda vectorized: clock(w, direction, vectorized), [0.0], 20.0,
               max_step=1.0)
     c = arc.crossings
@@ -153,7 +173,7 @@ class DelayedClock(hs.HybridSystem):
         return np.ones_like(x)
 
     def watch(self, x):
-        return np.stack([x[..., 0] - 0.5, x[..., 0] - 1.5], axis=-1)
+        return np.concatenate((x - 0.5, x - 1.5), axis=-1)
 
 
 def delayed_clock(vectorized=False):
@@ -180,6 +200,10 @@ def test_a_flow_restarted_without_a_jump_keeps_its_crossings(path, restart):
     crossings are recorded at their closed-form times (seed 0's coin flows on
     at t = 1, so the only jump is at t = 2)."""
     if restart == "delay breakpoint":
+        if path == "compiled":
+            with pytest.raises(TypeError, match=r"backend='compiled'.*(history|delays)"):
+                run(path, delayed_clock, [0.0], 3.0)
+            return
         arc = run(path, delayed_clock, [0.0], 3.0)
         want, which = [0.5, 1.5], [0, 1]
     else:
@@ -195,7 +219,7 @@ def test_a_flow_restarted_without_a_jump_keeps_its_crossings(path, restart):
 def test_watching_changes_nothing_else(path):
     """The arc with watched functions is the arc without them, bit for bit:
     samples, derivatives and statistics (no step is cut)."""
-    w = lambda x: np.stack([x[..., 0] - 0.3, x[..., 1]], axis=-1)    # noqa: E731
+    w = height_and_speed
     a = run(path, lambda vectorized: ball(w, 0, vectorized), [0.0, 2.0], 7.9, j_max=8)
     b = run(path, lambda vectorized: ball(None, 0, vectorized), [0.0, 2.0], 7.9, j_max=8)
     assert len(a.crossings) == 10 and b.crossings is None
@@ -206,8 +230,7 @@ def test_watching_changes_nothing_else(path):
 
 # ------------------------------------------------------------------ files
 def test_crossings_survive_save_and_load(tmp_path):
-    arc = hs.simulate(ball(lambda x: np.stack([x[..., 0] - 0.3, x[..., 1]], -1)), [0.0, 2.0],
-                      7.9, j_max=8)
+    arc = hs.simulate(ball(height_and_speed), [0.0, 2.0], 7.9, j_max=8)
     back = hs.load(arc.save(tmp_path / "watched"))
     assert back.crossings == arc.crossings and len(back.crossings) == 10
     plain = hs.load(hs.simulate(ball(), [0.0, 2.0], 3.0).save(tmp_path / "plain"))
@@ -254,7 +277,6 @@ def test_a_bad_watch_value_at_x0_raises_naming_watch(w, match):
     assert e.value.map_name == "watch"
 
 
-@pytest.mark.parametrize("path", ["python", "vectorized"])
 def test_a_watch_failing_during_the_run_is_map_error_with_the_run_so_far(path):
     """NaN after t = 0.5, then a changing length: MAP_ERROR naming watch, the
     samples so far kept."""
@@ -269,6 +291,18 @@ def test_a_watch_failing_during_the_run_is_map_error_with_the_run_so_far(path):
         grow = clock(lambda x: np.zeros(1 + int(x[0] > 0.5)))
         arc = hs.simulate(grow, [0.0], 2.0, max_step=0.1, throw=False)
         assert "watch must return the same number of values" in arc.message
+
+
+@pytest.mark.paths(only=("compiled",))
+def test_a_changed_watch_direction_is_seen_by_the_next_compiled_run(path):
+    """The direction is read at each run (a plain class's rewritten maps are kept)."""
+    s = clock(lambda x: np.sin(x[..., 0]), 1)
+    a = hs.simulate(s, [0.0], 7.0, max_step=1.0, backend="compiled")
+    s.watch_direction = -1
+    b = hs.simulate(s, [0.0], 7.0, max_step=1.0, backend="compiled")
+    assert a.crossings.direction.tolist() == [1] and b.crossings.direction.tolist() == [-1]
+    np.testing.assert_allclose([a.crossings.t[0], b.crossings.t[0]], [2 * np.pi, np.pi],
+                               rtol=0, atol=1e-14)
 
 
 def test_random_jumps_keep_the_watched_crossings():
@@ -292,19 +326,46 @@ def test_watch_with_a_diffusion_is_refused_by_name():
         hs.simulate(sde, [1.0], 0.1, method="EM", seed=1)
 
 
-def test_compiled_path_refuses_by_name_and_auto_runs_python(path):
-    """A CompiledSystem's watch runs on the Python path; simulate_compiled refuses
-    it by name; backend='auto' chooses the Python path for a watching system."""
-    from hybridsim.compiled import CompiledSystem
+def test_a_compiled_systems_watch_runs_on_both_paths(path):
+    """A CompiledSystem's watch (a function of (x, t, j, p)) gives the same
+    crossings on the Python path and compiled; backend='auto' runs a plain
+    class that watches."""
+    from hybridsim.compiled import CompiledSystem, simulate_compiled
     cs = CompiledSystem(flow_map=lambda x, t, j, p: np.ones(1), state_dim=1,
                         watch=lambda x, t, j, p: math.sin(x[0]), watch_direction=1)
     arc = hs.simulate(cs, [0.0], 7.0, max_step=1.0)
     np.testing.assert_allclose(arc.crossings.t, [2 * np.pi], rtol=0, atol=1e-14)
     if path == "compiled":
-        from hybridsim.compiled import simulate_compiled
-        with pytest.raises(TypeError, match="declares watch"):
-            simulate_compiled(cs, [0.0], 7.0)
+        assert simulate_compiled(cs, [0.0], 7.0, max_step=1.0).crossings == arc.crossings
+        with pytest.raises(TypeError, match="declares watch.*RK45 only"):
+            simulate_compiled(cs, [0.0], 7.0, method="DOP853")
     if path != "vectorized":
         auto = hs.simulate(clock(lambda x: np.sin(x[0])), [0.0], 7.0, max_step=1.0,
                            backend="auto")
         assert len(auto.crossings) == 2
+
+
+@pytest.mark.paths(only=("compiled",))
+def test_compiled_crossings_equal_the_python_paths_in_a_batch(path, tmp_path):
+    """simulate_many compiled: each row's crossings are its single compiled
+    run's, and the Python path's: the same crossings, those of the first flow
+    at the same times to 4 ulp, later ones to the bounces' own 4 ulp added up
+    along the arc (the two paths locate each bounce to 4 ulp, not to the same
+    bits), the same states; and they survive save and load."""
+    w = height_and_speed
+    X0 = [[0.0, 2.0], [0.5, 1.0], [1.0, -0.5]]
+    many = hs.simulate_many(ball(w), X0, 6.0, j_max=8, backend="compiled")
+    for x0, arc in zip(X0, many):
+        assert arc.crossings == hs.simulate(ball(w), x0, 6.0, j_max=8,
+                                            backend="compiled").crossings
+        ref = hs.simulate(ball(w), x0, 6.0, j_max=8)
+        c, r = arc.crossings, ref.crossings
+        assert len(c) == len(r) > 0
+        for k in ("j", "which", "direction"):
+            np.testing.assert_array_equal(getattr(c, k), getattr(r, k))
+        first = c.j == 0
+        assert np.all(np.abs(c.t - r.t)[first] <= [ulp4(t) for t in r.t[first]])
+        np.testing.assert_allclose(c.t, r.t, rtol=0, atol=1e-13)
+        np.testing.assert_allclose(c.x, r.x, rtol=0, atol=1e-12)
+    back = hs.load(many[0].save(tmp_path / "compiled"))
+    assert back.crossings == many[0].crossings
