@@ -932,7 +932,7 @@ def _fn_of_plain(v, caller, node):
 #: roles whose value is one number: their returns pass through ``_hs_scalar``
 #: (bound by the compiler), which makes a 0-d array (``np.where`` of scalars,
 #: ``x[..., k]`` on a single state under numba) the number it holds
-_SCALAR_ROLES = ("jump_guard", "flow_guard", "jump_set", "flow_set")
+_SCALAR_ROLES = ("jump_guard", "flow_guard", "jump_set", "flow_set", "jump_rate")
 
 
 class _Scalar(_OwnReturns):
@@ -1044,6 +1044,8 @@ class Plan:
 #: HybridSystem attribute -> CompiledSystem role
 ROLES = (("flow_map", "flow"), ("jump_map", "jump"), ("jump_guard", "jump_guard"),
          ("flow_guard", "flow_guard"), ("jump_set", "jump_set"), ("flow_set", "flow_set"))
+#: the noise's maps (a single system's, not a component's): attribute -> role
+NOISE_ROLES = (("diffusion", "diffusion"), ("jump_rate", "jump_rate"))
 
 
 def plan(system, component=False):
@@ -1056,9 +1058,9 @@ def plan(system, component=False):
     roles = {}
     cls = type(system).__name__
     todo = ROLES + ((("output", "output"),) if component and system._overrides("output")
-                    else ())
+                    else NOISE_ROLES if not component else ())
     for attr, role in todo:
-        if attr in ("jump_guard", "flow_guard"):
+        if attr in ("jump_guard", "flow_guard") or role in ("diffusion", "jump_rate"):
             fn = getattr(system, attr)
             if fn is None:
                 continue

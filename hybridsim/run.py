@@ -327,6 +327,10 @@ def _compiled_run(system, x0, t_max, j_max, opts, python_only):
     check_unsupported("compiled", python_only)
     _no_watch_compiled(system)
     cs = lower(system)        # the system itself, or its lowered form (named refusals)
+    if is_stochastic(system):             # an SDE flow: the compiled SDE stepper
+        from .compiled._stochastic import sde_options, simulate_sde_compiled
+        return rebind(simulate_sde_compiled(cs, x0, t_max, j_max, **sde_options(opts)),
+                      system)
     try:
         return rebind(compiled.simulate_compiled(cs, x0, t_max, j_max, **opts), system)
     except MapError as e:
@@ -460,6 +464,12 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
     if options.get("backend", "python") == "compiled" and executor is None:
         kw = {k: v for k, v in options.items() if k not in ("backend", "progress")}
         _no_watch_compiled(system)
+        if is_stochastic(system):         # an SDE flow: each row its own Brownian path
+            from .compiled._stochastic import sde_options, simulate_many_sde
+            out = simulate_many_sde(lower(system), X, throw=False, warn=False,
+                                    **sde_options(kw))
+            out = ArcBatch([rebind(a, system) for a in out], n)
+            return finish_batch("simulate_many", out, throw, warn)
         out = compiled.simulate_many_compiled(lower(system), X, throw=False, warn=False, **kw)
         out = ArcBatch([rebind(a, system) for a in out], n)
         return finish_batch("simulate_many", out, throw, warn)

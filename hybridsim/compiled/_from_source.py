@@ -87,7 +87,7 @@ def _identity(system):
     g = system.__dict__.get
     return (type(system), system.needs_history, system.delays, system.input_dim,
             id(g("flow_map")), id(g("jump_map")), id(g("jump_guard")), id(g("flow_guard")),
-            id(g("jump_set")), id(g("flow_set")))
+            id(g("jump_set")), id(g("flow_set")), id(g("diffusion")), id(g("jump_rate")))
 
 
 def cached(system):
@@ -483,7 +483,9 @@ def lower_source(system, specialize=None):
     cs.__dict__.update(proto.__dict__)
     cs.params = p
     cs.max_step = system.max_step
-    for attr in ("flow_map", "jump_map", "jump_guard", "flow_guard", "jump_set", "flow_set"):
+    cs.noise_dim = getattr(system, "noise_dim", None)
+    for attr in ("flow_map", "jump_map", "jump_guard", "flow_guard", "jump_set", "flow_set",
+                 "diffusion", "jump_rate"):
         m = cs.__dict__.get(attr)
         if m is not None:
             cs.__dict__[attr] = type(m)(m.fn, cs)

@@ -1,0 +1,311 @@
+"""Stochastic systems on the compiled path: SDE flows (a ``diffusion``), single
+runs and batches, the same path per seed as the Python path.
+
+A :class:`~hybridsim.compiled.CompiledSystem` with ``diffusion=`` (or a plain
+model whose ``diffusion`` the source rewrite lowers) runs in
+:func:`._sde_flow.sde_run`, compiled once per system with its maps inlined.
+The run's Brownian path is ``BrownianPath(noise_key(seed), 0, m, t0=t0,
+block=max_step)``, the Python path's (:mod:`hybridsim._sde`), drawn by
+:mod:`._draws` bit for bit: the same seed gives the same arc on both paths
+to round-off, and ``arc.stats`` records the path (``noise_seed``...) as the
+Python path does, so ``hs.simulate(system, x0, seed=arc.stats["noise_seed"],
+...)`` replays a compiled row.
+
+A batch (:func:`simulate_many_sde`) runs its rows in GIL-free threads, row
+``i`` keyed by ``seeds[i]`` (drawn from fresh entropy when not given).
+"""
+from __future__ import annotations
+
+import concurrent.futures
+import math
+import os
+
+import numpy as np
+
+from .._sde import SDE_METHODS, noise_key
+from ..arc import HybridArc
+from ..arc_batch import ArcBatch
+from ..options import parse_run
+from ..rules import CAUSES, MapError, Termination, finish, finish_batch, message
+from ._system import CompiledSystem, _load_kernel
+
+__all__ = ["simulate_sde_compiled", "simulate_many_sde"]
+
+
+def _sde_kernel():
+    from . import _sde_flow
+    return _sde_flow
+
+
+def _dispatchers(system):
+    """``(maps, flags)``: the addresses of the system's six maps and its
+    diffusion (the cached kernel's ``maps``), and the sets' flags (made once)."""
+    hit = system.__dict__.get("_sde_maps")
+    if hit is not None and hit[0] is system.maps.get("diffusion"):
+        return hit[1]
+    k = _load_kernel()
+    system.compile()
+    import numba
+    d = system._nb
+    if system.specialize:           # its maps are compiled into its own kernel: by address too
+        out = {role: k.handle(f, system._kinds[role])
+               for role, f in system._compile_maps(k, numba).items()}
+        absent = {"vec": k.handle(k.absent_vec, "vec"),
+                  "scalar": k.handle(k.absent_scalar, "scalar"),
+                  "false": k.handle(k.absent_false, "bool"),
+                  "true": k.handle(k.absent_true, "bool")}
+        d = system._flags(out, absent)
+    sig = system.maps["diffusion"]
+    if system.noise_dim is not None:            # (n, m): flattened, row-major
+        jf = sig if hasattr(sig, "py_func") else numba.njit(error_model="numpy")(sig)
+
+        def flat(x, t, j, p):
+            return np.ascontiguousarray(jf(x, t, j, p)).ravel()
+        fn = flat
+    else:
+        fn = sig
+    try:
+        hs = k.handle(k.wrap_map(fn, "vec"), "vec")
+    except (numba.core.errors.NumbaError, TypeError, ValueError) as e:
+        from ._system import CompileError, _summarise
+        raise CompileError(f"CompiledSystem: numba could not compile the map 'diffusion': "
+                           f"{_summarise(e)}. Write it as a numpy function of (x, t, j, p) "
+                           f"returning an array, or run this system on the Python path",
+                           "diffusion") from e
+    handles = [d[r] for r in ("f", "g", "hD", "hC", "D", "C")] + [hs]
+    flags = (d["has_C"], d["has_D"], d["has_hC"], d["has_hD"], d["C_from_guard"],
+             d["D_from_guard"])
+    out = (k.map_addresses(handles), flags, handles)
+    system.__dict__["_sde_maps"] = (sig, out)
+    return out
+
+
+def _check(system, method, step, x0):
+    """The Python path's checks of an SDE flow (:class:`hybridsim._sde.SDEFlow`),
+    and the diffusion's shape at x0 (a MapError naming it)."""
+    name = type(system).__name__
+    if method not in SDE_METHODS:
+        raise ValueError(f"method: {name} declares diffusion (an SDE flow); method must be one "
+                         f"of {list(SDE_METHODS)}, got {method!r}")
+    if not (isinstance(step, (int, float)) and math.isfinite(step) and step > 0):
+        raise ValueError(f"max_step: an SDE flow steps with the fixed step max_step; it must "
+                         f"be a positive finite float, got {step!r}")
+    nd = system.noise_dim
+    if nd is not None and (isinstance(nd, bool) or not isinstance(nd, (int, np.integer))
+                           or nd < 1):
+        raise ValueError(f"{name}.noise_dim must be None (diagonal noise) or a positive int "
+                         f"(general noise), got {nd!r}")
+    n = system.state_dim
+    m = n if nd is None else int(nd)
+    if method == "Milstein" and nd is not None:
+        raise ValueError(f"method='Milstein' takes diagonal noise (noise_dim=None); {name} has "
+                         f"noise_dim={nd}: use 'EM', or 'SRA1' for additive noise")
+    shape = (n,) if nd is None else (n, m)
+    v = np.asarray(system.diffusion(np.array(x0, dtype=float), 0.0, 0), dtype=float)
+    if v.shape != shape:
+        what = "diagonal noise (noise_dim=None): shape (n,)" if nd is None else \
+            f"noise_dim={m}: shape (n, noise_dim)"
+        raise MapError(f"diffusion must return an array of shape {shape} ({what}), got shape "
+                       f"{v.shape} (at t=0, j=0)", "diffusion", 0.0, 0)
+    return m
+
+
+def _pack(system, ro, method, step, flags):
+    K = _sde_kernel()
+    fopt = np.empty(K.F_SIZE)
+    fopt[K.F_T0], fopt[K.F_T_MAX], fopt[K.F_J_MAX] = ro.t0, ro.t_max, ro.j_max
+    fopt[K.F_H], fopt[K.F_MAX_NORM] = step, ro.max_norm
+    fopt[K.F_ZENO_TIME], fopt[K.F_ZENO_RTOL] = ro.zeno_time, ro.zeno_rtol
+    big = np.iinfo(np.int64).max
+    iopt = np.zeros(K.I_SIZE, np.int64)
+    iopt[K.I_J0], iopt[K.I_PRIO] = ro.j0, int(ro.prio)
+    iopt[K.I_MAX_STEPS] = big if ro.max_steps == math.inf else ro.max_steps
+    iopt[K.I_MAX_SAMPLES] = big if ro.max_samples == math.inf else ro.max_samples
+    iopt[K.I_ZENO_JUMPS] = ro.zeno_jumps
+    (iopt[K.I_HAS_C], iopt[K.I_HAS_D], iopt[K.I_HAS_HC], iopt[K.I_HAS_HD],
+     iopt[K.I_C_FROM_GUARD], iopt[K.I_D_FROM_GUARD]) = flags
+    iopt[K.I_METHOD] = SDE_METHODS.index(method)
+    iopt[K.I_DEPTH] = 24
+    iopt[K.I_DIAG] = system.noise_dim is None
+    return fopt, iopt
+
+
+def _prepare(system, x0, t_max, j_max, method, max_step, kw):
+    if not isinstance(system, CompiledSystem) or system.maps.get("diffusion") is None:
+        raise TypeError(f"the compiled SDE stepper takes a CompiledSystem with a diffusion, "
+                        f"got {type(system).__name__}")
+    if system.maps.get("jump_rate") is not None:
+        raise ValueError(f"backend='compiled': {system!r} declares jump_rate and a diffusion; "
+                         f"the compiled SDE stepper does not draw rate-driven jumps yet: use "
+                         f"backend='python'")
+    if system.delays:
+        raise ValueError(f"{system!r} declares diffusion and reads its past (delays): SDE "
+                         f"flows do not read the past yet")
+    n = system.state_dim
+    ro = parse_run(system, n, t_max=t_max, j_max=j_max, max_step=max_step, python=True, **kw)
+    step = ro.max_step
+    m = _check(system, method, step, np.zeros(n) if x0 is None else x0)
+    maps, flags, _ = _dispatchers(system)
+    fopt, iopt = _pack(system, ro, method, step, flags)
+    return ro, step, m, maps, fopt, iopt
+
+
+_DIFFUSION_TEXT = {20: "diffusion depends on the state, but method='SRA1' takes additive noise "
+                       "(σ a function of t and j only); use 'EM' or 'Milstein'",
+                   21: "diffusion returned non-finite values",
+                   22: "diffusion returned an array of the wrong shape"}
+
+
+def _arc(system, k, out, ro, seed_key, method, step):
+    from ._run import _message
+    T, J, X, code, detail, info, st = out
+    stats = {"steps": int(st[0]), "nfev": 0, "njev": 0, "nlu": 0, "events": int(st[1]),
+             "flows": int(st[2]), "rejected": None, "noise_seed": seed_key, "noise_run": 0,
+             "noise_block": step, "noise_t0": ro.t0, "noise_depth": 24, "sde_method": method,
+             "sde_step": step}
+    if CAUSES[code] is Termination.MAP_ERROR and detail in _DIFFUSION_TEXT:
+        t, j = float(info[0]), int(info[3])
+        text = f"{_DIFFUSION_TEXT[detail]} (at t={t:.10g}, j={j})"
+        cause, msg, exc = Termination.MAP_ERROR, message(Termination.MAP_ERROR, error=text), \
+            MapError(text, "diffusion", t, j)
+    else:
+        cause, msg, exc = _message(system, k, code, detail, info, T, J, X, st, ro)
+    arc = HybridArc(T, J, X, cause, msg, exc, system=system, xdot=np.full(X.shape, np.nan),
+                    stats=stats)
+    if exc is not None:
+        exc.arc = arc
+    return arc
+
+
+def sde_options(opts):
+    """The options of :func:`hybridsim.simulate` an SDE flow takes compiled (the
+    Python path's: the tolerances and ``first_step`` are not read; ``refine``
+    must be 1)."""
+    out = {}
+    for name, v in opts.items():
+        if name in ("rtol", "atol", "first_step", "seed" if v is None else ""):
+            continue
+        if name == "refine":
+            if v != 1:
+                raise ValueError("refine: SDE flows do not take refine yet")
+            continue
+        out[name] = v
+    return out
+
+
+_OPTS = ("t0", "j0", "priority", "max_norm", "zeno_jumps", "zeno_time", "zeno_rtol",
+         "max_steps", "max_samples")
+
+
+def simulate_sde_compiled(system, x0, t_max, j_max=math.inf, *, method="RK45",
+                          max_step=math.inf, seed=None, throw=True, warn=True, **kw):
+    """One run of an SDE flow, compiled: the run :func:`hybridsim.simulate`
+    makes on the Python path with the same ``seed`` (an int, a Generator or
+    None), to round-off.
+
+    Examples
+    --------
+    >>> import numpy as np, hybridsim as hs
+    >>> from hybridsim.compiled import CompiledSystem
+    >>> bm = CompiledSystem(flow_map=lambda x, t, j, p: np.zeros(1),
+    ...                     diffusion=lambda x, t, j, p: np.ones(1), state_dim=1)
+    >>> a = simulate_sde_compiled(bm, [0.0], 1.0, max_step=0.1, seed=3, method="EM")
+    >>> b = hs.simulate(bm, [0.0], 1.0, max_step=0.1, seed=3, method="EM")
+    >>> bool(abs(a.x[-1, 0] - b.x[-1, 0]) < 1e-12)
+    True
+    """
+    from ..options import check_x0
+    unknown = set(kw) - set(_OPTS)
+    if unknown:
+        raise TypeError(f"simulate_sde_compiled() got an unexpected keyword argument "
+                        f"{sorted(unknown)[0]!r}")
+    k = _load_kernel()
+    x = np.ascontiguousarray(check_x0(x0, system.state_dim))
+    ro, step, m, maps, fopt, iopt = _prepare(system, x, t_max, j_max, method, max_step, kw)
+    from ._draws import path_keys
+    from ._run import _rng_for
+    key = noise_key(seed)
+    rng, rngp = _rng_for(k, ro.prio, key if seed is not None else None)
+    out = _sde_kernel().sde_run(maps, x, system.params, fopt, iopt, path_keys(key, 0, m), rngp)
+    del rng
+    arc = _arc(system, k, out, ro, key, method, step)
+    if arc.termination is Termination.MAP_ERROR and len(arc.t) == 1:
+        raise arc.exception
+    return finish(arc, throw, warn)
+
+
+def _threads(rows):
+    try:
+        import numba
+        cores = numba.config.NUMBA_NUM_THREADS
+    except (ImportError, AttributeError):
+        cores = os.cpu_count() or 1
+    return max(1, min(cores, rows // 8 or 1))
+
+
+def simulate_many_sde(system, X0, t_max, j_max=math.inf, *, method="RK45", max_step=math.inf,
+                      seeds=None, throw=False, warn=True, threads=None, **kw):
+    """Rows of an SDE flow, compiled, in GIL-free threads; row ``i`` is
+    :func:`simulate_sde_compiled` from ``X0[i]`` with ``seed=seeds[i]``
+    (fresh entropy per row when ``seeds`` is None; each arc records its key
+    in ``stats["noise_seed"]``). Returns an :class:`hybridsim.ArcBatch`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hybridsim.compiled import CompiledSystem
+    >>> bm = CompiledSystem(flow_map=lambda x, t, j, p: np.zeros(1),
+    ...                     diffusion=lambda x, t, j, p: np.ones(1), state_dim=1)
+    >>> b = simulate_many_sde(bm, np.zeros((4, 1)), 1.0, max_step=0.1, seeds=[1, 2, 3, 1],
+    ...                       method="EM")
+    >>> bool(b[0].x[-1, 0] == b[3].x[-1, 0]), len(b)
+    (True, 4)
+    """
+    unknown = set(kw) - set(_OPTS)
+    if unknown:
+        raise TypeError(f"simulate_many_sde() got an unexpected keyword argument "
+                        f"{sorted(unknown)[0]!r}")
+    from ..options import check_x0s
+    k = _load_kernel()
+    n = system.state_dim
+    X = np.ascontiguousarray(check_x0s(X0, n))
+    N = len(X)
+    ro, step, m, maps, fopt, iopt = _prepare(system, X[0] if N else None, t_max, j_max, method,
+                                             max_step, kw)
+    if seeds is None:
+        keys = [noise_key(None) for _ in range(N)]
+    else:
+        if len(seeds) != N:
+            raise ValueError(f"seeds: one per row, {N} rows, got {len(seeds)}")
+        keys = [noise_key(s) for s in seeds]
+    from ._draws import path_keys
+    from ._run import _rng_for
+    KEYS = [path_keys(key, 0, m) for key in keys]
+    if ro.prio == _RANDOM_PRIO:
+        raise ValueError("priority='random': a batch of SDE rows draws no coins yet; run the "
+                         "rows with simulate_sde_compiled (one seed each)")
+    rng, rngp = _rng_for(k, ro.prio, None)
+    run = _sde_kernel().sde_run
+    out = [None] * N
+    p = system.params
+    if N:                               # compiled here, once, before the threads start
+        out[0] = run(maps, X[0], p, fopt, iopt, KEYS[0], rngp)
+
+    def part(rows):
+        for i in rows:
+            out[i] = run(maps, X[i], p, fopt, iopt, KEYS[i], rngp)
+    nt = threads or _threads(N)
+    rest = list(range(1, N))
+    if nt > 1 and rest:
+        with concurrent.futures.ThreadPoolExecutor(nt) as ex:
+            list(ex.map(part, [rest[i::nt] for i in range(nt)]))
+    else:
+        part(rest)
+    del rng
+    arcs = ArcBatch([_arc(system, k, o, ro, key, method, step) for o, key in zip(out, keys)], n)
+    return finish_batch("simulate_many", arcs, throw, warn)
+
+
+from ..rules import Priority as _P  # noqa: E402
+
+_RANDOM_PRIO = _P.RANDOM
