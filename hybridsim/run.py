@@ -230,10 +230,12 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
         raise TypeError(f"system must be a hybridsim.HybridSystem, got {type(system).__name__}")
     if is_random(system):      # jump_rate / jump_law: run with the clock's state added
         kw = {k: v for k, v in locals().items() if k not in ("system", "x0")}
-        if kw["backend"] == "compiled":
-            raise ValueError(f"backend='compiled': {type(system).__name__} declares jump_rate "
-                             f"or jump_law (random jumps), which only the Python path runs "
-                             f"for now; use backend='python'")
+        if kw["backend"] == "compiled":      # the clock appended, on the compiled path
+            from .compiled._stochastic import simulate_rate_compiled
+            check_unsupported("compiled", {k: kw.pop(k) for k in (
+                "inputs", "prehistory", "dense", "t_eval", "progress", "dwell")})
+            return rebind(simulate_rate_compiled(system, lower(system), x0, t_max, j_max,
+                                                 kw, kw.pop("seed")), system)
         kw["backend"] = "python"
         return simulate_random(simulate, system, x0, kw)
     if backend == "auto" and (dwell is not None or system.set_valued):
@@ -464,6 +466,12 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
     if options.get("backend", "python") == "compiled" and executor is None:
         kw = {k: v for k, v in options.items() if k not in ("backend", "progress")}
         _no_watch_compiled(system)
+        if is_random(system):             # jumps at a rate: each row its own clock
+            from .compiled._stochastic import simulate_many_rate
+            out = simulate_many_rate(system, lower(system), X, t_max, j_max,
+                                     {k: v for k, v in kw.items() if k not in ("t_max", "j_max")})
+            out = ArcBatch([rebind(a, system) for a in out], n)
+            return finish_batch("simulate_many", out, throw, warn)
         if is_stochastic(system):         # an SDE flow: each row its own Brownian path
             from .compiled._stochastic import sde_options, simulate_many_sde
             out = simulate_many_sde(lower(system), X, throw=False, warn=False,

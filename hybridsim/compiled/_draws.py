@@ -139,6 +139,15 @@ def stream_uniform(key, c):
     return _u01(key ^ (_U(c) * _GOLD))
 
 
+@njit(**_NJ)
+def threshold_at(hi, lo, k):
+    """``hybridsim._random_jumps.threshold(key, k)`` of the key whose halves are
+    the floats ``hi``, ``lo`` (the rate's clock, :func:`hybridsim._random_jumps.clock`)."""
+    key = (_U(int(hi)) << _U(32)) | _U(int(lo))
+    z = mix64(mix64(key ^ _U(0x5DEECE66D)) ^ mix64(_U(k + 1)))
+    return -math.log((float(z >> _U(11)) + 0.5) * _TWO53)
+
+
 def path_keys(seed, run, dim):
     """The per-component keys of ``BrownianPath(seed, run, dim)`` and the SDE
     stepper's stream key (``mix64`` of the first), as a uint64 array of

@@ -309,3 +309,200 @@ def simulate_many_sde(system, X0, t_max, j_max=math.inf, *, method="RK45", max_s
 from ..rules import Priority as _P  # noqa: E402
 
 _RANDOM_PRIO = _P.RANDOM
+
+
+# ------------------------------------------------------------------ jumps at a rate
+def _augmented(cs):
+    """The :class:`CompiledSystem` of ``cs`` (declaring ``jump_rate``) with the
+    clock of :mod:`hybridsim._random_jumps` appended (Λ, E and the key's
+    halves, :data:`~hybridsim._random_jumps.CLOCK`): its maps are the Python
+    path's ``_Augmented``'s, compiled (made once per system)."""
+    hit = cs.__dict__.get("_rate_system")
+    if hit is not None and hit[0] is cs.maps.get("jump_rate"):
+        return hit[1]
+    import numba
+
+    from .._random_jumps import CLOCK
+    from ._draws import threshold_at
+    k = _load_kernel()
+    n, mp = cs.state_dim, cs.maps
+    if "jump" not in mp:
+        raise ValueError(f"backend='compiled': {cs!r} declares jump_rate but no jump_map")
+    jit = numba.njit(error_model="numpy")
+    fv = k.wrap_map(mp["flow"], "vec", lazy=True)
+    gv = k.wrap_map(mp["jump"], "vec", lazy=True)
+    rate = k.wrap_map(mp["jump_rate"], "scalar", lazy=True)
+    m = n + CLOCK
+
+    def flow_map(x, t, j, p):
+        xs = x[:n].copy()
+        fx = fv(xs, t, j, p)
+        r = rate(xs, t, j, p)
+        out = np.zeros(m)
+        if fx.shape[0] != n:
+            out[:] = np.nan
+            return out
+        out[:n] = fx
+        out[n] = r if (r >= 0.0 and math.isfinite(r)) else np.nan
+        return out
+
+    def jump_map(x, t, j, p):
+        xn = gv(x[:n].copy(), t, j, p)
+        out = np.empty(m)
+        if xn.shape[0] != n:
+            out[:] = np.nan
+            return out
+        out[:n] = xn
+        out[n:] = x[n:]
+        if x[n] >= x[n + 1]:                 # the rate's jump: a new clock
+            out[n] = 0.0
+            out[n + 1] = threshold_at(x[n + 2], x[n + 3], j + 1)
+        return out
+    maps = {"flow_map": jit(flow_map), "jump_map": jit(jump_map)}
+    if "jump_set" in mp:                     # an indicator: the union, located by bisection
+        dv = k.wrap_map(mp["jump_set"], "bool", lazy=True)
+
+        def jump_set(x, t, j, p):
+            return x[n] >= x[n + 1] or dv(x[:n].copy(), t, j, p)
+        maps["jump_set"] = jit(jump_set)
+    elif "jump_guard" in mp:
+        hv = k.wrap_map(mp["jump_guard"], "scalar", lazy=True)
+
+        def jump_guard(x, t, j, p):
+            return max(hv(x[:n].copy(), t, j, p), x[n] - x[n + 1])
+        maps["jump_guard"] = jit(jump_guard)
+    else:
+        def clock_guard(x, t, j, p):
+            return x[n] - x[n + 1]
+        maps["jump_guard"] = jit(clock_guard)
+    if "flow_set" in mp or "flow_guard" in mp:
+        if "flow_set" in mp:
+            cv = k.wrap_map(mp["flow_set"], "bool", lazy=True)
+        else:
+            cg = k.wrap_map(mp["flow_guard"], "scalar", lazy=True)
+
+            def cv(x, t, j, p):                  # C = {flow_guard >= 0}, as the Python path's
+                return cg(x, t, j, p) >= 0.0
+            cv = jit(cv)
+
+        def flow_set(x, t, j, p):
+            return cv(x[:n].copy(), t, j, p)
+        maps["flow_set"] = jit(flow_set)
+        if "flow_guard" in mp:
+            cg2 = k.wrap_map(mp["flow_guard"], "scalar", lazy=True)
+
+            def flow_guard(x, t, j, p):
+                return cg2(x[:n].copy(), t, j, p)
+            maps["flow_guard"] = jit(flow_guard)
+    if "diffusion" in mp:
+        nd = cs.noise_dim
+        sj = mp["diffusion"]
+        sj = sj if hasattr(sj, "py_func") else jit(sj)
+        if nd is None:
+            def diffusion(x, t, j, p):
+                out = np.zeros(m)
+                out[:n] = sj(x[:n].copy(), t, j, p)
+                return out
+        else:
+            def diffusion(x, t, j, p):
+                out = np.zeros((m, nd))
+                out[:n] = sj(x[:n].copy(), t, j, p)
+                return out
+        maps["diffusion"] = jit(diffusion)
+    aug = CompiledSystem(**maps, state_dim=m, params=cs.params, noise_dim=cs.noise_dim,
+                         name=f"{cs!r} (with its rate's clock)")
+    aug.max_step = cs.max_step
+    cs.__dict__["_rate_system"] = (mp["jump_rate"], aug)
+    return aug
+
+
+def _rate_error(system, arc, n):
+    """A run that failed where the rate is negative or NaN: the Python path's
+    MapError naming ``jump_rate``."""
+    if arc.termination not in (Termination.MAP_ERROR, Termination.NON_FINITE):
+        return arc
+    from .._random_jumps import _named
+    rate = _named(system.jump_rate, "jump_rate")
+    t, j = float(arc.t[-1]), int(arc.j[-1])
+    try:
+        r = float(rate(arc.x[-1, :n], t, j, None))
+    except (TypeError, ValueError):
+        return arc
+    if r >= 0 and math.isfinite(r):
+        return arc
+    text = (f"jump_rate returned {r} (at t={t:.10g}, j={j}): a rate must be a finite number "
+            f">= 0")
+    exc = MapError(text, "jump_rate", t, j)
+    out = HybridArc(arc.t, arc.j, arc.x, Termination.MAP_ERROR,
+                    message(Termination.MAP_ERROR, error=text), exc, system=arc.system,
+                    xdot=arc.xdot, stats=arc.stats)
+    exc.arc = out
+    return out
+
+
+def simulate_rate_compiled(system, cs, x0, t_max, j_max, opts, seed):
+    """``hs.simulate(system, ..., backend="compiled")`` of a system with a
+    ``jump_rate`` (``cs`` its compiled form): the Python path's run with the
+    clock appended (the same key, the same thresholds, the same arc to
+    round-off), on the compiled kernel (an ODE flow) or the SDE stepper."""
+    from .._random_jumps import clock, run_key, strip
+    from ..options import check_x0
+    if getattr(system, "jump_law", None) is not None:
+        raise ValueError(f"backend='compiled': {type(system).__name__} declares jump_law (a "
+                         f"random jump map), whose draws (a numpy Generator) the compiled "
+                         f"path does not make yet; use backend='python'")
+    key = run_key(seed)
+    opts = {k: v for k, v in opts.items() if k not in ("t_max", "j_max", "backend")}
+    n = cs.state_dim
+    aug = _augmented(cs)
+    x = np.concatenate([check_x0(x0, n), clock(key, opts.get("j0", 0))])
+    throw, warn = opts.pop("throw", True), opts.pop("warn", True)
+    try:
+        return _rate_run(system, cs, aug, x, t_max, j_max, opts, key, n, throw, warn)
+    except MapError as e:               # at x0: raised at once, named as the Python path does
+        arc = getattr(e, "arc", None)
+        if arc is None:
+            raise
+        out = _rate_error(system, strip(arc, system, key, n, True), n)
+        if out.exception is not e and out.termination is Termination.MAP_ERROR:
+            raise out.exception from None
+        raise
+
+
+def _rate_run(system, cs, aug, x, t_max, j_max, opts, key, n, throw, warn):
+    from .._random_jumps import strip
+    from ._run import simulate_compiled
+    if "diffusion" in cs.maps:
+        arc = simulate_sde_compiled(aug, x, t_max, j_max, throw=False, warn=False,
+                                    seed=key, **sde_options(opts))
+    else:
+        arc = simulate_compiled(aug, x, t_max, j_max, throw=False, warn=False,
+                                seed=key if opts.get("priority") == "random" else None,
+                                **{k: v for k, v in opts.items() if k != "seed"})
+    out = _rate_error(system, strip(arc, system, key, n, True), n)
+    if out.termination is Termination.MAP_ERROR and len(out.t) == 1:
+        raise out.exception
+    return finish(out, throw, warn)
+
+
+def simulate_many_rate(system, cs, X0, t_max, j_max, opts):
+    """``hs.simulate_many(..., backend="compiled")`` of a system with a
+    ``jump_rate``: each row keyed from fresh entropy (recorded in its
+    ``stats["jump_seed"]``: ``hs.simulate(system, x0, seed=that)`` replays it
+    on any path), the rows in the compiled batch kernel."""
+    from .._random_jumps import clock, run_key, strip
+    from ..options import check_x0s
+    from ._run import simulate_many_compiled
+    if getattr(system, "jump_law", None) is not None or "diffusion" in cs.maps:
+        raise ValueError(f"backend='compiled': {type(system).__name__} declares jump_rate with "
+                         f"a jump_law or a diffusion, which a compiled batch does not run "
+                         f"yet; use backend='python'")
+    n = cs.state_dim
+    X = check_x0s(X0, n)
+    keys = [run_key(None) for _ in range(len(X))]
+    j0 = opts.get("j0", 0)
+    XA = np.array([np.concatenate([x, clock(key, j0)]) for x, key in zip(X, keys)])
+    aug = _augmented(cs)
+    out = simulate_many_compiled(aug, XA, t_max, j_max, throw=False, warn=False, **opts)
+    return ArcBatch([_rate_error(system, strip(a, system, key, n, True), n)
+                     for a, key in zip(out, keys)], n)

@@ -15,7 +15,7 @@ import pytest
 from scipy.stats import norm
 
 import hybridsim as hs
-from hybridsim.library import DriftedBrownian
+from hybridsim.library import AIMD, DriftedBrownian, Telegraph
 
 P_HIT = 2 * norm.sf(1.0)          # standard BM, barrier 1 on [0, 1]
 
@@ -104,3 +104,47 @@ def test_compiled_barrier_probability_and_hitting_time_law():
     p = np.mean(B.jump_counts > 0)
     se = math.sqrt(P_HIT * (1 - P_HIT) / N)
     assert abs(p - P_HIT) <= 3 * se, (p, se)
+
+
+def aimd(rate, vectorized=False):
+    return hs.HybridSystem.from_functions(flow_map=lambda x: 1.0 + 0.0 * x,
+                                          jump_map=lambda x: x / 2, jump_rate=rate,
+                                          state_dim=1, vectorized=vectorized)
+
+
+def test_rate_jumps_same_seed_same_arc_on_every_path(path):
+    # the clock (its thresholds drawn from the run's key) is the Python path's on every
+    # path: the same jumps, to round-off of the located times
+    if path == "vectorized":
+        with pytest.raises(ValueError, match="declares jump_rate"):
+            hs.simulate_vectorized(aimd(lambda x: x[..., 0], vectorized=True), [[1.0]],
+                                   t_max=10.0)
+        return
+    for sysm, x0 in ((AIMD(), [1.0]), (Telegraph(2.0, 0.5), [0.0, 1.0])):
+        ref = hs.simulate(sysm, x0, 30.0, seed=3)
+        a = hs.simulate(sysm, x0, 30.0, seed=3, backend=path)
+        _same(a, ref)
+        assert a.stats["thresholds"] == ref.stats["thresholds"]
+        assert a.stats["jump_seed"] == ref.stats["jump_seed"]
+    # a rate on an SDE flow: the clock located on its chord, the same Brownian path
+    sde = hs.HybridSystem.from_functions(
+        flow_map=lambda x: np.array([0.0]), jump_map=lambda x: np.zeros(1),
+        jump_rate=lambda x: 1.0, diffusion=lambda x: np.array([1.0]), state_dim=1)
+    kw = dict(t_max=20.0, j_max=3, method="EM", max_step=0.1, seed=5)
+    _same(hs.simulate(sde, [0.0], backend=path, **kw), hs.simulate(sde, [0.0], **kw))
+
+
+@pytest.mark.paths(only=("python", "compiled"))
+def test_rate_batches_replay_and_bad_rates(path):
+    B = hs.simulate_many(AIMD(), np.ones((5, 1)), 20.0, backend=path)
+    keys = [a.stats["jump_seed"] for a in B]
+    assert len(set(keys)) == 5
+    _same(B[4], hs.simulate(AIMD(), [1.0], 20.0, seed=keys[4]))
+    with pytest.raises(hs.MapError, match=r"jump_rate returned -1.0 .*finite number >= 0"):
+        hs.simulate(aimd(lambda x: -1.0), [1.0], t_max=1.0, seed=0, backend=path)
+    law = hs.HybridSystem.from_functions(
+        flow_map=lambda x: np.array([1.0]), jump_guard=lambda x: x[0] - 1, state_dim=1,
+        jump_law=lambda x, rng: x * rng.uniform())
+    if path == "compiled":
+        with pytest.raises(ValueError, match="declares jump_law"):
+            hs.simulate(law, [0.0], t_max=2.0, seed=0, backend=path)
