@@ -71,6 +71,8 @@ def _node_key(ck, blk, level, index):
 def blocks_to(keys, S, F, H, nb, T, blk):
     """Draw the blocks of every component up to block ``blk`` (inclusive);
     the arrays grown (doubled) as needed. Returns ``(S, F, H)``."""
+    if nb[0] > blk:
+        return S, F, H
     m = keys.shape[0]
     if blk + 2 > S.shape[1]:
         cap = max(2 * S.shape[1], blk + 2)

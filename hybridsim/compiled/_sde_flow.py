@@ -236,19 +236,17 @@ def _w(keys, BS, nb, c, t, t0, T, depth):
 
 
 @njit(**_NJ)
-def _w_all(keys, BS, nb, t, k, t0, T, depth, m):
-    w = np.empty(m)
-    F = np.empty(m)
+def _w_all(keys, BS, nb, t, k, t0, T, depth, m, w, F):
+    """(W, ∫W) at t into ``w``, ``F`` (block end ``k`` where k >= 0)."""
     if k >= 0:
         S, FF, H = blocks_to(keys, BS[0], BS[1], BS[2], nb, T, k)
         BS[0], BS[1], BS[2] = S, FF, H
         for c in range(m):
             w[c] = S[c, k]
             F[c] = FF[c, k]
-        return w, F
+        return
     for c in range(m):
         w[c], F[c] = _w(keys, BS, nb, c, t, t0, T, depth)
-    return w, F
 
 
 @njit(**_NJ)
@@ -295,6 +293,7 @@ def sde_run(maps, x0, p, fopt, iopt, keys, rngp):
     watch_D = has_D and prio != _FLOWS
     BS = [np.zeros((m, 64)), np.zeros((m, 64)), np.zeros((m, 64))]
     nb = np.zeros(1, np.int64)
+    wa, Fa, wb, Fb, dw = np.empty(m), np.empty(m), np.empty(m), np.empty(m), np.empty(m)
     bits = np.empty(2)
     ubits = bits.view(np.uint64)
     ctr = np.zeros(1, np.int64)
@@ -445,9 +444,10 @@ def sde_run(maps, x0, p, fopt, iopt, keys, rngp):
                 info[0], info[3] = a, j
                 t = a
                 break
-            wa, Fa = _w_all(ckeys, BS, nb, a, ka, t0, H, depth, m)
-            wb, Fb = _w_all(ckeys, BS, nb, b, kb, t0, H, depth, m)
-            dw = wb - wa
+            _w_all(ckeys, BS, nb, a, ka, t0, H, depth, m, wa, Fa)
+            _w_all(ckeys, BS, nb, b, kb, t0, H, depth, m, wb, Fb)
+            for c in range(m):
+                dw[c] = wb[c] - wa[c]
             if method == SRA1:
                 i10 = Fb - Fa - hh * wa
                 s_b = sig(x, b, j, p)
@@ -470,17 +470,28 @@ def sde_run(maps, x0, p, fopt, iopt, keys, rngp):
                 s_hat = sig(x + fa * hh + _mul(s, np.full(n, rh), diag, n), a, j, p)
                 xb = x + fa * hh + _mul(s, dw, diag, n) + (s_hat - s) * (dw * dw - hh) / (2.0 * rh)
             else:
-                xb = x + fa * hh + _mul(s, dw, diag, n)
+                xb = np.empty(n)
+                if diag:
+                    for i in range(n):
+                        xb[i] = x[i] + fa[i] * hh + s[i] * dw[i]
+                else:
+                    for i in range(n):
+                        acc = 0.0
+                        for c in range(m):
+                            acc += s[i * m + c] * dw[c]
+                        xb[i] = x[i] + fa[i] * hh + acc
             steps += 1
             if not _finite(xb):
                 cause = NON_FINITE
                 info[0], info[1], info[3] = a, b, j
                 t = a
                 break
-            bits[0] = a
-            bits[1] = b
-            key = mix64(skey ^ ubits[0]) ^ mix64(ubits[1] ^ _U(j))
-            ctr[0] = 0
+            key = _U(0)
+            if d_active or has_C:
+                bits[0] = a
+                bits[1] = b
+                key = mix64(skey ^ ubits[0]) ^ mix64(ubits[1] ^ _U(j))
+                ctr[0] = 0
             hit = False
             kind_D = False
             te, xe = b, xb
