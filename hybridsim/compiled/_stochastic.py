@@ -33,7 +33,21 @@ __all__ = ["simulate_sde_compiled", "simulate_many_sde"]
 
 
 def _sde_kernel():
+    """:mod:`._sde_flow`, its cached kernel keyed (once) by the engine's digest of
+    the rules and compiled modules and by :mod:`._draws`' text (numba's own
+    key sees only ``_sde_flow.py``)."""
     from . import _sde_flow
+    if not getattr(_sde_flow, "_hs_keyed", False):
+        import hashlib
+
+        from . import _cache, _draws
+        h = hashlib.sha256(_cache._rules_digest().encode())
+        with open(_draws.__file__, "rb") as fh:
+            h.update(fh.read())
+        cache = getattr(_sde_flow.sde_run, "_cache", None)
+        if hasattr(cache, "_index_key"):
+            cache._index_key = _cache._keyed(cache._index_key, h.hexdigest())
+        _sde_flow._hs_keyed = True
     return _sde_flow
 
 
@@ -309,6 +323,35 @@ def simulate_many_sde(system, X0, t_max, j_max=math.inf, *, method="RK45", max_s
 from ..rules import Priority as _P  # noqa: E402
 
 _RANDOM_PRIO = _P.RANDOM
+
+
+def noisy_run(system, x0, t_max, j_max, opts):
+    """:func:`~hybridsim.compiled.simulate_compiled` of a CompiledSystem with a
+    diffusion or a jump rate (``opts``: its options)."""
+    from ._run import _check_system
+    _check_system(system)
+    if system.maps.get("jump_rate") is not None:
+        return simulate_rate_compiled(system, system, x0, t_max, j_max, opts, opts.pop("seed"))
+    return simulate_sde_compiled(system, x0, t_max, j_max, **sde_options(opts))
+
+
+def noisy_rows(system, X0, t_max, j_max, opts):
+    """:func:`~hybridsim.compiled.simulate_many_compiled` of a CompiledSystem with
+    a diffusion or a jump rate: each row its own fresh key (``seed`` refused,
+    as on the Python path: every row would draw the same)."""
+    from ._run import _check_system
+    _check_system(system)
+    if opts.pop("seed") is not None:
+        raise ValueError(f"seed: simulate_many passes one seed to every row, so every row of "
+                         f"{system!r} (it draws noise) would draw the same; run seeded rows "
+                         f"one by one (simulate_compiled with seed=)")
+    throw, warn = opts.pop("throw"), opts.pop("warn")
+    if system.maps.get("jump_rate") is not None:
+        out = simulate_many_rate(system, system, X0, t_max, j_max, opts)
+    else:
+        out = simulate_many_sde(system, X0, t_max, j_max, throw=False, warn=False,
+                                **sde_options(opts))
+    return finish_batch("simulate_many", out, throw, warn)
 
 
 # ------------------------------------------------------------------ jumps at a rate

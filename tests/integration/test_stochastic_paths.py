@@ -148,3 +148,21 @@ def test_rate_batches_replay_and_bad_rates(path):
     if path == "compiled":
         with pytest.raises(ValueError, match="declares jump_law"):
             hs.simulate(law, [0.0], t_max=2.0, seed=0, backend=path)
+
+
+@pytest.mark.paths(only=("python", "compiled"))
+def test_compiled_system_keywords(path):
+    # CompiledSystem(diffusion=, jump_rate=): the one vocabulary, the same runs on both paths
+    from hybridsim.compiled import CompiledSystem
+    ou = CompiledSystem(flow_map=lambda x, t, j, p: -p[0] * x,
+                        diffusion=lambda x, t, j, p: np.full(1, p[1]), state_dim=1,
+                        params=[1.0, 0.5])
+    kw = dict(t_max=2.0, method="SRA1", max_step=0.05, seed=9)
+    _same(hs.simulate(ou, [1.0], backend=path, **kw), hs.simulate(ou, [1.0], **kw))
+    tcp = CompiledSystem(flow_map=lambda x, t, j, p: np.ones(1),
+                         jump_map=lambda x, t, j, p: x / 2,
+                         jump_rate=lambda x, t, j, p: x[0], state_dim=1)
+    a = hs.simulate(tcp, [1.0], 20.0, seed=2, backend=path)
+    _same(a, hs.simulate(tcp, [1.0], 20.0, seed=2))
+    B = hs.simulate_many(tcp, np.ones((3, 1)), 5.0, backend=path)
+    assert len({b.stats["jump_seed"] for b in B}) == 3
