@@ -33,15 +33,19 @@ from hybridsim.library import AIMD
 
 
 def aimd_moments(batch, powers=(2, 4), t_burn=20.0):
-    """Each path's time averages of x^k over its flows starting at or after t_burn
-    (x' = 1: the integral of x^k over a flow from xa to xb is (xb^(k+1) - xa^(k+1))/(k+1)),
-    then their mean and standard error over the paths."""
+    """Each path's time averages of x^k over [t_burn, t_f] (its flows cut at t_burn;
+    x' = 1: the integral of x^k over a flow from xa to xb is (xb^(k+1) - xa^(k+1))/(k+1)),
+    then their mean and standard error over the paths. The window starts at t_burn
+    itself, not at the first jump after it (a window opened at a jump sees x just
+    halved: biased low by about 1/T of the mean)."""
     out = np.empty((len(batch), len(powers)))
     for i, a in enumerate(batch):
         t, j, x = a.t, a.j, a.x[:, 0]
-        keep = (j[1:] == j[:-1]) & (t[:-1] >= t_burn)
-        xa, xb = x[:-1][keep], x[1:][keep]
-        length = (t[1:] - t[:-1])[keep].sum()
+        keep = (j[1:] == j[:-1]) & (t[1:] > t_burn)
+        ta = np.maximum(t[:-1][keep], t_burn)
+        xa = x[:-1][keep] + (ta - t[:-1][keep])
+        xb = x[1:][keep]
+        length = (t[1:][keep] - ta).sum()
         for c, k in enumerate(powers):
             out[i, c] = ((xb ** (k + 1) - xa ** (k + 1)) / (k + 1)).sum() / length
     return out.mean(axis=0), out.std(axis=0, ddof=1) / math.sqrt(len(out))
