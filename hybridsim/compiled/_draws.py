@@ -150,6 +150,19 @@ def threshold_at(hi, lo, k):
     return -math.log((float(z >> _U(11)) + 0.5) * _TWO53)
 
 
+@njit(**_NJ)
+def path_keys_many(seeds, dim):
+    """:func:`path_keys` ``(seed, 0, dim)`` of each of ``seeds`` (uint64 < 2**63), one row each."""
+    out = np.empty((seeds.shape[0], dim + 1), np.uint64)
+    r0 = mix64(_U(0x632BE59BD9B4E019))
+    for i in range(seeds.shape[0]):
+        base = mix64(mix64(seeds[i]) ^ r0)
+        for c in range(dim):
+            out[i, c] = mix64(base ^ mix64(_U(c + 1)))
+        out[i, dim] = mix64(out[i, 0])
+    return out
+
+
 def path_keys(seed, run, dim):
     """The per-component keys of ``BrownianPath(seed, run, dim)`` and the SDE
     stepper's stream key (``mix64`` of the first), as a uint64 array of

@@ -23,7 +23,7 @@ import os
 import numpy as np
 
 from .._sde import SDE_METHODS, noise_key
-from ..arc import HybridArc
+from ..arc import HybridArc, _describe
 from ..arc_batch import ArcBatch
 from ..options import parse_run
 from ..rules import CAUSES, MapError, Termination, finish, finish_batch, message
@@ -184,8 +184,11 @@ def _arc(system, k, out, ro, seed_key, method, step):
             MapError(text, "diffusion", t, j)
     else:
         cause, msg, exc = _message(system, k, code, detail, info, T, J, X, st, ro)
-    arc = HybridArc(T, J, X, cause, msg, exc, system=system, xdot=np.full(X.shape, np.nan),
-                    stats=stats)
+    desc = system.__dict__.get("_sde_description")
+    if desc is None:
+        system.__dict__["_sde_description"] = desc = _describe(system)
+    arc = HybridArc._trusted(T, J, X, cause, msg, exc, system=system,
+                             xdot=np.full(X.shape, np.nan), stats=stats, description=desc)
     if exc is not None:
         exc.arc = arc
     return arc
@@ -286,15 +289,15 @@ def simulate_many_sde(system, X0, t_max, j_max=math.inf, *, method="RK45", max_s
     N = len(X)
     ro, step, m, maps, fopt, iopt = _prepare(system, X[0] if N else None, t_max, j_max, method,
                                              max_step, kw)
-    if seeds is None:
-        keys = [noise_key(None) for _ in range(N)]
+    if seeds is None:                   # 63 bits of fresh entropy per row
+        keys = (np.random.SeedSequence().generate_state(N, np.uint64) >> np.uint64(1)).tolist()
     else:
         if len(seeds) != N:
             raise ValueError(f"seeds: one per row, {N} rows, got {len(seeds)}")
         keys = [noise_key(s) for s in seeds]
-    from ._draws import path_keys
+    from ._draws import path_keys_many
     from ._run import _rng_for
-    KEYS = [path_keys(key, 0, m) for key in keys]
+    KEYS = path_keys_many(np.array(keys, dtype=np.uint64), m)
     if ro.prio == _RANDOM_PRIO:
         raise ValueError("priority='random': a batch of SDE rows draws no coins yet; run the "
                          "rows with simulate_sde_compiled (one seed each)")
