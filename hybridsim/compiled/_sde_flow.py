@@ -226,27 +226,23 @@ def _crossing(h, neg, sig_a, diag, m, a, xa, b, xb, j, p, key, ctr):
 
 
 @njit(**_NJ)
-def _w(keys, BS, nb, c, t, t0, T, depth):
-    """(W, ∫W) of component c at t (``BrownianPath._query``)."""
+def _w(keys, S, F, H, c, t, t0, T, depth):
+    """(W, ∫W) of component c at t (``BrownianPath._query``; its block drawn)."""
     s = (t - t0) / T
     blk = int(math.floor(s))  # noqa: RUF046 - an int under numba too
-    S, F, H = blocks_to(keys, BS[0], BS[1], BS[2], nb, T, blk)
-    BS[0], BS[1], BS[2] = S, F, H
     return descend(keys[c], S, F, H, c, blk, s - blk, T, depth)
 
 
 @njit(**_NJ)
-def _w_all(keys, BS, nb, t, k, t0, T, depth, m, w, F):
-    """(W, ∫W) at t into ``w``, ``F`` (block end ``k`` where k >= 0)."""
+def _w_all(keys, S, F, H, t, k, t0, T, depth, m, w, Fo):
+    """(W, ∫W) at t into ``w``, ``Fo`` (block end ``k`` where k >= 0)."""
     if k >= 0:
-        S, FF, H = blocks_to(keys, BS[0], BS[1], BS[2], nb, T, k)
-        BS[0], BS[1], BS[2] = S, FF, H
         for c in range(m):
             w[c] = S[c, k]
-            F[c] = FF[c, k]
+            Fo[c] = F[c, k]
         return
     for c in range(m):
-        w[c], F[c] = _w(keys, BS, nb, c, t, t0, T, depth)
+        w[c], Fo[c] = _w(keys, S, F, H, c, t, t0, T, depth)
 
 
 @njit(**_NJ)
@@ -291,7 +287,7 @@ def sde_run(maps, x0, p, fopt, iopt, keys, rngp):
     skey = keys[m]
     ckeys = keys[:m]
     watch_D = has_D and prio != _FLOWS
-    BS = [np.zeros((m, 64)), np.zeros((m, 64)), np.zeros((m, 64))]
+    SB, FB, HB = np.zeros((m, 64)), np.zeros((m, 64)), np.zeros((m, 64))
     nb = np.zeros(1, np.int64)
     wa, Fa, wb, Fb, dw = np.empty(m), np.empty(m), np.empty(m), np.empty(m), np.empty(m)
     bits = np.empty(2)
@@ -444,8 +440,11 @@ def sde_run(maps, x0, p, fopt, iopt, keys, rngp):
                 info[0], info[3] = a, j
                 t = a
                 break
-            _w_all(ckeys, BS, nb, a, ka, t0, H, depth, m, wa, Fa)
-            _w_all(ckeys, BS, nb, b, kb, t0, H, depth, m, wb, Fb)
+            need = kb if kb >= 0 else int(math.floor((b - t0) / H))  # noqa: RUF046
+            if nb[0] <= need:                # the blocks up to b's drawn
+                SB, FB, HB = blocks_to(ckeys, SB, FB, HB, nb, H, need)
+            _w_all(ckeys, SB, FB, HB, a, ka, t0, H, depth, m, wa, Fa)
+            _w_all(ckeys, SB, FB, HB, b, kb, t0, H, depth, m, wb, Fb)
             for c in range(m):
                 dw[c] = wb[c] - wa[c]
             if method == SRA1:
