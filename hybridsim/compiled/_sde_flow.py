@@ -246,19 +246,23 @@ def _w_all(keys, S, F, H, t, k, t0, T, depth, m, w, Fo):
 
 
 @njit(**_NJ)
-def _store(T, J, X, ns, t, j, x):
-    if ns == T.shape[0]:
-        T2 = np.empty(2 * ns)
-        J2 = np.empty(2 * ns, np.int64)
-        X2 = np.empty((2 * ns, X.shape[1]))
-        T2[:ns] = T
-        J2[:ns] = J
-        X2[:ns] = X
-        T, J, X = T2, J2, X2
+def _grown(T, J, X, ns):
+    """The sample buffers, twice as long (their first ``ns`` rows kept)."""
+    T2 = np.empty(2 * ns)
+    J2 = np.empty(2 * ns, np.int64)
+    X2 = np.empty((2 * ns, X.shape[1]))
+    T2[:ns] = T[:ns]
+    J2[:ns] = J[:ns]
+    X2[:ns] = X[:ns]
+    return T2, J2, X2
+
+
+@njit(**_NJ)
+def _put(T, J, X, ns, t, j, x):
     T[ns] = t
     J[ns] = j
-    X[ns] = x
-    return T, J, X
+    for q in range(x.shape[0]):
+        X[ns, q] = x[q]
 
 
 @njit(nogil=True, cache=CACHE, **_NJ)
@@ -299,7 +303,7 @@ def sde_run(maps, x0, p, fopt, iopt, keys, rngp):
     info = np.full(6, np.nan)
     stats = np.zeros(4, np.int64)
     t, j, x = t0, iopt[I_J0], x0.copy()
-    T, J, X = _store(T, J, X, 0, t, j, x)
+    _put(T, J, X, 0, t, j, x)
     ns = 1
     in_D = has_D and _inset(D, hD, D_g, x, t, j, p)
     in_C = (not has_C) or _inset(C, hC, C_g, x, t, j, p)
@@ -381,7 +385,9 @@ def sde_run(maps, x0, p, fopt, iopt, keys, rngp):
                 detail = 1
                 info[0] = t
                 break
-            T, J, X = _store(T, J, X, ns, t, j, x)
+            if ns == T.shape[0]:
+                T, J, X = _grown(T, J, X, ns)
+            _put(T, J, X, ns, t, j, x)
             ns += 1
             c = rules.after_jump(jumps, short, j_max, zeno_jumps)
             if c != _GOES_ON:
@@ -515,7 +521,9 @@ def sde_run(maps, x0, p, fopt, iopt, keys, rngp):
                     info[0] = a
                     t = a
                     break
-                T, J, X = _store(T, J, X, ns, te, j, xe)
+                if ns == T.shape[0]:
+                    T, J, X = _grown(T, J, X, ns)
+                _put(T, J, X, ns, te, j, xe)
                 ns += 1
                 t, x = te, xe
                 in_De = has_D and (kind_D or _inset(D, hD, D_g, xe, te, j, p))
@@ -538,7 +546,9 @@ def sde_run(maps, x0, p, fopt, iopt, keys, rngp):
                 info[0] = a
                 t = a
                 break
-            T, J, X = _store(T, J, X, ns, b, j, xb)
+            if ns == T.shape[0]:
+                T, J, X = _grown(T, J, X, ns)
+            _put(T, J, X, ns, b, j, xb)
             ns += 1
             if max_norm < np.inf:
                 nrm = math.sqrt((xb * xb).sum())
