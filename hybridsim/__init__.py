@@ -15,8 +15,9 @@ derivatives through jumps, :func:`simulate_sensitivity`, in
 margin, in :mod:`hybridsim.stl`. Monte Carlo answers with confidence
 (``estimate``, streaming ``Stats``, ``splitting`` for rare events) live in
 :mod:`hybridsim.estimate`; SDE flows (a system's
-``diffusion``), jumps at a rate (``jump_rate``) and random jump maps
-(``jump_law``) run on the Python path, driven by :class:`BrownianPath`.
+``diffusion``) and jumps at a rate (``jump_rate``) run on the Python and
+compiled paths (the same draws per seed), random jump maps (``jump_law``)
+on the Python path, driven by :class:`BrownianPath`.
 """
 from . import compiled as compiled
 from . import estimate as estimate

@@ -6,7 +6,9 @@ A system may declare
   state jumps when the rate integrated along the flow since the last
   rate-driven jump reaches a threshold E ~ Exp(1) (a jump at the rate, as a
   Poisson clock whose intensity is the rate). The integral Λ and the
-  threshold E are two extra state components flowing as Λ' = rate, E' = 0;
+  threshold E are two extra state components flowing as Λ' = rate, E' = 0
+  (with two more holding the run's key, its high and low 32 bits, so that a
+  batch's rows each draw their own thresholds on every path: :func:`clock`);
   the crossing Λ = E is the guard ``Λ - E`` added to the jump set, located
   like any guard (to 4 ulp of the time, exact for ODE flows; on an SDE flow
   the guard process has no noise and the crossing is the chord's). At a
@@ -37,7 +39,7 @@ from .options import check_map_value
 from .rules import MapError
 from .system import HybridSystem, _arity, _named, guard_min
 
-__all__ = ["is_random", "simulate_random", "threshold"]
+__all__ = ["is_random", "simulate_random", "threshold", "clock", "strip"]
 
 _TWO53 = 1.0 / (1 << 53)
 
@@ -89,7 +91,7 @@ class _Augmented(HybridSystem):
         rate = None if base.jump_rate is None else _named(base.jump_rate, "jump_rate")
         law = None if getattr(base, "jump_law", None) is None else _law(base.jump_law)
         self.has_rate = rate is not None
-        m = n + 2 if self.has_rate else n
+        m = n + CLOCK if self.has_rate else n
         self.state_dim = m
         self.input_dim = base.input_dim
         self.output_dim = base.output_dim
@@ -111,9 +113,9 @@ class _Augmented(HybridSystem):
             if not (r >= 0 and math.isfinite(r)):
                 raise MapError(f"jump_rate returned {r} (at t={t:.10g}, j={j}): a rate must "
                                f"be a finite number >= 0", "jump_rate", t, j)
-            out = np.empty(m)
+            out = np.zeros(m)
             out[:n] = fx
-            out[n], out[n + 1] = r, 0.0
+            out[n] = r
             return out
         self.flow_map = flow_map
 
@@ -128,10 +130,9 @@ class _Augmented(HybridSystem):
                 return xn
             out = np.empty(m)
             out[:n] = xn
+            out[n:] = x[n:]
             if x[n] >= x[n + 1]:                 # the rate's jump: a new clock
                 out[n], out[n + 1] = 0.0, threshold(key, int(j) + 1)
-            else:
-                out[n], out[n + 1] = x[n], x[n + 1]
             return out
         self.jump_map = jump_map
 
@@ -167,8 +168,25 @@ class _Augmented(HybridSystem):
                 s = np.asarray(sig(x[:n], t, j, u), dtype=float)
                 if not self.has_rate or s.shape not in ((n,), (n, s.shape[-1])):
                     return s                 # its shape checked (and named) by the stepper
-                return np.concatenate([s, np.zeros((2,) + s.shape[1:])])
+                return np.concatenate([s, np.zeros((CLOCK,) + s.shape[1:])])
             self.diffusion = diffusion
+
+
+#: the clock's components appended to the state: Λ, E and the key's two halves
+CLOCK = 4
+
+
+def clock(key, j0=0):
+    """The clock's initial components ``[Λ, E, key >> 32, key & 0xFFFFFFFF]``
+    (exact floats) of the run keyed ``key``.
+
+    Examples
+    --------
+    >>> c = clock(2**40 + 5)
+    >>> c[0], int(c[2]) << 32 | int(c[3])
+    (0.0, 1099511627781)
+    """
+    return [0.0, threshold(key, int(j0)), float(key >> 32), float(key & 0xFFFFFFFF)]
 
 
 def run_key(seed):
@@ -190,7 +208,6 @@ def simulate_random(simulate, system, x0, kwargs):
     The thresholds' components are added to the state for the run and taken
     off its arc; ``arc.stats`` records ``jump_seed`` and ``thresholds``.
     """
-    from .arc import Crossings, HybridArc
     key = run_key(kwargs.pop("seed", None))
     aug = _Augmented(system, key)
     n = aug.n
@@ -198,11 +215,18 @@ def simulate_random(simulate, system, x0, kwargs):
     if x.shape != (n,):
         raise ValueError(f"x0 must have shape ({n},), got {np.shape(x0)}")
     if aug.has_rate:
-        x = np.concatenate([x, [0.0, threshold(key, int(kwargs.get("j0", 0)))]])
+        x = np.concatenate([x, clock(key, kwargs.get("j0", 0))])
     arc = simulate(aug, x, seed=key, **kwargs)
+    return strip(arc, system, key, n, aug.has_rate)
+
+
+def strip(arc, system, key, n, has_rate):
+    """The arc of ``system``'s own state (the first ``n`` components) of a run
+    with the clock appended; ``stats`` records ``jump_seed`` and ``thresholds``."""
+    from .arc import Crossings, HybridArc
     stats = dict(arc.stats or {})
     stats["jump_seed"] = key
-    if aug.has_rate:
+    if has_rate:
         E = arc.x[:, n + 1]
         stats["thresholds"] = [float(v) for k, v in enumerate(E) if k == 0 or v != E[k - 1]]
     xdot = None if arc.xdot is None else arc.xdot[:, :n]

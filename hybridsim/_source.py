@@ -982,7 +982,7 @@ def _fn_of_plain(v, caller, node):
 #: roles whose value is one number: their returns pass through ``_hs_scalar``
 #: (bound by the compiler), which makes a 0-d array (``np.where`` of scalars,
 #: ``x[..., k]`` on a single state under numba) the number it holds
-_SCALAR_ROLES = ("jump_guard", "flow_guard", "jump_set", "flow_set")
+_SCALAR_ROLES = ("jump_guard", "flow_guard", "jump_set", "flow_set", "jump_rate")
 
 
 class _Scalar(_OwnReturns):
@@ -1119,6 +1119,8 @@ class Plan:
 #: HybridSystem attribute -> CompiledSystem role
 ROLES = (("flow_map", "flow"), ("jump_map", "jump"), ("jump_guard", "jump_guard"),
          ("flow_guard", "flow_guard"), ("jump_set", "jump_set"), ("flow_set", "flow_set"))
+#: the noise's maps (a single system's, not a component's): attribute -> role
+NOISE_ROLES = (("diffusion", "diffusion"), ("jump_rate", "jump_rate"))
 
 
 def plan(system, component=False):
@@ -1132,10 +1134,10 @@ def plan(system, component=False):
     roles = {}
     cls = type(system).__name__
     todo = ROLES + ((("output", "output"),) if component and system._overrides("output")
-                    else ()) + ((("watch", "watch"),) if not component and
-                                system.watch is not None else ())
+                    else NOISE_ROLES if not component else ()) + (
+        (("watch", "watch"),) if not component and system.watch is not None else ())
     for attr, role in todo:
-        if attr in ("jump_guard", "flow_guard"):
+        if attr in ("jump_guard", "flow_guard") or role in ("diffusion", "jump_rate"):
             fn = getattr(system, attr)
             if fn is None:
                 continue

@@ -473,15 +473,15 @@ def parse_run(system, n, *, t0=0.0, j0=0, t_max, j_max=math.inf, priority="jumps
     if not python and (getattr(system, "jump_rate", None) is not None
                        or getattr(system, "jump_law", None) is not None):
         raise ValueError(f"{type(system).__name__} declares jump_rate or jump_law (random "
-                         f"jumps), which only the Python path runs for now (the vectorized "
-                         f"and compiled paths do not draw them yet); use hs.simulate or "
-                         f"hs.simulate_many with backend='python' and a non-vectorized system")
+                         f"jumps), which the vectorized path does not draw (the Python path "
+                         f"runs both, the compiled path jump_rate); use hs.simulate or "
+                         f"hs.simulate_many with backend='python' (or 'compiled' for a "
+                         f"jump_rate) and a non-vectorized system")
     if not python and getattr(system, "diffusion", None) is not None:
         raise ValueError(f"{type(system).__name__} declares diffusion (an SDE flow), which "
-                         f"only the Python path steps for now (the vectorized and compiled "
-                         f"paths integrate ODE flows only); use hs.simulate or "
-                         f"hs.simulate_many with backend='python' and a non-vectorized "
-                         f"system")
+                         f"the vectorized path does not step (the Python and compiled paths "
+                         f"do); use hs.simulate or hs.simulate_many with backend='python' or "
+                         f"'compiled' and a non-vectorized system")
     if not python and getattr(system, "jump_map_values", None) is not None:
         raise ValueError(f"{type(system).__name__} declares jump_map_values (a set-valued "
                          f"jump map), which only the Python path supports; use "

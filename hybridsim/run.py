@@ -230,10 +230,12 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
         raise TypeError(f"system must be a hybridsim.HybridSystem, got {type(system).__name__}")
     if is_random(system):      # jump_rate / jump_law: run with the clock's state added
         kw = {k: v for k, v in locals().items() if k not in ("system", "x0")}
-        if kw["backend"] == "compiled":
-            raise ValueError(f"backend='compiled': {type(system).__name__} declares jump_rate "
-                             f"or jump_law (random jumps), which only the Python path runs "
-                             f"for now; use backend='python'")
+        if kw["backend"] == "compiled":      # the clock appended, on the compiled path
+            from .compiled._stochastic import simulate_rate_compiled
+            check_unsupported("compiled", {k: kw.pop(k) for k in (
+                "inputs", "prehistory", "dense", "t_eval", "progress", "dwell")})
+            return rebind(simulate_rate_compiled(system, lower(system), x0, t_max, j_max,
+                                                 kw, kw.pop("seed")), system)
         kw["backend"] = "python"
         return simulate_random(simulate, system, x0, kw)
     if backend == "auto" and (dwell is not None or system.set_valued):
@@ -326,6 +328,10 @@ def _compiled_run(system, x0, t_max, j_max, opts, python_only):
     """``simulate(..., backend="compiled")``: the compiled path, or a clear refusal."""
     check_unsupported("compiled", python_only)
     cs = lower(system)        # the system itself, or its lowered form (named refusals)
+    if is_stochastic(system):             # an SDE flow: the compiled SDE stepper
+        from .compiled._stochastic import sde_options, simulate_sde_compiled
+        return rebind(simulate_sde_compiled(cs, x0, t_max, j_max, **sde_options(opts)),
+                      system)
     try:
         return rebind(compiled.simulate_compiled(cs, x0, t_max, j_max, **opts), system)
     except MapError as e:
@@ -458,6 +464,18 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
         del options["backend"]               # the default: the batch integrator may take it
     if options.get("backend", "python") == "compiled" and executor is None:
         kw = {k: v for k, v in options.items() if k not in ("backend", "progress")}
+        if is_random(system):             # jumps at a rate: each row its own clock
+            from .compiled._stochastic import simulate_many_rate
+            out = simulate_many_rate(system, lower(system), X, t_max, j_max,
+                                     {k: v for k, v in kw.items() if k not in ("t_max", "j_max")})
+            out = ArcBatch([rebind(a, system) for a in out], n)
+            return finish_batch("simulate_many", out, throw, warn)
+        if is_stochastic(system):         # an SDE flow: each row its own Brownian path
+            from .compiled._stochastic import sde_options, simulate_many_sde
+            out = simulate_many_sde(lower(system), X, throw=False, warn=False,
+                                    **sde_options(kw))
+            out = ArcBatch([rebind(a, system) for a in out], n)
+            return finish_batch("simulate_many", out, throw, warn)
         out = compiled.simulate_many_compiled(lower(system), X, throw=False, warn=False, **kw)
         return finish_batch("simulate_many", rebind_all(out, system), throw, warn)
     if system.vectorized and executor is None and _batch_takes(system, options):

@@ -88,7 +88,8 @@ def _identity(system):
     g = system.__dict__.get
     return (type(system), system.needs_history, system.delays, system.input_dim,
             id(g("flow_map")), id(g("jump_map")), id(g("jump_guard")), id(g("flow_guard")),
-            id(g("jump_set")), id(g("flow_set")), id(g("watch")))
+            id(g("jump_set")), id(g("flow_set")), id(g("watch")), id(g("diffusion")),
+            id(g("jump_rate")))
 
 
 def cached(system):
@@ -578,10 +579,11 @@ def lower_source(system, specialize=None):
     cs.params = p
     cs.delays, cs.needs_history = past, bool(past)
     cs.max_step = _max_step(system, past)
+    cs.noise_dim = getattr(system, "noise_dim", None)
     if cs.watch is not None:
         cs.watch_direction = system.watch_direction
     for attr in ("flow_map", "jump_map", "jump_guard", "flow_guard", "jump_set", "flow_set",
-                 "watch"):
+                 "watch", "diffusion", "jump_rate"):
         m = cs.__dict__.get(attr)
         if m is not None:
             cs.__dict__[attr] = type(m)(m.fn, cs)

@@ -537,6 +537,14 @@ def simulate_compiled(system: CompiledSystem, x0: ArrayLike, t_max: float,
     >>> np.round(arc.jump_times, 12)
     array([1., 2., 3.])
     """
+    if isinstance(system, CompiledSystem) and (
+            system.maps.keys() & {"diffusion", "jump_rate"}):   # noise: its own stepping
+        from ._stochastic import noisy_run
+        return noisy_run(system, x0, t_max, j_max, dict(
+            t0=t0, j0=j0, priority=priority, max_step=max_step, max_steps=max_steps,
+            max_samples=max_samples, zeno_jumps=zeno_jumps, zeno_time=zeno_time,
+            zeno_rtol=zeno_rtol, max_norm=max_norm, seed=seed, refine=refine, throw=throw,
+            warn=warn, method=method, **unsupported))
     k = _load_kernel()
     _check_system(system)
     n = system.state_dim
@@ -745,6 +753,14 @@ def simulate_many_compiled(system: CompiledSystem, x0s: ArrayLike, t_max: float,
     >>> [a.jump_count for a in arcs]
     [2, 2]
     """
+    if isinstance(system, CompiledSystem) and (
+            system.maps.keys() & {"diffusion", "jump_rate"}):   # noise: its own stepping
+        from ._stochastic import noisy_rows
+        return noisy_rows(system, x0s, t_max, j_max, dict(
+            t0=t0, j0=j0, priority=priority, max_step=max_step, max_steps=max_steps,
+            max_samples=max_samples, zeno_jumps=zeno_jumps, zeno_time=zeno_time,
+            zeno_rtol=zeno_rtol, max_norm=max_norm, seed=seed, refine=refine, throw=throw,
+            warn=warn, method=method, **unsupported))
     from ..options import check_bool as _check_bool
     from ..options import check_count as _check_count
     k = _load_kernel()

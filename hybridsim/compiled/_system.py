@@ -22,7 +22,7 @@ _ROLES = (("flow", "vec"), ("jump", "vec"), ("jump_guard", "scalar"),
 #: the keyword (and HybridSystem method) of each role of ``maps``
 KEYWORDS = {"flow": "flow_map", "jump": "jump_map", "jump_guard": "jump_guard",
             "flow_guard": "flow_guard", "jump_set": "jump_set", "flow_set": "flow_set",
-            "watch": "watch"}
+            "watch": "watch", "diffusion": "diffusion", "jump_rate": "jump_rate"}
 #: the deprecated keywords of CompiledSystem and Component, ``{old: new}``
 RENAMES = {"flow": "flow_map", "jump": "jump_map"}
 
@@ -178,6 +178,16 @@ class CompiledSystem(HybridSystem):
         runs; systems without watch never compile it.
     watch_direction : int or sequence of int
         -1, 0 (default) or 1 per watched function: falling, both, rising.
+    diffusion : callable, optional
+        ``s(x, t, j, p)``: an SDE flow's diffusion (dx = f dt + σ dW, as
+        :attr:`hybridsim.HybridSystem.diffusion`): shape (n,) for diagonal
+        noise, (n, noise_dim) for general noise. Runs on the Python path and
+        compiled (:mod:`hybridsim.compiled._stochastic`).
+    noise_dim : int, optional
+        None (diagonal noise) or the dimension m of W (general noise).
+    jump_rate : callable, optional
+        ``r(x, t, j, p)``: a jump rate, a float >= 0 (as
+        :attr:`hybridsim.HybridSystem.jump_rate`).
     name : str, optional
         For ``repr``.
     **deprecated
@@ -217,7 +227,7 @@ class CompiledSystem(HybridSystem):
     def __init__(self, flow_map=None, jump_map=None, *, jump_guard=None, flow_guard=None,
                  jump_set=None, flow_set=None, state_dim, params=(), max_step=None,
                  delays=(), specialize=False, name=None, watch=None, watch_direction=0,
-                 **deprecated):
+                 diffusion=None, noise_dim=None, jump_rate=None, **deprecated):
         HybridSystem.__init__(self)
         if deprecated:
             given = renamed_keywords("CompiledSystem", deprecated, RENAMES,
@@ -241,13 +251,15 @@ class CompiledSystem(HybridSystem):
         self.maps = {}
         for role, fn in (("flow", flow_map), ("jump", jump_map), ("jump_guard", jump_guard),
                          ("flow_guard", flow_guard), ("jump_set", jump_set),
-                         ("flow_set", flow_set)):
+                         ("flow_set", flow_set), ("diffusion", diffusion),
+                         ("jump_rate", jump_rate)):
             if fn is None:
                 continue
             if not callable(fn):
                 raise TypeError(f"{KEYWORDS[role]} must be callable fn(x, t, j, p), got "
                                 f"{type(fn).__name__}")
             self.maps[role] = fn
+        self.noise_dim = noise_dim
         if flow_map is None:
             raise TypeError("flow_map is required: a function flow_map(x, t, j, p) -> array "
                             "of state_dim floats")

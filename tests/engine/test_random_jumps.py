@@ -123,8 +123,6 @@ def test_bad_laws_and_refusals():
         jump_law=lambda x, rng: np.zeros(3))
     with pytest.raises(hs.MapError, match=r"jump_law must return an array of shape \(1,\)"):
         hs.simulate(shape, [0.0], t_max=2.0, seed=0)
-    with pytest.raises(ValueError, match="only the Python path runs"):
-        hs.simulate(aimd(lambda x: 1.0), [1.0], t_max=1.0, backend="compiled")
     # a failed run in a batch: its arc carries the cause naming the map
     arcs = hs.simulate_many(aimd(lambda x: -x[0]), [[1.0]], t_max=1.0, warn=False)
     assert arcs[0].termination is hs.Termination.MAP_ERROR

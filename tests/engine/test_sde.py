@@ -161,7 +161,7 @@ def test_refusals_and_bad_input():
     vb = hs.HybridSystem.from_functions(
         flow_map=lambda x: 0 * x, diffusion=lambda x: 1 + 0 * x, jump_guard=lambda x: x[..., 0] - 1,
         jump_map=lambda x: x, state_dim=1, vectorized=True)
-    with pytest.raises(ValueError, match="only the Python path steps"):
+    with pytest.raises(ValueError, match="the vectorized path does not step"):
         hs.simulate_vectorized(vb, [[0.0]], t_max=1.0)
     arcs = hs.simulate_many(vb, [[0.0], [0.0]], t_max=1.0, j_max=1, method="EM",
                             max_step=0.1)           # simulate_many runs it row by row

@@ -317,6 +317,12 @@ def test_random_jumps_keep_the_watched_crossings():
     np.testing.assert_allclose(c.x[:, 0], 0.25, rtol=0, atol=1e-12)
     starts = np.r_[0.0, arc.jump_times]            # each flow from 0 crosses 0.25 once
     np.testing.assert_allclose(c.t, starts[c.j] + 0.25, rtol=0, atol=1e-12)
+    # the compiled path runs jump rates, but not with watched functions: refused by
+    # name, single runs and batches (never a run that drops the crossings)
+    for run in (lambda: hs.simulate(tick, [0.0], 5.0, seed=3, backend="compiled"),
+                lambda: hs.simulate_many(tick, [[0.0], [0.1]], 5.0, backend="compiled")):
+        with pytest.raises(TypeError, match=r"declares watch .* and a jump_rate.*backend='python'"):
+            run()
 
 
 def test_watch_with_a_diffusion_is_refused_by_name():
