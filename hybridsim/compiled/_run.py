@@ -166,6 +166,19 @@ def _x0(x0, n):
     return np.ascontiguousarray(check_x0(x0, n))
 
 
+def _refuse_noise(system, runner):
+    """The kernel steps ODE flows without a jump rate; a diffusion or a jump rate
+    runs through the front door (``hs.simulate`` / ``hs.simulate_many`` with
+    ``backend="compiled"``), which adds the clock or takes the SDE stepper
+    (:mod:`hybridsim.compiled._stochastic`)."""
+    noisy = sorted(system.maps.keys() & {"diffusion", "jump_rate"}) \
+        if isinstance(system, CompiledSystem) else []
+    if noisy:
+        raise TypeError(f"{runner}: {system!r} declares {' and '.join(noisy)}: run it with "
+                        f"hs.simulate or hs.simulate_many(..., backend='compiled'), which "
+                        f"step SDE flows and jump rates on the compiled path")
+
+
 def _check_system(system):
     if not isinstance(system, CompiledSystem):
         raise TypeError(f"system must be a hybridsim.compiled.CompiledSystem (maps of "
@@ -537,14 +550,7 @@ def simulate_compiled(system: CompiledSystem, x0: ArrayLike, t_max: float,
     >>> np.round(arc.jump_times, 12)
     array([1., 2., 3.])
     """
-    if isinstance(system, CompiledSystem) and (
-            system.maps.keys() & {"diffusion", "jump_rate"}):   # noise: its own stepping
-        from ._stochastic import noisy_run
-        return noisy_run(system, x0, t_max, j_max, dict(
-            t0=t0, j0=j0, priority=priority, max_step=max_step, max_steps=max_steps,
-            max_samples=max_samples, zeno_jumps=zeno_jumps, zeno_time=zeno_time,
-            zeno_rtol=zeno_rtol, max_norm=max_norm, seed=seed, refine=refine, throw=throw,
-            warn=warn, method=method, **unsupported))
+    _refuse_noise(system, "simulate_compiled")
     k = _load_kernel()
     _check_system(system)
     n = system.state_dim
@@ -753,14 +759,7 @@ def simulate_many_compiled(system: CompiledSystem, x0s: ArrayLike, t_max: float,
     >>> [a.jump_count for a in arcs]
     [2, 2]
     """
-    if isinstance(system, CompiledSystem) and (
-            system.maps.keys() & {"diffusion", "jump_rate"}):   # noise: its own stepping
-        from ._stochastic import noisy_rows
-        return noisy_rows(system, x0s, t_max, j_max, dict(
-            t0=t0, j0=j0, priority=priority, max_step=max_step, max_steps=max_steps,
-            max_samples=max_samples, zeno_jumps=zeno_jumps, zeno_time=zeno_time,
-            zeno_rtol=zeno_rtol, max_norm=max_norm, seed=seed, refine=refine, throw=throw,
-            warn=warn, method=method, **unsupported))
+    _refuse_noise(system, "simulate_many_compiled")
     from ..options import check_bool as _check_bool
     from ..options import check_count as _check_count
     k = _load_kernel()

@@ -339,35 +339,6 @@ from ..rules import Priority as _P  # noqa: E402
 _RANDOM_PRIO = _P.RANDOM
 
 
-def noisy_run(system, x0, t_max, j_max, opts):
-    """:func:`~hybridsim.compiled.simulate_compiled` of a CompiledSystem with a
-    diffusion or a jump rate (``opts``: its options)."""
-    from ._run import _check_system
-    _check_system(system)
-    if system.maps.get("jump_rate") is not None:
-        return simulate_rate_compiled(system, system, x0, t_max, j_max, opts, opts.pop("seed"))
-    return simulate_sde_compiled(system, x0, t_max, j_max, **sde_options(opts))
-
-
-def noisy_rows(system, X0, t_max, j_max, opts):
-    """:func:`~hybridsim.compiled.simulate_many_compiled` of a CompiledSystem with
-    a diffusion or a jump rate: each row its own fresh key (``seed`` refused,
-    as on the Python path: every row would draw the same)."""
-    from ._run import _check_system
-    _check_system(system)
-    if opts.pop("seed") is not None:
-        raise ValueError(f"seed: simulate_many passes one seed to every row, so every row of "
-                         f"{system!r} (it draws noise) would draw the same; run seeded rows "
-                         f"one by one (simulate_compiled with seed=)")
-    throw, warn = opts.pop("throw"), opts.pop("warn")
-    if system.maps.get("jump_rate") is not None:
-        out = simulate_many_rate(system, system, X0, t_max, j_max, opts)
-    else:
-        out = simulate_many_sde(system, X0, t_max, j_max, throw=False, warn=False,
-                                **sde_options(opts))
-    return finish_batch("simulate_many", out, throw, warn)
-
-
 # ------------------------------------------------------------------ jumps at a rate
 def _augmented(cs):
     """The :class:`CompiledSystem` of ``cs`` (declaring ``jump_rate``) with the

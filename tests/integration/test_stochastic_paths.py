@@ -166,3 +166,10 @@ def test_compiled_system_keywords(path):
     _same(a, hs.simulate(tcp, [1.0], 20.0, seed=2))
     B = hs.simulate_many(tcp, np.ones((3, 1)), 5.0, backend=path)
     assert len({b.stats["jump_seed"] for b in B}) == 3
+    # the kernel's own runners step ODE flows: noise is refused there by name, pointing
+    # at the front door that runs it compiled
+    from hybridsim.compiled import simulate_compiled, simulate_many_compiled
+    with pytest.raises(TypeError, match=r"simulate_compiled: .*declares diffusion.*hs\.simulate"):
+        simulate_compiled(ou, [1.0], 2.0)
+    with pytest.raises(TypeError, match=r"simulate_many_compiled: .*declares jump_rate"):
+        simulate_many_compiled(tcp, np.ones((2, 1)), 2.0)
