@@ -17,6 +17,8 @@ The search is scipy's differential evolution over the space's box, which
 evaluates each population at once (``vectorized=True``), then a local
 compass-search refinement of the worst point within the remaining budget
 (each of its iterations one population too);
+``method="cmaes"`` is CMA-ES (numpy) over the same box after the same
+seeded first population, with restarts;
 ``method="random"`` is the random-sampling baseline of the same budget.
 Only each run's margin is kept, and the arc of the worst run so far (the one
 the result returns; simulated again only if that run raised), so a search of
@@ -1059,7 +1061,7 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
         overshoots it by at most one chunk of runs.
     seed : int, optional
         The search is reproducible with it.
-    method : {"de", "random"}
+    method : {"de", "cmaes", "random"}
         ``"de"``: differential evolution (scipy, ``vectorized=True``: each
         generation is one population evaluated at once, deferred updating;
         the first population is run first in this order: the entries'
@@ -1079,11 +1081,25 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
         new seed on what is left, so a search that finds nothing has used
         its budget. The first population is run before scipy's solver is
         set up, so a claim its first runs refute costs no solver.
+        When a population's margins are all equal (a flat margin: no
+        ranking to follow), DE has converged and restarts on fresh designs,
+        and the compass search stops.
+        ``"cmaes"``: CMA-ES (numpy; Hansen's (mu/mu_w, lambda) strategy with
+        his default parameters) over the box scaled to [0, 1], after the
+        same seeded first design (``max(2 lambda, 2 dim)`` points) whose
+        best point is its first mean, step 0.3; candidates are clipped
+        into the box (a worst case on a face is reached exactly). It
+        restarts with the population doubled (IPOP) from a uniformly drawn
+        mean when it converges, stalls, or meets a margin flat over three
+        populations (each widening its step first); ``refine`` does not
+        apply. On the ARCH-COMP benchmarks (:mod:`hybridsim.arch`) it needs
+        fewer runs than DE to the first counterexample.
         ``"random"``: uniform sampling of the box in populations, the
         baseline to compare with.
     popsize : int, optional
         Population size (default ``max(15, 5 * space.dim)`` for DE, at least
-        5; 100 for random), capped by the budget.
+        5; ``4 + floor(3 ln n)`` for CMA-ES, n the free coordinates; 100 for
+        random), capped by the budget.
     refine : bool or "gradient"
         Refine the worst point locally by compass search (``"de"`` only).
         ``"gradient"``: by projected gradient descent instead, where ``run``
@@ -1140,6 +1156,8 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
 
     Notes
     -----
+    CMA-ES follows N. Hansen, "The CMA Evolution Strategy: A Tutorial"
+    (arXiv:1604.00772), with IPOP restarts (Auger and Hansen, CEC 2005).
     Differential evolution is scipy's (:func:`scipy.optimize.differential_evolution`):
     derivative-free, global, and it evaluates whole generations at once,
     which is what the batch paths make cheap; PSY-TaLiRo and S-TaLiRo
@@ -1159,8 +1177,8 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
     seconds = float(seconds)
     if not seconds > 0:
         raise ValueError(f"seconds must be > 0, got {seconds}")
-    if method not in ("de", "random"):
-        raise ValueError(f"method must be 'de' or 'random', got {method!r}")
+    if method not in ("de", "cmaes", "random"):
+        raise ValueError(f"method must be 'de', 'cmaes' or 'random', got {method!r}")
     if not (refine is True or refine is False or refine == "gradient"):
         raise ValueError(f"refine must be True, False or 'gradient', got {refine!r}")
     if refine == "gradient" and not callable(getattr(run, "sensitivity", None)):
@@ -1178,9 +1196,10 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
     if popsize is not None and (isinstance(popsize, bool) or not isinstance(
             popsize, (numbers.Integral, np.integer)) or popsize < 1):
         raise ValueError(f"popsize must be a positive integer or None, got {popsize!r}")
-    if popsize is None:
+    if popsize is None and method != "cmaes":
         popsize = max(15, 5 * space.dim) if method == "de" else 100
-    popsize = max(1, min(int(popsize), budget))
+    if popsize is not None:
+        popsize = max(1, min(int(popsize), budget))
     t0 = time.perf_counter()
     ev = _Evaluator(run, space, claim, budget, seconds, allow, progress, stop, on_error)
     fixed = not np.any(space.hi > space.lo)          # a space of one point: one run
@@ -1194,6 +1213,8 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
             while not ev.done:
                 n = min(popsize, budget - ev.n)
                 ev(space.lo + (space.hi - space.lo) * rng.random((n, space.dim)))
+        elif method == "cmaes":
+            _cmaes(ev, space, popsize, seed)
         else:
             seeds = np.random.SeedSequence(seed)
             round_seed, rounds = seed, 0
@@ -1203,7 +1224,9 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
                 _de(ev, space, popsize, round_seed, left - (left // 5 if refine else 0),
                     rnd=rounds)
                 rounds += 1
-                if refine and not ev.done and ev.best_z is not None:
+                # a round whose margins all tied has no worst point to refine
+                flat = ev.n > before and np.ptp(ev.history[before:]) == 0
+                if refine and not ev.done and ev.best_z is not None and not flat:
                     if refine == "gradient":
                         _refine_gradient(ev, space, run.sensitivity)
                     else:
@@ -1265,44 +1288,9 @@ def _de(ev, space, popsize, seed, budget, rnd=0):
         Z[:, free] = Zf
         return Z
 
-    nfree = int(free.sum())
     npop = max(5, popsize)
     maxiter = max(0, (budget - npop) // npop)
-    rng = np.random.default_rng(seed)
-    # a Latin hypercube, a quarter of it replaced by vertices of the box: worst
-    # cases under bounded uncertainty are often extreme (bang-bang noise). The
-    # vertices come first (the first population runs in chunks of 1, 2, 4, ...
-    # when the search stops at a counterexample) and are distinct where the
-    # box has few of them
-    u = (rng.permuted(np.tile(np.arange(npop), (nfree, 1)), axis=1).T
-         + rng.random((npop, nfree))) / npop
-    nv = min(npop // 4, 2 ** min(nfree, 20))
-    if nfree <= 12:
-        corners = rng.choice(2 ** nfree, nv, replace=False)
-        u[:nv] = (corners[:, None] >> np.arange(nfree)) & 1
-    else:
-        u[:nv] = rng.integers(0, 2, (nv, nfree))
-    # before the vertices, the entries' extreme members that are not vertices
-    # (a Sinusoids' constant ±bound signals lie on its face f = 0, with
-    # sin φ = 1); after them, points on faces and edges of the box: each
-    # coordinate at one of its bounds with probability 1/2, else its Latin
-    # hypercube value (a worst case with some parameters at their bounds and
-    # the others inside)
-    ext = space.extremes(npop // 8, rng)
-    ue = (ext[:, free] - lo) / (hi - lo)
-    ne = len(ue)
-    nf = max(0, min(npop // 8, npop - ne - nv)) if nfree > 1 else 0
-    faces = u[nv:nv + nf].copy()
-    at = rng.random(faces.shape) < 0.5
-    faces[at] = rng.integers(0, 2, int(at.sum()))
-    u = np.vstack([ue, u[:nv], faces, u[nv + nf:]])[:npop]
-    init = lo + u * (hi - lo)
-    n0 = ev.n
-    for k, label in ((0, "a seeded extreme member of an entry (its extremes())"),
-                     (ne, "a seeded vertex of the box"),
-                     (ne + nv, "a seeded point on a face or an edge of the box"),
-                     (ne + nv + nf, "the first population's Latin hypercube")):
-        ev.stages.append((n0 + k, label))
+    init = _seeded(ev, space, free, npop, np.random.default_rng(seed), extremes=rnd == 0)
     # the first population is run before scipy's solver is built (a claim the
     # first runs refute costs no solver setup); the solver's first call, on
     # this population, is answered from it
@@ -1322,13 +1310,150 @@ def _de(ev, space, popsize, seed, budget, rnd=0):
         tol=0.0, atol=0.0, callback=lambda *a, **k: ev.done)
 
 
+def _cmaes(ev, space, popsize, seed):
+    """CMA-ES (Hansen's (mu/mu_w, lambda) with his default parameters) over the
+    free coordinates scaled to [0, 1], after a seeded first design
+    (:func:`_seeded`, ``max(2 lambda, 2 n)`` points) whose best point is the
+    first mean; restarts with the population doubled (IPOP) from a fresh
+    uniform mean whenever a run converges, stalls or meets a flat margin."""
+    free = space.hi > space.lo
+    if not np.any(free):
+        ev(space.lo[None, :])
+        return
+    lo, width = space.lo[free], (space.hi - space.lo)[free]
+    n = int(free.sum())
+    rng = np.random.default_rng(seed)
+
+    def full(U):                             # (k, n_free) in [0, 1] -> (k, dim)
+        Z = np.tile(space.lo, (U.shape[0], 1))
+        Z[:, free] = lo + np.clip(U, 0.0, 1.0) * width
+        return Z
+
+    lam = popsize if popsize is not None else 4 + int(3 * math.log(n))
+    lam = max(2, lam)
+    init = (_seeded(ev, space, free, max(5, 2 * lam, 2 * n), rng) - lo) / width
+    vals = ev(full(init))
+    mean = init[int(np.argmin(vals))].copy()
+    restart = 0
+    while not ev.done:
+        ev.stages.append((ev.n, f"CMA-ES, population {lam}"
+                          + (f" (restart {restart})" if restart else "")))
+        _cma_run(ev, full, mean, 0.3, lam, rng)
+        restart += 1
+        lam *= 2
+        mean = rng.random(n)
+
+
+def _cma_run(ev, full, mean, sigma, lam, rng):
+    """One run of CMA-ES from ``mean`` with step ``sigma`` (unit box), until
+    the budget, a counterexample, convergence (sigma below 1e-6 of the box),
+    a stall (no better margin in 10 + 30 n / lambda generations) or a
+    margin flat over three populations in a row. Candidates are clipped into
+    the box and the update uses the clipped ones (a worst case on a face
+    is reached exactly)."""
+    n = mean.size
+    mu = lam // 2
+    w = math.log(mu + 0.5) - np.log(np.arange(1, mu + 1))
+    w /= w.sum()
+    mueff = 1.0 / np.sum(w ** 2)
+    cc = (4 + mueff / n) / (n + 4 + 2 * mueff / n)
+    cs = (mueff + 2) / (n + mueff + 5)
+    c1 = 2 / ((n + 1.3) ** 2 + mueff)
+    cmu = min(1 - c1, 2 * (mueff - 2 + 1 / mueff) / ((n + 2) ** 2 + mueff))
+    damps = 1 + 2 * max(0.0, math.sqrt((mueff - 1) / (n + 1)) - 1) + cs
+    chin = math.sqrt(n) * (1 - 1 / (4 * n) + 1 / (21 * n * n))
+    pc, ps = np.zeros(n), np.zeros(n)
+    B, D, C = np.eye(n), np.ones(n), np.eye(n)
+    best, since, flat, g = math.inf, 0, 0, 0
+    patience = 10 + math.ceil(30 * n / lam)
+    while not ev.done:
+        X = np.clip(mean + sigma * (rng.standard_normal((lam, n)) * D) @ B.T, 0.0, 1.0)
+        f = ev(full(X))
+        if ev.done:
+            return
+        if np.ptp(f) == 0:                   # no ranking: widen, then start afresh
+            flat += 1
+            if flat >= 3:
+                return
+            sigma = min(1.0, sigma * math.exp(0.2 + cs / damps))
+            continue
+        flat, g = 0, g + 1
+        if f.min() < best:
+            best, since = float(f.min()), 0
+        else:
+            since += 1
+        sel = np.argsort(f, kind="stable")[:mu]
+        Y = (X[sel] - mean) / sigma
+        yw = w @ Y
+        mean = mean + sigma * yw
+        ps = (1 - cs) * ps + math.sqrt(cs * (2 - cs) * mueff) * (B @ ((B.T @ yw) / D))
+        hsig = (np.linalg.norm(ps) / math.sqrt(1 - (1 - cs) ** (2 * g)) / chin
+                < 1.4 + 2 / (n + 1))
+        pc = (1 - cc) * pc + hsig * math.sqrt(cc * (2 - cc) * mueff) * yw
+        C = ((1 - c1 - cmu) * C + c1 * (np.outer(pc, pc) + (1 - hsig) * cc * (2 - cc) * C)
+             + cmu * (Y.T * w) @ Y)
+        sigma *= math.exp(cs / damps * (np.linalg.norm(ps) / chin - 1))
+        sigma = min(sigma, 1.0)
+        C = (C + C.T) / 2
+        ev2, B = np.linalg.eigh(C)
+        D = np.sqrt(np.maximum(ev2, 1e-20))
+        if sigma * D.max() < 1e-6 or since > patience or D.max() > 1e7 * D.min():
+            return
+
+
+def _seeded(ev, space, free, npop, rng, extremes=True):
+    """The first population of a search over the free coordinates, (npop,
+    n_free), its stages recorded on ``ev``: the entries' extreme members
+    (with ``extremes``; a restart has run them already), vertices of the box,
+    points on its faces and edges, a Latin hypercube."""
+    lo, hi = space.lo[free], space.hi[free]
+    nfree = int(free.sum())
+    # a Latin hypercube, a quarter of it replaced by vertices of the box: worst
+    # cases under bounded uncertainty are often extreme (bang-bang noise). The
+    # vertices come first (the first population runs in chunks of 1, 2, 4, ...
+    # when the search stops at a counterexample) and are distinct where the
+    # box has few of them
+    u = (rng.permuted(np.tile(np.arange(npop), (nfree, 1)), axis=1).T
+         + rng.random((npop, nfree))) / npop
+    nv = min(npop // 4, 2 ** min(nfree, 20))
+    if nfree <= 12:
+        corners = rng.choice(2 ** nfree, nv, replace=False)
+        u[:nv] = (corners[:, None] >> np.arange(nfree)) & 1
+    else:
+        u[:nv] = rng.integers(0, 2, (nv, nfree))
+    # before the vertices, the entries' extreme members that are not vertices
+    # (a Sinusoids' constant ±bound signals lie on its face f = 0, with
+    # sin φ = 1); after them, points on faces and edges of the box: each
+    # coordinate at one of its bounds with probability 1/2, else its Latin
+    # hypercube value (a worst case with some parameters at their bounds and
+    # the others inside)
+    ext = space.extremes(npop // 8, rng) if extremes else np.zeros((0, space.dim))
+    ue = (ext[:, free] - lo) / (hi - lo)
+    ne = len(ue)
+    nf = max(0, min(npop // 8, npop - ne - nv)) if nfree > 1 else 0
+    faces = u[nv:nv + nf].copy()
+    at = rng.random(faces.shape) < 0.5
+    faces[at] = rng.integers(0, 2, int(at.sum()))
+    u = np.vstack([ue, u[:nv], faces, u[nv + nf:]])[:npop]
+    init = lo + u * (hi - lo)
+    n0 = ev.n
+    for k, label in ((0, "a seeded extreme member of an entry (its extremes())"),
+                     (ne, "a seeded vertex of the box"),
+                     (ne + nv, "a seeded point on a face or an edge of the box"),
+                     (ne + nv + nf, "the first population's Latin hypercube")):
+        ev.stages.append((n0 + k, label))
+    return init
+
+
 def _refine(ev, space):
     """A compass (pattern) search from the worst point: each iteration tries a
     step of +h and -h along every free coordinate as one population, moves to
     the best if it improves, else halves h; steps are clipped into the box, so
     a worst case on a face or a vertex is reached exactly. While moves to a
     bound do best, each iteration also tries every free coordinate at each of
-    its bounds (the edges from the point to the faces of the box)."""
+    its bounds (the edges from the point to the faces of the box). It stops
+    when h falls below 1e-6, or when every step gave the point's own margin
+    (a flat margin: the search's budget goes to fresh designs instead)."""
     free = np.flatnonzero(space.hi > space.lo)
     if not free.size:                        # every coordinate fixed: nothing to move
         return
@@ -1350,6 +1475,8 @@ def _refine(ev, space):
         cand = cand[moved]
         is_snap = (np.arange(len(moved)) >= 2 * free.size)[moved]
         vals = ev(cand) if len(cand) else np.zeros(0)
+        if len(vals) and np.all(vals == best):
+            return                           # flat at every step: shorter ones tell no more
         k = int(np.argmin(vals)) if len(vals) else -1
         if k >= 0 and vals[k] < best:
             z, best = cand[k], vals[k]

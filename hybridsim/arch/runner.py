@@ -1,17 +1,20 @@
 """The ARCH-COMP falsification runner and its validator.
 
-``python -m hybridsim.arch --out DIR [--quick] [--trials 10] [--only AT1,CC1]``
-attempts every requirement on both instances, ``trials`` seeded searches each
-(:func:`hybridsim.falsify`, differential evolution over the instance's
-space, every population one compiled batch where numba is installed) within
-the competition's budget of 1,500 simulations, and writes
+``python -m hybridsim.arch --out DIR [--quick] [--trials 10] [--only AT1,CC1]
+[--method cmaes] [--baseline random]`` attempts every requirement on both
+instances, ``trials`` seeded searches each (:func:`hybridsim.falsify`, by
+default CMA-ES over the instance's space, every population one compiled
+batch where numba is installed) within the competition's budget of 1,500
+simulations, and, with ``--baseline``, as many trials of a second method
+(``random``: uniform sampling of the same space, the baseline), and writes
 
 * ``DIR/trials.csv``: the competition's per-trial format (system, property,
-  instance, seed, simulations, time, robustness, falsified, input), the
-  input the search ended on in the competition's ``[t a b; ...]`` rows;
-* ``DIR/summary.csv``: per requirement and instance, trials, falsified,
-  mean_simulations and median_simulations (over the falsified trials, the
-  competition's convention), median_seconds_per_trial (over all).
+  instance, method, seed, simulations, time, robustness, falsified, input),
+  the input the search ended on in the competition's ``[t a b; ...]`` rows;
+* ``DIR/summary.csv``: per requirement, instance and method, trials,
+  falsified, mean_simulations and median_simulations (over the falsified
+  trials, the competition's convention), median_seconds_per_trial (over
+  all), and published_mean_simulations (:data:`PUBLISHED`).
 
 ``python -m hybridsim.arch validate DIR`` simulates every falsifying input of
 ``DIR/trials.csv`` again, on the Python path (:func:`hybridsim.simulate`),
@@ -35,17 +38,24 @@ from ..run import simulate
 from .requirements import REQUIREMENTS
 from .spaces import INSTANCES, MODELS, input_matrix, model, parse_input, problem
 
-__all__ = ["run", "validate", "main", "BUDGET", "QUICK"]
+__all__ = ["run", "validate", "main", "BUDGET", "QUICK", "PUBLISHED"]
 
 _LOG = logging.getLogger("hybridsim.arch")
 #: the competition's budget of simulations per trial
 BUDGET = 1500
 #: what ``--quick`` attempts (two trials each)
 QUICK = ("AT1", "AT2", "AT54", "AT6a", "CC1", "CC2", "CC3")
-TRIAL_COLUMNS = ("system", "property", "instance", "seed", "simulations", "time",
+#: the best published mean number of simulations to falsify (every tool reaching
+#: 10/10, either instance; FalCAuN's 2023-2026 result files, as issue 43 quotes
+#: them), the figure each requirement's mean is held against
+PUBLISHED = {"AT1": 448, "AT2": 128, "AT6a": 458, "AT6b": 600, "AT6c": 449,
+             "AT6abc": 616, "CC1": 198, "CC2": 38, "CC3": 61, "CC4": 474}
+METHODS = ("cmaes", "de", "random")
+TRIAL_COLUMNS = ("system", "property", "instance", "method", "seed", "simulations", "time",
                  "robustness", "falsified", "input")
-SUMMARY_COLUMNS = ("requirement", "instance", "trials", "falsified", "mean_simulations",
-                   "median_simulations", "median_seconds_per_trial")
+SUMMARY_COLUMNS = ("requirement", "instance", "method", "trials", "falsified",
+                   "mean_simulations", "median_simulations", "median_seconds_per_trial",
+                   "published_mean_simulations")
 
 
 def _names(only):
@@ -61,7 +71,7 @@ def _names(only):
 
 
 def run(out, *, trials=10, only=None, instances=(1, 2), budget=BUDGET, quick=False,
-        backend="auto", log=None):
+        backend="auto", log=None, method="cmaes", baseline=None):
     """Run the benchmarks and write ``out/trials.csv`` and ``out/summary.csv``.
 
     Parameters
@@ -84,6 +94,11 @@ def run(out, *, trials=10, only=None, instances=(1, 2), budget=BUDGET, quick=Fal
         times are the searches'.
     log : callable, optional
         Where each trial's line goes (default the ``hybridsim.arch`` logger).
+    method : {"cmaes", "de", "random"}
+        The search (:func:`hybridsim.falsify`'s ``method``).
+    baseline : {"random", "de", "cmaes"}, optional
+        A second method run on the same trials' seeds, its rows beside the
+        search's (``"random"``: the random-sampling baseline).
 
     Returns
     -------
@@ -91,6 +106,10 @@ def run(out, *, trials=10, only=None, instances=(1, 2), budget=BUDGET, quick=Fal
         The summary rows.
     """
     names = _names(QUICK if quick and only is None else only)
+    methods = [method] + ([baseline] if baseline is not None and baseline != method else [])
+    bad = [m for m in methods if m not in METHODS]
+    if bad:
+        raise ValueError(f"method and baseline must be among {METHODS}, got {bad}")
     log = log or _LOG.info
     os.makedirs(out, exist_ok=True)
     rows, summary = [], []
@@ -102,31 +121,41 @@ def run(out, *, trials=10, only=None, instances=(1, 2), budget=BUDGET, quick=Fal
             if backend != "python" and available() and m._nb is None:
                 log(f"compiling the {req.system} model's maps (instance {inst}): "
                     f"{m.compile():.1f} s")
-            sims, secs, done = [], [], 0
-            for seed in range(trials):
-                res = falsify(run_, sp, claim, budget=budget, seed=seed, progress=False)
-                hit = res.verdict == "counterexample"
-                done += hit
-                secs.append(res.seconds)
-                if hit:
-                    sims.append(res.evaluations)
-                rows.append({"system": req.system, "property": name, "instance": inst,
-                             "seed": seed, "simulations": res.evaluations,
-                             "time": f"{res.seconds:.3f}", "robustness": repr(res.margin),
-                             "falsified": "yes" if hit else "no",
-                             "input": input_matrix(res.point)})
-                log(f"{name} instance {inst} seed {seed}: "
-                    f"{'falsified' if hit else 'not falsified'} after {res.evaluations} "
-                    f"simulations, robustness {res.margin:.4g}, {res.seconds:.1f} s")
-            summary.append({
-                "requirement": name, "instance": inst, "trials": trials, "falsified": done,
-                "mean_simulations": f"{statistics.fmean(sims):.1f}" if sims else "",
-                "median_simulations": f"{statistics.median(sims):g}" if sims else "",
-                "median_seconds_per_trial": f"{statistics.median(secs):.2f}"})
+            for meth in methods:
+                summary.append(_trials(run_, sp, claim, req, inst, meth, trials, budget,
+                                       rows, log))
             # written after each requirement and instance: a long run's tables so far
             _write(os.path.join(out, "trials.csv"), TRIAL_COLUMNS, rows)
             _write(os.path.join(out, "summary.csv"), SUMMARY_COLUMNS, summary)
     return summary
+
+
+def _trials(run_, sp, claim, req, inst, method, trials, budget, rows, log):
+    """``trials`` seeded searches of one requirement and instance by ``method``:
+    their rows appended to ``rows``, the summary row returned."""
+    sims, secs, done = [], [], 0
+    for seed in range(trials):
+        res = falsify(run_, sp, claim, budget=budget, seed=seed, method=method,
+                      progress=False)
+        hit = res.verdict == "counterexample"
+        done += hit
+        secs.append(res.seconds)
+        if hit:
+            sims.append(res.evaluations)
+        rows.append({"system": req.system, "property": req.name, "instance": inst,
+                     "method": method, "seed": seed, "simulations": res.evaluations,
+                     "time": f"{res.seconds:.3f}", "robustness": repr(res.margin),
+                     "falsified": "yes" if hit else "no",
+                     "input": input_matrix(res.point)})
+        log(f"{req.name} instance {inst} {method} seed {seed}: "
+            f"{'falsified' if hit else 'not falsified'} after {res.evaluations} "
+            f"simulations, robustness {res.margin:.4g}, {res.seconds:.1f} s")
+    return {"requirement": req.name, "instance": inst, "method": method, "trials": trials,
+            "falsified": done,
+            "mean_simulations": f"{statistics.fmean(sims):.1f}" if sims else "",
+            "median_simulations": f"{statistics.median(sims):g}" if sims else "",
+            "median_seconds_per_trial": f"{statistics.median(secs):.2f}",
+            "published_mean_simulations": PUBLISHED.get(req.name, "")}
 
 
 def _write(path, columns, rows):
@@ -210,13 +239,17 @@ def main(argv=None):
     p.add_argument("--trials", type=int, default=None, help="trials per requirement (10)")
     p.add_argument("--only", default=None, help="comma-separated requirements, e.g. AT1,CC1")
     p.add_argument("--budget", type=int, default=BUDGET, help="simulations per trial (1500)")
+    p.add_argument("--method", default="cmaes", choices=METHODS,
+                   help="the search (default cmaes)")
+    p.add_argument("--baseline", default=None, choices=METHODS,
+                   help="a second method in the same tables, e.g. random")
     a = p.parse_args(argv)
     trials = a.trials if a.trials is not None else (2 if a.quick else 10)
     if trials < 1:
         p.error(f"--trials must be >= 1, got {trials}")
     t0 = time.perf_counter()
     summary = run(a.out, trials=trials, only=a.only, budget=a.budget, quick=a.quick,
-                  log=print)
+                  log=print, method=a.method, baseline=a.baseline)
     width = max(len(c) for c in SUMMARY_COLUMNS)
     print(" | ".join(c.ljust(min(width, 12)) for c in SUMMARY_COLUMNS))
     for s in summary:

@@ -4,7 +4,7 @@ ARCH-COMP's two instances (the benchmark files' ``requirements.txt``):
 
 1. any piecewise continuous inputs within their ranges; each tool chooses
    its parameterisation. Here: piecewise linear through control points
-   every 5 s (AT: 7 points on [0, 30]; CC: every 10 s, 11 points on
+   (AT: every 2.5 s, 13 points on [0, 30]; CC: every 10 s, 11 points on
    [0, 100]), each value free in its range.
 2. piecewise constant inputs whose discontinuities are at least 5 s apart:
    here a value every 5 s (AT: 6 pieces on [0, 30]; CC: 20 pieces on
@@ -37,7 +37,7 @@ __all__ = ["INSTANCES", "space", "model", "problem", "MODELS"]
 MODELS = {"AT": AutomaticTransmission, "CC": ChasingCars}
 #: (t_end, points, interpolation) of each model's instance 1 and 2
 INSTANCES = {
-    ("AT", 1): (30.0, 7, "linear"),
+    ("AT", 1): (30.0, 13, "linear"),
     ("AT", 2): (30.0, 6, "previous"),
     ("CC", 1): (100.0, 11, "linear"),
     ("CC", 2): (100.0, 20, "previous"),

@@ -229,7 +229,7 @@ def test_control_points_bad_arguments(args, match):
 
 
 def test_instance_spaces_and_the_input_format():
-    assert space("AT", 1).dim == 14 and space("AT", 2).dim == 12
+    assert space("AT", 1).dim == 26 and space("AT", 2).dim == 12
     assert space("CC", 1).dim == 22 and space("CC", 2).dim == 40
     run_, sp, claim, t_max = problem("AT6a", 1, backend="python")
     assert t_max == 30.0 and run_.batch
@@ -250,19 +250,25 @@ def test_runner_writes_the_tables_and_the_validator_confirms(tmp_path):
     # AT2 on instance 2 (a vertex of the box falsifies it within the first runs)
     lines = []
     summary = run(tmp_path, trials=2, only="AT2", instances=(2,), budget=40,
-                  backend="python", log=lines.append)
-    assert summary == [dict(summary[0], requirement="AT2", instance=2, trials=2, falsified=2)]
+                  backend="python", log=lines.append, baseline="random")
+    assert [(s["method"], s["requirement"], s["instance"], s["trials"])
+            for s in summary] == [("cmaes", "AT2", 2, 2), ("random", "AT2", 2, 2)]
+    assert summary[0]["falsified"] == 2 and summary[0]["published_mean_simulations"] == 128
     with open(tmp_path / "trials.csv") as fh:
         rows = list(csv.DictReader(fh))
-    assert list(rows[0]) == ["system", "property", "instance", "seed", "simulations", "time",
-                             "robustness", "falsified", "input"]
-    assert all(float(r["robustness"]) < 0 and int(r["simulations"]) <= 40 for r in rows)
+    assert list(rows[0]) == ["system", "property", "instance", "method", "seed",
+                             "simulations", "time", "robustness", "falsified", "input"]
+    assert [r["method"] for r in rows] == ["cmaes"] * 2 + ["random"] * 2
+    assert all(int(r["simulations"]) <= 40 for r in rows)
+    assert all(float(r["robustness"]) < 0 for r in rows if r["falsified"] == "yes")
     with open(tmp_path / "summary.csv") as fh:
-        assert next(csv.reader(fh)) == ["requirement", "instance", "trials", "falsified",
-                                        "mean_simulations", "median_simulations",
-                                        "median_seconds_per_trial"]
+        assert next(csv.reader(fh)) == ["requirement", "instance", "method", "trials",
+                                        "falsified", "mean_simulations",
+                                        "median_simulations", "median_seconds_per_trial",
+                                        "published_mean_simulations"]
     checked = validate(tmp_path, log=lines.append)
-    assert len(checked) == 2 and all(c["ok"] and c["again"] < 0 for c in checked)
+    hits = sum(r["falsified"] == "yes" for r in rows)
+    assert len(checked) == hits >= 2 and all(c["ok"] and c["again"] < 0 for c in checked)
     assert main(["validate", str(tmp_path)]) == 0
 
 
@@ -286,7 +292,11 @@ def test_validator_confirms_or_refutes_each_falsifying_input(tmp_path):
 def test_runner_refuses_bad_arguments(tmp_path):
     with pytest.raises(ValueError, match="unknown requirements"):
         run(tmp_path, only="AT9")
+    with pytest.raises(ValueError, match="method and baseline"):
+        run(tmp_path, only="AT1", baseline="bayes")
     with pytest.raises(SystemExit):
         main(["--out", str(tmp_path), "--trials", "0"])
+    with pytest.raises(SystemExit):
+        main(["--out", str(tmp_path), "--method", "bayes"])
     with pytest.raises(FileNotFoundError, match="no trials.csv"):
         validate(tmp_path)
