@@ -24,14 +24,21 @@ function's own node in its file, so every message names the file and line):
   global becomes a slot of ``p`` (:class:`Layout`, read again before every
   run: changing ``ball.e`` changes the next run), ``self.helper(...)`` and
   calls of plain functions are followed (rewritten the same way), modules
-  are imported by name. ``self.a is None`` (``is not None``) is known when
+  are imported by name. Parts of the system are read through: ``self.design.F1``,
+  ``d = self.design`` then ``d.F1``, ``self.data.flow(...)`` (a method of a
+  part, followed); another object in its place rewrites the maps. A bool or
+  str attribute is a constant of the rewrite (``self.mode == "pwc"`` decides
+  its branch, the other is dropped), and ``self.slices["x"]`` (a dict read by
+  a constant key) its value (a slice as ``a:b``); a change rewrites the maps.
+  ``self.a is None`` (``is not None``) is known when
   the maps are rewritten: the test becomes a constant and the branch not
   taken is dropped (the plan is made again where it changes). A product
   ``a @ b`` compiles as loops summing in index order (``_hs_matmul``), and
   one with a matrix the map reads from ``self`` (``self.M @ v``, ``v @
   self.M.T``, ``y += v @ self.M.T``) reads it in place from ``p``
-  (:func:`hybridsim.compiled.matvec`). For a part of an interconnection
-  (``plan(system, component=True)``) the maps take ``(x, u, t, j, p)``
+  (:func:`hybridsim.compiled.matvec`; ``self.M @ X`` of a matrix X is M X).
+  For a part of an interconnection (``plan(system, component=True)``) the
+  maps take ``(x, u, t, j, p)``
   and its output ``(x, t, j, p)``. What cannot be rewritten is refused by a
   :class:`SourceRefusal` naming the method and its line: ``self`` passed or
   written, global state, random draws, an object numba cannot type.
