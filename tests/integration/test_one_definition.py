@@ -193,7 +193,7 @@ class Table(hs.HybridSystem):
         self.table = {"rate": 1.0}
 
     def flow_map(self, x):
-        return -self.table["rate"] * x          # a dict: refused
+        return -self.table.get("rate") * x      # a dict as a value: refused
 
 
 _LINE = Table.flow_map.__code__.co_firstlineno + 1
