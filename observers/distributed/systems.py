@@ -214,6 +214,60 @@ class DistributedObserverNode(hs.HybridSystem):
     def output(self, x, t, j):
         return self.data.estimate(np.asarray(x, dtype=float))
 
+    # Kept: the source rewrite compiles flow_map/output as written (same numbers to the
+    # bit), but its array temporaries cost 460 ns a flow call against 150 ns here, and the
+    # ring of 8 (benchmarks/bench_distributed.py's N=8) 2.4x in the kernel (0.09 -> 0.22 s).
+    def compiled_component(self):
+        """The node's compiled form (``backend="compiled"``): (7)-(8) or
+        (4)-(5) as :meth:`_NodeData.flow`, with H, N, κ and T in its parameters."""
+        from hybridsim.compiled import Component
+        d = self.data
+        rows, cols = d.H.shape
+        npow = d.N_pow.shape[1] if d._powers else 0
+        flow, output = _node_maps(d.n, cols, rows, npow)
+        mats = [d.H.ravel(), d.T.ravel()]
+        if npow:
+            mats += [d.N_pow.ravel(), d.kappa]
+        return Component(state_dim=d.n, input_dim=self.input_dim, flow=flow, output=output,
+                         output_dim=d.n, params=np.concatenate(mats))
+
+
+@functools.cache
+def _node_maps(n, cols, rows, npow):
+    """Compiled maps of a node: f = (H w)[:n] - N ⌈(H w)[n:]⌋^κ, w = (z, u), and
+    the estimate T z; H (rows, cols), T (n, n), N (n, npow), κ (npow,) in the
+    parameters (no power term where npow = 0)."""
+    from hybridsim.compiled import compiled_matvec
+    mv = compiled_matvec()
+    oT = rows * cols
+    oN = oT + n * n
+    ok = oN + n * npow
+
+    def flow(z, u, t, j, prm):
+        w = np.empty(rows)                        # H (z, u), row by row: one array,
+        for i in range(rows):                     # the flow's rows, then q's
+            b = i * cols
+            acc = 0.0
+            for k in range(n):
+                acc += prm[b + k] * z[k]
+            for k in range(cols - n):
+                acc += prm[b + n + k] * u[k]
+            w[i] = acc
+        out, q = w[:n], w[n:]
+        for c in range(npow):                     # ⌈q⌋^κ, once a component
+            a = abs(q[c]) ** prm[ok + c]
+            q[c] = a if q[c] >= 0.0 else -a
+        for i in range(n):                        # - N ⌈q⌋^κ
+            acc = 0.0
+            for c in range(npow):
+                acc += prm[oN + i * npow + c] * q[c]
+            out[i] -= acc
+        return out
+
+    def output(z, t, j, prm):
+        return mv(prm, oT, n, n, z)
+    return flow, output
+
 
 def observer_network(dsg: DistributedDesign, *, noise=None, disturbance=None):
     """Plant (1) and the observer nodes as one interconnected hybrid system.
@@ -400,8 +454,7 @@ class BandLimitedNoise(hs.HybridSystem):
         return np.zeros(np.shape(x))
 
     # Kept beside output(): output is written over batches (np.take_along_axis, np.clip
-    # of the index arrays), which numba cannot compile for one state (np.clip of an int);
-    # a per-state form would be a second output on the vectorized path.
+    # of the index arrays), which numba cannot compile for one state (np.clip of an int).
     def compiled_component(self):
         """The generator's compiled form (``backend="compiled"``): the same
         interpolation (numpy.interp's formula) over the grid in its parameters."""
