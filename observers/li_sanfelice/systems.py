@@ -113,6 +113,25 @@ class _TwoCopyObserver(hs.HybridSystem):
         d = self.design
         return d.a1 * x[..., self.slices["xh1"]] + d.a2 * x[..., self.slices["xh2"]]
 
+    # Kept: the source rewrite compiles H_n's maps as written (the paper's tests pass on
+    # it), but its array temporaries cost 328 ns a flow call against 56 ns here and a
+    # 200-run noise batch of V.B 1.8x (0.026 -> 0.047 s); H_c's batch maps (Xi_matrix's
+    # swapaxes) numba cannot compile for one state.
+    def compiled_component(self):
+        """The observer's compiled form (``backend="compiled"``, see
+        :func:`hybridsim.compiled.lower`): the same (10)-(12) / (17)-(18)
+        with the design's matrices in its parameters."""
+        from hybridsim.compiled import Component
+        d = self.design
+        f, g, hD, D, h = _two_copy_maps(d.n, d.p, self._has_xi, self._has_q)
+        mats = [d.F1, d.F2, d.L1, d.L2, d.K1, d.K2]
+        if self._has_xi:
+            mats += [d.A, d.H, self._Lt1.reshape(1, -1), self._Lt2.reshape(1, -1)]
+        params = np.concatenate([np.asarray(M, dtype=float).ravel() for M in mats]
+                                + [[d.delta, d.a1, d.a2]])
+        return Component(state_dim=self.state_dim, input_dim=d.p, flow=f, jump=g,
+                         jump_guard=hD, jump_set=D, output=h, output_dim=d.n, params=params)
+
     # -- helpers --------------------------------------------------------
     def _jump_gains(self, x):
         """(K1, K2) of the jump from the state x (one state or a batch): the design's (12)."""
@@ -197,8 +216,7 @@ class _JumpWindow:
     """
 
     vectorized = False
-    #: not H_pc's compiled form, which jumps at delta with fixed gains (the window's
-    #: maps are refused by the source rewrite by name: scipy's expm)
+    #: no compiled form: the lowered H_n / H_pc would jump at delta with fixed gains
     compiled_component = None
 
     def _window(self, delta_lo):
@@ -306,22 +324,6 @@ class _NoiseCompensating(_TwoCopyObserver):
             xn[..., self._q] = 1.0 - x[..., self._q]
         return xn
 
-    # Kept: the maps above are written over batches (Xi_matrix's swapaxes and reshape of
-    # the last axes, solve of stacked systems), which numba cannot compile for one state
-    # ("Unknown attribute 'swapaxes'"); H_n's maps run compiled as written.
-    def compiled_component(self):
-        """The observer's compiled form (``backend="compiled"``): (17)-(18)
-        with the design's matrices in its parameters."""
-        from hybridsim.compiled import Component
-        d = self.design
-        f, g, hD, D, h = _noise_compensating_maps(d.n, d.p, self._has_q)
-        mats = [d.F1, d.F2, d.L1, d.L2, d.K1, d.K2, d.A, d.H, self._Lt1.reshape(1, -1),
-                self._Lt2.reshape(1, -1)]
-        params = np.concatenate([np.asarray(M, dtype=float).ravel() for M in mats]
-                                + [[d.delta, d.a1, d.a2]])
-        return Component(state_dim=self.state_dim, input_dim=d.p, flow=f, jump=g,
-                         jump_guard=hD, jump_set=D, output=h, output_dim=d.n, params=params)
-
 
 class ConstantNoiseObserver(_NoiseCompensating):
     """H_c, the observer (17)-(18) that is exact after one jump under constant noise.
@@ -423,10 +425,11 @@ class LuenbergerObserver(hs.HybridSystem):
 
 
 @functools.cache
-def _noise_compensating_maps(n, p, has_q):
-    """Compiled maps of H_c / H_pc (17)-(18) (:meth:`_NoiseCompensating.compiled_component`),
-    reading F1, F2, L1, L2, K1, K2, A, H, vec L1, vec L2, delta, a1, a2
-    from the parameters, row-major."""
+def _two_copy_maps(n, p, has_xi, has_q):
+    """Compiled maps of H_n (10)-(12) (``has_xi`` False) or H_c / H_pc (17)-(18),
+    reading F1, F2, L1, L2, K1, K2 [, A, H, vec L1, vec L2], delta, a1, a2
+    from the parameters, row-major. Plain numpy and loops: numba compiles
+    them when the observer is lowered (:func:`hybridsim.compiled.lower`)."""
     from hybridsim.compiled import compiled_matvec
     mv = compiled_matvec()
     nn, np_ = n * n, n * p
@@ -434,37 +437,49 @@ def _noise_compensating_maps(n, p, has_q):
     oK1, oK2 = 2 * nn + 2 * np_, 3 * nn + 2 * np_
     o = 4 * nn + 2 * np_
     oA, oH, oLt1, oLt2 = o, o + nn, o + nn + p * n, o + nn + p * n + np_
-    odelta = oLt2 + np_
-    # state layout: xh1, xh2, xi1, xi2, mhat, tau [, q]
+    if has_xi:
+        o = oLt2 + np_
+    odelta = o
+    # state layout: xh1, xh2 [, xi1, xi2, mhat], tau [, q]
     ixi1, ixi2 = 2 * n, 2 * n + np_
     imh = 2 * n + 2 * np_
-    itau = imh + p
+    itau = imh + p if has_xi else 2 * n
     iq = itau + 1
     r = itau + 1 + (1 if has_q else 0)
 
     def flow(x, u, t, j, prm):
         dx = np.empty(r)
-        for b, oL in ((0, oL1), (n, oL2)):           # (17): A x̂ + L (y - H x̂ - m̂)
-            for i in range(n):
-                a = 0.0
-                for k in range(n):
-                    a += prm[oA + i * n + k] * x[b + k]
-                dx[b + i] = a
-            for c in range(p):
-                e = u[c] - x[imh + c]
-                for k in range(n):
-                    e -= prm[oH + c * n + k] * x[b + k]
+        if has_xi:
+            for b, oL in ((0, oL1), (n, oL2)):           # (17): A x̂ + L (y - H x̂ - m̂)
                 for i in range(n):
-                    dx[b + i] += prm[oL + i * p + c] * e
-        for ix, oF, oLt in ((ixi1, oF1, oLt1), (ixi2, oF2, oLt2)):
-            for c in range(p):       # column c of Xi: xi[c n:(c+1) n]
-                for i in range(n):
-                    a = prm[oLt + c * n + i]
+                    a = 0.0
                     for k in range(n):
-                        a += prm[oF + i * n + k] * x[ix + c * n + k]
-                    dx[ix + c * n + i] = a
-        for c in range(p):
-            dx[imh + c] = 0.0
+                        a += prm[oA + i * n + k] * x[b + k]
+                    dx[b + i] = a
+                for c in range(p):
+                    e = u[c] - x[imh + c]
+                    for k in range(n):
+                        e -= prm[oH + c * n + k] * x[b + k]
+                    for i in range(n):
+                        dx[b + i] += prm[oL + i * p + c] * e
+            for ix, oF, oLt in ((ixi1, oF1, oLt1), (ixi2, oF2, oLt2)):
+                for c in range(p):       # column c of Xi: xi[c n:(c+1) n]
+                    for i in range(n):
+                        a = prm[oLt + c * n + i]
+                        for k in range(n):
+                            a += prm[oF + i * n + k] * x[ix + c * n + k]
+                        dx[ix + c * n + i] = a
+            for c in range(p):
+                dx[imh + c] = 0.0
+        else:
+            for b, oF, oL in ((0, oF1, oL1), (n, oF2, oL2)):     # (11): F x̂ + L y
+                for i in range(n):
+                    a = 0.0
+                    for k in range(n):
+                        a += prm[oF + i * n + k] * x[b + k]
+                    for c in range(p):
+                        a += prm[oL + i * p + c] * u[c]
+                    dx[b + i] = a
         dx[itau] = 1.0 - x[iq] if has_q else 1.0
         if has_q:
             dx[iq] = 0.0
@@ -481,21 +496,25 @@ def _noise_compensating_maps(n, p, has_q):
     def jump(x, u, t, j, prm):
         R = mv(prm, oK1, n, n, x[:n]) + mv(prm, oK2, n, n, x[n:2 * n])
         xn = np.zeros(r)
-        mh = x[imh:imh + p]
-        T = np.empty((n, p))
-        for k in range(p):
-            T[:, k] = (mv(prm, oK1, n, n, x[ixi1 + k * n:ixi1 + (k + 1) * n])
-                       + mv(prm, oK2, n, n, x[ixi2 + k * n:ixi2 + (k + 1) * n]))
-        HT = np.empty((p, p))
-        for k in range(p):
-            HT[:, k] = mv(prm, oH, p, n, np.ascontiguousarray(T[:, k]))
-        for k in range(p):
-            HT[k, k] -= 1.0
-        w = np.linalg.solve(HT, mv(prm, oH, p, n, R) - (u - mh))
-        Tw = T @ w
-        xn[:n] = R - Tw
-        xn[n:2 * n] = R - Tw
-        xn[imh:imh + p] = mh + w
+        if has_xi:
+            mh = x[imh:imh + p]
+            T = np.empty((n, p))
+            for k in range(p):
+                T[:, k] = (mv(prm, oK1, n, n, x[ixi1 + k * n:ixi1 + (k + 1) * n])
+                           + mv(prm, oK2, n, n, x[ixi2 + k * n:ixi2 + (k + 1) * n]))
+            HT = np.empty((p, p))
+            for k in range(p):
+                HT[:, k] = mv(prm, oH, p, n, np.ascontiguousarray(T[:, k]))
+            for k in range(p):
+                HT[k, k] -= 1.0
+            w = np.linalg.solve(HT, mv(prm, oH, p, n, R) - (u - mh))
+            Tw = T @ w
+            xn[:n] = R - Tw
+            xn[n:2 * n] = R - Tw
+            xn[imh:imh + p] = mh + w
+        else:
+            xn[:n] = R
+            xn[n:2 * n] = R
         if has_q:
             xn[iq] = 1.0 - x[iq]
         return xn
@@ -504,6 +523,23 @@ def _noise_compensating_maps(n, p, has_q):
         return prm[odelta + 1] * x[:n] + prm[odelta + 2] * x[n:2 * n]
 
     return flow, jump, jump_guard, jump_set, output
+
+
+@functools.cache
+def _sinusoid_output(p, K):
+    """Compiled output of :class:`BoundedNoiseGenerator`: m_i = sum_k a_ik sin(w_ik t + phi_ik)."""
+    pk = p * K
+
+    def output(x, t, j, prm):
+        m = np.zeros(p)
+        for i in range(p):
+            s = 0.0
+            for k in range(K):
+                q = i * K + k
+                s += x[q] * math.sin(x[pk + q] * t + x[2 * pk + q])
+            m[i] = s
+        return m
+    return output
 
 
 class BoundedNoiseGenerator(hs.HybridSystem):
@@ -525,6 +561,13 @@ class BoundedNoiseGenerator(hs.HybridSystem):
 
     def flow_map(self, x, t, j, u):
         return np.zeros(np.shape(x))
+
+    # Kept: the rewritten output (as written) costs 310 ns a call against 133 ns here.
+    def compiled_component(self):
+        """The generator's compiled form (``backend="compiled"``)."""
+        from hybridsim.compiled import Component
+        return Component(state_dim=self.state_dim, output=_sinusoid_output(self.p, self.K),
+                         output_dim=self.p)
 
     def _parts(self, x):
         pk, shape = self.p * self.K, x.shape[:-1] + (self.p, self.K)
