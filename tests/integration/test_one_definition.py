@@ -438,3 +438,30 @@ def test_parts_of_the_system_and_str_branches_are_read_when_the_maps_are_rewritt
     s.mode = "plain"                            # the other branch
     assert set(lower(s).layout.names()) == {"gains.K"}
     np.testing.assert_allclose(hs.simulate(s, **kw).xf, np.exp([-2.0, -4.0]), rtol=1e-9)
+
+
+@pytest.mark.slow
+def test_the_observers_maps_as_written_are_their_compiled_forms():
+    """The source rewrite of observer maps written over batches (parts of self,
+    ``d = self.design``, ``self.slices[...]``, bool flags, ``x[..., k]``)
+    gives the numbers of their hand-written compiled forms (kept for speed:
+    the reasons are beside them)."""
+    from hybridsim.compiled import _from_source
+    from observers import li_sanfelice as ls
+    from observers.distributed import example_observer
+    rng = np.random.default_rng(0)
+    node = example_observer().nodes[1]
+    hn = ls.NominalObserver(ls.example_VB())
+    for system in (node, hn):
+        maps, output, p = _from_source.component_maps(system)
+        twin = system.compiled_component()
+        for _ in range(5):
+            x = rng.standard_normal(system.state_dim)
+            x[-1] = 0.0 if system is hn else x[-1]          # H_n before its jump: q = 0
+            u = rng.standard_normal(system.input_dim)
+            for role, fn in maps.items():
+                np.testing.assert_allclose(fn(x, u, 0.3, 0, p),
+                                           twin.maps[role](x, u, 0.3, 0, twin.params),
+                                           rtol=1e-14, atol=1e-15)
+            np.testing.assert_allclose(output(x, 0.3, 0, p),
+                                       twin.output(x, 0.3, 0, twin.params), rtol=1e-14)
