@@ -216,7 +216,7 @@ class DistributedObserverNode(hs.HybridSystem):
 
     # Kept: the source rewrite compiles flow_map/output as written (same numbers to the
     # bit), but its array temporaries cost 460 ns a flow call against 150 ns here, and the
-    # ring of 8 (benchmarks/bench_distributed.py's N=8) 2.4x in the kernel (0.09 -> 0.22 s).
+    # ring of 8 2.4x in the kernel (0.09 -> 0.22 s); benchmarks/bench_rewrite_vs_twin.py.
     def compiled_component(self):
         """The node's compiled form (``backend="compiled"``): (7)-(8) or
         (4)-(5) as :meth:`_NodeData.flow`, with H, N, κ and T in its parameters."""

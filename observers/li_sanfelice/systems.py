@@ -116,7 +116,7 @@ class _TwoCopyObserver(hs.HybridSystem):
     # Kept: the source rewrite compiles H_n's maps as written (the paper's tests pass on
     # it), but its array temporaries cost 328 ns a flow call against 56 ns here and a
     # 200-run noise batch of V.B 1.8x (0.026 -> 0.047 s); H_c's batch maps (Xi_matrix's
-    # swapaxes) numba cannot compile for one state.
+    # swapaxes) numba cannot compile for one state. benchmarks/bench_rewrite_vs_twin.py.
     def compiled_component(self):
         """The observer's compiled form (``backend="compiled"``, see
         :func:`hybridsim.compiled.lower`): the same (10)-(12) / (17)-(18)
@@ -562,7 +562,8 @@ class BoundedNoiseGenerator(hs.HybridSystem):
     def flow_map(self, x, t, j, u):
         return np.zeros(np.shape(x))
 
-    # Kept: the rewritten output (as written) costs 310 ns a call against 133 ns here.
+    # Kept: the rewritten output (as written) costs about 4x this one a call
+    # (benchmarks/bench_rewrite_vs_twin.py).
     def compiled_component(self):
         """The generator's compiled form (``backend="compiled"``)."""
         from hybridsim.compiled import Component
