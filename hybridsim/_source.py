@@ -24,14 +24,21 @@ function's own node in its file, so every message names the file and line):
   global becomes a slot of ``p`` (:class:`Layout`, read again before every
   run: changing ``ball.e`` changes the next run), ``self.helper(...)`` and
   calls of plain functions are followed (rewritten the same way), modules
-  are imported by name. ``self.a is None`` (``is not None``) is known when
+  are imported by name. Parts of the system are read through: ``self.design.F1``,
+  ``d = self.design`` then ``d.F1``, ``self.data.flow(...)`` (a method of a
+  part, followed); another object in its place rewrites the maps. A bool or
+  str attribute is a constant of the rewrite (``self.mode == "pwc"`` decides
+  its branch, the other is dropped), and ``self.slices["x"]`` (a dict read by
+  a constant key) its value (a slice as ``a:b``); a change rewrites the maps.
+  ``self.a is None`` (``is not None``) is known when
   the maps are rewritten: the test becomes a constant and the branch not
   taken is dropped (the plan is made again where it changes). A product
   ``a @ b`` compiles as loops summing in index order (``_hs_matmul``), and
   one with a matrix the map reads from ``self`` (``self.M @ v``, ``v @
   self.M.T``, ``y += v @ self.M.T``) reads it in place from ``p``
-  (:func:`hybridsim.compiled.matvec`). For a part of an interconnection
-  (``plan(system, component=True)``) the maps take ``(x, u, t, j, p)``
+  (:func:`hybridsim.compiled.matvec`; ``self.M @ X`` of a matrix X is M X).
+  For a part of an interconnection (``plan(system, component=True)``) the
+  maps take ``(x, u, t, j, p)``
   and its output ``(x, t, j, p)``. What cannot be rewritten is refused by a
   :class:`SourceRefusal` naming the method and its line: ``self`` passed or
   written, global state, random draws, an object numba cannot type.
@@ -491,11 +498,31 @@ class Layout:
     def __init__(self):
         self.slots, self.readers, self.size, self._index = [], [], 0, {}
         self.checks = {}            # key -> (reader, whether the value was None)
+        self.parts = {}             # key -> (reader, the part of the system followed)
+        self.folded = {}            # key -> (reader, the bool or str written as a constant)
 
     def require(self, key, reader, is_none):
         """Record that the rewrite folded ``reader() is None`` to ``is_none``
         (a branch taken): :meth:`read` asks for a rewrite where it changes."""
         self.checks.setdefault(key, (reader, is_none))
+
+    def same(self, key, reader, obj):
+        """Record that the rewrite followed ``reader()``, the part ``obj`` of the
+        system (``self.design``): :meth:`read` asks for a rewrite where it is
+        another object."""
+        self.parts.setdefault(key, (reader, obj))
+
+    def fold(self, key, reader, value):
+        """Record that the rewrite wrote ``reader()`` (a bool or a str) as the
+        constant ``value``: :meth:`read` asks for a rewrite where it changes."""
+        self.folded.setdefault(key, (reader, value))
+
+    def _unchanged(self):
+        try:
+            return all(rd() is obj for rd, obj in self.parts.values()) and all(
+                type(rd()) is type(v) and rd() == v for rd, v in self.folded.values())
+        except Exception:  # noqa: BLE001 - an attribute deleted since: rewrite
+            return False
 
     def add(self, key, name, value, reader):
         hit = self._index.get(key)
@@ -519,6 +546,8 @@ class Layout:
                     return None
             except Exception:  # noqa: BLE001 - an attribute deleted since: rewrite
                 return None
+        if (self.parts or self.folded) and not self._unchanged():
+            return None
         p = np.empty(self.size)
         for (_, kind, shape, off, size), rd in zip(self.slots, self.readers):
             try:
@@ -599,6 +628,129 @@ def _known(t):
     return None
 
 
+def _is_part(v, tables=False):
+    """Whether ``v`` is a part of a system the rewrite reads through (an
+    instance of a Python class: not a number, array, string, module, function
+    or container; ``tables``: or a dict of str keys, read by constant keys)."""
+    if tables and isinstance(v, dict) and all(isinstance(k, str) for k in v):
+        return True
+    return (v is not _MISSING and v is not None and hasattr(v, "__dict__")
+            and not isinstance(v, (type, types.ModuleType, types.FunctionType,
+                                   types.MethodType, np.ndarray, np.generic))
+            and _kind(v) is None)
+
+
+def _as_slice(e):
+    """An index with ``slice(a, b, c)`` of constants written ``a:b:c``."""
+    if isinstance(e, ast.Tuple):
+        e.elts = [_as_slice(v) for v in e.elts]
+        return e
+    if isinstance(e, ast.Call) and isinstance(e.func, ast.Name) and e.func.id == "slice" \
+            and len(e.args) == 3 and not e.keywords \
+            and all(isinstance(a, ast.Constant) for a in e.args):
+        return ast.copy_location(ast.Slice(*(None if a.value is None else a
+                                             for a in e.args)), e)
+    return e
+
+
+def _dotted(node):
+    return ast.unparse(node)
+
+
+def _chain_value(fn, e):
+    """The value of ``self.a.b`` (an attribute chain from ``self``), or _MISSING."""
+    chain = []
+    while isinstance(e, ast.Attribute):
+        chain.append(e.attr)
+        e = e.value
+    if not (chain and isinstance(e, ast.Name) and e.id == fn.self_name):
+        return _MISSING
+    v = fn.obj
+    for a in reversed(chain):
+        v = getattr(v, a, _MISSING)
+        if v is _MISSING:
+            break
+    return v
+
+
+class _Alias(ast.NodeTransformer):
+    def __init__(self, names):
+        self.names = names
+
+    def visit_Name(self, node):
+        e = self.names.get(node.id)
+        if e is None or not isinstance(node.ctx, ast.Load):
+            return node
+        return ast.fix_missing_locations(ast.copy_location(copy.deepcopy(e), node))
+
+
+def _inline_parts(fn, node):
+    """``d = self.design`` (a name given once, at the top of the body, a part
+    of the system) read as ``self.design`` wherever ``d`` is read: numba
+    cannot hold the part, the rewrite reads through it."""
+    if fn.self_name is None:
+        return
+    stores = {}
+    for n in ast.walk(node):
+        if isinstance(n, ast.Name) and isinstance(n.ctx, (ast.Store, ast.Del)):
+            stores[n.id] = stores.get(n.id, 0) + 1
+    names, body = {}, []
+    for st in node.body:
+        if isinstance(st, ast.Assign) and len(st.targets) == 1:
+            t, v = st.targets[0], st.value
+            pairs = (list(zip(t.elts, v.elts)) if isinstance(t, ast.Tuple)
+                     and isinstance(v, ast.Tuple) and len(t.elts) == len(v.elts)
+                     else [(t, v)])
+            keep = []
+            for a, b in pairs:
+                if isinstance(a, ast.Name) and stores.get(a.id) == 1 \
+                        and _is_part(_chain_value(fn, b), tables=True):
+                    names[a.id] = _Alias(names).visit(copy.deepcopy(b))
+                else:
+                    keep.append((a, b))
+            if not keep:
+                continue
+            if len(keep) < len(pairs):
+                st = ast.copy_location(ast.Assign(
+                    targets=[ast.copy_location(ast.Tuple(elts=[a for a, _ in keep],
+                                                         ctx=ast.Store()), t)],
+                    value=ast.copy_location(ast.Tuple(elts=[b for _, b in keep],
+                                                      ctx=ast.Load()), v)), st)
+        body.append(st)
+    if names:
+        node.body = [_Alias(names).visit(st) for st in body]
+
+
+_COMPARE = {ast.Eq: lambda a, b: a == b, ast.NotEq: lambda a, b: a != b,
+            ast.In: lambda a, b: a in b, ast.NotIn: lambda a, b: a not in b}
+
+
+def _folded_compare(node):
+    """A comparison of constants (``"pwc" == "pwc"``, after a str attribute was
+    written as its value) as its truth; anything else as it is."""
+    if not isinstance(node, ast.Compare):
+        return node
+    vals = [node.left, *node.comparators]
+    consts = []
+    for v in vals:
+        if isinstance(v, ast.Constant) and isinstance(v.value, (str, bool, int, float)):
+            consts.append(v.value)
+        elif isinstance(v, (ast.Tuple, ast.List)) and all(
+                isinstance(e, ast.Constant) for e in v.elts):
+            consts.append(tuple(e.value for e in v.elts))
+        else:
+            return node
+    if not any(isinstance(c, str) for c in consts):
+        return node
+    for op, a, b in zip(node.ops, consts, consts[1:]):
+        f = _COMPARE.get(type(op))
+        if f is None:
+            return node
+        if not f(a, b):
+            return ast.copy_location(ast.Constant(False), node)
+    return ast.copy_location(ast.Constant(True), node)
+
+
 class _Rewrite(ast.NodeTransformer):
     """One function's body, rewritten for the plan (module notes)."""
 
@@ -650,6 +802,67 @@ class _Rewrite(ast.NodeTransformer):
                 raise self.fn.refuse(node, f"it draws random numbers ({ast.unparse(node)}): "
                                            f"the draws would differ between the paths; put "
                                            f"the noise in the state or the parameters")
+
+    # -- parts of self: self.design.F1, self.data.flow(...)
+    def _owner(self, node):
+        """``(object, attr)`` of ``self.attr`` or of ``self.a.b.attr`` read through
+        parts of the system (plain objects it holds, each recorded so that
+        another object there rewrites the maps), or None."""
+        fn = self.fn
+        if fn.self_name is None or not isinstance(node, ast.Attribute):
+            return None
+        chain, base = [], node.value
+        while isinstance(base, ast.Attribute):
+            chain.append(base.attr)
+            base = base.value
+        if not (isinstance(base, ast.Name) and base.id == fn.self_name):
+            return None
+        obj = fn.obj
+        for a in reversed(chain):
+            v = getattr(obj, a, _MISSING)
+            if not _is_part(v):
+                return None
+            self.pl.layout.same(("part", id(obj), a), lambda o=obj, n=a: getattr(o, n), v)
+            self.pl.prefix.setdefault(id(v), f"{self.pl.prefix.get(id(obj), '')}{a}.")
+            obj = v
+        return obj, node.attr
+
+    def _name(self, obj, attr):
+        """A slot's name: its path from the system (``design.F1``)."""
+        return self.pl.prefix.get(id(obj), "") + attr
+
+    def visit_Subscript(self, node):
+        """``self.slices["xh1"]`` (a dict of the system read by a constant key):
+        its value, a slice of ints written as a constant slice, a number or
+        array read as a slot of ``p``."""
+        v = node.value
+        hit = self._owner(v) if isinstance(node.ctx, ast.Load) else None
+        key = node.slice
+        table = getattr(hit[0], hit[1], None) if hit is not None else None
+        if not (isinstance(table, dict) and isinstance(key, ast.Constant)
+                and isinstance(key.value, str) and key.value in table):
+            node = self.generic_visit(node)
+            node.slice = _as_slice(node.slice)
+            return node
+        obj, attr = hit
+        k = key.value
+        e = table[k]
+
+        def reader(o=obj, a=attr, k=k):
+            return getattr(o, a)[k]
+        name = f"{self._name(obj, attr)}[{k!r}]"
+        if isinstance(e, slice) and all(b is None or isinstance(b, int)
+                                        for b in (e.start, e.stop, e.step)):
+            self.pl.layout.fold(("item", id(obj), attr, k), reader, e)
+            return ast.copy_location(_call("slice", [ast.Constant(b) for b in
+                                                     (e.start, e.stop, e.step)], node), node)
+        if isinstance(e, (bool, str)):
+            self.pl.layout.fold(("item", id(obj), attr, k), reader, e)
+            return ast.copy_location(ast.Constant(e), node)
+        if _kind(e) is None:
+            raise self.fn.refuse(node, f"it reads {name}, a {type(e).__name__}: numba "
+                                       f"cannot type it")
+        return _slot_expr(self.pl.layout.add(("item", id(obj), attr, k), name, e, reader), node)
 
     # -- statements that are refused
     def visit_Global(self, node):
@@ -703,19 +916,19 @@ class _Rewrite(ast.NodeTransformer):
             a, b = node.left, node.comparators[0]
             if isinstance(a, ast.Constant) and a.value is None:
                 a, b = b, a
-            if isinstance(b, ast.Constant) and b.value is None and \
-                    isinstance(a, ast.Attribute) and isinstance(a.value, ast.Name) and \
-                    a.value.id == fn.self_name and fn.self_name is not None:
-                obj, attr = fn.obj, a.attr
+            hit = self._owner(a) if isinstance(b, ast.Constant) and b.value is None else None
+            if hit is not None:
+                obj, attr = hit
                 try:
                     v = getattr(obj, attr)
                 except AttributeError:
-                    raise fn.refuse(a, f"self.{attr} does not exist") from None
+                    raise fn.refuse(a, f"{_dotted(a)} does not exist") from None
                 self.pl.layout.require(("none", id(obj), attr),
                                        lambda o=obj, n=attr: getattr(o, n), v is None)
                 known = (v is None) == isinstance(node.ops[0], ast.Is)
                 return ast.copy_location(ast.Constant(known), node)
-        return self.generic_visit(node)
+        node = self.generic_visit(node)
+        return _folded_compare(node)
 
     def _test(self, test):
         """The visited test and its value where the rewrite knows it (else None)."""
@@ -753,16 +966,16 @@ class _Rewrite(ast.NodeTransformer):
 
     def _matrix_slot(self, e):
         """The slot of ``self.M`` (a 2-D array of floats), or None."""
-        fn = self.fn
-        if not (isinstance(e, ast.Attribute) and isinstance(e.value, ast.Name)
-                and e.value.id == fn.self_name and fn.self_name is not None):
+        hit = self._owner(e)
+        if hit is None:
             return None
-        v = getattr(fn.obj, e.attr, None)
+        obj, attr = hit
+        v = getattr(obj, attr, None)
         if not (isinstance(v, np.ndarray) and v.ndim == 2 and v.dtype.kind == "f"):
             return None
         self.visit(e)                           # its slot (and checks)
-        return self.pl.layout.add(("self", id(fn.obj), e.attr), e.attr, v,
-                                  lambda o=fn.obj, a=e.attr: getattr(o, a))
+        return self.pl.layout.add(("self", id(obj), attr), self._name(obj, attr), v,
+                                  lambda o=obj, a=attr: getattr(o, a))
 
     def _product(self, node):
         """A product with a matrix of ``self`` as ``(slot, v, side)``: ``v @
@@ -794,34 +1007,36 @@ class _Rewrite(ast.NodeTransformer):
 
     # -- reads
     def visit_Attribute(self, node):
-        fn = self.fn
-        if isinstance(node.value, ast.Name) and node.value.id == fn.self_name \
-                and fn.self_name not in (None,) and isinstance(node.ctx, ast.Load):
-            return self._self_attr(node)
+        hit = self._owner(node) if isinstance(node.ctx, ast.Load) else None
+        if hit is not None:
+            return self._self_attr(node, *hit)
         self._check_random(node)
         m = self._module_of(node)
         if m is not None:
             return self._module_name(m, node)
         return self.generic_visit(node)
 
-    def _self_attr(self, node):
-        fn, attr = self.fn, node.attr
-        obj = fn.obj
+    def _self_attr(self, node, obj, attr):
+        fn, name = self.fn, _dotted(node)
         static = inspect.getattr_static(obj, attr, _MISSING)
         if isinstance(static, (types.FunctionType, staticmethod, classmethod)) or \
                 inspect.ismethod(getattr(obj, attr, None)):
-            raise fn.refuse(node, f"it reads the method self.{attr} without calling it")
+            raise fn.refuse(node, f"it reads the method {name} without calling it")
         if attr in ("history",):
             raise fn.refuse(node, "it uses self.history other than to call it at t - tau "
                                   "(a delay of self.delays): self.history(t - tau)")
         try:
             v = getattr(obj, attr)
         except AttributeError:
-            raise fn.refuse(node, f"self.{attr} does not exist") from None
+            raise fn.refuse(node, f"{name} does not exist") from None
+        if isinstance(v, (bool, np.bool_, str)):        # a flag or a choice: a constant
+            self.pl.layout.fold(("self", id(obj), attr), lambda o=obj, a=attr: getattr(o, a),
+                                v)
+            return ast.copy_location(ast.Constant(v if isinstance(v, str) else bool(v)), node)
         if _kind(v) is None:
-            raise fn.refuse(node, f"it reads self.{attr}, a {type(v).__name__} (not a number "
+            raise fn.refuse(node, f"it reads {name}, a {type(v).__name__} (not a number "
                                   f"or an array of numbers): numba cannot type it")
-        slot = self.pl.layout.add(("self", id(obj), attr), attr, v,
+        slot = self.pl.layout.add(("self", id(obj), attr), self._name(obj, attr), v,
                                   lambda o=obj, a=attr: getattr(o, a))
         return _slot_expr(slot, node)
 
@@ -876,9 +1091,9 @@ class _Rewrite(ast.NodeTransformer):
         kws = [ast.keyword(arg=k.arg, value=self._dtype(k.value) if k.arg == "dtype"
                            else self.visit(k.value)) for k in node.keywords]
         target = None
-        if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) \
-                and f.value.id == fn.self_name and fn.self_name is not None:
-            target = self._self_method(f)
+        hit = self._owner(f)
+        if hit is not None:
+            target = self._self_method(f, hit[0])
         elif isinstance(f, ast.Name) and f.id not in self.locals:
             v = self._lookup(f.id)[0]
             if isinstance(v, types.FunctionType) and self.pl.dispatcher(v) is None:
@@ -898,25 +1113,25 @@ class _Rewrite(ast.NodeTransformer):
                                                mode="eval").body, v)
         return self.visit(v)
 
-    def _self_method(self, f):
-        fn, obj = self.fn, self.fn.obj
+    def _self_method(self, f, obj):
+        fn = self.fn
         static = inspect.getattr_static(obj, f.attr, _MISSING)
         if isinstance(static, classmethod):
-            raise fn.refuse(f, f"it calls the classmethod self.{f.attr}")
+            raise fn.refuse(f, f"it calls the classmethod {_dotted(f)}")
         bound = getattr(obj, f.attr, None)
         if isinstance(static, staticmethod):
             func = static.__func__
             if not isinstance(func, types.FunctionType):
-                raise fn.refuse(f, f"self.{f.attr} is not a Python function")
+                raise fn.refuse(f, f"{_dotted(f)} is not a Python function")
             return self.pl.follow(Fn(func, None, f"{type(obj).__name__}.{f.attr}"))
         if isinstance(bound, types.MethodType) and isinstance(bound.__func__,
                                                                types.FunctionType):
             if bound.__self__ is not obj:
-                raise fn.refuse(f, f"self.{f.attr} is bound to another object")
+                raise fn.refuse(f, f"{_dotted(f)} is bound to another object")
             return self.pl.follow(Fn(bound.__func__, obj, f"{type(obj).__name__}.{f.attr}"))
         if isinstance(bound, types.FunctionType):      # a function stored on the instance
             return self.pl.follow(Fn(bound, None, f"{type(obj).__name__}.{f.attr}"))
-        raise fn.refuse(f, f"it calls self.{f.attr}, a {type(bound).__name__} that cannot "
+        raise fn.refuse(f, f"it calls {_dotted(f)}, a {type(bound).__name__} that cannot "
                            f"be followed")
 
 
@@ -1001,6 +1216,7 @@ class _Planner:
         self.modules = {"numpy": "_hs_m_numpy"}     # module name -> generated name
         self.dispatchers = {}        # id -> (generated name, dispatcher)
         self.inputs = False          # a component's maps: (x, u, t, j, p)
+        self.prefix = {}             # id(part of the system) -> its path ("design.")
         self.lines = {}
         # the past (self.history): the system, the role being followed, the
         # generated functions that read it, the rewrites under way
@@ -1063,6 +1279,7 @@ class _Planner:
                     raise fn.refuse(d, "a default argument that is not a constant")
             new_args = [ast.arg(arg=P)] + [ast.arg(arg=a) for a in args]
             defaults = node.args.defaults
+        _inline_parts(fn, node)
         body = _Rewrite(self, fn)
         body.reads_past = False
         self.stack.append(body)

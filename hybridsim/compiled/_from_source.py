@@ -155,7 +155,7 @@ def _helpers_text():
     try:
         return inspect.getsource(_scalar_fn) + inspect.getsource(_helpers)
     except OSError:                 # no source shipped: the bytecode
-        return repr([f.__code__.co_code for f in (_scalar_fn, _helpers)])
+        return repr([getattr(f, "__wrapped__", f).__code__.co_code for f in (_scalar_fn, _helpers)])
 
 
 def _digest(plan):

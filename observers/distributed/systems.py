@@ -214,6 +214,9 @@ class DistributedObserverNode(hs.HybridSystem):
     def output(self, x, t, j):
         return self.data.estimate(np.asarray(x, dtype=float))
 
+    # Kept: the source rewrite compiles flow_map/output as written (same numbers to the
+    # bit), but its array temporaries cost 460 ns a flow call against 150 ns here, and the
+    # ring of 8 2.4x in the kernel (0.09 -> 0.22 s); benchmarks/bench_rewrite_vs_twin.py.
     def compiled_component(self):
         """The node's compiled form (``backend="compiled"``): (7)-(8) or
         (4)-(5) as :meth:`_NodeData.flow`, with H, N, κ and T in its parameters."""
@@ -450,6 +453,8 @@ class BandLimitedNoise(hs.HybridSystem):
     def flow_map(self, x, t, j, u):
         return np.zeros(np.shape(x))
 
+    # Kept beside output(): output is written over batches (np.take_along_axis, np.clip
+    # of the index arrays), which numba cannot compile for one state (np.clip of an int).
     def compiled_component(self):
         """The generator's compiled form (``backend="compiled"``): the same
         interpolation (numpy.interp's formula) over the grid in its parameters."""

@@ -113,6 +113,10 @@ class _TwoCopyObserver(hs.HybridSystem):
         d = self.design
         return d.a1 * x[..., self.slices["xh1"]] + d.a2 * x[..., self.slices["xh2"]]
 
+    # Kept: the source rewrite compiles H_n's maps as written (the paper's tests pass on
+    # it), but its array temporaries cost 328 ns a flow call against 56 ns here and a
+    # 200-run noise batch of V.B 1.8x (0.026 -> 0.047 s); H_c's batch maps (Xi_matrix's
+    # swapaxes) numba cannot compile for one state. benchmarks/bench_rewrite_vs_twin.py.
     def compiled_component(self):
         """The observer's compiled form (``backend="compiled"``, see
         :func:`hybridsim.compiled.lower`): the same (10)-(12) / (17)-(18)
@@ -558,6 +562,8 @@ class BoundedNoiseGenerator(hs.HybridSystem):
     def flow_map(self, x, t, j, u):
         return np.zeros(np.shape(x))
 
+    # Kept: the rewritten output (as written) costs about 4x this one a call
+    # (benchmarks/bench_rewrite_vs_twin.py).
     def compiled_component(self):
         """The generator's compiled form (``backend="compiled"``)."""
         from hybridsim.compiled import Component
@@ -832,6 +838,9 @@ class RotatingFamily(hs.HybridSystem):
     def jump_set(self, x):
         return (x[..., _TAU] >= x[..., _DELTA]) & (x[..., _Q] < 0.5)
 
+    # Kept beside the maps above: they are written over batches of designs (np.einsum,
+    # np.stack, np.linalg.inv of stacked 2 x 2 matrices), which numba cannot compile
+    # (it has no einsum); these are the same formulas for one state, in the same order.
     def compiled_component(self):
         """The family's compiled form (``backend="compiled"``; what
         :func:`hybridsim.falsification.batch_run` picks where numba is

@@ -171,11 +171,11 @@ class NoForm(hs.HybridSystem):
 
 
 class Labelled(NoForm):
-    """A plain part whose map reads a string: not rewritable for numba."""
-    label = "decay"
+    """A plain part whose map reads a list of strings: not rewritable for numba."""
+    labels = ("decay",)
 
     def flow_map(self, x):
-        return -x if self.label == "decay" else x
+        return -x if self.labels[0] == "decay" else x
 
 
 @pytest.mark.paths(compiled_slow=True)
@@ -208,7 +208,7 @@ def test_a_plain_part_runs_compiled_from_its_own_maps(path):
     (lambda: hs.Interconnection({"a": hs.LinearPlant([[-1.0]]), "b": Labelled()}),
      r"component 'b' \(Labelled\) cannot run compiled: Labelled has no compiled form and "
      r"its maps cannot be rewritten for numba: Labelled.flow_map \(.*test_lowering.py:\d+\): "
-     r"it reads self.label, a str"),
+     r"it reads self.labels, a tuple"),
     (lambda: hs.Interconnection({"plant": hs.LinearPlant([[-1.0]]), "observer": Agent(1.0)},
                                 inputs={"observer": lambda t, y: y["plant"]}),
      r"the input of component 'observer' cannot run compiled: it is a Python callable"),

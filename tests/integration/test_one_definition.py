@@ -193,7 +193,7 @@ class Table(hs.HybridSystem):
         self.table = {"rate": 1.0}
 
     def flow_map(self, x):
-        return -self.table["rate"] * x          # a dict: refused
+        return -self.table.get("rate") * x      # a dict as a value: refused
 
 
 _LINE = Table.flow_map.__code__.co_firstlineno + 1
@@ -395,3 +395,73 @@ def test_a_matrix_attribute_times_a_matrix_is_that_product():
     s = Products()
     x = np.array([1.0, -2.0, 0.5, 3.0])
     np.testing.assert_allclose(lower(s).flow_map(x, 0.0, 0), s.flow_map(x), rtol=1e-15)
+
+
+class _Gains:
+    def __init__(self, k):
+        self.K = np.array([[-k, 0.0], [0.0, -2 * k]])
+        self.offset = 0.0
+
+    def drift(self, x):
+        return self.K @ x + self.offset
+
+
+class Parts(hs.HybridSystem):
+    """Maps reading a part of the system (``self.gains.K``, through a local
+    name and a method of the part) and a str choosing a branch."""
+    state_dim = 2
+
+    def __init__(self, k, mode):
+        self.gains, self.mode = _Gains(k), mode
+
+    def flow_map(self, x):
+        g = self.gains
+        if self.mode == "drift":
+            return g.drift(x)
+        return g.K @ x
+
+
+@pytest.mark.slow
+def test_parts_of_the_system_and_str_branches_are_read_when_the_maps_are_rewritten():
+    """``self.gains.K`` is a slot of p read through the part; a str compared
+    in a branch is a constant there (the branch not taken is dropped); another
+    part, or another str, rewrites the maps."""
+    s = Parts(1.0, "drift")
+    kw = dict(x0=[1.0, 1.0], t_max=1.0, backend="compiled", **TIGHT)
+    np.testing.assert_allclose(hs.simulate(s, **kw).xf, np.exp([-1.0, -2.0]), rtol=1e-9)
+    assert set(lower(s).layout.names()) == {"gains.K", "gains.offset"}
+    s.gains.offset = 1.0                        # x' = K x + 1
+    np.testing.assert_allclose(hs.simulate(s, **kw).xf,
+                               [1.0, (1 + np.exp(-2.0)) / 2], rtol=1e-9)
+    s.gains = _Gains(2.0)                       # another part
+    np.testing.assert_allclose(hs.simulate(s, **kw).xf, np.exp([-2.0, -4.0]), rtol=1e-9)
+    s.mode = "plain"                            # the other branch
+    assert set(lower(s).layout.names()) == {"gains.K"}
+    np.testing.assert_allclose(hs.simulate(s, **kw).xf, np.exp([-2.0, -4.0]), rtol=1e-9)
+
+
+@pytest.mark.slow
+def test_the_observers_maps_as_written_are_their_compiled_forms():
+    """The source rewrite of observer maps written over batches (parts of self,
+    ``d = self.design``, ``self.slices[...]``, bool flags, ``x[..., k]``)
+    gives the numbers of their hand-written compiled forms (kept for speed:
+    the reasons are beside them)."""
+    from hybridsim.compiled import _from_source
+    from observers import li_sanfelice as ls
+    from observers.distributed import example_observer
+    rng = np.random.default_rng(0)
+    node = example_observer().nodes[1]
+    hn = ls.NominalObserver(ls.example_VB())
+    for system in (node, hn):
+        maps, output, p = _from_source.component_maps(system)
+        twin = system.compiled_component()
+        for _ in range(5):
+            x = rng.standard_normal(system.state_dim)
+            x[-1] = 0.0 if system is hn else x[-1]          # H_n before its jump: q = 0
+            u = rng.standard_normal(system.input_dim)
+            for role, fn in maps.items():
+                np.testing.assert_allclose(fn(x, u, 0.3, 0, p),
+                                           twin.maps[role](x, u, 0.3, 0, twin.params),
+                                           rtol=1e-14, atol=1e-15)
+            np.testing.assert_allclose(output(x, 0.3, 0, p),
+                                       twin.output(x, 0.3, 0, twin.params), rtol=1e-14)

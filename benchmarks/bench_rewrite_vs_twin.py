@@ -1,0 +1,81 @@
+"""The observers' maps as written (the source rewrite) against their kept compiled forms.
+
+For the models that keep a hand-written ``compiled_component()`` although
+their maps compile as written (the distributed observer's node, Li-Sanfelice's
+H_n, the bounded-noise generator): the time of one map call inside a numba
+loop, the rewritten map against the hand-written one, in the same run (the
+ratio is the reason written beside each ``compiled_component``), and that
+they give the same numbers.
+
+Run: python benchmarks/bench_rewrite_vs_twin.py [calls]
+"""
+import sys
+import time
+
+import numba
+import numpy as np
+
+from hybridsim.compiled import _from_source
+from observers import li_sanfelice as ls
+from observers.distributed import example_observer
+from observers.li_sanfelice.systems import BoundedNoiseGenerator
+
+
+@numba.njit
+def _calls(f, x, u, p, n):
+    s = 0.0
+    for i in range(n):
+        s += f(x, u, 1e-3 * i, 0, p)[0]
+    return s
+
+
+@numba.njit
+def _output_calls(f, x, p, n):
+    s = 0.0
+    for i in range(n):
+        s += f(x, 1e-3 * i, 0, p)[0]
+    return s
+
+
+def _jit(f):
+    return f if hasattr(f, "py_func") else numba.njit(f)
+
+
+def _ns(f, x, u, p, n):
+    """ns per call of ``f`` (u None: an output of (x, t, j, p))."""
+    f = _jit(f)
+    loop = (lambda k: _output_calls(f, x, p, k)) if u is None else \
+        (lambda k: _calls(f, x, u, p, k))
+    loop(10)
+    t0 = time.perf_counter()
+    loop(n)
+    return (time.perf_counter() - t0) / n * 1e9
+
+
+def main(n=200_000):
+    rng = np.random.default_rng(0)
+    hn = ls.NominalObserver(ls.example_VB())
+    cases = [("distributed node", example_observer().nodes[1]), ("Li-Sanfelice H_n", hn),
+             ("bounded noise", BoundedNoiseGenerator(2, 3))]
+    print(f"{'model':<18} {'map':<7} {'rewritten ns':>12} {'twin ns':>8} {'ratio':>6} "
+          f"{'max |diff|':>10}")
+    for name, system in cases:
+        maps, output, p = _from_source.component_maps(system)
+        twin = system.compiled_component()
+        x = rng.standard_normal(system.state_dim)
+        if system is hn:
+            x[-1] = 0.0                         # before its jump
+        u = rng.standard_normal(system.input_dim)
+        rows = [(role, fn, _jit(twin.maps[role]), u) for role, fn in maps.items()
+                if role in ("flow", "jump") and role in twin.maps]
+        if output is not None:
+            rows.append(("output", output, _jit(twin.output), None))
+        for role, mine, theirs, uu in rows:
+            args = (x, 0.1, 0) if uu is None else (x, uu, 0.1, 0)
+            diff = np.abs(mine(*args, p) - theirs(*args, twin.params)).max()
+            a, b = _ns(mine, x, uu, p, n), _ns(theirs, x, uu, twin.params, n)
+            print(f"{name:<18} {role:<7} {a:>12.0f} {b:>8.0f} {a / b:>6.2f} {diff:>10.1e}")
+
+
+if __name__ == "__main__":
+    main(int(sys.argv[1]) if len(sys.argv) > 1 else 200_000)
