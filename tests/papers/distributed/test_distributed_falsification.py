@@ -199,13 +199,14 @@ def test_delayed_system_tends_to_the_error_system():
 def test_the_delayed_system_is_refused_by_name_where_it_cannot_run():
     """Its maps take one state (not batches): simulate_vectorized refuses it by name,
     simulate_many runs its rows one by one, and the compiled path refuses it naming
-    the map and line that read what numba cannot type (the error system it wraps)."""
+    the map, its line and the attribute numba cannot type (the groups of rows per
+    delay, a list)."""
     sysd = F.DelayedErrorSystem(example_observer().design, 0.05)
     z0 = np.zeros((2, 30))
     with pytest.raises(ValueError, match="vectorized = True"):
         hs.simulate_vectorized(sysd, z0, 1.0)
     with pytest.raises(TypeError, match=r"DelayedErrorSystem\.flow_map \(.*falsification\.py:\d+\)"
-                       r".*reads self\.es"):
+                       r": it reads self\.\w+, a \w+ .*numba cannot type it"):
         hs.simulate_many(sysd, z0, 1.0, backend="compiled")
     with pytest.raises(ValueError, match="taus"):
         F.DelayedErrorSystem(example_observer().design, [0.1, 0.0, 0.1, 0.1])
