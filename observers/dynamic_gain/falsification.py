@@ -123,10 +123,10 @@ def decay_margin(rate):
     ``1 - max_tau ||eps(tau)|| e^{rate tau} / (alpha ||eps(0)||)``: relative,
     so initial states of different size compare; the deciding tau as ``where``.
     """
-    alpha = lmi_alpha()[0]
     n = _N
 
     def margin(arc):
+        alpha = lmi_alpha()[0]          # solved at the first run, not at import
         eps = arc.x[:, :n + 1]
         nrm = np.linalg.norm(eps, axis=1)
         ratio = nrm * np.exp(rate * arc.t) / (alpha * nrm[0])
@@ -145,10 +145,10 @@ def bound17_margin(corrected):
     bound's exponent ``mu beta`` that the run leaves unused (the bound itself
     is up to e^357 and would saturate a ratio ``T / bound``).
     """
-    alpha = lmi_alpha()[0]
     aux = _aux()
 
     def margin(arc):
+        alpha = lmi_alpha()[0]          # solved at the first run, not at import
         x0, xf = arc.x[0], arc.x[-1]
         v0 = math.exp(x0[_N + 1])
         T = float(aux.settling_time(xf))
