@@ -30,8 +30,12 @@ def _tol(lo, hi):
 
 
 def _root_off_zero(f0, fd, fw, d, w):
-    """:func:`hybridsim.events._root_off_zero` over arrays: ``(offset, slope)``,
-    NaN where the quadratic model has no root in (d, w)."""
+    """:func:`hybridsim.events.root_off_zero` over arrays: ``(offset, slope)``,
+    NaN where the quadratic model has no root in (d, w).
+
+    A row form because the arithmetic must differ: the plain function branches
+    per value (numba compiles it for the kernel, and has no ``errstate``); here
+    the same formulas run over all rows at once, masked."""
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         m = (fd - f0) / d
         c = (fw - f0 - m * w) / (w * w)
@@ -190,7 +194,11 @@ class _RowEvents:
         evaluation, accepted inside the bracket and shorter than half its
         step before last (Brent's test), else the midpoint; a seed (not NaN)
         is the first trial and gives the slope after it; trials are kept a
-        quarter tolerance inside the bracket."""
+        quarter tolerance inside the bracket. A row form because the
+        arithmetic must differ: ``events.secant_trial``/``secant_slope`` branch
+        per value (the kernel compiles them); here every active row takes its
+        trial in one masked step, and the map is called once per iteration
+        for all of them."""
         n = len(idx)
         d1, d2 = np.full(n, np.inf), np.full(n, np.inf)
         first = -flo < fhi

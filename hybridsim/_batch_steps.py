@@ -340,7 +340,10 @@ class _RowSteps:
         """Each row's dense output at its time s, by the form of ``Q``: RK45's
         (scipy's RkDenseOutput, Q = K^T P), DOP853's (its Dop853DenseOutput, F)
         or the cubic Hermite of the step's ends (the end state, h f at both
-        ends: ``solve._Hermite``)."""
+        ends: ``solve._Hermite``). A row form because the arithmetic must
+        differ: scipy's dense outputs and ``solve._Hermite`` evaluate one step;
+        here each row has its own step, so the same polynomials run over the
+        rows' coefficients at once."""
         xx = (s - a) / h
         with np.errstate(invalid="ignore", over="ignore"):
             if Q.shape[2] == 4:
