@@ -33,7 +33,8 @@ LEVELS = (
     ("shared and data", {"rules", "options", "events", "_rk", "_progress", "_version",
                          "system", "compose", "history", "arc", "_arc_access", "_arc_checks",
                          "_arc_io", "_arc_records", "_compose_checks", "arc_batch", "library",
-                         "_source", "brownian"}),
+                         "_source", "_source_read", "_source_guards", "_source_rewrite",
+                         "brownian"}),
 )
 
 
