@@ -258,9 +258,11 @@ def _reread(s0, layout, s1):
         if key[0] != "none" or key[1] != id(s0):
             return None
         checks[key] = ((lambda a: lambda: getattr(s1, a))(key[2]), is_none)
+    if layout.parts or layout.folded:             # parts followed, constants folded: s1's own
+        return None
     lay = object.__new__(type(layout))
     lay.slots, lay.readers, lay.size = layout.slots, readers, layout.size
-    lay.checks = checks
+    lay.checks, lay.parts, lay.folded = checks, {}, {}
     return lay.read()
 
 

@@ -453,7 +453,7 @@ def test_the_observers_maps_as_written_are_their_compiled_forms():
     node = example_observer().nodes[1]
     hn = ls.NominalObserver(ls.example_VB())
     for system in (node, hn):
-        maps, output, p = _from_source.component_maps(system)
+        maps, output, p, _ = _from_source.component_maps(system)
         twin = system.compiled_component()
         for _ in range(5):
             x = rng.standard_normal(system.state_dim)
