@@ -25,7 +25,8 @@ PKG = Path(__file__).resolve().parents[2] / "hybridsim"
 LEVELS = (
     ("capabilities", {"explore", "falsification", "sensitivity", "testing", "plot", "stl",
                       "estimate", "arch", "_stl_eval", "_plot_sample",
-                      "_explore_tree", "_estimate_runs", "_sensitivity_maps"}),
+                      "_explore_tree", "_estimate_runs", "_sensitivity_maps", "_falsify_space",
+                      "_falsify_search", "_estimate_stats"}),
     ("front door", {"run", "batch"}),
     ("paths", {"solve", "batch_vectorized", "compiled",
                "_sde", "_random_jumps", "_variational", "_solve_state", "_solve_solver",

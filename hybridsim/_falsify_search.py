@@ -1,0 +1,282 @@
+"""The searches of :func:`hybridsim.falsification.falsify`: differential
+evolution, CMA-ES, the seeded first population, the compass search and the
+gradient refinement from the worst point.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def _de(ev, space, popsize, seed, budget, rnd=0):
+    from scipy.optimize import differential_evolution
+    free = space.hi > space.lo
+    if not np.any(free):                     # a single point
+        ev(space.lo[None, :])
+        return
+    lo, hi = space.lo[free], space.hi[free]
+
+    def full(Zf):                            # (k, n_free) -> (k, dim)
+        Z = np.tile(space.lo, (Zf.shape[0], 1))
+        Z[:, free] = Zf
+        return Z
+
+    npop = max(5, popsize)
+    maxiter = max(0, (budget - npop) // npop)
+    init = _seeded(ev, space, free, npop, np.random.default_rng(seed), extremes=rnd == 0)
+    # the first population is run before scipy's solver is built (a claim the
+    # first runs refute costs no solver setup); the solver's first call, on
+    # this population, is answered from it
+    first = [ev(full(init))]
+    if ev.done:
+        return
+    ev.stages.append((ev.n, "differential evolution" + (f" (restart {rnd})" if rnd else "")))
+
+    def f(Zt):                               # scipy passes (n_free, k)
+        if first:
+            return first.pop()
+        return ev(full(np.asarray(Zt).T))
+
+    differential_evolution(
+        f, list(zip(lo, hi)), maxiter=maxiter, seed=seed, init=init,
+        vectorized=True, updating="deferred", polish=False,
+        tol=0.0, atol=0.0, callback=lambda *a, **k: ev.done)
+
+
+def _cmaes(ev, space, popsize, seed):
+    """CMA-ES (Hansen's (mu/mu_w, lambda) with his default parameters) over the
+    free coordinates scaled to [0, 1], after a seeded first design
+    (:func:`_seeded`, ``max(2 lambda, 2 n)`` points) whose best point is the
+    first mean; restarts with the population doubled (IPOP) from a fresh
+    uniform mean whenever a run converges, stalls or meets a flat margin."""
+    free = space.hi > space.lo
+    if not np.any(free):
+        ev(space.lo[None, :])
+        return
+    lo, width = space.lo[free], (space.hi - space.lo)[free]
+    n = int(free.sum())
+    rng = np.random.default_rng(seed)
+
+    def full(U):                             # (k, n_free) in [0, 1] -> (k, dim)
+        Z = np.tile(space.lo, (U.shape[0], 1))
+        Z[:, free] = lo + np.clip(U, 0.0, 1.0) * width
+        return Z
+
+    lam = popsize if popsize is not None else 4 + int(3 * math.log(n))
+    lam = max(2, lam)
+    init = (_seeded(ev, space, free, max(5, 2 * lam, 2 * n), rng) - lo) / width
+    vals = ev(full(init))
+    mean = init[int(np.argmin(vals))].copy()
+    restart = 0
+    while not ev.done:
+        ev.stages.append((ev.n, f"CMA-ES, population {lam}"
+                          + (f" (restart {restart})" if restart else "")))
+        _cma_run(ev, full, mean, 0.3, lam, rng)
+        restart += 1
+        lam *= 2
+        mean = rng.random(n)
+
+
+def _cma_run(ev, full, mean, sigma, lam, rng):
+    """One run of CMA-ES from ``mean`` with step ``sigma`` (unit box), until
+    the budget, a counterexample, convergence (sigma below 1e-6 of the box),
+    a stall (no better margin in 10 + 30 n / lambda generations) or a
+    margin flat over three populations in a row. Candidates are clipped into
+    the box and the update uses the clipped ones (a worst case on a face
+    is reached exactly)."""
+    n = mean.size
+    mu = lam // 2
+    w = math.log(mu + 0.5) - np.log(np.arange(1, mu + 1))
+    w /= w.sum()
+    mueff = 1.0 / np.sum(w ** 2)
+    cc = (4 + mueff / n) / (n + 4 + 2 * mueff / n)
+    cs = (mueff + 2) / (n + mueff + 5)
+    c1 = 2 / ((n + 1.3) ** 2 + mueff)
+    cmu = min(1 - c1, 2 * (mueff - 2 + 1 / mueff) / ((n + 2) ** 2 + mueff))
+    damps = 1 + 2 * max(0.0, math.sqrt((mueff - 1) / (n + 1)) - 1) + cs
+    chin = math.sqrt(n) * (1 - 1 / (4 * n) + 1 / (21 * n * n))
+    pc, ps = np.zeros(n), np.zeros(n)
+    B, D, C = np.eye(n), np.ones(n), np.eye(n)
+    best, since, flat, g = math.inf, 0, 0, 0
+    patience = 10 + math.ceil(30 * n / lam)
+    while not ev.done:
+        X = np.clip(mean + sigma * (rng.standard_normal((lam, n)) * D) @ B.T, 0.0, 1.0)
+        f = ev(full(X))
+        if ev.done:
+            return
+        if np.ptp(f) == 0:                   # no ranking: widen, then start afresh
+            flat += 1
+            if flat >= 3:
+                return
+            sigma = min(1.0, sigma * math.exp(0.2 + cs / damps))
+            continue
+        flat, g = 0, g + 1
+        if f.min() < best:
+            best, since = float(f.min()), 0
+        else:
+            since += 1
+        sel = np.argsort(f, kind="stable")[:mu]
+        Y = (X[sel] - mean) / sigma
+        yw = w @ Y
+        mean = mean + sigma * yw
+        ps = (1 - cs) * ps + math.sqrt(cs * (2 - cs) * mueff) * (B @ ((B.T @ yw) / D))
+        hsig = (np.linalg.norm(ps) / math.sqrt(1 - (1 - cs) ** (2 * g)) / chin
+                < 1.4 + 2 / (n + 1))
+        pc = (1 - cc) * pc + hsig * math.sqrt(cc * (2 - cc) * mueff) * yw
+        C = ((1 - c1 - cmu) * C + c1 * (np.outer(pc, pc) + (1 - hsig) * cc * (2 - cc) * C)
+             + cmu * (Y.T * w) @ Y)
+        sigma *= math.exp(cs / damps * (np.linalg.norm(ps) / chin - 1))
+        sigma = min(sigma, 1.0)
+        C = (C + C.T) / 2
+        ev2, B = np.linalg.eigh(C)
+        D = np.sqrt(np.maximum(ev2, 1e-20))
+        if sigma * D.max() < 1e-6 or since > patience or D.max() > 1e7 * D.min():
+            return
+
+
+def _seeded(ev, space, free, npop, rng, extremes=True):
+    """The first population of a search over the free coordinates, (npop,
+    n_free), its stages recorded on ``ev``: the entries' extreme members
+    (with ``extremes``; a restart has run them already), vertices of the box,
+    points on its faces and edges, a Latin hypercube."""
+    lo, hi = space.lo[free], space.hi[free]
+    nfree = int(free.sum())
+    # a Latin hypercube, a quarter of it replaced by vertices of the box: worst
+    # cases under bounded uncertainty are often extreme (bang-bang noise). The
+    # vertices come first (the first population runs in chunks of 1, 2, 4, ...
+    # when the search stops at a counterexample) and are distinct where the
+    # box has few of them
+    u = (rng.permuted(np.tile(np.arange(npop), (nfree, 1)), axis=1).T
+         + rng.random((npop, nfree))) / npop
+    nv = min(npop // 4, 2 ** min(nfree, 20))
+    if nfree <= 12:
+        corners = rng.choice(2 ** nfree, nv, replace=False)
+        u[:nv] = (corners[:, None] >> np.arange(nfree)) & 1
+    else:
+        u[:nv] = rng.integers(0, 2, (nv, nfree))
+    # before the vertices, the entries' extreme members that are not vertices
+    # (a Sinusoids' constant ±bound signals lie on its face f = 0, with
+    # sin φ = 1); after them, points on faces and edges of the box: each
+    # coordinate at one of its bounds with probability 1/2, else its Latin
+    # hypercube value (a worst case with some parameters at their bounds and
+    # the others inside)
+    ext = space.extremes(npop // 8, rng) if extremes else np.zeros((0, space.dim))
+    ue = (ext[:, free] - lo) / (hi - lo)
+    ne = len(ue)
+    nf = max(0, min(npop // 8, npop - ne - nv)) if nfree > 1 else 0
+    faces = u[nv:nv + nf].copy()
+    at = rng.random(faces.shape) < 0.5
+    faces[at] = rng.integers(0, 2, int(at.sum()))
+    u = np.vstack([ue, u[:nv], faces, u[nv + nf:]])[:npop]
+    init = lo + u * (hi - lo)
+    n0 = ev.n
+    for k, label in ((0, "a seeded extreme member of an entry (its extremes())"),
+                     (ne, "a seeded vertex of the box"),
+                     (ne + nv, "a seeded point on a face or an edge of the box"),
+                     (ne + nv + nf, "the first population's Latin hypercube")):
+        ev.stages.append((n0 + k, label))
+    return init
+
+
+def _refine(ev, space):
+    """A compass (pattern) search from the worst point: each iteration tries a
+    step of +h and -h along every free coordinate as one population, moves to
+    the best if it improves, else halves h; steps are clipped into the box, so
+    a worst case on a face or a vertex is reached exactly. While moves to a
+    bound do best, each iteration also tries every free coordinate at each of
+    its bounds (the edges from the point to the faces of the box). It stops
+    when h falls below 1e-6, or when every step gave the point's own margin
+    (a flat margin: the search's budget goes to fresh designs instead)."""
+    free = np.flatnonzero(space.hi > space.lo)
+    if not free.size:                        # every coordinate fixed: nothing to move
+        return
+    width = space.hi - space.lo
+    z, best = ev.best_z.copy(), ev.best
+    ev.stages.append((ev.n, "the compass search from the worst point"))
+    h = 0.1
+    snap = True                              # also each coordinate to each bound
+    rows = np.arange(free.size)
+    while not ev.done and h > 1e-6:
+        cand = np.repeat(z[None, :], (4 if snap else 2) * free.size, axis=0)
+        cand[rows, free] += h * width[free]
+        cand[free.size + rows, free] -= h * width[free]
+        if snap:
+            cand[2 * free.size + rows, free] = space.lo[free]
+            cand[3 * free.size + rows, free] = space.hi[free]
+        cand = np.clip(cand, space.lo, space.hi)
+        moved = np.any(cand != z, axis=1)    # a coordinate at its bound already: no run
+        cand = cand[moved]
+        is_snap = (np.arange(len(moved)) >= 2 * free.size)[moved]
+        vals = ev(cand) if len(cand) else np.zeros(0)
+        if len(vals) and np.all(vals == best):
+            return                           # flat at every step: shorter ones tell no more
+        k = int(np.argmin(vals)) if len(vals) else -1
+        if k >= 0 and vals[k] < best:
+            z, best = cand[k], vals[k]
+            snap = snap and bool(is_snap[k])  # snapping stops once a step does better
+        else:
+            snap = False
+            h /= 2
+
+
+
+class _NoGradient(Exception):
+    """The gradient is not defined at a point (or the refinement must stop)."""
+
+
+def _refine_gradient(ev, space, sensitivity):
+    """L-BFGS-B (scipy) from the worst point, on the free coordinates scaled
+    to [0, 1], with the margin's gradient from the sensitivities: one run of
+    ``sensitivity`` per evaluation, within what is left of the budget. Where
+    the gradient is not defined, the compass search takes over."""
+    from scipy.optimize import minimize
+
+    from .sensitivity import SensitivityArc, SensitivityError, margin_gradient
+    free = np.flatnonzero(space.hi > space.lo)
+    if not free.size:
+        return
+    lo, width = space.lo[free], (space.hi - space.lo)[free]
+    z0 = ev.best_z.copy()
+
+    def full(u):
+        z = z0.copy()
+        z[free] = np.clip(lo + u * width, space.lo[free], space.hi[free])
+        return z
+
+    def fun(u):
+        if ev.done:
+            raise _NoGradient
+        p = space.point(full(u))
+        try:
+            sarc = sensitivity(p)
+        except SensitivityError as exc:     # the state's arc is fine, its gradient not
+            if exc.arc is not None:
+                ev._record(p, exc.arc.arc)
+            raise _NoGradient from exc
+        except Exception as exc:            # a failed run is a finding
+            ev._record(p, exc)
+            raise _NoGradient from exc
+        if not isinstance(sarc, SensitivityArc) or sarc.system.m != space.dim:
+            raise TypeError(f"run.sensitivity must return a SensitivityArc with one "
+                            f"parameter per coordinate of the space ({space.dim}), got "
+                            f"{sarc!r}")
+        value = ev._record(p, sarc.arc)
+        if value is None or not math.isfinite(value) or ev.found:
+            raise _NoGradient
+        try:
+            g = margin_gradient(sarc, ev.claim)[free] * width
+        except Exception as exc:            # the claim on the perturbed arcs
+            raise _NoGradient from exc
+        if not np.all(np.isfinite(g)):
+            raise _NoGradient
+        return value, g
+
+    u0 = np.clip((z0[free] - lo) / width, 0.0, 1.0)
+    ev.stages.append((ev.n, "gradient descent from the worst point"))
+    try:
+        minimize(fun, u0, jac=True, method="L-BFGS-B", bounds=[(0.0, 1.0)] * free.size,
+                 options={"maxfun": max(1, ev.budget - ev.n), "ftol": 0.0, "gtol": 0.0})
+    except _NoGradient:
+        if not ev.done:
+            _refine(ev, space)
