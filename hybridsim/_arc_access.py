@@ -20,6 +20,26 @@ from .rules import Termination
 _AT_JUMP = ("start", "end", "mean", "nan", "both")
 
 
+
+def between_samples(t, x, xdot, k0, tq):
+    """The states at times ``tq`` strictly inside the steps ``[t[k0], t[k0 + 1]]``
+    of samples ``(t, x, xdot)``: the cubic Hermite of the step's ends where both
+    derivatives are finite (``xdot`` given), else linear. Written from x0, so a
+    constant component stays exact."""
+    x0, x1 = x[k0], x[k0 + 1]
+    h = (t[k0 + 1] - t[k0])[:, None]
+    s = ((tq - t[k0]) / (t[k0 + 1] - t[k0]))[:, None]
+    val = (1 - s) * x0 + s * x1
+    if xdot is not None:
+        m0, m1 = xdot[k0], xdot[k0 + 1]
+        herm = np.all(np.isfinite(m0), axis=1) & np.all(np.isfinite(m1), axis=1)
+        if herm.any():
+            s2 = s * s
+            hv = (x0 + s2 * (3 - 2 * s) * (x1 - x0)
+                  + s * (1 - s) ** 2 * h * m0 + s2 * (s - 1) * h * m1)
+            val[herm] = hv[herm]
+    return val
+
 class _ArcAccess:
     """Interpolation, windows of hybrid time and maps of the state (a base of
     :class:`HybridArc`)."""
@@ -92,24 +112,18 @@ class _ArcAccess:
                 continue
             k0 = a + k[rest]          # tq strictly between samples k0 and k0 + 1
             tr = tq[rest]
-            x0, x1 = self.x[k0], self.x[k0 + 1]
-            h = (self.t[k0 + 1] - self.t[k0])[:, None]
-            s = ((tr - self.t[k0]) / (self.t[k0 + 1] - self.t[k0]))[:, None]
-            val = (1 - s) * x0 + s * x1
-            if self.xdot is not None:
+            val = between_samples(self.t, self.x, self.xdot, k0, tr)
+            if deriv and self.xdot is not None:
+                x0, x1 = self.x[k0], self.x[k0 + 1]
+                h = (self.t[k0 + 1] - self.t[k0])[:, None]
+                s = ((tr - self.t[k0]) / (self.t[k0 + 1] - self.t[k0]))[:, None]
                 m0, m1 = self.xdot[k0], self.xdot[k0 + 1]
                 herm = np.all(np.isfinite(m0), axis=1) & np.all(np.isfinite(m1), axis=1)
                 if herm.any():
                     s2 = s * s
-                    # written from x0 so that a constant component stays exact
-                    hv = (x0 + s2 * (3 - 2 * s) * (x1 - x0)
-                          + s * (1 - s) ** 2 * h * m0 + s2 * (s - 1) * h * m1)
-                    val[herm] = hv[herm]
-                    if deriv:
-                        hd = ((6 * s2 - 6 * s) * (x0 - x1) / h
-                              + (3 * s2 - 4 * s + 1) * m0 + (3 * s2 - 2 * s) * m1)
-                        dsel = sel[rest[herm]]
-                        dout[dsel] = hd[herm]
+                    hd = ((6 * s2 - 6 * s) * (x0 - x1) / h
+                          + (3 * s2 - 4 * s + 1) * m0 + (3 * s2 - 2 * s) * m1)
+                    dout[sel[rest[herm]]] = hd[herm]
             if jj in dense:
                 starts, ends, sols = dense[int(jj)]
                 q = np.searchsorted(starts, tr, side="right") - 1

@@ -9,6 +9,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ._arc_access import between_samples
 from .arc_batch import ArcBatch
 
 
@@ -360,18 +361,5 @@ def _between(T, X, XD, k, g):
     rest = np.flatnonzero(T[k] != g)
     if rest.size == 0:
         return out
-    k0 = k[rest]
-    t0, t1 = T[k0], T[k0 + 1]
-    x0, x1 = X[k0], X[k0 + 1]
-    h = (t1 - t0)[:, None]
-    s = ((g - t0) / (t1 - t0))[:, None]
-    val = (1 - s) * x0 + s * x1
-    m0, m1 = XD[k0], XD[k0 + 1]
-    herm = np.all(np.isfinite(m0), axis=1) & np.all(np.isfinite(m1), axis=1)
-    if herm.any():
-        s2 = s * s
-        hv = (x0 + s2 * (3 - 2 * s) * (x1 - x0)
-              + s * (1 - s) ** 2 * h * m0 + s2 * (s - 1) * h * m1)
-        val[herm] = hv[herm]
-    out[rest] = val
+    out[rest] = between_samples(T, X, XD, k[rest], g[rest] if np.ndim(g) else g)
     return out
