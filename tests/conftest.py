@@ -18,13 +18,16 @@ Budget: every test of the default suite takes at most 2 s on an idle core
 so the session also prints the tests that took the most CPU time of their
 own process (setup, call and teardown, every thread; a process pool's
 workers not counted), the figure the budget is checked by, whatever else
-runs; ``HYBRIDSIM_TEST_CPU=file.json`` writes every test's figure.
+runs; ``HYBRIDSIM_TEST_CPU=file.json`` writes every test's figure. It
+also prints each test process's peak resident memory (budget 600 MB per
+pytest-xdist worker).
 """
 from __future__ import annotations
 
 import json
 import os
 import pathlib
+import resource
 import time
 
 import pytest
@@ -78,7 +81,9 @@ def repo() -> pathlib.Path:
 
 
 _CPU = {}
+_RSS = {}              # peak resident memory (MB) of each process that ran tests
 CPU_BUDGET = 2.0       # seconds of CPU per default-suite test
+RSS_BUDGET = 600       # MB of peak resident memory per test process
 _PHASE_CPU = pytest.StashKey[float]()
 
 
@@ -97,7 +102,9 @@ pytest_runtest_teardown = pytest.hookimpl(hookwrapper=True)(_timed)
 def pytest_runtest_makereport(item, call):
     outcome = yield
     report = outcome.get_result()       # its own list: the item's would add up the phases
-    report.user_properties = [*report.user_properties, ("cpu", item.stash.get(_PHASE_CPU, 0.0))]
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024   # KB on Linux
+    report.user_properties = [*report.user_properties, ("cpu", item.stash.get(_PHASE_CPU, 0.0)),
+                              ("rss", (os.environ.get("PYTEST_XDIST_WORKER", "main"), rss))]
     item.stash[_PHASE_CPU] = 0.0
 
 
@@ -105,6 +112,8 @@ def pytest_runtest_logreport(report):
     # in the process that reports (pytest-xdist's controller included)
     cpu = sum(v for k, v in report.user_properties if k == "cpu")
     _CPU[report.nodeid] = _CPU.get(report.nodeid, 0.0) + cpu
+    for k, (worker, rss) in ((k, v) for k, v in report.user_properties if k == "rss"):
+        _RSS[worker] = max(_RSS.get(worker, 0.0), rss)
 
 
 def pytest_terminal_summary(terminalreporter, exitstatus, config):
@@ -115,6 +124,9 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):
     tr.section(f"most CPU time per test (budget {CPU_BUDGET:g} s outside the slow suite)")
     for nodeid, cpu in worst:
         tr.write_line(f"{cpu:7.2f}s cpu  {nodeid}")
+    if _RSS:
+        peaks = ", ".join(f"{w} {mb:.0f} MB" for w, mb in sorted(_RSS.items()))
+        tr.write_line(f"peak memory per test process (budget {RSS_BUDGET} MB): {peaks}")
     out = os.environ.get("HYBRIDSIM_TEST_CPU")
     if out:                                   # every test's figure, for the budget's review
         with open(out, "w", encoding="utf-8") as fh:
