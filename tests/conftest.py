@@ -20,7 +20,8 @@ own process (setup, call and teardown, every thread; a process pool's
 workers not counted), the figure the budget is checked by, whatever else
 runs; ``HYBRIDSIM_TEST_CPU=file.json`` writes every test's figure. It
 also prints each test process's peak resident memory (budget 600 MB per
-pytest-xdist worker).
+pytest-xdist worker); ``HYBRIDSIM_TEST_RSS=file.json`` writes each
+process's peak after every test phase, in order, to find what raises it.
 """
 from __future__ import annotations
 
@@ -82,6 +83,7 @@ def repo() -> pathlib.Path:
 
 _CPU = {}
 _RSS = {}              # peak resident memory (MB) of each process that ran tests
+_RSS_LOG = []
 CPU_BUDGET = 2.0       # seconds of CPU per default-suite test
 RSS_BUDGET = 600       # MB of peak resident memory per test process
 _PHASE_CPU = pytest.StashKey[float]()
@@ -112,8 +114,10 @@ def pytest_runtest_logreport(report):
     # in the process that reports (pytest-xdist's controller included)
     cpu = sum(v for k, v in report.user_properties if k == "cpu")
     _CPU[report.nodeid] = _CPU.get(report.nodeid, 0.0) + cpu
-    for k, (worker, rss) in ((k, v) for k, v in report.user_properties if k == "rss"):
+    for worker, rss in (v for k, v in report.user_properties if k == "rss"):
         _RSS[worker] = max(_RSS.get(worker, 0.0), rss)
+        if os.environ.get("HYBRIDSIM_TEST_RSS"):
+            _RSS_LOG.append((worker, report.nodeid, report.when, rss))
 
 
 def pytest_terminal_summary(terminalreporter, exitstatus, config):
@@ -131,3 +135,7 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):
     if out:                                   # every test's figure, for the budget's review
         with open(out, "w", encoding="utf-8") as fh:
             json.dump(_CPU, fh, indent=0, sort_keys=True)
+    out = os.environ.get("HYBRIDSIM_TEST_RSS")
+    if out:                                   # each process's peak after each phase, in order
+        with open(out, "w", encoding="utf-8") as fh:
+            json.dump(_RSS_LOG, fh, indent=0)
