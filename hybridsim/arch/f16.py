@@ -67,25 +67,43 @@ Throttle command: the trim's (u_ref's throttle 0). Each switch is a jump
 located on its guard (AeroBench's Python samples the logic every 1/30 s,
 its Simulink chart at each solver step).
 
-Differences from the published models
---------------------------------------
-* ARCH-COMP runs AeroBenchVV's Simulink model ``AeroBenchSim_2019a`` from
-  2338 ft, where a waypoint follower (its ``u_turn`` waypoints) flies the
-  aircraft until it is below the flight deck with the nose low, and only then
-  the GCAS chart takes over. The waypoint follower is not modelled here: the
-  competition's instance (:mod:`hybridsim.arch.spaces`) engages the GCAS at
-  t = 0 in ``ROLL``. On this model the requirement ``G[0,15] altitude > 0``
-  then holds on the whole box as far as searched (lowest margin +9.0 ft, at
-  roll 0.2833 pi, pitch -0.4 pi); the published falsification rates are
-  of the Simulink model.
-* That Simulink model's integrators read ps and Ny_r from the derivatives of
-  P and R (its ``subf16_morelli``); here, as in AeroBench's Python and MATLAB
-  scripts, from the states.
-* The throttle is held at the trim's 0.1395 (AeroBench v2's GCAS); the 2018
-  version of the benchmark (AeroBenchVV's ``SimResults.mat``, and
-  AeroBenchVVPython v1) held the speed with the throttle and used gains of
-  another design, and its lowest altitude in the paper's scenario (3500 ft)
-  is 96.2 ft against 1.8 ft here.
+Two readings of the benchmark
+-----------------------------
+``pilot="gcas"``: AeroBenchVVPython v2's ``GcasAutopilot`` as above.
+``pilot="arch"``: the Simulink model ARCH-COMP names (AeroBenchVV's develop
+branch, ``src/main/Simulink/AeroBenchSim_2019a.slx``, its ``SimConfig.m``
+and ``initF16.m``: scenario ``u_turn``, 2338 ft, 15 s): a waypoint follower
+(``WaypointFollower.smartTrackToPoint``: heading to bank to roll rate, an
+altitude and climb-rate law for Nz, airspeed 550 ft/s by the throttle;
+waypoints ``WAYPOINTS``, each reached within 250 ft, a jump) flies while the
+GCAS chart stands by (``STANDBY``, its ``SAFE``); the chart's ``ROLL_LEVEL``
+and ``PULL_UP`` fly the roll and pull, and the autopilot selector hands back
+to the waypoint follower when the chart returns to ``SAFE``. That model's
+integrators read ps and Ny_r from the derivatives of P, alpha and R (its
+``subf16_morelli``: ps = P' cos(alpha') + R' sin(alpha'), Ny_r = Ny + R'),
+and its roll levels the wings to the nearest multiple of pi.
+
+Measured on the ARCH-COMP box (roll, pitch, yaw; 27 corners and midpoints):
+with ``pilot="arch"`` the waypoint follower's pull (about 6 g at once, its
+altitude law toward 1500 ft) keeps the aircraft above 1076 ft and the GCAS
+never engages, so ``G[0,15] altitude > 0`` holds with margin > 1000 ft: the
+published falsifications (MoonLight 2024: 10/10 in 21 simulations) are not
+reproduced, and which difference of the competition's copy of the model
+explains them is not known here. With ``pilot="gcas"`` engaged at t = 0
+(``mode="roll"``) the lowest margin on those points is +9.0 ft (roll
+0.2833 pi, pitch -0.4 pi); with ``pilot="arch"`` and ``mode="roll"`` every
+point crashes.
+
+In steady flight the inner loop's fast lateral modes limit an explicit
+solver's step (the Python path's RK45 warns that the flow looks stiff).
+
+Not modelled: the Simulink model's envelope checks (they print, or stop a
+run out of the model's range) and its stop 5 s after the last waypoint;
+its charts run at the solver's steps, here their switches are located. The
+2018 version of the benchmark (AeroBenchVV's ``SimResults.mat``,
+AeroBenchVVPython v1) held the speed with the throttle and used gains of
+another design: its lowest altitude in the paper's scenario (3500 ft) is
+96.2 ft against 1.8 ft here (``pilot="gcas"``).
 
 Examples
 --------
@@ -342,8 +360,8 @@ X_EQUIL = np.array([502.0, 0.0389, 0.0, 0.0, 0.0389, 0.0, 0.0, 0.0, 0.0, 0.0, 0.
                     9.0567])
 #: trim controls [throttle, elevator, aileron, rudder] (0-1, deg)
 U_EQUIL = np.array([0.1395, -0.7496, 0.0, 0.0])
-#: longitudinal gain on [alpha, q, int Nz] (AeroBench's "old" gains)
-K_LONG = np.array([-156.8801506723475, -31.037008068526642, -38.72983346216317])
+#: longitudinal gain on [alpha, q, int Nz] (AeroBench's "old" gains, ``oldCtrlGains.mat``)
+K_LONG = np.array([-156.8802, -31.0370, -38.7298])
 #: lateral gains, aileron and rudder rows, on [beta, p, r, int ps, int Ny_r]
 K_LAT = np.array([[37.84483, -25.40956, -6.82876, -332.88343, -17.15997],
                   [-23.91233, 5.69968, -21.63431, 64.49490, -88.36203]])
@@ -363,7 +381,23 @@ MIN_PULL = 2.0                      # s
 WAIT = 2.0                          # the maneuver's start (s)
 ALPHA_0 = math.radians(2.1215)      # the initial (trim) angle of attack
 _AERO = {"morelli": 0.0, "stevens": 1.0}
+_PILOTS = {"gcas": 0.0, "arch": 1.0}
+
+# ------------------------------- waypoint follower (AeroBenchVV, ARCH-COMP's)
+#: the ``u_turn`` scenario's waypoints [east, north, altitude] (ft)
+WAYPOINTS = np.array([[-5000.0, -7500.0, 1500.0], [-15000.0, -7500.0, 1500.0],
+                      [-20000.0, -2000.0, 2500.0]])
+WP_RANGE = 250.0                    # a waypoint is reached within this slant range (ft)
+K_VT, WF_AIRSPEED = 0.25, 550.0     # throttle per ft/s, ft/s
+K_ALT, K_H_DOT = 0.005, 0.02        # g per ft, g per ft/s
+K_PROP_PSI, K_DER_PSI = 5.0, 0.5    # bank command per heading error, per yaw rate
+K_PROP_PHI, K_DER_PHI = 0.5, 0.9    # roll rate command per bank error, per roll rate
+MAX_NZ_TURN = 4.0                   # g
+MAX_BANK = math.radians(60.0)
+_BANK_FULL_NZ = math.radians(15.0)  # below this bank a descent may command Nz < 0
 _TWO_PI = 2.0 * math.pi
+_NEVER = -1e300                    # a guard that is never active
+_DIM = 20
 
 
 @_jitable
@@ -548,84 +582,150 @@ def _wrap(a, period):
 
 
 @_jitable
-def _references(x):
-    """The GCAS's (Nz_ref, ps_ref, Ny_r_ref, throttle_ref) in its mode."""
+def _path_angle(x):
+    a, b, phi, th = x[1], x[2], x[3], x[4]
+    return math.asin((math.cos(a) * math.sin(th) - math.sin(a) * math.cos(th) * math.cos(phi))
+                     * math.cos(b) - math.cos(th) * math.sin(phi) * math.sin(b))
+
+
+@_jitable
+def _waypoint_follower(x):
+    """AeroBenchVV's ``WaypointFollower.smartTrackToPoint``: (Nz, ps, Ny_r, throttle)."""
+    k = int(x[18])
+    h_cmd = WAYPOINTS[k, 2]
+    vt, phi, p = x[0], x[3], x[6]
+    h_err = h_cmd - x[11]
+    nz_alt = K_ALT * h_err - K_H_DOT * vt * math.sin(_path_angle(x))
+    throttle = min(max(K_VT * (WF_AIRSPEED - vt), 0.0), 1.0)
+    if x[19] != 0.0:                            # the waypoints done: wings level
+        return nz_alt, (0.0 - phi) * K_PROP_PHI - p * K_DER_PHI, 0.0, throttle
+    de, dn = WAYPOINTS[k, 0] - x[10], WAYPOINTS[k, 1] - x[9]
+    psi_cmd = _wrap(math.pi / 2 - math.atan2(dn, de), _TWO_PI)
+    err = _wrap(psi_cmd - _wrap(x[5], _TWO_PI), _TWO_PI)
+    phi_cmd = min(max(err * K_PROP_PSI - x[8] * K_DER_PSI, -MAX_BANK), MAX_BANK)
+    ps = (phi_cmd - phi) * K_PROP_PHI - p * K_DER_PHI
+    nz_turn = min(MAX_NZ_TURN, 1.0 / math.cos(phi) - 1.0) if -math.pi / 2 < phi <= math.pi / 2 \
+        else 0.0
+    nz = nz_alt + nz_turn
+    if not (h_err > 0.0 or phi < _BANK_FULL_NZ):
+        nz = max(0.0, nz)
+    return nz, ps, 0.0, throttle
+
+
+@_jitable
+def _references(x, pilot):
+    """The autopilot's (Nz_ref, ps_ref, Ny_r_ref, throttle_ref) in its mode."""
     mode = x[16]
     if mode == ROLL:
-        return 0.0, -_wrap(x[3], _TWO_PI) * K_PROP - x[6] * K_DER, 0.0, 0.0
+        period = math.pi if pilot == 1.0 else _TWO_PI
+        return 0.0, -_wrap(x[3], period) * K_PROP - x[6] * K_DER, 0.0, 0.0
     if mode == PULL:
         return NZ_PULL, 0.0, 0.0, 0.0
+    if mode == STANDBY and pilot == 1.0:
+        return _waypoint_follower(x)
     return 0.0, 0.0, 0.0, 0.0
 
 
 @_jitable
-def _closed_loop(x, aero, xd):
-    nz_ref, ps_ref, nyr_ref, thr_ref = _references(x)
+def _closed_loop(x, aero, pilot, xd):
+    nz_ref, ps_ref, nyr_ref, thr_ref = _references(x, pilot)
     u = _controls(x, thr_ref)
     nz, ny = _airframe(x, u, aero, xd)
-    da = x[1] - X_EQUIL[1]
-    ps = x[6] * math.cos(da) + x[8] * math.sin(da)
+    if pilot == 1.0:        # the Simulink model's subf16_morelli: of the derivatives
+        ps = xd[6] * math.cos(xd[1]) + xd[8] * math.sin(xd[1])
+        ny_r = ny + xd[8]
+    else:
+        da = x[1] - X_EQUIL[1]
+        ps = x[6] * math.cos(da) + x[8] * math.sin(da)
+        ny_r = ny + x[8]
     xd[13] = nz - nz_ref
     xd[14] = ps - ps_ref
-    xd[15] = ny + x[8] - nyr_ref
+    xd[15] = ny_r - nyr_ref
     return u, nz, ps
 
 
-def f16_derivative(x, aero="morelli"):
-    """The closed loop's 16 derivatives at x (18 components), and (u, Nz, ps).
+def _choice(name, value, table):
+    if value not in table:
+        raise ValueError(f"{name} must be one of {sorted(table)}, got {value!r}")
+    return table[value]
+
+
+def f16_derivative(x, aero="morelli", pilot="gcas"):
+    """The closed loop's 16 derivatives at x (``F16.state_dim`` components), and (u, Nz, ps).
 
     ``u`` the saturated controls [throttle, elevator, aileron, rudder]
     (0-1, deg), Nz (g above 1) and ps (rad/s), as AeroBench's
     ``controlled_f16`` returns them.
     """
-    if aero not in _AERO:
-        raise ValueError(f"aero must be 'morelli' or 'stevens', got {aero!r}")
+    a, pl = _choice("aero", aero, _AERO), _choice("pilot", pilot, _PILOTS)
     x = np.asarray(x, dtype=float)
-    if x.shape != (18,):
-        raise ValueError(f"x must have 18 components, got shape {x.shape}")
-    xd = np.zeros(18)
-    u, nz, ps = _closed_loop(x, _AERO[aero], xd)
+    if x.shape != (_DIM,):
+        raise ValueError(f"x must have {_DIM} components, got shape {x.shape}")
+    xd = np.zeros(_DIM)
+    u, nz, ps = _closed_loop(x, a, pl, xd)
     return xd[:16], u, nz, ps
 
 
 @_jitable
-def _guard(x, t):
+def _wings_level(x, pilot):
+    return abs(_wrap(x[3], math.pi if pilot == 1.0 else _TWO_PI))
+
+
+@_jitable
+def _mode_guard(x, t, pilot):
     """>= 0 where the GCAS's current mode must switch."""
     mode = x[16]
     if mode == WAITING:
         return t - WAIT
     gamma = _wrap(x[4] - x[1], _TWO_PI)
     if mode == ROLL:
-        return min(EPS_P - abs(x[6]), EPS_PHI - abs(_wrap(x[3], _TWO_PI)))
+        return min(EPS_P - abs(x[6]), EPS_PHI - _wings_level(x, pilot))
     if mode == PULL:
         return min(gamma - PATH_GOAL, t - x[17] - MIN_PULL)
     return min(PATH_GOAL - gamma, FLIGHT_DECK - x[11])
 
 
+@_jitable
+def _waypoint_guard(x, pilot):
+    """>= 0 where the waypoint follower reaches its waypoint (the Simulink model only)."""
+    if pilot != 1.0 or x[19] != 0.0:
+        return _NEVER
+    k = int(x[18])
+    de, dn, dh = WAYPOINTS[k, 0] - x[10], WAYPOINTS[k, 1] - x[9], WAYPOINTS[k, 2] - x[11]
+    return WP_RANGE - math.sqrt(de * de + dn * dn + dh * dh)
+
+
 def f16_flow(x, t, j, p):
     xd = np.zeros(x.shape[0])
-    _closed_loop(x, p[0], xd)
+    _closed_loop(x, p[0], p[1], xd)
     return xd
 
 
 def f16_guard(x, t, j, p):
-    return _guard(x, t)
+    return max(_mode_guard(x, t, p[1]), _waypoint_guard(x, p[1]))
 
 
 def f16_jump_set(x, t, j, p):
-    return _guard(x, t) >= 0.0
+    return max(_mode_guard(x, t, p[1]), _waypoint_guard(x, p[1])) >= 0.0
 
 
 def f16_jump(x, t, j, p):
     y = x.copy()
-    mode = x[16]
-    if mode == WAITING or mode == STANDBY:
-        y[16] = ROLL
-    elif mode == ROLL:
-        y[16] = PULL
-    else:
-        y[16] = STANDBY
-    y[17] = t
+    if _mode_guard(x, t, p[1]) >= 0.0:
+        mode = x[16]
+        if mode == WAITING or mode == STANDBY:
+            y[16] = ROLL
+        elif mode == ROLL:
+            y[16] = PULL
+        else:
+            y[16] = STANDBY
+        y[17] = t
+    if _waypoint_guard(x, p[1]) >= 0.0:
+        # the chart's off-by-one: of n waypoints the first n - 1 are tracked
+        if x[18] + 2.0 < WAYPOINTS.shape[0]:
+            y[18] = x[18] + 1.0
+        else:
+            y[19] = 1.0
     return y
 
 
@@ -634,14 +734,21 @@ class F16(CompiledSystem):
 
     The continuous state is AeroBench's 16 (13 of the aircraft, with the
     engine's power lag, and the inner loop's three integrators); the GCAS's
-    mode and the time it was entered are constant between jumps. Each mode
-    switch is a jump located on its guard (the module's notes).
+    mode, the time it was entered, the waypoint follower's waypoint and its
+    "done" flag are constant between jumps. Each switch is a jump located on
+    its guard (the module's notes).
 
     Parameters
     ----------
     aero : {"morelli", "stevens"}
         Morelli's polynomial aerodynamics (AeroBench's default, the
         Simulink model's) or Stevens & Lewis' tables.
+    pilot : {"gcas", "arch"}
+        ``"gcas"``: AeroBenchVVPython v2's GCAS (no command outside its
+        maneuver); ``"arch"``: ARCH-COMP's Simulink model ``AeroBenchSim_2019a``
+        (the waypoint follower flies while the GCAS stands by, its integrators
+        read ps and Ny_r of the derivatives, its wings level to the nearest
+        multiple of pi).
 
     Examples
     --------
@@ -654,25 +761,27 @@ class F16(CompiledSystem):
     """
 
     VT, ALPHA, BETA, PHI, THETA, PSI, P, Q, R, NORTH, EAST, ALTITUDE, POWER = range(13)
-    MODE, MODE_TIME = 16, 17
+    MODE, MODE_TIME, WAYPOINT, WAYPOINTS_DONE = 16, 17, 18, 19
     MODES = ("waiting", "roll", "pull", "standby")
     #: the ARCH-COMP initial altitude (ft; its ``initF16.m``)
     ALTITUDE_0 = 2338.0
 
-    def __init__(self, aero="morelli"):
-        if aero not in _AERO:
-            raise ValueError(f"aero must be 'morelli' or 'stevens', got {aero!r}")
-        self.aero = aero
+    def __init__(self, aero="morelli", pilot="gcas"):
+        a, pl = _choice("aero", aero, _AERO), _choice("pilot", pilot, _PILOTS)
+        self.aero, self.pilot = aero, pilot
         CompiledSystem.__init__(self, flow_map=f16_flow, jump_map=f16_jump, jump_guard=f16_guard,
-                                jump_set=f16_jump_set, state_dim=18,
-                                params=np.array([_AERO[aero]]), name=f"F16({aero})")
+                                jump_set=f16_jump_set, state_dim=_DIM,
+                                params=np.array([a, pl]), name=f"F16({aero}, {pilot})")
 
     def initial_state(self, roll, pitch, yaw=0.0, *, altitude=None, airspeed=540.0,
-                      alpha=None, power=9.0, mode="waiting"):
+                      alpha=None, power=9.0, mode=None):
         """The state at t = 0: wings at ``roll``, nose at ``pitch``, heading
         ``yaw`` (rad), trimmed angle of attack 2.1215 deg, no sideslip, rates
         or integrals, ``altitude`` (ft, default ``ALTITUDE_0``), the GCAS in
-        ``mode`` (one of ``MODES``)."""
+        ``mode`` (one of ``MODES``; default ``"waiting"``, with ``pilot="arch"``
+        ``"standby"``), the first waypoint."""
+        if mode is None:
+            mode = "standby" if self.pilot == "arch" else "waiting"
         if mode not in self.MODES:
             raise ValueError(f"mode must be one of {self.MODES}, got {mode!r}")
         alt = self.ALTITUDE_0 if altitude is None else float(altitude)
@@ -683,7 +792,7 @@ class F16(CompiledSystem):
                              f"finite, got {vals.tolist()}")
         if airspeed <= 0.0:
             raise ValueError(f"airspeed must be positive, got {airspeed}")
-        x = np.zeros(18)
+        x = np.zeros(_DIM)
         x[[0, 1, 3, 4, 5, 11, 12]] = [airspeed, alpha, roll, pitch, yaw, alt, power]
         x[16] = float(self.MODES.index(mode))
         return x

@@ -181,7 +181,7 @@ def robustness_of(name, times, values, interpolation, **simulate_kwargs):
     """
     req = REQUIREMENTS[name]
     if req.system == "F16":             # values: the initial (roll, pitch, yaw)
-        m = MODELS["F16"]()
+        m = model("F16", 1)
         x0 = f16_state(m, *np.asarray(values, dtype=float).ravel())
     else:
         m = MODELS[req.system](times=times, interpolation=interpolation)

@@ -17,9 +17,8 @@ is held.
 F16 has no input signal, one instance: its initial roll in [pi/4 - pi/20,
 pi/4 + pi/30], pitch in [-2 pi/5, -2 pi/5 + pi/20] and yaw in [-pi/4 - pi/8,
 -pi/4 + pi/8] (rad; the benchmark's README), from 2338 ft (its
-``initF16.m``), the GCAS engaged at t = 0 (mode ``roll``: the Simulink
-model's waypoint follower, which flies the aircraft until it is below
-1000 ft, is not part of the model here).
+``initF16.m``), the model the competition names (``F16(pilot="arch")``: the
+Simulink model's waypoint follower flies, the GCAS stands by).
 
 Examples
 --------
@@ -58,8 +57,8 @@ INSTANCES = {
 F16_RANGES = {"roll": (math.pi / 4 - math.pi / 20, math.pi / 4 + math.pi / 30),
               "pitch": (-2 * math.pi / 5, -2 * math.pi / 5 + math.pi / 20),
               "yaw": (-math.pi / 4 - math.pi / 8, -math.pi / 4 + math.pi / 8)}
-#: the GCAS's mode at t = 0 in the F16 instance
-F16_MODE = "roll"
+#: the autopilot of the F16 instance (:class:`F16`'s ``pilot``)
+F16_PILOT = "arch"
 
 
 def _key(system, instance):
@@ -87,7 +86,7 @@ def model(system, instance):
     its compiled maps are reused by every requirement)."""
     interp = INSTANCES[_key(system, instance)][2]
     if system == "F16":
-        return F16()
+        return F16(pilot=F16_PILOT)
     return MODELS[system](times=space(system, instance).entries["u"].times,
                           interpolation=interp)
 
@@ -126,7 +125,7 @@ def problem(name, instance, backend="auto"):
 
 def f16_state(m, roll, pitch, yaw):
     """The F16 instance's initial state of these attitudes (rad)."""
-    return m.initial_state(roll, pitch, yaw, mode=F16_MODE)
+    return m.initial_state(roll, pitch, yaw)
 
 
 def input_matrix(point):
