@@ -65,41 +65,42 @@ Simulink chart ``GCAS_FSM``):
 
 Throttle command: the trim's (u_ref's throttle 0). Each switch is a jump
 located on its guard (AeroBench's Python samples the logic every 1/30 s,
-its Simulink chart at each solver step).
+its Simulink chart switches at the solver's steps; ``sample`` does the
+former).
 
 Two readings of the benchmark
 -----------------------------
 ``pilot="gcas"``: AeroBenchVVPython v2's ``GcasAutopilot`` as above.
-``pilot="arch"``: the Simulink model ARCH-COMP names (AeroBenchVV's develop
-branch, ``src/main/Simulink/AeroBenchSim_2019a.slx``, its ``SimConfig.m``
-and ``initF16.m``: scenario ``u_turn``, 2338 ft, 15 s): a waypoint follower
-(``WaypointFollower.smartTrackToPoint``: heading to bank to roll rate, an
-altitude and climb-rate law for Nz, airspeed 550 ft/s by the throttle;
-waypoints ``WAYPOINTS``, each reached within 250 ft, a jump) flies while the
-GCAS chart stands by (``STANDBY``, its ``SAFE``); the chart's ``ROLL_LEVEL``
-and ``PULL_UP`` fly the roll and pull, and the autopilot selector hands back
-to the waypoint follower when the chart returns to ``SAFE``. That model's
-integrators read ps and Ny_r from the derivatives of P, alpha and R (its
-``subf16_morelli``: ps = P' cos(alpha') + R' sin(alpha'), Ny_r = Ny + R'),
-and its roll levels the wings to the nearest multiple of pi.
+``pilot="arch"``: the model ARCH-COMP runs, AeroBenchVV's Simulink
+``AeroBenchSim_2019a`` in the competition's copy "AeroBenchVV-develop" (as
+FReaK ships it, github Abdu-Hekal/FReaK ``benchmarks/blackBox/f16``): its
+``SimConfig.m`` picks the ``GCAS`` scenario with ``GCAS_starts_on`` (the
+GCAS chart starts in ``ROLL_LEVEL``, the autopilot selector in
+``USE_GCAS_AP``), ``v2_integrators = 0`` (ps and Ny_r of the states, as
+above), and ``initF16.m`` sets 2338 ft and 15 s. When the chart returns to
+``SAFE`` the selector hands the aircraft to the waypoint follower
+(``WaypointFollower.smartTrackToPoint``: heading error to bank to roll
+rate, an altitude and climb-rate law for Nz clipped to [-1, 4] g, 550 ft/s by
+the throttle) toward the scenario's waypoint ``WAYPOINTS``, reached within
+250 ft (a jump). Here that is ``STANDBY``; it starts in ``ROLL``.
 
-Measured on the ARCH-COMP box (roll, pitch, yaw; 27 corners and midpoints):
-with ``pilot="arch"`` the waypoint follower's pull (about 6 g at once, its
-altitude law toward 1500 ft) keeps the aircraft above 1076 ft and the GCAS
-never engages, so ``G[0,15] altitude > 0`` holds with margin > 1000 ft: the
-published falsifications (MoonLight 2024: 10/10 in 21 simulations) are not
-reproduced, and which difference of the competition's copy of the model
-explains them is not known here. With ``pilot="gcas"`` engaged at t = 0
-(``mode="roll"``) the lowest margin on those points is +9.0 ft (roll
-0.2833 pi, pitch -0.4 pi); with ``pilot="arch"`` and ``mode="roll"`` every
-point crashes.
-
-In steady flight the inner loop's fast lateral modes limit an explicit
-solver's step (the Python path's RK45 warns that the flow looks stiff).
+Measured on ARCH-COMP's box (``pilot="arch"``, roll, pitch, yaw): with the
+switches located, the worst corner (roll 0.2833 pi, pitch -0.4 pi) keeps a
+margin of +8.99 ft (its lowest point at the pull's end, 6.12 s); with the
+logic sampled every 1/30 s (``sample=1/30``, AeroBenchVVPython's step) the
+later switches cost 9 ft there and it crashes (-0.06 ft). 120 uniform points
+stay above 25.5 ft (located) and 5.2 ft (sampled). The published
+falsifications (MoonLight 2024: 10/10 in 21 simulations) are of the Simulink
+model, whose charts switch at its solver's steps (variable-step, RelTol
+1e-3): on this evidence they rest on switches taken late. The develop
+branch's head in pheidlauf/AeroBenchVV is another configuration (scenario
+``u_turn``, the waypoint follower first, ps and Ny_r of the derivatives),
+not the competition's.
 
 Not modelled: the Simulink model's envelope checks (they print, or stop a
-run out of the model's range) and its stop 5 s after the last waypoint;
-its charts run at the solver's steps, here their switches are located. The
+run out of the model's range) and its stop 5 s after the last waypoint. In
+steady flight the inner loop's fast lateral modes limit an explicit
+solver's step (the Python path's RK45 warns that the flow looks stiff). The
 2018 version of the benchmark (AeroBenchVV's ``SimResults.mat``,
 AeroBenchVVPython v1) held the speed with the throttle and used gains of
 another design: its lowest altitude in the paper's scenario (3500 ft) is
@@ -383,21 +384,21 @@ ALPHA_0 = math.radians(2.1215)      # the initial (trim) angle of attack
 _AERO = {"morelli": 0.0, "stevens": 1.0}
 _PILOTS = {"gcas": 0.0, "arch": 1.0}
 
-# ------------------------------- waypoint follower (AeroBenchVV, ARCH-COMP's)
-#: the ``u_turn`` scenario's waypoints [east, north, altitude] (ft)
-WAYPOINTS = np.array([[-5000.0, -7500.0, 1500.0], [-15000.0, -7500.0, 1500.0],
-                      [-20000.0, -2000.0, 2500.0]])
+# ------------------ waypoint follower (ARCH-COMP's copy of AeroBenchVV develop)
+#: the ``GCAS`` scenario's waypoint [east, north, altitude] (ft)
+WAYPOINTS = np.array([[0.0, 20000.0, 1500.0]])
 WP_RANGE = 250.0                    # a waypoint is reached within this slant range (ft)
 K_VT, WF_AIRSPEED = 0.25, 550.0     # throttle per ft/s, ft/s
 K_ALT, K_H_DOT = 0.005, 0.02        # g per ft, g per ft/s
 K_PROP_PSI, K_DER_PSI = 5.0, 0.5    # bank command per heading error, per yaw rate
-K_PROP_PHI, K_DER_PHI = 0.5, 0.9    # roll rate command per bank error, per roll rate
-MAX_NZ_TURN = 4.0                   # g
-MAX_BANK = math.radians(60.0)
+K_PROP_PHI, K_DER_PHI = 0.75, 0.5   # roll rate command per bank error, per roll rate
+NZ_CMD_MIN, NZ_CMD_MAX = -1.0, 4.0  # g
+MAX_BANK = math.radians(65.0)
 _BANK_FULL_NZ = math.radians(15.0)  # below this bank a descent may command Nz < 0
 _TWO_PI = 2.0 * math.pi
 _NEVER = -1e300                    # a guard that is never active
-_DIM = 20
+_DIM = 21
+_TICK_SLACK = 1e-9                 # of a sample: an event's location error
 
 
 @_jitable
@@ -598,18 +599,18 @@ def _waypoint_follower(x):
     nz_alt = K_ALT * h_err - K_H_DOT * vt * math.sin(_path_angle(x))
     throttle = min(max(K_VT * (WF_AIRSPEED - vt), 0.0), 1.0)
     if x[19] != 0.0:                            # the waypoints done: wings level
-        return nz_alt, (0.0 - phi) * K_PROP_PHI - p * K_DER_PHI, 0.0, throttle
-    de, dn = WAYPOINTS[k, 0] - x[10], WAYPOINTS[k, 1] - x[9]
-    psi_cmd = _wrap(math.pi / 2 - math.atan2(dn, de), _TWO_PI)
-    err = _wrap(psi_cmd - _wrap(x[5], _TWO_PI), _TWO_PI)
-    phi_cmd = min(max(err * K_PROP_PSI - x[8] * K_DER_PSI, -MAX_BANK), MAX_BANK)
-    ps = (phi_cmd - phi) * K_PROP_PHI - p * K_DER_PHI
-    nz_turn = min(MAX_NZ_TURN, 1.0 / math.cos(phi) - 1.0) if -math.pi / 2 < phi <= math.pi / 2 \
-        else 0.0
-    nz = nz_alt + nz_turn
-    if not (h_err > 0.0 or phi < _BANK_FULL_NZ):
-        nz = max(0.0, nz)
-    return nz, ps, 0.0, throttle
+        nz, ps = nz_alt, (0.0 - phi) * K_PROP_PHI - p * K_DER_PHI
+    else:
+        de, dn = WAYPOINTS[k, 0] - x[10], WAYPOINTS[k, 1] - x[9]
+        psi_cmd = _wrap(math.pi / 2 - math.atan2(dn, de), _TWO_PI)
+        err = _wrap(psi_cmd - _wrap(x[5], _TWO_PI), _TWO_PI)
+        phi_cmd = min(max(err * K_PROP_PSI - x[8] * K_DER_PSI, -MAX_BANK), MAX_BANK)
+        ps = (phi_cmd - phi) * K_PROP_PHI - p * K_DER_PHI
+        nz_turn = 1.0 / math.cos(phi) - 1.0 if -math.pi / 2 < phi <= math.pi / 2 else 0.0
+        nz = nz_alt + nz_turn
+        if not (h_err > 0.0 or abs(phi) < _BANK_FULL_NZ):
+            nz = max(0.0, nz)
+    return min(max(nz, NZ_CMD_MIN), NZ_CMD_MAX), ps, 0.0, throttle
 
 
 @_jitable
@@ -617,8 +618,7 @@ def _references(x, pilot):
     """The autopilot's (Nz_ref, ps_ref, Ny_r_ref, throttle_ref) in its mode."""
     mode = x[16]
     if mode == ROLL:
-        period = math.pi if pilot == 1.0 else _TWO_PI
-        return 0.0, -_wrap(x[3], period) * K_PROP - x[6] * K_DER, 0.0, 0.0
+        return 0.0, -_wrap(x[3], _TWO_PI) * K_PROP - x[6] * K_DER, 0.0, 0.0
     if mode == PULL:
         return NZ_PULL, 0.0, 0.0, 0.0
     if mode == STANDBY and pilot == 1.0:
@@ -631,13 +631,9 @@ def _closed_loop(x, aero, pilot, xd):
     nz_ref, ps_ref, nyr_ref, thr_ref = _references(x, pilot)
     u = _controls(x, thr_ref)
     nz, ny = _airframe(x, u, aero, xd)
-    if pilot == 1.0:        # the Simulink model's subf16_morelli: of the derivatives
-        ps = xd[6] * math.cos(xd[1]) + xd[8] * math.sin(xd[1])
-        ny_r = ny + xd[8]
-    else:
-        da = x[1] - X_EQUIL[1]
-        ps = x[6] * math.cos(da) + x[8] * math.sin(da)
-        ny_r = ny + x[8]
+    da = x[1] - X_EQUIL[1]
+    ps = x[6] * math.cos(da) + x[8] * math.sin(da)
+    ny_r = ny + x[8]
     xd[13] = nz - nz_ref
     xd[14] = ps - ps_ref
     xd[15] = ny_r - nyr_ref
@@ -667,19 +663,14 @@ def f16_derivative(x, aero="morelli", pilot="gcas"):
 
 
 @_jitable
-def _wings_level(x, pilot):
-    return abs(_wrap(x[3], math.pi if pilot == 1.0 else _TWO_PI))
-
-
-@_jitable
-def _mode_guard(x, t, pilot):
+def _mode_guard(x, t):
     """>= 0 where the GCAS's current mode must switch."""
     mode = x[16]
     if mode == WAITING:
         return t - WAIT
     gamma = _wrap(x[4] - x[1], _TWO_PI)
     if mode == ROLL:
-        return min(EPS_P - abs(x[6]), EPS_PHI - _wings_level(x, pilot))
+        return min(EPS_P - abs(x[6]), EPS_PHI - abs(_wrap(x[3], _TWO_PI)))
     if mode == PULL:
         return min(gamma - PATH_GOAL, t - x[17] - MIN_PULL)
     return min(PATH_GOAL - gamma, FLIGHT_DECK - x[11])
@@ -695,6 +686,13 @@ def _waypoint_guard(x, pilot):
     return WP_RANGE - math.sqrt(de * de + dn * dn + dh * dh)
 
 
+@_jitable
+def _guard(x, t, p):
+    if p[2] > 0.0:                      # the logic sampled: its next sample
+        return t - p[2] * x[20]
+    return max(_mode_guard(x, t), _waypoint_guard(x, p[1]))
+
+
 def f16_flow(x, t, j, p):
     xd = np.zeros(x.shape[0])
     _closed_loop(x, p[0], p[1], xd)
@@ -702,16 +700,16 @@ def f16_flow(x, t, j, p):
 
 
 def f16_guard(x, t, j, p):
-    return max(_mode_guard(x, t, p[1]), _waypoint_guard(x, p[1]))
+    return _guard(x, t, p)
 
 
 def f16_jump_set(x, t, j, p):
-    return max(_mode_guard(x, t, p[1]), _waypoint_guard(x, p[1])) >= 0.0
+    return _guard(x, t, p) >= 0.0
 
 
 def f16_jump(x, t, j, p):
     y = x.copy()
-    if _mode_guard(x, t, p[1]) >= 0.0:
+    if _mode_guard(x, t) >= 0.0:
         mode = x[16]
         if mode == WAITING or mode == STANDBY:
             y[16] = ROLL
@@ -726,6 +724,8 @@ def f16_jump(x, t, j, p):
             y[18] = x[18] + 1.0
         else:
             y[19] = 1.0
+    if p[2] > 0.0:
+        y[20] = math.floor(t / p[2] + _TICK_SLACK) + 1.0
     return y
 
 
@@ -745,10 +745,12 @@ class F16(CompiledSystem):
         Simulink model's) or Stevens & Lewis' tables.
     pilot : {"gcas", "arch"}
         ``"gcas"``: AeroBenchVVPython v2's GCAS (no command outside its
-        maneuver); ``"arch"``: ARCH-COMP's Simulink model ``AeroBenchSim_2019a``
-        (the waypoint follower flies while the GCAS stands by, its integrators
-        read ps and Ny_r of the derivatives, its wings level to the nearest
-        multiple of pi).
+        maneuver); ``"arch"``: ARCH-COMP's Simulink model (its waypoint
+        follower flies while the GCAS stands by, the module's notes).
+    sample : float, optional
+        Evaluate the GCAS and waypoint logic only every ``sample`` seconds
+        (AeroBenchVVPython: 1/30), a switch at the first sample where its
+        condition holds; default: switches located on their guards.
 
     Examples
     --------
@@ -761,17 +763,20 @@ class F16(CompiledSystem):
     """
 
     VT, ALPHA, BETA, PHI, THETA, PSI, P, Q, R, NORTH, EAST, ALTITUDE, POWER = range(13)
-    MODE, MODE_TIME, WAYPOINT, WAYPOINTS_DONE = 16, 17, 18, 19
+    MODE, MODE_TIME, WAYPOINT, WAYPOINTS_DONE, NEXT_SAMPLE = 16, 17, 18, 19, 20
     MODES = ("waiting", "roll", "pull", "standby")
     #: the ARCH-COMP initial altitude (ft; its ``initF16.m``)
     ALTITUDE_0 = 2338.0
 
-    def __init__(self, aero="morelli", pilot="gcas"):
+    def __init__(self, aero="morelli", pilot="gcas", sample=None):
         a, pl = _choice("aero", aero, _AERO), _choice("pilot", pilot, _PILOTS)
-        self.aero, self.pilot = aero, pilot
+        if sample is not None and not (np.isfinite(sample) and sample > 0):
+            raise ValueError(f"sample must be a positive period (s) or None, got {sample!r}")
+        self.aero, self.pilot, self.sample = aero, pilot, sample
         CompiledSystem.__init__(self, flow_map=f16_flow, jump_map=f16_jump, jump_guard=f16_guard,
                                 jump_set=f16_jump_set, state_dim=_DIM,
-                                params=np.array([a, pl]), name=f"F16({aero}, {pilot})")
+                                params=np.array([a, pl, float(sample or 0.0)]),
+                                name=f"F16({aero}, {pilot}, sample={sample})")
 
     def initial_state(self, roll, pitch, yaw=0.0, *, altitude=None, airspeed=540.0,
                       alpha=None, power=9.0, mode=None):
@@ -779,9 +784,9 @@ class F16(CompiledSystem):
         ``yaw`` (rad), trimmed angle of attack 2.1215 deg, no sideslip, rates
         or integrals, ``altitude`` (ft, default ``ALTITUDE_0``), the GCAS in
         ``mode`` (one of ``MODES``; default ``"waiting"``, with ``pilot="arch"``
-        ``"standby"``), the first waypoint."""
+        ``"roll"``: its GCAS starts on), the first waypoint."""
         if mode is None:
-            mode = "standby" if self.pilot == "arch" else "waiting"
+            mode = "roll" if self.pilot == "arch" else "waiting"
         if mode not in self.MODES:
             raise ValueError(f"mode must be one of {self.MODES}, got {mode!r}")
         alt = self.ALTITUDE_0 if altitude is None else float(altitude)

@@ -17,8 +17,8 @@ is held.
 F16 has no input signal, one instance: its initial roll in [pi/4 - pi/20,
 pi/4 + pi/30], pitch in [-2 pi/5, -2 pi/5 + pi/20] and yaw in [-pi/4 - pi/8,
 -pi/4 + pi/8] (rad; the benchmark's README), from 2338 ft (its
-``initF16.m``), the model the competition names (``F16(pilot="arch")``: the
-Simulink model's waypoint follower flies, the GCAS stands by).
+``initF16.m``), the model the competition runs (``F16(pilot="arch")``: the
+GCAS on from t = 0, then the waypoint follower), its switches located.
 
 Examples
 --------
@@ -57,8 +57,9 @@ INSTANCES = {
 F16_RANGES = {"roll": (math.pi / 4 - math.pi / 20, math.pi / 4 + math.pi / 30),
               "pitch": (-2 * math.pi / 5, -2 * math.pi / 5 + math.pi / 20),
               "yaw": (-math.pi / 4 - math.pi / 8, -math.pi / 4 + math.pi / 8)}
-#: the autopilot of the F16 instance (:class:`F16`'s ``pilot``)
-F16_PILOT = "arch"
+#: the autopilot of the F16 instance and its logic's sampling (:class:`F16`'s ``pilot``
+#: and ``sample``; None: switches located)
+F16_PILOT, F16_SAMPLE = "arch", None
 
 
 def _key(system, instance):
@@ -86,7 +87,7 @@ def model(system, instance):
     its compiled maps are reused by every requirement)."""
     interp = INSTANCES[_key(system, instance)][2]
     if system == "F16":
-        return F16(pilot=F16_PILOT)
+        return F16(pilot=F16_PILOT, sample=F16_SAMPLE)
     return MODELS[system](times=space(system, instance).entries["u"].times,
                           interpolation=interp)
 

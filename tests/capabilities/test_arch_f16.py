@@ -110,21 +110,44 @@ def test_gcas_modes_switch_on_their_guards():
 # in steady flight the inner loop's fast lateral modes limit RK45's step (hybridsim says so)
 @pytest.mark.filterwarnings("ignore:the flow looks stiff")
 def test_waypoint_follower_reaches_its_waypoint():
-    # pilot="arch": level at 1500 ft, pointed at the u_turn scenario's first waypoint (9014 ft
-    # away): the follower reaches it, a jump located at the 250 ft slant range, and tracks
-    # the next; the GCAS stands by throughout. (From the scenario's own start, heading
-    # north, the U-turn takes 51 s.)
+    # pilot="arch" after the maneuver: level at 1500 ft, 5000 ft short of the GCAS scenario's
+    # waypoint and heading at it, the follower flies there; reaching it (250 ft slant range)
+    # is a located jump, and the follower then levels the wings
     m = F.F16(pilot="arch")
-    e, n, h = F.WAYPOINTS[0]
-    heading = math.pi / 2 - math.atan2(n, e)
-    arc = hs.simulate(m, m.initial_state(0.0, 0.0, heading, altitude=1500.0), t_max=20.0)
-    k = np.flatnonzero(np.diff(arc.x[:, F.F16.WAYPOINT]))
+    x0 = m.initial_state(0.0, 0.0, 0.0, altitude=1500.0, mode="standby")
+    x0[F.F16.NORTH] = F.WAYPOINTS[0, 1] - 5000.0
+    arc = hs.simulate(m, x0, t_max=12.0)
+    k = np.flatnonzero(np.diff(arc.x[:, F.F16.WAYPOINTS_DONE]))
     assert len(k) == 1
     x = arc.x[k[0]]
-    d = math.dist((x[F.F16.EAST], x[F.F16.NORTH], x[F.F16.ALTITUDE]), (e, n, h))
+    d = math.dist((x[F.F16.EAST], x[F.F16.NORTH], x[F.F16.ALTITUDE]), F.WAYPOINTS[0])
     assert d == pytest.approx(F.WP_RANGE, abs=1e-6)
     assert np.all(arc.x[:, F.F16.MODE] == F.STANDBY)
     assert np.all(np.abs(arc.x[:, F.F16.ALTITUDE] - 1500.0) < 50.0)    # held its altitude
+
+
+def test_sampled_logic_switches_on_its_grid_and_later():
+    # sample=1/30 (AeroBenchVVPython's step): every switch at a sample, none before the
+    # located one (the first within one sample; the pull's clock then starts late); on
+    # ARCH-COMP's worst corner the later switches lose altitude (9 ft there)
+    lo_r, hi_r = F16_RANGES["roll"]
+    lo_p, _ = F16_RANGES["pitch"]
+    located, sampled = F.F16(pilot="arch"), F.F16(pilot="arch", sample=1 / 30)
+    runs = [hs.simulate(m, m.initial_state(hi_r, lo_p, -math.pi / 4), t_max=15.0)
+            for m in (located, sampled)]
+    times = []
+    for arc in runs:
+        k = np.flatnonzero(np.diff(arc.x[:, F.F16.MODE]))
+        times.append(arc.t[k + 1])
+    assert len(times[0]) == len(times[1]) == 2                 # roll -> pull -> standby
+    ticks = times[1] * 30
+    np.testing.assert_allclose(ticks, np.round(ticks), atol=1e-6)
+    assert np.all(times[1] >= times[0])
+    assert times[1][0] - times[0][0] < 1 / 30 + 1e-9           # the first within a sample
+    low = [arc.x[:, F.F16.ALTITUDE].min() for arc in runs]
+    assert low[0] > 0.0 and low[1] < low[0] - 5.0
+    with pytest.raises(ValueError, match="sample"):
+        F.F16(sample=0.0)
 
 
 def test_f16_requirement_space_and_runner_agree():
@@ -145,5 +168,4 @@ def test_f16_requirement_space_and_runner_agree():
     arc = hs.simulate(m, m.initial_state(*vals), t_max=15.0)
     low = arc.x[:, F.F16.ALTITUDE].min()            # dense robustness: at most the samples'
     assert low - 0.01 < float(r) <= low + 1e-9
-    # the follower's pull holds the aircraft far above the ground; the GCAS never engages
-    assert float(r) > 1000.0 and np.all(arc.x[:, F.F16.MODE] == F.STANDBY)
+    assert arc.x[0, F.F16.MODE] == F.ROLL                  # the GCAS on from t = 0
