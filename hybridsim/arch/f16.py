@@ -37,7 +37,9 @@ Sources and licences of the data
   GPL-3.0, distribution A (approved for public release, 88ABW-2017-6379,
   88ABW-2020-2188). The numbers are read from them as facts; no code of
   either is used. The tables were read from AeroBenchVVPython's
-  ``lowlevel/*.py`` and agree with Stevens & Lewis' printed tables.
+  ``lowlevel/*.py``; with them the model reproduces Stevens & Lewis' check
+  case (Table 3.5-2, 3rd ed.) in 11 of its 13 derivatives to the printed
+  digits (P' and R' differ by 1.6 % and 0.5 %, as in other implementations).
 
 The model as AeroBench defines it
 ---------------------------------
@@ -348,7 +350,7 @@ S_WING, SPAN, CBAR = 300.0, 30.0, 11.32         # ft^2, ft, ft
 RM = 1.57e-3                                    # 1 / mass (1 / slug)
 XCG, XCG_REF = 0.35, 0.35                       # c.g. and reference, fraction of cbar
 HE = 160.0                                      # engine angular momentum (slug ft^2 / s)
-#: the inertia combinations c1..c9 of the moment equations (Stevens & Lewis, Table 2.4-1)
+#: the inertia combinations c1..c9 of the moment equations (Stevens & Lewis, Appendix A)
 C1, C2, C3, C4, C5 = -0.770, 0.02755, 1.055e-4, 1.642e-6, 0.9604
 C6, C7, C8, C9 = 1.759e-2, 1.792e-5, -0.7336, 1.587e-5
 RTOD = 57.29578                                 # the model's degrees per radian
@@ -433,7 +435,7 @@ def _poly(k, *terms):
 
 
 @_jitable
-def _morelli(a, b, de, da, dr, p, q, r, vt):
+def _morelli(a, b, de, da, dr, p, q, r, vt, xcg):
     """Morelli's coefficients (radians), with their rate terms."""
     ph, qh, rh = p * SPAN / (2 * vt), q * CBAR / (2 * vt), r * SPAN / (2 * vt)
     a2, a3, b2 = a * a, a * a * a, b * b
@@ -448,12 +450,12 @@ def _morelli(a, b, de, da, dr, p, q, r, vt):
           + _poly(10, 1.0, a, b, a2, a * b, a2 * b, a3) * da
           + _poly(11, 1.0, a, b, a * b, a2 * b, a3 * b, b2) * dr)
     cm = (_poly(12, 1.0, a, de, a * de, de * de, a2 * de, de * de * de, a * de * de)
-          + _poly(13, 1.0, a, a2, a3, a2 * a2, a2 * a3) * qh + cz * (XCG_REF - XCG))
+          + _poly(13, 1.0, a, a2, a3, a2 * a2, a2 * a3) * qh + cz * (XCG_REF - xcg))
     cn = (_poly(14, b, a * b, b2, a * b2, a2 * b, a2 * b2, a3 * b)
           + _poly(15, 1.0, a, a2, a3, a2 * a2) * ph + _poly(16, 1.0, a, a2) * rh
           + _poly(17, 1.0, a, b, a * b, a2 * b, a3 * b, a2, a3, b2 * b, a * b2 * b) * da
           + _poly(18, 1.0, a, b, a * b, a2 * b, a2) * dr
-          - cy * (XCG_REF - XCG) * (CBAR / SPAN))
+          - cy * (XCG_REF - xcg) * (CBAR / SPAN))
     return cx, cy, cz, cl, cm, cn
 
 
@@ -498,9 +500,9 @@ def _rtau(dp):
 
 
 @_jitable
-def _airframe(x, u, aero, xd):
-    """The 13 derivatives of the aircraft (Stevens & Lewis' ``subf16``) into
-    ``xd[:13]``; returns (Nz, Ny) at the pilot's station."""
+def _airframe(x, u, aero, xd, xcg=XCG):
+    """The 13 derivatives of the aircraft (Stevens & Lewis' ``subf16``, c.g. at
+    ``xcg`` of the chord) into ``xd[:13]``; returns (Nz, Ny) at the pilot's station."""
     vt, alpha, beta = x[0], x[1] * RTOD, x[2] * RTOD
     phi, theta, psi, p, q, r, alt, power = x[3], x[4], x[5], x[6], x[7], x[8], x[11], x[12]
     thr, el, ail, rdr = u[0], u[1], u[2], u[3]
@@ -513,7 +515,7 @@ def _airframe(x, u, aero, xd):
     if aero == 0.0:
         d2r = math.pi / 180.0
         cxt, cyt, czt, clt, cmt, cnt = _morelli(alpha * d2r, beta * d2r, el * d2r, ail * d2r,
-                                                rdr * d2r, p, q, r, vt)
+                                                rdr * d2r, p, q, r, vt, xcg)
     else:
         cxt, cyt, czt, clt, cmt, cnt = _stevens(alpha, beta, el, ail, rdr)
     tvt = 0.5 / vt
@@ -525,8 +527,8 @@ def _airframe(x, u, aero, xd):
     cyt += b2v * (d[1] * r + d[2] * p)
     czt += cq * d[3]
     clt += b2v * (d[4] * r + d[5] * p)
-    cmt += cq * d[6] + czt * (XCG_REF - XCG)
-    cnt += b2v * (d[7] * r + d[8] * p) - cyt * (XCG_REF - XCG) * CBAR / SPAN
+    cmt += cq * d[6] + czt * (XCG_REF - xcg)
+    cnt += b2v * (d[7] * r + d[8] * p) - cyt * (XCG_REF - xcg) * CBAR / SPAN
     cb = math.cos(x[2])
     uu, vv, ww = vt * math.cos(x[1]) * cb, vt * math.sin(x[2]), vt * math.sin(x[1]) * cb
     sth, cth, sph, cph = math.sin(theta), math.cos(theta), math.sin(phi), math.cos(phi)
