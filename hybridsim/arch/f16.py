@@ -9,9 +9,11 @@ roll rate ps and Ny + r (three integrators), and the ground collision
 avoidance autopilot (GCAS), an automaton of four modes whose switches are
 jumps located on their guards.
 
-State (18): ``[Vt (ft/s), alpha, beta, phi, theta, psi (rad), P, Q, R
+State (21): ``[Vt (ft/s), alpha, beta, phi, theta, psi (rad), P, Q, R
 (rad/s), pn, pe, h (ft), pow (%), int(Nz - Nz_ref), int(ps - ps_ref),
-int(Ny_r - Ny_r_ref), mode, time the mode was entered]``.
+int(Ny_r - Ny_r_ref), mode, time the mode was entered, the waypoint
+follower's waypoint, its "done" flag, the index of the logic's next sample]``
+(the last five constant between jumps).
 
 Sources and licences of the data
 --------------------------------
@@ -75,7 +77,8 @@ Two readings of the benchmark
 ``pilot="gcas"``: AeroBenchVVPython v2's ``GcasAutopilot`` as above.
 ``pilot="arch"``: the model ARCH-COMP runs, AeroBenchVV's Simulink
 ``AeroBenchSim_2019a`` in the competition's copy "AeroBenchVV-develop" (as
-FReaK ships it, github Abdu-Hekal/FReaK ``benchmarks/blackBox/f16``): its
+FReaK ships it, github Abdu-Hekal/FReaK ``benchmarks/blackBox/f16``, that
+copy GPL-3.0 inside an MIT-licensed repository; read as facts): its
 ``SimConfig.m`` picks the ``GCAS`` scenario with ``GCAS_starts_on`` (the
 GCAS chart starts in ``ROLL_LEVEL``, the autopilot selector in
 ``USE_GCAS_AP``), ``v2_integrators = 0`` (ps and Ny_r of the states, as
@@ -317,7 +320,7 @@ THRUST_MAX = _table([
     [4000, 4435, 5000, 5700, 6860, 8642],
     [2500, 2600, 2835, 3215, 3950, 5057]])
 
-#: Morelli's coefficients a..s (Morelli 1998, Table 1), each group padded with zeros
+#: Morelli's coefficients a..s (Morelli 1998), each group padded with zeros
 _MORELLI_GROUPS = (
     (-0.01943367, 0.2136104, -0.2903457, -0.003348641, -0.2060504, 0.6988016, -0.9035381),  # a
     (0.4833383, 8.644627, 11.31098, -74.22961, 60.75776),  # b
