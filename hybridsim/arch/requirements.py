@@ -1,7 +1,7 @@
-"""The ARCH-COMP falsification requirements of AT and CC, in signal temporal logic.
+"""The ARCH-COMP falsification requirements of AT, CC and F16, in signal temporal logic.
 
-Each requirement is a :class:`Requirement`: its name, its model ("AT" or
-"CC"), its formula (a :mod:`hybridsim.stl` formula, whose robustness on a
+Each requirement is a :class:`Requirement`: its name, its model ("AT",
+"CC" or "F16"), its formula (a :mod:`hybridsim.stl` formula, whose robustness on a
 run is a :class:`hybridsim.testing.Margin`) and the text of the
 competition's benchmark file it renders. The definitions are those of the
 competition's ``requirements.txt`` files (ARCH-COMP 2020 on, as shipped with
@@ -13,7 +13,8 @@ CC4's innermost window is [0, 5] (``always_[0,5]``), as in the competition's
 file, FalCAuN's and MoonLight's scripts.
 
 Signals: AT speed (mph), RPM (engine speed, rpm), gear; CC y1..y5 (the
-cars' positions).
+cars' positions); F16 altitude (ft). F16: ``G[0,15] (altitude > 0)``, the
+benchmark's README (ARCH-COMP FALS, e.g. MoonLight's ``benchmarks/F16``).
 
 AT51-AT54 on hybrid arcs. The competition's signals are right-continuous: at
 a gear change's instant t_s the gear is already the new one. On a hybrid arc
@@ -38,6 +39,7 @@ from __future__ import annotations
 import dataclasses
 
 from .. import stl
+from .f16 import F16
 from .models import AutomaticTransmission, ChasingCars
 
 __all__ = ["Requirement", "REQUIREMENTS"]
@@ -52,7 +54,7 @@ class Requirement:
     name : str
         "AT1", ..., "CCx".
     system : str
-        "AT" or "CC": the model it constrains.
+        "AT", "CC" or "F16": the model it constrains.
     formula : hybridsim.stl.Formula
         Its robustness on a run of the model (``formula(arc)``) is the margin.
     text : str
@@ -80,6 +82,7 @@ speed = stl.state(AutomaticTransmission.SPEED, "speed")
 rpm = stl.state(AutomaticTransmission.RPM, "RPM")
 gear = stl.state(AutomaticTransmission.GEAR, "gear")
 y = [stl.state(i, f"y{k + 1}") for k, i in enumerate(ChasingCars.POSITIONS)]
+altitude = stl.state(F16.ALTITUDE, "altitude")
 
 
 def _at5(i):
@@ -126,6 +129,7 @@ _TABLE = [
     ("CCx", "CC", stl.always((y[1] - y[0] > 7.5) & (y[2] - y[1] > 7.5)
                              & (y[3] - y[2] > 7.5) & (y[4] - y[3] > 7.5), 0.0, 50.0),
      "G[0,50] (y2 - y1 > 7.5 & y3 - y2 > 7.5 & y4 - y3 > 7.5 & y5 - y4 > 7.5)"),
+    ("F16", "F16", stl.always(altitude > 0, 0.0, 15.0), "G[0,15] (altitude > 0)"),
 ]
 
 #: every requirement by name, in the competition's order

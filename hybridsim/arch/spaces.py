@@ -14,6 +14,12 @@ Ranges: AT throttle [0, 100] %, brake [0, 325] lb ft; CC throttle and
 brake [0, 1]. After the grid's end (AT5x reads to 32.6 s) the last value
 is held.
 
+F16 has no input signal, one instance: its initial roll in [pi/4 - pi/20,
+pi/4 + pi/30], pitch in [-2 pi/5, -2 pi/5 + pi/20] and yaw in [-pi/4 - pi/8,
+-pi/4 + pi/8] (rad; the benchmark's README), from 2338 ft (its
+``initF16.m``), the model the competition runs (``F16(pilot="arch")``: the
+GCAS on from t = 0, then the waypoint follower), its switches located.
+
 Examples
 --------
 >>> s = space("AT", 2)
@@ -21,27 +27,39 @@ Examples
 (12, [0.0, 5.0, 10.0, 15.0, 20.0, 25.0])
 >>> space("CC", 1).dim
 22
+>>> space("F16", 1).dim
+3
 """
 from __future__ import annotations
 
 import functools
+import math
 
 import numpy as np
 
-from ..falsification import ControlPoints, Space, batch_run
+from ..falsification import ControlPoints, Interval, Space, batch_run
+from .f16 import F16
 from .models import AutomaticTransmission, ChasingCars
 from .requirements import REQUIREMENTS
 
-__all__ = ["INSTANCES", "space", "model", "problem", "MODELS"]
+__all__ = ["INSTANCES", "space", "model", "problem", "MODELS", "F16_RANGES", "f16_state"]
 
-MODELS = {"AT": AutomaticTransmission, "CC": ChasingCars}
+MODELS = {"AT": AutomaticTransmission, "CC": ChasingCars, "F16": F16}
 #: (t_end, points, interpolation) of each model's instance 1 and 2
 INSTANCES = {
     ("AT", 1): (30.0, 13, "linear"),
     ("AT", 2): (30.0, 6, "previous"),
     ("CC", 1): (100.0, 11, "linear"),
     ("CC", 2): (100.0, 20, "previous"),
+    ("F16", 1): (15.0, 0, None),
 }
+#: F16's initial attitudes (rad): (lo, hi) of roll, pitch, yaw
+F16_RANGES = {"roll": (math.pi / 4 - math.pi / 20, math.pi / 4 + math.pi / 30),
+              "pitch": (-2 * math.pi / 5, -2 * math.pi / 5 + math.pi / 20),
+              "yaw": (-math.pi / 4 - math.pi / 8, -math.pi / 4 + math.pi / 8)}
+#: the autopilot of the F16 instance and its logic's sampling (:class:`F16`'s ``pilot``
+#: and ``sample``; None: switches located)
+F16_PILOT, F16_SAMPLE = "arch", None
 
 
 def _key(system, instance):
@@ -53,8 +71,11 @@ def _key(system, instance):
 
 def space(system, instance):
     """The input space of ``system`` ("AT" or "CC") in ``instance`` (1 or 2): one
-    entry ``u``, the two inputs (throttle, brake) as :class:`ControlPoints`."""
+    entry ``u``, the two inputs (throttle, brake) as :class:`ControlPoints`;
+    of "F16" (instance 1): its initial roll, pitch and yaw as :class:`Interval`."""
     t_end, points, interp = INSTANCES[_key(system, instance)]
+    if system == "F16":
+        return Space(**{k: Interval(lo, hi) for k, (lo, hi) in F16_RANGES.items()})
     m = MODELS[system]
     lo, hi = [m.THROTTLE[0], m.BRAKE[0]], [m.THROTTLE[1], m.BRAKE[1]]
     return Space(u=ControlPoints(lo, hi, t_end, points, interp))
@@ -65,6 +86,8 @@ def model(system, instance):
     """The model whose inputs are ``instance``'s control points (one per process:
     its compiled maps are reused by every requirement)."""
     interp = INSTANCES[_key(system, instance)][2]
+    if system == "F16":
+        return F16(pilot=F16_PILOT, sample=F16_SAMPLE)
     return MODELS[system](times=space(system, instance).entries["u"].times,
                           interpolation=interp)
 
@@ -92,6 +115,8 @@ def problem(name, instance, backend="auto"):
     sp = space(req.system, instance)
 
     def x0_of(point):
+        if req.system == "F16":
+            return f16_state(sys_, point["roll"], point["pitch"], point["yaw"])
         vals = point["u"].values
         return sys_.initial_state(vals[:, 0], vals[:, 1])
     def claim(arc):
@@ -99,8 +124,16 @@ def problem(name, instance, backend="auto"):
     return batch_run(sys_, x0_of, req.horizon, backend=backend), sp, claim, req.horizon
 
 
+def f16_state(m, roll, pitch, yaw):
+    """The F16 instance's initial state of these attitudes (rad)."""
+    return m.initial_state(roll, pitch, yaw)
+
+
 def input_matrix(point):
-    """The point's inputs in the competition's format ``[t a b; ...]``."""
+    """The point's inputs in the competition's format ``[t a b; ...]`` (F16:
+    ``[roll pitch yaw]``)."""
+    if "u" not in point:
+        return "[" + " ".join(repr(float(point[k])) for k in F16_RANGES) + "]"
     u = point["u"]
     return "[" + "; ".join(" ".join(repr(float(v)) for v in (t, *row))
                            for t, row in zip(u.times, u.values)) + "]"
