@@ -25,13 +25,15 @@ Without disturbances (42) reads, with a1 and R* of Remark 4 and (43),
 :func:`margin42` is its margin along a run, in decades: the minimum over
 the samples t of log10(B(t) / |e(t)|), B(t) the smallest right side over
 r (the samples r in [2 tau + T_bar, t - tau]). The error decays far faster
-than the bound (about e^{-4 t} against R* = -0.23): by t ~ 5.5 s it is
+than the bound (about e^{-4 t} against R* = -0.23): by t ~ 4.5-5.5 s it is
 integration noise (runs at rtol 1e-8, 1e-10, 1e-12 agree to 10 % until
-then), and so is the bound, which the smallest r = t - tau makes
+then), and so is the bound, which r = t - tau then makes
 ~q1 |xi_2 - omega| over [t - 3.1, t - 1]. A sample is therefore judged only
-where the error exceeds :data:`FLOOR` (the integrator's accuracy on e, 100
-rtol for |chi(0)| = 1); below it (42) cannot be decided, and a run whose
-error grew back above it would be judged there.
+where the error exceeds :data:`FLOOR` (100 rtol for |chi(0)| = 1; the
+populations' noise on e measures up to 1e-8 = 10 rtol); below it (42)
+cannot be decided, and a run whose error grew back above it would be
+judged there. At rtol 1e-9 the samples judged are those up to t ~ 4.2 s,
+and the margin is decided at the first, t ~ 3.1 s.
 
 Two ways to cover "every gap sequence":
 
