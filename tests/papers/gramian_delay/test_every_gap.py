@@ -39,6 +39,19 @@ def test_example_constants_by_hand():
     assert eg.constants("omega").T_bar_max == pytest.approx(0.1118, abs=1e-4)
 
 
+def test_the_companion_form_has_lipschitz_terms():
+    """M = [[0, 1], [-1, -1]], N = [1 0] has the same A1, A2 but F1(y) = -y, F2(y) = k y
+    (the module docstring): K1 = 1, K2 = k, and (40) then asks T_bar < 0.027."""
+    from observers.gramian_delay.design import gramian_design, observer_form
+    form = observer_form([[0.0, 1.0], [-1.0, -1.0]], [[1.0, 0.0]], None, P=[[0.0, 1.0]], k=0.5)
+    assert form.A1.tolist() == [[-1.0]] and form.A2.tolist() == [[1.0]]
+    assert [L.tolist() for L in form._linear] == [[[-1.0]], [[0.5]]]
+    d = gramian_design(form.A1, form.A2, 0.5, 1.0)
+    assert theorem2_constants(d, 1.0, 0.5, 0.1, estimate="xi2").T_bar_max == pytest.approx(
+        0.0275, abs=1e-4)
+    assert not theorem2_constants(d, 1.0, 0.5, eg.T_BAR, estimate="xi2").holds
+
+
 def test_sequence_run_rows_sample_at_their_own_instants():
     """One population, three sequences: each row's jumps are its own instants, and a
     row agrees with a direct run of the same sequence (LSODA, the Python path)."""
@@ -109,12 +122,14 @@ def test_explored_prefixes_are_every_sequence_and_match_a_direct_run():
 
 
 @pytest.mark.slow
-def test_claims_figures_xi2():
-    """The claims' data: 32 solutions, margins >= 0, the search beside its baseline."""
-    td = eg.tree_data("xi2")
+@pytest.mark.parametrize("est", ["xi2", "omega"])
+def test_claims_figures(est):
+    """The claims' data (and the omega reading's): 32 solutions, margins >= 0, the search
+    beside its baseline."""
+    td = eg.tree_data(est)
     assert td["count"] == 2 ** (eg.PREFIX - 1) and len(td["margins"]) == td["count"]
     assert td["margin"] == min(td["margins"]) > 0
-    sd = eg.search_data("xi2")
+    sd = eg.search_data(est)
     for r in sd.values():
         assert r.evaluations == eg.BUDGET and r.margin > 0 and not r.findings
     assert "random sampling" in sd["random"].found_by
