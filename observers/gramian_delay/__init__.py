@@ -25,8 +25,10 @@ DC motor with its data, and how a run is made (``simulate``) and read
 random sampling gaps as an estimate with a Clopper–Pearson interval.
 ``figures.py`` computes and draws Figs. 1 and 2, our study of the sampling
 period and that estimate (``FIGURES``; Fig. 3 is not reproduced, decision
-9), and
-``claims.py`` lists the paper's checkable statements (``CLAIMS``).
+9). ``every_gap.py`` checks Theorem 2's conclusion (42) on an example where
+its hypothesis (40) holds, over every gap sequence of a prefix and by a
+search over free gaps beside random sampling. ``claims.py`` lists the
+paper's checkable statements (``CLAIMS``).
 
 :data:`PAPER`, :data:`ERRATA` and :data:`DECISIONS` (numbered; "decision 3"
 in a docstring is ``DECISIONS[2]``) are defined here; each decision is tested
