@@ -382,7 +382,7 @@ class Interconnection(HybridSystem):
         self._build()
 
     _DERIVED = ("_f", "_g", "_C", "_D", "_Cv", "_Dv", "_h", "_h_u", "_hD", "_hC", "_items", "_m",
-                "_reads_u",
+                "_reads_u", "_jump_set_of_guard",
                 "_hout", "_hp", "jump_guard",
                 "flow_guard", "_compiled_maps", "history", "_lowered")
 
@@ -405,6 +405,8 @@ class Interconnection(HybridSystem):
         # composite guards only where every relevant component has one
         if self._D and all(h is not None for h in self._hD.values()):
             self.jump_guard = self._jump_guard
+            # any(min h_i >= 0) is max_i min h_i >= 0: jump_set is {jump_guard >= 0}
+            self._jump_set_of_guard = all(c[nm].D_guard for nm in self._D)
         if self._C and all(h is not None for h in self._hC.values()):
             self.flow_guard = self._flow_guard
         self._m = {nm: int(s.input_dim or 0) for nm, s in self.systems.items()}

@@ -322,6 +322,23 @@ def _maximize(F, l, r, fl, fr, pred, sol, max_iter=100):
     return None
 
 
+def nonnegative(phi):
+    """The indicator ``phi(s, y) >= 0`` of an event set that is a guard's
+    {phi >= 0}, marked so that :func:`find_interior_event` evaluates ``phi``
+    once per sample (a NaN guard raises in ``phi``).
+
+    Examples
+    --------
+    >>> pred = nonnegative(lambda s, y: y[0] - 1.0)
+    >>> pred(0.0, [2.0]), pred(0.0, [0.5])
+    (True, False)
+    """
+    def pred(s, y):
+        return phi(s, y) >= 0.0
+    pred.guard = phi
+    return pred
+
+
 def find_interior_event(sol, a, b, pred, phi=None, samples=3):
     """Search the inside of a step whose ends are outside the event set.
 
@@ -376,14 +393,24 @@ def find_interior_event(sol, a, b, pred, phi=None, samples=3):
     ts = [a + h * (k / (samples + 1.0)) for k in range(1, samples + 1)]
     ys = [sol(s) for s in ts]
     prev = a
-    for s, y in zip(ts, ys):
-        if pred(s, y):
-            return prev, s
-        prev = s
-    if phi is None:
-        return None
+    if phi is not None and getattr(pred, "guard", None) is phi:
+        inner = []                  # pred is phi >= 0: one evaluation per sample
+        for s, y in zip(ts, ys):
+            v = phi(s, y)
+            if v >= 0.0:
+                return prev, s
+            inner.append(v)
+            prev = s
+    else:
+        for s, y in zip(ts, ys):
+            if pred(s, y):
+                return prev, s
+            prev = s
+        if phi is None:
+            return None
+        inner = [phi(s, y) for s, y in zip(ts, ys)]
     pts = [a] + ts + [b]
-    vals = [phi(a, sol(a))] + [phi(s, y) for s, y in zip(ts, ys)] + [phi(b, sol(b))]
+    vals = [phi(a, sol(a))] + inner + [phi(b, sol(b))]
     if not all(math.isfinite(v) for v in vals):
         return None
     for k in range(1, samples + 1):

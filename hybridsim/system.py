@@ -550,6 +550,10 @@ class HybridSystem:
             g = g_first
         else:
             g = named(self.jump_map, "jump_map")
+        # D is {its guard >= 0}: derived here, or an override declaring so
+        # (Interconnection: every component's D derived from its guard)
+        D_guard = hD is not None and (not self._overrides("jump_set")
+                                      or bool(getattr(self, "_jump_set_of_guard", False)))
         hD_u = hD is not None and reads_input(self.jump_guard)
         hC_u = hC is not None and reads_input(self.flow_guard)
         c = _Compiled(
@@ -557,7 +561,7 @@ class HybridSystem:
             C=C, D=D, hD=hD, hC=hC, h=named(self.output, "output"),
             has_D=self.has_jumps, has_C=self.has_flow_boundary,
             h_u=_arity(self.output) >= 4,
-            hD_u=hD_u, hC_u=hC_u,
+            hD_u=hD_u, hC_u=hC_u, D_guard=D_guard,
             D_u=reads_input(self.jump_set) if self._overrides("jump_set") or hD is None
             else hD_u,
             C_u=reads_input(self.flow_set) if self._overrides("flow_set") or hC is None
@@ -743,7 +747,7 @@ def successors(vals, n, t=None, j=None):
 
 class _Compiled:
     __slots__ = ("f", "g", "G", "C", "D", "hD", "hC", "h", "has_D", "has_C", "h_u",
-                 "hD_u", "hC_u", "D_u", "C_u", "f_raw", "f_arity", "W", "W_dir")
+                 "hD_u", "hC_u", "D_u", "C_u", "D_guard", "f_raw", "f_arity", "W", "W_dir")
 
     def __init__(self, **kw):
         for k, v in kw.items():
