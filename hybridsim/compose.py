@@ -460,8 +460,8 @@ class Interconnection(HybridSystem):
             k = len(x) if x.ndim == 2 else None
             if not (u.__class__ is _ND and u.dtype.kind == "f"
                     and u.shape == ((m,) if k is None else (k, m))
-                    and math.isfinite(u.sum())):
-                _input_value(nm, u, m, k, t, j)
+                    and math.isfinite(u.dot(u) if k is None else u.sum())):
+                _input_value(nm, u, m, k, t, j)     # (or an overflow of the product)
         return u
 
     def _input_of(self, name, x, t, j):
