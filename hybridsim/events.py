@@ -4,6 +4,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.integrate._ivp.lsoda import LsodaDenseOutput
 from scipy.integrate._ivp.rk import RkDenseOutput
 
 from .rules import event_tolerance
@@ -17,12 +18,20 @@ _INVPHI = (math.sqrt(5.0) - 1.0) / 2.0
 
 
 def fast_dense(sol):
-    """A quicker scalar evaluator for scipy's explicit Runge-Kutta dense output.
+    """A quicker scalar evaluator for scipy's explicit Runge-Kutta and LSODA dense outputs.
 
     ``RkDenseOutput.__call__`` spends most of its time validating and tiling
-    its argument; event location calls it at scalar times only. Other dense
-    outputs are returned unchanged.
+    its argument; event location calls it at scalar times only. LSODA's
+    Nordsieck polynomial is evaluated as scipy does (the same operations, so
+    the same values), without the argument's checks. Other dense outputs are
+    returned unchanged.
     """
+    if type(sol) is LsodaDenseOutput:
+        tn, hn, p, yh = sol.t, sol.h, sol.p, sol.yh
+
+        def nordsieck(t):
+            return np.dot(yh, ((t - tn) / hn) ** p)
+        return nordsieck
     if type(sol) is not RkDenseOutput:
         return sol
     t_old, h, y_old = float(sol.t_old), float(sol.h), sol.y_old    # Python floats: quicker
