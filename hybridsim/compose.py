@@ -534,32 +534,36 @@ class Interconnection(HybridSystem):
 
     def _in(self, table, x, t, j, y, reads=None):
         """(name, test's value) for each component of ``table``; ``reads``: the names
-        whose test is given its input (None: every one)."""
+        whose test is given its input (None: every one); ``y``: the outputs at (x, t, j),
+        or None (made when an input is first needed)."""
         for nm, test in table.items():
             try:
-                u = self._u(nm, x, t, j, y) if reads is None or nm in reads else None
+                if reads is None or nm in reads:
+                    if y is None:
+                        y = _Outputs(self, x, t, j)
+                    u = self._u(nm, x, t, j, y)
+                else:
+                    u = None
                 v = test(x[..., self._slices[nm]], t, j, u)
             except MapError as e:
                 raise _in_component(nm, e) from e.__cause__
             yield nm, v
 
     def flow_set(self, x, t, j, u=None):
-        y = _Outputs(self, x, t, j)
         if np.ndim(x) == 2:
             ok = np.ones(len(x), dtype=bool)
-            for _, v in self._in(self._Cv, x, t, j, y):
+            for _, v in self._in(self._Cv, x, t, j, None):
                 ok &= v
             return ok
-        return all(v for _, v in self._in(self._C, x, t, j, y, self._reads_u["C_u"]))
+        return all(v for _, v in self._in(self._C, x, t, j, None, self._reads_u["C_u"]))
 
     def jump_set(self, x, t, j, u=None):
-        y = _Outputs(self, x, t, j)
         if np.ndim(x) == 2:
             inD = np.zeros(len(x), dtype=bool)
-            for _, v in self._in(self._Dv, x, t, j, y):
+            for _, v in self._in(self._Dv, x, t, j, None):
                 inD |= v
             return inD
-        return any(v for _, v in self._in(self._D, x, t, j, y, self._reads_u["D_u"]))
+        return any(v for _, v in self._in(self._D, x, t, j, None, self._reads_u["D_u"]))
 
     def jump_map(self, x, t, j, u=None):
         y = _Outputs(self, x, t, j)
@@ -604,16 +608,14 @@ class Interconnection(HybridSystem):
         return xn
 
     def _jump_guard(self, x, t, j, u=None):
-        y = _Outputs(self, x, t, j)
-        vals = self._in(self._hD, x, t, j, y, self._reads_u["hD_u"])
+        vals = self._in(self._hD, x, t, j, None, self._reads_u["hD_u"])
         if np.ndim(x) == 2:
             return np.max([_guard_rows(nm, "jump_guard", h, len(x), t, j) for nm, h in vals],
                           axis=0)
         return max(guard_min(h) for _, h in vals)
 
     def _flow_guard(self, x, t, j, u=None):
-        y = _Outputs(self, x, t, j)
-        vals = self._in(self._hC, x, t, j, y, self._reads_u["hC_u"])
+        vals = self._in(self._hC, x, t, j, None, self._reads_u["hC_u"])
         if np.ndim(x) == 2:
             return np.min([_guard_rows(nm, "flow_guard", h, len(x), t, j) for nm, h in vals],
                           axis=0)
