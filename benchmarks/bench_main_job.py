@@ -5,8 +5,10 @@ Usage::
     python benchmarks/bench_main_job.py [--against REF] [--rounds 1] [--quick]
 
 Runs the main job in a fresh process into a temporary folder and prints
-each part's time (figures + claims, from its ``part.json``) and the whole
-run's wall time beside the issue-23 target of 90 s on two cores. With
+each part's time (figures + claims, from its ``part.json``), the whole
+run's wall time beside the issue-23 target of 90 s on two cores, and its
+CPU time (user + system of the child process, what ``/usr/bin/time``
+reports; the issue-42 figure is a ratio of these). With
 ``--against REF`` (a git revision, e.g. ``HEAD~5``) the same job at REF is
 checked out into a temporary git worktree and timed in the same run,
 alternating A B A B over ``--rounds``; the closing line is the ratio of
@@ -22,6 +24,7 @@ import argparse
 import json
 import os
 import pathlib
+import resource
 import statistics
 import subprocess
 import sys
@@ -32,15 +35,20 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 TARGET = 90.0
 
 
-def run_job(root: pathlib.Path, names: list[str]) -> tuple[float, dict]:
-    """Wall time of one main job at ``root`` and each part's seconds."""
+def _child_cpu() -> float:
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def run_job(root: pathlib.Path, names: list[str]) -> tuple[float, float, dict]:
+    """Wall and CPU time of one main job at ``root`` and each part's seconds."""
     env = dict(os.environ, MPLBACKEND="Agg", PYTHONPATH=str(root))
     with tempfile.TemporaryDirectory() as out:
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), _child_cpu()
         proc = subprocess.run([sys.executable, "-m", "observers", "reproduce", *names,
                                "--out", out], cwd=root, env=env, capture_output=True,
                               text=True, timeout=1800)
-        wall = time.perf_counter() - t0
+        wall, cpu = time.perf_counter() - t0, _child_cpu() - c0
         if proc.returncode:
             print(proc.stdout[-2000:], proc.stderr[-2000:], sep="\n")
             raise SystemExit(f"the main job at {root} failed (exit {proc.returncode})")
@@ -48,7 +56,7 @@ def run_job(root: pathlib.Path, names: list[str]) -> tuple[float, dict]:
         for path in sorted(pathlib.Path(out).glob("*/part.json")):
             p = json.loads(path.read_text())
             parts[p["name"]] = (p["seconds"], p.get("claims_seconds") or 0.0)
-    return wall, parts
+    return wall, cpu, parts
 
 
 def main(argv=None):
@@ -66,12 +74,14 @@ def main(argv=None):
                         args.against], check=True, capture_output=True)
         roots[args.against] = pathlib.Path(tmp)
     walls = {k: [] for k in roots}
+    cpus = {k: [] for k in roots}
     last = {}
     try:
         for _ in range(args.rounds):
             for key, root in roots.items():
-                wall, parts = run_job(root, names)
+                wall, cpu, parts = run_job(root, names)
                 walls[key].append(wall)
+                cpus[key].append(cpu)
                 last[key] = parts
     finally:
         if tmp:
@@ -86,12 +96,15 @@ def main(argv=None):
             cells.append(f"{f:8.1f} + {c:5.1f} s")
         print(f"{name:16s} " + " ".join(f"{c:>22s}" for c in cells))
     med = {k: statistics.median(v) for k, v in walls.items()}
+    cpu = {k: statistics.median(v) for k, v in cpus.items()}
     for key in roots:
-        print(f"{'whole job':16s} {key}: median {med[key]:.1f} s over {len(walls[key])} "
-              f"run(s) ({', '.join(f'{w:.1f}' for w in walls[key])})")
+        print(f"{'whole job':16s} {key}: median {med[key]:.1f} s wall, {cpu[key]:.1f} s CPU "
+              f"over {len(walls[key])} run(s) ({', '.join(f'{w:.1f}' for w in walls[key])} s "
+              f"wall; {', '.join(f'{c:.1f}' for c in cpus[key])} s CPU)")
     line = f"main job {med['now']:.1f} s, {med['now'] / TARGET:.2f}x the 90 s target"
     if args.against:
-        line += f"; {med['now'] / med[args.against]:.2f}x the time at {args.against}"
+        line += (f"; {med['now'] / med[args.against]:.2f}x the time and "
+                 f"{cpu['now'] / cpu[args.against]:.2f}x the CPU at {args.against}")
     print("RESULT", line)
     return 0
 

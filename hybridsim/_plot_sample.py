@@ -336,9 +336,14 @@ def _at(arc, t, j):
 def _eval_fn(f, X, T, J, live, fn, where):
     rows = np.flatnonzero(live)
     out = None
-    for q in rows:
+    for q, xq, tq, jq in zip(rows.tolist(), X[rows], T[rows], J[rows].tolist()):
         try:
-            r = np.asarray(f(X[q], T[q], int(J[q]), None), dtype=float)
+            r = f(xq, tq, jq, None)
+            c = r.__class__
+            if (c is float or c is np.float64) and out is not None and out.shape[1] == 1:
+                out[q, 0] = r           # the common case: one float per point
+                continue
+            r = np.asarray(r, dtype=float)
         except (TypeError, ValueError) as e:
             if "could not convert" in str(e) or "float()" in str(e):
                 raise TypeError(f"{where}: fn must return a float or a 1-D array of floats, "

@@ -211,7 +211,7 @@ class LinearInput:
     array([3., 5.])
     """
 
-    __slots__ = ("terms",)
+    __slots__ = ("terms", "_take")
 
     def __init__(self, terms):
         if not isinstance(terms, Mapping) or not terms:
@@ -225,8 +225,17 @@ class LinearInput:
             raise ValueError(f"terms: every matrix must have the same number of rows "
                              f"(the input's dimension), got {sorted(rows)}")
         self.terms = out
+        self._take = _selection(out)
 
     def __call__(self, t, y):
+        take = self._take
+        if take is not None:
+            idx, width = take
+            v = np.concatenate([y[src] for src in self.terms], axis=-1)
+            if v.shape[-1] == width and v.dtype.kind == "f":
+                u = v.take(idx, axis=-1)
+                u += 0.0            # M @ v gives +0.0 where the selected value is -0.0
+                return u
         u = None
         for src, M in self.terms.items():
             v = y[src]
@@ -261,6 +270,28 @@ class LinearInput:
 
     def __setstate__(self, s):
         self.terms = s
+        self._take = _selection(s)
+
+
+def _selection(terms):
+    """Where every term's matrix selects (each row one 1, else 0; the terms' rows
+    disjoint and covering the input): ``(idx, width)`` with ``u = concat(y_s)[idx]``,
+    the same numbers as the sum of the products; else None."""
+    if any(M is None for M in terms.values()):
+        return None
+    m = next(iter(terms.values())).shape[0]
+    idx = np.full(m, -1, dtype=np.intp)
+    off = 0
+    for M in terms.values():
+        if not np.all((M == 0.0) | (M == 1.0)):
+            return None
+        ones = M == 1.0
+        rows = np.flatnonzero(ones.any(axis=1))
+        if (ones.sum(axis=1) > 1).any() or (idx[rows] >= 0).any():
+            return None
+        idx[rows] = off + np.argmax(ones[rows], axis=1)
+        off += M.shape[1]
+    return None if (idx < 0).any() else (idx, off)
 
 
 class Interconnection(HybridSystem):
@@ -351,6 +382,7 @@ class Interconnection(HybridSystem):
         self._build()
 
     _DERIVED = ("_f", "_g", "_C", "_D", "_Cv", "_Dv", "_h", "_h_u", "_hD", "_hC", "_items", "_m",
+                "_reads_u", "_jump_set_of_guard",
                 "_hout", "_hp", "jump_guard",
                 "flow_guard", "_compiled_maps", "history", "_lowered")
 
@@ -365,9 +397,16 @@ class Interconnection(HybridSystem):
         self._h_u = {nm: c[nm].h_u for nm in c}
         self._hD = {nm: c[nm].hD for nm in self._D}
         self._hC = {nm: c[nm].hC for nm in self._C}
+        # {table: the components whose test reads its input}: the others get u = None,
+        # so their input is not computed for a set or guard (hybridsim.system.reads_input)
+        self._reads_u = {key: {nm for nm in tab if getattr(c[nm], key)}
+                         for tab, key in ((self._C, "C_u"), (self._D, "D_u"),
+                                          (self._hD, "hD_u"), (self._hC, "hC_u"))}
         # composite guards only where every relevant component has one
         if self._D and all(h is not None for h in self._hD.values()):
             self.jump_guard = self._jump_guard
+            # any(min h_i >= 0) is max_i min h_i >= 0: jump_set is {jump_guard >= 0}
+            self._jump_set_of_guard = all(c[nm].D_guard for nm in self._D)
         if self._C and all(h is not None for h in self._hC.values()):
             self.flow_guard = self._flow_guard
         self._m = {nm: int(s.input_dim or 0) for nm, s in self.systems.items()}
@@ -421,8 +460,8 @@ class Interconnection(HybridSystem):
             k = len(x) if x.ndim == 2 else None
             if not (u.__class__ is _ND and u.dtype.kind == "f"
                     and u.shape == ((m,) if k is None else (k, m))
-                    and math.isfinite(u.sum())):
-                _input_value(nm, u, m, k, t, j)
+                    and math.isfinite(u.dot(u) if k is None else u.sum())):
+                _input_value(nm, u, m, k, t, j)     # (or an overflow of the product)
         return u
 
     def _input_of(self, name, x, t, j):
@@ -493,38 +532,45 @@ class Interconnection(HybridSystem):
                     _rows_value(nm, kind, v, len(v), sl.stop - sl.start, t, j)
                 _state_value(nm, kind, v, sl.stop - sl.start, t, j)
 
-    def _in(self, table, x, t, j, y):
+    def _in(self, table, x, t, j, y, reads=None):
+        """(name, test's value) for each component of ``table``; ``reads``: the names
+        whose test is given its input (None: every one); ``y``: the outputs at (x, t, j),
+        or None (made when an input is first needed)."""
         for nm, test in table.items():
             try:
-                v = test(x[..., self._slices[nm]], t, j, self._u(nm, x, t, j, y))
+                if reads is None or nm in reads:
+                    if y is None:
+                        y = _Outputs(self, x, t, j)
+                    u = self._u(nm, x, t, j, y)
+                else:
+                    u = None
+                v = test(x[..., self._slices[nm]], t, j, u)
             except MapError as e:
                 raise _in_component(nm, e) from e.__cause__
             yield nm, v
 
     def flow_set(self, x, t, j, u=None):
-        y = _Outputs(self, x, t, j)
         if np.ndim(x) == 2:
             ok = np.ones(len(x), dtype=bool)
-            for _, v in self._in(self._Cv, x, t, j, y):
+            for _, v in self._in(self._Cv, x, t, j, None):
                 ok &= v
             return ok
-        return all(v for _, v in self._in(self._C, x, t, j, y))
+        return all(v for _, v in self._in(self._C, x, t, j, None, self._reads_u["C_u"]))
 
     def jump_set(self, x, t, j, u=None):
-        y = _Outputs(self, x, t, j)
         if np.ndim(x) == 2:
             inD = np.zeros(len(x), dtype=bool)
-            for _, v in self._in(self._Dv, x, t, j, y):
+            for _, v in self._in(self._Dv, x, t, j, None):
                 inD |= v
             return inD
-        return any(v for _, v in self._in(self._D, x, t, j, y))
+        return any(v for _, v in self._in(self._D, x, t, j, None, self._reads_u["D_u"]))
 
     def jump_map(self, x, t, j, u=None):
         y = _Outputs(self, x, t, j)
         xn = np.array(x, dtype=float)
         if np.ndim(x) == 2:
             return self._jump_rows(x, t, j, y, xn)
-        for nm, inD in list(self._in(self._D, x, t, j, y)):
+        for nm, inD in list(self._in(self._D, x, t, j, y, self._reads_u["D_u"])):
             if inD:
                 sl = self._slices[nm]
                 try:
@@ -562,18 +608,18 @@ class Interconnection(HybridSystem):
         return xn
 
     def _jump_guard(self, x, t, j, u=None):
-        y = _Outputs(self, x, t, j)
+        vals = self._in(self._hD, x, t, j, None, self._reads_u["hD_u"])
         if np.ndim(x) == 2:
-            return np.max([_guard_rows(nm, "jump_guard", h, len(x), t, j)
-                           for nm, h in self._in(self._hD, x, t, j, y)], axis=0)
-        return max(guard_min(h) for _, h in self._in(self._hD, x, t, j, y))
+            return np.max([_guard_rows(nm, "jump_guard", h, len(x), t, j) for nm, h in vals],
+                          axis=0)
+        return max(guard_min(h) for _, h in vals)
 
     def _flow_guard(self, x, t, j, u=None):
-        y = _Outputs(self, x, t, j)
+        vals = self._in(self._hC, x, t, j, None, self._reads_u["hC_u"])
         if np.ndim(x) == 2:
-            return np.min([_guard_rows(nm, "flow_guard", h, len(x), t, j)
-                           for nm, h in self._in(self._hC, x, t, j, y)], axis=0)
-        return min(guard_min(h) for _, h in self._in(self._hC, x, t, j, y))
+            return np.min([_guard_rows(nm, "flow_guard", h, len(x), t, j) for nm, h in vals],
+                          axis=0)
+        return min(guard_min(h) for _, h in vals)
 
     @property
     def has_jumps(self):

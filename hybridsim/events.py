@@ -4,6 +4,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.integrate._ivp.lsoda import LsodaDenseOutput
 from scipy.integrate._ivp.rk import RkDenseOutput
 
 from .rules import event_tolerance
@@ -17,12 +18,20 @@ _INVPHI = (math.sqrt(5.0) - 1.0) / 2.0
 
 
 def fast_dense(sol):
-    """A quicker scalar evaluator for scipy's explicit Runge-Kutta dense output.
+    """A quicker scalar evaluator for scipy's explicit Runge-Kutta and LSODA dense outputs.
 
     ``RkDenseOutput.__call__`` spends most of its time validating and tiling
-    its argument; event location calls it at scalar times only. Other dense
-    outputs are returned unchanged.
+    its argument; event location calls it at scalar times only. LSODA's
+    Nordsieck polynomial is evaluated as scipy does (the same operations, so
+    the same values), without the argument's checks. Other dense outputs are
+    returned unchanged.
     """
+    if type(sol) is LsodaDenseOutput:
+        tn, hn, p, yh = sol.t, sol.h, sol.p, sol.yh
+
+        def nordsieck(t):
+            return np.dot(yh, ((t - tn) / hn) ** p)
+        return nordsieck
     if type(sol) is not RkDenseOutput:
         return sol
     t_old, h, y_old = float(sol.t_old), float(sol.h), sol.y_old    # Python floats: quicker
@@ -322,6 +331,23 @@ def _maximize(F, l, r, fl, fr, pred, sol, max_iter=100):
     return None
 
 
+def nonnegative(phi):
+    """The indicator ``phi(s, y) >= 0`` of an event set that is a guard's
+    {phi >= 0}, marked so that :func:`find_interior_event` evaluates ``phi``
+    once per sample (a NaN guard raises in ``phi``).
+
+    Examples
+    --------
+    >>> pred = nonnegative(lambda s, y: y[0] - 1.0)
+    >>> pred(0.0, [2.0]), pred(0.0, [0.5])
+    (True, False)
+    """
+    def pred(s, y):
+        return phi(s, y) >= 0.0
+    pred.guard = phi
+    return pred
+
+
 def find_interior_event(sol, a, b, pred, phi=None, samples=3):
     """Search the inside of a step whose ends are outside the event set.
 
@@ -376,14 +402,24 @@ def find_interior_event(sol, a, b, pred, phi=None, samples=3):
     ts = [a + h * (k / (samples + 1.0)) for k in range(1, samples + 1)]
     ys = [sol(s) for s in ts]
     prev = a
-    for s, y in zip(ts, ys):
-        if pred(s, y):
-            return prev, s
-        prev = s
-    if phi is None:
-        return None
+    if phi is not None and getattr(pred, "guard", None) is phi:
+        inner = []                  # pred is phi >= 0: one evaluation per sample
+        for s, y in zip(ts, ys):
+            v = phi(s, y)
+            if v >= 0.0:
+                return prev, s
+            inner.append(v)
+            prev = s
+    else:
+        for s, y in zip(ts, ys):
+            if pred(s, y):
+                return prev, s
+            prev = s
+        if phi is None:
+            return None
+        inner = [phi(s, y) for s, y in zip(ts, ys)]
     pts = [a] + ts + [b]
-    vals = [phi(a, sol(a))] + [phi(s, y) for s, y in zip(ts, ys)] + [phi(b, sol(b))]
+    vals = [phi(a, sol(a))] + inner + [phi(b, sol(b))]
     if not all(math.isfinite(v) for v in vals):
         return None
     for k in range(1, samples + 1):

@@ -29,7 +29,7 @@ from ._solve_state import (  # noqa: F401 - run.py imports _Options, _progress_b
     _Stats,
 )
 from .arc import Crossings, HybridArc
-from .events import find_interior_event, locate_event, watch_crossings
+from .events import find_interior_event, locate_event, nonnegative, watch_crossings
 from .options import check_map_value
 from .rules import (
     CAUSES,
@@ -458,7 +458,8 @@ class _Run(_RunSolver):
                                                ya, yb)
                         if has_C or d_active:
                             if pred is None:
-                                pred, phi = self._pred(j, d_active), self._phi(j, d_active)
+                                phi = self._phi(j, d_active)
+                                pred = self._pred(j, d_active, phi)
                             if hermite:
                                 # DOP853's dense output costs three more flow evaluations:
                                 # search with the cubic Hermite of the step's ends (exact
@@ -549,10 +550,16 @@ class _Run(_RunSolver):
         st.t, st.x = t, x
         return outcome
 
-    def _pred(self, j, d_active):
-        """The event indicator of a flow: it left C, or (d_active) it entered D."""
+    def _pred(self, j, d_active, phi=None):
+        """The event indicator of a flow: it left C, or (d_active) it entered D.
+
+        With ``phi`` (:meth:`_phi`) where D is {jump_guard >= 0} and C is not
+        watched, the indicator is ``phi >= 0`` (:func:`hybridsim.events.nonnegative`:
+        the interior search evaluates the guard once per sample)."""
         maps, has_C, ufun = self.maps, self.maps.has_C, self.ufun
         C, D = maps.C, maps.D
+        if phi is not None and d_active and not has_C and maps.D_guard:
+            return nonnegative(phi)
         if ufun is None:            # the common case, without the input's call
             if has_C and d_active:
                 def pred(s, y):
@@ -633,8 +640,9 @@ class _Run(_RunSolver):
         o, maps = self.o, self.maps
         C, D, has_C, has_D = maps.C, maps.D, maps.has_C, maps.has_D
         self.stats.events += 1
-        lo, hi, ylo, yhi = locate_event(sol, lo, hi, self._pred(j, d_active),
-                                        self._phi(j, d_active), ya=ylo, yb=yhi)
+        phi = self._phi(j, d_active)
+        lo, hi, ylo, yhi = locate_event(sol, lo, hi, self._pred(j, d_active, phi), phi,
+                                        ya=ylo, yb=yhi)
         if not (math.isfinite(ylo.dot(ylo)) and math.isfinite(yhi.dot(yhi))) \
                 and not (np.isfinite(ylo).all() and np.isfinite(yhi).all()):
             # the NaN of an overflowing dense output read as "left C" or "in D"

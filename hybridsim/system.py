@@ -1,6 +1,8 @@
 """Hybrid systems H = (C, f, D, g): the data the engine simulates."""
 from __future__ import annotations
 
+import dis
+import inspect
 import warnings
 
 import numpy as np
@@ -273,6 +275,53 @@ def _check_map(fn, name):
     return k
 
 
+#: names whose call can read a function's locals without naming them
+_READS_LOCALS = frozenset(("locals", "vars", "eval", "exec"))
+_LOADS = frozenset(("LOAD_FAST", "LOAD_FAST_CHECK", "LOAD_FAST_AND_CLEAR", "LOAD_CLOSURE",
+                    "LOAD_DEREF", "DELETE_FAST", "STORE_FAST"))
+
+
+def reads_input(fn) -> bool:
+    """Whether a map ``fn`` of ``(x, t, j, u)`` can read its input u.
+
+    False only where that is certain: ``fn`` takes fewer than four of the
+    engine's arguments, or it is a Python function (or bound method) whose
+    code never loads its fourth parameter (no closure over it, no
+    ``locals()``, ``vars()``, ``eval``, ``exec``). Anything else (callable
+    objects, builtins, ``*args``) counts as reading it. An interconnection
+    then skips computing a component's input for its sets and guards.
+
+    Examples
+    --------
+    >>> reads_input(lambda x, t, j, u: x[0] - 1.0), reads_input(lambda x, t, j, u: u[0])
+    (False, True)
+    >>> reads_input(lambda x, t: t - 1.0)
+    False
+    """
+    if fn is None:
+        return False
+    try:
+        k = _arity(fn)
+    except (TypeError, ValueError):
+        return True
+    if k < 4:
+        return False
+    func, skip = fn, 0
+    if inspect.ismethod(fn):
+        func, skip = fn.__func__, 1
+    code = getattr(func, "__code__", None)
+    if code is None or not inspect.isfunction(func) or code.co_flags & inspect.CO_VARARGS:
+        return True
+    pos = code.co_varnames[:code.co_argcount]
+    if len(pos) < skip + 4:
+        return True
+    name = pos[skip + 3]
+    if name in code.co_cellvars or _READS_LOCALS & set(code.co_names):
+        return True
+    return any(ins.opname in _LOADS and ins.argval == name
+               for ins in dis.get_instructions(code))
+
+
 def as_map(fn, name: str):
     """Wrap a user map written as ``fn(x)``, ``fn(x, t)``, ``fn(x, t, j)`` or
     ``fn(x, t, j, u)`` into a callable of ``(x, t, j, u)``.
@@ -501,11 +550,22 @@ class HybridSystem:
             g = g_first
         else:
             g = named(self.jump_map, "jump_map")
+        # D is {its guard >= 0}: derived here, or an override declaring so
+        # (Interconnection: every component's D derived from its guard)
+        D_guard = hD is not None and (not self._overrides("jump_set")
+                                      or bool(getattr(self, "_jump_set_of_guard", False)))
+        hD_u = hD is not None and reads_input(self.jump_guard)
+        hC_u = hC is not None and reads_input(self.flow_guard)
         c = _Compiled(
             f=named(self.flow_map, "flow_map"), g=g, G=G,
             C=C, D=D, hD=hD, hC=hC, h=named(self.output, "output"),
             has_D=self.has_jumps, has_C=self.has_flow_boundary,
             h_u=_arity(self.output) >= 4,
+            hD_u=hD_u, hC_u=hC_u, D_guard=D_guard,
+            D_u=reads_input(self.jump_set) if self._overrides("jump_set") or hD is None
+            else hD_u,
+            C_u=reads_input(self.flow_set) if self._overrides("flow_set") or hC is None
+            else hC_u,
             f_raw=self.flow_map, f_arity=_arity(self.flow_map),
             W=None if self.watch is None else _named_watch(self.watch),
             W_dir=None if self.watch is None else check_watch_direction(self.watch_direction))
@@ -687,7 +747,7 @@ def successors(vals, n, t=None, j=None):
 
 class _Compiled:
     __slots__ = ("f", "g", "G", "C", "D", "hD", "hC", "h", "has_D", "has_C", "h_u",
-                 "f_raw", "f_arity", "W", "W_dir")
+                 "hD_u", "hC_u", "D_u", "C_u", "D_guard", "f_raw", "f_arity", "W", "W_dir")
 
     def __init__(self, **kw):
         for k, v in kw.items():

@@ -116,6 +116,19 @@ def test_paper_gain_satisfies_lmi10():
     assert np.linalg.eigvalsh(M).max() <= 1e-7 * np.linalg.norm(M, 2)
 
 
+def test_a_gain_is_checked_once_and_each_caller_owns_its_P():
+    """The second call with the same gain solves nothing (the bisection is cached) and
+    returns the same numbers; changing one caller's P leaves the next caller's intact."""
+    first = check_gain_lmi10(PAPER_L, 0.2, 1.0)
+    hits = lmi._gain_lmi10.cache_info().hits
+    P0 = first["P"].copy()
+    first["P"][:] = 0.0
+    again = check_gain_lmi10(list(PAPER_L), 0.2, 1.0)
+    assert lmi._gain_lmi10.cache_info().hits == hits + 1
+    np.testing.assert_array_equal(again["P"], P0)
+    assert (again["sigma"], again["alpha"]) == (first["sigma"], first["alpha"])
+
+
 def test_bad_gain_is_rejected():
     # positive gains: A + LC is not Hurwitz, (10) is infeasible for every P
     out = check_gain_lmi10(-PAPER_L, 0.2, 1.0)
