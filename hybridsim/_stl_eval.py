@@ -211,7 +211,12 @@ class _Context:
         """The arc's interpolant at the instants (T, J) (:meth:`HybridArc.at`)."""
         if len(T) == 0:
             return np.zeros((0, self.x.shape[1]))
-        return np.asarray(self.arc.at(T, j=J), dtype=float).reshape(len(T), -1)
+        interp = getattr(self.arc, "_interp", None)
+        if interp is None:
+            return np.asarray(self.arc.at(T, j=J), dtype=float).reshape(len(T), -1)
+        # the instants are the evaluation's own (finite, in the domain): read
+        # without at()'s checks of the user's arguments
+        return interp(np.asarray(T, float), np.asarray(J, np.int64), "robustness")[0]
 
 
 def _value(sig, tau, j):
