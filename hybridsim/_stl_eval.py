@@ -146,30 +146,32 @@ def _combine(s1, s2, op):
 
 
 class _RangeMax:
-    """Maxima of q over index ranges [i0, i1] (a sparse table, O(n log n))."""
+    """Maxima of q over index ranges [i0, i1] (a sparse table, O(n log n)): row
+    L of ``table`` holds the maxima of q over [i, i + 2^L - 1] (-inf past the end)."""
 
     def __init__(self, q):
-        self.levels = [np.asarray(q, float)]
+        q = np.asarray(q, float)
+        n = len(q)
+        rows = max(1, int(n).bit_length())
+        self.table = tab = np.empty((rows, max(n, 1)))
+        tab[0, :n] = q
         k = 1
-        while 2 * k <= len(q):
-            p = self.levels[-1]
-            self.levels.append(np.maximum(p[:-k], p[k:]))
+        for L in range(1, rows):
+            np.maximum(tab[L - 1, :n - k], tab[L - 1, k:n], out=tab[L, :n - k])
+            tab[L, n - k:] = -_INF
             k *= 2
 
     def query(self, i0, i1):
         i0, i1 = np.broadcast_arrays(np.asarray(i0, np.int64), np.asarray(i1, np.int64))
-        out = np.full(i0.shape, -_INF)
         n = i1 - i0 + 1
         ok = n > 0
-        if not ok.any():
-            return out
         lev = np.zeros(i0.shape, dtype=np.int64)
-        lev[ok] = np.floor(np.log2(n[ok])).astype(np.int64)
-        for L in np.unique(lev[ok]):
-            m = ok & (lev == L)
-            tab = self.levels[L]
-            out[m] = np.maximum(tab[i0[m]], tab[i1[m] - (1 << int(L)) + 1])
-        return out
+        # floor(log2(n)), exactly (frexp: n = f 2^e with 0.5 <= f < 1)
+        lev[ok] = np.frexp(n[ok].astype(float))[1] - 1
+        a = np.where(ok, i0, 0)
+        b = np.where(ok, i1 - (np.int64(1) << lev) + 1, 0)
+        out = np.maximum(self.table[lev, a], self.table[lev, b])
+        return np.where(ok, out, -_INF)
 
 
 # --------------------------------------------------------- evaluation state --
