@@ -33,6 +33,11 @@ def _tol(x):
     return 4.0 * _EPS * np.maximum(1.0, np.abs(x))
 
 
+def _clip(x, lo, hi):
+    """np.clip(x, lo, hi) (hi where lo > hi), without its per-call overhead."""
+    return np.minimum(np.maximum(x, lo), hi)
+
+
 def _lerp(y0, y1, w):
     """y0 + w (y1 - y0), the nearer end where an end is not finite."""
     with np.errstate(invalid="ignore"):
@@ -112,12 +117,12 @@ def _values_at(s, T, idx):
     if miss.size:
         prev = np.maximum.accumulate(np.where(have, idx, -1))[miss]
         n = len(s.t)
-        k0 = np.clip(prev, 0, max(n - 2, 0))
+        k0 = _clip(prev, 0, max(n - 2, 0))
         k1 = np.minimum(k0 + 1, n - 1)
         h = s.t[k1] - s.t[k0]
         with np.errstate(invalid="ignore", divide="ignore"):
             w = np.where(h > 0, (T[miss] - s.t[k0]) / np.where(h > 0, h, 1.0), 0.0)
-        w = np.clip(w, 0.0, 1.0)
+        w = _clip(w, 0.0, 1.0)
         val = _lerp(s.r[k0], s.l[k1], w)
         v[miss] = l[miss] = r[miss] = val
     return v, l, r
@@ -186,6 +191,9 @@ class _Context:
         self.strict, self.refine = strict, refine
         self.t0, self.tf = float(self.t[0]), float(self.t[-1])
         self.jump_times = np.unique(self.t[1:][np.diff(self.j) > 0])
+        # the index of the last sample at each sample's time
+        ends = np.flatnonzero(np.append(self.t[1:] != self.t[:-1], True))
+        self.run_end = np.repeat(ends, np.diff(np.append(-1, ends)))
         # keyed by id(node): every node memoised is kept alive with its value, so a
         # node made during the evaluation (until's rewriting) cannot hand its id on
         self.memo = {}
@@ -195,8 +203,10 @@ class _Context:
         masks of each time's first and last instant."""
         times = np.asarray(times, float)
         N = len(self.t)
-        i0 = np.clip(np.searchsorted(self.t, times, side="left"), 0, N - 1)
-        i1 = np.clip(np.searchsorted(self.t, times, side="right") - 1, 0, N - 1)
+        i = np.searchsorted(self.t, times, side="left")
+        i0 = np.minimum(i, N - 1)
+        # the last sample at each time (side="right" - 1), from the first one
+        i1 = np.maximum(np.where(self.t[i0] == times, self.run_end[i0], i - 1), 0)
         jlo, jhi = self.j[i0], self.j[i1]
         jlo = np.minimum(jlo, jhi)
         cnt = jhi - jlo + 1
@@ -256,7 +266,7 @@ def _window_sup(ctx, s, a, b, lo, hi):
     def piece(p, x):
         if M == 1:
             return np.full(np.shape(x), P[0])
-        p = np.clip(p, 0, M - 2)
+        p = _clip(p, 0, M - 2)
         return _lerp(R[p], L[p + 1], (x - u[p]) / du[p])
 
     def locate(x, first):
@@ -266,10 +276,10 @@ def _window_sup(ctx, s, a, b, lo, hi):
         if first:
             i = np.minimum(np.searchsorted(u, x - tx, side="left"), M - 1)
             hit = np.abs(u[i] - x) <= tx
-            return np.where(hit, i, np.clip(i - 1, 0, max(M - 2, 0))), hit
+            return np.where(hit, i, _clip(i - 1, 0, max(M - 2, 0))), hit
         i = np.maximum(np.searchsorted(u, x + tx, side="right") - 1, 0)
         hit = np.abs(u[i] - x) <= tx
-        return np.where(hit, i, np.clip(i, 0, max(M - 2, 0))), hit
+        return np.where(hit, i, _clip(i, 0, max(M - 2, 0))), hit
 
     # the output's breakpoints
     if hi <= lo:
@@ -302,12 +312,12 @@ def _window_sup(ctx, s, a, b, lo, hi):
     if K > 0 and M > 1:
         t0, t1 = taus[:-1], taus[1:]
         mid = 0.5 * (t0 + t1)
-        p = np.clip(np.searchsorted(u, mid + a, side="right") - 1, 0, M - 2)
+        p = _clip(np.searchsorted(u, mid + a, side="right") - 1, 0, M - 2)
         sA = (L[p + 1] - R[p]) / du[p]
         A0 = piece(p, t0 + a)
         bm = mid + b
         at_end = bm >= E
-        q = np.clip(np.searchsorted(u, np.minimum(bm, E), side="right") - 1, 0, M - 2)
+        q = _clip(np.searchsorted(u, np.minimum(bm, E), side="right") - 1, 0, M - 2)
         sB = np.where(at_end, 0.0, (L[q + 1] - R[q]) / du[q])
         B0 = np.where(at_end, max(P[-1], L[-1]), piece(q, np.minimum(t0 + b, E)))
         C = rm.query(p + 1, np.where(at_end, M - 2, q))
@@ -364,7 +374,7 @@ def _window_sup(ctx, s, a, b, lo, hi):
             same[:-off] = gid[off:] == gid[:-off]
             vs[same] = np.maximum(vs[same], vs[np.flatnonzero(same) + off])
         g = Ia[src][sp]
-        c = np.clip(fi[g] + (J[sp] - s.j[fi[g]]), fi[g], la[g])
+        c = _clip(fi[g] + (J[sp] - s.j[fi[g]]), fi[g], la[g])
         Vd[sp] = np.maximum(Re[src][sp], vs[c])
     return _Sig(T, J, Vd, np.where(fst, Lv[src], Vd), np.where(lst, Rv[src], Vd))
 
@@ -600,7 +610,7 @@ class _PredicateEval:
             ok = (lo[i] <= s) & (s <= hi[i]) & (np.abs(s - xl[i]) < 0.5 * d2[i])
             s = np.where(ok, s, 0.5 * (lo[i] + hi[i]))
             q = 0.25 * tol[i]
-            s = np.clip(s, lo[i] + q, hi[i] - q)
+            s = _clip(s, lo[i] + q, hi[i] - q)
             fs = sg[i] * self._at(ctx, s, J[i])
             fs = np.where(np.isnan(fs), 0.0, fs)
             with np.errstate(invalid="ignore", divide="ignore"):
