@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 
+from ._arc_access import between_samples
 from .rules import event_tolerance
 from .testing import Margin, _every
 
@@ -188,6 +189,7 @@ class _Context:
         self.arc = arc
         self.t, self.j, self.x = (np.asarray(arc.t, float), np.asarray(arc.j, np.int64),
                                   np.asarray(arc.x, float))
+        self.xdot = None if arc.xdot is None else np.asarray(arc.xdot, float)
         self.strict, self.refine = strict, refine
         self.t0, self.tf = float(self.t[0]), float(self.t[-1])
         self.jump_times = np.unique(self.t[1:][np.diff(self.j) > 0])
@@ -229,6 +231,30 @@ class _Context:
         # the instants are the evaluation's own (finite, in the domain): read
         # without at()'s checks of the user's arguments
         return interp(np.asarray(T, float), np.asarray(J, np.int64), "robustness")[0]
+
+    def steps(self, T, J):
+        """The arc's step k (samples k and k + 1 of flow J) holding each time T
+        of a piece between two instants of flow J; None where the arc has a
+        dense output (its states are then read through :meth:`states`)."""
+        if getattr(self.arc, "_segments", None):
+            return None
+        a = np.searchsorted(self.j, J, side="left")
+        b = np.searchsorted(self.j, J, side="right")
+        return _clip(np.searchsorted(self.t, T, side="right") - 1, a, b - 2)
+
+    def inside(self, k, T, J):
+        """The interpolant at times T in the steps ``k`` (:meth:`steps`) of flow J,
+        as :meth:`states` reads it (the samples at theirs, else
+        :func:`hybridsim._arc_access.between_samples`), without locating the
+        steps again: what the root and extremum searches evaluate."""
+        if k is None:
+            return self.states(T, J)
+        out = between_samples(self.t, self.x, self.xdot, k, T)
+        for kk in (k, k + 1):
+            e = self.t[kk] == T
+            if e.any():
+                out[e] = self.x[kk[e]]
+        return out
 
 
 def _value(sig, tau, j):
@@ -491,6 +517,10 @@ class _PredicateEval:
     def _at(self, ctx, T, J):
         return self._rho(T, J, ctx.states(T, J))
 
+    def _inside(self, ctx, k, T, J):
+        """rho at times T in the arc's steps k (:meth:`_Context.steps`)."""
+        return self._rho(T, J, ctx.inside(k, T, J))
+
     def _slopes(self, ctx):
         """d rho / dt at the arc's samples by the chain rule from ``xdot`` (NaN
         where xdot is); None where unknown (a user function, or no xdot);
@@ -521,7 +551,9 @@ class _PredicateEval:
         h = T[k + 1] - T[k]
         S = T[k][:, None] + w[None, :] * h[:, None]                 # (steps, m)
         Js = np.repeat(J[k], m)
-        Vs = self._at(ctx, S.ravel(), Js).reshape(len(k), m)
+        st = ctx.steps(T[k], J[k])
+        Vs = self._inside(ctx, None if st is None else np.repeat(st, m), S.ravel(),
+                          Js).reshape(len(k), m)
         tt = np.hstack((T[k][:, None], S, T[k + 1][:, None]))         # (steps, m + 2)
         vv = np.hstack((v[k][:, None], Vs, v[k + 1][:, None]))
         with np.errstate(invalid="ignore"):
@@ -536,18 +568,20 @@ class _PredicateEval:
             sgn = np.where(peak[r, c], -1.0, 1.0)          # minimise sgn * rho
             jj = J[k][r]
             x, fx = self._minimum(ctx, tt[r, c], tt[r, c + 1], tt[r, c + 2], sgn * vv[r, c],
-                                  sgn * vv[r, c + 1], sgn * vv[r, c + 2], sgn, jj, h[r])
+                                  sgn * vv[r, c + 1], sgn * vv[r, c + 2], sgn, jj, h[r],
+                                  None if st is None else st[r])
             ext_t.append(x)
             ext_j.append(jj)
             ext_v.append(sgn * fx)
         return _sorted_points(np.concatenate([T] + ext_t), np.concatenate([J] + ext_j),
                               np.concatenate([v] + ext_v))
 
-    def _minimum(self, ctx, lo, mid, hi, flo, fmid, fhi, sgn, J, h):
+    def _minimum(self, ctx, lo, mid, hi, flo, fmid, fhi, sgn, J, h, steps):
         """Minima of ``sgn * rho`` in brackets (lo, mid, hi) with fmid below both
         ends: successive parabolic interpolation, golden-section where a
         vertex falls outside, until a step or the bracket is below 1e-5 or
-        1e-6 of the arc's step."""
+        1e-6 of the arc's step. ``steps``: the arc's step of each bracket
+        (:meth:`_Context.steps`)."""
         g = 0.5 * (3.0 - math.sqrt(5.0))
         live = np.ones(len(lo), dtype=bool)
         for _ in range(60):
@@ -572,7 +606,7 @@ class _PredicateEval:
                 if not i.size:
                     break
             x = np.where(usable, x, gold)
-            fx = sgn[i] * self._at(ctx, x, J[i])
+            fx = sgn[i] * self._inside(ctx, None if steps is None else steps[i], x, J[i])
             better = fx < fm
             left = x < m
             # the new bracket around the best point so far
@@ -592,6 +626,7 @@ class _PredicateEval:
         quarter tolerance inside the bracket so that it closes from both sides.
         Returns each bracket's end past the crossing."""
         sg = np.sign(fb)                         # F = sg * rho: F(lo) < 0 < F(hi)
+        steps = ctx.steps(a, J)                  # each bracket lies in one step of the arc
         lo, hi, flo, fhi = a.copy(), b.copy(), sg * fa, sg * fb
         first = -flo < fhi
         xl, fl = np.where(first, lo, hi), np.where(first, flo, fhi)
@@ -611,7 +646,7 @@ class _PredicateEval:
             s = np.where(ok, s, 0.5 * (lo[i] + hi[i]))
             q = 0.25 * tol[i]
             s = _clip(s, lo[i] + q, hi[i] - q)
-            fs = sg[i] * self._at(ctx, s, J[i])
+            fs = sg[i] * self._inside(ctx, None if steps is None else steps[i], s, J[i])
             fs = np.where(np.isnan(fs), 0.0, fs)
             with np.errstate(invalid="ignore", divide="ignore"):
                 slope[i] = (fs - fl[i]) / (s - xl[i])
