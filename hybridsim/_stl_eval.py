@@ -168,15 +168,18 @@ class _RangeMax:
             k *= 2
 
     def query(self, i0, i1):
-        i0, i1 = np.broadcast_arrays(np.asarray(i0, np.int64), np.asarray(i1, np.int64))
+        """max of q over [i0, i1] elementwise (-inf where i1 < i0); indices with
+        -1 <= i1 and i0 <= len(q)."""
+        i0, i1 = np.asarray(i0, np.int64), np.asarray(i1, np.int64)
         n = i1 - i0 + 1
         ok = n > 0
-        lev = np.zeros(i0.shape, dtype=np.int64)
-        # floor(log2(n)), exactly (frexp: n = f 2^e with 0.5 <= f < 1)
-        lev[ok] = np.frexp(n[ok].astype(float))[1] - 1
-        a = np.where(ok, i0, 0)
-        b = np.where(ok, i1 - (np.int64(1) << lev) + 1, 0)
-        out = np.maximum(self.table[lev, a], self.table[lev, b])
+        # floor(log2(n)), exactly (frexp: n = f 2^e with 0.5 <= f < 1); 0 where empty
+        lev = np.frexp(np.maximum(n, 1).astype(float))[1] - 1
+        w = self.table.shape[1]
+        flat = self.table.ravel()
+        base = lev * w
+        out = np.maximum(flat[base + np.minimum(i0, w - 1)],
+                         flat[base + np.maximum(i1 - (np.int64(1) << lev) + 1, 0)])
         return np.where(ok, out, -_INF)
 
 
