@@ -475,7 +475,9 @@ class _PredicateEval:
             p = np.asarray(sorted(probes), float)
             e = np.concatenate((e, p[(p > lo) & (p < hi)]))
         e = np.unique(e)
-        e = e[~np.isin(e, T)]
+        if len(T):                              # not an instant already (T is sorted)
+            k = np.minimum(np.searchsorted(T, e), len(T) - 1)
+            e = e[T[k] != e]
         if e.size:
             Te, Je, *_ = ctx.domain(e)
             T, J, v = _sorted_points(np.concatenate((T, Te)), np.concatenate((J, Je)),
