@@ -76,6 +76,8 @@ class _ArcAccess:
 
         Best available: the stored sample at its own time; the dense output;
         cubic Hermite where both neighbours have a finite xdot; else linear.
+        Every point is located at once (the samples are sorted in hybrid
+        time); only the flows with a dense output are visited one by one.
         """
         m, n = len(t), self.state_dim
         out = np.empty((m, n))
@@ -83,55 +85,57 @@ class _ArcAccess:
         if m == 0:
             return out, dout
         self._nonempty(where)
-        uj, inv = np.unique(j, return_inverse=True)
-        order = np.argsort(inv, kind="stable")
-        bounds = np.searchsorted(inv[order], np.arange(len(uj) + 1))
-        los = np.searchsorted(self.j, uj, side="left")
-        his = np.searchsorted(self.j, uj, side="right")
-        dense = self._dense_index() if self._segments else {}
-        for g, jj in enumerate(uj):
-            sel = order[bounds[g]:bounds[g + 1]]
-            a, b = los[g], his[g]
-            if a == b:
-                raise ValueError(f"{where}: the arc has no sample with j={int(jj)} "
+        a = np.searchsorted(self.j, j, side="left")
+        b = np.searchsorted(self.j, j, side="right")
+        have = a < b
+        first, last = np.minimum(a, len(self.t) - 1), np.maximum(b - 1, 0)
+        bad = ~have | (t < self.t[first]) | (t > self.t[last])
+        if bad.any():
+            jj = int(np.min(j[bad]))                # the first j in order that fails
+            if not have[bad & (j == jj)].any():
+                raise ValueError(f"{where}: the arc has no sample with j={jj} "
                                  f"(j runs from {self.j[0]} to {self.j[-1]})")
-            ts = self.t[a:b]
-            tq = t[sel]
-            bad = (tq < ts[0]) | (tq > ts[-1])
-            if bad.any():
-                raise ValueError(
-                    f"{where}: (t={tq[bad][0]}, j={int(jj)}) is not in the hybrid time "
-                    f"domain (for j={int(jj)}, t lies in [{ts[0]}, {ts[-1]}])")
-            k = np.searchsorted(ts, tq, side="right") - 1
-            exact = ts[k] == tq
-            out[sel[exact]] = self.x[a + k[exact]]
-            if deriv and self.xdot is not None:
-                dout[sel[exact]] = self.xdot[a + k[exact]]
-            rest = np.flatnonzero(~exact)
-            if rest.size == 0:
-                continue
-            k0 = a + k[rest]          # tq strictly between samples k0 and k0 + 1
-            tr = tq[rest]
-            val = between_samples(self.t, self.x, self.xdot, k0, tr)
-            if deriv and self.xdot is not None:
-                x0, x1 = self.x[k0], self.x[k0 + 1]
-                h = (self.t[k0 + 1] - self.t[k0])[:, None]
-                s = ((tr - self.t[k0]) / (self.t[k0 + 1] - self.t[k0]))[:, None]
-                m0, m1 = self.xdot[k0], self.xdot[k0 + 1]
-                herm = np.all(np.isfinite(m0), axis=1) & np.all(np.isfinite(m1), axis=1)
-                if herm.any():
-                    s2 = s * s
-                    hd = ((6 * s2 - 6 * s) * (x0 - x1) / h
-                          + (3 * s2 - 4 * s + 1) * m0 + (3 * s2 - 2 * s) * m1)
-                    dout[sel[rest[herm]]] = hd[herm]
-            if jj in dense:
+            i = int(np.flatnonzero(bad & (j == jj))[0])
+            raise ValueError(
+                f"{where}: (t={t[i]}, j={jj}) is not in the hybrid time "
+                f"domain (for j={jj}, t lies in [{self.t[first[i]]}, {self.t[last[i]]}])")
+        # the last sample of the flow at or before t (t is nondecreasing on the arc)
+        k = np.clip(np.searchsorted(self.t, t, side="right") - 1, a, b - 1)
+        exact = self.t[k] == t
+        out[exact] = self.x[k[exact]]
+        if deriv and self.xdot is not None:
+            dout[exact] = self.xdot[k[exact]]
+        rest = np.flatnonzero(~exact)
+        if rest.size == 0:
+            return out, dout
+        k0 = k[rest]                    # t strictly between samples k0 and k0 + 1
+        tr = t[rest]
+        val = between_samples(self.t, self.x, self.xdot, k0, tr)
+        if deriv and self.xdot is not None:
+            x0, x1 = self.x[k0], self.x[k0 + 1]
+            h = (self.t[k0 + 1] - self.t[k0])[:, None]
+            s = ((tr - self.t[k0]) / (self.t[k0 + 1] - self.t[k0]))[:, None]
+            m0, m1 = self.xdot[k0], self.xdot[k0 + 1]
+            herm = np.all(np.isfinite(m0), axis=1) & np.all(np.isfinite(m1), axis=1)
+            if herm.any():
+                s2 = s * s
+                hd = ((6 * s2 - 6 * s) * (x0 - x1) / h
+                      + (3 * s2 - 4 * s + 1) * m0 + (3 * s2 - 2 * s) * m1)
+                dout[rest[herm]] = hd[herm]
+        if self._segments:
+            dense = self._dense_index()
+            jr = j[rest]
+            for jj in np.unique(jr):
+                if int(jj) not in dense:
+                    continue
                 starts, ends, sols = dense[int(jj)]
-                q = np.searchsorted(starts, tr, side="right") - 1
-                cov = (q >= 0) & (tr <= ends[np.maximum(q, 0)])
+                on = np.flatnonzero(jr == jj)
+                q = np.searchsorted(starts, tr[on], side="right") - 1
+                cov = (q >= 0) & (tr[on] <= ends[np.maximum(q, 0)])
                 for sq in np.unique(q[cov]):
-                    pick = np.flatnonzero(cov & (q == sq))
+                    pick = on[cov & (q == sq)]
                     val[pick] = self._call_dense(sols[sq], tr[pick])
-            out[sel[rest]] = val
+        out[rest] = val
         return out, dout
 
     def _hybrid_times(self, t, j, where):

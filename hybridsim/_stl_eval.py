@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 
+from ._arc_access import between_samples
 from .rules import event_tolerance
 from .testing import Margin, _every
 
@@ -31,6 +32,11 @@ def _num(v):
 def _tol(x):
     """The engine's event tolerance at x (4 ulp of max(1, |x|)), elementwise."""
     return 4.0 * _EPS * np.maximum(1.0, np.abs(x))
+
+
+def _clip(x, lo, hi):
+    """np.clip(x, lo, hi) (hi where lo > hi), without its per-call overhead."""
+    return np.minimum(np.maximum(x, lo), hi)
 
 
 def _lerp(y0, y1, w):
@@ -112,12 +118,12 @@ def _values_at(s, T, idx):
     if miss.size:
         prev = np.maximum.accumulate(np.where(have, idx, -1))[miss]
         n = len(s.t)
-        k0 = np.clip(prev, 0, max(n - 2, 0))
+        k0 = _clip(prev, 0, max(n - 2, 0))
         k1 = np.minimum(k0 + 1, n - 1)
         h = s.t[k1] - s.t[k0]
         with np.errstate(invalid="ignore", divide="ignore"):
             w = np.where(h > 0, (T[miss] - s.t[k0]) / np.where(h > 0, h, 1.0), 0.0)
-        w = np.clip(w, 0.0, 1.0)
+        w = _clip(w, 0.0, 1.0)
         val = _lerp(s.r[k0], s.l[k1], w)
         v[miss] = l[miss] = r[miss] = val
     return v, l, r
@@ -146,30 +152,35 @@ def _combine(s1, s2, op):
 
 
 class _RangeMax:
-    """Maxima of q over index ranges [i0, i1] (a sparse table, O(n log n))."""
+    """Maxima of q over index ranges [i0, i1] (a sparse table, O(n log n)): row
+    L of ``table`` holds the maxima of q over [i, i + 2^L - 1] (-inf past the end)."""
 
     def __init__(self, q):
-        self.levels = [np.asarray(q, float)]
+        q = np.asarray(q, float)
+        n = len(q)
+        rows = max(1, int(n).bit_length())
+        self.table = tab = np.empty((rows, max(n, 1)))
+        tab[0, :n] = q
         k = 1
-        while 2 * k <= len(q):
-            p = self.levels[-1]
-            self.levels.append(np.maximum(p[:-k], p[k:]))
+        for L in range(1, rows):
+            np.maximum(tab[L - 1, :n - k], tab[L - 1, k:n], out=tab[L, :n - k])
+            tab[L, n - k:] = -_INF
             k *= 2
 
     def query(self, i0, i1):
-        i0, i1 = np.broadcast_arrays(np.asarray(i0, np.int64), np.asarray(i1, np.int64))
-        out = np.full(i0.shape, -_INF)
+        """max of q over [i0, i1] elementwise (-inf where i1 < i0); indices with
+        -1 <= i1 and i0 <= len(q)."""
+        i0, i1 = np.asarray(i0, np.int64), np.asarray(i1, np.int64)
         n = i1 - i0 + 1
         ok = n > 0
-        if not ok.any():
-            return out
-        lev = np.zeros(i0.shape, dtype=np.int64)
-        lev[ok] = np.floor(np.log2(n[ok])).astype(np.int64)
-        for L in np.unique(lev[ok]):
-            m = ok & (lev == L)
-            tab = self.levels[L]
-            out[m] = np.maximum(tab[i0[m]], tab[i1[m] - (1 << int(L)) + 1])
-        return out
+        # floor(log2(n)), exactly (frexp: n = f 2^e with 0.5 <= f < 1); 0 where empty
+        lev = np.frexp(np.maximum(n, 1).astype(float))[1] - 1
+        w = self.table.shape[1]
+        flat = self.table.ravel()
+        base = lev * w
+        out = np.maximum(flat[base + np.minimum(i0, w - 1)],
+                         flat[base + np.maximum(i1 - (np.int64(1) << lev) + 1, 0)])
+        return np.where(ok, out, -_INF)
 
 
 # --------------------------------------------------------- evaluation state --
@@ -181,9 +192,13 @@ class _Context:
         self.arc = arc
         self.t, self.j, self.x = (np.asarray(arc.t, float), np.asarray(arc.j, np.int64),
                                   np.asarray(arc.x, float))
+        self.xdot = None if arc.xdot is None else np.asarray(arc.xdot, float)
         self.strict, self.refine = strict, refine
         self.t0, self.tf = float(self.t[0]), float(self.t[-1])
         self.jump_times = np.unique(self.t[1:][np.diff(self.j) > 0])
+        # the index of the last sample at each sample's time
+        ends = np.flatnonzero(np.append(self.t[1:] != self.t[:-1], True))
+        self.run_end = np.repeat(ends, np.diff(np.append(-1, ends)))
         # keyed by id(node): every node memoised is kept alive with its value, so a
         # node made during the evaluation (until's rewriting) cannot hand its id on
         self.memo = {}
@@ -193,8 +208,10 @@ class _Context:
         masks of each time's first and last instant."""
         times = np.asarray(times, float)
         N = len(self.t)
-        i0 = np.clip(np.searchsorted(self.t, times, side="left"), 0, N - 1)
-        i1 = np.clip(np.searchsorted(self.t, times, side="right") - 1, 0, N - 1)
+        i = np.searchsorted(self.t, times, side="left")
+        i0 = np.minimum(i, N - 1)
+        # the last sample at each time (side="right" - 1), from the first one
+        i1 = np.maximum(np.where(self.t[i0] == times, self.run_end[i0], i - 1), 0)
         jlo, jhi = self.j[i0], self.j[i1]
         jlo = np.minimum(jlo, jhi)
         cnt = jhi - jlo + 1
@@ -211,7 +228,36 @@ class _Context:
         """The arc's interpolant at the instants (T, J) (:meth:`HybridArc.at`)."""
         if len(T) == 0:
             return np.zeros((0, self.x.shape[1]))
-        return np.asarray(self.arc.at(T, j=J), dtype=float).reshape(len(T), -1)
+        interp = getattr(self.arc, "_interp", None)
+        if interp is None:
+            return np.asarray(self.arc.at(T, j=J), dtype=float).reshape(len(T), -1)
+        # the instants are the evaluation's own (finite, in the domain): read
+        # without at()'s checks of the user's arguments
+        return interp(np.asarray(T, float), np.asarray(J, np.int64), "robustness")[0]
+
+    def steps(self, T, J):
+        """The arc's step k (samples k and k + 1 of flow J) holding each time T
+        of a piece between two instants of flow J; None where the arc has a
+        dense output (its states are then read through :meth:`states`)."""
+        if getattr(self.arc, "_segments", None):
+            return None
+        a = np.searchsorted(self.j, J, side="left")
+        b = np.searchsorted(self.j, J, side="right")
+        return _clip(np.searchsorted(self.t, T, side="right") - 1, a, b - 2)
+
+    def inside(self, k, T, J):
+        """The interpolant at times T in the steps ``k`` (:meth:`steps`) of flow J,
+        as :meth:`states` reads it (the samples at theirs, else
+        :func:`hybridsim._arc_access.between_samples`), without locating the
+        steps again: what the root and extremum searches evaluate."""
+        if k is None:
+            return self.states(T, J)
+        out = between_samples(self.t, self.x, self.xdot, k, T)
+        for kk in (k, k + 1):
+            e = self.t[kk] == T
+            if e.any():
+                out[e] = self.x[kk[e]]
+        return out
 
 
 def _value(sig, tau, j):
@@ -249,7 +295,7 @@ def _window_sup(ctx, s, a, b, lo, hi):
     def piece(p, x):
         if M == 1:
             return np.full(np.shape(x), P[0])
-        p = np.clip(p, 0, M - 2)
+        p = _clip(p, 0, M - 2)
         return _lerp(R[p], L[p + 1], (x - u[p]) / du[p])
 
     def locate(x, first):
@@ -259,10 +305,10 @@ def _window_sup(ctx, s, a, b, lo, hi):
         if first:
             i = np.minimum(np.searchsorted(u, x - tx, side="left"), M - 1)
             hit = np.abs(u[i] - x) <= tx
-            return np.where(hit, i, np.clip(i - 1, 0, max(M - 2, 0))), hit
+            return np.where(hit, i, _clip(i - 1, 0, max(M - 2, 0))), hit
         i = np.maximum(np.searchsorted(u, x + tx, side="right") - 1, 0)
         hit = np.abs(u[i] - x) <= tx
-        return np.where(hit, i, np.clip(i, 0, max(M - 2, 0))), hit
+        return np.where(hit, i, _clip(i, 0, max(M - 2, 0))), hit
 
     # the output's breakpoints
     if hi <= lo:
@@ -295,12 +341,12 @@ def _window_sup(ctx, s, a, b, lo, hi):
     if K > 0 and M > 1:
         t0, t1 = taus[:-1], taus[1:]
         mid = 0.5 * (t0 + t1)
-        p = np.clip(np.searchsorted(u, mid + a, side="right") - 1, 0, M - 2)
+        p = _clip(np.searchsorted(u, mid + a, side="right") - 1, 0, M - 2)
         sA = (L[p + 1] - R[p]) / du[p]
         A0 = piece(p, t0 + a)
         bm = mid + b
         at_end = bm >= E
-        q = np.clip(np.searchsorted(u, np.minimum(bm, E), side="right") - 1, 0, M - 2)
+        q = _clip(np.searchsorted(u, np.minimum(bm, E), side="right") - 1, 0, M - 2)
         sB = np.where(at_end, 0.0, (L[q + 1] - R[q]) / du[q])
         B0 = np.where(at_end, max(P[-1], L[-1]), piece(q, np.minimum(t0 + b, E)))
         C = rm.query(p + 1, np.where(at_end, M - 2, q))
@@ -357,7 +403,7 @@ def _window_sup(ctx, s, a, b, lo, hi):
             same[:-off] = gid[off:] == gid[:-off]
             vs[same] = np.maximum(vs[same], vs[np.flatnonzero(same) + off])
         g = Ia[src][sp]
-        c = np.clip(fi[g] + (J[sp] - s.j[fi[g]]), fi[g], la[g])
+        c = _clip(fi[g] + (J[sp] - s.j[fi[g]]), fi[g], la[g])
         Vd[sp] = np.maximum(Re[src][sp], vs[c])
     return _Sig(T, J, Vd, np.where(fst, Lv[src], Vd), np.where(lst, Rv[src], Vd))
 
@@ -429,7 +475,9 @@ class _PredicateEval:
             p = np.asarray(sorted(probes), float)
             e = np.concatenate((e, p[(p > lo) & (p < hi)]))
         e = np.unique(e)
-        e = e[~np.isin(e, T)]
+        if len(T):                              # not an instant already (T is sorted)
+            k = np.minimum(np.searchsorted(T, e), len(T) - 1)
+            e = e[T[k] != e]
         if e.size:
             Te, Je, *_ = ctx.domain(e)
             T, J, v = _sorted_points(np.concatenate((T, Te)), np.concatenate((J, Je)),
@@ -474,6 +522,10 @@ class _PredicateEval:
     def _at(self, ctx, T, J):
         return self._rho(T, J, ctx.states(T, J))
 
+    def _inside(self, ctx, k, T, J):
+        """rho at times T in the arc's steps k (:meth:`_Context.steps`)."""
+        return self._rho(T, J, ctx.inside(k, T, J))
+
     def _slopes(self, ctx):
         """d rho / dt at the arc's samples by the chain rule from ``xdot`` (NaN
         where xdot is); None where unknown (a user function, or no xdot);
@@ -504,7 +556,9 @@ class _PredicateEval:
         h = T[k + 1] - T[k]
         S = T[k][:, None] + w[None, :] * h[:, None]                 # (steps, m)
         Js = np.repeat(J[k], m)
-        Vs = self._at(ctx, S.ravel(), Js).reshape(len(k), m)
+        st = ctx.steps(T[k], J[k])
+        Vs = self._inside(ctx, None if st is None else np.repeat(st, m), S.ravel(),
+                          Js).reshape(len(k), m)
         tt = np.hstack((T[k][:, None], S, T[k + 1][:, None]))         # (steps, m + 2)
         vv = np.hstack((v[k][:, None], Vs, v[k + 1][:, None]))
         with np.errstate(invalid="ignore"):
@@ -519,18 +573,20 @@ class _PredicateEval:
             sgn = np.where(peak[r, c], -1.0, 1.0)          # minimise sgn * rho
             jj = J[k][r]
             x, fx = self._minimum(ctx, tt[r, c], tt[r, c + 1], tt[r, c + 2], sgn * vv[r, c],
-                                  sgn * vv[r, c + 1], sgn * vv[r, c + 2], sgn, jj, h[r])
+                                  sgn * vv[r, c + 1], sgn * vv[r, c + 2], sgn, jj, h[r],
+                                  None if st is None else st[r])
             ext_t.append(x)
             ext_j.append(jj)
             ext_v.append(sgn * fx)
         return _sorted_points(np.concatenate([T] + ext_t), np.concatenate([J] + ext_j),
                               np.concatenate([v] + ext_v))
 
-    def _minimum(self, ctx, lo, mid, hi, flo, fmid, fhi, sgn, J, h):
+    def _minimum(self, ctx, lo, mid, hi, flo, fmid, fhi, sgn, J, h, steps):
         """Minima of ``sgn * rho`` in brackets (lo, mid, hi) with fmid below both
         ends: successive parabolic interpolation, golden-section where a
         vertex falls outside, until a step or the bracket is below 1e-5 or
-        1e-6 of the arc's step."""
+        1e-6 of the arc's step. ``steps``: the arc's step of each bracket
+        (:meth:`_Context.steps`)."""
         g = 0.5 * (3.0 - math.sqrt(5.0))
         live = np.ones(len(lo), dtype=bool)
         for _ in range(60):
@@ -555,7 +611,7 @@ class _PredicateEval:
                 if not i.size:
                     break
             x = np.where(usable, x, gold)
-            fx = sgn[i] * self._at(ctx, x, J[i])
+            fx = sgn[i] * self._inside(ctx, None if steps is None else steps[i], x, J[i])
             better = fx < fm
             left = x < m
             # the new bracket around the best point so far
@@ -575,6 +631,7 @@ class _PredicateEval:
         quarter tolerance inside the bracket so that it closes from both sides.
         Returns each bracket's end past the crossing."""
         sg = np.sign(fb)                         # F = sg * rho: F(lo) < 0 < F(hi)
+        steps = ctx.steps(a, J)                  # each bracket lies in one step of the arc
         lo, hi, flo, fhi = a.copy(), b.copy(), sg * fa, sg * fb
         first = -flo < fhi
         xl, fl = np.where(first, lo, hi), np.where(first, flo, fhi)
@@ -593,8 +650,8 @@ class _PredicateEval:
             ok = (lo[i] <= s) & (s <= hi[i]) & (np.abs(s - xl[i]) < 0.5 * d2[i])
             s = np.where(ok, s, 0.5 * (lo[i] + hi[i]))
             q = 0.25 * tol[i]
-            s = np.clip(s, lo[i] + q, hi[i] - q)
-            fs = sg[i] * self._at(ctx, s, J[i])
+            s = _clip(s, lo[i] + q, hi[i] - q)
+            fs = sg[i] * self._inside(ctx, None if steps is None else steps[i], s, J[i])
             fs = np.where(np.isnan(fs), 0.0, fs)
             with np.errstate(invalid="ignore", divide="ignore"):
                 slope[i] = (fs - fl[i]) / (s - xl[i])
