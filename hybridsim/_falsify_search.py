@@ -97,11 +97,12 @@ def _cmaes(ev, space, popsize, seed):
         grid = "" if E is None else f", its signals on a grid {factor} times coarser"
         ev.stages.append((ev.n, f"CMA-ES, population {lam}{grid}"
                           + (f" (restart {run})" if run else "")))
-        _cma_run(ev, mapping(E, clo, width, cfree), mean, 0.3, lam, rng)
+        until = ev.n + ev.budget // len(grids) if E is not None else math.inf
+        _cma_run(ev, mapping(E, clo, width, cfree), mean, 0.3, lam, rng, until)
         run += 1
 
 
-def _cma_run(ev, full, mean, sigma, lam, rng):
+def _cma_run(ev, full, mean, sigma, lam, rng, until=math.inf):
     """One run of CMA-ES from ``mean`` with step ``sigma`` (unit box), until
     the budget, a counterexample, convergence (sigma below 1e-6 of the box),
     a stall (no better margin in 10 + 30 n / lambda generations) or a
@@ -123,7 +124,7 @@ def _cma_run(ev, full, mean, sigma, lam, rng):
     B, D, C = np.eye(n), np.ones(n), np.eye(n)
     best, since, flat, g = math.inf, 0, 0, 0
     patience = 10 + math.ceil(30 * n / lam)
-    while not ev.done:
+    while not ev.done and ev.n < until:
         X = np.clip(mean + sigma * (rng.standard_normal((lam, n)) * D) @ B.T, 0.0, 1.0)
         f = ev(full(X))
         if ev.done:
