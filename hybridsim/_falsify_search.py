@@ -53,10 +53,12 @@ def _cmaes(ev, space, popsize, seed):
     coarser (:meth:`Space.coarse`: a subset of the box, few coordinates, where
     a signal held at a bound over a long stretch is one coordinate at its
     bound), then the space itself, each run from the best point so far (its
-    least-squares image on the run's grid). Then restarts cycle through the
-    same grids from fresh uniform means, the population doubled each cycle
-    (IPOP), whenever a run converges, stalls or meets a flat margin. A space
-    without signals has one grid, its own."""
+    least-squares image on the run's grid); a run on a coarse grid stops
+    after ``budget / grids`` runs, so the space's own grid is not starved.
+    Then restarts cycle through the same grids from fresh uniform means, the
+    population doubled each cycle (IPOP), whenever a run converges, stalls,
+    meets a flat margin or spends its share. A space without signals has
+    one grid, its own."""
     if not np.any(space.hi > space.lo):
         ev(space.lo[None, :])
         return
@@ -104,8 +106,8 @@ def _cmaes(ev, space, popsize, seed):
 
 def _cma_run(ev, full, mean, sigma, lam, rng, until=math.inf):
     """One run of CMA-ES from ``mean`` with step ``sigma`` (unit box), until
-    the budget, a counterexample, convergence (sigma below 1e-6 of the box),
-    a stall (no better margin in 10 + 30 n / lambda generations) or a
+    the budget, ``until`` runs of the search, a counterexample, convergence
+    (sigma below 1e-6 of the box), a stall (no better margin in 10 + 30 n / lambda generations) or a
     margin flat over three populations in a row. Candidates are clipped into
     the box and the update uses the clipped ones (a worst case on a face
     is reached exactly)."""
