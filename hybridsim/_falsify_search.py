@@ -63,14 +63,13 @@ def _cmaes(ev, space, popsize, seed):
         ev(space.lo[None, :])
         return
     rng = np.random.default_rng(seed)
-    grids, dims = [], set()                  # (factor, E, lo, width, free) of each grid
-    for factor in (4, 2, 1):
+    grids = []                               # (factor, E, lo, width, free), coarse first
+    for factor in (1, 2, 4):
         E, clo, chi = space.coarse(factor) if factor > 1 else (None, space.lo, space.hi)
         cfree = chi > clo
         n = int(cfree.sum())
-        if n and n not in dims:
-            dims.add(n)
-            grids.append((factor, E, clo, (chi - clo)[cfree], cfree))
+        if n and all(n < g[4].sum() for g in grids):  # fewer coordinates than the last
+            grids.insert(0, (factor, E, clo, (chi - clo)[cfree], cfree))
 
     def mapping(E, clo, width, cfree):
         def full(U):                         # (k, n) in [0, 1] -> (k, dim)
