@@ -47,41 +47,66 @@ def _de(ev, space, popsize, seed, budget, rnd=0):
 def _cmaes(ev, space, popsize, seed):
     """CMA-ES (Hansen's (mu/mu_w, lambda) with his default parameters) over the
     free coordinates scaled to [0, 1], after a seeded first design
-    (:func:`_seeded`, ``max(2 lambda, 2 n)`` points) whose best point is the
-    first mean; restarts with the population doubled (IPOP) from a fresh
-    uniform mean whenever a run converges, stalls or meets a flat margin."""
-    free = space.hi > space.lo
-    if not np.any(free):
+    (:func:`_seeded`, ``max(2 lambda, 2 n)`` points).
+
+    The runs go coarse to fine: the space's signals on grids 4 and 2 times
+    coarser (:meth:`Space.coarse`: a subset of the box, few coordinates, where
+    a signal held at a bound over a long stretch is one coordinate at its
+    bound), then the space itself, each run from the best point so far (its
+    least-squares image on the run's grid); a run on a coarse grid stops
+    after ``budget / grids`` runs, so the space's own grid is not starved.
+    Then restarts cycle through the same grids from fresh uniform means, the
+    population doubled each cycle (IPOP), whenever a run converges, stalls,
+    meets a flat margin or spends its share. A space without signals has
+    one grid, its own."""
+    if not np.any(space.hi > space.lo):
         ev(space.lo[None, :])
         return
-    lo, width = space.lo[free], (space.hi - space.lo)[free]
-    n = int(free.sum())
     rng = np.random.default_rng(seed)
+    grids = []                               # (factor, E, lo, width, free), coarse first
+    for factor in (1, 2, 4):
+        E, clo, chi = space.coarse(factor) if factor > 1 else (None, space.lo, space.hi)
+        cfree = chi > clo
+        n = int(cfree.sum())
+        if n and all(n < g[4].sum() for g in grids):  # fewer coordinates than the last
+            grids.insert(0, (factor, E, clo, (chi - clo)[cfree], cfree))
 
-    def full(U):                             # (k, n_free) in [0, 1] -> (k, dim)
-        Z = np.tile(space.lo, (U.shape[0], 1))
-        Z[:, free] = lo + np.clip(U, 0.0, 1.0) * width
-        return Z
+    def mapping(E, clo, width, cfree):
+        def full(U):                         # (k, n) in [0, 1] -> (k, dim)
+            C = np.tile(clo, (U.shape[0], 1))
+            C[:, cfree] = clo[cfree] + np.clip(U, 0.0, 1.0) * width
+            return C if E is None else C @ E.T
+        return full
 
+    def image(z, E, clo, width, cfree):      # a point of the space on a grid, in [0, 1]
+        c = z if E is None else np.linalg.lstsq(E, z, rcond=None)[0]
+        return np.clip((c[cfree] - clo[cfree]) / width, 0.0, 1.0)
+
+    free = space.hi > space.lo
+    n = int(free.sum())
     lam = popsize if popsize is not None else 4 + int(3 * math.log(n))
-    lam = max(2, lam)
-    init = (_seeded(ev, space, free, max(5, 2 * lam, 2 * n), rng) - lo) / width
-    vals = ev(full(init))
-    mean = init[int(np.argmin(vals))].copy()
-    restart = 0
+    first = np.tile(space.lo, (max(5, 2 * max(2, lam), 2 * n), 1))
+    first[:, free] = _seeded(ev, space, free, len(first), rng)
+    ev(first)
+    run = 0
     while not ev.done:
-        ev.stages.append((ev.n, f"CMA-ES, population {lam}"
-                          + (f" (restart {restart})" if restart else "")))
-        _cma_run(ev, full, mean, 0.3, lam, rng)
-        restart += 1
-        lam *= 2
-        mean = rng.random(n)
+        cycle, (factor, E, clo, width, cfree) = run // len(grids), grids[run % len(grids)]
+        lam = popsize if popsize is not None else 4 + int(3 * math.log(width.size))
+        lam = max(2, lam) * 2 ** cycle
+        mean = (image(ev.best_z, E, clo, width, cfree) if cycle == 0 and ev.best_z is not None
+                else rng.random(width.size))
+        grid = "" if E is None else f", its signals on a grid {factor} times coarser"
+        ev.stages.append((ev.n, f"CMA-ES, population {lam}{grid}"
+                          + (f" (restart {run})" if run else "")))
+        until = ev.n + ev.budget // len(grids) if E is not None else math.inf
+        _cma_run(ev, mapping(E, clo, width, cfree), mean, 0.3, lam, rng, until)
+        run += 1
 
 
-def _cma_run(ev, full, mean, sigma, lam, rng):
+def _cma_run(ev, full, mean, sigma, lam, rng, until=math.inf):
     """One run of CMA-ES from ``mean`` with step ``sigma`` (unit box), until
-    the budget, a counterexample, convergence (sigma below 1e-6 of the box),
-    a stall (no better margin in 10 + 30 n / lambda generations) or a
+    the budget, ``until`` runs of the search, a counterexample, convergence
+    (sigma below 1e-6 of the box), a stall (no better margin in 10 + 30 n / lambda generations) or a
     margin flat over three populations in a row. Candidates are clipped into
     the box and the update uses the clipped ones (a worst case on a face
     is reached exactly)."""
@@ -100,7 +125,7 @@ def _cma_run(ev, full, mean, sigma, lam, rng):
     B, D, C = np.eye(n), np.ones(n), np.eye(n)
     best, since, flat, g = math.inf, 0, 0, 0
     patience = 10 + math.ceil(30 * n / lam)
-    while not ev.done:
+    while not ev.done and ev.n < until:
         X = np.clip(mean + sigma * (rng.standard_normal((lam, n)) * D) @ B.T, 0.0, 1.0)
         f = ev(full(X))
         if ev.done:

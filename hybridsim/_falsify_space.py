@@ -34,6 +34,25 @@ def _count(name, v):
     return int(v)
 
 
+def _coarse_grid(times, interpolation, k, t_end, dim, lo, hi):
+    """``(E, lo, hi)`` of a signal on the grid ``times`` (its values point by
+    point, ``dim`` components each) from the same kind of signal on ``k``
+    points of [0, t_end]: the coarse signal's value at each of ``times``
+    (held from the coarse piece's start, or linear between the coarse
+    points), so each row of ``E`` is a convex combination and ``E @ c`` is in
+    the box; the entry itself when ``k`` is not fewer points."""
+    n = len(times)
+    if k >= n:
+        return np.eye(n * dim), lo, hi
+    if interpolation == "linear":
+        knots = np.linspace(0.0, t_end, k)
+        T = np.stack([np.interp(times, knots, np.eye(k)[j]) for j in range(k)], axis=1)
+    else:
+        T = np.zeros((n, k))
+        T[np.arange(n), np.minimum((np.asarray(times) * k / t_end).astype(int), k - 1)] = 1.0
+    return np.kron(T, np.eye(dim)), lo[:k * dim], hi[:k * dim]
+
+
 class _Entry:
     """One named, bounded coordinate block of a :class:`Space`."""
 
@@ -50,6 +69,14 @@ class _Entry:
         its box, shape (k, size) (none by default: an Interval's, a Box's and
         Gaps' extremes are the box's vertices)."""
         return np.zeros((0, self.size))
+
+    def coarse(self, factor):
+        """A coarser encoding of part of the entry's box: ``E`` (size, m) with
+        ``E @ c`` in the box for every ``c`` in ``[lo, hi]`` (m,), the
+        triple ``(E, lo, hi)``; by default the entry itself (``E`` the
+        identity)."""
+        lo, hi = self.bounds()
+        return np.eye(self.size), lo, hi
 
     def _check(self, lo, hi, what):
         lo, hi = np.atleast_1d(np.asarray(lo, float)), np.atleast_1d(np.asarray(hi, float))
@@ -182,6 +209,13 @@ class PiecewiseConstant(_Entry):
         that they are tried first), one per sign vector (at most 64)."""
         return np.tile(self.eps * _signs(self.dim), self.pieces)
 
+    def coarse(self, factor):
+        """The signals constant on ``ceil(pieces / factor)`` equal pieces
+        (:func:`_coarse_grid`)."""
+        k = math.ceil(self.pieces / factor)
+        starts = self.t_end / self.pieces * np.arange(self.pieces)
+        return _coarse_grid(starts, "previous", k, self.t_end, self.dim, *self.bounds())
+
     def value(self, z):
         vals = np.array(z, dtype=float).reshape(self.pieces, self.dim)
         width = self.t_end / self.pieces
@@ -272,6 +306,17 @@ class ControlPoints(_Entry):
         box, listed so that they are tried first), at most 64."""
         s = _signs(self.dim) > 0
         return np.tile(np.where(s, self.hi, self.lo), self.points)
+
+    def coarse(self, factor):
+        """The same kind of signal through fewer control points (``ceil((points
+        - 1) / factor) + 1`` for ``"linear"``, whose times are then among the
+        entry's when ``factor`` divides ``points - 1``; ``ceil(points /
+        factor)`` pieces for ``"previous"``; :func:`_coarse_grid`)."""
+        linear = self.interpolation == "linear"
+        k = (math.ceil((self.points - 1) / factor) + 1 if linear
+             else math.ceil(self.points / factor))
+        return _coarse_grid(self.times, self.interpolation, k, self.t_end, self.dim,
+                            *self.bounds())
 
     def value(self, z):
         vals = np.array(z, dtype=float).reshape(self.points, self.dim)
@@ -493,6 +538,31 @@ class Space:
                 out[:, self._slices[name]] = x[picks[:, c]]
                 c += 1
         return out
+
+    def coarse(self, factor):
+        """The space's signals (:class:`PiecewiseConstant`, :class:`ControlPoints`)
+        on grids ``factor`` times coarser, its other entries as they are:
+        ``(E, lo, hi)``, ``E`` (dim, m) block-diagonal, ``E @ c`` in the box for
+        every ``c`` in ``[lo, hi]`` (m,); ``m == dim`` when no entry has a
+        coarser grid.
+
+        Examples
+        --------
+        >>> s = Space(u=ControlPoints(0.0, 1.0, 10.0, points=8), k=Interval(1.0, 2.0))
+        >>> E, lo, hi = s.coarse(4)
+        >>> E.shape, (E @ [0.25, 0.75, 1.5])[[0, 1, 2, 7, 8]].tolist()
+        ((9, 3), [0.25, 0.25, 0.25, 0.75, 1.5])
+        """
+        if not factor >= 1:
+            raise ValueError(f"factor must be >= 1, got {factor!r}")
+        parts = [e.coarse(factor) for e in self.entries.values()]
+        m = sum(E.shape[1] for E, _, _ in parts)
+        E, r, c = np.zeros((self.dim, m)), 0, 0
+        for Ei, _, _ in parts:
+            E[r:r + Ei.shape[0], c:c + Ei.shape[1]] = Ei
+            r, c = r + Ei.shape[0], c + Ei.shape[1]
+        return (E, np.concatenate([lo for _, lo, _ in parts]),
+                np.concatenate([hi for _, _, hi in parts]))
 
     def sample(self, n, seed=None) -> np.ndarray:
         """``n`` coordinate vectors drawn uniformly from the box, shape (n, dim)."""

@@ -613,12 +613,19 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
         his default parameters) over the box scaled to [0, 1], after the
         same seeded first design (``max(2 lambda, 2 dim)`` points) whose
         best point is its first mean, step 0.3; candidates are clipped
-        into the box (a worst case on a face is reached exactly). It
-        restarts with the population doubled (IPOP) from a uniformly drawn
-        mean when it converges, stalls, or meets a margin flat over three
-        populations (each widening its step first); ``refine`` does not
-        apply. On the ARCH-COMP benchmarks (:mod:`hybridsim.arch`) it needs
-        fewer runs than DE to the first counterexample.
+        into the box (a worst case on a face is reached exactly). Where the
+        space has signals (:class:`PiecewiseConstant`, :class:`ControlPoints`)
+        the runs go coarse to fine: first with the signals on grids 4 and 2
+        times coarser (:meth:`Space.coarse`, a subset of the box where a
+        signal held at a bound over a long stretch is one coordinate at its
+        bound; each such run at most ``budget / grids`` runs), then on the
+        space itself, each from the best point so far. It restarts, cycling
+        through the grids, with the population doubled each cycle (IPOP)
+        from a uniformly drawn mean when a run converges, stalls, meets a
+        margin flat over three populations (each widening its step first),
+        or spends a coarse grid's share; ``refine`` does not apply. On the
+        ARCH-COMP benchmarks (:mod:`hybridsim.arch`) it needs fewer runs than
+        DE to the first counterexample.
         ``"random"``: uniform sampling of the box in populations, the
         baseline to compare with.
     popsize : int, optional
