@@ -228,7 +228,7 @@ def strip(arc, system, key, n, has_rate):
     stats["jump_seed"] = key
     if has_rate:
         E = arc.x[:, n + 1]
-        stats["thresholds"] = [float(v) for k, v in enumerate(E) if k == 0 or v != E[k - 1]]
+        stats["thresholds"] = E[np.r_[True, E[1:] != E[:-1]]].tolist()
     xdot = None if arc.xdot is None else arc.xdot[:, :n]
     out = HybridArc(arc.t, arc.j, arc.x[:, :n], arc.termination, arc.message, arc.exception,
                     components=system.components, system=system, xdot=xdot, stats=stats)

@@ -22,7 +22,7 @@ from numba.core import errors as nb_errors
 from numba.extending import intrinsic
 
 from .. import events, rules
-from . import _batch, _events, _kernel, _layout, _past, _steps, _types, _watch
+from . import _batch, _decide, _events, _kernel, _layout, _past, _steps, _types, _watch
 from ._batch import run_rows
 from ._kernel import (
     _run_core,
@@ -82,7 +82,7 @@ __all__ = [
 
 #: the modules of compiled code, in the order they import each other: their
 #: dispatchers are the engine's cached kernels, their text part of its digest
-_ENGINE = (_types, _steps, _events, _past, _watch, _kernel, _batch)
+_ENGINE = (_types, _steps, _events, _decide, _past, _watch, _kernel, _batch)
 
 
 def _dispatchers():

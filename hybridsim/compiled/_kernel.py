@@ -42,6 +42,7 @@ from numba import njit, types
 from numba.typed import List
 
 from .. import rules
+from ._decide import decide_at, jump_books, jump_cause, stop_outside
 from ._events import (
     _event,
     _inC,
@@ -128,11 +129,7 @@ from ._types import (
     BLOWUP,
     CACHE,
     CANCELED,
-    DETAIL_CHATTER,
-    DETAIL_INSTANT,
-    DETAIL_LOOP,
     J_MAX,
-    LEFT_SETS,
     MAP_ERROR,
     MAP_FLOW_X0,
     MAP_GUARD,
@@ -141,7 +138,6 @@ from ._types import (
     MAP_JUMP_X0,
     MAX_STEPS,
     NON_FINITE,
-    NOT_IN_SETS,
     SOLVER_FAILED,
     T_MAX,
     YIELD_EVERY,
@@ -150,7 +146,6 @@ from ._types import (
     _Cc,
     _check_at,
     _clear_at,
-    _coin,
     _let_threads_run,
     _occ_at,
     _vec_at,
@@ -386,10 +381,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                     cause = MAP_ERROR
                     detail = MAP_GUARD
                     break
-                coin = False
-                if rules.needs_coin(in_C, in_D, prio, False):
-                    coin = _coin(rngp)
-                action = rules.decide(in_C, in_D, prio, coin, False)
+                action = decide_at(in_C, in_D, prio, rngp)
                 if action == _A_STOP and post and _near_C(M, x, j, p, post_lo, ya, hQ, a,
                                                           hs, X[ns - 2]):
                     # within the located event's own error of C: in C
@@ -414,31 +406,9 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                     info[3] = j
                     break
                 # ---- the jump (``_Run._jump``)
-                flow = t - t_last_jump
-                if n_flows_last == 4:
-                    flows_last[0] = flows_last[1]
-                    flows_last[1] = flows_last[2]
-                    flows_last[2] = flows_last[3]
-                    flows_last[3] = flow
-                else:
-                    flows_last[n_flows_last] = flow
-                    n_flows_last += 1
-                is_short, zref = rules.zeno_short(flows_last, n_flows_last, t, zref, zeno_time,
-                                                  zeno_rtol)
-                if is_short:
-                    short += 1
-                else:
-                    short = 0
-                longest_before = longest
-                longest, tiny = rules.chatter_step(flow, longest, tiny)
-                if flow == 0.0 and jumps > 0:
-                    same += 1
-                else:
-                    same = 0
-                if from_C and flow == 0.0 and jumps > 0:
-                    loop += 1
-                else:
-                    loop = 0
+                n_flows_last, zref, short, longest, longest_before, tiny, same, loop, flow = \
+                    jump_books(flows_last, n_flows_last, t, t_last_jump, jumps, from_C, zref,
+                               short, longest, tiny, same, loop, zeno_time, zeno_rtol)
                 t_last_jump = t
                 j += 1
                 jumps += 1
@@ -457,23 +427,9 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                     T, J, X, XD = _grown(T, J, X, XD, ns)
                 _store(_bare(T), _bare(J), _bare(X), _bare(XD), ns, t, j, _bare(x))
                 ns += 1
-                c = rules.after_jump(jumps, short, j_max, zeno_jumps)
-                if c != _GOES_ON:
-                    cause = c
-                    info[0] = t
-                    info[2] = short
-                    if rules.is_jump_loop(loop, zeno_jumps):
-                        # the jumps of the loop and the one that started it, all at t
-                        detail = DETAIL_LOOP
-                        info[2] = loop + 1
-                    elif c == J_MAX and rules.is_jump_loop(same, zeno_jumps):
-                        detail = DETAIL_INSTANT      # jumps at t, not all from C
-                        info[2] = same + 1
-                    elif c == J_MAX and rules.is_jump_loop(tiny, zeno_jumps):
-                        detail = DETAIL_CHATTER      # info: t, longest, count, _, flow
-                        info[1] = longest_before
-                        info[2] = tiny
-                        info[4] = flow
+                cause, detail = jump_cause(jumps, short, j_max, zeno_jumps, loop, same, tiny, t,
+                                           longest_before, flow, info)
+                if cause != _GOES_ON:
                     break
                 continue
             if action == _A_STOP:
@@ -946,21 +902,8 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             flow_on = True
     if cause == _OUTSIDE:
         # ``_Run._stop_outside``: x0 outside both sets, sticking, or leaving C u D
-        if ns == 1:
-            cause = NOT_IN_SETS
-            detail = 0
-        else:
-            scale = rules.time_scale(t0, t, t_max)
-            if rules.is_sticking(flows_last[:n_flows_last], t - t_last_jump, jumps, scale):
-                cause = ZENO
-                detail = 1
-                info[1] = flows_last[n_flows_last - 3]
-                info[4] = flows_last[n_flows_last - 2]
-                info[5] = flows_last[n_flows_last - 1]
-            else:
-                cause = LEFT_SETS
-        info[0] = t
-        info[3] = j
+        cause, detail = stop_outside(ns, t0, t, t_max, j, flows_last, n_flows_last,
+                                     t_last_jump, jumps, info)
     if cause == MAP_ERROR and detail == MAP_GUARD:
         info[0] = ev[1]
         info[2] = ev[0]

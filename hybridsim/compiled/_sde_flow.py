@@ -22,6 +22,7 @@ import numpy as np
 from numba import njit
 
 from .. import rules
+from ._decide import decide_at, jump_books, jump_cause, stop_outside
 from ._draws import blocks_to, descend, mix64, stream_uniform
 from ._types import (
     _A_JUMP,
@@ -37,11 +38,7 @@ from ._types import (
     _RANDOM,
     BLOWUP,
     CACHE,
-    DETAIL_CHATTER,
-    DETAIL_INSTANT,
-    DETAIL_LOOP,
     J_MAX,
-    LEFT_SETS,
     MAP_ERROR,
     MAP_FLOW_X0,
     MAP_JUMP_SHAPE,
@@ -49,9 +46,7 @@ from ._types import (
     MAP_JUMP_X0,
     MAX_STEPS,
     NON_FINITE,
-    NOT_IN_SETS,
     T_MAX,
-    ZENO,
     _coin,
     _vec_at,
     maps_of,
@@ -344,10 +339,7 @@ def sde_run(maps, x0, p, fopt, iopt, keys, rngp):
         else:
             in_D = has_D and _inset(D, hD, D_g, x, t, j, p)
             in_C = (not has_C) or _inset(C, hC, C_g, x, t, j, p)
-            coin = False
-            if rules.needs_coin(in_C, in_D, prio, False):
-                coin = _coin(rngp)
-            action = rules.decide(in_C, in_D, prio, coin, False)
+            action = decide_at(in_C, in_D, prio, rngp)
             from_C = in_C
             if action == _A_STOP:
                 cause = _OUTSIDE
@@ -362,20 +354,9 @@ def sde_run(maps, x0, p, fopt, iopt, keys, rngp):
                 detail = MAP_JUMP_SHAPE if xn.shape[0] != n else MAP_JUMP_VALUE
                 info[0], info[2], info[3] = t, xn.shape[0], j
                 break
-            flow = t - t_last_jump
-            if n_fl == 4:
-                flows_last[0], flows_last[1], flows_last[2] = \
-                    flows_last[1], flows_last[2], flows_last[3]
-                flows_last[3] = flow
-            else:
-                flows_last[n_fl] = flow
-                n_fl += 1
-            is_short, zref = rules.zeno_short(flows_last, n_fl, t, zref, zeno_time, zeno_rtol)
-            short = short + 1 if is_short else 0
-            longest_before = longest
-            longest, tiny = rules.chatter_step(flow, longest, tiny)
-            same = same + 1 if (flow == 0.0 and jumps > 0) else 0
-            loop = loop + 1 if (from_C and flow == 0.0 and jumps > 0) else 0
+            n_fl, zref, short, longest, longest_before, tiny, same, loop, flow = \
+                jump_books(flows_last, n_fl, t, t_last_jump, jumps, from_C, zref, short, longest,
+                           tiny, same, loop, zeno_time, zeno_rtol)
             t_last_jump = t
             j += 1
             jumps += 1
@@ -389,22 +370,9 @@ def sde_run(maps, x0, p, fopt, iopt, keys, rngp):
                 T, J, X = _grown(T, J, X, ns)
             _put(T, J, X, ns, t, j, x)
             ns += 1
-            c = rules.after_jump(jumps, short, j_max, zeno_jumps)
-            if c != _GOES_ON:
-                cause = c
-                info[0] = t
-                info[2] = short
-                if rules.is_jump_loop(loop, zeno_jumps):
-                    detail = DETAIL_LOOP
-                    info[2] = loop + 1
-                elif c == J_MAX and rules.is_jump_loop(same, zeno_jumps):
-                    detail = DETAIL_INSTANT
-                    info[2] = same + 1
-                elif c == J_MAX and rules.is_jump_loop(tiny, zeno_jumps):
-                    detail = DETAIL_CHATTER
-                    info[1] = longest_before
-                    info[2] = tiny
-                    info[4] = flow
+            cause, detail = jump_cause(jumps, short, j_max, zeno_jumps, loop, same, tiny, t,
+                                       longest_before, flow, info)
+            if cause != _GOES_ON:
                 break
             continue
         if t >= t_max:
@@ -574,20 +542,8 @@ def sde_run(maps, x0, p, fopt, iopt, keys, rngp):
             cause = _OUTSIDE
             break
     if cause == _OUTSIDE:
-        if ns == 1:
-            cause = NOT_IN_SETS
-        else:
-            scale = rules.time_scale(t0, t, t_max)
-            if rules.is_sticking(flows_last[:n_fl], t - t_last_jump, jumps, scale):
-                cause = ZENO
-                detail = 1
-                info[1] = flows_last[n_fl - 3]
-                info[4] = flows_last[n_fl - 2]
-                info[5] = flows_last[n_fl - 1]
-            else:
-                cause = LEFT_SETS
-        info[0] = t
-        info[3] = j
+        cause, detail = stop_outside(ns, t0, t, t_max, j, flows_last, n_fl, t_last_jump, jumps,
+                                     info)
     stats[0] = steps
     stats[3] = jumps
     return T[:ns].copy(), J[:ns].copy(), X[:ns].copy(), cause, detail, info, stats
