@@ -24,7 +24,7 @@ PKG = Path(__file__).resolve().parents[2] / "hybridsim"
 #: level and those below it
 LEVELS = (
     ("capabilities", {"explore", "falsification", "sensitivity", "testing", "plot", "stl",
-                      "estimate", "arch", "_stl_eval", "_plot_sample",
+                      "estimate", "arch", "_stl_eval", "_stl_signal", "_plot_sample",
                       "_explore_tree", "_estimate_runs", "_sensitivity_maps", "_falsify_space",
                       "_falsify_search", "_estimate_stats"}),
     ("front door", {"run", "batch"}),
