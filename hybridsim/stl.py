@@ -153,6 +153,11 @@ from ._stl_signal import (  # noqa: F401  (re-exported)
     time,
 )
 
+# documented where the user imports them
+for _pub in (Signal, const, jumps, output, signal, state, time):
+    _pub.__module__ = __name__
+del _pub
+
 
 def _real(v, what):
     if isinstance(v, bool) or not isinstance(v, (numbers.Real, np.integer, np.floating)):
