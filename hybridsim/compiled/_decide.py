@@ -94,14 +94,15 @@ def jump_cause(jumps, short, j_max, zeno_jumps, loop, same, tiny, t, longest_bef
 
 
 @njit(**_NJI)
-def stop_outside(ns, t0, t, t_max, j, flows_last, n_fl, t_last_jump, jumps, info):
+def stop_outside(ns, t0, t, t_max, j, flows_last, n_fl, t_last_jump, jumps, info, detail):
     """``_Run._stop_outside``: the cause of a run that stopped outside C ∪ D at
     ``(t, j)`` after ``ns`` samples (x0 outside both sets, sticking to the
-    sets' boundary, or leaving C ∪ D) and its detail code; ``info`` gets
-    t, j and, when sticking, the last three flows."""
-    detail = 0
+    sets' boundary, or leaving C ∪ D) and its detail code (``detail``, the
+    stop's own, is kept when the run left the sets: 1 says the flow left C
+    outside D); ``info`` gets t, j and, when sticking, the last three flows."""
     if ns == 1:
         cause = NOT_IN_SETS
+        detail = 0
     else:
         scale = rules.time_scale(t0, t, t_max)
         if rules.is_sticking(flows_last[:n_fl], t - t_last_jump, jumps, scale):

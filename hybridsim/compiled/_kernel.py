@@ -903,7 +903,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     if cause == _OUTSIDE:
         # ``_Run._stop_outside``: x0 outside both sets, sticking, or leaving C u D
         cause, detail = stop_outside(ns, t0, t, t_max, j, flows_last, n_flows_last,
-                                     t_last_jump, jumps, info)
+                                     t_last_jump, jumps, info, detail)
     if cause == MAP_ERROR and detail == MAP_GUARD:
         info[0] = ev[1]
         info[2] = ev[0]

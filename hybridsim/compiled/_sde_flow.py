@@ -543,7 +543,7 @@ def sde_run(maps, x0, p, fopt, iopt, keys, rngp):
             break
     if cause == _OUTSIDE:
         cause, detail = stop_outside(ns, t0, t, t_max, j, flows_last, n_fl, t_last_jump, jumps,
-                                     info)
+                                     info, detail)
     stats[0] = steps
     stats[3] = jumps
     return T[:ns].copy(), J[:ns].copy(), X[:ns].copy(), cause, detail, info, stats
