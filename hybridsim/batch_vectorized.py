@@ -54,6 +54,7 @@ from ._batch_events import _RowEvents, _tol
 from ._batch_maps import _VMaps
 from ._batch_samples import _SampleLog
 from ._batch_steps import _DOP, _ERR_EXP, _NS, _RowSteps
+from ._interrupt import SigintLatch
 from ._progress import make_bar
 from .arc import Crossings, HybridArc, Termination
 from .arc_batch import ArcBatch
@@ -346,7 +347,8 @@ def simulate_vectorized(system: HybridSystem, x0s: ArrayLike, t_max: float,
     run = _BatchRun(system, X, n, ro, rng, method)
     run.pbar = make_bar(progress, total=len(X), desc="simulate_vectorized", unit="run")
     try:
-        run.run()
+        with SigintLatch() as run.latch:
+            run.run()
     except KeyboardInterrupt:       # Ctrl-C: every trajectory still running is canceled
         run.cancel()
     except MapError as e:           # at x0: raised, with the failing row's arc (one sample)
@@ -369,6 +371,7 @@ class _BatchRun(_RowSteps, _RowEvents):
     def __init__(self, system, X, n, ro, rng, method="RK45"):
         N = len(X)
         self.N, self.n = N, n
+        self.latch = None            # simulate_vectorized's SigintLatch
         # the method: RK45's stages and exponent, or DOP853's (``self.dop``)
         self.dop = _DOP if method == "DOP853" else None
         self.ns = _DOP["ns"] if self.dop else _NS
@@ -636,7 +639,10 @@ class _BatchRun(_RowSteps, _RowEvents):
         self.log.append(rows, self.t, self.j, self.x)
         self._validate()
         cap = self.max_samples
+        latch = self.latch
         while True:
+            if latch is not None:
+                latch.check()            # a Ctrl-C whose KeyboardInterrupt was lost
             rows = np.flatnonzero(self.decide & ~self.done)
             if rows.size:
                 self._decide(rows)

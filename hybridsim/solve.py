@@ -15,6 +15,7 @@ import numpy as np
 from scipy.integrate import DOP853, RK23, RK45
 from scipy.integrate._ivp.rk import RungeKutta
 
+from ._interrupt import SigintLatch
 from ._solve_solver import _RunSolver
 from ._solve_state import (  # noqa: F401 - run.py imports _Options, _progress_bar here
     _Buffer,
@@ -73,6 +74,7 @@ class _Run(_RunSolver):
         self.o = opts
         self.ufun = ufun
         self.history = history
+        self.latch = SigintLatch()     # run() opens it; unopened, check() does nothing
         self.buf = _Buffer(opts.n, max_samples=opts.max_samples)
         self.stats = _Stats()
         self.cause = None
@@ -183,7 +185,8 @@ class _Run(_RunSolver):
         """The run, then its final sample: every run ends with a sample at the
         state it stopped at (with ``t_eval`` the last step's end is not stored
         otherwise), each sample stored once."""
-        self._loop(t, j, x)
+        with SigintLatch() as self.latch:
+            self._loop(t, j, x)
         st, b = self.state, self.buf
         if self.cause is Termination.CANCELED or not b.m:
             return          # interrupted anywhere: the state may be ahead of the store
@@ -224,8 +227,10 @@ class _Run(_RunSolver):
         except KeyboardInterrupt:
             self._stop(Termination.CANCELED, t=t, j=j)
             return
+        latch = self.latch
         try:
             while True:
+                latch.check()            # a Ctrl-C whose KeyboardInterrupt was lost
                 t, j, x = st.t, st.j, st.x
                 if flow_on:          # random priority chose to flow on in C ∩ D
                     in_D = True

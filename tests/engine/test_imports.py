@@ -31,7 +31,7 @@ LEVELS = (
     ("paths", {"solve", "batch_vectorized", "compiled",
                "_sde", "_random_jumps", "_variational", "_solve_state", "_solve_solver",
                "_batch_maps", "_batch_samples", "_batch_steps", "_batch_events"}),
-    ("shared and data", {"rules", "options", "events", "_rk", "_progress", "_version",
+    ("shared and data", {"rules", "options", "events", "_rk", "_progress", "_version", "_interrupt",
                          "system", "compose", "history", "arc", "_arc_access", "_arc_checks",
                          "_arc_io", "_arc_records", "_compose_checks", "arc_batch", "library",
                          "_source", "_source_read", "_source_guards", "_source_rewrite",

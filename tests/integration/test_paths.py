@@ -342,6 +342,47 @@ def test_ctrl_c_ends_the_run_with_canceled_and_the_arc_so_far(path):
     np.testing.assert_allclose(np.diff(arc.jump_times), 1e-2, rtol=0, atol=1e-9)
 
 
+@pytest.mark.paths(only=("python", "vectorized"))
+@pytest.mark.skipif(threading.current_thread() is not threading.main_thread(),
+                    reason="Python runs signal handlers in the main thread")
+def test_a_ctrl_c_whose_exception_is_lost_still_ends_the_run(path):
+    """A SIGINT whose KeyboardInterrupt lands in code that discards it (here a
+    flow map that swallows it, as a __del__ or a C probe does): the loop's latch
+    raises it again, and the run ends CANCELED instead of running on to its cap."""
+    import signal
+    calls = [0]
+
+    def flow(x):
+        calls[0] += 1
+        if calls[0] == 50:
+            try:
+                signal.raise_signal(signal.SIGINT)
+                for _ in range(10):          # bytecodes: the handler runs here
+                    pass
+            except KeyboardInterrupt:
+                pass                         # lost, as CPython loses it in a __del__
+        return np.ones_like(x)
+
+    vec = path == "vectorized"
+    sysm = hs.HybridSystem.from_functions(
+        flow_map=flow, jump_map=lambda x: np.zeros_like(x),
+        jump_guard=(lambda x: x[:, 0] - 1e-2) if vec else (lambda x: x[0] - 1e-2),
+        state_dim=1, vectorized=vec)
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        if vec:
+            arc = hs.simulate_vectorized(sysm, [[0.0]], t_max=math.inf, max_samples=20_000,
+                                         max_steps=math.inf, zeno_jumps=10**9, warn=False)[0]
+        else:
+            arc = hs.simulate(sysm, [0.0], t_max=math.inf, max_samples=20_000,
+                              max_steps=math.inf, zeno_jumps=10**9, warn=False)
+    finally:
+        signal.signal(signal.SIGINT, old)
+    assert calls[0] >= 50
+    assert arc.termination is T.CANCELED, arc.message
+    arc.validate()
+
+
 # ------------------------------------------------------------------ issue 25
 def test_a_dwell_law_runs_on_the_python_path_and_is_refused_by_name_elsewhere(path):
     """dwell (the time in C ∩ D under priority="random") is the Python path's:
