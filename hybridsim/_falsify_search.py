@@ -53,12 +53,17 @@ def _cmaes(ev, space, popsize, seed):
     coarser (:meth:`Space.coarse`: a subset of the box, few coordinates, where
     a signal held at a bound over a long stretch is one coordinate at its
     bound), then the space itself, each run from the best point so far (its
-    least-squares image on the run's grid); a run on a coarse grid stops
-    after ``budget / grids`` runs, so the space's own grid is not starved.
-    Then restarts cycle through the same grids from fresh uniform means, the
-    population doubled each cycle (IPOP), whenever a run converges, stalls,
-    meets a flat margin or spends its share. A space without signals has
-    one grid, its own."""
+    least-squares image on the run's grid) with the last run's step (its
+    sigma times the longest axis, in [0.02, 0.3]); a run on a coarse grid
+    stops after ``budget / grids`` runs, so the space's own grid is not
+    starved, or sooner at that grid's own optimum (its best margin gained
+    less than 1 % of the run's gain in the last 10 + 3 n / lambda
+    generations), and hands on the worst point snapped to the box's bounds
+    (:func:`_snap`, two runs). A run from the worst point that finds nothing
+    better within those generations also ends. Then restarts cycle through
+    the same grids from fresh uniform means, the population doubled each
+    cycle (IPOP), whenever a run converges, stalls, meets a flat margin or
+    spends its share. A space without signals has one grid, its own."""
     if not np.any(space.hi > space.lo):
         ev(space.lo[None, :])
         return
@@ -88,7 +93,7 @@ def _cmaes(ev, space, popsize, seed):
     first = np.tile(space.lo, (max(5, 2 * max(2, lam), 2 * n), 1))
     first[:, free] = _seeded(ev, space, free, len(first), rng)
     ev(first)
-    run = 0
+    run, step = 0, 0.3
     while not ev.done:
         cycle, (factor, E, clo, width, cfree) = run // len(grids), grids[run % len(grids)]
         lam = popsize if popsize is not None else 4 + int(3 * math.log(width.size))
@@ -99,17 +104,26 @@ def _cmaes(ev, space, popsize, seed):
         ev.stages.append((ev.n, f"CMA-ES, population {lam}{grid}"
                           + (f" (restart {run})" if run else "")))
         until = ev.n + ev.budget // len(grids) if E is not None else math.inf
-        _cma_run(ev, mapping(E, clo, width, cfree), mean, 0.3, lam, rng, until)
+        # a run from the last grid's worst point goes on with that run's step
+        sigma = min(0.3, max(0.02, step)) if cycle == 0 and run else 0.3
+        step = _cma_run(ev, mapping(E, clo, width, cfree), mean, sigma, lam, rng, until,
+                        handoff=E is not None, stuck=cycle == 0 and run > 0)
+        if E is not None and cycle == 0 and not ev.done:
+            _snap(ev, space)
         run += 1
 
 
-def _cma_run(ev, full, mean, sigma, lam, rng, until=math.inf):
+def _cma_run(ev, full, mean, sigma, lam, rng, until=math.inf, handoff=False,
+             stuck=False):
     """One run of CMA-ES from ``mean`` with step ``sigma`` (unit box), until
     the budget, ``until`` runs of the search, a counterexample, convergence
-    (sigma below 1e-6 of the box), a stall (no better margin in 10 + 30 n / lambda generations) or a
-    margin flat over three populations in a row. Candidates are clipped into
-    the box and the update uses the clipped ones (a worst case on a face
-    is reached exactly)."""
+    (sigma below 1e-6 of the box), a stall (no better margin in 10 + 30 n /
+    lambda generations; with ``stuck``, in 10 + 3 n / lambda), with
+    ``handoff`` a gain of less than 1 % of the run's own in the last 10 + 3 n
+    / lambda generations, or a margin flat over three populations in a row.
+    Candidates are clipped into the box and the update uses the clipped ones
+    (a worst case on a face is reached exactly). Returns the last step,
+    sigma times the longest axis of the distribution."""
     n = mean.size
     mu = lam // 2
     w = math.log(mu + 0.5) - np.log(np.arange(1, mu + 1))
@@ -125,15 +139,19 @@ def _cma_run(ev, full, mean, sigma, lam, rng, until=math.inf):
     B, D, C = np.eye(n), np.ones(n), np.eye(n)
     best, since, flat, g = math.inf, 0, 0, 0
     patience = 10 + math.ceil(30 * n / lam)
+    trace = []                               # the best margin after each generation
+    window = 10 + math.ceil(3 * n / lam)
+    step = sigma
     while not ev.done and ev.n < until:
+        step = sigma * float(D.max())
         X = np.clip(mean + sigma * (rng.standard_normal((lam, n)) * D) @ B.T, 0.0, 1.0)
         f = ev(full(X))
         if ev.done:
-            return
+            return step
         if np.ptp(f) == 0:                   # no ranking: widen, then start afresh
             flat += 1
             if flat >= 3:
-                return
+                return step
             sigma = min(1.0, sigma * math.exp(0.2 + cs / damps))
             continue
         flat, g = 0, g + 1
@@ -141,6 +159,10 @@ def _cma_run(ev, full, mean, sigma, lam, rng, until=math.inf):
             best, since = float(f.min()), 0
         else:
             since += 1
+        trace.append(best)
+        if (handoff and g > window
+                and trace[-1 - window] - best <= 0.01 * (trace[0] - best)):
+            return step                      # a coarse grid's own optimum, nearly
         sel = np.argsort(f, kind="stable")[:mu]
         Y = (X[sel] - mean) / sigma
         yw = w @ Y
@@ -156,8 +178,28 @@ def _cma_run(ev, full, mean, sigma, lam, rng, until=math.inf):
         C = (C + C.T) / 2
         ev2, B = np.linalg.eigh(C)
         D = np.sqrt(np.maximum(ev2, 1e-20))
+        if stuck and since > window:
+            return step                      # no better than the point it started from
         if sigma * D.max() < 1e-6 or since > patience or D.max() > 1e7 * D.min():
-            return
+            return step
+    return step
+
+
+def _snap(ev, space):
+    """The worst point so far with its free coordinates at their nearer bound
+    (the nearest vertex of the box), and with those within a tenth of their
+    range of a bound there: two runs (a worst case held at its bounds, as
+    bang-bang inputs are, that a search on a coarser grid approached)."""
+    z, lo, hi = ev.best_z, space.lo, space.hi
+    free = hi > lo
+    u = np.where(free, (z - lo) / np.where(free, hi - lo, 1.0), 0.0)
+    vertex = np.where(free & (u >= 0.5), hi, lo)
+    near = np.where(free & (u <= 0.1), lo, np.where(free & (u >= 0.9), hi, z))
+    cand = np.unique(np.array([vertex, near]), axis=0)
+    cand = cand[np.any(cand != z, axis=1)]
+    if len(cand):
+        ev.stages.append((ev.n, "the worst point snapped to the box's bounds"))
+        ev(cand)
 
 
 def _seeded(ev, space, free, npop, rng, extremes=True):

@@ -308,13 +308,18 @@ class ControlPoints(_Entry):
         return np.tile(np.where(s, self.hi, self.lo), self.points)
 
     def coarse(self, factor):
-        """The same kind of signal through fewer control points (``ceil((points
-        - 1) / factor) + 1`` for ``"linear"``, whose times are then among the
-        entry's when ``factor`` divides ``points - 1``; ``ceil(points /
-        factor)`` pieces for ``"previous"``; :func:`_coarse_grid`)."""
+        """The same kind of signal through fewer control points: for
+        ``"linear"``, ``d + 1`` of the entry's own points, ``d`` the smallest
+        divisor of ``points - 1`` at least ``(points - 1) / factor`` (every
+        coarse signal is then one of the entry's, its kinks at the entry's
+        times); ``ceil(points / factor)`` pieces for ``"previous"``
+        (:func:`_coarse_grid`)."""
         linear = self.interpolation == "linear"
-        k = (math.ceil((self.points - 1) / factor) + 1 if linear
-             else math.ceil(self.points / factor))
+        if linear:
+            n = self.points - 1
+            k = 1 + min(d for d in range(math.ceil(n / factor), n + 1) if n % d == 0)
+        else:
+            k = math.ceil(self.points / factor)
         return _coarse_grid(self.times, self.interpolation, k, self.t_end, self.dim,
                             *self.bounds())
 
