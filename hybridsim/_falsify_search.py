@@ -92,6 +92,14 @@ def _cmaes(ev, space, popsize, seed):
     lam = popsize if popsize is not None else 4 + int(3 * math.log(n))
     first = np.tile(space.lo, (max(5, 2 * max(2, lam), 2 * n), 1))
     first[:, free] = _seeded(ev, space, free, len(first), rng)
+    if grids[0][1] is not None:              # a third of the design on the coarsest grid
+        k, m = len(first) // 3, grids[0][3].size
+        U = (rng.permuted(np.tile(np.arange(k), (m, 1)), axis=1).T + rng.random((k, m))) / k
+        at = rng.random(U.shape) < 0.25      # some coordinates at a bound (a face)
+        U[at] = rng.integers(0, 2, int(at.sum()))
+        first[len(first) - k:] = mapping(*grids[0][1:])(U)
+        ev.stages.append((ev.n + len(first) - k, "the first population's points on the "
+                          f"grid {grids[0][0]} times coarser"))
     ev(first)
     run, step = 0, 0.3
     while not ev.done:
@@ -103,7 +111,12 @@ def _cmaes(ev, space, popsize, seed):
         grid = "" if E is None else f", its signals on a grid {factor} times coarser"
         ev.stages.append((ev.n, f"CMA-ES, population {lam}{grid}"
                           + (f" (restart {run})" if run else "")))
-        until = ev.n + ev.budget // len(grids) if E is not None else math.inf
+        # the first cycle's share: budget / (2 grids) a coarse grid, budget / grids
+        # the space's own from the worst point; later, budget / grids a coarse grid
+        if E is not None:
+            until = ev.n + ev.budget // ((2 if cycle == 0 else 1) * len(grids))
+        else:
+            until = ev.n + ev.budget // len(grids) if cycle == 0 and run else math.inf
         # a run from the last grid's worst point goes on with that run's step
         sigma = min(0.3, max(0.02, step)) if cycle == 0 and run else 0.3
         step = _cma_run(ev, mapping(E, clo, width, cfree), mean, sigma, lam, rng, until,
