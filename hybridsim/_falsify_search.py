@@ -92,12 +92,15 @@ def _cmaes(ev, space, popsize, seed):
     lam = popsize if popsize is not None else 4 + int(3 * math.log(n))
     first = np.tile(space.lo, (max(5, 2 * max(2, lam), 2 * n), 1))
     first[:, free] = _seeded(ev, space, free, len(first), rng)
-    if grids[0][1] is not None:              # a third of the design on the coarsest grid
-        k, m = len(first) // 3, grids[0][3].size
+    def design(k, m):                        # a Latin hypercube, some coordinates at a bound
         U = (rng.permuted(np.tile(np.arange(k), (m, 1)), axis=1).T + rng.random((k, m))) / k
-        at = rng.random(U.shape) < 0.25      # some coordinates at a bound (a face)
+        at = rng.random(U.shape) < 0.25
         U[at] = rng.integers(0, 2, int(at.sum()))
-        first[len(first) - k:] = mapping(*grids[0][1:])(U)
+        return U
+
+    if grids[0][1] is not None:              # a third of the design on the coarsest grid
+        k = len(first) // 3
+        first[len(first) - k:] = mapping(*grids[0][1:])(design(k, grids[0][3].size))
         ev.stages.append((ev.n + len(first) - k, "the first population's points on the "
                           f"grid {grids[0][0]} times coarser"))
     ev(first)
@@ -106,8 +109,17 @@ def _cmaes(ev, space, popsize, seed):
         cycle, (factor, E, clo, width, cfree) = run // len(grids), grids[run % len(grids)]
         lam = popsize if popsize is not None else 4 + int(3 * math.log(width.size))
         lam = max(2, lam) * 2 ** cycle
-        mean = (image(ev.best_z, E, clo, width, cfree) if cycle == 0 and ev.best_z is not None
-                else rng.random(width.size))
+        if cycle == 0 and ev.best_z is not None:
+            mean = image(ev.best_z, E, clo, width, cfree)
+        elif E is not None:                  # a restart on a coarse grid: from the best
+            U = design(2 * width.size, width.size)      # of a fresh design there
+            ev.stages.append((ev.n, f"a fresh design on the grid {factor} times coarser"))
+            f = ev(mapping(E, clo, width, cfree)(U))
+            if ev.done:
+                return
+            mean = U[int(np.argmin(f))]
+        else:
+            mean = rng.random(width.size)
         grid = "" if E is None else f", its signals on a grid {factor} times coarser"
         ev.stages.append((ev.n, f"CMA-ES, population {lam}{grid}"
                           + (f" (restart {run})" if run else "")))

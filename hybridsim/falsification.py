@@ -618,12 +618,16 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
         the runs go coarse to fine: first with the signals on grids 4 and 2
         times coarser (:meth:`Space.coarse`, a subset of the box where a
         signal held at a bound over a long stretch is one coordinate at its
-        bound; each such run at most ``budget / grids`` runs), then on the
-        space itself, each from the best point so far. It restarts, cycling
+        bound; a third of the first design is drawn there), then on the
+        space itself, each from the best point so far with the last run's
+        step. A coarse run ends at its share (``budget / (2 grids)``, later
+        ``budget / grids``) or at its grid's own optimum, and hands on the
+        best point snapped to the box's bounds (two runs: a bang-bang input
+        the coarse grid approached). It restarts, cycling
         through the grids, with the population doubled each cycle (IPOP)
         from a uniformly drawn mean when a run converges, stalls, meets a
         margin flat over three populations (each widening its step first),
-        or spends a coarse grid's share; ``refine`` does not apply. On the
+        or spends its share; ``refine`` does not apply. On the
         ARCH-COMP benchmarks (:mod:`hybridsim.arch`) it needs fewer runs than
         DE to the first counterexample.
         ``"random"``: uniform sampling of the box in populations, the
