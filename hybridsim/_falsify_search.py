@@ -52,18 +52,24 @@ def _cmaes(ev, space, popsize, seed):
     The runs go coarse to fine: the space's signals on grids 4 and 2 times
     coarser (:meth:`Space.coarse`: a subset of the box, few coordinates, where
     a signal held at a bound over a long stretch is one coordinate at its
-    bound), then the space itself, each run from the best point so far (its
-    least-squares image on the run's grid) with the last run's step (its
-    sigma times the longest axis, in [0.02, 0.3]); a run on a coarse grid
-    stops after ``budget / grids`` runs, so the space's own grid is not
-    starved, or sooner at that grid's own optimum (its best margin gained
-    less than 1 % of the run's gain in the last 10 + 3 n / lambda
-    generations), and hands on the worst point snapped to the box's bounds
-    (:func:`_snap`, two runs). A run from the worst point that finds nothing
-    better within those generations also ends. Then restarts cycle through
-    the same grids from fresh uniform means, the population doubled each
-    cycle (IPOP), whenever a run converges, stalls, meets a flat margin or
-    spends its share. A space without signals has one grid, its own."""
+    bound; a third of the first design is drawn on the coarsest), then the
+    space itself, each run from the best point so far (its least-squares
+    image on the run's grid) with the last run's step (its sigma times the
+    longest axis, in [0.02, 0.3]). In this first cycle a run on a coarse grid
+    stops after ``budget / (2 grids)`` runs, and the space's own run after
+    ``budget / grids``, so restarts are left a share; a coarse run stops
+    sooner at that grid's own optimum (its best margin gained less than 1 %
+    of the run's gain in the last 10 + 3 n / lambda generations), and hands
+    on the worst point snapped to the box's bounds (:func:`_snap`, two runs).
+    A run from the worst point that finds nothing better within those
+    generations also ends. Then restarts cycle through the same grids, the
+    population doubled each cycle (IPOP), on a coarse grid from the best of
+    a fresh design there (2 n points) and at most ``budget / grids`` runs,
+    on the space's own grid from a uniform mean, whenever a run converges,
+    stalls, meets a flat margin or spends its share. A space without
+    signals has one grid, its own: one run after the first design, then
+    restarts from uniform means.
+    """
     if not np.any(space.hi > space.lo):
         ev(space.lo[None, :])
         return
@@ -215,6 +221,8 @@ def _snap(ev, space):
     (the nearest vertex of the box), and with those within a tenth of their
     range of a bound there: two runs (a worst case held at its bounds, as
     bang-bang inputs are, that a search on a coarser grid approached)."""
+    if ev.best_z is None:
+        return
     z, lo, hi = ev.best_z, space.lo, space.hi
     free = hi > lo
     u = np.where(free, (z - lo) / np.where(free, hi - lo, 1.0), 0.0)
