@@ -64,7 +64,8 @@ def wrap_watch(fn):
     return njit(VEC_SIG, **_NJ)(w)
 
 
-@njit(cache=CACHE, **_NJ)
+# inlined into the secant, as compiled._events._phi_at
+@njit(inline="always", **_NJ)
 def _watched_at(E, s):
     """``sg * W(s, y(s))[k]`` at time s of a step's dense output, for
     :func:`_secant`: ``E = (W, k, sg, yold, hQ, told, h, j, p, wk)``, the state
