@@ -3,8 +3,8 @@
 The port of :func:`hybridsim.events.locate_event` (a flow starting on the
 guard's zero, a probe and a quadratic model's first estimate; indicator
 bisection until the guard changes sign; :func:`hybridsim.events.secant_of`'s
-secant, compiled from its one source, on the guard to a bracket of 4 ulp confirmed
-by the indicator) and
+secant, compiled from its one source, on the guard to a bracket of 4 ulp
+confirmed by the indicator) and
 :func:`hybridsim.events.find_interior_event` (three interior samples and a
 golden-section search on guard peaks).
 """
