@@ -18,7 +18,7 @@ from .rules import Action, Priority, event_tolerance, needs_coin
 # rules.event_tolerance(a, b) = unit * max(1, |a|, |b|); the unit read from the rule
 _TOL_UNIT = event_tolerance(1.0, 1.0)
 _MAX_ITER = 200     # bisection steps of locate_event
-_SECANT_ITER = 100  # secant steps of events._secant
+_SECANT_ITER = 100  # secant steps of events.secant_of
 
 
 def _tol(lo, hi):
@@ -102,7 +102,7 @@ class _RowEvents:
         interpolant. With a guard: a start on the guard's zero is probed and
         seeded by the quadratic model (``events._root_off_zero``); the
         indicator bisects until the guard changes sign; safeguarded secant
-        steps (``events._secant``: Brent's test, else bisection) shrink the
+        steps (``events.secant_of``: Brent's test, else bisection) shrink the
         guard's bracket, which the indicator confirms; a final bisection of
         the indicator closes any bracket left. ``ylo``, ``yhi``: the states
         at lo and hi where the caller has them (the step's ends).
@@ -188,17 +188,18 @@ class _RowEvents:
         bisect(lambda: True)
         return lo, hi, ylo, yhi
 
+    # a row form: events.secant_of's loop calls F at one point; here one masked step of all rows
     def _secant(self, rows, idx, lo, hi, flo, fhi, ylo, yhi, seed_s, seed_m, ev, phi):
-        """:func:`hybridsim.events._secant` over the rows ``idx`` of a
-        :meth:`_locate`: each row's trial is its secant step from its last
-        evaluation, accepted inside the bracket and shorter than half its
-        step before last (Brent's test), else the midpoint; a seed (not NaN)
-        is the first trial and gives the slope after it; trials are kept a
-        quarter tolerance inside the bracket. A row form because the
-        arithmetic must differ: ``events.secant_trial``/``secant_slope`` branch
-        per value (the kernel compiles them); here every active row takes its
-        trial in one masked step, and the map is called once per iteration
-        for all of them."""
+        """:func:`hybridsim.events.secant_of`'s secant over the rows ``idx`` of a
+        :meth:`_locate` (or the watched functions' crossings): each row's
+        trial is its secant step from its last evaluation, accepted inside
+        the bracket and shorter than half its step before last (Brent's
+        test), else the midpoint; a seed (not NaN) is the first trial and
+        gives the slope after it; trials are kept a quarter tolerance inside
+        the bracket. Every active row takes its trial in one masked step, the
+        maps called once per iteration for all of them (the plain
+        ``events.secant_trial``/``secant_slope`` branch per value).
+        Returns ``(lo, hi, x_lo, x_hi)``."""
         n = len(idx)
         d1, d2 = np.full(n, np.inf), np.full(n, np.inf)
         first = -flo < fhi

@@ -625,7 +625,7 @@ class _PredicateEval:
 
     def _roots(self, ctx, a, b, fa, fb, J):
         """Where rho changes sign in (a, b) on the interpolant, to 4 ulp: the
-        engine's safeguarded secant (``events._secant``), vectorised: a secant
+        engine's safeguarded secant (``events.secant_of``), vectorised: a secant
         step from the last evaluation where it falls inside the bracket and is
         shorter than half the step before last, else bisection; trials a
         quarter tolerance inside the bracket so that it closes from both sides.

@@ -9,9 +9,9 @@ from scipy.integrate._ivp.rk import RkDenseOutput
 
 from .rules import event_tolerance
 
-__all__ = ["locate_event", "event_tolerance", "find_interior_event", "secant_trial",
-           "secant_slope", "root_off_zero", "near_peak", "watch_crossings", "sign_changes",
-           "crossing_sides", "starts_on_zero"]
+__all__ = ["locate_event", "event_tolerance", "find_interior_event", "secant_of",
+           "secant_trial", "secant_slope", "root_off_zero", "near_peak", "watch_crossings",
+           "sign_changes", "crossing_sides", "starts_on_zero"]
 
 _EPS = np.finfo(float).eps
 _INVPHI = (math.sqrt(5.0) - 1.0) / 2.0
@@ -50,11 +50,12 @@ def fast_dense(sol):
 
 
 # ------------------------------------------------------------------ the algorithms' steps
-# Plain functions of floats, written once: the Python path calls them, and the
-# compiled path compiles them from this source (hybridsim.compiled._types
-# registers each of COMPILED with numba, as it does hybridsim.rules).
+# Plain functions of floats (and loops over a given function), written once: the
+# Python path calls them, and the compiled path compiles them from this source
+# (hybridsim.compiled._types registers each of COMPILED with numba, as it does
+# hybridsim.rules).
 def secant_trial(lo, hi, xl, fl, slope, d2, tol, seeded, s0):
-    """The next trial point of the safeguarded secant search (:func:`_secant`).
+    """The next trial point of the safeguarded secant search (:func:`secant_of`).
 
     The secant step from the last evaluation ``(xl, fl)`` with ``slope``,
     accepted where it falls inside the bracket ``[lo, hi]`` and is shorter
@@ -146,46 +147,103 @@ def near_peak(v, lo_nb):
     return v + 2.0 * (v - lo_nb) >= 0.0
 
 
-#: the functions the compiled path compiles from this source
+def secant_of(F):
+    """The safeguarded secant on ``F(E, s)``: a function shrinking a sign-change
+    bracket of it to 4 ulp.
+
+    Each trial (:func:`secant_trial`) is the secant step from the last
+    evaluation (the slope through the last two, :func:`secant_slope`; at
+    first the chord of the bracket, a regula falsi step), accepted where it
+    falls inside the bracket and is shorter than half the step before last
+    (Brent's test: secant steps converge superlinearly, so they shrink at
+    least that fast near a simple root); otherwise the bracket is bisected.
+    Trial points are kept a quarter tolerance inside the bracket, so that
+    once the steps are shorter than that the bracket closes from the other
+    side.
+
+    Parameters
+    ----------
+    F : callable
+        ``F(E, s) -> float``: the function along a step at time ``s``, ``E``
+        what it reads besides ``s`` (a compiled function where the kernel
+        compiles the result: it calls ``F`` by name, not through a value).
+
+    Returns
+    -------
+    secant : callable
+        ``secant(E, lo, hi, flo, fhi, seeded, s0, slope0) -> (lo, hi)``, from
+        ``flo = F(E, lo) < 0 <= fhi = F(E, hi)`` to ``hi - lo <=
+        event_tolerance(lo, hi)`` (at most 100 trials), F negative at lo and
+        nonnegative at hi (or the end unmoved). Where ``seeded``, ``s0`` is a
+        model's estimate of the root and ``slope0`` of the guard's slope
+        there: the first trial, and the slope for the step after it.
+
+    Examples
+    --------
+    >>> root2 = secant_of(lambda E, s: s * s - E)
+    >>> lo, hi = root2(2.0, 0.0, 2.0, -2.0, 2.0, False, math.nan, math.nan)
+    >>> bool(hi - lo <= event_tolerance(lo, hi) and lo < math.sqrt(2.0) <= hi)
+    True
+    """
+    def secant(E, lo, hi, flo, fhi, seeded, s0, slope0):
+        d1 = math.inf           # the last two step lengths
+        d2 = math.inf
+        if -flo < fhi:          # the last evaluation
+            xl = lo
+            fl = flo
+        else:
+            xl = hi
+            fl = fhi
+        slope = (fhi - flo) / (hi - lo)
+        for _ in range(100):
+            tol = event_tolerance(lo, hi)
+            if hi - lo <= tol:
+                break
+            s = secant_trial(lo, hi, xl, fl, slope, d2, tol, seeded, s0)
+            fs = F(E, s)
+            if seeded:
+                slope = slope0
+                seeded = False
+            else:
+                slope = secant_slope(fs, fl, s, xl)
+            d2 = d1
+            d1 = abs(s - xl)
+            xl = s
+            fl = fs
+            if fs >= 0.0:
+                hi = s
+            else:
+                lo = s
+        return lo, hi
+    return secant
+
+
+#: the functions the compiled path compiles from this source (and :func:`secant_of`'s
+#: secant, compiled once per function it is made for)
 COMPILED = (secant_trial, secant_slope, root_off_zero, near_peak)
 
 
-def _secant(F, lo, hi, flo, fhi, ylo, yhi, ev, seed=None, max_iter=100):
-    """Shrink a sign-change bracket of ``F(s, y(s))`` to 4 ulp.
+def _call(E, s):
+    return E(s)
 
-    ``flo < 0 <= fhi``. Each trial is the secant step from the last
-    evaluation (the slope through the last two; at first the chord of the
-    bracket, a regula falsi step), accepted where it falls inside the bracket
-    and is shorter than half the step before last (Brent's test: secant
-    steps converge superlinearly, so they shrink at least that fast near a
-    simple root); otherwise the bracket is bisected. ``seed = (s0, slope)``,
-    where given, is a model's estimate of the root and of the guard's slope
-    there: the first trial, and the slope for the step after it. Trial
-    points are kept a quarter tolerance inside the bracket, so that once the
-    steps are shorter than that the bracket closes from the other side.
-    """
-    d1 = d2 = math.inf          # the last two step lengths
-    xl, fl = (lo, flo) if -flo < fhi else (hi, fhi)     # the last evaluation
-    slope = (fhi - flo) / (hi - lo)
-    for _ in range(max_iter):
-        tol = event_tolerance(lo, hi)
-        if hi - lo <= tol:
-            break
-        s = secant_trial(lo, hi, xl, fl, slope, d2, tol, seed is not None,
-                         seed[0] if seed is not None else math.nan)
-        ys = ev(s)
-        fs = F(s, ys)
-        if seed is not None:
-            slope, seed = seed[1], None
-        else:
-            slope = secant_slope(fs, fl, s, xl)
-        d2, d1 = d1, abs(s - xl)
-        xl, fl = s, fs
-        if fs >= 0.0:
-            hi, yhi, fhi = s, ys, fs
-        else:
-            lo, ylo, flo = s, ys, fs
-    return lo, hi, ylo, yhi
+
+#: :func:`secant_of` on a Python function of s (``E``)
+_secant_py = secant_of(_call)
+
+
+def _secant(F, lo, hi, flo, fhi, ylo, yhi, ev, seed=None):
+    """The safeguarded secant (:func:`secant_of`) on ``F(s, ev(s))`` from the
+    bracket ``[lo, hi]`` with states ``ylo``, ``yhi``; ``seed = (s0, slope)``
+    where given. Returns ``(lo, hi, x_lo, x_hi)``: each state the one
+    evaluated at its time."""
+    states = {lo: ylo, hi: yhi}
+
+    def at(s):
+        states[s] = ys = ev(s)
+        return F(s, ys)
+    s0, slope0 = seed if seed is not None else (math.nan, math.nan)
+    lo, hi = _secant_py(at, lo, hi, flo, fhi, seed is not None, s0, slope0)
+    return lo, hi, states[lo], states[hi]
 
 
 def _root_off_zero(f0, fd, fw, d, w):
@@ -522,7 +580,7 @@ def watch_crossings(sol, a, b, ya, yb, wa, wb, W, direction, floor, samples=WATC
     Returns
     -------
     list of (t, which, sign, x)
-        In time order. Each is located to 4 ulp by :func:`_secant` (the
+        In time order. Each is located to 4 ulp by :func:`secant_of` (the
         guards' safeguarded secant) on ``sol``, between the samples that
         bracket its sign change; ``t`` is the bracket's end on or past 0.
         The step is untouched (nothing is cut or re-integrated).

@@ -5,13 +5,12 @@ when numba is installed).
 The algorithm is :func:`hybridsim.events.watch_crossings`'s: each step's dense
 output is sampled at :data:`hybridsim.events.WATCH_SAMPLES` interior points,
 each sign change between neighbouring samples (:func:`hybridsim.events.crossing_sides`)
-is shrunk to 4 ulp by the safeguarded secant (its steps
-:func:`hybridsim.events.secant_trial` and :func:`hybridsim.events.secant_slope`,
-compiled from their one source), and the zero a flow starts on is dropped
-(:func:`hybridsim.events.starts_on_zero`). Nothing of this is in the plain
-run kernel: only :data:`hybridsim.compiled._kernel.run_one_watch` (the run
-core with its constant ``_WATCH`` set), compiled when a watching system
-first runs, calls it.
+is shrunk to 4 ulp by the guards' safeguarded secant
+(:func:`hybridsim.events.secant_of`'s, compiled from its one source), and the
+zero a flow starts on is dropped (:func:`hybridsim.events.starts_on_zero`).
+Nothing of this is in the plain run kernel: only
+:data:`hybridsim.compiled._kernel.run_one_watch` (the run core with its
+constant ``_WATCH`` set), compiled when a watching system first runs, calls it.
 
 The watching kernel takes the watched functions' address as the seventh
 entry of ``maps`` and their directions after the delays in ``fopt``; it
@@ -27,7 +26,7 @@ from numba import njit, types
 from numba.extending import overload, register_jitable
 
 from .. import events, rules
-from ._steps import _dense, _dense_to
+from ._steps import _dense_to
 from ._types import _NJ, _NJL, CACHE, MAP_ERROR, VEC_SIG, as_vec
 
 for _fn in (events.crossing_sides, events.starts_on_zero):
@@ -65,40 +64,19 @@ def wrap_watch(fn):
     return njit(VEC_SIG, **_NJ)(w)
 
 
-@njit(cache=CACHE, **_NJ)
-def _secant_w(W, k, sg, yold, hQ, told, h, j, p, lo, hi, flo, fhi, yhi):
-    """``events._secant`` on ``sg * W(s, y(s))[k]`` along the step's dense
-    output (its steps :func:`hybridsim.events.secant_trial` and
-    :func:`hybridsim.events.secant_slope`, unseeded). Returns ``(hi, x_hi)``."""
-    d1 = np.inf
-    d2 = np.inf
-    if -flo < fhi:
-        xl = lo
-        fl = flo
-    else:
-        xl = hi
-        fl = fhi
-    slope = (fhi - flo) / (hi - lo)
-    for _ in range(100):
-        tol = rules.event_tolerance(lo, hi)
-        if hi - lo <= tol:
-            break
-        s = events.secant_trial(lo, hi, xl, fl, slope, d2, tol, False, np.nan)
-        ys = _dense(yold, hQ, told, h, s)
-        fs = sg * W(ys, s, j, p)[k]
-        slope = events.secant_slope(fs, fl, s, xl)
-        d2 = d1
-        d1 = abs(s - xl)
-        xl = s
-        fl = fs
-        if fs >= 0.0:
-            hi = s
-            yhi = ys
-            fhi = fs
-        else:
-            lo = s
-            flo = fs
-    return hi, yhi
+# inlined into the secant, as compiled._events._phi_at
+@njit(inline="always", **_NJ)
+def _watched_at(E, s):
+    """``sg * W(s, y(s))[k]`` at time s of a step's dense output, for
+    :func:`_secant`: ``E = (W, k, sg, yold, hQ, told, h, j, p, wk)``, the state
+    written into ``wk``."""
+    W, k, sg, yold, hQ, told, h, j, p, wk = E
+    _dense_to(wk, yold, hQ, told, h, s)
+    return sg * W(wk, s, j, p)[k]
+
+
+#: the guards' secant on the watched functions (compiled into :func:`watch_step`)
+_secant = njit(**_NJ)(events.secant_of(_watched_at))
 
 
 @njit(cache=CACHE, **_NJ)
@@ -145,14 +123,15 @@ def watch_step(W, dirs, yold, hQ, told, h, a, ya, wa, b, yb, j, p, floor, CR, nc
     Y[_SAMPLES + 1] = yb
     V[_SAMPLES + 1] = wb
     n0 = nc
+    wk = Y[_SAMPLES + 2]
     for i in range(_SAMPLES + 1):
         for k in range(m):
             up, down = events.crossing_sides(V[i, k], V[i + 1, k], dirs[k])
             if not (up or down):
                 continue
             sg = 1.0 if up else -1.0
-            tc, xc = _secant_w(W, k, sg, yold, hQ, told, h, j, p, P[i], P[i + 1],
-                               sg * V[i, k], sg * V[i + 1, k], Y[i + 1])
+            _, tc = _secant((W, k, sg, yold, hQ, told, h, j, p, wk), P[i], P[i + 1],
+                            sg * V[i, k], sg * V[i + 1, k], False, np.nan, np.nan)
             if events.starts_on_zero(floor, tc, rules.event_tolerance(floor, tc)):
                 continue
             if nc == CR.shape[0]:
@@ -163,7 +142,11 @@ def watch_step(W, dirs, yold, hQ, told, h, a, ya, wa, b, yb, j, p, floor, CR, nc
             CR[nc, 1] = j
             CR[nc, 2] = k
             CR[nc, 3] = sg
-            CR[nc, 4:] = xc
+            if tc == P[i + 1]:
+                CR[nc, 4:] = Y[i + 1]
+            else:
+                _dense_to(wk, yold, hQ, told, h, tc)
+                CR[nc, 4:] = wk
             nc += 1
     # the step's crossings by (t, which), as watch_crossings sorts them
     for r in range(n0 + 1, nc):
@@ -179,8 +162,9 @@ def watch_step(W, dirs, yold, hQ, told, h, a, ya, wa, b, yb, j, p, floor, CR, nc
 
 @njit(cache=CACHE, **_NJ)
 def scratch(n, m):
-    """``(P, Y, V)``: a run's scratch for :func:`watch_step` (n states, m functions)."""
-    return np.empty(_SAMPLES + 2), np.empty((_SAMPLES + 2, n)), np.empty((_SAMPLES + 2, m))
+    """``(P, Y, V)``: a run's scratch for :func:`watch_step` (n states, m functions;
+    the samples' times, states and values, and a trial point's state in ``Y``'s last row)."""
+    return np.empty(_SAMPLES + 2), np.empty((_SAMPLES + 3, n)), np.empty((_SAMPLES + 2, m))
 
 
 @njit(cache=CACHE, **_NJL)
