@@ -549,6 +549,11 @@ class Interconnection(HybridSystem):
                 raise _in_component(nm, e) from e.__cause__
             yield nm, v
 
+    # The batch branches below are kept on purpose: one state stops at the first
+    # component outside C (or inside D) and computes an input only for the tests
+    # that read it, where a batch must test every component on every row; a batch
+    # jump applies each component's g to its own rows of D only (g need not be
+    # defined off D), which a last-axis form evaluating g on every row cannot do.
     def flow_set(self, x, t, j, u=None):
         if np.ndim(x) == 2:
             ok = np.ones(len(x), dtype=bool)
