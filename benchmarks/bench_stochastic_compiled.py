@@ -143,7 +143,7 @@ def bench_stepper():
     for ou in forms.values():
         simulate_sde_compiled(ou, [1.0], 1.0, method="EM", max_step=h, seed=seed)
     best = {name: math.inf for name in ["hand", *forms]}
-    for _ in range(5):                  # the best of 5 of each, interleaved
+    for _ in range(10):                 # the best of 10 of each, interleaved
         t0 = time.perf_counter()
         xh = em_by_hand(1.0, h, steps, key)
         best["hand"] = min(best["hand"], time.perf_counter() - t0)
@@ -153,7 +153,7 @@ def bench_stepper():
             best[name] = min(best[name], time.perf_counter() - t0)
             assert abs(a.x[-1, 0] - xh) < 1e-12, name
     th = best["hand"]
-    print(f"EM stepper, OU to T={T:g}, dt={h:g} ({steps} steps; best of 5): hand-written "
+    print(f"EM stepper, OU to T={T:g}, dt={h:g} ({steps} steps; best of 10): hand-written "
           f"numba loop {th * 1e3:.1f} ms; final states differ by {abs(a.x[-1, 0] - xh):.1e}")
     for name in forms:
         print(f"  compiled SDE stepper, {name}: {best[name] * 1e3:.1f} ms, ratio "

@@ -20,8 +20,11 @@ import math
 import warnings
 
 import numpy as np
+from llvmlite import ir
 from numba import njit, types
+from numba.core import cgutils
 from numba.core import errors as nb_errors
+from numba.extending import intrinsic
 
 from .. import rules
 from ._decide import decide_at, jump_books, jump_cause, stop_outside
@@ -52,7 +55,6 @@ from ._types import (
     NON_FINITE,
     T_MAX,
     _coin,
-    _from_address,
     _vec_at,
     maps_of,
 )
@@ -74,7 +76,31 @@ _U = np.uint64
 INTO_SIG = types.none(*_ARGS, types.float64[::1])
 with warnings.catch_warnings():
     warnings.simplefilter("ignore", nb_errors.NumbaExperimentalFeatureWarning)
-    _into_at = _from_address(types.FunctionType(INTO_SIG))
+    INTO_T = types.FunctionType(INTO_SIG)
+
+
+@intrinsic
+def _into_at(typingctx, addr):
+    """A map of :data:`INTO_SIG` by the address of its compiled code (numba's
+    own calling convention, ``jit_addr``: no C wrapper between; :func:`jit_address`)."""
+    if not isinstance(addr, types.Integer):
+        return None
+
+    def codegen(context, builder, sig, args):
+        st = cgutils.create_struct_proxy(INTO_T)(context, builder)
+        vp = context.get_value_type(types.voidptr)
+        st.jit_addr = builder.inttoptr(args[0], vp)
+        st.c_addr = ir.Constant(vp, None)
+        st.py_addr = ir.Constant(vp, None)
+        return st._getvalue()
+    return INTO_T(addr), codegen
+
+
+def jit_address(disp):
+    """The address of ``disp``'s code compiled for :data:`INTO_SIG` (``disp``
+    must outlive its use)."""
+    cres = disp.overloads[INTO_SIG.args]
+    return cres.library.get_pointer_to_function(cres.fndesc.llvm_func_name)
 
 
 def into_form(fn, shape=None):

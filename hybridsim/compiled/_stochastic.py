@@ -87,15 +87,19 @@ def _dispatchers(system):
                            f"returning an array, or run this system on the Python path",
                            "diffusion") from e
     handles = [d[r] for r in ("f", "g", "hD", "hC", "D", "C")] + [hs]
-    handles += _into_handles(system, handles[0], hs)
+    into = _into_forms(system, handles[0], hs)
+    handles += into
     flags = (d["has_C"], d["has_D"], d["has_hC"], d["has_hD"], d["C_from_guard"],
              d["D_from_guard"])
-    out = (k.map_addresses(handles), flags, handles)
+    K = _sde_kernel()
+    maps = np.concatenate([k.map_addresses(handles[:7]),
+                           np.array([K.jit_address(fn) for fn in into], np.int64)])
+    out = (maps, flags, handles)
     system.__dict__["_sde_maps"] = (sig, out)
     return out
 
 
-def _into_handles(system, hf, hs):
+def _into_forms(system, hf, hs):
     """The flow map and the diffusion written into an argument (the SDE
     stepper's Euler–Maruyama loop): a map declared so as it is, an
     array-returning one through its compiled form (``hf``, ``hs``: their
@@ -103,7 +107,6 @@ def _into_handles(system, hf, hs):
     import numba
 
     from ._system import CompileError, _summarise
-    from ._types import MapHandle
     K = _sde_kernel()
     into = getattr(system, "maps_into", {})
     n, nd = system.state_dim, system.noise_dim
@@ -115,7 +118,7 @@ def _into_handles(system, hf, hs):
             raise CompileError(f"CompiledSystem: numba could not compile the map "
                                f"{'flow_map' if role == 'flow' else role!r} written into its "
                                f"out argument: {_summarise(e)}", role) from e
-        out.append(MapHandle(fn, K.INTO_SIG))
+        out.append(fn)
     return out
 
 
