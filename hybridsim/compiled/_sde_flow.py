@@ -10,9 +10,14 @@ bridge) and of the decision loop of :func:`hybridsim.simulate` around it
 uniforms are :mod:`._draws`' (the Python path's, bit for bit), so a run and
 its Python twin with the same seed agree to round-off.
 
-:func:`sde_run` takes the system's map dispatchers as arguments: numba
-compiles it once per system (the maps inlined), in memory. The plain run
-kernel (:mod:`._kernel`) is not touched.
+:func:`sde_run` takes the system's maps by address (one kernel, cached on
+disk, for every system). Where no event is watched, Euler–Maruyama on the
+grid runs in :func:`_em_grid`: the flow map and the diffusion written into
+arrays of the run (:func:`into_form`; a map declared ``(x, t, j, p, out)``
+as it is), x updated in place, nothing allocated or reference-counted per
+step; it hands any step it does not take (the last to ``t_max``, a map's
+bad value, a blow-up, full buffers) back to the loop here, which takes it
+as before. The plain run kernel (:mod:`._kernel`) is not touched.
 """
 from __future__ import annotations
 
