@@ -86,13 +86,15 @@ def _summarise(err):
 
 
 def _writes_into(fn):
-    """Whether a map is written ``fn(x, t, j, p, out)`` (five positional parameters)."""
+    """Whether a map is written ``fn(x, t, j, p, out)`` (five positional parameters
+    without defaults)."""
     import inspect
     try:
         ps = inspect.signature(getattr(fn, "py_func", fn)).parameters.values()
     except (TypeError, ValueError):
         return False
-    return sum(q.kind in (q.POSITIONAL_ONLY, q.POSITIONAL_OR_KEYWORD) for q in ps) == 5
+    return sum(q.kind in (q.POSITIONAL_ONLY, q.POSITIONAL_OR_KEYWORD)
+               and q.default is q.empty for q in ps) == 5
 
 
 def _returning(fn, shape):

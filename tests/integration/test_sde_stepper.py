@@ -68,6 +68,12 @@ def test_general_noise_and_an_ode_flow_written_into_out():
                          state_dim=2, params=[1.5])
     np.testing.assert_array_equal(hs.simulate(ode, [1.0, 0.0], 1.0, backend="compiled").x,
                                   hs.simulate(ref, [1.0, 0.0], 1.0, backend="compiled").x)
+    # a fifth parameter with a default is not an out: the map returns its value
+    dflt = CompiledSystem(flow_map=lambda x, t, j, p, k=1.5: np.array([-k * x[0], x[0] - x[1]]),
+                          state_dim=2)
+    assert dflt.maps_into == {} and "flow" in ode.maps_into
+    np.testing.assert_allclose(hs.simulate(dflt, [1.0, 0.0], 1.0).x[-1],
+                               hs.simulate(ode, [1.0, 0.0], 1.0).x[-1], rtol=1e-12)
 
 
 def test_an_event_located_after_the_window_moved():
