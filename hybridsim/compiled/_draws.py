@@ -81,15 +81,7 @@ def blocks_to(keys, S, F, H, nb, T, blk, z):
         return S, F, H
     m = keys.shape[0]
     if blk + 2 - nb[1] > S.shape[1]:
-        drop = nb[0] - 2 - nb[1]
-        if drop > 0:
-            for c in range(m):
-                for q in range(nb[0] + 1 - nb[1] - drop):
-                    S[c, q] = S[c, q + drop]
-                    F[c, q] = F[c, q + drop]
-                for q in range(nb[0] - nb[1] - drop):
-                    H[c, q] = H[c, q + drop]
-            nb[1] += drop
+        shift_window(S, F, H, nb)
     if blk + 2 - nb[1] > S.shape[1]:
         cap = max(2 * S.shape[1], blk + 2 - nb[1])
         S2 = np.zeros((m, cap))
@@ -106,6 +98,21 @@ def blocks_to(keys, S, F, H, nb, T, blk, z):
         draw_block(keys, S, F, H, nb[0], nb[0] - nb[1], T, z)
         nb[0] += 1
     return S, F, H
+
+
+@njit(**_NJL)
+def shift_window(S, F, H, nb):
+    """Drop the blocks before the last two drawn from the window (:func:`blocks_to`)."""
+    drop = nb[0] - 2 - nb[1]
+    if drop <= 0:
+        return
+    for c in range(S.shape[0]):
+        for q in range(nb[0] + 1 - nb[1] - drop):
+            S[c, q] = S[c, q + drop]
+            F[c, q] = F[c, q + drop]
+        for q in range(nb[0] - nb[1] - drop):
+            H[c, q] = H[c, q + drop]
+    nb[1] += drop
 
 
 @njit(inline="always", **_NJL)

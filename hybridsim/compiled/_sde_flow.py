@@ -33,7 +33,7 @@ from numba.extending import intrinsic
 
 from .. import rules
 from ._decide import decide_at, jump_books, jump_cause, stop_outside
-from ._draws import blocks_to, descend, draw_block, mix64, stream_uniform
+from ._draws import blocks_to, descend, draw_block, mix64, shift_window, stream_uniform
 from ._types import (
     _A_JUMP,
     _A_STOP,
@@ -344,7 +344,7 @@ def _em_grid(fi, si, x, j, p, a, ka, t0, t_max, H, diag, max_norm, steps, max_st
     (:func:`into_form`): ``x`` updated in place (``xn``: scratch of n), the
     samples stored; nothing allocated, no reference counted.
     Stops before a step it does not take as the loop of :func:`sde_run` does
-    (the last step to ``t_max``, a new block beyond the window, the sample
+    (the last step to ``t_max``, a block the window has no room for, the sample
     buffers full, a map's value of the wrong shape, a non-finite or too large
     x(b), ``max_steps``): that loop takes it. Returns ``(a, ka, steps, ns)``."""
     n = x.shape[0]
@@ -356,12 +356,14 @@ def _em_grid(fi, si, x, j, p, a, ka, t0, t_max, H, diag, max_norm, steps, max_st
         b = t0 + kb * H
         if b >= t_max:
             break
-        base = nb[1]
         if nb[0] <= kb:
-            if kb + 2 - base > cols:
-                break
-            draw_block(keys, S, F, H_, nb[0], nb[0] - base, H, z)
+            if kb + 2 - nb[1] > cols:
+                shift_window(S, F, H_, nb)
+                if kb + 2 - nb[1] > cols:
+                    break
+            draw_block(keys, S, F, H_, nb[0], nb[0] - nb[1], H, z)
             nb[0] += 1
+        base = nb[1]
         hh = b - a
         fi(x, a, j, p, fa)
         si(x, a, j, p, s)
@@ -415,7 +417,7 @@ def sde_run(maps, x0, p, fopt, iopt, keys, rngp):
     skey = keys[m]
     ckeys = keys[:m]
     watch_D = has_D and prio != _FLOWS
-    SB, FB, HB = np.zeros((m, 256)), np.zeros((m, 256)), np.zeros((m, 256))
+    SB, FB, HB = np.zeros((m, 64)), np.zeros((m, 64)), np.zeros((m, 64))
     nb = np.zeros(2, np.int64)
     z4 = np.empty(4)
     xbuf = np.empty((2, n))             # EM's x(b), alternately (x is the other row)
