@@ -17,9 +17,10 @@ Rows:
    of each, the stepper with its maps returning arrays and written into ``out``
    (``flow_map(x, t, j, p, out)``), and the difference of the final states. Measured
    (2 shared cores, 2 December 2026): the loop 2.7 ms; the stepper 51 ms before the grid
-   loop (19x), now about 15.5 ms with maps returning arrays (5.7x: their two arrays a
-   step) and 5.7-6.4 ms written into ``out`` (2.1-2.4x: beyond the loop's work, two
-   calls of the maps by address and the arc's 100,001 samples a run).
+   loop (18-19x), now 15-16 ms with maps returning arrays (5.5-5.8x: their two arrays a
+   step) and 5.3-6.4 ms written into ``out`` (1.9-2.4x with the load of the machine,
+   2.0x typical: beyond the loop's work, two calls of the maps by address and the arc's
+   100,001 samples a run).
 
 Run: ``python benchmarks/bench_stochastic_compiled.py [--quick] [--paths N]``
 """
