@@ -10,8 +10,9 @@ Python path's to the last bit where ``math.log``/``cos``/``sin`` of the
 platform agree with LLVM's (the same libm: they do on Linux x86_64).
 
 A path's state in a kernel is ``(S, F, H, nb)``: per component, W and its
-time integral at the block starts and each block's Lévy area, for the
-``nb[0]`` blocks drawn so far (grown on demand, :func:`blocks_to`).
+time integral at the block starts and each block's Lévy area, for a window
+of the ``nb[0]`` blocks drawn so far starting at block ``nb[1]`` (drawn on
+demand, :func:`blocks_to`).
 """
 from __future__ import annotations
 
@@ -21,7 +22,7 @@ import numpy as np
 from numba import njit
 
 from ..brownian import mix64 as _py_mix64
-from ._types import _NJ
+from ._types import _NJ, _NJL
 
 _U = np.uint64
 _GOLD = _U(0x9E3779B97F4A7C15)
@@ -68,48 +69,75 @@ def _node_key(ck, blk, level, index):
 
 
 @njit(**_NJ)
-def blocks_to(keys, S, F, H, nb, T, blk):
-    """Draw the blocks of every component up to block ``blk`` (inclusive);
-    the arrays grown (doubled) as needed. Returns ``(S, F, H)``."""
+def blocks_to(keys, S, F, H, nb, T, blk, z):
+    """Draw the blocks of every component up to block ``blk`` (inclusive).
+
+    The arrays hold a window of the blocks: column ``q`` is block ``nb[1] + q``
+    (``nb[0]`` blocks drawn so far). Queries only move forward in time, so
+    when the window is full the blocks before the last two drawn are dropped
+    (the arrays doubled only where that is not room enough). ``z``: scratch
+    of 4. Returns ``(S, F, H)``."""
     if nb[0] > blk:
         return S, F, H
     m = keys.shape[0]
-    if blk + 2 > S.shape[1]:
-        cap = max(2 * S.shape[1], blk + 2)
+    if blk + 2 - nb[1] > S.shape[1]:
+        shift_window(S, F, H, nb)
+    if blk + 2 - nb[1] > S.shape[1]:
+        cap = max(2 * S.shape[1], blk + 2 - nb[1])
         S2 = np.zeros((m, cap))
         F2 = np.zeros((m, cap))
         H2 = np.zeros((m, cap))
         for c in range(m):
-            for q in range(nb[0] + 1):
+            for q in range(nb[0] + 1 - nb[1]):
                 S2[c, q] = S[c, q]
                 F2[c, q] = F[c, q]
-            for q in range(nb[0]):
+            for q in range(nb[0] - nb[1]):
                 H2[c, q] = H[c, q]
         S, F, H = S2, F2, H2
-    z = np.empty(4)
-    rt, rt12 = math.sqrt(T), math.sqrt(T / 12.0)
     while nb[0] <= blk:
-        k = nb[0]
-        for c in range(m):
-            normals3(_node_key(keys[c], k, 0, 0), z, 2)
-            dw, hh = rt * z[0], rt12 * z[1]
-            s = S[c, k]
-            H[c, k] = hh
-            S[c, k + 1] = s + dw
-            F[c, k + 1] = F[c, k] + T * (s + 0.5 * dw) + T * hh
-        nb[0] = k + 1
+        draw_block(keys, S, F, H, nb[0], nb[0] - nb[1], T, z)
+        nb[0] += 1
     return S, F, H
 
 
+@njit(**_NJL)
+def shift_window(S, F, H, nb):
+    """Drop the blocks before the last two drawn from the window (:func:`blocks_to`)."""
+    drop = nb[0] - 2 - nb[1]
+    if drop <= 0:
+        return
+    for c in range(S.shape[0]):
+        for q in range(nb[0] + 1 - nb[1] - drop):
+            S[c, q] = S[c, q + drop]
+            F[c, q] = F[c, q + drop]
+        for q in range(nb[0] - nb[1] - drop):
+            H[c, q] = H[c, q + drop]
+    nb[1] += drop
+
+
+@njit(inline="always", **_NJL)
+def draw_block(keys, S, F, H, k, q, T, z):
+    """Block ``k`` of every component (its increment and Lévy area, W and ∫W
+    at its end) into column ``q`` of the window (``q + 1`` for its end)."""
+    rt, rt12 = math.sqrt(T), math.sqrt(T / 12.0)
+    for c in range(keys.shape[0]):
+        normals3(_node_key(keys[c], k, 0, 0), z, 2)
+        dw, hh = rt * z[0], rt12 * z[1]
+        s = S[c, q]
+        H[c, q] = hh
+        S[c, q + 1] = s + dw
+        F[c, q + 1] = F[c, q] + T * (s + 0.5 * dw) + T * hh
+
+
 @njit(**_NJ)
-def descend(ck, S, F, H, c, blk, u, T, depth):
+def descend(ck, S, F, H, c, blk, q, u, T, depth, z):
     """``(W, ∫W)`` of component ``c`` at position ``u`` in [0, 1) of block ``blk``
-    (``BrownianPath._one``: the tree's exact conditional midpoints, the chord
-    inside a finest cell)."""
+    (held in column ``q`` of the window, :func:`blocks_to`; ``BrownianPath._one``:
+    the tree's exact conditional midpoints, the chord inside a finest cell).
+    ``z``: scratch of 4."""
     lev = 0
     idx = 0
-    wl, wr, hh, fl = S[c, blk], S[c, blk + 1], H[c, blk], F[c, blk]
-    z = np.empty(4)
+    wl, wr, hh, fl = S[c, q], S[c, q + 1], H[c, q], F[c, q]
     while True:
         sc = float(1 << lev)
         h = T / sc

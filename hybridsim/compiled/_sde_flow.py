@@ -10,26 +10,38 @@ bridge) and of the decision loop of :func:`hybridsim.simulate` around it
 uniforms are :mod:`._draws`' (the Python path's, bit for bit), so a run and
 its Python twin with the same seed agree to round-off.
 
-:func:`sde_run` takes the system's map dispatchers as arguments: numba
-compiles it once per system (the maps inlined), in memory. The plain run
-kernel (:mod:`._kernel`) is not touched.
+:func:`sde_run` takes the system's maps by address (one kernel, cached on
+disk, for every system). Where no event is watched, Euler–Maruyama on the
+grid runs in :func:`_em_grid`: the flow map and the diffusion written into
+arrays of the run (:func:`into_form`; a map declared ``(x, t, j, p, out)``
+as it is), x updated in place, nothing allocated or reference-counted per
+step; it hands any step it does not take (the last to ``t_max``, a map's
+bad value, a blow-up, full buffers) back to the loop here, which takes it
+as before. The plain run kernel (:mod:`._kernel`) is not touched.
 """
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
-from numba import njit
+from llvmlite import ir
+from numba import njit, types
+from numba.core import cgutils
+from numba.core import errors as nb_errors
+from numba.extending import intrinsic
 
 from .. import rules
 from ._decide import decide_at, jump_books, jump_cause, stop_outside
-from ._draws import blocks_to, descend, mix64, stream_uniform
+from ._draws import blocks_to, descend, draw_block, mix64, shift_window, stream_uniform
 from ._types import (
     _A_JUMP,
     _A_STOP,
+    _ARGS,
     _FLOWS,
     _GOES_ON,
     _NJ,
+    _NJL,
     _O_FLOW_ON,
     _O_JUMP,
     _O_STOP,
@@ -65,6 +77,69 @@ MAP_DIFFUSION_VALUE = 21
 MAP_DIFFUSION_SHAPE = 22
 
 _U = np.uint64
+#: a map writing its value into its last argument: ``fn(x, t, j, p, out)``
+INTO_SIG = types.none(*_ARGS, types.float64[::1])
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore", nb_errors.NumbaExperimentalFeatureWarning)
+    INTO_T = types.FunctionType(INTO_SIG)
+
+
+@intrinsic
+def _into_at(typingctx, addr):
+    """A map of :data:`INTO_SIG` by the address of its compiled code (numba's
+    own calling convention, ``jit_addr``: no C wrapper between; :func:`jit_address`)."""
+    if not isinstance(addr, types.Integer):
+        return None
+
+    def codegen(context, builder, sig, args):
+        st = cgutils.create_struct_proxy(INTO_T)(context, builder)
+        vp = context.get_value_type(types.voidptr)
+        st.jit_addr = builder.inttoptr(args[0], vp)
+        st.c_addr = ir.Constant(vp, None)
+        st.py_addr = ir.Constant(vp, None)
+        return st._getvalue()
+    return INTO_T(addr), codegen
+
+
+def jit_address(disp):
+    """The address of ``disp``'s code compiled for :data:`INTO_SIG` (``disp``
+    must outlive its use)."""
+    cres = disp.overloads[INTO_SIG.args]
+    return cres.library.get_pointer_to_function(cres.fndesc.llvm_func_name)
+
+
+def into_form(fn, shape=None):
+    """A map as one writing into a flat ``out`` of :data:`INTO_SIG` (compiled):
+    ``fn`` the address (an int) of a compiled map returning an array
+    (:data:`._types.VEC_SIG`; a value of the wrong size writes NaN, and the
+    stepper then takes the step that reports it), or an ``(x, t, j, p, out)``
+    map, ``shape`` its ``out``'s, (n,) or (n, m)."""
+    if shape is None:
+        addr = int(fn)
+
+        def w(x, t, j, p, out):
+            v = _vec_at(addr)(x, t, j, p)
+            n = out.shape[0]
+            ok = v.shape[0] == n
+            for i in range(n):
+                out[i] = v[i] if ok else np.nan
+        return njit(INTO_SIG, **_NJ)(w)
+    jf = fn if hasattr(fn, "py_func") else njit(**_NJ)(fn)
+    if len(shape) == 1:
+        try:                            # as it is, where it returns nothing
+            jf.compile(INTO_SIG)
+            return jf
+        except nb_errors.TypingError:
+            pass
+
+        def w(x, t, j, p, out):
+            jf(x, t, j, p, out)
+    else:
+        n, m = shape
+
+        def w(x, t, j, p, out):
+            jf(x, t, j, p, out.reshape((n, m)))
+    return njit(INTO_SIG, **_NJ)(w)
 
 
 @njit(**_NJ)
@@ -221,23 +296,24 @@ def _crossing(h, neg, sig_a, diag, m, a, xa, b, xb, j, p, key, ctr):
 
 
 @njit(**_NJ)
-def _w(keys, S, F, H, c, t, t0, T, depth):
-    """(W, ∫W) of component c at t (``BrownianPath._query``; its block drawn)."""
+def _w(keys, S, F, H, base, c, t, t0, T, depth, z):
+    """(W, ∫W) of component c at t (``BrownianPath._query``; its block drawn,
+    in the window from block ``base``)."""
     s = (t - t0) / T
     blk = int(math.floor(s))  # noqa: RUF046 - an int under numba too
-    return descend(keys[c], S, F, H, c, blk, s - blk, T, depth)
+    return descend(keys[c], S, F, H, c, blk, blk - base, s - blk, T, depth, z)
 
 
 @njit(**_NJ)
-def _w_all(keys, S, F, H, t, k, t0, T, depth, m, w, Fo):
+def _w_all(keys, S, F, H, base, t, k, t0, T, depth, m, w, Fo, z):
     """(W, ∫W) at t into ``w``, ``Fo`` (block end ``k`` where k >= 0)."""
     if k >= 0:
         for c in range(m):
-            w[c] = S[c, k]
-            Fo[c] = F[c, k]
+            w[c] = S[c, k - base]
+            Fo[c] = F[c, k - base]
         return
     for c in range(m):
-        w[c], Fo[c] = _w(keys, S, F, H, c, t, t0, T, depth)
+        w[c], Fo[c] = _w(keys, S, F, H, base, c, t, t0, T, depth, z)
 
 
 @njit(**_NJ)
@@ -252,7 +328,7 @@ def _grown(T, J, X, ns):
     return T2, J2, X2
 
 
-@njit(**_NJ)
+@njit(inline="always", **_NJ)
 def _put(T, J, X, ns, t, j, x):
     T[ns] = t
     J[ns] = j
@@ -260,12 +336,67 @@ def _put(T, J, X, ns, t, j, x):
         X[ns, q] = x[q]
 
 
+@njit(**_NJL)
+def _em_grid(fi, si, x, j, p, a, ka, t0, t_max, H, diag, max_norm, steps, max_steps,
+             keys, S, F, H_, nb, z, xn, fa, s, T, J, X, ns):
+    """Euler–Maruyama steps on the grid ``t0 + k H`` from ``a = t0 + ka H``,
+    where no event is watched, the maps written into ``fa`` and ``s``
+    (:func:`into_form`): ``x`` updated in place (``xn``: scratch of n), the
+    samples stored; nothing allocated, no reference counted.
+    Stops before a step it does not take as the loop of :func:`sde_run` does
+    (the last step to ``t_max``, a block the window has no room for, the sample
+    buffers full, a map's value of the wrong shape, a non-finite or too large
+    x(b), ``max_steps``): that loop takes it. Returns ``(a, ka, steps, ns)``."""
+    n = x.shape[0]
+    m = keys.shape[0]
+    cols = S.shape[1]
+    cap = T.shape[0]
+    while steps < max_steps and ns < cap:
+        kb = ka + 1
+        b = t0 + kb * H
+        if b >= t_max:
+            break
+        if nb[0] <= kb:
+            if kb + 2 - nb[1] > cols:
+                shift_window(S, F, H_, nb)
+                if kb + 2 - nb[1] > cols:
+                    break
+            draw_block(keys, S, F, H_, nb[0], nb[0] - nb[1], H, z)
+            nb[0] += 1
+        base = nb[1]
+        hh = b - a
+        fi(x, a, j, p, fa)
+        si(x, a, j, p, s)
+        if diag:
+            for i in range(n):
+                xn[i] = x[i] + fa[i] * hh + s[i] * (S[i, kb - base] - S[i, ka - base])
+        else:
+            for i in range(n):
+                acc = 0.0
+                for c in range(m):
+                    acc += s[i * m + c] * (S[c, kb - base] - S[c, ka - base])
+                xn[i] = x[i] + fa[i] * hh + acc
+        nrm = 0.0
+        for i in range(n):
+            nrm += xn[i] * xn[i]
+        if not (math.isfinite(nrm) and (max_norm == np.inf or math.sqrt(nrm) <= max_norm)):
+            break
+        for i in range(n):
+            x[i] = xn[i]
+        steps += 1
+        _put(T, J, X, ns, b, j, x)
+        ns += 1
+        a, ka = b, kb
+    return a, ka, steps, ns
+
+
 @njit(nogil=True, cache=CACHE, **_NJ)
 def sde_run(maps, x0, p, fopt, iopt, keys, rngp):
     """One run of an SDE flow. ``maps``: the addresses of f, g, hD, hC, D, C
     and the diffusion (flattened row-major for general noise), as the run
-    kernel's (:func:`._types.map_addresses`). ``keys``: the Brownian path's per-component
-    keys and the stream key last (:func:`._draws.path_keys`). Returns
+    kernel's (:func:`._types.map_addresses`), then f and the diffusion written
+    into an argument (:func:`into_form`, the same values). ``keys``: the
+    Brownian path's per-component keys and the stream key last (:func:`._draws.path_keys`). Returns
     ``(T, J, X, cause, detail, info, stats)``, the codes of :mod:`._types`
     (stats: steps, events, flows, jumps)."""
     f, g, hD, hC, D, C = maps_of(maps[:6])
@@ -287,14 +418,23 @@ def sde_run(maps, x0, p, fopt, iopt, keys, rngp):
     ckeys = keys[:m]
     watch_D = has_D and prio != _FLOWS
     SB, FB, HB = np.zeros((m, 64)), np.zeros((m, 64)), np.zeros((m, 64))
-    nb = np.zeros(1, np.int64)
+    nb = np.zeros(2, np.int64)
+    z4 = np.empty(4)
+    xbuf = np.empty((2, n))             # EM's x(b), alternately (x is the other row)
+    xrow = -1
+    xn4, fa4, s4 = np.empty(n), np.empty(n), np.empty(ns_sig)
+    fi, si = _into_at(maps[7]), _into_at(maps[8])
+    grid_em = method == EM and not has_C and not watch_D     # no event watched: _em_grid
     wa, Fa, wb, Fb, dw = np.empty(m), np.empty(m), np.empty(m), np.empty(m), np.empty(m)
     bits = np.empty(2)
     ubits = bits.view(np.uint64)
     ctr = np.zeros(1, np.int64)
-    T = np.empty(64)
-    J = np.empty(64, np.int64)
-    X = np.empty((64, n))
+    cap = 64                            # the grid's samples (and 64 more), up to 2^20
+    if t_max < np.inf:
+        cap = min(max(cap, math.ceil((t_max - t0) / H) + 65), 1 << 20)
+    T = np.empty(cap)
+    J = np.empty(cap, np.int64)
+    X = np.empty((cap, n))
     info = np.full(6, np.nan)
     stats = np.zeros(4, np.int64)
     t, j, x = t0, iopt[I_J0], x0.copy()
@@ -386,6 +526,10 @@ def sde_run(maps, x0, p, fopt, iopt, keys, rngp):
         ka = 0 if t == t0 else -1
         outcome = -1
         while True:
+            if grid_em and ka >= 0:
+                a, ka, steps, ns = _em_grid(fi, si, x, j, p, a, ka, t0, t_max, H, diag,
+                                            max_norm, steps, max_steps, ckeys, SB, FB, HB, nb,
+                                            z4, xn4, fa4, s4, T, J, X, ns)
             if a >= t_max:
                 t = a
                 outcome = _O_TMAX
@@ -416,9 +560,9 @@ def sde_run(maps, x0, p, fopt, iopt, keys, rngp):
                 break
             need = kb if kb >= 0 else int(math.floor((b - t0) / H))  # noqa: RUF046
             if nb[0] <= need:                # the blocks up to b's drawn
-                SB, FB, HB = blocks_to(ckeys, SB, FB, HB, nb, H, need)
-            _w_all(ckeys, SB, FB, HB, a, ka, t0, H, depth, m, wa, Fa)
-            _w_all(ckeys, SB, FB, HB, b, kb, t0, H, depth, m, wb, Fb)
+                SB, FB, HB = blocks_to(ckeys, SB, FB, HB, nb, H, need, z4)
+            _w_all(ckeys, SB, FB, HB, nb[1], a, ka, t0, H, depth, m, wa, Fa, z4)
+            _w_all(ckeys, SB, FB, HB, nb[1], b, kb, t0, H, depth, m, wb, Fb, z4)
             for c in range(m):
                 dw[c] = wb[c] - wa[c]
             if method == SRA1:
@@ -443,7 +587,9 @@ def sde_run(maps, x0, p, fopt, iopt, keys, rngp):
                 s_hat = sig(x + fa * hh + _mul(s, np.full(n, rh), diag, n), a, j, p)
                 xb = x + fa * hh + _mul(s, dw, diag, n) + (s_hat - s) * (dw * dw - hh) / (2.0 * rh)
             else:
-                xb = np.empty(n)
+                q = 1 if xrow == 0 else 0
+                xb = xbuf[q]
+                xrow = q
                 if diag:
                     for i in range(n):
                         xb[i] = x[i] + fa[i] * hh + s[i] * dw[i]
@@ -546,4 +692,6 @@ def sde_run(maps, x0, p, fopt, iopt, keys, rngp):
                                      info, detail)
     stats[0] = steps
     stats[3] = jumps
+    if ns + 64 >= T.shape[0]:           # the grid (nearly) filled the buffers: views
+        return T[:ns], J[:ns], X[:ns], cause, detail, info, stats
     return T[:ns].copy(), J[:ns].copy(), X[:ns].copy(), cause, detail, info, stats

@@ -87,10 +87,38 @@ def _dispatchers(system):
                            f"returning an array, or run this system on the Python path",
                            "diffusion") from e
     handles = [d[r] for r in ("f", "g", "hD", "hC", "D", "C")] + [hs]
+    into = _into_forms(system, handles[0], hs)
+    handles += into
     flags = (d["has_C"], d["has_D"], d["has_hC"], d["has_hD"], d["C_from_guard"],
              d["D_from_guard"])
-    out = (k.map_addresses(handles), flags, handles)
+    K = _sde_kernel()
+    maps = np.concatenate([k.map_addresses(handles[:7]),
+                           np.array([K.jit_address(fn) for fn in into], np.int64)])
+    out = (maps, flags, handles)
     system.__dict__["_sde_maps"] = (sig, out)
+    return out
+
+
+def _into_forms(system, hf, hs):
+    """The flow map and the diffusion written into an argument (the SDE
+    stepper's Euler–Maruyama loop): a map declared so as it is, an
+    array-returning one through its compiled form (``hf``, ``hs``: their
+    handles, kept with the system)."""
+    import numba
+
+    from ._system import CompileError, _summarise
+    K = _sde_kernel()
+    into = getattr(system, "maps_into", {})
+    n, nd = system.state_dim, system.noise_dim
+    out = []
+    for role, h, shape in (("flow", hf, (n,)), ("diffusion", hs, (n,) if nd is None else (n, nd))):
+        try:
+            fn = K.into_form(into[role], shape) if role in into else K.into_form(h.addr)
+        except (numba.core.errors.NumbaError, TypeError, ValueError) as e:
+            raise CompileError(f"CompiledSystem: numba could not compile the map "
+                               f"{'flow_map' if role == 'flow' else role!r} written into its "
+                               f"out argument: {_summarise(e)}", role) from e
+        out.append(fn)
     return out
 
 

@@ -85,6 +85,38 @@ def _summarise(err):
     return " | ".join(keep) if keep else type(err).__name__
 
 
+def _writes_into(fn):
+    """Whether a map is written ``fn(x, t, j, p, out)`` (five positional parameters
+    without defaults)."""
+    import inspect
+    try:
+        ps = inspect.signature(getattr(fn, "py_func", fn)).parameters.values()
+    except (TypeError, ValueError):
+        return False
+    return sum(q.kind in (q.POSITIONAL_ONLY, q.POSITIONAL_OR_KEYWORD)
+               and q.default is q.empty for q in ps) == 5
+
+
+def _returning(fn, shape):
+    """A map written into ``out`` (of ``shape``) as the array it writes: the
+    compiled form (numba's, calling ``fn`` compiled) and the Python path's."""
+    def py_returning(x, t, j, p):
+        out = np.empty(shape)
+        fn(x, t, j, p, out)
+        return out
+    try:
+        import numba
+    except ImportError:
+        return py_returning, py_returning
+    jf = fn if hasattr(fn, "py_func") else numba.njit(error_model="numpy")(fn)
+
+    def returning(x, t, j, p):
+        out = np.empty(shape)
+        jf(x, t, j, p, out)
+        return out
+    return returning, py_returning
+
+
 class _PyMap:
     """A user map ``fn(x, t, j, p)`` seen by the Python path as ``(x, t, j)``."""
 
@@ -129,7 +161,11 @@ class CompiledSystem(HybridSystem):
     Parameters
     ----------
     flow_map : callable
-        ``f(x, t, j, p)``: the flow map, a 1-D array of n floats (or a tuple).
+        ``f(x, t, j, p)``: the flow map, a 1-D array of n floats (or a tuple);
+        or ``f(x, t, j, p, out)`` writing its n values into ``out`` (a float64
+        array of shape (n,)) and returning nothing: the SDE stepper's
+        Euler–Maruyama loop then evaluates it without making an array (the
+        other paths see it as the array it writes).
     jump_map : callable, optional
         ``g(x, t, j, p)``: the jump map, receives the pre-jump j.
     jump_guard, flow_guard : callable, optional
@@ -181,8 +217,9 @@ class CompiledSystem(HybridSystem):
     diffusion : callable, optional
         ``s(x, t, j, p)``: an SDE flow's diffusion (dx = f dt + σ dW, as
         :attr:`hybridsim.HybridSystem.diffusion`): shape (n,) for diagonal
-        noise, (n, noise_dim) for general noise. Runs on the Python path and
-        compiled (:mod:`hybridsim.compiled._stochastic`).
+        noise, (n, noise_dim) for general noise; or ``s(x, t, j, p, out)``
+        writing into ``out`` of that shape, as ``flow_map``. Runs on the
+        Python path and compiled (:mod:`hybridsim.compiled._stochastic`).
     noise_dim : int, optional
         None (diagonal noise) or the dimension m of W (general noise).
     jump_rate : callable, optional
@@ -260,13 +297,22 @@ class CompiledSystem(HybridSystem):
                                 f"{type(fn).__name__}")
             self.maps[role] = fn
         self.noise_dim = noise_dim
+        #: the maps written into an argument, by role (``maps`` holds their arrays)
+        self.maps_into = {}
+        py_into = {}
+        for role, shape in (("flow", (self.state_dim,)), ("diffusion", (
+                self.state_dim,) if noise_dim is None else (self.state_dim, noise_dim))):
+            fn = self.maps.get(role)
+            if fn is not None and _writes_into(fn):
+                self.maps_into[role] = fn
+                self.maps[role], py_into[role] = _returning(fn, shape)
         if flow_map is None:
             raise TypeError("flow_map is required: a function flow_map(x, t, j, p) -> array "
                             "of state_dim floats")
         # the Python path sees the same maps through HybridSystem's attributes
         for role, fn in self.maps.items():
             cls = _PyFlowPast if role == "flow" and self.delays else _PyMap
-            setattr(self, KEYWORDS[role], cls(fn, self))
+            setattr(self, KEYWORDS[role], cls(py_into.get(role, fn), self))
         if watch is not None:
             if not callable(watch):
                 raise TypeError(f"watch must be callable fn(x, t, j, p), got "
