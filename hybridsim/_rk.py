@@ -13,6 +13,13 @@ through two methods and ``numpy.linalg.norm``.
 
 The engine uses them for ``method="RK45"``, ``"RK23"`` and ``"DOP853"``;
 users keep passing scipy's names or classes.
+
+The first step of a flow is scipy's rule (``select_initial_step``) written
+here once as plain loops (:func:`initial_guess`, :func:`initial_step`): the
+Python path calls them and the compiled kernel compiles the same source
+(:data:`COMPILED`), so both paths start a flow with the same step, bit for
+bit. The vectorized batch keeps its row form (every row's norms in one array
+expression).
 """
 
 import math
@@ -113,6 +120,126 @@ class DOP853(_LeanStep, _ScipyDOP853):
             return 0.0
         denom = err5_norm_2 + 0.01 * err3_norm_2
         return abs(h) * err5_norm_2 / math.sqrt(denom * len(scale))
+
+
+def scaled_rms(v, w, scale, diff):
+    """The RMS norm of ``v / scale``, or of ``(v - w) / scale`` where ``diff``
+    (scipy's ``norm``; a loop: no array made).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> scaled_rms(np.array([3.0, 4.0]), np.zeros(2), np.ones(2), False) == (12.5 ** 0.5)
+    True
+    """
+    s = 0.0
+    for i in range(v.shape[0]):
+        e = ((v[i] - w[i]) if diff else v[i]) / scale[i]
+        s += e * e
+    return math.sqrt(s) / math.sqrt(v.shape[0])
+
+
+def initial_guess(t0, y0, t_bound, f0, rtol, atol, y1, scale):
+    """scipy's ``select_initial_step`` (direction +1), its first part.
+
+    Parameters
+    ----------
+    t0, t_bound : float
+        The flow's start and the end of its interval.
+    y0, f0 : ndarray
+        The state and the flow map's value there.
+    rtol : float
+    atol : ndarray
+        The tolerances (``atol`` one per state).
+    y1, scale : ndarray
+        Written in place: the Euler point ``y0 + h0 f0`` and the error scale
+        ``atol + |y0| rtol``.
+
+    Returns
+    -------
+    h0, d1 : float
+        The Euler step (0.0 where the interval is empty) and the RMS norm of
+        ``f0 / scale``. The caller evaluates the flow map at ``(t0 + h0, y1)``
+        and ends with :func:`initial_step`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> y1, scale = np.empty(1), np.empty(1)
+    >>> h0, d1 = initial_guess(0.0, np.array([1.0]), 10.0, np.array([-1.0]), 1e-3,
+    ...                        np.array([1e-6]), y1, scale)
+    >>> h0 == 0.01, float(y1[0]) == 0.99
+    (True, True)
+    """
+    interval = abs(t_bound - t0)
+    if interval == 0.0:
+        return 0.0, 0.0
+    n = y0.shape[0]
+    for i in range(n):
+        scale[i] = atol[i] + abs(y0[i]) * rtol
+    d0 = scaled_rms(y0, y0, scale, False)
+    d1 = scaled_rms(f0, f0, scale, False)
+    if d0 < 1e-5 or d1 < 1e-5:
+        h0 = 1e-6
+    else:
+        h0 = 0.01 * d0 / d1
+    h0 = min(h0, interval)
+    for i in range(n):
+        y1[i] = y0[i] + h0 * f0[i]
+    return h0, d1
+
+
+def initial_step(t0, t_bound, max_step, f0, f1, h0, d1, scale, order):
+    """``select_initial_step``'s end: the first step from :func:`initial_guess`'s
+    ``h0``, ``d1`` and ``scale`` and the flow map's value ``f1`` at its Euler
+    point (``order``: the method's error estimator's, 4 for RK45, 7 for
+    DOP853); -1.0 where ``f1`` has the wrong length.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> y0, f0 = np.array([1.0]), np.array([-1.0])
+    >>> y1, scale = np.empty(1), np.empty(1)
+    >>> h0, d1 = initial_guess(0.0, y0, 10.0, f0, 1e-3, np.array([1e-6]), y1, scale)
+    >>> h = initial_step(0.0, 10.0, np.inf, f0, -y1, h0, d1, scale, 4.0)
+    >>> bool(0.0 < h <= 1.0)
+    True
+    """
+    if f1.shape[0] != f0.shape[0]:
+        return -1.0
+    d2 = scaled_rms(f1, f0, scale, True) / h0
+    if d1 <= 1e-15 and d2 <= 1e-15:
+        h1 = max(1e-6, h0 * 1e-3)
+    else:
+        h1 = (0.01 / max(d1, d2)) ** (1.0 / (order + 1.0))
+    return min(100.0 * h0, h1, abs(t_bound - t0), max_step)
+
+
+def first_step(fun, t0, y0, t_bound, max_step, f0, order, rtol, atol):
+    """The first step of a flow from ``(t0, y0)`` (:func:`initial_guess`, one
+    evaluation of ``fun(t, y)`` at its Euler point, :func:`initial_step`):
+    the Python path's call of the rule the kernel compiles; 0.0 where the
+    interval is empty.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> h = first_step(lambda t, y: -y, 0.0, np.array([1.0]), 10.0, np.inf,
+    ...                np.array([-1.0]), 4, 1e-3, 1e-6)
+    >>> bool(0.0 < h <= 1.0)
+    True
+    """
+    n = y0.shape[0]
+    y1, scale = np.empty(n), np.empty(n)
+    h0, d1 = initial_guess(t0, y0, t_bound, f0, rtol, np.broadcast_to(atol, (n,)), y1, scale)
+    if h0 == 0.0:
+        return 0.0
+    return initial_step(t0, t_bound, max_step, f0, np.asarray(fun(t0 + h0, y1)), h0, d1,
+                        scale, float(order))
+
+
+#: the functions the compiled kernel compiles from this source
+COMPILED = (scaled_rms, initial_guess, initial_step)
 
 
 #: scipy's class -> the engine's stepper for it

@@ -11,8 +11,9 @@ import warnings
 
 import numpy as np
 from scipy.integrate import RK23, RK45
+from scipy.integrate._ivp.rk import RungeKutta
 
-from ._rk import LEAN
+from ._rk import LEAN, first_step
 from ._solve_state import _Outcome
 from .options import check_map_value
 from .rules import MapError, SimulationWarning, Termination
@@ -115,13 +116,19 @@ class _RunSolver:
         self._count(self.solver)
         # RK45 and RK23 step without scipy's per-step overheads (bit for bit the same)
         Method = LEAN.get(self.o.Method, self.o.Method) if self.reuse else self.o.Method
+        # a Runge-Kutta flow's first step: the rule the kernel compiles (hybridsim._rk),
+        # in place of scipy's (the same rule, its norms summed in another order)
+        own = h is None and issubclass(Method, RungeKutta) and t_bound != t
         s = Method(self.fun, t, x, t_bound, rtol=self.o.rtol, atol=self.o.atol,
-                   max_step=self.o.max_step, first_step=h)
+                   max_step=self.o.max_step, first_step=abs(t_bound - t) if own else h)
         if self.reuse:
             # self.fun already returns float arrays of shape (n,): scipy's two
             # wrappers (asarray, call count) are bypassed; self.calls counts
             s.fun = self.fun
             self.calls0 = self.calls[0]
+        if own:
+            s.h_abs = first_step(s.fun, t, s.y, t_bound, s.max_step, s.f,
+                                 s.error_estimator_order, s.rtol, s.atol)
         self.solver = s
         return s
 

@@ -21,7 +21,7 @@ from numba import types
 from numba.core import errors as nb_errors
 from numba.extending import intrinsic
 
-from .. import events, rules
+from .. import _rk, events, rules
 from . import _batch, _decide, _events, _kernel, _layout, _past, _steps, _types, _watch
 from ._batch import run_rows
 from ._kernel import (
@@ -95,12 +95,14 @@ def _dispatchers():
 
 def _rules_digest():
     """A hash of the source the kernels are compiled from: the rules, the
-    algorithms' steps of :mod:`hybridsim.events` (:data:`hybridsim.events.COMPILED`), every
+    algorithms' steps of :mod:`hybridsim.events` (:data:`hybridsim.events.COMPILED`), the
+    first-step rule of :mod:`hybridsim._rk`, every
     module of :data:`_ENGINE` (with the option layout). Part of each kernel's
     cache key: numba's own key sees only the file of the function it caches,
     not the helpers, rules and constants of other files compiled into it."""
     h = hashlib.sha256(inspect.getsource(rules).encode())
     h.update(inspect.getsource(events).encode())
+    h.update(inspect.getsource(_rk).encode())
     for mod in (*_ENGINE, _layout):
         with open(mod.__file__, "rb") as fh:
             h.update(fh.read())

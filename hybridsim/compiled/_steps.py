@@ -1,8 +1,10 @@
 """The compiled path's steps: dense output, error norms, the first step, and
 the sample store (imported only when numba is installed).
 
-Ported from scipy's ``RungeKutta`` (``select_initial_step``,
-``RkDenseOutput``, DOP853's dense output), as :mod:`hybridsim._rk` takes them.
+Ported from scipy's ``RungeKutta`` (``RkDenseOutput``, DOP853's dense
+output), as :mod:`hybridsim._rk` takes them; the first step is
+:mod:`hybridsim._rk`'s rule (``select_initial_step`` written as plain loops),
+compiled from its source.
 """
 from __future__ import annotations
 
@@ -11,6 +13,7 @@ import math
 import numpy as np
 from numba import njit
 
+from .. import _rk
 from ._types import (
     _A8X,
     _C8X,
@@ -141,56 +144,9 @@ def _store(T, J, X, XD, ns, t, j, x):
         XD[ns, q] = np.nan
 
 
-@njit(cache=CACHE, **_NJL)
-def _scaled_rms(v, w, scale, diff):
-    """The RMS norm of ``v / scale``, or of ``(v - w) / scale`` where ``diff``
-    (a loop: no array made)."""
-    s = 0.0
-    for i in range(v.shape[0]):
-        e = ((v[i] - w[i]) if diff else v[i]) / scale[i]
-        s += e * e
-    return math.sqrt(s) / math.sqrt(v.shape[0])
-
-
-@njit(cache=CACHE, **_NJL)
-def _initial_guess(t0, y0, t_bound, f0, rtol, atol, y1, scale):
-    """scipy's ``select_initial_step`` (direction +1, order 4), its first part:
-    ``(h0, d1)`` (h0 0.0 where the interval is empty), with the Euler point
-    ``y1`` and the error ``scale`` written in place. The caller evaluates the
-    flow map at (t0 + h0, y1) and ends with :func:`_initial_step` (the flow
-    map with delays is another function: this one never calls it)."""
-    interval = abs(t_bound - t0)
-    if interval == 0.0:
-        return 0.0, 0.0
-    n = y0.shape[0]
-    for i in range(n):
-        scale[i] = atol[i] + abs(y0[i]) * rtol
-    d0 = _scaled_rms(y0, y0, scale, False)
-    d1 = _scaled_rms(f0, f0, scale, False)
-    if d0 < 1e-5 or d1 < 1e-5:
-        h0 = 1e-6
-    else:
-        h0 = 0.01 * d0 / d1
-    h0 = min(h0, interval)
-    for i in range(n):
-        y1[i] = y0[i] + h0 * f0[i]
-    return h0, d1
-
-
-@njit(cache=CACHE, **_NJL)
-def _initial_step(t0, t_bound, max_step, f0, f1, h0, d1, scale, order):
-    """``select_initial_step``'s end, from :func:`_initial_guess`'s ``h0``,
-    ``d1`` and ``scale`` and the flow map's value ``f1`` at its Euler point
-    (``order``: the method's error estimator's); -1.0 where ``f1`` has the
-    wrong length."""
-    if f1.shape[0] != f0.shape[0]:
-        return -1.0
-    d2 = _scaled_rms(f1, f0, scale, True) / h0
-    if d1 <= 1e-15 and d2 <= 1e-15:
-        h1 = max(1e-6, h0 * 1e-3)
-    else:
-        h1 = (0.01 / max(d1, d2)) ** (1.0 / (order + 1.0))
-    return min(100.0 * h0, h1, abs(t_bound - t0), max_step)
+# the first-step rule, written once in hybridsim._rk (the Python path calls it)
+_initial_guess = _rk.initial_guess
+_initial_step = _rk.initial_step
 
 
 @njit(cache=CACHE, **_NJI)

@@ -4,7 +4,8 @@ signatures and the calls of a map, the Ctrl-C poll and the random draw by
 their C addresses, and the handles that pass them from Python.
 
 Every function of :mod:`hybridsim.rules`, and the algorithms' steps of
-:mod:`hybridsim.events` (:data:`hybridsim.events.COMPILED`), are made callable
+:mod:`hybridsim.events` (:data:`hybridsim.events.COMPILED`) and the first-step
+rule of :mod:`hybridsim._rk` (:data:`hybridsim._rk.COMPILED`), are made callable
 from compiled code here as they are (``register_jitable``): not written again.
 """
 from __future__ import annotations
@@ -24,7 +25,7 @@ from numba.extending import intrinsic, overload, register_jitable, typeof_impl
 from scipy.integrate._ivp import dop853_coefficients as _dop
 from scipy.integrate._ivp.rk import DOP853, RK45
 
-from .. import events, rules
+from .. import _rk, events, rules
 from .._rk import MAX_FACTOR, MIN_FACTOR, SAFETY
 from ._private import unsafe
 
@@ -45,6 +46,9 @@ for _name, _fn in vars(rules).items():
         register_jitable(_fn)
 # ... and so does each algorithm's step of hybridsim.events written for both paths
 for _fn in events.COMPILED:
+    register_jitable(_fn)
+# ... and the first-step rule of hybridsim._rk
+for _fn in _rk.COMPILED:
     register_jitable(_fn)
 
 
