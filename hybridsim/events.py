@@ -9,7 +9,7 @@ from scipy.integrate._ivp.rk import RkDenseOutput
 
 from .rules import event_tolerance
 
-__all__ = ["locate_event", "event_tolerance", "find_interior_event", "secant_of",
+__all__ = ["locate_event", "event_tolerance", "find_interior_event", "secant_of", "peak_of",
            "secant_trial", "secant_slope", "root_off_zero", "near_peak", "watch_crossings",
            "sign_changes", "crossing_sides", "starts_on_zero"]
 
@@ -357,36 +357,88 @@ def _near_peak(v, lo_nb):
         return near_peak(v, lo_nb)
 
 
-def _maximize(F, l, r, fl, fr, pred, sol, max_iter=100):
-    """Golden-section search for a point of [l, r] where ``pred`` holds.
+def peak_of(F, P):
+    """The golden-section search for a guard's peak, on ``F(E, s)`` and
+    ``P(E, s)``: a function returning a point of a bracket in the event set.
 
-    ``F`` is the guard along the step. Stops at the first point found in the
-    event set, or once the bracket's peak can no longer reach 0
-    (:func:`_near_peak` on the shrinking bracket), or at 4 ulp.
+    The search narrows ``[l, r]`` around the guard's largest value. It stops
+    at the first point where the guard is nonnegative and the event set's
+    indicator holds, or once the bracket's peak can no longer reach 0
+    (:func:`near_peak` on the shrinking bracket), or at 4 ulp.
+
+    Parameters
+    ----------
+    F : callable
+        ``F(E, s) -> float``: the guard along a step at time ``s``, ``E``
+        what it reads besides ``s``.
+    P : callable
+        ``P(E, s) -> bool``: the event set's indicator there (asked only
+        where ``F`` is nonnegative).
+
+    Returns
+    -------
+    peak : callable
+        ``peak(E, l, r, fl, fr) -> float``, from the guard's values ``fl``,
+        ``fr`` at the bracket's ends: a point where ``P`` holds, NaN where
+        none is found (at most 100 trials).
+
+    Examples
+    --------
+    >>> apex = peak_of(lambda E, s: E - (s - 1.0) ** 2, lambda E, s: E - (s - 1.0) ** 2 >= 0.0)
+    >>> s = apex(1e-6, 0.0, 2.0, 1e-6 - 1.0, 1e-6 - 1.0)
+    >>> bool(abs(s - 1.0) <= 1e-3)
+    True
     """
-    x1 = r - _INVPHI * (r - l)
-    x2 = l + _INVPHI * (r - l)
-    y1, y2 = sol(x1), sol(x2)
-    f1, f2 = F(x1, y1), F(x2, y2)
-    for _ in range(max_iter):
-        for s, y, v in ((x1, y1, f1), (x2, y2, f2)):
-            if v >= 0.0 and pred(s, y):
-                return s
-        if r - l <= event_tolerance(l, r) or not _near_peak(max(f1, f2), min(fl, fr)):
-            return None
-        if f1 >= f2:
-            r, fr = x2, f2
-            x2, y2, f2 = x1, y1, f1
-            x1 = r - _INVPHI * (r - l)
-            y1 = sol(x1)
-            f1 = F(x1, y1)
-        else:
-            l, fl = x1, f1
-            x1, y1, f1 = x2, y2, f2
-            x2 = l + _INVPHI * (r - l)
-            y2 = sol(x2)
-            f2 = F(x2, y2)
-    return None
+    def peak(E, l, r, fl, fr):
+        x1 = r - _INVPHI * (r - l)
+        x2 = l + _INVPHI * (r - l)
+        f1 = F(E, x1)
+        f2 = F(E, x2)
+        for _ in range(100):
+            if f1 >= 0.0 and P(E, x1):
+                return x1
+            if f2 >= 0.0 and P(E, x2):
+                return x2
+            if r - l <= event_tolerance(l, r) or not near_peak(max(f1, f2), min(fl, fr)):
+                return math.nan
+            if f1 >= f2:
+                r = x2
+                fr = f2
+                x2 = x1
+                f2 = f1
+                x1 = r - _INVPHI * (r - l)
+                f1 = F(E, x1)
+            else:
+                l = x1
+                fl = f1
+                x1 = x2
+                f1 = f2
+                x2 = l + _INVPHI * (r - l)
+                f2 = F(E, x2)
+        return math.nan
+    return peak
+
+
+def _guard_py(E, s):
+    phi, _, sol = E
+    return float(phi(s, sol(s)))
+
+
+def _member_py(E, s):
+    _, pred, sol = E
+    return bool(pred(s, sol(s)))
+
+
+#: :func:`peak_of` on Python functions (``E = (phi, pred, sol)``)
+_peak_py = peak_of(_guard_py, _member_py)
+
+
+def _maximize(F, l, r, fl, fr, pred, sol):
+    """:func:`peak_of`'s search on the guard ``F(s, y)`` and the indicator
+    ``pred(s, y)`` of the dense output ``sol``: a point of [l, r] in the
+    event set, None where none is found."""
+    s = _peak_py((F, pred, sol), float(l), float(r), float(fl), float(fr))
+    return None if s != s else s
 
 
 def nonnegative(phi):

@@ -6,7 +6,7 @@ bisection until the guard changes sign; :func:`hybridsim.events.secant_of`'s
 secant, compiled from its one source, on the guard to a bracket of 4 ulp
 confirmed by the indicator) and
 :func:`hybridsim.events.find_interior_event` (three interior samples and a
-golden-section search on guard peaks).
+golden-section search on guard peaks, :func:`hybridsim.events.peak_of`'s).
 """
 from __future__ import annotations
 
@@ -22,7 +22,6 @@ from ._steps import (
 from ._types import (
     _A_FLOW,
     _A_STOP,
-    _INVPHI,
     _NJI,
     _NJL,
     _O_FLOW_ON,
@@ -233,41 +232,24 @@ def _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, 
     return lo, hi
 
 
-@njit(cache=CACHE, **_NJI)
-def _maximize(M, yold, hQ, told, h, j, p, has_C, d_active, useD, useC, l, r, fl, fr):
-    """Golden-section search (``events._maximize``); returns NaN when nothing found."""
-    x1 = r - _INVPHI * (r - l)
-    x2 = l + _INVPHI * (r - l)
-    y1 = _dense(yold, hQ, told, h, x1)
-    y2 = _dense(yold, hQ, told, h, x2)
-    f1 = _phi(M, x1, _bare(y1), j, p, useD, useC)
-    f2 = _phi(M, x2, _bare(y2), j, p, useD, useC)
-    for _ in range(100):
-        if f1 >= 0.0 and _pred(M, x1, _bare(y1), j, p, has_C, d_active):
-            return x1
-        if f2 >= 0.0 and _pred(M, x2, _bare(y2), j, p, has_C, d_active):
-            return x2
-        if r - l <= rules.event_tolerance(l, r) or not events.near_peak(max(f1, f2), min(fl, fr)):
-            return np.nan
-        if f1 >= f2:
-            r = x2
-            fr = f2
-            x2 = x1
-            y2 = y1
-            f2 = f1
-            x1 = r - _INVPHI * (r - l)
-            y1 = _dense(yold, hQ, told, h, x1)
-            f1 = _phi(M, x1, _bare(y1), j, p, useD, useC)
-        else:
-            l = x1
-            fl = f1
-            x1 = x2
-            y1 = y2
-            f1 = f2
-            x2 = l + _INVPHI * (r - l)
-            y2 = _dense(yold, hQ, told, h, x2)
-            f2 = _phi(M, x2, _bare(y2), j, p, useD, useC)
-    return np.nan
+# the peak search's evaluators, inlined into it: ``E = (M, yold, hQ, told, h, j,
+# p, has_C, d_active, useD, useC, wk)``, the state written into ``wk``
+@njit(inline="always", **_NJL)
+def _guard_at(E, s):
+    M, yold, hQ, told, h, j, p, _, _, useD, useC, wk = E
+    _dense_to(wk, yold, hQ, told, h, s)
+    return _phi(M, s, wk, j, p, useD, useC)
+
+
+@njit(inline="always", **_NJL)
+def _member_at(E, s):
+    M, yold, hQ, told, h, j, p, has_C, d_active, _, _, wk = E
+    _dense_to(wk, yold, hQ, told, h, s)
+    return _pred(M, s, wk, j, p, has_C, d_active)
+
+
+#: the guard peak's golden-section search (compiled into its caller, which numba caches)
+_peak = njit(**_NJL)(events.peak_of(_guard_at, _member_at))
 
 
 @njit(cache=CACHE, **_NJL)
@@ -305,6 +287,7 @@ def _interior(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a
     if not (np.isfinite(v0) and np.isfinite(v1) and np.isfinite(v2) and np.isfinite(v3)
             and np.isfinite(v4)):
         return False, a, b
+    E = (M, yold, hQ, told, h, j, p, has_C, d_active, useD, useC, wk)
     # a peak at a sample between its neighbours (the samples' order: s1, s2, s3)
     for k in range(1, 4):
         if k == 1:
@@ -314,16 +297,14 @@ def _interior(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a
         else:
             left, v, right, vl, vr = s2, v3, b, v2, v4
         if v >= vl and v >= vr and events.near_peak(v, min(vl, vr)):
-            s = _maximize(M, yold, hQ, told, h, j, p, has_C, d_active, useD, useC,
-                          left, right, vl, vr)
+            s = _peak(E, left, right, vl, vr)
             if s == s:
                 return True, left, s
     if v0 >= v1 and events.near_peak(v0, v1):
         eps = 1e-3 * (s1 - a)
         _dense_to(wk, yold, hQ, told, h, a + eps)
         if _phi(M, a + eps, wk, j, p, useD, useC) > v0:
-            s = _maximize(M, yold, hQ, told, h, j, p, has_C, d_active, useD, useC,
-                          a, s1, v0, v1)
+            s = _peak(E, a, s1, v0, v1)
             if s == s:
                 return True, a, s
     # a peak between the last sample and b: only where the guard falls at b (the
@@ -332,8 +313,7 @@ def _interior(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a
         eps = 1e-3 * (b - s3)
         _dense_to(wk, yold, hQ, told, h, b - eps)
         if _phi(M, b - eps, wk, j, p, useD, useC) > v4:
-            s = _maximize(M, yold, hQ, told, h, j, p, has_C, d_active, useD, useC,
-                          s3, b, v3, v4)
+            s = _peak(E, s3, b, v3, v4)
             if s == s:
                 return True, s3, s
     return False, a, b
