@@ -10,6 +10,7 @@ from scipy.integrate._ivp.rk import RkDenseOutput
 from .rules import event_tolerance
 
 __all__ = ["locate_event", "event_tolerance", "find_interior_event", "secant_of", "peak_of",
+           "bisection_of",
            "secant_trial", "secant_slope", "root_off_zero", "near_peak", "watch_crossings",
            "sign_changes", "crossing_sides", "starts_on_zero"]
 
@@ -218,6 +219,64 @@ def secant_of(F):
     return secant
 
 
+def bisection_of(P, Q):
+    """The event bracket's bisections on the indicator, ``P(E, s)`` and
+    ``Q(E, s)``: two functions narrowing a bracket on times only.
+
+    Parameters
+    ----------
+    P : callable
+        ``P(E, s) -> bool``: the event has happened at time ``s`` of the step
+        (``E`` what it reads besides ``s``).
+    Q : callable
+        ``Q(E, s) -> (bool, float)``: ``P`` and the guard there, from one
+        evaluation of the state.
+
+    Returns
+    -------
+    to_sign_change : callable
+        ``to_sign_change(E, lo, hi, flo, fhi, n) -> (lo, hi, flo, fhi)``:
+        bisects by the indicator, the guard's values kept at the ends, until
+        the guard changes sign in the bracket (``flo < 0 <= fhi``) or the
+        bracket is 4 ulp (at most ``n`` halvings).
+    bisect : callable
+        ``bisect(E, lo, hi, n) -> (lo, hi)``: bisects by the indicator to 4
+        ulp (at most ``n`` halvings).
+
+    Examples
+    --------
+    >>> _, bisect = bisection_of(lambda E, s: s * s >= E, None)
+    >>> lo, hi = bisect(2.0, 0.0, 2.0, 200)
+    >>> bool(lo * lo < 2.0 <= hi * hi and hi - lo <= event_tolerance(lo, hi))
+    True
+    """
+    def to_sign_change(E, lo, hi, flo, fhi, n):
+        for _ in range(n):
+            if (flo < 0.0 and 0.0 <= fhi) or hi - lo <= event_tolerance(lo, hi):
+                break
+            m = 0.5 * (lo + hi)
+            inside, fm = Q(E, m)
+            if inside:
+                hi = m
+                fhi = fm
+            else:
+                lo = m
+                flo = fm
+        return lo, hi, flo, fhi
+
+    def bisect(E, lo, hi, n):
+        for _ in range(n):
+            if hi - lo <= event_tolerance(lo, hi):
+                break
+            m = 0.5 * (lo + hi)
+            if P(E, m):
+                hi = m
+            else:
+                lo = m
+        return lo, hi
+    return to_sign_change, bisect
+
+
 #: the functions the compiled path compiles from this source (and :func:`secant_of`'s
 #: secant, compiled once per function it is made for)
 COMPILED = (secant_trial, secant_slope, root_off_zero, near_peak)
@@ -244,6 +303,21 @@ def _secant(F, lo, hi, flo, fhi, ylo, yhi, ev, seed=None):
     s0, slope0 = seed if seed is not None else (math.nan, math.nan)
     lo, hi = _secant_py(at, lo, hi, flo, fhi, seed is not None, s0, slope0)
     return lo, hi, states[lo], states[hi]
+
+
+def _in_py(E, s):
+    pred, _, ev = E
+    return bool(pred(s, ev(s)))
+
+
+def _in_guard_py(E, s):
+    pred, phi, ev = E
+    y = ev(s)
+    return bool(pred(s, y)), phi(s, y)
+
+
+#: :func:`bisection_of` on Python functions (``E = (pred, phi, ev)``)
+_to_sign_change_py, _bisect_py = bisection_of(_in_py, _in_guard_py)
 
 
 def _root_off_zero(f0, fd, fw, d, w):
@@ -319,15 +393,12 @@ def locate_event(sol, a, b, pred, phi=None, max_iter=200, ya=None, yb=None):
                         seed = (lo + seed[0], seed[1])
                     lo, ylo, flo = lo + d, yd, fd
         # bisect by the indicator until the guard changes sign in the bracket
-        for _ in range(max_iter):
-            if (flo < 0.0 <= fhi) or hi - lo <= event_tolerance(lo, hi):
-                break
-            m = 0.5 * (lo + hi)
-            ym = ev(m)
-            if pred(m, ym):
-                hi, yhi, fhi = m, ym, phi(m, ym)
-            else:
-                lo, ylo, flo = m, ym, phi(m, ym)
+        lo_at, hi_at = lo, hi
+        lo, hi, flo, fhi = _to_sign_change_py((pred, phi, ev), lo, hi, flo, fhi, max_iter)
+        if lo != lo_at:
+            ylo = ev(lo)
+        if hi != hi_at:
+            yhi = ev(hi)
         if flo < 0.0 <= fhi and hi - lo > event_tolerance(lo, hi):
             l2, h2, yl2, yh2 = _secant(phi, lo, hi, flo, fhi, ylo, yhi, ev, seed)
             # the indicator decides membership: keep the guard's bracket where it
@@ -339,15 +410,12 @@ def locate_event(sol, a, b, pred, phi=None, max_iter=200, ya=None, yb=None):
             elif not pred(l2, yl2):
                 lo, ylo = l2, yl2
     # bisection of the indicator (also finishes any bracket the guard left)
-    for _ in range(max_iter):
-        if hi - lo <= event_tolerance(lo, hi):
-            break
-        m = 0.5 * (lo + hi)
-        ym = ev(m)
-        if pred(m, ym):
-            hi, yhi = m, ym
-        else:
-            lo, ylo = m, ym
+    lo_at, hi_at = lo, hi
+    lo, hi = _bisect_py((pred, phi, ev), lo, hi, max_iter)
+    if lo != lo_at:
+        ylo = ev(lo)
+    if hi != hi_at:
+        yhi = ev(hi)
     return lo, hi, np.asarray(ylo, dtype=float), np.asarray(yhi, dtype=float)
 
 

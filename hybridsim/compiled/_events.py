@@ -1,12 +1,14 @@
 """The compiled path's event location (imported only when numba is installed).
 
 The port of :func:`hybridsim.events.locate_event` (a flow starting on the
-guard's zero, a probe and a quadratic model's first estimate; indicator
-bisection until the guard changes sign; :func:`hybridsim.events.secant_of`'s
-secant, compiled from its one source, on the guard to a bracket of 4 ulp
-confirmed by the indicator) and
-:func:`hybridsim.events.find_interior_event` (three interior samples and a
-golden-section search on guard peaks, :func:`hybridsim.events.peak_of`'s).
+guard's zero, a probe and a quadratic model's first estimate; then, each
+compiled from its one source in :mod:`hybridsim.events`: indicator
+bisection until the guard changes sign and to 4 ulp, :func:`bisection_of
+<hybridsim.events.bisection_of>`; the safeguarded secant on the guard,
+:func:`secant_of <hybridsim.events.secant_of>`, its bracket confirmed by the
+indicator) and :func:`hybridsim.events.find_interior_event` (three interior
+samples and the golden-section search on guard peaks, :func:`peak_of
+<hybridsim.events.peak_of>`).
 """
 from __future__ import annotations
 
@@ -132,6 +134,38 @@ def _phi_at(E, s):
 _secant = njit(**_NJL)(events.secant_of(_phi_at))
 
 
+# the bisections' and the peak search's evaluators, inlined into them:
+# ``E = (M, yold, hQ, told, h, j, p, has_C, d_active, useD, useC, wk)``, the
+# state written into ``wk``
+@njit(inline="always", **_NJL)
+def _guard_at(E, s):
+    M, yold, hQ, told, h, j, p, _, _, useD, useC, wk = E
+    _dense_to(wk, yold, hQ, told, h, s)
+    return _phi(M, s, wk, j, p, useD, useC)
+
+
+@njit(inline="always", **_NJL)
+def _member_at(E, s):
+    M, yold, hQ, told, h, j, p, has_C, d_active, _, _, wk = E
+    _dense_to(wk, yold, hQ, told, h, s)
+    return _pred(M, s, wk, j, p, has_C, d_active)
+
+
+@njit(inline="always", **_NJL)
+def _member_guard_at(E, s):
+    M, yold, hQ, told, h, j, p, has_C, d_active, useD, useC, wk = E
+    _dense_to(wk, yold, hQ, told, h, s)
+    inside = _pred(M, s, wk, j, p, has_C, d_active)
+    return inside, _phi(M, s, wk, j, p, useD, useC)
+
+
+#: the guard peak's golden-section search and the bracket's bisections (compiled
+#: into their callers, which numba caches)
+_peak = njit(**_NJL)(events.peak_of(_guard_at, _member_at))
+_to_sign_change, _bisect = (njit(**_NJL)(f) for f in
+                            events.bisection_of(_member_at, _member_guard_at))
+
+
 @njit(cache=CACHE, **_NJL)
 def _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, b,
             yb, yb_known, wk, ylo, yhi):
@@ -155,6 +189,7 @@ def _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, 
         _dense_to(yhi, yold, hQ, told, h, hi)
     ylo_at = lo
     yhi_at = hi
+    E = (M, yold, hQ, told, h, j, p, has_C, d_active, useD, useC, wk)
     if phi_on:
         flo = _phi(M, lo, ylo, j, p, useD, useC)
         fhi = _phi(M, hi, yhi, j, p, useD, useC)
@@ -177,17 +212,8 @@ def _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, 
                     _copy_to(ylo, wk)
                     ylo_at = lo
                     flo = fd
-        for _ in range(200):
-            if (flo < 0.0 and 0.0 <= fhi) or hi - lo <= rules.event_tolerance(lo, hi):
-                break
-            m = 0.5 * (lo + hi)
-            _dense_to(wk, yold, hQ, told, h, m)
-            if _pred(M, m, wk, j, p, has_C, d_active):
-                hi = m
-                fhi = _phi(M, m, wk, j, p, useD, useC)
-            else:
-                lo = m
-                flo = _phi(M, m, wk, j, p, useD, useC)
+        # bisect by the indicator until the guard changes sign in the bracket
+        lo, hi, flo, fhi = _to_sign_change(E, lo, hi, flo, fhi, 200)
         if (flo < 0.0 and 0.0 <= fhi) and hi - lo > rules.event_tolerance(lo, hi):
             l2, h2 = _secant((M, yold, hQ, told, h, j, p, useD, useC, wk), lo, hi, flo, fhi,
                              seeded, s0, slope0)
@@ -216,40 +242,13 @@ def _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a, 
                     lo = l2
                     _copy_to(ylo, wk)
                     ylo_at = lo
-    for _ in range(200):
-        if hi - lo <= rules.event_tolerance(lo, hi):
-            break
-        m = 0.5 * (lo + hi)
-        _dense_to(wk, yold, hQ, told, h, m)
-        if _pred(M, m, wk, j, p, has_C, d_active):
-            hi = m
-        else:
-            lo = m
+    # bisection of the indicator (also finishes any bracket the guard left)
+    lo, hi = _bisect(E, lo, hi, 200)
     if lo != ylo_at:
         _dense_to(ylo, yold, hQ, told, h, lo)
     if hi != yhi_at:
         _dense_to(yhi, yold, hQ, told, h, hi)
     return lo, hi
-
-
-# the peak search's evaluators, inlined into it: ``E = (M, yold, hQ, told, h, j,
-# p, has_C, d_active, useD, useC, wk)``, the state written into ``wk``
-@njit(inline="always", **_NJL)
-def _guard_at(E, s):
-    M, yold, hQ, told, h, j, p, _, _, useD, useC, wk = E
-    _dense_to(wk, yold, hQ, told, h, s)
-    return _phi(M, s, wk, j, p, useD, useC)
-
-
-@njit(inline="always", **_NJL)
-def _member_at(E, s):
-    M, yold, hQ, told, h, j, p, has_C, d_active, _, _, wk = E
-    _dense_to(wk, yold, hQ, told, h, s)
-    return _pred(M, s, wk, j, p, has_C, d_active)
-
-
-#: the guard peak's golden-section search (compiled into its caller, which numba caches)
-_peak = njit(**_NJL)(events.peak_of(_guard_at, _member_at))
 
 
 @njit(cache=CACHE, **_NJL)
