@@ -129,7 +129,8 @@ def scaled_rms(v, w, scale, diff):
     Examples
     --------
     >>> import numpy as np
-    >>> scaled_rms(np.array([3.0, 4.0]), np.zeros(2), np.ones(2), False) == (12.5 ** 0.5)
+    >>> r = scaled_rms(np.array([3.0, 4.0]), np.zeros(2), np.ones(2), False)
+    >>> bool(abs(r - 12.5 ** 0.5) < 1e-15)
     True
     """
     s = 0.0
