@@ -142,3 +142,20 @@ def test_theorem1_rows_carry_their_own_disturbances():
                                    t_end=0.3)[0]
     e = np.abs(zero.x[zero.t >= 0.1][:, gdf.X_SLICES["e"]]).max()
     assert e < 1e-6
+
+
+def test_population_instants_and_piecewise_plant_refuse_bad_input():
+    """population(instants=) needs an observer sampling at instants and one sequence
+    per row; PiecewiseDisturbed a Plant and a positive number of pieces."""
+    from observers.gramian_delay import PiecewiseDisturbed, dc_motor
+    from observers.gramian_delay.example import population
+    ex = dc_motor(100.0, 0.1)
+    with pytest.raises(ValueError, match="built with instants="):
+        population(ex.sampled_observer(period=0.01), [ex.chi0], instants=[[0.0, 0.1]])
+    with pytest.raises(ValueError, match="one sequence per row"):
+        population(ex.sampled_observer(instants=[0.0, 0.1]), [ex.chi0, ex.chi0],
+                   instants=[[0.0, 0.1]])
+    with pytest.raises(TypeError, match="must be a gramian_delay.Plant"):
+        PiecewiseDisturbed(object(), 0.3, 6)
+    with pytest.raises(ValueError, match="pieces must be a positive int"):
+        PiecewiseDisturbed(ex, 0.3, 0)
