@@ -78,7 +78,6 @@ class _RowSteps:
         a fixed-step method's steps are all accepted)."""
         if self.fixed:
             return self._fixed_step(rows)
-        m = self.maps
         t, y, j, f = self.t[rows], self.x[rows], self.j[rows], self.fx[rows]
         rej = self.rejected[rows]
         h_abs = self.h[rows]
@@ -106,7 +105,7 @@ class _RowSteps:
         h = t_new - t
         h_abs = np.abs(h)
         self.attempts[rows] += 1
-        ns, dop = self.ns, self.dop
+        dop = self.dop
         A, B, C = (dop["A"], dop["B"], dop["C"]) if dop else (_A, _B, _C)
         K = self._stages(rows, t, y, j, f, h, A, B, C)
         y_new = K[-1]

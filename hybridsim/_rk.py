@@ -24,10 +24,10 @@ extension (:data:`RK4_TABLEAU`) serve every path that steps it.
 import math
 
 import numpy as np
-from scipy.integrate import OdeSolver
 from scipy.integrate import DOP853 as _ScipyDOP853
 from scipy.integrate import RK23 as _ScipyRK23
 from scipy.integrate import RK45 as _ScipyRK45
+from scipy.integrate import OdeSolver
 from scipy.integrate._ivp.rk import MAX_FACTOR, MIN_FACTOR, SAFETY, RungeKutta, rk_step
 
 _dot, _maximum, _abs = np.dot, np.maximum, np.abs

@@ -56,11 +56,11 @@ from ._batch_samples import _SampleLog
 from ._batch_steps import _DOP, _ERR_EXP, _NS, _RK4, _RK45, _RowSteps
 from ._interrupt import SigintLatch
 from ._progress import make_bar
+from ._rk import fixed_step
 from .arc import Crossings, HybridArc, Termination
 from .arc_batch import ArcBatch
 from .events import WATCH_SAMPLES, crossing_sides, starts_on_zero
 from .history import BatchHistory
-from ._rk import fixed_step
 from .options import (
     FIXED_STEP,
     check_bool,

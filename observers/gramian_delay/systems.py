@@ -69,8 +69,8 @@ import hybridsim as hs
 from .._common import matrix, scalar, vector
 from .design import GramianDesign, ObserverForm, gramian_design, observer_form
 
-__all__ = ["Plant", "DCMotor", "PiecewiseDisturbed", "GramianObserver", "SampledGramianObserver", "estimate_along",
-           "REALISATIONS", "smooth_noise"]
+__all__ = ["Plant", "DCMotor", "PiecewiseDisturbed", "GramianObserver", "SampledGramianObserver",
+           "estimate_along", "REALISATIONS", "smooth_noise"]
 
 #: The realisations of psi_2 of (7) (module docstring).
 REALISATIONS = ("literal", "reset")
