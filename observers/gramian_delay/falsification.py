@@ -59,8 +59,8 @@ before each sample of (39) included.
 
 Cost (CPU, 2 shared cores): one population run 0.27-0.7 s for 1-100
 members (250 steps of the engine's batch, whose per-step cost hardly depends
-on the size); a quarter budget of the corrected problem (500 runs of the
-search, 500 of the baseline) ~24 s.
+on the size); a "none" problem's full budget (2,000 runs of the search,
+2,000 of the baseline) 5-80 s, most of it the refinement's one-member runs.
 
 The accuracy is checked against the package's adaptive runs
 (``tests/papers/gramian_delay/test_gramian_delay_falsification.py``): after tau the errors of
