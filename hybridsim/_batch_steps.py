@@ -13,13 +13,18 @@ import numpy as np
 from scipy.integrate import DOP853, RK45
 from scipy.integrate._ivp import dop853_coefficients as _dop
 
-from ._rk import MAX_FACTOR, MIN_FACTOR, SAFETY
+from ._rk import MAX_FACTOR, MIN_FACTOR, RK4_SNAP, RK4_TABLEAU, SAFETY
 from .arc import Termination
 from .rules import t_max_slack
 
 # scipy's RK45 tableau, error weights and dense-output matrix
 _A, _B, _C, _E, _P = RK45.A, RK45.B, RK45.C, RK45.E, RK45.P
 _NS = RK45.n_stages
+#: the tableaux (A, B, C) and dense outputs P (Q = K^T P, four powers of s) of the
+#: methods stepped here with one form of dense output: RK45's, and RK4's fixed step
+#: (hybridsim._rk.RK4: its continuous extension of order 3, a column of zeros added)
+_RK45 = {"A": _A, "B": _B, "C": _C, "P": _P}
+_RK4 = dict(RK4_TABLEAU, P=np.hstack([RK4_TABLEAU["P"], np.zeros((5, 1))]))
 _ERR_EXP = -1.0 / (RK45.error_estimator_order + 1)
 #: scipy's DOP853 (``method="DOP853"``): its tableau (12 stages), error weights
 #: and dense output (3 more stages, then D); the rules of simulate's DOP853
@@ -49,6 +54,8 @@ class _RowSteps:
         ``_initial_step`` (the Python path takes scipy's own): every row's norms
         and branch in one array expression, which a per-row scalar rule would
         turn into a Python loop over the rows."""
+        if self.fixed:
+            return np.full(len(rows), self.max_step)
         rtol, atol = self.rtol, self.atol
         scale = atol + np.abs(y0) * rtol
         d0 = _rms(y0 / scale)
@@ -67,8 +74,10 @@ class _RowSteps:
 
     # ------------------------------------------------------------ flows
     def _step(self, rows):
-        """One step attempt of every flowing trajectory (rejected ones retry next time)."""
-        m = self.maps
+        """One step attempt of every flowing trajectory (rejected ones retry next time;
+        a fixed-step method's steps are all accepted)."""
+        if self.fixed:
+            return self._fixed_step(rows)
         t, y, j, f = self.t[rows], self.x[rows], self.j[rows], self.fx[rows]
         rej = self.rejected[rows]
         h_abs = self.h[rows]
@@ -96,21 +105,12 @@ class _RowSteps:
         h = t_new - t
         h_abs = np.abs(h)
         self.attempts[rows] += 1
-        ns, dop = self.ns, self.dop
+        dop = self.dop
         A, B, C = (dop["A"], dop["B"], dop["C"]) if dop else (_A, _B, _C)
-        self.nfev[rows] += ns
-        # Dormand-Prince stages (scipy's rk_step, one row per trajectory)
-        k = len(rows)
-        K = np.empty((ns + 1, k, self.n))
-        K[0] = f
-        hc = h[:, None]
-        # overflow/NaN end as a rejected step or NON_FINITE, as in simulate
+        K = self._stages(rows, t, y, j, f, h, A, B, C)
+        y_new = K[-1]
+        K = K[:-1]
         with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
-            for s in range(1, ns):
-                dy = np.tensordot(A[s, :s], K[:s], axes=(0, 0)) * hc
-                K[s] = m.flow(rows, y + dy, t + C[s] * h, j)
-            y_new = y + hc * np.tensordot(B, K[:ns], axes=(0, 0))
-            K[ns] = m.flow(rows, y_new, t + h, j)
             scale = self.atol + np.maximum(np.abs(y), np.abs(y_new)) * self.rtol
             if dop:
                 # DOP853._estimate_error_norm, row by row
@@ -119,7 +119,7 @@ class _RowSteps:
                 err_norm = np.where((e5 == 0) & (e3 == 0), 0.0,
                                     h_abs * e5 / np.sqrt((e5 + 0.01 * e3) * self.n))
             else:
-                err = np.tensordot(_E, K, axes=(0, 0)) * hc
+                err = np.tensordot(_E, K, axes=(0, 0)) * h[:, None]
                 err_norm = _rms(err / scale)
         ok = self._reap(rows)
         if ok is not None:
@@ -145,6 +145,46 @@ class _RowSteps:
             rows, t, y, j, h, t_new, y_new = (rows[acc], t[acc], y[acc], j[acc], h[acc],
                                               t_new[acc], y_new[acc])
             K = K[:, acc]
+        self.rejected[rows] = False
+        self._accepted(rows, t, y, j, h, t_new, y_new, K)
+
+    def _stages(self, rows, t, y, j, f, h, A, B, C):
+        """The stages of steps t -> t + h of ``rows`` (scipy's rk_step, one row per
+        trajectory): (ns + 2, k, n), the ns stages, f at the end, then the end state."""
+        m, ns = self.maps, self.ns
+        self.nfev[rows] += ns
+        K = np.empty((ns + 2, len(rows), self.n))
+        K[0] = f
+        hc = h[:, None]
+        # overflow/NaN end as a rejected step or NON_FINITE, as in simulate
+        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+            for s in range(1, ns):
+                dy = np.tensordot(A[s, :s], K[:s], axes=(0, 0)) * hc
+                K[s] = m.flow(rows, y + dy, t + C[s] * h, j)
+            K[ns + 1] = y + hc * np.tensordot(B, K[:ns], axes=(0, 0))
+            K[ns] = m.flow(rows, K[ns + 1], t + h, j)
+        return K
+
+    def _fixed_step(self, rows):
+        """One step of ``max_step`` of every flowing row (RK4: no error control), each
+        ending on its bound where it would stop within RK4_SNAP of a step before it."""
+        t, y, j, f = self.t[rows], self.x[rows], self.j[rows], self.fx[rows]
+        bound = self._bound(rows, t)
+        t_new = t + self.max_step
+        t_new = np.where(t_new > bound - RK4_SNAP * self.max_step, bound, t_new)
+        h = t_new - t
+        self.attempts[rows] += 1
+        tab = self.tableau
+        K = self._stages(rows, t, y, j, f, h, tab["A"], tab["B"], tab["C"])
+        y_new, K = K[-1], K[:-1]
+        ok = self._reap(rows)
+        if ok is not None:
+            rows, t, y, j, h, t_new, y_new = (rows[ok], t[ok], y[ok], j[ok], h[ok],
+                                              t_new[ok], y_new[ok])
+            K = K[:, ok]
+            if not rows.size:
+                return
+        self.nonfinite[rows] = ~np.isfinite(K).all(axis=(0, 2))
         self.rejected[rows] = False
         self._accepted(rows, t, y, j, h, t_new, y_new, K)
 
@@ -218,7 +258,7 @@ class _RowSteps:
                     lo_b[fi], hi_b[fi], found[fi] = self._interior(
                         rows[wf], a[wf], b[wf], ya[wf], h[wf], Qw[fi], j[wf])
             else:
-                Qw = np.einsum("skn,sp->knp", K[:, w], _P)
+                Qw = np.einsum("skn,sp->knp", K[:, w], self.tableau["P"])
                 lo_b, hi_b, found = self._interior(rows[w], a[w], b[w], ya[w], h[w], Qw,
                                                    j[w])
             late = ~found & (b[w] >= self.t_max) & ~self.bad[rows[w]]
@@ -314,11 +354,11 @@ class _RowSteps:
 
     def _dense_of(self, rows, a, ya, h, yb, K, j):
         """The dense output of the accepted steps a -> a + h of ``rows`` (``K``:
-        their stages): RK45's Q = K^T P, (k, n, 4); DOP853's F, (k, n, 7),
+        their stages): RK45's (or RK4's) Q = K^T P, (k, n, 4); DOP853's F, (k, n, 7),
         scipy's ``DOP853._dense_output_impl`` (its three more stages
         evaluated here)."""
         if not self.dop:
-            return np.einsum("skn,sp->knp", K, _P)
+            return np.einsum("skn,sp->knp", K, self.tableau["P"])
         d, ns, k = self.dop, self.ns, len(rows)
         hc = h[:, None]
         KX = np.empty((ns + 4, k, self.n))

@@ -20,6 +20,12 @@ Python path calls them and the compiled kernel compiles the same source
 (:data:`COMPILED`), so both paths start a flow with the same step, bit for
 bit. The vectorized batch keeps its row form (every row's norms in one array
 expression).
+
+:class:`RK4` is the engine's own: the classic fourth-order Runge-Kutta
+method with a fixed step (``max_step``) and no error control, for runs
+whose step is chosen by the model (a divisor of its delays, sampling
+periods and the pieces of its inputs); its tableau and continuous
+extension (:data:`RK4_TABLEAU`) serve every path that steps it.
 """
 
 import math
@@ -28,7 +34,8 @@ import numpy as np
 from scipy.integrate import DOP853 as _ScipyDOP853
 from scipy.integrate import RK23 as _ScipyRK23
 from scipy.integrate import RK45 as _ScipyRK45
-from scipy.integrate._ivp.rk import MAX_FACTOR, MIN_FACTOR, SAFETY
+from scipy.integrate import OdeSolver
+from scipy.integrate._ivp.rk import MAX_FACTOR, MIN_FACTOR, SAFETY, RungeKutta, rk_step
 
 _dot, _maximum, _abs = np.dot, np.maximum, np.abs
 
@@ -245,3 +252,99 @@ COMPILED = (scaled_rms, initial_guess, initial_step)
 
 #: scipy's class -> the engine's stepper for it
 LEAN = {_ScipyRK45: RK45, _ScipyRK23: RK23, _ScipyDOP853: DOP853}
+
+
+#: The classic RK4 tableau (A, B, C) and its continuous extension of order 3,
+#: in scipy's dense-output form: y(t + s h) = y + h K^T P [s, s^2, s^3], K the
+#: four stages and f at the step's end (row of zeros). Its value at s = 1/2 is
+#: y + h (5/24 k1 + (k2 + k3)/6 - k4/24).
+RK4_TABLEAU = {
+    "A": np.array([[0.0, 0.0, 0.0, 0.0], [0.5, 0.0, 0.0, 0.0], [0.0, 0.5, 0.0, 0.0],
+                   [0.0, 0.0, 1.0, 0.0]]),
+    "B": np.array([1.0, 2.0, 2.0, 1.0]) / 6.0,
+    "C": np.array([0.0, 0.5, 0.5, 1.0]),
+    "P": np.array([[1.0, -1.5, 2.0 / 3.0], [0.0, 1.0, -2.0 / 3.0], [0.0, 1.0, -2.0 / 3.0],
+                   [0.0, -0.5, 2.0 / 3.0], [0.0, 0.0, 0.0]]),
+}
+#: A step that would end within this fraction of a step before its bound ends on it
+#: (no sliver step after it: the bound is a delay breakpoint or t_max on the grid)
+RK4_SNAP = 1e-9
+
+
+def fixed_step(method, max_step):
+    """Check the step of a fixed-step method: ``max_step``, finite (the step of ``"RK4"``).
+
+    Parameters
+    ----------
+    method : str
+        The method's name (for the message).
+    max_step : float
+        The run's ``max_step`` after the cap by ``system.max_step``.
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    ValueError
+        ``max_step`` infinite: a fixed-step method has no step to take.
+    """
+    if not math.isfinite(max_step):
+        raise ValueError(f"method={method!r} takes fixed steps of max_step: give a finite "
+                         f"max_step (or a system.max_step)")
+    return float(max_step)
+
+
+class RK4(RungeKutta):
+    """The classic Runge-Kutta method of order 4 with the fixed step ``max_step``.
+
+    A scipy :class:`~scipy.integrate.OdeSolver`: every step is ``max_step``
+    (the last one before ``t_bound`` shortened to end there, or lengthened by
+    at most :data:`RK4_SNAP` of a step to end there rather than leave a
+    sliver), accepted without an error estimate (``rtol`` and ``atol`` are
+    not read); the dense output is RK4's continuous extension of order 3
+    (:data:`RK4_TABLEAU`). The step is the caller's choice: a divisor of the
+    model's delays, sampling periods and input pieces keeps them on the grid.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> s = RK4(lambda t, y: -y, 0.0, np.array([1.0]), 1.0, max_step=0.1)
+    >>> while s.status == "running":
+    ...     _ = s.step()
+    >>> round(float(s.y[0]), 9), round(float(np.exp(-1.0)), 9)
+    (0.367879774, 0.367879441)
+    """
+
+    A, B, C, P = (RK4_TABLEAU[k] for k in "ABCP")
+    E = np.zeros(5)
+    order = 4
+    error_estimator_order = 3
+    n_stages = 4
+
+    def __init__(self, fun, t0, y0, t_bound, max_step=np.inf, rtol=1e-3, atol=1e-6,
+                 vectorized=False, first_step=None, **extraneous):
+        OdeSolver.__init__(self, fun, t0, y0, t_bound, vectorized, support_complex=True)
+        self.max_step = fixed_step("RK4", max_step)
+        self.rtol, self.atol = rtol, atol
+        self.f = self.fun(self.t, self.y)
+        self.h_abs = self.max_step
+        self.K = np.empty((self.n_stages + 1, self.n), dtype=self.y.dtype)
+        self.error_exponent = -1.0 / (self.error_estimator_order + 1)
+        self.h_previous = None
+
+    def _step_impl(self):
+        t, y, d, h_abs = self.t, self.y, self.direction, self.max_step
+        t_new = t + d * h_abs
+        if d * (t_new - self.t_bound) > -RK4_SNAP * h_abs:
+            t_new = self.t_bound
+        h = t_new - t
+        y_new, f_new = rk_step(self.fun, t, y, self.f, h, self.A, self.B, self.C, self.K)
+        self.h_previous = h
+        self.y_old = y
+        self.t = t_new
+        self.y = y_new
+        self.h_abs = h_abs
+        self.f = f_new
+        return True, None

@@ -10,8 +10,7 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
-from scipy.integrate import RK23, RK45
-from scipy.integrate._ivp.rk import RungeKutta
+from scipy.integrate import DOP853, RK23, RK45
 
 from ._rk import LEAN, first_step
 from ._solve_state import _Outcome
@@ -116,9 +115,10 @@ class _RunSolver:
         self._count(self.solver)
         # RK45 and RK23 step without scipy's per-step overheads (bit for bit the same)
         Method = LEAN.get(self.o.Method, self.o.Method) if self.reuse else self.o.Method
-        # a Runge-Kutta flow's first step: the rule the kernel compiles (hybridsim._rk),
-        # in place of scipy's (the same rule, its norms summed in another order)
-        own = h is None and issubclass(Method, RungeKutta) and t_bound != t
+        # an adaptive Runge-Kutta flow's first step: the rule the kernel compiles
+        # (hybridsim._rk), in place of scipy's (the same rule, its norms summed in
+        # another order)
+        own = h is None and issubclass(Method, (RK23, RK45, DOP853)) and t_bound != t
         s = Method(self.fun, t, x, t_bound, rtol=self.o.rtol, atol=self.o.atol,
                    max_step=self.o.max_step, first_step=abs(t_bound - t) if own else h)
         if self.reuse:

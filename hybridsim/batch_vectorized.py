@@ -53,14 +53,16 @@ from scipy.integrate import OdeSolver
 from ._batch_events import _RowEvents, _tol
 from ._batch_maps import _VMaps
 from ._batch_samples import _SampleLog
-from ._batch_steps import _DOP, _ERR_EXP, _NS, _RowSteps
+from ._batch_steps import _DOP, _ERR_EXP, _NS, _RK4, _RK45, _RowSteps
 from ._interrupt import SigintLatch
 from ._progress import make_bar
+from ._rk import fixed_step
 from .arc import Crossings, HybridArc, Termination
 from .arc_batch import ArcBatch
 from .events import WATCH_SAMPLES, crossing_sides, starts_on_zero
 from .history import BatchHistory
 from .options import (
+    FIXED_STEP,
     check_bool,
     check_delays,
     check_seed,
@@ -183,6 +185,8 @@ def _parse(system, x0s, t_max, j_max, kw, method, progress, seed, extra):
     ro = parse_run(system, n, t_max=t_max, j_max=j_max, **kw)
     resolve_method(method)          # a bad method: simulate's message
     method = method_on("vectorized", method, system)
+    if method in FIXED_STEP:
+        fixed_step(method, ro.max_step)
     check_unsupported("vectorized", extra)
     if int(system.input_dim or 0) > 0:
         refuse("vectorized", "inputs", f"<input_dim={system.input_dim}>")
@@ -245,13 +249,15 @@ def simulate_vectorized(system: HybridSystem, x0s: ArrayLike, t_max: float,
     progress : bool or None
         A tqdm bar over finished trajectories (None: at a terminal and in a
         notebook; see :func:`hybridsim._progress.progress_enabled`).
-    method : {"RK45", "DOP853"} or scipy's class
+    method : {"RK45", "DOP853", "RK4"} or scipy's class
         The Runge-Kutta pair (scipy's coefficients, error norm, step-size
         controller and dense output; DOP853 takes several times fewer steps
         at tight tolerances, and its dense output, three more evaluations of
         the flow map, is made only for steps with an event or refined
-        samples). DOP853 not for a system that reads its past; other methods
-        raise ``ValueError`` naming these two.
+        samples). DOP853 not for a system that reads its past. "RK4": the
+        classic method with the fixed step ``max_step`` (finite), as
+        ``simulate(method="RK4")`` (:class:`hybridsim._rk.RK4`). Other
+        methods raise ``ValueError`` naming these.
     t0, j0 : float, int
         Initial hybrid time of every trajectory.
     max_norm : float
@@ -372,9 +378,12 @@ class _BatchRun(_RowSteps, _RowEvents):
         N = len(X)
         self.N, self.n = N, n
         self.latch = None            # simulate_vectorized's SigintLatch
-        # the method: RK45's stages and exponent, or DOP853's (``self.dop``)
+        # the method: RK45's stages and exponent, DOP853's (``self.dop``) or RK4's
+        # fixed step (``self.fixed``: its tableau, the dense output in RK45's form)
         self.dop = _DOP if method == "DOP853" else None
-        self.ns = _DOP["ns"] if self.dop else _NS
+        self.fixed = method in FIXED_STEP
+        self.tableau = _RK4 if self.fixed else _RK45
+        self.ns = _DOP["ns"] if self.dop else 4 if self.fixed else _NS
         self.err_exp = _DOP["exp"] if self.dop else _ERR_EXP
         self.maps = _VMaps(system, n)
         self.maps.run = self

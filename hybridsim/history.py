@@ -340,6 +340,11 @@ class BatchHistory:
     def _segments(self, s):
         """(rows, segment index) for times s >= t0 outside the current flow's start."""
         rows = self.rows
+        cap = self._a.shape[1]
+        if len(rows) * cap <= 1 << 16:           # few: count the starts <= s (one pass)
+            a = self._a[rows]
+            used = np.arange(cap) < self._cnt[rows][:, None]
+            return np.count_nonzero((a <= s[:, None]) & used, axis=1) - 1
         lo = np.zeros(len(rows), dtype=np.int64)
         hi = self._cnt[rows].copy()
         while True:                              # bisect_right over each row's starts

@@ -18,7 +18,7 @@ import numpy as np
 from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, OdeSolver, Radau
 from scipy.integrate._ivp.rk import RungeKutta
 
-from ._rk import LEAN
+from ._rk import LEAN, RK4
 from .rules import _SHOW, PRIORITIES, MapError, Priority
 
 __all__ = ["RunOptions", "parse_run", "refuse", "SUPPORTS", "METHODS", "METHODS_ON",
@@ -27,7 +27,9 @@ __all__ = ["RunOptions", "parse_run", "refuse", "SUPPORTS", "METHODS", "METHODS_
            "check_seed", "check_t_eval", "resolve_method", "check_dwell"]
 
 METHODS = {"RK23": RK23, "RK45": RK45, "DOP853": DOP853, "Radau": Radau,
-           "BDF": BDF, "LSODA": LSODA}
+           "BDF": BDF, "LSODA": LSODA, "RK4": RK4}
+#: the fixed-step methods: their step is ``max_step`` (:func:`hybridsim._rk.fixed_step`)
+FIXED_STEP = ("RK4",)
 
 #: what each path implements beyond the options every path shares (the
 #: options of :class:`RunOptions`); anything else given there is refused by
@@ -40,7 +42,12 @@ SUPPORTS = {
 }
 #: the methods a path implements where it takes ``method`` (every one on the
 #: Python path); the others are refused by name
-METHODS_ON = {"vectorized": ("RK45", "DOP853"), "compiled": ("RK45", "DOP853")}
+METHODS_ON = {"vectorized": ("RK45", "DOP853", "RK4"), "compiled": ("RK45", "DOP853")}
+#: why a path lacks a method the engine has, where there is more to say than its list
+_METHOD_WHY = {("compiled", "RK4"): "the compiled kernel (hybridsim/compiled/_kernel.py) "
+               "steps the embedded pairs RK45 and DOP853 only, with their error control; "
+               "run method='RK4' with backend='python' (simulate_many's numpy batch for a "
+               "vectorized system)"}
 #: where to go for an option a path refuses
 _WHERE = {"inputs": "hs.simulate, or close the loop with hs.connect first",
           "prehistory": "hs.simulate (the Python path)",
@@ -371,20 +378,21 @@ def method_on(path, method, system=None):
         None means the default, "RK45".
     system : HybridSystem, optional
         The system to run: one that reads its past (:func:`reads_past`) is
-        stepped with RK45 only on these paths (their record of the past is
-        RK45's dense output).
+        stepped with RK45 or RK4 only on these paths (their record of the
+        past is RK45's dense output, whose form RK4's takes).
 
     Returns
     -------
     str
-        "RK45" or "DOP853".
+        "RK45", "DOP853" or (vectorized path) "RK4".
 
     Raises
     ------
     ValueError
         An unknown ``path``; a method the path does not implement (naming
         the ones it has), or an unknown name (:func:`resolve_method`'s
-        message); a method other than RK45 for a system reading its past.
+        message); a method other than RK45 (or RK4) for a system reading its
+        past; RK4 on the compiled path (its kernel has the embedded pairs only).
     TypeError
         ``method`` neither a string nor an ``OdeSolver`` subclass.
 
@@ -408,11 +416,16 @@ def method_on(path, method, system=None):
     cls = resolve_method(method)
     for name in names:
         if cls is METHODS[name] or cls is LEAN.get(METHODS[name]):
-            if name != "RK45" and system is not None and reads_past(system):
+            # RK4's continuous extension has the record of the past's form (RK45's)
+            if name not in ("RK45", "RK4") and system is not None and reads_past(system):
                 raise ValueError(f"method={method!r} for a system that reads its past "
                                  f"(delays) is not supported on the {path} path; use "
                                  f"hs.simulate (the Python path)")
             return name
+    for name, known in METHODS.items():
+        why = _METHOD_WHY.get((path, name))
+        if why and cls is known:
+            raise ValueError(f"method={method!r} is not supported on the {path} path: {why}")
     others = " and ".join(repr(m) for m in names)
     raise ValueError(f"method={method!r} is not supported on the {path} path; use "
                      f"hs.simulate (the Python path) for methods other than {others}")

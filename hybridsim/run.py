@@ -37,6 +37,7 @@ from scipy.integrate import OdeSolver
 from . import compiled
 from ._progress import make_bar
 from ._random_jumps import is_random, simulate_random
+from ._rk import RK4, fixed_step
 from ._sde import is_stochastic
 from ._sde import prepare as prepare_sde
 from .arc import HybridArc, _one_sample
@@ -133,6 +134,10 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
         concrete subclass of :class:`scipy.integrate.OdeSolver`. The three
         explicit Runge-Kutta methods take scipy's steps bit for bit, through
         ``hybridsim._rk``'s copies without scipy's per-step overheads.
+        "RK4": the classic Runge-Kutta method with the fixed step
+        ``max_step`` (finite; no error control, ``rtol`` and ``atol`` not
+        read; :class:`hybridsim._rk.RK4`), on the Python and vectorized
+        paths.
     rtol, atol, max_step, first_step : float
         Passed to the solver. ``max_step`` is also capped by
         ``system.max_step``.
@@ -280,6 +285,8 @@ def simulate(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = m
                           dwell=dwell)
         method, seed = "RK45", sde.rng_seed(seed)
     Method = resolve_method(method)
+    if Method is RK4:
+        fixed_step("RK4", max_step)
     if int(system.input_dim or 0) > 0 and inputs is None:
         raise ValueError(f"inputs: the system has input_dim={system.input_dim}; pass "
                          "inputs=callable(t) -> u, or connect it with hs.connect")

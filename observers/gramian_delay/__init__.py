@@ -130,17 +130,13 @@ DECISIONS = [
     "observers (only their three parameters), and [10] (Mazenc, Malisoff & Jiang, SCL 150 "
     "(2021) 104892) is not among the papers given. Implementing a guess would not be a "
     "reproduction.",
-    "10. The falsification populations (falsification.simulate_population) are integrated by "
-    "a fixed-step RK4 (h = 2e-3, a divisor of tau, of every sampling period and of every "
-    "disturbance piece), vectorized over the members, not by the engine. The engine's "
-    "vectorized path takes delays now (hybridsim.BatchHistory), and (39) with the DC motor "
-    "written over a batch runs there (measured on 2026-11-28, 100 members, 0.5 s, RK45 "
-    "rtol 1e-6: margins equal to 6e-4), but it is 19x slower at T = 0.01 (1.9 s against "
-    "0.10 s a population) and 2,600x slower at the paper's T = 0.1, where (39) diverges "
-    "and the adaptive steps follow the blow-up (71 s against 0.027 s): a 2,000-run search "
-    "would take minutes to hours. It is the one integrator of the package outside "
-    "hybridsim, used only for searches; tests hold it to the engine's adaptive runs (2e-3 "
-    "after tau), and every figure and claim still runs on the engine.",
+    "10. The falsification populations (falsification.simulate_population) run on the "
+    "engine: the package's model (dc_motor, its observers, example.population; Theorem 1's "
+    "per-row disturbances in the plant's state, PiecewiseDisturbed) as one batch of "
+    "hs.simulate_many with method='RK4', the classic Runge-Kutta method at the fixed step "
+    "h = 2e-3 (a divisor of tau, of every sampling period and of every disturbance piece). "
+    "The compiled path has no RK4 (refused by name), so backend='auto' runs the numpy "
+    "batch. Tests hold the runs to the package's adaptive runs (2e-3 after tau).",
 ]
 
 # the public surface: the contract's names and the paper's observer and design; the

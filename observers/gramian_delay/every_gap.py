@@ -114,9 +114,9 @@ def observer(estimate, **sampling):
 
 
 def _instants(gaps, t_max):
-    """t_0 = 0 and the instants of ``gaps`` up to t_max, closed by t_max + 1."""
+    """t_0 = 0 and the instants of ``gaps`` up to t_max."""
     ts = np.concatenate([[0.0], np.cumsum(np.asarray(gaps, dtype=float))])
-    return np.concatenate([ts[ts <= t_max], [t_max + 1.0]])
+    return ts[ts <= t_max]
 
 
 def sequence_run(estimate, sequences, chi0s, *, t_max=HORIZON, rtol=RTOL):
@@ -142,11 +142,7 @@ def sequence_run(estimate, sequences, chi0s, *, t_max=HORIZON, rtol=RTOL):
     if short:
         raise ValueError(f"sequences {short[:5]} do not cover t_max = {t_max}")
     obs = observer(estimate, instants=segs[0])
-    # row i's counter kappa starts at its sequence's index in one array of instants
-    obs.instants = np.concatenate(segs)
-    system, rows = population(obs, chi0s)
-    offsets = np.cumsum([0] + [len(s) for s in segs[:-1]])
-    rows[:, system.components["observer"].start + obs.i_kappa] = offsets
+    system, rows = population(obs, chi0s, instants=segs)      # row i at its own instants
     arcs = hs.simulate_many(system, rows, t_max=t_max, j_max=10**6, rtol=rtol,
                             atol=rtol / 100, backend="python", warn=False)
     return list(arcs), obs

@@ -204,7 +204,8 @@ def _loop(observer, x0, xhat0, noise, seed, plant):
     return sysc, x0
 
 
-def population(observer, x0s, xhat0=None, *, noise=None, seed=None, plant=None):
+def population(observer, x0s, xhat0=None, *, noise=None, seed=None, plant=None,
+               instants=None):
     r"""A batch of runs of an observer with its plant: ``(system, rows)`` for
     :func:`hybridsim.simulate_many`, one row per plant initial state.
 
@@ -222,6 +223,11 @@ def population(observer, x0s, xhat0=None, *, noise=None, seed=None, plant=None):
     xhat0, noise, seed, plant
         As in :func:`~observers.gramian_delay.simulate` (the same for every
         row).
+    instants : list of 1-D array_like, optional
+        Each row's own sampling instants (a :class:`SampledGramianObserver`
+        built with ``instants=``): the observer's instants become the rows'
+        sequences one after the other, each closed by an instant past every
+        horizon, and row i's counter kappa starts at its sequence's index.
 
     Returns
     -------
@@ -250,9 +256,23 @@ def population(observer, x0s, xhat0=None, *, noise=None, seed=None, plant=None):
     if X.ndim != 2 or X.shape[0] < 1 or X.shape[1] != n:
         raise ValueError(f"x0s must have shape (N, {n}) (one plant state per row), "
                          f"got {X.shape}")
+    if instants is not None:
+        if not isinstance(observer, SampledGramianObserver) or observer.instants is None:
+            raise ValueError("instants: the observer must be a SampledGramianObserver built "
+                             "with instants=")
+        if len(instants) != len(X):
+            raise ValueError(f"instants: one sequence per row, got {len(instants)} for "
+                             f"{len(X)} rows")
+        segs = [np.asarray(s, dtype=float).reshape(-1) for s in instants]
+        close = max(float(s[-1]) for s in segs) + 1.0
+        segs = [np.append(s, close) for s in segs]
+        observer.instants = np.concatenate(segs)
     system, first = _loop(observer, X[0], xhat0, noise, seed, plant)
     rows = np.repeat(first[None, :], len(X), axis=0)
     rows[:, system.components["plant"]] = X
+    if instants is not None:
+        rows[:, system.components["observer"].start + observer.i_kappa] = np.cumsum(
+            [0] + [len(s) for s in segs[:-1]])
     return system, rows
 
 

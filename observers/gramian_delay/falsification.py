@@ -28,28 +28,39 @@ gaps in [a, T_bar] (36)) for the least robust run:
     for all t in [tau, 0.3], delta_1, delta_2 piecewise constant with
     |delta_1| <= 0.5, |delta_2| <= 1e-3 componentwise. Expected: none.
 
-Cost (2 cores shared with other jobs): one population run ~0.03-0.06 s
-whatever its size (up to a few hundred members); a "none" problem, 2,000
-runs of the search plus 2,000 of the random baseline, 25-55 s, most of it
-the Nelder-Mead refinement (one member per run).
-
 Runs: the package's runs (:func:`~observers.gramian_delay.simulate`,
 LSODA/DOP853, 0.1-1 s each) are too slow for 2 x 2,000 runs per problem.
-:func:`simulate_population` integrates a whole population of DC motors
-with their observers at once, vectorized over the members, by the classic
-Runge-Kutta method (RK4) with a fixed step ``h = 2e-3`` (a divisor of tau,
-of every sampling period and of every piece of the disturbance signals):
+:func:`simulate_population` runs a whole population of DC motors with their
+observers as one batch of the engine (:func:`hybridsim.simulate_many`, the
+package's model: :func:`~observers.gramian_delay.dc_motor`, its observers,
+:func:`~observers.gramian_delay.example.population`), by the classic
+Runge-Kutta method with the fixed step ``h = 2e-3`` (``method="RK4"``, a
+divisor of tau, of every sampling period and of every piece of the
+disturbance signals). ``backend="auto"``: RK4 has no compiled form (the
+compiled path refuses it by name), so the rows run as one numpy batch.
 
-* the delayed values psi(t - tau) of (13) are on the grid (t - tau a node)
-  or at a half step (from RK4's continuous extension of order 3 over the
-  step that held it), so the delay equation (39) is integrated by the
-  method of steps without interpolation across a sample;
-* a sample of (39) (omega^+ = Y) falls on a node: sampling instants are
-  rounded to the grid, so the realised gaps lie in [a, T_bar] when a and
-  T_bar are multiples of h (they are here), and every run is one of the
-  class (36);
-* the disturbances' pieces start on nodes, so RK4 never steps over a
-  discontinuity.
+* the delayed values psi(t - tau) of (13) are read on the grid (t - tau a
+  node, the flows stopping at each sample + tau) or at a half step, from
+  RK4's continuous extension of order 3 over the step that held it;
+* a sample of (39) (omega^+ = Y) falls on a node: sampling instants are on
+  the grid (``_instants_of`` rounds a point's gaps to it), so the realised
+  gaps lie in [a, T_bar] when a and T_bar are multiples of h (they are
+  here), and every run is one of the class (36); each row samples at its
+  own instants (``population(instants=)``);
+* the disturbances of Theorem 1's searches are in each row's plant state
+  (:class:`~observers.gramian_delay.PiecewiseDisturbed`); their pieces
+  switch on nodes, where RK4's last stage of the step ending there and the
+  first of the next share one evaluation of the flow (one piece's value): a
+  local error O(h |jump|) at each of the 5 switches, which moves the
+  margins of (15) by <= 0.04 decades (of ~19).
+
+The arcs hold e = xi_1 - xi_e of (13) at every sample, the left limit
+before each sample of (39) included.
+
+Cost (CPU, 2 shared cores): one population run 0.27-0.7 s for 1-100
+members (250 steps of the engine's batch, whose per-step cost hardly depends
+on the size); a "none" problem's full budget (2,000 runs of the search,
+2,000 of the baseline) 5-80 s, most of it the refinement's one-member runs.
 
 The accuracy is checked against the package's adaptive runs
 (``tests/papers/gramian_delay/test_gramian_delay_falsification.py``): after tau the errors of
@@ -74,12 +85,13 @@ from hybridsim.falsification import Box, Gaps, PiecewiseConstant, Space
 from hybridsim.testing import Margin
 
 from ..falsification import Problem
-from .example import DC_PARAMS, dc_motor
+from .example import dc_motor, population
+from .systems import PiecewiseDisturbed, SampledGramianObserver
 
 __all__ = ["PROBLEMS", "simulate_population", "STEP", "CHI0_BOX", "T_CORRECTED",
            "X_SLICES"]
 
-#: The fixed RK4 step of the population runs (s): tau / 50.
+#: The fixed step of the population runs' RK4 (s): tau / 50.
 STEP = 2e-3
 _K, _TAU = 100.0, 0.1                     # Section V (Fig. 1)
 _T_PAPER = 0.1                            # Section V: T_bar = T_min = 0.1
@@ -88,61 +100,30 @@ T_CORRECTED = 0.01
 #: The box of plant initial states chi(0): the example's (0.5, -1, 0.2) +- (0.5, 1, 1).
 CHI0_BOX = Box.around([0.5, -1.0, 0.2], [0.5, 1.0, 1.0])
 _T_END = 0.5                              # horizon of the sampled runs (s)
-_MAX_NORM = 1e6                           # a member beyond this is frozen (diverged)
+_MAX_NORM = 1e6                           # a run beyond this ends (BLOWUP: diverged)
 
 #: Columns of a population arc's x: xi = (xi_1 (2), xi_2), the observer (xi1_hat, xi2_hat,
 #: psi_1, psi_2, omega) and the error e = xi_1 - xi_e of (13).
 X_SLICES = dict(xi1=slice(0, 2), xi2=slice(2, 3), xi1_hat=slice(3, 5), xi2_hat=slice(5, 6),
                 psi1=slice(6, 8), psi2=slice(8, 10), omega=slice(10, 11), e=slice(11, 13))
-_NX = 11
-
-
-def stage_times(N, h):
-    """The times at which a population run reads its inputs, ``3 N + 1`` of them.
-
-    Index ``3 n``: node t_n (the value after a switch there); ``3 n + 1``:
-    the half step t_n + h/2; ``3 n + 2``: t_{n+1} - 1e-9 h, the end of step n
-    seen from inside it (a piecewise-constant signal switching at t_{n+1}
-    still has its old value there, so RK4's last stage sees the step's
-    value); index ``3 N``: t_N.
-    """
-    n = np.arange(N)
-    ts = np.empty(3 * N + 1)
-    ts[0:3 * N:3] = n * h
-    ts[1:3 * N:3] = (n + 0.5) * h
-    ts[2:3 * N:3] = (n + 1 - 1e-9) * h
-    ts[3 * N] = N * h
-    return ts
 
 
 @functools.cache
-def _motor(k, tau):
+def _motor(k, tau, oracle=False):
     """The example's motor (65) with its design (computed once per k, tau)."""
-    return dc_motor(k, tau)
+    return dc_motor(k, tau, oracle=oracle)
 
 
-@functools.cache
-def _example_inputs(k, tau, N, h):
-    """u and the example's delta_1, delta_2 (decision 7) at :func:`stage_times`."""
-    ex, ts = _motor(k, tau), stage_times(N, h)
-    return (np.array([float(ex.u(s)) for s in ts]), np.array([ex.delta1(s) for s in ts]),
-            np.array([ex.delta2(s) for s in ts]))
-
-
-def _rk4_mid(y0, k1, k2, k3, k4, h):
-    """RK4's continuous extension (order 3) at the half step."""
-    return y0 + h * (5.0 / 24.0 * k1 + (k2 + k3) / 6.0 - k4 / 24.0)
-
-
-def simulate_population(chi0, *, sampled=True, estimate="omega", period=None, samples=None,
+def simulate_population(chi0, *, sampled=True, estimate="omega", period=None, instants=None,
                         delta1=None, delta2=None, t_end=_T_END, h=STEP, k=_K, tau=_TAU):
-    r"""A population of DC motors (66) with the observer (39) or (7), integrated at once.
+    r"""A population of DC motors (66) with the observer (39) or (7), one engine batch.
 
-    Fixed-step RK4 (step ``h``) vectorized over the members; see the module
-    docstring for why this is accurate enough and how the delay and the
-    samples fall on the grid. The observers start at 0 (as in the
-    figures), so psi(0) = 0 and, by decision 3, (13)'s delayed terms vanish
-    before tau.
+    The package's model (the motor :func:`~observers.gramian_delay.dc_motor`,
+    its observers, :func:`~observers.gramian_delay.example.population`), one
+    row per member, run by :func:`hybridsim.simulate_many` (``backend``
+    "auto") with RK4 at the fixed step ``h`` (``method="RK4"``; see the
+    module docstring). The observers start at 0 (as in the figures), so
+    psi(0) = 0 and, by decision 3, (13)'s delayed terms vanish before tau.
 
     Parameters
     ----------
@@ -157,168 +138,72 @@ def simulate_population(chi0, *, sampled=True, estimate="omega", period=None, sa
         as in (14).
     period : float, optional
         Periodic sampling (a multiple of h).
-    samples : (P, K) bool array, optional
-        Irregular sampling: ``samples[p, n]`` when member p samples at node n
-        (node 0 must be set: t_0 = 0 is a sample).
-    delta1, delta2 : callable, optional
-        The disturbances of (65): ``delta(ts) -> (P, len(ts), 3)`` and
-        ``(P, len(ts), 1)``, all members at once, at the times ``ts`` of
-        :func:`stage_times`; default the example's (decision 7), the same
-        for every member.
+    instants : list of 1-D array_like, optional
+        Irregular sampling: member p's instants (t_0 = 0 first, on the grid).
+    delta1, delta2 : (P, pieces, 3) and (P, pieces, 1) arrays, optional
+        Each member's piecewise-constant disturbances of (65) on ``pieces``
+        intervals of [0, t_end] (:class:`~observers.gramian_delay.PiecewiseDisturbed`);
+        default the example's (decision 7), the same for every member.
     t_end, h, k, tau : float
         Horizon, step, gain and delay (tau / h and t_end / h integers).
 
     Returns
     -------
-    t : (N + 1,) array
-    x : (P, N + 1, 13) array
-        At each node (after its sample): the columns of :data:`X_SLICES`.
-    jumps : (P, N + 1) int array
-        The samples taken up to and including each node.
-    diverged : (P,) bool array
-        Members frozen once a state exceeded 1e6.
+    list of HybridArc
+        One per member: x holds the columns of :data:`X_SLICES`; j the
+        samples taken; ``BLOWUP`` where a state exceeded 1e6 in norm.
 
     Examples
     --------
     >>> import numpy as np
-    >>> t, x, j, bad = simulate_population(np.array([[0.5, -1.0, 0.2]]), period=0.01,
-    ...                                    t_end=0.2)
-    >>> x.shape, bool(bad[0])
-    ((1, 101, 13), False)
+    >>> arcs = simulate_population(np.array([[0.5, -1.0, 0.2]]), period=0.01, t_end=0.2)
+    >>> arcs[0].x.shape[1], arcs[0].termination.name, arcs[0].jump_count
+    (13, 'T_MAX', 21)
     """
     chi0 = np.atleast_2d(np.asarray(chi0, dtype=float))
-    P = chi0.shape[0]
-    N, Nd = round(t_end / h), round(tau / h)
-    if abs(N * h - t_end) > 1e-9 * t_end or abs(Nd * h - tau) > 1e-9 * tau:
+    if abs(round(t_end / h) * h - t_end) > 1e-9 * t_end or \
+            abs(round(tau / h) * h - tau) > 1e-9 * tau:
         raise ValueError(f"t_end / h and tau / h must be integers (h = {h})")
-    ex = _motor(k, tau)
-    d, form = ex.design, ex.form
-    A1, A2, H, R, Si = d.A1, d.A2[0], d.H[:, 0], d.R[:, 0], d.S_inv
-    mA2 = -d.A_psi2
-    E1, E2 = d.E1, d.E2
-    a1, b0 = DC_PARAMS["a1"], DC_PARAMS["b0"]
-    P_, N_ = form.P, form.N
-    ts = stage_times(N, h)
-    u, d1, d2 = _example_inputs(k, tau, N, h)
-    if delta1 is None:
-        delta1 = lambda _ts: np.broadcast_to(d1[None], (P, ts.size, 3))  # noqa: E731
-    if delta2 is None:
-        delta2 = lambda _ts: np.broadcast_to(d2[None], (P, ts.size, 1))  # noqa: E731
-    delta1, delta2 = np.asarray(delta1(ts), float), np.asarray(delta2(ts), float)
-    eps1 = delta1 @ P_.T                                 # Remark 3: eps_1 = P delta_1
-    eps2 = (delta1 @ N_.T)[..., 0]                       # eps_2 = N delta_1
-    dl2 = delta2[..., 0]
+    ex = _motor(k, tau, sampled and estimate == "xi2")
     if sampled:
-        if (period is None) == (samples is None):
-            raise ValueError("give exactly one of period and samples")
-        if samples is None:
-            every = round(period / h)
-            samples = np.zeros((P, N + 1), bool)
-            samples[:, ::every] = True
-        samples = np.asarray(samples, bool)[:, :N + 1]
-    xi0 = form.to_xi(chi0)
-    X = np.zeros((P, _NX))
-    X[:, 0:3] = xi0
-    hist = np.zeros((N + 1, P, 4))                       # psi at the nodes
-    mids = np.zeros((N, P, 4))                           # psi at the half steps
-    out = np.empty((N + 1, P, _NX + 2))
-    jumps = np.zeros((P, N + 1), int)
-    frozen = np.zeros(P, bool)
-
-    # the flow is Z @ L^T + inputs + the two sin terms + (39)'s delayed term
-    # columns: xi1 0:2, xi2 2, xi1_hat 3:5, xi2_hat 5, psi1 6:8, psi2 8:10, omega 10
-    yo_col = 10 if sampled else 2                   # the observers' measurement (omega or Y)
-    y_col = 10 if (sampled and estimate == "omega") else 2      # the signal in (13)
-    Ce = np.zeros((2, _NX))                         # xi_e = Z @ Ce^T + delayed part (13)
-    Ce[:, 3:5] = np.eye(2)
-    Ce[:, 5] -= R
-    Ce[:, y_col] += R
-    Ce[:, 6:8] = -Si
-    Ce[:, 8:10] = Si
-    Dd = np.hstack([E1 * Si, -Si @ E2])             # psi(t - tau) -> xi_e
-    L = np.zeros((_NX, _NX))
-    L[0:2, 0:2] = A1
-    L[2, 0:2] = A2                                  # -k xi2 + F2(xi2) = 0
-    L[3:5, 3:5] = A1
-    L[5, 3:5] = A2
-    L[5, 5] = -k
-    L[5, yo_col] += k                               # F2(yo) = k yo
-    L[6:8, 6:8] = -k * np.eye(2)
-    L[8:10, 8:10] = mA2
-    for rows in (slice(6, 8), slice(8, 10)):        # H (yo - xi2_hat)
-        L[rows, 5] -= H
-        L[rows, yo_col] += H
-    if sampled:
-        L[10] = A2 @ Ce                             # omega' = A2 xi_e - k w + F2(w) = A2 xi_e
-    LT = L.T.copy()
-    G = np.zeros((P, ts.size, _NX))                 # the inputs' share of the flow
-    G[:, :, 0:2] = eps1
-    G[:, :, 1] += b0 * u
-    G[:, :, 2] = eps2
-    G[:, :, 4] = b0 * u
-    if not sampled:                                 # Y = xi2 + delta2 in (7)
-        G[:, :, 5] += k * dl2
-        G[:, :, 6:8] += dl2[..., None] * H
-        G[:, :, 8:10] += dl2[..., None] * H
-    DdA = Dd.T @ A2                                 # (4,): delayed psi -> omega'
-
-    def delayed(n2):
-        """psi(t - tau) at half-index n2, None before tau (decision 3, psi(0) = 0)."""
-        m2 = n2 - 2 * Nd
-        if m2 < 0:
-            return None
-        return hist[m2 // 2] if m2 % 2 == 0 else mids[m2 // 2]
-
-    def f(Z, i, n2):
-        dZ = Z @ LT + G[:, i]
-        dZ[:, 0] -= a1 * np.sin(Z[:, 2])
-        yo = Z[:, 10] if sampled else Z[:, 2] + dl2[:, i]
-        dZ[:, 3] -= a1 * np.sin(yo)
-        if sampled:
-            pd = delayed(n2)
-            if pd is not None:
-                dZ[:, 10] += pd @ DdA
-        return dZ
-
-    def record(n):
-        out[n, :, :_NX] = X
-        xe = X @ Ce.T
-        pd = delayed(2 * n)
-        if pd is not None:
-            xe += pd @ Dd.T
-        out[n, :, _NX:] = X[:, 0:2] - xe
-        hist[n] = X[:, 6:10]
-
-    for n in range(N + 1):
-        if sampled:
-            s = samples[:, n] & ~frozen
-            if s.any():
-                X[s, 10] = X[s, 2] + dl2[s, 3 * n]        # (39): omega(t_j) = Y(t_j)
-                jumps[s, n:] += 1
-        record(n)
-        if n == N:
-            break
-        X0 = X
-        k1 = f(X0, 3 * n, 2 * n)
-        k2 = f(X0 + 0.5 * h * k1, 3 * n + 1, 2 * n + 1)
-        k3 = f(X0 + 0.5 * h * k2, 3 * n + 1, 2 * n + 1)
-        k4 = f(X0 + h * k3, 3 * n + 2, 2 * n + 2)
-        mids[n] = _rk4_mid(X0, k1, k2, k3, k4, h)[:, 6:10]
-        Xn = X0 + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
-        bad = ~np.all(np.abs(Xn) < _MAX_NORM, axis=1) | frozen
-        Xn[bad] = X0[bad]                                # frozen: diverged
-        frozen = bad
-        X = Xn
-    return np.arange(N + 1) * h, out.transpose(1, 0, 2), jumps, frozen
+        if (period is None) == (instants is None):
+            raise ValueError("give exactly one of period and instants")
+        obs = (ex.sampled_observer(period=period, estimate=estimate) if instants is None
+               else ex.sampled_observer(instants=instants[0], estimate=estimate))
+    else:
+        obs = ex.continuous_observer()
+    plant, X = None, chi0
+    if delta1 is not None:
+        d1, d2 = np.asarray(delta1, dtype=float), np.asarray(delta2, dtype=float)
+        plant = PiecewiseDisturbed(ex, t_end, d1.shape[1])
+        X = np.array([plant.initial_state(c, a, b) for c, a, b in zip(chi0, d1, d2)])
+    system, rows = population(obs, X, plant=plant, instants=instants)
+    arcs = hs.simulate_many(system, rows, t_max=t_end, j_max=10**6, method="RK4", max_step=h,
+                            max_norm=_MAX_NORM, backend="auto", warn=False)
+    return [_columns(arc, obs, ex, system) for arc in arcs]
 
 
-def _arcs(t, x, jumps, frozen):
-    """One HybridArc per member (x: state and error columns, j: samples so far)."""
-    arcs = []
-    for p in range(x.shape[0]):
-        arcs.append(hs.HybridArc(t, jumps[p], x[p], hs.Termination.BLOWUP if frozen[p]
-                                 else hs.Termination.T_MAX))
-    return arcs
+def _columns(arc, obs, ex, system):
+    """A run of the population as an arc with the columns of :data:`X_SLICES`: xi (66),
+    the observer's (omega 0 for (7)) and e = xi_1 - xi_e of (13), psi(t - tau) read
+    on the arc (psi is continuous; before tau it is psi(0) = 0, decision 3)."""
+    d, tau = ex.design, ex.design.tau
+    chi = arc.x[:, system.components["plant"]][:, :3]
+    z = arc.x[:, system.components["observer"]]
+    x = np.zeros((len(arc.t), 13))
+    x[:, 0:3] = ex.form.to_xi(chi)
+    x[:, 3:10] = z[:, 0:7]
+    if isinstance(obs, SampledGramianObserver):
+        x[:, 10] = z[:, obs.sl_omega][:, 0]
+    late = arc.t >= tau
+    past = np.zeros((len(arc.t), 4))
+    for c in range(4):
+        past[late, c] = np.interp(arc.t[late] - tau, arc.t, z[:, 3 + c])
+    y = x[:, 10:11] if (isinstance(obs, SampledGramianObserver)
+                        and obs.estimate_source == "omega") else x[:, 2:3]
+    xe = d.xi_e(x[:, 3:5], x[:, 5:6], x[:, 6:8], x[:, 8:10], past[:, 0:2], past[:, 2:4], y)
+    x[:, 11:13] = x[:, 0:2] - xe
+    return hs.HybridArc(arc.t, arc.j, x, arc.termination)
 
 
 # ----------------------------------------------------------------------------
@@ -338,19 +223,20 @@ def _piecewise(points, name, entry):
     def delta(ts):
         k = np.clip((np.asarray(ts) // width).astype(int), 0, entry.pieces - 1)
         return vals[:, k, :]
+    delta.values = vals
     return delta
 
 
-def _samples_of(points, name, N, h):
-    """(P, N + 1) sample flags from each point's gaps, repeated cyclically to cover
-    the horizon (a sequence of the class (36) too), instants rounded to the grid."""
-    flags = np.zeros((len(points), N + 1), bool)
-    for i, p in enumerate(points):
+def _instants_of(points, name, t_end, h):
+    """Each point's sampling instants from its gaps, repeated cyclically to cover the
+    horizon (a sequence of the class (36) too), rounded to the grid of step h."""
+    out = []
+    for p in points:
         steps = np.maximum(1, np.round(np.asarray(p[name]) / h).astype(int))
-        reps = N // int(steps.sum()) + 1
-        nodes = np.concatenate([[0], np.cumsum(np.tile(steps, reps))])
-        flags[i, nodes[nodes <= N]] = True
-    return flags
+        N = round(t_end / h)
+        nodes = np.concatenate([[0], np.cumsum(np.tile(steps, N // int(steps.sum()) + 1))])
+        out.append(nodes[nodes <= N] * h)
+    return out
 
 
 def _chi0s(points):
@@ -362,10 +248,8 @@ def _population_run(**fixed):
     def run(points):
         kw = dict(fixed)
         if "gaps" in points[0]:
-            kw["samples"] = _samples_of(points, "gaps", round(kw.get("t_end", _T_END) / STEP),
-                                        STEP)
-        t, x, jumps, frozen = simulate_population(_chi0s(points), **kw)
-        return _arcs(t, x, jumps, frozen)
+            kw["instants"] = _instants_of(points, "gaps", kw.get("t_end", _T_END), STEP)
+        return simulate_population(_chi0s(points), **kw)
     run.batch = True
     return run
 
@@ -449,12 +333,18 @@ def _theorem1_run(points):
     space = _T1_SPACE
     d1 = _piecewise(points, "delta1", space.entries["delta1"])
     d2 = _piecewise(points, "delta2", space.entries["delta2"])
-    t, x, jumps, frozen = simulate_population(_chi0s(points), sampled=False, delta1=d1,
-                                              delta2=d2, t_end=_T1_END)
+    arcs = simulate_population(_chi0s(points), sampled=False, delta1=d1.values,
+                               delta2=d2.values, t_end=_T1_END)
     idx, B = bound15_population(d1, d2)
-    bound = np.full(x.shape[:2] + (1,), np.nan)
-    bound[:, idx, 0] = B
-    return _arcs(t, np.concatenate([x, bound], axis=2), jumps, frozen)
+    out = []
+    for arc, b in zip(arcs, B):
+        bound = np.full((len(arc.t), 1), np.nan)
+        node = np.rint(arc.t / STEP).astype(int)
+        at = np.isin(node, idx) & np.isclose(arc.t, node * STEP, rtol=0, atol=1e-9 * STEP)
+        bound[at, 0] = b[np.searchsorted(idx, node[at])]
+        out.append(hs.HybridArc(arc.t, arc.j, np.concatenate([arc.x, bound], axis=1),
+                                arc.termination))
+    return out
 
 
 _theorem1_run.batch = True

@@ -3,6 +3,9 @@ r"""The hybrid systems of Mazenc & Malisoff (2022) on :mod:`hybridsim`.
 * :class:`Plant` -- system (1), output Y (or (Y, xi_2) for the oracle).
 * :class:`DCMotor` -- the DC motor (65) of Section V as a :class:`Plant`,
   with its coordinates (66)-(67), design and observers.
+* :class:`PiecewiseDisturbed` -- a plant (1) whose delta1, delta2 are
+  piecewise constant with their values in its state: each row of a batch
+  its own disturbances (Theorem 1's searches).
 * :func:`smooth_noise` -- a seeded smooth measurement disturbance delta_2.
 * :class:`GramianObserver` -- the dynamic extension (7) (Theorem 1), input Y;
   :meth:`GramianObserver.estimate` evaluates (13) along a finished run.
@@ -66,8 +69,8 @@ import hybridsim as hs
 from .._common import matrix, scalar, vector
 from .design import GramianDesign, ObserverForm, gramian_design, observer_form
 
-__all__ = ["Plant", "DCMotor", "GramianObserver", "SampledGramianObserver", "estimate_along",
-           "REALISATIONS", "smooth_noise"]
+__all__ = ["Plant", "DCMotor", "PiecewiseDisturbed", "GramianObserver", "SampledGramianObserver",
+           "estimate_along", "REALISATIONS", "smooth_noise"]
 
 #: The realisations of psi_2 of (7) (module docstring).
 REALISATIONS = ("literal", "reset")
@@ -366,6 +369,84 @@ class DCMotor(Plant):
         obs = SampledGramianObserver(self.design, self.form.F1, self.form.F2, **kw)
         obs.plant, obs.form = self, self.form
         return obs
+
+
+class PiecewiseDisturbed(Plant):
+    r"""A plant (1) with piecewise-constant disturbances whose values are in its state.
+
+    State ``(chi, d1, d2)``: chi (n,) of (1), then the values of delta1
+    ((pieces, n), row-major) and delta2 ((pieces, q)) on the ``pieces``
+    intervals of width ``t_end / pieces`` (the last held after ``t_end``:
+    :class:`hybridsim.falsification.PiecewiseConstant`'s rule), which do
+    not flow. Each row of a batch (:func:`hybridsim.simulate_many`) thus
+    carries its own disturbances through one model. The flow and the output
+    are ``plant``'s (its own delta1, delta2 replaced by these).
+
+    Parameters
+    ----------
+    plant : Plant
+        M, N, Psi and ``oracle`` are taken from it.
+    t_end : float
+    pieces : int
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from observers import gramian_delay as gd
+    >>> p = gd.PiecewiseDisturbed(gd.dc_motor(100.0, 0.1), 0.3, 6)
+    >>> x0 = p.initial_state([0.5, -1, 0.2], np.ones((6, 3)), np.full((6, 1), 1e-3))
+    >>> p.state_dim, float(p.output(x0, 0.0, 0)[0])
+    (27, 0.501)
+    """
+
+    def __init__(self, plant, t_end, pieces):
+        if not isinstance(plant, Plant):
+            raise TypeError(f"plant must be a gramian_delay.Plant, got {type(plant).__name__}")
+        super().__init__(plant.M, plant.N, plant.Psi, oracle=plant.oracle)
+        self.t_end = scalar("t_end", t_end, positive=True)
+        if isinstance(pieces, bool) or not isinstance(pieces, numbers.Integral) or pieces < 1:
+            raise ValueError(f"pieces must be a positive int, got {pieces!r}")
+        self.pieces = int(pieces)
+        n, q = self.M.shape[0], self.N.shape[0]
+        self.n_chi = n
+        self.state_dim = n + self.pieces * (n + q)
+
+    def initial_state(self, chi0, delta1, delta2):
+        """(chi0, delta1's values (pieces, n), delta2's (pieces, q)) as one state."""
+        n, q, k = self.n_chi, self.N.shape[0], self.pieces
+        return np.concatenate([vector("chi0", chi0, n), matrix("delta1", delta1, (k, n)).ravel(),
+                               matrix("delta2", delta2, (k, q)).ravel()])
+
+    def _values(self, x, t):
+        """delta1 (..., n) and delta2 (..., q) of each state at its time."""
+        n, q, k = self.n_chi, self.N.shape[0], self.pieces
+        lead = x.shape[:-1]
+        i = np.clip(np.floor_divide(np.asarray(t, dtype=float), self.t_end / k).astype(int),
+                    0, k - 1)
+        i = np.broadcast_to(i, lead)[..., None, None]
+        d1 = x[..., n:n + k * n].reshape(lead + (k, n))
+        d2 = x[..., n + k * n:].reshape(lead + (k, q))
+        return (np.take_along_axis(d1, i, axis=-2)[..., 0, :],
+                np.take_along_axis(d2, i, axis=-2)[..., 0, :])
+
+    def flow_map(self, x, t):
+        """chi' of (1) with this state's delta1, the values' 0, on the last axis."""
+        x = np.asarray(x, dtype=float)
+        out = np.zeros(x.shape)
+        out[..., :self.n_chi] = super().flow_map(x[..., :self.n_chi], t) + self._values(x, t)[0]
+        return out
+
+    def output(self, x, t, j):
+        """Y = N chi + delta2 (then N chi with ``oracle``), on the last axis."""
+        x = np.asarray(x, dtype=float)
+        y = x[..., :self.n_chi] @ self.N.T
+        Y = y + self._values(x, t)[1]
+        return np.concatenate((Y, y), axis=-1) if self.oracle else Y
+
+    def compiled_refusal(self):
+        """No compiled form: its maps index the state by the piece (a Python object)."""
+        return ("PiecewiseDisturbed has no compiled form (its disturbances are indexed "
+                "from the state by piece); run it on the numpy batch")
 
 
 @functools.cache
@@ -873,8 +954,12 @@ class SampledGramianObserver(_ObserverBase):
         out = np.empty((len(z), d.m))
         if full.any():
             out[full] = d.xi_e(*(a[full] for a in args))                       # (13)
-        for i in np.flatnonzero(~full):         # before t0 + tau: each row's own window
-            out[i] = d.xi_e(*(a[i] for a in args), h=t[i] - self.t0)
+        if not full.all():                      # before t0 + tau: each row's own window,
+            early = np.flatnonzero(~full)       # one decay per window length (rows at one t)
+            hs_, which = np.unique(t[early] - self.t0, return_inverse=True)
+            for g, h in enumerate(hs_):
+                rows = early[which == g]
+                out[rows] = d.xi_e(*(a[rows] for a in args), h=h)
         return out
 
     def _xi_e(self, z, t, u):

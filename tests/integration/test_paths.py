@@ -724,3 +724,63 @@ def test_bad_delays_get_the_same_error_on_every_path(path, delays):
     sys_.delays = delays
     with pytest.raises(ValueError, match="system.delays must be positive finite floats"):
         _run_lag(path, sys_, [1.0, 0.0], t_max=1.0)
+
+
+@pytest.mark.parametrize("seed", [3, 11])
+def test_rk4_takes_fixed_steps_on_the_python_and_vectorized_paths(path, seed):
+    """method="RK4": steps of max_step (shortened only at events and t_max), the
+    same steps on the Python and vectorized paths, and the RK45 solution to
+    RK4's error (h^4); the compiled path refuses it by name, saying why."""
+    case, x0 = random_linear(seed, 2, False)
+    h, t_max = 2e-3, 3.0
+    kw = dict(t_max=t_max, j_max=8, method="RK4", max_step=h, warn=False)
+    if path == "compiled":
+        with pytest.raises(ValueError, match="method='RK4' is not supported on the compiled "
+                                             "path: the compiled kernel"):
+            run(path, case, x0, **kw)
+        return
+    arc = run(path, case, x0, **kw)
+    ref = run("python", case, x0, **OPTS | dict(t_max=t_max, j_max=8))
+    assert arc.termination is ref.termination and arc.jump_count == ref.jump_count
+    np.testing.assert_allclose(arc.jump_times, ref.jump_times, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(arc.xf, ref.xf, rtol=1e-8, atol=1e-9)
+    steps = np.diff(arc.t)[np.diff(arc.j) == 0]
+    full = np.isclose(steps, h, rtol=1e-9, atol=0)
+    assert full.sum() >= len(steps) - 2 * (arc.jump_count + 1)    # short: before an event
+    assert np.all(steps <= h * (1 + 1e-9))
+    py = run("python", case, x0, **kw)
+    np.testing.assert_allclose(arc.t, py.t, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(arc.x, py.x, rtol=1e-10, atol=1e-12)
+
+
+class _Lagged(hs.HybridSystem):
+    """x'(t) = -x(t - 1), x = 1 on [-1, 0]: on the last axis (a batch reads its rows' past)."""
+
+    state_dim = 1
+    needs_history = True
+    delays = (1.0,)
+    vectorized = True
+
+    def flow_map(self, x, t):
+        return -self.history(t - 1.0)
+
+
+def _lagged_exact(t):
+    """The method of steps on [0, 4]: a quartic by pieces."""
+    return (1 - t + np.maximum(t - 1, 0) ** 2 / 2 - np.maximum(t - 2, 0) ** 3 / 6
+            + np.maximum(t - 3, 0) ** 4 / 24)
+
+
+@pytest.mark.paths(only=("python", "vectorized"))
+def test_rk4_reads_the_past_through_its_continuous_extension(path):
+    """A delay equation with RK4 at h = tau / 10: the flow stops on the breakpoints
+    (t = 1, 2, 3 on the grid), and the solution, a polynomial of degree <= 4 on
+    each piece, is exact to round-off (RK4 integrates it exactly and its
+    continuous extension of order 3 returns the past exactly at the stages)."""
+    kw = dict(t_max=4.0, method="RK4", max_step=0.1)
+    if path == "python":
+        arc = hs.simulate(_Lagged(), [1.0], **kw)
+    else:
+        arc = hs.simulate_vectorized(_Lagged(), [[1.0], [1.0]], **kw)[1]
+    assert arc.stats["steps"] == 40
+    np.testing.assert_allclose(arc.x[:, 0], _lagged_exact(arc.t), rtol=0, atol=1e-13)

@@ -1,6 +1,6 @@
 """observers.gramian_delay.falsification: Theorems 1 and 2 of paper 004 as searches.
 
-Tolerances: the population runs (fixed-step RK4, h = 2e-3) are checked
+Tolerances: the population runs (the engine's RK4 at the fixed step h = 2e-3) are checked
 against the package's adaptive runs (LSODA, rtol 1e-9) to 2e-3 on the
 error of (13) (RK4's global error at this step, amplified by |S^-1| ~
 1.5e5 in (13)); every margin below is decided at the scale of 1 (errors
@@ -30,26 +30,26 @@ def test_problems_are_valid_and_exported():
     assert all(p.budget >= 2000 for p in gdf.PROBLEMS if p.expect == "none")
 
 
-def _ref_error(E, t_grid, x_pop, jumps):
+def _ref_error(E, arc):
     """max |e_pop - e_ref| at the reference's samples in [tau, t_end), away from the
     samples of (39) (before tau the transient, |e| ~ 50, is matched to ~3e-3 relative)."""
     keep = np.ones(E.t.size, bool)
-    jt = t_grid[np.flatnonzero(np.diff(jumps, prepend=0))]
-    for s in jt:                                 # e jumps with omega at a sample
+    for s in arc.jump_times:                     # e jumps with omega at a sample
         keep &= np.abs(E.t - s) > 2 * gdf.STEP
-    keep &= (E.t >= 0.1) & (E.t < t_grid[-1])
-    e_pop = np.stack([np.interp(E.t[keep], t_grid, x_pop[:, c]) for c in (11, 12)], axis=1)
+    keep &= (E.t >= 0.1) & (E.t < arc.t[-1])
+    e_pop = np.stack([np.interp(E.t[keep], arc.t, arc.x[:, c]) for c in (11, 12)], axis=1)
     return float(np.abs(e_pop - E.e[keep]).max())
 
 
 @pytest.mark.parametrize("T, est", [(0.01, "omega"), (0.1, "xi2")])
 def test_population_run_matches_the_package_run(T, est):
-    """The vectorized RK4 run agrees with the adaptive run of (39) (LSODA, rtol 1e-9)."""
+    """The engine's RK4 population run agrees with the adaptive run of (39) (LSODA,
+    rtol 1e-9), and samples at every period."""
     _, E = _run_dc(100.0, sampled=True, T=T, estimate=est, t_max=0.5)
-    t, x, j, bad = gdf.simulate_population(np.array([[0.5, -1.0, 0.2]]), period=T,
-                                           estimate=est)
-    assert not bad[0]
-    assert _ref_error(E, t, x[0], j[0]) < 2e-3
+    arc, = gdf.simulate_population(np.array([[0.5, -1.0, 0.2]]), period=T, estimate=est)
+    assert arc.termination.name == "T_MAX"
+    np.testing.assert_allclose(arc.jump_times, np.arange(round(0.5 / T) + 1) * T, atol=1e-12)
+    assert _ref_error(E, arc) < 2e-3
 
 
 @pytest.mark.slow
@@ -112,10 +112,50 @@ def test_bound15_population_matches_design():
 
 
 def test_gaps_are_in_the_class():
-    """Sampling instants from a gaps point: every realised gap in [a, T_bar]."""
+    """Sampling instants from a gaps point: every realised gap in [a, T_bar], and the
+    population's rows sample at their own instants."""
     space = BY_ID["004-thm2-gaps-omega"].space
     pts = [space.point(z) for z in space.sample(20, seed=1)]
-    flags = gdf._samples_of(pts, "gaps", 250, gdf.STEP)
-    for f in flags:
-        g = np.diff(np.flatnonzero(f)) * gdf.STEP
-        assert f[0] and g.min() >= 0.002 - 1e-12 and g.max() <= gdf.T_CORRECTED + 1e-12
+    ins = gdf._instants_of(pts, "gaps", 0.5, gdf.STEP)
+    for f in ins:
+        g = np.diff(f)
+        assert f[0] == 0 and g.min() >= 0.002 - 1e-12 and g.max() <= gdf.T_CORRECTED + 1e-12
+        assert f[-1] > 0.5 - gdf.T_CORRECTED
+    arcs = BY_ID["004-thm2-gaps-omega"].run(pts[:3])
+    for arc, f in zip(arcs, ins):
+        np.testing.assert_allclose(arc.jump_times, f, atol=1e-12)
+
+
+def test_theorem1_rows_carry_their_own_disturbances():
+    """The population of (7) (Theorem 1): each row its own piecewise-constant
+    delta1, delta2 (PiecewiseDisturbed); the same point alone or in a population
+    gives the same run, and a row without disturbances is exact after tau
+    (Theorem 1: e = 0 up to round-off times |S^-1|)."""
+    space = gdf._T1_SPACE
+    pts = [space.point(z) for z in space.sample(3, seed=4)]
+    both = gdf._theorem1_run(pts)
+    alone = gdf._theorem1_run(pts[1:2])[0]
+    np.testing.assert_allclose(both[1].x, alone.x, rtol=1e-12, atol=1e-12)
+    assert not np.allclose(both[0].x[:, gdf.X_SLICES["e"]], both[1].x[:, gdf.X_SLICES["e"]])
+    zero = gdf.simulate_population(np.array([[0.5, -1.0, 0.2]]), sampled=False,
+                                   delta1=np.zeros((1, 6, 3)), delta2=np.zeros((1, 6, 1)),
+                                   t_end=0.3)[0]
+    e = np.abs(zero.x[zero.t >= 0.1][:, gdf.X_SLICES["e"]]).max()
+    assert e < 1e-6
+
+
+def test_population_instants_and_piecewise_plant_refuse_bad_input():
+    """population(instants=) needs an observer sampling at instants and one sequence
+    per row; PiecewiseDisturbed a Plant and a positive number of pieces."""
+    from observers.gramian_delay import PiecewiseDisturbed, dc_motor
+    from observers.gramian_delay.example import population
+    ex = dc_motor(100.0, 0.1)
+    with pytest.raises(ValueError, match="built with instants="):
+        population(ex.sampled_observer(period=0.01), [ex.chi0], instants=[[0.0, 0.1]])
+    with pytest.raises(ValueError, match="one sequence per row"):
+        population(ex.sampled_observer(instants=[0.0, 0.1]), [ex.chi0, ex.chi0],
+                   instants=[[0.0, 0.1]])
+    with pytest.raises(TypeError, match="must be a gramian_delay.Plant"):
+        PiecewiseDisturbed(object(), 0.3, 6)
+    with pytest.raises(ValueError, match="pieces must be a positive int"):
+        PiecewiseDisturbed(ex, 0.3, 0)
