@@ -30,6 +30,8 @@ def warm(part):
     """Compile (or load) the kernels of ``PARTS[part]`` into numba's disk cache."""
     from hybridsim.compiled import _load_kernel
     k = _load_kernel()
+    if k.cache_dir() is None:       # not cached (a refused folder): each worker compiles
+        return
     for kw in PARTS[part]:
         if kw == "sde":
             import numpy as np
