@@ -10,6 +10,7 @@ scalars as numpy 1.x did (``True``, ``64.0``, not ``np.True_``,
 ``tests/`` keep numpy's default printing.
 """
 import os
+import sys
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -35,6 +36,16 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if "hybridsim/compiled" in str(item.fspath).replace("\\", "/"):
             item.add_marker(pytest.mark.slow)
+
+
+@pytest.fixture(autouse=True)
+def _close_figures():
+    """Every figure a test or Example left open closed after it (pyplot keeps
+    them, and their canvases, for the life of the process)."""
+    yield
+    plt = sys.modules.get("matplotlib.pyplot")
+    if plt is not None:
+        plt.close("all")
 
 
 @pytest.fixture(autouse=True)

@@ -22,6 +22,11 @@ runs; ``HYBRIDSIM_TEST_CPU=file.json`` writes every test's figure. It
 also prints each test process's peak resident memory (budget 600 MB per
 pytest-xdist worker); ``HYBRIDSIM_TEST_RSS=file.json`` writes each
 process's peak after every test phase, in order, to find what raises it.
+
+On several workers the engine's cached kernels are first compiled (or found)
+in two throwaway processes (:mod:`warm_kernels`, this folder): a worker that
+loads a kernel from numba's disk cache keeps a few MB of it, one that
+compiles it keeps 70-100 MB.
 """
 from __future__ import annotations
 
@@ -29,6 +34,8 @@ import json
 import os
 import pathlib
 import resource
+import subprocess
+import sys
 import time
 
 import pytest
@@ -73,6 +80,31 @@ def pytest_generate_tests(metafunc):
                 marks.append(pytest.mark.xfail(strict=True, reason=kw["xfail_compiled"]))
         params.append(pytest.param(p, id=p, marks=marks))
     metafunc.parametrize("path", params)
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_sessionstart(session):
+    # in pytest-xdist's controller, before it starts the workers
+    config = session.config
+    if not HAS_NUMBA or hasattr(config, "workerinput") \
+            or config.pluginmanager.getplugin("dsession") is None:
+        return
+    import warm_kernels
+
+    import hybridsim
+    # the hybridsim the workers import (this checkout's, or the installed one)
+    where = str(pathlib.Path(hybridsim.__file__).resolve().parent.parent)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        p for p in (where, os.environ.get("PYTHONPATH")) if p)}
+    procs = [subprocess.Popen([sys.executable, warm_kernels.__file__, str(part)], env=env,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+             for part in range(len(warm_kernels.PARTS))]
+    for proc in procs:       # a failure here is the first compiled test's to report
+        try:
+            proc.wait(timeout=900)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
 
 
 @pytest.fixture(scope="session")

@@ -112,6 +112,9 @@ def aimd(rate, vectorized=False):
                                           state_dim=1, vectorized=vectorized)
 
 
+# compiled: 5.5 s of CPU (each system's rate kernel compiled) and 80 MB kept by
+# the worker; test_compiled_system_keywords runs compiled rate jumps in the default suite
+@pytest.mark.paths(compiled_slow=True)
 def test_rate_jumps_same_seed_same_arc_on_every_path(path):
     # the clock (its thresholds drawn from the run's key) is the Python path's on every
     # path: the same jumps, to round-off of the located times
@@ -134,7 +137,8 @@ def test_rate_jumps_same_seed_same_arc_on_every_path(path):
     _same(hs.simulate(sde, [0.0], backend=path, **kw), hs.simulate(sde, [0.0], **kw))
 
 
-@pytest.mark.paths(only=("python", "compiled"))
+# compiled: 2.8 s of CPU and 30 MB (as above)
+@pytest.mark.paths(only=("python", "compiled"), compiled_slow=True)
 def test_rate_batches_replay_and_bad_rates(path):
     B = hs.simulate_many(AIMD(), np.ones((5, 1)), 20.0, backend=path)
     keys = [a.stats["jump_seed"] for a in B]

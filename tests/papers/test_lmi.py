@@ -1,4 +1,10 @@
-"""Tests of observers.lmi: generic LMI helpers and LMI (10) of paper 000."""
+"""Tests of observers.lmi: generic LMI helpers and LMI (10) of paper 000.
+
+cvxpy is imported by the tests that solve (not at collection: it is about
+130 MB of every test process's memory, and most processes solve no LMI).
+"""
+
+import importlib.util
 
 import numpy as np
 import pytest
@@ -18,7 +24,8 @@ from observers.lmi import (
     verify_lmis,
 )
 
-cp = pytest.importorskip("cvxpy")
+pytestmark = pytest.mark.skipif(importlib.util.find_spec("cvxpy") is None,
+                                reason="the LMI solvers need cvxpy (optional extra 'lmi')")
 
 
 # ---------------------------------------------------------------- generic helpers
@@ -56,6 +63,8 @@ def test_bad_matrix_inputs():
 
 
 def test_solve_sdp_raises_on_infeasible():
+    import cvxpy as cp
+
     x = cp.Variable()
     with pytest.raises(LMISolverError, match="infeasible"):
         solve_sdp(cp.Minimize(x), [x >= 1, x <= 0])

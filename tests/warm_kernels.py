@@ -1,0 +1,50 @@
+"""The engine's cached kernels compiled before the test processes start.
+
+numba keeps what compiling a kernel took in the process that compiled it (70-100
+MB for each run kernel, for the life of the process), while a process that
+loads the same kernel from numba's disk cache takes a few MB. So when the suite
+runs on several pytest-xdist workers, ``conftest.py`` first runs this module in
+throwaway processes (``python warm_kernels.py 0``, ``... 1``, ``... 2``, in
+parallel), which compile the kernels whose signature is fixed (the maps passed
+by address: the run kernels, the batch kernel, the SDE flow's) into the disk
+cache, or find them there: every worker then loads them, and each kernel is
+compiled once per machine rather than once per worker. A kernel already in
+the cache costs the process about a second.
+
+Kernels specialised on a system's maps (``specialize=True``) are compiled by
+the tests that run those systems, as before.
+"""
+from __future__ import annotations
+
+import sys
+
+#: the run kernels (``_cache.compile_kernels`` arguments) of each warming
+#: process, split so they take about as long (``_cache.COMPILE_SECONDS``);
+#: ``"sde"``: the SDE flow's kernel, compiled by a run of one small SDE
+PARTS = (({"batch": True}, {"batch": False, "watch": True}),
+         ({"batch": False, "delays": True}, {"batch": False, "method": "DOP853"}),
+         ("sde",))
+
+
+def warm(part):
+    """Compile (or load) the kernels of ``PARTS[part]`` into numba's disk cache."""
+    from hybridsim.compiled import _load_kernel
+    k = _load_kernel()
+    if k.cache_dir() is None:       # not cached (a refused folder): each worker compiles
+        return
+    for kw in PARTS[part]:
+        if kw == "sde":
+            import numpy as np
+
+            import hybridsim as hs
+            from hybridsim.compiled import CompiledSystem
+            ou = CompiledSystem(flow_map=lambda x, t, j, p: -x,
+                                diffusion=lambda x, t, j, p: np.full(1, 0.5), state_dim=1)
+            hs.simulate(ou, [1.0], t_max=0.1, method="EM", max_step=0.05, seed=0,
+                        backend="compiled")
+        else:
+            k.compile_kernels(**kw)
+
+
+if __name__ == "__main__":
+    warm(int(sys.argv[1]))
