@@ -60,7 +60,7 @@ def main(n=200_000):
     print(f"{'model':<18} {'map':<7} {'rewritten ns':>12} {'twin ns':>8} {'ratio':>6} "
           f"{'max |diff|':>10}")
     for name, system in cases:
-        maps, output, p = _from_source.component_maps(system)
+        maps, output, p, _ = _from_source.component_maps(system)
         twin = system.compiled_component()
         x = rng.standard_normal(system.state_dim)
         if system is hn:

@@ -62,7 +62,7 @@ import numpy as np
 
 from ._source_guards import _call, _OwnReturns, derived_guard, guard_refusal
 from ._source_read import SourceRefusal, _fn_of
-from ._source_rewrite import _MISSING, P, _inline_parts, _kind, _Rewrite, _slot_expr
+from ._source_rewrite import _MISSING, P, _inline_parts, _kind, _Rewrite, _slot_expr, one_state
 
 _LEADING = ("t", "j", "u")
 
@@ -271,6 +271,10 @@ class _Planner:
             defaults = node.args.defaults
         _inline_parts(fn, node)
         body = _Rewrite(self, fn)
+        if role is not None:            # one state on the compiled path: x (and u) are 1-D
+            state = [own[0]] + ([own[3]] if self.inputs and role != "output" and k >= 4
+                                else [])
+            body.vectors, body.fresh = one_state(node, state)
         body.reads_past = False
         self.stack.append(body)
         try:

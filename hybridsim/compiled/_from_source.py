@@ -276,6 +276,24 @@ def _helpers():
             out[i] += s
 
     @nj
+    def matvec_into(p, off, rows, cols, v, out, mode):
+        """``out = M @ v`` (``mode`` 0), ``out += M @ v`` (1) or ``out -= M @ v``
+        (-1), in place (M as in :func:`matvec`; each row's sum as matvec's)."""
+        if out.shape[0] != rows or v.shape[0] != cols:
+            raise ValueError("matmul: the shapes do not match")
+        for i in range(rows):
+            s = 0.0
+            b = off + i * cols
+            for k in range(cols):
+                s += p[b + k] * v[k]
+            if mode == 0:
+                out[i] = s
+            elif mode > 0:
+                out[i] += s
+            else:
+                out[i] -= s
+
+    @nj
     def put(out, a, b, v):
         """``out[a:b] = v`` as a loop (numba's slice assignment compiles the
         formatting of its shape error: seconds of the first compile)."""
@@ -305,8 +323,8 @@ def _helpers():
         raise ValueError("self.history(t - tau) is read at a tau that is not one of the "
                          "system's delays (self.delays)")
 
-    return {"matvec": matvec, "matvec_add": matvec_add, "put": put, "add_into": add_into,
-            "past": past}
+    return {"matvec": matvec, "matvec_add": matvec_add, "matvec_into": matvec_into,
+            "put": put, "add_into": add_into, "past": past}
 
 
 _SCALAR = []
@@ -394,7 +412,10 @@ def _scalar_fn():
 
         # M @ v with M (r, c) row-major in p from off: hybridsim.compiled.matvec
         # (v a vector), else the product of the matrix
-        h = _helpers()
+        # (the helpers and their loops inlined in the map: a call of a compiled
+        # function passing arrays costs more than a small product)
+        h = {k: _numba().njit(inline="always", error_model="numpy")(f.py_func)
+             for k, f in _helpers().items()}
         matvec, matvec_add = h["matvec"], h["matvec_add"]
 
         def _hs_pmv(p, off, r, c, v):
@@ -441,10 +462,54 @@ def _scalar_fn():
             def add(p, off, r, c, v, y):
                 y += _hs_matmul(p[off:off + r * c].reshape((r, c)), v)
             return add
+        # a sum of products written in place (``out[a:b] = M @ v + N @ w``): the first
+        # term set, the others added or subtracted, each row's sum as matvec's
+        into = h["matvec_into"]
+        fns = {}
+        for side, left in (("_hs_pmv", False), ("_hs_mpv", True)):
+            for mode, sign in (("_set", 0), ("_sub", -1)):
+                fns[side + mode] = _into(overload, nt, into, _hs_matmul, left, sign)
+
+        def _hs_where(c, a, b):
+            return np.where(c, a, b)
+
+        @overload(_hs_where)
+        def _typed_where(c, a, b):
+            if not any(isinstance(v, nt.Array) for v in (c, a, b)):
+                return lambda c, a, b: a if c else b
+            return lambda c, a, b: np.where(c, a, b)
         _SCALAR.append({"_hs_scalar": _hs_scalar, "_hs_matmul": _hs_matmul,
                         "_hs_pmv": _hs_pmv, "_hs_pmv_add": _hs_pmv_add,
-                        "_hs_mpv": _hs_mpv, "_hs_mpv_add": _hs_mpv_add})
+                        "_hs_mpv": _hs_mpv, "_hs_mpv_add": _hs_mpv_add,
+                        "_hs_where": _hs_where, **fns})
     return _SCALAR[0]
+
+
+def _into(overload, nt, into, matmul, left, sign):
+    """``f(p, off, r, c, v, out)``: ``out = M @ v`` (``left``; else ``v @ M.T``)
+    in place (``sign`` 0) or ``out -= ...`` (-1), M (r, c) row-major in ``p``
+    from ``off``; of a vector v and a 1-D out, the loops of matvec."""
+    def f(p, off, r, c, v, out):
+        pass
+
+    @overload(f)
+    def typed(p, off, r, c, v, out):
+        if isinstance(v, nt.Array) and v.ndim == 1 and isinstance(out, nt.Array) \
+                and out.ndim == 1:
+            return lambda p, off, r, c, v, out: into(p, off, r, c, v, out, sign)
+
+        def product(p, off, r, c, v):
+            M = p[off:off + r * c].reshape((r, c))
+            return matmul(M, v) if left else matmul(v, M.T)
+        if sign == 0:
+            def put(p, off, r, c, v, out):
+                out[:] = product(p, off, r, c, v)
+            return put
+
+        def sub(p, off, r, c, v, out):
+            out -= product(p, off, r, c, v)
+        return sub
+    return f
 
 
 def component_maps(system):
