@@ -165,6 +165,28 @@ def _chain_value(fn, e):
     return v
 
 
+class Read:
+    """Reads ``attr`` (and its item ``item``) of ``obj``, a part of the system at
+    ``path`` (attribute names from the system; None: not known). :meth:`on`
+    reads the same from another system of the same class (a plan made once
+    serves every instance)."""
+
+    def __init__(self, obj, attr, path, item=_MISSING, then=None):
+        self.obj, self.attr, self.path, self.item, self.then = obj, attr, path, item, then
+
+    def __call__(self):
+        v = getattr(self.obj, self.attr)
+        v = v if self.item is _MISSING else v[self.item]
+        return v if self.then is None else self.then(v)
+
+    def on(self, system):
+        """The same read on ``system`` (AttributeError where its part is missing)."""
+        o = system
+        for a in self.path:
+            o = getattr(o, a)
+        return Read(o, self.attr, self.path, self.item, self.then)
+
+
 class _Alias(ast.NodeTransformer):
     def __init__(self, names):
         self.names = names
@@ -415,10 +437,20 @@ class _Rewrite(ast.NodeTransformer):
             v = getattr(obj, a, _MISSING)
             if not _is_part(v):
                 return None
-            self.pl.layout.same(("part", id(obj), a), lambda o=obj, n=a: getattr(o, n), v)
+            self.pl.layout.same(("part", id(obj), a), self._reader(obj, a), v)
             self.pl.prefix.setdefault(id(v), f"{self.pl.prefix.get(id(obj), '')}{a}.")
+            path = self.pl.paths.get(id(obj))
+            self.pl.paths.setdefault(id(v), None if path is None else path + (a,))
             obj = v
         return obj, node.attr
+
+    def _reader(self, obj, attr, item=_MISSING):
+        """The :class:`Read` of ``obj.attr`` (``[item]``); a part not reached from the
+        system (no path) makes the plan the system's own (``pl.reusable``)."""
+        path = self.pl.paths.get(id(obj))
+        if path is None:
+            self.pl.reusable = False
+        return Read(obj, attr, path or (), item)
 
     def _name(self, obj, attr):
         """A slot's name: its path from the system (``design.F1``)."""
@@ -441,8 +473,7 @@ class _Rewrite(ast.NodeTransformer):
         k = key.value
         e = table[k]
 
-        def reader(o=obj, a=attr, k=k):
-            return getattr(o, a)[k]
+        reader = self._reader(obj, attr, k)
         name = f"{self._name(obj, attr)}[{k!r}]"
         if isinstance(e, slice) and all(b is None or isinstance(b, int)
                                         for b in (e.start, e.stop, e.step)):
@@ -622,8 +653,8 @@ class _Rewrite(ast.NodeTransformer):
                     v = getattr(obj, attr)
                 except AttributeError:
                     raise fn.refuse(a, f"{_dotted(a)} does not exist") from None
-                self.pl.layout.require(("none", id(obj), attr),
-                                       lambda o=obj, n=attr: getattr(o, n), v is None)
+                self.pl.layout.require(("none", id(obj), attr), self._reader(obj, attr),
+                                       v is None)
                 known = (v is None) == isinstance(node.ops[0], ast.Is)
                 return ast.copy_location(ast.Constant(known), node)
         node = self.generic_visit(node)
@@ -674,7 +705,7 @@ class _Rewrite(ast.NodeTransformer):
             return None
         self.visit(e)                           # its slot (and checks)
         return self.pl.layout.add(("self", id(obj), attr), self._name(obj, attr), v,
-                                  lambda o=obj, a=attr: getattr(o, a))
+                                  self._reader(obj, attr))
 
     def _product(self, node):
         """A product with a matrix of ``self`` as ``(slot, v, side)``: ``v @
@@ -729,15 +760,14 @@ class _Rewrite(ast.NodeTransformer):
         except AttributeError:
             raise fn.refuse(node, f"{name} does not exist") from None
         if isinstance(v, (bool, np.bool_, str)) or _is_int(v):   # a flag, a choice, a size
-            self.pl.layout.fold(("self", id(obj), attr), lambda o=obj, a=attr: getattr(o, a),
-                                v)
+            self.pl.layout.fold(("self", id(obj), attr), self._reader(obj, attr), v)
             c = v if isinstance(v, str) else int(v) if _is_int(v) else bool(v)
             return ast.copy_location(ast.Constant(c), node)
         if _kind(v) is None:
             raise fn.refuse(node, f"it reads {name}, a {type(v).__name__} (not a number "
                                   f"or an array of numbers): numba cannot type it")
         slot = self.pl.layout.add(("self", id(obj), attr), self._name(obj, attr), v,
-                                  lambda o=obj, a=attr: getattr(o, a))
+                                  self._reader(obj, attr))
         return _slot_expr(slot, node)
 
     def _module_name(self, m, node):
@@ -836,6 +866,7 @@ class _Rewrite(ast.NodeTransformer):
                 raise fn.refuse(f, f"{_dotted(f)} is bound to another object")
             return self.pl.follow(Fn(bound.__func__, obj, f"{type(obj).__name__}.{f.attr}"))
         if isinstance(bound, types.FunctionType):      # a function stored on the instance
+            self.pl.reusable = False
             return self.pl.follow(Fn(bound, None, f"{type(obj).__name__}.{f.attr}"))
         raise fn.refuse(f, f"it calls {_dotted(f)}, a {type(bound).__name__} that cannot "
                            f"be followed")
@@ -874,7 +905,8 @@ def _past_call(rw, node):
         raise fn.refuse(node, "self.history is read at t - tau only (t the map's time, tau "
                               "one of self.delays)")
     slot = pl.layout.add(("delays", id(system)), "delays", np.asarray(delays, dtype=float),
-                         lambda s=system: np.asarray(tuple(s.delays), dtype=float))
+                         Read(system, "delays", (), then=lambda d: np.asarray(tuple(d),
+                                                                              dtype=float)))
     pl.reads_past = rw.reads_past = True
     n = int(system.state_dim)
     return _call("_hs_past", [ast.Name(id=P, ctx=ast.Load()), rw.visit(arg.right),
