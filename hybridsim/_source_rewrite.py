@@ -823,6 +823,15 @@ class _Rewrite(ast.NodeTransformer):
         args = [self.visit(a) for a in node.args]
         kws = [ast.keyword(arg=k.arg, value=self._dtype(k.value) if k.arg == "dtype"
                            else self.visit(k.value)) for k in node.keywords]
+        if isinstance(f, ast.Attribute) and f.attr in ("swapaxes", "reshape") and args \
+                and not kws and self._module_of(f.value) is None:
+            # v.swapaxes(a, b) as np.swapaxes (numba has no method); v.reshape(shape) of
+            # any layout (numba reshapes C-contiguous arrays only; numpy copies the others)
+            v = self.visit(f.value)
+            if f.attr == "swapaxes":
+                return _call("_hs_m_numpy.swapaxes", [v, *args], node)
+            shape = args[0] if len(args) == 1 else ast.Tuple(elts=args, ctx=ast.Load())
+            return _call("_hs_reshape", [v, shape], node)
         if isinstance(f, ast.Attribute) and f.attr == "where" and len(args) == 3 \
                 and not kws and getattr(self._module_of(f.value), "__name__", "") == "numpy":
             return _call("_hs_where", args, node)      # of numbers: a if c else b

@@ -470,6 +470,15 @@ def _scalar_fn():
             for mode, sign in (("_set", 0), ("_sub", -1)):
                 fns[side + mode] = _into(overload, nt, into, _hs_matmul, left, sign)
 
+        def _hs_reshape(v, shape):
+            return v.reshape(shape)
+
+        @overload(_hs_reshape)
+        def _typed_reshape(v, shape):
+            if isinstance(v, nt.Array) and v.layout != "C":
+                return lambda v, shape: np.ascontiguousarray(v).reshape(shape)
+            return lambda v, shape: v.reshape(shape)
+
         def _hs_where(c, a, b):
             return np.where(c, a, b)
 
@@ -481,7 +490,7 @@ def _scalar_fn():
         _SCALAR.append({"_hs_scalar": _hs_scalar, "_hs_matmul": _hs_matmul,
                         "_hs_pmv": _hs_pmv, "_hs_pmv_add": _hs_pmv_add,
                         "_hs_mpv": _hs_mpv, "_hs_mpv_add": _hs_mpv_add,
-                        "_hs_where": _hs_where, **fns})
+                        "_hs_where": _hs_where, "_hs_reshape": _hs_reshape, **fns})
     return _SCALAR[0]
 
 
