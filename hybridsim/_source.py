@@ -64,8 +64,16 @@ import numpy as np
 
 from ._source_guards import _call, _OwnReturns, derived_guard, guard_refusal
 from ._source_read import SourceRefusal, _fn_of
-from ._source_rewrite import (_MISSING, P, Read, _inline_parts, _kind, _Rewrite,
-                              _slot_expr, one_state)
+from ._source_rewrite import (
+    _MISSING,
+    P,
+    Read,
+    _inline_parts,
+    _kind,
+    _Rewrite,
+    _slot_expr,
+    one_state,
+)
 
 _LEADING = ("t", "j", "u")
 

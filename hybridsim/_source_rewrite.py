@@ -301,7 +301,7 @@ def vector_names(node, names):
             break
         vecs = keep
     fresh = {v for v in vecs if v not in names and stores.get(v) and all(
-        isinstance(e, ast.Name) and e.id == v or _vector_expr(e, vecs, fresh=True)
+        (isinstance(e, ast.Name) and e.id == v) or _vector_expr(e, vecs, fresh=True)
         for e in stores[v])}
     return vecs, fresh
 

@@ -271,8 +271,10 @@ class _NoiseCompensating(_TwoCopyObserver):
                 "(18) amplifies integration and modelling errors by this factor",
                 RuntimeWarning, stacklevel=2)
 
-    # Kept for H_c and H_pc (H_n runs its maps as written): numba cannot compile their
-    # batch maps for one state (Xi_matrix's swapaxes and the reshape of its transpose).
+    # Kept for H_c and H_pc (H_n runs its maps as written): their maps compile as written
+    # (numbers to 1e-15), but Xi_matrix's matrix products and the reshape of their
+    # transpose cost 31x this flow a call (5.4 us against 0.17; the jump 1.1x);
+    # benchmarks/bench_rewrite_vs_twin.py.
     def compiled_component(self):
         """The observer's compiled form (``backend="compiled"``, see
         :func:`hybridsim.compiled.lower`): the same (17)-(18) with the
@@ -543,8 +545,8 @@ class BoundedNoiseGenerator(hs.HybridSystem):
     def flow_map(self, x, t, j, u):
         return np.zeros(np.shape(x))
 
-    # Kept: the rewritten output (as written) costs about 4x this one a call
-    # (benchmarks/bench_rewrite_vs_twin.py).
+    # Kept: the rewritten output (as written, its (p, K) arrays of sines) costs 4.0x
+    # this one a call (benchmarks/bench_rewrite_vs_twin.py).
     def compiled_component(self):
         """The generator's compiled form (``backend="compiled"``)."""
         from hybridsim.compiled import Component
