@@ -723,9 +723,28 @@ class _Rewrite(ast.NodeTransformer):
 
     def _pmv(self, slot, v, side, like, *extra):
         _, _, (r, c), off, _ = slot
-        args = [ast.Name(id=P, ctx=ast.Load()), ast.Constant(off), ast.Constant(r),
-                ast.Constant(c), self.visit(v), *extra]
-        return _call(side + ("_add" if extra else ""), args, like)
+        head = [ast.Name(id=P, ctx=ast.Load()), ast.Constant(off), ast.Constant(r),
+                ast.Constant(c)]
+        pieces = None if extra else self._concatenated(v)
+        if pieces is not None:          # M @ np.concatenate((a, b)): read from the pieces
+            return _call(side + "_cat", head + [pieces[0], pieces[1]], like)
+        return _call(side + ("_add" if extra else ""), head + [self.visit(v), *extra], like)
+
+    def _concatenated(self, v):
+        """``(pieces, axis)`` of ``np.concatenate((a, b, ...), axis=-1)`` (visited;
+        axis -1 where not given), or None."""
+        if not (isinstance(v, ast.Call) and isinstance(v.func, ast.Attribute)
+                and v.func.attr == "concatenate" and len(v.args) == 1
+                and isinstance(v.args[0], (ast.Tuple, ast.List))
+                and getattr(self._module_of(v.func.value), "__name__", "") == "numpy"):
+            return None
+        axis = ast.Constant(-1)
+        for k in v.keywords:
+            if k.arg != "axis" or not isinstance(k.value, (ast.Constant, ast.UnaryOp)):
+                return None
+            axis = self.visit(k.value)
+        return (ast.Tuple(elts=[self.visit(e) for e in v.args[0].elts], ctx=ast.Load()),
+                axis)
 
     def visit_BinOp(self, node):
         if isinstance(node.op, ast.MatMult):     # small products as loops, in index order

@@ -153,9 +153,11 @@ def _helpers_text():
     holds them inlined: a changed helper must name a new module)."""
     import inspect
     try:
-        return inspect.getsource(_scalar_fn) + inspect.getsource(_helpers)
+        return "".join(inspect.getsource(f) for f in (_scalar_fn, _helpers, _into,
+                                                       _matvec_cat))
     except OSError:                 # no source shipped: the bytecode
-        return repr([getattr(f, "__wrapped__", f).__code__.co_code for f in (_scalar_fn, _helpers)])
+        return repr([getattr(f, "__wrapped__", f).__code__.co_code
+                     for f in (_scalar_fn, _helpers, _into, _matvec_cat)])
 
 
 def _digest(plan):
@@ -470,6 +472,30 @@ def _scalar_fn():
             for mode, sign in (("_set", 0), ("_sub", -1)):
                 fns[side + mode] = _into(overload, nt, into, _hs_matmul, left, sign)
 
+        # M @ np.concatenate(pieces): of 1-D pieces, matvec's sums read from the pieces
+        # (no concatenated array); else the product of the concatenation
+        def _hs_pmv_cat(p, off, r, c, pieces, axis):
+            return _hs_pmv(p, off, r, c, np.concatenate(pieces, axis=axis))
+
+        def _cat_typed(p, off, r, c, pieces, axis):
+            if isinstance(pieces, nt.UniTuple) and isinstance(pieces.dtype, nt.Array) \
+                    and pieces.dtype.ndim == 1:
+                return _matvec_cat
+            return lambda p, off, r, c, pieces, axis: _hs_pmv(
+                p, off, r, c, np.concatenate(pieces, axis=axis))
+        overload(_hs_pmv_cat)(_cat_typed)
+
+        def _hs_mpv_cat(p, off, r, c, pieces, axis):
+            return _hs_mpv(p, off, r, c, np.concatenate(pieces, axis=axis))
+
+        def _cat_typed_m(p, off, r, c, pieces, axis):
+            if isinstance(pieces, nt.UniTuple) and isinstance(pieces.dtype, nt.Array) \
+                    and pieces.dtype.ndim == 1:
+                return _matvec_cat
+            return lambda p, off, r, c, pieces, axis: _hs_mpv(
+                p, off, r, c, np.concatenate(pieces, axis=axis))
+        overload(_hs_mpv_cat)(_cat_typed_m)
+
         def _hs_reshape(v, shape):
             return v.reshape(shape)
 
@@ -490,8 +516,29 @@ def _scalar_fn():
         _SCALAR.append({"_hs_scalar": _hs_scalar, "_hs_matmul": _hs_matmul,
                         "_hs_pmv": _hs_pmv, "_hs_pmv_add": _hs_pmv_add,
                         "_hs_mpv": _hs_mpv, "_hs_mpv_add": _hs_mpv_add,
-                        "_hs_where": _hs_where, "_hs_reshape": _hs_reshape, **fns})
+                        "_hs_where": _hs_where, "_hs_reshape": _hs_reshape,
+                        "_hs_pmv_cat": _hs_pmv_cat, "_hs_mpv_cat": _hs_mpv_cat, **fns})
     return _SCALAR[0]
+
+
+def _matvec_cat(p, off, r, c, pieces, axis):
+    """``M @ np.concatenate(pieces)`` of 1-D pieces, M (r, c) row-major in ``p``
+    from ``off``: each row's sum over the pieces in order (matvec's sums)."""
+    n = 0
+    for a in pieces:
+        n += a.shape[0]
+    if n != c:
+        raise ValueError("matmul: the shapes do not match")
+    out = np.empty(r)
+    for i in range(r):
+        s = 0.0
+        b = off + i * c
+        for a in pieces:
+            for q in range(a.shape[0]):
+                s += p[b] * a[q]
+                b += 1
+        out[i] = s
+    return out
 
 
 def _into(overload, nt, into, matmul, left, sign):

@@ -479,6 +479,7 @@ class TwoCopies(hs.HybridSystem):
         self.state_dim = 2 * n + 1
         self.F = -scale * (np.eye(n) + np.triu(np.ones((n, n)), 1))
         self.G = scale * np.arange(n * n, dtype=float).reshape(n, n) / n ** 2
+        self.W = np.linspace(-1.0, 1.0, 2 * n).reshape(1, 2 * n)
 
     def flow_map(self, x, t, j):
         n = self.n
@@ -489,18 +490,22 @@ class TwoCopies(hs.HybridSystem):
         M = x[..., :n].reshape((1, n)).swapaxes(-1, -2)        # (n, 1): a transpose
         dx[..., n:2 * n] += M.reshape(n)
         dx[..., 2 * n] = np.where(x[..., 2 * n] > 0.0, -1.0, 1.0)
+        w = np.concatenate((x[..., :n], x[..., n:2 * n]), axis=-1) @ self.W.T
+        dx[..., 2 * n] += np.sum(w)                 # one state: W's one row
         return dx
 
 
 @pytest.mark.slow
 def test_the_observers_patterns_compile_to_loops_with_numpys_numbers():
     """Products with matrices of ``self`` summed into slices of a new array are
-    loops in the map (no product helper is called), ``x[..., k]`` is ``x[k]``,
-    ints are constants; the numbers are numpy's (the same sums, in the same order)."""
+    loops in the map (no product helper is called), one of a concatenation
+    reads the pieces, ``x[..., k]`` is ``x[k]``, ints are constants; the
+    numbers are numpy's (the same sums, in the same order)."""
     from hybridsim import _source
     s = TwoCopies(3)
     src = _source.plan(s).source
-    assert "_hs_pmv" not in src and "_hs_mpv" not in src and "..." not in src
+    assert "_hs_pmv(" not in src and "_hs_mpv" not in src and "..." not in src
+    assert "_hs_pmv_cat(" in src and "concatenate" not in src
     assert "for _hs_i in range(3)" in src
     x = np.array([0.3, -1.0, 2.0, 0.5, 0.25, -0.75, 1.0])
     np.testing.assert_allclose(lower(s).flow_map(x, 0.0, 0), s.flow_map(x, 0.0, 0), rtol=1e-14)
