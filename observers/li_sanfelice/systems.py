@@ -273,7 +273,7 @@ class _NoiseCompensating(_TwoCopyObserver):
 
     # Kept for H_c and H_pc (H_n runs its maps as written): their maps compile as written
     # (numbers to 1e-15), but Xi_matrix's matrix products and the reshape of their
-    # transpose cost 31x this flow a call (5.4 us against 0.17; the jump 1.1x);
+    # transpose cost 27-31x this flow a call (1.46 us against 0.054; the jump 1.1x);
     # benchmarks/bench_rewrite_vs_twin.py.
     def compiled_component(self):
         """The observer's compiled form (``backend="compiled"``, see
@@ -545,7 +545,7 @@ class BoundedNoiseGenerator(hs.HybridSystem):
     def flow_map(self, x, t, j, u):
         return np.zeros(np.shape(x))
 
-    # Kept: the rewritten output (as written, its (p, K) arrays of sines) costs 4.0x
+    # Kept: the rewritten output (as written, its (p, K) arrays of sines) costs 4-5x
     # this one a call (benchmarks/bench_rewrite_vs_twin.py).
     def compiled_component(self):
         """The generator's compiled form (``backend="compiled"``)."""
