@@ -26,8 +26,9 @@ function's own node in its file, so every message names the file and line):
   calls of plain functions are followed (rewritten the same way), modules
   are imported by name. Parts of the system are read through: ``self.design.F1``,
   ``d = self.design`` then ``d.F1``, ``self.data.flow(...)`` (a method of a
-  part, followed); another object in its place rewrites the maps. A bool or
-  str attribute is a constant of the rewrite (``self.mode == "pwc"`` decides
+  part, followed); another object in its place rewrites the maps. A bool,
+  int or str attribute (or int global) is a constant of the rewrite (a size,
+  an index; ``self.mode == "pwc"`` decides
   its branch, the other is dropped), and ``self.slices["x"]`` (a dict read by
   a constant key) its value (a slice as ``a:b``); a change rewrites the maps.
   ``self.a is None`` (``is not None``) is known when
@@ -37,6 +38,14 @@ function's own node in its file, so every message names the file and line):
   one with a matrix the map reads from ``self`` (``self.M @ v``, ``v @
   self.M.T``, ``y += v @ self.M.T``) reads it in place from ``p``
   (:func:`hybridsim.compiled.matvec`; ``self.M @ X`` of a matrix X is M X).
+  On one state (the compiled path), ``x[..., k]`` of the map's state or
+  input (and of the arrays made from them) is ``x[k]``; a sum of such
+  products of one-state vectors assigned to a slice of a new array
+  (``dx[..., :n] = x[..., :n] @ self.F.T + u @ self.L.T``) is loops in the
+  map writing into it (the same sums, no array a term), one of
+  ``np.concatenate((a, b))`` reads the pieces; ``np.where`` of numbers is
+  an if/else, ``v.swapaxes``, and ``v.reshape`` of any layout, numpy's. A
+  plan made once serves every instance of its class (:meth:`Layout.on`).
   For a part of an interconnection (``plan(system, component=True)``) the
   maps take ``(x, u, t, j, p)``
   and its output ``(x, t, j, p)``. What cannot be rewritten is refused by a
@@ -117,7 +126,7 @@ class Layout:
         self.slots, self.readers, self.size, self._index = [], [], 0, {}
         self.checks = {}            # key -> (reader, whether the value was None)
         self.parts = {}             # key -> (reader, the part of the system followed)
-        self.folded = {}            # key -> (reader, the bool or str written as a constant)
+        self.folded = {}            # key -> (reader, the bool, int or str written as a constant)
 
     def require(self, key, reader, is_none):
         """Record that the rewrite folded ``reader() is None`` to ``is_none``
@@ -131,7 +140,7 @@ class Layout:
         self.parts.setdefault(key, (reader, obj))
 
     def fold(self, key, reader, value):
-        """Record that the rewrite wrote ``reader()`` (a bool or a str) as the
+        """Record that the rewrite wrote ``reader()`` (a bool, an int or a str) as the
         constant ``value``: :meth:`read` asks for a rewrite where it changes."""
         self.folded.setdefault(key, (reader, value))
 
