@@ -26,8 +26,9 @@ function's own node in its file, so every message names the file and line):
   calls of plain functions are followed (rewritten the same way), modules
   are imported by name. Parts of the system are read through: ``self.design.F1``,
   ``d = self.design`` then ``d.F1``, ``self.data.flow(...)`` (a method of a
-  part, followed); another object in its place rewrites the maps. A bool or
-  str attribute is a constant of the rewrite (``self.mode == "pwc"`` decides
+  part, followed); another object in its place rewrites the maps. A bool,
+  int or str attribute (or int global) is a constant of the rewrite (a size,
+  an index; ``self.mode == "pwc"`` decides
   its branch, the other is dropped), and ``self.slices["x"]`` (a dict read by
   a constant key) its value (a slice as ``a:b``); a change rewrites the maps.
   ``self.a is None`` (``is not None``) is known when
@@ -37,6 +38,14 @@ function's own node in its file, so every message names the file and line):
   one with a matrix the map reads from ``self`` (``self.M @ v``, ``v @
   self.M.T``, ``y += v @ self.M.T``) reads it in place from ``p``
   (:func:`hybridsim.compiled.matvec`; ``self.M @ X`` of a matrix X is M X).
+  On one state (the compiled path), ``x[..., k]`` of the map's state or
+  input (and of the arrays made from them) is ``x[k]``; a sum of such
+  products of one-state vectors assigned to a slice of a new array
+  (``dx[..., :n] = x[..., :n] @ self.F.T + u @ self.L.T``) is loops in the
+  map writing into it (the same sums, no array a term), one of
+  ``np.concatenate((a, b))`` reads the pieces; ``np.where`` of numbers is
+  an if/else, ``v.swapaxes``, and ``v.reshape`` of any layout, numpy's. A
+  plan made once serves every instance of its class (:meth:`Layout.on`).
   For a part of an interconnection (``plan(system, component=True)``) the
   maps take ``(x, u, t, j, p)``
   and its output ``(x, t, j, p)``. What cannot be rewritten is refused by a
@@ -56,13 +65,24 @@ from __future__ import annotations
 
 import ast
 import copy
+import functools
 import inspect
+import types
 
 import numpy as np
 
 from ._source_guards import _call, _OwnReturns, derived_guard, guard_refusal
 from ._source_read import SourceRefusal, _fn_of
-from ._source_rewrite import _MISSING, P, _inline_parts, _kind, _Rewrite, _slot_expr
+from ._source_rewrite import (
+    _MISSING,
+    P,
+    Read,
+    _inline_parts,
+    _kind,
+    _Rewrite,
+    _slot_expr,
+    one_state,
+)
 
 _LEADING = ("t", "j", "u")
 
@@ -106,7 +126,7 @@ class Layout:
         self.slots, self.readers, self.size, self._index = [], [], 0, {}
         self.checks = {}            # key -> (reader, whether the value was None)
         self.parts = {}             # key -> (reader, the part of the system followed)
-        self.folded = {}            # key -> (reader, the bool or str written as a constant)
+        self.folded = {}            # key -> (reader, the bool, int or str written as a constant)
 
     def require(self, key, reader, is_none):
         """Record that the rewrite folded ``reader() is None`` to ``is_none``
@@ -120,7 +140,7 @@ class Layout:
         self.parts.setdefault(key, (reader, obj))
 
     def fold(self, key, reader, value):
-        """Record that the rewrite wrote ``reader()`` (a bool or a str) as the
+        """Record that the rewrite wrote ``reader()`` (a bool, an int or a str) as the
         constant ``value``: :meth:`read` asks for a rewrite where it changes."""
         self.folded.setdefault(key, (reader, value))
 
@@ -174,6 +194,28 @@ class Layout:
         """``{name: (offset, shape)}`` (for reading ``p`` by name)."""
         return {s[0]: (s[3], s[2]) for s in self.slots}
 
+    def on(self, system):
+        """This layout read from ``system``, another instance of the class it was
+        made for (every :class:`Read` of the system's parts read from its parts),
+        or None where a part is missing or of another class."""
+        def on(rd):
+            return rd.on(system) if isinstance(rd, Read) else rd
+        new = Layout()
+        new.slots, new.size, new._index = list(self.slots), self.size, dict(self._index)
+        try:
+            new.readers = [on(rd) for rd in self.readers]
+            new.checks = {k: (on(rd), v) for k, (rd, v) in self.checks.items()}
+            new.folded = {k: (on(rd), v) for k, (rd, v) in self.folded.items()}
+            for k, (rd, obj) in self.parts.items():
+                rd = on(rd)
+                part = rd()
+                if type(part) is not type(obj):
+                    return None
+                new.parts[k] = (rd, part)
+        except Exception:  # noqa: BLE001 - a part missing on this instance: its own plan
+            return None
+        return new
+
 def _default_reader(func, params, name):
     """Reads the current default of parameter ``name`` of ``func``."""
     i = params.index(name)
@@ -212,6 +254,9 @@ class _Planner:
         # generated functions that read it, the rewrites under way
         self.system, self.root, self.reads_past = None, None, False
         self.past_fns, self.stack = set(), []
+        # id(part of the system) -> its attribute path from the system; whether the
+        # plan serves every instance of the class (each read a path from the system)
+        self.paths, self.reusable = {}, True
 
     def module(self, m):
         name = self.modules.get(m.__name__)
@@ -271,6 +316,10 @@ class _Planner:
             defaults = node.args.defaults
         _inline_parts(fn, node)
         body = _Rewrite(self, fn)
+        if role is not None:            # one state on the compiled path: x (and u) are 1-D
+            state = [own[0]] + ([own[3]] if self.inputs and role != "output" and k >= 4
+                                else [])
+            body.vectors, body.fresh = one_state(node, state)
         body.reads_past = False
         self.stack.append(body)
         try:
@@ -330,14 +379,59 @@ ROLES = (("flow_map", "flow"), ("jump_map", "jump"), ("jump_guard", "jump_guard"
 NOISE_ROLES = (("diffusion", "diffusion"), ("jump_rate", "jump_rate"))
 
 
+#: (class, what else a plan depends on) -> the last plan made for an instance of it
+_BY_CLASS = {}
+
+
+def _class_key(system, component):
+    """What a plan depends on besides the values its layout reads (the class,
+    sizes, delays, which maps are given), or None where the system holds
+    functions of its own (its plan is its own)."""
+    d = getattr(system, "__dict__", None)
+    if d is None or any(isinstance(v, (types.FunctionType, types.MethodType,
+                                       functools.partial)) for v in d.values()):
+        return None
+    try:
+        given = tuple(getattr(system, a, None) is None for a in
+                      ("jump_guard", "flow_guard", "diffusion", "jump_rate", "watch"))
+        return (type(system), bool(component), int(system.state_dim), system.input_dim,
+                bool(system.needs_history), tuple(system.delays or ()), given)
+    except Exception:  # noqa: BLE001 - unhashable or missing: no shared plan
+        return None
+
+
 def plan(system, component=False):
     """The :class:`Plan` of ``system``'s maps as functions of ``(x, t, j, p)``
     (``component``: of ``(x, u, t, j, p)``, and its output of ``(x, t, j,
     p)``, for a part of an interconnection); a :class:`SourceRefusal` naming
-    the method and line otherwise."""
+    the method and line otherwise.
+
+    Another instance of a class planned before takes that plan, its layout
+    read from its own parts (:meth:`Layout.on`), where every value keeps its
+    kind and shape and every constant of the rewrite its value (else its own
+    plan is made): a batch of new systems rewrites nothing."""
+    key = _class_key(system, component)
+    hit = _BY_CLASS.get(key) if key is not None else None
+    if hit is not None:
+        layout = hit.layout.on(system)
+        if layout is not None and layout.read() is not None:
+            out = Plan(hit.source, hit.roles, layout, hit.dispatchers, hit.lines,
+                       hit.qualnames)
+            out.reads_past = hit.reads_past
+            return out
+    out = _plan(system, component)
+    if key is not None and out.reusable:
+        if len(_BY_CLASS) > 256:
+            _BY_CLASS.clear()
+        _BY_CLASS[key] = out
+    return out
+
+
+def _plan(system, component):
     pl = _Planner()
     pl.inputs = bool(component)
     pl.system = system
+    pl.paths[id(system)] = ()
     roles = {}
     cls = type(system).__name__
     todo = ROLES + ((("output", "output"),) if component and system._overrides("output")
@@ -364,6 +458,7 @@ def plan(system, component=False):
         raise SourceRefusal(f"{cls}.flow_map", "-", "the system defines no flow_map")
     out = _assemble(pl, roles, f"the maps of {cls}, rewritten as functions of (x, t, j, p)")
     out.reads_past = pl.reads_past         # its flow reads x(t - tau_i): delays on the kernel
+    out.reusable = pl.reusable
     return out
 
 

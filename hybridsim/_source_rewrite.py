@@ -46,6 +46,12 @@ def _kind(v):
         return ("farray", (len(v),))
     return None
 
+def _is_int(v):
+    """Whether ``v`` is an int (not a bool): a constant of the rewrite (a size,
+    an index), as a bool or a str is."""
+    return isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_))
+
+
 def _slot_expr(slot, like):
     _, kind, shape, off, size = slot
     pv = ast.Name(id=P, ctx=ast.Load())
@@ -68,6 +74,14 @@ def _slot_expr(slot, like):
                              args=[ast.Name(id="_hs_m_numpy.int64", ctx=ast.Load())],
                              keywords=[])
     return ast.fix_missing_locations(ast.copy_location(e, like))
+
+
+def _located(st, like):
+    """``st`` and every node under it at ``like``'s line (generated statements)."""
+    for n in ast.walk(st):
+        if "lineno" in n._attributes:
+            ast.copy_location(n, like)
+    return st
 
 
 def _locals(node):
@@ -151,6 +165,28 @@ def _chain_value(fn, e):
     return v
 
 
+class Read:
+    """Reads ``attr`` (and its item ``item``) of ``obj``, a part of the system at
+    ``path`` (attribute names from the system; None: not known). :meth:`on`
+    reads the same from another system of the same class (a plan made once
+    serves every instance)."""
+
+    def __init__(self, obj, attr, path, item=_MISSING, then=None):
+        self.obj, self.attr, self.path, self.item, self.then = obj, attr, path, item, then
+
+    def __call__(self):
+        v = getattr(self.obj, self.attr)
+        v = v if self.item is _MISSING else v[self.item]
+        return v if self.then is None else self.then(v)
+
+    def on(self, system):
+        """The same read on ``system`` (AttributeError where its part is missing)."""
+        o = system
+        for a in self.path:
+            o = getattr(o, a)
+        return Read(o, self.attr, self.path, self.item, self.then)
+
+
 class _Alias(ast.NodeTransformer):
     def __init__(self, names):
         self.names = names
@@ -199,6 +235,105 @@ def _inline_parts(fn, node):
         node.body = [_Alias(names).visit(st) for st in body]
 
 
+# ------------------------------------------------------------------ one state: 1-D arrays
+#: calls that give a new array of the shape of their first argument (or of the shape given)
+_FRESH_OF = ("zeros_like", "empty_like", "ones_like", "array", "copy")
+_FRESH_SHAPED = ("zeros", "empty", "ones")
+
+
+def _vector_expr(e, vecs, fresh=False):
+    """Whether ``e`` is a one-state array (1-D) given the 1-D names ``vecs``:
+    such a name, ``np.asarray(v, ...)``, ``np.zeros(v.shape)`` (``np.shape(v)``,
+    ``empty``, ``ones``), ``np.zeros_like(v)``, ``np.array(v)``, ``v.copy()``;
+    ``fresh``: only those that are a new array (not ``v`` or ``np.asarray(v)``)."""
+    if isinstance(e, ast.Name):
+        return not fresh and e.id in vecs
+    if not (isinstance(e, ast.Call) and isinstance(e.func, ast.Attribute)):
+        return False
+    f, args = e.func, e.args
+    if f.attr == "copy" and not args and not e.keywords:
+        return _vector_expr(f.value, vecs)
+    if not (isinstance(f.value, ast.Name) and args):
+        return False
+    a = args[0]
+    if f.attr in _FRESH_SHAPED:
+        if isinstance(a, ast.Attribute) and a.attr == "shape":
+            return _vector_expr(a.value, vecs)
+        return (isinstance(a, ast.Call) and isinstance(a.func, ast.Attribute)
+                and a.func.attr == "shape" and len(a.args) == 1
+                and _vector_expr(a.args[0], vecs))
+    if f.attr in _FRESH_OF or (f.attr in ("asarray", "ascontiguousarray") and not fresh):
+        if f.attr == "array" and any(k.arg == "copy" for k in e.keywords):
+            return False
+        return _vector_expr(a, vecs)
+    return False
+
+
+def _stores(node):
+    """``{name: [value or None]}``: what each name of ``node`` is assigned (None:
+    a store that is not ``name = value`` or ``name op= value``)."""
+    direct = {}
+    for n in ast.walk(node):
+        if isinstance(n, ast.Assign):
+            for t in n.targets:
+                if isinstance(t, ast.Name):
+                    direct[id(t)] = n.value
+        elif isinstance(n, ast.AugAssign) and isinstance(n.target, ast.Name):
+            direct[id(n.target)] = n.target           # v op= w keeps v's shape
+    out = {}
+    for n in ast.walk(node):
+        if isinstance(n, ast.Name) and isinstance(n.ctx, (ast.Store, ast.Del)):
+            out.setdefault(n.id, []).append(direct.get(id(n)))
+    return out
+
+
+def vector_names(node, names):
+    """The names of ``node`` that hold one state (1-D) on the compiled path:
+    ``names`` (its x and u) and the locals only ever assigned a one-state
+    array of them (:func:`_vector_expr`); and those of them only ever
+    assigned a new array (their writes alias nothing the map reads)."""
+    stores = _stores(node)
+    vecs = set(names) | {k for k, vs in stores.items() if vs and None not in vs}
+    while True:
+        keep = {v for v in vecs if all(e is not None and _vector_expr(e, vecs)
+                                       for e in stores.get(v, ()))}
+        if keep == vecs:
+            break
+        vecs = keep
+    fresh = {v for v in vecs if v not in names and stores.get(v) and all(
+        (isinstance(e, ast.Name) and e.id == v) or _vector_expr(e, vecs, fresh=True)
+        for e in stores[v])}
+    return vecs, fresh
+
+
+class _OneState(ast.NodeTransformer):
+    """``v[..., k]`` of a one-state array ``v`` read as ``v[k]`` (a number where k
+    is one: no 0-d array)."""
+
+    def __init__(self, vecs):
+        self.vecs = vecs
+
+    def visit_Subscript(self, node):
+        node = self.generic_visit(node)
+        sl = node.slice
+        if isinstance(node.value, ast.Name) and node.value.id in self.vecs \
+                and isinstance(sl, ast.Tuple) and len(sl.elts) == 2 \
+                and isinstance(sl.elts[0], ast.Constant) and sl.elts[0].value is Ellipsis:
+            k = sl.elts[1]
+            if not (isinstance(k, ast.Constant) and k.value in (None, Ellipsis)):
+                node.slice = k
+        return node
+
+
+def one_state(node, names):
+    """``node`` (a map's FunctionDef on the compiled path, its state and input
+    ``names``) with ``v[..., k]`` read as ``v[k]`` for its one-state arrays;
+    their names and the fresh ones among them (:func:`vector_names`)."""
+    vecs, fresh = vector_names(node, names)
+    node.body = [_OneState(vecs).visit(st) for st in node.body]
+    return vecs, fresh
+
+
 _COMPARE = {ast.Eq: lambda a, b: a == b, ast.NotEq: lambda a, b: a != b,
             ast.In: lambda a, b: a in b, ast.NotIn: lambda a, b: a not in b}
 
@@ -234,6 +369,8 @@ class _Rewrite(ast.NodeTransformer):
 
     def __init__(self, planner, fn):
         self.pl, self.fn = planner, fn
+        self.vectors, self.fresh = set(), set()     # one-state arrays (a map's x, u, dx)
+        self._tmp = -1                              # generated names _hs_o0, _hs_v0_0, ...
         self.locals = _locals(fn.node)
         for v in self.locals:
             if v.startswith(_RESERVED):
@@ -300,10 +437,20 @@ class _Rewrite(ast.NodeTransformer):
             v = getattr(obj, a, _MISSING)
             if not _is_part(v):
                 return None
-            self.pl.layout.same(("part", id(obj), a), lambda o=obj, n=a: getattr(o, n), v)
+            self.pl.layout.same(("part", id(obj), a), self._reader(obj, a), v)
             self.pl.prefix.setdefault(id(v), f"{self.pl.prefix.get(id(obj), '')}{a}.")
+            path = self.pl.paths.get(id(obj))
+            self.pl.paths.setdefault(id(v), None if path is None else path + (a,))
             obj = v
         return obj, node.attr
+
+    def _reader(self, obj, attr, item=_MISSING):
+        """The :class:`Read` of ``obj.attr`` (``[item]``); a part not reached from the
+        system (no path) makes the plan the system's own (``pl.reusable``)."""
+        path = self.pl.paths.get(id(obj))
+        if path is None:
+            self.pl.reusable = False
+        return Read(obj, attr, path or (), item)
 
     def _name(self, obj, attr):
         """A slot's name: its path from the system (``design.F1``)."""
@@ -326,17 +473,16 @@ class _Rewrite(ast.NodeTransformer):
         k = key.value
         e = table[k]
 
-        def reader(o=obj, a=attr, k=k):
-            return getattr(o, a)[k]
+        reader = self._reader(obj, attr, k)
         name = f"{self._name(obj, attr)}[{k!r}]"
         if isinstance(e, slice) and all(b is None or isinstance(b, int)
                                         for b in (e.start, e.stop, e.step)):
             self.pl.layout.fold(("item", id(obj), attr, k), reader, e)
             return ast.copy_location(_call("slice", [ast.Constant(b) for b in
                                                      (e.start, e.stop, e.step)], node), node)
-        if isinstance(e, (bool, str)):
+        if isinstance(e, (bool, str)) or _is_int(e):
             self.pl.layout.fold(("item", id(obj), attr, k), reader, e)
-            return ast.copy_location(ast.Constant(e), node)
+            return ast.copy_location(ast.Constant(int(e) if _is_int(e) else e), node)
         if _kind(e) is None:
             raise self.fn.refuse(node, f"it reads {name}, a {type(e).__name__}: numba "
                                        f"cannot type it")
@@ -369,10 +515,116 @@ class _Rewrite(ast.NodeTransformer):
         for t in node.targets:
             for e in (t.elts if isinstance(t, (ast.Tuple, ast.List)) else [t]):
                 self._check_store(e)
+        into = self._products_into(node)
+        if into is not None:
+            return into
         return self.generic_visit(node)
+
+    def _products_into(self, node):
+        """``out[a:b] = M @ v + N @ w - ...``, ``r = ...`` or ``out[a:b] += ...``, every
+        term a product with a matrix read from ``p``, as sums written in place:
+        the first into the target, the others added to (subtracted from) it, no
+        array per term (``out`` a new one-state array, ``r`` a name; neither
+        read on the right). Of one-state vectors (``x[a:b]``, ``u``) the
+        products are loops in the map itself (:meth:`_loops`). None where the
+        statement is not of that form."""
+        aug = isinstance(node, ast.AugAssign)
+        if aug and not isinstance(node.op, (ast.Add, ast.Sub)):
+            return None
+        targets = [node.target] if aug else node.targets
+        if len(targets) != 1:
+            return None
+        t = targets[0]
+        if isinstance(t, ast.Name) and (not aug or t.id in self.vectors):
+            base = t.id
+        elif isinstance(t, ast.Subscript) and isinstance(t.value, ast.Name) \
+                and t.value.id in self.fresh and isinstance(t.slice, ast.Slice):
+            base = t.value.id
+        else:
+            return None
+        terms, e = [], node.value
+        while isinstance(e, ast.BinOp) and isinstance(e.op, (ast.Add, ast.Sub)):
+            terms.append((e.op, e.right))
+            e = e.left
+        terms.append((node.op if aug else ast.Add(), e))
+        terms.reverse()
+        if aug and len(terms) > 1:      # y += a + b: (y + a) + b would round otherwise
+            return None
+        if any(isinstance(n, ast.Name) and n.id == base for n in ast.walk(node.value)):
+            return None
+        if not all(isinstance(v, ast.BinOp) and isinstance(v.op, ast.MatMult)
+                   for _, v in terms):
+            return None
+        hits = [self._product(v) for _, v in terms]
+        if any(h is None for h in hits):
+            return None
+        loops = all(self._one_state(vec) for _, vec, _ in hits)
+        if not loops and (aug or len(terms) < 2):
+            return None                 # as it is (y += M @ v: _hs_pmv_add)
+
+        def where():
+            if isinstance(t, ast.Name):
+                return ast.Name(id=base, ctx=ast.Load())
+            return ast.Subscript(value=ast.Name(id=base, ctx=ast.Load()),
+                                 slice=self.visit(copy.deepcopy(t.slice)), ctx=ast.Load())
+        if loops:
+            return self._loops(node, t, where, terms, hits, aug)
+        out = []
+        for i, ((op, v), (slot, vec, side)) in enumerate(zip(terms, hits)):
+            if i == 0 and isinstance(t, ast.Name):
+                st = ast.Assign(targets=[t], value=self._pmv(slot, vec, side, v))
+            else:
+                call = self._pmv(slot, vec, side, v, where())
+                mode = "_set" if i == 0 else "_sub" if isinstance(op, ast.Sub) else "_add"
+                call.func.id = call.func.id[:-len("_add")] + mode
+                st = ast.Expr(value=call)
+            out.append(ast.fix_missing_locations(ast.copy_location(st, node)))
+        return out
+
+    def _one_state(self, v):
+        """Whether ``v`` is a one-state vector: a 1-D name (``u``) or its slice (``x[a:b]``)."""
+        if isinstance(v, ast.Subscript) and isinstance(v.slice, ast.Slice):
+            v = v.value
+        return isinstance(v, ast.Name) and v.id in self.vectors
+
+    def _loops(self, node, t, where, terms, hits, aug):
+        """The products of :meth:`_products_into` as loops over ``p`` in the map:
+        each row's sum in index order (the sums of ``matvec``), set, added or
+        subtracted into the target (views bound once, their lengths checked)."""
+        k = self._tmp = self._tmp + 1
+        o = f"_hs_o{k}"
+        rows = hits[0][0][2][0]
+        if isinstance(t, ast.Name) and not aug:
+            first = ast.Assign(targets=[ast.Name(id=t.id, ctx=ast.Store())],
+                               value=ast.parse(f"_hs_m_numpy.empty({rows})", mode="eval").body)
+            out = [first, ast.Assign(targets=[ast.Name(id=o, ctx=ast.Store())],
+                                     value=ast.Name(id=t.id, ctx=ast.Load()))]
+        else:
+            out = [ast.Assign(targets=[ast.Name(id=o, ctx=ast.Store())], value=where())]
+        checks = [f"{o}.shape[0] != {rows}"]
+        text = []
+        for i, ((op, _), (slot, vec, _)) in enumerate(zip(terms, hits)):
+            _, _, (r, c), off, _ = slot
+            v = f"_hs_v{k}_{i}"
+            out.append(ast.Assign(targets=[ast.Name(id=v, ctx=ast.Store())],
+                                  value=self.visit(vec)))
+            checks += [f"{v}.shape[0] != {c}"] + ([f"{r} != {rows}"] if r != rows else [])
+            put = "=" if i == 0 and not aug else "-=" if isinstance(op, ast.Sub) else "+="
+            text.append(f"for _hs_i in range({r}):\n"
+                        f"    _hs_s = 0.0\n"
+                        f"    for _hs_k in range({c}):\n"
+                        f"        _hs_s += {P}[{off} + _hs_i * {c} + _hs_k] * {v}[_hs_k]\n"
+                        f"    {o}[_hs_i] {put} _hs_s\n")
+        out += ast.parse(f"if {' or '.join(checks)}:\n"
+                         f"    raise ValueError('matmul: the shapes do not match')\n"
+                         + "".join(text)).body
+        return [_located(st, node) for st in out]
 
     def visit_AugAssign(self, node):
         self._check_store(node.target)
+        into = self._products_into(node)
+        if into is not None:
+            return into
         v = node.value
         if isinstance(node.op, ast.Add) and isinstance(node.target, ast.Name) and \
                 isinstance(v, ast.BinOp) and isinstance(v.op, ast.MatMult):
@@ -401,8 +653,8 @@ class _Rewrite(ast.NodeTransformer):
                     v = getattr(obj, attr)
                 except AttributeError:
                     raise fn.refuse(a, f"{_dotted(a)} does not exist") from None
-                self.pl.layout.require(("none", id(obj), attr),
-                                       lambda o=obj, n=attr: getattr(o, n), v is None)
+                self.pl.layout.require(("none", id(obj), attr), self._reader(obj, attr),
+                                       v is None)
                 known = (v is None) == isinstance(node.ops[0], ast.Is)
                 return ast.copy_location(ast.Constant(known), node)
         node = self.generic_visit(node)
@@ -453,7 +705,7 @@ class _Rewrite(ast.NodeTransformer):
             return None
         self.visit(e)                           # its slot (and checks)
         return self.pl.layout.add(("self", id(obj), attr), self._name(obj, attr), v,
-                                  lambda o=obj, a=attr: getattr(o, a))
+                                  self._reader(obj, attr))
 
     def _product(self, node):
         """A product with a matrix of ``self`` as ``(slot, v, side)``: ``v @
@@ -471,9 +723,28 @@ class _Rewrite(ast.NodeTransformer):
 
     def _pmv(self, slot, v, side, like, *extra):
         _, _, (r, c), off, _ = slot
-        args = [ast.Name(id=P, ctx=ast.Load()), ast.Constant(off), ast.Constant(r),
-                ast.Constant(c), self.visit(v), *extra]
-        return _call(side + ("_add" if extra else ""), args, like)
+        head = [ast.Name(id=P, ctx=ast.Load()), ast.Constant(off), ast.Constant(r),
+                ast.Constant(c)]
+        pieces = None if extra else self._concatenated(v)
+        if pieces is not None:          # M @ np.concatenate((a, b)): read from the pieces
+            return _call(side + "_cat", head + [pieces[0], pieces[1]], like)
+        return _call(side + ("_add" if extra else ""), head + [self.visit(v), *extra], like)
+
+    def _concatenated(self, v):
+        """``(pieces, axis)`` of ``np.concatenate((a, b, ...), axis=-1)`` (visited;
+        axis -1 where not given), or None."""
+        if not (isinstance(v, ast.Call) and isinstance(v.func, ast.Attribute)
+                and v.func.attr == "concatenate" and len(v.args) == 1
+                and isinstance(v.args[0], (ast.Tuple, ast.List))
+                and getattr(self._module_of(v.func.value), "__name__", "") == "numpy"):
+            return None
+        axis = ast.Constant(-1)
+        for k in v.keywords:
+            if k.arg != "axis" or not isinstance(k.value, (ast.Constant, ast.UnaryOp)):
+                return None
+            axis = self.visit(k.value)
+        return (ast.Tuple(elts=[self.visit(e) for e in v.args[0].elts], ctx=ast.Load()),
+                axis)
 
     def visit_BinOp(self, node):
         if isinstance(node.op, ast.MatMult):     # small products as loops, in index order
@@ -507,15 +778,15 @@ class _Rewrite(ast.NodeTransformer):
             v = getattr(obj, attr)
         except AttributeError:
             raise fn.refuse(node, f"{name} does not exist") from None
-        if isinstance(v, (bool, np.bool_, str)):        # a flag or a choice: a constant
-            self.pl.layout.fold(("self", id(obj), attr), lambda o=obj, a=attr: getattr(o, a),
-                                v)
-            return ast.copy_location(ast.Constant(v if isinstance(v, str) else bool(v)), node)
+        if isinstance(v, (bool, np.bool_, str)) or _is_int(v):   # a flag, a choice, a size
+            self.pl.layout.fold(("self", id(obj), attr), self._reader(obj, attr), v)
+            c = v if isinstance(v, str) else int(v) if _is_int(v) else bool(v)
+            return ast.copy_location(ast.Constant(c), node)
         if _kind(v) is None:
             raise fn.refuse(node, f"it reads {name}, a {type(v).__name__} (not a number "
                                   f"or an array of numbers): numba cannot type it")
         slot = self.pl.layout.add(("self", id(obj), attr), self._name(obj, attr), v,
-                                  lambda o=obj, a=attr: getattr(o, a))
+                                  self._reader(obj, attr))
         return _slot_expr(slot, node)
 
     def _module_name(self, m, node):
@@ -544,6 +815,9 @@ class _Rewrite(ast.NodeTransformer):
             return self._module_name(v, node)
         if key[0] == "builtin" and not isinstance(v, (bool, int, float)):
             return node
+        if _is_int(v) and key[0] in ("global", "cell"):      # a size or an index
+            self.pl.layout.fold(key, reader, v)
+            return ast.copy_location(ast.Constant(int(v)), node)
         if _kind(v) is not None:
             slot = self.pl.layout.add(key, node.id, v, reader)
             return _slot_expr(slot, node)
@@ -568,6 +842,18 @@ class _Rewrite(ast.NodeTransformer):
         args = [self.visit(a) for a in node.args]
         kws = [ast.keyword(arg=k.arg, value=self._dtype(k.value) if k.arg == "dtype"
                            else self.visit(k.value)) for k in node.keywords]
+        if isinstance(f, ast.Attribute) and f.attr in ("swapaxes", "reshape") and args \
+                and not kws and self._module_of(f.value) is None:
+            # v.swapaxes(a, b) as np.swapaxes (numba has no method); v.reshape(shape) of
+            # any layout (numba reshapes C-contiguous arrays only; numpy copies the others)
+            v = self.visit(f.value)
+            if f.attr == "swapaxes":
+                return _call("_hs_m_numpy.swapaxes", [v, *args], node)
+            shape = args[0] if len(args) == 1 else ast.Tuple(elts=args, ctx=ast.Load())
+            return _call("_hs_reshape", [v, shape], node)
+        if isinstance(f, ast.Attribute) and f.attr == "where" and len(args) == 3 \
+                and not kws and getattr(self._module_of(f.value), "__name__", "") == "numpy":
+            return _call("_hs_where", args, node)      # of numbers: a if c else b
         target = None
         hit = self._owner(f)
         if hit is not None:
@@ -608,6 +894,7 @@ class _Rewrite(ast.NodeTransformer):
                 raise fn.refuse(f, f"{_dotted(f)} is bound to another object")
             return self.pl.follow(Fn(bound.__func__, obj, f"{type(obj).__name__}.{f.attr}"))
         if isinstance(bound, types.FunctionType):      # a function stored on the instance
+            self.pl.reusable = False
             return self.pl.follow(Fn(bound, None, f"{type(obj).__name__}.{f.attr}"))
         raise fn.refuse(f, f"it calls {_dotted(f)}, a {type(bound).__name__} that cannot "
                            f"be followed")
@@ -646,7 +933,8 @@ def _past_call(rw, node):
         raise fn.refuse(node, "self.history is read at t - tau only (t the map's time, tau "
                               "one of self.delays)")
     slot = pl.layout.add(("delays", id(system)), "delays", np.asarray(delays, dtype=float),
-                         lambda s=system: np.asarray(tuple(s.delays), dtype=float))
+                         Read(system, "delays", (), then=lambda d: np.asarray(tuple(d),
+                                                                              dtype=float)))
     pl.reads_past = rw.reads_past = True
     n = int(system.state_dim)
     return _call("_hs_past", [ast.Name(id=P, ctx=ast.Load()), rw.visit(arg.right),

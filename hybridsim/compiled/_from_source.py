@@ -153,9 +153,11 @@ def _helpers_text():
     holds them inlined: a changed helper must name a new module)."""
     import inspect
     try:
-        return inspect.getsource(_scalar_fn) + inspect.getsource(_helpers)
+        return "".join(inspect.getsource(f) for f in (_scalar_fn, _helpers, _into,
+                                                       _matvec_cat))
     except OSError:                 # no source shipped: the bytecode
-        return repr([getattr(f, "__wrapped__", f).__code__.co_code for f in (_scalar_fn, _helpers)])
+        return repr([getattr(f, "__wrapped__", f).__code__.co_code
+                     for f in (_scalar_fn, _helpers, _into, _matvec_cat)])
 
 
 def _digest(plan):
@@ -276,6 +278,24 @@ def _helpers():
             out[i] += s
 
     @nj
+    def matvec_into(p, off, rows, cols, v, out, mode):
+        """``out = M @ v`` (``mode`` 0), ``out += M @ v`` (1) or ``out -= M @ v``
+        (-1), in place (M as in :func:`matvec`; each row's sum as matvec's)."""
+        if out.shape[0] != rows or v.shape[0] != cols:
+            raise ValueError("matmul: the shapes do not match")
+        for i in range(rows):
+            s = 0.0
+            b = off + i * cols
+            for k in range(cols):
+                s += p[b + k] * v[k]
+            if mode == 0:
+                out[i] = s
+            elif mode > 0:
+                out[i] += s
+            else:
+                out[i] -= s
+
+    @nj
     def put(out, a, b, v):
         """``out[a:b] = v`` as a loop (numba's slice assignment compiles the
         formatting of its shape error: seconds of the first compile)."""
@@ -305,8 +325,8 @@ def _helpers():
         raise ValueError("self.history(t - tau) is read at a tau that is not one of the "
                          "system's delays (self.delays)")
 
-    return {"matvec": matvec, "matvec_add": matvec_add, "put": put, "add_into": add_into,
-            "past": past}
+    return {"matvec": matvec, "matvec_add": matvec_add, "matvec_into": matvec_into,
+            "put": put, "add_into": add_into, "past": past}
 
 
 _SCALAR = []
@@ -394,7 +414,10 @@ def _scalar_fn():
 
         # M @ v with M (r, c) row-major in p from off: hybridsim.compiled.matvec
         # (v a vector), else the product of the matrix
-        h = _helpers()
+        # (the helpers and their loops inlined in the map: a call of a compiled
+        # function passing arrays costs more than a small product)
+        h = {k: _numba().njit(inline="always", error_model="numpy")(f.py_func)
+             for k, f in _helpers().items()}
         matvec, matvec_add = h["matvec"], h["matvec_add"]
 
         def _hs_pmv(p, off, r, c, v):
@@ -441,10 +464,108 @@ def _scalar_fn():
             def add(p, off, r, c, v, y):
                 y += _hs_matmul(p[off:off + r * c].reshape((r, c)), v)
             return add
+        # a sum of products written in place (``out[a:b] = M @ v + N @ w``): the first
+        # term set, the others added or subtracted, each row's sum as matvec's
+        into = h["matvec_into"]
+        fns = {}
+        for side, left in (("_hs_pmv", False), ("_hs_mpv", True)):
+            for mode, sign in (("_set", 0), ("_sub", -1)):
+                fns[side + mode] = _into(overload, nt, into, _hs_matmul, left, sign)
+
+        # M @ np.concatenate(pieces): of 1-D pieces, matvec's sums read from the pieces
+        # (no concatenated array); else the product of the concatenation
+        def _hs_pmv_cat(p, off, r, c, pieces, axis):
+            return _hs_pmv(p, off, r, c, np.concatenate(pieces, axis=axis))
+
+        def _cat_typed(p, off, r, c, pieces, axis):
+            if isinstance(pieces, nt.UniTuple) and isinstance(pieces.dtype, nt.Array) \
+                    and pieces.dtype.ndim == 1:
+                return _matvec_cat
+            return lambda p, off, r, c, pieces, axis: _hs_pmv(
+                p, off, r, c, np.concatenate(pieces, axis=axis))
+        overload(_hs_pmv_cat)(_cat_typed)
+
+        def _hs_mpv_cat(p, off, r, c, pieces, axis):
+            return _hs_mpv(p, off, r, c, np.concatenate(pieces, axis=axis))
+
+        def _cat_typed_m(p, off, r, c, pieces, axis):
+            if isinstance(pieces, nt.UniTuple) and isinstance(pieces.dtype, nt.Array) \
+                    and pieces.dtype.ndim == 1:
+                return _matvec_cat
+            return lambda p, off, r, c, pieces, axis: _hs_mpv(
+                p, off, r, c, np.concatenate(pieces, axis=axis))
+        overload(_hs_mpv_cat)(_cat_typed_m)
+
+        def _hs_reshape(v, shape):
+            return v.reshape(shape)
+
+        @overload(_hs_reshape)
+        def _typed_reshape(v, shape):
+            if isinstance(v, nt.Array) and v.layout != "C":
+                return lambda v, shape: np.ascontiguousarray(v).reshape(shape)
+            return lambda v, shape: v.reshape(shape)
+
+        def _hs_where(c, a, b):
+            return np.where(c, a, b)
+
+        @overload(_hs_where)
+        def _typed_where(c, a, b):
+            if not any(isinstance(v, nt.Array) for v in (c, a, b)):
+                return lambda c, a, b: a if c else b
+            return lambda c, a, b: np.where(c, a, b)
         _SCALAR.append({"_hs_scalar": _hs_scalar, "_hs_matmul": _hs_matmul,
                         "_hs_pmv": _hs_pmv, "_hs_pmv_add": _hs_pmv_add,
-                        "_hs_mpv": _hs_mpv, "_hs_mpv_add": _hs_mpv_add})
+                        "_hs_mpv": _hs_mpv, "_hs_mpv_add": _hs_mpv_add,
+                        "_hs_where": _hs_where, "_hs_reshape": _hs_reshape,
+                        "_hs_pmv_cat": _hs_pmv_cat, "_hs_mpv_cat": _hs_mpv_cat, **fns})
     return _SCALAR[0]
+
+
+def _matvec_cat(p, off, r, c, pieces, axis):
+    """``M @ np.concatenate(pieces)`` of 1-D pieces, M (r, c) row-major in ``p``
+    from ``off``: each row's sum over the pieces in order (matvec's sums)."""
+    n = 0
+    for a in pieces:
+        n += a.shape[0]
+    if n != c:
+        raise ValueError("matmul: the shapes do not match")
+    out = np.empty(r)
+    for i in range(r):
+        s = 0.0
+        b = off + i * c
+        for a in pieces:
+            for q in range(a.shape[0]):
+                s += p[b] * a[q]
+                b += 1
+        out[i] = s
+    return out
+
+
+def _into(overload, nt, into, matmul, left, sign):
+    """``f(p, off, r, c, v, out)``: ``out = M @ v`` (``left``; else ``v @ M.T``)
+    in place (``sign`` 0) or ``out -= ...`` (-1), M (r, c) row-major in ``p``
+    from ``off``; of a vector v and a 1-D out, the loops of matvec."""
+    def f(p, off, r, c, v, out):
+        pass
+
+    @overload(f)
+    def typed(p, off, r, c, v, out):
+        if isinstance(v, nt.Array) and v.ndim == 1 and isinstance(out, nt.Array) \
+                and out.ndim == 1:
+            return lambda p, off, r, c, v, out: into(p, off, r, c, v, out, sign)
+
+        def product(p, off, r, c, v):
+            M = p[off:off + r * c].reshape((r, c))
+            return matmul(M, v) if left else matmul(v, M.T)
+        if sign == 0:
+            def put(p, off, r, c, v, out):
+                out[:] = product(p, off, r, c, v)
+            return put
+
+        def sub(p, off, r, c, v, out):
+            out -= product(p, off, r, c, v)
+        return sub
+    return f
 
 
 def component_maps(system):

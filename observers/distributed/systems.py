@@ -215,8 +215,9 @@ class DistributedObserverNode(hs.HybridSystem):
         return self.data.estimate(np.asarray(x, dtype=float))
 
     # Kept: the source rewrite compiles flow_map/output as written (same numbers to the
-    # bit), but its array temporaries cost 460 ns a flow call against 150 ns here, and the
-    # ring of 8 2.4x in the kernel (0.09 -> 0.22 s); benchmarks/bench_rewrite_vs_twin.py.
+    # bit), but its array temporaries (r, the power of r[n:], the product and the
+    # difference) cost about 2x this flow a call, and the ring of 8 with 30 noise
+    # realisations 1.8x in the kernel (0.074 -> 0.130 s CPU); bench_rewrite_vs_twin.py.
     def compiled_component(self):
         """The node's compiled form (``backend="compiled"``): (7)-(8) or
         (4)-(5) as :meth:`_NodeData.flow`, with H, N, κ and T in its parameters."""

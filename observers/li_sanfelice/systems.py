@@ -113,25 +113,6 @@ class _TwoCopyObserver(hs.HybridSystem):
         d = self.design
         return d.a1 * x[..., self.slices["xh1"]] + d.a2 * x[..., self.slices["xh2"]]
 
-    # Kept: the source rewrite compiles H_n's maps as written (the paper's tests pass on
-    # it), but its array temporaries cost 328 ns a flow call against 56 ns here and a
-    # 200-run noise batch of V.B 1.8x (0.026 -> 0.047 s); H_c's batch maps (Xi_matrix's
-    # swapaxes) numba cannot compile for one state. benchmarks/bench_rewrite_vs_twin.py.
-    def compiled_component(self):
-        """The observer's compiled form (``backend="compiled"``, see
-        :func:`hybridsim.compiled.lower`): the same (10)-(12) / (17)-(18)
-        with the design's matrices in its parameters."""
-        from hybridsim.compiled import Component
-        d = self.design
-        f, g, hD, D, h = _two_copy_maps(d.n, d.p, self._has_xi, self._has_q)
-        mats = [d.F1, d.F2, d.L1, d.L2, d.K1, d.K2]
-        if self._has_xi:
-            mats += [d.A, d.H, self._Lt1.reshape(1, -1), self._Lt2.reshape(1, -1)]
-        params = np.concatenate([np.asarray(M, dtype=float).ravel() for M in mats]
-                                + [[d.delta, d.a1, d.a2]])
-        return Component(state_dim=self.state_dim, input_dim=d.p, flow=f, jump=g,
-                         jump_guard=hD, jump_set=D, output=h, output_dim=d.n, params=params)
-
     # -- helpers --------------------------------------------------------
     def _jump_gains(self, x):
         """(K1, K2) of the jump from the state x (one state or a batch): the design's (12)."""
@@ -290,6 +271,24 @@ class _NoiseCompensating(_TwoCopyObserver):
                 "(18) amplifies integration and modelling errors by this factor",
                 RuntimeWarning, stacklevel=2)
 
+    # Kept for H_c and H_pc (H_n runs its maps as written): their maps compile as written
+    # (numbers to 1e-15), but Xi_matrix's matrix products and the reshape of their
+    # transpose cost 27-31x this flow a call (1.46 us against 0.054; the jump 1.1x);
+    # benchmarks/bench_rewrite_vs_twin.py.
+    def compiled_component(self):
+        """The observer's compiled form (``backend="compiled"``, see
+        :func:`hybridsim.compiled.lower`): the same (17)-(18) with the
+        design's matrices in its parameters."""
+        from hybridsim.compiled import Component
+        d = self.design
+        f, g, hD, D, h = _two_copy_maps(d.n, d.p, self._has_q)
+        mats = [d.F1, d.F2, d.L1, d.L2, d.K1, d.K2, d.A, d.H, self._Lt1.reshape(1, -1),
+                self._Lt2.reshape(1, -1)]
+        params = np.concatenate([np.asarray(M, dtype=float).ravel() for M in mats]
+                                + [[d.delta, d.a1, d.a2]])
+        return Component(state_dim=self.state_dim, input_dim=d.p, flow=f, jump=g,
+                         jump_guard=hD, jump_set=D, output=h, output_dim=d.n, params=params)
+
     def flow_map(self, x, t, j, u):
         d, n, p = self.design, self.design.n, self.design.p
         s = self.slices
@@ -425,11 +424,11 @@ class LuenbergerObserver(hs.HybridSystem):
 
 
 @functools.cache
-def _two_copy_maps(n, p, has_xi, has_q):
-    """Compiled maps of H_n (10)-(12) (``has_xi`` False) or H_c / H_pc (17)-(18),
-    reading F1, F2, L1, L2, K1, K2 [, A, H, vec L1, vec L2], delta, a1, a2
-    from the parameters, row-major. Plain numpy and loops: numba compiles
-    them when the observer is lowered (:func:`hybridsim.compiled.lower`)."""
+def _two_copy_maps(n, p, has_q):
+    """Compiled maps of H_c / H_pc (17)-(18), reading F1, F2, L1, L2, K1, K2, A, H,
+    vec L1, vec L2, delta, a1, a2 from the parameters, row-major. Plain numpy
+    and loops: numba compiles them when the observer is lowered
+    (:func:`hybridsim.compiled.lower`)."""
     from hybridsim.compiled import compiled_matvec
     mv = compiled_matvec()
     nn, np_ = n * n, n * p
@@ -437,49 +436,37 @@ def _two_copy_maps(n, p, has_xi, has_q):
     oK1, oK2 = 2 * nn + 2 * np_, 3 * nn + 2 * np_
     o = 4 * nn + 2 * np_
     oA, oH, oLt1, oLt2 = o, o + nn, o + nn + p * n, o + nn + p * n + np_
-    if has_xi:
-        o = oLt2 + np_
-    odelta = o
-    # state layout: xh1, xh2 [, xi1, xi2, mhat], tau [, q]
+    odelta = oLt2 + np_
+    # state layout: xh1, xh2, xi1, xi2, mhat, tau [, q]
     ixi1, ixi2 = 2 * n, 2 * n + np_
     imh = 2 * n + 2 * np_
-    itau = imh + p if has_xi else 2 * n
+    itau = imh + p
     iq = itau + 1
     r = itau + 1 + (1 if has_q else 0)
 
     def flow(x, u, t, j, prm):
         dx = np.empty(r)
-        if has_xi:
-            for b, oL in ((0, oL1), (n, oL2)):           # (17): A x̂ + L (y - H x̂ - m̂)
-                for i in range(n):
-                    a = 0.0
-                    for k in range(n):
-                        a += prm[oA + i * n + k] * x[b + k]
-                    dx[b + i] = a
-                for c in range(p):
-                    e = u[c] - x[imh + c]
-                    for k in range(n):
-                        e -= prm[oH + c * n + k] * x[b + k]
-                    for i in range(n):
-                        dx[b + i] += prm[oL + i * p + c] * e
-            for ix, oF, oLt in ((ixi1, oF1, oLt1), (ixi2, oF2, oLt2)):
-                for c in range(p):       # column c of Xi: xi[c n:(c+1) n]
-                    for i in range(n):
-                        a = prm[oLt + c * n + i]
-                        for k in range(n):
-                            a += prm[oF + i * n + k] * x[ix + c * n + k]
-                        dx[ix + c * n + i] = a
+        for b, oL in ((0, oL1), (n, oL2)):           # (17): A x̂ + L (y - H x̂ - m̂)
+            for i in range(n):
+                a = 0.0
+                for k in range(n):
+                    a += prm[oA + i * n + k] * x[b + k]
+                dx[b + i] = a
             for c in range(p):
-                dx[imh + c] = 0.0
-        else:
-            for b, oF, oL in ((0, oF1, oL1), (n, oF2, oL2)):     # (11): F x̂ + L y
+                e = u[c] - x[imh + c]
+                for k in range(n):
+                    e -= prm[oH + c * n + k] * x[b + k]
                 for i in range(n):
-                    a = 0.0
+                    dx[b + i] += prm[oL + i * p + c] * e
+        for ix, oF, oLt in ((ixi1, oF1, oLt1), (ixi2, oF2, oLt2)):
+            for c in range(p):       # column c of Xi: xi[c n:(c+1) n]
+                for i in range(n):
+                    a = prm[oLt + c * n + i]
                     for k in range(n):
-                        a += prm[oF + i * n + k] * x[b + k]
-                    for c in range(p):
-                        a += prm[oL + i * p + c] * u[c]
-                    dx[b + i] = a
+                        a += prm[oF + i * n + k] * x[ix + c * n + k]
+                    dx[ix + c * n + i] = a
+        for c in range(p):
+            dx[imh + c] = 0.0
         dx[itau] = 1.0 - x[iq] if has_q else 1.0
         if has_q:
             dx[iq] = 0.0
@@ -496,25 +483,21 @@ def _two_copy_maps(n, p, has_xi, has_q):
     def jump(x, u, t, j, prm):
         R = mv(prm, oK1, n, n, x[:n]) + mv(prm, oK2, n, n, x[n:2 * n])
         xn = np.zeros(r)
-        if has_xi:
-            mh = x[imh:imh + p]
-            T = np.empty((n, p))
-            for k in range(p):
-                T[:, k] = (mv(prm, oK1, n, n, x[ixi1 + k * n:ixi1 + (k + 1) * n])
-                           + mv(prm, oK2, n, n, x[ixi2 + k * n:ixi2 + (k + 1) * n]))
-            HT = np.empty((p, p))
-            for k in range(p):
-                HT[:, k] = mv(prm, oH, p, n, np.ascontiguousarray(T[:, k]))
-            for k in range(p):
-                HT[k, k] -= 1.0
-            w = np.linalg.solve(HT, mv(prm, oH, p, n, R) - (u - mh))
-            Tw = T @ w
-            xn[:n] = R - Tw
-            xn[n:2 * n] = R - Tw
-            xn[imh:imh + p] = mh + w
-        else:
-            xn[:n] = R
-            xn[n:2 * n] = R
+        mh = x[imh:imh + p]
+        T = np.empty((n, p))
+        for k in range(p):
+            T[:, k] = (mv(prm, oK1, n, n, x[ixi1 + k * n:ixi1 + (k + 1) * n])
+                       + mv(prm, oK2, n, n, x[ixi2 + k * n:ixi2 + (k + 1) * n]))
+        HT = np.empty((p, p))
+        for k in range(p):
+            HT[:, k] = mv(prm, oH, p, n, np.ascontiguousarray(T[:, k]))
+        for k in range(p):
+            HT[k, k] -= 1.0
+        w = np.linalg.solve(HT, mv(prm, oH, p, n, R) - (u - mh))
+        Tw = T @ w
+        xn[:n] = R - Tw
+        xn[n:2 * n] = R - Tw
+        xn[imh:imh + p] = mh + w
         if has_q:
             xn[iq] = 1.0 - x[iq]
         return xn
@@ -562,8 +545,8 @@ class BoundedNoiseGenerator(hs.HybridSystem):
     def flow_map(self, x, t, j, u):
         return np.zeros(np.shape(x))
 
-    # Kept: the rewritten output (as written) costs about 4x this one a call
-    # (benchmarks/bench_rewrite_vs_twin.py).
+    # Kept: the rewritten output (as written, its (p, K) arrays of sines) costs 4-5x
+    # this one a call (benchmarks/bench_rewrite_vs_twin.py).
     def compiled_component(self):
         """The generator's compiled form (``backend="compiled"``)."""
         from hybridsim.compiled import Component
