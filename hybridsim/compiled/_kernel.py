@@ -268,12 +268,12 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     t = t0
     j = j0
     x = x0.copy()
-    jumps = 0
-    short = 0
+    jumps = np.int64(0)
+    short = np.int64(0)
     zref = 0.0                      # the Zeno streak's reference flow (rules.zeno_short)
     t_last_jump = t0
     flows_last = np.zeros(4)        # the last (up to) 4 flow lengths, oldest first
-    n_flows_last = 0
+    n_flows_last = np.int64(0)
     h_hint = first_step              # NaN: none
     # counters as int64 from the start: a constant argument (Literal[int]) compiles
     # a helper again for it, even where type inference only tries it on the way
@@ -311,10 +311,10 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     flow_on = False
     in_D = False
     in_C = True
-    loop = 0                         # consecutive jumps at one instant from C and D
-    same = 0                         # consecutive jumps at one instant, from C or not
+    loop = np.int64(0)               # consecutive jumps at one instant from C and D
+    same = np.int64(0)               # consecutive jumps at one instant, from C or not
     longest = 0.0                    # the longest flow so far (rules.chatter_step)
-    tiny = 0                         # consecutive flows tiny against it (chattering)
+    tiny = np.int64(0)               # consecutive flows tiny against it (chattering)
     # the bracket's lo of the located event the last flow ends with, a jump from
     # its hi (``pend``), and of the jump just taken (``post``): rules.post_jump_probe.
     # Scalars only per jump (copying x_lo, x_hi at every jump cost ~10% of a
