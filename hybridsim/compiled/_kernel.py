@@ -128,17 +128,18 @@ from ._types import (
 from ._watch import scratch, watch_fault, watch_step, watch_values, with_crossings
 
 #: a constant of the run core: its method is DOP853 (False: RK45). True in
-#: :data:`run_one_dop853` (:func:`_variant`), whose steps, error norm and dense
-#: output are DOP853's; numba prunes the other method's branches from each
+#: :data:`._variants.run_one_dop853` (:func:`._variants._variant`), whose steps,
+#: error norm and dense output are DOP853's; numba prunes the other method's
+#: branches from each
 _DOP = False
 #: the run core's globals in its DOP853 variant
 DOP853_GLOBALS = {"_DOP": True}
 #: a constant of the run core: whether its flow map reads the past (delays).
-#: False in :data:`run_one` (numba prunes every branch on it: no code for the
-#: past, a smaller kernel to compile), True in :data:`run_one_delays`
+#: False in :data:`._variants.run_one` (numba prunes every branch on it: no code
+#: for the past, a smaller kernel to compile), True in ``run_one_delays``
 _DELAYS = False
 #: a constant of the run core: whether the system watches functions along its
-#: flows (:mod:`._watch`). True only in :data:`run_one_watch`
+#: flows (:mod:`._watch`). True only in ``run_one_watch``
 _WATCH = False
 
 
