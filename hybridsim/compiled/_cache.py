@@ -22,18 +22,20 @@ from numba.core import errors as nb_errors
 from numba.extending import intrinsic
 
 from .. import _rk, events, rules
-from . import _batch, _decide, _events, _kernel, _layout, _past, _steps, _types, _watch
-from ._batch import run_rows
-from ._kernel import (
-    _run_core,
-    run_one,
-    run_one_delays,
-    run_one_dop853,
-    run_one_spec,
-    run_one_spec_delays,
-    run_one_spec_dop853,
-    run_one_watch,
+from . import (
+    _batch,
+    _decide,
+    _events,
+    _kernel,
+    _layout,
+    _past,
+    _steps,
+    _types,
+    _variants,
+    _watch,
 )
+from ._batch import run_rows
+from ._kernel import _run_core
 from ._private import private_folder
 from ._types import (
     CANCELED,
@@ -66,6 +68,15 @@ from ._types import (
     rng_pointers,
     wrap_map,
 )
+from ._variants import (
+    run_one,
+    run_one_delays,
+    run_one_dop853,
+    run_one_spec,
+    run_one_spec_delays,
+    run_one_spec_dop853,
+    run_one_watch,
+)
 
 #: what the runners (:mod:`._system`, :mod:`._run`, :mod:`._lower`) read of the engine
 __all__ = [
@@ -82,7 +93,7 @@ __all__ = [
 
 #: the modules of compiled code, in the order they import each other: their
 #: dispatchers are the engine's cached kernels, their text part of its digest
-_ENGINE = (_types, _steps, _events, _decide, _past, _watch, _kernel, _batch)
+_ENGINE = (_types, _steps, _events, _decide, _past, _watch, _kernel, _variants, _batch)
 
 
 def _dispatchers():
@@ -161,6 +172,8 @@ except Exception:  # noqa: BLE001 - a numba version without these internals
 
 
 _READY = set()
+#: whether the kernels are kept in numba's disk cache (a generated module's too)
+CACHE = _types.CACHE
 
 
 def cache_dir():
@@ -231,7 +244,7 @@ def _spec_source(key, delays=False, method="RK45"):
     if method == "DOP853":
         head += "globals().update(_k.DOP853_GLOBALS)     # DOP853's steps\n\n\n"
     return (head + core
-            + '\n\none = numba.njit(cache=_k.CACHE, error_model="numpy")(one)\n')
+            + '\n\none = numba.njit(cache=_cache.CACHE, error_model="numpy")(one)\n')
 
 
 def map_value(glb, name):

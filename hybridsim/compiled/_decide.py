@@ -16,6 +16,7 @@ from ._types import (
     _GOES_ON,
     _NJI,
     _NJL,
+    CACHE,
     DETAIL_CHATTER,
     DETAIL_INSTANT,
     DETAIL_LOOP,
@@ -27,7 +28,7 @@ from ._types import (
 )
 
 
-@njit(**_NJL)
+@njit(cache=CACHE, **_NJL)
 def decide_at(in_C, in_D, prio, rngp):
     """:func:`hybridsim.rules.decide` at a point in C (``in_C``) and D (``in_D``),
     its coin (``priority="random"`` in C ∩ D) drawn from the run's Generator
@@ -38,7 +39,7 @@ def decide_at(in_C, in_D, prio, rngp):
     return rules.decide(in_C, in_D, prio, coin, False)
 
 
-@njit(**_NJL)
+@njit(cache=CACHE, **_NJL)
 def jump_books(flows_last, n_fl, t, t_last_jump, jumps, from_C, zref, short, longest, tiny,
                same, loop, zeno_time, zeno_rtol):
     """The record of a jump at ``t`` (``_Run._jump``): the last (up to) 4 flow
@@ -68,7 +69,7 @@ def jump_books(flows_last, n_fl, t, t_last_jump, jumps, from_C, zref, short, lon
     return n_fl, zref, short, longest, longest_before, tiny, same, loop, flow
 
 
-@njit(**_NJL)
+@njit(cache=CACHE, **_NJL)
 def jump_cause(jumps, short, j_max, zeno_jumps, loop, same, tiny, t, longest_before, flow, info):
     """The cause a run ends with after its ``jumps``-th jump at ``t``
     (:func:`hybridsim.rules.after_jump`; ``_GOES_ON``: none) and its detail code,
@@ -93,7 +94,7 @@ def jump_cause(jumps, short, j_max, zeno_jumps, loop, same, tiny, t, longest_bef
     return c, detail
 
 
-@njit(**_NJI)
+@njit(cache=CACHE, **_NJI)
 def stop_outside(ns, t0, t, t_max, j, flows_last, n_fl, t_last_jump, jumps, info, detail):
     """``_Run._stop_outside``: the cause of a run that stopped outside C ∪ D at
     ``(t, j)`` after ``ns`` samples (x0 outside both sets, sticking to the

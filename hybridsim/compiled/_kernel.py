@@ -1,5 +1,4 @@
-"""The compiled path's run core and batch kernel (imported only when numba is
-installed).
+"""The compiled path's run core (imported only when numba is installed).
 
 Everything here runs in nopython mode. The user's maps reach the kernels as
 numba *first-class functions* of fixed signatures (:mod:`._types`), so the
@@ -10,19 +9,10 @@ system. From Python they are passed by address (an int64 array,
 Generator: numba's unboxing of a first-class function or Generator argument
 costs microseconds per call.
 
-Two kernels are compiled and cached: :data:`run_one` (one run) and
-:func:`._batch.run_rows` (a batch's rows, in GIL-free Python threads), which
-calls a run kernel by its code address instead of compiling it in (numba links and
-re-optimises a callee's code into every caller: the batch kernel used to
-cost as much to compile as the engine). A flow map that reads the past
-(delays) runs in a third, :data:`run_one_delays`, compiled when such a
-system first runs: the same run core with the record of the steps, which
-:data:`run_one` leaves out (a quarter of its compile time); ``method="DOP853"``
-in a fourth. Each is the one run core with its constants ``_DELAYS`` and
-``_DOP`` set (:func:`_variant`), and a system's watched functions in a fifth
-(:data:`run_one_watch`, ``_WATCH``, :mod:`._watch`); a system with
-``specialize=True`` gets its own copy in a generated module (:mod:`._cache`),
-whose globals are this module's.
+The run core is compiled as the engine's run kernels (:mod:`._variants`:
+one per setting of its constants ``_DELAYS``, ``_DOP`` and ``_WATCH``, below);
+a system with ``specialize=True`` gets its own copy in a generated module
+(:mod:`._cache`), whose globals are this module's.
 
 The run core's options arrive in two arrays, ``fopt`` and ``iopt``, packed
 and read by the names of :mod:`._layout`. The rules (priorities, the
@@ -38,19 +28,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, types
+from numba import types
 from numba.typed import List
 
 from .. import rules
 from ._decide import decide_at, jump_books, jump_cause, stop_outside
-from ._events import (
-    _event,
-    _inC,
-    _inD,
-    _interior,
-    _near_C,
-    _pred,
-)
+from ._events import _event, _inC, _inD, _interior, _near_C, _pred
 from ._layout import (
     F_DELAYS,
     F_FIRST_STEP,
@@ -78,13 +61,7 @@ from ._layout import (
     I_ROW,
     I_ZENO_JUMPS,
 )
-from ._past import (
-    _CHUNK_T,
-    _add_breaks,
-    _fd,
-    _past_missing,
-    _record,
-)
+from ._past import _CHUNK_T, _add_breaks, _fd, _past_missing, _record
 from ._steps import (
     _all_finite,
     _dense,
@@ -115,8 +92,6 @@ from ._types import (
     _GOES_ON,
     _MAX_FACTOR,
     _MIN_FACTOR,
-    _NJ,
-    _NJI,
     _O_BREAK,
     _O_FLOW_ON,
     _O_JUMP,
@@ -127,7 +102,6 @@ from ._types import (
     _P,
     _SAFETY,
     BLOWUP,
-    CACHE,
     CANCELED,
     J_MAX,
     MAP_ERROR,
@@ -154,17 +128,18 @@ from ._types import (
 from ._watch import scratch, watch_fault, watch_step, watch_values, with_crossings
 
 #: a constant of the run core: its method is DOP853 (False: RK45). True in
-#: :data:`run_one_dop853` (:func:`_variant`), whose steps, error norm and dense
-#: output are DOP853's; numba prunes the other method's branches from each
+#: :data:`._variants.run_one_dop853` (:func:`._variants._variant`), whose steps,
+#: error norm and dense output are DOP853's; numba prunes the other method's
+#: branches from each
 _DOP = False
 #: the run core's globals in its DOP853 variant
 DOP853_GLOBALS = {"_DOP": True}
 #: a constant of the run core: whether its flow map reads the past (delays).
-#: False in :data:`run_one` (numba prunes every branch on it: no code for the
-#: past, a smaller kernel to compile), True in :data:`run_one_delays`
+#: False in :data:`._variants.run_one` (numba prunes every branch on it: no code
+#: for the past, a smaller kernel to compile), True in ``run_one_delays``
 _DELAYS = False
 #: a constant of the run core: whether the system watches functions along its
-#: flows (:mod:`._watch`). True only in :data:`run_one_watch`
+#: flows (:mod:`._watch`). True only in ``run_one_watch``
 _WATCH = False
 
 
@@ -294,12 +269,12 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     t = t0
     j = j0
     x = x0.copy()
-    jumps = 0
-    short = 0
+    jumps = np.int64(0)
+    short = np.int64(0)
     zref = 0.0                      # the Zeno streak's reference flow (rules.zeno_short)
     t_last_jump = t0
     flows_last = np.zeros(4)        # the last (up to) 4 flow lengths, oldest first
-    n_flows_last = 0
+    n_flows_last = np.int64(0)
     h_hint = first_step              # NaN: none
     # counters as int64 from the start: a constant argument (Literal[int]) compiles
     # a helper again for it, even where type inference only tries it on the way
@@ -337,10 +312,10 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     flow_on = False
     in_D = False
     in_C = True
-    loop = 0                         # consecutive jumps at one instant from C and D
-    same = 0                         # consecutive jumps at one instant, from C or not
+    loop = np.int64(0)               # consecutive jumps at one instant from C and D
+    same = np.int64(0)               # consecutive jumps at one instant, from C or not
     longest = 0.0                    # the longest flow so far (rules.chatter_step)
-    tiny = 0                         # consecutive flows tiny against it (chattering)
+    tiny = np.int64(0)               # consecutive flows tiny against it (chattering)
     # the bracket's lo of the located event the last flow ends with, a jump from
     # its hi (``pend``), and of the jump just taken (``post``): rules.post_jump_probe.
     # Scalars only per jump (copying x_lo, x_hi at every jump cost ~10% of a
@@ -927,52 +902,3 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
         return T[:ns], J[:ns], X[:ns], XD[:ns], cause, detail, info, stats
     return (T[:ns].copy(), J[:ns].copy(), X[:ns].copy(), XD[:ns].copy(), cause, detail,
             info, stats)
-
-
-#: one run of the maps at the addresses ``maps`` (f, g, hD, hC, D, C: their cfunc
-#: wrappers, :func:`map_addresses`): compiled once, cached on disk. The core
-#: itself, not a wrapper calling it: a wrapper's library is optimized and
-#: code-generated again with the whole core linked in (about 2.6 s of the
-#: first compile)
-run_one = njit(cache=CACHE, **_NJ)(_run_core)
-
-#: one run specialised on a system's own map dispatchers (maps compiled in, passed
-#: as a tuple): the module :func:`spec_module` generates calls it under
-#: ``run_one``'s signature (never cached itself: its signature names the system)
-run_one_spec = njit(**_NJI)(_run_core)
-
-
-def _variant(fn, suffix, **consts):
-    """``fn`` (the run core) as a function of its own whose constants
-    ``consts`` (``_DELAYS``, ``_DOP``) are set: the same code, its module's
-    globals but those (numba reads a global as a constant of the compiled
-    code, and caches this function apart from ``fn``, under its own name)."""
-    import types as pytypes
-    glb = dict(fn.__globals__)
-    glb.update(consts)
-    out = pytypes.FunctionType(fn.__code__, glb, fn.__name__ + suffix, fn.__defaults__,
-                               fn.__closure__)
-    out.__qualname__ = fn.__qualname__ + suffix
-    out.__module__ = fn.__module__
-    out.__doc__ = fn.__doc__
-    return out
-
-
-#: :data:`run_one` for a flow map that reads the past (``CompiledSystem(delays=)``):
-#: the run core with the record of the steps and the delay breakpoints,
-#: compiled (and cached) only when a system with delays first runs
-run_one_delays = njit(cache=CACHE, **_NJ)(_variant(_run_core, "_delays", _DELAYS=True))
-
-#: :data:`run_one_spec` with delays
-run_one_spec_delays = njit(**_NJI)(_variant(_run_core, "_delays", _DELAYS=True))
-
-#: :data:`run_one` stepping with scipy's DOP853 (``method="DOP853"``): compiled
-#: (and cached) when a run first asks for it. Not with delays (refused by name)
-run_one_dop853 = njit(cache=CACHE, **_NJ)(_variant(_run_core, "_dop853", **DOP853_GLOBALS))
-
-#: :data:`run_one_spec` stepping with DOP853
-run_one_spec_dop853 = njit(**_NJI)(_variant(_run_core, "_dop853", **DOP853_GLOBALS))
-
-#: :data:`run_one` recording the crossings of watched functions (:mod:`._watch`):
-#: compiled (and cached) when a watching system first runs
-run_one_watch = njit(cache=CACHE, **_NJ)(_variant(_run_core, "_watch", _WATCH=True))

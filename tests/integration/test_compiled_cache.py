@@ -233,6 +233,24 @@ def test_the_kernels_compile_at_their_own_optimisation_level_and_restore_numbas(
         cfg.OPT = before
 
 
+def test_every_run_kernel_is_keyed_on_the_engines_source():
+    """Each cached run kernel (the run core's variants, :mod:`._variants`, whose
+    function lives in :mod:`._kernel`) and the batch kernel is one of the
+    engine's dispatchers: its cache key carries the digest of every engine
+    file, and the digest reads the file that defines the kernels."""
+    from hybridsim.compiled import _kernel, _variants
+    mine = {id(d) for d in k._dispatchers()}
+    kernels = [k.run_kernel(), k.run_kernel(delays=True), k.run_kernel(method="DOP853"),
+               k.run_kernel(watch=True), k.run_rows]
+    for disp in kernels:
+        assert id(disp) in mine, disp
+        if disp._cache.__class__.__name__ != "NullCache":
+            assert disp._cache._hs_keyed
+    assert all(getattr(_variants, n) is d for n, d in
+               zip(("run_one", "run_one_delays", "run_one_dop853", "run_one_watch"), kernels))
+    assert {_kernel, _variants} <= set(k._ENGINE)
+
+
 @pytest.mark.slow
 def test_systems_with_and_without_delays_take_their_own_kernel():
     from hybridsim.compiled import CompiledSystem, simulate_compiled
