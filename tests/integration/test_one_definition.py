@@ -378,6 +378,7 @@ def test_an_attribute_tested_against_none_is_decided_when_the_maps_are_rewritten
     assert set(lower(s).layout.names()) == {"bias"}
 
 
+@pytest.mark.slow                   # numba compiles the 2-D products: 2.2 s of CPU
 def test_a_matrix_attribute_times_a_matrix_is_that_product():
     """``self.M @ X`` with X a matrix is M X (and ``X @ self.M.T`` is X Mᵀ), as
     numpy computes them, also where it accumulates (``Y += self.M @ X``)."""

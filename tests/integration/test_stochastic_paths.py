@@ -154,7 +154,7 @@ def test_rate_batches_replay_and_bad_rates(path):
             hs.simulate(law, [0.0], t_max=2.0, seed=0, backend=path)
 
 
-@pytest.mark.paths(only=("python", "compiled"))
+@pytest.mark.paths(only=("python", "compiled"), compiled_slow=True)   # 2.8 s of CPU compiled
 def test_compiled_system_keywords(path):
     # CompiledSystem(diffusion=, jump_rate=): the one vocabulary, the same runs on both paths
     from hybridsim.compiled import CompiledSystem
