@@ -81,8 +81,8 @@ from ._source_rewrite import (
     _kind,
     _Rewrite,
     _slot_expr,
-    one_state,
 )
+from ._source_shapes import one_state
 
 _LEADING = ("t", "j", "u")
 
