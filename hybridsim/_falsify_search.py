@@ -69,7 +69,9 @@ def _cmaes(ev, space, popsize, seed):
     doubled each cycle (IPOP): on the coarsest grid from the best of a
     fresh design there (2 n points), on each finer grid from the best point
     of this restart's chain with its last run's step and shape, with the
-    same shares, whenever a run converges, stalls, meets a flat margin or
+    same shares (after a run that found no ranking, a flat margin, the next
+    grid starts afresh: a coarse one from a fresh design, the space's own
+    from a uniform mean without a share), whenever a run converges, stalls, meets a flat margin or
     spends its share. A space without signals has one grid, its own: one
     run after the first design, then restarts from uniform means.
     """
@@ -117,6 +119,9 @@ def _cmaes(ev, space, popsize, seed):
     while not ev.done:
         k = run % len(grids)
         cycle, (factor, E, clo, width, cfree) = run // len(grids), grids[k]
+        # a finer grid goes on from its chain's best point, unless the chain
+        # found no ranking (a flat margin): then it starts afresh
+        chained = k > 0 and (cycle == 0 or chain is not None)
         lam = popsize if popsize is not None else 4 + int(3 * math.log(width.size))
         lam = max(2, lam) * 2 ** cycle
         if cycle == 0 and ev.best_z is not None:
@@ -142,17 +147,19 @@ def _cmaes(ev, space, popsize, seed):
         if E is not None:
             until = ev.n + ev.budget // (2 * len(grids))
         else:
-            until = ev.n + ev.budget // len(grids) if k else math.inf
+            until = ev.n + ev.budget // len(grids) if chained else math.inf
         # a run from the last grid's worst point goes on with that run's step
         # and its distribution's shape, mapped onto this grid
         sigma, C0 = 0.3, None
-        if k:
+        if chained:
             sigma = min(0.3, max(0.02, step))
             if cov is not None:
                 C0 = _carried(cov, grids[k - 1], grids[k])
         step, cov, rbest = _cma_run(ev, mapping(E, clo, width, cfree), mean, sigma, lam, rng,
-                                    until, handoff=E is not None, stuck=k > 0, C0=C0)
-        if cycle and rbest is not None and (chain is None or rbest[0] < chain[0]):
+                                    until, handoff=E is not None, stuck=chained, C0=C0)
+        if cycle and rbest is None:
+            chain = None
+        elif cycle and (chain is None or rbest[0] < chain[0]):
             chain = rbest
         if E is not None and not ev.done:
             snapped = _snap(ev, space, ev.best_z if cycle == 0 else
