@@ -55,20 +55,25 @@ def _cmaes(ev, space, popsize, seed):
     bound; a third of the first design is drawn on the coarsest), then the
     space itself, each run from the best point so far (its least-squares
     image on the run's grid) with the last run's step (its sigma times the
-    longest axis, in [0.02, 0.3]). In this first cycle a run on a coarse grid
-    stops after ``budget / (2 grids)`` runs, and the space's own run after
-    ``budget / grids``, so restarts are left a share; a coarse run stops
-    sooner at that grid's own optimum (its best margin gained less than 1 %
-    of the run's gain in the last 10 + 3 n / lambda generations), and hands
-    on the worst point snapped to the box's bounds (:func:`_snap`, two runs).
-    A run from the worst point that finds nothing better within those
-    generations also ends. Then restarts cycle through the same grids, the
-    population doubled each cycle (IPOP), on a coarse grid from the best of
-    a fresh design there (2 n points) and at most ``budget / grids`` runs,
-    on the space's own grid from a uniform mean, whenever a run converges,
-    stalls, meets a flat margin or spends its share. A space without
-    signals has one grid, its own: one run after the first design, then
-    restarts from uniform means.
+    longest axis, in [0.02, 0.3]) and the shape of its distribution
+    (:func:`_carried`: its covariance mapped onto the finer grid, the
+    directions the coarser grid could not move in given a tenth of the
+    longest axis). A run on a coarse grid stops after ``budget / (2 grids)``
+    runs, and the space's own run after ``budget / grids``, so restarts are
+    left a share; a coarse run stops sooner at its grid's own optimum (its
+    best margin gained less than 1 % of the run's gain in the last 10 + 3 n
+    / lambda generations), and hands on the worst point snapped to the
+    box's bounds (:func:`_snap`, two runs). A run from the worst
+    point that finds nothing better within those generations also ends.
+    Then restarts go through the same chain of grids, the population
+    doubled each cycle (IPOP): on the coarsest grid from the best of a
+    fresh design there (2 n points), on each finer grid from the best point
+    of this restart's chain with its last run's step and shape, with the
+    same shares (after a run that found no ranking, a flat margin, the next
+    grid starts afresh: a coarse one from a fresh design, the space's own
+    from a uniform mean without a share), whenever a run converges, stalls, meets a flat margin or
+    spends its share. A space without signals has one grid, its own: one
+    run after the first design, then restarts from uniform means.
     """
     if not np.any(space.hi > space.lo):
         ev(space.lo[None, :])
@@ -110,42 +115,81 @@ def _cmaes(ev, space, popsize, seed):
         ev.stages.append((ev.n + len(first) - k, "the first population's points on the "
                           f"grid {grids[0][0]} times coarser"))
     ev(first)
-    run, step = 0, 0.3
+    run, step, cov, chain = 0, 0.3, None, None
     while not ev.done:
-        cycle, (factor, E, clo, width, cfree) = run // len(grids), grids[run % len(grids)]
+        k = run % len(grids)
+        cycle, (factor, E, clo, width, cfree) = run // len(grids), grids[k]
+        # a finer grid goes on from its chain's best point, unless the chain
+        # found no ranking (a flat margin): then it starts afresh
+        chained = k > 0 and (cycle == 0 or chain is not None)
         lam = popsize if popsize is not None else 4 + int(3 * math.log(width.size))
         lam = max(2, lam) * 2 ** cycle
         if cycle == 0 and ev.best_z is not None:
             mean = image(ev.best_z, E, clo, width, cfree)
+        elif k and chain is not None:        # a restart goes on from its own best point
+            mean = image(chain[1], E, clo, width, cfree)
         elif E is not None:                  # a restart on a coarse grid: from the best
             U = design(2 * width.size, width.size)      # of a fresh design there
             ev.stages.append((ev.n, f"a fresh design on the grid {factor} times coarser"))
-            f = ev(mapping(E, clo, width, cfree)(U))
+            full = mapping(E, clo, width, cfree)
+            f = ev(full(U))
             if ev.done:
                 return
-            mean = U[int(np.argmin(f))]
+            i = int(np.argmin(f))
+            mean, chain = U[i], (float(f[i]), full(U[i:i + 1])[0])
         else:
             mean = rng.random(width.size)
         grid = "" if E is None else f", its signals on a grid {factor} times coarser"
         ev.stages.append((ev.n, f"CMA-ES, population {lam}{grid}"
                           + (f" (restart {run})" if run else "")))
-        # the first cycle's share: budget / (2 grids) a coarse grid, budget / grids
-        # the space's own from the worst point; later, budget / grids a coarse grid
+        # each cycle's shares: budget / (2 grids) a coarse grid, budget / grids
+        # the space's own from the last grid's worst point
         if E is not None:
-            until = ev.n + ev.budget // ((2 if cycle == 0 else 1) * len(grids))
+            until = ev.n + ev.budget // (2 * len(grids))
         else:
-            until = ev.n + ev.budget // len(grids) if cycle == 0 and run else math.inf
+            until = ev.n + ev.budget // len(grids) if chained else math.inf
         # a run from the last grid's worst point goes on with that run's step
-        sigma = min(0.3, max(0.02, step)) if cycle == 0 and run else 0.3
-        step = _cma_run(ev, mapping(E, clo, width, cfree), mean, sigma, lam, rng, until,
-                        handoff=E is not None, stuck=cycle == 0 and run > 0)
-        if E is not None and cycle == 0 and not ev.done:
-            _snap(ev, space)
+        # and its distribution's shape, mapped onto this grid
+        sigma, C0 = 0.3, None
+        if chained:
+            sigma = min(0.3, max(0.02, step))
+            if cov is not None:
+                C0 = _carried(cov, grids[k - 1], grids[k])
+        step, cov, rbest = _cma_run(ev, mapping(E, clo, width, cfree), mean, sigma, lam, rng,
+                                    until, handoff=E is not None, stuck=chained, C0=C0)
+        if cycle and rbest is None:
+            chain = None
+        elif cycle and (chain is None or rbest[0] < chain[0]):
+            chain = rbest
+        if E is not None and not ev.done:
+            snapped = _snap(ev, space, ev.best_z if cycle == 0 else
+                            (None if chain is None else chain[1]))
+            if cycle and snapped is not None and snapped[0] < chain[0]:
+                chain = snapped
         run += 1
 
 
+def _carried(cov, coarse, fine, floor=0.1):
+    """A run's covariance ``cov`` (its grid's unit coordinates) on the next,
+    finer grid: ``J cov J^T`` with ``J`` the linear map between the grids'
+    unit coordinates (coarse to the space, the space's least-squares image
+    on the finer grid), scaled to a longest axis of 1, plus ``floor^2`` times
+    the identity (the directions the coarse grid could not move in get a
+    tenth of the longest axis)."""
+    (_, Ec, _, wc, fc), (_, Ef, _, wf, ff) = coarse, fine
+    J = Ec[:, fc] * wc                       # coarse unit -> the space's coordinates
+    if Ef is not None:
+        J = np.linalg.pinv(Ef) @ J
+    J = J[ff] / wf[:, None]
+    S = J @ cov @ J.T
+    top = float(np.linalg.eigvalsh(S)[-1])
+    if not (math.isfinite(top) and top > 0):
+        return None
+    return S / top + floor ** 2 * np.eye(len(S))
+
+
 def _cma_run(ev, full, mean, sigma, lam, rng, until=math.inf, handoff=False,
-             stuck=False):
+             stuck=False, C0=None):
     """One run of CMA-ES from ``mean`` with step ``sigma`` (unit box), until
     the budget, ``until`` runs of the search, a counterexample, convergence
     (sigma below 1e-6 of the box), a stall (no better margin in 10 + 30 n /
@@ -154,7 +198,9 @@ def _cma_run(ev, full, mean, sigma, lam, rng, until=math.inf, handoff=False,
     / lambda generations, or a margin flat over three populations in a row.
     Candidates are clipped into the box and the update uses the clipped ones
     (a worst case on a face is reached exactly). Returns the last step,
-    sigma times the longest axis of the distribution."""
+    sigma times the longest axis of the distribution, and the covariance
+    sigma^2 C. ``C0``: the first covariance (its longest axis 1; default the
+    identity)."""
     n = mean.size
     mu = lam // 2
     w = math.log(mu + 0.5) - np.log(np.arange(1, mu + 1))
@@ -168,7 +214,12 @@ def _cma_run(ev, full, mean, sigma, lam, rng, until=math.inf, handoff=False,
     chin = math.sqrt(n) * (1 - 1 / (4 * n) + 1 / (21 * n * n))
     pc, ps = np.zeros(n), np.zeros(n)
     B, D, C = np.eye(n), np.ones(n), np.eye(n)
+    if C0 is not None:
+        C = (C0 + C0.T) / 2
+        ev2, B = np.linalg.eigh(C)
+        D = np.sqrt(np.maximum(ev2, 1e-20))
     best, since, flat, g = math.inf, 0, 0, 0
+    top = None                               # (margin, point of the space) of the run's best
     patience = 10 + math.ceil(30 * n / lam)
     trace = []                               # the best margin after each generation
     window = 10 + math.ceil(3 * n / lam)
@@ -178,22 +229,24 @@ def _cma_run(ev, full, mean, sigma, lam, rng, until=math.inf, handoff=False,
         X = np.clip(mean + sigma * (rng.standard_normal((lam, n)) * D) @ B.T, 0.0, 1.0)
         f = ev(full(X))
         if ev.done:
-            return step
+            return step, sigma ** 2 * C, top
         if np.ptp(f) == 0:                   # no ranking: widen, then start afresh
             flat += 1
             if flat >= 3:
-                return step
+                return step, sigma ** 2 * C, top
             sigma = min(1.0, sigma * math.exp(0.2 + cs / damps))
             continue
         flat, g = 0, g + 1
         if f.min() < best:
             best, since = float(f.min()), 0
+            i = int(np.argmin(f))
+            top = (best, full(X[i:i + 1])[0])
         else:
             since += 1
         trace.append(best)
         if (handoff and g > window
                 and trace[-1 - window] - best <= 0.01 * (trace[0] - best)):
-            return step                      # a coarse grid's own optimum, nearly
+            return step, sigma ** 2 * C, top      # a coarse grid's own optimum, nearly
         sel = np.argsort(f, kind="stable")[:mu]
         Y = (X[sel] - mean) / sigma
         yw = w @ Y
@@ -210,29 +263,33 @@ def _cma_run(ev, full, mean, sigma, lam, rng, until=math.inf, handoff=False,
         ev2, B = np.linalg.eigh(C)
         D = np.sqrt(np.maximum(ev2, 1e-20))
         if stuck and since > window:
-            return step                      # no better than the point it started from
+            return step, sigma ** 2 * C, top      # no better than the point it started from
         if sigma * D.max() < 1e-6 or since > patience or D.max() > 1e7 * D.min():
-            return step
-    return step
+            return step, sigma ** 2 * C, top
+    return step, sigma ** 2 * C, top
 
 
-def _snap(ev, space):
-    """The worst point so far with its free coordinates at their nearer bound
-    (the nearest vertex of the box), and with those within a tenth of their
-    range of a bound there: two runs (a worst case held at its bounds, as
-    bang-bang inputs are, that a search on a coarser grid approached)."""
-    if ev.best_z is None:
-        return
-    z, lo, hi = ev.best_z, space.lo, space.hi
+def _snap(ev, space, z):
+    """The point ``z`` of the space (a worst point) with its free coordinates
+    at their nearer bound (the nearest vertex of the box), and with those
+    within a tenth of their range of a bound there: two runs (a worst case
+    held at its bounds, as bang-bang inputs are, that a search on a coarser
+    grid approached). Returns (margin, point) of the better, or None."""
+    if z is None:
+        return None
+    lo, hi = space.lo, space.hi
     free = hi > lo
     u = np.where(free, (z - lo) / np.where(free, hi - lo, 1.0), 0.0)
     vertex = np.where(free & (u >= 0.5), hi, lo)
     near = np.where(free & (u <= 0.1), lo, np.where(free & (u >= 0.9), hi, z))
     cand = np.unique(np.array([vertex, near]), axis=0)
     cand = cand[np.any(cand != z, axis=1)]
-    if len(cand):
-        ev.stages.append((ev.n, "the worst point snapped to the box's bounds"))
-        ev(cand)
+    if not len(cand):
+        return None
+    ev.stages.append((ev.n, "the worst point snapped to the box's bounds"))
+    f = ev(cand)                             # +inf where not run
+    i = int(np.argmin(f))
+    return float(f[i]), cand[i]
 
 
 def _seeded(ev, space, free, npop, rng, extremes=True):

@@ -620,14 +620,18 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
         signal held at a bound over a long stretch is one coordinate at its
         bound; a third of the first design is drawn there), then on the
         space itself, each from the best point so far with the last run's
-        step. A coarse run ends at its share (``budget / (2 grids)``, later
-        ``budget / grids``) or at its grid's own optimum, and hands on the
-        best point snapped to the box's bounds (two runs: a bang-bang input
-        the coarse grid approached). It restarts, cycling
-        through the grids, with the population doubled each cycle (IPOP)
-        from a uniformly drawn mean when a run converges, stalls, meets a
-        margin flat over three populations (each widening its step first),
-        or spends its share; ``refine`` does not apply. On the
+        step and the shape of its distribution (its covariance mapped onto
+        the finer grid). A coarse run ends at its share (``budget / (2
+        grids)``) or at its grid's own optimum, and hands on the best point
+        snapped to the box's bounds (two runs: a bang-bang input the coarse
+        grid approached); the space's own run ends at ``budget / grids``.
+        It restarts through
+        the same chain of grids, with the population doubled each cycle
+        (IPOP), from the best of a fresh design on the coarsest grid (a
+        space without signals: from a uniformly drawn mean), each finer
+        grid from the restart's own best point, when a run converges,
+        stalls, meets a margin flat over three populations (each widening
+        its step first), or spends its share; ``refine`` does not apply. On the
         ARCH-COMP benchmarks (:mod:`hybridsim.arch`) it needs fewer runs than
         DE to the first counterexample.
         ``"random"``: uniform sampling of the box in populations, the

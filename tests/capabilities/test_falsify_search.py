@@ -184,3 +184,30 @@ def test_cmaes_finds_a_step_on_linear_control_points_off_the_coarse_knots():
         assert res.verdict == "counterexample" and res.evaluations <= 1000, seed
         v = res.point["u"].values
         assert np.all(v[:4, 0] >= 0.95) and np.all(v[4:, 0] <= 0.02)
+
+
+def test_a_run_hands_its_distribution_on_to_the_finer_grid():
+    """_carried: a covariance along one coordinate of the grid 4 times
+    coarser (component 0 of the first of 4 pieces) is, on the space's own
+    grid of 16 pieces, an axis along that component's first 4 pieces, the
+    longest (1), every other direction a tenth of it; the handoff from the
+    grid 4 times coarser to the grid 2 times coarser is the same axis on 2
+    of its pieces."""
+    from hybridsim._falsify_search import _carried
+    space = Space(u=ControlPoints([0.0, 0.0], [1.0, 2.0], 16.0, points=16))
+    grids = []
+    for factor in (4, 2):
+        E, lo, hi = space.coarse(factor)
+        grids.append((factor, E, lo, hi - lo, hi > lo))
+    own = (1, None, space.lo, space.hi - space.lo, space.hi > space.lo)
+    cov = np.zeros((8, 8))
+    cov[0, 0] = 0.04
+    for fine, pieces in ((own, 4), (grids[1], 2)):
+        C = _carried(cov, grids[0], fine)
+        w, V = np.linalg.eigh(C)
+        axis = np.zeros(len(C))
+        axis[0:2 * pieces:2] = 1 / np.sqrt(pieces)
+        np.testing.assert_allclose(w[-1], 1 + 0.01)
+        np.testing.assert_allclose(w[:-1], 0.01)
+        np.testing.assert_allclose(np.abs(V[:, -1]), axis, atol=1e-12)
+    assert _carried(np.zeros((8, 8)), grids[0], own) is None
