@@ -127,6 +127,7 @@ class Layout:
         self.checks = {}            # key -> (reader, whether the value was None)
         self.parts = {}             # key -> (reader, the part of the system followed)
         self.folded = {}            # key -> (reader, the bool, int or str written as a constant)
+        self.owner = None           # id of the system the keys' own reads are of
 
     def require(self, key, reader, is_none):
         """Record that the rewrite folded ``reader() is None`` to ``is_none``
@@ -200,21 +201,27 @@ class Layout:
         or None where a part is missing or of another class."""
         def on(rd):
             return rd.on(system) if isinstance(rd, Read) else rd
+
+        def key(k):               # the system's own reads keyed on the new instance
+            return (k[0], id(system), *k[2:]) if k[1] == self.owner else k
         new = Layout()
-        new.slots, new.size, new._index = list(self.slots), self.size, dict(self._index)
+        new.owner = id(system)
+        new.slots, new.size = list(self.slots), self.size
+        new._index = {key(k): i for k, i in self._index.items()}
         try:
             new.readers = [on(rd) for rd in self.readers]
-            new.checks = {k: (on(rd), v) for k, (rd, v) in self.checks.items()}
-            new.folded = {k: (on(rd), v) for k, (rd, v) in self.folded.items()}
+            new.checks = {key(k): (on(rd), v) for k, (rd, v) in self.checks.items()}
+            new.folded = {key(k): (on(rd), v) for k, (rd, v) in self.folded.items()}
             for k, (rd, obj) in self.parts.items():
                 rd = on(rd)
                 part = rd()
                 if type(part) is not type(obj):
                     return None
-                new.parts[k] = (rd, part)
+                new.parts[key(k)] = (rd, part)
         except Exception:  # noqa: BLE001 - a part missing on this instance: its own plan
             return None
         return new
+
 
 def _default_reader(func, params, name):
     """Reads the current default of parameter ``name`` of ``func``."""
@@ -431,6 +438,7 @@ def _plan(system, component):
     pl = _Planner()
     pl.inputs = bool(component)
     pl.system = system
+    pl.layout.owner = id(system)
     pl.paths[id(system)] = ()
     roles = {}
     cls = type(system).__name__
