@@ -40,6 +40,18 @@ from scipy.integrate._ivp.rk import MAX_FACTOR, MIN_FACTOR, SAFETY, RungeKutta, 
 _dot, _maximum, _abs = np.dot, np.maximum, np.abs
 
 
+def _advance(solver, h, y, t_new, y_new, h_abs, f_new):
+    """A step's end: the solver at ``(t_new, y_new)`` (scipy's ``_step_impl``'s
+    bookkeeping), returning its ``(True, None)``."""
+    solver.h_previous = h
+    solver.y_old = y
+    solver.t = t_new
+    solver.y = y_new
+    solver.h_abs = h_abs
+    solver.f = f_new
+    return True, None
+
+
 class _LeanStep:
     """``_step_impl`` of scipy's ``RungeKutta``, the same arithmetic."""
 
@@ -91,13 +103,7 @@ class _LeanStep:
                 break
             h_abs *= max(MIN_FACTOR, SAFETY * error_norm ** expo)
             rejected = True
-        self.h_previous = h
-        self.y_old = y
-        self.t = t_new
-        self.y = y_new
-        self.h_abs = h_abs
-        self.f = f_new
-        return True, None
+        return _advance(self, h, y, t_new, y_new, h_abs, f_new)
 
 
     def _error_norm(self, KT, h, scale):
@@ -341,10 +347,4 @@ class RK4(RungeKutta):
             t_new = self.t_bound
         h = t_new - t
         y_new, f_new = rk_step(self.fun, t, y, self.f, h, self.A, self.B, self.C, self.K)
-        self.h_previous = h
-        self.y_old = y
-        self.t = t_new
-        self.y = y_new
-        self.h_abs = h_abs
-        self.f = f_new
-        return True, None
+        return _advance(self, h, y, t_new, y_new, h_abs, f_new)

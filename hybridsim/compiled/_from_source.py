@@ -477,24 +477,19 @@ def _scalar_fn():
         def _hs_pmv_cat(p, off, r, c, pieces, axis):
             return _hs_pmv(p, off, r, c, np.concatenate(pieces, axis=axis))
 
-        def _cat_typed(p, off, r, c, pieces, axis):
-            if isinstance(pieces, nt.UniTuple) and isinstance(pieces.dtype, nt.Array) \
-                    and pieces.dtype.ndim == 1:
-                return _matvec_cat
-            return lambda p, off, r, c, pieces, axis: _hs_pmv(
-                p, off, r, c, np.concatenate(pieces, axis=axis))
-        overload(_hs_pmv_cat)(_cat_typed)
-
         def _hs_mpv_cat(p, off, r, c, pieces, axis):
             return _hs_mpv(p, off, r, c, np.concatenate(pieces, axis=axis))
 
-        def _cat_typed_m(p, off, r, c, pieces, axis):
-            if isinstance(pieces, nt.UniTuple) and isinstance(pieces.dtype, nt.Array) \
-                    and pieces.dtype.ndim == 1:
-                return _matvec_cat
-            return lambda p, off, r, c, pieces, axis: _hs_mpv(
-                p, off, r, c, np.concatenate(pieces, axis=axis))
-        overload(_hs_mpv_cat)(_cat_typed_m)
+        def _cat_typed(product):
+            def typed(p, off, r, c, pieces, axis):
+                if isinstance(pieces, nt.UniTuple) and isinstance(pieces.dtype, nt.Array) \
+                        and pieces.dtype.ndim == 1:
+                    return _matvec_cat
+                return lambda p, off, r, c, pieces, axis: product(
+                    p, off, r, c, np.concatenate(pieces, axis=axis))
+            return typed
+        overload(_hs_pmv_cat)(_cat_typed(_hs_pmv))
+        overload(_hs_mpv_cat)(_cat_typed(_hs_mpv))
 
         def _hs_reshape(v, shape):
             return v.reshape(shape)
