@@ -348,6 +348,45 @@ def test_specialised_kernel_is_cached_on_disk(tmp_path):
     assert len(gen) == 1
 
 
+BALL_RUN = textwrap.dedent("""
+    import sys, numpy as np, hybridsim as hs
+    from hybridsim.library import BouncingBall
+    a = hs.simulate(BouncingBall(), x0=[1.0, 0.0], t_max=3.0, j_max=10, backend="compiled")
+    np.save(sys.argv[1], a.jump_times)
+""")
+
+
+@pytest.mark.slow
+def test_a_compile_interrupted_by_ctrl_c_leaves_no_broken_kernel(tmp_path):
+    """One SIGINT while the engine's kernels compile from an empty cache ends
+    that process with KeyboardInterrupt; the next process on the same cache
+    compiles (or loads what was written whole) and runs: the ball's jump
+    times equal the Python path's to the event tolerance."""
+    import signal
+    import time
+
+    import hybridsim as hs
+    from hybridsim.library import BouncingBall
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    first = subprocess.Popen([sys.executable, "-W", "ignore", "-c", BALL_RUN,
+                              str(tmp_path / "r0.npy")], stderr=subprocess.PIPE, text=True,
+                             env=env)
+    line = first.stderr.readline()         # the notice: the kernels are compiling now
+    assert "compiling the engine's kernels" in line, line
+    time.sleep(2.0)
+    first.send_signal(signal.SIGINT)
+    err = first.stderr.read()
+    first.wait(timeout=600)
+    assert first.returncode != 0 and "KeyboardInterrupt" in err, err[-2000:]
+    assert not (tmp_path / "r0.npy").exists()
+    second = subprocess.run([sys.executable, "-W", "ignore", "-c", BALL_RUN,
+                             str(tmp_path / "r1.npy")], capture_output=True, text=True,
+                            timeout=900, env=env)
+    assert second.returncode == 0, second.stderr[-2000:]
+    ref = hs.simulate(BouncingBall(), x0=[1.0, 0.0], t_max=3.0, j_max=10).jump_times
+    np.testing.assert_allclose(np.load(tmp_path / "r1.npy"), ref, rtol=0, atol=1e-12)
+
+
 def _assert_same(spec, gen, a, b, h0, kw):
     """A specialised kernel's run ``a`` and batch from the heights ``h0`` are
     the generic kernel's (``b``) to the bit."""
