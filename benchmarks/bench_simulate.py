@@ -236,7 +236,9 @@ def _profile_once(call):
     call()
     prof.disable()
     stats = pstats.Stats(prof).stats   # {(file, line, func): (cc, nc, tottime, cumtime, callers)}
-    total = next(v[3] for k, v in stats.items() if k[2] == "simulate" and k[0].endswith("solve.py"))
+    # the front door, hybridsim.run.simulate
+    total = next(v[3] for k, v in stats.items() if k[2] == "simulate"
+                 and k[0].endswith(os.path.join("hybridsim", "run.py")))
     return total, prof, stats
 
 
