@@ -24,9 +24,9 @@ pytest-xdist worker); ``HYBRIDSIM_TEST_RSS=file.json`` writes each
 process's peak after every test phase, in order, to find what raises it.
 
 On several workers the engine's cached kernels are first compiled (or found)
-in two throwaway processes (:mod:`warm_kernels`, this folder): a worker that
-loads a kernel from numba's disk cache keeps a few MB of it, one that
-compiles it keeps 70-100 MB.
+in throwaway processes, one per part of :data:`warm_kernels.PARTS` (this
+folder): a worker that loads a kernel from numba's disk cache keeps a few MB
+of it, one that compiles it keeps 70-175 MB.
 """
 from __future__ import annotations
 
