@@ -117,7 +117,7 @@ def page(results, status, *, when, host, argv, load=("unknown", "unknown")) -> s
     lines = [
         "Benchmarks", "==========", "",
         ".. This page is written by benchmarks/run_all.py --page; do not edit it by hand.", "",
-        f"The figures of one run of ``{cmd}``, started {stamp}, on one machine: "
+        f"The figures of one run of ``{cmd}``, started on {stamp}, on one machine: "
         f"{host['processor']}, {host['cores']} cores, {host['system']}, Python "
         f"{host['python']}, {libs}. Load average (1, 5, 15 min) at the start "
         f"{load[0]}, at the end {load[1]}: absolute times vary with the machine and its "
@@ -127,7 +127,8 @@ def page(results, status, *, when, host, argv, load=("unknown", "unknown")) -> s
         "``python benchmarks/<script> --help`` for a script's options, and "
         "``pip install \".[bench]\"`` for the peers it compares with (diffrax, "
         "PSY-TaLiRo: rows without them are measured without them).", "",
-        f"{ok} of {len(status)} scripts ran to completion.", "",
+        f"{ok} of {len(status)} scripts ran to completion. To measure again and rewrite "
+        "this page: ``python benchmarks/run_all.py --quick --page docs/benchmarks.rst``.", "",
     ]
     if results:
         lines += [".. list-table::", "   :header-rows: 1", "   :widths: 20 30 50", "",
