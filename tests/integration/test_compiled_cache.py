@@ -377,8 +377,10 @@ def test_a_compile_interrupted_by_ctrl_c_leaves_no_broken_kernel(tmp_path):
     first.send_signal(signal.SIGINT)
     err = first.stderr.read()
     first.wait(timeout=600)
-    assert first.returncode != 0 and "KeyboardInterrupt" in err, err[-2000:]
-    assert not (tmp_path / "r0.npy").exists()
+    # the interrupt ends the process, or lands in a ctypes callback of llvmlite that
+    # discards it (then the compile finishes): either way no broken kernel is left
+    assert "KeyboardInterrupt" in err, err[-2000:]
+    assert (first.returncode != 0) == (not (tmp_path / "r0.npy").exists())
     second = subprocess.run([sys.executable, "-W", "ignore", "-c", BALL_RUN,
                              str(tmp_path / "r1.npy")], capture_output=True, text=True,
                             timeout=900, env=env)
