@@ -83,6 +83,7 @@ from ._source_rewrite import (
     _slot_expr,
 )
 from ._source_shapes import one_state
+from ._source_unroll import unroll
 
 _LEADING = ("t", "j", "u")
 
@@ -464,10 +465,34 @@ def _plan(system, component):
         roles[role] = pl.follow(f, role=role, form=form)
     if "flow" not in roles:
         raise SourceRefusal(f"{cls}.flow_map", "-", "the system defines no flow_map")
+    _unrolled(pl, roles, system)
     out = _assemble(pl, roles, f"the maps of {cls}, rewritten as functions of (x, t, j, p)")
     out.reads_past = pl.reads_past         # its flow reads x(t - tau_i): delays on the kernel
     out.reusable = pl.reusable
     return out
+
+
+#: the roles written as straight-line code where every array's shape is known
+_UNROLLED = ("flow", "jump", "output")
+
+
+def _unrolled(pl, roles, system):
+    """The maps of ``roles`` among the planner's functions replaced by their
+    straight-line form (:func:`hybridsim._source_unroll.unroll`) where they
+    have one: x of length ``state_dim``, a component's u of ``input_dim``."""
+    names = {name: role for role, name in roles.items() if role in _UNROLLED}
+    functions = {name: node for name, node, _ in pl.functions}
+    for k, (name, node, fn) in enumerate(pl.functions):
+        role = names.get(name)
+        if role is None:
+            continue
+        args = [a.arg for a in node.args.args]
+        shapes = {args[0]: int(system.state_dim)}
+        if pl.inputs and role != "output" and system.input_dim:
+            shapes[args[1]] = int(system.input_dim)
+        new = unroll(node, functions, shapes)
+        if new is not None:
+            pl.functions[k] = (name, new, fn)
 
 
 def _assemble(pl, roles, title):
