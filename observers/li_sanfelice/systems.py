@@ -271,24 +271,6 @@ class _NoiseCompensating(_TwoCopyObserver):
                 "(18) amplifies integration and modelling errors by this factor",
                 RuntimeWarning, stacklevel=2)
 
-    # Kept for H_c and H_pc (H_n runs its maps as written): their maps compile as written
-    # (numbers to 1e-15), but Xi_matrix's matrix products and the reshape of their
-    # transpose cost 27-31x this flow a call (1.46 us against 0.054; the jump 1.1x);
-    # benchmarks/bench_rewrite_vs_twin.py.
-    def compiled_component(self):
-        """The observer's compiled form (``backend="compiled"``, see
-        :func:`hybridsim.compiled.lower`): the same (17)-(18) with the
-        design's matrices in its parameters."""
-        from hybridsim.compiled import Component
-        d = self.design
-        f, g, hD, D, h = _two_copy_maps(d.n, d.p, self._has_q)
-        mats = [d.F1, d.F2, d.L1, d.L2, d.K1, d.K2, d.A, d.H, self._Lt1.reshape(1, -1),
-                self._Lt2.reshape(1, -1)]
-        params = np.concatenate([np.asarray(M, dtype=float).ravel() for M in mats]
-                                + [[d.delta, d.a1, d.a2]])
-        return Component(state_dim=self.state_dim, input_dim=d.p, flow=f, jump=g,
-                         jump_guard=hD, jump_set=D, output=h, output_dim=d.n, params=params)
-
     def flow_map(self, x, t, j, u):
         d, n, p = self.design, self.design.n, self.design.p
         s = self.slices
@@ -421,91 +403,6 @@ class LuenbergerObserver(hs.HybridSystem):
 
     def flow_map(self, x, t, j, u):
         return self.A @ x - self.L0 @ (self.H @ x - u)
-
-
-@functools.cache
-def _two_copy_maps(n, p, has_q):
-    """Compiled maps of H_c / H_pc (17)-(18), reading F1, F2, L1, L2, K1, K2, A, H,
-    vec L1, vec L2, delta, a1, a2 from the parameters, row-major. Plain numpy
-    and loops: numba compiles them when the observer is lowered
-    (:func:`hybridsim.compiled.lower`)."""
-    from hybridsim.compiled import compiled_matvec
-    mv = compiled_matvec()
-    nn, np_ = n * n, n * p
-    oF1, oF2, oL1, oL2 = 0, nn, 2 * nn, 2 * nn + np_
-    oK1, oK2 = 2 * nn + 2 * np_, 3 * nn + 2 * np_
-    o = 4 * nn + 2 * np_
-    oA, oH, oLt1, oLt2 = o, o + nn, o + nn + p * n, o + nn + p * n + np_
-    odelta = oLt2 + np_
-    # state layout: xh1, xh2, xi1, xi2, mhat, tau [, q]
-    ixi1, ixi2 = 2 * n, 2 * n + np_
-    imh = 2 * n + 2 * np_
-    itau = imh + p
-    iq = itau + 1
-    r = itau + 1 + (1 if has_q else 0)
-
-    def flow(x, u, t, j, prm):
-        dx = np.empty(r)
-        for b, oL in ((0, oL1), (n, oL2)):           # (17): A x̂ + L (y - H x̂ - m̂)
-            for i in range(n):
-                a = 0.0
-                for k in range(n):
-                    a += prm[oA + i * n + k] * x[b + k]
-                dx[b + i] = a
-            for c in range(p):
-                e = u[c] - x[imh + c]
-                for k in range(n):
-                    e -= prm[oH + c * n + k] * x[b + k]
-                for i in range(n):
-                    dx[b + i] += prm[oL + i * p + c] * e
-        for ix, oF, oLt in ((ixi1, oF1, oLt1), (ixi2, oF2, oLt2)):
-            for c in range(p):       # column c of Xi: xi[c n:(c+1) n]
-                for i in range(n):
-                    a = prm[oLt + c * n + i]
-                    for k in range(n):
-                        a += prm[oF + i * n + k] * x[ix + c * n + k]
-                    dx[ix + c * n + i] = a
-        for c in range(p):
-            dx[imh + c] = 0.0
-        dx[itau] = 1.0 - x[iq] if has_q else 1.0
-        if has_q:
-            dx[iq] = 0.0
-        return dx
-
-    def jump_guard(x, u, t, j, prm):
-        if has_q and x[iq] > 0.5:
-            return -1.0
-        return x[itau] - prm[odelta]
-
-    def jump_set(x, u, t, j, prm):
-        return x[itau] >= prm[odelta] and (not has_q or x[iq] < 0.5)
-
-    def jump(x, u, t, j, prm):
-        R = mv(prm, oK1, n, n, x[:n]) + mv(prm, oK2, n, n, x[n:2 * n])
-        xn = np.zeros(r)
-        mh = x[imh:imh + p]
-        T = np.empty((n, p))
-        for k in range(p):
-            T[:, k] = (mv(prm, oK1, n, n, x[ixi1 + k * n:ixi1 + (k + 1) * n])
-                       + mv(prm, oK2, n, n, x[ixi2 + k * n:ixi2 + (k + 1) * n]))
-        HT = np.empty((p, p))
-        for k in range(p):
-            HT[:, k] = mv(prm, oH, p, n, np.ascontiguousarray(T[:, k]))
-        for k in range(p):
-            HT[k, k] -= 1.0
-        w = np.linalg.solve(HT, mv(prm, oH, p, n, R) - (u - mh))
-        Tw = T @ w
-        xn[:n] = R - Tw
-        xn[n:2 * n] = R - Tw
-        xn[imh:imh + p] = mh + w
-        if has_q:
-            xn[iq] = 1.0 - x[iq]
-        return xn
-
-    def output(x, t, j, prm):
-        return prm[odelta + 1] * x[:n] + prm[odelta + 2] * x[n:2 * n]
-
-    return flow, jump, jump_guard, jump_set, output
 
 
 @functools.cache
