@@ -35,7 +35,7 @@ LEVELS = (
                          "system", "compose", "history", "arc", "_arc_access", "_arc_checks",
                          "_arc_io", "_arc_records", "_compose_checks", "arc_batch", "library",
                          "_source", "_source_read", "_source_guards", "_source_rewrite",
-                         "_source_shapes",
+                         "_source_shapes", "_source_unroll",
                          "brownian"}),
 )
 
