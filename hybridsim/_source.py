@@ -46,6 +46,9 @@ function's own node in its file, so every message names the file and line):
   ``np.concatenate((a, b))`` reads the pieces; ``np.where`` of numbers is
   an if/else, ``v.swapaxes``, and ``v.reshape`` of any layout, numpy's. A
   plan made once serves every instance of its class (:meth:`Layout.on`).
+  A flow, jump or output map whose arrays all have shapes known when it is
+  rewritten is then written as straight-line code of numbers, the same
+  operations in the same order (:mod:`hybridsim._source_unroll`).
   For a part of an interconnection (``plan(system, component=True)``) the
   maps take ``(x, u, t, j, p)``
   and its output ``(x, t, j, p)``. What cannot be rewritten is refused by a
