@@ -13,7 +13,7 @@ import numpy as np
 from scipy.integrate import DOP853, RK45
 from scipy.integrate._ivp import dop853_coefficients as _dop
 
-from ._rk import MAX_FACTOR, MIN_FACTOR, RK4_SNAP, RK4_TABLEAU, SAFETY
+from ._rk import MAX_FACTOR, MIN_FACTOR, RK4_P4, RK4_SNAP, RK4_TABLEAU, SAFETY
 from .arc import Termination
 from .rules import t_max_slack
 
@@ -24,7 +24,7 @@ _NS = RK45.n_stages
 #: methods stepped here with one form of dense output: RK45's, and RK4's fixed step
 #: (hybridsim._rk.RK4: its continuous extension of order 3, a column of zeros added)
 _RK45 = {"A": _A, "B": _B, "C": _C, "P": _P}
-_RK4 = dict(RK4_TABLEAU, P=np.hstack([RK4_TABLEAU["P"], np.zeros((5, 1))]))
+_RK4 = dict(RK4_TABLEAU, P=RK4_P4)
 _ERR_EXP = -1.0 / (RK45.error_estimator_order + 1)
 #: scipy's DOP853 (``method="DOP853"``): its tableau (12 stages), error weights
 #: and dense output (3 more stages, then D); the rules of simulate's DOP853

@@ -25,7 +25,7 @@ expression).
 method with a fixed step (``max_step``) and no error control, for runs
 whose step is chosen by the model (a divisor of its delays, sampling
 periods and the pieces of its inputs); its tableau and continuous
-extension (:data:`RK4_TABLEAU`) serve every path that steps it.
+extension (:data:`RK4_TABLEAU`, :data:`RK4_P4`) serve every path that steps it.
 """
 
 import math
@@ -272,6 +272,10 @@ RK4_TABLEAU = {
     "P": np.array([[1.0, -1.5, 2.0 / 3.0], [0.0, 1.0, -2.0 / 3.0], [0.0, 1.0, -2.0 / 3.0],
                    [0.0, -0.5, 2.0 / 3.0], [0.0, 0.0, 0.0]]),
 }
+#: RK4's continuous extension in RK45's dense-output form (y + h K^T P [s, s^2, s^3,
+#: s^4], :data:`RK4_TABLEAU`'s P with a column of zeros): the form the vectorized
+#: batch and the compiled kernel evaluate, search and record the past in
+RK4_P4 = np.hstack([RK4_TABLEAU["P"], np.zeros((5, 1))])
 #: A step that would end within this fraction of a step before its bound ends on it
 #: (no sliver step after it: the bound is a delay breakpoint or t_max on the grid)
 RK4_SNAP = 1e-9

@@ -42,12 +42,8 @@ SUPPORTS = {
 }
 #: the methods a path implements where it takes ``method`` (every one on the
 #: Python path); the others are refused by name
-METHODS_ON = {"vectorized": ("RK45", "DOP853", "RK4"), "compiled": ("RK45", "DOP853")}
-#: why a path lacks a method the engine has, where there is more to say than its list
-_METHOD_WHY = {("compiled", "RK4"): "the compiled kernel (hybridsim/compiled/_kernel.py) "
-               "steps the embedded pairs RK45 and DOP853 only, with their error control; "
-               "run method='RK4' with backend='python' (simulate_many's numpy batch for a "
-               "vectorized system)"}
+METHODS_ON = {"vectorized": ("RK45", "DOP853", "RK4"),
+              "compiled": ("RK45", "DOP853", "RK4")}
 #: where to go for an option a path refuses
 _WHERE = {"inputs": "hs.simulate, or close the loop with hs.connect first",
           "prehistory": "hs.simulate (the Python path)",
@@ -384,7 +380,7 @@ def method_on(path, method, system=None):
     Returns
     -------
     str
-        "RK45", "DOP853" or (vectorized path) "RK4".
+        "RK45", "DOP853" or "RK4".
 
     Raises
     ------
@@ -392,7 +388,7 @@ def method_on(path, method, system=None):
         An unknown ``path``; a method the path does not implement (naming
         the ones it has), or an unknown name (:func:`resolve_method`'s
         message); a method other than RK45 (or RK4) for a system reading its
-        past; RK4 on the compiled path (its kernel has the embedded pairs only).
+        past.
     TypeError
         ``method`` neither a string nor an ``OdeSolver`` subclass.
 
@@ -403,6 +399,8 @@ def method_on(path, method, system=None):
     'DOP853'
     >>> method_on("vectorized", "DOP853")
     'DOP853'
+    >>> method_on("compiled", "RK4")
+    'RK4'
     >>> method_on("compiled", "Radau")  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
@@ -422,10 +420,6 @@ def method_on(path, method, system=None):
                                  f"(delays) is not supported on the {path} path; use "
                                  f"hs.simulate (the Python path)")
             return name
-    for name, known in METHODS.items():
-        why = _METHOD_WHY.get((path, name))
-        if why and cls is known:
-            raise ValueError(f"method={method!r} is not supported on the {path} path: {why}")
     others = " and ".join(repr(m) for m in names)
     raise ValueError(f"method={method!r} is not supported on the {path} path; use "
                      f"hs.simulate (the Python path) for methods other than {others}")

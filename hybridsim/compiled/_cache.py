@@ -72,9 +72,13 @@ from ._variants import (
     run_one,
     run_one_delays,
     run_one_dop853,
+    run_one_rk4,
+    run_one_rk4_delays,
     run_one_spec,
     run_one_spec_delays,
     run_one_spec_dop853,
+    run_one_spec_rk4,
+    run_one_spec_rk4_delays,
     run_one_watch,
 )
 
@@ -85,8 +89,9 @@ __all__ = [
     "MAP_JUMP_X0", "POLL_GIL", "POLL_NONE", "T_MAX",
     "absent_false", "absent_scalar", "absent_true", "absent_vec", "as_bool", "as_scalar",
     "as_vec", "handle", "map_addresses", "rng_pointers", "wrap_map", "jit_address",
-    "run_one", "run_one_delays", "run_one_dop853", "run_one_spec", "run_one_spec_delays",
-    "run_one_spec_dop853", "run_one_watch", "run_rows", "COMPILE_SECONDS", "Unkeyable",
+    "run_one", "run_one_delays", "run_one_dop853", "run_one_rk4", "run_one_rk4_delays",
+    "run_one_spec", "run_one_spec_delays", "run_one_spec_dop853", "run_one_spec_rk4",
+    "run_one_spec_rk4_delays", "run_one_watch", "run_rows", "COMPILE_SECONDS", "Unkeyable",
     "compile_kernels", "one_address", "run_kernel", "spec_in_cache", "spec_key", "spec_module",
     "cache_dir", "remove_stale", "kernel_opt", "KERNEL_OPT", "STALE_AGE",
 ]
@@ -230,8 +235,8 @@ def _spec_source(key, delays=False, method="RK45"):
     read from the module's globals), so that numba optimizes and generates its
     code once (a wrapper calling :data:`run_one_spec` took about 2.4 s more);
     with the code for the past where ``delays`` (see :data:`run_one_delays`),
-    DOP853's steps where ``method`` is ``"DOP853"`` (``key`` then names them
-    too, :func:`spec_key`)."""
+    DOP853's or RK4's steps where ``method`` is ``"DOP853"`` or ``"RK4"`` (``key``
+    then names them too, :func:`spec_key`)."""
     import inspect
     core = inspect.getsource(_run_core)
     head = "def _run_core(maps, "
@@ -243,6 +248,8 @@ def _spec_source(key, delays=False, method="RK45"):
         head += "_DELAYS = True     # the flow map reads the past\n\n\n"
     if method == "DOP853":
         head += "globals().update(_k.DOP853_GLOBALS)     # DOP853's steps\n\n\n"
+    elif method == "RK4":
+        head += "globals().update(_k.RK4_GLOBALS)     # RK4's fixed steps\n\n\n"
     return (head + core
             + '\n\none = numba.njit(cache=_cache.CACHE, error_model="numpy")(one)\n')
 
@@ -337,7 +344,7 @@ _ENGINE_DIGEST = []
 def spec_key(maps, delays=False, method="RK45"):
     """The digest naming a system's specialised kernel: ``maps`` is a tuple of
     (role, kind, function or None) for f, g, hD, hC, D, C; ``delays``: whether
-    its flow map reads the past; ``method``: "RK45" or "DOP853". Raises
+    its flow map reads the past; ``method``: "RK45", "DOP853" or "RK4". Raises
     :class:`Unkeyable` for a map reading a value that cannot be keyed."""
     if not _ENGINE_DIGEST:
         _ENGINE_DIGEST.append(_engine_digest())
@@ -453,7 +460,9 @@ def remove_stale(d, age=None):
                 continue
             with open(path) as fh:
                 if fh.read() in (_spec_source(key), _spec_source(key, True),
-                                 _spec_source(key, method="DOP853")):
+                                 _spec_source(key, method="DOP853"),
+                                 _spec_source(key, method="RK4"),
+                                 _spec_source(key, True, "RK4")):
                     continue
             os.remove(path)
         except (OSError, ValueError):
@@ -485,23 +494,28 @@ def _in_cache(disp, sig):
 
 def _tag(delays, method, watch=False):
     if watch:
-        if delays or method == "DOP853":
+        if delays or method != "RK45":
             raise ValueError("the compiled path records watched functions with RK45 and "
                              "without delays only")
         return "one_watch"
     if method == "DOP853":
         if delays:
-            raise ValueError("the compiled path steps a flow map with delays with RK45 only")
+            raise ValueError("the compiled path steps a flow map with delays with RK45 or "
+                             "RK4 only")
         return "one_dop853"
+    if method == "RK4":
+        return "one_rk4_delays" if delays else "one_rk4"
     return "one_delays" if delays else "one"
 
 
 def run_kernel(delays=False, method="RK45", watch=False):
     """The cached run kernel of systems whose maps are passed by address:
     :data:`run_one`, :data:`run_one_delays` for a flow map that reads the
-    past, :data:`run_one_dop853` for ``method="DOP853"``,
-    :data:`run_one_watch` for a system that watches functions."""
+    past, :data:`run_one_dop853` for ``method="DOP853"``, :data:`run_one_rk4`
+    (:data:`run_one_rk4_delays`) for ``method="RK4"``, :data:`run_one_watch`
+    for a system that watches functions."""
     return {"one": run_one, "one_delays": run_one_delays, "one_dop853": run_one_dop853,
+            "one_rk4": run_one_rk4, "one_rk4_delays": run_one_rk4_delays,
             "one_watch": run_one_watch}[_tag(delays, method, watch)]
 
 
@@ -527,13 +541,15 @@ def compile_kernels(batch=True, notice=None, one=True, delays=False, method="RK4
             and not _in_cache(run, sig):
         _READY.add(("noticed", tag))
         seconds = COMPILE_SECONDS[{"one": 0, "one_delays": 3, "one_dop853": 4,
-                                   "one_watch": 5}[tag]]
+                                   "one_watch": 5, "one_rk4": 6, "one_rk4_delays": 7}[tag]]
         if want_batch and not _in_cache(run_rows, _batch_signature(sig)):
             seconds += COMPILE_SECONDS[1]
         notice(cache_dir(), seconds,
                what={"one": "the engine's kernels",
                      "one_delays": "the engine's kernels for flow maps with delays",
                      "one_dop853": "the engine's DOP853 kernel",
+                     "one_rk4": "the engine's RK4 kernel",
+                     "one_rk4_delays": "the engine's RK4 kernel for flow maps with delays",
                      "one_watch": "the engine's kernel for watched functions"}[tag])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", nb_errors.NumbaExperimentalFeatureWarning)
@@ -549,9 +565,10 @@ def compile_kernels(batch=True, notice=None, one=True, delays=False, method="RK4
 
 
 #: CPU seconds to compile run_one, run_rows, a specialised run kernel,
-#: run_one_delays, run_one_dop853 and run_one_watch with an empty cache
-#: (measured on the project's machine, issue 27; the notice quotes them)
-COMPILE_SECONDS = (15, 1, 15, 20, 15, 20)
+#: run_one_delays, run_one_dop853, run_one_watch, run_one_rk4 and
+#: run_one_rk4_delays with an empty cache (measured on the project's machine,
+#: issue 27; the notice quotes them)
+COMPILE_SECONDS = (15, 1, 15, 20, 15, 20, 15, 20)
 #: the run kernels' code addresses (:func:`jit_address`), once compiled
 _ONE_ADDR = {}
 

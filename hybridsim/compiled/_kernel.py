@@ -10,7 +10,8 @@ Generator: numba's unboxing of a first-class function or Generator argument
 costs microseconds per call.
 
 The run core is compiled as the engine's run kernels (:mod:`._variants`:
-one per setting of its constants ``_DELAYS``, ``_DOP`` and ``_WATCH``, below);
+one per setting of its constants ``_DELAYS``, ``_DOP``, ``_RK4`` and ``_WATCH``,
+below);
 a system with ``specialize=True`` gets its own copy in a generated module
 (:mod:`._cache`), whose globals are this module's.
 
@@ -76,12 +77,15 @@ from ._steps import (
 )
 from ._types import (
     _A,
+    _A4,
     _A8,
     _A_FLOW,
     _A_JUMP,
     _A_STOP,
     _B,
+    _B4,
     _B8,
+    _C4,
     _C8,
     _E,
     _E3,
@@ -100,6 +104,8 @@ from ._types import (
     _ORDER,
     _OUTSIDE,
     _P,
+    _P4,
+    _RK4_SNAP,
     _SAFETY,
     BLOWUP,
     CANCELED,
@@ -134,6 +140,14 @@ from ._watch import scratch, watch_fault, watch_step, watch_values, with_crossin
 _DOP = False
 #: the run core's globals in its DOP853 variant
 DOP853_GLOBALS = {"_DOP": True}
+#: a constant of the run core: its method is the classic RK4 with the fixed step
+#: ``max_step`` (:class:`hybridsim._rk.RK4`: no error control, the step ending on
+#: its bound within ``RK4_SNAP`` of a step, the continuous extension of order 3 in
+#: RK45's dense-output form). True in :data:`._variants.run_one_rk4` and
+#: ``run_one_rk4_delays``; numba prunes the error control and the first-step rule
+_RK4 = False
+#: the run core's globals in its RK4 variants
+RK4_GLOBALS = {"_RK4": True}
 #: a constant of the run core: whether its flow map reads the past (delays).
 #: False in :data:`._variants.run_one` (numba prunes every branch on it: no code
 #: for the past, a smaller kernel to compile), True in ``run_one_delays``
@@ -239,15 +253,16 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     detail = 0
     # the run's scratch, one owned array read again before the run returns (alive
     # throughout), its parts views without reference counts (:func:`_bare`)
-    # the method (``_DOP``, a constant: the other's code is pruned): its
+    # the method (``_DOP``, ``_RK4``: constants, the others' code is pruned): its
     # stages (the first the flow at the step's start), the rows of K (DOP853's
-    # dense output adds three) and the dense output's columns
-    NST = 12 if _DOP else 6
-    NK = 16 if _DOP else 7
+    # dense output adds three) and the dense output's columns (RK4's in RK45's form)
+    NST = 12 if _DOP else (4 if _RK4 else 6)
+    NK = 16 if _DOP else (5 if _RK4 else 7)
     NQ = 7 if _DOP else 4
-    SA = _A8 if _DOP else _A
-    SB = _B8 if _DOP else _B
-    SC = _C8 if _DOP else _Cc
+    SA = _A8 if _DOP else (_A4 if _RK4 else _A)
+    SB = _B8 if _DOP else (_B4 if _RK4 else _B)
+    SC = _C8 if _DOP else (_C4 if _RK4 else _Cc)
+    SP = _P4 if _RK4 else _P
     ERRX = -1.0 / 8.0 if _DOP else _ERR_EXP
     work = np.zeros((NK + NQ + 10) * n)
     K = _bare(work[:NK * n]).reshape((NK, n))
@@ -440,7 +455,9 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             info[2] = fa.shape[0]
             info[3] = j
             break
-        if hh0 == hh0:
+        if _RK4:
+            h_abs = max_step                 # RK4's fixed step: no hint, no first-step rule
+        elif hh0 == hh0:
             h_abs = hh0
         else:
             # scipy's select_initial_step: the Euler point in yi, the scale in WS[0]
@@ -499,9 +516,11 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 cause = CANCELED
                 t, x = a, ya
                 break
-            # ---- scipy's RungeKutta._step_impl
+            # ---- scipy's RungeKutta._step_impl (RK4's: ``hybridsim._rk.RK4._step_impl``)
             min_step = 10.0 * abs(np.nextafter(a, np.inf) - a)
-            if h_abs > max_step:
+            if _RK4:
+                ha = max_step
+            elif h_abs > max_step:
                 ha = max_step
             elif h_abs < min_step:
                 ha = min_step
@@ -517,12 +536,15 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             fb = fa
             bad_len = False
             while not accepted:
-                if ha < min_step:
+                if not _RK4 and ha < min_step:
                     failed = True
                     break
                 hs = ha
                 b = a + hs
-                if b - t_bound > 0:
+                if _RK4:
+                    if b - t_bound > -_RK4_SNAP * hs:    # no sliver step before the bound
+                        b = t_bound
+                elif b - t_bound > 0:
                     b = t_bound
                 hs = b - a
                 ha = abs(hs)
@@ -566,6 +588,14 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                     break
                 for q in range(n):
                     K[NST, q] = fnew[q]
+                if _RK4:
+                    # no error control: every step accepted, h_abs stays max_step
+                    ha = max_step
+                    accepted = True
+                    yb = ynew
+                    yb_row = ynew_row
+                    fb = fnew
+                    break
                 if _DOP:
                     # ``DOP853._estimate_error_norm``
                     s5 = 0.0
@@ -658,15 +688,15 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 info[3] = j
                 t, x = a, ya
                 break
-            # dense output of the step: hQ = h K^T P (RK45); DOP853's costs three
-            # evaluations more, made where it may be read (below)
+            # dense output of the step: hQ = h K^T P (RK45, RK4); DOP853's costs
+            # three evaluations more, made where it may be read (below)
             dense_ok = True
             if not _DOP:
                 for i in range(n):
                     for k in range(4):
                         acc = 0.0
-                        for m in range(7):
-                            acc += K[m, i] * _P[m, k]
+                        for m in range(NK):
+                            acc += K[m, i] * SP[m, k]
                         acc *= hs
                         hQ[i, k] = acc
                         dense_ok = dense_ok and math.isfinite(acc)

@@ -17,8 +17,9 @@ from numpy.typing import ArrayLike
 from scipy.integrate import OdeSolver
 
 from ..arc import HybridArc, _describe, _one_sample
+from .._rk import fixed_step
 from ..arc_batch import ArcBatch
-from ..options import check_unsupported, check_x0, method_on, parse_run
+from ..options import FIXED_STEP, check_unsupported, check_x0, method_on, parse_run
 from ..rules import (
     CAUSES,
     CHATTER_RTOL,
@@ -235,8 +236,10 @@ def _parse_options(system, n, caller, method, extra, shared):
         if name not in _REFUSABLE:
             raise TypeError(f"{caller}() got an unexpected keyword argument {name!r}")
     check_unsupported("compiled", dict(extra, method=method))
-    method_on("compiled", method, system)
+    name = method_on("compiled", method, system)
     ro = parse_run(system, n, **shared)
+    if name in FIXED_STEP:
+        fixed_step(name, ro.max_step)
     # the delays (the flow map's past, CompiledSystem(delays=)) after the options
     fopt = np.empty(lay.F_DELAYS + len(system.delays))
     fopt[lay.F_T0] = ro.t0
@@ -277,8 +280,8 @@ def _parse_options(system, n, caller, method, extra, shared):
 
 
 def _kernels(k, system, batch, method="RK45"):
-    """``(run, address)``: the system's run kernel for ``method`` ("RK45" or
-    "DOP853"; the cached generic one, maps passed by address, or its
+    """``(run, address)``: the system's run kernel for ``method`` ("RK45",
+    "DOP853" or "RK4"; the cached generic one, maps passed by address, or its
     specialised one) and that kernel's code address for
     :func:`_batch.run_rows` (compiled when ``batch``)."""
     nb = system._nb
@@ -292,7 +295,7 @@ def _kernels(k, system, batch, method="RK45"):
     tag = "" if method == "RK45" else "_" + method
     one = nb.get("one" + tag)
     if one is None and system.specialize:
-        # DOP853's specialised kernel: made when a run first asks for it
+        # DOP853's or RK4's specialised kernel: made when a run first asks for it
         import numba
         from numba.core.errors import NumbaExperimentalFeatureWarning
         with warnings.catch_warnings():
@@ -486,7 +489,8 @@ def simulate_compiled(system: CompiledSystem, x0: ArrayLike, t_max: float,
 
     The same run as ``hs.simulate(system, x0, t_max, j_max, method=method,
     ...)``: Dormand-Prince 5(4) steps with scipy RK45's error control and
-    step-size controller (or scipy DOP853's 8(5,3)), events located to 4 ulp
+    step-size controller (or scipy DOP853's 8(5,3), or the classic RK4 at the
+    fixed step ``max_step``), events located to 4 ulp
     on the step's dense output
     (the Python path's root finder on guards, bisection of the indicators,
     the interior search for excursions within one step), the same priorities, limits and
@@ -502,15 +506,20 @@ def simulate_compiled(system: CompiledSystem, x0: ArrayLike, t_max: float,
         As in :func:`hybridsim.simulate` (``seed`` drives ``priority="random"``
         with the same numpy Generator stream, so coins agree with the Python
         path).
-    method : {"RK45", "DOP853"} or scipy's class
+    method : {"RK45", "DOP853", "RK4"} or scipy's class
         The Runge-Kutta pair (scipy's steps, error norm, step-size controller
         and dense output). DOP853, for tight tolerances (rtol 1e-8 and
         below), takes several times fewer steps; as on the Python path, its
         interior event search runs on the cubic Hermite of each step's ends
         and confirms a hit on the dense output (three more evaluations of
         the flow map), and its refined samples carry no derivative (NaN).
-        Its kernel compiles (about 15 s, once per machine) when a run first
-        asks for it. Not with ``delays``; other methods are refused by name.
+        Not with ``delays``. "RK4": the Python path's
+        :class:`hybridsim._rk.RK4`, the classic Runge-Kutta method at the
+        fixed step ``max_step`` (finite; no error control, ``rtol`` and
+        ``atol`` not read), its continuous extension of order 3 for events,
+        refined samples and the past (``delays``). Each of the two has its
+        own kernel, compiled (about 15 s, once per machine) when a run first
+        asks for it; other methods are refused by name.
 
     Returns
     -------

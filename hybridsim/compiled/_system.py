@@ -418,8 +418,8 @@ class CompiledSystem(HybridSystem):
         ``_cache.spec_module``); a new process with the kernel in its cache
         compiles nothing. Maps whose digest cannot be taken (they read an object
         that is not a constant, array, module or function) compile in memory.
-        ``method``: "RK45" (made by :meth:`compile`) or "DOP853" (made when a
-        run first asks for it)."""
+        ``method``: "RK45" (made by :meth:`compile`), "DOP853" or "RK4" (made
+        when a run first asks for it)."""
         entries = tuple((role, kind, self.maps.get(role)) for role, kind in _ROLES)
         try:
             delays = bool(self.delays)
@@ -448,8 +448,11 @@ class CompiledSystem(HybridSystem):
                 mod.f, mod.g, mod.hD, mod.hC, mod.D, mod.C = f, g, hD, hC, D, C
                 one = mod.one
             else:
-                run = (k.run_one_spec_dop853 if method == "DOP853" else
-                       k.run_one_spec_delays if self.delays else k.run_one_spec)
+                run = {("DOP853", False): k.run_one_spec_dop853,
+                       ("RK4", False): k.run_one_spec_rk4,
+                       ("RK4", True): k.run_one_spec_rk4_delays,
+                       ("RK45", True): k.run_one_spec_delays,
+                       ("RK45", False): k.run_one_spec}[method, bool(self.delays)]
 
                 def one_mem(maps, x0, p, fopt, iopt, atol, rngp, poll, stop):
                     return run((f, g, hD, hC, D, C), x0, p, fopt, iopt, atol, rngp, poll, stop)

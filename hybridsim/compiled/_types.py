@@ -73,6 +73,13 @@ _E5 = np.ascontiguousarray(DOP853.E5, dtype=np.float64)
 _A8X = np.ascontiguousarray(_dop.A, dtype=np.float64)     # the extra stages' rows too
 _C8X = np.ascontiguousarray(_dop.C, dtype=np.float64)
 _D8 = np.ascontiguousarray(DOP853.D, dtype=np.float64)
+# the classic RK4 with a fixed step (hybridsim._rk.RK4): 4 stages, no error estimate,
+# its continuous extension in RK45's dense-output form (hybridsim._rk.RK4_P4)
+_A4 = np.ascontiguousarray(_rk.RK4_TABLEAU["A"], dtype=np.float64)
+_B4 = np.ascontiguousarray(_rk.RK4_TABLEAU["B"], dtype=np.float64)
+_C4 = np.ascontiguousarray(_rk.RK4_TABLEAU["C"], dtype=np.float64)
+_P4 = np.ascontiguousarray(_rk.RK4_P4, dtype=np.float64)
+_RK4_SNAP = float(_rk.RK4_SNAP)
 _JUMPS, _FLOWS, _RANDOM = int(rules.Priority.JUMPS), int(rules.Priority.FLOWS), \
     int(rules.Priority.RANDOM)
 _A_JUMP, _A_FLOW, _A_STOP = int(rules.Action.JUMP), int(rules.Action.FLOW), \

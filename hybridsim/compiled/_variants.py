@@ -10,16 +10,19 @@ cost as much to compile as the engine). A flow map that reads the past
 (delays) runs in a third, :data:`run_one_delays`, compiled when such a
 system first runs: the same run core with the record of the steps, which
 :data:`run_one` leaves out (a quarter of its compile time); ``method="DOP853"``
-in a fourth. Each is the one run core with its constants ``_DELAYS`` and
-``_DOP`` set (:func:`_variant`), and a system's watched functions in a fifth
-(:data:`run_one_watch`, ``_WATCH``, :mod:`._watch`). numba caches each by the
-run core's file (:mod:`._kernel`), under its own name.
+in a fourth; ``method="RK4"`` (the classic Runge-Kutta method at the fixed
+step ``max_step``) in :data:`run_one_rk4` and, with delays,
+:data:`run_one_rk4_delays`. Each is the one run core with its constants
+``_DELAYS``, ``_DOP`` and ``_RK4`` set (:func:`_variant`), and a system's
+watched functions in another (:data:`run_one_watch`, ``_WATCH``,
+:mod:`._watch`). numba caches each by the run core's file (:mod:`._kernel`),
+under its own name; each is compiled only when a run first asks for it.
 """
 from __future__ import annotations
 
 from numba import njit
 
-from ._kernel import DOP853_GLOBALS, _run_core
+from ._kernel import DOP853_GLOBALS, RK4_GLOBALS, _run_core
 from ._types import _NJ, _NJI, CACHE
 
 #: one run of the maps at the addresses ``maps`` (f, g, hD, hC, D, C: their cfunc
@@ -37,7 +40,7 @@ run_one_spec = njit(**_NJI)(_run_core)
 
 def _variant(fn, suffix, **consts):
     """``fn`` (the run core) as a function of its own whose constants
-    ``consts`` (``_DELAYS``, ``_DOP``) are set: the same code, its module's
+    ``consts`` (``_DELAYS``, ``_DOP``, ``_RK4``) are set: the same code, its module's
     globals but those (numba reads a global as a constant of the compiled
     code, and caches this function apart from ``fn``, under its own name)."""
     import types as pytypes
@@ -65,6 +68,21 @@ run_one_dop853 = njit(cache=CACHE, **_NJ)(_variant(_run_core, "_dop853", **DOP85
 
 #: :data:`run_one_spec` stepping with DOP853
 run_one_spec_dop853 = njit(**_NJI)(_variant(_run_core, "_dop853", **DOP853_GLOBALS))
+
+#: :data:`run_one` stepping with the classic RK4 at the fixed step ``max_step``
+#: (``method="RK4"``, :class:`hybridsim._rk.RK4`): compiled (and cached) when a run
+#: first asks for it
+run_one_rk4 = njit(cache=CACHE, **_NJ)(_variant(_run_core, "_rk4", **RK4_GLOBALS))
+
+#: :data:`run_one_rk4` for a flow map that reads the past (RK4's continuous
+#: extension has the record of the past's form, RK45's)
+run_one_rk4_delays = njit(cache=CACHE, **_NJ)(
+    _variant(_run_core, "_rk4_delays", _DELAYS=True, **RK4_GLOBALS))
+
+#: :data:`run_one_spec` stepping with RK4, without and with delays
+run_one_spec_rk4 = njit(**_NJI)(_variant(_run_core, "_rk4", **RK4_GLOBALS))
+run_one_spec_rk4_delays = njit(**_NJI)(
+    _variant(_run_core, "_rk4_delays", _DELAYS=True, **RK4_GLOBALS))
 
 #: :data:`run_one` recording the crossings of watched functions (:mod:`._watch`):
 #: compiled (and cached) when a watching system first runs
