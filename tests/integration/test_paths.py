@@ -727,18 +727,12 @@ def test_bad_delays_get_the_same_error_on_every_path(path, delays):
 
 
 @pytest.mark.parametrize("seed", [3, 11])
-def test_rk4_takes_fixed_steps_on_the_python_and_vectorized_paths(path, seed):
+def test_rk4_takes_fixed_steps_on_every_path(path, seed):
     """method="RK4": steps of max_step (shortened only at events and t_max), the
-    same steps on the Python and vectorized paths, and the RK45 solution to
-    RK4's error (h^4); the compiled path refuses it by name, saying why."""
+    same steps on every path, and the RK45 solution to RK4's error (h^4)."""
     case, x0 = random_linear(seed, 2, False)
     h, t_max = 2e-3, 3.0
     kw = dict(t_max=t_max, j_max=8, method="RK4", max_step=h, warn=False)
-    if path == "compiled":
-        with pytest.raises(ValueError, match="method='RK4' is not supported on the compiled "
-                                             "path: the compiled kernel"):
-            run(path, case, x0, **kw)
-        return
     arc = run(path, case, x0, **kw)
     ref = run("python", case, x0, **OPTS | dict(t_max=t_max, j_max=8))
     assert arc.termination is ref.termination and arc.jump_count == ref.jump_count
