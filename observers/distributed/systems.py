@@ -216,7 +216,7 @@ class DistributedObserverNode(hs.HybridSystem):
 
     # Kept: the source rewrite compiles flow_map/output as written (same numbers to the
     # bit), but its array temporaries (r, the power of r[n:], the product and the
-    # difference) cost about 2x this flow a call, and the ring of 8 with 30 noise
+    # difference) cost 2.4x this flow a call (its output now 0.47x), and the ring of 8 with 30 noise
     # realisations 1.8x in the kernel (0.074 -> 0.130 s CPU); bench_rewrite_vs_twin.py.
     def compiled_component(self):
         """The node's compiled form (``backend="compiled"``): (7)-(8) or

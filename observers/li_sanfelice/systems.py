@@ -442,7 +442,7 @@ class BoundedNoiseGenerator(hs.HybridSystem):
     def flow_map(self, x, t, j, u):
         return np.zeros(np.shape(x))
 
-    # Kept: the rewritten output (as written, its (p, K) arrays of sines) costs 4-5x
+    # Kept: the rewritten output (as written, its (p, K) arrays of sines) costs 5.3x
     # this one a call (benchmarks/bench_rewrite_vs_twin.py).
     def compiled_component(self):
         """The generator's compiled form (``backend="compiled"``)."""
