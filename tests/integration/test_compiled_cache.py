@@ -192,8 +192,20 @@ def test_dop853_has_its_own_kernel_key_and_module_text():
     key = "d" * 32
     dop = k._spec_source(key, method="DOP853")
     assert "DOP853_GLOBALS" in dop and "DOP853_GLOBALS" not in k._spec_source(key)
-    with pytest.raises(ValueError, match="delays with RK45 only"):
+    with pytest.raises(ValueError, match="delays with RK45 or RK4 only"):
         k.run_kernel(True, "DOP853")
+
+
+def test_rk4_has_its_own_kernels_from_the_same_source():
+    """RK4's run cores are the same source with ``_RK4`` set, cached apart,
+    without and with delays."""
+    assert k.run_kernel(method="RK4") is k.run_one_rk4
+    assert k.run_kernel(True, "RK4") is k.run_one_rk4_delays
+    for v in (k.run_one_rk4, k.run_one_rk4_delays):
+        assert v.py_func.__code__ is k.run_one.py_func.__code__
+        assert v.py_func.__globals__["_RK4"] is True
+    assert k.run_one.py_func.__globals__["_RK4"] is False
+    assert k.run_one_rk4.py_func.__qualname__ == "_run_core_rk4"
 
 
 def test_compile_kernels_names_a_bad_delays_argument():
