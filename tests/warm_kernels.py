@@ -20,10 +20,11 @@ import sys
 
 #: the run kernels (``_cache.compile_kernels`` arguments) of each warming
 #: process, split so they take about as long (``_cache.COMPILE_SECONDS``);
-#: ``"sde"``: the SDE flow's kernel, compiled by a run of one small SDE
+#: ``"sde"``: the SDE flow's kernel, compiled by a run of one small SDE; RK4's
+#: run kernel (the compiled RK4 tests) with it
 PARTS = (({"batch": True}, {"batch": False, "watch": True}),
          ({"batch": False, "delays": True}, {"batch": False, "method": "DOP853"}),
-         ("sde",))
+         ("sde", {"batch": False, "method": "RK4"}))
 
 
 def warm(part):
