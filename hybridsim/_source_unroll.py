@@ -93,7 +93,7 @@ class _Fn:
 
 def _leaf(name, shape):
     return Arr(shape, lambda i: Dyn(ast.Subscript(value=ast.Name(id=name, ctx=ast.Load()),
-                                                  slice=ast.Constant(i[0]), ctx=ast.Load())))
+                                                  slice=ast.Constant(int(i[0])), ctx=ast.Load())))
 
 
 def _view(a, shape, f):
@@ -730,8 +730,8 @@ def unroll(node, functions, shapes):
                 for i in value.cells():
                     u.out.append(ast.Assign(targets=[ast.Subscript(
                         value=ast.Name(id=r, ctx=ast.Load()),
-                        slice=ast.Constant(i[0]) if len(i) == 1 else ast.Tuple(
-                            elts=[ast.Constant(k) for k in i], ctx=ast.Load()),
+                        slice=ast.Constant(int(i[0])) if len(i) == 1 else ast.Tuple(
+                            elts=[ast.Constant(int(k)) for k in i], ctx=ast.Load()),
                         ctx=ast.Store())], value=u.atom(value.read(i))))
                 ret = ast.Name(id=r, ctx=ast.Load())
         elif isinstance(value, Dyn) or _num(value):

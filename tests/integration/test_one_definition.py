@@ -445,28 +445,32 @@ def test_parts_of_the_system_and_str_branches_are_read_when_the_maps_are_rewritt
 def test_the_observers_maps_as_written_are_their_compiled_forms():
     """The source rewrite of observer maps written over batches (parts of self,
     ``d = self.design``, ``self.slices[...]``, bool flags, ``x[..., k]``,
-    ``swapaxes``, the reshape of a transpose) gives the numbers of their
-    hand-written compiled forms (kept for speed: the reasons are beside them),
-    to round-off (the forms sum in other orders)."""
+    ``swapaxes``, the reshape of a transpose) gives the numbers of the maps
+    as numpy runs them and, where a hand-written compiled form is kept for
+    speed (the distributed node; the reason beside it), of that form, to
+    round-off (the forms sum in other orders)."""
     from hybridsim.compiled import _from_source
     from observers import li_sanfelice as ls
     from observers.distributed import example_observer
     rng = np.random.default_rng(0)
     node = example_observer().nodes[1]
     hc = ls.ConstantNoiseObserver(ls.example_VB())
+    method = {"flow": "flow_map", "jump": "jump_map", "jump_guard": "jump_guard",
+              "jump_set": "jump_set"}
     for system in (node, hc):
         maps, output, p, _ = _from_source.component_maps(system)
-        twin = system.compiled_component()
+        twin = system.compiled_component() if system is node else None
         for _ in range(5):
             x = rng.standard_normal(system.state_dim)
             x[-1] = 0.0 if system is hc else x[-1]          # H_c before its jump: q = 0
             u = rng.standard_normal(system.input_dim)
             for role, fn in maps.items():
-                np.testing.assert_allclose(fn(x, u, 0.3, 0, p),
-                                           twin.maps[role](x, u, 0.3, 0, twin.params),
-                                           rtol=1e-13, atol=1e-14)
-            np.testing.assert_allclose(output(x, 0.3, 0, p),
-                                       twin.output(x, 0.3, 0, twin.params), rtol=1e-14)
+                ref = (twin.maps[role](x, u, 0.3, 0, twin.params) if twin is not None
+                       else getattr(system, method[role])(x, 0.3, 0, u))
+                np.testing.assert_allclose(fn(x, u, 0.3, 0, p), ref, rtol=1e-13, atol=1e-14)
+            ref = (twin.output(x, 0.3, 0, twin.params) if twin is not None
+                   else system.output(x, 0.3, 0))
+            np.testing.assert_allclose(output(x, 0.3, 0, p), ref, rtol=1e-14)
 
 
 class TwoCopies(hs.HybridSystem):
