@@ -16,8 +16,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.integrate import OdeSolver
 
-from ..arc import HybridArc, _describe, _one_sample
 from .._rk import fixed_step
+from ..arc import HybridArc, _describe, _one_sample
 from ..arc_batch import ArcBatch
 from ..options import FIXED_STEP, check_unsupported, check_x0, method_on, parse_run
 from ..rules import (
