@@ -778,3 +778,18 @@ def test_rk4_reads_the_past_through_its_continuous_extension(path):
         arc = hs.simulate_vectorized(_Lagged(), [[1.0], [1.0]], **kw)[1]
     assert arc.stats["steps"] == 40
     np.testing.assert_allclose(arc.x[:, 0], _lagged_exact(arc.t), rtol=0, atol=1e-13)
+
+
+@pytest.mark.paths(only=("compiled",))
+def test_rk4_compiled_arc_is_the_python_paths_to_round_off(path):
+    """method="RK4" on the compiled kernel takes the Python path's steps: a
+    bouncing ball at h = 1e-3 gives the same samples, times and jumps, and its
+    states to round-off (the kernel sums the same stages in the same order)."""
+    from hybridsim.library import BouncingBall
+    kw = dict(t_max=3.0, j_max=10, method="RK4", max_step=1e-3)
+    py = hs.simulate(BouncingBall(), [1.0, 0.0], backend="python", **kw)
+    arc = hs.simulate(BouncingBall(), [1.0, 0.0], backend=path, **kw)
+    assert arc.termination is py.termination and arc.jump_count == py.jump_count
+    np.testing.assert_array_equal(arc.j, py.j)
+    np.testing.assert_allclose(arc.t, py.t, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(arc.x, py.x, rtol=0, atol=1e-12)
