@@ -23,6 +23,12 @@ also prints each test process's peak resident memory (budget 600 MB per
 pytest-xdist worker); ``HYBRIDSIM_TEST_RSS=file.json`` writes each
 process's peak after every test phase, in order, to find what raises it.
 
+The tests that solve LMIs (:data:`LMI_FILES`) run on one pytest-xdist
+worker (:func:`pytest_xdist_make_scheduler`): importing cvxpy and its solvers costs a
+process about 70 MB, paid once rather than by every worker. The summary
+names the processes that imported cvxpy, and the first test outside the
+group that did (a file to add to the group).
+
 On several workers the engine's cached kernels are first compiled (or found)
 in throwaway processes, one per part of :data:`warm_kernels.PARTS` (this
 folder): a worker that loads a kernel from numba's disk cache keeps a few MB
@@ -82,6 +88,28 @@ def pytest_generate_tests(metafunc):
     metafunc.parametrize("path", params)
 
 
+#: the files whose tests (or doctests) solve LMIs with cvxpy: one xdist group
+LMI_FILES = ("tests/papers/test_lmi.py", "tests/papers/test_claims.py",
+             "tests/papers/distributed/test_distributed.py",
+             "tests/papers/dynamic_gain/test_dynamic_gain.py",
+             "tests/papers/dynamic_gain/test_dynamic_gain_falsification.py",
+             "observers/distributed/__init__.py")
+
+
+def pytest_xdist_make_scheduler(config, log):
+    """pytest-xdist's ``load`` scheduling, with the tests of :data:`LMI_FILES` one
+    unit of work (pytest-xdist's own ``xdist_group`` marks name their group in
+    the test's id, which pytest 9 no longer lets a plugin change)."""
+    if config.getvalue("dist") != "load":
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    class LoadWithLMIGroup(LoadScopeScheduling):
+        def _split_scope(self, nodeid):
+            return "lmi" if nodeid.split("::", 1)[0] in LMI_FILES else nodeid
+    return LoadWithLMIGroup(config, log)
+
+
 @pytest.hookimpl(tryfirst=True)
 def pytest_sessionstart(session):
     # in pytest-xdist's controller, before it starts the workers
@@ -116,6 +144,8 @@ def repo() -> pathlib.Path:
 _CPU = {}
 _RSS = {}              # peak resident memory (MB) of each process that ran tests
 _RSS_LOG = []
+_CVXPY = {}            # worker -> (the first test after which cvxpy was loaded, grouped)
+_CVXPY_SEEN = []       # in a test process: that test
 CPU_BUDGET = 2.0       # seconds of CPU per default-suite test
 RSS_BUDGET = 600       # MB of peak resident memory per test process
 _PHASE_CPU = pytest.StashKey[float]()
@@ -137,8 +167,13 @@ def pytest_runtest_makereport(item, call):
     outcome = yield
     report = outcome.get_result()       # its own list: the item's would add up the phases
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024   # KB on Linux
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "main")
     report.user_properties = [*report.user_properties, ("cpu", item.stash.get(_PHASE_CPU, 0.0)),
-                              ("rss", (os.environ.get("PYTEST_XDIST_WORKER", "main"), rss))]
+                              ("rss", (worker, rss))]
+    if "cvxpy" in sys.modules and not _CVXPY_SEEN:
+        _CVXPY_SEEN.append(item.nodeid)         # the first test after which it is loaded
+        report.user_properties.append(("cvxpy", (worker, item.nodeid,
+                                                 item.nodeid.split("::", 1)[0] in LMI_FILES)))
     item.stash[_PHASE_CPU] = 0.0
 
 
@@ -146,6 +181,8 @@ def pytest_runtest_logreport(report):
     # in the process that reports (pytest-xdist's controller included)
     cpu = sum(v for k, v in report.user_properties if k == "cpu")
     _CPU[report.nodeid] = _CPU.get(report.nodeid, 0.0) + cpu
+    for worker, nodeid, grouped in (v for k, v in report.user_properties if k == "cvxpy"):
+        _CVXPY.setdefault(worker, (nodeid, grouped))
     for worker, rss in (v for k, v in report.user_properties if k == "rss"):
         _RSS[worker] = max(_RSS.get(worker, 0.0), rss)
         if os.environ.get("HYBRIDSIM_TEST_RSS"):
@@ -163,6 +200,10 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):
     if _RSS:
         peaks = ", ".join(f"{w} {mb:.0f} MB" for w, mb in sorted(_RSS.items()))
         tr.write_line(f"peak memory per test process (budget {RSS_BUDGET} MB): {peaks}")
+    if _CVXPY:
+        tr.write_line("cvxpy imported by: " + ", ".join(sorted(_CVXPY)) + "".join(
+            f"; outside the lmi group first by {n} (add its file to LMI_FILES)"
+            for w, (n, grouped) in sorted(_CVXPY.items()) if not grouped))
     out = os.environ.get("HYBRIDSIM_TEST_CPU")
     if out:                                   # every test's figure, for the budget's review
         with open(out, "w", encoding="utf-8") as fh:
