@@ -38,6 +38,8 @@ from ._batch import run_rows
 from ._kernel import _run_core
 from ._private import private_folder
 from ._types import (
+    _NJ,
+    _SIGS,
     CANCELED,
     CAUSES,
     DETAIL_CHATTER,
@@ -66,8 +68,8 @@ from ._types import (
     handle,
     map_addresses,
     rng_pointers,
-    wrap_map,
 )
+from ._types import wrap_map as _wrap_in_memory
 from ._variants import (
     run_one,
     run_one_delays,
@@ -378,13 +380,71 @@ def spec_module(key, delays=False, method="RK45"):
     """The generated module of ``key`` (written once; None where no folder is
     private and writable: the caller then compiles in memory); ``delays`` and ``method``
     as :func:`_spec_source`'s, the ones ``key`` was made with."""
+    return _generated_module(f"hybridsim_spec_{key}", _spec_source(key, delays, method))
+
+
+#: the text of the module holding the engine's wrapper of one map
+#: (:func:`wrapper_module`); ``{call}``: the map's value as its kind's type
+_WRAP_SRC = ('"""hybridsim: the engine\'s wrapper of one map, {kind} (generated; named by '
+             'the map\'s digest)."""\n\n\ndef w(x, t, j, p):\n    return {call}\n')
+_WRAP_CALL = {"vec": "_hs_as_vec(_hs_fn(x, t, j, p))",
+              "scalar": "_hs_as_scalar(_hs_fn(x, t, j, p))",
+              "bool": "_hs_as_bool(_hs_fn(x, t, j, p))",
+              "guard_set": "_hs_as_scalar(_hs_fn(x, t, j, p)) >= 0.0"}
+
+
+def wrapper_module(fn, kind):
+    """The generated module whose ``w(x, t, j, p)`` is the engine's wrapper of
+    the map ``fn`` for ``kind`` (:func:`wrap_map`),
+    named by the digest of ``fn`` (its code and every value it reads, as
+    :func:`spec_key` keys a specialised kernel) and of the engine, so numba's
+    disk cache keeps the compiled wrapper, the map's code inlined in it: a new
+    process loads it instead of compiling the map (0.5 s and 1-2 MB a map).
+    None where ``fn`` reads a value that cannot be keyed, or no folder is
+    private and writable (the caller compiles in memory)."""
+    if not _ENGINE_DIGEST:
+        _ENGINE_DIGEST.append(_engine_digest())
+    h = hashlib.sha256(_ENGINE_DIGEST[0].encode())
+    h.update(f"wrapper:{kind};".encode())
+    try:
+        _digest_value(fn, h, set())
+    except Unkeyable:
+        return None
+    name = f"hybridsim_wrap_{h.hexdigest()[:32]}"
+    mod = _generated_module(name, _WRAP_SRC.format(kind=kind, call=_WRAP_CALL[kind]),
+                            execute=False)
+    if mod is not None and "w" not in mod.__dict__:
+        mod.__dict__.update(_hs_as_vec=as_vec, _hs_as_scalar=as_scalar, _hs_as_bool=as_bool)
+        mod.__dict__["_hs_fn"] = fn if isinstance(fn, numba.core.dispatcher.Dispatcher) \
+            else numba.njit(**_NJ)(fn)
+        exec(compile(mod.__hs_source__, mod.__file__, "exec"), mod.__dict__)
+    return mod
+
+
+def wrap_map(fn, kind, lazy=False):
+    """The engine's wrapper of the map ``fn`` for ``kind`` (see
+    :func:`hybridsim.compiled._types.wrap_map`): the cached one of
+    :func:`wrapper_module` where the map's digest can be taken (and not
+    ``lazy``), else made in memory."""
+    mod = None if lazy else wrapper_module(fn, kind)
+    if mod is None:
+        return _wrap_in_memory(fn, kind, lazy)
+    if not isinstance(mod.w, numba.core.dispatcher.Dispatcher):
+        mod.w = numba.njit(_SIGS[kind], cache=True, **_NJ)(mod.w)
+    return mod.w
+
+
+def _generated_module(name, src, execute=True):
+    """The module ``name`` of the text ``src``, from its file in the first private
+    folder of :func:`_spec_dirs` (written once, exclusively; its text read back
+    and compared before it is run), or None. ``execute=False``: the module is
+    made with its file and text (``__hs_source__``) but not run, so the caller
+    binds its globals first."""
     import sys
     import tempfile
     import types as pytypes
-    name = f"hybridsim_spec_{key}"
     if name in sys.modules:
         return sys.modules[name]
-    src = _spec_source(key, delays, method)
     for d in _spec_dirs():
         path = os.path.join(d, name + ".py")
         # code is read from the folder and from numba's cache beside it: both
@@ -414,12 +474,14 @@ def spec_module(key, delays=False, method="RK45"):
         # system would pick beside it); numba caches ``one`` by this path
         mod = pytypes.ModuleType(name)
         mod.__file__ = path
+        mod.__hs_source__ = src
         sys.modules[name] = mod
-        try:
-            exec(compile(src, path, "exec"), mod.__dict__)
-        except BaseException:
-            sys.modules.pop(name, None)
-            raise
+        if execute:
+            try:
+                exec(compile(src, path, "exec"), mod.__dict__)
+            except BaseException:
+                sys.modules.pop(name, None)
+                raise
         return mod
     return None
 
@@ -452,14 +514,16 @@ def remove_stale(d, age=None):
     age = STALE_AGE if age is None else age
     now = time.time()
     removed = []
-    for path in glob.glob(os.path.join(d, "hybridsim_spec_*.py")):
+    for path in glob.glob(os.path.join(d, "hybridsim_spec_*.py")) + glob.glob(
+            os.path.join(d, "hybridsim_wrap_*.py")):
         name = os.path.basename(path)[:-3]
         key = name[len("hybridsim_spec_"):]
         try:
             if now - os.path.getmtime(path) < age:
                 continue
-            with open(path) as fh:
-                if fh.read() in (_spec_source(key), _spec_source(key, True),
+            with open(path) as fh:      # a wrapper's key is its map's: only its age tells
+                if not name.startswith("hybridsim_wrap_") and fh.read() in (
+                        _spec_source(key), _spec_source(key, True),
                                  _spec_source(key, method="DOP853"),
                                  _spec_source(key, method="RK4"),
                                  _spec_source(key, True, "RK4")):

@@ -160,12 +160,10 @@ def _helpers_text():
                      for f in (_scalar_fn, _helpers, _into, _matvec_cat)])
 
 
-def _digest(plan, src=None):
-    """The digest naming the module of ``src`` (default: the plan's source)."""
+def _digest(plan):
     import numba
     h = hashlib.sha256()
-    src = plan.source if src is None else src
-    for part in (src, numba.__version__, sys.version, _helpers_text()):
+    for part in (plan.source, numba.__version__, sys.version, _helpers_text()):
         h.update(part.encode())
         h.update(b"\0")
     for name, d in sorted(plan.dispatchers.items()):
@@ -206,40 +204,17 @@ def _written(path, src):
         return fh.read()
 
 
-#: what the engine's map wrappers (:func:`hybridsim.compiled._types.wrap_map`)
-#: make of each kind of map's value
-_AS = {"vec": "_hs_as_vec", "scalar": "_hs_as_scalar", "bool": "_hs_as_bool"}
-
-
-def _wrappers(plan, kinds):
-    """The text of the engine's wrappers of the plan's maps of ``kinds`` (role
-    -> kind): ``_hs_w_<role>(x, t, j, p)`` returning the map's value as the
-    kernels' signature types it, as :func:`~hybridsim.compiled._types.wrap_map`
-    writes them. In the module's text they are cached on disk with the maps:
-    a new process loads them instead of compiling them (0.5 s and 7 MB per
-    model otherwise)."""
-    out = []
-    for role, fname in sorted(plan.roles.items()):
-        kind = kinds.get(role)
-        if kind is not None:
-            out.append(f"\n\ndef _hs_w_{role}(x, t, j, p):\n"
-                       f"    return {_AS[kind]}({fname}(x, t, j, p))\n")
-    return "".join(out)
-
-
-def _module(plan, kinds=None):
-    """``(module, digest)``: the plan's functions compiled (numba dispatchers);
-    with ``kinds`` (role -> ``"vec"``, ``"scalar"`` or ``"bool"``), the maps of
-    those roles carry their wrappers (:func:`_wrappers`) as ``_hs_wrapped``."""
+def _module(plan):
+    """``(module, digest)``: the plan's functions compiled (numba dispatchers)."""
     from ._system import _load_kernel
     _load_kernel()                  # numba, or the ImportError saying how to install it
     import numba
-    src = plan.source + _wrappers(plan, kinds or {})
-    digest = _digest(plan, src)
+    digest = _digest(plan)
     mod = _MODULES.get(digest)
     if mod is not None:
         return mod, digest
     name = f"hybridsim_src_{digest}"
+    src = plan.source
     path = None
     for d in _dirs():
         p = os.path.join(d, name + ".py")
@@ -261,15 +236,6 @@ def _module(plan, kinds=None):
     for fname in plan.qualnames:
         mod.__dict__[fname] = numba.njit(cache=path is not None,
                                          error_model="numpy")(mod.__dict__[fname])
-    from ._types import _NJ, as_bool, as_scalar, as_vec
-    mod.__dict__.update(_hs_as_vec=as_vec, _hs_as_scalar=as_scalar, _hs_as_bool=as_bool)
-    for role, fname in plan.roles.items():
-        kind = (kinds or {}).get(role)
-        if kind is not None:
-            w = numba.njit(cache=path is not None, **_NJ)(mod.__dict__[f"_hs_w_{role}"])
-            mod.__dict__[f"_hs_w_{role}"] = w
-            m = mod.__dict__[fname]
-            m._hs_wrapped = {**getattr(m, "_hs_wrapped", {}), kind: w}
     _MODULES[digest] = mod
     return mod, digest
 
@@ -711,8 +677,7 @@ def lower_source(system, specialize=None):
             prev.watch_direction = system.watch_direction
         return prev
     spec = bool(specialize) if specialize is not None else False
-    from ._system import _ROLES
-    mod, digest = _module(pl, dict(_ROLES))
+    mod, digest = _module(pl)
     past = _delays(system, pl)
     proto = _PROTOS.get((digest, spec))
     if proto is None:

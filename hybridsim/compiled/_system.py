@@ -436,7 +436,8 @@ class CompiledSystem(HybridSystem):
                 out = {role: k.wrap_map(fn, kind, lazy=True) for role, kind in _ROLES
                        if (fn := self.maps.get(role)) is not None}
             else:
-                out = self._compile_maps(k, numba)      # names a map numba refuses
+                # in memory: the kernel cached with them must load with nothing else
+                out = self._compile_maps(k, numba, in_memory=True)   # names a map refused
                 _notice(os.path.dirname(mod.__file__) if mod is not None else None,
                         k.COMPILE_SECONDS[2],
                         what="a kernel specialised on this system's maps")
@@ -465,7 +466,10 @@ class CompiledSystem(HybridSystem):
         nb["args"] = (_NO_MAPS,)
         return nb
 
-    def _compile_maps(self, k, numba):
+    def _compile_maps(self, k, numba, in_memory=False):
+        """The maps wrapped for the kernels (``k.wrap_map``: cached on disk;
+        ``in_memory``: compiled here, for a kernel that numba caches with them)."""
+        wrap = k._wrap_in_memory if in_memory else k.wrap_map
         out = {}
         self._kinds = {}
         for role, kind in _ROLES:
@@ -473,7 +477,7 @@ class CompiledSystem(HybridSystem):
             if fn is None:
                 continue
             try:
-                out[role] = k.wrap_map(fn, kind)
+                out[role] = wrap(fn, kind)
                 self._kinds[role] = kind
             except (numba.core.errors.NumbaError, TypeError, ValueError, NotImplementedError,
                     AttributeError, KeyError) as e:

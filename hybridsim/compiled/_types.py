@@ -260,15 +260,10 @@ def wrap_map(fn, kind, lazy=False):
     indicator), ``"guard_set"`` (the set {guard >= 0} of a guard). Raises
     numba's own errors (the caller names the map). ``lazy``: compiled only
     where a kernel that calls it compiles (a specialised kernel loaded from
-    the disk cache never compiles it). A map carrying its wrapper
-    (``fn._hs_wrapped[kind]``, a plain model's rewritten map:
-    :mod:`hybridsim.compiled._from_source`) gets that one, cached on disk.
+    the disk cache never compiles it). Made in memory: the engine calls
+    :func:`hybridsim.compiled._cache.wrap_map`, which takes the one cached on
+    disk where it can.
     """
-    pre = getattr(fn, "_hs_wrapped", {}).get(kind)
-    if pre is not None:             # written in the map's generated module, cached with it
-        if not lazy:
-            pre.compile(_SIGS[kind])
-        return pre
     jf = njit(**_NJ)(fn) if not isinstance(fn, numba.core.dispatcher.Dispatcher) else fn
     if kind == "vec":
         def w(x, t, j, p):

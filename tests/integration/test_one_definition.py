@@ -279,34 +279,55 @@ def test_the_rewritten_source_is_kept_on_disk_and_verified():
     from hybridsim.compiled import _from_source
     ball = BouncingBall()
     cs = lower(ball)
-    from hybridsim.compiled._system import _ROLES
     path = cs.maps["flow"].py_func.__code__.co_filename
-    plan = ball.__dict__["_source_plan"][1]
-    text = plan.source + _from_source._wrappers(plan, dict(_ROLES))
-    with open(path) as fh:                  # the maps, then the engine's wrappers of them
-        assert fh.read() == text
-    assert "def _hs_w_flow(x, t, j, p):" in text and "_hs_as_vec(" in text
+    with open(path) as fh:
+        assert fh.read() == ball.__dict__["_source_plan"][1].source
     # a file that is not the text generated here is never run
-    assert _from_source._written(path, "something else") == text
+    plan = ball.__dict__["_source_plan"][1]
+    assert _from_source._written(path, "something else") == plan.source
 
 
-def test_a_plain_models_wrapped_maps_are_the_ones_cached_with_it():
+def test_the_wrapped_maps_are_cached_on_disk_keyed_by_their_digest():
     """The engine's wrapper of each map (its value as the kernels' signature types
-    it) is written in the map's own module, so numba's disk cache keeps it: a new
-    process compiles nothing for a model it has run before (the subprocess test
-    below), where a wrapper made in memory cost 0.5 s and 7 MB per model."""
-    from hybridsim.compiled._types import wrap_map
+    it) is a generated module's, named by the map's digest and cached by numba
+    with the map's code: a new process compiles nothing for a model it has run
+    before (the subprocess test below), where a wrapper made in memory cost
+    0.5 s and 1-2 MB a map. A map reading a value no digest keys is wrapped in
+    memory, as before."""
+    from hybridsim.compiled import CompiledSystem
+    from hybridsim.compiled._cache import wrap_map
     cs = lower(BouncingBall())
-    cs.compile()
+    names = set()
     for role, kind in (("flow", "vec"), ("jump", "vec"), ("flow_set", "bool"),
                        ("jump_set", "bool")):
         w = wrap_map(cs.maps[role], kind)
-        assert w.py_func.__name__ == f"_hs_w_{role}"
-        assert w.py_func.__module__ == cs.maps[role].py_func.__module__
+        assert w.py_func.__module__.startswith("hybridsim_wrap_")
         assert w._cache._cache_path is not None and w.overloads
-    # a map written for the compiled path gets the engine's wrapper, made in memory
-    w = wrap_map(lambda x, t, j, p: -x, "vec")
-    assert w.py_func.__name__ == "w"
+        names.add(w.py_func.__module__)
+    assert len(names) == 4
+    # the same map (the same code reading the same values) has the same wrapper;
+    # a value it reads changed, another
+    c = 9.81
+
+    def fall(x, t, j, p):
+        return np.array([x[1], -c])
+    a = wrap_map(fall, "vec")
+    assert wrap_map(fall, "vec") is a
+    c = 1.62
+    assert wrap_map(fall, "vec") is not a
+    x = np.array([1.0, 0.5])
+    assert a(x, 0.0, 0, np.zeros(0))[1] == -9.81
+    assert wrap_map(fall, "vec")(x, 0.0, 0, np.zeros(0))[1] == -1.62
+    arc = hs.simulate(CompiledSystem(fall, state_dim=2), [1.0, 0.0], t_max=1.0,
+                      backend="compiled")
+    assert arc.xf[1] == pytest.approx(-1.62)
+    # a map reading an object the digest cannot key has no module (wrapped in memory)
+    from hybridsim.compiled._cache import wrapper_module
+    box = [object()]
+
+    def odd(x, t, j, p):
+        return -x if box else x
+    assert wrapper_module(odd, "vec") is None
 
 
 _SECOND_PROCESS = """
@@ -320,7 +341,7 @@ with event.install_recorder("numba:compile") as rec:
 # the model's own functions compiled here (numba loading from its cache is no event)
 own = sorted({e.data["dispatcher"].py_func.__qualname__ for _, e in rec.buffer
               if e.is_start and (e.data["dispatcher"].py_func.__module__ or "").startswith(
-                  ("hybridsim_src_", "hybridsim.compiled._types"))})
+                  ("hybridsim_src_", "hybridsim_wrap_", "hybridsim.compiled._types"))})
 print(len(arc.jump_times), own)
 """
 
