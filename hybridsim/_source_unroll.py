@@ -341,7 +341,12 @@ class _Unroll:
     def _element(self, base, key, value):
         if not (_num(value) or isinstance(value, Dyn)):
             raise _Bail("an element that is not a number")
-        key = key if isinstance(key, tuple) else (key,)
+        key = list(key) if isinstance(key, tuple) else [key]
+        if Ellipsis in key:                           # v[..., k] of one element
+            e = key.index(Ellipsis)
+            key[e:e + 1] = [0] * (len(base.shape) - len(key) + 1)
+        if len(key) != len(base.shape) or not all(isinstance(k, int) for k in key):
+            raise _Bail("an element's index")
         idx = tuple(k % s for k, s in zip(key, base.shape))
         base.write(idx, value)
 
