@@ -1041,10 +1041,10 @@ class SampledGramianObserver(_ObserverBase):
         return None
 
     # A compiled twin of flow_map, jump_map and jump_guard, kept (issue 42's named
-    # exception): the rewrite from source cannot take (39)'s maps as written, because
-    # 1. they read their numbers through other objects: the design's matrices (a
-    #    local d = self.design) and F1, F2 through the ObserverForm's bound F12,
-    #    whose Psi closes over the plant's control u;
+    # exception): the rewrite from source cannot take (39)'s maps as written (it
+    # follows the design's matrices and the form's bound F12, as for (7)), because
+    # 1. (its refusal today) _xi_e_batch reads self.history(np.where(full, t - tau,
+    #    t0)), not at t - tau;
     # 2. (13) reads the past through self._estimate(z, t, y, self.history), the
     #    history passed as a value (to _delayed), where the rewrite takes calls
     #    self.history(t - tau) in the flow map only;
