@@ -685,6 +685,12 @@ class _Rewrite(ast.NodeTransformer):
             self.pl.layout.fold(("self", id(obj), attr), self._reader(obj, attr), v)
             c = v if isinstance(v, str) else int(v) if _is_int(v) else bool(v)
             return ast.copy_location(ast.Constant(c), node)
+        if isinstance(v, slice) and all(b is None or _is_int(b)
+                                        for b in (v.start, v.stop, v.step)):
+            self.pl.layout.fold(("self", id(obj), attr), self._reader(obj, attr), v)
+            return ast.copy_location(_call("slice", [ast.Constant(None if b is None else int(b))
+                                                     for b in (v.start, v.stop, v.step)],
+                                           node), node)
         if _kind(v) is None:
             raise fn.refuse(node, f"it reads {name}, a {type(v).__name__} (not a number "
                                   f"or an array of numbers): numba cannot type it")
@@ -757,8 +763,8 @@ class _Rewrite(ast.NodeTransformer):
         if isinstance(f, ast.Attribute) and f.attr == "where" and len(args) == 3 \
                 and not kws and getattr(self._module_of(f.value), "__name__", "") == "numpy":
             return _call("_hs_where", args, node)      # of numbers: a if c else b
-        target = None
-        hit = self._owner(f)
+        target = self._super_method(f)
+        hit = None if target is not None else self._owner(f)
         if hit is not None:
             target = self._self_method(f, hit[0])
         elif isinstance(f, ast.Name) and f.id not in self.locals:
@@ -780,6 +786,26 @@ class _Rewrite(ast.NodeTransformer):
                                                mode="eval").body, v)
         return self.visit(v)
 
+    def _super_method(self, f):
+        """``super().name`` in a method: the name of the method that follows the
+        method's own class in its object's method resolution order, followed
+        (bound to the same object), or None where ``f`` is not such a call."""
+        fn = self.fn
+        v = f.value if isinstance(f, ast.Attribute) else None
+        if not (isinstance(v, ast.Call) and isinstance(v.func, ast.Name)
+                and v.func.id == "super" and "super" not in self.locals
+                and self._lookup("super")[1] == ("builtin", "super")):
+            return None
+        if v.args or v.keywords or fn.obj is None:
+            raise fn.refuse(f, "super() is followed without arguments, in a method only")
+        mro = type(fn.obj).__mro__
+        own = [k for k, c in enumerate(mro) if c.__dict__.get(fn.func.__name__) is fn.func]
+        found = next((c.__dict__[f.attr] for c in mro[own[0] + 1:] if f.attr in c.__dict__),
+                     None) if own else None
+        if not isinstance(found, types.FunctionType):
+            raise fn.refuse(f, f"super().{f.attr} is not a plain method of a base class")
+        return self.pl.follow(Fn(found, fn.obj, found.__qualname__))
+
     def _self_method(self, f, obj):
         fn = self.fn
         static = inspect.getattr_static(obj, f.attr, _MISSING)
@@ -793,8 +819,13 @@ class _Rewrite(ast.NodeTransformer):
             return self.pl.follow(Fn(func, None, f"{type(obj).__name__}.{f.attr}"))
         if isinstance(bound, types.MethodType) and isinstance(bound.__func__,
                                                                types.FunctionType):
-            if bound.__self__ is not obj:
-                raise fn.refuse(f, f"{_dotted(f)} is bound to another object")
+            if bound.__self__ is not obj:               # a method of another object, stored
+                if static is _MISSING or isinstance(static, types.FunctionType) or \
+                        not _is_part(bound.__self__):
+                    raise fn.refuse(f, f"{_dotted(f)} is bound to another object")
+                self.pl.reusable = False                  # that object: this system's own
+                return self.pl.follow(Fn(bound.__func__, bound.__self__,
+                                         bound.__func__.__qualname__))
             return self.pl.follow(Fn(bound.__func__, obj, f"{type(obj).__name__}.{f.attr}"))
         if isinstance(bound, types.FunctionType):      # a function stored on the instance
             self.pl.reusable = False

@@ -40,6 +40,9 @@ _NP = "_hs_m_numpy"
 _UFUNCS = frozenset(("sin", "cos", "tan", "exp", "log", "sqrt", "tanh", "sinh", "cosh",
                      "arctan", "arcsin", "arccos", "abs", "fabs", "expm1", "log1p",
                      "atan", "asin", "acos"))
+#: numpy's functions of two numbers, elementwise with broadcasting
+_BINARY = frozenset(("copysign", "minimum", "maximum", "fmin", "fmax", "arctan2", "hypot",
+                     "floor_divide", "power", "fmod"))
 _OPS = {ast.Add: lambda a, b: a + b, ast.Sub: lambda a, b: a - b,
         ast.Mult: lambda a, b: a * b, ast.Div: lambda a, b: a / b,
         ast.FloorDiv: lambda a, b: a // b, ast.Mod: lambda a, b: a % b,
@@ -341,7 +344,12 @@ class _Unroll:
     def _element(self, base, key, value):
         if not (_num(value) or isinstance(value, Dyn)):
             raise _Bail("an element that is not a number")
-        key = key if isinstance(key, tuple) else (key,)
+        key = list(key) if isinstance(key, tuple) else [key]
+        if Ellipsis in key:                           # v[..., k] of one element
+            e = key.index(Ellipsis)
+            key[e:e + 1] = [0] * (len(base.shape) - len(key) + 1)
+        if len(key) != len(base.shape) or not all(isinstance(k, int) for k in key):
+            raise _Bail("an element's index")
         idx = tuple(k % s for k, s in zip(key, base.shape))
         base.write(idx, value)
 
@@ -400,6 +408,10 @@ class _Unroll:
         key = self.expr(e.slice, env)
         if isinstance(v, Arr):
             return _index(v, key)
+        if (isinstance(v, Dyn) or _num(v)) and all(
+                k is None or k is Ellipsis for k in (key if isinstance(key, tuple) else (key,))):
+            ks = key if isinstance(key, tuple) else (key,)   # a number's v[..., None]
+            return Arr((1,) * sum(k is None for k in ks), lambda i: v)
         if isinstance(v, (tuple, str)):
             try:
                 return v[key]
@@ -542,6 +554,49 @@ class _Unroll:
                                       keywords=[]))
         raise _Bail(f"{fname} of something else")
 
+    def binary(self, name, a, b):
+        """numpy's ``name(a, b)``, elementwise with numpy's broadcasting."""
+        func = ast.Attribute(value=ast.Name(id=_NP, ctx=ast.Load()), attr=name,
+                             ctx=ast.Load())
+        for v in (a, b):
+            if not (isinstance(v, (Arr, Dyn)) or _num(v)):
+                raise _Bail(f"numpy.{name} of something else")
+        if not isinstance(a, Arr) and not isinstance(b, Arr):
+            return self.emit(ast.Call(func=func, args=[self.atom(a), self.atom(b)],
+                                      keywords=[]))
+        try:
+            shape = np.broadcast_shapes(a.shape if isinstance(a, Arr) else (),
+                                        b.shape if isinstance(b, Arr) else ())
+        except ValueError:
+            raise _Bail("shapes") from None
+        res = _Fresh(shape, lambda i: 0.0)
+        for i in res.cells():
+            res.data[i] = self.binary(name, self._at(a, i), self._at(b, i))
+        return res
+
+    def sum(self, a, axis):
+        """``np.sum(a, axis=axis)`` of fewer than 8 numbers a sum: numpy's order
+        there (from the first, in index order; it sums 8 or more pairwise)."""
+        if not isinstance(a, Arr):
+            raise _Bail("a sum of something else")
+        nd = len(a.shape)
+        if axis is None:
+            a, axis, nd = _reshape(a, (-1,)), 0, 1
+        if isinstance(axis, bool) or not isinstance(axis, int) or not -nd <= axis < nd:
+            raise _Bail("a sum's axis")
+        axis %= nd
+        n = a.shape[axis]
+        if n >= 8 or n == 0:
+            raise _Bail("a pairwise sum")
+        shape = a.shape[:axis] + a.shape[axis + 1:]
+        res = _Fresh(shape, lambda i: 0.0)
+        for i in res.cells():
+            acc = a.read(i[:axis] + (0,) + i[axis:])
+            for k in range(1, n):
+                acc = self.scalar_op(ast.Add(), acc, a.read(i[:axis] + (k,) + i[axis:]))
+            res.data[i] = acc
+        return res if shape else res.data[()]
+
     def method(self, a, name, args, kw):
         if kw:
             raise _Bail("keywords of a method")
@@ -566,6 +621,8 @@ class _Unroll:
         return res
 
     def numpy(self, name, args, kw, is_math):
+        if name == "sum" and not is_math and len(args) == 1 and set(kw) <= {"axis"}:
+            return self.sum(args[0], kw.get("axis"))
         dt = kw.pop("dtype", _Fn(f"{_NP}.float64"))
         if kw or not (isinstance(dt, _Fn) and dt.name == f"{_NP}.float64"):
             raise _Bail(f"keywords of {name}")
@@ -575,6 +632,8 @@ class _Unroll:
                 value=ast.Name(id=mod, ctx=ast.Load()), attr=name, ctx=ast.Load()))
         if is_math:
             raise _Bail(f"math.{name}")
+        if name in _BINARY and len(args) == 2:
+            return self.binary(name, *args)
         if name in ("asarray", "ascontiguousarray", "asfarray") and len(args) == 1:
             a = args[0]
             if isinstance(a, Arr) or isinstance(a, Dyn) or _num(a):

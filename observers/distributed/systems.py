@@ -214,61 +214,6 @@ class DistributedObserverNode(hs.HybridSystem):
     def output(self, x, t, j):
         return self.data.estimate(np.asarray(x, dtype=float))
 
-    # Kept: the source rewrite compiles flow_map/output as written (same numbers to the
-    # bit), but its array temporaries (r, the power of r[n:], the product and the
-    # difference) cost 2.4x this flow a call (its output now 0.47x), and the ring of 8 with 30 noise
-    # realisations 1.8x in the kernel (0.074 -> 0.130 s CPU); bench_rewrite_vs_twin.py.
-    def compiled_component(self):
-        """The node's compiled form (``backend="compiled"``): (7)-(8) or
-        (4)-(5) as :meth:`_NodeData.flow`, with H, N, κ and T in its parameters."""
-        from hybridsim.compiled import Component
-        d = self.data
-        rows, cols = d.H.shape
-        npow = d.N_pow.shape[1] if d._powers else 0
-        flow, output = _node_maps(d.n, cols, rows, npow)
-        mats = [d.H.ravel(), d.T.ravel()]
-        if npow:
-            mats += [d.N_pow.ravel(), d.kappa]
-        return Component(state_dim=d.n, input_dim=self.input_dim, flow=flow, output=output,
-                         output_dim=d.n, params=np.concatenate(mats))
-
-
-@functools.cache
-def _node_maps(n, cols, rows, npow):
-    """Compiled maps of a node: f = (H w)[:n] - N ⌈(H w)[n:]⌋^κ, w = (z, u), and
-    the estimate T z; H (rows, cols), T (n, n), N (n, npow), κ (npow,) in the
-    parameters (no power term where npow = 0)."""
-    from hybridsim.compiled import compiled_matvec
-    mv = compiled_matvec()
-    oT = rows * cols
-    oN = oT + n * n
-    ok = oN + n * npow
-
-    def flow(z, u, t, j, prm):
-        w = np.empty(rows)                        # H (z, u), row by row: one array,
-        for i in range(rows):                     # the flow's rows, then q's
-            b = i * cols
-            acc = 0.0
-            for k in range(n):
-                acc += prm[b + k] * z[k]
-            for k in range(cols - n):
-                acc += prm[b + n + k] * u[k]
-            w[i] = acc
-        out, q = w[:n], w[n:]
-        for c in range(npow):                     # ⌈q⌋^κ, once a component
-            a = abs(q[c]) ** prm[ok + c]
-            q[c] = a if q[c] >= 0.0 else -a
-        for i in range(n):                        # - N ⌈q⌋^κ
-            acc = 0.0
-            for c in range(npow):
-                acc += prm[oN + i * npow + c] * q[c]
-            out[i] -= acc
-        return out
-
-    def output(z, t, j, prm):
-        return mv(prm, oT, n, n, z)
-    return flow, output
-
 
 def observer_network(dsg: DistributedDesign, *, noise=None, disturbance=None):
     """Plant (1) and the observer nodes as one interconnected hybrid system.

@@ -102,10 +102,26 @@ class ObserverForm:
         return self.N.shape[0]
 
     @functools.cached_property
-    def _linear(self):
-        """``(M12, M22 + k I)``: the linear parts of F1 and F2 (computed once)."""
+    def _L1(self):
+        """M12: the linear part of F1 (computed once)."""
         m = self.n - self.q
-        return self.M_xi[:m, m:].copy(), self.M_xi[m:, m:] + self.k * np.eye(self.q)
+        return self.M_xi[:m, m:].copy()
+
+    @functools.cached_property
+    def _L2(self):
+        """M22 + k I: the linear part of F2 (computed once)."""
+        m = self.n - self.q
+        return self.M_xi[m:, m:] + self.k * np.eye(self.q)
+
+    @property
+    def _linear(self):
+        """``(M12, M22 + k I)``: the linear parts of F1 and F2."""
+        return self._L1, self._L2
+
+    @functools.cached_property
+    def _psi_batch(self):
+        """Whether Psi takes the last axis (``Psi.batch = True``)."""
+        return bool(getattr(self.Psi, "batch", False))
 
     def F1(self, y, t):
         """F1 of (2) at measured value ``y`` (q,) and time ``t``."""
@@ -122,14 +138,13 @@ class ObserverForm:
         (N, q) (a Psi declaring ``Psi.batch = True``).
         """
         y = np.asarray(y, dtype=float)
-        L1, L2 = self._linear
         if self.Psi is None:
-            return y @ L1.T, y @ L2.T
-        if y.ndim > 1 and not getattr(self.Psi, "batch", False):
+            return y @ self._L1.T, y @ self._L2.T
+        if y.ndim > 1 and not self._psi_batch:
             raise ValueError("F12 over a batch needs a Psi written on the last axis "
                              "(Psi.batch = True: (N, q) outputs and (N,) times)")
         ps = np.asarray(self.Psi(y, t), dtype=float)
-        return y @ L1.T + ps @ self.P.T, y @ L2.T + ps @ self.N.T
+        return y @ self._L1.T + ps @ self.P.T, y @ self._L2.T + ps @ self.N.T
 
     def to_xi(self, chi):
         """``xi = T chi``; ``chi`` is (n,) or time-major (N, n)."""

@@ -266,7 +266,11 @@ def population(observer, x0s, xhat0=None, *, noise=None, seed=None, plant=None,
         segs = [np.asarray(s, dtype=float).reshape(-1) for s in instants]
         close = max(float(s[-1]) for s in segs) + 1.0
         segs = [np.append(s, close) for s in segs]
-        observer.instants = np.concatenate(segs)
+        ins = np.concatenate(segs)
+        # padded (never reached: each row stops at its close) to a power of two, so that
+        # populations of other sizes share the compiled maps (their parameters' length)
+        size = 1 << max(0, int(ins.size - 1).bit_length())
+        observer.instants = np.concatenate([ins, np.full(size - ins.size, close)])
     system, first = _loop(observer, X[0], xhat0, noise, seed, plant)
     rows = np.repeat(first[None, :], len(X), axis=0)
     rows[:, system.components["plant"]] = X

@@ -36,9 +36,9 @@ package's model: :func:`~observers.gramian_delay.dc_motor`, its observers,
 :func:`~observers.gramian_delay.example.population`), by the classic
 Runge-Kutta method with the fixed step ``h = 2e-3`` (``method="RK4"``, a
 divisor of tau, of every sampling period and of every piece of the
-disturbance signals). ``backend="auto"``: the disturbed plant has no compiled form
-(:meth:`~observers.gramian_delay.systems.PiecewiseDisturbed.compiled_refusal`),
-so the rows run as one numpy batch.
+disturbance signals). ``backend="auto"``: the rows run compiled (the disturbed
+plant and the observer (7) from their maps as written, rewritten for numba;
+(39) by its compiled form), or as one numpy batch where numba is missing.
 
 * the delayed values psi(t - tau) of (13) are read on the grid (t - tau a
   node, the flows stopping at each sample + tau) or at a half step, from

@@ -418,16 +418,21 @@ class PiecewiseDisturbed(Plant):
                                matrix("delta2", delta2, (k, q)).ravel()])
 
     def _values(self, x, t):
-        """delta1 (..., n) and delta2 (..., q) of each state at its time."""
+        """delta1 (..., n) and delta2 (..., q) of each state at its time.
+
+        The piece's values as a sum over the pieces of each one's values times
+        1 where it is the piece of t and 0 elsewhere (exactly the piece's
+        values: every other term is zero), on the last axis of x and t.
+        """
         n, q, k = self.n_chi, self.N.shape[0], self.pieces
-        lead = x.shape[:-1]
-        i = np.clip(np.floor_divide(np.asarray(t, dtype=float), self.t_end / k).astype(int),
-                    0, k - 1)
-        i = np.broadcast_to(i, lead)[..., None, None]
-        d1 = x[..., n:n + k * n].reshape(lead + (k, n))
-        d2 = x[..., n + k * n:].reshape(lead + (k, q))
-        return (np.take_along_axis(d1, i, axis=-2)[..., 0, :],
-                np.take_along_axis(d2, i, axis=-2)[..., 0, :])
+        i = np.minimum(np.maximum(np.floor_divide(t, self.t_end / k), 0.0), k - 1.0)
+        d1 = x[..., n:2 * n].T * (i == 0)
+        d2 = x[..., n + k * n:n + k * n + q].T * (i == 0)
+        for m in range(1, k):
+            a, b = n + m * n, n + k * n + m * q
+            d1 = d1 + x[..., a:a + n].T * (i == m)
+            d2 = d2 + x[..., b:b + q].T * (i == m)
+        return d1.T, d2.T
 
     def flow_map(self, x, t):
         """chi' of (1) with this state's delta1, the values' 0, on the last axis."""
@@ -442,11 +447,6 @@ class PiecewiseDisturbed(Plant):
         y = x[..., :self.n_chi] @ self.N.T
         Y = y + self._values(x, t)[1]
         return np.concatenate((Y, y), axis=-1) if self.oracle else Y
-
-    def compiled_refusal(self):
-        """No compiled form: its maps index the state by the piece (a Python object)."""
-        return ("PiecewiseDisturbed has no compiled form (its disturbances are indexed "
-                "from the state by piece); run it on the numpy batch")
 
 
 @functools.cache
@@ -789,6 +789,8 @@ class GramianObserver(_ObserverBase):
 
     def jump_map(self, z, t, j, u):
         """The reset realisation's jump (the literal one never jumps: D is empty)."""
+        if self.realisation == "literal":
+            return np.array(z, dtype=float)
         return self._reset(np.array(z, dtype=float))
 
     def initial_state(self, xi1_hat0=None, xi2_hat0=None, psi1_0=None, psi2_0=None):
@@ -1039,10 +1041,10 @@ class SampledGramianObserver(_ObserverBase):
         return None
 
     # A compiled twin of flow_map, jump_map and jump_guard, kept (issue 42's named
-    # exception): the rewrite from source cannot take (39)'s maps as written, because
-    # 1. they read their numbers through other objects: the design's matrices (a
-    #    local d = self.design) and F1, F2 through the ObserverForm's bound F12,
-    #    whose Psi closes over the plant's control u;
+    # exception): the rewrite from source cannot take (39)'s maps as written (it
+    # follows the design's matrices and the form's bound F12, as for (7)), because
+    # 1. (its refusal today) _xi_e_batch reads self.history(np.where(full, t - tau,
+    #    t0)), not at t - tau;
     # 2. (13) reads the past through self._estimate(z, t, y, self.history), the
     #    history passed as a value (to _delayed), where the rewrite takes calls
     #    self.history(t - tau) in the flow map only;

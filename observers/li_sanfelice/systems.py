@@ -406,22 +406,6 @@ class LuenbergerObserver(hs.HybridSystem):
 
 
 @functools.cache
-def _sinusoid_output(p, K):
-    """Compiled output of :class:`BoundedNoiseGenerator`: m_i = sum_k a_ik sin(w_ik t + phi_ik)."""
-    pk = p * K
-
-    def output(x, t, j, prm):
-        m = np.zeros(p)
-        for i in range(p):
-            s = 0.0
-            for k in range(K):
-                q = i * K + k
-                s += x[q] * math.sin(x[pk + q] * t + x[2 * pk + q])
-            m[i] = s
-        return m
-    return output
-
-
 class BoundedNoiseGenerator(hs.HybridSystem):
     """A noise source whose (constant) state holds the noise's coefficients.
 
@@ -441,14 +425,6 @@ class BoundedNoiseGenerator(hs.HybridSystem):
 
     def flow_map(self, x, t, j, u):
         return np.zeros(np.shape(x))
-
-    # Kept: the rewritten output (as written, its (p, K) arrays of sines) costs 5.3x
-    # this one a call (benchmarks/bench_rewrite_vs_twin.py).
-    def compiled_component(self):
-        """The generator's compiled form (``backend="compiled"``)."""
-        from hybridsim.compiled import Component
-        return Component(state_dim=self.state_dim, output=_sinusoid_output(self.p, self.K),
-                         output_dim=self.p)
 
     def _parts(self, x):
         pk, shape = self.p * self.K, x.shape[:-1] + (self.p, self.K)

@@ -525,10 +525,9 @@ def test_parts_of_the_system_and_str_branches_are_read_when_the_maps_are_rewritt
 def test_the_observers_maps_as_written_are_their_compiled_forms():
     """The source rewrite of observer maps written over batches (parts of self,
     ``d = self.design``, ``self.slices[...]``, bool flags, ``x[..., k]``,
-    ``swapaxes``, the reshape of a transpose) gives the numbers of the maps
-    as numpy runs them and, where a hand-written compiled form is kept for
-    speed (the distributed node; the reason beside it), of that form, to
-    round-off (the forms sum in other orders)."""
+    ``swapaxes``, the reshape of a transpose, ``np.copysign``, ``np.sum`` of
+    ``t[..., None, None]``) gives the numbers of the maps as numpy runs them,
+    to round-off."""
     from hybridsim.compiled import _from_source
     from observers import li_sanfelice as ls
     from observers.distributed import example_observer
@@ -537,20 +536,18 @@ def test_the_observers_maps_as_written_are_their_compiled_forms():
     hc = ls.ConstantNoiseObserver(ls.example_VB())
     method = {"flow": "flow_map", "jump": "jump_map", "jump_guard": "jump_guard",
               "jump_set": "jump_set"}
-    for system in (node, hc):
+    noise = ls.BoundedNoiseGenerator(2, 3)
+    for system in (node, hc, noise):
         maps, output, p, _ = _from_source.component_maps(system)
-        twin = system.compiled_component() if system is node else None
         for _ in range(5):
             x = rng.standard_normal(system.state_dim)
             x[-1] = 0.0 if system is hc else x[-1]          # H_c before its jump: q = 0
             u = rng.standard_normal(system.input_dim)
             for role, fn in maps.items():
-                ref = (twin.maps[role](x, u, 0.3, 0, twin.params) if twin is not None
-                       else getattr(system, method[role])(x, 0.3, 0, u))
+                ref = getattr(system, method[role])(x, 0.3, 0, u)
                 np.testing.assert_allclose(fn(x, u, 0.3, 0, p), ref, rtol=1e-13, atol=1e-14)
-            ref = (twin.output(x, 0.3, 0, twin.params) if twin is not None
-                   else system.output(x, 0.3, 0))
-            np.testing.assert_allclose(output(x, 0.3, 0, p), ref, rtol=1e-14)
+            np.testing.assert_allclose(output(x, 0.3, 0, p), system.output(x, 0.3, 0),
+                                       rtol=1e-14)
 
 
 class TwoCopies(hs.HybridSystem):
@@ -613,3 +610,60 @@ def test_a_plan_made_once_serves_every_instance_of_the_class():
     np.testing.assert_allclose(lower(a).flow_map(x, 0.0, 0), a.flow_map(x, 0.0, 0), rtol=1e-14)
     b.F = 3 * b.F                                   # b's own numbers, read again
     np.testing.assert_allclose(lower(b).flow_map(x, 0.0, 0), b.flow_map(x, 0.0, 0), rtol=1e-14)
+
+
+class _Spring(hs.HybridSystem):
+    """x'' = -k x, its state's halves read through slices of self."""
+
+    state_dim = 2
+
+    def __init__(self, k=4.0):
+        self.k = k
+        self.sl_q, self.sl_v = slice(0, 1), slice(1, 2)
+
+    def flow_map(self, x, t):
+        dx = np.zeros(x.shape)
+        dx[..., self.sl_q] = x[..., self.sl_v]
+        dx[..., self.sl_v] = -self.k * x[..., self.sl_q]
+        return dx
+
+
+class _Damped(_Spring):
+    """The spring's flow (super()) with damping c v, c read from another object's
+    method stored on the system (a bound method of a part)."""
+
+    def __init__(self, k, gains):
+        super().__init__(k)
+        self._damping = gains.damping
+
+    def flow_map(self, x, t):
+        dx = super().flow_map(x, t)
+        dx[..., self.sl_v] -= self._damping(x[..., self.sl_v])
+        return dx
+
+
+class _DampingGain:
+    def __init__(self, c):
+        self.c = c
+
+    def damping(self, v):
+        return self.c * v
+
+
+def test_super_slices_and_a_parts_bound_method_are_followed():
+    """super().flow_map(...) is the base class's map (same self), a slice attribute of
+    ints is a constant of the rewrite, and a method of another object stored on the
+    system is followed with that object as its self (its numbers in the parameters,
+    read before every run)."""
+    gains = _DampingGain(0.5)
+    sys_ = _Damped(4.0, gains)
+    kw = dict(x0=[1.0, 0.0], t_max=2.0, rtol=1e-10, atol=1e-12)
+    ref = hs.simulate(sys_, backend="python", **kw)
+    arc = hs.simulate(sys_, backend="compiled", **kw)
+    np.testing.assert_allclose(arc.xf, ref.xf, rtol=1e-12, atol=1e-14)
+    w = np.sqrt(4.0 - 0.25 ** 2)                 # x'' + 0.5 x' + 4 x = 0, x(0) = 1
+    exact = np.exp(-0.25 * 2.0) * (np.cos(w * 2.0) + 0.25 / w * np.sin(w * 2.0))
+    np.testing.assert_allclose(arc.xf[0], exact, rtol=1e-7)
+    gains.c = 0.0                                # the part's number, read again
+    np.testing.assert_allclose(hs.simulate(sys_, backend="compiled", **kw).xf[0],
+                               np.cos(4.0), rtol=1e-7)

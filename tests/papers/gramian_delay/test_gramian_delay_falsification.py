@@ -144,6 +144,30 @@ def test_theorem1_rows_carry_their_own_disturbances():
     assert e < 1e-6
 
 
+def test_theorem1_population_runs_compiled_with_the_numpy_batchs_numbers(monkeypatch):
+    """PiecewiseDisturbed and the observer (7) run compiled from their maps as written
+    (backend="auto" picks it), with the numpy batch's states (round-off: the compiled
+    products sum in index order)."""
+    pytest.importorskip("numba")
+    import hybridsim as hs
+    from hybridsim.compiled import lowerable
+    space = gdf._T1_SPACE
+    pts = [space.point(z) for z in space.sample(3, seed=5)]
+    seen, orig = [], hs.simulate_many
+
+    def run(backend):
+        def many(system, *a, **kw):
+            seen.append(bool(lowerable(system)))
+            return orig(system, *a, **dict(kw, backend=backend))
+        monkeypatch.setattr(gdf.hs, "simulate_many", many)
+        return gdf._theorem1_run(pts)
+    auto, ref = run("auto"), run("python")
+    assert seen == [True, True]
+    for a, b in zip(auto, ref):
+        np.testing.assert_array_equal(a.t, b.t)
+        np.testing.assert_allclose(a.x, b.x, rtol=1e-12, atol=1e-12)
+
+
 def test_population_instants_and_piecewise_plant_refuse_bad_input():
     """population(instants=) needs an observer sampling at instants and one sequence
     per row; PiecewiseDisturbed a Plant and a positive number of pieces."""
