@@ -301,6 +301,7 @@ def _digest_value(v, h, seen, depth=0):
             h.update(b"<seen>")
             return
         seen.add(id(v))
+        seen.add(("module", v.__module__))
         h.update(f"fn:{v.__module__}.{v.__qualname__};".encode())
         _digest_code(v.__code__, v.__globals__, h, seen, depth)
         for c in v.__closure__ or ():
@@ -400,16 +401,24 @@ def wrapper_module(fn, kind):
     :func:`spec_key` keys a specialised kernel) and of the engine, so numba's
     disk cache keeps the compiled wrapper, the map's code inlined in it: a new
     process loads it instead of compiling the map (0.5 s and 1-2 MB a map).
-    None where ``fn`` reads a value that cannot be keyed, or no folder is
-    private and writable (the caller compiles in memory)."""
+    None where ``fn`` reads a value that cannot be keyed, calls a function of
+    a module that is not a file's (numba's cache of the wrapper imports it),
+    or no folder is private and writable (the caller compiles in memory)."""
     if not _ENGINE_DIGEST:
         _ENGINE_DIGEST.append(_engine_digest())
     h = hashlib.sha256(_ENGINE_DIGEST[0].encode())
     h.update(f"wrapper:{kind};".encode())
+    seen = set()
     try:
-        _digest_value(fn, h, set())
+        _digest_value(fn, h, seen)
     except Unkeyable:
         return None
+    # numba's cache of the wrapper imports the modules of the functions inlined
+    # in it when it loads: each must be importable (a file's, not exec'd text)
+    import sys
+    for m in (e[1] for e in seen if isinstance(e, tuple)):
+        if not os.path.isfile(getattr(sys.modules.get(m), "__file__", None) or ""):
+            return None
     name = f"hybridsim_wrap_{h.hexdigest()[:32]}"
     mod = _generated_module(name, _WRAP_SRC.format(kind=kind, call=_WRAP_CALL[kind]),
                             execute=False)
