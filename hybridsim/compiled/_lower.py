@@ -544,6 +544,35 @@ def _structure(parts):
 _LOWERED = {}
 
 
+def _lowered_namespace(k, src, ns, name):
+    """The generated maps ``src`` run with the names ``ns``: in a generated module
+    named by the digest of the text and of every part's maps
+    (:func:`~hybridsim.compiled._cache._generated_module`), so the engine's
+    wrappers of the lowered maps are cached on disk with them (a module with a
+    file: numba's cache imports it when it loads); in memory where a part's map
+    cannot be keyed or no folder is private."""
+    import hashlib
+    h = hashlib.sha256(src.encode())
+    seen = set()
+    try:
+        for key in sorted(ns):
+            h.update(f"{key}=".encode())
+            k._digest_value(ns[key], h, seen)
+    except k.Unkeyable:
+        mod = None
+    else:
+        mod = k._generated_module(f"hybridsim_lowered_{h.hexdigest()[:32]}", src,
+                                  execute=False)
+    if mod is None:
+        exec(compile(src, f"<lowered {name}>", "exec"), ns)
+        return ns
+    if "__hs_ran__" not in mod.__dict__:
+        mod.__dict__.update(ns)
+        exec(compile(src, mod.__file__, "exec"), mod.__dict__)
+        mod.__hs_ran__ = True
+    return mod.__dict__
+
+
 def _build(parts, n, pvec, name, specialize, delays=()):
     """The lowered :class:`CompiledSystem` (maps shared by structure; ``delays``
     the system's, the sorted union of its parts')."""
@@ -562,7 +591,7 @@ def _build(parts, n, pvec, name, specialize, delays=()):
                 ns[f"{r}{i}"] = _jit(f)
             if p.comp.output is not None:
                 ns[f"output{i}"] = _jit(p.comp.output)
-        exec(compile(src, f"<lowered {name}>", "exec"), ns)
+        ns = _lowered_namespace(k, src, ns, name)
         maps = {r: ns[r] for r in roles}
         past = {"delays": delays} if delays else {}
         proto = CompiledSystem(**keywords(maps), state_dim=n, params=pvec,
