@@ -510,7 +510,10 @@ def remove_stale(d, age=None):
     older checkout, another installed version sharing the user cache folder)
     can never be loaded by this one, and nothing else removes it. Its age is
     its file's (written once: numba's index records that time). Files that
-    vanish meanwhile (another process cleaning) are passed over.
+    vanish meanwhile (another process cleaning) are passed over. A map's
+    wrapper and a lowered system's maps (``hybridsim_wrap_*``,
+    ``hybridsim_lowered_*``) are named by their maps' digest, which no text
+    tells apart: they are removed by age alone (written again when next used).
 
     Examples
     --------
@@ -523,15 +526,15 @@ def remove_stale(d, age=None):
     age = STALE_AGE if age is None else age
     now = time.time()
     removed = []
-    for path in glob.glob(os.path.join(d, "hybridsim_spec_*.py")) + glob.glob(
-            os.path.join(d, "hybridsim_wrap_*.py")):
+    for path in [p for pat in ("spec", "wrap", "lowered")
+                 for p in glob.glob(os.path.join(d, f"hybridsim_{pat}_*.py"))]:
         name = os.path.basename(path)[:-3]
-        key = name[len("hybridsim_spec_"):]
+        key = name.split("_", 2)[2]
         try:
             if now - os.path.getmtime(path) < age:
                 continue
-            with open(path) as fh:      # a wrapper's key is its map's: only its age tells
-                if not name.startswith("hybridsim_wrap_") and fh.read() in (
+            with open(path) as fh:      # a wrapper's key is its maps': only its age tells
+                if name.startswith("hybridsim_spec_") and fh.read() in (
                         _spec_source(key), _spec_source(key, True),
                                  _spec_source(key, method="DOP853"),
                                  _spec_source(key, method="RK4"),

@@ -130,6 +130,14 @@ def test_modules_of_another_engine_are_removed_once_a_week_old(tmp_path):
     assert "unrelated.py" in left
     assert k.remove_stale(str(d)) == []                  # nothing more to remove
     assert k.remove_stale(str(d), age=0.0) == [young]    # age=0: every other engine's
+    # a wrapper's and a lowered system's module: by age alone
+    for kind, key, mtime in (("wrap", "d" * 32, old), ("lowered", "e" * 32, old),
+                             ("wrap", "f" * 32, time.time())):
+        path = d / f"hybridsim_{kind}_{key}.py"
+        path.write_text('"""generated"""\n')
+        os.utime(path, (mtime, mtime))
+    assert sorted(k.remove_stale(str(d))) == ["d" * 32, "e" * 32]
+    assert (d / f"hybridsim_wrap_{'f' * 32}.py").exists()
 
 
 def test_writing_a_new_module_cleans_its_folder(tmp_path, monkeypatch):
