@@ -31,8 +31,9 @@ group that did (a file to add to the group).
 
 On several workers the engine's cached kernels are first compiled (or found)
 in throwaway processes, one per part of :data:`warm_kernels.PARTS` (this
-folder): a worker that loads a kernel from numba's disk cache keeps a few MB
-of it, one that compiles it keeps 70-175 MB.
+folder), the tests of :data:`warm_kernels.COMPILING` among them: a worker
+that loads a kernel from numba's disk cache keeps a few MB of it, one that
+compiles it keeps 70-175 MB.
 """
 from __future__ import annotations
 
@@ -124,6 +125,8 @@ def pytest_sessionstart(session):
     where = str(pathlib.Path(hybridsim.__file__).resolve().parent.parent)
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(
         p for p in (where, os.environ.get("PYTHONPATH")) if p)}
+    for name in ("HYBRIDSIM_TEST_CPU", "HYBRIDSIM_TEST_RSS"):    # the workers' figures only
+        env.pop(name, None)
     procs = [subprocess.Popen([sys.executable, warm_kernels.__file__, str(part)], env=env,
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
              for part in range(len(warm_kernels.PARTS))]

@@ -11,8 +11,10 @@ cache, or find them there: every worker then loads them, and each kernel is
 compiled once per machine rather than once per worker. A kernel already in
 the cache costs the process about a second.
 
-Kernels specialised on a system's maps (``specialize=True``) are compiled by
-the tests that run those systems, as before.
+The maps of a model are compiled by the tests that run it, into the same
+cache. Where a model takes longer than a test's budget to compile, the tests
+in :data:`COMPILING` are run once here (the ``"tests"`` of :data:`PARTS`),
+their output discarded, so the workers load what they compiled.
 """
 from __future__ import annotations
 
@@ -21,10 +23,37 @@ import sys
 #: the run kernels (``_cache.compile_kernels`` arguments) of each warming
 #: process, split so they take about as long (``_cache.COMPILE_SECONDS``);
 #: ``"sde"``: the SDE flow's kernel, compiled by a run of one small SDE; RK4's
-#: run kernel (the compiled RK4 tests) with it
+#: run kernel (the compiled RK4 tests) with it; ``"tests"``: the tests of
+#: :data:`COMPILING`, after RK4's kernel for flows with delays (004's populations)
 PARTS = (({"batch": True}, {"batch": False, "watch": True}),
          ({"batch": False, "delays": True}, {"batch": False, "method": "DOP853"}),
-         ("sde", {"batch": False, "method": "RK4"}))
+         ("sde", {"batch": False, "method": "RK4"}),
+         ({"batch": False, "delays": True, "method": "RK4"}, "tests"))
+
+
+#: tests (node ids under this folder) whose models take seconds to compile cold:
+#: 004's populations (the lowered plant and observer's maps, about 5-15 s each)
+COMPILING = (
+    "papers/gramian_delay/test_gramian_delay_falsification.py::"
+    "test_population_run_matches_the_package_run",
+    "papers/gramian_delay/test_gramian_delay_falsification.py::test_gaps_are_in_the_class",
+    "papers/gramian_delay/test_gramian_delay_falsification.py::"
+    "test_theorem1_rows_carry_their_own_disturbances",
+    "papers/gramian_delay/test_every_gap.py::test_sequence_run_rows_sample_at_their_own_instants",
+    "integration/test_source_unroll.py::test_sums_binary_ufuncs_and_a_times_axes_are_straight_line",
+)
+
+
+def warm_tests():
+    """Run the tests of :data:`COMPILING` once in this process (pytest without
+    the project's options and workers): what their models compile is kept in
+    numba's disk cache. Their outcome is the workers' to report."""
+    import pathlib
+
+    import pytest
+    here = pathlib.Path(__file__).resolve().parent
+    return pytest.main(["-q", "-p", "no:cacheprovider", "-o", "addopts=", "-W", "ignore",
+                        *(str(here / n) for n in COMPILING)])
 
 
 def warm(part):
@@ -34,7 +63,9 @@ def warm(part):
     if k.cache_dir() is None:       # not cached (a refused folder): each worker compiles
         return
     for kw in PARTS[part]:
-        if kw == "sde":
+        if kw == "tests":
+            warm_tests()
+        elif kw == "sde":
             import numpy as np
 
             import hybridsim as hs
