@@ -511,9 +511,10 @@ def remove_stale(d, age=None):
     can never be loaded by this one, and nothing else removes it. Its age is
     its file's (written once: numba's index records that time). Files that
     vanish meanwhile (another process cleaning) are passed over. A map's
-    wrapper and a lowered system's maps (``hybridsim_wrap_*``,
-    ``hybridsim_lowered_*``) are named by their maps' digest, which no text
-    tells apart: they are removed by age alone (written again when next used).
+    wrapper, a lowered system's maps and a plain model's rewritten maps
+    (``hybridsim_wrap_*``, ``hybridsim_lowered_*``, ``hybridsim_src_*``) are
+    named by their maps' digest, which no text tells apart: they are removed by
+    age alone (written again when next used).
 
     Examples
     --------
@@ -526,7 +527,7 @@ def remove_stale(d, age=None):
     age = STALE_AGE if age is None else age
     now = time.time()
     removed = []
-    for path in [p for pat in ("spec", "wrap", "lowered")
+    for path in [p for pat in ("spec", "wrap", "lowered", "src")
                  for p in glob.glob(os.path.join(d, f"hybridsim_{pat}_*.py"))]:
         name = os.path.basename(path)[:-3]
         key = name.split("_", 2)[2]

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import os
 import re
 import sys
 import types
@@ -37,7 +36,6 @@ import numpy as np
 
 from .. import _source
 from ..system import HybridSystem
-from ._private import private_folder
 
 __all__ = ["FallbackWarning", "applies", "refusal", "lower_source", "auto_choice",
            "compiled_function"]
@@ -172,40 +170,15 @@ def _digest(plan):
     return h.hexdigest()[:32]
 
 
-def _dirs():
-    """The folders generated sources may be read from: beside the specialised
-    kernels, each private (:func:`hybridsim.compiled._private.private_folder`),
-    with numba's cache folder beside it private too."""
-    from ._cache import _spec_dirs
-    out = []
-    for d in _spec_dirs():
-        d = os.path.join(os.path.dirname(d), "source")
-        if not (private_folder(d) or private_folder(os.path.join(d, "__pycache__"))):
-            out.append(d)
-    return out
-
-
-def _written(path, src):
-    """The text at ``path`` (created exclusively with ``src`` where absent), or None."""
-    if not os.path.exists(path):
-        tmp = f"{path}.{os.getpid()}.{os.urandom(16).hex()}.tmp"
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0),
-                     0o600)
-        try:
-            with os.fdopen(fd, "w") as fh:
-                fh.write(src)
-            try:
-                os.link(tmp, path)          # never replaces a file already there
-            except FileExistsError:
-                pass
-        finally:
-            os.unlink(tmp)
-    with open(path) as fh:
-        return fh.read()
-
-
 def _module(plan):
-    """``(module, digest)``: the plan's functions compiled (numba dispatchers)."""
+    """``(module, digest)``: the plan's functions compiled (numba dispatchers).
+
+    The text is the generated module ``hybridsim_src_<digest>`` of
+    :func:`hybridsim.compiled._cache._generated_module` (its file written once
+    in a private folder and read back before it runs), so numba caches the
+    functions by its path; made in memory, and not cached, where no folder is
+    private and writable."""
+    from ._cache import _generated_module
     from ._system import _load_kernel
     _load_kernel()                  # numba, or the ImportError saying how to install it
     import numba
@@ -215,27 +188,25 @@ def _module(plan):
         return mod, digest
     name = f"hybridsim_src_{digest}"
     src = plan.source
-    path = None
-    for d in _dirs():
-        p = os.path.join(d, name + ".py")
+    mod = _generated_module(name, src, execute=False)
+    cached = mod is not None
+    if not cached:
+        mod = types.ModuleType(name)
+        mod.__file__ = f"<hybridsim {name}>"
+    if "__hs_bound__" not in mod.__dict__:
         try:
-            if _written(p, src) == src:
-                path = p
-                break
-        except OSError:
-            continue
-    mod = types.ModuleType(name)
-    mod.__file__ = path or f"<hybridsim {name}>"
-    # the text generated here (compared with the file's), compiled under the file's name
-    exec(compile(src, mod.__file__, "exec"), mod.__dict__)
-    mod.__dict__.update(plan.dispatchers)
-    mod.__dict__.update(_scalar_fn())
-    mod.__dict__["_hs_past"] = _helpers()["past"]
-    if path is not None:
-        sys.modules[name] = mod
-    for fname in plan.qualnames:
-        mod.__dict__[fname] = numba.njit(cache=path is not None,
-                                         error_model="numpy")(mod.__dict__[fname])
+            # the text generated here (compared with the file's), compiled under its name
+            exec(compile(src, mod.__file__, "exec"), mod.__dict__)
+        except BaseException:
+            sys.modules.pop(name, None)
+            raise
+        mod.__dict__.update(plan.dispatchers)
+        mod.__dict__.update(_scalar_fn())
+        mod.__dict__["_hs_past"] = _helpers()["past"]
+        for fname in plan.qualnames:
+            mod.__dict__[fname] = numba.njit(cache=cached,
+                                             error_model="numpy")(mod.__dict__[fname])
+        mod.__hs_bound__ = True
     _MODULES[digest] = mod
     return mod, digest
 

@@ -276,15 +276,16 @@ def test_what_numba_cannot_compile_is_named_by_method_and_line():
 
 
 def test_the_rewritten_source_is_kept_on_disk_and_verified():
-    from hybridsim.compiled import _from_source
+    import os
+
+    from hybridsim.compiled._cache import _spec_dirs
     ball = BouncingBall()
     cs = lower(ball)
     path = cs.maps["flow"].py_func.__code__.co_filename
     with open(path) as fh:
         assert fh.read() == ball.__dict__["_source_plan"][1].source
-    # a file that is not the text generated here is never run
-    plan = ball.__dict__["_source_plan"][1]
-    assert _from_source._written(path, "something else") == plan.source
+    # in the generated modules' one folder (a planted text: the test below)
+    assert os.path.dirname(path) == _spec_dirs()[0]
 
 
 def test_the_wrapped_maps_are_cached_on_disk_keyed_by_their_digest():
@@ -369,7 +370,7 @@ def test_a_second_process_compiles_nothing_for_a_plain_model(tmp_path):
 
 def test_a_file_at_the_modules_path_that_is_not_its_text_is_never_run(tmp_path, monkeypatch):
     from hybridsim import _source
-    from hybridsim.compiled import _from_source
+    from hybridsim.compiled import _cache, _from_source
 
     class Decay(hs.HybridSystem):
         state_dim = 1
@@ -378,7 +379,7 @@ def test_a_file_at_the_modules_path_that_is_not_its_text_is_never_run(tmp_path, 
             return -0.75 * x
     plan = _source.plan(Decay())
     name = f"hybridsim_src_{_from_source._digest(plan)}"
-    monkeypatch.setattr(_from_source, "_dirs", lambda: [str(tmp_path)])
+    monkeypatch.setattr(_cache, "_spec_dirs", lambda: [str(tmp_path)])
     monkeypatch.setattr(_from_source, "_MODULES", {})
     (tmp_path / f"{name}.py").write_text("raise SystemExit('planted')\n")
     mod, _ = _from_source._module(plan)
