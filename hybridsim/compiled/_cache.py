@@ -406,27 +406,47 @@ def wrapper_module(fn, kind):
     or no folder is private and writable (the caller compiles in memory)."""
     if not _ENGINE_DIGEST:
         _ENGINE_DIGEST.append(_engine_digest())
-    h = hashlib.sha256(_ENGINE_DIGEST[0].encode())
-    h.update(f"wrapper:{kind};".encode())
+
+    def bind():
+        f = fn if isinstance(fn, numba.core.dispatcher.Dispatcher) else numba.njit(**_NJ)(fn)
+        return {"_hs_fn": f, "_hs_as_vec": as_vec, "_hs_as_scalar": as_scalar,
+                "_hs_as_bool": as_bool}
+    return keyed_module("wrap", _WRAP_SRC.format(kind=kind, call=_WRAP_CALL[kind]),
+                        {"_hs_fn": fn}, bind, salt=_ENGINE_DIGEST[0], importable=True)
+
+
+def keyed_module(kind, src, keyed, bind, salt="", importable=False):
+    """The generated module ``hybridsim_<kind>_<digest>`` of the text ``src``
+    run with the globals ``bind()`` (once per process), named by the digest of
+    ``salt``, ``src`` and the values ``keyed`` (each function's code and every
+    value it reads: :func:`_digest_value`), so numba's disk cache keeps what its
+    functions compile to. None where a value cannot be keyed, where
+    ``importable`` and a function it reads is of a module that is no file's
+    (numba's cache imports it when it loads), or where no folder is private and
+    writable (the caller then runs ``src`` in memory)."""
+    import sys
+    h = hashlib.sha256(salt.encode())
+    h.update(src.encode())
     seen = set()
     try:
-        _digest_value(fn, h, seen)
+        for key in sorted(keyed):
+            h.update(f"\0{key}=".encode())
+            _digest_value(keyed[key], h, seen)
     except Unkeyable:
         return None
-    # numba's cache of the wrapper imports the modules of the functions inlined
-    # in it when it loads: each must be importable (a file's, not exec'd text)
-    import sys
-    for m in (e[1] for e in seen if isinstance(e, tuple)):
-        if not os.path.isfile(getattr(sys.modules.get(m), "__file__", None) or ""):
-            return None
-    name = f"hybridsim_wrap_{h.hexdigest()[:32]}"
-    mod = _generated_module(name, _WRAP_SRC.format(kind=kind, call=_WRAP_CALL[kind]),
-                            execute=False)
-    if mod is not None and "w" not in mod.__dict__:
-        mod.__dict__.update(_hs_as_vec=as_vec, _hs_as_scalar=as_scalar, _hs_as_bool=as_bool)
-        mod.__dict__["_hs_fn"] = fn if isinstance(fn, numba.core.dispatcher.Dispatcher) \
-            else numba.njit(**_NJ)(fn)
-        exec(compile(mod.__hs_source__, mod.__file__, "exec"), mod.__dict__)
+    if importable:
+        for m in (e[1] for e in seen if isinstance(e, tuple)):
+            if not os.path.isfile(getattr(sys.modules.get(m), "__file__", None) or ""):
+                return None
+    mod = _generated_module(f"hybridsim_{kind}_{h.hexdigest()[:32]}", src, execute=False)
+    if mod is not None and "__hs_ran__" not in mod.__dict__:
+        mod.__dict__.update(bind())
+        try:
+            exec(compile(mod.__hs_source__, mod.__file__, "exec"), mod.__dict__)
+        except BaseException:
+            sys.modules.pop(mod.__name__, None)
+            raise
+        mod.__hs_ran__ = True
     return mod
 
 

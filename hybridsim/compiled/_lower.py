@@ -547,29 +547,14 @@ _LOWERED = {}
 def _lowered_namespace(k, src, ns, name):
     """The generated maps ``src`` run with the names ``ns``: in a generated module
     named by the digest of the text and of every part's maps
-    (:func:`~hybridsim.compiled._cache._generated_module`), so the engine's
+    (:func:`~hybridsim.compiled._cache.keyed_module`), so the engine's
     wrappers of the lowered maps are cached on disk with them (a module with a
     file: numba's cache imports it when it loads); in memory where a part's map
     cannot be keyed or no folder is private."""
-    import hashlib
-    h = hashlib.sha256(src.encode())
-    seen = set()
-    try:
-        for key in sorted(ns):
-            h.update(f"{key}=".encode())
-            k._digest_value(ns[key], h, seen)
-    except k.Unkeyable:
-        mod = None
-    else:
-        mod = k._generated_module(f"hybridsim_lowered_{h.hexdigest()[:32]}", src,
-                                  execute=False)
+    mod = k.keyed_module("lowered", src, ns, lambda: ns)
     if mod is None:
         exec(compile(src, f"<lowered {name}>", "exec"), ns)
         return ns
-    if "__hs_ran__" not in mod.__dict__:
-        mod.__dict__.update(ns)
-        exec(compile(src, mod.__file__, "exec"), mod.__dict__)
-        mod.__hs_ran__ = True
     return mod.__dict__
 
 
