@@ -72,7 +72,7 @@ from ._steps import (
     _initial_step,
     _norm,
     _put,
-    _refined,
+    _room,
     _store,
 )
 from ._types import (
@@ -764,21 +764,14 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 if _DELAYS:                  # ``History._add``
                     _record(HL, HM, a, b, hs, ya, hQ)
                 ns_step = ns             # this step's samples start here
-                if refine > 1 and b > a:
-                    if ns + refine - 1 > max_samples:
+                if refine > 1 or ns >= T.shape[0] or ns >= max_samples:
+                    T, J, X, XD, ns, ok = _room(T, J, X, XD, ns, a, b, j, refine, ya, hQ, hs,
+                                                not _DOP, max_samples)
+                    if not ok:
                         cause = MAX_STEPS
                         detail = 1
                         info[0] = t
                         break
-                    T, J, X, XD, ns = _refined(T, J, X, XD, ns, a, b, j, refine, ya, hQ, hs,
-                                               not _DOP)
-                if ns >= max_samples:
-                    cause = MAX_STEPS
-                    detail = 1
-                    info[0] = t
-                    break
-                if ns == T.shape[0]:
-                    T, J, X, XD = _grown(T, J, X, XD, ns)
                 _store(_bare(T), _bare(J), _bare(X), _bare(XD), ns, b, j, _bare(yb))
                 for q in range(n):
                     XD[ns, q] = fb[q]
@@ -853,21 +846,14 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                     t, x = a, ya
                     break
             if te > a:
-                if refine > 1:
-                    if ns + refine - 1 > max_samples:
+                if refine > 1 or ns >= T.shape[0] or ns >= max_samples:
+                    T, J, X, XD, ns, ok = _room(T, J, X, XD, ns, a, te, j, refine, ya, hQ, hs,
+                                                not _DOP, max_samples)
+                    if not ok:
                         cause = MAX_STEPS
                         detail = 1
                         info[0] = t
                         break
-                    T, J, X, XD, ns = _refined(T, J, X, XD, ns, a, te, j, refine, ya, hQ, hs,
-                                               not _DOP)
-                if ns >= max_samples:
-                    cause = MAX_STEPS
-                    detail = 1
-                    info[0] = t
-                    break
-                if ns == T.shape[0]:
-                    T, J, X, XD = _grown(T, J, X, XD, ns)
                 _store(_bare(T), _bare(J), _bare(X), _bare(XD), ns, te, j, _bare(xe))
                 if _DELAYS:
                     fe = _fd(f, xe, te, j, p, pb, dl, HL, HM, cur_x, x0, t0)

@@ -216,3 +216,24 @@ def _refined(T, J, X, XD, ns, a, e, j, refine, ya, hQ, hs, deriv):
             _dense_deriv_to(_bare(XD), ns, hQ, a, hs, s)
         ns += 1
     return T, J, X, XD, ns
+
+
+@njit(cache=CACHE, **_NJI)
+def _room(T, J, X, XD, ns, a, b, j, refine, ya, hQ, hs, deriv, max_samples):
+    """Before a flow's sample at ``b``: the step's refined samples inside (a, b)
+    (:func:`_refined`, where ``refine`` > 1), then room for that sample.
+    Returns ``(T, J, X, XD, ns, ok)``; ``ok`` False: the run has
+    ``max_samples`` samples (``MAX_STEPS``), nothing more stored.
+
+    The run calls it only where ``refine > 1`` or the buffers are full or the
+    samples at their cap (a helper returning the four buffers at every sample
+    would cost eight atomic reference counts a sample), then :func:`_store`."""
+    if refine > 1 and b > a:
+        if ns + refine - 1 > max_samples:
+            return T, J, X, XD, ns, False
+        T, J, X, XD, ns = _refined(T, J, X, XD, ns, a, b, j, refine, ya, hQ, hs, deriv)
+    if ns >= max_samples:
+        return T, J, X, XD, ns, False
+    if ns == T.shape[0]:
+        T, J, X, XD = _grown(T, J, X, XD, ns)
+    return T, J, X, XD, ns, True
