@@ -85,6 +85,7 @@ class SolutionTree:
         self.merges = merges
         self.seconds = seconds
         self._leaves = None
+        self._parts = {}        # node index -> (its arc, its samples in a path, stats)
 
     @property
     def complete(self) -> bool:
@@ -209,21 +210,26 @@ class SolutionTree:
                 xs.append(np.reshape(x, (1, -1)))
                 ds.append(np.full((1, len(x)), np.nan))
                 continue
-            # a branch that starts where its parent ends (flow on, dwell, no jump
-            # left) repeats the parent's last sample
-            k = 1 if (p.choice is not None and (p.choice.kind != "jump"
-                                                or p.choice.value is None)) else 0
-            t_, j_, x_ = a.t[k:], a.j[k:], a.x[k:]
-            d_ = a.xdot[k:] if a.xdot is not None else np.full_like(a.x[k:], np.nan)
+            hit = self._parts.get(p.index)
+            if hit is None or hit[0] is not a:
+                # a branch that starts where its parent ends (flow on, dwell, no
+                # jump left) repeats the parent's last sample
+                k = 1 if (p.choice is not None and (p.choice.kind != "jump"
+                                                    or p.choice.value is None)) else 0
+                d_ = a.xdot[k:] if a.xdot is not None else np.full_like(a.x[k:], np.nan)
+                hit = (a, (a.t[k:], a.j[k:], a.x[k:], d_),
+                       [(key, int(v)) for key, v in (a.stats or {}).items()
+                        if isinstance(v, (int, np.integer))])
+                self._parts[p.index] = hit     # read by every path through the node
+            t_, j_, x_, d_ = hit[1]
             if p.index in tails and len(t_):     # its end at the other's time (a jump keeps t)
                 t_ = np.concatenate([t_[:-1], self.nodes[tails[p.index]].arc.t[-1:]])
             ts.append(t_)
             js.append(j_)
             xs.append(x_)
             ds.append(d_)
-            for key, v in (a.stats or {}).items():
-                if isinstance(v, (int, np.integer)):
-                    stats[key] += int(v)
+            for key, v in hit[2]:
+                stats[key] += v
         last = node.arc
         if node.end == "merged":
             cause, msg, exc = None, f"merged into branch {node.merged_into}", None

@@ -53,6 +53,7 @@ import collections
 import math
 import time
 import warnings
+import weakref
 from collections.abc import Iterable
 from typing import Any
 
@@ -88,8 +89,13 @@ _AUTO = "auto"
 _BACKENDS = ("auto", "compiled", "python")
 
 #: backend="auto" runs a level as compiled batches from this many branches on
-#: (a model's maps compile once per machine, in seconds: a batch of hundreds pays)
+#: (a model's maps compile once per machine, in seconds: a batch of hundreds pays),
+#: and every level of a system whose class has run batched in this process (its
+#: compile paid: a batch of two branches costs less than their two runs)
 BATCH_LEVEL = 512
+
+#: the classes of the systems whose branches have run as compiled batches here
+_BATCHED = weakref.WeakSet()
 
 #: the options of simulate the compiled path runs at these values only
 _COMPILED_ONLY_AT = {"inputs": (None,), "prehistory": (None,), "dense": (False,),
@@ -156,7 +162,8 @@ def explore(system: HybridSystem, x0: ArrayLike, t_max: float, j_max: float = ma
         (``inputs``, ``prehistory``, ``dense``, ``t_eval``; a system that
         reads its history), are refused by name. ``"auto"`` (default):
         from the first level of at least :data:`BATCH_LEVEL` (512)
-        branches, compiled batches where numba is installed and the system
+        branches (from the first level, once a system of its class has run
+        batched in this process), compiled batches where numba is installed and the system
         and options run compiled (its maps compile then, once per machine:
         seconds), else ``"python"``. The tree is the same on every backend;
         the samples agree to the integrator's round-off.
@@ -598,6 +605,7 @@ class _Batches:
     def _compiled(self, cs):
         from .compiled import simulate_many_compiled
         opts = self._options()
+        _BATCHED.add(type(self.system))
 
         def batch(X, t_max, t, j, priority):
             return simulate_many_compiled(cs, X, t_max, 0, t0=t, j0=j, priority=priority,
@@ -622,7 +630,7 @@ class _Batches:
         if self.off:
             return False
         if self.batch is None:
-            if size < BATCH_LEVEL:
+            if size < BATCH_LEVEL and type(self.system) not in _BATCHED:
                 return False
             self.batch = self._choose()
             if self.batch is None:

@@ -11,6 +11,7 @@ import itertools
 import math
 import runpy
 import sys
+import weakref
 from pathlib import Path
 
 import matplotlib
@@ -811,6 +812,8 @@ def batches(monkeypatch):
         return alone(self, *a, **k)
     monkeypatch.setattr(hc, "simulate_many_compiled", counted_batch)
     monkeypatch.setattr(_Explorer, "_simulate", counted_alone)
+    # no class has run batched yet (auto's choice from the first level)
+    monkeypatch.setattr(sys.modules["hybridsim.explore"], "_BATCHED", weakref.WeakSet())
     return seen
 
 
@@ -852,7 +855,8 @@ def test_levels_run_as_compiled_batches_give_the_tree_of_single_runs(case, batch
 
 def test_auto_batches_levels_from_batch_level_branches(batches, monkeypatch):
     """backend="auto" (the default) runs a small tree branch by branch, and
-    compiled batches from the first level of BATCH_LEVEL branches on."""
+    compiled batches from the first level of BATCH_LEVEL branches on; once a
+    system of the class has run batched, every level of its trees."""
     from hybridsim import explore as _  # noqa: F401
     ex = sys.modules["hybridsim.explore"]
     small = hs.explore(Doubling(), [0.0, 0.0], t_max=0.45, j_max=4, merge_tol=None)
@@ -863,6 +867,12 @@ def test_auto_batches_levels_from_batch_level_branches(batches, monkeypatch):
     # leaves after the last jump do not run)
     assert batches["alone"] == 15 + 3 and batches["batches"] == 2
     assert _shape(tree) == _shape(small)
+    monkeypatch.setattr(ex, "BATCH_LEVEL", 512)
+    again = hs.explore(Doubling(), [0.0, 0.0], t_max=0.45, j_max=4, merge_tol=None)
+    assert batches["alone"] == 18 and batches["batches"] == 2 + 4
+    assert _shape(again) == _shape(small)
+    for a, b in zip(again, small, strict=True):
+        np.testing.assert_allclose(a.x, b.x, rtol=0, atol=1e-12)
 
 
 def test_compiled_explore_refusals_name_the_reason():
