@@ -45,6 +45,12 @@ _DUMMY_RNG = None
 _NO_STOP = np.zeros(1, np.int64)
 #: the rows a batch's thread takes at a time from the shared counter
 _CHUNK = 4
+#: a batch of at most this many rows (one worker thread's: ``_pool._threads`` gives
+#: a thread per 8 rows) runs them one after another in the calling thread, each a
+#: run of the single-run kernel (Ctrl-C read at every step): handing the rows to a
+#: worker thread and back costs about 150 us a batch, a run of a small system
+#: 10-20 us (a falsification's first rows, explore's first levels)
+_ALONE = 15
 
 
 # ---------------------------------------------------------------- a map that raises
@@ -736,7 +742,7 @@ def simulate_many_compiled(system: CompiledSystem, x0s: ArrayLike, t_max: float,
     gc_on = gc.isenabled()
     gc.disable()
     try:
-        if ro.prio == Priority.RANDOM or not parallel or watching:
+        if ro.prio == Priority.RANDOM or not parallel or watching or len(rows) <= _ALONE:
             for i in rows.tolist():
                 stopped, _ = one(i, _rng_for(k, ro.prio, seed))
                 if stopped:
