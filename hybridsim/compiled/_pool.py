@@ -12,10 +12,11 @@ import threading
 import numpy as np
 
 
-def _threads(parallel, rows):
+def _threads(parallel, rows, heavy=False):
     """How many threads run a batch of ``rows``: numba's thread count
     (``NUMBA_NUM_THREADS``, or ``numba.set_num_threads`` where numba's threads
-    were started), at most one per 8 rows. numba's threading layer is not
+    were started), at most one per 8 rows (one per row for ``heavy`` runs,
+    long enough to pay a thread's handoff). numba's threading layer is not
     started here (``numba.get_num_threads`` would start it)."""
     if not parallel:
         return 1
@@ -25,7 +26,7 @@ def _threads(parallel, rows):
         nt = numba.get_num_threads()
     else:
         nt = numba.config.NUMBA_NUM_THREADS
-    return max(1, min(nt, os.cpu_count() or 1, rows // 8))
+    return max(1, min(nt, os.cpu_count() or 1, rows if heavy else rows // 8))
 
 
 #: the batch kernels' worker threads, kept between batches (starting two
@@ -87,9 +88,14 @@ def _interruptible(fn, args, stop, threads=1):
     rows from the batch's shared counter) so that Ctrl-C stops it: the
     calling thread waits and, on KeyboardInterrupt, sets ``stop[0]`` (every
     run reads it at each step and ends ``CANCELED``). Returns
-    ``interrupted``. Off the main thread (no signals arrive there) it waits
-    without that. The workers are Python threads kept between batches
-    (:func:`_workers`), not a numba threading layer."""
+    ``interrupted``. Off the main thread (no signals arrive there) one
+    thread's batch runs in the calling thread itself, with the GIL released
+    (a handoff to a worker and back costs about 150 us). The workers are
+    Python threads kept between batches (:func:`_workers`), not a numba
+    threading layer."""
+    if threads == 1 and threading.current_thread() is not threading.main_thread():
+        fn(*args)
+        return False
     futures = [_workers(threads).submit(fn, *args) for _ in range(threads)]
     interrupted = False
     errors = []

@@ -45,12 +45,18 @@ _DUMMY_RNG = None
 _NO_STOP = np.zeros(1, np.int64)
 #: the rows a batch's thread takes at a time from the shared counter
 _CHUNK = 4
-#: a batch of at most this many rows (one worker thread's: ``_pool._threads`` gives
-#: a thread per 8 rows) runs them one after another in the calling thread, each a
-#: run of the single-run kernel (Ctrl-C read at every step): handing the rows to a
-#: worker thread and back costs about 150 us a batch, a run of a small system
-#: 10-20 us (a falsification's first rows, explore's first levels)
+#: a batch of at most this many rows of short runs (at most :data:`_SHORT` samples,
+#: as the system's last batch, or its first rows, ran) run from the main thread
+#: runs them one after another in it, each a run of the single-run kernel (Ctrl-C
+#: read at every step): handing rows to a worker thread and back costs about
+#: 150 us a batch, such a run 10-50 us (a falsification's first rows, explore's
+#: first levels). Off the main thread a one-thread batch runs in the calling
+#: thread, the GIL released (``_pool._interruptible``)
 _ALONE = 15
+_SHORT = 64
+#: runs of more samples than this (about 0.3 ms and more each) take a thread per
+#: row from two rows on, shorter ones a thread per 8 rows (``_pool._threads``)
+_LONG = 256
 
 
 # ---------------------------------------------------------------- a map that raises
@@ -742,7 +748,7 @@ def simulate_many_compiled(system: CompiledSystem, x0s: ArrayLike, t_max: float,
     gc_on = gc.isenabled()
     gc.disable()
     try:
-        if ro.prio == Priority.RANDOM or not parallel or watching or len(rows) <= _ALONE:
+        if ro.prio == Priority.RANDOM or not parallel or watching:
             for i in rows.tolist():
                 stopped, _ = one(i, _rng_for(k, ro.prio, seed))
                 if stopped:
@@ -773,6 +779,14 @@ def simulate_many_compiled(system: CompiledSystem, x0s: ArrayLike, t_max: float,
                         sizes.clear()
                     sizes[skey] = longest
             cap = 1 << math.ceil(math.log2(longest * 1.25 + 1))
+            if len(rows) <= _ALONE and longest <= _SHORT and \
+                    threading.current_thread() is threading.main_thread():
+                for i in rows.tolist():          # a few short runs: here, one by one
+                    stopped, _ = one(i, rng)
+                    if stopped:
+                        break
+                rows = rows[:0]
+            heavy = longest > _LONG
             per = (2 + 2 * n) * 8
             c = 0
             stop = np.zeros(1, np.int64)
@@ -809,7 +823,7 @@ def simulate_many_compiled(system: CompiledSystem, x0s: ArrayLike, t_max: float,
                                      iopt_rows, atol_a, rng[1], k.POLL_NONE, stop,
                                      np.zeros(1, np.int64), _CHUNK, TT, JJ, XX, XXD, fill, AT,
                                      NS, CA, DE, INFO, ST),
-                        stop, _threads(parallel, B))
+                        stop, _threads(parallel, B, heavy))
                 if caught.raised is not None and not stopped:
                     # a map raised in some row: the chunk's rows run again one by
                     # one, each run's own exception caught (the others' arcs are

@@ -307,3 +307,29 @@ def test_a_plain_model_run_compiled_gets_its_arcs_back():
     np.testing.assert_allclose(batch.jump_times,
                                hs.library.bouncing_ball_jump_times(h0, 3), atol=1e-7)
     assert batch.jump_counts.tolist() == [3] * 7 and batch.success.all()
+
+
+def test_a_small_batch_gives_the_rows_of_a_large_one_from_any_thread():
+    """A batch of fewer than 16 rows runs its rows in the calling thread (the
+    single-run kernel from the main thread, the batch kernel with the GIL
+    released from another): the arcs of the same rows in a batch of 40 that
+    the worker threads run."""
+    pytest.importorskip("numba")
+    import concurrent.futures
+
+    from hybridsim.library import BouncingBall
+    ball = BouncingBall()
+    h0 = np.linspace(0.5, 2.0, 40)
+    X = np.column_stack([h0, 0 * h0])
+    kw = dict(t_max=1e9, j_max=3, backend="compiled", rtol=1e-9, atol=1e-11)
+    big = hs.simulate_many(ball, X, **kw)
+    small = hs.simulate_many(ball, X[:5], **kw)
+    with concurrent.futures.ThreadPoolExecutor(1) as ex:
+        off_main = ex.submit(hs.simulate_many, ball, X[:5], **kw).result()
+    for batch in (small, off_main):
+        for a, b in zip(batch, big[:5], strict=True):
+            assert a.termination is b.termination
+            np.testing.assert_array_equal(a.t, b.t)
+            np.testing.assert_array_equal(a.j, b.j)
+            np.testing.assert_array_equal(a.x, b.x)
+        np.testing.assert_array_equal(batch.jump_times, big.jump_times[:5])
