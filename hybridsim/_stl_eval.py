@@ -332,13 +332,17 @@ def _window_sup(ctx, s, a, b, lo, hi):
         """The instant within the engine's tolerance of x (the first such for a
         window's start, the last for its end), else the piece x lies in."""
         tx = _tol(x)
+        # x - tx and x + tx are rounded: an instant found just outside the
+        # tolerance is on the other side of x than the search assumed
         if first:
             i = np.minimum(_search(u, x - tx, "left"), M - 1)
-            hit = np.abs(u[i] - x) <= tx
-            return np.where(hit, i, _clip(i - 1, 0, max(M - 2, 0))), hit
+            ui = u[i]
+            hit = np.abs(ui - x) <= tx
+            return np.where(hit, i, _clip(np.where(ui < x, i, i - 1), 0, max(M - 2, 0))), hit
         i = np.maximum(_search(u, x + tx, "right") - 1, 0)
-        hit = np.abs(u[i] - x) <= tx
-        return np.where(hit, i, _clip(i, 0, max(M - 2, 0))), hit
+        ui = u[i]
+        hit = np.abs(ui - x) <= tx
+        return np.where(hit, i, _clip(np.where(ui > x, i - 1, i), 0, max(M - 2, 0))), hit
 
     # the output's breakpoints
     if hi <= lo:
