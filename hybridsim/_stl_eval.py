@@ -39,6 +39,23 @@ def _clip(x, lo, hi):
     return np.minimum(np.maximum(x, lo), hi)
 
 
+def _search(a, x, side):
+    """np.searchsorted(a, x, side) for a sorted ``a``: where x is long and
+    sorted too, by one stable merge of both (numpy's binary search starts
+    each key afresh), else numpy's."""
+    nx = len(x)
+    if nx < 512 or not np.all(x[1:] >= x[:-1]):
+        return np.searchsorted(a, x, side=side)
+    if side == "left":                  # a key before the equal entries of a
+        order = np.argsort(np.concatenate((x, a)), kind="stable")
+        pos = np.flatnonzero(order < nx)
+    else:
+        order = np.argsort(np.concatenate((a, x)), kind="stable")
+        pos = np.flatnonzero(order >= len(a))
+    pos -= np.arange(nx)
+    return pos
+
+
 def _lerp(y0, y1, w):
     """y0 + w (y1 - y0), the nearer end where an end is not finite."""
     with np.errstate(invalid="ignore"):
@@ -208,21 +225,26 @@ class _Context:
         masks of each time's first and last instant."""
         times = np.asarray(times, float)
         N = len(self.t)
-        i = np.searchsorted(self.t, times, side="left")
+        i = _search(self.t, times, "left")
         i0 = np.minimum(i, N - 1)
         # the last sample at each time (side="right" - 1), from the first one
         i1 = np.maximum(np.where(self.t[i0] == times, self.run_end[i0], i - 1), 0)
         jlo, jhi = self.j[i0], self.j[i1]
         jlo = np.minimum(jlo, jhi)
         cnt = jhi - jlo + 1
-        T = np.repeat(times, cnt)
         start = np.cumsum(cnt) - cnt
-        J = np.repeat(jlo, cnt) + (np.arange(len(T)) - np.repeat(start, cnt))
-        first = np.zeros(len(T), dtype=bool)
+        n = int(start[-1] + cnt[-1]) if len(cnt) else 0
+        if n == len(times):                     # one instant at each time
+            one = np.ones(n, dtype=bool)
+            return times, jlo, one, one.copy(), np.arange(n)
+        src = np.repeat(np.arange(len(times)), cnt)
+        T = times[src]
+        J = np.arange(n) + (jlo - start)[src]
+        first = np.zeros(n, dtype=bool)
         first[start] = True
-        last = np.zeros(len(T), dtype=bool)
+        last = np.zeros(n, dtype=bool)
         last[start + cnt - 1] = True
-        return T, J, first, last, np.repeat(np.arange(len(times)), cnt)
+        return T, J, first, last, src
 
     def states(self, T, J):
         """The arc's interpolant at the instants (T, J) (:meth:`HybridArc.at`)."""
@@ -278,15 +300,23 @@ def _value(sig, tau, j):
 def _window_sup(ctx, s, a, b, lo, hi):
     """sup of ``s`` over [tau + a, tau + b] (cut at the end of s), for tau in [lo, hi]."""
     t, v, l, r = s.t, s.v, s.l, s.r
-    first = np.ones(len(t), dtype=bool)
-    first[1:] = t[1:] != t[:-1]
+    n = len(t)
+    first = np.empty(n, dtype=bool)
+    first[0] = True
+    np.not_equal(t[1:], t[:-1], out=first[1:])
     fi = np.flatnonzero(first)
-    la = np.concatenate((fi[1:] - 1, [len(t) - 1]))
+    M = len(fi)
+    la = np.empty(M, dtype=fi.dtype)
+    la[:-1] = fi[1:] - 1
+    la[-1] = n - 1
     u = t[fi]
-    M = len(u)
-    P = np.maximum.reduceat(v, fi)
-    L = np.where(s.pred()[fi], l[fi], -_INF)
-    R = np.where(s.succ()[la], r[la], -_INF)
+    P = v if M == n else np.maximum.reduceat(v, fi)
+    # L (R): the limit from the left (right) at each time, where the flow goes on
+    conn = s.j[fi[1:]] == s.j[la[:-1]]
+    L = np.full(M, -_INF)
+    L[1:] = np.where(conn, l[fi[1:]], -_INF)
+    R = np.full(M, -_INF)
+    R[:-1] = np.where(conn, r[la[:-1]], -_INF)
     Q = np.maximum(P, np.maximum(L, R))
     E = u[-1]
     rm = _RangeMax(Q)
@@ -302,13 +332,17 @@ def _window_sup(ctx, s, a, b, lo, hi):
         """The instant within the engine's tolerance of x (the first such for a
         window's start, the last for its end), else the piece x lies in."""
         tx = _tol(x)
+        # x - tx and x + tx are rounded: an instant found just outside the
+        # tolerance is on the other side of x than the search assumed
         if first:
-            i = np.minimum(np.searchsorted(u, x - tx, side="left"), M - 1)
-            hit = np.abs(u[i] - x) <= tx
-            return np.where(hit, i, _clip(i - 1, 0, max(M - 2, 0))), hit
-        i = np.maximum(np.searchsorted(u, x + tx, side="right") - 1, 0)
-        hit = np.abs(u[i] - x) <= tx
-        return np.where(hit, i, _clip(i, 0, max(M - 2, 0))), hit
+            i = np.minimum(_search(u, x - tx, "left"), M - 1)
+            ui = u[i]
+            hit = np.abs(ui - x) <= tx
+            return np.where(hit, i, _clip(np.where(ui < x, i, i - 1), 0, max(M - 2, 0))), hit
+        i = np.maximum(_search(u, x + tx, "right") - 1, 0)
+        ui = u[i]
+        hit = np.abs(ui - x) <= tx
+        return np.where(hit, i, _clip(np.where(ui > x, i - 1, i), 0, max(M - 2, 0))), hit
 
     # the output's breakpoints
     if hi <= lo:
@@ -326,9 +360,17 @@ def _window_sup(ctx, s, a, b, lo, hi):
     ib, eb = locate(beta, False)
     deg = ea & eb & (ia == ib) | (alpha >= beta)
     # the window's start (its instants, or the piece it falls in), and the rest
-    Pa = np.where(ea, P[ia], piece(ia, alpha))
+    Pa = P[ia]
+    k = np.flatnonzero(~ea)
+    if k.size:
+        Pa[k] = piece(ia[k], alpha[k])
     rest = np.where(ea & ~deg, R[ia], -_INF)
-    rest = np.maximum(rest, np.where(deg, -_INF, np.where(eb, P[ib], piece(ib, beta))))
+    Pb = P[ib]
+    k = np.flatnonzero(~eb)
+    if k.size:
+        Pb[k] = piece(ib[k], beta[k])
+    Pb[deg] = -_INF
+    rest = np.maximum(rest, Pb)
     rest = np.maximum(rest, np.where(eb & ~deg, L[ib], -_INF))
     rest = np.maximum(rest, rm.query(ia + 1, np.where(eb, ib - 1, ib)))
     Pa[empty] = rest[empty] = -_INF
@@ -341,25 +383,28 @@ def _window_sup(ctx, s, a, b, lo, hi):
     if K > 0 and M > 1:
         t0, t1 = taus[:-1], taus[1:]
         mid = 0.5 * (t0 + t1)
-        p = _clip(np.searchsorted(u, mid + a, side="right") - 1, 0, M - 2)
+        p = _clip(_search(u, mid + a, "right") - 1, 0, M - 2)
         sA = (L[p + 1] - R[p]) / du[p]
         A0 = piece(p, t0 + a)
         bm = mid + b
         at_end = bm >= E
-        q = _clip(np.searchsorted(u, np.minimum(bm, E), side="right") - 1, 0, M - 2)
+        q = _clip(_search(u, np.minimum(bm, E), "right") - 1, 0, M - 2)
         sB = np.where(at_end, 0.0, (L[q + 1] - R[q]) / du[q])
         B0 = np.where(at_end, max(P[-1], L[-1]), piece(q, np.minimum(t0 + b, E)))
         C = rm.query(p + 1, np.where(at_end, M - 2, q))
         gone = mid + a > E
         lines = [(A0, sA), (B0, sB), (C, np.zeros(K))]
+        Cn = np.where(np.isnan(C), -_INF, C)
 
         def at(x):
             out = np.full(K, -_INF)
-            for y0, sl in lines:
+            for y0, sl in lines[:2]:
                 with np.errstate(invalid="ignore"):
                     yy = np.where(sl == 0, y0, y0 + sl * (x - t0))
                 out = np.maximum(out, np.where(np.isnan(yy), -_INF, yy))
-            return np.where(gone, -_INF, out)
+            out = np.maximum(out, Cn)           # the constant
+            out[gone] = -_INF
+            return out
 
         vr[:-1] = at(t0)
         vl[1:] = at(t1)
@@ -395,16 +440,20 @@ def _window_sup(ctx, s, a, b, lo, hi):
     # a window starting at the evaluation instant (tau, j) itself reads the
     # instants of tau from j on, not those before it in hybrid time
     sp = own[src] & ~(fst & lst)
-    if sp.any():
-        vs = v.copy()                       # max of v over the later instants of its time
-        gid = np.cumsum(first) - 1
-        for off in range(1, int(np.max(np.diff(np.append(fi, len(t))))) if M else 1):
-            same = np.zeros(len(t), dtype=bool)
-            same[:-off] = gid[off:] == gid[:-off]
-            vs[same] = np.maximum(vs[same], vs[np.flatnonzero(same) + off])
-        g = Ia[src][sp]
-        c = _clip(fi[g] + (J[sp] - s.j[fi[g]]), fi[g], la[g])
-        Vd[sp] = np.maximum(Re[src][sp], vs[c])
+    k = np.flatnonzero(sp)
+    if k.size:
+        g = Ia[src[k]]
+        c = _clip(fi[g] + (J[k] - s.j[fi[g]]), fi[g], la[g])
+        # the max of v over the instants of its time from c on
+        vs, end = v[c], la[g]
+        off = 1
+        while True:
+            m = np.flatnonzero(c + off <= end)
+            if not m.size:
+                break
+            vs[m] = np.maximum(vs[m], v[c[m] + off])
+            off += 1
+        Vd[k] = np.maximum(Re[src[k]], vs)
     return _Sig(T, J, Vd, np.where(fst, Lv[src], Vd), np.where(lst, Rv[src], Vd))
 
 

@@ -403,6 +403,105 @@ def test_duality_and_distribution(arc, p, q, w):
     assert r(stl.U(p, q, a, b)(arc)) <= r(stl.F(q, a, b)(arc)) + 1e-12
 
 
+def _window_reference(s, tau, j, a, b, E, ulps=4):
+    """sup of the signal ``s`` (a ``_stl_eval._Sig``) over [tau + a, min(tau + b, E)],
+    read at the hybrid instant (tau, j), from the definition: every instant in the
+    window (its value, and its limits from inside the window), the pieces' values
+    at the window's ends, and with a = 0 none of the instants before (tau, j); an
+    instant within the engine's tolerance (``ulps`` = 4 ulp) of an end is at that end."""
+    alpha, beta = tau + a, min(tau + b, E)
+    tol = [ulps * np.finfo(float).eps * max(1.0, abs(x)) for x in (alpha, beta)]
+    if alpha > E + ulps * np.finfo(float).eps * max(1.0, abs(E)):
+        return -np.inf
+    t, jj, v, l, r = s.t, s.j, s.v, s.l, s.r
+    n = len(t)
+    best = -np.inf
+    at_end = [False, False]
+    for k in range(n):
+        first, last = abs(t[k] - alpha) <= tol[0], abs(t[k] - beta) <= tol[1]
+        at_end = [at_end[0] or first, at_end[1] or last]
+        if not (first or last or alpha < t[k] < beta):
+            continue
+        if a == 0 and first and jj[k] < j:
+            continue
+        best = max(best, v[k])
+        if not first and k > 0 and jj[k - 1] == jj[k]:
+            best = max(best, l[k])
+        if not last and k + 1 < n and jj[k + 1] == jj[k]:
+            best = max(best, r[k])
+    for x, hit in zip((alpha, beta), at_end):   # an end inside a piece
+        k = np.flatnonzero((t[:-1] < x) & (t[1:] > x) & (jj[:-1] == jj[1:]))
+        if k.size and not hit:
+            k = int(k[0])
+            best = max(best, r[k] + (x - t[k]) / (t[k + 1] - t[k]) * (l[k + 1] - r[k]))
+    return best
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_window_sup_against_its_definition_on_random_signals_with_jumps(seed):
+    """The sliding sup (``_stl_eval._window_sup``, every F / G window) against
+    :func:`_window_reference` at each instant of its result, its limits from the left
+    and right against the reference just beside it: piecewise-linear signals with
+    jumps, ties, flat stretches and limits apart from the values, on a grid of 1/8
+    (the window ends exact), windows nested twice (the inner result's kinks off the
+    grid). A window end found a little more than 4 ulp from an instant was read on
+    the piece past the instant (the rounded search bound crossed it)."""
+    from hybridsim import _stl_eval as ev
+    rng = np.random.default_rng(seed)
+    for _ in range(8):
+        n = int(rng.integers(3, 40))
+        dt = rng.choice([0.0, 0.125, 0.25, 0.5, 1.0], size=n - 1, p=[0.2, 0.3, 0.2, 0.2, 0.1])
+        t = np.concatenate(([0.0], np.cumsum(dt)))
+        t[-1] = max(t[-1], 0.5)
+        j = np.concatenate(([0], np.cumsum(dt == 0)))
+        v = rng.integers(-2, 3, n) * 0.5 if rng.random() < 0.5 else rng.normal(size=n)
+        arc = hs.HybridArc(t, j, np.column_stack((v, v)), None)
+        ctx = ev._Context(arc, False, 1)
+        E = float(t[-1])
+        # limits apart from the value at some instants (as a window's result has them)
+        lim = [np.where(rng.random(n) < 0.3, v + rng.integers(-2, 3, n) * 0.5, v)
+               for _ in range(2)]
+        sig = ev._Sig(ctx.t, ctx.j, v.astype(float), *lim)
+        for _ in range(4):
+            a = float(rng.choice([0.0, 0.0, 0.25, 0.5]))
+            b = float(rng.choice([a, a + 0.25, a + 0.5, a + 1.0, a + 2.0]))
+            lo = float(rng.choice([0.0, 0.125, 0.25]))
+            hi = float(rng.choice([lo, E]))
+            for inner in (sig, sig.neg(), ev._window_sup(ctx, sig, 0.0, 0.375, 0.0, E)):
+                out = ev._window_sup(ctx, inner, a, b, lo, hi)
+                for k in range(len(out.t)):
+                    tau, jk = float(out.t[k]), int(out.j[k])
+                    # an instant a few ulp from an instant (a kink beside a breakpoint)
+                    # may read the window's end as at the instant or as just beside it
+                    ref = [_window_reference(inner, tau, jk, a, b, E, ulps) for ulps in (4, 0)]
+                    assert any(out.v[k] == x or abs(out.v[k] - x) <= 1e-12 for x in ref), \
+                        (a, b, lo, hi, tau, jk, out.v[k], ref)
+                    for side, near in ((-1, k - 1), (1, k + 1)):
+                        if not (0 <= near < len(out.t)) or out.j[near] != jk \
+                                or abs(out.t[near] - tau) < 1e-6:
+                            continue
+                        d = 1e-7 * abs(float(out.t[near]) - tau)
+                        got = out.l[k] if side < 0 else out.r[k]
+                        assert got == pytest.approx(
+                            _window_reference(inner, tau + side * d, jk, a, b, E),
+                            abs=1e-5), (side, a, b, lo, hi, tau, jk)
+
+
+def test_sorted_keys_are_searched_as_numpy_searches():
+    """``_stl_eval._search`` (one stable merge for long sorted keys) against
+    np.searchsorted, both sides, with ties, repeated keys and unsorted keys."""
+    from hybridsim import _stl_eval as ev
+    rng = np.random.default_rng(3)
+    for n, m in ((1, 600), (50, 2000), (3000, 4000), (2000, 700)):
+        a = np.sort(rng.integers(0, 400, n) * 0.25)
+        x = np.sort(np.concatenate((rng.integers(-4, 404, m - m // 3) * 0.25,
+                                    rng.choice(a, m // 3))))
+        for keys in (x, x[::-1], np.concatenate((x, [np.nan])), x[:10]):
+            for side in ("left", "right"):
+                assert np.array_equal(ev._search(a, keys, side),
+                                      np.searchsorted(a, keys, side=side))
+
+
 def test_an_until_with_a_degenerate_window_does_not_depend_on_its_range():
     """phi U[a,a] psi is min(G[0,a] phi, psi at t + a): read over the range [lo, hi]
     its value at t must not look at psi past t + a (it looked to hi + a, so that
