@@ -542,13 +542,30 @@ def _rate_run(system, cs, aug, x, t_max, j_max, opts, key, n, throw, warn):
     return finish(out, throw, warn)
 
 
-def simulate_many_rate(system, cs, X0, t_max, j_max, opts):
+def row_keys(seed, N):
+    """The run keys (ints < 2**63, as uint64) of a batch's ``N`` rows: from
+    fresh entropy (``seed`` None), ``SeedSequence(seed)`` (an int or a
+    SeedSequence: row i's key the same whatever N) or a Generator's draws."""
+    if isinstance(seed, np.random.Generator):
+        return seed.integers(0, 2**63, size=N, dtype=np.uint64)
+    if seed is not None and not isinstance(seed, np.random.SeedSequence):
+        from .._random_jumps import run_key
+        seed = run_key(seed)            # (its checks: a non-negative int)
+    ss = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+    return ss.generate_state(N, np.uint64) >> np.uint64(1)
+
+
+def simulate_many_rate(system, cs, X0, t_max, j_max, opts, keys=None, reduce=None):
     """``hs.simulate_many(..., backend="compiled")`` of a system with a
-    ``jump_rate``: each row keyed from fresh entropy (recorded in its
-    ``stats["jump_seed"]``: ``hs.simulate(system, x0, seed=that)`` replays it
-    on any path), the rows in the compiled batch kernel."""
-    from .._random_jumps import clock, run_key, strip
+    ``jump_rate``: row ``i`` keyed ``keys[i]`` (:func:`row_keys`; fresh
+    entropy when None), recorded in its ``stats["jump_seed"]``:
+    ``hs.simulate(system, x0, seed=that)`` replays it on any path; the rows
+    in the compiled batch kernel. ``reduce``: ``(grid, by_j)``, the rows'
+    ends and states of the system's own components on the grid
+    (:class:`._run.RowEnds`), no arcs."""
+    from .._random_jumps import strip
     from ..options import check_x0s
+    from ._draws import clocks_many
     from ._run import simulate_many_compiled
     _no_watch(system, "a jump_rate")
     if getattr(system, "jump_law", None) is not None or "diffusion" in cs.maps:
@@ -557,10 +574,23 @@ def simulate_many_rate(system, cs, X0, t_max, j_max, opts):
                          f"yet; use backend='python'")
     n = cs.state_dim
     X = check_x0s(X0, n)
-    keys = [run_key(None) for _ in range(len(X))]
+    N = len(X)
+    keys = row_keys(None, N) if keys is None else np.asarray(keys, dtype=np.uint64)
+    if keys.shape != (N,):
+        raise ValueError(f"keys: one per row, {N} rows, got shape {keys.shape}")
     j0 = opts.get("j0", 0)
-    XA = np.array([np.concatenate([x, clock(key, j0)]) for x, key in zip(X, keys)])
+    XA = np.empty((N, n + 4))
+    XA[:, :n] = X
+    clocks_many(keys, XA, int(j0))
     aug = _augmented(cs)
+    if reduce is not None:
+        grid, by_j = reduce
+        out = simulate_many_compiled(aug, XA, t_max, j_max, throw=False, warn=False,
+                                     reduce=(grid, by_j, n), **opts)
+        out.x = out.x[:, :n]
+        for i, a in out.arcs.items():
+            out.arcs[i] = _rate_error(system, strip(a, system, int(keys[i]), n, True), n)
+        return out
     out = simulate_many_compiled(aug, XA, t_max, j_max, throw=False, warn=False, **opts)
     return ArcBatch([_rate_error(system, strip(a, system, key, n, True), n)
-                     for a, key in zip(out, keys)], n)
+                     for a, key in zip(out, keys.tolist())], n)
