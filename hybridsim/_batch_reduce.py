@@ -52,7 +52,7 @@ def check_stats(stats, system, X):
 def reduce_into(system, X, t_max, j_max, stats, executor, chunks, throw, warn, options):
     """:func:`hybridsim.simulate_many` with ``stats``: returns ``stats``."""
     from .compiled._stochastic import row_keys
-    from .run import _auto_backend, simulate, simulate_many
+    from .run import _auto_backend, _run_row, simulate_many
     check_stats(stats, system, X)
     if throw:
         raise ValueError("throw: simulate_many(..., stats=) keeps no arcs to raise with; "
@@ -109,8 +109,10 @@ def reduce_into(system, X, t_max, j_max, stats, executor, chunks, throw, warn, o
                 arcs = simulate_many(system, X[a:b], t_max, j_max, executor=executor,
                                      chunks=chunks, throw=False, warn=False, **options)
             else:
-                arcs = [simulate(system, X[i], t_max, j_max, seed=int(keys[i]), throw=False,
-                                 warn=False, **options) for i in range(a, b)]
+                # each row alone, keyed, a failure at x0 its own arc (as simulate_many's)
+                kw = dict(options, t_max=t_max, j_max=j_max, throw=False, warn=False)
+                arcs = [_run_row(system, None, None, X[i], dict(kw, seed=int(keys[i])))[0]
+                        for i in range(a, b)]
             stats.update(arcs)
             failed += [(a + i, arc.termination) for i, arc in enumerate(arcs)
                        if arc.termination in FAILED or arc.termination is Termination.CANCELED]

@@ -475,7 +475,8 @@ def _augmented(cs):
 def _rate_error(system, arc, n):
     """A run that failed where the rate is negative or NaN: the Python path's
     MapError naming ``jump_rate``."""
-    if arc.termination not in (Termination.MAP_ERROR, Termination.NON_FINITE):
+    if arc.termination not in (Termination.MAP_ERROR, Termination.NON_FINITE) or \
+            not np.isfinite(arc.x[-1, :n]).all():    # (a state not finite: not the rate's)
         return arc
     from .._random_jumps import _named
     rate = _named(system.jump_rate, "jump_rate")
