@@ -390,26 +390,33 @@ def _augmented(cs):
     rate = k.wrap_map(mp["jump_rate"], "scalar", lazy=True)
     m = n + CLOCK
 
+    # (the user's maps read x[:n], a view: C-contiguous, as the Python path's; each
+    # map makes one array, its value, besides what the user's map makes)
     def flow_map(x, t, j, p):
-        xs = x[:n].copy()
+        xs = x[:n]
         fx = fv(xs, t, j, p)
         r = rate(xs, t, j, p)
-        out = np.zeros(m)
+        out = np.empty(m)
         if fx.shape[0] != n:
             out[:] = np.nan
             return out
-        out[:n] = fx
+        for q in range(n):
+            out[q] = fx[q]
         out[n] = r if (r >= 0.0 and math.isfinite(r)) else np.nan
+        for q in range(n + 1, m):
+            out[q] = 0.0
         return out
 
     def jump_map(x, t, j, p):
-        xn = gv(x[:n].copy(), t, j, p)
+        xn = gv(x[:n], t, j, p)
         out = np.empty(m)
         if xn.shape[0] != n:
             out[:] = np.nan
             return out
-        out[:n] = xn
-        out[n:] = x[n:]
+        for q in range(n):
+            out[q] = xn[q]
+        for q in range(n, m):
+            out[q] = x[q]
         if x[n] >= x[n + 1]:                 # the rate's jump: a new clock
             out[n] = 0.0
             out[n + 1] = threshold_at(x[n + 2], x[n + 3], j + 1)
@@ -419,13 +426,13 @@ def _augmented(cs):
         dv = k.wrap_map(mp["jump_set"], "bool", lazy=True)
 
         def jump_set(x, t, j, p):
-            return x[n] >= x[n + 1] or dv(x[:n].copy(), t, j, p)
+            return x[n] >= x[n + 1] or dv(x[:n], t, j, p)
         maps["jump_set"] = jit(jump_set)
     elif "jump_guard" in mp:
         hv = k.wrap_map(mp["jump_guard"], "scalar", lazy=True)
 
         def jump_guard(x, t, j, p):
-            return max(hv(x[:n].copy(), t, j, p), x[n] - x[n + 1])
+            return max(hv(x[:n], t, j, p), x[n] - x[n + 1])
         maps["jump_guard"] = jit(jump_guard)
     else:
         def clock_guard(x, t, j, p):
@@ -442,13 +449,13 @@ def _augmented(cs):
             cv = jit(cv)
 
         def flow_set(x, t, j, p):
-            return cv(x[:n].copy(), t, j, p)
+            return cv(x[:n], t, j, p)
         maps["flow_set"] = jit(flow_set)
         if "flow_guard" in mp:
             cg2 = k.wrap_map(mp["flow_guard"], "scalar", lazy=True)
 
             def flow_guard(x, t, j, p):
-                return cg2(x[:n].copy(), t, j, p)
+                return cg2(x[:n], t, j, p)
             maps["flow_guard"] = jit(flow_guard)
     if "diffusion" in mp:
         nd = cs.noise_dim
@@ -457,16 +464,16 @@ def _augmented(cs):
         if nd is None:
             def diffusion(x, t, j, p):
                 out = np.zeros(m)
-                out[:n] = sj(x[:n].copy(), t, j, p)
+                out[:n] = sj(x[:n], t, j, p)
                 return out
         else:
             def diffusion(x, t, j, p):
                 out = np.zeros((m, nd))
-                out[:n] = sj(x[:n].copy(), t, j, p)
+                out[:n] = sj(x[:n], t, j, p)
                 return out
         maps["diffusion"] = jit(diffusion)
     aug = CompiledSystem(**maps, state_dim=m, params=cs.params, noise_dim=cs.noise_dim,
-                         name=f"{cs!r} (with its rate's clock)")
+                         specialize=cs.specialize, name=f"{cs!r} (with its rate's clock)")
     aug.max_step = cs.max_step
     cs.__dict__["_rate_system"] = (mp["jump_rate"], aug)
     return aug

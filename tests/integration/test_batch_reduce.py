@@ -111,3 +111,28 @@ def test_reduction_failed_rows_are_named_and_counted(path):
     with pytest.warns(hs.BatchWarning, match=r"1 of 5 rows failed.*row 2: NON_FINITE"):
         hs.simulate_many(AIMD(), X, 5.0, stats=st, seed=3, backend=path)
     assert st.count.tolist() == [4, 4]
+
+
+def test_rate_system_keeps_specialize():
+    # the clock-augmented system of a rate system lowered with specialize=True is
+    # specialised too (its kernel has the maps compiled in), and not otherwise
+    from hybridsim.compiled import CompiledSystem
+    from hybridsim.compiled._stochastic import _augmented
+    for spec in (False, True):
+        cs = CompiledSystem(flow_map=lambda x, t, j, p: np.ones(1),
+                            jump_map=lambda x, t, j, p: x / 2,
+                            jump_rate=lambda x, t, j, p: x[0], state_dim=1, specialize=spec)
+        aug = _augmented(cs)
+        assert aug.specialize is spec and aug.state_dim == 5
+
+
+@pytest.mark.slow       # the specialised kernel: about 15 s of CPU once per machine
+def test_specialised_rate_rows_reduce_as_the_python_path():
+    from hybridsim.compiled import lower
+    s = AIMD()
+    lower(s, specialize=True)
+    st = hs.simulate_many(s, np.ones((30, 1)), 20.0, stats=_aimd_stats(), seed=4,
+                          backend="compiled")
+    ref = _aimd_stats()
+    ref.update([hs.simulate(AIMD(), [1.0], 20.0, seed=int(k)) for k in _keys(4, 30)])
+    _same_stats(st, ref)
