@@ -8,6 +8,8 @@ Rows:
    ratio); the time 10^6 paths would take at the batch's rate (the issue's target:
    10 s on two cores); stationary E[X^2] = 2 and E[X^4] = 48/7 from each path's time
    average over [20, 100] (exact on each flow: x' = 1), standard errors over the paths.
+   Then the same batch reduced (``simulate_many(..., stats=)``: no arcs), on the generic
+   and the specialised kernel, with E[X(100)^2] and E[X(100)^4] over the paths.
 2. Standard Brownian motion, barrier 1 on [0, 1], Euler-Maruyama with the Brownian-bridge
    correction, compiled: P(hit) = 2 (1 - Phi(1)) = 0.31731 at dt = 0.1 and 0.01, beside
    the Python path on fewer paths (the same arcs per seed; time per path and the ratio).
@@ -80,7 +82,40 @@ def bench_aimd(n_paths, n_python):
           f"({per_p * 1e6:.0f} us/path); ratio {per_p / per_c:.0f}x per path")
     print(f"  10^6 paths at this rate: {per_c * 1e6:.0f} s (target 10 s on two cores)")
     (m2, m4), (s2, s4) = aimd_moments(B)
-    return [line("AIMD E[X^2]", 2.0, m2, s2), line("AIMD E[X^4]", 48 / 7, m4, s4)]
+    oks = [line("AIMD E[X^2]", 2.0, m2, s2), line("AIMD E[X^4]", 48 / 7, m4, s4)]
+    return oks + bench_aimd_reduced(n_paths, tc)
+
+
+def bench_aimd_reduced(n_paths, t_arcs):
+    """Row 1 reduced: ``simulate_many(..., stats=)`` keeps no arc (the kernel keeps each
+    row's state at t = 100 only), generic and with the system lowered ``specialize=True``
+    (its kernel compiled with the maps in: about 15 s of CPU once per machine); CPU time
+    (the machine is shared) beside the wall time, and the ensemble moments at t = 100
+    (stationary by then), standard errors over the paths."""
+    from hybridsim.compiled import lower
+    from hybridsim.estimate import Stats
+    oks = []
+    for label, spec in (("generic kernel", False), ("specialised kernel", True)):
+        s = AIMD()
+        lower(s, specialize=spec)
+
+        def moments():
+            return Stats(t=[100.0], signal=lambda x: np.stack([x[..., 0] ** 2, x[..., 0] ** 4],
+                                                              axis=-1))
+        hs.simulate_many(s, np.ones((8, 1)), 100.0, backend="compiled", stats=moments(),
+                         seed=0)                                       # compiled, loaded
+        c0, t0 = time.process_time(), time.perf_counter()
+        st = hs.simulate_many(s, np.ones((n_paths, 1)), 100.0, backend="compiled",
+                              stats=moments(), seed=1)
+        cpu, wall = time.process_time() - c0, time.perf_counter() - t0
+        print(f"AIMD reduced (stats=, no arcs), {label}: {n_paths} paths {wall:.2f} s wall, "
+              f"{cpu:.2f} s CPU ({cpu / n_paths * 1e6:.0f} us CPU/path; {t_arcs / wall:.2f}x "
+              f"the batch with arcs); 10^6 paths: {cpu / n_paths * 1e6 / 2:.0f} s on two "
+              f"cores at this CPU rate (target 10 s)")
+        (m2, m4), (s2, s4) = st.mean[0], st.std_error[0]
+        oks += [line(f"AIMD E[X(100)^2], {label}", 2.0, m2, s2),
+                line(f"AIMD E[X(100)^4], {label}", 48 / 7, m4, s4)]
+    return oks
 
 
 def barrier():

@@ -185,6 +185,24 @@ class Stats:
             np.add.at(self.hist.reshape(-1), (flat[None] + idx)[ok], 1)
         self.runs += len(V)
 
+    def add_states(self, x, ok=None):
+        """Add runs given as their states at the grid (the signal applied as to
+        an arc's): ``x`` of shape (runs, grid, n), ``ok`` (runs, grid) True
+        where the run has a state (default: where ``x`` is not NaN)."""
+        X = np.asarray(x, dtype=float)
+        if X.ndim != 3 or X.shape[1] != len(self.grid):
+            raise ValueError(f"Stats.add_states: x must have shape (runs, {len(self.grid)}, n), "
+                             f"got {X.shape}")
+        R, m, n = X.shape
+        if R == 0:
+            return
+        ok = ~np.isnan(X).all(axis=2) if ok is None else np.asarray(ok, dtype=bool)
+        if ok.shape != (R, m):
+            raise ValueError(f"Stats.add_states: ok must have shape {(R, m)}, got {ok.shape}")
+        with np.errstate(invalid="ignore"):
+            V = self._signal_of(X.reshape(R * m, n), R * m).reshape(R, m, -1)
+        self.add_values(np.where(ok[..., None], V, np.nan))
+
     def _combine(self, nb, mb, m2b):
         na = self.count
         n = na + nb

@@ -351,7 +351,8 @@ def _compiled_run(system, x0, t_max, j_max, opts, python_only):
 def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
                   j_max: float = np.inf, *, executor: concurrent.futures.Executor | None = None,
                   chunks: int | None = None, progress: bool | None = None,
-                  throw: bool = False, warn: bool = True, **options: Any) -> ArcBatch:
+                  throw: bool = False, warn: bool = True, stats=None,
+                  **options: Any) -> ArcBatch:
     """Simulate one system from many initial states.
 
     Parameters
@@ -393,6 +394,18 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
     warn : bool
         Issue the summary warning (default True). Single runs never warn on
         their own inside a batch.
+    stats : hybridsim.estimate.Stats, optional
+        Reduce the rows into ``stats`` (updated in place and returned) as
+        they finish, keeping no arc: on the compiled path the batch kernel
+        keeps of each row only its end and its states on the Stats's grid
+        (the values :meth:`Stats.update` reads off the row's arc); on the
+        other paths the arcs are reduced a thousand rows at a time. A
+        system that draws (``jump_rate``, ``diffusion``, ``jump_law``) takes
+        ``seed`` here: row ``i`` is keyed by the ``i``-th word of
+        ``numpy.random.SeedSequence(seed).generate_state(N, uint64)`` shifted
+        right by one (``seed=key`` replays it alone in :func:`simulate`),
+        the same rows on every path. ``throw`` must be False; failed rows
+        are named in one :class:`BatchWarning`.
     **options
         Passed to :func:`hybridsim.simulate` (``priority``, ``rtol``...).
         Argument errors (the same for every row) raise at once.
@@ -411,10 +424,10 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
 
     Returns
     -------
-    ArcBatch
-        A list of one arc per row of ``x0s``, in order, with the runs'
-        final states, causes, jump counts and jump times as arrays
-        (:class:`hybridsim.ArcBatch`: ``batch.jump_times`` reads every
+    ArcBatch or Stats
+        ``stats`` when given. Otherwise a list of one arc per row of
+        ``x0s``, in order, with the runs' final states, causes, jump counts
+        and jump times as arrays (:class:`hybridsim.ArcBatch`: ``batch.jump_times`` reads every
         row's at once, far faster than from the arcs). A row that failed before
         flowing has a one-sample arc at (t0, j0, x0) with cause
         ``MAP_ERROR`` or ``NON_FINITE`` and the error in ``arc.exception``.
@@ -455,6 +468,11 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
     n = int(system.state_dim)
     X = check_x0s(x0s, n)
     N = len(X)
+    if stats is not None:
+        from ._batch_reduce import reduce_into
+        options = dict(options, progress=False)
+        return reduce_into(system, X, t_max, j_max, stats, executor, chunks, throw, warn,
+                           options)
     if N == 0:
         return ArcBatch((), n)
     if options.get("seed") is not None and any(

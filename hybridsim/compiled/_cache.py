@@ -220,7 +220,7 @@ from hybridsim.compiled import _kernel as _k
 # the run core's globals: the engine's helpers and constants
 globals().update((k, v) for k, v in vars(_k).items() if not k.startswith("__"))
 
-f = g = hD = hC = D = C = None     # the system's compiled maps, set before one compiles
+f = g = hD = hC = D = C = fi = None   # the system's compiled maps, set before one compiles
 _f, _g, _hD, _hC, _D, _C = (_cache.map_value(globals(), r)
                             for r in ("f", "g", "hD", "hC", "D", "C"))
 
@@ -230,22 +230,31 @@ _f, _g, _hD, _hC, _D, _C = (_cache.map_value(globals(), r)
 #: the line of the run core that takes its maps, and its specialised kernel's
 _MAPS_LINE = "    f, g, hD, hC, D, C = maps_of(maps)\n"
 _SPEC_MAPS_LINE = "    f, g, hD, hC, D, C = _f(), _g(), _hD(), _hC(), _D(), _C()\n"
+#: the run core's line that takes the flow map written into an array (``_INTO``)
+_INTO_LINE = "    fi = f\n"
 
 
-def _spec_source(key, delays=False, method="RK45"):
+def _spec_source(key, delays=False, method="RK45", into=False):
     """A specialised kernel's module: the run core itself (its source, the maps
     read from the module's globals), so that numba optimizes and generates its
     code once (a wrapper calling :data:`run_one_spec` took about 2.4 s more);
     with the code for the past where ``delays`` (see :data:`run_one_delays`),
     DOP853's or RK4's steps where ``method`` is ``"DOP853"`` or ``"RK4"`` (``key``
-    then names them too, :func:`spec_key`)."""
+    then names them too, :func:`spec_key`); ``into``: the steps call the flow map
+    written into an array, the module's ``fi`` (``_kernel._INTO``; not with
+    ``delays``)."""
     import inspect
     core = inspect.getsource(_run_core)
     head = "def _run_core(maps, "
-    if not core.startswith(head) or core.count(_MAPS_LINE) != 1:
+    if not core.startswith(head) or core.count(_MAPS_LINE) != 1 or \
+            core.count(_INTO_LINE) != 1:
         raise RuntimeError("hybridsim.compiled: the run core's source is not as expected")
     core = "def one(maps, " + core[len(head):].replace(_MAPS_LINE, _SPEC_MAPS_LINE)
     head = _SPEC_HEAD.format(key=key)
+    if into and not delays:
+        head += ('_fi = _cache.map_value(globals(), "fi")\n'
+                 '_INTO = True       # the flow map written into the run\'s rows\n\n\n')
+        core = core.replace(_INTO_LINE, "    fi = _fi()\n")
     if delays:
         head += "_DELAYS = True     # the flow map reads the past\n\n\n"
     if method == "DOP853":
@@ -377,11 +386,11 @@ def _spec_dirs():
     return out
 
 
-def spec_module(key, delays=False, method="RK45"):
+def spec_module(key, delays=False, method="RK45", into=False):
     """The generated module of ``key`` (written once; None where no folder is
-    private and writable: the caller then compiles in memory); ``delays`` and ``method``
-    as :func:`_spec_source`'s, the ones ``key`` was made with."""
-    return _generated_module(f"hybridsim_spec_{key}", _spec_source(key, delays, method))
+    private and writable: the caller then compiles in memory); ``delays``,
+    ``method`` and ``into`` as :func:`_spec_source`'s, the ones ``key`` was made with."""
+    return _generated_module(f"hybridsim_spec_{key}", _spec_source(key, delays, method, into))
 
 
 #: the text of the module holding the engine's wrapper of one map

@@ -199,3 +199,17 @@ def path_keys(seed, run, dim):
     p = BrownianPath(seed, run, dim)
     ks = [c.key for c in p._comp]
     return np.array(ks + [_py_mix64(ks[0])], dtype=np.uint64)
+
+
+@njit(**_NJ)
+def clocks_many(keys, X, j0):
+    """Each row's rate clock (:func:`hybridsim._random_jumps.clock` of ``keys[i]``,
+    uint64 < 2**63, at ``j0``) written into the last four columns of ``X``."""
+    n = X.shape[1] - 4
+    for i in range(keys.shape[0]):
+        hi = float(keys[i] >> _U(32))
+        lo = float(keys[i] & _U(0xFFFFFFFF))
+        X[i, n] = 0.0
+        X[i, n + 1] = threshold_at(hi, lo, j0)
+        X[i, n + 2] = hi
+        X[i, n + 3] = lo

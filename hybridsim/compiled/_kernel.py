@@ -155,6 +155,12 @@ _DELAYS = False
 #: a constant of the run core: whether the system watches functions along its
 #: flows (:mod:`._watch`). True only in ``run_one_watch``
 _WATCH = False
+#: a constant of the run core: its flow map is also given written into an array,
+#: ``fi(x, t, j, p, out)`` (:attr:`CompiledSystem.maps_into`), and the steps call
+#: that form into the run's scratch rows (the stages into K's rows): no array
+#: made per evaluation. True only in a specialised kernel of such a system
+#: without delays (``_cache.spec_module``); ``fi`` is ``f`` elsewhere
+_INTO = False
 
 
 def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
@@ -177,6 +183,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     instead.
     """
     f, g, hD, hC, D, C = maps_of(maps)
+    fi = f
     # the first NaN guard (which, s, j): written by ``_fault`` through its address
     ev = np.zeros(3)
     M = (f, g, hD, hC, D, C, iopt[I_D_FROM_GUARD] != 0, iopt[I_C_FROM_GUARD] != 0, ev.ctypes.data)
@@ -264,7 +271,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     SC = _C8 if _DOP else (_C4 if _RK4 else _Cc)
     SP = _P4 if _RK4 else _P
     ERRX = -1.0 / 8.0 if _DOP else _ERR_EXP
-    work = np.zeros((NK + NQ + 10) * n)
+    work = np.zeros((NK + NQ + 13) * n)
     K = _bare(work[:NK * n]).reshape((NK, n))
     Ks = _bare(work[:(NST + 1) * n])         # the step's stages (scipy's solver.K)
     o = NK * n
@@ -280,6 +287,9 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     YY = _bare(work[o + 5 * n:o + 7 * n]).reshape((2, n))
     # DOP853's first interior search: the cubic Hermite of the step's ends
     hH = _bare(work[o + 7 * n:o + 10 * n]).reshape((n, 3))
+    # ``_INTO``: the flow's values written by ``fi``: a step's end in the row of its
+    # state's (YY's), the flow's start in row 1, any other in row 2
+    FF = _bare(work[o + 10 * n:o + 13 * n]).reshape((3, n))
 
     t = t0
     j = j0
@@ -445,6 +455,9 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 hh0 = np.nan
         if _DELAYS:
             fa = _fd(f, x, t, j, p, pb, dl, HL, HM, cur_x, x0, t0)
+        elif _INTO:
+            fa = FF[1]
+            fi(x, t, j, p, fa)
         else:
             fa = f(x, t, j, p)
         stats[2] += 1
@@ -466,6 +479,9 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             if abs(t_bound - t) != 0.0:
                 if _DELAYS:
                     f1 = _fd(f, yi, t + h0, j, p, pb, dl, HL, HM, cur_x, x0, t0)
+                elif _INTO:
+                    f1 = FF[2]
+                    fi(yi, t + h0, j, p, f1)
                 else:
                     f1 = f(yi, t + h0, j, p)
                 h_abs = _initial_step(t, t_bound, max_step, fa, f1, h0, d1, WS[0],
@@ -558,6 +574,9 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                         for m in range(s):
                             acc += K[m, i] * SA[s, m]
                         yi[i] = ya[i] + acc * hs
+                    if _INTO:                # into K's row s itself
+                        fi(yi, a + SC[s] * hs, j, p, K[s])
+                        continue
                     if _DELAYS:
                         ks = _fd(f, yi, a + SC[s] * hs, j, p, pb, dl, HL, HM, cur_x, x0, t0)
                     else:
@@ -578,6 +597,9 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                     ynew[i] = ya[i] + hs * acc
                 if _DELAYS:
                     fnew = _fd(f, ynew, b, j, p, pb, dl, HL, HM, cur_x, x0, t0)
+                elif _INTO:
+                    fnew = FF[ynew_row]
+                    fi(ynew, b, j, p, fnew)
                 else:
                     fnew = f(ynew, b, j, p)
                 stats[2] += NST
@@ -857,6 +879,9 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 _store(_bare(T), _bare(J), _bare(X), _bare(XD), ns, te, j, _bare(xe))
                 if _DELAYS:
                     fe = _fd(f, xe, te, j, p, pb, dl, HL, HM, cur_x, x0, t0)
+                elif _INTO:
+                    fe = FF[2]
+                    fi(xe, te, j, p, fe)
                 else:
                     fe = f(xe, te, j, p)
                 if fe.shape[0] == n:

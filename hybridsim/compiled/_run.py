@@ -615,7 +615,7 @@ def simulate_many_compiled(system: CompiledSystem, x0s: ArrayLike, t_max: float,
                            max_norm: float = math.inf,
                            seed: int | np.random.Generator | None = None, refine: int = 1,
                            throw: bool = False, warn: bool = True,
-                           method: str | type[OdeSolver] = "RK45",
+                           method: str | type[OdeSolver] = "RK45", reduce=None,
                            **unsupported: Any) -> ArcBatch:
     """Simulate a :class:`CompiledSystem` from many initial states, compiled and in parallel.
 
@@ -660,9 +660,17 @@ def simulate_many_compiled(system: CompiledSystem, x0s: ArrayLike, t_max: float,
         As in :func:`simulate_compiled`. With ``priority="random"`` the runs
         go one after another, each with its own ``numpy.random.default_rng(seed)``
         (as ``hs.simulate_many`` passes ``seed`` to every run).
+    reduce : (grid, by_j, components), optional
+        Keep of each row only its end and its states on ``grid`` (a float
+        array: times, non-decreasing, ``by_j`` False; or jump counts, ``by_j``
+        True), their first ``components`` components: no arcs are made
+        (``hs.simulate_many(..., stats=)`` reduces them into a
+        :class:`hybridsim.estimate.Stats`).
 
     Returns
     -------
+    hybridsim.ArcBatch or RowEnds
+        ``RowEnds`` with ``reduce``.
     hybridsim.ArcBatch
         A list of one arc per row of ``x0s``, in order. The arcs of runs
         ending at ``t_max`` or ``j_max`` take their samples and stats from the
@@ -741,6 +749,9 @@ def simulate_many_compiled(system: CompiledSystem, x0s: ArrayLike, t_max: float,
             return False, len(T)
         return code == canceled, len(T)
 
+    if reduce is not None and ro.prio != Priority.RANDOM and not watching:
+        return _reduced(k, system, X0, rows, arcs, one, one_addr, maps, p, fopt, iopt_rows_of(
+            iopt), atol_a, _rng_for(k, ro.prio, seed), parallel, reduce, mname, where)
     stopped = False
     runs = []               # the pooled rows' record, for the batch's fields (ArcBatch)
     # no cyclic garbage collection while the arcs are built (a 100,000-row batch
@@ -822,7 +833,7 @@ def simulate_many_compiled(system: CompiledSystem, x0s: ArrayLike, t_max: float,
                         k.run_rows, (one_addr, *maps, X0[idx] if B < N else X0, p, fopt,
                                      iopt_rows, atol_a, rng[1], k.POLL_NONE, stop,
                                      np.zeros(1, np.int64), _CHUNK, TT, JJ, XX, XXD, fill, AT,
-                                     NS, CA, DE, INFO, ST),
+                                     NS, CA, DE, INFO, ST, *_no_grid(n)),
                         stop, _threads(parallel, B, heavy))
                 if caught.raised is not None and not stopped:
                     # a map raised in some row: the chunk's rows run again one by
@@ -883,5 +894,101 @@ def simulate_many_compiled(system: CompiledSystem, x0s: ArrayLike, t_max: float,
                 arcs[i] = _one_sample(X0[i], where, Termination.CANCELED,
                                       "never started (the batch was interrupted)", None,
                                       system)
+    if reduce is not None:                  # rows one by one: every row has its arc
+        return RowEnds.of_arcs(arcs, n, len(reduce[0]), reduce[2])
     return finish_batch("simulate_many_compiled", ArcBatch._of_pools(arcs, n, runs), ro.throw,
                         ro.warn)
+
+
+def _no_grid(n):
+    """:func:`_batch.run_rows`' reduction arguments of a batch that keeps its arcs."""
+    return (np.zeros(0), 0, np.zeros((0, n)), np.zeros(0), np.zeros(0, np.int64),
+            np.zeros((0, 0, 0)), np.zeros((0, 0), bool))
+
+
+class RowEnds:
+    """What a reduced batch keeps of each row (``simulate_many_compiled(...,
+    reduce=)``): its end (``x`` (N, n), ``t``, ``j``, ``cause``: the cause
+    codes of :data:`hybridsim.rules.CAUSES`) and its states on the grid
+    (``grid_x`` (N, G, components), NaN where ``grid_ok`` (N, G) is False: the
+    run has no state there). ``arcs``: ``{row: arc}`` of the rows that have
+    an arc instead (a non-finite x0, a map that raised, never started),
+    whose other fields are unset (NaN, cause -1)."""
+
+    def __init__(self, N, n, G, nk):
+        self.x = np.full((N, n), np.nan)
+        self.t = np.full(N, np.nan)
+        self.j = np.full(N, -1, np.int64)
+        self.cause = np.full(N, -1, np.int64)
+        self.grid_x = np.full((N, G, nk), np.nan)
+        self.grid_ok = np.zeros((N, G), bool)
+        self.arcs = {}
+
+    @classmethod
+    def of_arcs(cls, arcs, n, G, nk):
+        out = cls(len(arcs), n, G, nk)
+        out.arcs = dict(enumerate(arcs))
+        return out
+
+    def __len__(self):
+        return len(self.t)
+
+
+def iopt_rows_of(iopt):
+    """The options of a batch's rows (:func:`_batch.run_rows`: each run's
+    buffers returned uncopied)."""
+    out = iopt.copy()
+    out[lay.I_ROW] = 1
+    return out
+
+
+def _reduced(k, system, X0, rows, arcs, one, one_addr, maps, p, fopt, iopt_rows, atol_a, rng,
+             parallel, reduce, mname, where):
+    """:func:`simulate_many_compiled` with ``reduce``: the good ``rows`` in one
+    call of :func:`_batch.run_rows` keeping each row's end and grid states
+    (:class:`RowEnds`), the others' arcs (``arcs``, made by the caller) kept."""
+    grid, by_j, nk = reduce
+    grid = np.ascontiguousarray(grid, dtype=np.float64)
+    N, n = X0.shape
+    out = RowEnds(N, n, len(grid), nk)
+    out.arcs = {i: a for i, a in enumerate(arcs) if a is not None}
+    B = len(rows)
+    if B == 0:
+        return out
+    sizes = system.__dict__.get("_batch_lengths", {})
+    iopt = iopt_rows.copy()
+    iopt[lay.I_ROW] = 0
+    skey = (mname, fopt.tobytes(), iopt.tobytes(), atol_a.tobytes(), p.tobytes())
+    iopt_rows[lay.I_CAP] = 1 << math.ceil(math.log2(max(sizes.get(skey, 48), 2) * 1.25 + 1))
+    XS = X0 if B == N else np.ascontiguousarray(X0[rows])
+    empty_f, empty_i = np.zeros(0), np.zeros(0, np.int64)
+    NS, CA, DE = (np.zeros(B, np.int64) for _ in range(3))
+    INFO, ST = np.empty((B, 6)), np.zeros((B, 6), np.int64)
+    XF, TF, JF = np.full((B, n), np.nan), np.full(B, np.nan), np.full(B, -1, np.int64)
+    XG, OK = np.full((B, len(grid), nk), np.nan), np.zeros((B, len(grid)), bool)
+    stop = np.zeros(1, np.int64)
+    with _CatchRaised(None) as caught:
+        stopped = _interruptible(
+            k.run_rows, (one_addr, *maps, XS, p, fopt, iopt_rows, atol_a, rng[1], k.POLL_NONE,
+                         stop, np.zeros(1, np.int64), _CHUNK, empty_f, empty_i,
+                         np.zeros((0, n)), np.zeros((0, n)), np.zeros(1, np.int64),
+                         np.zeros(B, np.int64), NS, CA, DE, INFO, ST, grid, int(bool(by_j)),
+                         XF, TF, JF, XG, OK),
+            stop, _threads(parallel, B, sizes.get(skey, 0) > _LONG))
+    ran = NS > 0
+    out.x[rows], out.t[rows], out.j[rows] = XF, TF, JF
+    out.cause[rows] = np.where(ran, CA, -1)
+    out.grid_x[rows], out.grid_ok[rows] = XG, OK
+    if caught.raised is not None and not stopped:
+        # a map raised in some row: each row's own exception, from its arc
+        # (the others' ends are the same again: these runs draw no coins)
+        for i in rows.tolist():
+            if one(i, rng)[0]:
+                break
+            out.arcs[i] = arcs[i]
+            out.cause[i] = -1
+    for r in np.flatnonzero(~ran).tolist():          # never started (Ctrl-C)
+        i = int(rows[r])
+        out.arcs[i] = _one_sample(X0[i], where, Termination.CANCELED,
+                                  "never started (the batch was interrupted)", None, system)
+    return out

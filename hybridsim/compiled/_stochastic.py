@@ -390,26 +390,44 @@ def _augmented(cs):
     rate = k.wrap_map(mp["jump_rate"], "scalar", lazy=True)
     m = n + CLOCK
 
-    def flow_map(x, t, j, p):
-        xs = x[:n].copy()
+    # (the user's maps read x[:n], a view: C-contiguous, as the Python path's). The
+    # flow map is written into ``out`` (a specialised kernel's steps call it so: no
+    # array made besides the user map's; elsewhere it is seen as the array it writes)
+    def flow_map(x, t, j, p, out):
+        xs = x[:n]
         fx = fv(xs, t, j, p)
         r = rate(xs, t, j, p)
-        out = np.zeros(m)
         if fx.shape[0] != n:
-            out[:] = np.nan
-            return out
-        out[:n] = fx
+            for q in range(m):
+                out[q] = np.nan
+            return
+        for q in range(n):
+            out[q] = fx[q]
         out[n] = r if (r >= 0.0 and math.isfinite(r)) else np.nan
-        return out
+        for q in range(n + 1, m):
+            out[q] = 0.0
+    if "flow" in cs.maps_into:              # the user's flow map written into out[:n] too
+        fu = cs.maps_into["flow"]
+        fu = fu if hasattr(fu, "py_func") else jit(fu)
+
+        def flow_map(x, t, j, p, out):      # noqa: F811 - the form for this flow map
+            xs = x[:n]
+            fu(xs, t, j, p, out[:n])
+            r = rate(xs, t, j, p)
+            out[n] = r if (r >= 0.0 and math.isfinite(r)) else np.nan
+            for q in range(n + 1, m):
+                out[q] = 0.0
 
     def jump_map(x, t, j, p):
-        xn = gv(x[:n].copy(), t, j, p)
+        xn = gv(x[:n], t, j, p)
         out = np.empty(m)
         if xn.shape[0] != n:
             out[:] = np.nan
             return out
-        out[:n] = xn
-        out[n:] = x[n:]
+        for q in range(n):
+            out[q] = xn[q]
+        for q in range(n, m):
+            out[q] = x[q]
         if x[n] >= x[n + 1]:                 # the rate's jump: a new clock
             out[n] = 0.0
             out[n + 1] = threshold_at(x[n + 2], x[n + 3], j + 1)
@@ -419,13 +437,13 @@ def _augmented(cs):
         dv = k.wrap_map(mp["jump_set"], "bool", lazy=True)
 
         def jump_set(x, t, j, p):
-            return x[n] >= x[n + 1] or dv(x[:n].copy(), t, j, p)
+            return x[n] >= x[n + 1] or dv(x[:n], t, j, p)
         maps["jump_set"] = jit(jump_set)
     elif "jump_guard" in mp:
         hv = k.wrap_map(mp["jump_guard"], "scalar", lazy=True)
 
         def jump_guard(x, t, j, p):
-            return max(hv(x[:n].copy(), t, j, p), x[n] - x[n + 1])
+            return max(hv(x[:n], t, j, p), x[n] - x[n + 1])
         maps["jump_guard"] = jit(jump_guard)
     else:
         def clock_guard(x, t, j, p):
@@ -442,13 +460,13 @@ def _augmented(cs):
             cv = jit(cv)
 
         def flow_set(x, t, j, p):
-            return cv(x[:n].copy(), t, j, p)
+            return cv(x[:n], t, j, p)
         maps["flow_set"] = jit(flow_set)
         if "flow_guard" in mp:
             cg2 = k.wrap_map(mp["flow_guard"], "scalar", lazy=True)
 
             def flow_guard(x, t, j, p):
-                return cg2(x[:n].copy(), t, j, p)
+                return cg2(x[:n], t, j, p)
             maps["flow_guard"] = jit(flow_guard)
     if "diffusion" in mp:
         nd = cs.noise_dim
@@ -457,16 +475,16 @@ def _augmented(cs):
         if nd is None:
             def diffusion(x, t, j, p):
                 out = np.zeros(m)
-                out[:n] = sj(x[:n].copy(), t, j, p)
+                out[:n] = sj(x[:n], t, j, p)
                 return out
         else:
             def diffusion(x, t, j, p):
                 out = np.zeros((m, nd))
-                out[:n] = sj(x[:n].copy(), t, j, p)
+                out[:n] = sj(x[:n], t, j, p)
                 return out
         maps["diffusion"] = jit(diffusion)
     aug = CompiledSystem(**maps, state_dim=m, params=cs.params, noise_dim=cs.noise_dim,
-                         name=f"{cs!r} (with its rate's clock)")
+                         specialize=cs.specialize, name=f"{cs!r} (with its rate's clock)")
     aug.max_step = cs.max_step
     cs.__dict__["_rate_system"] = (mp["jump_rate"], aug)
     return aug
@@ -475,7 +493,8 @@ def _augmented(cs):
 def _rate_error(system, arc, n):
     """A run that failed where the rate is negative or NaN: the Python path's
     MapError naming ``jump_rate``."""
-    if arc.termination not in (Termination.MAP_ERROR, Termination.NON_FINITE):
+    if arc.termination not in (Termination.MAP_ERROR, Termination.NON_FINITE) or \
+            not np.isfinite(arc.x[-1, :n]).all():    # (a state not finite: not the rate's)
         return arc
     from .._random_jumps import _named
     rate = _named(system.jump_rate, "jump_rate")
@@ -542,13 +561,30 @@ def _rate_run(system, cs, aug, x, t_max, j_max, opts, key, n, throw, warn):
     return finish(out, throw, warn)
 
 
-def simulate_many_rate(system, cs, X0, t_max, j_max, opts):
+def row_keys(seed, N):
+    """The run keys (ints < 2**63, as uint64) of a batch's ``N`` rows: from
+    fresh entropy (``seed`` None), ``SeedSequence(seed)`` (an int or a
+    SeedSequence: row i's key the same whatever N) or a Generator's draws."""
+    if isinstance(seed, np.random.Generator):
+        return seed.integers(0, 2**63, size=N, dtype=np.uint64)
+    if seed is not None and not isinstance(seed, np.random.SeedSequence):
+        from .._random_jumps import run_key
+        seed = run_key(seed)            # (its checks: a non-negative int)
+    ss = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+    return ss.generate_state(N, np.uint64) >> np.uint64(1)
+
+
+def simulate_many_rate(system, cs, X0, t_max, j_max, opts, keys=None, reduce=None):
     """``hs.simulate_many(..., backend="compiled")`` of a system with a
-    ``jump_rate``: each row keyed from fresh entropy (recorded in its
-    ``stats["jump_seed"]``: ``hs.simulate(system, x0, seed=that)`` replays it
-    on any path), the rows in the compiled batch kernel."""
-    from .._random_jumps import clock, run_key, strip
+    ``jump_rate``: row ``i`` keyed ``keys[i]`` (:func:`row_keys`; fresh
+    entropy when None), recorded in its ``stats["jump_seed"]``:
+    ``hs.simulate(system, x0, seed=that)`` replays it on any path; the rows
+    in the compiled batch kernel. ``reduce``: ``(grid, by_j)``, the rows'
+    ends and states of the system's own components on the grid
+    (:class:`._run.RowEnds`), no arcs."""
+    from .._random_jumps import strip
     from ..options import check_x0s
+    from ._draws import clocks_many
     from ._run import simulate_many_compiled
     _no_watch(system, "a jump_rate")
     if getattr(system, "jump_law", None) is not None or "diffusion" in cs.maps:
@@ -557,10 +593,23 @@ def simulate_many_rate(system, cs, X0, t_max, j_max, opts):
                          f"yet; use backend='python'")
     n = cs.state_dim
     X = check_x0s(X0, n)
-    keys = [run_key(None) for _ in range(len(X))]
+    N = len(X)
+    keys = row_keys(None, N) if keys is None else np.asarray(keys, dtype=np.uint64)
+    if keys.shape != (N,):
+        raise ValueError(f"keys: one per row, {N} rows, got shape {keys.shape}")
     j0 = opts.get("j0", 0)
-    XA = np.array([np.concatenate([x, clock(key, j0)]) for x, key in zip(X, keys)])
+    XA = np.empty((N, n + 4))
+    XA[:, :n] = X
+    clocks_many(keys, XA, int(j0))
     aug = _augmented(cs)
+    if reduce is not None:
+        grid, by_j = reduce
+        out = simulate_many_compiled(aug, XA, t_max, j_max, throw=False, warn=False,
+                                     reduce=(grid, by_j, n), **opts)
+        out.x = out.x[:, :n]
+        for i, a in out.arcs.items():
+            out.arcs[i] = _rate_error(system, strip(a, system, int(keys[i]), n, True), n)
+        return out
     out = simulate_many_compiled(aug, XA, t_max, j_max, throw=False, warn=False, **opts)
     return ArcBatch([_rate_error(system, strip(a, system, key, n, True), n)
-                     for a, key in zip(out, keys)], n)
+                     for a, key in zip(out, keys.tolist())], n)

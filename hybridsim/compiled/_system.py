@@ -421,9 +421,16 @@ class CompiledSystem(HybridSystem):
         ``method``: "RK45" (made by :meth:`compile`), "DOP853" or "RK4" (made
         when a run first asks for it)."""
         entries = tuple((role, kind, self.maps.get(role)) for role, kind in _ROLES)
+        # a flow map written into an array: the steps call it so (``_kernel._INTO``)
+        into = self.maps_into.get("flow") if not self.delays else None
+        if into is not None:
+            entries += (("flow_into", "into", into),)
+            into = into if isinstance(into, numba.core.dispatcher.Dispatcher) else \
+                numba.njit(error_model="numpy", _nrt=True)(into)
         try:
             delays = bool(self.delays)
-            mod = k.spec_module(k.spec_key(entries, delays, method), delays, method)
+            mod = k.spec_module(k.spec_key(entries, delays, method), delays, method,
+                                into is not None)
         except k.Unkeyable:
             mod = None
         sig = k._signature_one()
@@ -447,6 +454,7 @@ class CompiledSystem(HybridSystem):
             f, g, hD, hC, D, C = (nb[r] for r in ("f", "g", "hD", "hC", "D", "C"))
             if mod is not None:
                 mod.f, mod.g, mod.hD, mod.hC, mod.D, mod.C = f, g, hD, hC, D, C
+                mod.fi = into
                 one = mod.one
             else:
                 run = {("DOP853", False): k.run_one_spec_dop853,

@@ -278,6 +278,28 @@ def test_specialised_kernel_same_results(ball):
     assert a.stats == b.stats and a.termination is b.termination
 
 
+def _ball_f_into(x, t, j, p, out):
+    out[0] = x[1]
+    out[1] = -p[0]
+
+
+@pytest.mark.slow           # a specialised kernel: about 15 s of CPU once per machine
+def test_specialised_kernel_flow_written_into_the_rows(ball):
+    # a flow map written into out: the specialised kernel's steps call it into the
+    # run's rows (no array per evaluation), the same arc as the generic kernel's
+    spec = CompiledSystem(_ball_f_into, ball_g, jump_guard=ball_hD, flow_guard=ball_hC,
+                          jump_set=ball_D, flow_set=ball_C, state_dim=2, params=[9.81, 0.8],
+                          specialize=True)
+    assert "flow" in spec.maps_into
+    a = simulate_compiled(spec, [1.0, 0.0], t_max=20.0, j_max=30, refine=3, **TIGHT)
+    b = simulate_compiled(ball, [1.0, 0.0], t_max=20.0, j_max=30, refine=3, **TIGHT)
+    np.testing.assert_array_equal(a.t, b.t)
+    np.testing.assert_array_equal(a.x, b.x)
+    np.testing.assert_array_equal(a.xdot, b.xdot)
+    assert a.stats == b.stats and a.termination is b.termination
+    assert spec._nb["one"].py_func.__globals__["_INTO"] is True     # the form the steps call
+
+
 def test_ball_set_indicators_only_bisection(ball_sets):
     a, b = both(ball_sets, [1.0, 0.0], t_max=20.0, j_max=15, **TIGHT)
     assert_agree(a, b)

@@ -1,0 +1,129 @@
+"""``hs.simulate_many(..., stats=)``: a batch reduced into a
+:class:`hybridsim.estimate.Stats` as its rows finish, no arc kept.
+
+On the compiled path the batch kernel keeps of each row only its end and its
+states on the Stats's grid (:func:`hybridsim.compiled._run.simulate_many_compiled`'s
+``reduce``); elsewhere the rows' arcs are reduced a chunk at a time
+(:meth:`Stats.update`), the same values. Rows that draw (a ``jump_rate``, a
+``diffusion``, a ``jump_law``) are keyed ``row_keys(seed, N)[i]``
+(:func:`hybridsim.compiled._stochastic.row_keys`'s rule, on every path), so the
+same seed gives the same paths on every path, and row ``i`` replays alone as
+``hs.simulate(system, x0s[i], ..., seed=key_i)``.
+"""
+from __future__ import annotations
+
+import numbers
+import warnings
+
+import numpy as np
+
+from .rules import CAUSES, FAILED, BatchWarning, Termination
+
+#: rows held at once on the paths that make arcs
+_ARC_CHUNK = 1000
+#: the grid states a compiled chunk keeps at most (floats): rows per kernel call
+_GRID_FLOATS = 1 << 23
+
+
+def draws(system):
+    return any(getattr(system, k, None) is not None
+               for k in ("diffusion", "jump_rate", "jump_law"))
+
+
+def check_stats(stats, system, X):
+    """A Stats whose signal fits the system's state, or an error naming ``stats``."""
+    from ._estimate_stats import Stats
+    if not isinstance(stats, Stats):
+        raise TypeError(f"stats must be a hybridsim.estimate.Stats, got {type(stats).__name__}")
+    n = X.shape[1]
+    sig = stats.signal
+    if isinstance(sig, numbers.Integral) and not -n <= sig < n:
+        raise ValueError(f"stats: its signal is component {sig}, but the system's state has "
+                         f"{n} components")
+    if stats._d is None:
+        return
+    width = n if sig is None else 1 if not callable(sig) else \
+        stats._signal_of(np.array(X[:1], dtype=float), 1).shape[1]
+    if width != stats._d:
+        raise ValueError(f"stats: it holds a signal of width {stats._d}, but this system's "
+                         f"{'state' if sig is None else 'signal'} has width {width}")
+
+
+def reduce_into(system, X, t_max, j_max, stats, executor, chunks, throw, warn, options):
+    """:func:`hybridsim.simulate_many` with ``stats``: returns ``stats``."""
+    from .compiled._stochastic import row_keys
+    from .run import _auto_backend, _run_row, simulate_many
+    check_stats(stats, system, X)
+    if throw:
+        raise ValueError("throw: simulate_many(..., stats=) keeps no arcs to raise with; "
+                         "leave throw=False (failed rows are named in one BatchWarning)")
+    N, n = X.shape
+    options = dict(options)
+    keys = None
+    if draws(system):
+        keys = row_keys(options.pop("seed", None), N)
+    backend = options.get("backend")
+    if backend == "auto":
+        backend = _auto_backend(system, options, executor)
+    options.pop("backend", None)
+    options.pop("progress", None)
+    grid, by_j = stats.grid.astype(np.float64), stats.kind == "j"
+    failed = []                                 # (row, cause name)
+    if backend == "compiled" and executor is None and \
+            getattr(system, "diffusion", None) is None and \
+            getattr(system, "jump_law", None) is None:
+        from .compiled._lower import lower, rebind
+        from .compiled._run import simulate_many_compiled
+        from .compiled._stochastic import simulate_many_rate
+        cs = lower(system)
+        step = max(1, _GRID_FLOATS // max(1, len(grid) * n))
+        for a in range(0, N, step):
+            b = min(N, a + step)
+            if keys is not None:
+                out = simulate_many_rate(system, cs, X[a:b], t_max, j_max, options,
+                                         keys=keys[a:b], reduce=(grid, by_j))
+            else:
+                out = simulate_many_compiled(cs, X[a:b], t_max, j_max, throw=False, warn=False,
+                                             reduce=(grid, by_j, n), **options)
+            have = out.cause >= 0
+            if not have.all():
+                have[list(out.arcs)] = False
+            stats.add_states(out.grid_x[have], out.grid_ok[have])
+            if out.arcs:
+                rows = sorted(out.arcs)
+                arcs = [rebind(out.arcs[i], system) for i in rows]
+                stats.update(arcs)
+                failed += [(a + i, arc.termination) for i, arc in zip(rows, arcs)
+                           if arc.termination in FAILED or
+                           arc.termination is Termination.CANCELED]
+            bad = np.flatnonzero(have & np.isin(out.cause, _FAILED_CODES))
+            failed += [(a + int(i), CAUSES[out.cause[i]]) for i in bad.tolist()]
+            if any(c is Termination.CANCELED for _, c in failed):
+                break
+    else:
+        if backend is not None:
+            options["backend"] = backend
+        for a in range(0, N, _ARC_CHUNK):
+            b = min(N, a + _ARC_CHUNK)
+            if keys is None:
+                arcs = simulate_many(system, X[a:b], t_max, j_max, executor=executor,
+                                     chunks=chunks, throw=False, warn=False, **options)
+            else:
+                # each row alone, keyed, a failure at x0 its own arc (as simulate_many's)
+                kw = dict(options, t_max=t_max, j_max=j_max, throw=False, warn=False)
+                arcs = [_run_row(system, None, None, X[i], dict(kw, seed=int(keys[i])))[0]
+                        for i in range(a, b)]
+            stats.update(arcs)
+            failed += [(a + i, arc.termination) for i, arc in enumerate(arcs)
+                       if arc.termination in FAILED or arc.termination is Termination.CANCELED]
+    if warn and failed:
+        named = ", ".join(f"row {i}: {c.name}" for i, c in failed[:5])
+        more = f"; and {len(failed) - 5} more" if len(failed) > 5 else ""
+        warnings.warn(f"simulate_many: {len(failed)} of {N} rows failed or were canceled "
+                      f"({named}{more}); their states up to their ends are in the statistics",
+                      BatchWarning, stacklevel=3)
+    return stats
+
+
+_FAILED_CODES = np.array([CAUSES.index(c) for c in FAILED] +
+                         [CAUSES.index(Termination.CANCELED)], np.int64)
