@@ -393,27 +393,28 @@ def _augmented(cs):
     # (the user's maps read x[:n], a view: C-contiguous, as the Python path's). The
     # flow map is written into ``out`` (a specialised kernel's steps call it so: no
     # array made besides the user map's; elsewhere it is seen as the array it writes)
-    def flow_map(x, t, j, p, out):
-        xs = x[:n]
-        fx = fv(xs, t, j, p)
-        r = rate(xs, t, j, p)
-        if fx.shape[0] != n:
-            for q in range(m):
-                out[q] = np.nan
-            return
-        for q in range(n):
-            out[q] = fx[q]
-        out[n] = r if (r >= 0.0 and math.isfinite(r)) else np.nan
-        for q in range(n + 1, m):
-            out[q] = 0.0
     if "flow" in cs.maps_into:              # the user's flow map written into out[:n] too
         fu = cs.maps_into["flow"]
         fu = fu if hasattr(fu, "py_func") else jit(fu)
 
-        def flow_map(x, t, j, p, out):      # noqa: F811 - the form for this flow map
+        def flow_map(x, t, j, p, out):
             xs = x[:n]
             fu(xs, t, j, p, out[:n])
             r = rate(xs, t, j, p)
+            out[n] = r if (r >= 0.0 and math.isfinite(r)) else np.nan
+            for q in range(n + 1, m):
+                out[q] = 0.0
+    else:
+        def flow_map(x, t, j, p, out):
+            xs = x[:n]
+            fx = fv(xs, t, j, p)
+            r = rate(xs, t, j, p)
+            if fx.shape[0] != n:
+                for q in range(m):
+                    out[q] = np.nan
+                return
+            for q in range(n):
+                out[q] = fx[q]
             out[n] = r if (r >= 0.0 and math.isfinite(r)) else np.nan
             for q in range(n + 1, m):
                 out[q] = 0.0
