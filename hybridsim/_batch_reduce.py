@@ -32,8 +32,9 @@ def draws(system):
 
 def check_stats(stats, system, X):
     """A Stats whose signal fits the system's state, or an error naming ``stats``."""
-    from ._estimate_stats import Stats
-    if not isinstance(stats, Stats):
+    # a Stats by what the reduction calls (hybridsim.estimate is above the front door)
+    if not all(callable(getattr(stats, a, None)) for a in ("update", "add_states")) \
+            or not hasattr(stats, "grid"):
         raise TypeError(f"stats must be a hybridsim.estimate.Stats, got {type(stats).__name__}")
     n = X.shape[1]
     sig = stats.signal
@@ -49,10 +50,13 @@ def check_stats(stats, system, X):
                          f"{'state' if sig is None else 'signal'} has width {width}")
 
 
-def reduce_into(system, X, t_max, j_max, stats, executor, chunks, throw, warn, options):
-    """:func:`hybridsim.simulate_many` with ``stats``: returns ``stats``."""
+def reduce_into(system, X, t_max, j_max, stats, executor, chunks, throw, warn, options,
+                front):
+    """:func:`hybridsim.simulate_many` with ``stats``: returns ``stats``.
+    ``front``: the front door's ``(simulate_many, _auto_backend, _run_row)``
+    (:mod:`hybridsim.run`, which calls this: passed, not imported back)."""
     from .compiled._stochastic import row_keys
-    from .run import _auto_backend, _run_row, simulate_many
+    simulate_many, _auto_backend, _run_row = front
     check_stats(stats, system, X)
     if throw:
         raise ValueError("throw: simulate_many(..., stats=) keeps no arcs to raise with; "

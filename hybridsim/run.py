@@ -351,7 +351,7 @@ def _compiled_run(system, x0, t_max, j_max, opts, python_only):
 def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
                   j_max: float = np.inf, *, executor: concurrent.futures.Executor | None = None,
                   chunks: int | None = None, progress: bool | None = None,
-                  throw: bool = False, warn: bool = True, stats=None,
+                  throw: bool = False, warn: bool = True, stats: Any = None,
                   **options: Any) -> ArcBatch:
     """Simulate one system from many initial states.
 
@@ -472,7 +472,7 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
         from ._batch_reduce import reduce_into
         options = dict(options, progress=False)
         return reduce_into(system, X, t_max, j_max, stats, executor, chunks, throw, warn,
-                           options)
+                           options, (simulate_many, _auto_backend, _run_row))
     if N == 0:
         return ArcBatch((), n)
     if options.get("seed") is not None and any(

@@ -615,7 +615,7 @@ def simulate_many_compiled(system: CompiledSystem, x0s: ArrayLike, t_max: float,
                            max_norm: float = math.inf,
                            seed: int | np.random.Generator | None = None, refine: int = 1,
                            throw: bool = False, warn: bool = True,
-                           method: str | type[OdeSolver] = "RK45", reduce=None,
+                           method: str | type[OdeSolver] = "RK45", reduce: tuple | None = None,
                            **unsupported: Any) -> ArcBatch:
     """Simulate a :class:`CompiledSystem` from many initial states, compiled and in parallel.
 

@@ -165,10 +165,12 @@ def test_the_runners_share_one_parameter_vocabulary():
         if pname not in ("throw", "progress", "backend"):
             defaults = {repr(p.default) for _, p in where}
             assert len(defaults) == 1, (pname, [(n, p.default) for n, p in where])
-    # the simulation runners' options are simulate's (or forwarded to it)
+    # the simulation runners' options are simulate's (or forwarded to it), but for
+    # the compiled batch's own (threads, memory, and the reduction simulate_many's
+    # stats= hands it)
     front = sigs["simulate"].parameters
     for name in ("simulate_vectorized", "simulate_compiled", "simulate_many_compiled"):
         for p in sigs[name].parameters.values():
-            if p.kind is p.KEYWORD_ONLY and p.name not in ("parallel", "chunk_bytes"):
+            if p.kind is p.KEYWORD_ONLY and p.name not in ("parallel", "chunk_bytes", "reduce"):
                 assert p.name in front, (name, p.name)
                 assert str(p.annotation) == str(front[p.name].annotation), (name, p.name)
