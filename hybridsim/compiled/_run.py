@@ -53,6 +53,7 @@ _CHUNK = 4
 #: first levels). Off the main thread a one-thread batch runs in the calling
 #: thread, the GIL released (``_pool._interruptible``)
 _ALONE = 15
+#: the samples of a short run (:data:`_ALONE`)
 _SHORT = 64
 #: runs of more samples than this (about 0.3 ms and more each) take a thread per
 #: row from two rows on, shorter ones a thread per 8 rows (``_pool._threads``)
