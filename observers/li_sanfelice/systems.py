@@ -703,7 +703,7 @@ class RotatingFamily(hs.HybridSystem):
         installed): the same maps, row by row."""
         from hybridsim.compiled import Component
         f, g, hD, D = _rotating_maps(self.noise, self.pieces, self.terms)
-        return Component(state_dim=self.state_dim, flow=f, jump=g, jump_guard=hD,
+        return Component(state_dim=self.state_dim, flow_map=f, jump_map=g, jump_guard=hD,
                          jump_set=D, params=[self.eps, self.t_end])
 
     def state(self, x0, xhat0, params, noise=()):

@@ -220,6 +220,9 @@ def test_batch_fields_are_the_arcs_on_every_path(path, monkeypatch):
     # rows ending at j_max and at t_max (different jump counts), and a failed row
     import hybridsim.arc as arc_mod
     monkeypatch.setattr(arc_mod, "CHECK_ARCS", False)     # (it makes every arc whole)
+    if path == "compiled":       # 12 short rows would run one by one, none pooled
+        import hybridsim.compiled._run as run_mod
+        monkeypatch.setattr(run_mod, "_ALONE", 0)
     h0 = np.linspace(0.3, 2.0, 12)
     x0s = np.column_stack([h0, np.zeros_like(h0)])
     x0s[4, 0] = np.nan
