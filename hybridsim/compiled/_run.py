@@ -750,6 +750,8 @@ def simulate_many_compiled(system: CompiledSystem, x0s: ArrayLike, t_max: float,
             return False, len(T)
         return code == canceled, len(T)
 
+    if reduce is not None:
+        reduce = _check_reduce(reduce, n)
     if reduce is not None and ro.prio != Priority.RANDOM and not watching:
         return _reduced(k, system, X0, rows, arcs, one, one_addr, maps, p, fopt, iopt_rows_of(
             iopt), atol_a, _rng_for(k, ro.prio, seed), parallel, reduce, mname, where)
@@ -941,6 +943,36 @@ def iopt_rows_of(iopt):
     out = iopt.copy()
     out[lay.I_ROW] = 1
     return out
+
+
+def _check_reduce(reduce, n):
+    """``simulate_many_compiled``'s ``reduce``, checked: ``(grid, by_j,
+    components)`` with ``grid`` a 1-D array of finite non-decreasing numbers
+    (whole non-negative jump counts with ``by_j``) and ``1 <= components <= n``."""
+    from ..options import check_bool, check_count
+    if not isinstance(reduce, (tuple, list)) or len(reduce) != 3:
+        raise TypeError("reduce must be a tuple (grid, by_j, components), got "
+                        f"{type(reduce).__name__}"
+                        + (f" of length {len(reduce)}" if isinstance(reduce, (tuple, list))
+                           else ""))
+    grid, by_j, nk = reduce
+    by_j = check_bool("reduce's by_j", by_j)
+    try:
+        grid = np.asarray(grid, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise TypeError("reduce's grid must be a 1-D array of numbers, got "
+                        f"{type(grid).__name__}") from e
+    if grid.ndim != 1 or not np.isfinite(grid).all() or (np.diff(grid) < 0).any():
+        raise ValueError("reduce's grid must be a 1-D array of finite non-decreasing "
+                         f"{'jump counts' if by_j else 'times'}, got shape {grid.shape}")
+    if by_j and ((grid < 0).any() or (grid != np.round(grid)).any()):
+        raise ValueError("reduce's grid must hold whole non-negative jump counts with "
+                         "by_j=True")
+    nk = check_count("reduce's components", nk, minimum=1)
+    if nk > n:
+        raise ValueError(f"reduce's components must be at most the state's dimension {n}, "
+                         f"got {nk}")
+    return grid, by_j, nk
 
 
 def _reduced(k, system, X0, rows, arcs, one, one_addr, maps, p, fopt, iopt_rows, atol_a, rng,

@@ -102,6 +102,27 @@ def test_reduction_bad_input_names_the_argument():
         hs.simulate_many(AIMD(), X, 1.0, stats=Stats(t=[0.0]), seed=-1, backend="compiled")
 
 
+def test_compiled_reduce_bad_input_names_the_argument():
+    pytest.importorskip("numba")
+    from hybridsim.compiled import lower, simulate_many_compiled
+    ball = lower(BouncingBall())
+    X = np.array([[1.0, 0.0], [2.0, 0.0]])
+    for bad, err, msg in (
+            ([0.0, 1.0], TypeError, r"^reduce must be a tuple \(grid, by_j, components\), "
+                                    r"got list of length 2"),
+            ((np.ones((2, 2)), False, 1), ValueError, r"^reduce's grid must be a 1-D .*times"),
+            (([1.0, 0.5], False, 1), ValueError, r"non-decreasing times"),
+            (([0, 1.5], True, 1), ValueError, r"whole non-negative jump counts"),
+            (([0.0], "no", 1), TypeError, r"^reduce's by_j must be True or False"),
+            (([0.0], False, 0), ValueError, r"^reduce's components must be >= 1"),
+            (([0.0], False, 3), ValueError, r"at most the state's dimension 2, got 3")):
+        with pytest.raises(err, match=msg):
+            simulate_many_compiled(ball, X, 1.0, reduce=bad)
+    out = simulate_many_compiled(ball, X, 1.0, reduce=([0.0, 0.5], False, 1))
+    np.testing.assert_array_equal(out.grid_x[:, 0, 0], X[:, 0])
+    assert out.grid_ok.all() and out.grid_x.shape == (2, 2, 1)
+
+
 @pytest.mark.paths(only=("python", "compiled"))
 def test_reduction_failed_rows_are_named_and_counted(path):
     # a row whose x0 is not finite: named in one BatchWarning; the others are reduced
