@@ -430,23 +430,28 @@ def _build(maps, codes):
     def f(x, t, j, P):
         return as_vec(f_u(x, t, j, P))
 
-    @nj
-    def jac(fn, x, t, j, P, step, k):
-        """(k, n) central differences in x of ``fn``, a map of k values
-        (the flow or jump map, k = n; the guards) (``_fd_jac``)."""
-        n = x.shape[0]
-        J = np.empty((k, n))
-        for i in range(n):
-            d = step * max(1.0, abs(x[i]))
-            xp, xm = x.copy(), x.copy()
-            xp[i] += d
-            xm[i] -= d
-            a, b = fn(xp, t, j, P), fn(xm, t, j, P)
-            den = xp[i] - xm[i]
-            for r in range(k):
-                J[r, i] = (a[r] - b[r]) / den
-        return J
+    def jac_of(fn):
+        # the map is the closure's, not an argument: a dispatcher passed as an
+        # argument is a dynamic global, which numba's disk cache refuses
+        @nj
+        def jac(x, t, j, P, step, k):
+            """(k, n) central differences in x of ``fn``, a map of k values
+            (the flow or jump map, k = n; the guards) (``_fd_jac``)."""
+            n = x.shape[0]
+            J = np.empty((k, n))
+            for i in range(n):
+                d = step * max(1.0, abs(x[i]))
+                xp, xm = x.copy(), x.copy()
+                xp[i] += d
+                xm[i] -= d
+                a, b = fn(xp, t, j, P), fn(xm, t, j, P)
+                den = xp[i] - xm[i]
+                for r in range(k):
+                    J[r, i] = (a[r] - b[r]) / den
+            return J
+        return jac
 
+    jac_f = jac_of(f)
     out = {}
 
     def flow(y, t, j, p):
@@ -460,7 +465,7 @@ def _build(maps, codes):
         for r in range(n):
             out[r] = fx[r]
         if y[N - 1] == 0.0 and m > 0:
-            J = jac(f, x, t, j, P0, p[0], n)
+            J = jac_f(x, t, j, P0, p[0], n)
             for r in range(n):
                 for c in range(m):
                     s = 0.0
@@ -502,13 +507,16 @@ def _build(maps, codes):
         def h(x, t, j, P):
             return _as_1d(h_u(x, t, j, P))
 
-    @nj
-    def d_dt(fn, x, s, j, P, step):
-        """Central difference in t of the map ``fn`` (the jump map, the
-        guards) (``_fd_scalar``)."""
-        d = step * max(1.0, abs(s))
-        sp, sm = s + d, s - d
-        return (fn(x, sp, j, P) - fn(x, sm, j, P)) / (sp - sm)
+    def d_dt_of(fn):
+        @nj
+        def d_dt(x, s, j, P, step):
+            """Central difference in t of the map ``fn`` (the jump map, the
+            guards) (``_fd_scalar``)."""
+            d = step * max(1.0, abs(s))
+            sp, sm = s + d, s - d
+            return (fn(x, sp, j, P) - fn(x, sm, j, P)) / (sp - sm)
+        return d_dt
+    jac_g, jac_h, dt_g, dt_h = jac_of(g), jac_of(h), d_dt_of(g), d_dt_of(h)
 
     @nj
     def rate(z, s, j, P, d, i):         # dh/dt along the flow at (z, s)
@@ -557,8 +565,8 @@ def _build(maps, codes):
         else:
             hv = h(x, t, j, P0)
             k = hv.shape[0]
-            grad = jac(h, x, t, j, P0, step, k)
-            ht = d_dt(h, x, t, j, P0, step)
+            grad = jac_h(x, t, j, P0, step, k)
+            ht = dt_h(x, t, j, P0, step)
             i, nzero, zero_i = 0, 0, False
             for c in range(k):
                 if hv[c] < hv[i]:
@@ -600,8 +608,8 @@ def _build(maps, codes):
                 out[q] = y[q]
             out[N - 1] = code
             return out
-        Dg = jac(g, x, t, j, P0, step, x.shape[0])
-        gt = d_dt(g, x, t, j, P0, step)
+        Dg = jac_g(x, t, j, P0, step, x.shape[0])
+        gt = dt_g(x, t, j, P0, step)
         f_plus = f(xp, t, j + 1, P0)
         for r in range(n):
             v = gt[r] - f_plus[r]
