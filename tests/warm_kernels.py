@@ -12,9 +12,12 @@ compiled once per machine rather than once per worker. A kernel already in
 the cache costs the process about a second.
 
 The maps of a model are compiled by the tests that run it, into the same
-cache. Where a model takes longer than a test's budget to compile, the tests
-in :data:`COMPILING` are run once here (the ``"tests"`` of :data:`PARTS`),
-their output discarded, so the workers load what they compiled.
+cache. Where models take long to compile or keep much of a process, the tests
+of :data:`COMPILING` are run once here (the ``("tests", name)`` of
+:data:`PARTS`; their compiled cases), their output discarded, so the workers
+load what they compiled: on two cores, from an empty cache, this keeps each
+worker under the suite's 600 MB, its time about the same (what the workers
+no longer compile, the warming processes do).
 """
 from __future__ import annotations
 
@@ -23,37 +26,62 @@ import sys
 #: the run kernels (``_cache.compile_kernels`` arguments) of each warming
 #: process, split so they take about as long (``_cache.COMPILE_SECONDS``);
 #: ``"sde"``: the SDE flow's kernel, compiled by a run of one small SDE; RK4's
-#: run kernel (the compiled RK4 tests) with it; ``"tests"``: the tests of
-#: :data:`COMPILING`, after RK4's kernel for flows with delays (004's populations)
-PARTS = (({"batch": True}, {"batch": False, "watch": True}),
-         ({"batch": False, "delays": True}, {"batch": False, "method": "DOP853"}),
-         ("sde", {"batch": False, "method": "RK4"}),
-         ({"batch": False, "delays": True, "method": "RK4"}, "tests"))
+#: run kernel (the compiled RK4 tests) with it; ``("tests", name)``: the tests
+#: of ``COMPILING[name]``, after the kernels they use
+PARTS = (({"batch": True}, {"batch": False, "watch": True}, ("tests", "events")),
+         ({"batch": False, "delays": True}, {"batch": False, "method": "DOP853"},
+          ("tests", "paths")),
+         ("sde", {"batch": False, "method": "RK4"}, ("tests", "stochastic")),
+         ({"batch": False, "delays": True, "method": "RK4"}, ("tests", "004")))
 
 
-#: tests (node ids under this folder) whose models take seconds to compile cold:
-#: 004's populations (the lowered plant and observer's maps, about 5-15 s each)
-COMPILING = (
-    "papers/gramian_delay/test_gramian_delay_falsification.py::"
-    "test_population_run_matches_the_package_run",
-    "papers/gramian_delay/test_gramian_delay_falsification.py::test_gaps_are_in_the_class",
-    "papers/gramian_delay/test_gramian_delay_falsification.py::"
-    "test_theorem1_rows_carry_their_own_disturbances",
-    "papers/gramian_delay/test_every_gap.py::test_sequence_run_rows_sample_at_their_own_instants",
-    "integration/test_source_unroll.py::test_sums_binary_ufuncs_and_a_times_axes_are_straight_line",
-)
+#: tests (node ids, or files, under this folder) whose models take the most to
+#: compile cold, in seconds or in memory (each map 1-2 MB and more of a process
+#: for its life, a specialised kernel 70 MB: 330 MB of one process for the
+#: first four groups' files): each group run once by a warming process, only
+#: their cases on the compiled path (:func:`_CompiledOnly`)
+COMPILING = {
+    # 004's populations (the lowered plant and observer's maps, about 5-15 s each)
+    "004": (
+        "papers/gramian_delay/test_gramian_delay_falsification.py::"
+        "test_population_run_matches_the_package_run",
+        "papers/gramian_delay/test_gramian_delay_falsification.py::test_gaps_are_in_the_class",
+        "papers/gramian_delay/test_gramian_delay_falsification.py::"
+        "test_theorem1_rows_carry_their_own_disturbances",
+        "papers/gramian_delay/test_every_gap.py::"
+        "test_sequence_run_rows_sample_at_their_own_instants",
+        "integration/test_source_unroll.py::"
+        "test_sums_binary_ufuncs_and_a_times_axes_are_straight_line"),
+    "events": ("integration/test_watch.py", "integration/test_compiled_smoke.py"),
+    "paths": ("integration/test_paths.py", "integration/test_one_definition.py"),
+    "stochastic": ("integration/test_sde_stepper.py", "integration/test_stochastic_paths.py",
+                   "capabilities/test_explore.py", "integration/test_batch_reduce.py"),
+}
 
 
-def warm_tests():
-    """Run the tests of :data:`COMPILING` once in this process (pytest without
+class _CompiledOnly:
+    """pytest plugin: of the tests that take ``path``, only their compiled case."""
+
+    @staticmethod
+    def pytest_collection_modifyitems(config, items):
+        keep = [i for i in items
+                if getattr(i, "callspec", None) is None
+                or i.callspec.params.get("path", "compiled") == "compiled"]
+        config.hook.pytest_deselected(items=[i for i in items if i not in keep])
+        items[:] = keep
+
+
+def warm_tests(name):
+    """Run the tests of ``COMPILING[name]`` once in this process (pytest without
     the project's options and workers): what their models compile is kept in
     numba's disk cache. Their outcome is the workers' to report."""
     import pathlib
 
     import pytest
     here = pathlib.Path(__file__).resolve().parent
-    return pytest.main(["-q", "-p", "no:cacheprovider", "-o", "addopts=", "-W", "ignore",
-                        *(str(here / n) for n in COMPILING)])
+    return pytest.main(["-q", "-p", "no:cacheprovider", "-o", "addopts=", "-m", "not slow",
+                        "-W", "ignore", *(str(here / n) for n in COMPILING[name])],
+                       plugins=[_CompiledOnly()])
 
 
 def warm(part):
@@ -63,8 +91,8 @@ def warm(part):
     if k.cache_dir() is None:       # not cached (a refused folder): each worker compiles
         return
     for kw in PARTS[part]:
-        if kw == "tests":
-            warm_tests()
+        if isinstance(kw, tuple):
+            warm_tests(kw[1])
         elif kw == "sde":
             import numpy as np
 
