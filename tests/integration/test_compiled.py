@@ -931,9 +931,9 @@ def test_a_map_that_raises_is_map_error_with_its_exception(role):
     """A compiled map's ``raise`` ends the run ``MAP_ERROR`` naming the map, its
     exception class and text, the run so far kept; a raising set indicator no
     longer lets the run go on with the value numba's wrapper leaves."""
-    kw = {"flow": raises_above} if role == "flow" else {
-        "flow": lambda x, t, j, p: np.array([1.0]), "jump_set": clock_jump_set_raises,
-        "jump": lambda x, t, j, p: np.zeros(1)}
+    kw = {"flow_map": raises_above} if role == "flow" else {
+        "flow_map": lambda x, t, j, p: np.array([1.0]), "jump_set": clock_jump_set_raises,
+        "jump_map": lambda x, t, j, p: np.zeros(1)}
     sysm = CompiledSystem(state_dim=1, params=[0.5], **kw)
     name, exc, text = (("flow_map", "ValueError", "x above its range") if role == "flow"
                        else ("jump_set", "KeyError", "'no set there'"))
