@@ -482,9 +482,17 @@ _UNROLLED = ("flow", "jump", "output")
 def _unrolled(pl, roles, system):
     """The maps of ``roles`` among the planner's functions replaced by their
     straight-line form (:func:`hybridsim._source_unroll.unroll`) where they
-    have one: x of length ``state_dim``, a component's u of ``input_dim``."""
+    have one: x of length ``state_dim``, a component's u of ``input_dim``.
+
+    A plain model's flow map (not a component's, not reading the past, called
+    by no other generated function) is written into an argument,
+    ``f(x, t, j, p, out)``: the compiled steps call it into their own rows
+    (:attr:`hybridsim.compiled.CompiledSystem.maps_into`), no array made an
+    evaluation."""
     names = {name: role for role, name in roles.items() if role in _UNROLLED}
     functions = {name: node for name, node, _ in pl.functions}
+    called = {n.id for name, node, _ in pl.functions for n in ast.walk(node)
+              if isinstance(n, ast.Name) and n.id in functions and n.id != name}
     for k, (name, node, fn) in enumerate(pl.functions):
         role = names.get(name)
         if role is None:
@@ -493,7 +501,8 @@ def _unrolled(pl, roles, system):
         shapes = {args[0]: int(system.state_dim)}
         if pl.inputs and role != "output" and system.input_dim:
             shapes[args[1]] = int(system.input_dim)
-        new = unroll(node, functions, shapes)
+        into = role == "flow" and not pl.inputs and not pl.reads_past and name not in called
+        new = unroll(node, functions, shapes, into=into)
         if new is not None:
             pl.functions[k] = (name, new, fn)
 

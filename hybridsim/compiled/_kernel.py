@@ -271,7 +271,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     SC = _C8 if _DOP else (_C4 if _RK4 else _Cc)
     SP = _P4 if _RK4 else _P
     ERRX = -1.0 / 8.0 if _DOP else _ERR_EXP
-    work = np.zeros((NK + NQ + 13) * n)
+    work = np.zeros((NK + NQ + 15) * n)
     K = _bare(work[:NK * n]).reshape((NK, n))
     Ks = _bare(work[:(NST + 1) * n])         # the step's stages (scipy's solver.K)
     o = NK * n
@@ -290,6 +290,11 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     # ``_INTO``: the flow's values written by ``fi``: a step's end in the row of its
     # state's (YY's), the flow's start in row 1, any other in row 2
     FF = _bare(work[o + 10 * n:o + 13 * n]).reshape((3, n))
+    # the state after a jump, in turn: a jump writes the row the state it jumps
+    # from is not in (that state, or the last flow's start, ``ya``, the post-jump
+    # test reads after it: ``_near_C``), no array made a jump
+    XJ = _bare(work[o + 13 * n:o + 15 * n]).reshape((2, n))
+    xj_row = np.int64(0)
 
     t = t0
     j = j0
@@ -412,7 +417,10 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 t_last_jump = t
                 j += 1
                 jumps += 1
-                x = xn.copy()
+                xj_row = 1 - xj_row
+                x = XJ[xj_row]
+                for q in range(n):
+                    x[q] = xn[q]
                 if _DELAYS:                  # ``History._restart``, the new breakpoints
                     for q in range(n):
                         cur_x[q] = x[q]
