@@ -109,10 +109,15 @@ def bench_aimd_reduced(n_paths, t_arcs):
     200 more paths), and the ensemble moments at t = 100 (stationary by then), standard
     errors over the paths.
 
-    Measured (2 shared cores at load 4-7, 20,000 paths, 4 December 2026), CPU a path:
-    generic 250-313 us before the rewritten flow map was written into the run's rows,
-    233-266 us after (2,679 -> 1,405 allocations a path); specialised 201 -> 115-148 us
-    (1,549 -> 275 allocations: the jump maps' two arrays a jump are what is left)."""
+    Measured (2 shared cores at load ~7, 20,000 paths, both versions in one sitting,
+    4 December 2026), CPU a path: generic 314 -> 235 us (2,679 -> 1,271 allocations a
+    path), specialised 211 -> 115 us (1,549 -> 144: the clock-augmented jump map's
+    array a jump is what is left), 10^6 paths on two cores at that rate 105 -> 57 s,
+    once the rewritten flow and jump maps were written into the run's own rows, the
+    event's outcome and the sample buffers made free of reference counts. What is left
+    (perf, gdb counts of the reference-count calls): about 11,000 reference-count calls
+    a path on array variables reassigned in the run core's loop (views, no atomic
+    count, still calls), the steps and the event search themselves."""
     from hybridsim.compiled import lower
     from hybridsim.estimate import Stats
     oks = []
