@@ -613,7 +613,12 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
         his default parameters) over the box scaled to [0, 1], after the
         same seeded first design (``max(2 lambda, 2 dim)`` points) whose
         best point is its first mean, step 0.3; candidates are clipped
-        into the box (a worst case on a face is reached exactly). Where the
+        into the box for their runs (a worst case on a face is reached
+        exactly), and the distribution is updated from them as drawn, its
+        mean at most one of its standard deviations past a face in each
+        coordinate (most of its samples then land on a face the margin
+        favours: on CC4 of :mod:`hybridsim.arch`, instance 1, 10/10 within
+        1,500 runs where clipped updates found 8/10). Where the
         space has signals (:class:`PiecewiseConstant`, :class:`ControlPoints`)
         the runs go coarse to fine: first with the signals on grids 4 and 2
         times coarser (:meth:`Space.coarse`, a subset of the box where a

@@ -51,11 +51,11 @@ def test_cmaes_finds_the_minimum_of_an_ellipsoid_within_its_budget():
 
 def test_cmaes_converges_to_a_minimum_on_a_face():
     """The centre pushed outside the box in three coordinates: the minimum is
-    its projection onto the box, on a face, reached to 1e-5 of the margin
-    within the budget, each of the three coordinates to 1e-6 of its bound
-    (candidates are clipped, so the face is reached exactly where the mean
-    goes outside; where it converges from inside, as the eigenvectors'
-    round-off of one machine's BLAS had it, 1e-8 short of the bound)."""
+    its projection onto the box, on a face, reached exactly (candidates are
+    clipped, and the mean moves past the face: with BLAS kernels of three
+    processors, ``OPENBLAS_CORETYPE`` Zen, Haswell and SkylakeX; updated from
+    the clipped samples, the mean stopped 1e-8 short of it with two of them)
+    and to 1e-5 of the margin within the budget."""
     c = CENTRE.copy()
     c[[0, 3, 6]] = [-3.0, 4.0, 5.0]
     proj = np.clip(c, -1.0, 2.0)
@@ -67,7 +67,27 @@ def test_cmaes_converges_to_a_minimum_on_a_face():
                   progress=False)
     assert res.verdict == "none found" and res.evaluations == 3000
     assert exact <= res.margin < exact * (1 + 1e-5)
-    np.testing.assert_allclose(res.point["z"][[0, 3, 6]], proj[[0, 3, 6]], rtol=0, atol=1e-6)
+    assert np.array_equal(res.point["z"][[0, 3, 6]], proj[[0, 3, 6]])
+
+
+def test_cmaes_moves_past_a_face_the_margin_favours():
+    """Negative only within 1e-3 of a face of codimension 6 in 12 coordinates,
+    the margin the largest of those 6 (a max, as temporal logic's robustness
+    is): the distribution, updated from its samples as drawn, moves past the
+    face, where most of them land on it. Every seed finds it within 600 runs
+    (377-516 on seeds 0-7; updated from the clipped samples, one seed of 8
+    found none in 3,000 runs and the others needed 667-2,481)."""
+    space = Space(z=Box(np.zeros(12), np.ones(12)))
+
+    def claim(arc):
+        z = arc.x[0]
+        return float(np.max(z[:6]) + np.sum((z[6:] - 0.4) ** 2) - 1e-3)
+    for seed in range(4):
+        res = falsify(_point_arc, space, claim, budget=1500, seed=seed, method="cmaes",
+                      progress=False)
+        assert res.verdict == "counterexample" and res.evaluations <= 600, seed
+        z = res.point["z"]
+        assert np.all(z[:6] < 1e-3) and np.all(np.abs(z[6:] - 0.4) < 0.04), seed
 
 
 @pytest.mark.parametrize("method", ["cmaes", "de"])
@@ -150,26 +170,22 @@ def test_cmaes_finds_a_signal_held_at_its_bounds_over_long_stretches():
     pieces and at most 0.02 on the other 12, the other component free (a
     face of the box of codimension 16 in 32 coordinates, none of it a
     seeded extreme; the margin the worst of those 16 coordinates). On the
-    grid 4 times coarser it is 4 coordinates at their bounds: every one of
-    seeds 0-5 finds it within 300 runs, their median within 150 (one CMA-ES
-    run over the whole box needs more than 1,100, measured on seeds 0-5;
-    the runs' count moves with the round-off of the machine's BLAS: 68-222
-    on seeds 0-9 on one machine, at most 200 on seeds 0-3 on another)."""
+    grid 4 times coarser it is 4 coordinates at their bounds: every seed
+    finds it within 200 runs (68-103 on seeds 0-5 with the BLAS kernels of
+    three processors; one CMA-ES run over the whole box needs more than
+    1,100, measured on seeds 0-5)."""
     space = Space(u=ControlPoints([0.0, 0.0], [1.0, 1.0], 16.0, points=16))
 
     def step(arc):
         v = arc.x[0].reshape(16, 2)
         return max(0.95 - float(v[:4, 0].min()), float(v[4:, 0].max()) - 0.02)
-    runs = []
-    for seed in range(6):
+    for seed in range(4):
         res = falsify(_point_arc, space, step, budget=1500, seed=seed, method="cmaes",
                       progress=False)
-        assert res.verdict == "counterexample" and res.evaluations <= 300, seed
-        runs.append(res.evaluations)
+        assert res.verdict == "counterexample" and res.evaluations <= 200, seed
         assert "grid 4 times coarser" in res.found_by
         v = res.point["u"].values
         assert np.all(v[:4, 0] >= 0.95) and np.all(v[4:, 0] <= 0.02)
-    assert np.median(runs) <= 150, runs
 
 
 def test_cmaes_finds_a_step_on_linear_control_points_off_the_coarse_knots():
