@@ -71,17 +71,42 @@ class _CompiledOnly:
         items[:] = keep
 
 
-def warm_tests(name):
+def _stamp(name, folder):
+    """The file that says ``COMPILING[name]`` ran here on this source: named by
+    the digest of the group's test files and of every module of hybridsim and
+    observers, in numba's cache folder ``folder``."""
+    import hashlib
+    import pathlib
+    here = pathlib.Path(__file__).resolve().parent
+    import hybridsim
+    import observers
+    h = hashlib.sha256(name.encode())
+    files = [here / n.split("::")[0] for n in COMPILING[name]]
+    for pkg in (hybridsim, observers):
+        files += sorted(pathlib.Path(pkg.__file__).parent.rglob("*.py"))
+    for f in files:
+        h.update(str(f.name).encode() + f.read_bytes())
+    return pathlib.Path(folder) / f"warmed_{name}_{h.hexdigest()[:24]}"
+
+
+def warm_tests(name, folder):
     """Run the tests of ``COMPILING[name]`` once in this process (pytest without
     the project's options and workers): what their models compile is kept in
-    numba's disk cache. Their outcome is the workers' to report."""
+    numba's disk cache. Their outcome is the workers' to report. Once they
+    passed on this source (:func:`_stamp`), later suites skip them."""
     import pathlib
 
     import pytest
+    stamp = _stamp(name, folder)
+    if stamp.exists():
+        return 0
     here = pathlib.Path(__file__).resolve().parent
-    return pytest.main(["-q", "-p", "no:cacheprovider", "-o", "addopts=", "-m", "not slow",
+    code = pytest.main(["-q", "-p", "no:cacheprovider", "-o", "addopts=", "-m", "not slow",
                         "-W", "ignore", *(str(here / n) for n in COMPILING[name])],
                        plugins=[_CompiledOnly()])
+    if code == 0:
+        stamp.touch()
+    return code
 
 
 def warm(part):
@@ -92,7 +117,7 @@ def warm(part):
         return
     for kw in PARTS[part]:
         if isinstance(kw, tuple):
-            warm_tests(kw[1])
+            warm_tests(kw[1], k.cache_dir())
         elif kw == "sde":
             import numpy as np
 
