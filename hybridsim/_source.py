@@ -482,9 +482,18 @@ _UNROLLED = ("flow", "jump", "output")
 def _unrolled(pl, roles, system):
     """The maps of ``roles`` among the planner's functions replaced by their
     straight-line form (:func:`hybridsim._source_unroll.unroll`) where they
-    have one: x of length ``state_dim``, a component's u of ``input_dim``."""
+    have one: x of length ``state_dim``, a component's u of ``input_dim``.
+
+    A plain model's flow and jump maps (not a component's, the flow not
+    reading the past, called by no other generated function) are written into
+    an argument, ``f(x, t, j, p, out)``: the compiled steps call the flow into
+    their own rows, a rate system's clock-augmented jump map the jump into its
+    own array (:attr:`hybridsim.compiled.CompiledSystem.maps_into`), no array
+    made a call."""
     names = {name: role for role, name in roles.items() if role in _UNROLLED}
     functions = {name: node for name, node, _ in pl.functions}
+    called = {n.id for name, node, _ in pl.functions for n in ast.walk(node)
+              if isinstance(n, ast.Name) and n.id in functions and n.id != name}
     for k, (name, node, fn) in enumerate(pl.functions):
         role = names.get(name)
         if role is None:
@@ -493,7 +502,9 @@ def _unrolled(pl, roles, system):
         shapes = {args[0]: int(system.state_dim)}
         if pl.inputs and role != "output" and system.input_dim:
             shapes[args[1]] = int(system.input_dim)
-        new = unroll(node, functions, shapes)
+        into = role in ("flow", "jump") and not pl.inputs and name not in called and not (
+            role == "flow" and pl.reads_past)
+        new = unroll(node, functions, shapes, into=into)
         if new is not None:
             pl.functions[k] = (name, new, fn)
 

@@ -759,11 +759,16 @@ class _Unroll:
             raise _Bail("a target")
 
 
-def unroll(node, functions, shapes):
+def unroll(node, functions, shapes, into=False):
     """``node`` (a generated map's FunctionDef; ``functions`` the generated
     functions it may call, by name; ``shapes`` the lengths of its one-state
     arguments, by name) as straight-line code of numbers, or None where it
-    takes something :class:`_Unroll` does not (the module's notes)."""
+    takes something :class:`_Unroll` does not (the module's notes).
+
+    ``into``: where the map returns an array, written into one more
+    argument, ``out`` last (``f(x, t, j, p, out)``, no array made a call:
+    :attr:`hybridsim.compiled.CompiledSystem.maps_into`); a map returning a
+    number is returned as it is."""
     u = _Unroll(functions)
     env = {}
     for a in node.args.args:
@@ -781,20 +786,23 @@ def unroll(node, functions, shapes):
         if isinstance(value, Arr):
             if not value.shape:
                 ret = u.atom(value.read(()))
+                into = False
             else:
                 r = "_hs_r"
-                u.out.append(ast.Assign(targets=[ast.Name(id=r, ctx=ast.Store())],
-                                        value=ast.parse(f"{_NP}.empty({value.shape!r})",
-                                                        mode="eval").body))
+                if not into:
+                    u.out.append(ast.Assign(targets=[ast.Name(id=r, ctx=ast.Store())],
+                                            value=ast.parse(f"{_NP}.empty({value.shape!r})",
+                                                            mode="eval").body))
                 for i in value.cells():
                     u.out.append(ast.Assign(targets=[ast.Subscript(
                         value=ast.Name(id=r, ctx=ast.Load()),
                         slice=ast.Constant(int(i[0])) if len(i) == 1 else ast.Tuple(
                             elts=[ast.Constant(int(k)) for k in i], ctx=ast.Load()),
                         ctx=ast.Store())], value=u.atom(value.read(i))))
-                ret = ast.Name(id=r, ctx=ast.Load())
+                ret = None if into else ast.Name(id=r, ctx=ast.Load())
         elif isinstance(value, Dyn) or _num(value):
             ret = u.atom(value)
+            into = False
         else:
             raise _Bail("it returns something else than a number or an array")
         if len(u.out) > BUDGET:
@@ -804,6 +812,9 @@ def unroll(node, functions, shapes):
     new = copy.copy(node)
     last = node.body[-1]
     body = u.out + [ast.Return(value=ret)]
+    if into:
+        new.args = copy.copy(node.args)
+        new.args.args = [*node.args.args, ast.arg(arg="_hs_r")]
     for st in body:
         if not hasattr(st, "lineno"):
             ast.copy_location(st, last)

@@ -30,7 +30,6 @@ from ._types import (
     _O_JUMP,
     _O_STOP,
     CACHE,
-    _bare,
     _coin,
     _f64_ptr,
 )
@@ -318,14 +317,16 @@ def _interior(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, a
     return False, a, b
 
 
-@njit(cache=CACHE, **_NJI)
+@njit(cache=CACHE, **_NJL)
 def _event(M, yold, hQ, told, h, j, p, has_C, has_D, d_active, phi_on, useD, useC,
-           a, lo, hi, clamp, h_abs, flow_t0, prio, rngp, yb, yb_known, wk, ylo, yhi):
-    """``_Run._event``: locate, then decide. Returns (kind, te, xe, lo, ylo, h_hint,
-    from_hi): ``from_hi``, a jump from the bracket's hi (``xe`` the state there),
-    whose bracket the post-jump tolerance reads (``rules.post_jump_probe``).
-    ``xe`` and ``ylo`` are the scratch rows ``ylo``/``yhi`` the bracket's end
-    states are written into (:func:`_locate`): read before the next event."""
+           a, lo, hi, clamp, h_abs, flow_t0, prio, rngp, yb, yb_known, wk, WS):
+    """``_Run._event``: locate, then decide. Returns (kind, te, at_hi, lo, h_hint,
+    from_hi): the event's state ``xe`` is the bracket's hi state (``WS[1]``) where
+    ``at_hi``, else its lo state (``WS[0]``), the rows the bracket's end states
+    are written into (:func:`_locate`; read before the next event); ``from_hi``,
+    a jump from the bracket's hi, whose bracket the post-jump tolerance reads
+    (``rules.post_jump_probe``). Scalars only returned: no reference counts."""
+    ylo, yhi = WS[0], WS[1]
     lo, hi = _locate(M, yold, hQ, told, h, j, p, has_C, d_active, phi_on, useD, useC, lo, hi,
                      yb, yb_known, wk, ylo, yhi)
     if hi <= flow_t0:
@@ -334,24 +335,24 @@ def _event(M, yold, hQ, told, h, j, p, has_C, has_D, d_active, phi_on, useD, use
         hint = min(h_abs, 10.0 * (hi - flow_t0))
     te_hi = hi if not clamp == clamp else min(hi, clamp)
     # ``rules.event_outcome``: the maps are read only where the rule needs them
-    in_D_hi = has_D and _inD(M, _bare(yhi), hi, j, p)
+    in_D_hi = has_D and _inD(M, yhi, hi, j, p)
     in_C_hi = True
     in_D_lo = False
     coin = True
     if d_active and in_D_hi:
-        in_C_hi = (not has_C) or _inC(M, _bare(yhi), hi, j, p)
+        in_C_hi = (not has_C) or _inC(M, yhi, hi, j, p)
         if rules.needs_coin(in_C_hi, True, prio):
             coin = _coin(rngp)
     elif has_D:
-        in_D_lo = _inD(M, _bare(ylo), lo, j, p)
+        in_D_lo = _inD(M, ylo, lo, j, p)
     action, side = rules.event_outcome(d_active, in_D_hi, in_C_hi, in_D_lo, prio, coin)
     if action == _A_FLOW:
-        return _O_FLOW_ON, te_hi, yhi, lo, ylo, hint, False
+        return _O_FLOW_ON, te_hi, True, lo, hint, False
     if action == _A_STOP:
-        return _O_STOP, lo, ylo, lo, ylo, hint, False
+        return _O_STOP, lo, False, lo, hint, False
     if side == 1:
-        return _O_JUMP, te_hi, yhi, lo, ylo, hint, True
-    return _O_JUMP, lo, ylo, lo, ylo, hint, False
+        return _O_JUMP, te_hi, True, lo, hint, True
+    return _O_JUMP, lo, False, lo, hint, False
 
 
 @njit(cache=CACHE, **_NJI)

@@ -68,9 +68,11 @@ from ._steps import (
     _dense,
     _dop853_step_dense,
     _grown,
+    _held_buffers,
     _initial_guess,
     _initial_step,
     _norm,
+    _owned_buffers,
     _put,
     _room,
     _store,
@@ -250,10 +252,11 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
         _add_breaks(BL, t0, dl)
     else:
         p = _bare(p_in)              # the caller's: alive for the whole run
-    T = np.empty(cap)
-    J = np.empty(cap, np.int64)
-    X = np.empty((cap, n))
-    XD = np.empty((cap, n))
+    # the sample buffers: held (their owners live until released at the run's end,
+    # ``H`` their holds), used as views without reference counts (``_steps._grown``)
+    H = np.empty(4, np.int64)
+    Hb = _bare(H)
+    T, J, X, XD = _held_buffers(cap, n, Hb)
     stats = np.zeros(6, np.int64)
     info = np.full(6, np.nan)
     cause = -1
@@ -271,7 +274,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     SC = _C8 if _DOP else (_C4 if _RK4 else _Cc)
     SP = _P4 if _RK4 else _P
     ERRX = -1.0 / 8.0 if _DOP else _ERR_EXP
-    work = np.zeros((NK + NQ + 13) * n)
+    work = np.zeros((NK + NQ + 15) * n)
     K = _bare(work[:NK * n]).reshape((NK, n))
     Ks = _bare(work[:(NST + 1) * n])         # the step's stages (scipy's solver.K)
     o = NK * n
@@ -290,10 +293,17 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     # ``_INTO``: the flow's values written by ``fi``: a step's end in the row of its
     # state's (YY's), the flow's start in row 1, any other in row 2
     FF = _bare(work[o + 10 * n:o + 13 * n]).reshape((3, n))
+    # the state after a jump, in turn: a jump writes the row the state it jumps
+    # from is not in (that state, or the last flow's start, ``ya``, the post-jump
+    # test reads after it: ``_near_C``), no array made a jump
+    XJ = _bare(work[o + 13 * n:o + 15 * n]).reshape((2, n))
+    xj_row = np.int64(0)            # (x0 in row 0)
 
     t = t0
     j = j0
-    x = x0.copy()
+    x = XJ[0]
+    for q in range(n):
+        x[q] = x0[q]
     jumps = np.int64(0)
     short = np.int64(0)
     zref = 0.0                      # the Zeno streak's reference flow (rules.zeno_short)
@@ -312,8 +322,8 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
         info[0] = ev[1]
         info[2] = ev[0]
         info[3] = ev[2]
-        return (T[:1].copy(), J[:1].copy(), X[:1].copy(), XD[:1].copy(), MAP_ERROR,
-                MAP_GUARD, info, stats)
+        T, J, X, XD = _owned_buffers(T, J, X, XD, -1, Hb)
+        return T, J, X, XD, MAP_ERROR, MAP_GUARD, info, stats
     if (not has_C) or _inC(M, _bare(x), t, j, p):
         if _DELAYS:
             v0 = _fd(f, x, t, j, p, pb, dl, HL, HM, cur_x, x0, t0)
@@ -323,16 +333,16 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             info[0] = t
             info[2] = v0.shape[0]
             info[3] = j
-            return (T[:1].copy(), J[:1].copy(), X[:1].copy(), XD[:1].copy(), MAP_ERROR,
-                    MAP_FLOW_X0, info, stats)
+            T, J, X, XD = _owned_buffers(T, J, X, XD, -1, Hb)
+            return T, J, X, XD, MAP_ERROR, MAP_FLOW_X0, info, stats
     if in_D0:
         v0 = g(x, t, j, p)
         if v0.shape[0] != n or not _all_finite(v0):
             info[0] = t
             info[2] = v0.shape[0]
             info[3] = j
-            return (T[:1].copy(), J[:1].copy(), X[:1].copy(), XD[:1].copy(), MAP_ERROR,
-                    MAP_JUMP_X0, info, stats)
+            T, J, X, XD = _owned_buffers(T, J, X, XD, -1, Hb)
+            return T, J, X, XD, MAP_ERROR, MAP_JUMP_X0, info, stats
     forced = False
     flow_on = False
     in_D = False
@@ -412,7 +422,10 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 t_last_jump = t
                 j += 1
                 jumps += 1
-                x = xn.copy()
+                xj_row = 1 - xj_row
+                x = XJ[xj_row]
+                for q in range(n):
+                    x[q] = xn[q]
                 if _DELAYS:                  # ``History._restart``, the new breakpoints
                     for q in range(n):
                         cur_x[q] = x[q]
@@ -424,7 +437,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                     info[0] = t
                     break
                 if ns == T.shape[0]:
-                    T, J, X, XD = _grown(T, J, X, XD, ns)
+                    T, J, X, XD = _grown(T, J, X, XD, ns, Hb)
                 _store(_bare(T), _bare(J), _bare(X), _bare(XD), ns, t, j, _bare(x))
                 ns += 1
                 cause, detail = jump_cause(jumps, short, j_max, zeno_jumps, loop, same, tiny, t,
@@ -788,7 +801,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 ns_step = ns             # this step's samples start here
                 if refine > 1 or ns >= T.shape[0] or ns >= max_samples:
                     T, J, X, XD, ns, ok = _room(T, J, X, XD, ns, a, b, j, refine, ya, hQ, hs,
-                                                not _DOP, max_samples)
+                                                not _DOP, max_samples, Hb)
                     if not ok:
                         cause = MAX_STEPS
                         detail = 1
@@ -847,10 +860,11 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             stats[3] += 1
             # the bracket's end states in WS's first two rows (free: the interior
             # search's samples are read no more); ``xe`` is one of them
-            kind, te, xe, lo, _ylo, hint, from_hi = _event(
+            kind, te, at_hi, lo, hint, from_hi = _event(
                 M, _bare(ya), hQ, a, hs, j, p, has_C, has_D, da, phi_on, da and has_hD, useC,
                 a, elo, ehi, clamp, h_abs, flow_t0, prio, rngp, yb, ehi == b and not past, wk,
-                WS[0], WS[1])
+                WS)
+            xe = WS[1] if at_hi else WS[0]
             h_hint = hint
             if ev[0] != 0.0:
                 cause = MAP_ERROR
@@ -870,7 +884,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             if te > a:
                 if refine > 1 or ns >= T.shape[0] or ns >= max_samples:
                     T, J, X, XD, ns, ok = _room(T, J, X, XD, ns, a, te, j, refine, ya, hQ, hs,
-                                                not _DOP, max_samples)
+                                                not _DOP, max_samples, Hb)
                     if not ok:
                         cause = MAX_STEPS
                         detail = 1
@@ -937,9 +951,9 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
         info = with_crossings(info, CR, nc)
     if work[0] != work[0]:           # (keeps the scratch's owner alive to here)
         stats[5] = jumps
-    if iopt[I_ROW] != 0:
-        # a batch's run (:func:`run_rows` copies it into the pool at once): the
-        # buffers themselves, cut to the samples (no copy, four arrays fewer)
-        return T[:ns], J[:ns], X[:ns], XD[:ns], cause, detail, info, stats
-    return (T[:ns].copy(), J[:ns].copy(), X[:ns].copy(), XD[:ns].copy(), cause, detail,
-            info, stats)
+    # a batch's run (:func:`run_rows` copies it into the pool at once): the buffers
+    # themselves, cut to the samples (no copy, four arrays fewer); else copies
+    T, J, X, XD = _owned_buffers(T, J, X, XD, ns if iopt[I_ROW] != 0 else -ns, Hb)
+    if H[0] == 0:                    # (keeps the holds' owner alive to here)
+        stats[5] = jumps
+    return T, J, X, XD, cause, detail, info, stats

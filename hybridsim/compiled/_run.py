@@ -988,7 +988,7 @@ def _reduced(k, system, X0, rows, arcs, one, one_addr, maps, p, fopt, iopt_rows,
     B = len(rows)
     if B == 0:
         return out
-    sizes = system.__dict__.get("_batch_lengths", {})
+    sizes = system.__dict__.setdefault("_batch_lengths", {})
     iopt = iopt_rows.copy()
     iopt[lay.I_ROW] = 0
     skey = (mname, fopt.tobytes(), iopt.tobytes(), atol_a.tobytes(), p.tobytes())
@@ -1009,6 +1009,11 @@ def _reduced(k, system, X0, rows, arcs, one, one_addr, maps, p, fopt, iopt_rows,
                          XF, TF, JF, XG, OK),
             stop, _threads(parallel, B, sizes.get(skey, 0) > _LONG))
     ran = NS > 0
+    longest = int(NS.max())
+    if longest > sizes.get(skey, 0) and not stopped:   # the next batch's first buffers
+        if len(sizes) >= 16:
+            sizes.clear()
+        sizes[skey] = longest
     out.x[rows], out.t[rows], out.j[rows] = XF, TF, JF
     out.cause[rows] = np.where(ran, CA, -1)
     out.grid_x[rows], out.grid_ok[rows] = XG, OK

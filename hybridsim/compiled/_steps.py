@@ -24,7 +24,10 @@ from ._types import (
     CACHE,
     MAP_ERROR,
     NON_FINITE,
+    _adopt,
     _bare,
+    _hold,
+    _release,
 )
 
 
@@ -113,8 +116,12 @@ def _put(A, i, v):
 
 
 @njit(cache=CACHE, **_NJI)
-def _grown(T, J, X, XD, ns):
-    """The sample buffers, full at ``ns``, doubled (the first ``ns`` rows kept)."""
+def _grown(T, J, X, XD, ns, H):
+    """The sample buffers, full at ``ns``, doubled (the first ``ns`` rows kept).
+
+    The run's buffers are held arrays used as :func:`_bare` views (``H``: their
+    holds' addresses, :func:`._types._hold`): the new ones are held in ``H``,
+    the old ones released, and their views returned."""
     cap2 = 2 * T.shape[0]
     n = X.shape[1]
     T2 = np.empty(cap2)
@@ -127,7 +134,50 @@ def _grown(T, J, X, XD, ns):
         for q in range(n):
             X2[r, q] = X[r, q]
             XD2[r, q] = XD[r, q]
-    return T2, J2, X2, XD2
+    _released(H)
+    H[0] = _hold(T2)
+    H[1] = _hold(J2)
+    H[2] = _hold(X2)
+    H[3] = _hold(XD2)
+    return _bare(T2), _bare(J2), _bare(X2), _bare(XD2)
+
+
+@njit(cache=CACHE, **_NJI)
+def _released(H):
+    """Release the run's four held buffers (:func:`_grown`)."""
+    for q in range(4):
+        _release(H[q])
+
+
+@njit(cache=CACHE, **_NJI)
+def _held_buffers(cap, n, H):
+    """A run's first sample buffers (``cap`` rows), held in ``H``, as views
+    (:func:`_grown`)."""
+    T = np.empty(cap)
+    J = np.empty(cap, np.int64)
+    X = np.empty((cap, n))
+    XD = np.empty((cap, n))
+    H[0] = _hold(T)
+    H[1] = _hold(J)
+    H[2] = _hold(X)
+    H[3] = _hold(XD)
+    return _bare(T), _bare(J), _bare(X), _bare(XD)
+
+
+@njit(cache=CACHE, **_NJI)
+def _owned_buffers(T, J, X, XD, ns, H):
+    """The run's held buffers (views ``T, J, X, XD``, holds ``H``) at its end,
+    released: their first ``ns`` rows as arrays owning their memory (the
+    buffers themselves; ``ns`` < 0: copies of the first ``-ns`` rows)."""
+    m = ns if ns >= 0 else -ns
+    To = _adopt(T, H[0])[:m]
+    Jo = _adopt(J, H[1])[:m]
+    Xo = _adopt(X, H[2])[:m]
+    XDo = _adopt(XD, H[3])[:m]
+    if ns < 0:
+        To, Jo, Xo, XDo = To.copy(), Jo.copy(), Xo.copy(), XDo.copy()
+    _released(H)
+    return To, Jo, Xo, XDo
 
 
 @njit(cache=CACHE, **_NJL)
@@ -201,25 +251,26 @@ def _dop853_step_dense(f, K, ya, yb, a, hs, j, p, yi, hQ, stats, info):
 
 
 @njit(cache=CACHE, **_NJI)
-def _refined(T, J, X, XD, ns, a, e, j, refine, ya, hQ, hs, deriv):
+def _refined(T, J, X, XD, ns, a, e, j, refine, ya, hQ, hs, deriv, H):
     """The ``refine - 1`` samples inside a step's part from ``a`` to ``e``
     (MATLAB's ``Refine``), from the step's dense output (``ya``, ``hQ``, its
     length ``hs``), stored from row ``ns`` of the buffers (grown as needed).
     Returns ``(T, J, X, XD, ns)`` after them. ``deriv``: their flow derivative
-    from the dense output too (RK45; none for DOP853, as on the Python path)."""
+    from the dense output too (RK45; none for DOP853, as on the Python path);
+    ``H``: the buffers' holds (:func:`_grown`)."""
     for r in range(1, refine):
         s = a + (e - a) * (r / refine)
         if ns == T.shape[0]:
-            T, J, X, XD = _grown(T, J, X, XD, ns)
-        _store(_bare(T), _bare(J), _bare(X), _bare(XD), ns, s, j, _dense(ya, hQ, a, hs, s))
+            T, J, X, XD = _grown(T, J, X, XD, ns, H)
+        _store(T, J, X, XD, ns, s, j, _dense(ya, hQ, a, hs, s))
         if deriv:
-            _dense_deriv_to(_bare(XD), ns, hQ, a, hs, s)
+            _dense_deriv_to(XD, ns, hQ, a, hs, s)
         ns += 1
     return T, J, X, XD, ns
 
 
 @njit(cache=CACHE, **_NJI)
-def _room(T, J, X, XD, ns, a, b, j, refine, ya, hQ, hs, deriv, max_samples):
+def _room(T, J, X, XD, ns, a, b, j, refine, ya, hQ, hs, deriv, max_samples, H):
     """Before a flow's sample at ``b``: the step's refined samples inside (a, b)
     (:func:`_refined`, where ``refine`` > 1), then room for that sample.
     Returns ``(T, J, X, XD, ns, ok)``; ``ok`` False: the run has
@@ -231,9 +282,9 @@ def _room(T, J, X, XD, ns, a, b, j, refine, ya, hQ, hs, deriv, max_samples):
     if refine > 1 and b > a:
         if ns + refine - 1 > max_samples:
             return T, J, X, XD, ns, False
-        T, J, X, XD, ns = _refined(T, J, X, XD, ns, a, b, j, refine, ya, hQ, hs, deriv)
+        T, J, X, XD, ns = _refined(T, J, X, XD, ns, a, b, j, refine, ya, hQ, hs, deriv, H)
     if ns >= max_samples:
         return T, J, X, XD, ns, False
     if ns == T.shape[0]:
-        T, J, X, XD = _grown(T, J, X, XD, ns)
+        T, J, X, XD = _grown(T, J, X, XD, ns, H)
     return T, J, X, XD, ns, True

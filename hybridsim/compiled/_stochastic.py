@@ -419,20 +419,34 @@ def _augmented(cs):
             for q in range(n + 1, m):
                 out[q] = 0.0
 
-    def jump_map(x, t, j, p):
-        xn = gv(x[:n], t, j, p)
-        out = np.empty(m)
-        if xn.shape[0] != n:
-            out[:] = np.nan
-            return out
-        for q in range(n):
-            out[q] = xn[q]
+    def clock_jump(x, j, out):
+        """The clock's part of the jump (after the state's, in ``out[:n]``)."""
         for q in range(n, m):
             out[q] = x[q]
         if x[n] >= x[n + 1]:                 # the rate's jump: a new clock
             out[n] = 0.0
             out[n + 1] = threshold_at(x[n + 2], x[n + 3], j + 1)
-        return out
+    clock_jump = jit(clock_jump)
+    if "jump" in cs.maps_into:              # the user's jump map written into out[:n]
+        gu = cs.maps_into["jump"]
+        gu = gu if hasattr(gu, "py_func") else jit(gu)
+
+        def jump_map(x, t, j, p):
+            out = np.empty(m)
+            gu(x[:n], t, j, p, out[:n])
+            clock_jump(x, j, out)
+            return out
+    else:
+        def jump_map(x, t, j, p):
+            xn = gv(x[:n], t, j, p)
+            out = np.empty(m)
+            if xn.shape[0] != n:
+                out[:] = np.nan
+                return out
+            for q in range(n):
+                out[q] = xn[q]
+            clock_jump(x, j, out)
+            return out
     maps = {"flow_map": jit(flow_map), "jump_map": jit(jump_map)}
     if "jump_set" in mp:                     # an indicator: the union, located by bisection
         dv = k.wrap_map(mp["jump_set"], "bool", lazy=True)

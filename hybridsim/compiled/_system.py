@@ -167,7 +167,8 @@ class CompiledSystem(HybridSystem):
         Euler–Maruyama loop then evaluates it without making an array (the
         other paths see it as the array it writes).
     jump_map : callable, optional
-        ``g(x, t, j, p)``: the jump map, receives the pre-jump j.
+        ``g(x, t, j, p)``: the jump map, receives the pre-jump j; or
+        ``g(x, t, j, p, out)`` writing into ``out``, as ``flow_map``.
     jump_guard, flow_guard : callable, optional
         Continuous guards, a float (or a 1-D array: the set is where its
         minimum is >= 0): D = {jump_guard >= 0}, C = {flow_guard >= 0} near
@@ -300,8 +301,9 @@ class CompiledSystem(HybridSystem):
         #: the maps written into an argument, by role (``maps`` holds their arrays)
         self.maps_into = {}
         py_into = {}
-        for role, shape in (("flow", (self.state_dim,)), ("diffusion", (
-                self.state_dim,) if noise_dim is None else (self.state_dim, noise_dim))):
+        n = self.state_dim
+        for role, shape in (("flow", (n,)), ("jump", (n,)), ("diffusion", (
+                n,) if noise_dim is None else (n, noise_dim))):
             fn = self.maps.get(role)
             if fn is not None and _writes_into(fn):
                 self.maps_into[role] = fn

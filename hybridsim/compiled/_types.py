@@ -441,6 +441,53 @@ def _bare(typingctx, a):
     return a(a), codegen
 
 
+@intrinsic
+def _hold(typingctx, a):
+    """One more reference to the owner of the array ``a`` (its meminfo), returned
+    as an int64 address: the owner lives until :func:`_release` of that address,
+    whatever becomes of ``a``. A run's sample buffers are held so, and used as
+    :func:`_bare` views: a view reassigned where the buffers grow costs no atomic
+    reference count at each branch of the run's loop."""
+    if not (isinstance(a, types.Array) and a.layout == "C"):
+        return None
+
+    def codegen(context, builder, sig, args):
+        ary = context.make_array(a)(context, builder, value=args[0])
+        context.nrt.incref(builder, a, args[0])
+        return builder.ptrtoint(ary.meminfo, ir.IntType(64))
+    return types.int64(a), codegen
+
+
+@intrinsic
+def _release(typingctx, addr):
+    """Drop the reference :func:`_hold` took (``addr``: its address)."""
+    if not isinstance(addr, types.Integer):
+        return None
+    mip = types.MemInfoPointer(types.voidptr)
+
+    def codegen(context, builder, sig, args):
+        ptr = builder.inttoptr(args[0], context.get_value_type(mip))
+        context.nrt.decref(builder, mip, ptr)
+        return context.get_dummy_value()
+    return types.none(addr), codegen
+
+
+@intrinsic
+def _adopt(typingctx, a, addr):
+    """The :func:`_bare` view ``a`` of a held array (``addr``: :func:`_hold`'s) as
+    an array owning a reference of its own (a run's buffers returned)."""
+    if not (isinstance(a, types.Array) and a.layout == "C" and isinstance(addr, types.Integer)):
+        return None
+
+    def codegen(context, builder, sig, args):
+        ary = context.make_array(a)(context, builder, value=args[0])
+        ary.meminfo = builder.inttoptr(args[1], ary.meminfo.type)
+        out = ary._getvalue()
+        context.nrt.incref(builder, a, out)
+        return out
+    return a(a, addr), codegen
+
+
 class MapHandle(types.WrapperAddressProtocol):
     """A compiled map as a first-class function value (numba's wrapper address
     protocol): typed as its signature at once, so a kernel call from Python
