@@ -122,24 +122,17 @@ def _grown(T, J, X, XD, ns, H):
     The run's buffers are held arrays used as :func:`_bare` views (``H``: their
     holds' addresses, :func:`._types._hold`): the new ones are held in ``H``,
     the old ones released, and their views returned."""
-    cap2 = 2 * T.shape[0]
     n = X.shape[1]
-    T2 = np.empty(cap2)
-    J2 = np.empty(cap2, np.int64)
-    X2 = np.empty((cap2, n))
-    XD2 = np.empty((cap2, n))
+    old = H.copy()
+    T2, J2, X2, XD2 = _held_buffers(2 * T.shape[0], n, H)
     for r in range(ns):
         T2[r] = T[r]
         J2[r] = J[r]
         for q in range(n):
             X2[r, q] = X[r, q]
             XD2[r, q] = XD[r, q]
-    _released(H)
-    H[0] = _hold(T2)
-    H[1] = _hold(J2)
-    H[2] = _hold(X2)
-    H[3] = _hold(XD2)
-    return _bare(T2), _bare(J2), _bare(X2), _bare(XD2)
+    _released(old)
+    return T2, J2, X2, XD2
 
 
 @njit(cache=CACHE, **_NJI)
