@@ -66,3 +66,54 @@ def test_a_rate_systems_compiled_run_makes_no_array_a_flow_evaluation():
             _nrt_python.memsys_disable_stats()
     assert arc.jump_count > 50
     assert made <= arc.stats["nfev"] + 2 * arc.jump_count + 40, (made, arc.stats)
+
+
+def test_the_held_sample_buffers_are_released_at_every_end():
+    """The run core holds its sample buffers by hand (``_types._hold``): at every
+    end of a run (t_max, a map's raise, max_steps, max_samples, a batch, a rate
+    system's coin flips) numba's live allocations come back to where they were
+    once the arcs are dropped: no buffer leaks."""
+    import gc
+
+    from numba.core.runtime import _nrt_python, rtsys
+
+    from hybridsim.compiled import CompiledSystem, lower, simulate_compiled
+    from hybridsim.library import BouncingBall
+
+    def raises_above(x, t, j, p):
+        if x[0] > p[0]:
+            raise ValueError("x above its range")
+        return np.array([1.0])
+    bad = CompiledSystem(state_dim=1, params=[0.5], flow_map=raises_above)
+    ball = lower(BouncingBall())
+    x0s = np.column_stack([np.linspace(1.0, 2.0, 40), np.zeros(40)])
+    ends = {"t_max": lambda: simulate_compiled(ball, [1.0, 0.0], t_max=10.0),
+            "map error": lambda: simulate_compiled(bad, [0.0], t_max=2.0, max_step=0.1,
+                                                   throw=False),
+            "max_steps": lambda: simulate_compiled(ball, [1.0, 0.0], t_max=10.0, max_steps=7,
+                                                   warn=False),
+            "max_samples": lambda: simulate_compiled(ball, [1.0, 0.0], t_max=10.0,
+                                                     max_samples=5, warn=False),
+            "batch": lambda: hs.simulate_many(BouncingBall(), x0s, t_max=10.0,
+                                              backend="compiled"),
+            "rate": lambda: hs.simulate(AIMD(), [1.0], t_max=50.0, seed=1,
+                                        backend="compiled")}
+    for run in ends.values():                   # compiled, its one-off arrays made
+        run()
+    was = _nrt_python.memsys_stats_enabled()
+    _nrt_python.memsys_enable_stats()
+
+    def live():
+        gc.collect()
+        s = rtsys.get_allocation_stats()
+        return s.alloc - s.free, s.mi_alloc - s.mi_free
+    try:
+        for end, run in ends.items():
+            before = live()
+            for _ in range(3):
+                arc = run()
+                del arc
+            assert live() == before, end
+    finally:
+        if not was:
+            _nrt_python.memsys_disable_stats()
