@@ -255,8 +255,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     # the sample buffers: held (their owners live until released at the run's end,
     # ``H`` their holds), used as views without reference counts (``_steps._grown``)
     H = np.empty(4, np.int64)
-    Hb = _bare(H)
-    T, J, X, XD = _held_buffers(cap, n, Hb)
+    T, J, X, XD = _held_buffers(cap, n, H)
     stats = np.zeros(6, np.int64)
     info = np.full(6, np.nan)
     cause = -1
@@ -322,7 +321,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
         info[0] = ev[1]
         info[2] = ev[0]
         info[3] = ev[2]
-        T, J, X, XD = _owned_buffers(T, J, X, XD, -1, Hb)
+        T, J, X, XD = _owned_buffers(T, J, X, XD, -1, H)
         return T, J, X, XD, MAP_ERROR, MAP_GUARD, info, stats
     if (not has_C) or _inC(M, _bare(x), t, j, p):
         if _DELAYS:
@@ -333,7 +332,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             info[0] = t
             info[2] = v0.shape[0]
             info[3] = j
-            T, J, X, XD = _owned_buffers(T, J, X, XD, -1, Hb)
+            T, J, X, XD = _owned_buffers(T, J, X, XD, -1, H)
             return T, J, X, XD, MAP_ERROR, MAP_FLOW_X0, info, stats
     if in_D0:
         v0 = g(x, t, j, p)
@@ -341,7 +340,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             info[0] = t
             info[2] = v0.shape[0]
             info[3] = j
-            T, J, X, XD = _owned_buffers(T, J, X, XD, -1, Hb)
+            T, J, X, XD = _owned_buffers(T, J, X, XD, -1, H)
             return T, J, X, XD, MAP_ERROR, MAP_JUMP_X0, info, stats
     forced = False
     flow_on = False
@@ -437,7 +436,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                     info[0] = t
                     break
                 if ns == T.shape[0]:
-                    T, J, X, XD = _grown(T, J, X, XD, ns, Hb)
+                    T, J, X, XD = _grown(T, J, X, XD, ns, H)
                 _store(_bare(T), _bare(J), _bare(X), _bare(XD), ns, t, j, _bare(x))
                 ns += 1
                 cause, detail = jump_cause(jumps, short, j_max, zeno_jumps, loop, same, tiny, t,
@@ -801,7 +800,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 ns_step = ns             # this step's samples start here
                 if refine > 1 or ns >= T.shape[0] or ns >= max_samples:
                     T, J, X, XD, ns, ok = _room(T, J, X, XD, ns, a, b, j, refine, ya, hQ, hs,
-                                                not _DOP, max_samples, Hb)
+                                                not _DOP, max_samples, H)
                     if not ok:
                         cause = MAX_STEPS
                         detail = 1
@@ -884,7 +883,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             if te > a:
                 if refine > 1 or ns >= T.shape[0] or ns >= max_samples:
                     T, J, X, XD, ns, ok = _room(T, J, X, XD, ns, a, te, j, refine, ya, hQ, hs,
-                                                not _DOP, max_samples, Hb)
+                                                not _DOP, max_samples, H)
                     if not ok:
                         cause = MAX_STEPS
                         detail = 1
@@ -953,7 +952,5 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
         stats[5] = jumps
     # a batch's run (:func:`run_rows` copies it into the pool at once): the buffers
     # themselves, cut to the samples (no copy, four arrays fewer); else copies
-    T, J, X, XD = _owned_buffers(T, J, X, XD, ns if iopt[I_ROW] != 0 else -ns, Hb)
-    if H[0] == 0:                    # (keeps the holds' owner alive to here)
-        stats[5] = jumps
+    T, J, X, XD = _owned_buffers(T, J, X, XD, ns if iopt[I_ROW] != 0 else -ns, H)
     return T, J, X, XD, cause, detail, info, stats
