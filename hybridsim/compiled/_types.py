@@ -237,6 +237,34 @@ def _ov_as_bool(v):
     raise nb_errors.TypingError(f"must return a bool (x in the set or not), got {v}")
 
 
+class _RandomIds:
+    """The ids numba gives the functions it compiles, drawn at random.
+
+    numba names compiled code by module, name, argument types and an id
+    (``FunctionIdentity._unique_ids``: a counter of the process, from 1). Two
+    processes that compile two functions of one name (two systems' maps
+    ``<lambda>``, a wrapper made by one factory) at the same count write the
+    same symbol, and a process that loads both from the disk cache links one
+    body for both: one system runs another's map (numba issue #10486). Random
+    63-bit ids make that a chance of about 1e-19 per pair."""
+
+    def __iter__(self):
+        return self
+
+    def __next__(self):
+        import secrets
+        return secrets.randbits(63)
+
+
+def _random_function_ids():
+    from numba.core.bytecode import FunctionIdentity
+    if not isinstance(getattr(FunctionIdentity, "_unique_ids", None), _RandomIds):
+        FunctionIdentity._unique_ids = _RandomIds()
+
+
+_random_function_ids()
+
+
 #: ``_nrt`` set, not inherited: a function numba compiles for a caller's call
 #: inherits the caller's reference counting where it does not set its own (a
 #: helper called first from one of the leaf helpers below would be compiled

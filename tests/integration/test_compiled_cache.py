@@ -327,6 +327,54 @@ def test_read_only_installed_copy_caches_in_the_user_cache_dir(tmp_path):
 
 
 # ------------------------------------------------------------------ compiled in fresh processes
+FACTORY = textwrap.dedent("""
+    def make(c):
+        def flow(x, t, j, p, out):
+            for q in range(x.shape[0]):
+                out[q] = c * x[q]
+        return flow
+""")
+TWO_WRAPPERS = textwrap.dedent("""
+    import sys, numpy as np
+    sys.path.insert(0, sys.argv[1])
+    from factory import make
+    from hybridsim.compiled import CompiledSystem, _cache as k
+    x, p = np.array([1.0, 10.0]), np.zeros(0)
+    for c in sys.argv[2:]:
+        cs = CompiledSystem(flow_map=make(float(c)), state_dim=2)
+        print(k.wrap_map(cs.maps["flow"], "vec")(x, 0.0, 0, p)[1])
+""")
+
+
+@pytest.mark.slow
+def test_same_named_maps_compiled_by_two_processes_keep_their_own_code(tmp_path):
+    """Two maps of one name (one factory's closures, written into ``out``: the
+    engine wraps each in a function of one name), each compiled by its own
+    process into the disk cache at the same point of that process, then both
+    loaded by a third: each runs its own code. numba names compiled code by its
+    function's name and an id; with ids counted from 1 in every process, both
+    wrappers named the same symbol and the third process linked one body for
+    both (``_types._RandomIds``)."""
+    (tmp_path / "factory.py").write_text(FACTORY)
+
+    cache = tmp_path / "cache"
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache))
+
+    def child(*cs):
+        out = subprocess.run([sys.executable, "-W", "ignore", "-c", TWO_WRAPPERS,
+                              str(tmp_path), *cs], capture_output=True, text=True,
+                             timeout=300, env=env, cwd=str(tmp_path))
+        assert out.returncode == 0, out.stderr
+        return [float(v) for v in out.stdout.split()]
+    # two processes of the same history (each from an empty cache in one folder),
+    # then both caches in that folder
+    assert child("2") == [20.0]
+    cache.rename(tmp_path / "a")
+    assert child("3") == [30.0]
+    shutil.copytree(tmp_path / "a", cache, dirs_exist_ok=True)
+    assert child("2", "3") == [20.0, 30.0]          # both loaded from the disk cache
+
+
 SPEC_RUN = textwrap.dedent("""
     import sys, time, numpy as np
     from hybridsim.compiled import CompiledSystem, simulate_compiled, simulate_many_compiled
