@@ -217,7 +217,12 @@ def batch_run(system, x0_of, t_max, j_max=np.inf, *, attributes_of=None, **simul
         which :func:`falsify` calls when a worker of the executor died: a
         process pool, broken for good, is replaced by a fresh one of the same
         settings (shut down with the run; the user's own pool is left to its
-        owner), so the search loses only the chunk the worker was running.
+        owner), so the search loses only the chunk the worker was running;
+        ``run.concurrent`` is True where the populations run on the compiled
+        path in this process (a compiled system, no ``executor`` nor
+        ``attributes_of``): the kernel releases the GIL, and :func:`falsify`
+        simulates the next pieces of a population in threads while it
+        judges the pieces run (the same runs, judged in the same order).
 
     Examples
     --------
@@ -335,7 +340,9 @@ class _Evaluator:
     chunk is expected to end before the deadline (at most twice the last
     chunk, at the rate measured so far): the search stops within one chunk
     of runs of it. Points are built from the coordinates one chunk at a
-    time, as the chunk runs.
+    time, as the chunk runs; for a run with ``concurrent = True`` (and no
+    ``seconds``) the population's points are built at once and its pieces
+    simulate ahead in threads (:meth:`_pipelined`).
 
     A run ending ``CANCELED`` (Ctrl-C inside the engine) is not judged: the
     search stops there (``interrupted``), as it does on a KeyboardInterrupt
