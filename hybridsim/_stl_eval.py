@@ -297,9 +297,13 @@ def _value(sig, tau, j):
     return float(sig.v[k0])
 
 
-def _window_sup(ctx, s, a, b, lo, hi):
-    """sup of ``s`` over [tau + a, tau + b] (cut at the end of s), for tau in [lo, hi]."""
-    t, v, l, r = s.t, s.v, s.l, s.r
+def _window_core(t, j, v, l, r, a, b, lo, hi, jump_times):
+    """The window's value at the output's breakpoints over [lo, hi] (the times
+    ``taus``), its limits from the right and the left (``vr``, ``vl``), the
+    part read past the window's start (``rest``), where the start falls
+    (``ia``, at an instant: ``ea``), the kinks inside the open pieces, and the
+    first and last index of each time of the signal (``fi``, ``la``).
+    :mod:`hybridsim._stl_window_nb` is the same, compiled."""
     n = len(t)
     first = np.empty(n, dtype=bool)
     first[0] = True
@@ -312,7 +316,7 @@ def _window_sup(ctx, s, a, b, lo, hi):
     u = t[fi]
     P = v if M == n else np.maximum.reduceat(v, fi)
     # L (R): the limit from the left (right) at each time, where the flow goes on
-    conn = s.j[fi[1:]] == s.j[la[:-1]]
+    conn = j[fi[1:]] == j[la[:-1]]
     L = np.full(M, -_INF)
     L[1:] = np.where(conn, l[fi[1:]], -_INF)
     R = np.full(M, -_INF)
@@ -348,7 +352,7 @@ def _window_sup(ctx, s, a, b, lo, hi):
     if hi <= lo:
         taus = np.array([lo])
     else:
-        cand = [np.array([lo, hi]), u - a, ctx.jump_times]
+        cand = [np.array([lo, hi]), u - a, jump_times]
         if math.isfinite(b):
             cand.append(u - b)
         c = np.concatenate(cand)
@@ -425,6 +429,33 @@ def _window_sup(ctx, s, a, b, lo, hi):
                 with np.errstate(invalid="ignore"):
                     yy = y0[kk] + np.where(sl[kk] == 0, 0.0, sl[kk] * (kink_t - t0[kk]))
                 kink_v = np.maximum(kink_v, np.where(np.isnan(yy), -_INF, yy))
+    return taus, val, vl, vr, rest, ea, ia, kink_t, kink_v, fi, la
+
+
+_COMPILED = []
+
+
+def _compiled_core():
+    """:mod:`hybridsim._stl_window_nb` where numba is installed, else None."""
+    if not _COMPILED:
+        try:
+            from . import _stl_window_nb
+        except ImportError:
+            _stl_window_nb = None
+        _COMPILED.append(_stl_window_nb)
+    return _COMPILED[0]
+
+
+def _window_sup(ctx, s, a, b, lo, hi):
+    """sup of ``s`` over [tau + a, tau + b] (cut at the end of s), for tau in [lo, hi]."""
+    v = s.v
+    fast = _compiled_core()
+    core = fast.window_core if fast is not None and len(s.t) >= fast.MIN_INSTANTS \
+        else _window_core
+    arr = np.ascontiguousarray
+    taus, val, vl, vr, rest, ea, ia, kink_t, kink_v, fi, la = core(
+        arr(s.t, float), arr(s.j, np.int64), arr(v, float), arr(s.l, float), arr(s.r, float),
+        float(a), float(b), float(lo), float(hi), arr(ctx.jump_times, float))
     nk = len(kink_t)
     times = np.concatenate((taus, kink_t))
     V = np.concatenate((val, kink_v))

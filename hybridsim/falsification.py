@@ -48,6 +48,7 @@ import dataclasses
 import itertools
 import math
 import numbers
+import os
 import time
 import traceback
 import weakref
@@ -216,7 +217,12 @@ def batch_run(system, x0_of, t_max, j_max=np.inf, *, attributes_of=None, **simul
         which :func:`falsify` calls when a worker of the executor died: a
         process pool, broken for good, is replaced by a fresh one of the same
         settings (shut down with the run; the user's own pool is left to its
-        owner), so the search loses only the chunk the worker was running.
+        owner), so the search loses only the chunk the worker was running;
+        ``run.concurrent`` is True where the populations run on the compiled
+        path in this process (a compiled system, no ``executor`` nor
+        ``attributes_of``): the kernel releases the GIL, and :func:`falsify`
+        simulates the next pieces of a population in threads while it
+        judges the pieces run (the same runs, judged in the same order).
 
     Examples
     --------
@@ -264,8 +270,22 @@ def batch_run(system, x0_of, t_max, j_max=np.inf, *, attributes_of=None, **simul
                     setattr(system, name, v)
     run.batch = True
     run.renew = pools.renew
+    # compiled populations simulate without the GIL: falsify runs the next
+    # pieces of a population in threads while it judges those run
+    run.concurrent = (attributes_of is None and simulate_kwargs.get("executor") is None
+                      and _gil_free(system, simulate_kwargs))
     weakref.finalize(run, pools.close)
     return run
+
+
+def _gil_free(system, kwargs):
+    """Whether :func:`hybridsim.simulate_many` runs ``system``'s batches on the
+    compiled path (a kernel that releases the GIL): a compiled system whose
+    options that path runs, numba installed."""
+    from .compiled import CompiledSystem
+    from .run import _auto_backend
+    return (kwargs.get("backend") in ("auto", "compiled") and isinstance(system, CompiledSystem)
+            and _auto_backend(system, kwargs, None) == "compiled")
 
 
 class _Pools:
@@ -320,7 +340,9 @@ class _Evaluator:
     chunk is expected to end before the deadline (at most twice the last
     chunk, at the rate measured so far): the search stops within one chunk
     of runs of it. Points are built from the coordinates one chunk at a
-    time, as the chunk runs.
+    time, as the chunk runs; for a run with ``concurrent = True`` (and no
+    ``seconds``) the population's points are built at once and its pieces
+    simulate ahead in threads (:meth:`_pipelined`).
 
     A run ending ``CANCELED`` (Ctrl-C inside the engine) is not judged: the
     search stops there (``interrupted``), as it does on a KeyboardInterrupt
@@ -331,6 +353,9 @@ class _Evaluator:
                  on_error="finding"):
         self.run, self.space, self.claim = run, space, claim
         self.batch = bool(getattr(run, "batch", False))
+        # a population run that releases the GIL: pipelined (:meth:`_pipelined`)
+        self.concurrent = self.batch and getattr(run, "concurrent", False) is True
+        self._pool, self._warm = None, False
         self.budget, self.deadline = budget, time.perf_counter() + seconds
         self.timed = math.isfinite(seconds)
         self.allow = allow
@@ -491,6 +516,78 @@ class _Evaluator:
                                exc.with_traceback(None))
         return False
 
+    def _judge(self, chunk, arcs, a, out):
+        """Record the runs of one chunk (its arcs, or the exception its run
+        raised), their margins written to ``out[a:]``; False when the search
+        must stop at once."""
+        broken = None                       # the BrokenExecutor of a dead worker
+        if isinstance(arcs, BaseException):
+            exc = arcs
+            if isinstance(exc, concurrent.futures.BrokenExecutor):
+                broken = exc
+            for k, p in enumerate(chunk):
+                value = self._record(p, exc, *self._lost(exc, len(chunk)))
+                if value is None:
+                    return False
+                out[a + k] = value
+        else:
+            for k, (p, arc) in enumerate(zip(chunk, arcs)):
+                if getattr(arc, "termination", None) is Termination.CANCELED:
+                    self.interrupted = True     # the finished rows still count
+                    continue
+                exc = getattr(arc, "exception", None)
+                if isinstance(exc, concurrent.futures.BrokenExecutor):
+                    broken = exc            # a row the dead worker lost
+                    value = self._record(p, exc, *self._lost(exc, len(chunk)))
+                else:
+                    value = self._record(p, arc)
+                if value is None:
+                    return False
+                out[a + k] = value
+        return broken is None or self._renew(chunk[0], broken)
+
+    def _pipelined(self, rows, out):
+        """The batch path of a run that simulates without the GIL (``run.concurrent``):
+        the population in pieces of a quarter of a chunk (at least 2 rows),
+        simulated in threads (one per core) ahead of the judging, which
+        goes through the same chunks in the same order: the same runs are
+        judged and counted as one by one, the claim of one piece computed
+        while the next pieces simulate. After a chunk that ends the search,
+        the pieces not started are cancelled and those under way awaited
+        (their runs are not judged)."""
+        point = self.space._point
+        if self._pool is None:
+            self._pool = concurrent.futures.ThreadPoolExecutor(
+                max(2, os.cpu_count() or 1), thread_name_prefix="hybridsim-falsify")
+        plan = []                           # (chunk's end, piece's start, its points)
+        for a, b in itertools.pairwise(self._bounds(len(rows))):
+            step = max(2, math.ceil((b - a) / 4))
+            plan += [(b, s, [point(z) for z in rows[s:min(b, s + step)]])
+                     for s in range(a, b, step)]
+        # the first piece alone: the model is compiled (once) before threads share it
+        futures = [self._pool.submit(self._run_batch, plan[0][2])]
+        if self._warm:
+            futures += [self._pool.submit(self._run_batch, ch) for _, _, ch in plan[1:]]
+        try:
+            for k, (end, s, chunk) in enumerate(plan):
+                arcs = futures[k].result()
+                if k == 0 and not self._warm:
+                    self._warm = True
+                    futures += [self._pool.submit(self._run_batch, ch) for _, _, ch in plan[1:]]
+                if not self._judge(chunk, arcs, s, out) or (
+                        self.done and (k + 1 == len(plan) or plan[k + 1][0] != end)):
+                    break
+        finally:
+            for f in futures:
+                f.cancel()
+            concurrent.futures.wait(futures)
+
+    def close(self):
+        """Shut the threads of :meth:`_pipelined` down (after the search)."""
+        self.bar.close()
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+
     def __call__(self, Z):
         """Margins of the rows of Z (n, dim); +inf for rows not run (past the
         budget, the deadline, or after a counterexample when stopping at the
@@ -506,37 +603,14 @@ class _Evaluator:
         # in the first chunk builds one Point, not a population of them)
         rows = np.clip(rows, self.space.lo, self.space.hi)
         point = self.space._point
-        if self.batch:
+        if self.batch and self.concurrent and not self.timed:
+            self._pipelined(rows, out)
+        elif self.batch:
             for a, b in itertools.pairwise(self._bounds(len(rows))):
                 while a < b and not self.done:
                     c = a + self._fit(b - a)
                     chunk = [point(z) for z in rows[a:c]]
-                    arcs = self._run_batch(chunk)
-                    broken = None           # the BrokenExecutor of a dead worker
-                    if isinstance(arcs, BaseException):
-                        exc = arcs
-                        if isinstance(exc, concurrent.futures.BrokenExecutor):
-                            broken = exc
-                        for k, p in enumerate(chunk):
-                            value = self._record(p, exc, *self._lost(exc, len(chunk)))
-                            if value is None:
-                                return out
-                            out[a + k] = value
-                    else:
-                        for k, (p, arc) in enumerate(zip(chunk, arcs)):
-                            if getattr(arc, "termination", None) is Termination.CANCELED:
-                                self.interrupted = True     # the finished rows still count
-                                continue
-                            exc = getattr(arc, "exception", None)
-                            if isinstance(exc, concurrent.futures.BrokenExecutor):
-                                broken = exc            # a row the dead worker lost
-                                value = self._record(p, exc, *self._lost(exc, len(chunk)))
-                            else:
-                                value = self._record(p, arc)
-                            if value is None:
-                                return out
-                            out[a + k] = value
-                    if broken is not None and not self._renew(chunk[0], broken):
+                    if not self._judge(chunk, self._run_batch(chunk), a, out):
                         return out
                     a = c
                 if self.done:
@@ -782,7 +856,7 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
     except KeyboardInterrupt:               # Ctrl-C between runs, or in the claim
         ev.interrupted = True
     finally:
-        ev.bar.close()
+        ev.close()
     if ev.error is not None:
         raise ev.error
     point = space.point(ev.best_z if ev.best_z is not None else (space.lo + space.hi) / 2)

@@ -94,6 +94,12 @@ after it is empty: ``F`` gives -inf, ``G`` +inf).
 
 A NaN value of a signal counts as -inf for its predicate (never holds).
 
+Where numba is installed, the windows over signals of 256 instants and more
+are computed by a compiled pass (the numpy code's formulas in the same
+order: the same robustness to the bit, about three times faster on arcs of
+thousands of samples); it is compiled on first use and kept in numba's disk
+cache.
+
 Examples
 --------
 >>> import hybridsim as hs

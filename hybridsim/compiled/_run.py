@@ -793,10 +793,12 @@ def simulate_many_compiled(system: CompiledSystem, x0s: ArrayLike, t_max: float,
                         sizes.clear()
                     sizes[skey] = longest
             cap = 1 << math.ceil(math.log2(longest * 1.25 + 1))
+            seen = longest                       # the longest run of this batch, so far
             if len(rows) <= _ALONE and longest <= _SHORT and \
                     threading.current_thread() is threading.main_thread():
                 for i in rows.tolist():          # a few short runs: here, one by one
-                    stopped, _ = one(i, rng)
+                    stopped, m = one(i, rng)
+                    seen = max(seen, m)
                     if stopped:
                         break
                 rows = rows[:0]
@@ -883,9 +885,16 @@ def simulate_many_compiled(system: CompiledSystem, x0s: ArrayLike, t_max: float,
                         retry.append(i)
                 # the next chunk's room: the longest run seen, with margin
                 longest = int(NS.max()) if B else cap
+                seen = max(seen, longest)
                 cap = max(cap, 1 << math.ceil(math.log2(max(longest, 2) * 1.25)))
                 del TT, JJ, XX, XXD, pool
                 c += B
+            # the next batch's pools sized for the longest run seen (a batch
+            # whose first runs were short would have every later run run twice)
+            if not stopped and seen > sizes.get(skey, 0):
+                if len(sizes) >= 16 and skey not in sizes:
+                    sizes.clear()
+                sizes[skey] = seen
     except KeyboardInterrupt:           # between two kernels: the runs so far are kept
         stopped = True
     finally:

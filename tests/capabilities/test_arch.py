@@ -316,3 +316,27 @@ def test_runner_refuses_bad_arguments(tmp_path):
         main(["--out", str(tmp_path), "--method", "bayes"])
     with pytest.raises(FileNotFoundError, match="no trials.csv"):
         validate(tmp_path)
+
+
+@pytest.mark.parametrize("stop", [True, False])
+def test_compiled_populations_pipelined_judge_the_same_runs(stop):
+    """A compiled population run (``run.concurrent``) simulates the next pieces
+    of a population in threads while the claim judges those run: the runs,
+    their order and margins, the count and the worst point are those of the
+    population run one chunk after another."""
+    from hybridsim.compiled import available
+    run_, sp, claim, _ = problem("AT6a", 2)
+    assert run_.concurrent is available()
+    if not available():
+        pytest.skip("numba is not installed: populations run on the Python path")
+    res = [hs.falsify(run_, sp, claim, budget=80, seed=1, method="cmaes", stop=stop,
+                      progress=False)]
+    run_.concurrent = False
+    res.append(hs.falsify(run_, sp, claim, budget=80, seed=1, method="cmaes", stop=stop,
+                          progress=False))
+    a, b = res
+    np.testing.assert_array_equal(a.history, b.history)
+    assert a.evaluations == b.evaluations and a.found_by == b.found_by
+    assert a.verdict == b.verdict and np.array_equal(a.point.z, b.point.z)
+    assert a.verdict == "counterexample"                 # within 80 runs from seed 1
+    assert (a.evaluations < 80) is stop and a.evaluations == len(a.history)

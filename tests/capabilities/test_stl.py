@@ -649,3 +649,47 @@ def test_bad_input_is_named():
         (stl.state(4) > 0)(arc)
     with pytest.raises(ValueError, match="the arc is empty"):
         (x > 0)(hs.HybridArc(np.zeros(0), np.zeros(0, int), np.zeros((0, 1)), None))
+
+
+@pytest.mark.parametrize("name", ["CC4", "CC5", "AT52", "AT6abc"])
+def test_the_compiled_window_gives_the_numpy_robustness_to_the_bit(name, monkeypatch):
+    """Where numba is installed, windows over long signals are computed by
+    ``_stl_window_nb.window_core``: on runs of the ARCH-COMP models (thousands
+    of samples, jumps, nested windows, a window from 0 at jump instants) the
+    robustness and the instant deciding it are those of the numpy code, to the
+    bit, at refine 1 and 4."""
+    from hybridsim import _stl_eval
+    from hybridsim.arch import REQUIREMENTS, problem
+    fast = _stl_eval._compiled_core()
+    if fast is None:
+        pytest.skip("numba is not installed: the numpy code is the only one")
+    req = REQUIREMENTS[name]
+    run, sp, _, _ = problem(name, 1)
+    rng = np.random.default_rng(5)
+    Z = sp.lo + (sp.hi - sp.lo) * rng.random((6, sp.dim))
+    Z[:2] = np.where(rng.random((2, sp.dim)) < 0.5, sp.lo, sp.hi)
+    arcs = run([sp.point(z) for z in Z])
+    assert max(len(a.t) for a in arcs) >= fast.MIN_INSTANTS
+    got = {}
+    for least in (0, 10 ** 12):             # every window compiled, none
+        monkeypatch.setattr(fast, "MIN_INSTANTS", least)
+        got[least] = [(float(m), m.where) for refine in (1, 4) for a in arcs
+                      for m in [req(a, refine=refine)]]
+    assert got[0] == got[10 ** 12]
+
+
+def test_the_compiled_window_on_infinite_and_flat_values():
+    """The compiled window with -inf values (NaN predicates), a constant
+    signal and a jump at a window's end: numpy's results."""
+    from hybridsim import _stl_eval
+    fast = _stl_eval._compiled_core()
+    if fast is None:
+        pytest.skip("numba is not installed: the numpy code is the only one")
+    t = np.concatenate((np.linspace(0.0, 1.0, 200), [1.0], np.linspace(1.0, 3.0, 300)[1:]))
+    j = np.concatenate((np.zeros(200, np.int64), np.ones(300, np.int64)))
+    for v in (np.sin(7 * t), np.where(t > 2.5, -np.inf, np.cos(3 * t)), np.full(len(t), 2.0)):
+        for a, b, lo, hi in ((0.0, 0.5, 0.0, 2.0), (0.1, 0.1, 0.0, 2.5), (0.0, np.inf, 0.0, 3.0),
+                             (0.5, 1.0, 0.2, 0.2)):
+            args = (t, j, v, v, v, a, b, lo, hi, np.array([1.0]))
+            for x, y in zip(fast.window_core(*args), _stl_eval._window_core(*args)):
+                np.testing.assert_array_equal(x, y)

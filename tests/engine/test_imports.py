@@ -24,9 +24,9 @@ PKG = Path(__file__).resolve().parents[2] / "hybridsim"
 #: level and those below it
 LEVELS = (
     ("capabilities", {"explore", "falsification", "sensitivity", "testing", "plot", "stl",
-                      "estimate", "arch", "_stl_eval", "_stl_signal", "_plot_sample",
+                      "estimate", "arch", "_stl_eval", "_stl_signal", "_stl_window_nb",
                       "_explore_tree", "_estimate_runs", "_sensitivity_maps", "_falsify_space",
-                      "_falsify_search", "_estimate_stats"}),
+                      "_falsify_search", "_estimate_stats", "_plot_sample"}),
     ("front door", {"run", "batch", "_batch_reduce"}),
     ("paths", {"solve", "batch_vectorized", "compiled",
                "_sde", "_random_jumps", "_variational", "_solve_state", "_solve_solver",

@@ -513,6 +513,31 @@ def test_batch_runs_without_room_in_the_pool_run_again_in_parallel(monkeypatch):
         assert arcs[i].stats == single.stats and arcs[i].termination is single.termination
 
 
+def test_the_next_batch_sizes_its_pools_for_the_longest_run_seen(monkeypatch):
+    # the timer of the test above: sized by two short rows, a batch whose rows
+    # 40, 50, 60 jump 2,000 times runs them again for want of room; the same
+    # batch again has room for them at once (one round of the batch kernel)
+    timer = CompiledSystem(flow_map=lambda x, t, j, p: np.array([1.0, 0.0]),
+                           jump_map=lambda x, t, j, p: np.array([0.0, x[1]]),
+                           jump_guard=lambda x, t, j, p: x[0] - x[1], state_dim=2)
+    period = np.full(70, 1.0)
+    period[[40, 50, 60]] = 1e-3
+    x0s = np.column_stack([np.zeros(70), period])
+    simulate_many_compiled(timer, x0s[:2], t_max=2.5)
+    calls = []
+    real = hc._run._interruptible
+    monkeypatch.setattr(hc._run, "_interruptible", lambda *a, **k: calls.append(1) or real(*a, **k))
+    first = simulate_many_compiled(timer, x0s, t_max=2.5)
+    assert len(calls) == 2
+    (sizes,) = [timer.__dict__["_batch_lengths"]]
+    assert max(sizes.values()) == max(len(a.t) for a in first)
+    again = simulate_many_compiled(timer, x0s, t_max=2.5)
+    assert len(calls) == 3                      # no second round
+    for i in (0, 40, 69):
+        np.testing.assert_array_equal(first[i].t, again[i].t)
+        np.testing.assert_array_equal(first[i].x, again[i].x)
+
+
 def test_a_batch_again_reuses_the_pools_size_and_runs_every_row_in_parallel(monkeypatch):
     """The first batch sizes its pools by four runs alone (single-run arcs);
     the same system, options and parameters again take that size and run all
