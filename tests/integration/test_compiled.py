@@ -485,12 +485,11 @@ def test_a_dop853_batch_equals_its_single_runs_and_the_python_paths():
     assert {k[0] for k in sizes} == {"DOP853", "RK45"}
 
 
-def test_batch_runs_without_room_in_the_pool_run_again_in_parallel(monkeypatch):
-    # a timer whose period is in its state: the rows that size the pool (the
-    # warm-up batch's, whose length the batch reuses) jump twice, rows 40, 50
-    # and 60 2,000 times, far more samples than the pool holds; those rows run
-    # again in a second round of the batch kernel, and every arc is its single
-    # run's, bit for bit
+def _timer_batch(monkeypatch):
+    """A timer whose period is in its state, 70 rows: rows 40, 50 and 60 jump
+    2,000 times, the others twice; its pools sized by a batch of two short
+    rows. Returns the timer, the rows' x0 and the list the batch kernel's
+    rounds are counted in."""
     timer = CompiledSystem(flow_map=lambda x, t, j, p: np.array([1.0, 0.0]),
                            jump_map=lambda x, t, j, p: np.array([0.0, x[1]]),
                            jump_guard=lambda x, t, j, p: x[0] - x[1], state_dim=2)
@@ -501,6 +500,16 @@ def test_batch_runs_without_room_in_the_pool_run_again_in_parallel(monkeypatch):
     calls = []
     real = hc._run._interruptible
     monkeypatch.setattr(hc._run, "_interruptible", lambda *a, **k: calls.append(1) or real(*a, **k))
+    return timer, x0s, calls
+
+
+def test_batch_runs_without_room_in_the_pool_run_again_in_parallel(monkeypatch):
+    # a timer whose period is in its state: the rows that size the pool (the
+    # warm-up batch's, whose length the batch reuses) jump twice, rows 40, 50
+    # and 60 2,000 times, far more samples than the pool holds; those rows run
+    # again in a second round of the batch kernel, and every arc is its single
+    # run's, bit for bit
+    timer, x0s, calls = _timer_batch(monkeypatch)
     arcs = simulate_many_compiled(timer, x0s, t_max=2.5)
     assert len(calls) == 2                      # the batch, then the rows without room
     assert [arcs[i].jump_count for i in (0, 23, 46, 69)] == [2] * 4
@@ -517,16 +526,7 @@ def test_the_next_batch_sizes_its_pools_for_the_longest_run_seen(monkeypatch):
     # the timer of the test above: sized by two short rows, a batch whose rows
     # 40, 50, 60 jump 2,000 times runs them again for want of room; the same
     # batch again has room for them at once (one round of the batch kernel)
-    timer = CompiledSystem(flow_map=lambda x, t, j, p: np.array([1.0, 0.0]),
-                           jump_map=lambda x, t, j, p: np.array([0.0, x[1]]),
-                           jump_guard=lambda x, t, j, p: x[0] - x[1], state_dim=2)
-    period = np.full(70, 1.0)
-    period[[40, 50, 60]] = 1e-3
-    x0s = np.column_stack([np.zeros(70), period])
-    simulate_many_compiled(timer, x0s[:2], t_max=2.5)
-    calls = []
-    real = hc._run._interruptible
-    monkeypatch.setattr(hc._run, "_interruptible", lambda *a, **k: calls.append(1) or real(*a, **k))
+    timer, x0s, calls = _timer_batch(monkeypatch)
     first = simulate_many_compiled(timer, x0s, t_max=2.5)
     assert len(calls) == 2
     (sizes,) = [timer.__dict__["_batch_lengths"]]
