@@ -26,13 +26,14 @@ import sys
 #: the run kernels (``_cache.compile_kernels`` arguments) of each warming
 #: process, split so they take about as long (``_cache.COMPILE_SECONDS``);
 #: ``"sde"``: the SDE flow's kernel, compiled by a run of one small SDE; RK4's
-#: run kernel (the compiled RK4 tests) with it; ``("tests", name)``: the tests
-#: of ``COMPILING[name]``, after the kernels they use
+#: run kernel (the compiled RK4 tests) with it; ``"stl"``: the compiled STL
+#: window (:mod:`hybridsim._stl_window_nb`, about 7 s); ``("tests", name)``:
+#: the tests of ``COMPILING[name]``, after the kernels they use
 PARTS = (({"batch": True}, {"batch": False, "watch": True}, ("tests", "events")),
          ({"batch": False, "delays": True}, {"batch": False, "method": "DOP853"},
           ("tests", "paths")),
          ("sde", {"batch": False, "method": "RK4"}, ("tests", "stochastic")),
-         ({"batch": False, "delays": True, "method": "RK4"}, ("tests", "004")))
+         ({"batch": False, "delays": True, "method": "RK4"}, "stl", ("tests", "004")))
 
 
 #: tests (node ids, or files, under this folder) whose models take the most to
@@ -127,6 +128,13 @@ def warm(part):
                                 diffusion=lambda x, t, j, p: np.full(1, 0.5), state_dim=1)
             hs.simulate(ou, [1.0], t_max=0.1, method="EM", max_step=0.05, seed=0,
                         backend="compiled")
+        elif kw == "stl":
+            import numpy as np
+
+            from hybridsim import _stl_window_nb
+            t = np.linspace(0.0, 1.0, _stl_window_nb.MIN_INSTANTS)
+            _stl_window_nb.window_core(t, np.zeros(len(t), np.int64), t, t, t, 0.0, 0.5,
+                                       0.0, 0.5, np.zeros(0))
         else:
             k.compile_kernels(**kw)
 
