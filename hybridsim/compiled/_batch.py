@@ -10,7 +10,7 @@ import numpy as np
 from numba import njit
 
 from ._steps import _put
-from ._types import _NJ, _NJL, CACHE, _claim, _claim_within, _one_at
+from ._types import _NJK, _NJL, CACHE, _claim, _claim_within, _one_at
 
 
 @njit(cache=CACHE, **_NJL)
@@ -74,7 +74,7 @@ def _reduce_row(i, T, J, X, XD, grid, by_j, XF, TF, JF, XG, OK):
                 XG[i, g, q] = u * x0 + s * x1
 
 
-@njit(cache=CACHE, nogil=True, **_NJ)
+@njit(cache=CACHE, nogil=True, **_NJK)
 def run_rows(one, maps, X0, p, fopt, iopt, atol, rngp, poll, stop, next_row, chunk,
              TT, JJ, XX, XXD, fill, AT, NS, CA, DE, INFO, ST, grid, by_j, XF, TF, JF, XG, OK):
     """Runs of a batch, taken ``chunk`` rows at a time from the shared counter

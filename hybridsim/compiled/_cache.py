@@ -128,19 +128,35 @@ def _rules_digest():
 
 
 def _key_with_rules():
-    """Add the rules' digest to the cache key of every cached dispatcher of the engine."""
+    """Add the rules' digest to the cache key of every cached dispatcher of the
+    engine, and LLVM's settings (:func:`_llvm_settings`) to the run kernels'."""
     digest = _rules_digest()
+    kernels = {id(d) for d in _KERNELS}
     for obj in _dispatchers():
         cache = getattr(obj, "_cache", None)
         if hasattr(cache, "_index_key") and not getattr(cache, "_hs_keyed", False):
             orig = cache._index_key
-            cache._index_key = _keyed(orig, digest)
+            cache._index_key = _keyed(orig, digest, id(obj) in kernels)
             cache._hs_keyed = True
 
 
-def _keyed(orig, digest):
-    """A cache index key with the rules' digest appended."""
+def _keyed(orig, digest, llvm=False):
+    """A cache index key with the rules' digest appended (``llvm``: and
+    :func:`_llvm_settings`, read when the key is made)."""
+    if llvm:
+        return lambda sig, codegen: orig(sig, codegen) + (digest, _llvm_settings())
     return lambda sig, codegen: orig(sig, codegen) + (digest,)
+
+
+def _llvm_settings():
+    """LLVM's settings a run kernel is compiled with (:func:`_compile_or_rebuild`):
+    its optimisation level (:data:`KERNEL_OPT`, or numba's where lower) and
+    numba's vectorisation switches. The same inside :func:`kernel_opt` and out,
+    so a kernel compiled under other settings (``NUMBA_OPT=0``) is never
+    loaded as this one."""
+    cfg = numba.core.config
+    return (min(int(cfg.OPT), KERNEL_OPT), bool(cfg.LOOP_VECTORIZE),
+            bool(cfg.SLP_VECTORIZE))
 
 
 def _unless_specialised(fn):
@@ -170,6 +186,10 @@ def _skip_specialised():
             cache.load_overload = _unless_specialised(load)
             cache._hs_skip = True
 
+
+#: the kernels compiled at the engine's LLVM settings (:func:`_compile_or_rebuild`)
+_KERNELS = (run_one, run_one_delays, run_one_dop853, run_one_rk4, run_one_rk4_delays,
+            run_one_watch, run_rows)
 
 try:                      # numba's private cache API: without it, the key is numba's own
     _key_with_rules()

@@ -321,7 +321,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
         info[0] = ev[1]
         info[2] = ev[0]
         info[3] = ev[2]
-        T, J, X, XD = _owned_buffers(T, J, X, XD, -1, H)
+        T, J, X, XD = _owned_buffers(T, J, X, XD, -ns, H)
         return T, J, X, XD, MAP_ERROR, MAP_GUARD, info, stats
     if (not has_C) or _inC(M, _bare(x), t, j, p):
         if _DELAYS:
@@ -332,7 +332,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             info[0] = t
             info[2] = v0.shape[0]
             info[3] = j
-            T, J, X, XD = _owned_buffers(T, J, X, XD, -1, H)
+            T, J, X, XD = _owned_buffers(T, J, X, XD, -ns, H)
             return T, J, X, XD, MAP_ERROR, MAP_FLOW_X0, info, stats
     if in_D0:
         v0 = g(x, t, j, p)
@@ -340,7 +340,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
             info[0] = t
             info[2] = v0.shape[0]
             info[3] = j
-            T, J, X, XD = _owned_buffers(T, J, X, XD, -1, H)
+            T, J, X, XD = _owned_buffers(T, J, X, XD, -ns, H)
             return T, J, X, XD, MAP_ERROR, MAP_JUMP_X0, info, stats
     forced = False
     flow_on = False

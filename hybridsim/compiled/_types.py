@@ -40,16 +40,19 @@ if os.environ.get("NUMBA_THREADING_LAYER") is None and numba.config.THREADING_LA
 
 # ------------------------------------------------------------------ the rules
 # Every function of hybridsim.rules becomes callable from compiled code as it is
-# (register_jitable compiles it where a kernel calls it; nothing is copied).
+# (register_jitable compiles it where a kernel calls it; nothing is copied),
+# without the C wrapper numba makes for each by default (only compiled code
+# calls them: 24 wrappers of the first compile; also the overloads below)
+_CALLEE = dict(no_cfunc_wrapper=True)
 for _name, _fn in vars(rules).items():
     if inspect.isfunction(_fn) and _fn.__module__ == rules.__name__:
-        register_jitable(_fn)
+        register_jitable(**_CALLEE)(_fn)
 # ... and so does each algorithm's step of hybridsim.events written for both paths
 for _fn in events.COMPILED:
-    register_jitable(_fn)
+    register_jitable(**_CALLEE)(_fn)
 # ... and the first-step rule of hybridsim._rk
 for _fn in _rk.COMPILED:
-    register_jitable(_fn)
+    register_jitable(**_CALLEE)(_fn)
 
 
 # ------------------------------------------------------------------ constants
@@ -165,7 +168,7 @@ def as_bool(v):
     raise NotImplementedError
 
 
-@overload(as_vec)
+@overload(as_vec, jit_options=_CALLEE)
 def _ov_as_vec(v):
     if isinstance(v, types.Array):
         if v.ndim != 1:
@@ -198,7 +201,7 @@ def _ov_as_vec(v):
                                 f"got {v}")
 
 
-@overload(as_scalar)
+@overload(as_scalar, jit_options=_CALLEE)
 def _ov_as_scalar(v):
     if isinstance(v, (types.Float, types.Integer, types.Boolean)):
         return lambda v: float(v)
@@ -226,7 +229,7 @@ def _ov_as_scalar(v):
                                 f"is where their minimum is >= 0), got {v}")
 
 
-@overload(as_bool)
+@overload(as_bool, jit_options=_CALLEE)
 def _ov_as_bool(v):
     if isinstance(v, types.Boolean):
         return lambda v: bool(v)
@@ -270,6 +273,10 @@ _random_function_ids()
 #: helper called first from one of the leaf helpers below would be compiled
 #: without it, or fail to compile where it makes arrays)
 _NJ = dict(error_model="numpy", _nrt=True)
+#: the run kernels (:mod:`._variants`, :func:`._batch.run_rows`): called from
+#: Python and by their code's address (``_cache.jit_address``), never through
+#: a C wrapper: none is made
+_NJK = dict(_NJ, no_cfunc_wrapper=True)
 #: the kernels' internal functions: no CPython or C wrappers (never called from
 #: Python, so none is compiled; no measurable change of the first compile)
 _NJI = dict(_NJ, no_cpython_wrapper=True, no_cfunc_wrapper=True)

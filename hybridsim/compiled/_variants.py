@@ -23,14 +23,14 @@ from __future__ import annotations
 from numba import njit
 
 from ._kernel import DOP853_GLOBALS, RK4_GLOBALS, _run_core
-from ._types import _NJ, _NJI, CACHE
+from ._types import _NJI, _NJK, CACHE
 
 #: one run of the maps at the addresses ``maps`` (f, g, hD, hC, D, C: their cfunc
 #: wrappers, :func:`map_addresses`): compiled once, cached on disk. The core
 #: itself, not a wrapper calling it: a wrapper's library is optimized and
 #: code-generated again with the whole core linked in (about 2.6 s of the
 #: first compile)
-run_one = njit(cache=CACHE, **_NJ)(_run_core)
+run_one = njit(cache=CACHE, **_NJK)(_run_core)
 
 #: one run specialised on a system's own map dispatchers (maps compiled in, passed
 #: as a tuple): the module :func:`spec_module` generates calls it under
@@ -57,14 +57,14 @@ def _variant(fn, suffix, **consts):
 #: :data:`run_one` for a flow map that reads the past (``CompiledSystem(delays=)``):
 #: the run core with the record of the steps and the delay breakpoints,
 #: compiled (and cached) only when a system with delays first runs
-run_one_delays = njit(cache=CACHE, **_NJ)(_variant(_run_core, "_delays", _DELAYS=True))
+run_one_delays = njit(cache=CACHE, **_NJK)(_variant(_run_core, "_delays", _DELAYS=True))
 
 #: :data:`run_one_spec` with delays
 run_one_spec_delays = njit(**_NJI)(_variant(_run_core, "_delays", _DELAYS=True))
 
 #: :data:`run_one` stepping with scipy's DOP853 (``method="DOP853"``): compiled
 #: (and cached) when a run first asks for it. Not with delays (refused by name)
-run_one_dop853 = njit(cache=CACHE, **_NJ)(_variant(_run_core, "_dop853", **DOP853_GLOBALS))
+run_one_dop853 = njit(cache=CACHE, **_NJK)(_variant(_run_core, "_dop853", **DOP853_GLOBALS))
 
 #: :data:`run_one_spec` stepping with DOP853
 run_one_spec_dop853 = njit(**_NJI)(_variant(_run_core, "_dop853", **DOP853_GLOBALS))
@@ -72,11 +72,11 @@ run_one_spec_dop853 = njit(**_NJI)(_variant(_run_core, "_dop853", **DOP853_GLOBA
 #: :data:`run_one` stepping with the classic RK4 at the fixed step ``max_step``
 #: (``method="RK4"``, :class:`hybridsim._rk.RK4`): compiled (and cached) when a run
 #: first asks for it
-run_one_rk4 = njit(cache=CACHE, **_NJ)(_variant(_run_core, "_rk4", **RK4_GLOBALS))
+run_one_rk4 = njit(cache=CACHE, **_NJK)(_variant(_run_core, "_rk4", **RK4_GLOBALS))
 
 #: :data:`run_one_rk4` for a flow map that reads the past (RK4's continuous
 #: extension has the record of the past's form, RK45's)
-run_one_rk4_delays = njit(cache=CACHE, **_NJ)(
+run_one_rk4_delays = njit(cache=CACHE, **_NJK)(
     _variant(_run_core, "_rk4_delays", _DELAYS=True, **RK4_GLOBALS))
 
 #: :data:`run_one_spec` stepping with RK4, without and with delays
@@ -86,4 +86,4 @@ run_one_spec_rk4_delays = njit(**_NJI)(
 
 #: :data:`run_one` recording the crossings of watched functions (:mod:`._watch`):
 #: compiled (and cached) when a watching system first runs
-run_one_watch = njit(cache=CACHE, **_NJ)(_variant(_run_core, "_watch", _WATCH=True))
+run_one_watch = njit(cache=CACHE, **_NJK)(_variant(_run_core, "_watch", _WATCH=True))

@@ -27,7 +27,7 @@ from numba.extending import overload, register_jitable
 
 from .. import events, rules
 from ._steps import _dense_to
-from ._types import _NJ, _NJL, CACHE, MAP_ERROR, VEC_SIG, as_vec
+from ._types import _NJ, _NJI, _NJL, CACHE, MAP_ERROR, VEC_SIG, as_vec
 
 for _fn in (events.crossing_sides, events.starts_on_zero):
     register_jitable(_fn)
@@ -65,7 +65,7 @@ def wrap_watch(fn):
 
 
 # inlined into the secant, as compiled._events._phi_at
-@njit(inline="always", **_NJ)
+@njit(inline="always", **_NJI)
 def _watched_at(E, s):
     """``sg * W(s, y(s))[k]`` at time s of a step's dense output, for
     :func:`_secant`: ``E = (W, k, sg, yold, hQ, told, h, j, p, wk)``, the state
@@ -76,10 +76,10 @@ def _watched_at(E, s):
 
 
 #: the guards' secant on the watched functions (compiled into :func:`watch_step`)
-_secant = njit(**_NJ)(events.secant_of(_watched_at))
+_secant = njit(**_NJI)(events.secant_of(_watched_at))
 
 
-@njit(cache=CACHE, **_NJ)
+@njit(cache=CACHE, **_NJI)
 def watch_values(W, x, t, j, p, m):
     """``(W(x, t, j, p), ok)``: ``ok`` false where its values are not ``m``
     finite floats."""
@@ -92,7 +92,7 @@ def watch_values(W, x, t, j, p, m):
     return v, True
 
 
-@njit(cache=CACHE, **_NJ)
+@njit(cache=CACHE, **_NJI)
 def watch_step(W, dirs, yold, hQ, told, h, a, ya, wa, b, yb, j, p, floor, CR, nc, P, Y, V):
     """The crossings of the watched functions on the flow from ``(a, ya)``
     (values ``wa``) to ``(b, yb)`` along one step's dense output (``yold``,
@@ -160,7 +160,7 @@ def watch_step(W, dirs, yold, hQ, told, h, a, ya, wa, b, yb, j, p, floor, CR, nc
     return CR, nc, wb, True
 
 
-@njit(cache=CACHE, **_NJ)
+@njit(cache=CACHE, **_NJI)
 def scratch(n, m):
     """``(P, Y, V)``: a run's scratch for :func:`watch_step` (n states, m functions;
     the samples' times, states and values, and a trial point's state in ``Y``'s last row)."""
@@ -176,7 +176,7 @@ def watch_fault(info, s, j):
     return MAP_ERROR, MAP_WATCH
 
 
-@njit(cache=CACHE, **_NJ)
+@njit(cache=CACHE, **_NJI)
 def with_crossings(info, CR, nc):
     """``info`` followed by the records ``CR[:nc]``, flattened."""
     w = CR.shape[1]

@@ -271,6 +271,42 @@ def test_every_run_kernel_is_keyed_on_the_engines_source():
     assert {_kernel, _variants} <= set(k._ENGINE)
 
 
+def test_a_run_kernel_compiled_at_other_llvm_settings_has_another_key():
+    """The run kernels' cache key names LLVM's settings they compile at: a
+    kernel compiled under ``NUMBA_OPT=0`` or other vectorisation switches is
+    never loaded as the engine's level-1 kernel; the key is the same inside
+    :func:`kernel_opt` and out (``_in_cache`` asks outside it)."""
+    cfg = numba.core.config
+    disp = k.run_kernel()
+    if disp._cache.__class__.__name__ == "NullCache":
+        pytest.skip("the kernels are not cached on disk here")
+    sig = k._signature_one()
+
+    def key():
+        return disp._cache._index_key(sig, disp.targetctx.codegen())
+    before, loop = cfg.OPT, cfg.LOOP_VECTORIZE
+    base = key()
+    with k.kernel_opt():
+        assert key() == base
+    try:
+        cfg.OPT = cfg._OptLevel(0)
+        assert key() != base
+        cfg.OPT = before
+        cfg.LOOP_VECTORIZE = not loop
+        assert key() != base
+    finally:
+        cfg.OPT, cfg.LOOP_VECTORIZE = before, loop
+    assert key() == base
+    # a helper's key does not change (a specialised kernel at numba's level links it)
+    hkey = k._steps._store._cache._index_key
+    h = hkey(sig, disp.targetctx.codegen())
+    cfg.OPT = cfg._OptLevel(0)
+    try:
+        assert hkey(sig, disp.targetctx.codegen()) == h
+    finally:
+        cfg.OPT = before
+
+
 @pytest.mark.slow
 def test_systems_with_and_without_delays_take_their_own_kernel():
     from hybridsim.compiled import CompiledSystem, simulate_compiled
