@@ -75,7 +75,8 @@ class _CompiledOnly:
 def _stamp(name, folder):
     """The file that says ``COMPILING[name]`` ran here on this source: named by
     the digest of the group's test files and of every module of hybridsim and
-    observers, in numba's cache folder ``folder``."""
+    observers (their source, not the modules generated into ``__pycache__``),
+    in numba's cache folder ``folder``."""
     import hashlib
     import pathlib
     here = pathlib.Path(__file__).resolve().parent
@@ -84,7 +85,9 @@ def _stamp(name, folder):
     h = hashlib.sha256(name.encode())
     files = [here / n.split("::")[0] for n in COMPILING[name]]
     for pkg in (hybridsim, observers):
-        files += sorted(pathlib.Path(pkg.__file__).parent.rglob("*.py"))
+        # (not the generated modules numba's cache keeps inside an installed copy)
+        files += sorted(f for f in pathlib.Path(pkg.__file__).parent.rglob("*.py")
+                        if "__pycache__" not in f.parts)
     for f in files:
         h.update(str(f.name).encode() + f.read_bytes())
     return pathlib.Path(folder) / f"warmed_{name}_{h.hexdigest()[:24]}"

@@ -602,3 +602,29 @@ def test_a_specialised_kernel_with_delays_equals_the_generic_one():
     for f in ("t", "j", "x", "xdot"):
         np.testing.assert_array_equal(getattr(a, f), getattr(b, f))
     assert a.termination is b.termination and a.stats == b.stats
+
+
+def test_the_warming_stamp_reads_the_source_not_the_generated_modules():
+    """A warming group's stamp (``tests/warm_kernels._stamp``) is named by the
+    source of hybridsim and observers: a module generated into a package's
+    ``__pycache__`` (where numba's cache of an installed copy keeps the
+    generated maps) leaves it as it is, so a second suite skips the groups."""
+    import pathlib
+    import uuid
+
+    import hybridsim
+    here = pathlib.Path(__file__).resolve().parents[1]
+    sys.path.insert(0, str(here))
+    try:
+        import warm_kernels
+    finally:
+        sys.path.remove(str(here))
+    before = warm_kernels._stamp("events", "/nowhere")
+    gen = pathlib.Path(hybridsim.__file__).parent / "compiled" / "__pycache__"
+    gen.mkdir(exist_ok=True)
+    planted = gen / f"hybridsim_wrap_test_{uuid.uuid4().hex}.py"
+    planted.write_text("x = 1\n")
+    try:
+        assert warm_kernels._stamp("events", "/nowhere") == before
+    finally:
+        planted.unlink()
