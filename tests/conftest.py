@@ -30,8 +30,9 @@ names the processes that imported cvxpy, and the first test outside the
 group that did (a file to add to the group).
 
 On several workers the engine's cached kernels are first compiled (or found)
-in throwaway processes, one per part of :data:`warm_kernels.PARTS` (this
-folder), the tests of :data:`warm_kernels.COMPILING` among them: a worker
+in throwaway processes, one per job of :data:`warm_kernels.JOBS` (this
+folder), as many at once as there are cores, the tests of
+:data:`warm_kernels.COMPILING` among them: a worker
 that loads a kernel from numba's disk cache keeps a few MB of it, one that
 compiles it keeps 70-175 MB.
 """
@@ -41,7 +42,6 @@ import json
 import os
 import pathlib
 import resource
-import subprocess
 import sys
 import time
 
@@ -143,15 +143,9 @@ def pytest_sessionstart(session):
         p for p in (where, os.environ.get("PYTHONPATH")) if p)}
     for name in ("HYBRIDSIM_TEST_CPU", "HYBRIDSIM_TEST_RSS"):    # the workers' figures only
         env.pop(name, None)
-    procs = [subprocess.Popen([sys.executable, warm_kernels.__file__, str(part)], env=env,
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-             for part in range(len(warm_kernels.PARTS))]
-    for proc in procs:       # a failure here is the first compiled test's to report
-        try:
-            proc.wait(timeout=900)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+    slots = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") \
+        else os.cpu_count() or 1
+    warm_kernels.run_jobs(env, slots)
 
 
 @pytest.fixture(scope="session")
