@@ -446,12 +446,44 @@ def _compiled_core():
     return _COMPILED[0]
 
 
+#: CPU seconds the compiled window takes to compile with an empty cache (the notice's)
+WINDOW_COMPILE_SECONDS = 7
+
+
+def _say_compiling(fast):
+    """Say, once per process, that the compiled window is about to be compiled
+    (:func:`hybridsim.compiled._system._notice`: one line on stderr, or the
+    ``hybridsim.compiled`` logger where logging is configured), where it is
+    neither compiled in this process nor in numba's disk cache; a first STL
+    robustness on a long signal is otherwise silent for seconds."""
+    if _COMPILED_SAID or fast.window_core.overloads:
+        return
+    _COMPILED_SAID.append(True)
+    from .compiled._system import _notice
+    try:        # numba's private cache API (any entry: the window has one signature)
+        cache = fast.window_core._cache
+        if cache._cache_file._load_index():
+            return
+        where = cache._cache_path
+    except Exception:  # noqa: BLE001 - another numba, or not cached: say it compiles
+        where = None
+    _notice(where, WINDOW_COMPILE_SECONDS,
+            what="the STL window (hybridsim._stl_window_nb, for signals of "
+                 f"{fast.MIN_INSTANTS} instants and more)")
+
+
+_COMPILED_SAID = []
+
+
 def _window_sup(ctx, s, a, b, lo, hi):
     """sup of ``s`` over [tau + a, tau + b] (cut at the end of s), for tau in [lo, hi]."""
     v = s.v
     fast = _compiled_core()
-    core = fast.window_core if fast is not None and len(s.t) >= fast.MIN_INSTANTS \
-        else _window_core
+    if fast is not None and len(s.t) >= fast.MIN_INSTANTS:
+        _say_compiling(fast)
+        core = fast.window_core
+    else:
+        core = _window_core
     arr = np.ascontiguousarray
     taus, val, vl, vr, rest, ea, ia, kink_t, kink_v, fi, la = core(
         arr(s.t, float), arr(s.j, np.int64), arr(v, float), arr(s.l, float), arr(s.r, float),

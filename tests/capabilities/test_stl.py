@@ -2,6 +2,7 @@
 robustness, RTAMT where both semantics apply, jumps at located event times,
 properties against a brute-force evaluation on a fine grid, and use as a claim."""
 import math
+import types
 
 import numpy as np
 import pytest
@@ -693,3 +694,43 @@ def test_the_compiled_window_on_infinite_and_flat_values():
             args = (t, j, v, v, v, a, b, lo, hi, np.array([1.0]))
             for x, y in zip(fast.window_core(*args), _stl_eval._window_core(*args)):
                 np.testing.assert_array_equal(x, y)
+
+
+class _FakeWindow:
+    """A stand-in for the compiled window: ``overloads`` compiled in this
+    process, ``index`` the disk cache's entries."""
+
+    MIN_INSTANTS = 256
+
+    def __init__(self, overloads, index):
+        cache_file = types.SimpleNamespace(_load_index=lambda: index)
+        self.window_core = types.SimpleNamespace(
+            overloads=overloads,
+            _cache=types.SimpleNamespace(_cache_file=cache_file, _cache_path="/cache/here"))
+
+
+@pytest.mark.parametrize("overloads, index, said", [
+    ({}, {}, True),                       # neither compiled here nor cached: say so
+    ({}, {"key": "entry"}, False),        # in the disk cache: loads in about a second
+    ({"sig": "code"}, {}, False),         # compiled in this process already
+])
+def test_the_compiled_windows_first_compile_is_announced_once(overloads, index, said,
+                                                              monkeypatch, capsys):
+    """A first STL robustness over a long signal compiles the window (about 7 s
+    of CPU): one line on stderr says so, once per process, naming numba's
+    cache folder; nothing where the window is compiled or cached already."""
+    import logging
+
+    from hybridsim import _stl_eval
+    monkeypatch.setattr(_stl_eval, "_COMPILED_SAID", [])
+    monkeypatch.setattr(logging.getLogger("hybridsim.compiled"), "hasHandlers", lambda: False)
+    fake = _FakeWindow(overloads, index)
+    _stl_eval._say_compiling(fake)
+    _stl_eval._say_compiling(fake)
+    err = capsys.readouterr().err
+    if said:
+        assert err.count("\n") == 1
+        assert "compiling the STL window" in err and "256 instants" in err
+        assert "/cache/here" in err and "about 7 s" in err
+    else:
+        assert err == ""
