@@ -481,10 +481,16 @@ def test_a_compile_interrupted_by_ctrl_c_leaves_no_broken_kernel(tmp_path):
     first.send_signal(signal.SIGINT)
     err = first.stderr.read()
     first.wait(timeout=600)
-    # the interrupt ends the process, or lands in a ctypes callback of llvmlite that
-    # discards it (then the compile finishes): either way no broken kernel is left
-    assert "KeyboardInterrupt" in err, err[-2000:]
-    assert (first.returncode != 0) == (not (tmp_path / "r0.npy").exists())
+    # the interrupt ends the process (KeyboardInterrupt, exit status -SIGINT; seen
+    # once under load with nothing on stderr), or lands in a ctypes callback of
+    # llvmlite that discards it (then the compile finishes and the run saves its
+    # result): either way no broken kernel is left
+    if first.returncode != 0:
+        assert first.returncode == -signal.SIGINT or "KeyboardInterrupt" in err, \
+            (first.returncode, err[-2000:])
+        assert not (tmp_path / "r0.npy").exists()
+    else:
+        assert (tmp_path / "r0.npy").exists(), err[-2000:]
     second = subprocess.run([sys.executable, "-W", "ignore", "-c", BALL_RUN,
                              str(tmp_path / "r1.npy")], capture_output=True, text=True,
                             timeout=900, env=env)
