@@ -44,8 +44,14 @@ function's own node in its file, so every message names the file and line):
   (``dx[..., :n] = x[..., :n] @ self.F.T + u @ self.L.T``) is loops in the
   map writing into it (the same sums, no array a term), one of
   ``np.concatenate((a, b))`` reads the pieces; ``np.where`` of numbers is
-  an if/else, ``v.swapaxes``, and ``v.reshape`` of any layout, numpy's. A
-  plan made once serves every instance of its class (:meth:`Layout.on`).
+  an if/else, ``v.swapaxes``, and ``v.reshape`` of any layout, numpy's.
+  numpy's constructors, as a map written along the last axis calls them,
+  follow their operands: ``np.stack([...], axis=-1)`` of numbers is a 1-D
+  array, ``np.full(e.shape, c)`` (``zeros``, ``ones``, ``empty``, the
+  ``np.shape(e)`` form) and ``np.full_like(e, c)`` (the ``_like`` forms)
+  of a number ``e`` are numbers, ``np.clip`` and ``.astype`` of numbers
+  ``min(max(a, lo), hi)`` and the converted number; of arrays, numpy's
+  calls. A plan made once serves every instance of its class (:meth:`Layout.on`).
   A flow, jump or output map whose arrays all have shapes known when it is
   rewritten is then written as straight-line code of numbers, the same
   operations in the same order (:mod:`hybridsim._source_unroll`).

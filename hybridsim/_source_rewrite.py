@@ -763,6 +763,10 @@ class _Rewrite(ast.NodeTransformer):
         if isinstance(f, ast.Attribute) and f.attr == "where" and len(args) == 3 \
                 and not kws and getattr(self._module_of(f.value), "__name__", "") == "numpy":
             return _call("_hs_where", args, node)      # of numbers: a if c else b
+        if isinstance(f, ast.Attribute):
+            hit = self._of_numbers(f, node, args, kws)
+            if hit is not None:
+                return hit
         target = self._super_method(f)
         hit = None if target is not None else self._owner(f)
         if hit is not None:
@@ -777,6 +781,74 @@ class _Rewrite(ast.NodeTransformer):
         return ast.copy_location(ast.Call(func=ast.Name(id=target, ctx=ast.Load()),
                                           args=[ast.Name(id=P, ctx=ast.Load()), *args],
                                           keywords=kws), node)
+
+    def _of_numbers(self, f, node, args, kws):
+        """On one state, the numpy calls of a map written along the last axis
+        whose operands become numbers (``x[..., 0]`` is ``x[0]``), as helpers
+        typed by their operands (numpy's call where they are arrays):
+        ``np.stack(seq, axis=-1)`` (or ``axis=0``) of numbers a 1-D array
+        (``_hs_stack``); ``np.zeros(e.shape)``, ``ones``, ``empty``,
+        ``np.full(e.shape, c)`` and ``np.shape(e)`` forms, of a number ``e``,
+        the number (``_hs_full``); ``np.zeros_like(e)``, ``ones_like``,
+        ``empty_like``, ``full_like(e, c)`` the number as ``e``'s type
+        (``_hs_full_like``); ``np.clip(a, lo, hi)`` of numbers ``min(max(a,
+        lo), hi)`` (``_hs_clip``); ``e.astype(dtype)`` of a number the
+        number converted (``_hs_astype``). A one-state vector ``e`` (the
+        map's x, u, and arrays made from them) keeps numpy's call. None
+        where ``node`` is none of these."""
+        kw = {k.arg: k.value for k in kws}
+        if f.attr == "astype" and self._module_of(f.value) is None:
+            if len(args) != 1 or kws or self._one_state(f.value):
+                return None
+            return _call("_hs_astype", [self.visit(f.value), args[0]], node)
+        if getattr(self._module_of(f.value), "__name__", "") != "numpy":
+            return None
+        name = f.attr
+        if name == "stack" and len(args) == 1 and isinstance(args[0], (ast.List, ast.Tuple)) \
+                and set(kw) <= {"axis"} and not any(isinstance(v, ast.Starred)
+                                                    for v in args[0].elts):
+            axis = kw.get("axis", ast.Constant(value=0))
+            a = axis.value if isinstance(axis, ast.Constant) else (
+                -axis.operand.value if isinstance(axis, ast.UnaryOp)
+                and isinstance(axis.op, ast.USub) and isinstance(axis.operand, ast.Constant)
+                else None)
+            if not isinstance(a, int) or isinstance(a, bool) or a not in (0, -1):
+                return None
+            items = ast.Tuple(elts=list(args[0].elts), ctx=ast.Load())
+            return _call("_hs_stack", [items, ast.Constant(value=a)], node)
+        fills = {"zeros": 0.0, "ones": 1.0, "empty": 0.0}
+        if ((name in fills and len(args) == 1) or (name == "full" and len(args) == 2)) \
+                and not kws:
+            e = self._shape_source(node.args[0], args[0])
+            if e is None:
+                return None
+            v = args[1] if name == "full" else ast.Constant(value=fills[name])
+            return _call("_hs_full", [e, v], node)
+        likes = {"zeros_like": 0.0, "ones_like": 1.0, "empty_like": 0.0}
+        if ((name in likes and len(args) == 1) or (name == "full_like" and len(args) == 2)) \
+                and not kws and not self._one_state(node.args[0]):
+            v = args[1] if name == "full_like" else ast.Constant(value=likes[name])
+            return _call("_hs_full_like", [args[0], v], node)
+        if name == "clip" and len(args) == 3 and not kws:
+            return _call("_hs_clip", args, node)
+        return None
+
+    def _shape_source(self, orig, new):
+        """``e`` (rewritten) of a shape argument ``e.shape`` or ``np.shape(e)``
+        (``orig`` as read, ``new`` rewritten: numpy's name is ``_hs_m_numpy``
+        there), where ``e`` is not a one-state vector; else None."""
+        if isinstance(orig, ast.Attribute) and orig.attr == "shape":
+            e, got = orig.value, (new.value if isinstance(new, ast.Attribute)
+                                  and new.attr == "shape" else None)
+        elif isinstance(orig, ast.Call) and isinstance(new, ast.Call) \
+                and isinstance(new.func, ast.Attribute) and new.func.attr == "shape" \
+                and isinstance(new.func.value, ast.Name) \
+                and new.func.value.id == "_hs_m_numpy" and len(new.args) == 1 \
+                and not new.keywords:        # np.shape(e) (numpy's name, rewritten)
+            e, got = orig.args[0], new.args[0]
+        else:
+            return None
+        return None if got is None or self._one_state(e) else got
 
     def _dtype(self, v):
         """``dtype=float`` (a builtin type numba does not take as a dtype) as numpy's."""

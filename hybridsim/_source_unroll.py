@@ -180,6 +180,11 @@ def _num(v):
         v, np.ndarray)
 
 
+#: the helpers of :meth:`_Unroll.of_numbers`, and their argument counts
+_OF_NUMBERS = {"_hs_stack": 2, "_hs_full": 2, "_hs_full_like": 2, "_hs_clip": 3,
+               "_hs_astype": 2}
+
+
 class _Unroll:
     def __init__(self, functions):
         self.functions = functions          # generated name -> FunctionDef
@@ -509,7 +514,43 @@ class _Unroll:
             return self.method(args[0], "reshape", [args[1]], {})
         if name.startswith(("_hs_pmv", "_hs_mpv")):
             return self.product(name, args)
+        if name in _OF_NUMBERS:
+            return self.of_numbers(name, args)
         raise _Bail(f"a call of {name}")
+
+    def of_numbers(self, name, args):
+        """The helpers of a map written along the last axis
+        (``_Rewrite._of_numbers``): of numbers (and of arrays of known shape
+        for ``_hs_stack``, ``_hs_full``, ``_hs_full_like``), as the compiled
+        helper computes them."""
+        def number(v):
+            return _num(v) or isinstance(v, Dyn)
+        if len(args) != _OF_NUMBERS[name]:
+            raise _Bail(f"a call of {name}")
+        if name == "_hs_stack":
+            items = args[0]          # of numbers, whatever the axis
+            if not (isinstance(items, tuple) and all(number(v) for v in items)):
+                raise _Bail("a stack of arrays")
+            res = _Fresh((len(items),), lambda i: 0.0)
+            for k, v in enumerate(items):
+                res.data[(k,)] = float(v) if _num(v) else v
+            return res
+        e, v = args[0], args[-1]
+        if name in ("_hs_full", "_hs_full_like") and isinstance(e, Arr) and number(v):
+            return _Fresh(e.shape, lambda i: float(v) if _num(v) else v)
+        if name == "_hs_full" and number(e) and number(v):
+            return v
+        if name == "_hs_clip" and all(_num(a) for a in args):
+            return min(max(args[0], args[1]), args[2])
+        if name == "_hs_astype" and number(e) and isinstance(v, _Fn) and v.bound is None:
+            # the helper's call, typed by its operand when the map compiles
+            return self.emit(ast.Call(func=ast.Name(id=name, ctx=ast.Load()),
+                                      args=[self.atom(e), ast.parse(v.name, mode="eval").body],
+                                      keywords=[]))
+        if name in ("_hs_clip", "_hs_full_like") and all(number(a) for a in args):
+            return self.emit(ast.Call(func=ast.Name(id=name, ctx=ast.Load()),
+                                      args=[self.atom(a) for a in args], keywords=[]))
+        raise _Bail(f"{name} of these operands")
 
     def product(self, name, args):
         side, mode = name[:7], name[7:]

@@ -479,6 +479,72 @@ def _scalar_fn():
             if not any(isinstance(v, nt.Array) for v in (c, a, b)):
                 return lambda c, a, b: a if c else b
             return lambda c, a, b: np.where(c, a, b)
+        # a map written along the last axis, on one state (``_Rewrite._of_numbers``):
+        # of numbers, numbers (a 1-D array of a stack); of arrays, numpy's call
+        from numba import literal_unroll
+
+        def _numbers(*vs):
+            return not any(isinstance(v, nt.Array) for v in vs)
+
+        def _hs_stack(items, axis):
+            return np.stack(items, axis)
+
+        @overload(_hs_stack)
+        def _typed_stack(items, axis):
+            if isinstance(items, nt.BaseTuple) and _numbers(*items):
+                n = len(items)
+
+                def stack(items, axis):
+                    out = np.empty(n)
+                    i = 0
+                    for v in literal_unroll(items):
+                        out[i] = v
+                        i += 1
+                    return out
+                return stack
+            return lambda items, axis: np.stack(items, axis)
+
+        def _hs_full(e, v):
+            return np.full(np.shape(e), v)
+
+        @overload(_hs_full)
+        def _typed_full(e, v):
+            if _numbers(e):
+                return lambda e, v: v
+            return lambda e, v: np.full(e.shape, v)
+
+        def _hs_full_like(e, v):
+            return np.full_like(e, v)
+
+        @overload(_hs_full_like)
+        def _typed_full_like(e, v):
+            if isinstance(e, nt.Boolean):
+                return lambda e, v: bool(v)
+            if isinstance(e, nt.Integer):
+                return lambda e, v: int(v)
+            if _numbers(e):
+                return lambda e, v: float(v)
+            return lambda e, v: np.full_like(e, v)
+
+        def _hs_clip(a, lo, hi):
+            return np.clip(a, lo, hi)
+
+        @overload(_hs_clip)
+        def _typed_clip(a, lo, hi):
+            if _numbers(a, lo, hi):
+                return lambda a, lo, hi: min(max(a, lo), hi)
+            return lambda a, lo, hi: np.clip(a, lo, hi)
+
+        def _hs_astype(v, dtype):
+            return v.astype(dtype)
+
+        @overload(_hs_astype)
+        def _typed_astype(v, dtype):
+            if _numbers(v):
+                return lambda v, dtype: dtype(v)
+            return lambda v, dtype: v.astype(dtype)
+        fns.update(_hs_stack=_hs_stack, _hs_full=_hs_full, _hs_full_like=_hs_full_like,
+                   _hs_clip=_hs_clip, _hs_astype=_hs_astype)
         _SCALAR.append({"_hs_scalar": _hs_scalar, "_hs_matmul": _hs_matmul,
                         "_hs_pmv": _hs_pmv, "_hs_pmv_add": _hs_pmv_add,
                         "_hs_mpv": _hs_mpv, "_hs_mpv_add": _hs_mpv_add,

@@ -1,0 +1,130 @@
+"""A model written along the last axis (one ``x[..., k]`` per component, numpy's
+array constructors) is one definition for every path.
+
+The vectorized path calls its maps on (N, n) batches; the Python path on one
+state, where ``x[..., 0]`` is a 0-d array; the compiled path on the maps
+rewritten from source, where ``x[..., 0]`` is ``x[0]``, a number. There
+``np.stack(..., axis=-1)``, ``np.full(e.shape, c)``, ``np.zeros(np.shape(e))``,
+``np.ones_like(e)``, ``np.full_like(e, c)``, ``np.clip`` and ``.astype`` of
+numbers are numbers (a 1-D array for the stack), and numpy's calls where the
+operands are arrays (``hybridsim._source_rewrite._Rewrite._of_numbers``).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from paths import _on, run
+
+import hybridsim as hs
+
+G = 9.81
+FLOORS = (0.0, -0.3, -0.5, -0.6)
+E_MAX = 0.9
+
+
+class Stairs(hs.HybridSystem):
+    """A ball bouncing down a staircase: after its k-th bounce it falls to floor
+    ``floors[min(k, 3)]``; its restitution, the third state, is clipped to
+    [0, 0.9] at each bounce. Written along the last axis as a vectorized model
+    is, with numpy's constructors of arrays."""
+
+    state_dim = 3               # height, velocity, restitution
+    vectorized = True
+    g = G
+    floors = np.array(FLOORS)
+
+    def flow_map(self, x):
+        h = x[..., 0]
+        return np.stack([x[..., 1], np.full(h.shape, -self.g), np.zeros(np.shape(h))],
+                        axis=-1)
+
+    def _floor(self, j):
+        k = np.clip(j, 0, self.floors.shape[0] - 1).astype(np.int64)
+        return self.floors[k]
+
+    def jump_map(self, x, t, j):
+        e = np.clip(x[..., 2], 0.0, E_MAX)
+        keep = np.full_like(e, 1.0)
+        return np.stack([keep * x[..., 0], -e * x[..., 1], np.ones_like(e) * x[..., 2]],
+                        axis=-1)
+
+    def flow_set(self, x, t, j):
+        return x[..., 0] >= self._floor(j)
+
+    def jump_set(self, x, t, j):
+        return (x[..., 0] <= self._floor(j)) & (x[..., 1] <= 0.0)
+
+
+class _Case:
+    """A model as a case of :func:`paths.run` (its form on each path)."""
+
+    def __init__(self, model):
+        self.model = model
+
+    def build(self, path):
+        return _on(path, self.model)
+
+
+def stairs_jump_times(h0, e, n):
+    """The bounces' times in closed form: from height h and velocity v the ball
+    falls to floor f in (v + sqrt(v^2 + 2 g (h - f))) / g, and leaves it at
+    -min(e, 0.9) times its impact velocity."""
+    t, h, v, out = 0.0, h0, 0.0, []
+    for k in range(n):
+        f = FLOORS[min(k, len(FLOORS) - 1)]
+        s = (v + math.sqrt(v * v + 2.0 * G * (h - f))) / G
+        t += s
+        h, v = f, -min(max(e, 0.0), E_MAX) * (v - G * s)
+        out.append(t)
+    return np.array(out)
+
+
+@pytest.mark.parametrize("e", [0.6, 0.95])
+def test_a_model_on_the_last_axis_is_one_definition_for_every_path(path, e):
+    """The staircase ball's bounce times equal the closed form on every path, to
+    1e-10 s: each flow is a parabola, which RK45 integrates exactly, and the
+    events are located to 4 ulp (the tolerance leaves room for the round-off
+    that 8 bounces accumulate). The restitution above 0.9 is clipped."""
+    arc = run(path, _Case(Stairs()), [1.0, 0.0, e], t_max=10.0, j_max=8, rtol=1e-10,
+              atol=1e-12)
+    assert arc.jump_count == 8
+    np.testing.assert_allclose(arc.jump_times, stairs_jump_times(1.0, e, 8), rtol=0,
+                               atol=1e-10)
+    np.testing.assert_allclose(arc.x[arc.j == 8][0, 0], FLOORS[-1], atol=1e-12)
+
+
+def test_the_rewritten_maps_are_straight_line_where_their_shapes_are_known():
+    """On the compiled path the flow and jump maps' stacks of numbers are
+    straight-line code writing into the kernel's row (no array made, no
+    helper call left but the typed ones of numbers)."""
+    from hybridsim import _source
+    fns = {part.split("(")[0]: part for part in _source.plan(Stairs()).source.split("\ndef ")}
+    flow, jump = fns["_hs_flow"], fns["_hs_jump"]
+    assert "_hs_stack" not in flow and "_hs_full" not in flow and "_hs_r[1] = " in flow
+    assert "_hs_stack" not in jump and "_hs_r[2] = " in jump
+    assert "_hs_clip(x[2], 0.0, _hs_p[" in jump          # E_MAX, a global read per run
+
+
+def _on_numbers_and_arrays(x, v):
+    """numpy's constructors on a number ``x[0]`` and on an array ``v``."""
+    a = np.stack([x[..., 0], np.full(x[..., 0].shape, 2.0)], axis=-1)
+    b = np.stack([v, 2.0 * v], axis=-1)                    # of arrays: (len(v), 2)
+    c = np.clip(v, -0.5, 0.5) + np.zeros(v.shape) + np.zeros_like(v[1:] * 0.0).sum()
+    d = np.clip(x[..., 0] * 10.0, -1.0, 1.0) + np.ones_like(x[..., 1])
+    k = np.clip(x[..., 0] * 10.0, 0.0, 3.0).astype(np.int64)
+    return a.sum() + b[:, 1].sum() + c.sum() + d + float(k) + np.full_like(v, 3.0).sum()
+
+
+def test_the_helpers_give_numpys_values_on_numbers_and_on_arrays():
+    """The typed helpers of the rewrite: of numbers the numbers numpy's 0-d
+    results hold, of arrays numpy's own calls; the compiled function's value
+    equals numpy's to the bit on random operands."""
+    pytest.importorskip("numba")
+    from hybridsim.compiled._from_source import compiled_function
+    f, p = compiled_function(_on_numbers_and_arrays)
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        x, v = rng.normal(size=3), rng.normal(size=4)
+        assert f(p, x, v) == _on_numbers_and_arrays(x, v)
