@@ -362,7 +362,10 @@ class _Rewrite(ast.NodeTransformer):
     def visit_Subscript(self, node):
         """``self.slices["xh1"]`` (a dict of the system read by a constant key):
         its value, a slice of ints written as a constant slice, a number or
-        array read as a slot of ``p``."""
+        array read as a slot of ``p``; a row's gather (:meth:`_gather`)."""
+        hit = self._gather(node)
+        if hit is not None:
+            return hit
         v = node.value
         hit = self._owner(v) if isinstance(node.ctx, ast.Load) else None
         key = node.slice
@@ -791,9 +794,11 @@ class _Rewrite(ast.NodeTransformer):
         ``np.full(e.shape, c)`` and ``np.shape(e)`` forms, of a number ``e``,
         the number (``_hs_full``); ``np.zeros_like(e)``, ``ones_like``,
         ``empty_like``, ``full_like(e, c)`` the number as ``e``'s type
-        (``_hs_full_like``); ``np.clip(a, lo, hi)`` of numbers ``min(max(a,
-        lo), hi)`` (``_hs_clip``); ``e.astype(dtype)`` of a number the
-        number converted (``_hs_astype``). A one-state vector ``e`` (the
+        (``_hs_full_like``); ``np.zeros(x.shape[:-1], dtype)`` and its kin
+        (the batch's shape, of one state ``()``) the number converted;
+        ``np.clip(a, lo, hi)`` of numbers ``min(max(a, lo), hi)``
+        (``_hs_clip``); ``e.astype(dtype)`` of a number the number converted
+        (``_hs_astype``). A one-state vector ``e`` (the
         map's x, u, and arrays made from them) keeps numpy's call. None
         where ``node`` is none of these."""
         kw = {k.arg: k.value for k in kws}
@@ -817,6 +822,16 @@ class _Rewrite(ast.NodeTransformer):
             items = ast.Tuple(elts=list(args[0].elts), ctx=ast.Load())
             return _call("_hs_stack", [items, ast.Constant(value=a)], node)
         fills = {"zeros": 0.0, "ones": 1.0, "empty": 0.0}
+        if name in (*fills, "full") and args and self._batch_shape(node.args[0]):
+            # np.zeros(x.shape[:-1], bool): of one state, the batch's shape is ()
+            rest = list(args[1:])
+            if name == "full" and not rest:
+                return None
+            value = rest.pop(0) if name == "full" else ast.Constant(value=fills[name])
+            if len(rest) > 1 or set(kw) - {"dtype"} or (rest and kw):
+                return None
+            dtype = rest[0] if rest else kw.get("dtype")
+            return value if dtype is None else _call("_hs_astype", [value, dtype], node)
         if ((name in fills and len(args) == 1) or (name == "full" and len(args) == 2)) \
                 and not kws:
             e = self._shape_source(node.args[0], args[0])
@@ -832,6 +847,48 @@ class _Rewrite(ast.NodeTransformer):
         if name == "clip" and len(args) == 3 and not kws:
             return _call("_hs_clip", args, node)
         return None
+
+    def _gather(self, node):
+        """``np.take_along_axis(a, i[..., None], axis=-1)[..., 0]``, each row's
+        element at its own index as a map written along the last axis gathers
+        it: ``_hs_take(a, i)``, on one state (a 1-D ``a``, a number ``i``)
+        ``a[i]``. None where ``node`` is not of this form."""
+        def last(sl, value):            # (..., value)
+            return isinstance(sl, ast.Tuple) and len(sl.elts) == 2 \
+                and isinstance(sl.elts[0], ast.Constant) and sl.elts[0].value is Ellipsis \
+                and isinstance(sl.elts[1], ast.Constant) and sl.elts[1].value is value
+        c = node.value
+        if not (isinstance(node.ctx, ast.Load) and last(node.slice, 0)
+                and isinstance(c, ast.Call) and isinstance(c.func, ast.Attribute)
+                and c.func.attr == "take_along_axis"
+                and getattr(self._module_of(c.func.value), "__name__", "") == "numpy"):
+            return None
+        args, kw = list(c.args), {k.arg: k.value for k in c.keywords}
+        if len(args) == 3 and not kw:
+            axis = args.pop()
+        elif len(args) == 2 and set(kw) == {"axis"}:
+            axis = kw["axis"]
+        else:
+            return None
+        idx = args[1]
+        if not (isinstance(axis, ast.UnaryOp) and isinstance(axis.op, ast.USub)
+                and isinstance(axis.operand, ast.Constant) and axis.operand.value == 1
+                and isinstance(idx, ast.Subscript) and last(idx.slice, None)):
+            return None
+        return _call("_hs_take", [self.visit(args[0]), self.visit(idx.value)], node)
+
+    def _batch_shape(self, e):
+        """Whether ``e`` is ``v.shape[:-1]`` of a one-state vector ``v`` (a batch
+        map's shape of its rows: ``()`` on one state)."""
+        if not (isinstance(e, ast.Subscript) and isinstance(e.slice, ast.Slice)
+                and isinstance(e.value, ast.Attribute) and e.value.attr == "shape"
+                and self._one_state(e.value.value)):
+            return False
+        sl = e.slice
+        up = sl.upper
+        return sl.lower is None and sl.step is None and isinstance(up, ast.UnaryOp) \
+            and isinstance(up.op, ast.USub) and isinstance(up.operand, ast.Constant) \
+            and up.operand.value == 1
 
     def _shape_source(self, orig, new):
         """``e`` (rewritten) of a shape argument ``e.shape`` or ``np.shape(e)``

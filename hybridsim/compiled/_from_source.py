@@ -543,8 +543,16 @@ def _scalar_fn():
             if _numbers(v):
                 return lambda v, dtype: dtype(v)
             return lambda v, dtype: v.astype(dtype)
+        def _hs_take(a, i):
+            return np.take_along_axis(a, np.expand_dims(i, -1), -1)[..., 0]
+
+        @overload(_hs_take)
+        def _typed_take(a, i):
+            if isinstance(a, nt.Array) and a.ndim == 1 and isinstance(i, nt.Integer):
+                return lambda a, i: a[i]
+            return lambda a, i: np.take_along_axis(a, np.expand_dims(i, -1), -1)[..., 0]
         fns.update(_hs_stack=_hs_stack, _hs_full=_hs_full, _hs_full_like=_hs_full_like,
-                   _hs_clip=_hs_clip, _hs_astype=_hs_astype)
+                   _hs_clip=_hs_clip, _hs_astype=_hs_astype, _hs_take=_hs_take)
         _SCALAR.append({"_hs_scalar": _hs_scalar, "_hs_matmul": _hs_matmul,
                         "_hs_pmv": _hs_pmv, "_hs_pmv_add": _hs_pmv_add,
                         "_hs_mpv": _hs_mpv, "_hs_mpv_add": _hs_mpv_add,
