@@ -507,6 +507,12 @@ def _sampled_maps(m, q, n, psi, sampling, xi2):
                 E2[a, b] = acc.real
         return math.exp(-p[ok] * h), E2
 
+    def put(out, a, v):
+        """``out[a:a + len(v)] = v`` as a loop (numba's slice assignment adds a
+        shape check whose error path took about 2.5 s of the compile)."""
+        for i in range(v.shape[0]):
+            out[a + i] = v[i]
+
     def core(z, y, t, p):
         k = p[ok]
         w = z[e:e + q]
@@ -521,10 +527,10 @@ def _sampled_maps(m, q, n, psi, sampling, xi2):
             f1 = f1 + mv(p, oP, m, n, pv)
             f2 = f2 + mv(p, oN, q, n, pv)
         innov = mv(p, oH, m, q, w - xi2)                            # H (omega - xi2_hat)
-        out[0:m] = mv(p, oA1, m, m, xi1) + f1                       # (7) xi1_hat
-        out[m:m + q] = mv(p, oA2, q, m, xi1) - k * xi2 + f2         # (7) xi2_hat (decision 1)
-        out[m + q:2 * m + q] = -k * ps1 + innov                     # (7) psi1
-        out[2 * m + q:e] = mv(p, omA, m, m, ps2) + innov            # (7) psi2, literal
+        put(out, 0, mv(p, oA1, m, m, xi1) + f1)                     # (7) xi1_hat
+        put(out, m, mv(p, oA2, q, m, xi1) - k * xi2 + f2)           # (7) xi2_hat (decision 1)
+        put(out, m + q, -k * ps1 + innov)                           # (7) psi1
+        put(out, 2 * m + q, mv(p, omA, m, m, ps2) + innov)          # (7) psi2, literal
         # (13) with decision 3's window h = min(tau, t - t0); psi(t - tau) is the past
         # the engine hands over after the parameters (x0 before t0 = psi(t0))
         b = p.shape[0] - r
@@ -544,7 +550,7 @@ def _sampled_maps(m, q, n, psi, sampling, xi2):
             e2 = mv(p, oE2, m, m, pd2)
         v = E1 * pd1 - ps1 + ps2 - e2
         xe = xi1 + mv(p, oR, m, q, y - xi2) + mv(p, oSi, m, m, v)     # (13)
-        out[e:e + q] = mv(p, oA2, q, m, xe) - k * w + f2            # (39) omega
+        put(out, e, mv(p, oA2, q, m, xe) - k * w + f2)              # (39) omega
         out[e + q] = 1.0                                            # sigma
         out[e + q + 1] = 0.0                                        # kappa
         return out
