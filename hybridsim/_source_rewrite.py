@@ -366,6 +366,15 @@ class _Rewrite(ast.NodeTransformer):
         hit = self._gather(node)
         if hit is not None:
             return hit
+        sl = node.slice
+        if isinstance(node.ctx, ast.Load) and isinstance(sl, ast.Tuple) \
+                and len(sl.elts) in (2, 3) and isinstance(sl.elts[0], ast.Constant) \
+                and sl.elts[0].value is Ellipsis \
+                and all(isinstance(e, ast.Constant) and e.value is None for e in sl.elts[1:]) \
+                and not self._one_state(node.value):
+            # e[..., None] of a row's number (to broadcast against its vectors): on
+            # one state the number itself (an array's: numpy's new axes)
+            return _call(f"_hs_newaxis{len(sl.elts) - 1}", [self.visit(node.value)], node)
         v = node.value
         hit = self._owner(v) if isinstance(node.ctx, ast.Load) else None
         key = node.slice
@@ -852,15 +861,23 @@ class _Rewrite(ast.NodeTransformer):
         """``np.take_along_axis(a, i[..., None], axis=-1)[..., 0]``, each row's
         element at its own index as a map written along the last axis gathers
         it: ``_hs_take(a, i)``, on one state (a 1-D ``a``, a number ``i``)
-        ``a[i]``. None where ``node`` is not of this form."""
+        ``a[i]``; ``np.take_along_axis(S, i[..., None, None] + c,
+        axis=-2)[..., 0, :]``, each row's row ``i + c`` of its (G, m) block:
+        ``_hs_take_row(S, i + c)``, on one state ``S[i + c]``. None where
+        ``node`` is not of these forms."""
         def last(sl, value):            # (..., value)
             return isinstance(sl, ast.Tuple) and len(sl.elts) == 2 \
                 and isinstance(sl.elts[0], ast.Constant) and sl.elts[0].value is Ellipsis \
                 and isinstance(sl.elts[1], ast.Constant) and sl.elts[1].value is value
+        def tail(sl, *values):          # (..., *values), a value ``slice`` a ``:``
+            return isinstance(sl, ast.Tuple) and len(sl.elts) == 1 + len(values) \
+                and isinstance(sl.elts[0], ast.Constant) and sl.elts[0].value is Ellipsis \
+                and all((isinstance(e, ast.Slice) and e.lower is e.upper is e.step is None)
+                        if v is slice else (isinstance(e, ast.Constant) and e.value is v)
+                        for e, v in zip(sl.elts[1:], values))
         c = node.value
-        if not (isinstance(node.ctx, ast.Load) and last(node.slice, 0)
-                and isinstance(c, ast.Call) and isinstance(c.func, ast.Attribute)
-                and c.func.attr == "take_along_axis"
+        if not (isinstance(node.ctx, ast.Load) and isinstance(c, ast.Call)
+                and isinstance(c.func, ast.Attribute) and c.func.attr == "take_along_axis"
                 and getattr(self._module_of(c.func.value), "__name__", "") == "numpy"):
             return None
         args, kw = list(c.args), {k.arg: k.value for k in c.keywords}
@@ -870,12 +887,22 @@ class _Rewrite(ast.NodeTransformer):
             axis = kw["axis"]
         else:
             return None
-        idx = args[1]
         if not (isinstance(axis, ast.UnaryOp) and isinstance(axis.op, ast.USub)
-                and isinstance(axis.operand, ast.Constant) and axis.operand.value == 1
-                and isinstance(idx, ast.Subscript) and last(idx.slice, None)):
+                and isinstance(axis.operand, ast.Constant) and axis.operand.value in (1, 2)):
             return None
-        return _call("_hs_take", [self.visit(args[0]), self.visit(idx.value)], node)
+        rows = axis.operand.value == 2         # axis=-2: a row of each (..., G, m) block
+        want_idx, want_out = ((None, None), (0, slice)) if rows else ((None,), (0,))
+        idx, shift = args[1], None
+        if rows and isinstance(idx, ast.BinOp) and isinstance(idx.op, (ast.Add, ast.Sub)):
+            idx, shift = idx.left, idx          # i[..., None, None] + c: the row i + c
+        if not (isinstance(idx, ast.Subscript) and tail(idx.slice, *want_idx)
+                and tail(node.slice, *want_out)):
+            return None
+        i = self.visit(idx.value)
+        if shift is not None:
+            i = ast.copy_location(ast.BinOp(left=i, op=shift.op, right=self.visit(shift.right)),
+                                  shift)
+        return _call("_hs_take_row" if rows else "_hs_take", [self.visit(args[0]), i], node)
 
     def _batch_shape(self, e):
         """Whether ``e`` is ``v.shape[:-1]`` of a one-state vector ``v`` (a batch

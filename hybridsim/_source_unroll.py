@@ -182,7 +182,7 @@ def _num(v):
 
 #: the helpers of :meth:`_Unroll.of_numbers`, and their argument counts
 _OF_NUMBERS = {"_hs_stack": 2, "_hs_full": 2, "_hs_full_like": 2, "_hs_clip": 3,
-               "_hs_astype": 2}
+               "_hs_astype": 2, "_hs_newaxis1": 1, "_hs_newaxis2": 1}
 
 
 class _Unroll:
@@ -536,6 +536,11 @@ class _Unroll:
                 res.data[(k,)] = float(v) if _num(v) else v
             return res
         e, v = args[0], args[-1]
+        if name.startswith("_hs_newaxis"):     # e[..., None]: a number is itself
+            if isinstance(e, Arr):
+                return _index(e, (Ellipsis,) + (None,) * int(name[-1]))
+            if number(e):
+                return e
         if name in ("_hs_full", "_hs_full_like") and isinstance(e, Arr) and number(v):
             return _Fresh(e.shape, lambda i: float(v) if _num(v) else v)
         if name == "_hs_full" and number(e) and number(v):

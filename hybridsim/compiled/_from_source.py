@@ -551,8 +551,39 @@ def _scalar_fn():
             if isinstance(a, nt.Array) and a.ndim == 1 and isinstance(i, nt.Integer):
                 return lambda a, i: a[i]
             return lambda a, i: np.take_along_axis(a, np.expand_dims(i, -1), -1)[..., 0]
+        def _hs_take_row(a, i):
+            return np.take_along_axis(a, np.expand_dims(np.expand_dims(i, -1), -1),
+                                      -2)[..., 0, :]
+
+        @overload(_hs_take_row)
+        def _typed_take_row(a, i):
+            if isinstance(a, nt.Array) and a.ndim == 2 and isinstance(i, nt.Integer):
+                return lambda a, i: a[i]
+            return lambda a, i: np.take_along_axis(
+                a, np.expand_dims(np.expand_dims(i, -1), -1), -2)[..., 0, :]
+
+        def _hs_newaxis1(e):
+            return e[..., None]
+
+        def _hs_newaxis2(e):
+            return e[..., None, None]
+
+        def _typed_newaxis(axes):
+            def typed(e):
+                if _numbers(e):             # a number broadcasts as e[..., None] does
+                    return lambda e: e
+                if isinstance(e, nt.Array) and e.ndim == 0:
+                    return lambda e: e[()]
+                if axes == 1:
+                    return lambda e: np.expand_dims(e, -1)
+                return lambda e: np.expand_dims(np.expand_dims(e, -1), -1)
+            return typed
+        overload(_hs_newaxis1)(_typed_newaxis(1))
+        overload(_hs_newaxis2)(_typed_newaxis(2))
         fns.update(_hs_stack=_hs_stack, _hs_full=_hs_full, _hs_full_like=_hs_full_like,
-                   _hs_clip=_hs_clip, _hs_astype=_hs_astype, _hs_take=_hs_take)
+                   _hs_clip=_hs_clip, _hs_astype=_hs_astype, _hs_take=_hs_take,
+                   _hs_take_row=_hs_take_row, _hs_newaxis1=_hs_newaxis1,
+                   _hs_newaxis2=_hs_newaxis2)
         _SCALAR.append({"_hs_scalar": _hs_scalar, "_hs_matmul": _hs_matmul,
                         "_hs_pmv": _hs_pmv, "_hs_pmv_add": _hs_pmv_add,
                         "_hs_mpv": _hs_mpv, "_hs_mpv_add": _hs_mpv_add,

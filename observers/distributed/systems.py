@@ -36,7 +36,6 @@ True
 """
 from __future__ import annotations
 
-import functools
 import itertools
 
 import numpy as np
@@ -399,16 +398,6 @@ class BandLimitedNoise(hs.HybridSystem):
     def flow_map(self, x, t, j, u):
         return np.zeros(np.shape(x))
 
-    # Kept beside output(): output is written over batches (np.take_along_axis, np.clip
-    # of the index arrays), which numba cannot compile for one state (np.clip of an int).
-    def compiled_component(self):
-        """The generator's compiled form (``backend="compiled"``): the same
-        interpolation (numpy.interp's formula) over the grid in its parameters."""
-        from hybridsim.compiled import Component
-        return Component(state_dim=self.state_dim,
-                         output=_band_limited_maps(self.grid.size, self.dim),
-                         output_dim=self.dim, params=self.grid)
-
     def output(self, x, t, j):
         G, grid = self.grid.size, self.grid
         S = np.asarray(x, dtype=float)
@@ -423,31 +412,6 @@ class BandLimitedNoise(hs.HybridSystem):
         y = slope * (t - grid[k])[..., None] + lo
         y = np.where((t >= grid[-1])[..., None], S[..., -1, :], y)
         return np.where((t < grid[0])[..., None], S[..., 0, :], y)
-
-
-@functools.cache
-def _band_limited_maps(G, dim):
-    """Compiled output of :class:`BandLimitedNoise` (grid of G points in the parameters)."""
-    def output(x, t, j, grid):
-        y = np.empty(dim)
-        if t < grid[0]:
-            for c in range(dim):
-                y[c] = x[c]
-            return y
-        if t >= grid[G - 1]:
-            for c in range(dim):
-                y[c] = x[(G - 1) * dim + c]
-            return y
-        k = np.searchsorted(grid, t, side="right") - 1
-        k = min(max(k, 0), G - 2)
-        dt = t - grid[k]
-        h = grid[k + 1] - grid[k]
-        for c in range(dim):
-            lo = x[k * dim + c]
-            hi = x[(k + 1) * dim + c]
-            y[c] = (hi - lo) / h * dt + lo
-        return y
-    return output
 
 
 def initial_state(dsg: DistributedDesign, x0, xhat0=None):

@@ -164,3 +164,40 @@ def test_each_row_reads_its_own_piece_on_every_path(path):
     assert arc.jump_count == 0
     np.testing.assert_allclose(arc.x[-1, 0], 0.25 * m.sum(), rtol=0, atol=5e-8)
     np.testing.assert_array_equal(arc.x[-1, 1:], m)
+
+
+GRID = np.linspace(0.0, 1.0, 11)
+
+
+def _interpolated(x, t):
+    """A row's samples (G, 2) joined by straight lines at t, numpy.interp's
+    formula, as observers.distributed.BandLimitedNoise writes it along the last
+    axis: each row's own segment (``np.take_along_axis`` along axis -2), its
+    numbers broadcast against its vectors (``e[..., None]``)."""
+    grid, G = GRID, GRID.size
+    S = np.asarray(x, dtype=float)
+    S = S.reshape(S.shape[:-1] + (G, 2))
+    t = np.broadcast_to(np.asarray(t, dtype=float), S.shape[:-2])
+    k = np.clip(np.searchsorted(grid, t, side="right") - 1, 0, G - 2)
+    lo = np.take_along_axis(S, k[..., None, None], axis=-2)[..., 0, :]
+    hi = np.take_along_axis(S, k[..., None, None] + 1, axis=-2)[..., 0, :]
+    y = (hi - lo) / (grid[k + 1] - grid[k])[..., None] * (t - grid[k])[..., None] + lo
+    y = np.where((t >= grid[-1])[..., None], S[..., -1, :], y)
+    return np.where((t < grid[0])[..., None], S[..., 0, :], y)
+
+
+def test_each_rows_segment_and_its_numbers_broadcast_give_numpys_values():
+    """The rewrite of a row's gather along axis -2 (``S[k]`` on one state) and
+    of ``e[..., None]`` of a number (the number): the compiled function gives
+    numpy's values to the bit, inside the grid, on its points and outside it;
+    and numpy's own batch of rows agrees with it row by row."""
+    pytest.importorskip("numba")
+    from hybridsim.compiled._from_source import compiled_function
+    f, p = compiled_function(_interpolated)
+    rng = np.random.default_rng(8)
+    X = rng.normal(size=(40, 2 * GRID.size))
+    T = np.concatenate([rng.uniform(-0.2, 1.2, 34), [0.0, 0.3, 1.0, -0.1, 1.5, 0.5]])
+    batch = _interpolated(X, T)
+    for x, t, row in zip(X, T, batch):
+        np.testing.assert_array_equal(f(p, x, t), _interpolated(x, t))
+        np.testing.assert_array_equal(f(p, x, t), row)
