@@ -267,6 +267,26 @@ def _folded_compare(node):
     return ast.copy_location(ast.Constant(True), node)
 
 
+def _int_of(e):
+    """The int a node writes as ``k`` or ``-k`` (a constant), or None."""
+    if isinstance(e, ast.UnaryOp) and isinstance(e.op, ast.USub):
+        k = _int_of(e.operand)
+        return None if k is None else -k
+    if isinstance(e, ast.Constant) and type(e.value) is int:
+        return e.value
+    return None
+
+
+def _ellipsis_then(sl, *values):
+    """Whether the index ``sl`` is ``[..., *values]``: each value a constant
+    (None, an int) or ``slice`` for a bare ``:``."""
+    return isinstance(sl, ast.Tuple) and len(sl.elts) == 1 + len(values) \
+        and isinstance(sl.elts[0], ast.Constant) and sl.elts[0].value is Ellipsis \
+        and all((isinstance(e, ast.Slice) and e.lower is e.upper is e.step is None)
+                if v is slice else (isinstance(e, ast.Constant) and e.value is v)
+                for e, v in zip(sl.elts[1:], values))
+
+
 class _Rewrite(ast.NodeTransformer):
     """One function's body, rewritten for the plan (module notes)."""
 
@@ -366,15 +386,12 @@ class _Rewrite(ast.NodeTransformer):
         hit = self._gather(node)
         if hit is not None:
             return hit
-        sl = node.slice
-        if isinstance(node.ctx, ast.Load) and isinstance(sl, ast.Tuple) \
-                and len(sl.elts) in (2, 3) and isinstance(sl.elts[0], ast.Constant) \
-                and sl.elts[0].value is Ellipsis \
-                and all(isinstance(e, ast.Constant) and e.value is None for e in sl.elts[1:]) \
-                and not self._one_state(node.value):
-            # e[..., None] of a row's number (to broadcast against its vectors): on
-            # one state the number itself (an array's: numpy's new axes)
-            return _call(f"_hs_newaxis{len(sl.elts) - 1}", [self.visit(node.value)], node)
+        for axes in (1, 2):
+            if isinstance(node.ctx, ast.Load) and not self._one_state(node.value) \
+                    and _ellipsis_then(node.slice, *(None,) * axes):
+                # e[..., None] of a row's number (to broadcast against its vectors):
+                # on one state the number itself (an array's: numpy's new axes)
+                return _call(f"_hs_newaxis{axes}", [self.visit(node.value)], node)
         v = node.value
         hit = self._owner(v) if isinstance(node.ctx, ast.Load) else None
         key = node.slice
@@ -821,12 +838,8 @@ class _Rewrite(ast.NodeTransformer):
         if name == "stack" and len(args) == 1 and isinstance(args[0], (ast.List, ast.Tuple)) \
                 and set(kw) <= {"axis"} and not any(isinstance(v, ast.Starred)
                                                     for v in args[0].elts):
-            axis = kw.get("axis", ast.Constant(value=0))
-            a = axis.value if isinstance(axis, ast.Constant) else (
-                -axis.operand.value if isinstance(axis, ast.UnaryOp)
-                and isinstance(axis.op, ast.USub) and isinstance(axis.operand, ast.Constant)
-                else None)
-            if not isinstance(a, int) or isinstance(a, bool) or a not in (0, -1):
+            a = _int_of(kw.get("axis", ast.Constant(value=0)))
+            if a not in (0, -1):
                 return None
             items = ast.Tuple(elts=list(args[0].elts), ctx=ast.Load())
             return _call("_hs_stack", [items, ast.Constant(value=a)], node)
@@ -865,16 +878,6 @@ class _Rewrite(ast.NodeTransformer):
         axis=-2)[..., 0, :]``, each row's row ``i + c`` of its (G, m) block:
         ``_hs_take_row(S, i + c)``, on one state ``S[i + c]``. None where
         ``node`` is not of these forms."""
-        def last(sl, value):            # (..., value)
-            return isinstance(sl, ast.Tuple) and len(sl.elts) == 2 \
-                and isinstance(sl.elts[0], ast.Constant) and sl.elts[0].value is Ellipsis \
-                and isinstance(sl.elts[1], ast.Constant) and sl.elts[1].value is value
-        def tail(sl, *values):          # (..., *values), a value ``slice`` a ``:``
-            return isinstance(sl, ast.Tuple) and len(sl.elts) == 1 + len(values) \
-                and isinstance(sl.elts[0], ast.Constant) and sl.elts[0].value is Ellipsis \
-                and all((isinstance(e, ast.Slice) and e.lower is e.upper is e.step is None)
-                        if v is slice else (isinstance(e, ast.Constant) and e.value is v)
-                        for e, v in zip(sl.elts[1:], values))
         c = node.value
         if not (isinstance(node.ctx, ast.Load) and isinstance(c, ast.Call)
                 and isinstance(c.func, ast.Attribute) and c.func.attr == "take_along_axis"
@@ -887,16 +890,15 @@ class _Rewrite(ast.NodeTransformer):
             axis = kw["axis"]
         else:
             return None
-        if not (isinstance(axis, ast.UnaryOp) and isinstance(axis.op, ast.USub)
-                and isinstance(axis.operand, ast.Constant) and axis.operand.value in (1, 2)):
+        if _int_of(axis) not in (-1, -2):
             return None
-        rows = axis.operand.value == 2         # axis=-2: a row of each (..., G, m) block
+        rows = _int_of(axis) == -2             # a row of each (..., G, m) block
         want_idx, want_out = ((None, None), (0, slice)) if rows else ((None,), (0,))
         idx, shift = args[1], None
         if rows and isinstance(idx, ast.BinOp) and isinstance(idx.op, (ast.Add, ast.Sub)):
             idx, shift = idx.left, idx          # i[..., None, None] + c: the row i + c
-        if not (isinstance(idx, ast.Subscript) and tail(idx.slice, *want_idx)
-                and tail(node.slice, *want_out)):
+        if not (isinstance(idx, ast.Subscript) and _ellipsis_then(idx.slice, *want_idx)
+                and _ellipsis_then(node.slice, *want_out)):
             return None
         i = self.visit(idx.value)
         if shift is not None:
@@ -912,10 +914,7 @@ class _Rewrite(ast.NodeTransformer):
                 and self._one_state(e.value.value)):
             return False
         sl = e.slice
-        up = sl.upper
-        return sl.lower is None and sl.step is None and isinstance(up, ast.UnaryOp) \
-            and isinstance(up.op, ast.USub) and isinstance(up.operand, ast.Constant) \
-            and up.operand.value == 1
+        return sl.lower is None and sl.step is None and _int_of(sl.upper) == -1
 
     def _shape_source(self, orig, new):
         """``e`` (rewritten) of a shape argument ``e.shape`` or ``np.shape(e)``
