@@ -310,7 +310,11 @@ def _scalar_fn():
     index order (no BLAS call per product of a small matrix; the sums of
     :func:`hybridsim.compiled.matvec`), and the products with a matrix read
     in place from ``p``: ``_hs_pmv`` (``v @ M.T``), ``_hs_mpv`` (``M @ v``)
-    and their ``_add`` forms (``y += ...``)."""
+    and their ``_add`` forms (``y += ...``); and the calls of a map written
+    along the last axis (``_Rewrite._of_numbers``, ``_Rewrite._gather``),
+    typed by their operands: ``_hs_stack``, ``_hs_full``, ``_hs_full_like``,
+    ``_hs_clip``, ``_hs_astype``, ``_hs_take``, ``_hs_take_row``,
+    ``_hs_newaxis1``/``2`` (of numbers, numbers; of arrays, numpy's calls)."""
     if not _SCALAR:
         from numba.core import types as nt
         from numba.extending import overload
