@@ -831,7 +831,8 @@ class _Rewrite(ast.NodeTransformer):
         if f.attr == "astype" and self._module_of(f.value) is None:
             if len(args) != 1 or kws or self._one_state(f.value):
                 return None
-            return _call("_hs_astype", [self.visit(f.value), args[0]], node)
+            return _call("_hs_astype", [self.visit(f.value), self._builtin_dtype(args[0])],
+                         node)
         if getattr(self._module_of(f.value), "__name__", "") != "numpy":
             return None
         name = f.attr
@@ -852,7 +853,7 @@ class _Rewrite(ast.NodeTransformer):
             value = rest.pop(0) if name == "full" else ast.Constant(value=fills[name])
             if len(rest) > 1 or set(kw) - {"dtype"} or (rest and kw):
                 return None
-            dtype = rest[0] if rest else kw.get("dtype")
+            dtype = self._builtin_dtype(rest[0]) if rest else kw.get("dtype")
             return value if dtype is None else _call("_hs_astype", [value, dtype], node)
         if ((name in fills and len(args) == 1) or (name == "full" and len(args) == 2)) \
                 and not kws:
@@ -933,13 +934,19 @@ class _Rewrite(ast.NodeTransformer):
             return None
         return None if got is None or self._one_state(e) else got
 
-    def _dtype(self, v):
-        """``dtype=float`` (a builtin type numba does not take as a dtype) as numpy's."""
+    def _builtin_dtype(self, v):
+        """A rewritten dtype argument: ``float`` (``int``, ``bool``, ``complex``),
+        a builtin numba does not take as a dtype, as numpy's; else ``v``."""
         if isinstance(v, ast.Name) and v.id in _DTYPES and v.id not in self.locals \
                 and self._lookup(v.id)[1] == ("builtin", v.id):
             return ast.copy_location(ast.parse(f"_hs_m_numpy.{_DTYPES[v.id]}",
                                                mode="eval").body, v)
-        return self.visit(v)
+        return v
+
+    def _dtype(self, v):
+        """``dtype=float`` (a builtin type numba does not take as a dtype) as numpy's."""
+        hit = self._builtin_dtype(v)
+        return hit if hit is not v else self.visit(v)
 
     def _super_method(self, f):
         """``super().name`` in a method: the name of the method that follows the

@@ -114,7 +114,8 @@ def _on_numbers_and_arrays(x, v):
     c = np.clip(v, -0.5, 0.5) + np.zeros(v.shape) + np.zeros_like(v[1:] * 0.0).sum()
     d = np.clip(x[..., 0] * 10.0, -1.0, 1.0) + np.ones_like(x[..., 1])
     k = np.clip(x[..., 0] * 10.0, 0.0, 3.0).astype(np.int64)
-    return a.sum() + b[:, 1].sum() + c.sum() + d + float(k) + np.full_like(v, 3.0).sum()
+    m = (x[..., 1] * 10.0).astype(int) + v.astype(float).sum()     # builtin dtypes
+    return a.sum() + b[:, 1].sum() + c.sum() + d + float(k) + np.full_like(v, 3.0).sum() + m
 
 
 def test_the_helpers_give_numpys_values_on_numbers_and_on_arrays():
