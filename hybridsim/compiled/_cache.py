@@ -736,8 +736,12 @@ def _compile_or_rebuild(disp, sig):
     """``disp.compile(sig)`` at :data:`KERNEL_OPT`, then no other
     specialisation. A disk cache that cannot be read (written by another
     numba, or damaged) is bypassed: the kernels are compiled in memory for
-    this process."""
-    with kernel_opt():
+    this process. A Ctrl-C during the compile ends it with KeyboardInterrupt,
+    also where it lands in a callback of llvmlite that discards it
+    (:class:`hybridsim._interrupt.SigintLatch`: raised once the compile has
+    returned, its kernel whole)."""
+    from .._interrupt import SigintLatch
+    with SigintLatch() as latch, kernel_opt():
         try:
             disp.compile(sig)
         except Exception:  # noqa: BLE001 - an unreadable cache index
@@ -747,3 +751,4 @@ def _compile_or_rebuild(disp, sig):
                     obj._cache = NullCache()
             disp.compile(sig)
     disp.disable_compile()
+    latch.check()
