@@ -145,6 +145,18 @@ def _as_slice(e):
     return e
 
 
+def _slice_value(e):
+    """The index ``e`` as an expression of a slice (``a:b:c`` as ``slice(a, b,
+    c)``; a call of ``slice`` as it is), or None where it is not a slice."""
+    if isinstance(e, ast.Slice):
+        args = [ast.Constant(None) if v is None else v for v in (e.lower, e.upper, e.step)]
+        return ast.copy_location(ast.Call(func=ast.Name(id="slice", ctx=ast.Load()),
+                                          args=args, keywords=[]), e)
+    if isinstance(e, ast.Call) and isinstance(e.func, ast.Name) and e.func.id == "slice":
+        return e
+    return None
+
+
 def _dotted(node):
     return ast.unparse(node)
 
@@ -450,7 +462,33 @@ class _Rewrite(ast.NodeTransformer):
         into = self._products_into(node)
         if into is not None:
             return into
-        return self.generic_visit(node)
+        node = self.generic_visit(node)
+        return self._setitem(node, node.targets, node.value) or node
+
+    def _setitem(self, node, targets, value):
+        """``a[i:j] = v`` (a slice, or ``...`` and a slice; already visited) as
+        ``_hs_setitem(a, slice(i, j, None), v)``, which numba compiles as a loop
+        where ``a`` and ``v`` are vectors: numba's own slice assignment compiles
+        the formatting of its shape-mismatch message, about 1.7 s of CPU in
+        each process that compiles a first such map. None where the
+        statement is not of that form."""
+        if len(targets) != 1 or not isinstance(targets[0], ast.Subscript):
+            return None
+        t = targets[0]
+        key = t.slice
+        if isinstance(key, ast.Tuple) and len(key.elts) == 2 \
+                and isinstance(key.elts[0], ast.Constant) and key.elts[0].value is Ellipsis:
+            last = _slice_value(key.elts[1])
+            index = None if last is None else ast.Tuple(elts=[key.elts[0], last],
+                                                        ctx=ast.Load())
+        else:
+            index = _slice_value(key)
+        if index is None:
+            return None
+        base = copy.deepcopy(t.value)
+        base.ctx = ast.Load()
+        call = _call("_hs_setitem", [base, index, value], node)
+        return ast.fix_missing_locations(ast.copy_location(ast.Expr(value=call), node))
 
     def _products_into(self, node):
         """``out[a:b] = M @ v + N @ w - ...``, ``r = ...`` or ``out[a:b] += ...``, every
@@ -565,7 +603,14 @@ class _Rewrite(ast.NodeTransformer):
                 target = ast.Name(id=node.target.id, ctx=ast.Load())
                 call = self._pmv(*hit, v, target)
                 return ast.copy_location(ast.Expr(value=call), node)
-        return self.generic_visit(node)
+        node = self.generic_visit(node)
+        if isinstance(node.target, ast.Subscript):     # a[i:j] += v: a[i:j] = a[i:j] + v
+            read = copy.deepcopy(node.target)
+            read.ctx = ast.Load()
+            value = ast.copy_location(ast.BinOp(left=read, op=node.op, right=node.value),
+                                      node)
+            return self._setitem(node, [node.target], value) or node
+        return node
 
     def visit_AnnAssign(self, node):
         self._check_store(node.target)

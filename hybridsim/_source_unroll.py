@@ -516,6 +516,12 @@ class _Unroll:
             return self.product(name, args)
         if name in _OF_NUMBERS:
             return self.of_numbers(name, args)
+        if name == "_hs_setitem" and len(args) == 3:   # a[i:j] = v (the rewrite's)
+            base, key, value = args
+            if not isinstance(base, Arr) or base.write is None:
+                raise _Bail("a write into an array the map does not own")
+            self._put(base, key, value)
+            return None
         raise _Bail(f"a call of {name}")
 
     def of_numbers(self, name, args):

@@ -317,7 +317,7 @@ def _scalar_fn():
     ``_hs_newaxis1``/``2`` (of numbers, numbers; of arrays, numpy's calls)."""
     if not _SCALAR:
         from numba.core import types as nt
-        from numba.extending import overload
+        from numba.extending import overload, register_jitable
 
         def _hs_scalar(v):
             return v
@@ -584,10 +584,65 @@ def _scalar_fn():
             return typed
         overload(_hs_newaxis1)(_typed_newaxis(1))
         overload(_hs_newaxis2)(_typed_newaxis(2))
+
+        @register_jitable
+        def _extent(a):
+            """The first and one past the last byte a 1-D array's elements occupy."""
+            lo = a.ctypes.data
+            last = (a.shape[0] - 1) * a.strides[0] if a.shape[0] else 0
+            return lo + min(0, last), lo + max(0, last) + a.itemsize
+
+
+        @register_jitable
+        def _put_slice(a, start, step, n, v):
+            """``a[start::step][:n] = v`` of vectors as numpy assigns it: ``v`` of
+            length n or 1 (broadcast), read before the writes where it overlaps ``a``."""
+            m = v.shape[0]
+            if m != n and m != 1:
+                raise ValueError("cannot assign slice from input of different size")
+            alo, ahi = _extent(a)
+            vlo, vhi = _extent(v)
+            if n and m and vlo < ahi and alo < vhi:
+                _write(a, start, step, n, v.copy())
+            else:
+                _write(a, start, step, n, v)
+
+        @register_jitable
+        def _write(a, start, step, n, v):
+            if v.shape[0] == 1:
+                for i in range(n):
+                    a[start + i * step] = v[0]
+            else:
+                for i in range(n):
+                    a[start + i * step] = v[i]
+
+        def _hs_setitem(a, index, v):
+            a[index] = v
+
+        @overload(_hs_setitem)
+        def _typed_setitem(a, index, v):
+            if isinstance(a, nt.Array) and a.ndim == 1 and isinstance(v, nt.Array) \
+                    and v.ndim == 1:
+                if isinstance(index, nt.SliceType):
+                    def put(a, index, v):
+                        start, stop, step = index.indices(a.shape[0])
+                        _put_slice(a, start, step, len(range(start, stop, step)), v)
+                    return put
+                if isinstance(index, nt.BaseTuple) and len(index) == 2 \
+                        and isinstance(index[0], nt.EllipsisType) \
+                        and isinstance(index[1], nt.SliceType):
+                    def put_last(a, index, v):
+                        start, stop, step = index[1].indices(a.shape[0])
+                        _put_slice(a, start, step, len(range(start, stop, step)), v)
+                    return put_last
+
+            def setitem(a, index, v):
+                a[index] = v
+            return setitem
         fns.update(_hs_stack=_hs_stack, _hs_full=_hs_full, _hs_full_like=_hs_full_like,
                    _hs_clip=_hs_clip, _hs_astype=_hs_astype, _hs_take=_hs_take,
                    _hs_take_row=_hs_take_row, _hs_newaxis1=_hs_newaxis1,
-                   _hs_newaxis2=_hs_newaxis2)
+                   _hs_newaxis2=_hs_newaxis2, _hs_setitem=_hs_setitem)
         _SCALAR.append({"_hs_scalar": _hs_scalar, "_hs_matmul": _hs_matmul,
                         "_hs_pmv": _hs_pmv, "_hs_pmv_add": _hs_pmv_add,
                         "_hs_mpv": _hs_mpv, "_hs_mpv_add": _hs_mpv_add,

@@ -131,6 +131,44 @@ def test_the_helpers_give_numpys_values_on_numbers_and_on_arrays():
         assert f(p, x, v) == _on_numbers_and_arrays(x, v)
 
 
+def _slice_writes(x, v):
+    """Slice assignments as numpy does them: steps, a negative step, ``...``
+    then a slice, a vector of one broadcast, a number, overlapping source and
+    target, ``+=`` into a slice, and a number into a 2-D array (numba's own)."""
+    out = np.zeros(9)
+    out[0:3] = x
+    out[..., 3:5] = v[1:3] * 2.0
+    out[5::2] = v[:2]
+    out[8:5:-1] += x[::-1]
+    out[1:4] = out[0:3]                                     # overlaps: read first
+    out[6:8] = v[3:4]                                       # length 1: broadcast
+    out[..., :1] = 7.0
+    m = np.zeros((2, 3))
+    m[1, 0:2] = x[2]
+    return np.concatenate((out, m[1]))
+
+
+def test_slice_assignment_gives_numpys_values():
+    """A map's ``a[i:j] = v`` and ``a[..., i:j] = v`` compile as loops
+    (``_hs_setitem``: numba's slice assignment compiles the formatting of its
+    shape-mismatch message, about 1.7 s of a process's first such map): the
+    same values as numpy to the bit, and a ValueError where the lengths differ,
+    as numpy's."""
+    pytest.importorskip("numba")
+    from hybridsim import _source
+    from hybridsim.compiled._from_source import compiled_function
+    assert _source.plan_function(_slice_writes).source.count("_hs_setitem(") == 7
+    f, p = compiled_function(_slice_writes)
+    rng = np.random.default_rng(4)
+    for _ in range(10):
+        x, v = rng.normal(size=3), rng.normal(size=4)
+        np.testing.assert_array_equal(f(p, x, v), _slice_writes(x, v))
+    with pytest.raises(ValueError):
+        _slice_writes(np.ones(2), np.ones(4))
+    with pytest.raises(ValueError, match="different size"):
+        f(p, np.ones(2), np.ones(4))
+
+
 class Steps(hs.HybridSystem):
     """x' = m(t), the input piecewise constant on four pieces of [0, 1], its
     values in the state (x, m_0, ..., m_3): each row reads its own piece
