@@ -34,8 +34,8 @@ LEVELS = (
     ("shared and data", {"rules", "options", "events", "_rk", "_progress", "_version", "_interrupt",
                          "system", "compose", "history", "arc", "_arc_access", "_arc_checks",
                          "_arc_io", "_arc_records", "_compose_checks", "arc_batch", "library",
-                         "_source", "_source_read", "_source_guards", "_source_rewrite",
-                         "_source_shapes", "_source_unroll",
+                         "_source", "_source_read", "_source_guards", "_source_last_axis",
+                         "_source_rewrite", "_source_shapes", "_source_unroll",
                          "brownian"}),
 )
 
