@@ -210,7 +210,7 @@ _DIFFUSION_TEXT = {20: "diffusion depends on the state, but method='SRA1' takes 
 
 
 def _arc(system, k, out, ro, seed_key, method, step):
-    from ._run import _message
+    from ._arcs import _message
     T, J, X, code, detail, info, st = out
     stats = {"steps": int(st[0]), "nfev": 0, "njev": 0, "nlu": 0, "events": int(st[1]),
              "flows": int(st[2]), "rejected": None, "noise_seed": seed_key, "noise_run": 0,
