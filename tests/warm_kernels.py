@@ -69,8 +69,13 @@ COMPILING = {
         "test_sequence_run_rows_sample_at_their_own_instants",
         "integration/test_source_unroll.py::"
         "test_sums_binary_ufuncs_and_a_times_axes_are_straight_line"),
-    "events": ("integration/test_watch.py", "integration/test_compiled_smoke.py"),
-    "paths": ("integration/test_paths.py", "integration/test_one_definition.py"),
+    "events": ("integration/test_watch.py", "integration/test_compiled_smoke.py",
+               # the AT model's maps; the dynamic gain's falsified population (2-3 s each)
+               "capabilities/test_arch.py::test_compiled_populations_pipelined_judge_the_same_runs",
+               "papers/dynamic_gain/test_dynamic_gain_falsification.py::"
+               "test_printed_decay_is_falsified_at_the_predicted_rate"),
+    "paths": ("integration/test_paths.py", "integration/test_one_definition.py",
+              "integration/test_last_axis.py"),
     "stochastic": ("integration/test_sde_stepper.py", "integration/test_stochastic_paths.py",
                    "capabilities/test_explore.py", "integration/test_batch_reduce.py"),
 }
