@@ -145,7 +145,9 @@ def pytest_sessionstart(session):
         env.pop(name, None)
     slots = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") \
         else os.cpu_count() or 1
-    warm_kernels.run_jobs(env, slots)
+    start = time.monotonic()
+    _WARMED.update(warm_kernels.run_jobs(env, slots))
+    _WARMED["all"] = time.monotonic() - start
 
 
 @pytest.fixture(scope="session")
@@ -155,6 +157,7 @@ def repo() -> pathlib.Path:
 
 
 _CPU = {}
+_WARMED = {}           # the warming jobs' wall seconds, and all of them's ("all")
 _RSS = {}              # peak resident memory (MB) of each process that ran tests
 _RSS_LOG = []
 _CVXPY = {}            # worker -> (the first test after which cvxpy was loaded, grouped)
@@ -203,10 +206,14 @@ def pytest_runtest_logreport(report):
 
 
 def pytest_terminal_summary(terminalreporter, exitstatus, config):
+    tr = terminalreporter
+    if _WARMED:
+        jobs = ", ".join(f"{n} {s:.1f}" for n, s in _WARMED.items() if n != "all")
+        tr.write_line(f"warming processes (the engine's kernels compiled or found): "
+                      f"{_WARMED['all']:.1f} s of wall before the tests ({jobs} s each)")
     if not _CPU:
         return
     worst = sorted(_CPU.items(), key=lambda kv: -kv[1])[:15]
-    tr = terminalreporter
     tr.section(f"most CPU time per test (budget {CPU_BUDGET:g} s outside the slow suite)")
     for nodeid, cpu in worst:
         tr.write_line(f"{cpu:7.2f}s cpu  {nodeid}")
