@@ -314,7 +314,9 @@ def _scalar_fn():
     along the last axis (``_Rewrite._of_numbers``, ``_Rewrite._gather``),
     typed by their operands: ``_hs_stack``, ``_hs_full``, ``_hs_full_like``,
     ``_hs_clip``, ``_hs_astype``, ``_hs_take``, ``_hs_take_row``,
-    ``_hs_newaxis1``/``2`` (of numbers, numbers; of arrays, numpy's calls)."""
+    ``_hs_newaxis1``/``2`` (of numbers, numbers; of arrays, numpy's calls);
+    ``_hs_setitem``, a slice assignment (``_LastAxis._setitem``), of vectors
+    a loop."""
     if not _SCALAR:
         from numba.core import types as nt
         from numba.extending import overload, register_jitable
