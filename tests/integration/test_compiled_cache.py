@@ -456,6 +456,7 @@ BALL_RUN = textwrap.dedent("""
     import sys, numpy as np, hybridsim as hs
     from hybridsim.library import BouncingBall
     a = hs.simulate(BouncingBall(), x0=[1.0, 0.0], t_max=3.0, j_max=10, backend="compiled")
+    print("ended", a.termination.name, file=sys.stderr)
     np.save(sys.argv[1], a.jump_times)
 """)
 
@@ -496,7 +497,9 @@ def test_a_ctrl_c_a_callback_discards_during_a_kernel_compile_still_interrupts()
 @pytest.mark.slow
 def test_a_compile_interrupted_by_ctrl_c_leaves_no_broken_kernel(tmp_path):
     """One SIGINT while the engine's kernels compile from an empty cache ends
-    that process with KeyboardInterrupt; the next process on the same cache
+    that process with KeyboardInterrupt (or, where it reaches the process only
+    once the run has started, ends the run CANCELED with the arc so far, as
+    any Ctrl-C of a run: never lost); the next process on the same cache
     compiles (or loads what was written whole) and runs: the ball's jump
     times equal the Python path's to the event tolerance."""
     import signal
@@ -516,9 +519,13 @@ def test_a_compile_interrupted_by_ctrl_c_leaves_no_broken_kernel(tmp_path):
     first.wait(timeout=600)
     # the interrupt ends the process, also where it lands in a ctypes callback of
     # llvmlite that discards it (the engine's latch raises it once the compile has
-    # returned: once seen under load as a run that finished with nothing on stderr)
-    assert "KeyboardInterrupt" in err, (first.returncode, err[-2000:])
-    assert first.returncode != 0 and not (tmp_path / "r0.npy").exists()
+    # returned); a run that ended at t_max or j_max (seen once in CI, its cause
+    # then unrecorded) would be a lost Ctrl-C
+    if "ended CANCELED" in err:             # it reached the run, not the compile
+        assert first.returncode == 0, err[-2000:]
+    else:
+        assert "KeyboardInterrupt" in err, (first.returncode, err[-2000:])
+        assert first.returncode != 0 and not (tmp_path / "r0.npy").exists()
     second = subprocess.run([sys.executable, "-W", "ignore", "-c", BALL_RUN,
                              str(tmp_path / "r1.npy")], capture_output=True, text=True,
                             timeout=900, env=env)
