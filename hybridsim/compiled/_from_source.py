@@ -588,32 +588,34 @@ def _scalar_fn():
         overload(_hs_newaxis2)(_typed_newaxis(2))
 
         @register_jitable
-        def _extent(a):
-            """The first and one past the last byte a 1-D array's elements occupy."""
-            lo = a.ctypes.data
-            last = (a.shape[0] - 1) * a.strides[0] if a.shape[0] else 0
-            return lo + min(0, last), lo + max(0, last) + a.itemsize
-
-
-        @register_jitable
         def _put_slice(a, start, step, n, v):
             """``a[start::step][:n] = v`` of vectors as numpy assigns it: ``v`` of
-            length n or 1 (broadcast), read before the writes where it overlaps ``a``."""
+            length n or 1 (broadcast), as if read whole before the writes where
+            it overlaps ``a`` (contiguous: memmove's order; else a copy)."""
             m = v.shape[0]
             if m != n and m != 1:
                 raise ValueError("cannot assign slice from input of different size")
-            alo, ahi = _extent(a)
-            vlo, vhi = _extent(v)
-            if n and m and vlo < ahi and alo < vhi:
-                _write(a, start, step, n, v.copy())
-            else:
-                _write(a, start, step, n, v)
-
-        @register_jitable
-        def _write(a, start, step, n, v):
-            if v.shape[0] == 1:
+            if m == 1:
+                x = v[0]
                 for i in range(n):
-                    a[start + i * step] = v[0]
+                    a[start + i * step] = x
+                return
+            isz = a.itemsize
+            pa, pv, sa, sv = a.ctypes.data, v.ctypes.data, a.strides[0], v.strides[0]
+            if step == 1 and sa == isz and sv == v.itemsize:
+                if pa + start * isz <= pv:
+                    for i in range(n):
+                        a[start + i] = v[i]
+                else:
+                    for i in range(n - 1, -1, -1):
+                        a[start + i] = v[i]
+                return
+            la, lv = (a.shape[0] - 1) * sa, (m - 1) * sv
+            if (pv + min(0, lv) < pa + max(0, la) + isz
+                    and pa + min(0, la) < pv + max(0, lv) + v.itemsize):
+                w = v.copy()
+                for i in range(n):
+                    a[start + i * step] = w[i]
             else:
                 for i in range(n):
                     a[start + i * step] = v[i]

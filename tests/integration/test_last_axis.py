@@ -141,6 +141,8 @@ def _slice_writes(x, v):
     out[5::2] = v[:2]
     out[8:5:-1] += x[::-1]
     out[1:4] = out[0:3]                                     # overlaps: read first
+    out[0:3] = out[1:4]                                     # (the other way)
+    out[0:6:2] = out[1:4]                                   # (a step: a copy first)
     out[6:8] = v[3:4]                                       # length 1: broadcast
     out[..., :1] = 7.0
     m = np.zeros((2, 3))
@@ -157,7 +159,7 @@ def test_slice_assignment_gives_numpys_values():
     pytest.importorskip("numba")
     from hybridsim import _source
     from hybridsim.compiled._from_source import compiled_function
-    assert _source.plan_function(_slice_writes).source.count("_hs_setitem(") == 7
+    assert _source.plan_function(_slice_writes).source.count("_hs_setitem(") == 9
     f, p = compiled_function(_slice_writes)
     rng = np.random.default_rng(4)
     for _ in range(10):
