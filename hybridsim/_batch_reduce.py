@@ -51,10 +51,12 @@ def check_stats(stats, system, X):
 
 
 def reduce_into(system, X, t_max, j_max, stats, executor, chunks, throw, warn, options,
-                front):
+                front, attributes=None):
     """:func:`hybridsim.simulate_many` with ``stats``: returns ``stats``.
     ``front``: the front door's ``(simulate_many, _auto_backend, _run_row)``
-    (:mod:`hybridsim.run`, which calls this: passed, not imported back)."""
+    (:mod:`hybridsim.run`, which calls this: passed, not imported back);
+    ``attributes``: the rows' (checked), as ``simulate_many``'s."""
+    from ._batch_attributes import Attributes
     from .compiled._stochastic import row_keys
     simulate_many, _auto_backend, _run_row = front
     check_stats(stats, system, X)
@@ -73,22 +75,28 @@ def reduce_into(system, X, t_max, j_max, stats, executor, chunks, throw, warn, o
     options.pop("progress", None)
     grid, by_j = stats.grid.astype(np.float64), stats.kind == "j"
     failed = []                                 # (row, cause name)
-    if backend == "compiled" and executor is None and \
-            getattr(system, "diffusion", None) is None and \
-            getattr(system, "jump_law", None) is None:
+    rows = None
+    compiled = backend == "compiled" and executor is None and \
+        getattr(system, "diffusion", None) is None and getattr(system, "jump_law", None) is None
+    if compiled and attributes is not None:
+        from ._batch_attributes import row_params
+        rows = row_params(system, attributes)
+        compiled = rows is not None             # else: a row changes the compiled form
+    if compiled:
         from .compiled._lower import lower, rebind
         from .compiled._run import simulate_many_compiled
         from .compiled._stochastic import simulate_many_rate
-        cs = lower(system)
+        cs, P = (lower(system), None) if rows is None else rows
         step = max(1, _GRID_FLOATS // max(1, len(grid) * n))
         for a in range(0, N, step):
             b = min(N, a + step)
+            Pab = None if P is None else P[a:b]
             if keys is not None:
                 out = simulate_many_rate(system, cs, X[a:b], t_max, j_max, options,
-                                         keys=keys[a:b], reduce=(grid, by_j))
+                                         keys=keys[a:b], reduce=(grid, by_j), params=Pab)
             else:
                 out = simulate_many_compiled(cs, X[a:b], t_max, j_max, throw=False, warn=False,
-                                             reduce=(grid, by_j, n), **options)
+                                             reduce=(grid, by_j, n), params=Pab, **options)
             have = out.cause >= 0
             if not have.all():
                 have[list(out.arcs)] = False
@@ -111,12 +119,20 @@ def reduce_into(system, X, t_max, j_max, stats, executor, chunks, throw, warn, o
             b = min(N, a + _ARC_CHUNK)
             if keys is None:
                 arcs = simulate_many(system, X[a:b], t_max, j_max, executor=executor,
-                                     chunks=chunks, throw=False, warn=False, **options)
+                                     chunks=chunks, throw=False, warn=False,
+                                     attributes=None if attributes is None else
+                                     attributes[a:b], **options)
             else:
                 # each row alone, keyed, a failure at x0 its own arc (as simulate_many's)
                 kw = dict(options, t_max=t_max, j_max=j_max, throw=False, warn=False)
-                arcs = [_run_row(system, None, None, X[i], dict(kw, seed=int(keys[i])))[0]
-                        for i in range(a, b)]
+                setter = None if attributes is None else Attributes(system)
+                try:
+                    arcs = [_run_row(system, setter, None if setter is None else attributes[i],
+                                     X[i], dict(kw, seed=int(keys[i])))[0]
+                            for i in range(a, b)]
+                finally:
+                    if setter is not None:
+                        setter.restore()
             stats.update(arcs)
             failed += [(a + i, arc.termination) for i, arc in enumerate(arcs)
                        if arc.termination in FAILED or arc.termination is Termination.CANCELED]

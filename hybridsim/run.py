@@ -26,7 +26,7 @@ import concurrent.futures
 import importlib.util
 import itertools
 import math
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import fields
 from typing import Any
 
@@ -35,6 +35,7 @@ from numpy.typing import ArrayLike
 from scipy.integrate import OdeSolver
 
 from . import compiled
+from ._batch_attributes import Attributes, check_attributes, row_params
 from ._progress import make_bar
 from ._random_jumps import is_random, simulate_random
 from ._rk import RK4, fixed_step
@@ -352,6 +353,7 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
                   j_max: float = np.inf, *, executor: concurrent.futures.Executor | None = None,
                   chunks: int | None = None, progress: bool | None = None,
                   throw: bool = False, warn: bool = True, stats: Any = None,
+                  attributes: Sequence[Mapping[str, Any]] | None = None,
                   **options: Any) -> ArcBatch:
     """Simulate one system from many initial states.
 
@@ -406,6 +408,21 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
         right by one (``seed=key`` replays it alone in :func:`simulate`),
         the same rows on every path. ``throw`` must be False; failed rows
         are named in one :class:`BatchWarning`.
+    attributes : sequence of dict, optional
+        One dict per row: row ``i`` runs with these attributes of ``system``
+        set (``setattr``; a parameter sweep or a population of designs,
+        e.g. ``[{"e": 0.8}, {"e": 0.9}]``; a
+        :class:`~hybridsim.compiled.CompiledSystem`'s are its ``params``:
+        ``[{"params": p0}, ...]``), the system's attributes as they were
+        afterwards. On the compiled path each row's ``p`` is read with its
+        attributes set and the rows run as one parallel batch
+        (:func:`hybridsim.compiled.simulate_many_compiled`'s ``params``); on
+        the other paths (and where a row changes the compiled form, an
+        attribute of another shape) the rows run one after another, each with
+        its attributes. The arcs' ``system`` is ``system`` with its
+        attributes restored; with an executor (whose workers may share the
+        system) each row runs on a copy with its attributes, its arc's
+        ``system``.
     **options
         Passed to :func:`hybridsim.simulate` (``priority``, ``rtol``...).
         Argument errors (the same for every row) raise at once.
@@ -468,11 +485,13 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
     n = int(system.state_dim)
     X = check_x0s(x0s, n)
     N = len(X)
+    if attributes is not None:
+        attributes = check_attributes(attributes, N)
     if stats is not None:
         from ._batch_reduce import reduce_into
         options = dict(options, progress=False)
         return reduce_into(system, X, t_max, j_max, stats, executor, chunks, throw, warn,
-                           options, (simulate_many, _auto_backend, _run_row))
+                           options, (simulate_many, _auto_backend, _run_row), attributes)
     if N == 0:
         return ArcBatch((), n)
     if options.get("seed") is not None and any(
@@ -487,30 +506,44 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
         options["backend"] = _auto_backend(system, options, executor)
     if options.get("backend") == "python":
         del options["backend"]               # the default: the batch integrator may take it
-    if options.get("backend", "python") == "compiled" and executor is None:
+    rows = None if attributes is None else \
+        (row_params(system, attributes) if options.get("backend") == "compiled" and
+         executor is None else None)
+    if options.get("backend", "python") == "compiled" and executor is None and \
+            (attributes is None or rows is not None):
         kw = {k: v for k, v in options.items() if k not in ("backend", "progress")}
+        cs, P = (lower(system), None) if rows is None else rows
         if is_random(system):             # jumps at a rate: each row its own clock
             from .compiled._stochastic import simulate_many_rate
-            out = simulate_many_rate(system, lower(system), X, t_max, j_max,
-                                     {k: v for k, v in kw.items() if k not in ("t_max", "j_max")})
+            out = simulate_many_rate(system, cs, X, t_max, j_max,
+                                     {k: v for k, v in kw.items() if k not in ("t_max", "j_max")},
+                                     params=P)
             out = ArcBatch([rebind(a, system) for a in out], n)
             return finish_batch("simulate_many", out, throw, warn)
         if is_stochastic(system):         # an SDE flow: each row its own Brownian path
             from .compiled._stochastic import sde_options, simulate_many_sde
-            out = simulate_many_sde(lower(system), X, throw=False, warn=False,
+            out = simulate_many_sde(cs, X, throw=False, warn=False, params=P,
                                     **sde_options(kw))
             out = ArcBatch([rebind(a, system) for a in out], n)
             return finish_batch("simulate_many", out, throw, warn)
-        out = compiled.simulate_many_compiled(lower(system), X, throw=False, warn=False, **kw)
+        out = compiled.simulate_many_compiled(cs, X, throw=False, warn=False, params=P, **kw)
         return finish_batch("simulate_many", rebind_all(out, system), throw, warn)
-    if system.vectorized and executor is None and _batch_takes(system, options):
+    if system.vectorized and executor is None and attributes is None and \
+            _batch_takes(system, options):
         out = ArcBatch(_many_vectorized(system, X, options, progress), n)
         return finish_batch("simulate_many", out, throw, warn)
-    else:
-        options.update(throw=False, warn=False)
+    options.update(throw=False, warn=False)
+    bar = make_bar(progress, total=N, desc="simulate_many", unit="run", leave=True)
+    if attributes is None:
         items = [(None, x0) for x0 in X]
-        bar = make_bar(progress, total=N, desc="simulate_many", unit="run", leave=True)
         out = _execute(_Batch(system, None, items, options, throw, bar), executor, chunks, bar)
+    else:                                 # the rows one by one, each with its attributes
+        setter = Attributes(system, copies=executor is not None)
+        try:
+            out = _execute(_Batch(None, setter, list(zip(attributes, X)), options, throw, bar),
+                           executor, chunks, bar)
+        finally:
+            setter.restore()
     return _warned("simulate_many", ArcBatch(out, n), warn)
 
 

@@ -77,7 +77,8 @@ COMPILING = {
     "paths": ("integration/test_paths.py", "integration/test_one_definition.py",
               "integration/test_last_axis.py"),
     "stochastic": ("integration/test_sde_stepper.py", "integration/test_stochastic_paths.py",
-                   "capabilities/test_explore.py", "integration/test_batch_reduce.py"),
+                   "capabilities/test_explore.py", "integration/test_batch_reduce.py",
+                   "integration/test_batch_attributes.py"),
 }
 
 

@@ -75,7 +75,7 @@ def _reduce_row(i, T, J, X, XD, grid, by_j, XF, TF, JF, XG, OK):
 
 
 @njit(cache=CACHE, nogil=True, **_NJK)
-def run_rows(one, maps, X0, p, fopt, iopt, atol, rngp, poll, stop, next_row, chunk,
+def run_rows(one, maps, X0, P, fopt, iopt, atol, rngp, poll, stop, next_row, chunk,
              TT, JJ, XX, XXD, fill, AT, NS, CA, DE, INFO, ST, grid, by_j, XF, TF, JF, XG, OK):
     """Runs of a batch, taken ``chunk`` rows at a time from the shared counter
     ``next_row`` until none is left, each run's samples written one after
@@ -88,6 +88,8 @@ def run_rows(one, maps, X0, p, fopt, iopt, atol, rngp, poll, stop, next_row, chu
     and its states on ``grid`` (:func:`_reduce_row`: ``XF``, ``TF``, ``JF``,
     ``XG``, ``OK``), its samples dropped when it ends.
 
+    ``P``: the parameters, one row for every run or one row per run.
+
     Released from the GIL: the caller runs it in as many threads as it wants
     cores (dynamic scheduling: a thread slowed by other work on the machine
     takes fewer chunks), all on one pool. ``one``: the address of the run
@@ -96,6 +98,7 @@ def run_rows(one, maps, X0, p, fopt, iopt, atol, rngp, poll, stop, next_row, chu
     compiled once, small, and serves every system. The pool needs no
     compaction afterwards: every arc is a view of its rows."""
     N = X0.shape[0]
+    per_row = P.shape[0] > 1
     size = TT.shape[0]
     reduced = XG.shape[0] > 0
     while True:
@@ -103,6 +106,7 @@ def run_rows(one, maps, X0, p, fopt, iopt, atol, rngp, poll, stop, next_row, chu
         if i0 >= N:
             break
         for i in range(i0, min(i0 + chunk, N)):
+            p = P[i] if per_row else P[0]
             T, J, X, XD, cause, detail, info, stats = _one_at(one)(
                 maps, np.ascontiguousarray(X0[i]), p, fopt, iopt, atol, rngp, poll, stop)
             m = T.shape[0]

@@ -714,10 +714,19 @@ def lower(system, *, specialize=None):
         if why is not None:
             raise why
         return _from_source.lower_source(system, specialize)
-    cached = system.__dict__.get("_lowered")
-    if cached is not None and (specialize is None or cached.specialize == bool(specialize)):
-        return cached
+    # the parts' parameters are read again at every call (their attributes may have
+    # changed since the last run); the maps are built again only where the
+    # structure changed
     parts, n, pvec, delays = _parts_of(system)
+    key = (_structure(parts), n, len(pvec), delays)
+    cached = system.__dict__.get("_lowered")
+    if cached is not None and (specialize is None or cached.specialize == bool(specialize)) \
+            and cached.__dict__.get("_lowered_key") == key:
+        if not np.array_equal(cached.params, pvec):
+            cached.params = pvec
+        return cached
+    if specialize is None and cached is not None:
+        specialize = cached.specialize
     _check_shapes(parts, pvec)
     try:
         cs = _build(parts, n, pvec, type(system).__name__, bool(specialize), delays)
@@ -728,6 +737,7 @@ def lower(system, *, specialize=None):
         raise err from e
     if system.max_step is not None:      # with delays, at most the smallest (CompiledSystem)
         cs.max_step = min([float(system.max_step), *delays])
+    cs.__dict__["_lowered_key"] = key
     system.__dict__["_lowered"] = cs
     return cs
 

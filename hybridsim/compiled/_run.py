@@ -471,6 +471,7 @@ def simulate_many_compiled(system: CompiledSystem, x0s: ArrayLike, t_max: float,
                            seed: int | np.random.Generator | None = None, refine: int = 1,
                            throw: bool = False, warn: bool = True,
                            method: str | type[OdeSolver] = "RK45", reduce: tuple | None = None,
+                           params: ArrayLike | None = None,
                            **unsupported: Any) -> ArcBatch:
     """Simulate a :class:`CompiledSystem` from many initial states, compiled and in parallel.
 
@@ -521,6 +522,12 @@ def simulate_many_compiled(system: CompiledSystem, x0s: ArrayLike, t_max: float,
         True), their first ``components`` components: no arcs are made
         (``hs.simulate_many(..., stats=)`` reduces them into a
         :class:`hybridsim.estimate.Stats`).
+    params : array_like, shape (N, len(system.params)), optional
+        Row ``i`` runs with ``params[i]`` as its ``p`` (default: every row
+        with ``system.params``): a parameter sweep or a population of
+        designs in one parallel batch (``hs.simulate_many(...,
+        attributes=)`` builds it for any system). The arcs' ``system`` is
+        ``system`` itself, its ``params`` as they are.
 
     Returns
     -------
@@ -568,7 +575,7 @@ def simulate_many_compiled(system: CompiledSystem, x0s: ArrayLike, t_max: float,
          zeno_jumps, zeno_time, zeno_rtol, refine, max_steps, max_samples, throw, warn))
     mname = method_on("compiled", method)
     run, one_addr = _kernels(k, system, parallel, mname)
-    p = system.params
+    P = _row_params(system, params, len(X0))
     maps = system._nb["args"]
     N = len(X0)
     arcs = [None] * N
@@ -590,13 +597,13 @@ def simulate_many_compiled(system: CompiledSystem, x0s: ArrayLike, t_max: float,
         fo = fopt
         if watching:
             try:
-                fo = watch_options(system, X0[i], ro.t0, ro.j0, fopt)
+                fo = watch_options(system, X0[i], ro.t0, ro.j0, fopt, _row(P, i))
             except MapError as e:       # at x0: the row's own arc
                 arcs[i] = _one_sample(X0[i], where, Termination.MAP_ERROR, str(e), e, system)
                 return False, 1
         with _CatchRaised(stop) as caught:
             T, J, X, XD, code, detail, info, stats = run(
-                *maps, X0[i], p, fo, iopt, atol_a, rng[1], k.POLL_GIL, stop)
+                *maps, X0[i], _row(P, i), fo, iopt, atol_a, rng[1], k.POLL_GIL, stop)
         arcs[i] = _arc(system, k, T, J, X, XD, code, detail, info, stats, ro)
         if caught.raised is not None:
             arcs[i] = _raised_arc(system, arcs[i], caught.raised)[0]
@@ -607,7 +614,7 @@ def simulate_many_compiled(system: CompiledSystem, x0s: ArrayLike, t_max: float,
     if reduce is not None:
         reduce = _check_reduce(reduce, n)
     if reduce is not None and ro.prio != Priority.RANDOM and not watching:
-        return _reduced(k, system, X0, rows, arcs, one, one_addr, maps, p, fopt, iopt_rows_of(
+        return _reduced(k, system, X0, rows, arcs, one, one_addr, maps, P, fopt, iopt_rows_of(
             iopt), atol_a, _rng_for(k, ro.prio, seed), parallel, reduce, mname, where)
     stopped = False
     runs = []               # the pooled rows' record, for the batch's fields (ArcBatch)
@@ -629,7 +636,7 @@ def simulate_many_compiled(system: CompiledSystem, x0s: ArrayLike, t_max: float,
             # Carlo's or a falsification's next batch) takes the last one's
             # length and runs every row in parallel
             sizes = system.__dict__.setdefault("_batch_lengths", {})
-            skey = (mname, fopt.tobytes(), iopt.tobytes(), atol_a.tobytes(), p.tobytes())
+            skey = _sizes_key(mname, fopt, iopt, atol_a, P)
             longest = sizes.get(skey, 0)
             if not longest:
                 pick = np.unique(np.linspace(0, len(rows) - 1, min(4, len(rows))).round()
@@ -689,7 +696,8 @@ def simulate_many_compiled(system: CompiledSystem, x0s: ArrayLike, t_max: float,
                 INFO, ST = np.empty((B, 6)), np.zeros((B, 6), np.int64)
                 with _CatchRaised(None) as caught:
                     stopped = _interruptible(
-                        k.run_rows, (one_addr, *maps, X0[idx] if B < N else X0, p, fopt,
+                        k.run_rows, (one_addr, *maps, X0[idx] if B < N else X0,
+                                     P[idx] if len(P) > 1 and B < N else P, fopt,
                                      iopt_rows, atol_a, rng[1], k.POLL_NONE, stop,
                                      np.zeros(1, np.int64), _CHUNK, TT, JJ, XX, XXD, fill, AT,
                                      NS, CA, DE, INFO, ST, *_no_grid(n)),
@@ -766,6 +774,40 @@ def simulate_many_compiled(system: CompiledSystem, x0s: ArrayLike, t_max: float,
                         ro.warn)
 
 
+def _row_params(system, params, N):
+    """``simulate_many_compiled``'s ``params``, checked: a C-contiguous (N, m)
+    array of finite floats (m: ``system.params``' length), or ``system.params``
+    as its one row."""
+    if params is None:
+        return np.ascontiguousarray(system.params, dtype=np.float64).reshape(1, -1)
+    m = system.params.size
+    try:
+        P = np.array(params, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise TypeError(f"params must be an (N, {m}) array of floats (one row of p per row "
+                        f"of x0s), got {type(params).__name__}") from e
+    if P.shape != (N, m):
+        raise ValueError(f"params must have shape (N, len(system.params)) = ({N}, {m}), one "
+                         f"row of p per row of x0s, got {P.shape}")
+    if not np.isfinite(P).all():
+        bad = np.flatnonzero(~np.isfinite(P).all(axis=1))
+        raise ValueError(f"params must be finite, rows {bad[:5].tolist()} are not")
+    return np.ascontiguousarray(P) if N else P.reshape(1, m)
+
+
+def _row(P, i):
+    """Row ``i``'s p: its own row of ``P``, or the one row every row shares."""
+    return P[i] if len(P) > 1 else P[0]
+
+
+def _sizes_key(mname, fopt, iopt, atol_a, P):
+    """The key of a batch's run lengths (``system._batch_lengths``): the method,
+    the options and the parameters (rows of their own: their shape only, as a
+    population of designs changes them batch by batch)."""
+    pk = P.tobytes() if len(P) == 1 else ("rows", P.shape)
+    return (mname, fopt.tobytes(), iopt.tobytes(), atol_a.tobytes(), pk)
+
+
 def _no_grid(n):
     """:func:`_batch.run_rows`' reduction arguments of a batch that keeps its arcs."""
     return (np.zeros(0), 0, np.zeros((0, n)), np.zeros(0), np.zeros(0, np.int64),
@@ -838,7 +880,7 @@ def _check_reduce(reduce, n):
     return grid, by_j, nk
 
 
-def _reduced(k, system, X0, rows, arcs, one, one_addr, maps, p, fopt, iopt_rows, atol_a, rng,
+def _reduced(k, system, X0, rows, arcs, one, one_addr, maps, P, fopt, iopt_rows, atol_a, rng,
              parallel, reduce, mname, where):
     """:func:`simulate_many_compiled` with ``reduce``: the good ``rows`` in one
     call of :func:`_batch.run_rows` keeping each row's end and grid states
@@ -854,9 +896,10 @@ def _reduced(k, system, X0, rows, arcs, one, one_addr, maps, p, fopt, iopt_rows,
     sizes = system.__dict__.setdefault("_batch_lengths", {})
     iopt = iopt_rows.copy()
     iopt[lay.I_ROW] = 0
-    skey = (mname, fopt.tobytes(), iopt.tobytes(), atol_a.tobytes(), p.tobytes())
+    skey = _sizes_key(mname, fopt, iopt, atol_a, P)
     iopt_rows[lay.I_CAP] = 1 << math.ceil(math.log2(max(sizes.get(skey, 48), 2) * 1.25 + 1))
     XS = X0 if B == N else np.ascontiguousarray(X0[rows])
+    PS = P if B == N or len(P) == 1 else np.ascontiguousarray(P[rows])
     empty_f, empty_i = np.zeros(0), np.zeros(0, np.int64)
     NS, CA, DE = (np.zeros(B, np.int64) for _ in range(3))
     INFO, ST = np.empty((B, 6)), np.zeros((B, 6), np.int64)
@@ -865,7 +908,7 @@ def _reduced(k, system, X0, rows, arcs, one, one_addr, maps, p, fopt, iopt_rows,
     stop = np.zeros(1, np.int64)
     with _CatchRaised(None) as caught:
         stopped = _interruptible(
-            k.run_rows, (one_addr, *maps, XS, p, fopt, iopt_rows, atol_a, rng[1], k.POLL_NONE,
+            k.run_rows, (one_addr, *maps, XS, PS, fopt, iopt_rows, atol_a, rng[1], k.POLL_NONE,
                          stop, np.zeros(1, np.int64), _CHUNK, empty_f, empty_i,
                          np.zeros((0, n)), np.zeros((0, n)), np.zeros(1, np.int64),
                          np.zeros(B, np.int64), NS, CA, DE, INFO, ST, grid, int(bool(by_j)),

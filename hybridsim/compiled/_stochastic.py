@@ -300,11 +300,12 @@ def _threads(rows):
 
 
 def simulate_many_sde(system, X0, t_max, j_max=math.inf, *, method="RK45", max_step=math.inf,
-                      seeds=None, throw=False, warn=True, threads=None, **kw):
+                      seeds=None, throw=False, warn=True, threads=None, params=None, **kw):
     """Rows of an SDE flow, compiled, in GIL-free threads; row ``i`` is
     :func:`simulate_sde_compiled` from ``X0[i]`` with ``seed=seeds[i]``
     (fresh entropy per row when ``seeds`` is None; each arc records its key
-    in ``stats["noise_seed"]``). Returns an :class:`hybridsim.ArcBatch`.
+    in ``stats["noise_seed"]``), its ``p`` the row ``params[i]`` where given
+    (:func:`simulate_many_compiled`'s). Returns an :class:`hybridsim.ArcBatch`.
 
     Examples
     --------
@@ -335,7 +336,8 @@ def simulate_many_sde(system, X0, t_max, j_max=math.inf, *, method="RK45", max_s
             raise ValueError(f"seeds: one per row, {N} rows, got {len(seeds)}")
         keys = [noise_key(s) for s in seeds]
     from ._draws import path_keys_many
-    from ._run import _rng_for
+    from ._run import _rng_for, _row, _row_params
+    P = _row_params(system, params, N)
     KEYS = path_keys_many(np.array(keys, dtype=np.uint64), m)
     if ro.prio == _RANDOM_PRIO:
         raise ValueError("priority='random': a batch of SDE rows draws no coins yet; run the "
@@ -343,13 +345,12 @@ def simulate_many_sde(system, X0, t_max, j_max=math.inf, *, method="RK45", max_s
     rng, rngp = _rng_for(k, ro.prio, None)
     run = _sde_kernel().sde_run
     out = [None] * N
-    p = system.params
     if N:                               # compiled here, once, before the threads start
-        out[0] = run(maps, X[0], p, fopt, iopt, KEYS[0], rngp)
+        out[0] = run(maps, X[0], _row(P, 0), fopt, iopt, KEYS[0], rngp)
 
     def part(rows):
         for i in rows:
-            out[i] = run(maps, X[i], p, fopt, iopt, KEYS[i], rngp)
+            out[i] = run(maps, X[i], _row(P, i), fopt, iopt, KEYS[i], rngp)
     nt = threads or _threads(N)
     rest = list(range(1, N))
     if nt > 1 and rest:
@@ -375,6 +376,8 @@ def _augmented(cs):
     path's ``_Augmented``'s, compiled (made once per system)."""
     hit = cs.__dict__.get("_rate_system")
     if hit is not None and hit[0] is cs.maps.get("jump_rate"):
+        if hit[1].params is not cs.params:      # the system's params as they are now
+            hit[1].params = cs.params
         return hit[1]
     import numba
 
@@ -589,14 +592,16 @@ def row_keys(seed, N):
     return ss.generate_state(N, np.uint64) >> np.uint64(1)
 
 
-def simulate_many_rate(system, cs, X0, t_max, j_max, opts, keys=None, reduce=None):
+def simulate_many_rate(system, cs, X0, t_max, j_max, opts, keys=None, reduce=None,
+                       params=None):
     """``hs.simulate_many(..., backend="compiled")`` of a system with a
     ``jump_rate``: row ``i`` keyed ``keys[i]`` (:func:`row_keys`; fresh
     entropy when None), recorded in its ``stats["jump_seed"]``:
     ``hs.simulate(system, x0, seed=that)`` replays it on any path; the rows
     in the compiled batch kernel. ``reduce``: ``(grid, by_j)``, the rows'
     ends and states of the system's own components on the grid
-    (:class:`._run.RowEnds`), no arcs."""
+    (:class:`._run.RowEnds`), no arcs. ``params``: row ``i``'s ``p``
+    (:func:`simulate_many_compiled`'s)."""
     from .._random_jumps import strip
     from ..options import check_x0s
     from ._draws import clocks_many
@@ -620,11 +625,12 @@ def simulate_many_rate(system, cs, X0, t_max, j_max, opts, keys=None, reduce=Non
     if reduce is not None:
         grid, by_j = reduce
         out = simulate_many_compiled(aug, XA, t_max, j_max, throw=False, warn=False,
-                                     reduce=(grid, by_j, n), **opts)
+                                     reduce=(grid, by_j, n), params=params, **opts)
         out.x = out.x[:, :n]
         for i, a in out.arcs.items():
             out.arcs[i] = _rate_error(system, strip(a, system, int(keys[i]), n, True), n)
         return out
-    out = simulate_many_compiled(aug, XA, t_max, j_max, throw=False, warn=False, **opts)
+    out = simulate_many_compiled(aug, XA, t_max, j_max, throw=False, warn=False,
+                                 params=params, **opts)
     return ArcBatch([_rate_error(system, strip(a, system, key, n, True), n)
                      for a, key in zip(out, keys.tolist())], n)

@@ -682,12 +682,12 @@ def _signature_one():
 
 
 def _batch_signature(sig):
-    """:func:`run_rows`'s: one, maps, X0, p, fopt, iopt, atol, rngp, poll, stop,
+    """:func:`run_rows`'s: one, maps, X0, P (rows of p), fopt, iopt, atol, rngp, poll, stop,
     next_row, chunk, then the pool (TT, JJ, XX, XXD, fill, AT), the rows'
     records (NS, CA, DE, INFO, ST) and a reduced batch's (grid, by_j, XF, TF,
     JF, XG, OK)."""
     f1, f2, i2 = types.float64[::1], types.float64[:, ::1], types.int64[:, ::1]
     i1 = types.int64[::1]
-    return ((types.int64,) + sig[:1] + (f2,) + sig[2:] + (i1, types.int64)
+    return ((types.int64,) + sig[:1] + (f2, f2) + sig[3:] + (i1, types.int64)
             + (f1, i1, f2, f2, i1, i1, i1, i1, i1, f2, i2)
             + (f1, types.int64, f2, f1, i1, types.float64[:, :, ::1], types.boolean[:, ::1]))

@@ -187,14 +187,15 @@ def with_crossings(info, CR, nc):
     return out
 
 
-def watch_options(system, x0, t0, j0, fopt):
+def watch_options(system, x0, t0, j0, fopt, p=None):
     """The kernel's ``fopt`` followed by the watched functions' directions, one
-    per value the system's watch returns at x0; a value there that is not
+    per value the system's watch returns at x0 (with ``p``, default the
+    system's params); a value there that is not
     finite raises :class:`hybridsim.MapError` naming ``watch``, in the Python
     path's words."""
     from ..rules import MapError
     from ..system import watch_directions
-    v = system._nb["W"].disp(x0, float(t0), int(j0), system.params)
+    v = system._nb["W"].disp(x0, float(t0), int(j0), system.params if p is None else p)
     if not np.isfinite(v).all():
         raise MapError(f"watch returned non-finite values {v} (at the initial state, "
                        f"t={t0:.10g}, j={j0})", "watch", t0, j0)
