@@ -12,6 +12,7 @@ set. The system's attributes are as they were afterwards.
 """
 from __future__ import annotations
 
+import threading
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -19,6 +20,7 @@ import numpy as np
 __all__ = ["check_attributes", "Attributes", "row_params"]
 
 _UNSET = object()
+_LOCK = threading.Lock()
 
 
 def check_attributes(attributes, N):
@@ -88,9 +90,30 @@ class Attributes:
 def row_params(system, rows):
     """``(cs, P)``: the compiled form the rows share and their ``p``, one row
     each (``P`` (N, len(cs.params))), each read with the row's attributes
-    set; ``None`` where a row changes the compiled form itself (an attribute
-    of another shape: the rows then run one by one)."""
+    set, under one lock; ``None`` where a row changes the compiled form itself
+    (an attribute of another shape: the rows then run one by one). A
+    :class:`~hybridsim.compiled.CompiledSystem` whose rows set only
+    ``params`` takes them as they are, setting nothing."""
+    from .compiled import CompiledSystem
     from .compiled._lower import lower
+    if isinstance(system, CompiledSystem) and all(set(d) == {"params"} for d in rows):
+        # its p is the rows' own: nothing set on the system (a population run in
+        # threads while the search judges the last one's arcs reads the system as it is)
+        m = system.params.size
+        try:
+            P = np.array([np.asarray(d["params"], dtype=np.float64).reshape(-1) for d in rows])
+        except (TypeError, ValueError) as e:
+            raise TypeError(f"attributes: each row's 'params' must be an array of {m} floats, "
+                            f"got {e}") from e
+        if P.shape != (len(rows), m):
+            raise ValueError(f"attributes: each row's 'params' must hold {m} floats (the "
+                             f"system's params), got rows of shape {P.shape[1:]}")
+        return system, np.ascontiguousarray(P)
+    with _LOCK:           # populations of one search may read their p in threads at once
+        return _set_and_read(system, rows, lower)
+
+
+def _set_and_read(system, rows, lower):
     setter = Attributes(system)
     cs0, P = None, []
     try:

@@ -194,12 +194,13 @@ def batch_run(system, x0_of, t_max, j_max=np.inf, *, attributes_of=None, **simul
     attributes_of : callable, optional
         ``attributes_of(point) -> dict`` of the system's attributes (numbers
         or arrays its maps read, such as ``{"e": point["e"]}``) for that
-        point: the parameters stay where the model keeps them. The
-        population's rows then run one after another on ``system`` with
-        those attributes set (restored after), through :func:`hybridsim.sweep`:
-        compiled under ``backend="auto"`` where the model compiles (its maps
-        read the attributes at each run, so nothing is compiled again); not
-        with ``executor=``.
+        point: the parameters stay where the model keeps them
+        (:func:`hybridsim.simulate_many`'s ``attributes``: on the compiled
+        path one parallel batch with a ``p`` per row, nothing compiled
+        again; on the others the rows one after another with their
+        attributes set, restored after; over an executor each row on a copy).
+        A :class:`~hybridsim.compiled.CompiledSystem`'s are its ``params``
+        (``{"params": p}``).
     t_max, j_max, **simulate_kwargs
         As in :func:`hybridsim.simulate_many`; ``backend`` defaults to
         ``"auto"``: the compiled path where the system runs there (numba
@@ -219,8 +220,8 @@ def batch_run(system, x0_of, t_max, j_max=np.inf, *, attributes_of=None, **simul
         settings (shut down with the run; the user's own pool is left to its
         owner), so the search loses only the chunk the worker was running;
         ``run.concurrent`` is True where the populations run on the compiled
-        path in this process (a compiled system, no ``executor`` nor
-        ``attributes_of``): the kernel releases the GIL, and :func:`falsify`
+        path in this process (a compiled system, no ``executor``): the
+        kernel releases the GIL, and :func:`falsify`
         simulates the next pieces of a population in threads while it
         judges the pieces run (the same runs, judged in the same order).
 
@@ -233,46 +234,30 @@ def batch_run(system, x0_of, t_max, j_max=np.inf, *, attributes_of=None, **simul
     >>> [round(float(a.jump_times[0]), 6) for a in run([{"period": 0.5}, {"period": 1.5}])]
     [0.5, 1.5]
     """
-    from .run import simulate_many, sweep
+    from .run import simulate_many
 
     simulate_kwargs.setdefault("backend", "auto")
     if attributes_of is not None and not callable(attributes_of):
         raise TypeError(f"attributes_of must be a callable point -> dict of the system's "
                         f"attributes, got {type(attributes_of).__name__}")
-    if attributes_of is not None and simulate_kwargs.get("executor") is not None:
-        raise ValueError("attributes_of: the rows set the attributes of this process's "
-                         "system, one after another; without executor=, or put the "
-                         "parameters in the state (x0_of)")
     pools = _Pools(simulate_kwargs)
 
     def run(points):
-        if attributes_of is None:
-            x0s = np.array([np.asarray(x0_of(p), dtype=float) for p in points])
-            return simulate_many(system, x0s, t_max, j_max, warn=False, **simulate_kwargs)
-        saved = {}                      # the attributes set, as they were
-
-        def at(point):
-            values = attributes_of(point)
-            if not isinstance(values, Mapping):
-                raise TypeError(f"attributes_of must return a dict of the system's "
-                                f"attributes, got {type(values).__name__}")
-            for name, v in values.items():
-                saved.setdefault(name, vars(system).get(name, _UNSET))
-                setattr(system, name, v)
-            return system
-        try:
-            return sweep(at, points, x0_of, t_max, j_max, warn=False, **simulate_kwargs)
-        finally:
-            for name, v in saved.items():
-                if v is _UNSET:
-                    delattr(system, name)
-                else:
-                    setattr(system, name, v)
+        x0s = np.array([np.asarray(x0_of(p), dtype=float) for p in points])
+        rows = None
+        if attributes_of is not None:
+            rows = [attributes_of(p) for p in points]
+            for v in rows:
+                if not isinstance(v, Mapping):
+                    raise TypeError(f"attributes_of must return a dict of the system's "
+                                    f"attributes, got {type(v).__name__}")
+        return simulate_many(system, x0s, t_max, j_max, warn=False, attributes=rows,
+                             **simulate_kwargs)
     run.batch = True
     run.renew = pools.renew
     # compiled populations simulate without the GIL: falsify runs the next
     # pieces of a population in threads while it judges those run
-    run.concurrent = (attributes_of is None and simulate_kwargs.get("executor") is None
+    run.concurrent = (simulate_kwargs.get("executor") is None
                       and _gil_free(system, simulate_kwargs))
     weakref.finalize(run, pools.close)
     return run

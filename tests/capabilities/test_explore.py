@@ -1009,10 +1009,10 @@ def test_a_falsification_population_of_a_plain_model_runs_compiled(paths):
 
 
 def test_a_population_over_a_plain_models_attributes_runs_compiled(paths):
-    """The uncertain number is the model's attribute (attributes_of): each row
-    runs compiled on the one system with the point's e (its maps read e at
-    each run), none on the Python loop; e is restored after; the margins are
-    the closed form's, and the Python path's to round-off."""
+    """The uncertain number is the model's attribute (attributes_of): the
+    population runs in compiled batches, a p per row read with the point's e
+    (nothing compiled again), none on the Python loop; e is restored after;
+    the margins are the closed form's, and the Python path's to round-off."""
     from hybridsim.falsification import Interval, Space, batch_run, falsify
     from hybridsim.library import bouncing_ball_jump_times
     ball = Ball(0.8)
@@ -1020,18 +1020,15 @@ def test_a_population_over_a_plain_models_attributes_runs_compiled(paths):
     space, claim = Space(e=Interval(0.5, 0.9)), _third_bounce_by(2.0)
     res = falsify(batch_run(ball, lambda p: [1.0, 0.0], **kw), space, claim, budget=30,
                   seed=0, progress=False, stop=False)
-    assert paths["single"] == res.evaluations == 30 and paths["python"] == 0
-    assert ball.e == 0.8
+    assert paths["batch"] == res.evaluations == 30 and paths["python"] == 0
+    assert paths["single"] == 0 and ball.e == 0.8
     exact = 2.0 - bouncing_ball_jump_times(1.0, 3, restitution=res.point["e"])[2]
     assert res.margin == pytest.approx(exact, abs=1e-6)
     py = falsify(batch_run(ball, lambda p: [1.0, 0.0], backend="python", **kw), space, claim,
                  budget=30, seed=0, progress=False, stop=False)
-    assert paths["python"] == 30 and paths["single"] == 30
+    assert paths["python"] == 30 and paths["single"] == 0
     assert py.margin == pytest.approx(res.margin, abs=1e-9)
-    (bad,) = batch_run(ball, lambda p: [1.0, 0.0], attributes_of=lambda p: 0.5,
-                       t_max=1.0)([{"e": 0.5}])            # a failed row, as in hs.sweep
-    assert bad.termination is hs.Termination.MAP_ERROR
-    assert "attributes_of must return a dict of the system's attributes" in bad.message
-    with pytest.raises(ValueError, match="attributes_of: .* without executor="):
-        batch_run(ball, lambda p: [1.0, 0.0], attributes_of=lambda p: {}, t_max=1.0,
-                  executor=object())
+    with pytest.raises(TypeError, match="attributes_of must return a dict of the system's "
+                                        "attributes, got float"):
+        batch_run(ball, lambda p: [1.0, 0.0], attributes_of=lambda p: 0.5,
+                  t_max=1.0)([{"e": 0.5}])

@@ -9,11 +9,10 @@ import concurrent.futures
 
 import numpy as np
 import pytest
+from paths import HAS_NUMBA, NO_NUMBA
 
 import hybridsim as hs
 from hybridsim.library import BouncingBall
-
-from paths import HAS_NUMBA, NO_NUMBA
 
 needs_numba = pytest.mark.skipif(not HAS_NUMBA, reason=NO_NUMBA)
 ES = np.linspace(0.5, 0.9, 9)
