@@ -16,9 +16,11 @@ where numba is installed):
   fixed for the competition (the model file ``cars.mdl``).
 
 The inputs (throttle and brake) are functions of time given by control
-points: their times ``times`` are the system's (its parameters), their
-values the initial state's (constant components, ``initial_state``), so a
-population of input signals is a batch of initial states of one system.
+points: their times ``times`` and values are the system's parameters
+(``params``, written by ``set_inputs``), so a population of input signals
+is one batch of runs with a ``p`` per row
+(``hs.simulate_many(..., attributes=[{"params": m.input_params(u1, u2)},
+...])``).
 Between the control points the signal is held (``"previous"``) or
 interpolated linearly (``"linear"``); after the last it is held. Each
 control point's time is an event of the system (a jump that changes no
@@ -76,8 +78,8 @@ over [0, 20] is 120.21327 mph and top engine speed over [0, 10] 4768.2772 rpm
 in the competition's Simulink model (fixed-step ode5, 0.01 s):
 
 >>> import hybridsim as hs
->>> at = AutomaticTransmission()
->>> arc = hs.simulate(at, at.initial_state(100.0, 0.0), t_max=20.0)
+>>> at = AutomaticTransmission().set_inputs(100.0, 0.0)
+>>> arc = hs.simulate(at, at.initial_state(), t_max=20.0)
 >>> round(float(arc.at(20.0)[at.SPEED]), 3)
 120.213
 """
@@ -161,7 +163,9 @@ _KINDS = {"previous": 0.0, "linear": 1.0}
 
 
 def input_signal(times, interpolation="previous"):
-    """The parameter block of an input grid: ``[K, kind, t_1..t_K]``.
+    """The head of an input grid's parameters: ``[K, kind, t_1..t_K]`` (the
+    models' ``params`` are this head, then the K throttle values, then the
+    K brake values).
 
     Parameters
     ----------
@@ -202,24 +206,24 @@ def _segment(t, p):
 
 
 @_jitable
-def _input(x, t, p, base, which):
-    """Input ``which`` (0 or 1) at t, its control-point values at x[base + which K:]."""
-    return _input_on(x, t, p, base, which, _segment(t, p))
+def _input(t, p, which):
+    """Input ``which`` (0 or 1) at t, its control-point values at p[2 + K + which K:]."""
+    return _input_on(t, p, which, _segment(t, p))
 
 
 @_jitable
-def _input_on(x, t, p, base, which, i):
+def _input_on(t, p, which, i):
     """Input ``which`` at t on the piece of control point i (linear: that piece's
     line, extended past its end)."""
     k = int(p[0])
-    off = base + which * k
+    off = 2 + k + which * k
     if p[1] == 0.0 or i == k - 1:
-        return x[off + i]
+        return p[off + i]
     t0, t1 = p[2 + i], p[3 + i]
     s = (t - t0) / (t1 - t0)
     if s < 0.0:
         s = 0.0
-    return x[off + i] + s * (x[off + i + 1] - x[off + i])
+    return p[off + i] + s * (p[off + i + 1] - p[off + i])
 
 
 @_jitable
@@ -244,32 +248,42 @@ def _check_values(name, v, k, lo, hi):
 
 
 class _InputGrid:
-    """What both models share: the input grid (params) and the initial state."""
+    """What both models share: the input grid and its values (``params``)."""
 
     def _grid(self, times, interpolation):
         if times is None:
             times = (0.0,)
-        p = input_signal(times, interpolation)
-        self.times = p[2:].copy()
+        head = input_signal(times, interpolation)
+        self.times = head[2:].copy()
         self.interpolation = interpolation
-        return p
+        self._head = head
+        return self.input_params(self.THROTTLE[0], self.BRAKE[0])
 
-    def _state(self, base, throttle, brake):
+    def input_params(self, throttle, brake):
+        """The parameters of these inputs: the grid, then the values.
+
+        ``throttle`` and ``brake``: a scalar (the same at every control point)
+        or one value per point, each in its range (``THROTTLE``, ``BRAKE``).
+        """
         k = self.times.size
         u1 = _check_values("throttle", throttle, k, *self.THROTTLE)
         u2 = _check_values("brake", brake, k, *self.BRAKE)
-        return np.concatenate([base, u1, u2])
+        return np.concatenate([self._head, u1, u2])
 
-    def inputs(self, x):
-        """The control-point values (throttle, brake) held in the state x."""
+    def set_inputs(self, throttle, brake):
+        """Drive the model with these inputs (its ``params``, :meth:`input_params`);
+        returns the model."""
+        self.params = self.input_params(throttle, brake)
+        return self
+
+    def inputs(self):
+        """The control-point values (throttle, brake) the model runs with."""
         k = self.times.size
-        b = self.state_dim - 2 * k
-        x = np.asarray(x, dtype=float)
-        return x[..., b:b + k], x[..., b + k:]
+        return self.params[2 + k:2 + 2 * k].copy(), self.params[2 + 2 * k:].copy()
 
 
 # ------------------------------------------------------------------ AT maps
-_AT_BASE = 9                            # components before the input values
+_AT_BASE = 9                            # the state's components
 
 
 @_jitable
@@ -303,8 +317,8 @@ def _at_physics(x, t, p):
     """(engine acceleration, drive torque at the wheels, static load, throttle, brake)."""
     ne, v = x[0], x[1]
     g = int(x[2])
-    thr = _input(x, t, p, _AT_BASE, 0)
-    brk = _input(x, t, p, _AT_BASE, 1)
+    thr = _input(t, p, 0)
+    brk = _input(t, p, 1)
     r = GEAR_RATIO[g - 1]
     sr = r * FINAL_DRIVE * (v / MPH_PER_RPM) / ne
     q = ne / _lookup1(SPEED_RATIO, KFACTOR, sr)
@@ -448,7 +462,7 @@ def at_jump(x, t, j, p):
             y[1], y[7] = 0.0, 1.0
         else:
             y[7] = 0.0
-    thr = _input(x, t, p, _AT_BASE, 0)
+    thr = _input(t, p, 0)
     if watch:                           # the first sample at or after now
         y[3] = 2.0
         y[5] = math.ceil(t / SAMPLE - _TICK_SLACK)
@@ -481,9 +495,9 @@ class AutomaticTransmission(_InputGrid, CompiledSystem):
 
     State: ``[Ne (rpm), v (mph), gear, selection, samples in the shift state,
     index of the next sample, engine limit mode (0, -1 at 600, +1 at 6000),
-    stopped (0/1), index of the next control point, throttle values (K),
-    brake values (K)]``; ``RPM``, ``SPEED``, ``GEAR`` name the outputs'
-    components.
+    stopped (0/1), index of the next control point]``; ``RPM``, ``SPEED``,
+    ``GEAR`` name the outputs' components. The inputs' values are in
+    ``params`` (:meth:`set_inputs`).
 
     Parameters
     ----------
@@ -496,8 +510,8 @@ class AutomaticTransmission(_InputGrid, CompiledSystem):
     --------
     >>> import hybridsim as hs
     >>> at = AutomaticTransmission(times=[0.0, 10.0])
-    >>> x0 = at.initial_state([60.0, 0.0], [0.0, 100.0])   # 60 %, then brakes at 10 s
-    >>> arc = hs.simulate(at, x0, t_max=30.0)
+    >>> at = at.set_inputs([60.0, 0.0], [0.0, 100.0])      # 60 %, then brakes at 10 s
+    >>> arc = hs.simulate(at, at.initial_state(), t_max=30.0)
     >>> gear = arc.x[:, at.GEAR]
     >>> [round(float(arc.t[i + 1]), 2) for i in np.flatnonzero(np.diff(gear) > 0)]
     [1.84, 4.68, 9.48]
@@ -511,17 +525,14 @@ class AutomaticTransmission(_InputGrid, CompiledSystem):
         p = self._grid(times, interpolation)
         CompiledSystem.__init__(self, flow_map=at_flow, jump_map=at_jump, jump_guard=at_guard,
                                 jump_set=at_jump_set,
-                                state_dim=_AT_BASE + 2 * self.times.size, params=p,
+                                state_dim=_AT_BASE, params=p,
                                 name="AutomaticTransmission")
 
-    def initial_state(self, throttle, brake):
-        """The state at t = 0 (1000 rpm, at rest, first gear) with these inputs.
-
-        ``throttle`` in [0, 100] (%) and ``brake`` in [0, 325] (lb ft): a
-        scalar (the same at every control point) or one value per point.
-        """
-        base = np.array([NE_0, 0.0, 1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0])
-        return self._state(base, throttle, brake)
+    def initial_state(self):
+        """The state at t = 0: 1000 rpm, at rest, first gear. The inputs
+        (throttle in [0, 100] %, brake in [0, 325] lb ft) are the model's
+        (:meth:`set_inputs`)."""
+        return np.array([NE_0, 0.0, 1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0])
 
 
 # ------------------------------------------------------------------ CC maps
@@ -552,8 +563,8 @@ def cc_flow(x, t, j, p):
     # the piece the control-point events have reached: a step across the next
     # control point reads the piece it started on (its event ends the flow)
     i = min(max(int(x[14]) - 1, 0), int(p[0]) - 1)
-    thr = _input_on(x, t, p, _CC_BASE, 0, i)
-    brk = _input_on(x, t, p, _CC_BASE, 1, i)
+    thr = _input_on(t, p, 0, i)
+    brk = _input_on(t, p, 1, i)
     out[0] = x[1]
     out[1] = -thr - brk * x[1]
     for i in range(1, 5):
@@ -611,8 +622,8 @@ class ChasingCars(_InputGrid, CompiledSystem):
     30, 40, all at rest, every follower Keeping.
 
     State: ``[y1, v1, (y_i, v_i, mode_i) for i = 2..5, index of the next
-    control point, throttle values (K), brake values (K)]``; ``POSITIONS``
-    names y1..y5's components.
+    control point]``; ``POSITIONS`` names y1..y5's components. The inputs'
+    values are in ``params`` (:meth:`set_inputs`).
 
     Parameters
     ----------
@@ -633,8 +644,8 @@ class ChasingCars(_InputGrid, CompiledSystem):
     Examples
     --------
     >>> import hybridsim as hs
-    >>> cc = ChasingCars()
-    >>> arc = hs.simulate(cc, cc.initial_state(1.0, 0.0), t_max=10.0)
+    >>> cc = ChasingCars().set_inputs(1.0, 0.0)
+    >>> arc = hs.simulate(cc, cc.initial_state(), t_max=10.0)
     >>> y = arc.x[-1, list(cc.POSITIONS)]
     >>> bool(y[0] < y[1] < y[2] < y[3] < y[4])
     True
@@ -648,13 +659,14 @@ class ChasingCars(_InputGrid, CompiledSystem):
         p = self._grid(times, interpolation)
         CompiledSystem.__init__(self, flow_map=cc_flow, jump_map=cc_jump, jump_guard=cc_guard,
                                 jump_set=cc_jump_set,
-                                state_dim=_CC_BASE + 2 * self.times.size, params=p,
+                                state_dim=_CC_BASE, params=p,
                                 name="ChasingCars")
 
-    def initial_state(self, throttle, brake):
-        """The state at t = 0 with these inputs (each in [0, 1]: a scalar or
-        one value per control point)."""
+    def initial_state(self):
+        """The state at t = 0: positions 0, 10, 20, 30, 40, at rest, every
+        follower Keeping. The inputs (each in [0, 1]) are the model's
+        (:meth:`set_inputs`)."""
         base = np.zeros(_CC_BASE)
         base[[2, 5, 8, 11]] = [10.0, 20.0, 30.0, 40.0]
         base[[4, 7, 10, 13]] = KEEPING
-        return self._state(base, throttle, brake)
+        return base

@@ -186,7 +186,7 @@ def robustness_of(name, times, values, interpolation, **simulate_kwargs):
     else:
         m = MODELS[req.system](times=times, interpolation=interpolation)
         values = np.asarray(values, dtype=float)
-        x0 = m.initial_state(values[:, 0], values[:, 1])
+        x0 = m.set_inputs(values[:, 0], values[:, 1]).initial_state()
     arc = simulate(m, x0, t_max=req.horizon, **simulate_kwargs)
     return req(arc)
 

@@ -114,14 +114,20 @@ def problem(name, instance, backend="auto"):
     sys_ = model(req.system, instance)
     sp = space(req.system, instance)
 
-    def x0_of(point):
-        if req.system == "F16":
-            return f16_state(sys_, point["roll"], point["pitch"], point["yaw"])
-        vals = point["u"].values
-        return sys_.initial_state(vals[:, 0], vals[:, 1])
     def claim(arc):
         return req(arc, refine=1)
-    return batch_run(sys_, x0_of, req.horizon, backend=backend), sp, claim, req.horizon
+    if req.system == "F16":
+        def x0_of(point):
+            return f16_state(sys_, point["roll"], point["pitch"], point["yaw"])
+        return batch_run(sys_, x0_of, req.horizon, backend=backend), sp, claim, req.horizon
+    x0 = sys_.initial_state()
+
+    def params_of(point):               # the point's input signal: the row's params
+        vals = point["u"].values
+        return {"params": sys_.input_params(vals[:, 0], vals[:, 1])}
+    run = batch_run(sys_, lambda point: x0, req.horizon, attributes_of=params_of,
+                    backend=backend)
+    return run, sp, claim, req.horizon
 
 
 def f16_state(m, roll, pitch, yaw):

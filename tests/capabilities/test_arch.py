@@ -23,7 +23,8 @@ def _published():
 
 def _full_throttle(t_max):
     at = AutomaticTransmission()
-    return at, hs.simulate(at, at.initial_state(100.0, 0.0), t_max=t_max, rtol=1e-8, atol=1e-8)
+    return at, hs.simulate(at.set_inputs(100.0, 0.0), at.initial_state(), t_max=t_max,
+                           rtol=1e-8, atol=1e-8)
 
 
 # ------------------------------------------------------------------------ AT
@@ -69,7 +70,7 @@ def test_at_kickdown_at_a_control_point_is_sampled_at_that_instant():
     # fourth gear jumps to 80 mph at t = 15, itself a sample (15 / 0.04 = 375): that
     # sample reads the new throttle and starts downshifting; third gear at 15.08
     at = AutomaticTransmission(times=[0.0, 15.0])
-    arc = hs.simulate(at, at.initial_state([45.0, 100.0], 0.0), t_max=16.0)
+    arc = hs.simulate(at.set_inputs([45.0, 100.0], 0.0), at.initial_state(), t_max=16.0)
     g = arc.x[:, at.GEAR]
     k = np.flatnonzero(np.diff(g) < 0)
     assert len(k) == 1 and g[k[0]] == 4.0 and g[k[0] + 1] == 3.0
@@ -85,10 +86,10 @@ def test_at5_gear_stability_on_shifts_at_their_instants():
     # at the instant the shift into third happens
     # (the gear is piecewise constant: refine=1, no extremum search inside steps)
     at = AutomaticTransmission()
-    full = hs.simulate(at, at.initial_state(100.0, 0.0), t_max=33.0)
+    full = hs.simulate(at.set_inputs(100.0, 0.0), at.initial_state(), t_max=33.0)
     assert [float(REQUIREMENTS[f"AT5{i}"](full, 1)) for i in (1, 2, 3, 4)] == [0.5] * 4
     at = AutomaticTransmission(times=[0.0, 4.4])
-    arc = hs.simulate(at, at.initial_state([50.0, 100.0], 0.0), t_max=33.0)
+    arc = hs.simulate(at.set_inputs([50.0, 100.0], 0.0), at.initial_state(), t_max=33.0)
     got = {i: REQUIREMENTS[f"AT5{i}"](arc, 1) for i in (1, 2, 3, 4)}
     assert [float(m) for m in got.values()] == [0.5, 0.5, -0.5, 0.5]
     # decided inside the premise's window before the shift into third at 4.16 s: the
@@ -99,7 +100,7 @@ def test_at5_gear_stability_on_shifts_at_their_instants():
 
 def test_at_engine_holds_at_idle_and_the_brake_stops_the_vehicle():
     at = AutomaticTransmission()
-    arc = hs.simulate(at, at.initial_state(0.0, 325.0), t_max=10.0)
+    arc = hs.simulate(at.set_inputs(0.0, 325.0), at.initial_state(), t_max=10.0)
     # (the stop is located to the event tolerance: v within 1e-12 of 0 there)
     assert arc.x[:, at.RPM].min() >= M.NE_MIN - 1e-9 and arc.x[:, at.SPEED].min() > -1e-12
     end = arc.x[-1]
@@ -107,21 +108,21 @@ def test_at_engine_holds_at_idle_and_the_brake_stops_the_vehicle():
     assert end[7] == 1.0 and end[at.SPEED] == 0.0             # stopped: drive < 40 + brake
     # without the brake the idling engine's drive torque (3.23 Tout = 329 lb ft at 600
     # rpm, above the static road load 40) keeps the vehicle creeping
-    arc = hs.simulate(at, at.initial_state(0.0, 0.0), t_max=10.0)
+    arc = hs.simulate(at.set_inputs(0.0, 0.0), at.initial_state(), t_max=10.0)
     assert arc.x[-1, 7] == 0.0 and arc.x[-1, at.SPEED] > 1.0
 
 
 def test_inputs_held_or_linear_between_control_points():
     for interp, mid in (("previous", 20.0), ("linear", 60.0)):
         at = AutomaticTransmission(times=[0.0, 10.0], interpolation=interp)
-        x = at.initial_state([20.0, 100.0], 0.0)
-        assert M._input(x, 5.0, at.params, 9, 0) == pytest.approx(mid)
-        assert M._input(x, 12.0, at.params, 9, 0) == 100.0      # held after the last
-        thr, brk = at.inputs(x)
+        at.set_inputs([20.0, 100.0], 0.0)
+        assert M._input(5.0, at.params, 0) == pytest.approx(mid)
+        assert M._input(12.0, at.params, 0) == 100.0            # held after the last
+        thr, brk = at.inputs()
         assert thr.tolist() == [20.0, 100.0] and brk.tolist() == [0.0, 0.0]
     # each control point is an event: the run jumps there (the shift logic may take a
     # sample at the same instant), the engine and the vehicle keep their state
-    arc = hs.simulate(at, at.initial_state([0.0, 50.0], 0.0), t_max=12.0)
+    arc = hs.simulate(at.set_inputs([0.0, 50.0], 0.0), at.initial_state(), t_max=12.0)
     k = np.flatnonzero(arc.is_jump_start & np.isclose(arc.t, 10.0, atol=1e-12))
     assert len(k) == 1 and arc.x[k[0] + 1, 8] == arc.x[k[0], 8] + 1
     assert np.array_equal(arc.x[k[0], :2], arc.x[k[0] + 1, :2])
@@ -131,10 +132,10 @@ def test_inputs_held_or_linear_between_control_points():
     (lambda: AutomaticTransmission(times=[1.0, 2.0]), "start at 0"),
     (lambda: AutomaticTransmission(times=[0.0, 0.0]), "strictly increasing"),
     (lambda: AutomaticTransmission(interpolation="cubic"), "'previous' or 'linear'"),
-    (lambda: AutomaticTransmission().initial_state(101.0, 0.0), r"throttle must lie in \[0, 100\]"),
-    (lambda: AutomaticTransmission(times=[0, 5]).initial_state([1.0, 2.0, 3.0], 0.0),
+    (lambda: AutomaticTransmission().set_inputs(101.0, 0.0), r"throttle must lie in \[0, 100\]"),
+    (lambda: AutomaticTransmission(times=[0, 5]).set_inputs([1.0, 2.0, 3.0], 0.0),
      "throttle must be a scalar or 2 control-point values"),
-    (lambda: ChasingCars().initial_state(0.0, 1.5), r"brake must lie in \[0, 1\]"),
+    (lambda: ChasingCars().input_params(0.0, 1.5), r"brake must lie in \[0, 1\]"),
 ])
 def test_bad_model_arguments(call, match):
     with pytest.raises(ValueError, match=match):
@@ -145,7 +146,7 @@ def test_bad_model_arguments(call, match):
 
 def test_cc_followers_switch_on_their_thresholds():
     cc = ChasingCars(times=[0.0, 20.0])
-    arc = hs.simulate(cc, cc.initial_state([1.0, 0.0], [0.0, 0.5]), t_max=40.0)
+    arc = hs.simulate(cc.set_inputs([1.0, 0.0], [0.0, 0.5]), cc.initial_state(), t_max=40.0)
     x = arc.x
     moves = {(1.0, 0.0): 15.0, (1.0, 2.0): 5.0, (0.0, 1.0): 10.0, (2.0, 0.0): 20.0}
     switches = 0
@@ -170,7 +171,7 @@ def test_cc_a_step_across_a_control_point_reads_the_piece_it_started_on():
     cc = ChasingCars(times=np.arange(20) * 5.0, interpolation="previous")
     rng = np.random.default_rng(3)
     for _ in range(2):
-        x0 = cc.initial_state(rng.random(20), rng.random(20))
+        x0 = cc.set_inputs(rng.random(20), rng.random(20)).initial_state()
         end = hs.simulate(cc, x0, t_max=100.0).x[-1, list(cc.POSITIONS)]
         ref = hs.simulate(cc, x0, t_max=100.0, rtol=1e-11, atol=1e-13).x[-1, list(cc.POSITIONS)]
         np.testing.assert_allclose(end, ref, rtol=0, atol=5e-4)
@@ -199,7 +200,8 @@ def test_every_published_falsifying_input():
         (ok if rob < 0 else bad).append((r["year"], r["property"], rob))
         if rob >= 0 and r["system"] == "AT":
             at = AutomaticTransmission(times=times)
-            arc = hs.simulate(at, at.initial_state(values[:, 0], values[:, 1]), t_max=30.0)
+            at.set_inputs(values[:, 0], values[:, 1])
+            arc = hs.simulate(at, at.initial_state(), t_max=30.0)
             on_samples = [arc.at(2.0 * k)[at.RPM] for k in range(16)]
             assert max(on_samples) < 3000.0 < arc.x[:, at.RPM].max()
     assert {p for y, p, _ in bad if y == "2024"} == {"CC4"}
@@ -210,7 +212,7 @@ def test_every_published_falsifying_input():
 @pytest.mark.slow
 def test_compiled_and_python_paths_agree():
     at = AutomaticTransmission(times=[0.0, 5.0, 10.0])
-    x0 = at.initial_state([100.0, 30.0, 80.0], [0.0, 50.0, 0.0])
+    x0 = at.set_inputs([100.0, 30.0, 80.0], [0.0, 50.0, 0.0]).initial_state()
     tol = {"rtol": 1e-10, "atol": 1e-10}    # the two paths' steps agree to their tolerance
     a = hs.simulate(at, x0, t_max=30.0, **tol)
     b = hs.simulate(at, x0, t_max=30.0, backend="compiled", **tol)

@@ -27,7 +27,7 @@ LEVELS = (
                       "estimate", "arch", "_stl_eval", "_stl_signal", "_stl_window_nb",
                       "_explore_tree", "_estimate_runs", "_sensitivity_maps", "_falsify_space",
                       "_falsify_search", "_estimate_stats", "_plot_sample"}),
-    ("front door", {"run", "batch", "_batch_reduce"}),
+    ("front door", {"run", "batch", "_batch_reduce", "_batch_attributes"}),
     ("paths", {"solve", "batch_vectorized", "compiled",
                "_sde", "_random_jumps", "_variational", "_solve_state", "_solve_solver",
                "_batch_maps", "_batch_samples", "_batch_steps", "_batch_events"}),

@@ -166,11 +166,12 @@ def test_the_runners_share_one_parameter_vocabulary():
             defaults = {repr(p.default) for _, p in where}
             assert len(defaults) == 1, (pname, [(n, p.default) for n, p in where])
     # the simulation runners' options are simulate's (or forwarded to it), but for
-    # the compiled batch's own (threads, memory, and the reduction simulate_many's
-    # stats= hands it)
+    # the compiled batch's own (threads, memory, the reduction simulate_many's
+    # stats= hands it and the rows' p its attributes= does)
     front = sigs["simulate"].parameters
     for name in ("simulate_vectorized", "simulate_compiled", "simulate_many_compiled"):
         for p in sigs[name].parameters.values():
-            if p.kind is p.KEYWORD_ONLY and p.name not in ("parallel", "chunk_bytes", "reduce"):
+            if p.kind is p.KEYWORD_ONLY and p.name not in ("parallel", "chunk_bytes", "reduce",
+                                                          "params"):
                 assert p.name in front, (name, p.name)
                 assert str(p.annotation) == str(front[p.name].annotation), (name, p.name)
