@@ -479,15 +479,14 @@ def _window_sup(ctx, s, a, b, lo, hi):
     """sup of ``s`` over [tau + a, tau + b] (cut at the end of s), for tau in [lo, hi]."""
     v = s.v
     fast = _compiled_core()
+    arr = np.ascontiguousarray
+    args = (arr(s.t, float), arr(s.j, np.int64), arr(v, float), arr(s.l, float),
+            arr(s.r, float), float(a), float(b), float(lo), float(hi),
+            arr(ctx.jump_times, float))
     if fast is not None and len(s.t) >= fast.MIN_INSTANTS:
         _say_compiling(fast)
-        core = fast.window_core
-    else:
-        core = _window_core
-    arr = np.ascontiguousarray
-    taus, val, vl, vr, rest, ea, ia, kink_t, kink_v, fi, la = core(
-        arr(s.t, float), arr(s.j, np.int64), arr(v, float), arr(s.l, float), arr(s.r, float),
-        float(a), float(b), float(lo), float(hi), arr(ctx.jump_times, float))
+        return _Sig(*fast.window_sup(*args, arr(ctx.t), arr(ctx.j), arr(ctx.run_end)))
+    taus, val, vl, vr, rest, ea, ia, kink_t, kink_v, fi, la = _window_core(*args)
     nk = len(kink_t)
     times = np.concatenate((taus, kink_t))
     V = np.concatenate((val, kink_v))

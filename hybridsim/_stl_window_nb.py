@@ -306,3 +306,125 @@ def window_core(t, j, v, l, r, a, b, lo, hi, jump_times):
                 nk += 1
     return (taus, val, vl, vr, rest, ea, ia, kink_t[:nk].copy(), kink_v[:nk].copy(),
             fi, la)
+
+
+@_njit
+def stable_order(x):
+    """``np.argsort(x, kind="stable")`` for an ``x`` made of a few sorted runs
+    (the breakpoints, then each kind of kink): the runs merged pairwise, the
+    left one first on ties, in linear time a merge."""
+    n = len(x)
+    order = np.arange(n)
+    starts = [0]
+    for i in range(1, n):
+        if x[i] < x[i - 1]:
+            starts.append(i)
+    starts.append(n)
+    buf = np.empty(n, np.int64)
+    while len(starts) > 2:
+        nxt = [0]
+        for q in range(0, len(starts) - 1, 2):
+            a0 = starts[q]
+            if q + 2 >= len(starts):
+                nxt.append(starts[q + 1])
+                continue
+            a1, a2 = starts[q + 1], starts[q + 2]
+            i, k, w = a0, a1, a0
+            while i < a1 and k < a2:
+                if x[order[k]] < x[order[i]]:
+                    buf[w] = order[k]
+                    k += 1
+                else:
+                    buf[w] = order[i]
+                    i += 1
+                w += 1
+            while i < a1:
+                buf[w] = order[i]
+                i += 1
+                w += 1
+            while k < a2:
+                buf[w] = order[k]
+                k += 1
+                w += 1
+            order[a0:a2] = buf[a0:a2]
+            nxt.append(a2)
+        starts = nxt
+    return order
+
+
+@_njit
+def window_sup(t, j, v, l, r, a, b, lo, hi, jump_times, at, aj, run_end):
+    """:func:`hybridsim._stl_eval._window_sup` after its core, compiled: the
+    window's breakpoints and kinks merged in time order (a stable sort, as
+    numpy's), spread over every instant of the arc (``at``, ``aj``,
+    ``run_end``: the evaluation's :meth:`_Context.domain`), and a window
+    starting at an evaluation instant read from that instant's j on. Returns
+    the output signal's ``(T, J, v, l, r)``, the numpy code's to the bit."""
+    taus, val, vl, vr, rest, ea, ia, kink_t, kink_v, fi, la = window_core(
+        t, j, v, l, r, a, b, lo, hi, jump_times)
+    K1, nk = len(taus), len(kink_t)
+    nt = K1 + nk
+    times = np.empty(nt)
+    times[:K1] = taus
+    times[K1:] = kink_t
+    order = stable_order(times)
+    tt = times[order]
+    V = np.empty(nt)
+    Lv = np.empty(nt)
+    Rv = np.empty(nt)
+    Re = np.empty(nt)
+    own = np.zeros(nt, np.bool_)
+    Ia = np.zeros(nt, np.int64)
+    for q in range(nt):
+        o = order[q]
+        if o < K1:
+            V[q], Lv[q], Rv[q], Re[q] = val[o], vl[o], vr[o], rest[o]
+            own[q] = ea[o] and a == 0.0
+            Ia[q] = ia[o]
+        else:
+            kv = kink_v[o - K1]
+            V[q] = Lv[q] = Rv[q] = Re[q] = kv
+    # the arc's instants at each time (its first sample there, its last)
+    N = len(at)
+    jlo = np.empty(nt, np.int64)
+    cnt = np.empty(nt, np.int64)
+    ptr = 0
+    n = 0
+    for q in range(nt):
+        x = tt[q]
+        while ptr < N and at[ptr] < x:
+            ptr += 1
+        i0 = min(ptr, N - 1)
+        i1 = run_end[i0] if at[i0] == x else ptr - 1
+        i1 = max(i1, 0)
+        lo_j, hi_j = aj[i0], aj[i1]
+        lo_j = min(lo_j, hi_j)
+        jlo[q] = lo_j
+        cnt[q] = hi_j - lo_j + 1
+        n += cnt[q]
+    T = np.empty(n)
+    J = np.empty(n, np.int64)
+    Vd = np.empty(n)
+    Lo = np.empty(n)
+    Ro = np.empty(n)
+    w = 0
+    for q in range(nt):
+        c_q = cnt[q]
+        for e in range(c_q):
+            fst, lst = e == 0, e == c_q - 1
+            T[w] = tt[q]
+            J[w] = jlo[q] + e
+            vd = V[q]
+            if own[q] and not (fst and lst):
+                # the max of v over the signal's instants of its time from J[w] on
+                g = Ia[q]
+                c = min(max(fi[g] + (J[w] - j[fi[g]]), fi[g]), la[g])
+                vs = v[c]
+                for i in range(c + 1, la[g] + 1):
+                    vs = mx(vs, v[i])
+                vd = mx(Re[q], vs)
+            Vd[w] = vd
+            Lo[w] = Lv[q] if fst else vd
+            Ro[w] = Rv[q] if lst else vd
+            w += 1
+    return T, J, Vd, Lo, Ro

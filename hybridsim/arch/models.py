@@ -351,14 +351,13 @@ def _watch(v, thr, g):
     return h
 
 
-def at_flow(x, t, j, p):
+def at_flow(x, t, j, p, out):
     dne, drive, _, _, brk = _at_physics(x, t, p)
-    out = np.zeros(x.shape[0])
+    out[:] = 0.0
     if x[6] == 0.0:
         out[0] = dne
     if x[7] == 0.0:
         out[1] = _at_accel(x[1], drive, brk)
-    return out
 
 
 def at_guard(x, t, j, p):
@@ -558,8 +557,8 @@ def _cc_follower_guard(x, i):
     return max(d - 15.0, 5.0 - d)
 
 
-def cc_flow(x, t, j, p):
-    out = np.zeros(x.shape[0])
+def cc_flow(x, t, j, p, out):
+    out[:] = 0.0
     # the piece the control-point events have reached: a step across the next
     # control point reads the piece it started on (its event ends the flow)
     i = min(max(int(x[14]) - 1, 0), int(p[0]) - 1)
@@ -576,7 +575,6 @@ def cc_flow(x, t, j, p):
             out[k], out[k + 1] = -v, -v
         else:
             out[k] = v
-    return out
 
 
 @_jitable

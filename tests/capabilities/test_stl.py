@@ -734,3 +734,21 @@ def test_the_compiled_windows_first_compile_is_announced_once(overloads, index, 
         assert "/cache/here" in err and "about 7 s" in err
     else:
         assert err == ""
+
+
+def test_the_compiled_windows_merge_is_numpys_stable_sort():
+    """``_stl_window_nb.stable_order`` (the window's breakpoints and kinks, a
+    few sorted runs, merged) is ``np.argsort(kind="stable")``, ties included,
+    on random runs of repeated values and on unsorted data."""
+    from hybridsim import _stl_eval
+    fast = _stl_eval._compiled_core()
+    if fast is None:
+        pytest.skip("numba is not installed: the numpy code is the only one")
+    rng = np.random.default_rng(11)
+    for _ in range(200):
+        runs = [np.sort(rng.integers(0, 12, rng.integers(0, 25))).astype(float)
+                for _ in range(rng.integers(1, 6))]
+        x = np.concatenate(runs)
+        np.testing.assert_array_equal(fast.stable_order(x), np.argsort(x, kind="stable"))
+    x = rng.random(300)
+    np.testing.assert_array_equal(fast.stable_order(x), np.argsort(x, kind="stable"))
