@@ -447,7 +447,7 @@ def _compiled_core():
 
 
 #: CPU seconds the compiled window takes to compile with an empty cache (the notice's)
-WINDOW_COMPILE_SECONDS = 7
+WINDOW_COMPILE_SECONDS = 10
 
 
 def _say_compiling(fast):
@@ -456,12 +456,12 @@ def _say_compiling(fast):
     ``hybridsim.compiled`` logger where logging is configured), where it is
     neither compiled in this process nor in numba's disk cache; a first STL
     robustness on a long signal is otherwise silent for seconds."""
-    if _COMPILED_SAID or fast.window_core.overloads:
+    if _COMPILED_SAID or fast.window_sup.overloads:
         return
     _COMPILED_SAID.append(True)
     from .compiled._system import _notice
     try:        # numba's private cache API (any entry: the window has one signature)
-        cache = fast.window_core._cache
+        cache = fast.window_sup._cache
         if cache._cache_file._load_index():
             return
         where = cache._cache_path

@@ -27,7 +27,7 @@ import sys
 #: the warming jobs, each one throwaway process: ``name: (steps, after)``, the
 #: steps run in order (``_cache.compile_kernels`` arguments; ``"sde"``: the SDE
 #: flow's kernel, compiled by a run of one small SDE; ``"stl"``: the compiled
-#: STL window, :mod:`hybridsim._stl_window_nb`, about 7 s; ``("tests", name)``:
+#: STL window, :mod:`hybridsim._stl_window_nb`, about 10 s; ``("tests", name)``:
 #: the tests of ``COMPILING[name]``), started once every job of ``after`` has
 #: ended, so they load those kernels rather than compile them again. The run
 #: kernels share their compiled helpers through the disk cache: the first
@@ -35,7 +35,7 @@ import sys
 #: ``sde``. Of the jobs ready to start, the first in this order starts
 #: (:func:`run_jobs`): the longer chains first. CPU seconds from an empty
 #: cache, measured alone: base 17, sde 20, delays 18, watch 13, 004 29,
-#: paths 23, stochastic 19, events 12, stl 7
+#: paths 23, stochastic 19, events 12, stl 10
 JOBS = {
     "base": (({"batch": True},), ()),
     "sde": (("sde", {"batch": False, "method": "RK4"}), ()),
@@ -159,8 +159,9 @@ def warm(name):
 
             from hybridsim import _stl_window_nb
             t = np.linspace(0.0, 1.0, _stl_window_nb.MIN_INSTANTS)
-            _stl_window_nb.window_core(t, np.zeros(len(t), np.int64), t, t, t, 0.0, 0.5,
-                                       0.0, 0.5, np.zeros(0))
+            z = np.zeros(len(t), np.int64)
+            _stl_window_nb.window_sup(t, z, t, t, t, 0.0, 0.5, 0.0, 0.5, np.zeros(0), t, z,
+                                      np.arange(len(t)))
         else:
             k.compile_kernels(**kw)
 
