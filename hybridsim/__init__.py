@@ -26,12 +26,13 @@ from . import library as library
 from . import rules as rules
 from . import stl as stl
 from . import testing as testing
+from ._compose_network import connect, network
 from ._version import __version__ as __version__
 from .arc import Crossings, HybridArc, Termination, load
 from .arc_batch import ArcBatch
 from .batch_vectorized import simulate_vectorized
 from .brownian import BrownianPath
-from .compose import Interconnection, LinearInput, LinearPlant, connect, network
+from .compose import Interconnection, LinearInput, LinearPlant
 from .explore import Choice, ExploreEnd, SolutionTree, explore
 from .falsification import falsify
 from .history import BatchHistory, History, HistoryError

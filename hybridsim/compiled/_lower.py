@@ -328,7 +328,7 @@ def source_component(system):
     n, m = int(system.state_dim), int(system.input_dim or 0)
     q = None
     if output is not None:
-        from ..compose import _output_dim
+        from .._compose_network import _output_dim
         q = _output_dim(system)
     return Component(state_dim=n, input_dim=m, output=output, output_dim=q, params=p,
                      delays=delays, **keywords(maps))
