@@ -200,7 +200,11 @@ def batch_run(system, x0_of, t_max, j_max=np.inf, *, attributes_of=None, **simul
         again; on the others the rows one after another with their
         attributes set, restored after; over an executor each row on a copy).
         A :class:`~hybridsim.compiled.CompiledSystem`'s are its ``params``
-        (``{"params": p}``).
+        (``{"params": p}``: taken as they are, nothing set). A plain
+        model's attributes are set on ``system`` in turn while its next
+        pieces' parameters are read (under a lock, restored at once), while
+        :func:`falsify` judges earlier ones: a claim judges the arc it is
+        given, not the system's attributes.
     t_max, j_max, **simulate_kwargs
         As in :func:`hybridsim.simulate_many`; ``backend`` defaults to
         ``"auto"``: the compiled path where the system runs there (numba
