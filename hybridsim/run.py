@@ -420,9 +420,10 @@ def simulate_many(system: HybridSystem, x0s: ArrayLike, t_max: float,
         the other paths (and where a row changes the compiled form, an
         attribute of another shape) the rows run one after another, each with
         its attributes. The arcs' ``system`` is ``system`` with its
-        attributes restored; with an executor (whose workers may share the
-        system) each row runs on a copy with its attributes, its arc's
-        ``system``.
+        attributes restored (``arc.outputs()`` reads them as they are then:
+        set a row's again to evaluate an output that reads them); with an
+        executor (whose workers may share the system) each row runs on a
+        copy with its attributes, its arc's ``system``.
     **options
         Passed to :func:`hybridsim.simulate` (``priority``, ``rtol``...).
         Argument errors (the same for every row) raise at once.
