@@ -7,7 +7,8 @@ the robustness is the same to the bit; one pass over the breakpoints in
 place of numpy's array passes, the searches as pointers moving forward (the
 breakpoints are sorted) and the breakpoints merged from their sorted parts
 in place of a sort: on the chasing cars' arcs (4,000 samples) about three
-times faster. Imported only where numba is installed, by
+times faster. :func:`window_sup` is the rest of ``_window_sup`` after the
+core, compiled with it (the same results, to the bit). Imported only where numba is installed, by
 :func:`hybridsim._stl_eval._window_sup` for signals of
 :data:`MIN_INSTANTS` and more; compiled on first use, kept in numba's disk
 cache where the engine's kernels are.

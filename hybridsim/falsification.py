@@ -175,10 +175,6 @@ class FalsificationResult:
                 f"{self.evaluations} evaluations in {self.seconds:.2f} s, {self.method}{end})")
 
 
-#: an attribute the system did not have before a population set it
-_UNSET = object()
-
-
 def batch_run(system, x0_of, t_max, j_max=np.inf, *, attributes_of=None, **simulate_kwargs):
     """A population run: all points of a population in one :func:`hybridsim.simulate_many`.
 

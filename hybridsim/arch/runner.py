@@ -125,8 +125,8 @@ def run(out, *, trials=10, only=None, instances=(1, 2), budget=BUDGET, quick=Fal
                 continue                # F16 has one instance
             run_, sp, claim, _ = problem(name, inst, backend=backend)
             m = model(req.system, inst)
-            if backend != "python" and available() and specialize and not m.specialize:
-                m.specialize, m._nb = True, None
+            if backend != "python" and available():
+                m.specialize = specialize
             if backend != "python" and available() and m._nb is None:
                 log(f"compiling the {req.system} model's maps (instance {inst}): "
                     f"{m.compile():.1f} s")

@@ -282,9 +282,7 @@ class CompiledSystem(HybridSystem):
             cap = min(self.delays)
             max_step = cap if max_step is None else min(float(max_step), cap)
         self.max_step = max_step
-        if not isinstance(specialize, (bool, np.bool_)):
-            raise TypeError(f"specialize must be True or False, got {specialize!r}")
-        self.specialize = bool(specialize)
+        self.specialize = specialize
         self._name = name
         self.maps = {}
         for role, fn in (("flow", flow_map), ("jump", jump_map), ("jump_guard", jump_guard),
@@ -325,6 +323,23 @@ class CompiledSystem(HybridSystem):
             raise TypeError("watch_direction without watch: give the watched functions as "
                             "watch=")
         self._nb = None
+
+    @property
+    def specialize(self):
+        """Whether the system runs on a kernel of its own with its maps compiled
+        in (True) or on the engine's kernel, its maps by address (False).
+        Changing it drops what was compiled: the next run compiles (or loads)
+        the other form."""
+        return self._specialize
+
+    @specialize.setter
+    def specialize(self, value):
+        if not isinstance(value, (bool, np.bool_)):
+            raise TypeError(f"specialize must be True or False, got {value!r}")
+        value = bool(value)
+        if self.__dict__.get("_specialize", value) != value:
+            self._nb = None
+        self._specialize = value
 
     @property
     def params(self):

@@ -176,3 +176,19 @@ def test_a_parts_attribute_changed_between_runs_is_seen_compiled():
     for a in (1.0, 2.0):
         np.testing.assert_allclose(ends["compiled", a], np.exp(-a), rtol=1e-8)
         np.testing.assert_allclose(ends["python", a], np.exp(-a), rtol=1e-8)
+
+
+@needs_numba
+def test_a_compiled_systems_specialize_is_checked_and_keeps_what_was_compiled():
+    """``specialize`` set again to its value keeps the compiled maps (nothing
+    compiles); a value that is not a bool is refused naming it, on the
+    constructor and on the attribute."""
+    from hybridsim.compiled import CompiledSystem
+    timer = CompiledSystem(flow_map=lambda x, t, j, p: np.ones(1), state_dim=1)
+    timer.compile()
+    timer.specialize = False
+    assert timer.compile() == 0.0
+    with pytest.raises(TypeError, match="specialize must be True or False, got 'yes'"):
+        timer.specialize = "yes"
+    with pytest.raises(TypeError, match="specialize must be True or False, got 1"):
+        CompiledSystem(flow_map=lambda x, t, j, p: np.ones(1), state_dim=1, specialize=1)
