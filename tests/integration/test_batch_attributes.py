@@ -192,3 +192,37 @@ def test_a_compiled_systems_specialize_is_checked_and_keeps_what_was_compiled():
         timer.specialize = "yes"
     with pytest.raises(TypeError, match="specialize must be True or False, got 1"):
         CompiledSystem(flow_map=lambda x, t, j, p: np.ones(1), state_dim=1, specialize=1)
+
+
+class _Noisy(hs.HybridSystem):
+    """dx = -x dt + s dW: the noise's scale an attribute."""
+
+    state_dim = 1
+
+    def __init__(self, s):
+        self.s = s
+
+    def flow_map(self, x):
+        return -x
+
+    def diffusion(self, x):
+        return self.s + 0.0 * x
+
+
+@pytest.mark.paths(only=("python", "compiled"))
+def test_sde_rows_take_their_own_attributes(path):
+    """SDE rows of their own noise scale: each row replays on the Python path
+    from its recorded seed with its scale set (to 1e-12: the same arithmetic),
+    and a scale of 0 gives the noiseless flow, e^-t, to the method's
+    (Euler's, dt = 0.01) error."""
+    s = _Noisy(1.0)
+    scales = [0.0, 0.5, 2.0, 0.0]
+    B = hs.simulate_many(s, np.ones((4, 1)), 1.0, method="EM", max_step=0.01, backend=path,
+                         attributes=[{"s": c} for c in scales])
+    assert s.s == 1.0
+    for a, c in zip(B, scales):
+        ref = hs.simulate(_Noisy(c), [1.0], 1.0, method="EM", max_step=0.01,
+                          seed=a.stats["noise_seed"])
+        np.testing.assert_allclose(a.x, ref.x, rtol=0, atol=1e-12)
+    for a in (B[0], B[3]):
+        assert abs(a.xf[0] - np.exp(-1.0)) < 0.01      # Euler: (1 - 0.01)^100 vs e^-1
