@@ -290,8 +290,10 @@ class _Planner:
             hit = self.dispatchers[id(v)] = (f"_hs_d{len(self.dispatchers)}_{py.__name__}", v)
         return hit[0]
 
-    def follow(self, fn, role=None, form=None):
-        key = (id(fn.func), id(fn.obj))
+    def follow(self, fn, role=None, form=None, vectors=()):
+        """The generated name of ``fn`` rewritten (once per function, object and
+        the positions of its arguments that are one state, ``vectors``)."""
+        key = (id(fn.func), id(fn.obj), vectors)
         name = self._names.get(key)
         if name is not None:
             return self._past_from(name, fn)
@@ -337,6 +339,9 @@ class _Planner:
             state = [own[0]] + ([own[3]] if self.inputs and role != "output" and k >= 4
                                 else [])
             body.vectors, body.fresh = one_state(node, state)
+        elif vectors:                   # a helper given the caller's one-state arrays
+            body.vectors, body.fresh = one_state(node, [args[i] for i in vectors
+                                                        if i < len(args)])
         body.reads_past = False
         self.stack.append(body)
         try:

@@ -91,7 +91,8 @@ class _LastAxis:
         (the batch's shape, of one state ``()``) the number converted;
         ``np.clip(a, lo, hi)`` of numbers ``min(max(a, lo), hi)``
         (``_hs_clip``); ``e.astype(dtype)`` of a number the number converted
-        (``_hs_astype``). A one-state vector ``e`` (the
+        (``_hs_astype``); ``np.broadcast_to(e, x.shape[:-1])`` (the batch's
+        shape, of one state ``()``) the number (``_hs_scalar``). A one-state vector ``e`` (the
         map's x, u, and arrays made from them) keeps numpy's call. None
         where ``node`` is none of these."""
         kw = {k.arg: k.value for k in kws}
@@ -136,6 +137,10 @@ class _LastAxis:
             return _call("_hs_full_like", [args[0], v], node)
         if name == "clip" and len(args) == 3 and not kws:
             return _call("_hs_clip", args, node)
+        if name == "broadcast_to" and len(args) == 2 and not kws \
+                and self._batch_shape(node.args[1]):
+            # to the batch's shape: of one state (), the number itself
+            return _call("_hs_scalar", [args[0]], node)
         return None
 
     def _gather(self, node):

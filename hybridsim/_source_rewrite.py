@@ -77,6 +77,38 @@ def _slot_expr(slot, like):
     return ast.fix_missing_locations(ast.copy_location(e, like))
 
 
+def _slot_item(node):
+    """``p[a:b].reshape(shape)[i, j]`` (an array's slot read at constant
+    indices) as ``p[a + flat index]``, a number read in place; else ``node``."""
+    if not isinstance(node.ctx, ast.Load):
+        return node
+    idx = node.slice.elts if isinstance(node.slice, ast.Tuple) else [node.slice]
+    if not all(isinstance(i, ast.Constant) and type(i.value) is int for i in idx):
+        return node
+    v, shape = node.value, None
+    if isinstance(v, ast.Call) and isinstance(v.func, ast.Attribute) \
+            and v.func.attr == "reshape" and len(v.args) == 1 and not v.keywords \
+            and isinstance(v.args[0], ast.Tuple) \
+            and all(isinstance(n, ast.Constant) and type(n.value) is int
+                    for n in v.args[0].elts):
+        v, shape = v.func.value, tuple(n.value for n in v.args[0].elts)
+    if not (isinstance(v, ast.Subscript) and isinstance(v.value, ast.Name)
+            and v.value.id == P and isinstance(v.slice, ast.Slice)
+            and v.slice.step is None and all(isinstance(b, ast.Constant)
+                                             and type(b.value) is int
+                                             for b in (v.slice.lower, v.slice.upper))):
+        return node
+    a, b = v.slice.lower.value, v.slice.upper.value
+    shape = shape if shape is not None else (b - a,)
+    if len(shape) != len(idx) or not all(0 <= i.value < n for i, n in zip(idx, shape)):
+        return node
+    flat = 0
+    for i, n in zip(idx, shape):
+        flat = flat * n + i.value
+    return ast.copy_location(ast.Subscript(value=ast.Name(id=P, ctx=ast.Load()),
+                                           slice=ast.Constant(a + flat), ctx=ast.Load()), node)
+
+
 def _located(st, like):
     """``st`` and every node under it at ``like``'s line (generated statements)."""
     for n in ast.walk(st):
@@ -381,7 +413,7 @@ class _Rewrite(_LastAxis, ast.NodeTransformer):
                 and isinstance(key.value, str) and key.value in table):
             node = self.generic_visit(node)
             node.slice = _as_slice(node.slice)
-            return node
+            return _slot_item(node)
         obj, attr = hit
         k = key.value
         e = table[k]
@@ -792,7 +824,12 @@ class _Rewrite(_LastAxis, ast.NodeTransformer):
         elif isinstance(f, ast.Name) and f.id not in self.locals:
             v = self._lookup(f.id)[0]
             if isinstance(v, types.FunctionType) and self.pl.dispatcher(v) is None:
-                target = self.pl.follow(_fn_of_plain(v, fn, f))
+                target = _fn_of_plain(v, fn, f)
+        if target is not None:
+            # the caller's one-state arrays passed by position are one state in the callee
+            vecs = tuple(i for i, a in enumerate(node.args) if self._one_state(a)
+                         and not isinstance(a, ast.Subscript))
+            target = self.pl.follow(target, vectors=vecs)
         if target is None:
             return ast.copy_location(ast.Call(func=self.visit(f), args=args, keywords=kws),
                                      node)
@@ -818,7 +855,7 @@ class _Rewrite(_LastAxis, ast.NodeTransformer):
                      None) if own else None
         if not isinstance(found, types.FunctionType):
             raise fn.refuse(f, f"super().{f.attr} is not a plain method of a base class")
-        return self.pl.follow(Fn(found, fn.obj, found.__qualname__))
+        return Fn(found, fn.obj, found.__qualname__)
 
     def _self_method(self, f, obj):
         fn = self.fn
@@ -830,7 +867,7 @@ class _Rewrite(_LastAxis, ast.NodeTransformer):
             func = static.__func__
             if not isinstance(func, types.FunctionType):
                 raise fn.refuse(f, f"{_dotted(f)} is not a Python function")
-            return self.pl.follow(Fn(func, None, f"{type(obj).__name__}.{f.attr}"))
+            return Fn(func, None, f"{type(obj).__name__}.{f.attr}")
         if isinstance(bound, types.MethodType) and isinstance(bound.__func__,
                                                                types.FunctionType):
             if bound.__self__ is not obj:               # a method of another object, stored
@@ -838,12 +875,11 @@ class _Rewrite(_LastAxis, ast.NodeTransformer):
                         not _is_part(bound.__self__):
                     raise fn.refuse(f, f"{_dotted(f)} is bound to another object")
                 self.pl.reusable = False                  # that object: this system's own
-                return self.pl.follow(Fn(bound.__func__, bound.__self__,
-                                         bound.__func__.__qualname__))
-            return self.pl.follow(Fn(bound.__func__, obj, f"{type(obj).__name__}.{f.attr}"))
+                return Fn(bound.__func__, bound.__self__, bound.__func__.__qualname__)
+            return Fn(bound.__func__, obj, f"{type(obj).__name__}.{f.attr}")
         if isinstance(bound, types.FunctionType):      # a function stored on the instance
             self.pl.reusable = False
-            return self.pl.follow(Fn(bound, None, f"{type(obj).__name__}.{f.attr}"))
+            return Fn(bound, None, f"{type(obj).__name__}.{f.attr}")
         raise fn.refuse(f, f"it calls {_dotted(f)}, a {type(bound).__name__} that cannot "
                            f"be followed")
 

@@ -474,96 +474,19 @@ _TAU, _Q, _K1, _K2, _W1, _W2, _DELTA = 10, 11, 12, 13, 14, 15, 16
 _NOISE = 17
 
 
-def _rot(theta):
-    """R(theta) = e^{theta J} = cos theta I + sin theta J, stacked: (..., 2, 2)."""
-    c, s = np.cos(theta), np.sin(theta)
-    return np.stack([np.stack([c, s], -1), np.stack([-s, c], -1)], -2)
-
-
 def _F(k, w):
     """F = -k I + w J, stacked: (..., 2, 2)."""
     k, w = np.asarray(k, float), np.asarray(w, float)
     return np.stack([np.stack([-k, w], -1), np.stack([-w, -k], -1)], -2)
 
 
-@functools.cache
-def _rotating_maps(noise, pieces, terms):
-    """Compiled maps of :class:`RotatingFamily` (one state, the formulas of its
-    batch maps in the same order; eps, t_end in the parameters)."""
-    A, H, HINV = _A.copy(), _H.copy(), _HINV.copy()
-    two_pi = 2 * np.pi
-
-    def m(x, t, prm):
-        out = np.zeros(2)
-        if noise == "pwc":
-            width = prm[1] / pieces
-            k = min(max(math.floor(t / width), 0), pieces - 1)
-            out[0] = x[_NOISE + 2 * k]
-            out[1] = x[_NOISE + 2 * k + 1]
-        elif noise == "sin":
-            for i in range(2):
-                acc = 0.0
-                for c in range(terms):
-                    a = x[_NOISE + i * terms + c]
-                    f = x[_NOISE + 2 * terms + i * terms + c]
-                    ph = x[_NOISE + 4 * terms + i * terms + c]
-                    acc += a * math.sin(two_pi * f * t + ph)
-                out[i] = prm[0] / terms * acc
-        return out
-
-    def flow(x, u, t, j, prm):
-        dx = np.zeros(x.shape[0])
-        y00 = H[0, 0] * x[0] + H[0, 1] * x[1]              # y0 = H x
-        y01 = H[1, 0] * x[0] + H[1, 1] * x[1]
-        mm = m(x, t, prm)
-        dx[0] = A[0, 0] * x[0] + A[0, 1] * x[1]
-        dx[1] = A[1, 0] * x[0] + A[1, 1] * x[1]
-        for b, ik, iw, noisy in ((2, _K1, _W1, True), (4, _K2, _W2, True),
-                                 (6, _K1, _W1, False), (8, _K2, _W2, False)):
-            kk, ww = x[ik], x[iw]
-            y0, y1 = (y00 + mm[0], y01 + mm[1]) if noisy else (y00, y01)
-            # F = -k I + w J, L = (A - F) H^-1
-            f00, f01, f10, f11 = -kk, ww, -ww, -kk
-            a00, a01, a10, a11 = A[0, 0] - f00, A[0, 1] - f01, A[1, 0] - f10, A[1, 1] - f11
-            l00 = a00 * HINV[0, 0] + a01 * HINV[1, 0]
-            l01 = a00 * HINV[0, 1] + a01 * HINV[1, 1]
-            l10 = a10 * HINV[0, 0] + a11 * HINV[1, 0]
-            l11 = a10 * HINV[0, 1] + a11 * HINV[1, 1]
-            dx[b] = (f00 * x[b] + f01 * x[b + 1]) + (l00 * y0 + l01 * y1)
-            dx[b + 1] = (f10 * x[b] + f11 * x[b + 1]) + (l10 * y0 + l11 * y1)
-        dx[_TAU] = 1.0 - x[_Q]
-        return dx
-
-    def jump(x, u, t, j, prm):
-        d = x[_DELTA]
-        s = math.exp(-(x[_K2] - x[_K1]) * d)
-        th = (x[_W2] - x[_W1]) * d
-        c, sn = math.cos(th), math.sin(th)
-        # M = I - s R(th), K2 = M^-1, K1 = I - K2
-        m00, m01, m10, m11 = 1.0 - s * c, -s * sn, s * sn, 1.0 - s * c
-        det = m00 * m11 - m01 * m10
-        k200, k201, k210, k211 = m11 / det, -m01 / det, -m10 / det, m00 / det
-        k100, k101, k110, k111 = 1.0 - k200, -k201, -k210, 1.0 - k211
-        xn = x.copy()
-        for a, b in ((2, 4), (6, 8)):
-            r0 = (k100 * x[a] + k101 * x[a + 1]) + (k200 * x[b] + k201 * x[b + 1])
-            r1 = (k110 * x[a] + k111 * x[a + 1]) + (k210 * x[b] + k211 * x[b + 1])
-            xn[a], xn[a + 1], xn[b], xn[b + 1] = r0, r1, r0, r1
-        xn[_TAU] = 0.0
-        xn[_Q] = 1.0 - x[_Q]
-        return xn
-
-    def jump_guard(x, u, t, j, prm):
-        return -1.0 if x[_Q] > 0.5 else x[_TAU] - x[_DELTA]
-
-    def jump_set(x, u, t, j, prm):
-        return x[_TAU] >= x[_DELTA] and x[_Q] < 0.5
-
-    return flow, jump, jump_guard, jump_set
-
-
 class RotatingFamily(hs.HybridSystem):
-    """H_n (10)-(12) and plant (1) of V.B for F_i = -k_i I + w_i J, with noise, vectorized.
+    """H_n (10)-(12) and plant (1) of V.B for F_i = -k_i I + w_i J, with noise.
+
+    Its maps are written once, along the last axis (``x[..., k]``): the same
+    methods take one state or a batch (N, r), and run compiled as written
+    (``backend="auto"``, what :func:`hybridsim.falsification.batch_run` picks
+    where numba is installed).
 
     State (17 + noise coefficients)::
 
@@ -605,21 +528,37 @@ class RotatingFamily(hs.HybridSystem):
         self.state_dim = _NOISE + self.noise_size
 
     # -- noise ------------------------------------------------------------
-    def m(self, x, t):
-        """m(t) of each row: x (k, r), t (k,) or scalar -> (k, 2)."""
-        x = np.atleast_2d(x)
-        t = np.broadcast_to(np.asarray(t, float), (len(x),))
-        z = x[:, _NOISE:]
-        if self.noise == "none":
-            return np.zeros((len(x), 2))
+    def _noise(self, x, t):
+        """(m_1(t), m_2(t)) of each row, on the last axis (x (..., r), t (...,))."""
         if self.noise == "pwc":
             width = self.t_end / self.pieces
-            k = np.clip(np.floor(t / width).astype(int), 0, self.pieces - 1)
-            vals = z.reshape(len(x), self.pieces, 2)
-            return vals[np.arange(len(x)), k]
-        a, f, ph = z.reshape(len(x), 3, 2, self.terms).transpose(1, 0, 2, 3)
-        return self.eps / self.terms * np.sum(
-            a * np.sin(2 * np.pi * f * t[:, None, None] + ph), axis=-1)
+            k = np.clip(np.floor(t / width), 0, self.pieces - 1).astype(np.int64)
+            i0 = np.broadcast_to(_NOISE + 2 * k, x.shape[:-1])
+            i1 = i0 + 1
+            return (np.take_along_axis(x, i0[..., None], axis=-1)[..., 0],
+                    np.take_along_axis(x, i1[..., None], axis=-1)[..., 0])
+        if self.noise == "sin":
+            n, amp = self.terms, self.eps / self.terms
+            m0 = self._sinusoids(x, t, _NOISE, n)
+            m1 = self._sinusoids(x, t, _NOISE + n, n)
+            return amp * m0, amp * m1
+        zero = np.zeros(np.shape(x[..., 0]))
+        return zero, zero
+
+    def _sinusoids(self, x, t, a, n):
+        """sum_c a_c sin(2 pi f_c t + phi_c) over the ``n`` terms whose amplitudes start
+        at x[..., a] (frequencies 2n, phases 4n further)."""
+        acc = np.zeros(np.shape(x[..., 0]))
+        for c in range(n):
+            acc = acc + x[..., a + c] * np.sin(2 * np.pi * x[..., a + 2 * n + c] * t
+                                               + x[..., a + 4 * n + c])
+        return acc
+
+    def m(self, x, t):
+        """m(t) of each row: x (k, r), t (k,) or scalar -> (k, 2)."""
+        x = np.atleast_2d(np.asarray(x, float))
+        t = np.broadcast_to(np.asarray(t, float), (len(x),))
+        return np.stack(self._noise(x, t), axis=-1)
 
     def sup_norms(self, x0, t_end):
         """(|m|_delta, |m|_inf over [0, t_end]) of the realisation in the state x0 (Euclidean).
@@ -651,41 +590,66 @@ class RotatingFamily(hs.HybridSystem):
         # [0, delta] ends up to one step past its last grid point: slack lip * step
         return min(float(norms[ts <= delta].max()) + lip * step, m_inf), m_inf
 
-    # -- maps -------------------------------------------------------------
+    # -- maps (one definition on the last axis: every path) -----------------
+    def _copy_flow(self, x, b, k, w, y0, y1):
+        """F x̂ + L y of (11) for the copy x[..., b:b + 2], F = -k I + w J,
+        L = (A - F) H^-1."""
+        f00, f01, f10, f11 = -k, w, -w, -k
+        a00, a01, a10, a11 = _A[0, 0] - f00, _A[0, 1] - f01, _A[1, 0] - f10, _A[1, 1] - f11
+        l00 = a00 * _HINV[0, 0] + a01 * _HINV[1, 0]
+        l01 = a00 * _HINV[0, 1] + a01 * _HINV[1, 1]
+        l10 = a10 * _HINV[0, 0] + a11 * _HINV[1, 0]
+        l11 = a10 * _HINV[0, 1] + a11 * _HINV[1, 1]
+        return ((f00 * x[..., b] + f01 * x[..., b + 1]) + (l00 * y0 + l01 * y1),
+                (f10 * x[..., b] + f11 * x[..., b + 1]) + (l10 * y0 + l11 * y1))
+
     def flow_map(self, x, t):
-        X = np.atleast_2d(x)
-        F1, F2 = _F(X[:, _K1], X[:, _W1]), _F(X[:, _K2], X[:, _W2])
-        L1, L2 = (_A - F1) @ _HINV, (_A - F2) @ _HINV
-        y0 = X[:, _X] @ _H.T
-        y = y0 + self.m(X, t)
-        dx = np.zeros_like(X)
-        dx[:, _X] = X[:, _X] @ _A.T
-        for sl, F, L, yy in ((_XH1, F1, L1, y), (_XH2, F2, L2, y),
-                             (_C1, F1, L1, y0), (_C2, F2, L2, y0)):
-            dx[:, sl] = np.einsum("kij,kj->ki", F, X[:, sl]) + np.einsum("kij,kj->ki", L, yy)
-        dx[:, _TAU] = 1.0 - X[:, _Q]
-        return dx.reshape(np.shape(x))
+        """(1) and (11): x' = A x, x̂_i' = F_i x̂_i + L_i (H x + m), the twin's with
+        y = H x, tau' = 1 - q; on the last axis."""
+        x0, x1 = x[..., 0], x[..., 1]
+        y0 = _H[0, 0] * x0 + _H[0, 1] * x1
+        y1 = _H[1, 0] * x0 + _H[1, 1] * x1
+        m0, m1 = self._noise(x, t)
+        k1, k2, w1, w2 = x[..., _K1], x[..., _K2], x[..., _W1], x[..., _W2]
+        dx = np.zeros_like(x)
+        dx[..., 0] = _A[0, 0] * x0 + _A[0, 1] * x1
+        dx[..., 1] = _A[1, 0] * x0 + _A[1, 1] * x1
+        dx[..., 2], dx[..., 3] = self._copy_flow(x, 2, k1, w1, y0 + m0, y1 + m1)
+        dx[..., 4], dx[..., 5] = self._copy_flow(x, 4, k2, w2, y0 + m0, y1 + m1)
+        dx[..., 6], dx[..., 7] = self._copy_flow(x, 6, k1, w1, y0, y1)
+        dx[..., 8], dx[..., 9] = self._copy_flow(x, 8, k2, w2, y0, y1)
+        dx[..., _TAU] = 1.0 - x[..., _Q]
+        return dx
+
+    def _gains(self, x):
+        """The entries (row-major) of K1 and K2 of (12): M = I - s R(theta),
+        s = e^{-(k2 - k1) delta}, theta = (w2 - w1) delta, K2 = M^-1, K1 = I - K2."""
+        d = x[..., _DELTA]
+        s = np.exp(-(x[..., _K2] - x[..., _K1]) * d)
+        th = (x[..., _W2] - x[..., _W1]) * d
+        c, sn = np.cos(th), np.sin(th)
+        m00, m01, m10, m11 = 1.0 - s * c, -s * sn, s * sn, 1.0 - s * c
+        det = m00 * m11 - m01 * m10
+        b00, b01, b10, b11 = m11 / det, -m01 / det, -m10 / det, m00 / det
+        return 1.0 - b00, -b01, -b10, 1.0 - b11, b00, b01, b10, b11
 
     def gains(self, x):
         """(K1, K2) of (12) for each row's design, (k, 2, 2) each."""
-        X = np.atleast_2d(x)
-        d = X[:, _DELTA]
-        s = np.exp(-(X[:, _K2] - X[:, _K1]) * d)
-        M = np.eye(2) - s[:, None, None] * _rot((X[:, _W2] - X[:, _W1]) * d)
-        K2 = np.linalg.inv(M)
-        return np.eye(2) - K2, K2
+        g = np.stack(self._gains(np.atleast_2d(np.asarray(x, float))), axis=-1)
+        return g[:, :4].reshape(-1, 2, 2), g[:, 4:].reshape(-1, 2, 2)
 
     def jump_map(self, x):
-        X = np.atleast_2d(x)
-        K1, K2 = self.gains(X)
-        xn = X.copy()
-        for a, b in ((_XH1, _XH2), (_C1, _C2)):
-            R = np.einsum("kij,kj->ki", K1, X[:, a]) + np.einsum("kij,kj->ki", K2, X[:, b])
-            xn[:, a] = R
-            xn[:, b] = R
-        xn[:, _TAU] = 0.0
-        xn[:, _Q] = 1.0 - X[:, _Q]
-        return xn.reshape(np.shape(x))
+        """(12): both copies (and both of the twin) to K1 x̂1 + K2 x̂2, tau+ = 0,
+        q+ = 1 - q; on the last axis."""
+        a00, a01, a10, a11, b00, b01, b10, b11 = self._gains(x)
+        xn = x.copy()
+        for a, b in ((2, 4), (6, 8)):
+            r0 = (a00 * x[..., a] + a01 * x[..., a + 1]) + (b00 * x[..., b] + b01 * x[..., b + 1])
+            r1 = (a10 * x[..., a] + a11 * x[..., a + 1]) + (b10 * x[..., b] + b11 * x[..., b + 1])
+            xn[..., a], xn[..., a + 1], xn[..., b], xn[..., b + 1] = r0, r1, r0, r1
+        xn[..., _TAU] = 0.0
+        xn[..., _Q] = 1.0 - x[..., _Q]
+        return xn
 
     def jump_guard(self, x):
         h = x[..., _TAU] - x[..., _DELTA]
@@ -693,18 +657,6 @@ class RotatingFamily(hs.HybridSystem):
 
     def jump_set(self, x):
         return (x[..., _TAU] >= x[..., _DELTA]) & (x[..., _Q] < 0.5)
-
-    # Kept beside the maps above: they are written over batches of designs (np.einsum,
-    # np.stack, np.linalg.inv of stacked 2 x 2 matrices), which numba cannot compile
-    # (it has no einsum); these are the same formulas for one state, in the same order.
-    def compiled_component(self):
-        """The family's compiled form (``backend="compiled"``; what
-        :func:`hybridsim.falsification.batch_run` picks where numba is
-        installed): the same maps, row by row."""
-        from hybridsim.compiled import Component
-        f, g, hD, D = _rotating_maps(self.noise, self.pieces, self.terms)
-        return Component(state_dim=self.state_dim, flow_map=f, jump_map=g, jump_guard=hD,
-                         jump_set=D, params=[self.eps, self.t_end])
 
     def state(self, x0, xhat0, params, noise=()):
         """The initial state: plant x0, z_m(0, 0) in S_n (x̂1 = x̂2 = xhat0, tau = q = 0),

@@ -207,6 +207,60 @@ def test_each_row_reads_its_own_piece_on_every_path(path):
     np.testing.assert_array_equal(arc.x[-1, 1:], m)
 
 
+
+class Turns(hs.HybridSystem):
+    """(x0, x1) turning at unit rate, x2' the piece of t of the values in the
+    state (x3.., x6): written with a helper method given the state
+    (``self._turn(x, 0)``), the entries of a matrix attribute at constant
+    indices (``self.M[0, 1]``) and each row's piece broadcast to its batch
+    shape (``np.broadcast_to(..., x.shape[:-1])``)."""
+
+    state_dim = 7
+    vectorized = True
+    M = np.array([[0.0, 1.0], [-1.0, 0.0]])
+    width = 0.25
+
+    def _turn(self, x, k):
+        return (self.M[0, 0] * x[..., k] + self.M[0, 1] * x[..., k + 1],
+                self.M[1, 0] * x[..., k] + self.M[1, 1] * x[..., k + 1])
+
+    def _piece(self, x, t):
+        k = np.clip(np.floor(t / self.width), 0, 3).astype(np.int64)
+        i = np.broadcast_to(3 + k, x.shape[:-1])
+        return np.take_along_axis(x, i[..., None], axis=-1)[..., 0]
+
+    def flow_map(self, x, t):
+        d = np.zeros_like(x)
+        d[..., 0], d[..., 1] = self._turn(x, 0)
+        d[..., 2] = self._piece(x, t)
+        return d
+
+    def jump_set(self, x):
+        return np.zeros(x.shape[:-1], bool)
+
+
+def test_a_helper_given_the_state_reads_it_as_one_state_on_every_path(path):
+    """(x0, x1)(t) = R(t) (x0, x1)(0) (R the rotation e^{Mt}) and x2(1) the
+    values' integral, on every path (1e-9 at rtol 1e-11; 5e-8 for the pieces,
+    as above). On the compiled path the helper reads ``x[..., k]`` of the
+    caller's state as ``x[k]`` (a number, no 0-d array), ``self.M[0, 1]`` as
+    one slot of ``p`` and the broadcast piece as a number."""
+    m = np.array([1.0, -2.0, 0.5, 3.0])
+    arc = run(path, _Case(Turns()), np.r_[0.6, -0.8, 0.0, m], t_max=1.0, max_step=0.05,
+              rtol=1e-11, atol=1e-13)
+    c, s = math.cos(1.0), math.sin(1.0)
+    np.testing.assert_allclose(arc.x[-1, :2], [c * 0.6 + s * -0.8, -s * 0.6 + c * -0.8],
+                               rtol=0, atol=1e-9)
+    np.testing.assert_allclose(arc.x[-1, 2], 0.25 * m.sum(), rtol=0, atol=5e-8)
+    if path == "compiled":
+        from hybridsim import _source
+        src = _source.plan(Turns()).source
+        turn = next(f for f in src.split("\ndef ") if "_turn(" in f.split("\n")[0])
+        assert "x[k]" in turn and "x[..., k]" not in turn and "reshape" not in turn
+        piece = next(f for f in src.split("\ndef ") if "_piece(" in f.split("\n")[0])
+        assert "_hs_scalar(" in piece and "broadcast_to" not in piece
+
+
 GRID = np.linspace(0.0, 1.0, 11)
 
 
