@@ -36,7 +36,7 @@ LEVELS = (
                          "_arc_access", "_arc_checks", "_arc_io", "_arc_records",
                          "_compose_checks", "arc_batch", "library",
                          "_source", "_source_read", "_source_guards", "_source_last_axis",
-                         "_source_rewrite", "_source_shapes", "_source_unroll",
+                         "_source_rewrite", "_source_shapes", "_source_slots", "_source_unroll",
                          "brownian"}),
 )
 
