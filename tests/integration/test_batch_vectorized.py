@@ -466,7 +466,7 @@ def test_coin_drawn_only_where_the_rules_need_it():
 
 
 def test_event_tolerance_over_arrays_is_the_rule():
-    from hybridsim.batch_vectorized import _tol
+    from hybridsim._batch_events import _tol
     from hybridsim.rules import event_tolerance
     v = np.r_[0.0, 1e-300, 0.5, 1.0, 1.5, -3.0, 1e6, 2.0 ** 52, np.random.default_rng(1)
               .uniform(-1e4, 1e4, 50)]
