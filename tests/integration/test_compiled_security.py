@@ -132,6 +132,7 @@ def test_a_symlink_at_a_temporary_name_is_not_followed(tmp_path, spec_dirs):
 
 
 @posix
+@pytest.mark.slow       # two fresh interpreters importing numba: about 3 s
 def test_a_shared_numba_cache_folder_is_refused_and_its_index_never_read(tmp_path):
     """``NUMBA_CACHE_DIR`` writable by others: the engine keeps no kernel there
     (it compiles them in memory, and says so once), so an index planted there
