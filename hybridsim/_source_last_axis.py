@@ -92,8 +92,8 @@ class _LastAxis:
         ``np.clip(a, lo, hi)`` of numbers ``min(max(a, lo), hi)``
         (``_hs_clip``); ``e.astype(dtype)`` of a number the number converted
         (``_hs_astype``); ``np.broadcast_to(e, x.shape[:-1])`` (the batch's
-        shape, of one state ``()``) the number (``_hs_scalar``). A one-state vector ``e`` (the
-        map's x, u, and arrays made from them) keeps numpy's call. None
+        shape, of one state ``()``) the number (``_hs_scalar``). A one-state
+        vector ``e`` (the map's x, u, and arrays made from them) keeps numpy's call. None
         where ``node`` is none of these."""
         kw = {k.arg: k.value for k in kws}
         if f.attr == "astype" and self._module_of(f.value) is None:
