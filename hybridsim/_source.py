@@ -27,8 +27,9 @@ function's own node in its file, so every message names the file and line):
   and calls of plain functions are followed (rewritten the same way; an
   argument that is the caller's one state is one state there too, so
   ``x[..., k]`` reads ``x[k]``), modules are imported by name. Parts of
-  the system are read through: ``self.design.F1``, ``d = self.design`` then ``d.F1``, ``self.data.flow(...)`` (a method of a
-  part, followed); another object in its place rewrites the maps. A bool,
+  the system are read through: ``self.design.F1``, ``d = self.design``
+  then ``d.F1``, ``self.data.flow(...)`` (a method of a part, followed);
+  another object in its place rewrites the maps. A bool,
   int or str attribute (or int global) is a constant of the rewrite (a size,
   an index; ``self.mode == "pwc"`` decides
   its branch, the other is dropped), and ``self.slices["x"]`` (a dict read by
