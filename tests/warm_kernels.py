@@ -35,7 +35,7 @@ import sys
 #: ``sde``. Of the jobs ready to start, the first in this order starts
 #: (:func:`run_jobs`): the longer chains first. CPU seconds from an empty
 #: cache, measured alone: base 17, sde 20, delays 18, watch 13, 004 29,
-#: paths 23, stochastic 19, events 12, stl 10
+#: paths 23, stochastic 19, events 12, stl 10, 002 6
 JOBS = {
     "base": (({"batch": True},), ()),
     "sde": (("sde", {"batch": False, "method": "RK4"}), ()),
@@ -48,6 +48,7 @@ JOBS = {
     "stochastic": ((("tests", "stochastic"),), ("base", "sde")),
     "events": ((("tests", "events"),), ("base", "watch")),
     "stl": (("stl",), ()),
+    "002": ((("tests", "002"),), ("base",)),
 }
 assert all(set(after) <= set(JOBS) for _, after in JOBS.values())
 
@@ -79,6 +80,9 @@ COMPILING = {
     "stochastic": ("integration/test_sde_stepper.py", "integration/test_stochastic_paths.py",
                    "capabilities/test_explore.py", "integration/test_batch_reduce.py",
                    "integration/test_batch_attributes.py"),
+    # Li-Sanfelice's family of designs, rewritten from source (2-3 s each noise kind)
+    "002": ("papers/li_sanfelice/test_li_sanfelice_falsification.py::"
+            "test_the_family_is_one_definition_on_every_path",),
 }
 
 
