@@ -92,16 +92,9 @@ class _LeanStep:
             K[-1] = f_new
             scale = atol + _maximum(_abs(y), _abs(y_new)) * rtol
             error_norm = self._error_norm(KT, h, scale)
+            h_abs *= step_factor(error_norm, rejected, expo)
             if error_norm < 1:
-                if error_norm == 0:
-                    factor = MAX_FACTOR
-                else:
-                    factor = min(MAX_FACTOR, SAFETY * error_norm ** expo)
-                if rejected:
-                    factor = min(1, factor)
-                h_abs *= factor
                 break
-            h_abs *= max(MIN_FACTOR, SAFETY * error_norm ** expo)
             rejected = True
         return _advance(self, h, y, t_new, y_new, h_abs, f_new)
 
@@ -133,6 +126,32 @@ class DOP853(_LeanStep, _ScipyDOP853):
             return 0.0
         denom = err5_norm_2 + 0.01 * err3_norm_2
         return abs(h) * err5_norm_2 / math.sqrt(denom * len(scale))
+
+
+def step_factor(err, rejected, exponent):
+    """scipy's step-size controller (``RungeKutta._step_impl``): the factor of
+    the next step after a step of error norm ``err`` (accepted where
+    ``err < 1``; ``rejected``: the step was rejected before), the error
+    estimator's ``exponent`` (-1 / (order + 1)); its constants scipy's.
+
+    Examples
+    --------
+    >>> step_factor(0.0, False, -0.2) == MAX_FACTOR, step_factor(1e9, False, -0.2) == MIN_FACTOR
+    (True, True)
+    >>> step_factor(0.5, True, -0.2)        # after a rejection: not larger
+    1.0
+    """
+    if err < 1:
+        if err == 0:
+            factor = MAX_FACTOR
+        else:
+            factor = SAFETY * err ** exponent
+            factor = factor if factor < MAX_FACTOR else MAX_FACTOR
+        if rejected:
+            factor = factor if factor < 1.0 else 1.0
+        return factor
+    factor = SAFETY * err ** exponent
+    return factor if factor > MIN_FACTOR else MIN_FACTOR
 
 
 def scaled_rms(v, w, scale, diff):
@@ -253,7 +272,7 @@ def first_step(fun, t0, y0, t_bound, max_step, f0, order, rtol, atol):
 
 
 #: the functions the compiled kernel compiles from this source
-COMPILED = (scaled_rms, initial_guess, initial_step)
+COMPILED = (step_factor, scaled_rms, initial_guess, initial_step)
 
 
 #: scipy's class -> the engine's stepper for it

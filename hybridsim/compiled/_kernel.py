@@ -26,8 +26,6 @@ core is the port of the decision loop of :func:`hybridsim.simulate`
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import types
 from numba.typed import List
@@ -67,6 +65,8 @@ from ._steps import (
     _all_finite,
     _dense,
     _dop853_step_dense,
+    _error_norm,
+    _error_norm_dop853,
     _grown,
     _held_buffers,
     _initial_guess,
@@ -74,7 +74,9 @@ from ._steps import (
     _norm,
     _owned_buffers,
     _put,
+    _rk_dense,
     _room,
+    _step_factor,
     _store,
 )
 from ._types import (
@@ -89,15 +91,10 @@ from ._types import (
     _B8,
     _C4,
     _C8,
-    _E,
-    _E3,
-    _E5,
     _EPS,
     _ERR_EXP,
     _FLOWS,
     _GOES_ON,
-    _MAX_FACTOR,
-    _MIN_FACTOR,
     _O_BREAK,
     _O_FLOW_ON,
     _O_JUMP,
@@ -108,7 +105,6 @@ from ._types import (
     _P,
     _P4,
     _RK4_SNAP,
-    _SAFETY,
     BLOWUP,
     CANCELED,
     J_MAX,
@@ -122,14 +118,10 @@ from ._types import (
     NON_FINITE,
     SOLVER_FAILED,
     T_MAX,
-    YIELD_EVERY,
     ZENO,
     _bare,
+    _canceled,
     _Cc,
-    _check_at,
-    _clear_at,
-    _let_threads_run,
-    _occ_at,
     _vec_at,
     maps_of,
 )
@@ -189,12 +181,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     # the first NaN guard (which, s, j): written by ``_fault`` through its address
     ev = np.zeros(3)
     M = (f, g, hD, hC, D, C, iopt[I_D_FROM_GUARD] != 0, iopt[I_C_FROM_GUARD] != 0, ev.ctypes.data)
-    # polled only where given (a batch's worker threads pass zeros: stop[0] only)
-    polling = poll[0] != 0
-    check = _check_at(poll[0])
-    occurred = _occ_at(poll[1])
-    clear = _clear_at(poll[2])
-    polls = 0                        # polls since other threads last ran
+    polls = np.int64(0)              # Ctrl-C's polls since other threads last ran
     t0 = fopt[F_T0]
     t_max = fopt[F_T_MAX]
     j_max = fopt[F_J_MAX]
@@ -363,14 +350,8 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
     hs = 1.0
     done = False
     while not done:
-        if polling:
-            polls += 1
-            if polls >= YIELD_EVERY:
-                polls = 0
-                _let_threads_run(poll)
-        if stop[0] != 0 or (polling and (check() != 0 or occurred() != 0)):
-            if polling:
-                clear()              # the KeyboardInterrupt: the run ends CANCELED
+        canceled, polls = _canceled(poll, stop, polls)
+        if canceled:
             cause = CANCELED
             break
         if flow_on:
@@ -533,14 +514,8 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 t, x = a, ya
                 outcome = _O_STOP
                 break
-            if polling:
-                polls += 1
-                if polls >= YIELD_EVERY:
-                    polls = 0
-                    _let_threads_run(poll)
-            if stop[0] != 0 or (polling and (check() != 0 or occurred() != 0)):
-                if polling:
-                    clear()
+            canceled, polls = _canceled(poll, stop, polls)
+            if canceled:
                 cause = CANCELED
                 t, x = a, ya
                 break
@@ -631,52 +606,16 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                     fb = fnew
                     break
                 if _DOP:
-                    # ``DOP853._estimate_error_norm``
-                    s5 = 0.0
-                    s3 = 0.0
-                    for i in range(n):
-                        a5 = 0.0
-                        a3 = 0.0
-                        for m in range(13):
-                            a5 += K[m, i] * _E5[m]
-                            a3 += K[m, i] * _E3[m]
-                        sc = atol[i] + max(abs(ya[i]), abs(ynew[i])) * rtol
-                        e5 = a5 / sc
-                        e3 = a3 / sc
-                        s5 += e5 * e5
-                        s3 += e3 * e3
-                    n5 = math.sqrt(s5) ** 2
-                    n3 = math.sqrt(s3) ** 2
-                    if n5 == 0 and n3 == 0:
-                        err = 0.0
-                    else:
-                        err = abs(hs) * n5 / math.sqrt((n5 + 0.01 * n3) * n)
+                    err = _error_norm_dop853(K, ya, ynew, atol, rtol, hs)
                 else:
-                    es = 0.0
-                    for i in range(n):
-                        acc = 0.0
-                        for m in range(7):
-                            acc += K[m, i] * _E[m]
-                        sc = atol[i] + max(abs(ya[i]), abs(ynew[i])) * rtol
-                        e = acc * hs / sc
-                        es += e * e
-                    err = math.sqrt(es) / math.sqrt(n)
+                    err = _error_norm(K, ya, ynew, atol, rtol, hs)
+                ha *= _step_factor(err, rejected, ERRX)
                 if err < 1:
-                    if err == 0:
-                        factor = _MAX_FACTOR
-                    else:
-                        fc = _SAFETY * err ** ERRX
-                        factor = fc if fc < _MAX_FACTOR else _MAX_FACTOR
-                    if rejected:
-                        factor = factor if factor < 1.0 else 1.0
-                    ha *= factor
                     accepted = True
                     yb = ynew
                     yb_row = ynew_row
                     fb = fnew
                 else:
-                    fc = _SAFETY * err ** ERRX
-                    ha *= fc if fc > _MIN_FACTOR else _MIN_FACTOR
                     rejected = True
             if attempts > 1:
                 stats[1] += attempts - 1
@@ -724,17 +663,7 @@ def _run_core(maps, x0, p_in, fopt, iopt, atol, rngp, poll, stop):
                 break
             # dense output of the step: hQ = h K^T P (RK45, RK4); DOP853's costs
             # three evaluations more, made where it may be read (below)
-            dense_ok = True
-            if not _DOP:
-                for i in range(n):
-                    for k in range(4):
-                        acc = 0.0
-                        for m in range(NK):
-                            acc += K[m, i] * SP[m, k]
-                        acc *= hs
-                        hQ[i, k] = acc
-                        dense_ok = dense_ok and math.isfinite(acc)
-            if not dense_ok:
+            if not _DOP and not _rk_dense(K, SP, hs, hQ):
                 # the dense output overflowed (a finite end, a non-finite interior)
                 cause = NON_FINITE
                 detail = 2

@@ -18,6 +18,9 @@ from ._types import (
     _A8X,
     _C8X,
     _D8,
+    _E,
+    _E3,
+    _E5,
     _GOES_ON,
     _NJI,
     _NJL,
@@ -65,6 +68,24 @@ def _dense_to(out, yold, hQ, told, h, s):
             out[i] = (yold[i] + c1 * (hQ[i, 0] - yold[i]) + c2 * hQ[i, 1]) + c3 * hQ[i, 2]
 
 
+@njit(cache=CACHE, **_NJL)
+def _rk_dense(K, P, hs, hQ):
+    """RK45's (RK4's) dense output of a step of ``hs``, its stages in K's rows,
+    ``P`` its continuous extension: ``hQ = hs K^T P`` (scipy's
+    ``RkDenseOutput``'s Q times h), written in place. Returns whether it is
+    finite (a finite step's end, an overflowed interior)."""
+    ok = True
+    for i in range(hQ.shape[0]):
+        for k in range(4):
+            acc = 0.0
+            for m in range(P.shape[0]):
+                acc += K[m, i] * P[m, k]
+            acc *= hs
+            hQ[i, k] = acc
+            ok = ok and math.isfinite(acc)
+    return ok
+
+
 @njit(cache=CACHE, **_NJI)
 def _dense(yold, hQ, told, h, s):
     """RK45's dense output at s (as :func:`hybridsim.events.fast_dense`)."""
@@ -97,6 +118,48 @@ def _norm(v):
     for i in range(v.shape[0]):
         s += v[i] * v[i]
     return math.sqrt(s)
+
+
+@njit(cache=CACHE, **_NJL)
+def _error_norm(K, ya, yb, atol, rtol, hs):
+    """RK45's error norm of the step from ``ya`` over ``hs`` to ``yb``, its
+    stages in K's first 7 rows (scipy's ``norm(K.T @ E * h / scale)``,
+    :meth:`hybridsim._rk._LeanStep._error_norm`)."""
+    n = ya.shape[0]
+    es = 0.0
+    for i in range(n):
+        acc = 0.0
+        for m in range(7):
+            acc += K[m, i] * _E[m]
+        sc = atol[i] + max(abs(ya[i]), abs(yb[i])) * rtol
+        e = acc * hs / sc
+        es += e * e
+    return math.sqrt(es) / math.sqrt(n)
+
+
+@njit(cache=CACHE, **_NJL)
+def _error_norm_dop853(K, ya, yb, atol, rtol, hs):
+    """DOP853's error norm (scipy's ``DOP853._estimate_error_norm``,
+    :meth:`hybridsim._rk.DOP853._error_norm`), its stages in K's first 13 rows."""
+    n = ya.shape[0]
+    s5 = 0.0
+    s3 = 0.0
+    for i in range(n):
+        a5 = 0.0
+        a3 = 0.0
+        for m in range(13):
+            a5 += K[m, i] * _E5[m]
+            a3 += K[m, i] * _E3[m]
+        sc = atol[i] + max(abs(ya[i]), abs(yb[i])) * rtol
+        e5 = a5 / sc
+        e3 = a3 / sc
+        s5 += e5 * e5
+        s3 += e3 * e3
+    n5 = math.sqrt(s5) ** 2
+    n3 = math.sqrt(s3) ** 2
+    if n5 == 0 and n3 == 0:
+        return 0.0
+    return abs(hs) * n5 / math.sqrt((n5 + 0.01 * n3) * n)
 
 
 @njit(cache=CACHE, **_NJL)
@@ -187,9 +250,11 @@ def _store(T, J, X, XD, ns, t, j, x):
         XD[ns, q] = np.nan
 
 
-# the first-step rule, written once in hybridsim._rk (the Python path calls it)
+# the first-step rule and the step-size controller, written once in hybridsim._rk
+# (the Python path calls them)
 _initial_guess = _rk.initial_guess
 _initial_step = _rk.initial_step
+_step_factor = _rk.step_factor
 
 
 @njit(cache=CACHE, **_NJI)

@@ -399,6 +399,26 @@ def _let_threads_run(poll):
     _restore_at(poll[4])(_save_at(poll[3])())
 
 
+@njit(cache=CACHE, **_NJL)
+def _canceled(poll, stop, polls):
+    """``(canceled, polls)``: whether a run ends ``CANCELED`` here (``stop[0]``
+    set, or where ``poll`` has the C API's addresses, a batch's worker threads
+    passing zeros, a signal or exception pending: the KeyboardInterrupt is
+    cleared), and the polls since other threads last ran (every
+    :data:`YIELD_EVERY`-th lets them, :func:`_let_threads_run`)."""
+    polling = poll[0] != 0
+    if polling:
+        polls += 1
+        if polls >= YIELD_EVERY:
+            polls = 0
+            _let_threads_run(poll)
+    if stop[0] != 0 or (polling and (_check_at(poll[0])() != 0 or _occ_at(poll[1])() != 0)):
+        if polling:
+            _clear_at(poll[2])()
+        return True, polls
+    return False, polls
+
+
 def maps_of(maps):
     """The six maps (f, g, hD, hC, D, C) a run calls (compiled code only): made
     from their addresses where ``maps`` is an int64 array (the generic kernel,
