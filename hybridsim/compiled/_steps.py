@@ -68,7 +68,7 @@ def _dense_to(out, yold, hQ, told, h, s):
             out[i] = (yold[i] + c1 * (hQ[i, 0] - yold[i]) + c2 * hQ[i, 1]) + c3 * hQ[i, 2]
 
 
-@njit(cache=CACHE, **_NJL)
+@njit(inline="always", **_NJL)
 def _rk_dense(K, P, hs, hQ):
     """RK45's (RK4's) dense output of a step of ``hs``, its stages in K's rows,
     ``P`` its continuous extension: ``hQ = hs K^T P`` (scipy's
@@ -120,7 +120,7 @@ def _norm(v):
     return math.sqrt(s)
 
 
-@njit(cache=CACHE, **_NJL)
+@njit(inline="always", **_NJL)
 def _error_norm(K, ya, yb, atol, rtol, hs):
     """RK45's error norm of the step from ``ya`` over ``hs`` to ``yb``, its
     stages in K's first 7 rows (scipy's ``norm(K.T @ E * h / scale)``,
@@ -137,7 +137,7 @@ def _error_norm(K, ya, yb, atol, rtol, hs):
     return math.sqrt(es) / math.sqrt(n)
 
 
-@njit(cache=CACHE, **_NJL)
+@njit(inline="always", **_NJL)
 def _error_norm_dop853(K, ya, yb, atol, rtol, hs):
     """DOP853's error norm (scipy's ``DOP853._estimate_error_norm``,
     :meth:`hybridsim._rk.DOP853._error_norm`), its stages in K's first 13 rows."""

@@ -50,9 +50,10 @@ for _name, _fn in vars(rules).items():
 # ... and so does each algorithm's step of hybridsim.events written for both paths
 for _fn in events.COMPILED:
     register_jitable(**_CALLEE)(_fn)
-# ... and the first-step rule of hybridsim._rk
+# ... and the first-step rule and step-size controller of hybridsim._rk (the
+# controller, read at every step, inlined into the run core)
 for _fn in _rk.COMPILED:
-    register_jitable(**_CALLEE)(_fn)
+    register_jitable(**_CALLEE, **({"inline": "always"} if _fn is _rk.step_factor else {}))(_fn)
 
 
 # ------------------------------------------------------------------ constants
@@ -399,7 +400,7 @@ def _let_threads_run(poll):
     _restore_at(poll[4])(_save_at(poll[3])())
 
 
-@njit(cache=CACHE, **_NJL)
+@njit(inline="always", **_NJL)
 def _canceled(poll, stop, polls):
     """``(canceled, polls)``: whether a run ends ``CANCELED`` here (``stop[0]``
     set, or where ``poll`` has the C API's addresses, a batch's worker threads
