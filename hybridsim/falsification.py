@@ -340,9 +340,6 @@ class _Evaluator:
         self.batch = bool(getattr(run, "batch", False))
         # a population run that releases the GIL: pipelined (:meth:`_pipelined`)
         self.concurrent = self.batch and getattr(run, "concurrent", False) is True
-        # a claim that reads only its arc (``claim.concurrent``): computed in those
-        # threads too, beside the runs; recorded in order in this one
-        self.claim_concurrent = self.concurrent and getattr(claim, "concurrent", False) is True
         self._pool, self._warm = None, False
         self.budget, self.deadline = budget, time.perf_counter() + seconds
         self.timed = math.isfinite(seconds)
@@ -387,25 +384,8 @@ class _Evaluator:
         self.findings.append(Finding(p, cause, message, exc.with_traceback(None)))
         return -math.inf
 
-    def _judged(self, arc):
-        """Whether the claim is computed on ``arc`` (an arc whose run ended
-        neither ``CANCELED`` nor with a cause outside ``allow``)."""
-        if not isinstance(arc, HybridArc):
-            return False
-        cause = arc.termination
-        return cause is not Termination.CANCELED and not (
-            isinstance(cause, Termination) and cause.name not in self.allow)
-
-    def _claimed(self, arc):
-        """The claim on ``arc``: ``(True, margin)``, or ``(False, exception)``."""
-        try:
-            return True, self.claim(arc)
-        except Exception as exc:  # noqa: BLE001 - the claim failed on this run
-            return False, exc
-
-    def _margin(self, arc, point, claimed=None):
-        """(margin, where) of one arc, or None when the search must stop.
-        ``claimed``: the claim already computed on it (:meth:`_claimed`)."""
+    def _margin(self, arc, point):
+        """(margin, where) of one arc, or None when the search must stop."""
         if not isinstance(arc, HybridArc):
             exc = TypeError(f"run must return a HybridArc, got {type(arc).__name__}: "
                             f"{str(arc)[:80]}")
@@ -418,9 +398,9 @@ class _Evaluator:
         if isinstance(cause, Termination) and cause.name not in self.allow:
             self.findings.append(Finding(point, cause.name, arc.message or ""))
             return -math.inf, None
-        ok, m = claimed if claimed is not None else self._claimed(arc)
-        if not ok:
-            exc = m
+        try:
+            m = self.claim(arc)
+        except Exception as exc:  # noqa: BLE001 - the claim failed on this run
             return self._fail(point, "CLAIM_RAISED", exc,
                               f"claim {_name(self.claim)} raised {type(exc).__name__}: "
                               f"{exc}{_where(exc)}"), None
@@ -439,10 +419,9 @@ class _Evaluator:
             return None, None
         return value, where
 
-    def _record(self, p, arc, message=None, cause="RAISED", claimed=None):
+    def _record(self, p, arc, message=None, cause="RAISED"):
         """Judge one run (an arc, or the exception its run raised, ``message``
-        and ``cause`` saying so; ``claimed``: the claim computed on it already):
-        its margin, or None when the search must stop."""
+        and ``cause`` saying so): its margin, or None when the search must stop."""
         if isinstance(arc, BaseException) and isinstance(arc.__cause__, KeyboardInterrupt):
             self.interrupted = True         # Ctrl-C as the run started (the engine's
             return None                     # SimulationError from KeyboardInterrupt)
@@ -450,7 +429,7 @@ class _Evaluator:
             message = message or f"{type(arc).__name__}: {arc}{_where(arc)}"
             value, where = self._fail(p, cause, arc, message), None
         else:
-            value, where = self._margin(arc, p, claimed)
+            value, where = self._margin(arc, p)
         if value is None:
             return None
         if self.n == len(self._hist):       # grown as runs finish, never past the budget
@@ -498,15 +477,6 @@ class _Evaluator:
         self._last = len(chunk)
         return arcs
 
-    def _run_claimed(self, chunk):
-        """:meth:`_run_batch`, and the claim on each arc it judges computed in the
-        same thread (``claim.concurrent``): ``(arcs, claims)``, a claim None where
-        the arc is not judged."""
-        arcs = self._run_batch(chunk)
-        if isinstance(arcs, BaseException):
-            return arcs
-        return arcs, [self._claimed(a) if self._judged(a) else None for a in arcs]
-
     @staticmethod
     def _lost(exc, size):
         """(message, cause) of the points of a population run's chunk that raised."""
@@ -533,12 +503,9 @@ class _Evaluator:
 
     def _judge(self, chunk, arcs, a, out):
         """Record the runs of one chunk (its arcs, or the exception its run
-        raised; or ``(arcs, claims)``, :meth:`_run_claimed`), their margins
-        written to ``out[a:]``; False when the search must stop at once."""
+        raised), their margins written to ``out[a:]``; False when the search
+        must stop at once."""
         broken = None                       # the BrokenExecutor of a dead worker
-        claims = None
-        if isinstance(arcs, tuple):
-            arcs, claims = arcs
         if isinstance(arcs, BaseException):
             exc = arcs
             if isinstance(exc, concurrent.futures.BrokenExecutor):
@@ -558,7 +525,7 @@ class _Evaluator:
                     broken = exc            # a row the dead worker lost
                     value = self._record(p, exc, *self._lost(exc, len(chunk)))
                 else:
-                    value = self._record(p, arc, claimed=None if claims is None else claims[k])
+                    value = self._record(p, arc)
                 if value is None:
                     return False
                 out[a + k] = value
@@ -574,7 +541,6 @@ class _Evaluator:
         the pieces not started are cancelled and those under way awaited
         (their runs are not judged)."""
         point = self.space._point
-        job = self._run_claimed if self.claim_concurrent else self._run_batch
         if self._pool is None:
             self._pool = concurrent.futures.ThreadPoolExecutor(
                 max(2, os.cpu_count() or 1), thread_name_prefix="hybridsim-falsify")
@@ -584,15 +550,15 @@ class _Evaluator:
             plan += [(b, s, [point(z) for z in rows[s:min(b, s + step)]])
                      for s in range(a, b, step)]
         # the first piece alone: the model is compiled (once) before threads share it
-        futures = [self._pool.submit(job, plan[0][2])]
+        futures = [self._pool.submit(self._run_batch, plan[0][2])]
         if self._warm:
-            futures += [self._pool.submit(job, ch) for _, _, ch in plan[1:]]
+            futures += [self._pool.submit(self._run_batch, ch) for _, _, ch in plan[1:]]
         try:
             for k, (end, s, chunk) in enumerate(plan):
                 arcs = futures[k].result()
                 if k == 0 and not self._warm:
                     self._warm = True
-                    futures += [self._pool.submit(job, ch) for _, _, ch in plan[1:]]
+                    futures += [self._pool.submit(self._run_batch, ch) for _, _, ch in plan[1:]]
                 if not self._judge(chunk, arcs, s, out) or (
                         self.done and (k + 1 == len(plan) or plan[k + 1][0] != end)):
                     break
@@ -670,13 +636,7 @@ def falsify(run: Callable, space: Space, claim: Callable[..., float], *,
         ``claim(arc) -> margin``: a real number, positive when the claim
         holds on the arc, negative when violated (the ``margin_*`` functions
         of :mod:`hybridsim.testing` return one, with the (t, j) that decided
-        it as ``.where``). A claim with an attribute ``concurrent = True``
-        says it reads only its arc (no state of its own, nothing printed or
-        drawn): where the population runs in threads (``run.concurrent``,
-        the compiled path's :func:`batch_run`), it is computed in those
-        threads beside the runs, its margins recorded in the same order as
-        they would be one by one (the claims of :func:`hybridsim.arch.problem`
-        are).
+        it as ``.where``).
     budget : int
         At most this many runs (>= 1).
     seconds : float

@@ -116,7 +116,6 @@ def problem(name, instance, backend="auto"):
 
     def claim(arc):
         return req(arc, refine=1)
-    claim.concurrent = True             # reads its arc only: judged in the search's threads
     if req.system == "F16":
         def x0_of(point):
             return f16_state(sys_, point["roll"], point["pitch"], point["yaw"])

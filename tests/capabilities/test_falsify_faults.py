@@ -309,41 +309,6 @@ def test_a_claim_that_raises_is_a_finding_naming_claim_point_and_exception():
     assert np.sum(res.history == -math.inf) == len(res.findings)
 
 
-def _timers(points):
-    """A population run whose pieces the search runs in threads (``concurrent``)."""
-    return [_run_timer(p) for p in points]
-
-
-_timers.batch = True
-_timers.concurrent = True
-
-
-def test_a_concurrent_claim_is_judged_in_the_search_threads_as_one_by_one():
-    """A claim marked ``concurrent`` is computed in the threads that run the
-    population's pieces, and the search records the same runs, margins,
-    findings (a claim raising there included) and worst point as with the
-    same claim computed in the search's own thread."""
-    where = []
-
-    def marked(arc):
-        where.append(threading.current_thread().name)
-        return _fragile(arc) - arc.jump_times[0]
-    marked.concurrent = True
-
-    def plain(arc):
-        return _fragile(arc) - arc.jump_times[0]
-    a, b = (falsify(_timers, SPACE, c, budget=40, seed=0, stop=False, method="random",
-                    progress=False) for c in (marked, plain))
-    assert where and all(n.startswith("hybridsim-falsify") for n in where)
-    np.testing.assert_array_equal(a.history, b.history)
-    assert a.evaluations == b.evaluations == 40
-    assert [(f.cause, f.point["period"]) for f in a.findings] == \
-        [(f.cause, f.point["period"]) for f in b.findings]
-    assert {f.cause for f in a.findings} == {"CLAIM_RAISED"}
-    assert "ZeroDivisionError: no margin above 1.1" in a.findings[0].message
-    assert a.point["period"] == b.point["period"] and a.margin == b.margin
-
-
 def test_on_error_stop_ends_the_search_with_the_results_so_far():
     res = falsify(_run_timer, SPACE, _fragile, budget=40, seed=0, stop=False,
                   method="random", on_error="stop", progress=False)
