@@ -18,11 +18,13 @@ Rows:
    draws each block's two normals as the path does, and keeps no samples): the best of 10
    of each, the stepper with its maps returning arrays and written into ``out``
    (``flow_map(x, t, j, p, out)``), and the difference of the final states. Measured
-   (2 shared cores, 2 December 2026): the loop 2.7 ms; the stepper 51 ms before the grid
-   loop (18-19x), now 15-16 ms with maps returning arrays (5.5-5.8x: their two arrays a
-   step) and 5.3-6.4 ms written into ``out`` (1.9-2.4x with the load of the machine,
-   2.0x typical: beyond the loop's work, two calls of the maps by address and the arc's
-   100,001 samples a run).
+   (2 cores, 8 December 2026): the loop 3.4 ms; the stepper with maps returning arrays
+   16.7-16.9 ms (4.9-5.0x: their two arrays a step), written into ``out`` 7.5-8.8 ms
+   (2.2-2.6x: beyond the loop's work, two calls of the maps by address and the arc's
+   100,001 samples a run). Before the grid loop was a kernel of its own (called by its
+   address; linked into the stepper's module, LLVM spilled its counters to the stack):
+   10.9-11.4 ms (3.2-3.3x) loaded from the disk cache, 7-8 ms only in a process that had
+   just compiled it (2 December's 5.3-6.4 ms).
 
 Run: ``python benchmarks/bench_stochastic_compiled.py [--quick] [--paths N]``
 """

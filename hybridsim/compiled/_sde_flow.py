@@ -17,7 +17,9 @@ arrays of the run (:func:`into_form`; a map declared ``(x, t, j, p, out)``
 as it is), x updated in place, nothing allocated or reference-counted per
 step; it hands any step it does not take (the last to ``t_max``, a map's
 bad value, a blow-up, full buffers) back to the loop here, which takes it
-as before. The plain run kernel (:mod:`._kernel`) is not touched.
+as before. The grid loop is a cached kernel of its own, called by its
+code's address (:func:`grid_address`). The plain run kernel
+(:mod:`._kernel`) is not touched.
 """
 from __future__ import annotations
 
@@ -84,27 +86,34 @@ with warnings.catch_warnings():
     INTO_T = types.FunctionType(INTO_SIG)
 
 
-@intrinsic
-def _into_at(typingctx, addr):
-    """A map of :data:`INTO_SIG` by the address of its compiled code (numba's
-    own calling convention, ``jit_addr``: no C wrapper between; :func:`jit_address`)."""
-    if not isinstance(addr, types.Integer):
-        return None
+def _by_address(fntype):
+    """An intrinsic making a function of type ``fntype`` from the address of its
+    compiled code (numba's own calling convention, ``jit_addr``: no C wrapper
+    between; :func:`jit_address`)."""
+    @intrinsic
+    def at(typingctx, addr):
+        if not isinstance(addr, types.Integer):
+            return None
 
-    def codegen(context, builder, sig, args):
-        st = cgutils.create_struct_proxy(INTO_T)(context, builder)
-        vp = context.get_value_type(types.voidptr)
-        st.jit_addr = builder.inttoptr(args[0], vp)
-        st.c_addr = ir.Constant(vp, None)
-        st.py_addr = ir.Constant(vp, None)
-        return st._getvalue()
-    return INTO_T(addr), codegen
+        def codegen(context, builder, sig, args):
+            st = cgutils.create_struct_proxy(fntype)(context, builder)
+            vp = context.get_value_type(types.voidptr)
+            st.jit_addr = builder.inttoptr(args[0], vp)
+            st.c_addr = ir.Constant(vp, None)
+            st.py_addr = ir.Constant(vp, None)
+            return st._getvalue()
+        return fntype(addr), codegen
+    return at
 
 
-def jit_address(disp):
-    """The address of ``disp``'s code compiled for :data:`INTO_SIG` (``disp``
-    must outlive its use)."""
-    cres = disp.overloads[INTO_SIG.args]
+#: a map of :data:`INTO_SIG` by its address
+_into_at = _by_address(INTO_T)
+
+
+def jit_address(disp, sig=INTO_SIG):
+    """The address of ``disp``'s code compiled for ``sig`` (``disp`` must
+    outlive its use)."""
+    cres = disp.overloads[sig.args]
     return cres.library.get_pointer_to_function(cres.fndesc.llvm_func_name)
 
 
@@ -336,7 +345,26 @@ def _put(T, J, X, ns, t, j, x):
         X[ns, q] = x[q]
 
 
-@njit(**_NJL)
+_V = types.float64[::1]
+_M = types.float64[:, ::1]
+_I = types.int64
+_D = types.float64
+#: :func:`_em_grid`'s signature
+EM_SIG = types.Tuple((_D, _I, _I, _I))(
+    INTO_T, INTO_T, _V, _I, _V, _D, _I, _D, _D, _D, types.boolean, _D, _I, _I,
+    types.uint64[::1], _M, _M, _M, types.int64[::1], _V, _V, _V, _V, _V, types.int64[::1],
+    _M, _I)
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore", nb_errors.NumbaExperimentalFeatureWarning)
+    EM_T = types.FunctionType(EM_SIG)
+#: :func:`_em_grid` by its address
+_em_at = _by_address(EM_T)
+
+
+# Compiled on its own (cached) and called by its code's address from
+# :func:`sde_run` (``maps[9]``, :func:`grid_address`): linked into sde_run's
+# module, LLVM compiles the loop with its counters spilled to the stack.
+@njit(cache=CACHE, **_NJL)
 def _em_grid(fi, si, x, j, p, a, ka, t0, t_max, H, diag, max_norm, steps, max_steps,
              keys, S, F, H_, nb, z, xn, fa, s, T, J, X, ns):
     """Euler–Maruyama steps on the grid ``t0 + k H`` from ``a = t0 + ka H``,
@@ -395,7 +423,8 @@ def sde_run(maps, x0, p, fopt, iopt, keys, rngp):
     """One run of an SDE flow. ``maps``: the addresses of f, g, hD, hC, D, C
     and the diffusion (flattened row-major for general noise), as the run
     kernel's (:func:`._types.map_addresses`), then f and the diffusion written
-    into an argument (:func:`into_form`, the same values). ``keys``: the
+    into an argument (:func:`into_form`, the same values), then :func:`_em_grid`'s
+    (:func:`grid_address`). ``keys``: the
     Brownian path's per-component keys and the stream key last (:func:`._draws.path_keys`). Returns
     ``(T, J, X, cause, detail, info, stats)``, the codes of :mod:`._types`
     (stats: steps, events, flows, jumps)."""
@@ -424,6 +453,7 @@ def sde_run(maps, x0, p, fopt, iopt, keys, rngp):
     xrow = -1
     xn4, fa4, s4 = np.empty(n), np.empty(n), np.empty(ns_sig)
     fi, si = _into_at(maps[7]), _into_at(maps[8])
+    grid = _em_at(maps[9])
     grid_em = method == EM and not has_C and not watch_D     # no event watched: _em_grid
     wa, Fa, wb, Fb, dw = np.empty(m), np.empty(m), np.empty(m), np.empty(m), np.empty(m)
     bits = np.empty(2)
@@ -527,9 +557,9 @@ def sde_run(maps, x0, p, fopt, iopt, keys, rngp):
         outcome = -1
         while True:
             if grid_em and ka >= 0:
-                a, ka, steps, ns = _em_grid(fi, si, x, j, p, a, ka, t0, t_max, H, diag,
-                                            max_norm, steps, max_steps, ckeys, SB, FB, HB, nb,
-                                            z4, xn4, fa4, s4, T, J, X, ns)
+                a, ka, steps, ns = grid(fi, si, x, j, p, a, ka, t0, t_max, H, diag,
+                                        max_norm, steps, max_steps, ckeys, SB, FB, HB, nb,
+                                        z4, xn4, fa4, s4, T, J, X, ns)
             if a >= t_max:
                 t = a
                 outcome = _O_TMAX
@@ -695,3 +725,12 @@ def sde_run(maps, x0, p, fopt, iopt, keys, rngp):
     if ns + 64 >= T.shape[0]:           # the grid (nearly) filled the buffers: views
         return T[:ns], J[:ns], X[:ns], cause, detail, info, stats
     return T[:ns].copy(), J[:ns].copy(), X[:ns].copy(), cause, detail, info, stats
+
+
+def grid_address():
+    """The address of :func:`_em_grid`'s code (``maps[9]`` of :func:`sde_run`),
+    compiled (or loaded from the cache, keyed by
+    :func:`hybridsim.compiled._stochastic._sde_kernel`) on first use."""
+    if EM_SIG.args not in _em_grid.overloads:
+        _em_grid.compile(EM_SIG)
+    return jit_address(_em_grid, EM_SIG)

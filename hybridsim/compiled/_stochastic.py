@@ -44,9 +44,10 @@ def _sde_kernel():
         h = hashlib.sha256(_cache._rules_digest().encode())
         with open(_draws.__file__, "rb") as fh:
             h.update(fh.read())
-        cache = getattr(_sde_flow.sde_run, "_cache", None)
-        if hasattr(cache, "_index_key"):
-            cache._index_key = _cache._keyed(cache._index_key, h.hexdigest())
+        for disp in (_sde_flow.sde_run, _sde_flow._em_grid):
+            cache = getattr(disp, "_cache", None)
+            if hasattr(cache, "_index_key"):
+                cache._index_key = _cache._keyed(cache._index_key, h.hexdigest())
         _sde_flow._hs_keyed = True
     return _sde_flow
 
@@ -93,7 +94,8 @@ def _dispatchers(system):
              d["D_from_guard"])
     K = _sde_kernel()
     maps = np.concatenate([k.map_addresses(handles[:7]),
-                           np.array([K.jit_address(fn) for fn in into], np.int64)])
+                           np.array([K.jit_address(fn) for fn in into] + [K.grid_address()],
+                                    np.int64)])
     out = (maps, flags, handles)
     system.__dict__["_sde_maps"] = (sig, out)
     return out
