@@ -27,11 +27,8 @@ import math
 import warnings
 
 import numpy as np
-from llvmlite import ir
 from numba import njit, types
-from numba.core import cgutils
 from numba.core import errors as nb_errors
-from numba.extending import intrinsic
 
 from .. import rules
 from ._decide import decide_at, jump_books, jump_cause, stop_outside
@@ -62,6 +59,7 @@ from ._types import (
     NON_FINITE,
     T_MAX,
     _coin,
+    _from_address,
     _vec_at,
     maps_of,
 )
@@ -86,28 +84,8 @@ with warnings.catch_warnings():
     INTO_T = types.FunctionType(INTO_SIG)
 
 
-def _by_address(fntype):
-    """An intrinsic making a function of type ``fntype`` from the address of its
-    compiled code (numba's own calling convention, ``jit_addr``: no C wrapper
-    between; :func:`jit_address`)."""
-    @intrinsic
-    def at(typingctx, addr):
-        if not isinstance(addr, types.Integer):
-            return None
-
-        def codegen(context, builder, sig, args):
-            st = cgutils.create_struct_proxy(fntype)(context, builder)
-            vp = context.get_value_type(types.voidptr)
-            st.jit_addr = builder.inttoptr(args[0], vp)
-            st.c_addr = ir.Constant(vp, None)
-            st.py_addr = ir.Constant(vp, None)
-            return st._getvalue()
-        return fntype(addr), codegen
-    return at
-
-
 #: a map of :data:`INTO_SIG` by its address
-_into_at = _by_address(INTO_T)
+_into_at = _from_address(INTO_T, jit=True)
 
 
 def jit_address(disp, sig=INTO_SIG):
@@ -358,7 +336,7 @@ with warnings.catch_warnings():
     warnings.simplefilter("ignore", nb_errors.NumbaExperimentalFeatureWarning)
     EM_T = types.FunctionType(EM_SIG)
 #: :func:`_em_grid` by its address
-_em_at = _by_address(EM_T)
+_em_at = _from_address(EM_T, jit=True)
 
 
 # Compiled on its own (cached) and called by its code's address from

@@ -366,10 +366,12 @@ YIELD_EVERY = 64
 # (numba asks the object for its address through Python, a pickle included),
 # 30 us for the nine of a run, as much as a short run itself; a numpy
 # Generator argument costs 5 us more (hence :func:`rng_pointers`).
-def _from_address(fnty):
+def _from_address(fnty, jit=False):
     """An intrinsic: an int64 C address (of a function of ``fnty``'s signature,
     C calling convention: a numba cfunc wrapper, or a C API function) as a
-    first-class function value of type ``fnty``."""
+    first-class function value of type ``fnty``; ``jit``: the address of
+    numba's own compiled code instead (its calling convention: arrays and
+    tuples pass as they are, no C wrapper between)."""
     @intrinsic
     def fn(typingctx, addr):
         if not isinstance(addr, types.Integer):
@@ -378,9 +380,9 @@ def _from_address(fnty):
         def codegen(context, builder, sig, args):
             st = cgutils.create_struct_proxy(fnty)(context, builder)
             vp = context.get_value_type(types.voidptr)
-            st.c_addr = builder.inttoptr(args[0], vp)
-            st.py_addr = ir.Constant(vp, None)
-            st.jit_addr = ir.Constant(vp, None)       # called through c_addr
+            given, null = builder.inttoptr(args[0], vp), ir.Constant(vp, None)
+            st.c_addr, st.jit_addr = (null, given) if jit else (given, null)
+            st.py_addr = null
             return st._getvalue()
         return fnty(addr), codegen
     return fn
@@ -631,21 +633,8 @@ with warnings.catch_warnings():
     ONE_T = types.FunctionType(ONE_SIG)
 
 
-@intrinsic
-def _one_at(typingctx, addr):
-    """A kernel of :data:`ONE_SIG` by the address of its compiled code (numba's
-    own calling convention, ``jit_addr``: arrays and tuples pass as they are)."""
-    if not isinstance(addr, types.Integer):
-        return None
-
-    def codegen(context, builder, sig, args):
-        st = cgutils.create_struct_proxy(ONE_T)(context, builder)
-        vp = context.get_value_type(types.voidptr)
-        st.jit_addr = builder.inttoptr(args[0], vp)
-        st.c_addr = ir.Constant(vp, None)
-        st.py_addr = ir.Constant(vp, None)
-        return st._getvalue()
-    return ONE_T(addr), codegen
+#: a kernel of :data:`ONE_SIG` by the address of its compiled code
+_one_at = _from_address(ONE_T, jit=True)
 
 
 @intrinsic
