@@ -124,7 +124,10 @@ def _norm(v):
 def _error_norm(K, ya, yb, atol, rtol, hs):
     """RK45's error norm of the step from ``ya`` over ``hs`` to ``yb``, its
     stages in K's first 7 rows (scipy's ``norm(K.T @ E * h / scale)``,
-    :meth:`hybridsim._rk._LeanStep._error_norm`)."""
+    :meth:`hybridsim._rk._LeanStep._error_norm`). Written apart from the
+    Python path's on purpose: that one keeps scipy's own array expressions,
+    bit for bit scipy's steps (``tests/engine/test_rk.py``), which a loop's
+    order of sums is not."""
     n = ya.shape[0]
     es = 0.0
     for i in range(n):
